@@ -1,0 +1,234 @@
+// decal/format.hpp — the one place that defines the .decals package format:
+// magic, versions, file header, blob table entry, blob ids, element types and
+// the std430 element structs. The writer (libprep/write), the reader
+// (formats/src) and the GL loader (formats/gl) all include this header and
+// nothing else defines these values. Normative text: formats/SPEC.md.
+//
+// Depends on the C++ standard library only.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+namespace decal {
+
+// ---------------------------------------------------------------------------
+// Coordinates (DESIGN.md §4.1). Every stored position is a signed 32-bit
+// integer count of `kQuantumMetres` relative to the package origin (metadata
+// `origin`), so any point within ±2147 km of the origin is held to 0.5 mm.
+// No absolute float32 coordinate is ever stored.
+// ---------------------------------------------------------------------------
+inline constexpr double kQuantumMetres = 0.001;
+
+// ---------------------------------------------------------------------------
+// Element types of a blob. Numbering is part of the format; never reuse.
+// ---------------------------------------------------------------------------
+enum class ElementType : uint32_t {
+  u8 = 1,
+  u32 = 2,
+  i32 = 3,
+  f32 = 4,
+  ivec2 = 5,   // int32[2], std430 stride 8
+  uvec2 = 6,   // uint32[2], stride 8
+  ivec4 = 7,   // int32[4], stride 16
+  uvec4 = 8,   // uint32[4], stride 16
+  vec2 = 9,    // float[2], stride 8
+  vec4 = 10,   // float[4], stride 16
+  record = 11, // a fixed struct described in SPEC.md for that blob id
+};
+
+// std430 stride of plain element types; 0 for `record` (the blob id's
+// struct gives it).
+constexpr uint32_t std430_stride(ElementType t) {
+  switch (t) {
+    case ElementType::u8: return 1;
+    case ElementType::u32:
+    case ElementType::i32:
+    case ElementType::f32: return 4;
+    case ElementType::ivec2:
+    case ElementType::uvec2:
+    case ElementType::vec2: return 8;
+    case ElementType::ivec4:
+    case ElementType::uvec4:
+    case ElementType::vec4: return 16;
+    case ElementType::record: return 0;
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------
+// Blob catalogue. The numeric id is what the blob table stores; the name is
+// informative (also stored). Readers skip ids they do not know. The table in
+// SPEC.md §"Blob catalogue" lists exactly these rows (a test checks it).
+//
+// Index conventions: "cell" = grid cell index ix + nx*iy; all "range" blobs
+// hold (first, count) into the list blob that follows them.
+// ---------------------------------------------------------------------------
+enum class BlobId : uint32_t {
+  // --- static lines (thesis §4.2.1 "Line Segments") ---
+  line_vertices = 1,      // ivec2  per vertex: position, quanta from origin
+  line_vertex_line = 2,   // u32    per vertex: index of its line
+  line_props = 3,         // record LineProps per line
+  line_corners = 4,       // record LineCorner per vertex (miter + 2 bevel vectors)
+  cell_segment_range = 5, // uvec2  per cell: (first, count) into cell_segments
+  cell_segments = 6,      // uvec2  per (cell, segment): (start vertex, end vertex),
+                          //        sorted by the line's drawing order, then segment
+  // --- static polygons (thesis §4.2.1 "Polygon Quad-Trees") ---
+  poly_props = 10,         // record PolyProps per polygon (exterior and interior)
+  poly_root_node = 11,     // u32    per polygon: index of its root quad-tree node
+  qt_node_box = 12,        // ivec4  per node: (xmin, ymin, xmax, ymax) quanta
+  qt_node = 13,            // ivec2  per node: (type 0..3, offset), see QtNodeType
+  qt_leaf_range = 14,      // uvec2  per partial leaf: (first, count) into qt_leaf_segments
+  qt_leaf_segments = 15,   // uvec2  per leaf-polygon segment: (start, end) into qt_leaf_vertices
+  qt_leaf_vertices = 16,   // ivec2  per leaf-polygon vertex, quanta
+  cell_poly_range = 17,    // uvec2  per cell: (first, count) into cell_polys
+  cell_polys = 18,         // uvec4  per (cell, exterior polygon): (polygon, culling node,
+                           //        first hole entry, hole count) — holes index cell_holes
+  cell_holes = 19,         // uvec2  per (cell, interior polygon): (polygon, culling node)
+  // --- per-cell BVHs (thesis §4.2.1 "Bounding Volume Hierarchies") ---
+  line_bvh_range = 20,     // uvec4  per cell: (first node, leaf slots, internal nodes, 0)
+  line_bvh_box = 21,       // ivec4  per node: box in quanta; empty node: xmin > xmax
+  poly_bvh_range = 22,     // uvec4  per cell, as line_bvh_range
+  poly_bvh_box = 23,       // ivec4  per node, as line_bvh_box
+  // --- dynamic lines (thesis §4.2.2 "Terrain Matching") ---
+  dyn_vertices = 30,       // ivec4  per 3D vertex: (x, y, z quanta, line index)
+  dyn_prev_next = 31,      // ivec2  per vertex: (previous, next) vertex, -1 at open ends
+  dyn_line_start = 32,     // u32    per dynamic line: index of its first vertex
+  dyn_line_props = 33,     // record LineProps per dynamic line (width in pixels)
+  // --- LOD segments (LOCALIS, seed 001) ---
+  lod_points = 40,         // record LodPoint per point
+  lod_segments = 41,       // record LodSegment per attributed segment
+  lod_line_range = 42,     // uvec2  per LOD line: (first, count) into lod_segments
+};
+
+struct BlobInfo {
+  BlobId id;
+  std::string_view name;
+  ElementType type;
+  uint32_t stride;  // std430 bytes per element
+};
+
+// ---------------------------------------------------------------------------
+// Element structs (std430 layouts; static_asserts pin them).
+// ---------------------------------------------------------------------------
+
+enum class CornerStyle : uint32_t { round = 0, miter = 1, bevel = 2 };
+enum class OutlineMode : uint32_t { normal = 0, inset = 1, offset = 2 };
+
+// Bit layout of LineProps::style.
+//   bits 0-1  CornerStyle
+//   bits 2-3  OutlineMode (inset keeps the left side of the directed segment,
+//             which is the polygon interior for CCW shells and CW holes)
+//   bit  4    closed ring (no line ends)
+inline constexpr uint32_t kStyleCornerMask = 0x3u;
+inline constexpr uint32_t kStyleOutlineShift = 2;
+inline constexpr uint32_t kStyleOutlineMask = 0x3u << kStyleOutlineShift;
+inline constexpr uint32_t kStyleClosedBit = 1u << 4;
+
+struct LineProps {
+  float half_width;    // metres for static lines (already doubled for inset/offset);
+                       // pixels for dynamic lines
+  uint32_t rgba;       // colour, R in the low byte, straight (non-premultiplied) alpha
+  uint32_t order;      // drawing-order rank, 0 = drawn on top; unique per line
+  uint32_t style;      // see kStyle* bits
+  float value;         // attribute value for colour ramps (NaN when none)
+  uint32_t layer;      // index into metadata `layers`
+  uint32_t feature;    // index into metadata provenance (source feature)
+  uint32_t reserved;   // must be zero
+};
+static_assert(sizeof(LineProps) == 32);
+
+// Thesis §3.6 / §4.2.1: per vertex, the miter vector (from the vertex to the
+// left miter corner, length = half width / sin(θ/2)); a null miter marks a
+// round end or a round fallback (< 40° between segments). The two bevel
+// vectors point from the vertex to the outer corners of the incoming and
+// outgoing segment rectangles, on the outer side of the turn. Metres.
+struct LineCorner {
+  float miter[2];
+  float bevel_in[2];
+  float bevel_out[2];
+};
+static_assert(sizeof(LineCorner) == 24);
+
+struct PolyProps {
+  uint32_t rgba;       // colour (interior polygons: 0)
+  uint32_t order;      // drawing-order rank among exterior polygons, 0 = top
+  int32_t exterior;    // interior polygons: index of their exterior; exterior: -1
+  float value;         // attribute value for colour ramps (NaN when none)
+  uint32_t layer;
+  uint32_t feature;
+  uint32_t reserved[2];  // must be zero
+};
+static_assert(sizeof(PolyProps) == 32);
+
+// Thesis §4.2.1 node types.
+enum class QtNodeType : int32_t {
+  internal = 0,  // offset = index of the first of 4 consecutive children (SW, SE, NW, NE)
+  outside = 1,   // fully outside leaf; offset = 0
+  inside = 2,    // fully inside leaf; offset = 0
+  partial = 3,   // offset = index into qt_leaf_range
+};
+
+struct LodPoint {
+  int32_t x, y;        // quanta
+  float error;         // saturated error ê (LOCALIS Eq. 3)
+  float dmax;          // saturated distance d̂max (Eq. 4)
+};
+static_assert(sizeof(LodPoint) == 16);
+
+struct LodSegment {
+  uint32_t a, b;       // point indices
+  float e_star;        // pre-evaluated e* including dependees (Eq. 6)
+  float d_star;        // pre-evaluated d* (Eq. 7)
+  float e_gen;         // generator error: segment is visible when ε(d) < its
+  float e_split;       //   generator error ... and ≥ splitter error (see SPEC)
+  uint32_t line;
+  uint32_t reserved;
+};
+static_assert(sizeof(LodSegment) == 32);
+
+inline constexpr BlobInfo kBlobCatalogue[] = {
+    {BlobId::line_vertices, "line_vertices", ElementType::ivec2, 8},
+    {BlobId::line_vertex_line, "line_vertex_line", ElementType::u32, 4},
+    {BlobId::line_props, "line_props", ElementType::record, sizeof(LineProps)},
+    {BlobId::line_corners, "line_corners", ElementType::record, sizeof(LineCorner)},
+    {BlobId::cell_segment_range, "cell_segment_range", ElementType::uvec2, 8},
+    {BlobId::cell_segments, "cell_segments", ElementType::uvec2, 8},
+    {BlobId::poly_props, "poly_props", ElementType::record, sizeof(PolyProps)},
+    {BlobId::poly_root_node, "poly_root_node", ElementType::u32, 4},
+    {BlobId::qt_node_box, "qt_node_box", ElementType::ivec4, 16},
+    {BlobId::qt_node, "qt_node", ElementType::ivec2, 8},
+    {BlobId::qt_leaf_range, "qt_leaf_range", ElementType::uvec2, 8},
+    {BlobId::qt_leaf_segments, "qt_leaf_segments", ElementType::uvec2, 8},
+    {BlobId::qt_leaf_vertices, "qt_leaf_vertices", ElementType::ivec2, 8},
+    {BlobId::cell_poly_range, "cell_poly_range", ElementType::uvec2, 8},
+    {BlobId::cell_polys, "cell_polys", ElementType::uvec4, 16},
+    {BlobId::cell_holes, "cell_holes", ElementType::uvec2, 8},
+    {BlobId::line_bvh_range, "line_bvh_range", ElementType::uvec4, 16},
+    {BlobId::line_bvh_box, "line_bvh_box", ElementType::ivec4, 16},
+    {BlobId::poly_bvh_range, "poly_bvh_range", ElementType::uvec4, 16},
+    {BlobId::poly_bvh_box, "poly_bvh_box", ElementType::ivec4, 16},
+    {BlobId::dyn_vertices, "dyn_vertices", ElementType::ivec4, 16},
+    {BlobId::dyn_prev_next, "dyn_prev_next", ElementType::ivec2, 8},
+    {BlobId::dyn_line_start, "dyn_line_start", ElementType::u32, 4},
+    {BlobId::dyn_line_props, "dyn_line_props", ElementType::record, sizeof(LineProps)},
+    {BlobId::lod_points, "lod_points", ElementType::record, sizeof(LodPoint)},
+    {BlobId::lod_segments, "lod_segments", ElementType::record, sizeof(LodSegment)},
+    {BlobId::lod_line_range, "lod_line_range", ElementType::uvec2, 8},
+};
+
+// Returns the catalogue row of `id`, or nullptr for an id this build does not
+// know (readers must skip such blobs).
+constexpr const BlobInfo* find_blob_info(BlobId id) {
+  for (const auto& b : kBlobCatalogue)
+    if (b.id == id) return &b;
+  return nullptr;
+}
+
+// ---------------------------------------------------------------------------
+// File-level structures (magic, header, blob table entry) are defined below by
+// the package-format owner; see SPEC.md.
+// ---------------------------------------------------------------------------
+
+}  // namespace decal

@@ -1,0 +1,71 @@
+// prep/model.hpp — DecalModel: the output of the build stage and the input of
+// the write stage. One typed array per package blob (formats/SPEC.md §Blob
+// catalogue), plus the grid parameters and build statistics.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "decal/format.hpp"
+#include "prep/scene.hpp"
+
+namespace prep {
+
+using ivec2 = std::array<int32_t, 2>;
+using uvec2 = std::array<uint32_t, 2>;
+using ivec4 = std::array<int32_t, 4>;
+using uvec4 = std::array<uint32_t, 4>;
+
+// The decal grid (thesis §4.2.1, Eq. 4.3/4.4), in quanta relative to origin.
+struct GridParams {
+  int64_t origin_x = 0, origin_y = 0;  // lower-left corner, quanta
+  int64_t cell_w = 1, cell_h = 1;      // cell size, quanta
+  uint32_t nx = 0, ny = 0;
+};
+
+struct DecalModel {
+  SceneFrame frame;
+  Extent extent;  // scene metres
+  GridParams grid;
+
+  // static lines
+  std::vector<ivec2> line_vertices;
+  std::vector<uint32_t> line_vertex_line;
+  std::vector<decal::LineProps> line_props;
+  std::vector<decal::LineCorner> line_corners;
+  std::vector<uvec2> cell_segment_range;
+  std::vector<uvec2> cell_segments;
+  // static polygons
+  std::vector<decal::PolyProps> poly_props;
+  std::vector<uint32_t> poly_root_node;
+  std::vector<ivec4> qt_node_box;
+  std::vector<ivec2> qt_node;
+  std::vector<uvec2> qt_leaf_range;
+  std::vector<uvec2> qt_leaf_segments;
+  std::vector<ivec2> qt_leaf_vertices;
+  std::vector<uvec2> cell_poly_range;
+  std::vector<uvec4> cell_polys;
+  std::vector<uvec2> cell_holes;
+  // per-cell BVHs
+  std::vector<uvec4> line_bvh_range;
+  std::vector<ivec4> line_bvh_box;
+  std::vector<uvec4> poly_bvh_range;
+  std::vector<ivec4> poly_bvh_box;
+  // dynamic lines
+  std::vector<ivec4> dyn_vertices;
+  std::vector<ivec2> dyn_prev_next;
+  std::vector<uint32_t> dyn_line_start;
+  std::vector<decal::LineProps> dyn_line_props;
+  double terrain_min = 0, terrain_max = 0;  // metres
+  // LOD
+  std::vector<decal::LodPoint> lod_points;
+  std::vector<decal::LodSegment> lod_segments;
+  std::vector<uvec2> lod_line_range;
+
+  double max_representation_error = 0;  // metres, measured while quantising
+  Manifest manifest;                    // carried from SceneFeatures, plus build notes
+};
+
+}  // namespace prep

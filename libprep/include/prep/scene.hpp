@@ -1,0 +1,196 @@
+// prep/scene.hpp — what a build is asked to do (SceneSpec) and the data that
+// flows through the first three stages:
+//
+//   sources --read--> FeatureSet --project--> --clean--> SceneFeatures
+//
+// No GDAL, GEOS or CGAL types appear here; stages keep those in their .cpp
+// files. Coordinates are double precision throughout these stages.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "decal/format.hpp"
+
+namespace prep {
+
+// ----------------------------------------------------------------- the ask --
+
+enum class DecalKind { polygon, line, outline };
+
+struct ColorStop {
+  double value;
+  uint32_t rgba;  // R in the low byte
+};
+
+// Colour of a layer: a constant, or an attribute mapped through a ramp
+// (linear interpolation between stops, clamped at both ends).
+struct LayerColor {
+  uint32_t rgba = 0xff3366ccu;
+  std::string attribute;         // empty: constant colour
+  std::vector<ColorStop> ramp;   // sorted by value
+};
+
+struct LayerStyle {
+  LayerColor color;
+  double width = 2.0;  // ground metres (static lines/outlines) or pixels (dynamic)
+  decal::CornerStyle corner = decal::CornerStyle::round;
+  decal::OutlineMode outline = decal::OutlineMode::normal;
+  std::string order_attribute;   // importance; empty: length (lines) / area (polygons)
+};
+
+struct LayerSpec {
+  std::string name;     // unique within the scene; defaults to the source layer
+  std::string source;   // any GDAL path, /vsizip/ included
+  std::string layer;    // source layer name; empty: the first layer
+  std::string where;    // OGR attribute filter
+  std::string sql;      // OGR SQL (replaces layer + where)
+  DecalKind kind = DecalKind::polygon;
+  bool dynamic = false; // dynamic lines: width in pixels, terrain-matched
+  bool lod = false;     // build LOCALIS LOD segments for this layer's lines
+  LayerStyle style;
+  int scene_line = 0;   // line in the scene file, for messages (0: command line)
+};
+
+struct Extent {
+  double xmin = 0, ymin = 0, xmax = 0, ymax = 0;
+  bool empty() const { return !(xmax > xmin && ymax > ymin); }
+};
+
+// Build-stage knobs (thesis defaults noted).
+struct BuildOptions {
+  uint32_t grid_nx = 0, grid_ny = 0;   // 0: adaptive (default); 500x500 = thesis
+  uint32_t target_per_cell = 16;       // adaptive grid aim: primitives per cell
+  uint32_t max_cells = 4'000'000;      // grid cell budget
+  uint32_t qt_leaf_capacity = 8;       // thesis default
+  uint32_t qt_max_depth = 8;           // thesis default
+  double miter_limit_deg = 40.0;       // below this angle, miter falls back to round
+  // dynamic lines / terrain (issue 5)
+  double lmax = 0.0;                   // 0: half the DEM cell size
+  double terrain_tolerance = 0.0;      // >0: adaptive subdivision, metres
+  double z_scale = 1.0;
+  std::optional<double> nodata_fill;   // none: nearest valid sample
+  unsigned threads = 0;                // 0: all hardware threads
+};
+
+struct SceneSpec {
+  std::vector<LayerSpec> layers;
+  std::string crs;                     // empty: local Transverse Mercator on the data
+  std::string assume_crs;              // CRS for sources that have none
+  std::optional<Extent> extent;        // in `extent_crs` (default: scene frame)
+  std::string extent_crs;
+  double resolution = 0.0;             // metres; 0 keeps every vertex
+  std::string dem;                     // GDAL raster path; empty: flat terrain
+  bool skip_failures = false;
+  BuildOptions build;
+  std::string scene_path;              // for messages and provenance
+};
+
+// ---------------------------------------------------------------- manifest --
+
+// One line of the manifest: what happened to one input feature (or part).
+struct ManifestEntry {
+  std::string layer;
+  int64_t fid = -1;
+  int part = -1;            // -1: the whole feature
+  std::string action;       // "repaired", "dropped", "clipped_away", "note", ...
+  std::string reason;       // human-readable: what was wrong / what was done
+  double area_before = std::numeric_limits<double>::quiet_NaN();
+  double area_after = std::numeric_limits<double>::quiet_NaN();
+};
+
+// Per-layer accounting. Invariant: read == kept + clipped_away + dropped.
+struct LayerCounts {
+  std::string layer;
+  uint64_t read = 0;          // features read from the source
+  uint64_t kept = 0;          // features with at least one part in the package
+  uint64_t repaired = 0;      // of kept: changed by a repair
+  uint64_t clipped_away = 0;  // entirely outside the extent
+  uint64_t dropped = 0;       // unusable; one entry each, with a reason
+  uint64_t parts = 0;         // parts after splitting multi-geometries
+  uint64_t vertices_in = 0;   // before simplification
+  uint64_t vertices_out = 0;  // after simplification
+};
+
+struct Manifest {
+  std::vector<LayerCounts> layers;
+  std::vector<ManifestEntry> entries;
+  std::vector<std::string> notes;  // scene-wide facts ("Z values dropped", "flat terrain")
+};
+
+// ------------------------------------------------------------- geometries --
+
+struct Point2 {
+  double x = 0, y = 0;
+};
+using Ring = std::vector<Point2>;  // not closed: first point is not repeated
+
+// Output of `read`: geometry in the source CRS, multi-geometries split.
+struct SourceFeature {
+  int64_t fid = -1;
+  int part = 0;
+  bool is_polygon = false;
+  std::vector<Ring> rings;  // polygon: [0] shell, then holes; line: [0]
+  double order_value = std::numeric_limits<double>::quiet_NaN();
+  double color_value = std::numeric_limits<double>::quiet_NaN();
+};
+
+struct SourceLayer {
+  LayerSpec spec;
+  std::string srs_wkt;  // empty when the source has none
+  std::vector<SourceFeature> features;
+};
+
+struct FeatureSet {
+  std::vector<SourceLayer> layers;
+  Manifest manifest;
+};
+
+// The local scene frame. Scene coordinates are metres relative to `origin`,
+// expressed in `crs_wkt` (a projected CRS).
+struct SceneFrame {
+  std::string crs_wkt;
+  std::string description;  // e.g. "local TM lon0=7.42 lat0=43.73"
+  double origin_x = 0, origin_y = 0;  // in the frame CRS
+};
+
+// Output of `clean`: valid, oriented (shell CCW, holes CW), clipped and
+// simplified; coordinates in metres relative to frame.origin.
+struct ScenePolygon {
+  Ring shell;
+  std::vector<Ring> holes;
+  uint32_t layer = 0;   // index into SceneFeatures::layers
+  int64_t fid = -1;
+  int part = 0;
+  double area = 0;      // m², for drawing order
+  double order_value = std::numeric_limits<double>::quiet_NaN();
+  double color_value = std::numeric_limits<double>::quiet_NaN();
+};
+
+struct SceneLine {
+  Ring points;
+  bool closed = false;  // polygon ring used as an outline
+  uint32_t layer = 0;
+  int64_t fid = -1;
+  int part = 0;
+  double length = 0;    // ground metres (geodesic), for drawing order
+  double width = 0;     // ground metres (static) corrected by the frame scale; pixels (dynamic)
+  double order_value = std::numeric_limits<double>::quiet_NaN();
+  double color_value = std::numeric_limits<double>::quiet_NaN();
+};
+
+struct SceneFeatures {
+  SceneFrame frame;
+  Extent extent;                  // scene coordinates (relative to origin)
+  std::vector<LayerSpec> layers;
+  std::vector<ScenePolygon> polygons;
+  std::vector<SceneLine> lines;          // static lines and outlines
+  std::vector<SceneLine> dynamic_lines;  // terrain-matched, width in pixels
+  Manifest manifest;
+};
+
+}  // namespace prep
