@@ -1,0 +1,85 @@
+// decal/reader.hpp — reading a .decals package. Treats every file as hostile.
+//
+// Contract: no function here throws (std::bad_alloc aside, which callers may
+// treat as fatal); every failure is a Status with a one-line message that
+// names what was wrong and where (byte offset, blob name, value). Every size,
+// offset, count, stride and checksum is validated before use. Depends only
+// on the standard library, zstd and xxHash. Thread-safety: a Package is
+// immutable after open() and may be read from several threads.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "decal/format.hpp"
+
+namespace decal {
+
+struct Status {
+  bool ok = true;
+  std::string message;  // empty when ok
+  explicit operator bool() const { return ok; }
+  static Status success() { return {}; }
+  static Status failure(std::string m) { return {false, std::move(m)}; }
+};
+
+// One blob, decoded (decompressed) and checksum-verified.
+struct BlobView {
+  uint32_t id = 0;            // BlobId value (may be unknown to this build)
+  std::string name;
+  ElementType type{};
+  uint32_t stride = 0;
+  uint64_t count = 0;
+  std::span<const std::byte> bytes;  // count * stride bytes, 4-byte aligned
+  bool known() const { return find_blob_info(static_cast<BlobId>(id)) != nullptr; }
+};
+
+struct OpenOptions {
+  bool allow_mmap = true;      // map uncompressed packages instead of copying
+  bool verify_checksums = true;
+  uint64_t max_raw_bytes = uint64_t(64) << 30;  // refuse to inflate beyond this
+};
+
+class Package {
+ public:
+  Package();
+  ~Package();
+  Package(Package&&) noexcept;
+  Package& operator=(Package&&) noexcept;
+
+  // Opens and fully validates `path`. On failure `out` is left empty.
+  static Status open(const std::string& path, Package& out, const OpenOptions& = {});
+  // Same, over bytes in memory (copied when needed).
+  static Status from_memory(std::span<const std::byte> bytes, Package& out,
+                            const OpenOptions& = {});
+
+  uint16_t major() const;
+  uint16_t minor() const;
+  uint32_t flags() const;
+  std::string_view metadata_json() const;
+  std::span<const BlobView> blobs() const;  // in file order, unknown ids included
+  bool memory_mapped() const;
+
+  // The blob with this id, or nullptr when absent.
+  const BlobView* find(BlobId id) const;
+
+  // Typed view of a known blob; empty span when absent. The stride was
+  // checked against the catalogue at open(), so sizeof(T) must equal it.
+  template <class T>
+  std::span<const T> array(BlobId id) const {
+    const BlobView* b = find(id);
+    if (!b || b->stride != sizeof(T)) return {};
+    return {reinterpret_cast<const T*>(b->bytes.data()), static_cast<size_t>(b->count)};
+  }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace decal

@@ -1,0 +1,75 @@
+// prep/evaluate.hpp — the CPU evaluator: the same per-pixel query the static
+// decal shader runs (thesis Algorithm 3.5, §4.4.1), in C++. Tests use it for
+// accuracy against GEOS, the smoke test compares GL output with it, and
+// benchmarks read query-cost counters from it.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "decal/format.hpp"
+#include "prep/model.hpp"
+
+namespace decal { class Package; }
+
+namespace prep {
+
+// Non-owning view of the static blobs: built from a DecalModel in memory or
+// from a decal::Package read from disk, so the same code answers for both.
+struct StaticView {
+  GridParams grid;
+  std::span<const ivec2> line_vertices;
+  std::span<const uint32_t> line_vertex_line;
+  std::span<const decal::LineProps> line_props;
+  std::span<const decal::LineCorner> line_corners;
+  std::span<const uvec2> cell_segment_range, cell_segments;
+  std::span<const decal::PolyProps> poly_props;
+  std::span<const uint32_t> poly_root_node;
+  std::span<const ivec4> qt_node_box;
+  std::span<const ivec2> qt_node;
+  std::span<const uvec2> qt_leaf_range, qt_leaf_segments;
+  std::span<const ivec2> qt_leaf_vertices;
+  std::span<const uvec2> cell_poly_range;
+  std::span<const uvec4> cell_polys;
+  std::span<const uvec2> cell_holes;
+  std::span<const uvec4> line_bvh_range, poly_bvh_range;
+  std::span<const ivec4> line_bvh_box, poly_bvh_box;
+};
+
+StaticView view_of(const DecalModel& model);
+// Reads grid parameters from the package metadata; throws format_error when
+// they are missing or inconsistent with the blobs.
+StaticView view_of(const decal::Package& package);
+
+// Query-cost counters, accumulated per call.
+struct EvalCounters {
+  uint64_t bvh_nodes = 0;
+  uint64_t qt_nodes = 0;
+  uint64_t edge_tests = 0;     // leaf-polygon edge crossings tested
+  uint64_t segment_tests = 0;  // line point-in-segment tests
+};
+
+// Result for one world point: straight-alpha colour composited front to back
+// (lines over polygons), plus what covered it.
+struct EvalSample {
+  float rgba[4] = {0, 0, 0, 0};  // premultiplied, 0..1
+  bool polygon_covered = false;  // inside some exterior polygon and no hole of it
+  bool line_covered = false;
+  int32_t top_polygon = -1;      // topmost covering polygon index
+  int32_t top_line = -1;         // topmost covering line index
+};
+
+// Evaluates the point (x, y), in metres relative to the package origin.
+// Thread-safe (reads only).
+EvalSample evaluate(const StaticView& view, double x, double y, EvalCounters* counters = nullptr);
+
+// Top-down orthographic image: pixel (i, j) has its centre at
+// (xmin + (i + 0.5) * (xmax - xmin) / W, ymax - (j + 0.5) * (ymax - ymin) / H),
+// as gdal_rasterize -te xmin ymin xmax ymax -ts W H places them. Returns
+// W*H*4 floats, straight alpha, row 0 at the top.
+std::vector<float> render_topdown(const StaticView& view, const Extent& extent,
+                                  uint32_t width, uint32_t height);
+
+}  // namespace prep

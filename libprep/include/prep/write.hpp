@@ -1,0 +1,45 @@
+// prep/write.hpp — stage 5: lay out, compress, checksum and atomically write
+// a .decals package (formats/SPEC.md).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include "decal/format.hpp"
+#include "prep/model.hpp"
+
+namespace prep {
+
+enum class Codec { none, zstd };
+
+struct WriteOptions {
+  Codec codec = Codec::zstd;
+  int zstd_level = 3;
+};
+
+// One blob to write: `count` elements of `stride` bytes at `bytes`.
+struct BlobInput {
+  decal::BlobId id;
+  decal::ElementType type;
+  uint32_t stride;
+  uint64_t count;
+  std::span<const std::byte> bytes;  // count * stride
+};
+
+// Writes a package atomically: temp file in the target directory, fsync,
+// rename. On any failure throws output_error and leaves `path` as it was,
+// with no temp file behind. Not thread-safe for the same path.
+void write_package(const std::string& path, const std::string& metadata_json,
+                   std::span<const BlobInput> blobs, const WriteOptions& options = {});
+
+// The blob list of a model, in catalogue order; empty arrays are included
+// as empty blobs only when `include_empty`.
+std::vector<BlobInput> model_blobs(const DecalModel& model, bool include_empty = false);
+
+// Writes a model with its metadata chunk. `extra_metadata_json` is an object
+// merged into the metadata (build options, provenance, timings).
+void write_model(const std::string& path, const DecalModel& model,
+                 const std::string& extra_metadata_json, const WriteOptions& options = {});
+
+}  // namespace prep
