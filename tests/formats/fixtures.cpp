@@ -130,4 +130,98 @@ void reseal(std::vector<std::byte>& f) {
                 XXH64(f.data(), offsetof(decal::FileHeader, header_checksum), 0));
 }
 
+std::vector<Hostile> hostile_variants(const std::vector<std::byte>& good) {
+  using H = decal::FileHeader;
+  using E = decal::BlobTableEntry;
+  std::vector<Hostile> v;
+  auto add = [&](std::string name, std::vector<std::byte> bytes, std::string expect,
+                 bool structure_valid = false) {
+    v.push_back({std::move(name), std::move(bytes), std::move(expect), structure_valid});
+  };
+  const uint64_t size = good.size();
+  add("truncated_half", {good.begin(), good.begin() + static_cast<long>(size / 2)}, "");
+  add("truncated_in_header", {good.begin(), good.begin() + 40}, "truncated");
+  add("zero_length", {}, "empty file");
+  {
+    const std::string text = R"({"format":"decals","note":"a JSON file, not a package"})";
+    std::vector<std::byte> b(text.size());
+    std::memcpy(b.data(), text.data(), text.size());
+    add("not_a_package", b, "not a .decals package");
+  }
+  {
+    auto b = good;
+    put<uint16_t>(b, offsetof(H, version_major), 2);
+    reseal(b);
+    add("major_version_2", b, "major version 2");
+  }
+  {
+    auto b = good;
+    put<uint32_t>(b, offsetof(H, flags), get<uint32_t>(b, offsetof(H, flags)) | 0x1u);
+    reseal(b);
+    add("unknown_required_flag", b, "required flag");
+  }
+  {
+    auto b = good;
+    put<uint64_t>(b, entry_at(2) + offsetof(E, offset), (size + 1024) / 256 * 256);
+    reseal(b);
+    add("offset_past_end", b, "past the end");
+  }
+  {
+    auto b = good;
+    put<uint64_t>(b, entry_at(1) + offsetof(E, offset), get<uint64_t>(b, entry_at(0) + offsetof(E, offset)));
+    reseal(b);
+    add("overlapping_blobs", b, "overlaps");
+  }
+  {
+    auto b = good;
+    put<uint64_t>(b, entry_at(0) + offsetof(E, count), (uint64_t(1) << 61) + 1);
+    reseal(b);
+    add("count_times_stride_overflows", b, "overflows uint64");
+  }
+  {
+    auto b = good;
+    put<uint64_t>(b, entry_at(0) + offsetof(E, stored_size), size);
+    reseal(b);
+    add("stored_size_past_end", b, "past the end");
+  }
+  {
+    auto b = good;
+    put<uint32_t>(b, entry_at(2) + offsetof(E, stride), 16);
+    reseal(b);
+    add("wrong_record_stride", b, "catalogue");
+  }
+  {
+    auto b = good;
+    // The first blob's stored bytes: flip one bit in the middle of them.
+    const uint64_t off = get<uint64_t>(b, entry_at(0) + offsetof(E, offset));
+    const uint64_t n = get<uint64_t>(b, entry_at(0) + offsetof(E, stored_size));
+    b[off + n / 2] ^= std::byte{0x10};
+    add("bit_flip_in_blob", b, "checksum mismatch");
+  }
+  {
+    auto b = good;
+    b[offsetof(H, header_checksum) + 3] ^= std::byte{0x01};
+    add("bit_flip_in_header_checksum", b, "header checksum");
+  }
+  {
+    auto b = good;
+    // The last padding byte before the first blob (not under any checksum).
+    const uint64_t off = get<uint64_t>(b, entry_at(0) + offsetof(E, offset));
+    b[off - 1] = std::byte{0x5a};
+    add("nonzero_padding", b, "padding");
+  }
+  {
+    prep::DecalModel m = small_model();
+    m.cell_segments[1][1] = 99;  // end vertex past the 5 line vertices
+    add("index_out_of_range", model_package_bytes(m, {prep::Codec::zstd, 3}), "cell_segments[1].end = 99",
+        true);
+  }
+  {
+    prep::DecalModel m = small_model();
+    m.qt_node[0] = {0, 4};  // internal node whose 4 children run past the 6 nodes
+    add("child_nodes_out_of_range", model_package_bytes(m, {prep::Codec::none, 0}), "qt_node[0]", true);
+  }
+  return v;
+}
+
 }  // namespace decal_test

@@ -43,4 +43,20 @@ size_t entry_at(size_t i);
 // what must reject the edit.
 void reseal(std::vector<std::byte>& f);
 
+// A named hostile variant of a package image and a fragment its rejection
+// message must contain ("" when any message will do).
+struct Hostile {
+  std::string name;
+  std::vector<std::byte> bytes;
+  std::string expect;
+  bool structure_valid = false;  // Package::open accepts it; validate_indices must not
+};
+
+// The hostile cases of issue 2 built from `good`, the image of
+// small_model() written with zstd: truncation, zero length, not a package,
+// unknown major version, offsets past the end, overlapping blobs, count x
+// stride overflow, bit flips, bad indices and more. Resealed where needed so
+// that the structural check, not a checksum, is what must catch them.
+std::vector<Hostile> hostile_variants(const std::vector<std::byte>& good);
+
 }  // namespace decal_test
