@@ -224,4 +224,15 @@ std::vector<Hostile> hostile_variants(const std::vector<std::byte>& good) {
   return v;
 }
 
+std::vector<std::pair<std::string, std::vector<std::byte>>> seed_corpus() {
+  std::vector<std::pair<std::string, std::vector<std::byte>>> out;
+  const auto small = small_model();
+  const auto good = model_package_bytes(small, {prep::Codec::zstd, 3});
+  out.emplace_back("valid_small_zstd.decals", good);
+  out.emplace_back("valid_small_none.decals", model_package_bytes(small, {prep::Codec::none, 0}));
+  out.emplace_back("valid_empty_model.decals", model_package_bytes(prep::DecalModel{}, {prep::Codec::zstd, 3}));
+  for (auto& h : hostile_variants(good)) out.emplace_back("broken_" + h.name + ".decals", std::move(h.bytes));
+  return out;
+}
+
 }  // namespace decal_test

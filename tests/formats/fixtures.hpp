@@ -59,4 +59,8 @@ struct Hostile {
 // that the structural check, not a checksum, is what must catch them.
 std::vector<Hostile> hostile_variants(const std::vector<std::byte>& good);
 
+// The fuzz seed corpus (fuzz/corpus/read/): file name -> bytes. Small
+// valid packages plus every hostile variant.
+std::vector<std::pair<std::string, std::vector<std::byte>>> seed_corpus();
+
 }  // namespace decal_test

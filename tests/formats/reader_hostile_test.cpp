@@ -71,6 +71,21 @@ TEST_P(Hostile, EverySingleBitFlipIsRejected) {
     }
 }
 
+TEST_P(Hostile, EverySingleBitFlipOfAFullModelPackageIsRejected) {
+  // Every blob of the catalogue, a real metadata chunk: ~11 KB, ~86k flips.
+  const auto good = decal_test::model_package_bytes(decal_test::small_model(), {GetParam(), 3});
+  ASSERT_TRUE(open_bytes(good));
+  auto bytes = good;
+  size_t flips = 0;
+  for (size_t i = 0; i < bytes.size(); ++i)
+    for (int bit = 0; bit < 8; ++bit, ++flips) {
+      bytes[i] ^= std::byte(1u << bit);
+      ASSERT_FALSE(open_bytes(bytes)) << "flip of bit " << bit << " of byte " << i << " was accepted";
+      bytes[i] ^= std::byte(1u << bit);
+    }
+  EXPECT_EQ(flips, good.size() * 8);
+}
+
 TEST_P(Hostile, EveryTruncatedPrefixOfAFileIsRejectedByOpenToo) {
   // Through the mmap path as well: a few prefixes written to disk.
   const auto good = tiny_package(GetParam());
