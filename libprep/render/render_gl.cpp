@@ -1,0 +1,283 @@
+// The GL path (thesis §4.4): terrain G-buffer, static polygon and line
+// passes over the back-projected depth, composite, read back.
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/glcorearb.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+#include "decal/gl/gl.hpp"
+#include "detail/math.hpp"
+#include "prep/error.hpp"
+#include "prep/render.hpp"
+
+namespace prep::render {
+
+namespace {
+
+using detail::Mat4;
+
+void check(const decal::Status& s) {
+  if (!s) throw render_error(s.message);
+}
+
+std::array<float, 16> to_float(const Mat4& m) {
+  std::array<float, 16> f{};
+  for (int k = 0; k < 16; ++k) f[k] = static_cast<float>(m[k]);
+  return f;
+}
+
+// Floor division for the grid cell of the anchor.
+int64_t floor_div(int64_t a, int64_t b) {
+  int64_t q = a / b;
+  if ((a % b != 0) && ((a < 0) != (b < 0))) --q;
+  return q;
+}
+
+struct GlObjects {
+  std::vector<GLuint> programs, textures, framebuffers, buffers, arrays, queries;
+  ~GlObjects() {
+    for (GLuint p : programs) glDeleteProgram(p);
+    if (!textures.empty()) glDeleteTextures(GLsizei(textures.size()), textures.data());
+    if (!framebuffers.empty()) glDeleteFramebuffers(GLsizei(framebuffers.size()), framebuffers.data());
+    if (!buffers.empty()) glDeleteBuffers(GLsizei(buffers.size()), buffers.data());
+    if (!arrays.empty()) glDeleteVertexArrays(GLsizei(arrays.size()), arrays.data());
+    if (!queries.empty()) glDeleteQueries(GLsizei(queries.size()), queries.data());
+  }
+  GLuint texture(GLenum format, uint32_t w, uint32_t h) {
+    GLuint t = 0;
+    glCreateTextures(GL_TEXTURE_2D, 1, &t);
+    glTextureStorage2D(t, 1, format, GLsizei(w), GLsizei(h));
+    glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    textures.push_back(t);
+    return t;
+  }
+  GLuint framebuffer(GLuint color, GLuint depth) {
+    GLuint f = 0;
+    glCreateFramebuffers(1, &f);
+    glNamedFramebufferTexture(f, GL_COLOR_ATTACHMENT0, color, 0);
+    if (depth) glNamedFramebufferTexture(f, GL_DEPTH_ATTACHMENT, depth, 0);
+    framebuffers.push_back(f);
+    if (glCheckNamedFramebufferStatus(f, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      throw render_error("render: framebuffer incomplete");
+    return f;
+  }
+  GLuint program(decal::gl::ProgramSources src) {
+    GLuint p = 0;
+    check(decal::gl::build_program(src, p));
+    programs.push_back(p);
+    return p;
+  }
+};
+
+// GPU pass timing with GL timer queries (--stats).
+struct PassTimer {
+  GlObjects& gl;
+  std::vector<std::pair<std::string, GLuint>> open;
+  void begin(const std::string& name) {
+    GLuint q = 0;
+    glGenQueries(1, &q);
+    gl.queries.push_back(q);
+    glBeginQuery(GL_TIME_ELAPSED, q);
+    open.emplace_back(name, q);
+  }
+  void end() { glEndQuery(GL_TIME_ELAPSED); }
+  void collect(std::vector<PassTime>& out) {
+    for (auto& [name, q] : open) {
+      GLuint64 ns = 0;
+      glGetQueryObjectui64v(q, GL_QUERY_RESULT, &ns);
+      out.push_back({name, double(ns) * 1e-6});
+    }
+  }
+};
+
+}  // namespace
+
+Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
+  const uint32_t W = opt.width, H = opt.height;
+  if (W == 0 || H == 0 || W > 16384 || H > 16384) throw usage_error("render: image size must be 1..16384 pixels");
+
+  // Validate before anything touches GL (formats/gl validate_blobs).
+  std::vector<decal::gl::BlobBytes> blobs;
+  for (const auto& b : source.blobs)
+    blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
+  const GridParams& gp = source.view.grid;
+  decal::gl::Grid grid{gp.origin_x, gp.origin_y, gp.cell_w, gp.cell_h, gp.nx, gp.ny};
+  check(decal::gl::validate_blobs(blobs, grid));
+
+  std::unique_ptr<decal::gl::Context> context;
+  check(decal::gl::Context::create(context));
+  Image img;
+  img.width = W;
+  img.height = H;
+  img.device = context->info().renderer;
+  GLint max_frag_ssbo = 0;
+  glGetIntegerv(GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS, &max_frag_ssbo);
+  {
+    GlObjects gl;
+    PassTimer timer{gl, {}};
+    auto wall0 = std::chrono::steady_clock::now();
+    std::unique_ptr<decal::gl::GpuPackage> gpu;
+    check(decal::gl::GpuPackage::upload(blobs, grid, gpu));
+
+    // Camera anchor: the eye rounded to whole quanta; everything on the GPU
+    // is relative to it (DESIGN.md §4.1).
+    const Camera& cam = opt.camera;
+    const double q = decal::kQuantumMetres;
+    const int64_t ax = std::llround(cam.eye[0] / q), ay = std::llround(cam.eye[1] / q);
+    const Vec3 anchor{double(ax) * q, double(ay) * q, 0.0};
+    const Vec3 eye_rel = detail::sub(cam.eye, anchor);
+    const Mat4 vp = detail::mat_mul(detail::projection_matrix(cam, double(W) / H), detail::view_matrix(cam, eye_rel));
+    const auto vp_f = to_float(vp);
+    const auto inv_f = to_float(detail::mat_inverse(vp));
+
+    // Terrain mesh in anchor-relative metres.
+    std::vector<float> verts;
+    verts.reserve(size_t(terrain.nx) * terrain.ny * 6);
+    for (uint32_t j = 0; j < terrain.ny; ++j)
+      for (uint32_t i = 0; i < terrain.nx; ++i) {
+        Vec3 n = terrain.normal_at(i, j);
+        verts.push_back(float(terrain.x0 + i * terrain.dx - anchor[0]));
+        verts.push_back(float(terrain.y0 + j * terrain.dy - anchor[1]));
+        verts.push_back(float(terrain.z[i + size_t(terrain.nx) * j]));
+        verts.push_back(float(n[0]));
+        verts.push_back(float(n[1]));
+        verts.push_back(float(n[2]));
+      }
+    std::vector<uint32_t> idx;
+    idx.reserve(size_t(terrain.nx - 1) * (terrain.ny - 1) * 6);
+    for (uint32_t j = 0; j + 1 < terrain.ny; ++j)
+      for (uint32_t i = 0; i + 1 < terrain.nx; ++i) {
+        uint32_t v00 = i + terrain.nx * j, v10 = v00 + 1, v01 = v00 + terrain.nx, v11 = v01 + 1;
+        idx.insert(idx.end(), {v00, v10, v11, v00, v11, v01});
+      }
+    GLuint vbo = 0, ibo = 0, vao = 0;
+    glCreateBuffers(1, &vbo);
+    gl.buffers.push_back(vbo);
+    glNamedBufferStorage(vbo, GLsizeiptr(verts.size() * sizeof(float)), verts.data(), 0);
+    glCreateBuffers(1, &ibo);
+    gl.buffers.push_back(ibo);
+    glNamedBufferStorage(ibo, GLsizeiptr(idx.size() * sizeof(uint32_t)), idx.data(), 0);
+    glCreateVertexArrays(1, &vao);
+    gl.arrays.push_back(vao);
+    glVertexArrayVertexBuffer(vao, 0, vbo, 0, 6 * sizeof(float));
+    glVertexArrayElementBuffer(vao, ibo);
+    glEnableVertexArrayAttrib(vao, 0);
+    glEnableVertexArrayAttrib(vao, 1);
+    glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float));
+    glVertexArrayAttribBinding(vao, 0, 0);
+    glVertexArrayAttribBinding(vao, 1, 0);
+    GLuint empty_vao = 0;
+    glCreateVertexArrays(1, &empty_vao);
+    gl.arrays.push_back(empty_vao);
+
+    // G-buffer: terrain colour + float depth (reversed Z); decal layer; final.
+    GLuint t_color = gl.texture(GL_RGBA8, W, H), t_depth = gl.texture(GL_DEPTH_COMPONENT32F, W, H);
+    GLuint t_decal = gl.texture(GL_RGBA32F, W, H), t_final = gl.texture(GL_RGBA8, W, H);
+    GLuint f_terrain = gl.framebuffer(t_color, t_depth), f_decal = gl.framebuffer(t_decal, 0),
+           f_final = gl.framebuffer(t_final, 0);
+
+    const bool tex = opt.binding == Binding::texture;
+    std::string defines = tex ? "#define DECAL_TEXTURE 1\n" : "";
+    GLuint p_terrain = gl.program({{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, ""});
+    GLuint p_poly = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"}, {},
+                                defines + "#define DECAL_POLYGONS 1\n"});
+    GLuint p_line = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "static_common.glsl", "static_lines.glsl"}, {},
+                                defines + "#define DECAL_LINES 1\n"});
+    GLuint p_comp = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
+    (void)max_frag_ssbo;
+
+    glViewport(0, 0, GLsizei(W), GLsizei(H));
+    glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+
+    // --- terrain pass
+    timer.begin("terrain");
+    glBindFramebuffer(GL_FRAMEBUFFER, f_terrain);
+    const float sky[4] = {0.80f, 0.86f, 0.93f, 1.0f};
+    glClearNamedFramebufferfv(f_terrain, GL_COLOR, 0, sky);
+    const float zero = 0.0f;
+    glClearNamedFramebufferfv(f_terrain, GL_DEPTH, 0, &zero);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_GREATER);
+    glUseProgram(p_terrain);
+    glUniformMatrix4fv(glGetUniformLocation(p_terrain, "u_view_proj"), 1, GL_FALSE, vp_f.data());
+    Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
+    glUniform3f(glGetUniformLocation(p_terrain, "u_light_dir"), float(light[0]), float(light[1]), float(light[2]));
+    glUniform3f(glGetUniformLocation(p_terrain, "u_albedo"), float(opt.albedo[0]), float(opt.albedo[1]), float(opt.albedo[2]));
+    glBindVertexArray(vao);
+    glDrawElements(GL_TRIANGLES, GLsizei(idx.size()), GL_UNSIGNED_INT, nullptr);
+    glDisable(GL_DEPTH_TEST);
+    timer.end();
+
+    // --- static decal passes over the back-projected depth
+    gpu->bind(tex ? decal::gl::BindingMode::texture : decal::gl::BindingMode::ssbo);
+    glBindTextureUnit(31, t_depth);
+    glBindFramebuffer(GL_FRAMEBUFFER, f_decal);
+    const float clear0[4] = {0, 0, 0, 0};
+    glClearNamedFramebufferfv(f_decal, GL_COLOR, 0, clear0);
+    glBindVertexArray(empty_vao);
+    const int64_t rx = ax - gp.origin_x, ry = ay - gp.origin_y;
+    const int64_t cxi = floor_div(rx, gp.cell_w), cyi = floor_div(ry, gp.cell_h);
+    auto set_common = [&](GLuint p) {
+      glUseProgram(p);
+      glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE, inv_f.data());
+      glUniform2f(glGetUniformLocation(p, "u_viewport"), float(W), float(H));
+      glUniform2i(glGetUniformLocation(p, "u_anchor_q"), GLint(ax), GLint(ay));
+      glUniform2i(glGetUniformLocation(p, "u_anchor_cell"), GLint(cxi), GLint(cyi));
+      glUniform2f(glGetUniformLocation(p, "u_anchor_in_cell"), float(double(rx - cxi * gp.cell_w) * q),
+                  float(double(ry - cyi * gp.cell_h) * q));
+      glUniform2f(glGetUniformLocation(p, "u_cell_size"), float(double(gp.cell_w) * q), float(double(gp.cell_h) * q));
+      glUniform2i(glGetUniformLocation(p, "u_grid_n"), GLint(gp.nx), GLint(gp.ny));
+    };
+    timer.begin("static polygons");
+    set_common(p_poly);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    timer.end();
+    // Lines over polygons (thesis §4.4.1): premultiplied "over".
+    timer.begin("static lines");
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+    set_common(p_line);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glDisable(GL_BLEND);
+    timer.end();
+
+    // --- composite
+    timer.begin("composite");
+    glBindFramebuffer(GL_FRAMEBUFFER, f_final);
+    glUseProgram(p_comp);
+    glBindTextureUnit(29, t_color);
+    glBindTextureUnit(30, t_decal);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    timer.end();
+
+    // --- read back (GL rows are bottom-up)
+    std::vector<uint8_t> rgba(size_t(W) * H * 4);
+    std::vector<float> dec(size_t(W) * H * 4);
+    glGetTextureImage(t_final, 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(rgba.size()), rgba.data());
+    glGetTextureImage(t_decal, 0, GL_RGBA, GL_FLOAT, GLsizei(dec.size() * sizeof(float)), dec.data());
+    if (GLenum e = glGetError(); e != GL_NO_ERROR) throw render_error("render: GL error " + std::to_string(e));
+    timer.collect(img.times);
+    img.times.push_back({"frame (wall, incl. upload and shader compile)",
+                         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count()});
+    img.rgba.resize(rgba.size());
+    img.decals.resize(dec.size());
+    const size_t row = size_t(W) * 4;
+    for (uint32_t y = 0; y < H; ++y) {
+      std::memcpy(img.rgba.data() + y * row, rgba.data() + (H - 1 - y) * row, row);
+      const float* src = dec.data() + (H - 1 - y) * row;
+      float* dst = img.decals.data() + y * row;
+      for (uint32_t x = 0; x < W; ++x) {
+        float a = src[4 * x + 3];
+        for (int c = 0; c < 3; ++c) dst[4 * x + c] = a > 0 ? src[4 * x + c] / a : 0.0f;
+        dst[4 * x + 3] = a;
+      }
+    }
+  }
+  return img;
+}
+
+}  // namespace prep::render
