@@ -111,6 +111,18 @@ DecalSource source_of(const decal::Package& package) {
         s.extent = {e->value("xmin", 0.0), e->value("ymin", 0.0), e->value("xmax", 0.0), e->value("ymax", 0.0)};
       }
     }
+#ifndef PREP_RENDER_HAVE_EVALUATE
+    // Without the evaluator's view_of(package), read the grid here.
+    if (meta.contains("grid")) {
+      const auto& g = meta["grid"];
+      s.view.grid.origin_x = g.at("origin").at(0).get<int64_t>();
+      s.view.grid.origin_y = g.at("origin").at(1).get<int64_t>();
+      s.view.grid.cell_w = g.at("cell").at(0).get<int64_t>();
+      s.view.grid.cell_h = g.at("cell").at(1).get<int64_t>();
+      s.view.grid.nx = g.at("dims").at(0).get<uint32_t>();
+      s.view.grid.ny = g.at("dims").at(1).get<uint32_t>();
+    }
+#endif
   } catch (const nlohmann::json::exception& ex) {
     throw format_error(std::string("render: package metadata: ") + ex.what());
   }

@@ -19,6 +19,22 @@ std::filesystem::path out_dir() {
   return p;
 }
 
+struct Vec3Basis {
+  R::Vec3 r, u, f;
+};
+Vec3Basis basis(const R::Camera& c) {
+  auto norm = [](R::Vec3 v) {
+    double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    return R::Vec3{v[0] / l, v[1] / l, v[2] / l};
+  };
+  auto cross = [](R::Vec3 a, R::Vec3 b) {
+    return R::Vec3{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  };
+  R::Vec3 f = norm({c.target[0] - c.eye[0], c.target[1] - c.eye[1], c.target[2] - c.eye[2]});
+  R::Vec3 r = norm(cross(f, c.up));
+  return {r, cross(r, f), f};
+}
+
 // Expected straight-alpha colour: line (alpha 0x80) over the polygon layer.
 std::array<double, 4> expected(double x, double y) {
   auto unpack = [](uint32_t c) {
@@ -40,12 +56,15 @@ std::array<double, 4> expected(double x, double y) {
   return acc;
 }
 
-TEST(RenderGl, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
+class RenderGlBinding : public ::testing::TestWithParam<R::Binding> {};
+
+TEST_P(RenderGlBinding, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
   prep::DecalModel model = render_test::hand_model();
   R::DecalSource src = R::source_of(model);
   R::RenderOptions opt;
   opt.width = 160;
   opt.height = 120;
+  opt.binding = GetParam();
   // A view that crosses grid cells and leaves margins outside the grid.
   prep::Extent view{-10, 0, 110, 90};
   R::Heightfield terrain = R::flat_heightfield(view);
@@ -56,7 +75,7 @@ TEST(RenderGl, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
   } catch (const prep::render_error& e) {
     GTEST_SKIP() << "no headless GL here: " << e.what();
   }
-  R::write_png((out_dir() / "hand_topdown.png").string(), img.rgba, img.width, img.height);
+  R::write_png((out_dir() / (GetParam() == R::Binding::ssbo ? "hand_topdown_ssbo.png" : "hand_topdown_texture.png")).string(), img.rgba, img.width, img.height);
   size_t covered = 0, bad = 0;
   for (uint32_t j = 0; j < opt.height; ++j)
     for (uint32_t i = 0; i < opt.width; ++i) {
@@ -77,5 +96,64 @@ TEST(RenderGl, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
   EXPECT_GT(covered, 3000u);
   EXPECT_EQ(bad, 0u);
 }
+
+TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) {
+  // Independent reference: each pixel's ray cast in double precision against
+  // the same mesh, then the analytic coverage of the hand shapes there.
+  prep::DecalModel model = render_test::hand_model();
+  R::DecalSource src = R::source_of(model);
+  R::Heightfield hills;
+  hills.nx = hills.ny = 61;
+  hills.x0 = hills.y0 = -20;
+  hills.dx = hills.dy = 140.0 / 60;
+  hills.zmin = 1e9;
+  hills.zmax = -1e9;
+  for (uint32_t j = 0; j < hills.ny; ++j)
+    for (uint32_t i = 0; i < hills.nx; ++i) {
+      double x = hills.x0 + i * hills.dx, y = hills.y0 + j * hills.dy;
+      double z = 12 * std::sin(x / 13.0) * std::cos(y / 17.0);
+      hills.z.push_back(z);
+      hills.zmin = std::min(hills.zmin, z);
+      hills.zmax = std::max(hills.zmax, z);
+    }
+  R::RenderOptions opt;
+  opt.width = 320;
+  opt.height = 180;
+  opt.camera = R::fit_camera(model.extent, hills.zmin, hills.zmax, opt.width, opt.height, R::Projection::perspective, 40);
+  R::Image img;
+  try {
+    img = R::render_gl(src, hills, opt);
+  } catch (const prep::render_error& e) {
+    GTEST_SKIP() << "no headless GL here: " << e.what();
+  }
+  R::write_png((out_dir() / "hand_perspective.png").string(), img.rgba, img.width, img.height);
+  // Rays exactly as render_cpu builds them.
+  const double aspect = double(opt.width) / opt.height;
+  const auto& c = opt.camera;
+  Vec3Basis b = basis(c);
+  const double t = std::tan(c.fov_y_deg * 3.14159265358979323846 / 360);
+  size_t considered = 0, agree = 0;
+  for (uint32_t j = 0; j < opt.height; ++j)
+    for (uint32_t i = 0; i < opt.width; ++i) {
+      double nx = (i + 0.5) / opt.width * 2 - 1, ny = 1 - (j + 0.5) / opt.height * 2;
+      R::Vec3 d;
+      for (int k = 0; k < 3; ++k) d[k] = b.f[k] + nx * t * aspect * b.r[k] + ny * t * b.u[k];
+      auto hit = hills.intersect(c.eye, d);
+      std::array<double, 4> e{0, 0, 0, 0};
+      if (hit) e = expected(c.eye[0] + *hit * d[0], c.eye[1] + *hit * d[1]);
+      const float* g = &img.decals[4 * (i + size_t(opt.width) * j)];
+      if (e[3] == 0 && g[3] == 0) continue;
+      ++considered;
+      bool ok = std::abs(g[3] - e[3]) <= 2.0 / 255;
+      for (int k = 0; k < 3; ++k) ok = ok && std::abs(g[k] - e[k]) <= 2.0 / 255;
+      agree += ok;
+    }
+  ASSERT_GT(considered, 2000u);
+  EXPECT_GE(double(agree) / considered, 0.999) << agree << " of " << considered;
+  RecordProperty("agreement", std::to_string(agree) + "/" + std::to_string(considered));
+}
+
+INSTANTIATE_TEST_SUITE_P(Bindings, RenderGlBinding, ::testing::Values(R::Binding::ssbo, R::Binding::texture),
+                         [](const auto& p) { return p.param == R::Binding::ssbo ? "ssbo" : "texture"; });
 
 }  // namespace
