@@ -3,6 +3,7 @@
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -177,8 +178,9 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     // G-buffer: terrain colour + float depth (reversed Z); decal layer; final.
     GLuint t_color = gl.texture(GL_RGBA8, W, H), t_depth = gl.texture(GL_DEPTH_COMPONENT32F, W, H);
     GLuint t_decal = gl.texture(GL_RGBA32F, W, H), t_final = gl.texture(GL_RGBA8, W, H);
+    GLuint t_dyn = gl.texture(GL_RGBA32F, W, H);
     GLuint f_terrain = gl.framebuffer(t_color, t_depth), f_decal = gl.framebuffer(t_decal, 0),
-           f_final = gl.framebuffer(t_final, 0);
+           f_final = gl.framebuffer(t_final, 0), f_dyn = gl.framebuffer(t_dyn, 0);
 
     const bool tex = opt.binding == Binding::texture;
     std::string defines = tex ? "#define DECAL_TEXTURE 1\n" : "";
@@ -245,18 +247,132 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     glDisable(GL_BLEND);
     timer.end();
 
+    // --- dynamic lines (thesis §4.3, §4.4.2)
+    const float clear_dyn[4] = {0, 0, 0, 0};
+    glClearNamedFramebufferfv(f_dyn, GL_COLOR, 0, clear_dyn);
+    const uint64_t n_dyn = gpu->count(decal::BlobId::dyn_vertices);
+    const uint64_t n_dyn_lines = gpu->count(decal::BlobId::dyn_line_start);
+    if (n_dyn > 0 && n_dyn_lines > 0) {
+      const std::string dd = defines + "#define DECAL_DYNAMIC 1\n";
+      auto comp = [&](const char* file, const std::string& extra) {
+        return gl.program({{}, {}, {}, {"decal_blobs.glsl", "dyn_common.glsl", file}, dd + extra});
+      };
+      GLuint p_cull = comp("dyn_cull.comp.glsl", ""), p_scan_local = comp("dyn_scan.comp.glsl", "#define SCAN_LOCAL 1\n"),
+             p_scan_blocks = comp("dyn_scan.comp.glsl", "#define SCAN_BLOCKS 1\n"),
+             p_scatter = comp("dyn_scan.comp.glsl", "#define SCATTER 1\n"), p_segments = comp("dyn_segments.comp.glsl", "");
+      GLuint p_lists = gl.program({{"dyn_box.vert.glsl"},
+                                   {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_box.geom.glsl"},
+                                   {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_lists.frag.glsl"}, {}, dd});
+      GLuint p_dcomp = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "dyn_common.glsl", "dyn_composite.frag.glsl"}, {}, dd});
+      const uint32_t blocks = uint32_t((n_dyn + 255) / 256);
+      auto buffer = [&](uint64_t bytes, uint32_t binding) {
+        GLuint b = 0;
+        glCreateBuffers(1, &b);
+        gl.buffers.push_back(b);
+        glNamedBufferData(b, GLsizeiptr(std::max<uint64_t>(bytes, 16)), nullptr, GL_DYNAMIC_COPY);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, b);
+        return b;
+      };
+      buffer(n_dyn * 4, 24);
+      buffer(n_dyn * 4, 25);
+      buffer(uint64_t(blocks) * 4, 26);
+      buffer(n_dyn * 4, 27);
+      buffer(n_dyn * 16, 28);
+      GLuint counters = buffer(32, 29);
+      GLuint heads = buffer(uint64_t(W) * H * 4, 31);
+      uint32_t capacity = W * H * 2;
+      GLuint nodes = buffer(uint64_t(capacity) * 16, 32);
+      const uint32_t init[8] = {0, 1, 0, 0, 0, 0, capacity, uint32_t(n_dyn)};
+      glNamedBufferSubData(counters, 0, sizeof init, init);
+
+      const Vec3 fwd = detail::camera_basis(cam).forward;
+      (void)fwd;
+      const double mpp_ortho = cam.projection == Projection::orthographic ? cam.ortho_h / H : 0.0;
+      const double mpp_per_m = cam.projection == Projection::perspective
+                                   ? 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H
+                                   : 0.0;
+      auto set_dyn = [&](GLuint p) {
+        glUseProgram(p);
+        glUniform2i(glGetUniformLocation(p, "u_anchor_q"), GLint(ax), GLint(ay));
+        glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, vp_f.data());
+        glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE, inv_f.data());
+        glUniform2f(glGetUniformLocation(p, "u_viewport"), float(W), float(H));
+        glUniform1ui(glGetUniformLocation(p, "u_vertex_count"), GLuint(n_dyn));
+        glUniform1ui(glGetUniformLocation(p, "u_line_count"), GLuint(n_dyn_lines));
+        glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]), float(eye_rel[2]));
+        glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(mpp_ortho));
+        glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(mpp_per_m));
+        glUniform1f(glGetUniformLocation(p, "u_zmin"), float(terrain.zmin));
+        glUniform1f(glGetUniformLocation(p, "u_zmax"), float(terrain.zmax));
+      };
+      // Update indices: cull + same-pixel removal, own stream compaction, segments.
+      timer.begin("dynamic update (cull, compact, segments)");
+      set_dyn(p_cull);
+      glDispatchCompute(blocks, 1, 1);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      set_dyn(p_scan_local);
+      glDispatchCompute(blocks, 1, 1);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      set_dyn(p_scan_blocks);
+      glDispatchCompute(1, 1, 1);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      set_dyn(p_scatter);
+      glDispatchCompute(blocks, 1, 1);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      set_dyn(p_segments);
+      glDispatchCompute(blocks, 1, 1);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+      timer.end();
+      // Pixel data: segment boxes -> per-pixel linked lists; grow on overflow.
+      timer.begin("dynamic lists (boxes + linked lists)");
+      glBindFramebuffer(GL_FRAMEBUFFER, f_dyn);
+      glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      glBindBuffer(GL_DRAW_INDIRECT_BUFFER, counters);
+      glBindVertexArray(empty_vao);
+      for (int attempt = 0; attempt < 4; ++attempt) {
+        const uint32_t none = 0xffffffffu;
+        glClearNamedBufferData(heads, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
+        const uint32_t zero_cap[2] = {0, capacity};
+        glNamedBufferSubData(counters, 20, sizeof zero_cap, zero_cap);
+        set_dyn(p_lists);
+        glDrawArraysIndirect(GL_POINTS, nullptr);
+        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+        uint32_t used = 0;
+        glGetNamedBufferSubData(counters, 20, 4, &used);
+        if (used <= capacity) break;
+        capacity = uint32_t(std::min<uint64_t>(uint64_t(used) * 5 / 4 + 1024, 0x7fffffff / 16));
+        glNamedBufferData(nodes, GLsizeiptr(uint64_t(capacity) * 16), nullptr, GL_DYNAMIC_COPY);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 32, nodes);
+        img.list_grows++;
+      }
+      glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+      timer.end();
+      timer.begin("dynamic composite (sort + blend)");
+      set_dyn(p_dcomp);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+      glMemoryBarrier(GL_ALL_BARRIER_BITS);
+      timer.end();
+      uint32_t stats[8] = {};
+      glGetNamedBufferSubData(counters, 0, sizeof stats, stats);
+      img.dyn_segments = stats[0];
+      img.dyn_kept = stats[4];
+      img.dyn_nodes = stats[5];
+    }
+
     // --- composite
     timer.begin("composite");
     glBindFramebuffer(GL_FRAMEBUFFER, f_final);
     glUseProgram(p_comp);
     glBindTextureUnit(29, t_color);
     glBindTextureUnit(30, t_decal);
+    glBindTextureUnit(28, t_dyn);
     glDrawArrays(GL_TRIANGLES, 0, 3);
     timer.end();
 
     // --- read back (GL rows are bottom-up)
     std::vector<uint8_t> rgba(size_t(W) * H * 4);
-    std::vector<float> dec(size_t(W) * H * 4);
+    std::vector<float> dec(size_t(W) * H * 4), dyn(size_t(W) * H * 4);
+    glGetTextureImage(t_dyn, 0, GL_RGBA, GL_FLOAT, GLsizei(dyn.size() * sizeof(float)), dyn.data());
     glGetTextureImage(t_final, 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(rgba.size()), rgba.data());
     glGetTextureImage(t_decal, 0, GL_RGBA, GL_FLOAT, GLsizei(dec.size() * sizeof(float)), dec.data());
     if (GLenum e = glGetError(); e != GL_NO_ERROR) throw render_error("render: GL error " + std::to_string(e));
@@ -265,17 +381,22 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
                          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count()});
     img.rgba.resize(rgba.size());
     img.decals.resize(dec.size());
+    img.dynamic.resize(dyn.size());
     const size_t row = size_t(W) * 4;
-    for (uint32_t y = 0; y < H; ++y) {
-      std::memcpy(img.rgba.data() + y * row, rgba.data() + (H - 1 - y) * row, row);
-      const float* src = dec.data() + (H - 1 - y) * row;
-      float* dst = img.decals.data() + y * row;
-      for (uint32_t x = 0; x < W; ++x) {
-        float a = src[4 * x + 3];
-        for (int c = 0; c < 3; ++c) dst[4 * x + c] = a > 0 ? src[4 * x + c] / a : 0.0f;
-        dst[4 * x + 3] = a;
+    auto straight = [&](const std::vector<float>& from, std::vector<float>& to) {
+      for (uint32_t y = 0; y < H; ++y) {
+        const float* src = from.data() + (H - 1 - y) * row;
+        float* dst = to.data() + y * row;
+        for (uint32_t x = 0; x < W; ++x) {
+          float a = src[4 * x + 3];
+          for (int c = 0; c < 3; ++c) dst[4 * x + c] = a > 0 ? src[4 * x + c] / a : 0.0f;
+          dst[4 * x + 3] = a;
+        }
       }
-    }
+    };
+    for (uint32_t y = 0; y < H; ++y) std::memcpy(img.rgba.data() + y * row, rgba.data() + (H - 1 - y) * row, row);
+    straight(dec, img.decals);
+    straight(dyn, img.dynamic);
   }
   return img;
 }

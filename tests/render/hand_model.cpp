@@ -33,10 +33,11 @@ prep::DecalModel hand_model() {
   m.poly_root_node = {n_ext, n_hole, n_island};
   // Every cell holds the exterior (with its hole) then the island, in
   // drawing order; BVH of 2 leaves + 1 internal node per cell.
-  m.line_vertices = {{q(10), q(10)}, {q(90), q(90)}};
-  m.line_vertex_line = {0, 0};
-  m.line_corners.resize(2, decal::LineCorner{});
+  m.line_vertices = {{q(10), q(10)}, {q(90), q(90)}, {q(10), q(90)}, {q(90), q(10)}};
+  m.line_vertex_line = {0, 0, 1, 1};
+  m.line_corners.resize(4, decal::LineCorner{});
   m.line_props.push_back({2.0f, HandShapes::kLineRgba, 0, 0, 0.f, 0, 2, 0});
+  m.line_props.push_back({3.0f, HandShapes::kLine2Rgba, 1, 0, 0.f, 0, 3, 0});
   for (uint32_t c = 0; c < 4; ++c) {
     m.cell_poly_range.push_back({uint32_t(m.cell_polys.size()), 2});
     m.cell_holes.push_back({1, n_hole});
@@ -47,10 +48,14 @@ prep::DecalModel hand_model() {
     m.poly_bvh_box.push_back({q(20), q(20), q(80), q(80)});
     m.poly_bvh_box.push_back({q(45), q(45), q(55), q(55)});
     m.poly_bvh_range.push_back({first, 2, 1, 0});
-    m.cell_segment_range.push_back({uint32_t(m.cell_segments.size()), 1});
+    // Both lines in every cell, in drawing order (line 0 on top).
+    m.cell_segment_range.push_back({uint32_t(m.cell_segments.size()), 2});
     m.cell_segments.push_back({0, 1});
-    m.line_bvh_range.push_back({uint32_t(m.line_bvh_box.size()), 1, 0, 0});
+    m.cell_segments.push_back({2, 3});
+    m.line_bvh_range.push_back({uint32_t(m.line_bvh_box.size()), 2, 1, 0});
+    m.line_bvh_box.push_back({q(7), q(7), q(93), q(93)});
     m.line_bvh_box.push_back({q(8), q(8), q(92), q(92)});
+    m.line_bvh_box.push_back({q(7), q(7), q(93), q(93)});
   }
   return m;
 }

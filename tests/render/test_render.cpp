@@ -48,6 +48,7 @@ std::array<double, 4> expected(double x, double y) {
     acc[3] += w;
   };
   if (HandShapes::in_line(x, y)) under(HandShapes::kLineRgba);
+  if (HandShapes::in_line2(x, y)) under(HandShapes::kLine2Rgba);
   auto in = [&](double a, double b) { return x > a && x < b && y > a && y < b; };
   if (in(20, 80) && !in(40, 60)) under(HandShapes::kPolyRgba);
   else if (in(45, 55)) under(HandShapes::kIslandRgba);
@@ -95,6 +96,20 @@ TEST_P(RenderGlBinding, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
     }
   EXPECT_GT(covered, 3000u);
   EXPECT_EQ(bad, 0u);
+  // At the crossing (50, 50) of the two transparent lines the top line
+  // (blue, order 0) lies over the orange one, both over the green island.
+  const uint32_t ci = uint32_t((50 - view.xmin) / (view.xmax - view.xmin) * opt.width);
+  const uint32_t cj = uint32_t((view.ymax - 50) / (view.ymax - view.ymin) * opt.height);
+  const double cx = view.xmin + (ci + 0.5) * (view.xmax - view.xmin) / opt.width;
+  const double cy = view.ymax - (cj + 0.5) * (view.ymax - view.ymin) / opt.height;
+  ASSERT_TRUE(HandShapes::in_line(cx, cy) && HandShapes::in_line2(cx, cy));
+  const float* g = &img.decals[4 * (ci + size_t(opt.width) * cj)];
+  const double a0 = 0x80 / 255.0, a1 = 0x90 / 255.0;
+  // blue channel: 0.502 * 0xe0 + 0.498 * 0.565 * 0 + rest * island 0x20
+  const double blue = a0 * (0xe0 / 255.0) + (1 - a0) * (1 - a1) * (0x20 / 255.0);
+  EXPECT_NEAR(g[3], 1.0, 2.0 / 255);
+  EXPECT_NEAR(g[2], blue, 2.0 / 255);
+  EXPECT_NEAR(g[0], a0 * (0x20 / 255.0) + (1 - a0) * a1 * 1.0 + (1 - a0) * (1 - a1) * (0x20 / 255.0), 2.0 / 255);
 }
 
 TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) {

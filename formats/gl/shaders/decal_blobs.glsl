@@ -86,3 +86,24 @@ uvec4 line_bvh_range(uint c)     { return d_line_bvh_range[c]; }
 ivec4 line_bvh_box(uint i)       { return d_line_bvh_box[i]; }
 #endif
 #endif  // DECAL_LINES
+
+#ifdef DECAL_DYNAMIC
+DECAL_BLOB(19, isamplerBuffer, dyn_vertices, ivec4)
+DECAL_BLOB(20, isamplerBuffer, dyn_prev_next, ivec2)
+DECAL_BLOB(21, usamplerBuffer, dyn_line_start, uint)
+#ifndef DECAL_LINES
+struct LineProps { float half_width; uint rgba; uint order; uint style; float value; uint layer; uint feature; uint r0; };
+#endif
+DECAL_BLOB(22, usamplerBuffer, dyn_line_props, LineProps)
+#ifdef DECAL_TEXTURE
+ivec4 dyn_vertex(uint i)       { return texelFetch(t_dyn_vertices, int(i)); }
+ivec2 dyn_prev_next(uint i)    { return texelFetch(t_dyn_prev_next, int(i)).xy; }
+uint  dyn_line_start(uint l)   { return texelFetch(t_dyn_line_start, int(l)).x; }
+uvec4 dyn_line_props(uint l)   { return texelFetch(t_dyn_line_props, int(2u * l)); }
+#else
+ivec4 dyn_vertex(uint i)       { return d_dyn_vertices[i]; }
+ivec2 dyn_prev_next(uint i)    { return d_dyn_prev_next[i]; }
+uint  dyn_line_start(uint l)   { return d_dyn_line_start[l]; }
+uvec4 dyn_line_props(uint l)   { LineProps p = d_dyn_line_props[l]; return uvec4(floatBitsToUint(p.half_width), p.rgba, p.order, p.style); }
+#endif
+#endif  // DECAL_DYNAMIC

@@ -118,7 +118,10 @@ struct PassTime {
 struct Image {
   uint32_t width = 0, height = 0;
   std::vector<uint8_t> rgba;   // final image: decals over shaded terrain, 8-bit
-  std::vector<float> decals;   // decal layer alone, straight alpha, 0..1
+  std::vector<float> decals;   // static decal layer alone, straight alpha, 0..1
+  std::vector<float> dynamic;  // dynamic-line layer alone (GL only), straight alpha
+  uint32_t dyn_kept = 0, dyn_segments = 0, dyn_nodes = 0;  // dynamic update counts
+  uint32_t list_grows = 0;     // linked-list buffer regrowths this frame
   std::vector<PassTime> times;
   std::string device;          // GL renderer string, or "cpu"
 };
