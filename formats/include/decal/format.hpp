@@ -170,23 +170,69 @@ enum class QtNodeType : int32_t {
   partial = 3,   // offset = index into qt_leaf_range
 };
 
+// ---------------------------------------------------------------------------
+// LOD segments (LOCALIS, seed 001 §3.1-3.5). Normative text for SPEC.md.
+//
+// Every LOD line (a dynamic line of a layer with `lod = true`) is turned
+// into a Douglas-Peucker BLG-tree and then into its exhaustive set of
+// attributed segments: every segment that can appear in any simplification
+// (rules 1-3 of §3.2: 2n-1 segments for a line of n segments). A closed
+// outline is stored with its first point repeated as its last point.
+//
+// Point inclusion. For a camera at C = (cx, cy, cz) in scene metres
+// relative to the package origin, let d(p) = |(eval_x, eval_y) * quantum -
+// (cx, cy)| combined with cz: d = sqrt(dx^2 + dy^2 + cz^2) (any distance
+// that changes by at most |p - q| between two points works). Given a
+// non-decreasing threshold function eps(d) (metres; the screen-space error
+// threshold), a point p is INCLUDED iff
+//     (flags & kLodPointAlways) != 0   or   e_star > eps(d(p) - d_star)
+// which is LOCALIS Eq. (7) with the pre-evaluated e* and d*.
+//
+// Segment visibility (Eq. (2)/(4)). A segment is VISIBLE iff
+//     (generator == kLodNone or generator is INCLUDED) and
+//     (splitter  == kLodNone or splitter  is NOT INCLUDED).
+// For every camera and every non-decreasing eps the visible segments of a
+// line form one connected polyline from its first to its last point. For a
+// constant eps (and a package built without dependees) they are exactly the
+// Douglas-Peucker simplification of the line at tolerance eps (distance of a
+// point to the baseline SEGMENT; ties go to the first point).
+//
+// How e*, d* are made (informative): e0 = DP error of the point, made
+// non-increasing down the BLG-tree (min with the parent's: a node is never
+// kept when DP would stop above it). Edges s -> j mean "j included implies s
+// included": s -> its BLG children (saturation, §3.3) and s -> each dependee
+// (§3.4: a point of any LOD line lying inside the closed polygon of the
+// original sub-line that s's baseline replaces). Strongly connected
+// components (cycles) are merged into one proxy: mean position (eval_x,
+// eval_y), maximum attributes. Over the condensed DAG
+//     e*(X) = max(e0(X), e*(Y))   d*(X) = max(r(X), |X - Y| + d*(Y))
+// for all edges X -> Y, r(X) = proxy radius. Points that depend on a line's
+// end point (always drawn) get kLodPointAlways. Values are rounded up to
+// float with a 1 mm margin per edge so the implications hold on the stored
+// floats.
+// ---------------------------------------------------------------------------
+inline constexpr uint32_t kLodNone = 0xffffffffu;
+inline constexpr uint32_t kLodPointAlways = 1u;  // LodPoint::flags bit 0
+
 struct LodPoint {
-  int32_t x, y;        // quanta
-  float error;         // saturated error ê (LOCALIS Eq. 3)
-  float dmax;          // saturated distance d̂max (Eq. 4)
+  int32_t x, y;            // drawing position, quanta
+  int32_t eval_x, eval_y;  // position for the camera distance d (the proxy
+                           // centroid for points merged from a cycle), quanta
+  float e_star;            // pre-evaluated error e* (Eq. 7), metres
+  float d_star;            // pre-evaluated distance d* (Eq. 7), metres
+  uint32_t line;           // index of its dynamic line (dyn_line_props)
+  uint32_t flags;          // bit 0 kLodPointAlways; other bits must be zero
 };
-static_assert(sizeof(LodPoint) == 16);
+static_assert(sizeof(LodPoint) == 32);
 
 struct LodSegment {
-  uint32_t a, b;       // point indices
-  float e_star;        // pre-evaluated e* including dependees (Eq. 6)
-  float d_star;        // pre-evaluated d* (Eq. 7)
-  float e_gen;         // generator error: segment is visible when ε(d) < its
-  float e_split;       //   generator error ... and ≥ splitter error (see SPEC)
-  uint32_t line;
-  uint32_t reserved;
+  uint32_t a, b;       // point indices (lod_points), a before b along the line
+  uint32_t generator;  // point whose inclusion creates the segment (a or b),
+                       // kLodNone for the line's base segment (first, last)
+  uint32_t splitter;   // point whose inclusion splits it, kLodNone for an
+                       // original segment of the line
 };
-static_assert(sizeof(LodSegment) == 32);
+static_assert(sizeof(LodSegment) == 16);
 
 inline constexpr BlobInfo kBlobCatalogue[] = {
     {BlobId::line_vertices, "line_vertices", ElementType::ivec2, 8},
