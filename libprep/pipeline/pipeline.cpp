@@ -199,12 +199,6 @@ std::string report_json(const SceneFeatures& scene, const std::string& output,
 BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
-#if !DECALPREP_HAVE_BUILD_WRITE
-  if (!request.dry_run) {
-    throw error("build: this decalprep has no build/write stage linked; use --dry-run",
-                ExitCode::internal);
-  }
-#endif
   if (!request.dry_run && request.output.empty()) throw usage_error("build: no output path (-o)");
 
   auto t0 = Clock::now();
@@ -225,7 +219,13 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
   result.scene = clean(projected, scene, co);
   timings.emplace_back("clean", seconds_since(t0));
 
-#if DECALPREP_HAVE_BUILD_WRITE
+#if !DECALPREP_HAVE_BUILD_WRITE
+  // Checked after clean, so bad input is still reported as such.
+  if (!request.dry_run) {
+    throw error("build: this decalprep has no build/write stage linked; use --dry-run",
+                ExitCode::internal);
+  }
+#else
   if (!request.dry_run) {
     t0 = Clock::now();
     DecalModel model = build_model(result.scene, scene.build, scene.dem);
