@@ -6,7 +6,7 @@
 #include <GeographicLib/TransverseMercator.hpp>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
-#include <tbb/enumerable_thread_specific.h>
+#include <tbb/task_arena.h>
 #include <tbb/parallel_for.h>
 
 #include <cmath>
@@ -212,27 +212,27 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
 
   for (SourceLayer& layer : features.layers) {
     auto src = srs_from(layer.srs_wkt, "source CRS of layer '" + layer.spec.name + "'");
-    const std::string src_wkt = layer.srs_wkt;
     const std::string ctx = "layer '" + layer.spec.name + "' to the scene frame";
-    make_transform(*src, *frame_srs, ctx);  // fail early, on this thread, with a message
-
-    // OGRCoordinateTransformation is not thread-safe: one per worker.
-    tbb::enumerable_thread_specific<TransformPtr> transforms([&] {
-      OGRSpatialReference s, f;
-      s.importFromWkt(src_wkt.c_str());
-      s.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      f.importFromWkt(frame.crs_wkt.c_str());
-      f.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      return TransformPtr(OGRCreateCoordinateTransformation(&s, &f));
-    });
-    tbb::enumerable_thread_specific<std::unique_ptr<NumericScale>> scales([&] {
-      return local_tm ? nullptr : std::make_unique<NumericScale>(*frame_srs);
-    });
+    // OGRCoordinateTransformation is not thread-safe: one per worker slot,
+    // cloned here on one thread (a clone skips PROJ's database search).
+    TransformPtr first = make_transform(*src, *frame_srs, ctx);
+    const int slots = tbb::this_task_arena::max_concurrency();
+    std::vector<TransformPtr> transforms;
+    transforms.push_back(std::move(first));
+    for (int i = 1; i < slots; ++i) {
+      TransformPtr c(transforms[0]->Clone());
+      if (!c) c = make_transform(*src, *frame_srs, ctx);
+      transforms.push_back(std::move(c));
+    }
+    std::vector<std::unique_ptr<NumericScale>> scales(slots);
+    if (!local_tm)
+      for (auto& sc : scales) sc = std::make_unique<NumericScale>(*frame_srs);
     std::vector<double>& k = out.scale.emplace_back(layer.features.size(), 1.0);
 
     tbb::parallel_for(tbb::blocked_range<size_t>(0, layer.features.size(), 64),
                       [&](const tbb::blocked_range<size_t>& range) {
-      OGRCoordinateTransformation& t = *transforms.local();
+      const int slot = tbb::this_task_arena::current_thread_index();
+      OGRCoordinateTransformation& t = *transforms[static_cast<size_t>(slot)];
       std::vector<double> xs, ys;
       std::vector<int> ok;
       for (size_t i = range.begin(); i != range.end(); ++i) {
@@ -282,7 +282,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
         // Scale factor at the part's vertex centroid: widths are ground
         // metres, the frame is not (DESIGN.md §1.2).
         k[i] = local_tm ? frame_scale_factor(frame, cx, cy)
-                        : scales.local()->at(cx + frame.origin_x, cy + frame.origin_y);
+                        : scales[static_cast<size_t>(slot)]->at(cx + frame.origin_x, cy + frame.origin_y);
         if (!std::isfinite(k[i])) k[i] = 1.0;
       }
     });

@@ -14,7 +14,10 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
+#include <tbb/parallel_for.h>
+
 #include <cmath>
+#include <exception>
 #include <memory>
 #include <mutex>
 
@@ -436,9 +439,39 @@ SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& 
 
 FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   if (scene.layers.empty()) throw usage_error("read: the scene has no layers");
+  register_gdal_once();
+  // Layers are read concurrently, each from its own GDAL dataset (GDAL is
+  // thread-safe across datasets; errors are captured per thread). Results
+  // are gathered in scene order, so the output does not depend on timing.
+  const size_t n = scene.layers.size();
+  std::vector<SourceLayer> layers(n);
+  std::vector<Manifest> manifests(n);
+  std::vector<std::exception_ptr> failures(n);
+  std::mutex progress_mutex;
+  ReadOptions serial = options;
+  if (options.progress) {
+    serial.progress = [&](double f, const std::string& label) {
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      options.progress(f, label);
+    };
+  }
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    try {
+      layers[i] = read_layer(scene.layers[i], scene, manifests[i], serial);
+    } catch (...) {
+      failures[i] = std::current_exception();
+    }
+  });
+  // The first failing layer in scene order is the one reported.
+  for (const std::exception_ptr& e : failures)
+    if (e) std::rethrow_exception(e);
   FeatureSet set;
-  for (const LayerSpec& spec : scene.layers) {
-    set.layers.push_back(read_layer(spec, scene, set.manifest, options));
+  for (size_t i = 0; i < n; ++i) {
+    set.layers.push_back(std::move(layers[i]));
+    Manifest& m = manifests[i];
+    for (auto& c : m.layers) set.manifest.layers.push_back(std::move(c));
+    for (auto& e : m.entries) set.manifest.entries.push_back(std::move(e));
+    for (auto& note : m.notes) set.manifest.notes.push_back(std::move(note));
   }
   return set;
 }
