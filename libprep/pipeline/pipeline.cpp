@@ -148,7 +148,12 @@ nlohmann::json layers_json(const std::vector<LayerSpec>& layers) {
                    {"kind", kind_name(l.kind)},
                    {"dynamic", l.dynamic},
                    {"width", l.style.width},
-                   {"width_unit", l.dynamic ? "pixel" : "ground metre"}});
+                   {"width_unit", l.dynamic ? "pixel" : "ground metre"},
+                   {"color_rgba", l.style.color.rgba},
+                   {"color_attribute", l.style.color.attribute},
+                   {"corner", static_cast<uint32_t>(l.style.corner)},
+                   {"outline_mode", static_cast<uint32_t>(l.style.outline)},
+                   {"order_attribute", l.style.order_attribute}});
   }
   return out;
 }
@@ -232,13 +237,23 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
     timings.emplace_back("build", seconds_since(t0));
 
     t0 = Clock::now();
+    // build_model carries the manifest; make sure the package has it.
+    if (model.manifest.layers.empty()) model.manifest = result.scene.manifest;
+    // write_model writes frame, grid, counts and the manifest itself; the
+    // pipeline adds what only it knows (keys must not collide).
+    nlohmann::json totals = manifest_json(model.manifest, false)["totals"];
     nlohmann::json extra;
-    extra["manifest"] = manifest_json(model.manifest.layers.empty() ? result.scene.manifest
-                                                                    : model.manifest,
-                                      true);
+    extra["manifest"]["totals"] = totals;
+    extra["layers"] = layers_json(scene.layers);
     extra["provenance"] = provenance_json(scene);
     extra["scene_file"] = scene.scene_path;
-    extra["resolution"] = scene.resolution;
+    extra["build_options"] = {{"resolution_m", scene.resolution},
+                              {"crs", scene.crs},
+                              {"dem", scene.dem},
+                              {"grid", {scene.build.grid_nx, scene.build.grid_ny}},
+                              {"qt_leaf_capacity", scene.build.qt_leaf_capacity},
+                              {"qt_max_depth", scene.build.qt_max_depth},
+                              {"miter_limit_deg", scene.build.miter_limit_deg}};
     WriteOptions wo;
     wo.codec = request.compress ? Codec::zstd : Codec::none;
     wo.zstd_level = request.zstd_level;
