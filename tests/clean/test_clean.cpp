@@ -2,7 +2,9 @@
 // and read through GDAL. Each case ends valid (GEOS isValid) with the area
 // GEOS MakeValid gives the original geometry (1e-9 relative), or dropped with
 // a reason.
+#include <gdal_priv.h>
 #include <gtest/gtest.h>
+#include <ogr_spatialref.h>
 
 #include <cmath>
 #include <map>
@@ -10,6 +12,7 @@
 
 #include "../read/fixtures.hpp"
 #include "geos_oracle.hpp"
+#include "prep/error.hpp"
 #include "prep/pipeline.hpp"
 
 namespace {
@@ -315,6 +318,80 @@ TEST(Clean, OutputDoesNotDependOnTheThreadCount) {
   ASSERT_EQ(one.manifest.entries.size(), two.manifest.entries.size());
   for (size_t i = 0; i < one.manifest.entries.size(); ++i)
     EXPECT_EQ(one.manifest.entries[i].fid, two.manifest.entries[i].fid);
+}
+
+}  // namespace
+
+namespace {
+
+// A 1-band GeoTIFF in EPSG:32632 covering x in [kX0 - 100, kX0 + 50],
+// y in [kY0 - 100, kY0 + 200], written with GDAL.
+std::string write_dem(const TempDir& dir) {
+  GDALAllRegister();
+  const std::string path = dir.file("dem.tif");
+  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
+  std::unique_ptr<GDALDataset> ds(drv->Create(path.c_str(), 15, 30, 1, GDT_Float32, nullptr));
+  double gt[6] = {kX0 - 100, 10, 0, kY0 + 200, 0, -10};
+  ds->SetGeoTransform(gt);
+  OGRSpatialReference srs;
+  srs.importFromEPSG(32632);
+  ds->SetSpatialRef(&srs);
+  std::vector<float> z(15 * 30, 100.0f);
+  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 15, 30, z.data(), 15, 30, GDT_Float32, 0, 0) != CE_None)
+    throw std::runtime_error("RasterIO failed");
+  return path;
+}
+
+TEST(Clean, WithADemTheSceneIsClippedToTheDemExtent) {
+  TempDir dir;
+  std::vector<Case> cs = {
+      polygon_case(1, "crossing the DEM edge", {{{0, 0}, {100, 0}, {100, 100}, {0, 100}, {0, 0}}}),
+      polygon_case(2, "beyond the DEM", {{{1000, 0}, {1100, 0}, {1100, 100}, {1000, 100}, {1000, 0}}})};
+  prep::test::write_text(dir.file("d.geojson"), collection(cs));
+  prep::SceneSpec s;
+  prep::LayerSpec l;
+  l.name = "d";
+  l.source = dir.file("d.geojson");
+  s.layers.push_back(l);
+  s.crs = "EPSG:32632";
+  s.dem = write_dem(dir);
+  prep::BuildRequest req;
+  req.dry_run = true;
+  prep::SceneFeatures sf = prep::run_build(s, req).scene;
+  ASSERT_EQ(sf.polygons.size(), 1u);
+  EXPECT_NEAR(prep::test::polygon_area(sf.polygons[0]), 50.0 * 100.0, 1e-6);
+  EXPECT_EQ(sf.manifest.layers[0].clipped_away, 1u);
+
+  s.dem = dir.file("missing.tif");
+  try {
+    prep::run_build(s, req);
+    FAIL() << "missing DEM accepted";
+  } catch (const prep::error& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.tif"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Clean, ExtentGivenInLonLatIsTransformedIntoTheFrame) {
+  TempDir dir;
+  std::vector<Case> cs = {
+      polygon_case(1, "near the origin", {{{0, 0}, {100, 0}, {100, 100}, {0, 100}, {0, 0}}}),
+      polygon_case(2, "50 km east", {{{50000, 0}, {50100, 0}, {50100, 100}, {50000, 100}, {50000, 0}}})};
+  prep::test::write_text(dir.file("e.geojson"), collection(cs));
+  // Zone 32's central meridian is 9°E; (500000, 4800000) is near 43.35°N.
+  prep::SceneSpec s;
+  prep::LayerSpec l;
+  l.name = "e";
+  l.source = dir.file("e.geojson");
+  s.layers.push_back(l);
+  s.crs = "EPSG:32632";
+  s.extent = prep::Extent{8.9, 43.0, 9.1, 43.7};
+  s.extent_crs = "EPSG:4326";
+  prep::BuildRequest req;
+  req.dry_run = true;
+  prep::SceneFeatures sf = prep::run_build(s, req).scene;
+  ASSERT_EQ(sf.polygons.size(), 1u);
+  EXPECT_EQ(sf.polygons[0].fid, 1);
+  EXPECT_EQ(sf.manifest.layers[0].clipped_away, 1u);
 }
 
 }  // namespace
