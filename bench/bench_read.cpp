@@ -29,6 +29,7 @@ namespace {
 
 struct RunStats {
   double wall_s = 0;
+  double cpu_s = 0;  // user + system
   long peak_rss_kib = 0;
   int rc = -1;
 };
@@ -55,6 +56,8 @@ RunStats run_child(const std::vector<std::string>& args, const std::string& log)
   RunStats s;
   s.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   s.peak_rss_kib = ru.ru_maxrss;
+  s.cpu_s = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+            1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
   s.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128;
   return s;
 }
@@ -133,6 +136,7 @@ uint64_t report_vertices(const std::string& report) {
 struct Input {
   std::string name, source;
   std::vector<std::string> layers;  // empty: the first layer (synthetic)
+  std::string crs;                  // scene frame; empty: local TM
 };
 
 }  // namespace
@@ -160,7 +164,7 @@ int main(int argc, char** argv) {
   for (auto [name, rel] : {std::pair{"liechtenstein", "liechtenstein/liechtenstein-2013-08-03.osm.pbf"},
                            std::pair{"monaco", "monaco/monaco.osm.pbf"}}) {
     const std::string p = data + "/" + rel;
-    if (fs::exists(p)) inputs.push_back({name, fs::absolute(p).string(), {"multipolygons", "lines"}});
+    if (fs::exists(p)) inputs.push_back({name, fs::absolute(p).string(), {"multipolygons", "lines"}, ""});
     else std::fprintf(stderr, "skipping %s: %s missing\n", name, p.c_str());
   }
   const std::string fgb = out + "/synthetic-" + std::to_string(vertices) + ".fgb";
@@ -168,15 +172,20 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "generating %s ...\n", fgb.c_str());
     generate(fgb, vertices, out);
   }
-  inputs.push_back({"synthetic " + std::to_string(vertices / 1'000'000) + "M", fgb, {}});
+  const std::string syn = "synthetic " + std::to_string(vertices / 1'000'000) + "M";
+  inputs.push_back({syn, fgb, {}, ""});
+  // The same with the frame = the source CRS: no reprojection work, which
+  // separates PROJ's share from read + clean.
+  inputs.push_back({syn + " (frame = source CRS)", fgb, {}, "EPSG:32632"});
 
-  std::printf("| input | vertices | decalprep read+project+clean (s) | Mvertices/s | peak RSS (MiB) | ogr2ogr -f FlatGeobuf (s) | ogr2ogr peak RSS (MiB) | ratio |\n");
-  std::printf("|---|---|---|---|---|---|---|---|\n");
+  std::printf("| input | vertices | decalprep wall (s) | CPU (s) | Mvertices/s | peak RSS (MiB) | ogr2ogr wall (s) | CPU (s) | peak RSS (MiB) | wall ratio |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Input& in : inputs) {
     const std::string scene = out + "/scene.toml", report = out + "/report.json";
     {
       std::ofstream s(scene);
       s << "source = \"" << in.source << "\"\n";
+      if (!in.crs.empty()) s << "crs = \"" << in.crs << "\"\n";
       if (in.layers.empty()) {
         s << "[[layer]]\nname = \"all\"\nkind = \"polygon\"\n";
       } else {
@@ -191,10 +200,10 @@ int main(int argc, char** argv) {
     fs::remove_all(out + "/floor");
     RunStats floor = best_of(repeat, ogr, out + "/ogr2ogr.log");
     const uint64_t v = report_vertices(report);
-    std::printf("| %s | %llu | %.2f | %.2f | %.0f | %.2f | %.0f | %.2f |\n", in.name.c_str(),
-                static_cast<unsigned long long>(v), ours.wall_s, double(v) / ours.wall_s / 1e6,
-                ours.peak_rss_kib / 1024.0, floor.wall_s, floor.peak_rss_kib / 1024.0,
-                ours.wall_s / floor.wall_s);
+    std::printf("| %s | %llu | %.2f | %.2f | %.2f | %.0f | %.2f | %.2f | %.0f | %.2f |\n",
+                in.name.c_str(), static_cast<unsigned long long>(v), ours.wall_s, ours.cpu_s,
+                double(v) / ours.wall_s / 1e6, ours.peak_rss_kib / 1024.0, floor.wall_s,
+                floor.cpu_s, floor.peak_rss_kib / 1024.0, ours.wall_s / floor.wall_s);
     std::fflush(stdout);
   }
   return 0;
