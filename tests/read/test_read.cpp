@@ -167,3 +167,34 @@ TEST(Read, ConsoleProgressWritesPlainLinesWhenNotATerminal) {
 }
 
 }  // namespace
+
+#include <cpl_vsi.h>
+
+#include "prep/pipeline.hpp"
+#include "prep/scene_file.hpp"
+
+namespace {
+
+TEST(Read, SceneFileWithRelativeVsizipSourceReadsFromTheArchiveNextToIt) {
+  prep::test::TempDir dir;
+  // GDAL writes the archive itself (/vsizip/ supports creation).
+  const std::string inner = "/vsizip/" + dir.file("data.zip") + "/roads.geojson";
+  const std::string json = R"({"type":"FeatureCollection","features":[
+ {"type":"Feature","properties":{},"geometry":{"type":"LineString","coordinates":[[7.42,43.73],[7.43,43.74]]}},
+ {"type":"Feature","properties":{},"geometry":{"type":"LineString","coordinates":[[7.43,43.73],[7.44,43.74]]}}]})";
+  VSILFILE* f = VSIFOpenL(inner.c_str(), "wb");
+  ASSERT_NE(f, nullptr);
+  ASSERT_EQ(VSIFWriteL(json.data(), 1, json.size(), f), json.size());
+  VSIFCloseL(f);
+  prep::test::write_text(dir.file("scene.toml"),
+                         "[[layer]]\nname = \"roads\"\nsource = \"/vsizip/data.zip/roads.geojson\"\n"
+                         "kind = \"line\"\nwidth = 4\n");
+  prep::SceneSpec s = prep::load_scene_file(dir.file("scene.toml"));
+  prep::BuildRequest req;
+  req.dry_run = true;
+  prep::BuildResult r = prep::run_build(s, req);
+  ASSERT_EQ(r.scene.lines.size(), 2u);
+  EXPECT_EQ(r.scene.manifest.layers[0].read, 2u);
+}
+
+}  // namespace
