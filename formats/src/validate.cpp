@@ -187,13 +187,21 @@ Status check_dynamic(const Checker& c) {
 }
 
 Status check_lod(const Checker& c) {
+  const auto points = c.get<LodPoint>(BlobId::lod_points);
+  for (size_t i = 0; i < points.size(); ++i) {
+    CHECK(c.index(BlobId::lod_points, i, "line", points[i].line, BlobId::dyn_line_props));
+    if ((points[i].flags & ~kLodPointAlways) != 0)
+      return Status::failure(fmt("lod_points[%zu].flags = %u, only bit 0 may be set", i,
+                                 points[i].flags));
+  }
   const auto segs = c.get<LodSegment>(BlobId::lod_segments);
   for (size_t i = 0; i < segs.size(); ++i) {
     CHECK(c.index(BlobId::lod_segments, i, "a", segs[i].a, BlobId::lod_points));
     CHECK(c.index(BlobId::lod_segments, i, "b", segs[i].b, BlobId::lod_points));
-    if (segs[i].reserved != 0)
-      return Status::failure(fmt("lod_segments[%zu].reserved = %u, must be zero", i,
-                                 segs[i].reserved));
+    if (segs[i].generator != kLodNone)
+      CHECK(c.index(BlobId::lod_segments, i, "generator", segs[i].generator, BlobId::lod_points));
+    if (segs[i].splitter != kLodNone)
+      CHECK(c.index(BlobId::lod_segments, i, "splitter", segs[i].splitter, BlobId::lod_points));
   }
   const auto ranges = c.get<u2>(BlobId::lod_line_range);
   for (size_t i = 0; i < ranges.size(); ++i)

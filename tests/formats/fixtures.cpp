@@ -54,9 +54,11 @@ prep::DecalModel small_model() {
   m.terrain_min = 99.0;
   m.terrain_max = 130.25;
   // LOD
-  m.lod_points = {{-9000, 0, 0.0f, 0.0f}, {0, 500, 0.5f, 4.0f}, {9000, 0, 0.0f, 0.0f}};
-  m.lod_segments = {{0, 2, 0.5f, 4.0f, INFINITY, 0.5f, 0, 0}, {0, 1, 0.5f, 4.0f, 0.5f, 0.0f, 0, 0}};
-  m.lod_line_range = {{0, 2}};
+  m.lod_points = {{-9000, 0, -9000, 0, 0.0f, 0.0f, 0, decal::kLodPointAlways},
+                  {0, 500, 0, 500, 0.5f, 4.0f, 0, 0},
+                  {9000, 0, 9000, 0, 0.0f, 0.0f, 0, decal::kLodPointAlways}};
+  m.lod_segments = {{0, 2, decal::kLodNone, 1}, {0, 1, 1, decal::kLodNone}, {1, 2, 1, decal::kLodNone}};
+  m.lod_line_range = {{0, 3}};
   m.max_representation_error = 0.0004;
   m.manifest.layers.push_back({"roads", 3, 2, 1, 0, 1, 2, 10, 5});
   m.manifest.entries.push_back({"roads", 17, -1, "dropped", "ring has NaN coordinate", NAN, NAN});

@@ -95,26 +95,31 @@ json json_poly(const decal::PolyProps& p) {
           {"reserved", {p.reserved[0], p.reserved[1]}}};
 }
 std::string text_lod_point(const decal::LodPoint& p) {
-  return "x=" + std::to_string(p.x) + " y=" + std::to_string(p.y) + " error=" + num(p.error) +
-         " dmax=" + num(p.dmax);
+  return "x=" + std::to_string(p.x) + " y=" + std::to_string(p.y) +
+         " eval_x=" + std::to_string(p.eval_x) + " eval_y=" + std::to_string(p.eval_y) +
+         " e_star=" + num(p.e_star) + " d_star=" + num(p.d_star) +
+         " line=" + std::to_string(p.line) + " flags=" + std::to_string(p.flags);
 }
 json json_lod_point(const decal::LodPoint& p) {
-  return {{"x", p.x}, {"y", p.y}, {"error", jnum(p.error)}, {"dmax", jnum(p.dmax)}};
+  return {{"x", p.x},
+          {"y", p.y},
+          {"eval_x", p.eval_x},
+          {"eval_y", p.eval_y},
+          {"e_star", jnum(p.e_star)},
+          {"d_star", jnum(p.d_star)},
+          {"line", p.line},
+          {"flags", p.flags}};
+}
+std::string lod_index(uint32_t v) {
+  return v == decal::kLodNone ? std::string("none") : std::to_string(v);
 }
 std::string text_lod_segment(const decal::LodSegment& s) {
-  return "a=" + std::to_string(s.a) + " b=" + std::to_string(s.b) + " e_star=" + num(s.e_star) +
-         " d_star=" + num(s.d_star) + " e_gen=" + num(s.e_gen) + " e_split=" + num(s.e_split) +
-         " line=" + std::to_string(s.line) + " reserved=" + std::to_string(s.reserved);
+  return "a=" + std::to_string(s.a) + " b=" + std::to_string(s.b) +
+         " generator=" + lod_index(s.generator) + " splitter=" + lod_index(s.splitter);
 }
 json json_lod_segment(const decal::LodSegment& s) {
-  return {{"a", s.a},
-          {"b", s.b},
-          {"e_star", jnum(s.e_star)},
-          {"d_star", jnum(s.d_star)},
-          {"e_gen", jnum(s.e_gen)},
-          {"e_split", jnum(s.e_split)},
-          {"line", s.line},
-          {"reserved", s.reserved}};
+  auto idx = [](uint32_t v) { return v == decal::kLodNone ? json(nullptr) : json(v); };
+  return {{"a", s.a}, {"b", s.b}, {"generator", idx(s.generator)}, {"splitter", idx(s.splitter)}};
 }
 
 // One element as text (components separated by spaces) and as JSON.
