@@ -6,6 +6,7 @@
 #include <geos_c.h>
 
 #include <cmath>
+#include <algorithm>
 #include <cstdarg>
 #include <cstdio>
 #include <random>
