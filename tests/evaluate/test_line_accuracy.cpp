@@ -110,6 +110,19 @@ LineSet line_set(uint64_t seed, double scale, double ox, double oy) {
       l.closed = true;
       add(l, mode);
     }
+  for (uint32_t mode = 3; mode < 6; ++mode)
+    for (int k = 0; k < 8; ++k) {
+      // Kites with a sharp convex tip (~19°) and a sharp reflex notch
+      // (~33°): round fallbacks on both kinds of corner.
+      const prep::Point2 c = centre(tile++);
+      const double a = 2 * M_PI * U(rng), ca = std::cos(a), sa = std::sin(a);
+      prep::SceneLine l;
+      for (auto [x, y] : {std::pair{-30.0, -10.0}, {30.0, 0.0}, {-30.0, 10.0}, {-27.0, 0.0}})
+        l.points.push_back({c.x + scale * (ca * x - sa * y), c.y + scale * (sa * x + ca * y)});
+      if (k % 2) std::reverse(l.points.begin(), l.points.end());
+      l.closed = true;
+      add(l, mode);
+    }
   s.rows = (tile + s.cols - 1) / s.cols;
   s.scene.extent = {ox, oy, ox + s.cols * s.tile, oy + s.rows * s.tile};
   return s;
@@ -180,8 +193,16 @@ G oracle(GEOSContextHandle_t h, const prep::SceneLine& l, const prep::LayerSpec&
         piece.push_back(pts[i]);
         const bool brk = k + 1 == order.size() || fb[i];
         if (!brk) continue;
-        G g = synth::linestring(h, piece);
-        parts.push_back(G(h, GEOSBufferWithStyle_r(h, g.g, hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE, limit)));
+        // GEOS buffers a closed LineString as a ring (a join, no caps), so a
+        // ring with a single fallback vertex is cut into two open pieces
+        // sharing one segment; their union keeps every mitre join.
+        std::vector<prep::Ring> pieces{piece};
+        if (piece.size() >= 4 && piece.front().x == piece.back().x && piece.front().y == piece.back().y)
+          pieces = {prep::Ring(piece.begin(), piece.begin() + 3), prep::Ring(piece.begin() + 1, piece.end())};
+        for (const auto& pc : pieces) {
+          G g = synth::linestring(h, pc);
+          parts.push_back(G(h, GEOSBufferWithStyle_r(h, g.g, hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE, limit)));
+        }
         parts.push_back(disc(h, pts[i], hw));
         piece = {pts[i]};
       }
@@ -286,6 +307,12 @@ Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n,
                         << " layer " << set.scene.layers[l.layer].name << " fid " << l.fid
                         << ": GEOS " << truth << " evaluator " << got.line_covered << " (line "
                         << got.top_line << ")";
+          for (const auto& v : l.points) std::printf("  v %.6f %.6f\n", v.x - x, v.y - y);
+          if (logged == 1) {
+            char* w = GEOSGeomToWKT_r(h, area[tile].g);
+            std::printf("  oracle %s\n", w);
+            GEOSFree_r(h, w);
+          }
         }
       }
     }
