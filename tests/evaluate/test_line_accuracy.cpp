@@ -249,7 +249,7 @@ Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n,
       }
     }
   }
-  const size_t chunks = 16;
+  const size_t chunks = 4;
   std::atomic<uint64_t> tested{0}, excluded{0}, inside{0}, wrong{0};
   std::mutex log_mutex;
   int logged = 0;

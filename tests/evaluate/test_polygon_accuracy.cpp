@@ -43,7 +43,7 @@ Outcome check_polygons(const synth::PolygonSet& set, const prep::DecalModel& mod
                        double near, double band) {
   const prep::StaticView view = prep::view_of(model);
   const auto& polys = set.scene.polygons;  // pairs: (shell with hole, island) per tile
-  const size_t chunks = 16;
+  const size_t chunks = 4;
   std::atomic<uint64_t> tested{0}, excluded{0}, inside{0}, wrong{0};
   std::mutex log_mutex;
   int logged = 0;
