@@ -170,23 +170,69 @@ enum class QtNodeType : int32_t {
   partial = 3,   // offset = index into qt_leaf_range
 };
 
+// ---------------------------------------------------------------------------
+// LOD segments (LOCALIS, seed 001 §3.1-3.5). Normative text for SPEC.md.
+//
+// Every LOD line (a dynamic line of a layer with `lod = true`) is turned
+// into a Douglas-Peucker BLG-tree and then into its exhaustive set of
+// attributed segments: every segment that can appear in any simplification
+// (rules 1-3 of §3.2: 2n-1 segments for a line of n segments). A closed
+// outline is stored with its first point repeated as its last point.
+//
+// Point inclusion. For a camera at C = (cx, cy, cz) in scene metres
+// relative to the package origin, let d(p) = |(eval_x, eval_y) * quantum -
+// (cx, cy)| combined with cz: d = sqrt(dx^2 + dy^2 + cz^2) (any distance
+// that changes by at most |p - q| between two points works). Given a
+// non-decreasing threshold function eps(d) (metres; the screen-space error
+// threshold), a point p is INCLUDED iff
+//     (flags & kLodPointAlways) != 0   or   e_star > eps(d(p) - d_star)
+// which is LOCALIS Eq. (7) with the pre-evaluated e* and d*.
+//
+// Segment visibility (Eq. (2)/(4)). A segment is VISIBLE iff
+//     (generator == kLodNone or generator is INCLUDED) and
+//     (splitter  == kLodNone or splitter  is NOT INCLUDED).
+// For every camera and every non-decreasing eps the visible segments of a
+// line form one connected polyline from its first to its last point. For a
+// constant eps (and a package built without dependees) they are exactly the
+// Douglas-Peucker simplification of the line at tolerance eps (distance of a
+// point to the baseline SEGMENT; ties go to the first point).
+//
+// How e*, d* are made (informative): e0 = DP error of the point, made
+// non-increasing down the BLG-tree (min with the parent's: a node is never
+// kept when DP would stop above it). Edges s -> j mean "j included implies s
+// included": s -> its BLG children (saturation, §3.3) and s -> each dependee
+// (§3.4: a point of any LOD line lying inside the closed polygon of the
+// original sub-line that s's baseline replaces). Strongly connected
+// components (cycles) are merged into one proxy: mean position (eval_x,
+// eval_y), maximum attributes. Over the condensed DAG
+//     e*(X) = max(e0(X), e*(Y))   d*(X) = max(r(X), |X - Y| + d*(Y))
+// for all edges X -> Y, r(X) = proxy radius. Points that depend on a line's
+// end point (always drawn) get kLodPointAlways. Values are rounded up to
+// float with a 1 mm margin per edge so the implications hold on the stored
+// floats.
+// ---------------------------------------------------------------------------
+inline constexpr uint32_t kLodNone = 0xffffffffu;
+inline constexpr uint32_t kLodPointAlways = 1u;  // LodPoint::flags bit 0
+
 struct LodPoint {
-  int32_t x, y;        // quanta
-  float error;         // saturated error ê (LOCALIS Eq. 3)
-  float dmax;          // saturated distance d̂max (Eq. 4)
+  int32_t x, y;            // drawing position, quanta
+  int32_t eval_x, eval_y;  // position for the camera distance d (the proxy
+                           // centroid for points merged from a cycle), quanta
+  float e_star;            // pre-evaluated error e* (Eq. 7), metres
+  float d_star;            // pre-evaluated distance d* (Eq. 7), metres
+  uint32_t line;           // index of its dynamic line (dyn_line_props)
+  uint32_t flags;          // bit 0 kLodPointAlways; other bits must be zero
 };
-static_assert(sizeof(LodPoint) == 16);
+static_assert(sizeof(LodPoint) == 32);
 
 struct LodSegment {
-  uint32_t a, b;       // point indices
-  float e_star;        // pre-evaluated e* including dependees (Eq. 6)
-  float d_star;        // pre-evaluated d* (Eq. 7)
-  float e_gen;         // generator error: segment is visible when ε(d) < its
-  float e_split;       //   generator error ... and ≥ splitter error (see SPEC)
-  uint32_t line;
-  uint32_t reserved;
+  uint32_t a, b;       // point indices (lod_points), a before b along the line
+  uint32_t generator;  // point whose inclusion creates the segment (a or b),
+                       // kLodNone for the line's base segment (first, last)
+  uint32_t splitter;   // point whose inclusion splits it, kLodNone for an
+                       // original segment of the line
 };
-static_assert(sizeof(LodSegment) == 32);
+static_assert(sizeof(LodSegment) == 16);
 
 inline constexpr BlobInfo kBlobCatalogue[] = {
     {BlobId::line_vertices, "line_vertices", ElementType::ivec2, 8},
@@ -227,8 +273,104 @@ constexpr const BlobInfo* find_blob_info(BlobId id) {
 }
 
 // ---------------------------------------------------------------------------
-// File-level structures (magic, header, blob table entry) are defined below by
-// the package-format owner; see SPEC.md.
+// File-level structures (SPEC.md §"File structure"). All integers are
+// little-endian; these structs mirror the on-disk bytes exactly on the
+// little-endian hosts this project targets (static_asserts pin the layout).
+//
+//   [FileHeader 96 B][BlobTableEntry 96 B x blob_count][metadata JSON]
+//   [zero padding to 256][blob 0][zero padding to 256][blob 1]...[blob n-1]
 // ---------------------------------------------------------------------------
+
+// Magic, PNG-style: the high-bit first byte catches 7-bit transports and
+// tells the file from text, "DCL" names it in a hex dump, CR LF catches
+// line-ending conversion, 0x1A stops DOS `type`, the final LF catches
+// LF -> CRLF conversion.
+inline constexpr unsigned char kMagic[8] = {0x89, 'D', 'C', 'L', '\r', '\n', 0x1A, '\n'};
+
+// Version policy (SPEC.md §"Versioning"): a reader rejects any major
+// version other than its own, naming the version; it reads any minor
+// version of its major (newer minors only add optional things).
+inline constexpr uint16_t kVersionMajor = 1;
+inline constexpr uint16_t kVersionMinor = 0;
+
+// Flags. Bits 0-15 are "required": a reader rejects a file with a required
+// bit it does not know. Bits 16-31 are "optional": unknown ones are ignored.
+inline constexpr uint32_t kRequiredFlagsMask = 0x0000FFFFu;
+inline constexpr uint32_t kKnownRequiredFlags = 0;  // none in v1.0
+// Every blob is stored with codec none, so the whole package can be mapped.
+inline constexpr uint32_t kFlagAllUncompressed = 1u << 16;
+inline constexpr uint32_t kKnownOptionalFlags = kFlagAllUncompressed;
+
+// Every blob starts at a multiple of this many bytes from the file start;
+// the bytes between regions are zero.
+inline constexpr uint64_t kBlobAlignment = 256;
+
+// Codec of a stored blob. Numbering is part of the format.
+enum class CodecId : uint32_t {
+  none = 0,  // stored bytes are the raw bytes
+  zstd = 1,  // one zstd frame (RFC 8878) with the content size field set
+};
+
+inline constexpr size_t kBlobNameSize = 32;
+
+struct FileHeader {
+  unsigned char magic[8];       // kMagic
+  uint16_t version_major;       // kVersionMajor
+  uint16_t version_minor;       // kVersionMinor
+  uint32_t flags;               // kFlag* bits
+  uint32_t header_size;         // sizeof(FileHeader) = 96 in v1
+  uint32_t blob_entry_size;     // sizeof(BlobTableEntry) = 96 in v1
+  uint32_t blob_count;          // entries in the blob table
+  uint32_t reserved0;           // must be zero
+  uint64_t file_size;           // total bytes in the file
+  uint64_t table_offset;        // = header_size
+  uint64_t table_checksum;      // XXH64(seed 0) of the whole blob table
+  uint64_t metadata_offset;     // = table_offset + blob_count * blob_entry_size
+  uint64_t metadata_size;       // bytes of UTF-8 JSON, no terminator
+  uint64_t metadata_checksum;   // XXH64(seed 0) of the metadata bytes
+  uint64_t reserved1;           // must be zero
+  uint64_t header_checksum;     // XXH64(seed 0) of header bytes [0, header_size - 8)
+};
+static_assert(sizeof(FileHeader) == 96);
+static_assert(offsetof(FileHeader, version_major) == 8);
+static_assert(offsetof(FileHeader, file_size) == 32);
+static_assert(offsetof(FileHeader, header_checksum) == 88);
+
+struct BlobTableEntry {
+  uint32_t id;                  // BlobId value
+  uint32_t element_type;        // ElementType value
+  uint32_t stride;              // std430 bytes per element
+  uint32_t codec;               // CodecId value
+  uint64_t count;               // elements; raw_size = count * stride
+  uint64_t offset;              // from file start; multiple of kBlobAlignment
+  uint64_t stored_size;         // bytes in the file
+  uint64_t raw_size;            // bytes after decoding
+  uint64_t checksum;            // XXH64(seed 0) of the stored bytes
+  char name[kBlobNameSize];     // [a-z0-9_]+, NUL-padded; catalogue name for known ids
+  uint32_t reserved[2];         // must be zero
+};
+static_assert(sizeof(BlobTableEntry) == 96);
+static_assert(offsetof(BlobTableEntry, count) == 16);
+static_assert(offsetof(BlobTableEntry, checksum) == 48);
+static_assert(offsetof(BlobTableEntry, name) == 56);
+
+// The name of an element type as SPEC.md writes it ("ivec2"), or "" when
+// unknown.
+constexpr std::string_view element_type_name(ElementType t) {
+  switch (t) {
+    case ElementType::u8: return "u8";
+    case ElementType::u32: return "u32";
+    case ElementType::i32: return "i32";
+    case ElementType::f32: return "f32";
+    case ElementType::ivec2: return "ivec2";
+    case ElementType::uvec2: return "uvec2";
+    case ElementType::ivec4: return "ivec4";
+    case ElementType::uvec4: return "uvec4";
+    case ElementType::vec2: return "vec2";
+    case ElementType::vec4: return "vec4";
+    case ElementType::record: return "record";
+  }
+  return "";
+}
 
 }  // namespace decal

@@ -1,0 +1,93 @@
+#!/usr/bin/env python3
+"""Generates synthetic benchmark inputs of a given vertex count.
+
+  gen_synthetic.py KIND VERTICES OUT.geojsonl [--seed S]
+
+KIND: polygons  - star-shaped polygons with 0-3 holes each (~200 vertices each)
+      lines     - a jittered street-like network of polylines (~50 vertices each)
+      mix       - half of each
+Output is GeoJSON sequence (one feature per line) in EPSG:32632 (UTM 32N, around
+Monaco), so that no reprojection distortion hides in the timings; convert with
+`ogr2ogr -f FlatGeobuf out.fgb OUT.geojsonl -a_srs EPSG:32632` for fast reads.
+Deterministic for a given seed. Standard library only.
+"""
+import json
+import math
+import random
+import sys
+
+X0, Y0 = 370_000.0, 4_840_000.0  # UTM 32N near Monaco
+
+
+def star(rng, cx, cy, r, n, cw=False):
+    pts = []
+    for i in range(n):
+        a = 2 * math.pi * i / n
+        rr = r * (0.75 + 0.25 * rng.random())
+        pts.append([round(cx + rr * math.cos(a), 3), round(cy + rr * math.sin(a), 3)])
+    if cw:
+        pts.reverse()
+    pts.append(pts[0])
+    return pts
+
+
+def polygons(rng, budget, out, fid, extent):
+    while budget > 0:
+        n = min(budget, rng.randint(100, 300))
+        cx, cy = X0 + rng.random() * extent, Y0 + rng.random() * extent
+        r = 20 + rng.random() * 200
+        rings = [star(rng, cx, cy, r, max(n - 40, 8))]
+        left = n - len(rings[0])
+        for h in range(rng.randint(0, 3)):
+            if left < 8:
+                break
+            k = min(left, 10)
+            a = 2 * math.pi * h / 3
+            rings.append(star(rng, cx + 0.4 * r * math.cos(a), cy + 0.4 * r * math.sin(a), 0.15 * r, k, cw=True))
+            left -= k + 1
+        budget -= sum(len(x) for x in rings)
+        out.write(json.dumps({"type": "Feature", "id": fid, "properties": {"id": fid, "class": fid % 7},
+                              "geometry": {"type": "Polygon", "coordinates": rings}}) + "\n")
+        fid += 1
+    return fid
+
+
+def lines(rng, budget, out, fid, extent):
+    while budget > 0:
+        n = min(max(budget, 2), rng.randint(20, 80))
+        x, y = X0 + rng.random() * extent, Y0 + rng.random() * extent
+        heading = rng.random() * 2 * math.pi
+        pts = []
+        for _ in range(n):
+            pts.append([round(x, 3), round(y, 3)])
+            heading += rng.gauss(0, 0.3)
+            step = 5 + rng.random() * 30
+            x += step * math.cos(heading)
+            y += step * math.sin(heading)
+        budget -= n
+        out.write(json.dumps({"type": "Feature", "id": fid, "properties": {"id": fid, "class": fid % 5},
+                              "geometry": {"type": "LineString", "coordinates": pts}}) + "\n")
+        fid += 1
+    return fid
+
+
+def main():
+    kind, vertices, path = sys.argv[1], int(float(sys.argv[2])), sys.argv[3]
+    seed = int(sys.argv[sys.argv.index("--seed") + 1]) if "--seed" in sys.argv else 1
+    rng = random.Random(seed)
+    # Keep density roughly constant: extent grows with sqrt(vertices).
+    extent = 2_000.0 * math.sqrt(max(vertices, 10_000) / 10_000)
+    with open(path, "w") as out:
+        if kind == "polygons":
+            polygons(rng, vertices, out, 1, extent)
+        elif kind == "lines":
+            lines(rng, vertices, out, 1, extent)
+        elif kind == "mix":
+            fid = polygons(rng, vertices // 2, out, 1, extent)
+            lines(rng, vertices - vertices // 2, out, fid, extent)
+        else:
+            sys.exit(f"gen_synthetic: unknown kind '{kind}' (polygons|lines|mix)")
+
+
+if __name__ == "__main__":
+    main()

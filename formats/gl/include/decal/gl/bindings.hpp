@@ -1,0 +1,93 @@
+// decal/gl/bindings.hpp — the GL binding points of the package blobs.
+//
+// Every blob the renderer reads has one fixed binding index. With SSBO
+// binding (the default) it is the shader-storage binding point of a std430
+// `readonly buffer`; with buffer-texture binding it is the texture unit of a
+// `*samplerBuffer` over the same GL buffer. The GLSL declarations in
+// formats/gl/shaders/decal_blobs.glsl use exactly these numbers (a test
+// compiles them against this table).
+//
+// The static pass reads the polygon blobs in one draw and the line blobs in
+// another (thesis §4.4.1 renders polygons first, then lines over them), so
+// each draw stays within 16 storage blocks per fragment shader.
+//
+// Buffer-texture formats (texel per element unless noted):
+//   ivec2 -> RG32I, uvec2 -> RG32UI, ivec4 -> RGBA32I, uvec4 -> RGBA32UI,
+//   u32 -> R32UI, LineProps / PolyProps -> RGBA32UI (2 texels per element),
+//   LineCorner -> RG32F (3 texels per element).
+#pragma once
+
+#include <cstdint>
+
+#include "decal/format.hpp"
+
+namespace decal::gl {
+
+enum class Binding : uint32_t {
+  // static polygons (polygon draw)
+  poly_props = 0,
+  qt_node_box = 1,
+  qt_node = 2,
+  qt_leaf_range = 3,
+  qt_leaf_segments = 4,
+  qt_leaf_vertices = 5,
+  cell_poly_range = 6,
+  cell_polys = 7,
+  cell_holes = 8,
+  poly_bvh_range = 9,
+  poly_bvh_box = 10,
+  // static lines (line draw)
+  line_vertices = 11,
+  line_vertex_line = 12,
+  line_props = 13,
+  line_corners = 14,
+  cell_segment_range = 15,
+  cell_segments = 16,
+  line_bvh_range = 17,
+  line_bvh_box = 18,
+  // dynamic lines
+  dyn_vertices = 19,
+  dyn_prev_next = 20,
+  dyn_line_start = 21,
+  dyn_line_props = 22,
+  none = 0xffffffffu,
+};
+
+// Binding of a blob id; Binding::none for blobs the renderer does not read
+// (poly_root_node, LOD blobs, unknown ids).
+constexpr Binding binding_of(BlobId id) {
+  switch (id) {
+    case BlobId::poly_props: return Binding::poly_props;
+    case BlobId::qt_node_box: return Binding::qt_node_box;
+    case BlobId::qt_node: return Binding::qt_node;
+    case BlobId::qt_leaf_range: return Binding::qt_leaf_range;
+    case BlobId::qt_leaf_segments: return Binding::qt_leaf_segments;
+    case BlobId::qt_leaf_vertices: return Binding::qt_leaf_vertices;
+    case BlobId::cell_poly_range: return Binding::cell_poly_range;
+    case BlobId::cell_polys: return Binding::cell_polys;
+    case BlobId::cell_holes: return Binding::cell_holes;
+    case BlobId::poly_bvh_range: return Binding::poly_bvh_range;
+    case BlobId::poly_bvh_box: return Binding::poly_bvh_box;
+    case BlobId::line_vertices: return Binding::line_vertices;
+    case BlobId::line_vertex_line: return Binding::line_vertex_line;
+    case BlobId::line_props: return Binding::line_props;
+    case BlobId::line_corners: return Binding::line_corners;
+    case BlobId::cell_segment_range: return Binding::cell_segment_range;
+    case BlobId::cell_segments: return Binding::cell_segments;
+    case BlobId::line_bvh_range: return Binding::line_bvh_range;
+    case BlobId::line_bvh_box: return Binding::line_bvh_box;
+    case BlobId::dyn_vertices: return Binding::dyn_vertices;
+    case BlobId::dyn_prev_next: return Binding::dyn_prev_next;
+    case BlobId::dyn_line_start: return Binding::dyn_line_start;
+    case BlobId::dyn_line_props: return Binding::dyn_line_props;
+    default: return Binding::none;
+  }
+}
+
+// Renderer-owned bindings (per-frame buffers), above the blob bindings.
+inline constexpr uint32_t kBindingFrameFirst = 24;
+
+// How blobs are exposed to shaders.
+enum class BindingMode { ssbo, texture };
+
+}  // namespace decal::gl

@@ -1,0 +1,14 @@
+// composite.frag.glsl — dynamic lines over static decals over the terrain
+// colour (both decal layers premultiplied).
+layout(binding = 28) uniform sampler2D u_dynamic;
+layout(binding = 29) uniform sampler2D u_terrain;
+layout(binding = 30) uniform sampler2D u_decals;
+layout(location = 0) out vec4 o_color;
+void main() {
+  ivec2 px = ivec2(gl_FragCoord.xy);
+  vec4 t = texelFetch(u_terrain, px, 0);
+  vec4 d = texelFetch(u_decals, px, 0);
+  vec4 l = texelFetch(u_dynamic, px, 0);
+  vec3 c = d.rgb + (1.0 - d.a) * t.rgb;
+  o_color = vec4(l.rgb + (1.0 - l.a) * c, 1.0);
+}

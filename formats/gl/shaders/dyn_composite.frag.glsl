@@ -1,0 +1,69 @@
+// dyn_composite.frag.glsl — thesis §4.3.3 + §4.4.2: sort the pixel's list
+// by drawing order and composite front to back. The sort is an insertion
+// sort into a small local array while walking the list; entries of a line
+// already held are skipped (orders are unique per line, so repeats of the
+// same line carry the same order), and the array is cut after the first
+// opaque entry, since nothing below an opaque line can show (early
+// termination: the rest of the list is never sorted in).
+layout(location = 0) out vec4 o_color;
+
+const int K = 16;
+
+void main() {
+  uint pixel = uint(gl_FragCoord.y) * uint(u_viewport.x) + uint(gl_FragCoord.x);
+  uint head = dyn_head[pixel];
+  if (head == NONE) discard;
+  // Initialised: reading an unset element would be undefined, and the
+  // compiler may exploit that (observed with llvmpipe).
+  uint orders[K];
+  uint lines[K];
+  for (int i = 0; i < K; ++i) {
+    orders[i] = NONE;
+    lines[i] = 0u;
+  }
+  int count = 0;
+  uint n = head;
+  for (int guard = 0; guard < 65536 && n != NONE; ++guard) {
+    uvec4 e = dyn_node[n];
+    n = e.z;
+    // position of e.x in the sorted prefix
+    int pos = count;
+    bool repeat = false;
+    for (int i = 0; i < K; ++i) {
+      if (i >= count) break;
+      if (orders[i] == e.x) { repeat = true; break; }
+      if (orders[i] > e.x) { pos = i; break; }
+    }
+    if (repeat || pos >= K) continue;
+    // shift down (dropping the last when full) and insert
+    int last = min(count, K - 1);
+    for (int i = K - 1; i > 0; --i) {
+      if (i > last || i <= pos) continue;
+      orders[i] = orders[i - 1];
+      lines[i] = lines[i - 1];
+    }
+    orders[pos] = e.x;
+    lines[pos] = e.y;
+    count = min(count + 1, K);
+    // cut after the first opaque entry
+    for (int i = 0; i < K; ++i) {
+      if (i >= count) break;
+      if (unpackUnorm4x8(dyn_line_props(lines[i]).y).a >= 1.0) { count = i + 1; break; }
+    }
+  }
+  // Composited with constant indices: llvmpipe (Mesa 22.3) miscompiles this
+  // loop with a dynamic index into the local arrays (only the first entry
+  // was applied), so the steps are spelled out.
+  vec4 acc = vec4(0.0);
+#define DECAL_COMPOSITE_STEP(i) \
+  if (count > i) { \
+    vec4 c = unpackUnorm4x8(dyn_line_props(lines[i]).y); \
+    acc += (1.0 - acc.a) * vec4(c.rgb * c.a, c.a); \
+  }
+  DECAL_COMPOSITE_STEP(0) DECAL_COMPOSITE_STEP(1) DECAL_COMPOSITE_STEP(2) DECAL_COMPOSITE_STEP(3)
+  DECAL_COMPOSITE_STEP(4) DECAL_COMPOSITE_STEP(5) DECAL_COMPOSITE_STEP(6) DECAL_COMPOSITE_STEP(7)
+  DECAL_COMPOSITE_STEP(8) DECAL_COMPOSITE_STEP(9) DECAL_COMPOSITE_STEP(10) DECAL_COMPOSITE_STEP(11)
+  DECAL_COMPOSITE_STEP(12) DECAL_COMPOSITE_STEP(13) DECAL_COMPOSITE_STEP(14) DECAL_COMPOSITE_STEP(15)
+  if (acc.a <= 0.0) discard;
+  o_color = acc;
+}

@@ -1,0 +1,90 @@
+// dyn_lists.frag.glsl — thesis §4.3.2 "Linked Lists": for each fragment of a
+// segment box, back-project the pixel with the terrain depth, test the pixel
+// against the line segment at the pixel's own scale (Eq. 4.1/4.2) per corner
+// style, and push (order, line) onto the pixel's list with an atomic counter
+// and an atomic head exchange. Nodes beyond the capacity are only counted;
+// the host grows the buffer and repeats the pass.
+flat in uvec4 g_seg;
+layout(binding = 31) uniform sampler2D u_depth;
+uniform mat4 u_inv_view_proj;
+
+float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
+bool in_triangle(vec2 p, vec2 a, vec2 b, vec2 c) {
+  float d1 = cross2(b - a, p - a), d2 = cross2(c - b, p - b), d3 = cross2(a - c, p - c);
+  return !((d1 < 0.0 || d2 < 0.0 || d3 < 0.0) && (d1 > 0.0 || d2 > 0.0 || d3 > 0.0));
+}
+vec2 left_normal(vec2 from, vec2 to) {
+  vec2 d = to - from;
+  float l = length(d);
+  return l > 0.0 ? vec2(-d.y, d.x) / l : vec2(0.0);
+}
+// Corner at vertex v between segment (u -> v) and (v -> w): the miter vector
+// (to the left), or zero for a round fallback below 40 degrees (DESIGN §2).
+vec2 miter_at(vec2 u, vec2 v, vec2 w, float hw) {
+  vec2 e1 = normalize(u - v), e2 = normalize(w - v);
+  if (dot(e1, e2) > cos(radians(40.0))) return vec2(0.0);
+  vec2 n1 = left_normal(u, v), n2 = left_normal(v, w);
+  vec2 m = n1 + n2;
+  if (dot(m, m) < 1e-12) return n2 * hw;
+  m = normalize(m);
+  return m * (hw / dot(m, n2));
+}
+
+bool covers(vec2 p, float hw, uint corner) {
+  vec2 a = dyn_position(g_seg.x).xy, b = dyn_position(g_seg.y).xy;
+  vec2 d = b - a;
+  float len2 = dot(d, d);
+  if (corner == 0u || len2 == 0.0) {
+    float t = len2 > 0.0 ? clamp(dot(p - a, d) / len2, 0.0, 1.0) : 0.0;
+    vec2 q = a + t * d - p;
+    return dot(q, q) <= hw * hw;
+  }
+  vec2 n = vec2(-d.y, d.x) * (hw / sqrt(len2));
+  bool has_prev = g_seg.z != NONE, has_next = g_seg.w != NONE;
+  vec2 pp = has_prev ? dyn_position(g_seg.z).xy : a, nn = has_next ? dyn_position(g_seg.w).xy : b;
+  if (corner == 1u) {
+    vec2 ma = has_prev ? miter_at(pp, a, b, hw) : vec2(0.0);
+    vec2 mb = has_next ? miter_at(a, b, nn, hw) : vec2(0.0);
+    bool ra = ma == vec2(0.0), rb = mb == vec2(0.0);
+    vec2 qa = ra ? n : ma, qb = rb ? n : mb;
+    if (in_triangle(p, a + qa, a - qa, b - qb) || in_triangle(p, a + qa, b - qb, b + qb)) return true;
+    if (ra && dot(p - a, p - a) <= hw * hw) return true;
+    if (rb && dot(p - b, p - b) <= hw * hw) return true;
+    return false;
+  }
+  // bevel: rectangle, then the corner triangles on the outer side of each turn
+  float t = dot(p - a, d) / len2;
+  float side = cross2(d, p - a);
+  if (t >= 0.0 && t <= 1.0 && side * side <= hw * hw * len2) return true;
+  if (has_prev) {
+    vec2 n1 = left_normal(pp, a) * hw, n2 = n;
+    float turn = cross2(a - pp, d);
+    vec2 s = turn > 0.0 ? -vec2(1.0) : vec2(1.0);
+    if (in_triangle(p, a, a + s * n1, a + s * n2)) return true;
+  } else if (dot(p - a, p - a) <= hw * hw) return true;
+  if (has_next) {
+    vec2 n1 = n, n2 = left_normal(b, nn) * hw;
+    float turn = cross2(d, nn - b);
+    vec2 s = turn > 0.0 ? -vec2(1.0) : vec2(1.0);
+    if (in_triangle(p, b, b + s * n1, b + s * n2)) return true;
+  } else if (dot(p - b, p - b) <= hw * hw) return true;
+  return false;
+}
+
+void main() {
+  ivec2 px = ivec2(gl_FragCoord.xy);
+  float depth = texelFetch(u_depth, px, 0).r;
+  if (depth <= 0.0) discard;
+  vec4 w = u_inv_view_proj * vec4(gl_FragCoord.xy / u_viewport * 2.0 - 1.0, depth, 1.0);
+  vec3 p = w.xyz / w.w;
+  uint line = uint(dyn_vertex(g_seg.x).w);
+  uvec4 props = dyn_line_props(line);
+  float hw = uintBitsToFloat(props.x) * metres_per_pixel(p);
+  if (!covers(p.xy, hw, props.w & 3u)) discard;
+  uint node = atomicAdd(list_nodes, 1u);
+  if (node < list_capacity) {
+    uint pixel = uint(px.y) * uint(u_viewport.x) + uint(px.x);
+    uint next = atomicExchange(dyn_head[pixel], node);
+    dyn_node[node] = uvec4(props.z, line, next, 0u);
+  }
+}

@@ -1,0 +1,65 @@
+// static_common.glsl — what both static decal passes share (thesis §4.4.1):
+// back-projection of the pixel centre with the terrain depth, the grid cell
+// of that point, and front-to-back compositing.
+//
+// Precision (DESIGN.md §4.1): every position in these shaders is metres
+// relative to the camera anchor u_anchor_q (integer quanta from the package
+// origin). Stored vertices are int32 quanta; the shader subtracts the anchor
+// in integers first and converts the small difference to float, so no
+// absolute float32 coordinate ever appears.
+
+const float QUANTUM = 0.001;  // decal::kQuantumMetres
+
+layout(binding = 31) uniform sampler2D u_depth;  // terrain depth (reversed Z, float)
+uniform mat4 u_inv_view_proj;     // clip -> anchor-relative world (metres)
+uniform vec2 u_viewport;          // pixels
+uniform ivec2 u_anchor_q;         // anchor, quanta from the package origin
+uniform ivec2 u_anchor_cell;      // grid cell holding the anchor
+uniform vec2 u_anchor_in_cell;    // anchor minus that cell's lower-left corner, metres
+uniform vec2 u_cell_size;         // metres
+uniform ivec2 u_grid_n;           // nx, ny
+
+// Anchor-relative metres of an integer position.
+vec2 rel(ivec2 q) { return vec2(q - u_anchor_q) * QUANTUM; }
+
+// Thesis Algorithm 3.5 lines 1-2: pixel centre + terrain depth -> world.
+// Returns false where no terrain was drawn.
+bool pixel_world(out vec3 p) {
+  float depth = texelFetch(u_depth, ivec2(gl_FragCoord.xy), 0).r;
+  if (depth <= 0.0) return false;  // reversed Z: cleared to 0 (far)
+  vec2 ndc = gl_FragCoord.xy / u_viewport * 2.0 - 1.0;
+  vec4 w = u_inv_view_proj * vec4(ndc, depth, 1.0);
+  p = w.xyz / w.w;
+  return true;
+}
+
+// Thesis Eq. 4.3/4.4; -1 outside the grid.
+int cell_of(vec2 p) {
+  ivec2 g = u_anchor_cell + ivec2(floor((u_anchor_in_cell + p) / u_cell_size));
+  if (any(lessThan(g, ivec2(0))) || any(greaterThanEqual(g, u_grid_n))) return -1;
+  return g.x + u_grid_n.x * g.y;
+}
+
+bool box_contains(ivec4 b, vec2 p) {
+  if (b.x > b.z) return false;  // empty BVH node
+  vec2 lo = rel(b.xy), hi = rel(b.zw);
+  return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
+}
+
+// Front-to-back compositing of a straight-alpha colour under `acc`
+// (premultiplied).
+void composite_under(inout vec4 acc, uint rgba) {
+  vec4 c = unpackUnorm4x8(rgba);
+  float w = (1.0 - acc.a) * c.a;
+  acc.rgb += w * c.rgb;
+  acc.a += w;
+}
+bool opaque(vec4 acc) { return acc.a >= 0.999; }
+
+// Next node of the stack-less traversal of a full binary tree stored in heap
+// order (thesis Eq. 4.5-4.7): climb while on a right child (even index), then
+// step to the right sibling. Returns 0 when the traversal is complete.
+uint bvh_next(uint i) {
+  while (i != 0u && (i & 1u) == 0u) i = (i - 1u) >> 1;
+  return i == 0u ? 0u : i + 1u;
+}

@@ -1,0 +1,93 @@
+// Shader programs from the embedded GLSL files.
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/glcorearb.h>
+
+#include <span>
+#include <string>
+#include <utility>
+
+#include "decal/gl/gl.hpp"
+
+namespace decal::gl {
+
+namespace detail {
+std::span<const std::pair<std::string_view, std::string_view>> embedded_shaders();
+}
+
+std::string_view shader_source(std::string_view name) {
+  for (const auto& [n, text] : detail::embedded_shaders())
+    if (n == name) return text;
+  return {};
+}
+
+namespace {
+
+Status compile(GLenum stage, const std::vector<std::string>& files, const std::string& defines, GLuint& out) {
+  std::string src = "#version 450 core\n" + defines + "\n";
+  for (const auto& f : files) {
+    std::string_view text = shader_source(f);
+    if (text.empty()) return Status::failure("render: no embedded shader named '" + f + "'");
+    src += "#line 1\n";
+    src.append(text);
+    src += "\n";
+  }
+  GLuint sh = glCreateShader(stage);
+  const char* p = src.c_str();
+  glShaderSource(sh, 1, &p, nullptr);
+  glCompileShader(sh);
+  GLint ok = 0;
+  glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    GLint len = 0;
+    glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
+    std::string log(static_cast<size_t>(len > 0 ? len : 1), '\0');
+    glGetShaderInfoLog(sh, len, nullptr, log.data());
+    glDeleteShader(sh);
+    std::string names;
+    for (const auto& f : files) names += (names.empty() ? "" : "+") + f;
+    return Status::failure("render: shader " + names + " failed to compile: " + log);
+  }
+  out = sh;
+  return Status::success();
+}
+
+}  // namespace
+
+Status build_program(const ProgramSources& sources, uint32_t& out) {
+  GLuint prog = glCreateProgram();
+  std::vector<GLuint> shaders;
+  auto add = [&](GLenum stage, const std::vector<std::string>& files) -> Status {
+    if (files.empty()) return Status::success();
+    GLuint sh = 0;
+    Status s = compile(stage, files, sources.defines, sh);
+    if (!s) return s;
+    glAttachShader(prog, sh);
+    shaders.push_back(sh);
+    return s;
+  };
+  Status s = add(GL_VERTEX_SHADER, sources.vertex);
+  if (s) s = add(GL_GEOMETRY_SHADER, sources.geometry);
+  if (s) s = add(GL_FRAGMENT_SHADER, sources.fragment);
+  if (s) s = add(GL_COMPUTE_SHADER, sources.compute);
+  if (s) {
+    glLinkProgram(prog);
+    GLint ok = 0;
+    glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+    if (!ok) {
+      GLint len = 0;
+      glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
+      std::string log(static_cast<size_t>(len > 0 ? len : 1), '\0');
+      glGetProgramInfoLog(prog, len, nullptr, log.data());
+      s = Status::failure("render: program failed to link: " + log);
+    }
+  }
+  for (GLuint sh : shaders) glDeleteShader(sh);
+  if (!s) {
+    glDeleteProgram(prog);
+    return s;
+  }
+  out = prog;
+  return s;
+}
+
+}  // namespace decal::gl

@@ -1,0 +1,512 @@
+// reader.cpp — Package::open / from_memory: validation and decoding of a
+// .decals package (formats/SPEC.md). Every file is hostile: each size,
+// offset, count and checksum is checked, overflow-safe, before it is used,
+// and nothing throws across the API (std::bad_alloc aside).
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <xxhash.h>
+#include <zstd.h>
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <new>
+#include <string>
+
+#include "decal/inspect.hpp"
+#include "decal/reader.hpp"
+
+static_assert(std::endian::native == std::endian::little,
+              "the package format is little-endian and read by memcpy");
+
+namespace decal {
+namespace {
+
+std::string fmt(const char* f, auto... args) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, f, args...);
+  return buf;
+}
+
+using ull = unsigned long long;
+
+// Memory aligned to kBlobAlignment; holds decoded blobs or a file copy.
+struct AlignedBuffer {
+  std::byte* data = nullptr;
+  size_t size = 0;
+  AlignedBuffer() = default;
+  explicit AlignedBuffer(size_t n) : size(n) {
+    if (n) data = static_cast<std::byte*>(::operator new(n, std::align_val_t{kBlobAlignment}));
+  }
+  AlignedBuffer(AlignedBuffer&& o) noexcept : data(o.data), size(o.size) { o.data = nullptr; o.size = 0; }
+  AlignedBuffer& operator=(AlignedBuffer&& o) noexcept {
+    std::swap(data, o.data);
+    std::swap(size, o.size);
+    return *this;
+  }
+  ~AlignedBuffer() {
+    if (data) ::operator delete(data, std::align_val_t{kBlobAlignment});
+  }
+};
+
+uint64_t align_up(uint64_t v) { return (v + kBlobAlignment - 1) / kBlobAlignment * kBlobAlignment; }
+
+uint64_t xxh64(const std::byte* p, size_t n) { return XXH64(p, n, 0); }
+
+bool all_zero(const std::byte* p, size_t n) {
+  for (size_t i = 0; i < n; ++i)
+    if (p[i] != std::byte{0}) return false;
+  return true;
+}
+
+// Offset of the first nonzero byte in [p, p+n), or n.
+size_t first_nonzero(const std::byte* p, size_t n) {
+  for (size_t i = 0; i < n; ++i)
+    if (p[i] != std::byte{0}) return i;
+  return n;
+}
+
+std::string entry_label(size_t index, const BlobTableEntry& e) {
+  // The name may be garbage before it is validated; print only safe chars.
+  std::string name;
+  for (char c : e.name) {
+    if (c == 0) break;
+    name += (c >= 0x20 && c < 0x7f) ? c : '?';
+  }
+  return fmt("blob #%zu '%s' (id %u)", index, name.c_str(), e.id);
+}
+
+bool valid_element_type(uint32_t t) { return t >= 1 && t <= 11; }
+
+// Checks the name field: [a-z0-9_]+, NUL-terminated within the field, zero
+// after the terminator.
+bool valid_name(const BlobTableEntry& e, std::string_view& name) {
+  size_t n = 0;
+  while (n < kBlobNameSize && e.name[n] != 0) ++n;
+  if (n == 0 || n == kBlobNameSize) return false;
+  for (size_t i = 0; i < n; ++i) {
+    char c = e.name[i];
+    if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_')) return false;
+  }
+  for (size_t i = n; i < kBlobNameSize; ++i)
+    if (e.name[i] != 0) return false;
+  name = std::string_view(e.name, n);
+  return true;
+}
+
+// Zstd cannot expand more than 128 KiB (one block) per 4 stored bytes (a
+// 3-byte block header plus one RLE byte), so a claimed raw size beyond this
+// is a lie; refusing it bounds the allocation by the file size.
+bool plausible_zstd_raw_size(uint64_t stored, uint64_t raw) {
+  if (stored > (uint64_t(1) << 40)) return true;  // no overflow concern below
+  return raw <= stored * 32768 + 131072;
+}
+
+}  // namespace
+
+Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
+  out = {};
+  const uint64_t size = file.size();
+  const std::byte* base = file.data();
+  if (size == 0) return Status::failure("empty file (0 bytes): not a .decals package");
+  const size_t magic_n = std::min<size_t>(size, sizeof kMagic);
+  if (std::memcmp(base, kMagic, magic_n) != 0)
+    return Status::failure("not a .decals package: magic bytes do not match at byte 0");
+  if (size < sizeof(FileHeader))
+    return Status::failure(fmt("truncated package: %llu bytes, the header alone needs %zu",
+                               ull(size), sizeof(FileHeader)));
+  FileHeader h;
+  std::memcpy(&h, base, sizeof h);
+
+  // The version comes first: a newer major may lay out everything else
+  // differently, so its checksums mean nothing to us.
+  if (h.version_major != kVersionMajor)
+    return Status::failure(fmt("unsupported package major version %u (minor %u); this reader "
+                               "reads major version %u",
+                               h.version_major, h.version_minor, kVersionMajor));
+  if (h.header_size < sizeof(FileHeader) || h.header_size % 8 != 0 || h.header_size > size)
+    return Status::failure(fmt("header_size %u at byte 16 is invalid (must be >= %zu, a multiple "
+                               "of 8 and within the %llu-byte file)",
+                               h.header_size, sizeof(FileHeader), ull(size)));
+  uint64_t stored_header_sum;
+  std::memcpy(&stored_header_sum, base + h.header_size - 8, 8);
+  const uint64_t header_sum = xxh64(base, h.header_size - 8);
+  if (header_sum != stored_header_sum)
+    return Status::failure(fmt("header checksum mismatch at byte %u: stored %016llx, computed "
+                               "%016llx",
+                               h.header_size - 8, ull(stored_header_sum), ull(header_sum)));
+  if (h.file_size != size)
+    return Status::failure(fmt("file size mismatch: header says %llu bytes, file has %llu%s",
+                               ull(h.file_size), ull(size),
+                               size < h.file_size ? " (truncated)" : " (trailing bytes)"));
+  // Reserved fields and optional flags may gain a meaning in a later minor
+  // version; only a file of our minor or older must have them zero.
+  const bool newer_minor = h.version_minor > kVersionMinor;
+  const uint32_t unknown_required = h.flags & kRequiredFlagsMask & ~kKnownRequiredFlags;
+  if (unknown_required)
+    return Status::failure(fmt("unsupported required flag bits 0x%08x in flags 0x%08x at byte 12",
+                               unknown_required, h.flags));
+  if (!newer_minor) {
+    if (h.flags & ~kRequiredFlagsMask & ~kKnownOptionalFlags)
+      return Status::failure(fmt("undefined optional flag bits set in flags 0x%08x at byte 12 "
+                                 "(version %u.%u)",
+                                 h.flags, h.version_major, h.version_minor));
+    if (h.reserved0 != 0 || h.reserved1 != 0)
+      return Status::failure("reserved header field at byte 28 or 80 is not zero");
+    // A longer header (from a later minor) has its extra fields between the
+    // v1 fields and its checksum, which always sits in its last 8 bytes.
+    const size_t v1_end = offsetof(FileHeader, header_checksum);
+    const size_t extra_n = h.header_size - 8 - v1_end;
+    const size_t extra = first_nonzero(base + v1_end, extra_n);
+    if (extra != extra_n)
+      return Status::failure(fmt("header byte %zu (past the v%u.%u fields) is not zero",
+                                 v1_end + extra, h.version_major, h.version_minor));
+  }
+  if (h.blob_entry_size < sizeof(BlobTableEntry) || h.blob_entry_size % 8 != 0)
+    return Status::failure(fmt("blob_entry_size %u at byte 20 is invalid (must be >= %zu and a "
+                               "multiple of 8)",
+                               h.blob_entry_size, sizeof(BlobTableEntry)));
+  if (h.table_offset != h.header_size)
+    return Status::failure(fmt("table_offset %llu at byte 40 must equal header_size %u",
+                               ull(h.table_offset), h.header_size));
+  // blob_count < 2^32 and blob_entry_size < 2^32: the product fits in 64 bits.
+  const uint64_t table_bytes = uint64_t(h.blob_count) * h.blob_entry_size;
+  if (table_bytes > size - h.table_offset)
+    return Status::failure(fmt("blob table (%u entries x %u bytes at byte %llu) runs past the end "
+                               "of the %llu-byte file",
+                               h.blob_count, h.blob_entry_size, ull(h.table_offset), ull(size)));
+  const uint64_t table_sum = xxh64(base + h.table_offset, table_bytes);
+  if (table_sum != h.table_checksum)
+    return Status::failure(fmt("blob table checksum mismatch: stored %016llx, computed %016llx",
+                               ull(h.table_checksum), ull(table_sum)));
+  const uint64_t table_end = h.table_offset + table_bytes;
+  if (h.metadata_offset != table_end)
+    return Status::failure(fmt("metadata_offset %llu at byte 56 must equal the end of the blob "
+                               "table, %llu",
+                               ull(h.metadata_offset), ull(table_end)));
+  if (h.metadata_size > size - h.metadata_offset)
+    return Status::failure(fmt("metadata (%llu bytes at byte %llu) runs past the end of the "
+                               "%llu-byte file",
+                               ull(h.metadata_size), ull(h.metadata_offset), ull(size)));
+  const uint64_t meta_sum = xxh64(base + h.metadata_offset, h.metadata_size);
+  if (meta_sum != h.metadata_checksum)
+    return Status::failure(fmt("metadata checksum mismatch: stored %016llx, computed %016llx",
+                               ull(h.metadata_checksum), ull(meta_sum)));
+  {
+    const char* m = reinterpret_cast<const char*>(base + h.metadata_offset);
+    if (h.metadata_size < 2 || m[0] != '{' || m[h.metadata_size - 1] != '}')
+      return Status::failure(fmt("metadata at byte %llu is not a JSON object (must start with '{' "
+                                 "and end with '}')",
+                                 ull(h.metadata_offset)));
+    if (std::memchr(m, 0, h.metadata_size) != nullptr)
+      return Status::failure("metadata contains a NUL byte");
+  }
+
+  std::vector<BlobTableEntry> entries(h.blob_count);
+  uint64_t prev_end = h.metadata_offset + h.metadata_size;
+  std::string prev_label = "the metadata";
+  for (size_t i = 0; i < entries.size(); ++i) {
+    BlobTableEntry& e = entries[i];
+    const uint64_t at = h.table_offset + i * uint64_t(h.blob_entry_size);
+    std::memcpy(&e, base + at, sizeof e);
+    const std::string label = entry_label(i, e);
+    std::string_view name;
+    if (!valid_name(e, name))
+      return Status::failure(fmt("%s, table entry at byte %llu: name must be 1-31 characters "
+                                 "[a-z0-9_], NUL-padded",
+                                 label.c_str(), ull(at)));
+    if (!newer_minor) {
+      if (e.reserved[0] != 0 || e.reserved[1] != 0)
+        return Status::failure(fmt("%s: reserved entry field is not zero", label.c_str()));
+      if (!all_zero(base + at + sizeof e, h.blob_entry_size - sizeof e))
+        return Status::failure(fmt("%s: entry bytes past the v1 fields are not zero",
+                                   label.c_str()));
+    }
+    if (!valid_element_type(e.element_type))
+      return Status::failure(fmt("%s: unknown element type %u", label.c_str(), e.element_type));
+    const auto type = static_cast<ElementType>(e.element_type);
+    if (type == ElementType::record) {
+      if (e.stride == 0 || e.stride % 4 != 0)
+        return Status::failure(fmt("%s: record stride %u is not a positive multiple of 4",
+                                   label.c_str(), e.stride));
+    } else if (e.stride != std430_stride(type)) {
+      return Status::failure(fmt("%s: stride %u does not match element type %s (std430 stride %u)",
+                                 label.c_str(), e.stride, element_type_name(type).data(),
+                                 std430_stride(type)));
+    }
+    if (const BlobInfo* info = find_blob_info(static_cast<BlobId>(e.id))) {
+      if (name != info->name)
+        return Status::failure(fmt("%s: id %u is '%s' in the catalogue", label.c_str(), e.id,
+                                   info->name.data()));
+      if (type != info->type || e.stride != info->stride)
+        return Status::failure(fmt("%s: element type %s stride %u, catalogue says %s stride %u",
+                                   label.c_str(), element_type_name(type).data(), e.stride,
+                                   element_type_name(info->type).data(), info->stride));
+    }
+    for (size_t j = 0; j < i; ++j)
+      if (entries[j].id == e.id)
+        return Status::failure(fmt("%s: duplicate blob id (also entry #%zu)", label.c_str(), j));
+    uint64_t raw = 0;
+    if (__builtin_mul_overflow(e.count, uint64_t(e.stride), &raw))
+      return Status::failure(fmt("%s: count %llu x stride %u overflows uint64", label.c_str(),
+                                 ull(e.count), e.stride));
+    if (raw != e.raw_size)
+      return Status::failure(fmt("%s: raw_size %llu != count %llu x stride %u", label.c_str(),
+                                 ull(e.raw_size), ull(e.count), e.stride));
+    if (e.codec == uint32_t(CodecId::none)) {
+      if (e.stored_size != e.raw_size)
+        return Status::failure(fmt("%s: uncompressed but stored_size %llu != raw_size %llu",
+                                   label.c_str(), ull(e.stored_size), ull(e.raw_size)));
+    } else if (e.codec == uint32_t(CodecId::zstd)) {
+      if (h.flags & kFlagAllUncompressed)
+        return Status::failure(fmt("%s: zstd codec in a package flagged all-uncompressed",
+                                   label.c_str()));
+      if (!plausible_zstd_raw_size(e.stored_size, e.raw_size))
+        return Status::failure(fmt("%s: raw_size %llu cannot come from %llu zstd bytes",
+                                   label.c_str(), ull(e.raw_size), ull(e.stored_size)));
+    } else {
+      return Status::failure(fmt("%s: unknown codec %u", label.c_str(), e.codec));
+    }
+    if (e.offset % kBlobAlignment != 0)
+      return Status::failure(fmt("%s: offset %llu is not a multiple of %llu", label.c_str(),
+                                 ull(e.offset), ull(kBlobAlignment)));
+    if (e.offset > size || e.stored_size > size - e.offset)
+      return Status::failure(fmt("%s: %llu bytes at offset %llu run past the end of the "
+                                 "%llu-byte file",
+                                 label.c_str(), ull(e.stored_size), ull(e.offset), ull(size)));
+    if (e.offset < prev_end)
+      return Status::failure(fmt("%s: offset %llu overlaps %s, which ends at byte %llu",
+                                 label.c_str(), ull(e.offset), prev_label.c_str(),
+                                 ull(prev_end)));
+    if (e.offset != align_up(prev_end))
+      return Status::failure(fmt("%s: offset %llu leaves a gap; the next aligned offset after "
+                                 "byte %llu is %llu",
+                                 label.c_str(), ull(e.offset), ull(prev_end),
+                                 ull(align_up(prev_end))));
+    const size_t pad = first_nonzero(base + prev_end, e.offset - prev_end);
+    if (pad != e.offset - prev_end)
+      return Status::failure(fmt("padding byte %llu before %s is not zero", ull(prev_end + pad),
+                                 label.c_str()));
+    prev_end = e.offset + e.stored_size;
+    prev_label = label;
+  }
+  if (prev_end != size)
+    return Status::failure(fmt("%llu unexplained bytes after %s (byte %llu to %llu)",
+                               ull(size - prev_end), prev_label.c_str(), ull(prev_end), ull(size)));
+  out.header = h;
+  out.entries = std::move(entries);
+  return Status::success();
+}
+
+struct Package::Impl {
+  FileHeader header{};
+  std::string metadata;
+  std::vector<BlobView> blobs;
+  AlignedBuffer file_copy;  // the whole file, when read or copied
+  AlignedBuffer decoded;    // decoded blobs, when any was compressed
+  void* map = nullptr;
+  size_t map_size = 0;
+  bool mapped = false;  // blob views point into `map`
+
+  Impl() = default;
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+  ~Impl() {
+    if (map) ::munmap(map, map_size);
+  }
+  void unmap() {
+    if (map) ::munmap(map, map_size);
+    map = nullptr;
+    map_size = 0;
+  }
+};
+
+namespace {
+
+// Validates `file` and fills `impl`. When every blob is uncompressed the
+// views point into `file` (which the caller keeps alive in `impl`);
+// otherwise every blob is decoded into impl.decoded.
+// (A template so that it may take the private Package::Impl.)
+template <class PackageImpl>
+Status load(std::span<const std::byte> file, const OpenOptions& opt, PackageImpl& impl,
+            bool& views_into_file) {
+  PackageLayout layout;
+  if (Status s = read_layout(file, layout); !s) return s;
+  const std::byte* base = file.data();
+  bool any_compressed = false;
+  uint64_t decoded_total = 0;
+  for (size_t i = 0; i < layout.entries.size(); ++i) {
+    const BlobTableEntry& e = layout.entries[i];
+    if (opt.verify_checksums) {
+      const uint64_t sum = xxh64(base + e.offset, e.stored_size);
+      if (sum != e.checksum)
+        return Status::failure(fmt("%s: checksum mismatch: stored %016llx, computed %016llx",
+                                   entry_label(i, e).c_str(), ull(e.checksum), ull(sum)));
+    }
+    if (e.codec != uint32_t(CodecId::none)) any_compressed = true;
+  }
+  for (const BlobTableEntry& e : layout.entries) {
+    // Each decoded blob starts on an aligned boundary of the arena.
+    if (e.raw_size > opt.max_raw_bytes || decoded_total > opt.max_raw_bytes - e.raw_size)
+      return Status::failure(fmt("package inflates beyond the %llu-byte limit (max_raw_bytes)",
+                                 ull(opt.max_raw_bytes)));
+    decoded_total = align_up(decoded_total + e.raw_size);
+  }
+  views_into_file = !any_compressed;
+  impl.header = layout.header;
+  impl.metadata.assign(reinterpret_cast<const char*>(base + layout.header.metadata_offset),
+                       layout.header.metadata_size);
+  impl.blobs.clear();
+  impl.blobs.reserve(layout.entries.size());
+  if (any_compressed) impl.decoded = AlignedBuffer(decoded_total);
+  ZSTD_DCtx* dctx = nullptr;
+  uint64_t cursor = 0;
+  Status status;
+  for (size_t i = 0; i < layout.entries.size() && status; ++i) {
+    const BlobTableEntry& e = layout.entries[i];
+    BlobView v;
+    v.id = e.id;
+    v.name = std::string(e.name, strnlen(e.name, kBlobNameSize));
+    v.type = static_cast<ElementType>(e.element_type);
+    v.stride = e.stride;
+    v.count = e.count;
+    if (!any_compressed) {
+      if (e.raw_size) v.bytes = {base + e.offset, static_cast<size_t>(e.raw_size)};
+    } else {
+      // No pointer arithmetic on the null arena of an all-empty package.
+      std::byte* dst = impl.decoded.data ? impl.decoded.data + cursor : nullptr;
+      const std::byte* src = base + e.offset;
+      if (e.codec == uint32_t(CodecId::none)) {
+        if (e.raw_size) std::memcpy(dst, src, e.raw_size);
+      } else {
+        const unsigned long long content = ZSTD_getFrameContentSize(src, e.stored_size);
+        const size_t frame = ZSTD_findFrameCompressedSize(src, e.stored_size);
+        if (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN ||
+            content != e.raw_size) {
+          status = Status::failure(fmt("%s: zstd frame content size does not match raw_size %llu",
+                                       entry_label(i, e).c_str(), ull(e.raw_size)));
+          break;
+        }
+        if (ZSTD_isError(frame) || frame != e.stored_size) {
+          status = Status::failure(fmt("%s: stored bytes are not exactly one zstd frame",
+                                       entry_label(i, e).c_str()));
+          break;
+        }
+        if (!dctx) dctx = ZSTD_createDCtx();
+        if (!dctx) {
+          status = Status::failure("cannot create a zstd decompression context");
+          break;
+        }
+        const size_t got = ZSTD_decompressDCtx(dctx, dst, e.raw_size, src, e.stored_size);
+        if (ZSTD_isError(got) || got != e.raw_size) {
+          status = Status::failure(fmt("%s: zstd decoding failed: %s", entry_label(i, e).c_str(),
+                                       ZSTD_isError(got) ? ZSTD_getErrorName(got)
+                                                         : "short output"));
+          break;
+        }
+      }
+      if (e.raw_size) v.bytes = {dst, static_cast<size_t>(e.raw_size)};
+      cursor = align_up(cursor + e.raw_size);
+    }
+    impl.blobs.push_back(std::move(v));
+  }
+  ZSTD_freeDCtx(dctx);
+  return status;
+}
+
+}  // namespace
+
+Package::Package() = default;
+Package::~Package() = default;
+Package::Package(Package&&) noexcept = default;
+Package& Package::operator=(Package&&) noexcept = default;
+
+Status Package::from_memory(std::span<const std::byte> bytes, Package& out,
+                            const OpenOptions& opt) {
+  out = Package();
+  // The caller's span has no lifetime we could rely on, and may be
+  // misaligned: always work on an aligned copy.
+  auto impl = std::make_unique<Impl>();
+  impl->file_copy = AlignedBuffer(bytes.size());
+  if (!bytes.empty()) std::memcpy(impl->file_copy.data, bytes.data(), bytes.size());
+  bool into_file = false;
+  Status s = load({impl->file_copy.data, impl->file_copy.size}, opt, *impl, into_file);
+  if (!s) return s;
+  if (!into_file) impl->file_copy = AlignedBuffer();
+  out.impl_ = std::move(impl);
+  return s;
+}
+
+Status Package::open(const std::string& path, Package& out, const OpenOptions& opt) {
+  out = Package();
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::failure(fmt("cannot open '%s': %s", path.c_str(), std::strerror(errno)));
+  struct stat st;
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return Status::failure(fmt("'%s' is not a regular file", path.c_str()));
+  }
+  const uint64_t size = static_cast<uint64_t>(st.st_size);
+  auto impl = std::make_unique<Impl>();
+  std::span<const std::byte> file;
+  if (opt.allow_mmap && size > 0) {
+    void* m = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (m != MAP_FAILED) {
+      impl->map = m;
+      impl->map_size = size;
+      file = {static_cast<const std::byte*>(m), static_cast<size_t>(size)};
+    }
+  }
+  if (!impl->map) {
+    impl->file_copy = AlignedBuffer(size);
+    uint64_t done = 0;
+    while (done < size) {
+      const ssize_t n = ::pread(fd, impl->file_copy.data + done, size - done, done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        const int err = errno;
+        ::close(fd);
+        return Status::failure(fmt("cannot read '%s' at byte %llu: %s", path.c_str(), ull(done),
+                                   n == 0 ? "unexpected end of file" : std::strerror(err)));
+      }
+      done += static_cast<uint64_t>(n);
+    }
+    file = {impl->file_copy.data, impl->file_copy.size};
+  }
+  ::close(fd);
+  bool into_file = false;
+  Status s = load(file, opt, *impl, into_file);
+  if (!s) return Status::failure(path + ": " + s.message);
+  if (!into_file) {
+    impl->unmap();
+    impl->file_copy = AlignedBuffer();
+  } else {
+    impl->mapped = impl->map != nullptr;
+  }
+  out.impl_ = std::move(impl);
+  return s;
+}
+
+uint16_t Package::major() const { return impl_ ? impl_->header.version_major : 0; }
+uint16_t Package::minor() const { return impl_ ? impl_->header.version_minor : 0; }
+uint32_t Package::flags() const { return impl_ ? impl_->header.flags : 0; }
+std::string_view Package::metadata_json() const {
+  return impl_ ? std::string_view(impl_->metadata) : std::string_view();
+}
+std::span<const BlobView> Package::blobs() const {
+  return impl_ ? std::span<const BlobView>(impl_->blobs) : std::span<const BlobView>();
+}
+bool Package::memory_mapped() const { return impl_ && impl_->mapped; }
+
+const BlobView* Package::find(BlobId id) const {
+  if (!impl_) return nullptr;
+  for (const BlobView& b : impl_->blobs)
+    if (b.id == static_cast<uint32_t>(id)) return &b;
+  return nullptr;
+}
+
+}  // namespace decal

@@ -1,0 +1,159 @@
+// prep/render.hpp — stage 7 (render): draws a decal package over terrain,
+// headless, with OpenGL (formats/gl) or, for comparison, on the CPU with the
+// evaluator (prep::evaluate) over the same terrain and camera.
+//
+//   .decals --load--> DecalSource --render_gl / render_cpu--> Image --> PNG
+//
+// Coordinates are scene metres relative to the package origin (the frame of
+// prep::evaluate). GL work happens in anchor-relative metres (DESIGN.md §4.1).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "prep/evaluate.hpp"
+#include "prep/model.hpp"
+#include "prep/scene.hpp"
+
+namespace decal { class Package; }
+
+namespace prep::render {
+
+using Vec3 = std::array<double, 3>;
+
+enum class Projection { perspective, orthographic };
+
+// A pinhole (perspective) or parallel (orthographic) camera.
+struct Camera {
+  Projection projection = Projection::perspective;
+  Vec3 eye{0, 0, 1000}, target{0, 0, 0}, up{0, 0, 1};
+  double fov_y_deg = 45.0;     // perspective: vertical field of view
+  double ortho_w = 0, ortho_h = 0;  // orthographic: view size in metres
+  double near = 1.0;           // perspective near plane (far is infinite)
+  double depth_range = 1e5;    // orthographic: metres in front of the eye
+  // Set by topdown_camera(): the imaged extent exactly as given (so the CPU
+  // path places pixel centres from the same numbers).
+  std::optional<Extent> topdown_extent;
+};
+
+// Top-down orthographic camera whose pixel (i, j) centre lies at
+// (xmin + (i + 0.5) * (xmax - xmin) / W, ymax - (j + 0.5) * (ymax - ymin) / H),
+// exactly as gdal_rasterize -te/-ts and prep::render_topdown place them.
+Camera topdown_camera(const Extent& extent, double zmin, double zmax);
+
+// Oblique camera framing `extent` (--fit): looks at its centre from the
+// south at `pitch_deg` below the horizontal, far enough that the whole
+// extent fits the W x H image.
+Camera fit_camera(const Extent& extent, double zmin, double zmax, uint32_t width, uint32_t height,
+                  Projection projection, double pitch_deg = 45.0);
+
+// A terrain heightfield sampled on a regular grid of the scene frame:
+// sample (i, j) lies at (x0 + i * dx, y0 + j * dy) with height z[i + nx * j].
+// The mesh splits every cell into the triangles (00, 10, 11) and (00, 11, 01).
+struct Heightfield {
+  double x0 = 0, y0 = 0, dx = 1, dy = 1;
+  uint32_t nx = 2, ny = 2;
+  std::vector<double> z;
+  double zmin = 0, zmax = 0;
+  // First intersection of the ray o + t d (t > 0) with the mesh; t or nullopt.
+  std::optional<double> intersect(const Vec3& o, const Vec3& d) const;
+  Vec3 normal_at(uint32_t i, uint32_t j) const;  // vertex normal (central differences)
+};
+
+// Flat terrain at height 0 covering `extent`.
+Heightfield flat_heightfield(const Extent& extent);
+
+// Samples the DEM (any GDAL raster, any CRS; /vsizip/ paths work) bilinearly
+// at a regular grid of the scene frame covering `extent`: each grid point is
+// transformed from the scene frame to the DEM CRS (traditional GIS axis
+// order). Spacing follows the DEM resolution, at most `max_samples` per axis.
+// No-data and points outside the DEM read as 0. Throws input_error naming the
+// file when the DEM cannot be read or transformed.
+Heightfield load_heightfield(const std::string& dem, const SceneFrame& frame, const Extent& extent,
+                             uint32_t max_samples = 512, double z_scale = 1.0);
+
+// The decal data a renderer reads: frame, extent, grid and the static view
+// (CPU) plus the raw blobs (GL), all views into an owner that must outlive it.
+struct DecalSource {
+  SceneFrame frame;
+  Extent extent;
+  StaticView view;
+  struct Blob {
+    decal::BlobId id{};
+    uint64_t count = 0;
+    const void* data = nullptr;
+    uint64_t bytes = 0;
+  };
+  std::vector<Blob> blobs;
+};
+
+// Views of a model in memory (for tests and `build --render`).
+DecalSource source_of(const DecalModel& model);
+// Views of an opened package; reads frame, extent and grid from its
+// metadata. Throws format_error when they are missing or inconsistent.
+DecalSource source_of(const decal::Package& package);
+
+enum class AntiAliasing { none, coverage, msaa4 };
+enum class Binding { ssbo, texture };
+
+struct RenderOptions {
+  uint32_t width = 640, height = 360;
+  Camera camera;
+  AntiAliasing aa = AntiAliasing::none;
+  Binding binding = Binding::ssbo;
+  std::array<double, 3> albedo{0.62, 0.66, 0.58};
+};
+
+struct PassTime {
+  std::string pass;
+  double ms = 0;  // GL timer query (GPU time) or CPU wall time
+};
+
+// Row 0 is the top row in both images.
+struct Image {
+  uint32_t width = 0, height = 0;
+  std::vector<uint8_t> rgba;   // final image: decals over shaded terrain, 8-bit
+  std::vector<float> decals;   // static decal layer alone, straight alpha, 0..1
+  std::vector<float> dynamic;  // dynamic-line layer alone (GL only), straight alpha
+  uint32_t dyn_kept = 0, dyn_segments = 0, dyn_nodes = 0;  // dynamic update counts
+  uint32_t list_grows = 0;     // linked-list buffer regrowths this frame
+  std::vector<PassTime> times;
+  std::string device;          // GL renderer string, or "cpu"
+};
+
+// Renders with OpenGL in a headless EGL context. Validates the blobs before
+// any GL call (decal::gl::validate_blobs). Throws render_error (exit code
+// render) when no EGL display/context can be made, a shader fails or the
+// blobs are invalid. Not thread-safe (one GL context per call).
+Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& options);
+
+// Same view on the CPU: top-down orthographic views call prep::render_topdown;
+// others ray-cast the same heightfield mesh in double precision and call
+// prep::evaluate per pixel. Thread-safe.
+Image render_cpu(const DecalSource& source, const Heightfield& terrain, const RenderOptions& options);
+
+// True when `camera` looks straight down with an orthographic projection
+// and axis-aligned image (the render_topdown case); `extent` is then the
+// imaged area.
+bool is_topdown(const Camera& camera, uint32_t width, uint32_t height, Extent* extent = nullptr);
+
+// `extent` given in `crs` (any GDAL SRS string, e.g. EPSG:4326 as lon/lat)
+// as scene metres relative to the frame origin: the bounding box of its
+// transformed corners and edge midpoints. Throws usage_error on a bad CRS.
+Extent extent_to_scene(const Extent& extent, const std::string& crs, const SceneFrame& frame);
+
+// PNG (8-bit RGBA) through libpng; throws output_error naming the path.
+void write_png(const std::string& path, const std::vector<uint8_t>& rgba, uint32_t width, uint32_t height);
+// Decal layer as 8-bit PNG (straight alpha).
+std::vector<uint8_t> quantise(const std::vector<float>& rgba);
+// ESRI world file beside a top-down PNG (pixel size and upper-left pixel
+// centre in the frame CRS, absolute coordinates).
+void write_world_file(const std::string& png_path, const Extent& extent, uint32_t width, uint32_t height,
+                      const SceneFrame& frame);
+
+}  // namespace prep::render

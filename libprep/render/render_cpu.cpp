@@ -1,0 +1,102 @@
+// The CPU path (`render --cpu`): the same view through prep::evaluate.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "detail/math.hpp"
+#include "prep/error.hpp"
+#include "prep/render.hpp"
+
+namespace prep::render {
+
+namespace {
+
+// Terrain colour of the CPU path: the same Lambert model as terrain.frag.glsl
+// with the vertex normals averaged over the hit triangle's cell.
+std::array<double, 3> shade(const Heightfield& t, const RenderOptions& opt, double x, double y) {
+  const Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
+  int i = std::clamp(int((x - t.x0) / t.dx), 0, int(t.nx) - 2), j = std::clamp(int((y - t.y0) / t.dy), 0, int(t.ny) - 2);
+  Vec3 n = detail::add(detail::add(t.normal_at(i, j), t.normal_at(i + 1, j)),
+                       detail::add(t.normal_at(i, j + 1), t.normal_at(i + 1, j + 1)));
+  double l = std::max(detail::dot(detail::normalize(n), light), 0.0);
+  return {opt.albedo[0] * (0.35 + 0.65 * l), opt.albedo[1] * (0.35 + 0.65 * l), opt.albedo[2] * (0.35 + 0.65 * l)};
+}
+
+}  // namespace
+
+Image render_cpu(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
+#ifndef PREP_RENDER_HAVE_EVALUATE
+  (void)source; (void)terrain; (void)opt; (void)&shade;
+  throw render_error("render: --cpu needs the CPU evaluator (prep_evaluate), which this build lacks");
+#else
+  const uint32_t W = opt.width, H = opt.height;
+  auto wall0 = std::chrono::steady_clock::now();
+  Image img;
+  img.width = W;
+  img.height = H;
+  img.device = "cpu";
+  img.decals.assign(size_t(W) * H * 4, 0.0f);
+  img.rgba.assign(size_t(W) * H * 4, 0);
+  const Camera& cam = opt.camera;
+  std::vector<double> hit_x(size_t(W) * H, NAN), hit_y(size_t(W) * H, NAN);
+
+  Extent td;
+  if (is_topdown(cam, W, H, &td)) {
+    // Exactly the render_topdown pixel grid; the terrain is under every pixel.
+    img.decals = render_topdown(source.view, td, W, H);
+    for (uint32_t j = 0; j < H; ++j)
+      for (uint32_t i = 0; i < W; ++i) {
+        hit_x[i + size_t(W) * j] = td.xmin + (i + 0.5) * (td.xmax - td.xmin) / W;
+        hit_y[i + size_t(W) * j] = td.ymax - (j + 0.5) * (td.ymax - td.ymin) / H;
+      }
+  } else {
+    // Ray-cast the heightfield mesh in double precision from the pixel centre.
+    const detail::Mat4 inv = detail::mat_inverse(
+        detail::mat_mul(detail::projection_matrix(cam, double(W) / H), detail::view_matrix(cam, cam.eye)));
+    auto unproject = [&](double nx, double ny, double nz) -> Vec3 {
+      double v[4] = {nx, ny, nz, 1}, r[4] = {0, 0, 0, 0};
+      for (int row = 0; row < 4; ++row)
+        for (int k = 0; k < 4; ++k) r[row] += inv[k * 4 + row] * v[k];
+      return {r[0] / r[3], r[1] / r[3], r[2] / r[3]};
+    };
+    const Vec3 fwd = detail::camera_basis(cam).forward;
+    for (uint32_t j = 0; j < H; ++j)
+      for (uint32_t i = 0; i < W; ++i) {
+        double nx = (i + 0.5) / W * 2 - 1, ny = 1 - (j + 0.5) / H * 2;
+        Vec3 o, d;
+        if (cam.projection == Projection::perspective) {
+          o = cam.eye;
+          d = detail::sub(unproject(nx, ny, 1.0), cam.eye);
+        } else {
+          o = unproject(nx, ny, 1.0);
+          d = fwd;
+        }
+        auto t = terrain.intersect(o, d);
+        if (!t) continue;
+        const size_t k = i + size_t(W) * j;
+        hit_x[k] = o[0] + *t * d[0];
+        hit_y[k] = o[1] + *t * d[1];
+        EvalSample s = evaluate(source.view, hit_x[k], hit_y[k]);
+        float a = s.rgba[3];
+        for (int c = 0; c < 3; ++c) img.decals[4 * k + c] = a > 0 ? s.rgba[c] / a : 0.0f;
+        img.decals[4 * k + 3] = a;
+      }
+  }
+  // Final image: decal layer over the shaded terrain, sky where no terrain.
+  for (size_t k = 0; k < size_t(W) * H; ++k) {
+    std::array<double, 3> base{0.80, 0.86, 0.93};
+    if (!std::isnan(hit_x[k])) base = shade(terrain, opt, hit_x[k], hit_y[k]);
+    double a = img.decals[4 * k + 3];
+    for (int c = 0; c < 3; ++c) {
+      double v = img.decals[4 * k + c] * a + (1 - a) * base[c];
+      img.rgba[4 * k + c] = uint8_t(std::lround(std::clamp(v, 0.0, 1.0) * 255.0));
+    }
+    img.rgba[4 * k + 3] = 255;
+  }
+  img.times.push_back({"cpu frame (wall)",
+                       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count()});
+  return img;
+#endif
+}
+
+}  // namespace prep::render

@@ -1,0 +1,140 @@
+// DecalSource: the renderer's view of a model in memory or an opened package.
+#include <nlohmann/json.hpp>
+
+#include "prep/error.hpp"
+#include "prep/render.hpp"
+
+#ifdef PREP_RENDER_HAVE_READER
+#include "decal/reader.hpp"
+#endif
+
+namespace prep::render {
+
+namespace {
+
+template <class T>
+void add_blob(DecalSource& s, decal::BlobId id, const std::vector<T>& v) {
+  if (v.empty()) return;
+  s.blobs.push_back({id, v.size(), v.data(), v.size() * sizeof(T)});
+}
+
+}  // namespace
+
+DecalSource source_of(const DecalModel& m) {
+  using decal::BlobId;
+  DecalSource s;
+  s.frame = m.frame;
+  s.extent = m.extent;
+  StaticView& v = s.view;
+  v.grid = m.grid;
+  v.line_vertices = m.line_vertices;
+  v.line_vertex_line = m.line_vertex_line;
+  v.line_props = m.line_props;
+  v.line_corners = m.line_corners;
+  v.cell_segment_range = m.cell_segment_range;
+  v.cell_segments = m.cell_segments;
+  v.poly_props = m.poly_props;
+  v.poly_root_node = m.poly_root_node;
+  v.qt_node_box = m.qt_node_box;
+  v.qt_node = m.qt_node;
+  v.qt_leaf_range = m.qt_leaf_range;
+  v.qt_leaf_segments = m.qt_leaf_segments;
+  v.qt_leaf_vertices = m.qt_leaf_vertices;
+  v.cell_poly_range = m.cell_poly_range;
+  v.cell_polys = m.cell_polys;
+  v.cell_holes = m.cell_holes;
+  v.line_bvh_range = m.line_bvh_range;
+  v.line_bvh_box = m.line_bvh_box;
+  v.poly_bvh_range = m.poly_bvh_range;
+  v.poly_bvh_box = m.poly_bvh_box;
+  add_blob(s, BlobId::line_vertices, m.line_vertices);
+  add_blob(s, BlobId::line_vertex_line, m.line_vertex_line);
+  add_blob(s, BlobId::line_props, m.line_props);
+  add_blob(s, BlobId::line_corners, m.line_corners);
+  add_blob(s, BlobId::cell_segment_range, m.cell_segment_range);
+  add_blob(s, BlobId::cell_segments, m.cell_segments);
+  add_blob(s, BlobId::poly_props, m.poly_props);
+  add_blob(s, BlobId::poly_root_node, m.poly_root_node);
+  add_blob(s, BlobId::qt_node_box, m.qt_node_box);
+  add_blob(s, BlobId::qt_node, m.qt_node);
+  add_blob(s, BlobId::qt_leaf_range, m.qt_leaf_range);
+  add_blob(s, BlobId::qt_leaf_segments, m.qt_leaf_segments);
+  add_blob(s, BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
+  add_blob(s, BlobId::cell_poly_range, m.cell_poly_range);
+  add_blob(s, BlobId::cell_polys, m.cell_polys);
+  add_blob(s, BlobId::cell_holes, m.cell_holes);
+  add_blob(s, BlobId::line_bvh_range, m.line_bvh_range);
+  add_blob(s, BlobId::line_bvh_box, m.line_bvh_box);
+  add_blob(s, BlobId::poly_bvh_range, m.poly_bvh_range);
+  add_blob(s, BlobId::poly_bvh_box, m.poly_bvh_box);
+  add_blob(s, BlobId::dyn_vertices, m.dyn_vertices);
+  add_blob(s, BlobId::dyn_prev_next, m.dyn_prev_next);
+  add_blob(s, BlobId::dyn_line_start, m.dyn_line_start);
+  add_blob(s, BlobId::dyn_line_props, m.dyn_line_props);
+  return s;
+}
+
+#ifdef PREP_RENDER_HAVE_READER
+DecalSource source_of(const decal::Package& package) {
+  DecalSource s;
+#ifdef PREP_RENDER_HAVE_EVALUATE
+  s.view = view_of(package);  // grid from the metadata, checked against the blobs
+#endif
+  for (const decal::BlobView& b : package.blobs())
+    if (b.known()) s.blobs.push_back({static_cast<decal::BlobId>(b.id), b.count, b.bytes.data(), b.bytes.size()});
+  // Frame and extent from the metadata chunk (formats/SPEC.md).
+  auto meta = nlohmann::json::parse(package.metadata_json(), nullptr, false);
+  if (meta.is_discarded() || !meta.is_object()) throw format_error("render: package metadata is not a JSON object");
+  try {
+    auto pick = [&](std::initializer_list<const char*> keys) -> const nlohmann::json* {
+      for (const char* k : keys)
+        if (meta.contains(k)) return &meta[k];
+      return nullptr;
+    };
+    if (const auto* crs = pick({"crs_wkt", "crs"})) {
+      if (crs->is_string()) s.frame.crs_wkt = crs->get<std::string>();
+      else if (crs->is_object() && crs->contains("wkt")) s.frame.crs_wkt = (*crs)["wkt"].get<std::string>();
+    }
+    if (const auto* o = pick({"origin"})) {
+      if (o->is_array() && o->size() >= 2) {
+        s.frame.origin_x = (*o)[0].get<double>();
+        s.frame.origin_y = (*o)[1].get<double>();
+      } else if (o->is_object()) {
+        s.frame.origin_x = o->value("x", 0.0);
+        s.frame.origin_y = o->value("y", 0.0);
+      }
+    }
+    if (const auto* e = pick({"extent"})) {
+      if (e->is_array() && e->size() >= 4) {
+        s.extent = {(*e)[0].get<double>(), (*e)[1].get<double>(), (*e)[2].get<double>(), (*e)[3].get<double>()};
+      } else if (e->is_object()) {
+        s.extent = {e->value("xmin", 0.0), e->value("ymin", 0.0), e->value("xmax", 0.0), e->value("ymax", 0.0)};
+      }
+    }
+#ifndef PREP_RENDER_HAVE_EVALUATE
+    // Without the evaluator's view_of(package), read the grid here.
+    if (meta.contains("grid")) {
+      const auto& g = meta["grid"];
+      s.view.grid.origin_x = g.at("origin").at(0).get<int64_t>();
+      s.view.grid.origin_y = g.at("origin").at(1).get<int64_t>();
+      s.view.grid.cell_w = g.at("cell").at(0).get<int64_t>();
+      s.view.grid.cell_h = g.at("cell").at(1).get<int64_t>();
+      s.view.grid.nx = g.at("dims").at(0).get<uint32_t>();
+      s.view.grid.ny = g.at("dims").at(1).get<uint32_t>();
+    }
+#endif
+  } catch (const nlohmann::json::exception& ex) {
+    throw format_error(std::string("render: package metadata: ") + ex.what());
+  }
+  if (s.extent.empty()) {
+    // Fall back to the grid's extent.
+    const GridParams& g = s.view.grid;
+    s.extent = {g.origin_x * decal::kQuantumMetres, g.origin_y * decal::kQuantumMetres,
+                (g.origin_x + g.cell_w * int64_t(g.nx)) * decal::kQuantumMetres,
+                (g.origin_y + g.cell_h * int64_t(g.ny)) * decal::kQuantumMetres};
+  }
+  return s;
+}
+#endif
+
+}  // namespace prep::render

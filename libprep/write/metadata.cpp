@@ -1,0 +1,103 @@
+// metadata.cpp — write_model: the JSON metadata chunk of a package built
+// from a DecalModel (formats/SPEC.md §"Metadata"), then write_package.
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "prep/error.hpp"
+#include "prep/write.hpp"
+
+namespace prep {
+namespace {
+
+using json = nlohmann::json;
+
+// NaN areas ("not measured") become null rather than an invalid number.
+json number_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+json manifest_json(const Manifest& m) {
+  json layers = json::array();
+  for (const LayerCounts& l : m.layers)
+    layers.push_back({{"layer", l.layer},
+                      {"read", l.read},
+                      {"kept", l.kept},
+                      {"repaired", l.repaired},
+                      {"clipped_away", l.clipped_away},
+                      {"dropped", l.dropped},
+                      {"parts", l.parts},
+                      {"vertices_in", l.vertices_in},
+                      {"vertices_out", l.vertices_out}});
+  json entries = json::array();
+  for (const ManifestEntry& e : m.entries)
+    entries.push_back({{"layer", e.layer},
+                       {"fid", e.fid},
+                       {"part", e.part},
+                       {"action", e.action},
+                       {"reason", e.reason},
+                       {"area_before", number_or_null(e.area_before)},
+                       {"area_after", number_or_null(e.area_after)}});
+  return {{"layers", layers}, {"entries", entries}, {"notes", m.notes}};
+}
+
+// Adds `extra` into `base`; objects present in both merge recursively, any
+// other key present in both is a conflict (the model's own facts are not
+// silently replaced).
+void merge(json& base, const json& extra, const std::string& where, const std::string& path) {
+  for (auto it = extra.begin(); it != extra.end(); ++it) {
+    auto found = base.find(it.key());
+    if (found == base.end()) {
+      base[it.key()] = it.value();
+    } else if (found->is_object() && it.value().is_object()) {
+      merge(*found, it.value(), where + it.key() + ".", path);
+    } else {
+      throw output_error("write: " + path + ": extra metadata key '" + where + it.key() +
+                         "' conflicts with a key write_model sets");
+    }
+  }
+}
+
+}  // namespace
+
+void write_model(const std::string& path, const DecalModel& model,
+                 const std::string& extra_metadata_json, const WriteOptions& options) {
+  const std::vector<BlobInput> blobs = model_blobs(model, /*include_empty=*/true);
+  json counts = json::object();
+  for (const BlobInput& b : blobs)
+    counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;
+  counts["lines"] = model.line_props.size();
+  counts["polygons"] = model.poly_props.size();
+  counts["dynamic_lines"] = model.dyn_line_props.size();
+  counts["lod_lines"] = model.lod_line_range.size();
+
+  const GridParams& g = model.grid;
+  json meta = {
+      {"format", "decals"},
+      {"quantum_m", decal::kQuantumMetres},
+      {"crs_wkt", model.frame.crs_wkt},
+      {"frame", model.frame.description},
+      {"origin", {{"x", model.frame.origin_x}, {"y", model.frame.origin_y}}},
+      {"extent", {model.extent.xmin, model.extent.ymin, model.extent.xmax, model.extent.ymax}},
+      {"grid",
+       {{"origin", {g.origin_x, g.origin_y}}, {"cell", {g.cell_w, g.cell_h}}, {"dims", {g.nx, g.ny}}}},
+      {"max_representation_error_m", model.max_representation_error},
+      {"terrain", {{"min", model.terrain_min}, {"max", model.terrain_max}}},
+      {"counts", counts},
+      {"manifest", manifest_json(model.manifest)},
+  };
+  if (!extra_metadata_json.empty()) {
+    json extra;
+    try {
+      extra = json::parse(extra_metadata_json);
+    } catch (const json::exception& e) {
+      throw output_error("write: " + path + ": extra metadata is not valid JSON: " + e.what());
+    }
+    if (!extra.is_object())
+      throw output_error("write: " + path + ": extra metadata must be a JSON object");
+    merge(meta, extra, "", path);
+  }
+  // Keys are sorted (nlohmann::json is map-backed), so the text is
+  // deterministic; non-finite numbers are written as null.
+  write_package(path, meta.dump(), blobs, options);
+}
+
+}  // namespace prep

@@ -1,0 +1,388 @@
+// write.cpp — write_package: lays out, compresses and checksums the blobs
+// of a .decals package (formats/SPEC.md) and writes the file atomically.
+//
+// Atomicity: the bytes go to an unnamed O_TMPFILE in the target directory
+// (a killed writer leaves nothing behind), are fsync'ed, linked under a
+// temporary name and renamed over the target; then the directory is
+// fsync'ed. Where O_TMPFILE is unsupported a named temporary file is used,
+// removed on any failure and, as far as a signal handler can, on SIGINT and
+// SIGTERM.
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <xxhash.h>
+#include <zstd.h>
+
+#include <array>
+#include <atomic>
+#include <bit>
+#include <cerrno>
+#include <climits>
+#include <cstring>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "prep/error.hpp"
+#include "prep/write.hpp"
+
+static_assert(std::endian::native == std::endian::little,
+              "the package format is little-endian and written by memcpy");
+
+namespace prep {
+namespace {
+
+uint64_t align_up(uint64_t v) {
+  return (v + decal::kBlobAlignment - 1) / decal::kBlobAlignment * decal::kBlobAlignment;
+}
+
+[[noreturn]] void fail(const std::string& path, const std::string& what, int err = 0) {
+  std::string m = "write: " + path + ": " + what;
+  if (err) m += std::string(": ") + std::strerror(err);
+  throw output_error(m);
+}
+
+// ------------------------------------------------ temp-file signal cleanup --
+// Named temporary files currently being written, so that SIGINT/SIGTERM can
+// remove them. The handler only reads `state` and `path` and calls unlink(),
+// which is async-signal-safe.
+struct TempSlot {
+  std::atomic<int> state{0};  // 0 free, 1 claimed (path being filled), 2 live
+  char path[PATH_MAX] = {};
+};
+TempSlot g_slots[16];
+std::mutex g_signal_mutex;
+int g_active_writes = 0;
+struct sigaction g_old_int, g_old_term;
+bool g_hooked_int = false, g_hooked_term = false;
+
+extern "C" void remove_temps_and_reraise(int sig) {
+  for (TempSlot& s : g_slots)
+    if (s.state.load() == 2) ::unlink(s.path);
+  ::sigaction(sig, sig == SIGINT ? &g_old_int : &g_old_term, nullptr);
+  ::raise(sig);
+}
+
+// Installs the handler while at least one write is active; a signal the
+// process ignores stays ignored (and then the temp file must stay too).
+class SignalGuard {
+ public:
+  SignalGuard() {
+    std::lock_guard lock(g_signal_mutex);
+    if (g_active_writes++ > 0) return;
+    struct sigaction sa {};
+    sa.sa_handler = remove_temps_and_reraise;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = 0;
+    g_hooked_int = hook(SIGINT, sa, g_old_int);
+    g_hooked_term = hook(SIGTERM, sa, g_old_term);
+  }
+  ~SignalGuard() {
+    std::lock_guard lock(g_signal_mutex);
+    if (--g_active_writes > 0) return;
+    if (g_hooked_int) ::sigaction(SIGINT, &g_old_int, nullptr);
+    if (g_hooked_term) ::sigaction(SIGTERM, &g_old_term, nullptr);
+    g_hooked_int = g_hooked_term = false;
+  }
+  SignalGuard(const SignalGuard&) = delete;
+  SignalGuard& operator=(const SignalGuard&) = delete;
+
+  // Registers `path` for removal on a signal; returns the slot or nullptr
+  // when all are taken (then only the normal failure path cleans up).
+  static TempSlot* track(const std::string& path) {
+    if (path.size() >= PATH_MAX) return nullptr;
+    for (TempSlot& s : g_slots) {
+      int expected = 0;
+      // Claim the slot, fill the path, then publish it to the handler.
+      if (s.state.compare_exchange_strong(expected, 1)) {
+        std::memcpy(s.path, path.c_str(), path.size() + 1);
+        s.state.store(2);
+        return &s;
+      }
+    }
+    return nullptr;
+  }
+  static void untrack(TempSlot* s) {
+    if (s) s->state.store(0);
+  }
+
+ private:
+  static bool hook(int sig, const struct sigaction& sa, struct sigaction& old) {
+    if (::sigaction(sig, nullptr, &old) != 0) return false;
+    if (old.sa_handler == SIG_IGN && !(old.sa_flags & SA_SIGINFO)) return false;
+    return ::sigaction(sig, &sa, nullptr) == 0;
+  }
+};
+
+// -------------------------------------------------------- the atomic file --
+class AtomicFile {
+ public:
+  explicit AtomicFile(const std::string& path) : path_(path) {
+    if (path.empty() || path.back() == '/') fail(path, "not a file path");
+    const size_t slash = path.rfind('/');
+    dir_ = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
+    base_ = slash == std::string::npos ? path : path.substr(slash + 1);
+    if (base_ == "." || base_ == "..") fail(path, "not a file path");
+    dirfd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dirfd_ < 0) fail(path, "cannot open directory '" + dir_ + "'", errno);
+    static std::atomic<unsigned> counter{0};
+    tmp_name_ = "." + base_ + ".tmp-" + std::to_string(::getpid()) + "-" +
+                std::to_string(counter.fetch_add(1));
+    fd_ = ::openat(dirfd_, ".", O_TMPFILE | O_WRONLY | O_CLOEXEC, 0644);
+    if (fd_ < 0) {
+      // No O_TMPFILE on this file system: fall back to a named temp file.
+      slot_ = SignalGuard::track(dir_ + "/" + tmp_name_);
+      fd_ = ::openat(dirfd_, tmp_name_.c_str(), O_CREAT | O_EXCL | O_WRONLY | O_CLOEXEC, 0644);
+      if (fd_ < 0) {
+        const int err = errno;
+        cleanup();
+        fail(path, "cannot create a temporary file in '" + dir_ + "'", err);
+      }
+      named_ = true;
+    }
+  }
+  ~AtomicFile() { cleanup(); }
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+
+  void write(const void* data, size_t n) {
+    const char* p = static_cast<const char*>(data);
+    while (n > 0) {
+      const ssize_t w = ::write(fd_, p, n);
+      if (w < 0 && errno == EINTR) continue;
+      if (w < 0) fail(path_, "write failed", errno);
+      p += w;
+      n -= static_cast<size_t>(w);
+    }
+  }
+  void zeros(size_t n) {
+    static const std::array<char, 4096> kZero{};
+    while (n > 0) {
+      const size_t k = std::min(n, kZero.size());
+      write(kZero.data(), k);
+      n -= k;
+    }
+  }
+
+  // fsync, give the file its temporary name (if it has none), rename it
+  // over the target and fsync the directory.
+  void commit() {
+    if (::fsync(fd_) != 0) fail(path_, "fsync failed", errno);
+    if (!named_) {
+      slot_ = SignalGuard::track(dir_ + "/" + tmp_name_);
+      const std::string proc = "/proc/self/fd/" + std::to_string(fd_);
+      if (::linkat(AT_FDCWD, proc.c_str(), dirfd_, tmp_name_.c_str(), AT_SYMLINK_FOLLOW) != 0 &&
+          ::linkat(fd_, "", dirfd_, tmp_name_.c_str(), AT_EMPTY_PATH) != 0)
+        fail(path_, "cannot link the temporary file into '" + dir_ + "'", errno);
+      named_ = true;
+    }
+    if (::close(fd_) != 0) {
+      fd_ = -1;
+      fail(path_, "close failed", errno);
+    }
+    fd_ = -1;
+    if (::renameat(dirfd_, tmp_name_.c_str(), dirfd_, base_.c_str()) != 0)
+      fail(path_, "cannot rename the temporary file over the target", errno);
+    named_ = false;  // the name now belongs to the target
+    SignalGuard::untrack(slot_);
+    slot_ = nullptr;
+    if (::fsync(dirfd_) != 0) fail(path_, "fsync of directory '" + dir_ + "' failed", errno);
+  }
+
+ private:
+  void cleanup() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+    if (named_) ::unlinkat(dirfd_, tmp_name_.c_str(), 0);
+    named_ = false;
+    SignalGuard::untrack(slot_);
+    slot_ = nullptr;
+    if (dirfd_ >= 0) ::close(dirfd_);
+    dirfd_ = -1;
+  }
+
+  SignalGuard signals_;
+  std::string path_, dir_, base_, tmp_name_;
+  int dirfd_ = -1;
+  int fd_ = -1;
+  bool named_ = false;  // tmp_name_ exists in the directory
+  TempSlot* slot_ = nullptr;
+};
+
+struct EncodedBlob {
+  decal::BlobTableEntry entry{};
+  std::vector<std::byte> compressed;  // empty when stored as is
+  std::span<const std::byte> stored;
+};
+
+void check_blob(const std::string& path, const BlobInput& b, std::span<const BlobInput> all,
+                size_t index) {
+  const auto id = static_cast<uint32_t>(b.id);
+  const std::string label = "blob id " + std::to_string(id);
+  const auto t = static_cast<uint32_t>(b.type);
+  if (t < 1 || t > 11) fail(path, label + ": unknown element type " + std::to_string(t));
+  if (b.type == decal::ElementType::record ? (b.stride == 0 || b.stride % 4 != 0)
+                                           : b.stride != decal::std430_stride(b.type))
+    fail(path, label + ": stride " + std::to_string(b.stride) + " does not fit element type " +
+                   std::string(decal::element_type_name(b.type)));
+  if (const decal::BlobInfo* info = decal::find_blob_info(b.id))
+    if (info->type != b.type || info->stride != b.stride)
+      fail(path, label + " (" + std::string(info->name) + "): type/stride differ from the "
+                 "catalogue");
+  uint64_t raw = 0;
+  if (__builtin_mul_overflow(b.count, uint64_t(b.stride), &raw) || raw != b.bytes.size())
+    fail(path, label + ": " + std::to_string(b.bytes.size()) + " bytes given for " +
+                   std::to_string(b.count) + " elements of " + std::to_string(b.stride));
+  for (size_t j = 0; j < index; ++j)
+    if (all[j].id == b.id) fail(path, label + ": given twice");
+}
+
+}  // namespace
+
+void write_package(const std::string& path, const std::string& metadata_json,
+                   std::span<const BlobInput> blobs, const WriteOptions& options) {
+  if (metadata_json.size() < 2 || metadata_json.front() != '{' || metadata_json.back() != '}' ||
+      metadata_json.find('\0') != std::string::npos)
+    fail(path, "metadata must be a JSON object text ('{' ... '}', no NUL bytes)");
+  if (options.codec == Codec::zstd &&
+      (options.zstd_level < ZSTD_minCLevel() || options.zstd_level > ZSTD_maxCLevel()))
+    fail(path, "zstd level " + std::to_string(options.zstd_level) + " is outside [" +
+                   std::to_string(ZSTD_minCLevel()) + ", " + std::to_string(ZSTD_maxCLevel()) +
+                   "]");
+  if (blobs.size() > UINT32_MAX) fail(path, "too many blobs");
+
+  std::vector<EncodedBlob> enc(blobs.size());
+  ZSTD_CCtx* cctx = nullptr;
+  struct CctxFree {
+    ZSTD_CCtx*& c;
+    ~CctxFree() { ZSTD_freeCCtx(c); }
+  } cctx_free{cctx};
+  bool all_uncompressed = true;
+  for (size_t i = 0; i < blobs.size(); ++i) {
+    const BlobInput& b = blobs[i];
+    check_blob(path, b, blobs, i);
+    decal::BlobTableEntry& e = enc[i].entry;
+    e.id = static_cast<uint32_t>(b.id);
+    e.element_type = static_cast<uint32_t>(b.type);
+    e.stride = b.stride;
+    e.count = b.count;
+    e.raw_size = b.bytes.size();
+    const decal::BlobInfo* info = decal::find_blob_info(b.id);
+    const std::string name = info ? std::string(info->name) : "blob_" + std::to_string(e.id);
+    std::memcpy(e.name, name.data(), name.size());
+    // Empty blobs are stored as no bytes at all, whatever the codec.
+    if (options.codec == Codec::zstd && !b.bytes.empty()) {
+      if (!cctx) {
+        cctx = ZSTD_createCCtx();
+        if (!cctx) fail(path, "cannot create a zstd context");
+      }
+      ZSTD_CCtx_reset(cctx, ZSTD_reset_session_and_parameters);
+      ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, options.zstd_level);
+      // The frame's own checksum guards the decoded bytes end to end.
+      ZSTD_CCtx_setParameter(cctx, ZSTD_c_checksumFlag, 1);
+      ZSTD_CCtx_setParameter(cctx, ZSTD_c_contentSizeFlag, 1);
+      enc[i].compressed.resize(ZSTD_compressBound(b.bytes.size()));
+      const size_t n = ZSTD_compress2(cctx, enc[i].compressed.data(), enc[i].compressed.size(),
+                                      b.bytes.data(), b.bytes.size());
+      if (ZSTD_isError(n))
+        fail(path, "zstd compression of '" + name + "' failed: " + ZSTD_getErrorName(n));
+      enc[i].compressed.resize(n);
+      enc[i].stored = enc[i].compressed;
+      e.codec = static_cast<uint32_t>(decal::CodecId::zstd);
+      all_uncompressed = false;
+    } else {
+      enc[i].stored = b.bytes;
+      e.codec = static_cast<uint32_t>(decal::CodecId::none);
+    }
+    e.stored_size = enc[i].stored.size();
+    e.checksum = XXH64(enc[i].stored.data(), enc[i].stored.size(), 0);
+  }
+
+  decal::FileHeader h{};
+  std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
+  h.version_major = decal::kVersionMajor;
+  h.version_minor = decal::kVersionMinor;
+  h.flags = all_uncompressed ? decal::kFlagAllUncompressed : 0;
+  h.header_size = sizeof(decal::FileHeader);
+  h.blob_entry_size = sizeof(decal::BlobTableEntry);
+  h.blob_count = static_cast<uint32_t>(blobs.size());
+  h.table_offset = h.header_size;
+  h.metadata_offset = h.table_offset + uint64_t(h.blob_count) * h.blob_entry_size;
+  h.metadata_size = metadata_json.size();
+  h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
+  uint64_t end = h.metadata_offset + h.metadata_size;
+  for (EncodedBlob& b : enc) {
+    b.entry.offset = align_up(end);
+    end = b.entry.offset + b.entry.stored_size;
+  }
+  h.file_size = end;
+  std::vector<decal::BlobTableEntry> table;
+  table.reserve(enc.size());
+  for (const EncodedBlob& b : enc) table.push_back(b.entry);
+  h.table_checksum = XXH64(table.data(), table.size() * sizeof(decal::BlobTableEntry), 0);
+  h.header_checksum = XXH64(&h, offsetof(decal::FileHeader, header_checksum), 0);
+
+  AtomicFile out(path);
+  out.write(&h, sizeof h);
+  out.write(table.data(), table.size() * sizeof(decal::BlobTableEntry));
+  out.write(metadata_json.data(), metadata_json.size());
+  uint64_t at = h.metadata_offset + h.metadata_size;
+  for (const EncodedBlob& b : enc) {
+    out.zeros(b.entry.offset - at);
+    out.write(b.stored.data(), b.stored.size());
+    at = b.entry.offset + b.stored.size();
+  }
+  out.commit();
+}
+
+namespace {
+
+template <class T>
+BlobInput blob_of(decal::BlobId id, const std::vector<T>& v) {
+  const decal::BlobInfo* info = decal::find_blob_info(id);
+  static_assert(std::is_trivially_copyable_v<T>);
+  return {id, info->type, info->stride, v.size(), std::as_bytes(std::span<const T>(v))};
+}
+
+}  // namespace
+
+std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
+  using decal::BlobId;
+  std::vector<BlobInput> all = {
+      blob_of(BlobId::line_vertices, m.line_vertices),
+      blob_of(BlobId::line_vertex_line, m.line_vertex_line),
+      blob_of(BlobId::line_props, m.line_props),
+      blob_of(BlobId::line_corners, m.line_corners),
+      blob_of(BlobId::cell_segment_range, m.cell_segment_range),
+      blob_of(BlobId::cell_segments, m.cell_segments),
+      blob_of(BlobId::poly_props, m.poly_props),
+      blob_of(BlobId::poly_root_node, m.poly_root_node),
+      blob_of(BlobId::qt_node_box, m.qt_node_box),
+      blob_of(BlobId::qt_node, m.qt_node),
+      blob_of(BlobId::qt_leaf_range, m.qt_leaf_range),
+      blob_of(BlobId::qt_leaf_segments, m.qt_leaf_segments),
+      blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices),
+      blob_of(BlobId::cell_poly_range, m.cell_poly_range),
+      blob_of(BlobId::cell_polys, m.cell_polys),
+      blob_of(BlobId::cell_holes, m.cell_holes),
+      blob_of(BlobId::line_bvh_range, m.line_bvh_range),
+      blob_of(BlobId::line_bvh_box, m.line_bvh_box),
+      blob_of(BlobId::poly_bvh_range, m.poly_bvh_range),
+      blob_of(BlobId::poly_bvh_box, m.poly_bvh_box),
+      blob_of(BlobId::dyn_vertices, m.dyn_vertices),
+      blob_of(BlobId::dyn_prev_next, m.dyn_prev_next),
+      blob_of(BlobId::dyn_line_start, m.dyn_line_start),
+      blob_of(BlobId::dyn_line_props, m.dyn_line_props),
+      blob_of(BlobId::lod_points, m.lod_points),
+      blob_of(BlobId::lod_segments, m.lod_segments),
+      blob_of(BlobId::lod_line_range, m.lod_line_range),
+  };
+  static_assert(std::size(decal::kBlobCatalogue) == 27, "model_blobs must list every blob");
+  std::vector<BlobInput> out;
+  for (const BlobInput& b : all)
+    if (include_empty || b.count > 0) out.push_back(b);
+  return out;
+}
+
+}  // namespace prep

@@ -1,0 +1,66 @@
+// fixtures.hpp — packages for the format tests, the seed-corpus generator
+// and the fuzzer seeds. Everything is generated from code; no hand-made bytes.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "decal/format.hpp"
+#include "prep/model.hpp"
+#include "prep/write.hpp"
+
+namespace decal_test {
+
+// A small model with every blob non-empty and every index consistent
+// (validate_indices passes): 2 cells, 2 static lines, an exterior polygon
+// with one hole, BVHs, 2 dynamic lines and one LOD line.
+prep::DecalModel small_model();
+
+// Writes `model` with write_model and returns the file's bytes.
+std::vector<std::byte> model_package_bytes(const prep::DecalModel& model,
+                                           const prep::WriteOptions& options,
+                                           const std::string& extra_metadata_json = "");
+
+std::vector<std::byte> read_file(const std::string& path);
+void write_file(const std::string& path, const std::vector<std::byte>& bytes);
+
+// A fresh empty directory under the system temp dir, removed by the caller.
+std::string make_temp_dir(const std::string& tag);
+
+// Field access in a package image (little-endian, no alignment needed).
+template <class T>
+T get(const std::vector<std::byte>& f, size_t at);
+template <class T>
+void put(std::vector<std::byte>& f, size_t at, T v);
+
+// Byte offset of blob table entry `i`.
+size_t entry_at(size_t i);
+
+// Recomputes the table, metadata and header checksums after a test edited
+// the image, so that the reader's structural checks (not the checksums) are
+// what must reject the edit.
+void reseal(std::vector<std::byte>& f);
+
+// A named hostile variant of a package image and a fragment its rejection
+// message must contain ("" when any message will do).
+struct Hostile {
+  std::string name;
+  std::vector<std::byte> bytes;
+  std::string expect;
+  bool structure_valid = false;  // Package::open accepts it; validate_indices must not
+};
+
+// The hostile cases of issue 2 built from `good`, the image of
+// small_model() written with zstd: truncation, zero length, not a package,
+// unknown major version, offsets past the end, overlapping blobs, count x
+// stride overflow, bit flips, bad indices and more. Resealed where needed so
+// that the structural check, not a checksum, is what must catch them.
+std::vector<Hostile> hostile_variants(const std::vector<std::byte>& good);
+
+// The fuzz seed corpus (fuzz/corpus/read/): file name -> bytes. Small
+// valid packages plus every hostile variant.
+std::vector<std::pair<std::string, std::vector<std::byte>>> seed_corpus();
+
+}  // namespace decal_test

@@ -1,0 +1,259 @@
+#!/usr/bin/env python3
+"""Writes the hostile-input corpus (issue 8) into OUTDIR.
+
+Every case is a small file that decalprep reads through GDAL, plus a row in
+OUTDIR/cases.json naming the file, the build arguments and the expected
+behaviour. Expectations live in tests/hostile/expected.json (checked in), keyed
+by case name, so that the generator only makes inputs.
+
+Usage: generate.py OUTDIR [--big]   (--big adds the 10^6-vertex, 10^5-hole and
+                                      10^4-teeth cases; they take seconds to write)
+Needs only the Python standard library; shapefiles are written byte by byte so
+that NaN/Inf coordinates and broken files can be made exactly.
+"""
+import json
+import math
+import os
+import struct
+import sys
+
+LON0, LAT0 = 7.42, 43.73          # Monaco-ish, so the default local frame is sane
+M = 1.0 / 111_320.0               # ~1 metre in degrees of latitude
+
+
+def ll(x, y):
+    """Metres east/north of the reference point -> [lon, lat]."""
+    return [LON0 + x * M / math.cos(math.radians(LAT0)), LAT0 + y * M]
+
+
+def ring(points, close=True):
+    pts = [ll(x, y) for x, y in points]
+    if close:
+        pts.append(pts[0])
+    return pts
+
+
+def square(cx, cy, r):
+    return [(cx - r, cy - r), (cx + r, cy - r), (cx + r, cy + r), (cx - r, cy + r)]
+
+
+def square_cw(cx, cy, r):
+    return list(reversed(square(cx, cy, r)))
+
+
+def feature(geom, fid, props=None):
+    return {"type": "Feature", "id": fid, "properties": props or {"name": f"f{fid}"}, "geometry": geom}
+
+
+def write_geojson(path, features, crs=None):
+    fc = {"type": "FeatureCollection", "features": features}
+    if crs:
+        fc["crs"] = {"type": "name", "properties": {"name": crs}}
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(fc, f, allow_nan=False)
+
+
+def poly(*rings):
+    return {"type": "Polygon", "coordinates": list(rings)}
+
+
+def line(points):
+    return {"type": "LineString", "coordinates": [ll(x, y) for x, y in points]}
+
+
+# ----------------------------------------------------------- shapefile writer
+def write_shapefile(base, shape_type, records, prj=True, attrs=None):
+    """Minimal ESRI shapefile writer. records: list of parts lists, each part a
+    list of (x, y) in lon/lat. shape_type 3 = PolyLine, 5 = Polygon."""
+    contents = []
+    for parts in records:
+        pts = [p for part in parts for p in part]
+        xs = [p[0] for p in pts] or [0.0]
+        ys = [p[1] for p in pts] or [0.0]
+        finite = lambda v: [a for a in v if math.isfinite(a)] or [0.0]
+        bbox = (min(finite(xs)), min(finite(ys)), max(finite(xs)), max(finite(ys)))
+        body = struct.pack("<i4dii", shape_type, *bbox, len(parts), len(pts))
+        idx = 0
+        for part in parts:
+            body += struct.pack("<i", idx)
+            idx += len(part)
+        for x, y in pts:
+            body += struct.pack("<2d", x, y)
+        contents.append(body)
+    all_pts = [p for parts in records for part in parts for p in part if all(map(math.isfinite, p))]
+    bx = (min(p[0] for p in all_pts), min(p[1] for p in all_pts), max(p[0] for p in all_pts),
+          max(p[1] for p in all_pts)) if all_pts else (0, 0, 0, 0)
+
+    def header(file_len_words):
+        return (struct.pack(">7i", 9994, 0, 0, 0, 0, 0, file_len_words) +
+                struct.pack("<2i", 1000, shape_type) + struct.pack("<4d", *bx) + struct.pack("<4d", 0, 0, 0, 0))
+
+    shp, shx = b"", b""
+    offset = 50
+    for i, body in enumerate(contents):
+        rec = struct.pack(">2i", i + 1, len(body) // 2) + body
+        shx += struct.pack(">2i", offset, len(body) // 2)
+        offset += len(rec) // 2
+        shp += rec
+    with open(base + ".shp", "wb") as f:
+        f.write(header(50 + len(shp) // 2) + shp)
+    with open(base + ".shx", "wb") as f:
+        f.write(header(50 + len(shx) // 2) + shx)
+    # dBASE III with one character field NAME(20)
+    attrs = attrs or [f"f{i}".encode() for i in range(len(records))]
+    n = len(records)
+    dbf = struct.pack("<B3BIHH20x", 3, 124, 1, 1, n, 32 + 32 + 1, 1 + 20)
+    dbf += b"NAME".ljust(11, b"\0") + b"C" + b"\0" * 4 + bytes([20, 0]) + b"\0" * 14
+    dbf += b"\r"
+    for a in attrs:
+        dbf += b" " + a[:20].ljust(20, b" ")
+    dbf += b"\x1a"
+    with open(base + ".dbf", "wb") as f:
+        f.write(dbf)
+    if prj:
+        with open(base + ".prj", "w") as f:
+            f.write('GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],'
+                    'PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]')
+
+
+def main():
+    out = sys.argv[1]
+    big = "--big" in sys.argv
+    os.makedirs(out, exist_ok=True)
+    cases = []
+
+    def case(name, filename, kind, features=None, extra_args=None, crs=None, big_case=False):
+        path = os.path.join(out, filename)
+        if features is not None:
+            write_geojson(path, features, crs)
+        cases.append({"name": name, "path": path, "kind": kind, "args": extra_args or [], "big": big_case})
+
+    # ---------------------------------------------------------------- polygons
+    case("poly_bowtie", "poly_bowtie.geojson", "polygon",
+         [feature(poly(ring([(0, 0), (10, 10), (10, 0), (0, 10)])), 1)])
+    case("poly_spike", "poly_spike.geojson", "polygon",
+         [feature(poly(ring([(0, 0), (10, 0), (10, 5), (30, 5), (10, 5.000001), (10, 10), (0, 10)])), 1)])
+    case("poly_duplicate_points", "poly_duplicate_points.geojson", "polygon",
+         [feature(poly(ring([(0, 0), (0, 0), (10, 0), (10, 0), (10, 10), (0, 10), (0, 10)])), 1)])
+    case("poly_unclosed_ring", "poly_unclosed_ring.geojson", "polygon",
+         [feature(poly(ring([(0, 0), (10, 0), (10, 10), (0, 10)], close=False)), 1)])
+    case("poly_two_distinct_points", "poly_two_distinct_points.geojson", "polygon",
+         [feature(poly(ring([(0, 0), (10, 0), (0, 0), (10, 0)])), 1)])
+    case("poly_hole_touches_shell_point", "poly_hole_touches_shell_point.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5)), ring([(0, 5), (3, 3), (3, 7)][::-1])), 1)])
+    case("poly_hole_touches_shell_edge", "poly_hole_touches_shell_edge.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5)), ring([(0, 3), (3, 3), (3, 7), (0, 7)][::-1])), 1)])
+    case("poly_hole_outside_shell", "poly_hole_outside_shell.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5)), ring(square_cw(30, 30, 2))), 1)])
+    case("poly_hole_crosses_shell", "poly_hole_crosses_shell.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5)), ring(square_cw(10, 5, 2))), 1)])
+    case("poly_overlapping_holes", "poly_overlapping_holes.geojson", "polygon",
+         [feature(poly(ring(square(10, 10, 10)), ring(square_cw(8, 10, 3)), ring(square_cw(12, 10, 3))), 1)])
+    case("poly_three_level_nesting", "poly_three_level_nesting.geojson", "polygon",
+         [feature({"type": "MultiPolygon", "coordinates": [
+             [ring(square(10, 10, 10)), ring(square_cw(10, 10, 6))],
+             [ring(square(10, 10, 3)), ring(square_cw(10, 10, 1))]]}, 1)])
+    case("poly_identical_duplicates", "poly_identical_duplicates.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5))), 1), feature(poly(ring(square(5, 5, 5))), 2)])
+    case("poly_zero_area_sliver", "poly_zero_area_sliver.geojson", "polygon",
+         [feature(poly(ring([(0, 0), (10, 0), (20, 0)])), 1), feature(poly(ring(square(5, 5, 5))), 2)])
+    if big:
+        n = 1_000_000
+        pts = [(5000 * math.cos(2 * math.pi * i / n) * (1 + 0.01 * math.sin(97 * 2 * math.pi * i / n)),
+                5000 * math.sin(2 * math.pi * i / n) * (1 + 0.01 * math.sin(97 * 2 * math.pi * i / n)))
+               for i in range(n)]
+        case("poly_million_vertices", "poly_million_vertices.geojson", "polygon",
+             [feature(poly(ring(pts)), 1)], big_case=True)
+        holes = [ring(square_cw(-4990 + 31.6 * (k % 316), -4990 + 31.6 * (k // 316), 10)) for k in range(100_000)]
+        case("poly_100k_holes", "poly_100k_holes.geojson", "polygon",
+             [feature(poly(ring(square(0, 0, 5000)), *holes), 1)], big_case=True)
+        teeth = [(0, 0)]
+        for t in range(10_000):
+            teeth += [(t * 2 + 0.5, 0), (t * 2 + 0.5, 100), (t * 2 + 1.5, 100), (t * 2 + 1.5, 0)]
+        teeth += [(20_000, 0), (20_000, -10), (0, -10)]
+        case("poly_comb_10k_teeth", "poly_comb_10k_teeth.geojson", "polygon",
+             [feature(poly(ring(teeth)), 1)], big_case=True)
+
+    # ------------------------------------------------------------------- lines
+    args_w = ["--width", "2"]
+    case("line_zero_length_segment", "line_zero_length_segment.geojson", "line",
+         [feature(line([(0, 0), (5, 0), (5, 0), (10, 0)]), 1)], args_w)
+    case("line_single_point", "line_single_point.geojson", "line",
+         [feature(line([(0, 0)]), 1), feature(line([(0, 0), (10, 0)]), 2)], args_w)
+    case("line_180_reversal", "line_180_reversal.geojson", "line",
+         [feature(line([(0, 0), (10, 0), (0, 0)]), 1)], args_w + ["--corner", "miter"])
+    turn = lambda deg: [(0, 0), (10, 0), (10 + 10 * math.cos(math.radians(180 - deg)), 10 * math.sin(math.radians(180 - deg)))]
+    case("line_179_9_turn", "line_179_9_turn.geojson", "line", [feature(line(turn(179.9)), 1)], args_w + ["--corner", "miter"])
+    case("line_0_01_turn", "line_0_01_turn.geojson", "line", [feature(line(turn(0.01)), 1)], args_w + ["--corner", "miter"])
+    case("line_collinear_100k", "line_collinear_100k.geojson", "line",
+         [feature(line([(i * 0.01, 1e-9 * (i % 3)) for i in range(100_000)]), 1)], args_w + ["--corner", "bevel"])
+    case("line_longer_than_grid", "line_longer_than_grid.geojson", "line",
+         [feature(line([(-50_000, 0), (50_000, 1)]), 1)] + [feature(line([(i, 0), (i, 1)]), 2 + i) for i in range(200)], args_w)
+    case("line_self_overlapping", "line_self_overlapping.geojson", "line",
+         [feature(line([(0, 0), (10, 0), (10, 10), (5, 0), (20, 0)]), 1)], args_w + ["--corner", "miter"])
+    case("line_wider_than_extent", "line_wider_than_extent.geojson", "line",
+         [feature(line([(0, 0), (10, 0)]), 1)], ["--width", "1000"])
+
+    # ------------------------------------------------------------- coordinates
+    write_shapefile(os.path.join(out, "coord_nan"), 5,
+                    [[ring(square(5, 5, 5))], [[(LON0, LAT0), (float("nan"), LAT0), (LON0, LAT0 + 1e-4), (LON0, LAT0)]]])
+    case("coord_nan", "coord_nan.shp", "polygon")
+    write_shapefile(os.path.join(out, "coord_inf"), 3,
+                    [[[ll(0, 0), ll(10, 0)]], [[(LON0, LAT0), (float("inf"), LAT0)]]])
+    case("coord_inf", "coord_inf.shp", "line", extra_args=args_w)
+    case("coord_1e300", "coord_1e300.geojson", "line",
+         [feature({"type": "LineString", "coordinates": [[LON0, LAT0], [1e300, LAT0]]}, 1),
+          feature(line([(0, 0), (10, 0)]), 2)], args_w)
+    utm = {"type": "FeatureCollection", "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}},
+           "features": [feature({"type": "LineString", "coordinates": [[500000.0, 9999000.0], [500000.001, 9999000.001],
+                                                                         [500010.0, 9999000.002]]}, 1),
+                        feature({"type": "Polygon", "coordinates": [[[500000.0, 9999900.0], [500000.003, 9999900.0],
+                                                                      [500000.003, 9999900.003], [500000.0, 9999900.003],
+                                                                      [500000.0, 9999900.0]]]}, 2)]}
+    with open(os.path.join(out, "coord_utm_north_1mm.geojson"), "w") as f:
+        json.dump(utm, f)
+    case("coord_utm_north_1mm", "coord_utm_north_1mm.geojson", "line", extra_args=["--width", "0.001"])
+    case("coord_antimeridian", "coord_antimeridian.geojson", "line",
+         [feature({"type": "LineString", "coordinates": [[179.9, 10.0], [-179.9, 10.1]]}, 1)], args_w)
+    case("coord_poles", "coord_poles.geojson", "polygon",
+         [feature({"type": "Polygon", "coordinates": [[[0, 89.9], [120, 89.9], [-120, 89.9], [0, 89.9]]]}, 1),
+          feature({"type": "Polygon", "coordinates": [[[-180, -90], [180, -90], [180, -89.9], [-180, -89.9], [-180, -90]]]}, 2)])
+    case("coord_empty_geometries", "coord_empty_geometries.geojson", "polygon",
+         [feature({"type": "Polygon", "coordinates": []}, 1), feature(None, 2), feature(poly(ring(square(5, 5, 5))), 3)])
+    case("coord_geometry_collection", "coord_geometry_collection.geojson", "polygon",
+         [feature({"type": "GeometryCollection", "geometries": [poly(ring(square(5, 5, 5))), line([(0, 0), (20, 20)]),
+                                                                 {"type": "Point", "coordinates": ll(1, 1)}]}, 1)])
+    case("coord_3d_measured", "coord_3d_measured.geojson", "line",
+         [feature({"type": "LineString", "coordinates": [ll(0, 0) + [100.0], ll(10, 0) + [120.0]]}, 1)], args_w)
+    case("coord_mixed_types", "coord_mixed_types.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5))), 1), feature(line([(0, 0), (20, 0)]), 2),
+          feature({"type": "Point", "coordinates": ll(3, 3)}, 3)])
+
+    # ------------------------------------------------------------------- files
+    sq = [[ring(square(5, 5, 5))]]
+    for variant in ("missing_shx", "missing_dbf", "truncated_shp", "bad_prj", "non_utf8"):
+        base = os.path.join(out, f"file_{variant}")
+        attrs = [b"caf\xe9 \xff\xfe"] if variant == "non_utf8" else None
+        write_shapefile(base, 5, sq, attrs=attrs)
+        if variant == "missing_shx":
+            os.remove(base + ".shx")
+        elif variant == "missing_dbf":
+            os.remove(base + ".dbf")
+        elif variant == "truncated_shp":
+            data = open(base + ".shp", "rb").read()
+            open(base + ".shp", "wb").write(data[:len(data) - 40])
+        elif variant == "bad_prj":
+            open(base + ".prj", "w").write("GEOGCS[this is not a CRS")
+        case(f"file_{variant}", f"file_{variant}.shp", "polygon")
+    case("file_zero_features", "file_zero_features.geojson", "polygon", [])
+    odd = "path with spaces ü é"
+    os.makedirs(os.path.join(out, odd), exist_ok=True)
+    case("file_odd_path", os.path.join(odd, "données.geojson"), "polygon", [feature(poly(ring(square(5, 5, 5))), 1)])
+
+    with open(os.path.join(out, "cases.json"), "w", encoding="utf-8") as f:
+        json.dump(cases, f, indent=1, ensure_ascii=False)
+    print(f"hostile: wrote {len(cases)} cases to {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,63 @@
+#include "hand_model.hpp"
+
+namespace render_test {
+
+namespace {
+
+int32_t q(double m) { return int32_t(m * 1000.0); }
+
+// Adds polygon `poly` as a one-node quad-tree (a partial leaf holding the
+// whole ring) and returns the node index.
+uint32_t add_square(prep::DecalModel& m, double lo, double hi) {
+  uint32_t node = uint32_t(m.qt_node.size());
+  uint32_t first_v = uint32_t(m.qt_leaf_vertices.size());
+  uint32_t first_s = uint32_t(m.qt_leaf_segments.size());
+  m.qt_leaf_vertices.insert(m.qt_leaf_vertices.end(), {{q(lo), q(lo)}, {q(hi), q(lo)}, {q(hi), q(hi)}, {q(lo), q(hi)}});
+  for (uint32_t k = 0; k < 4; ++k) m.qt_leaf_segments.push_back({first_v + k, first_v + (k + 1) % 4});
+  m.qt_leaf_range.push_back({first_s, 4});
+  m.qt_node_box.push_back({q(lo), q(lo), q(hi), q(hi)});
+  m.qt_node.push_back({3, int32_t(m.qt_leaf_range.size() - 1)});
+  return node;
+}
+
+}  // namespace
+
+prep::DecalModel hand_model() {
+  prep::DecalModel m;
+  m.extent = {0, 0, 100, 100};
+  m.grid = {0, 0, 50000, 50000, 2, 2};
+  uint32_t n_ext = add_square(m, 20, 80), n_hole = add_square(m, 40, 60), n_island = add_square(m, 45, 55);
+  m.poly_props.push_back({HandShapes::kPolyRgba, 0, -1, 0.f, 0, 0, {0, 0}});
+  m.poly_props.push_back({0, 0, 0, 0.f, 0, 0, {0, 0}});
+  m.poly_props.push_back({HandShapes::kIslandRgba, 1, -1, 0.f, 0, 1, {0, 0}});
+  m.poly_root_node = {n_ext, n_hole, n_island};
+  // Every cell holds the exterior (with its hole) then the island, in
+  // drawing order; BVH of 2 leaves + 1 internal node per cell.
+  m.line_vertices = {{q(10), q(10)}, {q(90), q(90)}, {q(10), q(90)}, {q(90), q(10)}};
+  m.line_vertex_line = {0, 0, 1, 1};
+  m.line_corners.resize(4, decal::LineCorner{});
+  m.line_props.push_back({2.0f, HandShapes::kLineRgba, 0, 0, 0.f, 0, 2, 0});
+  m.line_props.push_back({3.0f, HandShapes::kLine2Rgba, 1, 0, 0.f, 0, 3, 0});
+  for (uint32_t c = 0; c < 4; ++c) {
+    m.cell_poly_range.push_back({uint32_t(m.cell_polys.size()), 2});
+    m.cell_holes.push_back({1, n_hole});
+    m.cell_polys.push_back({0, n_ext, uint32_t(m.cell_holes.size() - 1), 1});
+    m.cell_polys.push_back({2, n_island, 0, 0});
+    uint32_t first = uint32_t(m.poly_bvh_box.size());
+    m.poly_bvh_box.push_back({q(20), q(20), q(80), q(80)});
+    m.poly_bvh_box.push_back({q(20), q(20), q(80), q(80)});
+    m.poly_bvh_box.push_back({q(45), q(45), q(55), q(55)});
+    m.poly_bvh_range.push_back({first, 2, 1, 0});
+    // Both lines in every cell, in drawing order (line 0 on top).
+    m.cell_segment_range.push_back({uint32_t(m.cell_segments.size()), 2});
+    m.cell_segments.push_back({0, 1});
+    m.cell_segments.push_back({2, 3});
+    m.line_bvh_range.push_back({uint32_t(m.line_bvh_box.size()), 2, 1, 0});
+    m.line_bvh_box.push_back({q(7), q(7), q(93), q(93)});
+    m.line_bvh_box.push_back({q(8), q(8), q(92), q(92)});
+    m.line_bvh_box.push_back({q(7), q(7), q(93), q(93)});
+  }
+  return m;
+}
+
+}  // namespace render_test

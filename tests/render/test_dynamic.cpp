@@ -1,0 +1,156 @@
+// Dynamic lines (thesis §4.3, §4.4.2): pixel width kept when zoomed out,
+// same-pixel vertex removal, drawing order at transparent crossings.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "prep/error.hpp"
+#include "prep/render.hpp"
+
+namespace {
+
+namespace R = prep::render;
+
+constexpr uint32_t kRed = 0x800000ffu;   // R=255, alpha 0x80
+constexpr uint32_t kBlue = 0x80ff0000u;  // B=255, alpha 0x80
+
+// Densely subdivided dynamic lines at z = 0 (as terrain matching makes them):
+// a horizontal line y = 50 (order 0, red) and a vertical line x = 100
+// (order 1, blue), vertices every 0.5 m, half width 2 px.
+prep::DecalModel dynamic_model(int corner = 0) {
+  prep::DecalModel m;
+  m.extent = {0, 0, 200, 100};
+  m.grid = {0, 0, 200000, 100000, 1, 1};
+  m.cell_segment_range = {{0, 0}};
+  m.line_bvh_range = {{0, 0, 0, 0}};
+  m.cell_poly_range = {{0, 0}};
+  m.poly_bvh_range = {{0, 0, 0, 0}};
+  auto add_line = [&](double x0, double y0, double x1, double y1, uint32_t rgba, uint32_t order) {
+    uint32_t line = uint32_t(m.dyn_line_props.size());
+    uint32_t first = uint32_t(m.dyn_vertices.size());
+    int n = int(std::hypot(x1 - x0, y1 - y0) / 0.5);
+    for (int k = 0; k <= n; ++k) {
+      double t = double(k) / n;
+      m.dyn_vertices.push_back({int32_t(std::lround((x0 + t * (x1 - x0)) * 1000)),
+                                int32_t(std::lround((y0 + t * (y1 - y0)) * 1000)), 0, int32_t(line)});
+      m.dyn_prev_next.push_back({k == 0 ? -1 : int32_t(first + k - 1), k == n ? -1 : int32_t(first + k + 1)});
+    }
+    m.dyn_line_start.push_back(first);
+    m.dyn_line_props.push_back({2.0f, rgba, order, uint32_t(corner), 0.f, 0, line, 0});
+  };
+  add_line(20, 50, 180, 50, kRed, 0);
+  add_line(100, 10, 100, 90, kBlue, 1);
+  return m;
+}
+
+struct Shot {
+  R::Image img;
+  bool ok = false;
+};
+
+Shot shoot(const prep::DecalModel& m, const prep::Extent& view, uint32_t w, uint32_t h) {
+  R::DecalSource src = R::source_of(m);
+  R::RenderOptions opt;
+  opt.width = w;
+  opt.height = h;
+  opt.camera = R::topdown_camera(view, 0, 0);
+  Shot s;
+  try {
+    s.img = R::render_gl(src, R::flat_heightfield(view), opt);
+    s.ok = true;
+  } catch (const prep::render_error& e) {
+    std::printf("no headless GL: %s\n", e.what());
+  }
+  return s;
+}
+
+// Covered pixels of the dynamic layer in image column i.
+int column_coverage(const R::Image& img, uint32_t i) {
+  int n = 0;
+  for (uint32_t j = 0; j < img.height; ++j) n += img.dynamic[4 * (i + size_t(img.width) * j) + 3] > 0;
+  return n;
+}
+
+TEST(DynamicLines, KeepTheirPixelWidthWhenZoomedOut) {
+  auto m = dynamic_model();
+  const uint32_t W = 320, H = 160;
+  for (double zoom : {1.0, 4.0, 16.0}) {
+    // View centred on the red line, zoom x wider each time.
+    double hw = 100 * zoom, hh = 50 * zoom;
+    prep::Extent view{100 - hw, 50.25 - hh, 100 + hw, 50.25 + hh};
+    Shot s = shoot(m, view, W, H);
+    if (!s.ok) GTEST_SKIP() << "no headless GL";
+    std::filesystem::create_directories("render-out");
+    R::write_png("render-out/dynamic_zoom" + std::to_string(int(zoom)) + ".png", s.img.rgba, W, H);
+    // A column through the red line away from the blue one: 4 px = 2 x half width.
+    uint32_t col = W / 2 - 6;
+    int width_px = column_coverage(s.img, col);
+    RecordProperty("width_px_zoom" + std::to_string(int(zoom)), width_px);
+    EXPECT_GE(width_px, 3) << "zoom " << zoom;
+    EXPECT_LE(width_px, 5) << "zoom " << zoom;
+    if (zoom == 16.0) {
+      // 3200 m over 320 px: 10 m per pixel, vertices 0.5 m apart: most share a pixel.
+      EXPECT_LT(s.img.dyn_kept, m.dyn_vertices.size() / 5) << "same-pixel removal kept " << s.img.dyn_kept;
+      EXPECT_GT(s.img.dyn_kept, 20u);
+    }
+  }
+}
+
+TEST(DynamicLines, TransparentCrossingShowsTheTopLineOverTheOther) {
+  auto m = dynamic_model();
+  Shot s = shoot(m, {0, 0, 200, 100}, 200, 100);
+  if (!s.ok) GTEST_SKIP() << "no headless GL";
+  // Pixel (100, 49) has its centre at (100.5, 50.5): on both lines.
+  const float* c = &s.img.dynamic[4 * (100 + size_t(200) * 49)];
+  // red (order 0) over blue: premultiplied 0.502*red + 0.498*0.502*blue.
+  double a_top = 128 / 255.0, a = a_top + (1 - a_top) * a_top;
+  EXPECT_NEAR(c[3], a, 2.0 / 255);
+  EXPECT_NEAR(c[0], a_top / a, 2.0 / 255);
+  EXPECT_NEAR(c[2], (1 - a_top) * a_top / a, 2.0 / 255);
+  EXPECT_NEAR(c[1], 0.0, 1e-6);
+  // Off the crossing, one line only, and each line counts once despite its
+  // overlapping segment boxes and round joins.
+  const float* r = &s.img.dynamic[4 * (60 + size_t(200) * 49)];
+  EXPECT_NEAR(r[3], a_top, 2.0 / 255);
+  EXPECT_NEAR(r[0], 1.0, 2.0 / 255);
+}
+
+TEST(DynamicLines, GrowTheListBufferWhenItOverflows) {
+  // 60 copies of one line on top of each other: 60 list nodes per covered
+  // pixel exceed the initial two nodes per pixel, so the pass must regrow.
+  auto m = dynamic_model();
+  auto base_v = m.dyn_vertices;
+  auto base_pn = m.dyn_prev_next;
+  m.dyn_vertices.clear();
+  m.dyn_prev_next.clear();
+  m.dyn_line_start.clear();
+  auto props = m.dyn_line_props[0];
+  m.dyn_line_props.clear();
+  size_t n0 = 0;
+  while (n0 < base_v.size() && base_v[n0][3] == 0) ++n0;  // the red line only
+  for (uint32_t copy = 0; copy < 60; ++copy) {
+    uint32_t first = uint32_t(m.dyn_vertices.size());
+    m.dyn_line_start.push_back(first);
+    for (size_t k = 0; k < n0; ++k) {
+      auto v = base_v[k];
+      v[3] = int32_t(copy);
+      m.dyn_vertices.push_back(v);
+      auto pn = base_pn[k];
+      m.dyn_prev_next.push_back({pn[0] < 0 ? -1 : int32_t(first + pn[0]), pn[1] < 0 ? -1 : int32_t(first + pn[1])});
+    }
+    props.order = copy;
+    props.rgba = 0x10ffffffu;  // nearly transparent so no early exit
+    m.dyn_line_props.push_back(props);
+  }
+  Shot s = shoot(m, {90, 45, 110, 55}, 64, 32);
+  if (!s.ok) GTEST_SKIP() << "no headless GL";
+  EXPECT_GE(s.img.list_grows, 1u);
+  EXPECT_GT(s.img.dyn_nodes, 64u * 32u * 2u);
+  // The composite keeps the 16 topmost distinct lines of a list
+  // (dyn_composite.frag.glsl K): 1 - (1 - 16/255)^16, not ^60.
+  const float* c = &s.img.dynamic[4 * (32 + size_t(64) * 15)];
+  EXPECT_NEAR(c[3], 1 - std::pow(1 - 16 / 255.0, 16), 2.0 / 255);
+}
+
+}  // namespace

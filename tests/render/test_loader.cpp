@@ -1,0 +1,88 @@
+// The loader's structural validation: corrupt blobs are rejected before any
+// GL call, with a message naming the blob, element and value.
+#include <gtest/gtest.h>
+
+#include "decal/gl/gl.hpp"
+#include "hand_model.hpp"
+#include "prep/error.hpp"
+#include "prep/render.hpp"
+
+namespace {
+
+namespace R = prep::render;
+
+decal::Status validate(const prep::DecalModel& m) {
+  R::DecalSource src = R::source_of(m);
+  std::vector<decal::gl::BlobBytes> blobs;
+  for (const auto& b : src.blobs) blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
+  const auto& g = m.grid;
+  return decal::gl::validate_blobs(blobs, {g.origin_x, g.origin_y, g.cell_w, g.cell_h, g.nx, g.ny});
+}
+
+TEST(GlLoader, AcceptsTheHandModel) {
+  auto s = validate(render_test::hand_model());
+  EXPECT_TRUE(s.ok) << s.message;
+}
+
+TEST(GlLoader, RejectsOutOfRangeSegmentVertex) {
+  auto m = render_test::hand_model();
+  m.cell_segments[2][1] = 7;
+  auto s = validate(m);
+  ASSERT_FALSE(s.ok);
+  EXPECT_NE(s.message.find("cell_segments[2]"), std::string::npos) << s.message;
+  EXPECT_NE(s.message.find("vertex 7"), std::string::npos) << s.message;
+}
+
+TEST(GlLoader, RejectsQuadTreeChildBeforeParentSoDescentCannotLoop) {
+  auto m = render_test::hand_model();
+  m.qt_node[1] = {0, 0};  // internal node pointing back at node 0
+  auto s = validate(m);
+  ASSERT_FALSE(s.ok);
+  EXPECT_NE(s.message.find("qt_node[1]"), std::string::npos) << s.message;
+}
+
+TEST(GlLoader, RejectsBvhRangeBeyondBoxes) {
+  auto m = render_test::hand_model();
+  m.poly_bvh_range[3][0] = 100;
+  auto s = validate(m);
+  ASSERT_FALSE(s.ok);
+  EXPECT_NE(s.message.find("poly_bvh_range[3]"), std::string::npos) << s.message;
+}
+
+TEST(GlLoader, RejectsBadNodeTypeHoleRangeAndGridCount) {
+  {
+    auto m = render_test::hand_model();
+    m.qt_node[0][0] = 7;
+    EXPECT_NE(validate(m).message.find("type 7"), std::string::npos);
+  }
+  {
+    auto m = render_test::hand_model();
+    m.cell_polys[0][3] = 5;
+    EXPECT_NE(validate(m).message.find("cell_polys[0]"), std::string::npos);
+  }
+  {
+    auto m = render_test::hand_model();
+    m.grid.nx = 3;
+    EXPECT_NE(validate(m).message.find("grid cells"), std::string::npos);
+  }
+}
+
+TEST(GlLoader, RenderRejectsCorruptModelBeforeCreatingAContext) {
+  // render_gl validates first: the validation message (not an EGL one) comes
+  // back whether or not this machine has EGL.
+  auto m = render_test::hand_model();
+  m.qt_leaf_segments[0][0] = 999;
+  R::DecalSource src = R::source_of(m);
+  R::RenderOptions opt;
+  opt.width = 8;
+  opt.height = 8;
+  opt.camera = R::topdown_camera(m.extent, 0, 0);
+  try {
+    R::render_gl(src, R::flat_heightfield(m.extent), opt);
+    FAIL() << "corrupt model rendered";
+  } catch (const prep::render_error& e) {
+    EXPECT_NE(std::string(e.what()).find("qt_leaf_segments[0]"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace

@@ -1,0 +1,321 @@
+// Round trip: write_package / write_model, then Package::open or
+// from_memory, must give back every blob byte for byte, for every element
+// type, empty and >64 MiB blobs, compressed and not, mapped and not.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "decal/inspect.hpp"
+#include "decal/reader.hpp"
+#include "fixtures.hpp"
+#include "prep/error.hpp"
+#include "prep/write.hpp"
+
+namespace {
+
+using decal::BlobId;
+using decal::ElementType;
+using decal_test::make_temp_dir;
+using decal_test::read_file;
+
+struct OwnedBlob {
+  BlobId id;
+  ElementType type;
+  uint32_t stride;
+  std::vector<std::byte> bytes;
+  uint64_t count() const { return bytes.size() / stride; }
+  prep::BlobInput input() const { return {id, type, stride, count(), bytes}; }
+};
+
+// Random but reproducible contents of `n` elements.
+OwnedBlob make_blob(uint32_t id, ElementType type, uint32_t stride, uint64_t n, uint64_t seed) {
+  OwnedBlob b{static_cast<BlobId>(id), type, stride, std::vector<std::byte>(n * stride)};
+  std::mt19937_64 rng(seed);
+  // A random walk of 32-bit words: compressible like real coordinates.
+  int32_t walk = 0;
+  for (size_t i = 0; i + 4 <= b.bytes.size(); i += 4) {
+    walk += static_cast<int32_t>(rng() % 2001) - 1000;
+    std::memcpy(b.bytes.data() + i, &walk, 4);
+  }
+  for (size_t i = b.bytes.size() / 4 * 4; i < b.bytes.size(); ++i) b.bytes[i] = std::byte(rng());
+  return b;
+}
+
+// One blob of every element type: catalogue blobs for the types the
+// catalogue uses, ids >= 1000 (unknown to the catalogue) for the rest.
+std::vector<OwnedBlob> every_type_blobs() {
+  std::vector<OwnedBlob> v;
+  v.push_back(make_blob(1, ElementType::ivec2, 8, 1000, 1));                     // line_vertices
+  v.push_back(make_blob(2, ElementType::u32, 4, 1000, 2));                       // line_vertex_line
+  v.push_back(make_blob(3, ElementType::record, sizeof(decal::LineProps), 7, 3));  // line_props
+  v.push_back(make_blob(5, ElementType::uvec2, 8, 0, 4));                        // empty
+  v.push_back(make_blob(12, ElementType::ivec4, 16, 33, 5));                     // qt_node_box
+  v.push_back(make_blob(18, ElementType::uvec4, 16, 9, 6));                      // cell_polys
+  v.push_back(make_blob(1000, ElementType::u8, 1, 13, 7));
+  v.push_back(make_blob(1001, ElementType::i32, 4, 100, 8));
+  v.push_back(make_blob(1002, ElementType::f32, 4, 100, 9));
+  v.push_back(make_blob(1003, ElementType::vec2, 8, 50, 10));
+  v.push_back(make_blob(1004, ElementType::vec4, 16, 25, 11));
+  v.push_back(make_blob(1005, ElementType::record, 12, 3, 12));
+  v.push_back(make_blob(1006, ElementType::u8, 1, 0, 13));  // empty, unknown id
+  return v;
+}
+
+std::vector<prep::BlobInput> inputs(const std::vector<OwnedBlob>& blobs) {
+  std::vector<prep::BlobInput> v;
+  for (const auto& b : blobs) v.push_back(b.input());
+  return v;
+}
+
+void expect_same_blobs(const decal::Package& p, const std::vector<OwnedBlob>& blobs) {
+  ASSERT_EQ(p.blobs().size(), blobs.size());
+  for (size_t i = 0; i < blobs.size(); ++i) {
+    const decal::BlobView& v = p.blobs()[i];
+    SCOPED_TRACE("blob id " + std::to_string(v.id));
+    EXPECT_EQ(v.id, static_cast<uint32_t>(blobs[i].id));
+    EXPECT_EQ(v.type, blobs[i].type);
+    EXPECT_EQ(v.stride, blobs[i].stride);
+    EXPECT_EQ(v.count, blobs[i].count());
+    ASSERT_EQ(v.bytes.size(), blobs[i].bytes.size());
+    EXPECT_TRUE(std::equal(v.bytes.begin(), v.bytes.end(), blobs[i].bytes.begin()));
+    EXPECT_EQ(reinterpret_cast<uintptr_t>(v.bytes.data()) % 4, 0u);
+    if (const decal::BlobInfo* info = decal::find_blob_info(blobs[i].id))
+      EXPECT_EQ(v.name, info->name);
+    else
+      EXPECT_EQ(v.name, "blob_" + std::to_string(v.id));
+  }
+}
+
+enum class ReadPath { mmap, read, memory };
+
+struct Case {
+  prep::Codec codec;
+  ReadPath path;
+};
+
+class RoundTrip : public ::testing::TestWithParam<Case> {
+ protected:
+  void SetUp() override { dir_ = make_temp_dir("roundtrip"); }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  decal::Package write_and_read(const std::vector<OwnedBlob>& blobs) {
+    const std::string path = dir_ + "/p.decals";
+    prep::WriteOptions wo;
+    wo.codec = GetParam().codec;
+    wo.zstd_level = 1;
+    prep::write_package(path, R"({"format":"decals"})", inputs(blobs), wo);
+    decal::Package p;
+    decal::OpenOptions oo;
+    oo.allow_mmap = GetParam().path == ReadPath::mmap;
+    decal::Status s = GetParam().path == ReadPath::memory
+                          ? decal::Package::from_memory(read_file(path), p, oo)
+                          : decal::Package::open(path, p, oo);
+    EXPECT_TRUE(s) << s.message;
+    const bool mapped = GetParam().path == ReadPath::mmap && GetParam().codec == prep::Codec::none;
+    EXPECT_EQ(p.memory_mapped(), mapped);
+    EXPECT_EQ(p.metadata_json(), R"({"format":"decals"})");
+    EXPECT_EQ(p.major(), decal::kVersionMajor);
+    EXPECT_EQ(p.minor(), decal::kVersionMinor);
+    EXPECT_EQ((p.flags() & decal::kFlagAllUncompressed) != 0, GetParam().codec == prep::Codec::none);
+    return p;
+  }
+
+  std::string dir_;
+};
+
+TEST_P(RoundTrip, EveryElementTypeAndEmptyBlobsComeBackByteForByte) {
+  const auto blobs = every_type_blobs();
+  decal::Package p = write_and_read(blobs);
+  expect_same_blobs(p, blobs);
+  // Typed access agrees with the raw bytes.
+  auto verts = p.array<std::array<int32_t, 2>>(BlobId::line_vertices);
+  ASSERT_EQ(verts.size(), 1000u);
+  int32_t first[2];
+  std::memcpy(first, blobs[0].bytes.data(), 8);
+  EXPECT_EQ(verts[0][0], first[0]);
+  EXPECT_EQ(verts[0][1], first[1]);
+  ASSERT_NE(p.find(BlobId::cell_segment_range), nullptr);
+  EXPECT_EQ(p.find(BlobId::cell_segment_range)->count, 0u);
+  EXPECT_EQ(p.find(BlobId::poly_props), nullptr);
+}
+
+TEST_P(RoundTrip, BlobLargerThan64MiBRawComesBackByteForByte) {
+  // 9 Mi ivec2 elements = 72 MiB raw.
+  std::vector<OwnedBlob> blobs;
+  blobs.push_back(make_blob(1, ElementType::ivec2, 8, uint64_t(9) << 20, 42));
+  blobs.push_back(make_blob(2, ElementType::u32, 4, 10, 43));
+  ASSERT_GT(blobs[0].bytes.size(), uint64_t(64) << 20);
+  decal::Package p = write_and_read(blobs);
+  expect_same_blobs(p, blobs);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    CodecsAndReadPaths, RoundTrip,
+    ::testing::Values(Case{prep::Codec::none, ReadPath::mmap}, Case{prep::Codec::none, ReadPath::read},
+                      Case{prep::Codec::none, ReadPath::memory}, Case{prep::Codec::zstd, ReadPath::mmap},
+                      Case{prep::Codec::zstd, ReadPath::read}, Case{prep::Codec::zstd, ReadPath::memory}),
+    [](const auto& param_info) {
+      const char* c = param_info.param.codec == prep::Codec::none ? "none" : "zstd";
+      const char* r = param_info.param.path == ReadPath::mmap ? "mmap" : param_info.param.path == ReadPath::read ? "read" : "memory";
+      return std::string(c) + "_" + r;
+    });
+
+TEST(WritePackage, SameInputGivesIdenticalFileBytes) {
+  const std::string dir = make_temp_dir("determinism");
+  const auto blobs = every_type_blobs();
+  for (prep::Codec codec : {prep::Codec::none, prep::Codec::zstd}) {
+    prep::WriteOptions wo;
+    wo.codec = codec;
+    prep::write_package(dir + "/a.decals", "{}", inputs(blobs), wo);
+    prep::write_package(dir + "/b.decals", "{}", inputs(blobs), wo);
+    EXPECT_EQ(read_file(dir + "/a.decals"), read_file(dir + "/b.decals"));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(WritePackage, ZstdActuallyCompressesAndHigherLevelsAreNotLarger) {
+  const std::string dir = make_temp_dir("levels");
+  std::vector<OwnedBlob> blobs;
+  blobs.push_back(make_blob(1, ElementType::ivec2, 8, 200000, 5));
+  uint64_t prev = UINT64_MAX;
+  for (int level : {1, 9, 19}) {
+    prep::WriteOptions wo{prep::Codec::zstd, level};
+    prep::write_package(dir + "/p.decals", "{}", inputs(blobs), wo);
+    const uint64_t size = std::filesystem::file_size(dir + "/p.decals");
+    EXPECT_LT(size, blobs[0].bytes.size()) << "level " << level;
+    EXPECT_LE(size, prev) << "level " << level;
+    prev = size;
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(WritePackage, BlobsStartOn256ByteBoundaries) {
+  const std::string dir = make_temp_dir("align");
+  const auto blobs = every_type_blobs();
+  prep::write_package(dir + "/p.decals", "{}", inputs(blobs), {prep::Codec::none, 0});
+  const auto bytes = read_file(dir + "/p.decals");
+  decal::PackageLayout layout;
+  ASSERT_TRUE(decal::read_layout(bytes, layout));
+  for (const auto& e : layout.entries) EXPECT_EQ(e.offset % 256, 0u) << e.name;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(WritePackage, RejectsInputsThatDisagreeWithTheCatalogue) {
+  const std::string dir = make_temp_dir("reject");
+  std::vector<std::byte> bytes(16);
+  // line_vertices is ivec2/8 in the catalogue.
+  prep::BlobInput wrong_type{BlobId::line_vertices, ElementType::uvec4, 16, 1, bytes};
+  EXPECT_THROW(prep::write_package(dir + "/p.decals", "{}", {&wrong_type, 1}), prep::output_error);
+  prep::BlobInput wrong_size{BlobId::line_vertices, ElementType::ivec2, 8, 3, bytes};
+  EXPECT_THROW(prep::write_package(dir + "/p.decals", "{}", {&wrong_size, 1}), prep::output_error);
+  prep::BlobInput twice[2] = {{BlobId::line_vertices, ElementType::ivec2, 8, 2, bytes},
+                              {BlobId::line_vertices, ElementType::ivec2, 8, 2, bytes}};
+  EXPECT_THROW(prep::write_package(dir + "/p.decals", "{}", twice), prep::output_error);
+  EXPECT_THROW(prep::write_package(dir + "/p.decals", "not json", {}), prep::output_error);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/p.decals"));
+  std::filesystem::remove_all(dir);
+}
+
+// ------------------------------------------------------------ write_model --
+
+template <class T>
+void expect_blob_equals(const decal::Package& p, BlobId id, const std::vector<T>& expected) {
+  const decal::BlobView* b = p.find(id);
+  ASSERT_NE(b, nullptr) << decal::find_blob_info(id)->name;
+  ASSERT_EQ(b->count, expected.size()) << b->name;
+  EXPECT_EQ(std::memcmp(b->bytes.data(), expected.data(), b->bytes.size()), 0) << b->name;
+}
+
+TEST(WriteModel, EveryModelArrayBecomesItsCatalogueBlobInCatalogueOrder) {
+  const prep::DecalModel m = decal_test::small_model();
+  const auto bytes = decal_test::model_package_bytes(m, {});
+  decal::Package p;
+  ASSERT_TRUE(decal::Package::from_memory(bytes, p));
+  ASSERT_EQ(p.blobs().size(), std::size(decal::kBlobCatalogue));
+  for (size_t i = 0; i < p.blobs().size(); ++i)
+    EXPECT_EQ(p.blobs()[i].id, static_cast<uint32_t>(decal::kBlobCatalogue[i].id));
+  expect_blob_equals(p, BlobId::line_vertices, m.line_vertices);
+  expect_blob_equals(p, BlobId::line_vertex_line, m.line_vertex_line);
+  expect_blob_equals(p, BlobId::line_props, m.line_props);
+  expect_blob_equals(p, BlobId::line_corners, m.line_corners);
+  expect_blob_equals(p, BlobId::cell_segment_range, m.cell_segment_range);
+  expect_blob_equals(p, BlobId::cell_segments, m.cell_segments);
+  expect_blob_equals(p, BlobId::poly_props, m.poly_props);
+  expect_blob_equals(p, BlobId::poly_root_node, m.poly_root_node);
+  expect_blob_equals(p, BlobId::qt_node_box, m.qt_node_box);
+  expect_blob_equals(p, BlobId::qt_node, m.qt_node);
+  expect_blob_equals(p, BlobId::qt_leaf_range, m.qt_leaf_range);
+  expect_blob_equals(p, BlobId::qt_leaf_segments, m.qt_leaf_segments);
+  expect_blob_equals(p, BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
+  expect_blob_equals(p, BlobId::cell_poly_range, m.cell_poly_range);
+  expect_blob_equals(p, BlobId::cell_polys, m.cell_polys);
+  expect_blob_equals(p, BlobId::cell_holes, m.cell_holes);
+  expect_blob_equals(p, BlobId::line_bvh_range, m.line_bvh_range);
+  expect_blob_equals(p, BlobId::line_bvh_box, m.line_bvh_box);
+  expect_blob_equals(p, BlobId::poly_bvh_range, m.poly_bvh_range);
+  expect_blob_equals(p, BlobId::poly_bvh_box, m.poly_bvh_box);
+  expect_blob_equals(p, BlobId::dyn_vertices, m.dyn_vertices);
+  expect_blob_equals(p, BlobId::dyn_prev_next, m.dyn_prev_next);
+  expect_blob_equals(p, BlobId::dyn_line_start, m.dyn_line_start);
+  expect_blob_equals(p, BlobId::dyn_line_props, m.dyn_line_props);
+  expect_blob_equals(p, BlobId::lod_points, m.lod_points);
+  expect_blob_equals(p, BlobId::lod_segments, m.lod_segments);
+  expect_blob_equals(p, BlobId::lod_line_range, m.lod_line_range);
+  EXPECT_TRUE(decal::validate_indices(p)) << decal::validate_indices(p).message;
+}
+
+TEST(WriteModel, EmptyModelStillListsEveryBlob) {
+  const auto bytes = decal_test::model_package_bytes(prep::DecalModel{}, {});
+  decal::Package p;
+  ASSERT_TRUE(decal::Package::from_memory(bytes, p));
+  ASSERT_EQ(p.blobs().size(), std::size(decal::kBlobCatalogue));
+  for (const auto& b : p.blobs()) EXPECT_EQ(b.count, 0u) << b.name;
+}
+
+TEST(WriteModel, MetadataCarriesFrameGridCountsManifestAndExtraKeys) {
+  const prep::DecalModel m = decal_test::small_model();
+  const auto bytes = decal_test::model_package_bytes(
+      m, {}, R"({"build":{"threads":2},"provenance":{"inputs":[{"path":"a.shp","xxh64":"00ff"}]}})");
+  decal::Package p;
+  ASSERT_TRUE(decal::Package::from_memory(bytes, p));
+  const auto j = nlohmann::json::parse(p.metadata_json());
+  EXPECT_EQ(j.at("format"), "decals");
+  EXPECT_DOUBLE_EQ(j.at("quantum_m").get<double>(), 0.001);
+  EXPECT_EQ(j.at("crs_wkt"), m.frame.crs_wkt);
+  EXPECT_EQ(j.at("frame"), m.frame.description);
+  EXPECT_DOUBLE_EQ(j.at("origin").at("x").get<double>(), m.frame.origin_x);
+  EXPECT_DOUBLE_EQ(j.at("origin").at("y").get<double>(), m.frame.origin_y);
+  EXPECT_EQ(j.at("extent"), nlohmann::json({-10.0, -5.0, 10.0, 5.0}));
+  EXPECT_EQ(j.at("grid").at("origin"), nlohmann::json({-10000, -5000}));
+  EXPECT_EQ(j.at("grid").at("cell"), nlohmann::json({10000, 10000}));
+  EXPECT_EQ(j.at("grid").at("dims"), nlohmann::json({2, 1}));
+  EXPECT_DOUBLE_EQ(j.at("max_representation_error_m").get<double>(), 0.0004);
+  EXPECT_DOUBLE_EQ(j.at("terrain").at("min").get<double>(), 99.0);
+  EXPECT_DOUBLE_EQ(j.at("terrain").at("max").get<double>(), 130.25);
+  EXPECT_EQ(j.at("counts").at("line_vertices"), m.line_vertices.size());
+  EXPECT_EQ(j.at("counts").at("lines"), m.line_props.size());
+  EXPECT_EQ(j.at("counts").at("polygons"), m.poly_props.size());
+  EXPECT_EQ(j.at("manifest").at("layers").at(0).at("dropped"), 1);
+  EXPECT_EQ(j.at("manifest").at("entries").at(0).at("fid"), 17);
+  EXPECT_TRUE(j.at("manifest").at("entries").at(0).at("area_before").is_null());
+  EXPECT_EQ(j.at("manifest").at("notes").at(0), "flat terrain");
+  EXPECT_EQ(j.at("build").at("threads"), 2);
+  EXPECT_EQ(j.at("provenance").at("inputs").at(0).at("path"), "a.shp");
+}
+
+TEST(WriteModel, ExtraMetadataThatOverridesAModelKeyIsRejected) {
+  const std::string dir = make_temp_dir("conflict");
+  EXPECT_THROW(prep::write_model(dir + "/p.decals", prep::DecalModel{}, R"({"format":"x"})"),
+               prep::output_error);
+  EXPECT_THROW(prep::write_model(dir + "/p.decals", prep::DecalModel{}, R"([1,2])"),
+               prep::output_error);
+  EXPECT_THROW(prep::write_model(dir + "/p.decals", prep::DecalModel{}, R"({"a":)"),
+               prep::output_error);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/p.decals"));
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace

@@ -1,0 +1,279 @@
+// cmd_dump.cpp — `decalprep dump PACKAGE [--json] [--blob NAME]`: the
+// canonical text of every blob, for golden tests, or every blob's decoded
+// elements as JSON (positions also in scene metres), so that outside tools
+// can check a package without knowing its encoding.
+//
+// The text depends only on the package contents, never on how the blobs are
+// stored (codec, offsets), so a compressed and an uncompressed package of the
+// same model dump identically. Floats print with %.9g (round-trips float32).
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "command.hpp"
+#include "decal/reader.hpp"
+
+namespace {
+
+using json = nlohmann::ordered_json;
+using decal::BlobId;
+using decal::ElementType;
+
+std::string num(float v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.9g", static_cast<double>(v));
+  return b;
+}
+
+// A float as JSON; JSON has no NaN or infinity, so those become null.
+json jnum(float v) { return std::isfinite(v) ? json(static_cast<double>(v)) : json(nullptr); }
+
+std::string hex32(uint32_t v) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%08x", v);
+  return b;
+}
+
+template <class T>
+T load(const decal::BlobView& b, uint64_t i) {
+  T v;
+  std::memcpy(&v, b.bytes.data() + i * b.stride, sizeof v);
+  return v;
+}
+
+// Blobs whose elements are positions in quanta: how many of the leading
+// components are coordinates (dyn_vertices: x, y, z; boxes: all four).
+int position_components(uint32_t id) {
+  switch (static_cast<BlobId>(id)) {
+    case BlobId::line_vertices:
+    case BlobId::qt_leaf_vertices:
+    case BlobId::lod_points: return 2;
+    case BlobId::dyn_vertices: return 3;
+    case BlobId::qt_node_box:
+    case BlobId::line_bvh_box:
+    case BlobId::poly_bvh_box: return 4;
+    default: return 0;
+  }
+}
+
+// --------------------------------------------------------------- records --
+
+std::string text_line_props(const decal::LineProps& p) {
+  return "half_width=" + num(p.half_width) + " rgba=" + hex32(p.rgba) +
+         " order=" + std::to_string(p.order) + " style=" + hex32(p.style) + " value=" + num(p.value) +
+         " layer=" + std::to_string(p.layer) + " feature=" + std::to_string(p.feature) +
+         " reserved=" + std::to_string(p.reserved);
+}
+json json_line_props(const decal::LineProps& p) {
+  return {{"half_width", jnum(p.half_width)}, {"rgba", p.rgba},       {"order", p.order},
+          {"style", p.style},                 {"value", jnum(p.value)}, {"layer", p.layer},
+          {"feature", p.feature},             {"reserved", p.reserved}};
+}
+std::string text_corner(const decal::LineCorner& c) {
+  return "miter=(" + num(c.miter[0]) + "," + num(c.miter[1]) + ") bevel_in=(" + num(c.bevel_in[0]) +
+         "," + num(c.bevel_in[1]) + ") bevel_out=(" + num(c.bevel_out[0]) + "," + num(c.bevel_out[1]) +
+         ")";
+}
+json json_corner(const decal::LineCorner& c) {
+  return {{"miter", {jnum(c.miter[0]), jnum(c.miter[1])}},
+          {"bevel_in", {jnum(c.bevel_in[0]), jnum(c.bevel_in[1])}},
+          {"bevel_out", {jnum(c.bevel_out[0]), jnum(c.bevel_out[1])}}};
+}
+std::string text_poly(const decal::PolyProps& p) {
+  return "rgba=" + hex32(p.rgba) + " order=" + std::to_string(p.order) +
+         " exterior=" + std::to_string(p.exterior) + " value=" + num(p.value) +
+         " layer=" + std::to_string(p.layer) + " feature=" + std::to_string(p.feature) +
+         " reserved=" + std::to_string(p.reserved[0]) + "," + std::to_string(p.reserved[1]);
+}
+json json_poly(const decal::PolyProps& p) {
+  return {{"rgba", p.rgba},     {"order", p.order},     {"exterior", p.exterior},
+          {"value", jnum(p.value)}, {"layer", p.layer}, {"feature", p.feature},
+          {"reserved", {p.reserved[0], p.reserved[1]}}};
+}
+std::string text_lod_point(const decal::LodPoint& p) {
+  return "x=" + std::to_string(p.x) + " y=" + std::to_string(p.y) +
+         " eval_x=" + std::to_string(p.eval_x) + " eval_y=" + std::to_string(p.eval_y) +
+         " e_star=" + num(p.e_star) + " d_star=" + num(p.d_star) +
+         " line=" + std::to_string(p.line) + " flags=" + std::to_string(p.flags);
+}
+json json_lod_point(const decal::LodPoint& p) {
+  return {{"x", p.x},
+          {"y", p.y},
+          {"eval_x", p.eval_x},
+          {"eval_y", p.eval_y},
+          {"e_star", jnum(p.e_star)},
+          {"d_star", jnum(p.d_star)},
+          {"line", p.line},
+          {"flags", p.flags}};
+}
+std::string lod_index(uint32_t v) {
+  return v == decal::kLodNone ? std::string("none") : std::to_string(v);
+}
+std::string text_lod_segment(const decal::LodSegment& s) {
+  return "a=" + std::to_string(s.a) + " b=" + std::to_string(s.b) +
+         " generator=" + lod_index(s.generator) + " splitter=" + lod_index(s.splitter);
+}
+json json_lod_segment(const decal::LodSegment& s) {
+  auto idx = [](uint32_t v) { return v == decal::kLodNone ? json(nullptr) : json(v); };
+  return {{"a", s.a}, {"b", s.b}, {"generator", idx(s.generator)}, {"splitter", idx(s.splitter)}};
+}
+
+// One element as text (components separated by spaces) and as JSON.
+void element(const decal::BlobView& b, uint64_t i, std::string* text, json* out) {
+  auto ints = [&](auto tag, int n) {
+    using T = decltype(tag);
+    json arr = json::array();
+    for (int k = 0; k < n; ++k) {
+      T v;
+      std::memcpy(&v, b.bytes.data() + i * b.stride + k * sizeof(T), sizeof v);
+      if (text) *text += (k ? " " : "") + std::to_string(v);
+      if (out) arr.push_back(v);
+    }
+    if (out) *out = n == 1 ? arr[0] : arr;
+  };
+  auto floats = [&](int n) {
+    json arr = json::array();
+    for (int k = 0; k < n; ++k) {
+      float v;
+      std::memcpy(&v, b.bytes.data() + i * b.stride + k * 4, 4);
+      if (text) *text += (k ? " " : "") + num(v);
+      if (out) arr.push_back(jnum(v));
+    }
+    if (out) *out = n == 1 ? arr[0] : arr;
+  };
+  switch (b.type) {
+    case ElementType::u8: return ints(uint8_t{}, 1);
+    case ElementType::u32: return ints(uint32_t{}, 1);
+    case ElementType::i32: return ints(int32_t{}, 1);
+    case ElementType::f32: return floats(1);
+    case ElementType::ivec2: return ints(int32_t{}, 2);
+    case ElementType::uvec2: return ints(uint32_t{}, 2);
+    case ElementType::ivec4: return ints(int32_t{}, 4);
+    case ElementType::uvec4: return ints(uint32_t{}, 4);
+    case ElementType::vec2: return floats(2);
+    case ElementType::vec4: return floats(4);
+    case ElementType::record: break;
+  }
+#define RECORD(T, txt, js)                    \
+  do {                                        \
+    const T r = load<T>(b, i);                \
+    if (text) *text += txt(r);                \
+    if (out) *out = js(r);                    \
+    return;                                   \
+  } while (0)
+  switch (static_cast<BlobId>(b.id)) {
+    case BlobId::line_props:
+    case BlobId::dyn_line_props: RECORD(decal::LineProps, text_line_props, json_line_props);
+    case BlobId::line_corners: RECORD(decal::LineCorner, text_corner, json_corner);
+    case BlobId::poly_props: RECORD(decal::PolyProps, text_poly, json_poly);
+    case BlobId::lod_points: RECORD(decal::LodPoint, text_lod_point, json_lod_point);
+    case BlobId::lod_segments: RECORD(decal::LodSegment, text_lod_segment, json_lod_segment);
+    default: break;
+  }
+#undef RECORD
+  // A record this build does not know: its bytes in hex.
+  std::string hex;
+  for (uint32_t k = 0; k < b.stride; ++k) {
+    char h[3];
+    std::snprintf(h, sizeof h, "%02x", static_cast<unsigned>(b.bytes[i * b.stride + k]));
+    hex += h;
+  }
+  if (text) *text += hex;
+  if (out) *out = hex;
+}
+
+// The leading coordinates of a position element, in scene metres.
+json scene_metres(const decal::BlobView& b, uint64_t i, int n) {
+  json arr = json::array();
+  for (int k = 0; k < n; ++k) {
+    int32_t q;
+    std::memcpy(&q, b.bytes.data() + i * b.stride + k * 4, 4);
+    arr.push_back(static_cast<double>(q) * decal::kQuantumMetres);
+  }
+  return arr;
+}
+
+std::string type_name(const decal::BlobView& b) { return std::string(decal::element_type_name(b.type)); }
+
+void run_dump(const std::string& path, bool as_json, const std::string& only) {
+  decal::Package p;
+  if (decal::Status s = decal::Package::open(path, p); !s)
+    throw prep::format_error("dump: " + s.message);
+  bool found = only.empty();
+  for (const auto& b : p.blobs()) found = found || b.name == only;
+  if (!found) throw prep::usage_error("dump: " + path + " has no blob named '" + only + "'");
+
+  if (as_json) {
+    json out = {{"version", {{"major", p.major()}, {"minor", p.minor()}}}};
+    json meta;
+    try {
+      meta = json::parse(p.metadata_json());
+    } catch (const json::exception& e) {
+      throw prep::format_error("dump: " + path + ": metadata is not valid JSON: " + e.what());
+    }
+    out["metadata"] = meta;
+    out["quantum_m"] = decal::kQuantumMetres;
+    json blobs = json::array();
+    for (const auto& b : p.blobs()) {
+      if (!only.empty() && b.name != only) continue;
+      json elements = json::array();
+      const int pos = position_components(b.id);
+      json scene = json::array();
+      for (uint64_t i = 0; i < b.count; ++i) {
+        json e;
+        element(b, i, nullptr, &e);
+        elements.push_back(std::move(e));
+        if (pos) scene.push_back(scene_metres(b, i, pos));
+      }
+      json jb = {{"id", b.id},         {"name", b.name},   {"type", type_name(b)},
+                 {"stride", b.stride}, {"count", b.count}, {"elements", std::move(elements)}};
+      if (pos) jb["scene_m"] = std::move(scene);
+      blobs.push_back(std::move(jb));
+    }
+    out["blobs"] = std::move(blobs);
+    std::cout << out.dump() << "\n";
+    return;
+  }
+
+  std::string line;
+  std::printf("decals %u.%u\n", p.major(), p.minor());
+  if (only.empty()) std::printf("metadata %.*s\n", int(p.metadata_json().size()), p.metadata_json().data());
+  for (const auto& b : p.blobs()) {
+    if (!only.empty() && b.name != only) continue;
+    std::printf("blob %s id=%u type=%s stride=%u count=%" PRIu64 "\n", b.name.c_str(), b.id,
+                type_name(b).c_str(), b.stride, b.count);
+    for (uint64_t i = 0; i < b.count; ++i) {
+      line = "  [" + std::to_string(i) + "] ";
+      element(b, i, &line, nullptr);
+      line += '\n';
+      std::fwrite(line.data(), 1, line.size(), stdout);
+    }
+  }
+}
+
+const decalprep::CommandRegistrar kDump(22, [](CLI::App& app) {
+  auto* cmd = app.add_subcommand("dump", "Print every blob of a package as canonical text or JSON");
+  cmd->footer(
+      "Text: one line per element, records as name=value pairs; identical for\n"
+      "compressed and uncompressed packages of the same model (golden tests).\n"
+      "JSON: {version, metadata, quantum_m, blobs:[{id,name,type,stride,count,elements,\n"
+      "scene_m}]}; scene_m (position blobs only) holds coordinates in scene metres.\n"
+      "Examples:\n  decalprep dump city.decals > city.txt\n"
+      "  decalprep dump city.decals --json --blob line_vertices");
+  auto path = std::make_shared<std::string>();
+  auto as_json = std::make_shared<bool>(false);
+  auto only = std::make_shared<std::string>();
+  cmd->add_option("PACKAGE", *path, "the .decals file")->required();
+  cmd->add_flag("--json", *as_json, "print the decoded elements as JSON");
+  cmd->add_option("--blob", *only, "only the blob with this name (e.g. line_vertices)");
+  cmd->callback([path, as_json, only] {
+    run_dump(*path, *as_json, *only);
+    decalprep::set_exit_code(prep::ExitCode::ok);
+  });
+});
+
+}  // namespace

@@ -1,0 +1,135 @@
+// cmd_info.cpp — `decalprep info PACKAGE [--json]`: header, metadata and
+// blob table of a package (formats/SPEC.md), as text or JSON. Checks the
+// structure (decal::read_layout) but not the blob checksums; `verify` does.
+#include <cinttypes>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "command.hpp"
+#include "decal/inspect.hpp"
+
+namespace {
+
+using json = nlohmann::ordered_json;
+
+std::vector<std::byte> slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw prep::input_error("info: cannot open '" + path + "'");
+  std::vector<char> c((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw prep::input_error("info: cannot read '" + path + "'");
+  std::vector<std::byte> out(c.size());
+  std::copy(c.begin(), c.end(), reinterpret_cast<char*>(out.data()));
+  return out;
+}
+
+std::string hex64(uint64_t v) {
+  char b[17];
+  std::snprintf(b, sizeof b, "%016" PRIx64, v);
+  return b;
+}
+
+std::string type_name(uint32_t t) {
+  const auto n = decal::element_type_name(static_cast<decal::ElementType>(t));
+  return n.empty() ? std::to_string(t) : std::string(n);
+}
+
+json blob_json(size_t index, const decal::BlobTableEntry& e) {
+  return {{"index", index},
+          {"id", e.id},
+          {"name", std::string(e.name, strnlen(e.name, decal::kBlobNameSize))},
+          {"known", decal::find_blob_info(static_cast<decal::BlobId>(e.id)) != nullptr},
+          {"type", type_name(e.element_type)},
+          {"stride", e.stride},
+          {"count", e.count},
+          {"codec", std::string(decal::codec_name(e.codec))},
+          {"offset", e.offset},
+          {"stored_size", e.stored_size},
+          {"raw_size", e.raw_size},
+          {"xxh64", hex64(e.checksum)}};
+}
+
+void run_info(const std::string& path, bool as_json) {
+  const std::vector<std::byte> bytes = slurp(path);
+  decal::PackageLayout layout;
+  if (decal::Status s = decal::read_layout(bytes, layout); !s)
+    throw prep::format_error("info: " + path + ": " + s.message);
+  const decal::FileHeader& h = layout.header;
+  const std::string meta_text(reinterpret_cast<const char*>(bytes.data() + h.metadata_offset),
+                              h.metadata_size);
+  json meta;
+  try {
+    meta = json::parse(meta_text);
+  } catch (const json::exception& e) {
+    throw prep::format_error("info: " + path + ": metadata is not valid JSON: " + e.what());
+  }
+
+  if (as_json) {
+    json out = {{"path", path},
+                {"file_size", h.file_size},
+                {"version", {{"major", h.version_major}, {"minor", h.version_minor}}},
+                {"flags", h.flags},
+                {"header",
+                 {{"header_size", h.header_size},
+                  {"blob_entry_size", h.blob_entry_size},
+                  {"blob_count", h.blob_count},
+                  {"table_offset", h.table_offset},
+                  {"table_xxh64", hex64(h.table_checksum)},
+                  {"metadata_offset", h.metadata_offset},
+                  {"metadata_size", h.metadata_size},
+                  {"metadata_xxh64", hex64(h.metadata_checksum)},
+                  {"header_xxh64", hex64(h.header_checksum)}}},
+                {"metadata", meta},
+                {"blobs", json::array()}};
+    for (size_t i = 0; i < layout.entries.size(); ++i)
+      out["blobs"].push_back(blob_json(i, layout.entries[i]));
+    std::cout << out.dump(2) << "\n";
+    return;
+  }
+
+  std::printf("package   %s\n", path.c_str());
+  std::printf("size      %" PRIu64 " bytes\n", h.file_size);
+  std::printf("version   %u.%u\n", h.version_major, h.version_minor);
+  std::printf("flags     0x%08x%s\n", h.flags,
+              (h.flags & decal::kFlagAllUncompressed) ? " (all blobs uncompressed)" : "");
+  std::printf("metadata  %" PRIu64 " bytes at %" PRIu64 "\n", h.metadata_size, h.metadata_offset);
+  if (meta.is_object())
+    for (auto it = meta.begin(); it != meta.end(); ++it) {
+      std::string v = it.value().is_string() ? it.value().get<std::string>() : it.value().dump();
+      if (v.size() > 100) v = v.substr(0, 97) + "...";
+      std::printf("  %-28s %s\n", it.key().c_str(), v.c_str());
+    }
+  std::printf("blobs     %u\n", h.blob_count);
+  std::printf("  %3s %5s %-20s %-7s %6s %12s %12s %12s %-5s %12s %-16s\n", "#", "id", "name",
+              "type", "stride", "count", "raw", "stored", "codec", "offset", "xxh64");
+  for (size_t i = 0; i < layout.entries.size(); ++i) {
+    const decal::BlobTableEntry& e = layout.entries[i];
+    const std::string name(e.name, strnlen(e.name, decal::kBlobNameSize));
+    std::printf("  %3zu %5u %-20s %-7s %6u %12" PRIu64 " %12" PRIu64 " %12" PRIu64
+                " %-5s %12" PRIu64 " %s\n",
+                i, e.id, name.c_str(), type_name(e.element_type).c_str(), e.stride, e.count,
+                e.raw_size, e.stored_size, std::string(decal::codec_name(e.codec)).c_str(),
+                e.offset, hex64(e.checksum).c_str());
+  }
+}
+
+const decalprep::CommandRegistrar kInfo(20, [](CLI::App& app) {
+  auto* cmd = app.add_subcommand("info", "Print a package's header, metadata and blob table");
+  cmd->footer(
+      "Checks the package structure but not blob checksums (use verify).\n"
+      "Examples:\n  decalprep info city.decals\n  decalprep info city.decals --json | jq .blobs");
+  auto path = std::make_shared<std::string>();
+  auto as_json = std::make_shared<bool>(false);
+  cmd->add_option("PACKAGE", *path, "the .decals file")->required();
+  cmd->add_flag("--json", *as_json, "print JSON (every blob of the table is listed)");
+  cmd->callback([path, as_json] {
+    run_info(*path, *as_json);
+    decalprep::set_exit_code(prep::ExitCode::ok);
+  });
+});
+
+}  // namespace

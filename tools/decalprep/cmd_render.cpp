@@ -1,0 +1,147 @@
+// decalprep render — draws a package over terrain headless (GL via EGL, or
+// the CPU evaluator with --cpu) and writes a PNG. Thin: parsing and calls
+// into prep_render (prep/render.hpp).
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "command.hpp"
+#include "prep/render.hpp"
+
+#ifdef PREP_RENDER_HAVE_READER
+#include "decal/reader.hpp"
+#endif
+
+namespace {
+
+struct RenderArgs {
+  std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye, target;
+  std::string aa = "none", binding = "ssbo";
+  double fov = 45.0, pitch = 45.0, z_scale = 1.0;
+  bool cpu = false, stats = false, ortho = false, fit = false;
+};
+
+[[maybe_unused]] std::vector<double> numbers(const std::string& s, size_t n, const char* what) {
+  std::vector<double> v;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      throw prep::usage_error(std::string("render: ") + what + " '" + s + "' is not " + std::to_string(n) + " numbers");
+    }
+  }
+  if (v.size() != n) throw prep::usage_error(std::string("render: ") + what + " '" + s + "' needs " + std::to_string(n) + " comma-separated numbers");
+  return v;
+}
+
+void run(const RenderArgs& a) {
+  namespace R = prep::render;
+#ifndef PREP_RENDER_HAVE_READER
+  (void)a;
+  throw prep::render_error("render: this build has no package reader (decal_reader)");
+#else
+  decal::Package pkg;
+  if (decal::Status s = decal::Package::open(a.package, pkg); !s) throw prep::format_error(s.message);
+  R::DecalSource src = R::source_of(pkg);
+
+  R::RenderOptions opt;
+  uint32_t w = 0, h = 0;
+  if (std::sscanf(a.size.c_str(), "%ux%u", &w, &h) != 2 || w == 0 || h == 0 || w > 16384 || h > 16384)
+    throw prep::usage_error("render: --size '" + a.size + "' must be WxH, 1..16384");
+  opt.width = w;
+  opt.height = h;
+  if (a.aa == "none") opt.aa = R::AntiAliasing::none;
+  else if (a.aa == "coverage") opt.aa = R::AntiAliasing::coverage;
+  else if (a.aa == "msaa4") opt.aa = R::AntiAliasing::msaa4;
+  else throw prep::usage_error("render: --aa '" + a.aa + "' must be none, coverage or msaa4");
+  if (a.binding == "ssbo") opt.binding = R::Binding::ssbo;
+  else if (a.binding == "texture") opt.binding = R::Binding::texture;
+  else throw prep::usage_error("render: --binding '" + a.binding + "' must be ssbo or texture");
+
+  // The terrain covers the package extent, and the requested extent too.
+  prep::Extent view_extent;
+  bool topdown = !a.extent.empty();
+  if (topdown) {
+    auto v = numbers(a.extent, 4, "--extent");
+    view_extent = {v[0], v[1], v[2], v[3]};
+    if (!a.extent_crs.empty()) view_extent = R::extent_to_scene(view_extent, a.extent_crs, src.frame);
+    if (view_extent.empty()) throw prep::usage_error("render: --extent '" + a.extent + "' is empty");
+  }
+  prep::Extent terrain_extent = src.extent;
+  if (topdown) {
+    terrain_extent.xmin = std::min(terrain_extent.xmin, view_extent.xmin);
+    terrain_extent.ymin = std::min(terrain_extent.ymin, view_extent.ymin);
+    terrain_extent.xmax = std::max(terrain_extent.xmax, view_extent.xmax);
+    terrain_extent.ymax = std::max(terrain_extent.ymax, view_extent.ymax);
+  }
+  R::Heightfield terrain = a.dem.empty() ? R::flat_heightfield(terrain_extent)
+                                         : R::load_heightfield(a.dem, src.frame, terrain_extent, 512, a.z_scale);
+  if (topdown) {
+    opt.camera = R::topdown_camera(view_extent, terrain.zmin, terrain.zmax);
+  } else if (!a.eye.empty() || !a.target.empty()) {
+    if (a.eye.empty() || a.target.empty()) throw prep::usage_error("render: --eye and --target go together");
+    auto e = numbers(a.eye, 3, "--eye"), t = numbers(a.target, 3, "--target");
+    opt.camera.eye = {e[0], e[1], e[2]};
+    opt.camera.target = {t[0], t[1], t[2]};
+    opt.camera.fov_y_deg = a.fov;
+    opt.camera.projection = a.ortho ? R::Projection::orthographic : R::Projection::perspective;
+    double dist = std::hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]);
+    opt.camera.near = std::max(0.1, dist * 1e-3);
+    opt.camera.ortho_h = 2 * dist * std::tan(a.fov * 3.14159265358979 / 360);
+    opt.camera.ortho_w = opt.camera.ortho_h * w / h;
+    opt.camera.depth_range = 4 * dist;
+  } else {
+    // --fit (the default): frame the package extent obliquely.
+    opt.camera = R::fit_camera(src.extent, terrain.zmin, terrain.zmax, w, h,
+                               a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
+  }
+
+  R::Image img = a.cpu ? R::render_cpu(src, terrain, opt) : R::render_gl(src, terrain, opt);
+  R::write_png(a.output, img.rgba, img.width, img.height);
+  if (topdown) R::write_world_file(a.output, view_extent, w, h, src.frame);
+  if (!a.decals_png.empty()) R::write_png(a.decals_png, R::quantise(img.decals), img.width, img.height);
+  if (!a.raw.empty()) {
+    std::ofstream out(a.raw, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(img.decals.data()), std::streamsize(img.decals.size() * sizeof(float)));
+    if (!out) throw prep::output_error("render: cannot write '" + a.raw + "'");
+  }
+  if (a.stats) {
+    std::printf("device: %s\n", img.device.c_str());
+    for (const auto& t : img.times) std::printf("%-48s %10.3f ms\n", t.pass.c_str(), t.ms);
+  }
+#endif
+}
+
+const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
+  auto args = std::make_shared<RenderArgs>();
+  CLI::App* cmd = app.add_subcommand("render", "Draw a package over terrain (headless GL, or --cpu) into a PNG");
+  cmd->add_option("package", args->package, "Package (.decals)")->required();
+  cmd->add_option("-o,--output", args->output, "Output PNG")->required();
+  cmd->add_option("--dem", args->dem, "DEM raster (any GDAL path); flat terrain when absent");
+  cmd->add_option("--z-scale", args->z_scale, "Height exaggeration");
+  cmd->add_option("--extent", args->extent, "Top-down orthographic view xmin,ymin,xmax,ymax (scene metres)");
+  cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (e.g. EPSG:4326)");
+  cmd->add_option("--size", args->size, "Image size WxH (default 640x360)");
+  cmd->add_option("--eye", args->eye, "Camera position x,y,z (scene metres)");
+  cmd->add_option("--target", args->target, "Camera target x,y,z (scene metres)");
+  cmd->add_option("--fov", args->fov, "Vertical field of view, degrees");
+  cmd->add_option("--pitch", args->pitch, "--fit: camera pitch below the horizon, degrees");
+  cmd->add_flag("--ortho", args->ortho, "Orthographic projection");
+  cmd->add_flag("--fit", args->fit, "Frame the package extent (default without --eye/--extent)");
+  cmd->add_flag("--cpu", args->cpu, "Render with the CPU evaluator instead of GL");
+  cmd->add_option("--aa", args->aa, "Anti-aliasing: none|coverage|msaa4");
+  cmd->add_option("--binding", args->binding, "Blob binding: ssbo|texture");
+  cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timer queries)");
+  cmd->add_option("--raw", args->raw, "Write the decal layer as float32 RGBA (straight alpha)");
+  cmd->add_option("--decals", args->decals_png, "Write the decal layer alone as PNG");
+  cmd->callback([args] {
+    run(*args);
+    decalprep::set_exit_code(prep::ExitCode::ok);
+  });
+});
+
+}  // namespace
