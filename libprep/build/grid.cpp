@@ -70,7 +70,8 @@ GridParams grid_with_cell(const QBox& e, int64_t cw, int64_t ch) {
 
 // Mean primitives per occupied cell of grid `g` for the primitive boxes,
 // counted with a 2D difference array (O(primitives + cells)).
-double mean_per_occupied_cell(const GridParams& g, const std::vector<QBox>& prims) {
+double mean_per_occupied_cell(const GridParams& g, const std::vector<QBox>& prims,
+                              double* total_entries = nullptr) {
   const size_t nx = g.nx, ny = g.ny;
   std::vector<int64_t> diff((nx + 1) * (ny + 1), 0);
   for (const QBox& b : prims) {
@@ -94,6 +95,7 @@ double mean_per_occupied_cell(const GridParams& g, const std::vector<QBox>& prim
       }
     }
   }
+  if (total_entries) *total_entries = entries;
   return occupied > 0 ? entries / occupied : 0.0;
 }
 
@@ -115,15 +117,28 @@ GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims, const Buil
   const double max_cells = std::max<uint32_t>(o.max_cells, 1);
   const double min_side = std::sqrt(w * h / max_cells);
   double side = std::max(std::sqrt(w * h * target / n), min_side);
+  // Cell-entry budget: where primitives overlap heavily (10^5 collinear
+  // 1 cm segments of a 2 m wide line), no cell size reaches the target and
+  // shrinking cells only multiplies the entries (each box then covers
+  // (box/side)^2 cells: tens of GB). Grids above the budget are refused and
+  // the search moves to larger cells.
+  const double entry_budget = std::max(64.0 * n, double(1u << 22));
   GridParams best = grid_with_cell(e, int64_t(std::ceil(side)), int64_t(std::ceil(side)));
   double best_score = std::numeric_limits<double>::infinity();
-  for (int it = 0; it < 8; ++it) {
+  bool best_in_budget = false;
+  for (int it = 0; it < 64 && (it < 8 || !best_in_budget); ++it) {
     GridParams g = grid_with_cell(e, int64_t(std::ceil(side)), int64_t(std::ceil(side)));
     if (double(g.nx) * double(g.ny) > max_cells) {
       side *= 1.05;
       continue;
     }
-    double mean = mean_per_occupied_cell(g, prims);
+    double entries = 0;
+    double mean = mean_per_occupied_cell(g, prims, &entries);
+    if (entries > entry_budget) {
+      side *= 2;
+      continue;
+    }
+    best_in_budget = true;
     double score = mean > 0 ? std::fabs(std::log(mean / target)) : 0.0;
     if (score < best_score) {
       best_score = score;
@@ -133,6 +148,11 @@ GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims, const Buil
     double f = std::clamp(std::sqrt(target / mean), 0.5, 2.0);
     side = std::max(side * f, min_side);
     if (side < 1.0) side = 1.0;
+  }
+  if (!best_in_budget) {
+    throw resource_error("build: decal grid: no cell size keeps the segment/cell entries under " +
+                         std::to_string(uint64_t(entry_budget)) + " (primitives overlap too much; "
+                         "raise --resolution to simplify the lines)");
   }
   return best;
 }

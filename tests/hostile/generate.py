@@ -215,6 +215,13 @@ def main():
     case("coord_utm_north_1mm", "coord_utm_north_1mm.geojson", "line", extra_args=["--width", "0.001"])
     case("coord_antimeridian", "coord_antimeridian.geojson", "line",
          [feature({"type": "LineString", "coordinates": [[179.9, 10.0], [-179.9, 10.1]]}, 1)], args_w)
+    # The same line in a CRS that holds it (PDC Mercator, centred on 150 E).
+    case("coord_antimeridian_crs", "coord_antimeridian_crs.geojson", "line",
+         [feature({"type": "LineString", "coordinates": [[179.9, 10.0], [-179.9, 10.1]]}, 1)],
+         args_w + ["--crs", "EPSG:3832"])
+    # Around the north pole only: the local TM frame holds it.
+    case("coord_north_pole", "coord_north_pole.geojson", "polygon",
+         [feature({"type": "Polygon", "coordinates": [[[0, 89.99], [120, 89.99], [-120, 89.99], [0, 89.99]]]}, 1)])
     case("coord_poles", "coord_poles.geojson", "polygon",
          [feature({"type": "Polygon", "coordinates": [[[0, 89.9], [120, 89.9], [-120, 89.9], [0, 89.9]]]}, 1),
           feature({"type": "Polygon", "coordinates": [[[-180, -90], [180, -90], [180, -89.9], [-180, -89.9], [-180, -90]]]}, 2)])
