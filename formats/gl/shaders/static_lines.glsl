@@ -11,59 +11,66 @@ layout(location = 0) out vec4 o_color;
 
 float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
 
-bool in_triangle(vec2 p, vec2 a, vec2 b, vec2 c) {
-  float d1 = cross2(b - a, p - a), d2 = cross2(c - b, p - b), d3 = cross2(a - c, p - c);
-  bool neg = d1 < 0.0 || d2 < 0.0 || d3 < 0.0;
-  bool pos = d1 > 0.0 || d2 > 0.0 || d3 > 0.0;
-  return !(neg && pos);
+// T(A, B, C, d) of the evaluator: all three edge values >= 0 or all <= 0.
+bool in_triangle(vec2 a, vec2 b, vec2 c, vec2 d) {
+  float c0 = cross2(b - a, d - a), c1 = cross2(c - b, d - b), c2 = cross2(a - c, d - c);
+  return (c0 >= 0.0 && c1 >= 0.0 && c2 >= 0.0) || (c0 <= 0.0 && c1 <= 0.0 && c2 <= 0.0);
 }
+bool is_null(vec2 v) { return v == vec2(0.0); }
 
-float dist2_to_segment(vec2 p, vec2 a, vec2 b) {
-  vec2 d = b - a;
-  float len2 = dot(d, d);
-  float t = len2 > 0.0 ? clamp(dot(p - a, d) / len2, 0.0, 1.0) : 0.0;
-  vec2 q = a + t * d - p;
-  return dot(q, q);
-}
-
-// Corner triangle of the bevel style at vertex v (position pv); a null pair
-// of bevel vectors marks a round end.
-bool bevel_corner(uint v, vec2 pv, vec2 p, float hw) {
-  vec2 bi = corner_bevel_in(v), bo = corner_bevel_out(v);
-  if (bi == vec2(0.0) && bo == vec2(0.0)) return dot(p - pv, p - pv) <= hw * hw;
-  return in_triangle(p, pv, pv + bi, pv + bo);
-}
-
-// props = (half_width bits, rgba, order, style)
-bool segment_covers(uint s, uint e, vec2 p, uvec4 props) {
-  float hw = uintBitsToFloat(props.x);
+// props = (half_width bits, rgba, order, style). Step 6 of the query block
+// in libprep/evaluate/evaluate.cpp, in metres relative to vertex a: the
+// segment vector e is an exact integer difference.
+bool segment_covers(uint s, uint eidx, vec2 p, uvec4 props) {
+  float hw = uintBitsToFloat(props.x), hw2 = hw * hw;
   uint corner = props.w & 3u;
   uint outline = (props.w >> 2) & 3u;
-  vec2 a = rel(line_vertex(s)), b = rel(line_vertex(e));
-  vec2 d = b - a;
-  float len2 = dot(d, d);
-  float side = cross2(d, p - a);  // > 0: left of the directed segment
-  // Outline modes (width doubled at build time): inset keeps the left half,
-  // offset the right half (thesis §3.6).
-  if (outline == 1u && side < 0.0) return false;
-  if (outline == 2u && side > 0.0) return false;
-  if (corner == 0u || len2 == 0.0) return dist2_to_segment(p, a, b) <= hw * hw;
-  if (corner == 1u) {
-    // Miter: the quad spanned by the two miter vectors (two triangles); a
-    // null miter is a round end or round fallback: square cut plus a disc.
-    vec2 n = vec2(-d.y, d.x) * (hw / sqrt(len2));
-    vec2 ma = corner_miter(s), mb = corner_miter(e);
-    bool round_a = ma == vec2(0.0), round_b = mb == vec2(0.0);
-    vec2 qa = round_a ? n : ma, qb = round_b ? n : mb;
-    if (in_triangle(p, a + qa, a - qa, b - qb) || in_triangle(p, a + qa, b - qb, b + qb)) return true;
-    if (round_a && dot(p - a, p - a) <= hw * hw) return true;
-    if (round_b && dot(p - b, p - b) <= hw * hw) return true;
-    return false;
+  ivec2 ai = line_vertex(s);
+  vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
+  vec2 d = p - rel(ai);
+  bool covered = false;
+  if (corner == 0u) {  // round
+    float ee = dot(e, e);
+    float t = ee > 0.0 ? clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0;
+    vec2 r = d - t * e;
+    covered = dot(r, r) <= hw2;
+  } else if (corner == 1u) {  // miter; a null miter falls back to the left normal + a disc
+    vec2 ma = corner_miter(s), mb = corner_miter(eidx);
+    bool na = is_null(ma), nb = is_null(mb);
+    if (na) { ma = corner_bevel_out(s); if (cross2(e, ma) < 0.0) ma = -ma; }
+    if (nb) { mb = corner_bevel_in(eidx); if (cross2(e, mb) < 0.0) mb = -mb; }
+    covered = in_triangle(-ma, e - mb, e + mb, d) || in_triangle(-ma, e + mb, ma, d) ||
+              (na && dot(d, d) <= hw2) || (nb && dot(d - e, d - e) <= hw2);
+  } else {  // bevel: rectangle, then the corner triangles (null: round end)
+    vec2 n = corner_bevel_out(s);
+    float c = cross2(e, n);
+    if (c != 0.0) {
+      float sv = cross2(e, d) / c, tv = cross2(d, n) / c;
+      covered = tv >= 0.0 && tv <= 1.0 && abs(sv) <= 1.0;
+    }
+    vec2 ai_in = corner_bevel_in(s), b_out = corner_bevel_out(eidx);
+    if (!covered)
+      covered = is_null(ai_in) ? dot(d, d) <= hw2 : in_triangle(vec2(0.0), ai_in, n, d);
+    if (!covered)
+      covered = is_null(b_out) ? dot(d - e, d - e) <= hw2 : in_triangle(e, e + corner_bevel_in(eidx), e + b_out, d);
   }
-  // Bevel: the segment rectangle, then the two corner triangles.
-  float t = dot(p - a, d) / len2;
-  if (t >= 0.0 && t <= 1.0 && side * side <= hw * hw * len2) return true;
-  return bevel_corner(s, a, p, hw) || bevel_corner(e, b, p, hw);
+  if (!covered || outline == 0u) return covered;
+  // Outline modes (thesis §3.6, width doubled at build time): inset keeps the
+  // left half (K = +1), offset the right half (K = -1); at a corner turning
+  // towards the kept side the kept part is the intersection of both halves.
+  float K = outline == 1u ? 1.0 : -1.0;
+  if (K * cross2(e, d) < 0.0) return false;
+  vec2 cb_out = corner_bevel_out(eidx);
+  if (!is_null(cb_out)) {
+    float o = cross2(e, corner_bevel_in(eidx)) >= 0.0 ? 1.0 : -1.0;
+    if (K * o < 0.0 && K * dot(d - e, o * cb_out) < 0.0) return false;
+  }
+  vec2 ca_in = corner_bevel_in(s);
+  if (!is_null(ca_in)) {
+    float o = cross2(e, corner_bevel_out(s)) >= 0.0 ? 1.0 : -1.0;
+    if (K * o < 0.0 && K * dot(d, o * ca_in) < 0.0) return false;
+  }
+  return true;
 }
 
 void main() {

@@ -4,8 +4,10 @@
 // grid cell -> stack-less BVH over the cell's exterior polygons in drawing
 // order -> quad-tree descent from the (cell, polygon) culling node -> leaf
 // test (outside / inside / even-odd over the leaf polygon) -> the cell's
-// interior polygons of that exterior toggle inside/outside (holes, and
-// nested islands inside holes) -> front-to-back compositing, early exit.
+// interior polygons of that exterior cut it out (nested islands inside
+// holes are exterior polygons themselves) -> front-to-back compositing,
+// early exit. The numbered steps of the query block at the top of
+// libprep/evaluate/evaluate.cpp are the specification.
 // Output: premultiplied colour of the polygon layer at this pixel.
 
 layout(location = 0) out vec4 o_color;
@@ -32,23 +34,25 @@ bool qt_contains(uint node, vec2 p) {
     bool inside = false;
     for (uint s = r.x; s < r.x + r.y; ++s) {
       uvec2 e = qt_leaf_segment(s);
-      vec2 a = rel(qt_leaf_vertex(e.x)), b = rel(qt_leaf_vertex(e.y));
-      if ((a.y > p.y) != (b.y > p.y)) {
-        float x = a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y);
-        if (p.x < x) inside = !inside;
-      }
+      // Step 8 of the query block: A, B relative to the point; the sign of
+      // cross(H - L, -L) decides the crossing exactly as the evaluator does.
+      vec2 A = rel(qt_leaf_vertex(e.x)) - p, B = rel(qt_leaf_vertex(e.y)) - p;
+      if ((A.y > 0.0) == (B.y > 0.0)) continue;
+      vec2 L = A.y > 0.0 ? B : A, H = A.y > 0.0 ? A : B;
+      if ((H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0.0) inside = !inside;
     }
     return inside;
   }
 }
 
 // Exterior polygon entry (polygon, culling node, first hole, hole count).
+// Step 7: a point in any of the cell's holes of this polygon is outside
+// (islands inside holes are exterior polygons of their own).
 bool polygon_covers(uvec4 e, vec2 p) {
   if (!qt_contains(e.y, p)) return false;
-  bool inside = true;
   for (uint h = e.z; h < e.z + e.w; ++h)
-    if (qt_contains(cell_hole(h).y, p)) inside = !inside;
-  return inside;
+    if (qt_contains(cell_hole(h).y, p)) return false;
+  return true;
 }
 
 void main() {
