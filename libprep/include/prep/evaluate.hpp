@@ -51,25 +51,52 @@ struct EvalCounters {
   uint64_t segment_tests = 0;  // line point-in-segment tests
 };
 
-// Result for one world point: straight-alpha colour composited front to back
-// (lines over polygons), plus what covered it.
+// Result for one world point: colour composited front to back (lines over
+// polygons, early exit at alpha >= 0.999), plus what covered it.
 struct EvalSample {
-  float rgba[4] = {0, 0, 0, 0};  // premultiplied, 0..1
+  float rgba[4] = {0, 0, 0, 0};  // PREMULTIPLIED, 0..1
   bool polygon_covered = false;  // inside some exterior polygon and no hole of it
   bool line_covered = false;
   int32_t top_polygon = -1;      // topmost covering polygon index
   int32_t top_line = -1;         // topmost covering line index
 };
 
-// Evaluates the point (x, y), in metres relative to the package origin.
-// Thread-safe (reads only).
+// Evaluates the point (x, y), in metres relative to the package origin, with
+// the query algorithm documented at the top of libprep/evaluate/evaluate.cpp
+// (the GLSL mirrors it). Thread-safe (reads only).
 EvalSample evaluate(const StaticView& view, double x, double y, EvalCounters* counters = nullptr);
+
+// Coverage queries of single primitives, as evaluate() applies them (for
+// tests and tools). `x, y` in metres relative to the origin.
+// True when the point is inside polygon `poly` alone (its own quad-tree from
+// the root; interior polygons are not subtracted).
+bool polygon_ring_covers(const StaticView& view, uint32_t poly, double x, double y);
+// True when segment (start vertex, end vertex) of a static line covers the
+// point, with the line's corner style and outline mode.
+bool segment_covers(const StaticView& view, uint32_t start, uint32_t end, double x, double y);
 
 // Top-down orthographic image: pixel (i, j) has its centre at
 // (xmin + (i + 0.5) * (xmax - xmin) / W, ymax - (j + 0.5) * (ymax - ymin) / H),
 // as gdal_rasterize -te xmin ymin xmax ymax -ts W H places them. Returns
 // W*H*4 floats, straight alpha, row 0 at the top.
+// Parallel (oneTBB) over rows. `extent` is in metres relative to the origin.
 std::vector<float> render_topdown(const StaticView& view, const Extent& extent,
                                   uint32_t width, uint32_t height);
+
+// Writes an 8-bit RGBA PNG (libpng), rows top to bottom, straight alpha.
+// Throws output_error naming the path on failure.
+void write_png_rgba(const std::string& path, uint32_t width, uint32_t height,
+                    std::span<const uint8_t> rgba8);
+
+// Converts render_topdown() output to 8-bit (rounded, clamped).
+std::vector<uint8_t> to_rgba8(std::span<const float> rgba);
+
+// Writes `<png without extension>.pgw` (ESRI world file: pixel size, zero
+// rotation, negative row size, centre of the top-left pixel) and
+// `<png>.aux.xml` (GDAL PAM with the CRS WKT), so GDAL and QGIS place the
+// image. `extent` is in the CRS's own (absolute) coordinates, i.e. scene
+// extent + frame origin. Throws output_error on failure.
+void write_world_file(const std::string& png_path, const Extent& extent, uint32_t width,
+                      uint32_t height, const std::string& crs_wkt);
 
 }  // namespace prep

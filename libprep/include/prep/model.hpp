@@ -19,10 +19,27 @@ using ivec4 = std::array<int32_t, 4>;
 using uvec4 = std::array<uint32_t, 4>;
 
 // The decal grid (thesis §4.2.1, Eq. 4.3/4.4), in quanta relative to origin.
+// Cell (ix, iy) covers [origin_x + ix*cell_w, origin_x + (ix+1)*cell_w) x
+// [origin_y + iy*cell_h, ...); its index is ix + nx*iy. A point whose
+// floor((p - origin) / cell) falls outside [0,nx) x [0,ny) is covered by no
+// static decal. nx = ny = 0 when the package has no static decals.
 struct GridParams {
   int64_t origin_x = 0, origin_y = 0;  // lower-left corner, quanta
   int64_t cell_w = 1, cell_h = 1;      // cell size, quanta
   uint32_t nx = 0, ny = 0;
+};
+
+// What the build stage made, for the manifest, `info` and benchmarks.
+struct BuildStats {
+  uint64_t line_segments = 0;       // static segments (closed rings wrap)
+  uint64_t line_cell_entries = 0;   // (cell, segment) pairs
+  uint64_t quadtrees = 0;           // exterior + interior polygons
+  uint64_t qt_nodes = 0;
+  uint64_t qt_partial_leaves = 0;
+  uint64_t qt_depth_capped = 0;     // leaves stopped by max depth above leaf capacity
+  uint32_t qt_max_leaf_segments = 0;
+  uint64_t poly_cell_entries = 0;   // (cell, exterior polygon) pairs
+  uint64_t hole_cell_entries = 0;   // (cell, interior polygon) pairs
 };
 
 struct DecalModel {
@@ -64,7 +81,10 @@ struct DecalModel {
   std::vector<decal::LodSegment> lod_segments;
   std::vector<uvec2> lod_line_range;
 
-  double max_representation_error = 0;  // metres, measured while quantising
+  // Largest Euclidean distance, in metres, between an input vertex and its
+  // stored int32 quantum position (<= sqrt(2)/2 mm by construction).
+  double max_representation_error = 0;
+  BuildStats stats;
   Manifest manifest;                    // carried from SceneFeatures, plus build notes
 };
 

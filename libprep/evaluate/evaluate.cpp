@@ -1,0 +1,363 @@
+// libprep/evaluate/evaluate.cpp — the CPU evaluator of static decals.
+//
+// ============================================================================
+// THE STATIC DECAL QUERY (thesis Algorithm 3.5, §4.4.1). The GLSL shader
+// mirrors this block step by step; change both together.
+// ============================================================================
+// Notation: q = decal::kQuantumMetres (1 mm). Stored positions are int32
+// quanta relative to the package origin. The query point P is given in metres
+// relative to the origin; Pq = P / q is its position in quanta (real valued).
+// GLSL: keep Pq as an integer part plus a fraction and form every difference
+// "stored int - Pq" as float(int - int_part) - fraction, so no absolute
+// coordinate is ever a float.
+//
+// 1. Cell (Eq. 4.3/4.4): ix = floor((Pq.x - grid.origin_x) / cell_w),
+//    iy likewise; outside [0,nx) x [0,ny) -> nothing covers P (transparent).
+//    cell = ix + nx * iy.
+// 2. Box test used everywhere: P in box (xmin,ymin,xmax,ymax) <=>
+//    xmin <= Pq.x <= xmax and ymin <= Pq.y <= ymax (closed). Empty boxes have
+//    xmin > xmax and contain nothing.
+// 3. BVH traversal (stack-less, Eq. 4.5-4.7), for lines first, then polygons:
+//      (first, P, I, _) = *_bvh_range[cell]; if P == 0 skip. i = 0.
+//      loop: if P in box[first + i]:
+//              if i < I: i = 2i + 1; continue            // descend left
+//              k = i - I; handle leaf k (list entry k of the cell)
+//            while i > 0 and i is even: i = (i - 1) / 2   // climb from right children
+//            if i == 0: stop;  i = i + 1                   // right sibling
+//    Leaves are in drawing order, so leaf k is visited before leaf k+1.
+// 4. Compositing (front to back, colours straight alpha, R in the low byte):
+//      C += (1 - A) * a * rgb;  A += (1 - A) * a;  stop everything once
+//      A >= 0.999. Lines are composited before polygons (lines on top).
+// 5. Line leaf k: (s, e) = cell_segments[cell_segment_range[cell].x + k];
+//    line = line_vertex_line[s]; props = line_props[line]. If `line` is the
+//    last line that covered P, skip (a line contributes once; its segments
+//    are consecutive in leaf order). Else test the segment (step 6); if it
+//    covers, composite props.rgba and remember `line`.
+// 6. Segment test, in metres relative to a = line_vertices[s]:
+//      e = (b - a) * q, d = (Pq - a) * q, hw = props.half_width,
+//      Ca = line_corners[s], Cb = line_corners[e] (the vertex e).
+//      cross(u, v) = u.x v.y - u.y v.x.   null(v) <=> v == (0, 0).
+//      Triangle test T(A, B, C, d): the three values cross(B-A, d-A),
+//      cross(C-B, d-B), cross(A-C, d-C) are all >= 0 or all <= 0.
+//    round: t = clamp(dot(d,e)/dot(e,e), 0, 1); covered <=> |d - t e|^2 <= hw^2.
+//    miter: ma = Ca.miter, or if null: Ca.bevel_out negated when
+//             cross(e, Ca.bevel_out) < 0 (the left normal);
+//           mb = Cb.miter, or if null: Cb.bevel_in made left the same way;
+//           covered <=> T(-ma, e - mb, e + mb, d) or T(-ma, e + mb, ma, d)
+//                   or (null(Ca.miter) and |d|^2 <= hw^2)
+//                   or (null(Cb.miter) and |d - e|^2 <= hw^2).
+//    bevel: n = Ca.bevel_out; c = cross(e, n); s = cross(e, d) / c;
+//           t = cross(d, n) / c; covered <=> (0 <= t <= 1 and |s| <= 1)
+//             or (null(Ca.bevel_in) ? |d|^2 <= hw^2 : T(0, Ca.bevel_in, Ca.bevel_out, d))
+//             or (null(Cb.bevel_out) ? |d - e|^2 <= hw^2
+//                                    : T(e, e + Cb.bevel_in, e + Cb.bevel_out, d)).
+//    Outline modes (only ever stored with miter): K = +1 for inset, -1 for
+//    offset, and a covered point is kept only if K * cross(e, d) >= 0 and
+//      at b, if !null(Cb.bevel_out): o = sign(cross(e, Cb.bevel_in)) (+1 when
+//        the outer side is the left); if K * o < 0 (the turn is towards the
+//        kept side) also require K * dot(d - e, o * Cb.bevel_out) >= 0;
+//      at a, if !null(Ca.bevel_in): o = sign(cross(e, Ca.bevel_out)); if
+//        K * o < 0 also require K * dot(d, o * Ca.bevel_in) >= 0.
+//    (The kept side of a corner turning towards it is the intersection of
+//    the two half-planes; this also clips round fallback discs correctly.)
+// 7. Polygon leaf k: (poly, node, h0, hn) = cell_polys[cell_poly_range[cell].x + k].
+//    inside = Q(node); if inside, for j in [h0, h0 + hn): (hp, hnode) =
+//    cell_holes[j]; if Q(hnode): inside = false, stop. If inside, composite
+//    poly_props[poly].rgba.
+// 8. Quad-tree query Q(node): if P not in qt_node_box[node]: false. Loop:
+//    (type, off) = qt_node[node]; type 0: node = the first of off+0..off+3
+//    (SW, SE, NW, NE) whose box contains P (none: false); type 1: false;
+//    type 2: true; type 3: even-odd over the leaf polygon:
+//      (f, n) = qt_leaf_range[off]; inside = false; for each (u, v) in
+//      qt_leaf_segments[f .. f+n): A = qt_leaf_vertices[u] - Pq,
+//      B = qt_leaf_vertices[v] - Pq (quanta); if (A.y > 0) != (B.y > 0):
+//        (L, H) = A.y > 0 ? (B, A) : (A, B);
+//        if (H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0: inside = !inside.
+//    The build evaluates this very rule exactly (CGAL) to classify leaves.
+// ============================================================================
+#include "prep/evaluate.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace prep {
+
+namespace {
+
+constexpr double kQ = decal::kQuantumMetres;
+
+struct PointQ {
+  double x, y;  // quanta relative to the origin
+};
+
+inline bool in_box(const ivec4& b, const PointQ& p) {
+  return p.x >= double(b[0]) && p.x <= double(b[2]) && p.y >= double(b[1]) && p.y <= double(b[3]);
+}
+
+struct V {
+  double x, y;
+};
+inline V operator-(V a, V b) { return {a.x - b.x, a.y - b.y}; }
+inline V operator+(V a, V b) { return {a.x + b.x, a.y + b.y}; }
+inline V operator*(double s, V a) { return {s * a.x, s * a.y}; }
+inline double dot(V a, V b) { return a.x * b.x + a.y * b.y; }
+inline double cross(V a, V b) { return a.x * b.y - a.y * b.x; }
+inline V vec(const float* f) { return {double(f[0]), double(f[1])}; }
+inline bool null_vec(const float* f) { return f[0] == 0.f && f[1] == 0.f; }
+
+inline bool in_triangle(V a, V b, V c, V d) {
+  const double c0 = cross(b - a, d - a), c1 = cross(c - b, d - b), c2 = cross(a - c, d - c);
+  return (c0 >= 0 && c1 >= 0 && c2 >= 0) || (c0 <= 0 && c1 <= 0 && c2 <= 0);
+}
+
+bool leaf_polygon_covers(const StaticView& v, uint32_t range, const PointQ& p, EvalCounters* k) {
+  const uvec2 r = v.qt_leaf_range[range];
+  bool inside = false;
+  for (uint32_t s = r[0]; s < r[0] + r[1]; ++s) {
+    const ivec2& a = v.qt_leaf_vertices[v.qt_leaf_segments[s][0]];
+    const ivec2& b = v.qt_leaf_vertices[v.qt_leaf_segments[s][1]];
+    const V A{double(a[0]) - p.x, double(a[1]) - p.y}, B{double(b[0]) - p.x, double(b[1]) - p.y};
+    if ((A.y > 0) == (B.y > 0)) continue;
+    if (k) ++k->edge_tests;
+    const V& L = A.y > 0 ? B : A;
+    const V& H = A.y > 0 ? A : B;
+    if ((H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0) inside = !inside;
+  }
+  return inside;
+}
+
+bool quadtree_covers(const StaticView& v, uint32_t node, const PointQ& p, EvalCounters* k) {
+  if (k) ++k->qt_nodes;
+  if (!in_box(v.qt_node_box[node], p)) return false;
+  for (;;) {
+    const ivec2 n = v.qt_node[node];
+    switch (decal::QtNodeType(n[0])) {
+      case decal::QtNodeType::internal: {
+        bool found = false;
+        for (int c = 0; c < 4 && !found; ++c) {
+          const uint32_t ch = uint32_t(n[1] + c);
+          if (k) ++k->qt_nodes;
+          if (in_box(v.qt_node_box[ch], p)) {
+            node = ch;
+            found = true;
+          }
+        }
+        if (!found) return false;
+        break;
+      }
+      case decal::QtNodeType::outside: return false;
+      case decal::QtNodeType::inside: return true;
+      case decal::QtNodeType::partial: return leaf_polygon_covers(v, uint32_t(n[1]), p, k);
+      default: return false;
+    }
+  }
+}
+
+bool segment_covers_q(const StaticView& v, uint32_t s, uint32_t e_idx, const PointQ& p) {
+  const ivec2& ai = v.line_vertices[s];
+  const ivec2& bi = v.line_vertices[e_idx];
+  const decal::LineProps& pr = v.line_props[v.line_vertex_line[s]];
+  const decal::LineCorner& ca = v.line_corners[s];
+  const decal::LineCorner& cb = v.line_corners[e_idx];
+  const V e{double(bi[0] - ai[0]) * kQ, double(bi[1] - ai[1]) * kQ};
+  const V d{(p.x - double(ai[0])) * kQ, (p.y - double(ai[1])) * kQ};
+  const double hw = pr.half_width, hw2 = hw * hw;
+  const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
+  const auto mode = decal::OutlineMode((pr.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift);
+  bool covered = false;
+  switch (style) {
+    case decal::CornerStyle::round: {
+      const double ee = dot(e, e);
+      const double t = ee > 0 ? std::clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0;
+      const V r = d - t * e;
+      covered = dot(r, r) <= hw2;
+      break;
+    }
+    case decal::CornerStyle::miter: {
+      const bool na = null_vec(ca.miter), nb = null_vec(cb.miter);
+      V ma = vec(ca.miter), mb = vec(cb.miter);
+      if (na) {
+        ma = vec(ca.bevel_out);
+        if (cross(e, ma) < 0) ma = -1.0 * ma;
+      }
+      if (nb) {
+        mb = vec(cb.bevel_in);
+        if (cross(e, mb) < 0) mb = -1.0 * mb;
+      }
+      covered = in_triangle(-1.0 * ma, e - mb, e + mb, d) || in_triangle(-1.0 * ma, e + mb, ma, d) ||
+                (na && dot(d, d) <= hw2) || (nb && dot(d - e, d - e) <= hw2);
+      break;
+    }
+    case decal::CornerStyle::bevel: {
+      const V n = vec(ca.bevel_out);
+      const double c = cross(e, n);
+      if (c != 0) {
+        const double sv = cross(e, d) / c, tv = cross(d, n) / c;
+        covered = tv >= 0 && tv <= 1 && std::fabs(sv) <= 1;
+      }
+      if (!covered)
+        covered = null_vec(ca.bevel_in) ? dot(d, d) <= hw2
+                                        : in_triangle({0, 0}, vec(ca.bevel_in), vec(ca.bevel_out), d);
+      if (!covered)
+        covered = null_vec(cb.bevel_out) ? dot(d - e, d - e) <= hw2
+                                         : in_triangle(e, e + vec(cb.bevel_in), e + vec(cb.bevel_out), d);
+      break;
+    }
+  }
+  if (!covered || mode == decal::OutlineMode::normal) return covered;
+  const double K = mode == decal::OutlineMode::inset ? 1.0 : -1.0;
+  if (K * cross(e, d) < 0) return false;
+  if (!null_vec(cb.bevel_out)) {
+    const double o = cross(e, vec(cb.bevel_in)) >= 0 ? 1.0 : -1.0;
+    if (K * o < 0 && K * dot(d - e, o * vec(cb.bevel_out)) < 0) return false;
+  }
+  if (!null_vec(ca.bevel_in)) {
+    const double o = cross(e, vec(ca.bevel_out)) >= 0 ? 1.0 : -1.0;
+    if (K * o < 0 && K * dot(d, o * vec(ca.bevel_in)) < 0) return false;
+  }
+  return true;
+}
+
+struct Compositor {
+  EvalSample& out;
+  // Returns true once opaque.
+  bool add(uint32_t rgba) {
+    const double a = double((rgba >> 24) & 0xffu) / 255.0;
+    const double w = (1.0 - out.rgba[3]) * a;
+    for (int ch = 0; ch < 3; ++ch) out.rgba[ch] += float(w * double((rgba >> (8 * ch)) & 0xffu) / 255.0);
+    out.rgba[3] += float(w);
+    return out.rgba[3] >= 0.999f;
+  }
+};
+
+// Stack-less traversal of one cell's implicit BVH (Eq. 4.5-4.7); calls
+// leaf(k) for every leaf whose box holds P, in leaf order, until it returns
+// true (stop).
+template <class Leaf>
+void traverse(const uvec4& range, std::span<const ivec4> boxes, const PointQ& p, EvalCounters* k,
+              Leaf&& leaf) {
+  const uint32_t first = range[0], slots = range[1], internal = range[2];
+  if (slots == 0) return;
+  uint32_t i = 0;
+  for (;;) {
+    if (k) ++k->bvh_nodes;
+    if (in_box(boxes[first + i], p)) {
+      if (i < internal) {
+        i = 2 * i + 1;
+        continue;
+      }
+      if (leaf(i - internal)) return;
+    }
+    while (i > 0 && (i & 1u) == 0) i = (i - 1) / 2;
+    if (i == 0) return;
+    ++i;
+  }
+}
+
+bool cell_of(const GridParams& g, const PointQ& p, uint32_t& cell) {
+  if (g.nx == 0 || g.ny == 0) return false;
+  const double fx = std::floor((p.x - double(g.origin_x)) / double(g.cell_w));
+  const double fy = std::floor((p.y - double(g.origin_y)) / double(g.cell_h));
+  if (!(fx >= 0 && fy >= 0 && fx < double(g.nx) && fy < double(g.ny))) return false;
+  cell = uint32_t(fx) + g.nx * uint32_t(fy);
+  return true;
+}
+
+}  // namespace
+
+StaticView view_of(const DecalModel& m) {
+  StaticView v;
+  v.grid = m.grid;
+  v.line_vertices = m.line_vertices;
+  v.line_vertex_line = m.line_vertex_line;
+  v.line_props = m.line_props;
+  v.line_corners = m.line_corners;
+  v.cell_segment_range = m.cell_segment_range;
+  v.cell_segments = m.cell_segments;
+  v.poly_props = m.poly_props;
+  v.poly_root_node = m.poly_root_node;
+  v.qt_node_box = m.qt_node_box;
+  v.qt_node = m.qt_node;
+  v.qt_leaf_range = m.qt_leaf_range;
+  v.qt_leaf_segments = m.qt_leaf_segments;
+  v.qt_leaf_vertices = m.qt_leaf_vertices;
+  v.cell_poly_range = m.cell_poly_range;
+  v.cell_polys = m.cell_polys;
+  v.cell_holes = m.cell_holes;
+  v.line_bvh_range = m.line_bvh_range;
+  v.poly_bvh_range = m.poly_bvh_range;
+  v.line_bvh_box = m.line_bvh_box;
+  v.poly_bvh_box = m.poly_bvh_box;
+  return v;
+}
+
+bool polygon_ring_covers(const StaticView& v, uint32_t poly, double x, double y) {
+  return quadtree_covers(v, v.poly_root_node[poly], {x / kQ, y / kQ}, nullptr);
+}
+
+bool segment_covers(const StaticView& v, uint32_t start, uint32_t end, double x, double y) {
+  return segment_covers_q(v, start, end, {x / kQ, y / kQ});
+}
+
+EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
+  EvalSample out;
+  const PointQ p{x / kQ, y / kQ};
+  uint32_t cell;
+  if (!cell_of(v.grid, p, cell)) return out;
+  Compositor comp{out};
+  bool opaque = false;
+  if (!v.line_bvh_range.empty()) {
+    const uvec2 list = v.cell_segment_range[cell];
+    int64_t last_line = -1;
+    traverse(v.line_bvh_range[cell], v.line_bvh_box, p, k, [&](uint32_t leaf) {
+      const uvec2 seg = v.cell_segments[list[0] + leaf];
+      const uint32_t line = v.line_vertex_line[seg[0]];
+      if (int64_t(line) == last_line) return false;
+      if (k) ++k->segment_tests;
+      if (!segment_covers_q(v, seg[0], seg[1], p)) return false;
+      last_line = line;
+      if (!out.line_covered) out.top_line = int32_t(line);
+      out.line_covered = true;
+      opaque = comp.add(v.line_props[line].rgba);
+      return opaque;
+    });
+  }
+  if (opaque || v.poly_bvh_range.empty()) return out;
+  const uvec2 list = v.cell_poly_range[cell];
+  traverse(v.poly_bvh_range[cell], v.poly_bvh_box, p, k, [&](uint32_t leaf) {
+    const uvec4 cp = v.cell_polys[list[0] + leaf];
+    if (!quadtree_covers(v, cp[1], p, k)) return false;
+    for (uint32_t j = cp[2]; j < cp[2] + cp[3]; ++j)
+      if (quadtree_covers(v, v.cell_holes[j][1], p, k)) return false;
+    if (!out.polygon_covered) out.top_polygon = int32_t(cp[0]);
+    out.polygon_covered = true;
+    return comp.add(v.poly_props[cp[0]].rgba);
+  });
+  return out;
+}
+
+std::vector<float> render_topdown(const StaticView& v, const Extent& ex, uint32_t w, uint32_t h) {
+  std::vector<float> img(size_t(w) * h * 4, 0.f);
+  const double px = (ex.xmax - ex.xmin) / w, py = (ex.ymax - ex.ymin) / h;
+  tbb::parallel_for(uint32_t(0), h, [&](uint32_t j) {
+    for (uint32_t i = 0; i < w; ++i) {
+      const EvalSample s = evaluate(v, ex.xmin + (i + 0.5) * px, ex.ymax - (j + 0.5) * py);
+      float* o = &img[(size_t(j) * w + i) * 4];
+      const float a = s.rgba[3];
+      for (int c = 0; c < 3; ++c) o[c] = a > 0 ? std::min(1.f, s.rgba[c] / a) : 0.f;
+      o[3] = a;
+    }
+  });
+  return img;
+}
+
+std::vector<uint8_t> to_rgba8(std::span<const float> rgba) {
+  std::vector<uint8_t> out(rgba.size());
+  for (size_t i = 0; i < rgba.size(); ++i)
+    out[i] = uint8_t(std::lround(std::clamp(double(rgba[i]), 0.0, 1.0) * 255.0));
+  return out;
+}
+
+}  // namespace prep

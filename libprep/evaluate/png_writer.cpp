@@ -1,0 +1,74 @@
+// libprep/evaluate/png_writer.cpp — PNG and world-file output for
+// `decalprep render --cpu` (and anything else that writes rasters).
+#include <png.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "prep/error.hpp"
+#include "prep/evaluate.hpp"
+
+namespace prep {
+
+void write_png_rgba(const std::string& path, uint32_t width, uint32_t height,
+                    std::span<const uint8_t> rgba8) {
+  if (rgba8.size() != size_t(width) * height * 4)
+    throw output_error("render: " + path + ": image buffer has " + std::to_string(rgba8.size()) +
+                       " bytes, expected " + std::to_string(size_t(width) * height * 4));
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  image.width = width;
+  image.height = height;
+  image.format = PNG_FORMAT_RGBA;
+  if (!png_image_write_to_file(&image, path.c_str(), 0, rgba8.data(), 0, nullptr)) {
+    const std::string msg = image.message;
+    png_image_free(&image);
+    throw output_error("render: cannot write PNG " + path + ": " + msg);
+  }
+}
+
+namespace {
+std::string xml_escape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '&': o += "&amp;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+}  // namespace
+
+void write_world_file(const std::string& png_path, const Extent& ex, uint32_t width,
+                      uint32_t height, const std::string& crs_wkt) {
+  const double pw = (ex.xmax - ex.xmin) / width, ph = (ex.ymax - ex.ymin) / height;
+  std::string base = png_path;
+  const auto dot = base.find_last_of('.');
+  const auto slash = base.find_last_of('/');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) base.resize(dot);
+  {
+    std::ofstream f(base + ".pgw");
+    f.precision(17);
+    // ESRI world file: A, D, B, E, C, F with C/F the centre of the top-left pixel.
+    f << pw << "\n0\n0\n" << -ph << "\n" << ex.xmin + 0.5 * pw << "\n" << ex.ymax - 0.5 * ph << "\n";
+    if (!f) throw output_error("render: cannot write world file " + base + ".pgw");
+  }
+  {
+    std::ofstream f(png_path + ".aux.xml");
+    f.precision(17);
+    f << "<PAMDataset>\n";
+    if (!crs_wkt.empty())
+      f << "  <SRS dataAxisToSRSAxisMapping=\"1,2\">" << xml_escape(crs_wkt) << "</SRS>\n";
+    f << "  <GeoTransform>" << ex.xmin << ", " << pw << ", 0, " << ex.ymax << ", 0, " << -ph
+      << "</GeoTransform>\n";
+    f << "</PAMDataset>\n";
+    if (!f) throw output_error("render: cannot write " + png_path + ".aux.xml");
+  }
+}
+
+}  // namespace prep

@@ -1,0 +1,156 @@
+// tests/evaluate/synthetic.hpp — synthetic SceneFeatures for the static decal
+// tests (built directly, the way clean hands them to build) and a small RAII
+// layer over the GEOS C API used as the independent oracle.
+#pragma once
+
+#include <geos_c.h>
+
+#include <cmath>
+#include <algorithm>
+#include <cstdarg>
+#include <cstdio>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "prep/scene.hpp"
+
+namespace synth {
+
+// ------------------------------------------------------------------ GEOS --
+inline void geos_notice(const char*, void*) {}
+struct Geos {
+  GEOSContextHandle_t h;
+  Geos() : h(GEOS_init_r()) {
+    GEOSContext_setNoticeMessageHandler_r(h, geos_notice, nullptr);
+    GEOSContext_setErrorMessageHandler_r(h, geos_notice, nullptr);
+  }
+  ~Geos() { GEOS_finish_r(h); }
+  Geos(const Geos&) = delete;
+  Geos& operator=(const Geos&) = delete;
+};
+
+// Owning geometry pointer.
+struct G {
+  GEOSContextHandle_t h = nullptr;
+  GEOSGeometry* g = nullptr;
+  G() = default;
+  G(GEOSContextHandle_t hh, GEOSGeometry* gg) : h(hh), g(gg) {
+    if (!g) throw std::runtime_error("GEOS returned null");
+  }
+  G(G&& o) noexcept : h(o.h), g(o.g) { o.g = nullptr; }
+  G& operator=(G&& o) noexcept {
+    std::swap(h, o.h);
+    std::swap(g, o.g);
+    return *this;
+  }
+  ~G() {
+    if (g) GEOSGeom_destroy_r(h, g);
+  }
+  GEOSGeometry* release() {
+    auto* r = g;
+    g = nullptr;
+    return r;
+  }
+};
+
+inline GEOSCoordSequence* seq(GEOSContextHandle_t h, const prep::Ring& r, bool close) {
+  const size_t n = r.size() + (close ? 1 : 0);
+  GEOSCoordSequence* s = GEOSCoordSeq_create_r(h, unsigned(n), 2);
+  for (size_t i = 0; i < n; ++i) {
+    const prep::Point2& p = r[i % r.size()];
+    GEOSCoordSeq_setXY_r(h, s, unsigned(i), p.x, p.y);
+  }
+  return s;
+}
+inline G linestring(GEOSContextHandle_t h, const prep::Ring& r, bool close = false) {
+  return G(h, GEOSGeom_createLineString_r(h, seq(h, r, close)));
+}
+inline G polygon(GEOSContextHandle_t h, const prep::Ring& shell, const std::vector<prep::Ring>& holes = {}) {
+  GEOSGeometry* s = GEOSGeom_createLinearRing_r(h, seq(h, shell, true));
+  std::vector<GEOSGeometry*> hs;
+  for (const auto& r : holes) hs.push_back(GEOSGeom_createLinearRing_r(h, seq(h, r, true)));
+  return G(h, GEOSGeom_createPolygon_r(h, s, hs.data(), unsigned(hs.size())));
+}
+inline G box(GEOSContextHandle_t h, double x0, double y0, double x1, double y1) {
+  return polygon(h, {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}});
+}
+inline G point(GEOSContextHandle_t h, double x, double y) {
+  return G(h, GEOSGeom_createPointFromXY_r(h, x, y));
+}
+inline G collection(GEOSContextHandle_t h, int type, std::vector<G>& parts) {
+  std::vector<GEOSGeometry*> raw;
+  for (auto& p : parts) raw.push_back(p.release());
+  return G(h, GEOSGeom_createCollection_r(h, type, raw.data(), unsigned(raw.size())));
+}
+
+// ----------------------------------------------------------- generators --
+
+// Star-shaped simple ring around (cx, cy), radii in [r0, r1], `n` vertices,
+// counter-clockwise unless `cw`.
+inline prep::Ring star(std::mt19937_64& rng, double cx, double cy, double r0, double r1, int n, bool cw) {
+  std::uniform_real_distribution<double> rad(r0, r1), jitter(-0.3, 0.3);
+  prep::Ring r;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * (i + 0.5 + jitter(rng)) / n;
+    const double rr = rad(rng);
+    r.push_back({cx + rr * std::cos(a), cy + rr * std::sin(a)});
+  }
+  if (cw) std::reverse(r.begin(), r.end());
+  return r;
+}
+
+inline prep::LayerSpec layer(const std::string& name, prep::DecalKind kind, uint32_t rgba,
+                             decal::CornerStyle corner = decal::CornerStyle::round,
+                             decal::OutlineMode outline = decal::OutlineMode::normal, double width = 2.0) {
+  prep::LayerSpec l;
+  l.name = name;
+  l.kind = kind;
+  l.style.color.rgba = rgba;
+  l.style.corner = corner;
+  l.style.outline = outline;
+  l.style.width = width;
+  return l;
+}
+
+// A tiled polygon set: in tile (i, j) of size `tile` one star shell with a
+// star hole, and a star island inside the hole. Every `complex_every`-th
+// shell has many vertices (deep quad-trees). Coordinates + (ox, oy).
+struct PolygonSet {
+  prep::SceneFeatures scene;
+  int tiles = 0;
+  double tile = 0, ox = 0, oy = 0;
+};
+inline PolygonSet polygon_set(uint64_t seed, int tiles, double tile, double ox, double oy,
+                              int complex_every = 7, int complex_vertices = 1500) {
+  std::mt19937_64 rng(seed);
+  PolygonSet s;
+  s.tiles = tiles;
+  s.tile = tile;
+  s.ox = ox;
+  s.oy = oy;
+  s.scene.layers.push_back(layer("parcels", prep::DecalKind::polygon, 0xff3366ccu));
+  std::uniform_int_distribution<int> nv(5, 40);
+  int64_t fid = 0;
+  for (int j = 0; j < tiles; ++j)
+    for (int i = 0; i < tiles; ++i) {
+      const double cx = ox + (i + 0.5) * tile, cy = oy + (j + 0.5) * tile;
+      const bool complex = (i + j * tiles) % complex_every == 0;
+      prep::ScenePolygon p;
+      p.shell = star(rng, cx, cy, 0.28 * tile, 0.48 * tile, complex ? complex_vertices : nv(rng), false);
+      p.holes.push_back(star(rng, cx, cy, 0.10 * tile, 0.18 * tile, nv(rng), true));
+      p.fid = fid++;
+      p.area = double(fid);  // any distinct order
+      s.scene.polygons.push_back(p);
+      prep::ScenePolygon island;
+      island.shell = star(rng, cx, cy, 0.03 * tile, 0.07 * tile, nv(rng), false);
+      island.fid = fid++;
+      island.area = double(fid);
+      s.scene.polygons.push_back(island);
+    }
+  s.scene.extent = {ox, oy, ox + tiles * tile, oy + tiles * tile};
+  return s;
+}
+
+}  // namespace synth
