@@ -73,23 +73,43 @@ struct GlObjects {
   }
 };
 
-// GPU pass timing with GL timer queries (--stats).
+// GPU pass timing with GL timestamp queries (--stats): a timestamp before
+// and after each pass. (GL_TIME_ELAPSED gave a nonsense first value on
+// llvmpipe.)
 struct PassTimer {
   GlObjects& gl;
-  std::vector<std::pair<std::string, GLuint>> open;
-  void begin(const std::string& name) {
+  struct Pass {
+    std::string name;
+    GLuint begin = 0, end = 0;
+    std::chrono::steady_clock::time_point wall0, wall1;
+  };
+  std::vector<Pass> passes;
+  GLuint stamp() {
     GLuint q = 0;
     glGenQueries(1, &q);
     gl.queries.push_back(q);
-    glBeginQuery(GL_TIME_ELAPSED, q);
-    open.emplace_back(name, q);
+    glQueryCounter(q, GL_TIMESTAMP);
+    return q;
   }
-  void end() { glEndQuery(GL_TIME_ELAPSED); }
+  // glFinish around each pass: software GL (llvmpipe) defers work to the
+  // next flush, so without it a pass's time lands in a later pass.
+  void begin(const std::string& name) {
+    glFinish();
+    passes.push_back({name, 0, 0, std::chrono::steady_clock::now(), {}});
+    passes.back().begin = stamp();
+  }
+  void end() {
+    passes.back().end = stamp();
+    glFinish();
+    passes.back().wall1 = std::chrono::steady_clock::now();
+  }
   void collect(std::vector<PassTime>& out) {
-    for (auto& [name, q] : open) {
-      GLuint64 ns = 0;
-      glGetQueryObjectui64v(q, GL_QUERY_RESULT, &ns);
-      out.push_back({name, double(ns) * 1e-6});
+    for (const auto& p : passes) {
+      GLuint64 t0 = 0, t1 = 0;
+      glGetQueryObjectui64v(p.begin, GL_QUERY_RESULT, &t0);
+      glGetQueryObjectui64v(p.end, GL_QUERY_RESULT, &t1);
+      out.push_back({p.name, t1 >= t0 ? double(t1 - t0) * 1e-6 : 0.0,
+                     std::chrono::duration<double, std::milli>(p.wall1 - p.wall0).count()});
     }
   }
 };
@@ -234,25 +254,29 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
       glUniform2f(glGetUniformLocation(p, "u_cell_size"), float(double(gp.cell_w) * q), float(double(gp.cell_h) * q));
       glUniform2i(glGetUniformLocation(p, "u_grid_n"), GLint(gp.nx), GLint(gp.ny));
     };
-    timer.begin("static polygons");
-    set_common(p_poly);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-    timer.end();
+    if (opt.draw_polygons) {
+      timer.begin("static polygons");
+      set_common(p_poly);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+      timer.end();
+    }
     // Lines over polygons (thesis §4.4.1): premultiplied "over".
-    timer.begin("static lines");
-    glEnable(GL_BLEND);
-    glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-    set_common(p_line);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-    glDisable(GL_BLEND);
-    timer.end();
+    if (opt.draw_lines) {
+      timer.begin("static lines");
+      glEnable(GL_BLEND);
+      glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+      set_common(p_line);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+      glDisable(GL_BLEND);
+      timer.end();
+    }
 
     // --- dynamic lines (thesis §4.3, §4.4.2)
     const float clear_dyn[4] = {0, 0, 0, 0};
     glClearNamedFramebufferfv(f_dyn, GL_COLOR, 0, clear_dyn);
     const uint64_t n_dyn = gpu->count(decal::BlobId::dyn_vertices);
     const uint64_t n_dyn_lines = gpu->count(decal::BlobId::dyn_line_start);
-    if (n_dyn > 0 && n_dyn_lines > 0) {
+    if (opt.draw_dynamic && n_dyn > 0 && n_dyn_lines > 0) {
       const std::string dd = defines + "#define DECAL_DYNAMIC 1\n";
       auto comp = [&](const char* file, const std::string& extra) {
         return gl.program({{}, {}, {}, {"decal_blobs.glsl", "dyn_common.glsl", file}, dd + extra});
@@ -377,8 +401,8 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     glGetTextureImage(t_decal, 0, GL_RGBA, GL_FLOAT, GLsizei(dec.size() * sizeof(float)), dec.data());
     if (GLenum e = glGetError(); e != GL_NO_ERROR) throw render_error("render: GL error " + std::to_string(e));
     timer.collect(img.times);
-    img.times.push_back({"frame (wall, incl. upload and shader compile)",
-                         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count()});
+    const double frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
+    img.times.push_back({"total (incl. upload, shader compile, read-back)", frame, frame});
     img.rgba.resize(rgba.size());
     img.decals.resize(dec.size());
     img.dynamic.resize(dyn.size());
