@@ -13,6 +13,9 @@
 #include <fstream>
 #include <memory>
 
+#include <nlohmann/json.hpp>
+
+#include "decal/reader.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/scene_file.hpp"
 #include "smoke_util.hpp"
@@ -196,6 +199,192 @@ TEST(RenderSmoke, MonacoTopDownPolygonCoverageMatchesGdalRasterize) {
   RecordProperty("agreement", std::to_string(agree) + "/" + std::to_string(total));
   EXPECT_GT(covered, 50000u);
   EXPECT_GE(double(agree) / double(total), 0.999);
+}
+
+// ---------------------------------------------------------------------------
+// Every decal type and style: a synthetic scene written as GeoJSON and read
+// through GDAL by `decalprep build` (lon/lat around 7.42 E, 43.74 N).
+// ---------------------------------------------------------------------------
+
+void write_text(const fs::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+}
+
+std::string feature(const std::string& geometry, const std::string& props = "{}") {
+  return R"({"type":"Feature","properties":)" + props + R"(,"geometry":)" + geometry + "}";
+}
+std::string collection(const std::vector<std::string>& features) {
+  std::string s = R"({"type":"FeatureCollection","features":[)";
+  for (size_t i = 0; i < features.size(); ++i) s += (i ? "," : "") + features[i];
+  return s + "]}";
+}
+std::string ring(double x0, double y0, double x1, double y1, bool ccw = true) {
+  char b[256];
+  if (ccw)
+    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0, y0, x1, y0, x1, y1, x0, y1, x0, y0);
+  else
+    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0, y0, x0, y1, x1, y1, x1, y0, x0, y0);
+  return b;
+}
+// An L-shaped polygon with its lower-left corner at (x, y), about 120 m.
+std::string l_shape(double x, double y) {
+  char b[512];
+  std::snprintf(b, sizeof b,
+                R"({"type":"Polygon","coordinates":[[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]]})",
+                x, y, x + 0.0015, y, x + 0.0015, y + 0.0005, x + 0.0006, y + 0.0005, x + 0.0006, y + 0.0011, x, y + 0.0011, x, y);
+  return b;
+}
+// A zigzag with a sharp (< 40 degrees, round fallback) and obtuse turns.
+std::string zigzag(double x, double y) {
+  char b[512];
+  std::snprintf(b, sizeof b, R"({"type":"LineString","coordinates":[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]})", x, y,
+                x + 0.0005, y + 0.0008, x + 0.0007, y, x + 0.0012, y + 0.0004, x + 0.0018, y + 0.0002);
+  return b;
+}
+
+const std::string& styles_package(std::string* why) {
+  static std::string path, reason;
+  static bool tried = false;
+  if (!tried) {
+    tried = true;
+    fs::path d = out_dir() / "styles";
+    fs::create_directories(d);
+    // Polygon with a hole, and an island inside the hole (its own feature).
+    write_text(d / "polys.geojson",
+               collection({feature(R"({"type":"Polygon","coordinates":[)" + ring(7.4200, 43.7400, 7.4216, 43.7412) + "," +
+                                   ring(7.4204, 43.7403, 7.4212, 43.7409, false) + "]}"),
+                           feature(R"({"type":"Polygon","coordinates":[)" + ring(7.4206, 43.7405, 7.4210, 43.7407) + "]}")}));
+    write_text(d / "l_normal.geojson", collection({feature(l_shape(7.4222, 43.7400))}));
+    write_text(d / "l_inset.geojson", collection({feature(l_shape(7.4241, 43.7400))}));
+    write_text(d / "l_offset.geojson", collection({feature(l_shape(7.4222, 43.7414))}));
+    write_text(d / "z_round.geojson", collection({feature(zigzag(7.4200, 43.7415))}));
+    write_text(d / "z_miter.geojson", collection({feature(zigzag(7.4241, 43.7414))}));
+    write_text(d / "z_bevel.geojson", collection({feature(zigzag(7.4200, 43.7426))}));
+    write_text(d / "cross.geojson",
+               collection({feature(R"({"type":"LineString","coordinates":[[7.4225,43.7428],[7.4255,43.7436]]})", R"({"imp":1})"),
+                           feature(R"({"type":"LineString","coordinates":[[7.4225,43.7436],[7.4255,43.7428]]})", R"({"imp":2})")}));
+    write_text(d / "scene.toml", R"(
+[[layer]]
+name = "polys"
+source = "polys.geojson"
+kind = "polygon"
+color = "#3060c0c0"
+[[layer]]
+name = "l_normal"
+source = "l_normal.geojson"
+kind = "outline"
+corner = "miter"
+width = 6
+color = "#202020a0"
+[[layer]]
+name = "l_inset"
+source = "l_inset.geojson"
+kind = "outline"
+corner = "miter"
+outline_mode = "inset"
+width = 6
+color = "#802020c0"
+[[layer]]
+name = "l_offset"
+source = "l_offset.geojson"
+kind = "outline"
+corner = "miter"
+outline_mode = "offset"
+width = 6
+color = "#208020c0"
+[[layer]]
+name = "z_round"
+source = "z_round.geojson"
+kind = "line"
+corner = "round"
+width = 8
+color = "#e0a000b0"
+[[layer]]
+name = "z_miter"
+source = "z_miter.geojson"
+kind = "line"
+corner = "miter"
+width = 8
+color = "#a000e0b0"
+[[layer]]
+name = "z_bevel"
+source = "z_bevel.geojson"
+kind = "line"
+corner = "bevel"
+width = 8
+color = "#00a0a0b0"
+[[layer]]
+name = "cross"
+source = "cross.geojson"
+kind = "line"
+width = 10
+order_attribute = "imp"
+color_attribute = "imp"
+color_ramp = [[1, "#ff000080"], [2, "#0000ff80"]]
+)");
+    std::string pkg = (d / "styles.decals").string();
+    auto r = tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
+    if (r.rc != 0) reason = "decalprep build of the styles scene failed (rc " + std::to_string(r.rc) + "): " + r.output;
+    else path = pkg;
+  }
+  if (why) *why = reason;
+  return path;
+}
+
+const std::string kStylesView = "--extent 7.4196,43.7396,7.4262,43.7440 --extent-crs EPSG:4326";
+
+TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorTopDown) {
+  std::string why;
+  const std::string& pkg = styles_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  std::vector<float> gl, cpu;
+  if (!render_pair(pkg, "styles_topdown", kStylesView, gl, cpu, why)) GTEST_SKIP() << why;
+  auto a = agreement(gl, cpu);
+  std::printf("styles top-down agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
+  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
+  EXPECT_GT(a.considered, 10000u);
+  EXPECT_GE(a.ratio(), 0.999);
+
+  // The crossing of the two transparent lines shows the more important one
+  // (imp 2, blue) over the other (red): read the pixel at the crossing.
+  // World file: pixel size and the upper-left pixel centre in the frame.
+  std::ifstream wf(out_dir() / "styles_topdown_gl.pgw");
+  double dx, r1, r2, dy, x0, y0;
+  wf >> dx >> r1 >> r2 >> dy >> x0 >> y0;
+  ASSERT_TRUE(wf) << "world file";
+  decal::Package package;
+  ASSERT_TRUE(decal::Package::open(pkg, package));
+  auto meta = nlohmann::json::parse(package.metadata_json());
+  OGRSpatialReference ll, frame;
+  ll.importFromEPSG(4326);
+  ll.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  frame.importFromWkt(meta["crs_wkt"].get<std::string>().c_str());
+  frame.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&ll, &frame));
+  double cx = 7.4240, cy = 43.7432;  // where the two lines cross
+  ASSERT_TRUE(ct->Transform(1, &cx, &cy));
+  cx -= meta["origin"]["x"].get<double>();
+  cy -= meta["origin"]["y"].get<double>();
+  const int i = int(std::lround((cx - x0) / dx)), j = int(std::lround((cy - y0) / dy));
+  ASSERT_TRUE(i >= 0 && i < 640 && j >= 0 && j < 360);
+  const float* c = &gl[4 * (size_t(i) + 640 * size_t(j))];
+  const double a_top = 128 / 255.0, alpha = a_top + (1 - a_top) * a_top;
+  EXPECT_NEAR(c[3], alpha, 2.0 / 255);
+  EXPECT_NEAR(c[2], a_top / alpha, 2.0 / 255);               // blue on top
+  EXPECT_NEAR(c[0], (1 - a_top) * a_top / alpha, 2.0 / 255);  // red below
+}
+
+TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorInPerspective) {
+  std::string why;
+  const std::string& pkg = styles_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  std::vector<float> gl, cpu;
+  if (!render_pair(pkg, "styles_oblique", "--fit --pitch 35", gl, cpu, why)) GTEST_SKIP() << why;
+  auto a = agreement(gl, cpu);
+  std::printf("styles oblique agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
+  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
+  EXPECT_GT(a.considered, 5000u);
+  EXPECT_GE(a.ratio(), 0.999);
 }
 
 }  // namespace
