@@ -73,6 +73,36 @@ bool segment_covers(uint s, uint eidx, vec2 p, uvec4 props) {
   return true;
 }
 
+#ifdef DECAL_AA_COVERAGE
+// Coverage AA (Thöny et al. §3.5): the band formula over the distance to
+// the segment's centre line, with the width raised to at least one pixel.
+// Inset/offset lines cover the band [0, hw] on the kept side (their stored
+// half width is the doubled one). Pixels the exact style test puts inside
+// keep at least half coverage (miter tips, bevel corners).
+float segment_coverage(uint s, uint eidx, vec2 p, uvec4 props, float wpix) {
+  bool inside = segment_covers(s, eidx, p, props);
+  float hw = uintBitsToFloat(props.x);
+  uint outline = (props.w >> 2) & 3u;
+  ivec2 ai = line_vertex(s);
+  vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
+  vec2 d = p - rel(ai);
+  float ee = max(dot(e, e), 1e-20);
+  float t = dot(d, e) / ee;
+  float c;
+  if (outline == 0u) {
+    float dist = length(d - clamp(t, 0.0, 1.0) * e);
+    c = band_coverage(dist, max(2.0 * hw, wpix), wpix);
+  } else {
+    if (!inside && (t < 0.0 || t > 1.0)) return 0.0;
+    float K = outline == 1u ? 1.0 : -1.0;
+    float sd = K * cross2(e, d) / sqrt(ee);  // > 0 on the kept side
+    float w = max(hw, wpix);
+    c = band_coverage(abs(sd - 0.5 * hw), w, wpix);
+  }
+  return inside ? max(c, 0.5) : c;
+}
+#endif
+
 void main() {
   vec3 p;
   if (!pixel_world(p)) discard;
@@ -82,16 +112,41 @@ void main() {
   uvec4 bvh = line_bvh_range(uint(cell));
   vec4 acc = vec4(0.0);
   uint last_line = 0xffffffffu;
+#ifdef DECAL_AA_COVERAGE
+  // One coverage per line: the largest over its (consecutive) segments.
+  float wpix = pixel_metres(p);
+  float margin = wpix;
+  uint cur_line = 0xffffffffu, cur_rgba = 0u;
+  float cur_cov = 0.0;
+  bool done = false;
+#else
+  float margin = 0.0;
+#endif
   if (bvh.y > 0u) {
     uint internal = bvh.z;
     uint i = 0u;
     do {
-      if (box_contains(line_bvh_box(bvh.x + i), p.xy)) {
+      if (box_near(line_bvh_box(bvh.x + i), p.xy, margin)) {
         if (i < internal) { i = 2u * i + 1u; continue; }
         uint k = i - internal;  // leaf k = the cell's k-th segment in drawing order
         if (k < range.y) {
           uvec2 seg = cell_segment(range.x + k);
           uint line = line_of_vertex(seg.x);
+#ifdef DECAL_AA_COVERAGE
+          uvec4 props = line_props(line);
+          float cov = segment_coverage(seg.x, seg.y, p.xy, props, wpix);
+          if (line == cur_line) {
+            cur_cov = max(cur_cov, cov);
+          } else {
+            if (cur_cov > 0.0) {
+              composite_under_cov(acc, cur_rgba, cur_cov);
+              if (opaque(acc)) { done = true; break; }
+            }
+            cur_line = line;
+            cur_rgba = props.y;
+            cur_cov = cov;
+          }
+#else
           // Segments of one line are consecutive: a line adds its colour once (thesis Fig. 4.7).
           if (line != last_line) {
             uvec4 props = line_props(line);
@@ -101,11 +156,15 @@ void main() {
               if (opaque(acc)) break;
             }
           }
+#endif
         }
       }
       i = bvh_next(i);
     } while (i != 0u);
   }
+#ifdef DECAL_AA_COVERAGE
+  if (!done && cur_cov > 0.0) composite_under_cov(acc, cur_rgba, cur_cov);
+#endif
   if (acc.a <= 0.0) discard;
   o_color = acc;
 }
