@@ -1,0 +1,96 @@
+// libprep/evaluate/package_view.cpp — StaticView over a package read from
+// disk: blobs from decal::Package, grid from the metadata chunk, and the
+// cross-blob checks the evaluator relies on (it indexes without checks).
+#include <nlohmann/json.hpp>
+
+#include "decal/inspect.hpp"
+#include "decal/reader.hpp"
+#include "prep/error.hpp"
+#include "prep/evaluate.hpp"
+
+namespace prep {
+
+namespace {
+
+GridParams grid_from_metadata(std::string_view metadata) {
+  const auto meta = nlohmann::json::parse(metadata, nullptr, false);
+  if (meta.is_discarded() || !meta.is_object())
+    throw format_error("evaluate: package metadata is not a JSON object");
+  if (!meta.contains("grid"))
+    throw format_error("evaluate: package metadata has no \"grid\" key");
+  GridParams g;
+  try {
+    const auto& j = meta.at("grid");
+    g.origin_x = j.at("origin").at(0).get<int64_t>();
+    g.origin_y = j.at("origin").at(1).get<int64_t>();
+    g.cell_w = j.at("cell").at(0).get<int64_t>();
+    g.cell_h = j.at("cell").at(1).get<int64_t>();
+    g.nx = j.at("dims").at(0).get<uint32_t>();
+    g.ny = j.at("dims").at(1).get<uint32_t>();
+  } catch (const nlohmann::json::exception& e) {
+    throw format_error(std::string("evaluate: package metadata \"grid\": ") + e.what());
+  }
+  if (g.cell_w <= 0 || g.cell_h <= 0)
+    throw format_error("evaluate: package metadata \"grid\": cell size " + std::to_string(g.cell_w) +
+                       "x" + std::to_string(g.cell_h) + " is not positive");
+  return g;
+}
+
+// The BVH ranges must describe implicit full trees inside the box blob whose
+// leaves cover the cell's list (thesis layout, libprep/build/bvh.cpp).
+void check_bvh(const char* name, std::span<const uvec4> range, std::span<const uvec2> list,
+               size_t boxes, size_t cells) {
+  if (range.empty() && list.empty()) return;
+  if (range.size() != cells || list.size() != cells)
+    throw format_error(std::string("evaluate: ") + name + ": " + std::to_string(range.size()) +
+                       " BVH ranges / " + std::to_string(list.size()) + " list ranges for " +
+                       std::to_string(cells) + " grid cells");
+  for (size_t c = 0; c < cells; ++c) {
+    const uint64_t first = range[c][0], slots = range[c][1], internal = range[c][2];
+    const bool pow2 = slots == 0 || (slots & (slots - 1)) == 0;
+    if (!pow2 || (slots > 0 && internal != slots - 1) || (slots == 0 && internal != 0) ||
+        list[c][1] > slots || (slots > 0 && first + 2 * slots - 1 > boxes))
+      throw format_error(std::string("evaluate: ") + name + " cell " + std::to_string(c) +
+                         ": BVH range (" + std::to_string(first) + ", " + std::to_string(slots) + ", " +
+                         std::to_string(internal) + ") does not fit " + std::to_string(boxes) +
+                         " boxes and " + std::to_string(list[c][1]) + " leaves");
+  }
+}
+
+}  // namespace
+
+StaticView view_of(const decal::Package& p) {
+  using decal::BlobId;
+  if (decal::Status st = decal::validate_indices(p); !st)
+    throw format_error("evaluate: " + st.message);
+  StaticView v;
+  v.grid = grid_from_metadata(p.metadata_json());
+  v.line_vertices = p.array<ivec2>(BlobId::line_vertices);
+  v.line_vertex_line = p.array<uint32_t>(BlobId::line_vertex_line);
+  v.line_props = p.array<decal::LineProps>(BlobId::line_props);
+  v.line_corners = p.array<decal::LineCorner>(BlobId::line_corners);
+  v.cell_segment_range = p.array<uvec2>(BlobId::cell_segment_range);
+  v.cell_segments = p.array<uvec2>(BlobId::cell_segments);
+  v.poly_props = p.array<decal::PolyProps>(BlobId::poly_props);
+  v.poly_root_node = p.array<uint32_t>(BlobId::poly_root_node);
+  v.qt_node_box = p.array<ivec4>(BlobId::qt_node_box);
+  v.qt_node = p.array<ivec2>(BlobId::qt_node);
+  v.qt_leaf_range = p.array<uvec2>(BlobId::qt_leaf_range);
+  v.qt_leaf_segments = p.array<uvec2>(BlobId::qt_leaf_segments);
+  v.qt_leaf_vertices = p.array<ivec2>(BlobId::qt_leaf_vertices);
+  v.cell_poly_range = p.array<uvec2>(BlobId::cell_poly_range);
+  v.cell_polys = p.array<uvec4>(BlobId::cell_polys);
+  v.cell_holes = p.array<uvec2>(BlobId::cell_holes);
+  v.line_bvh_range = p.array<uvec4>(BlobId::line_bvh_range);
+  v.line_bvh_box = p.array<ivec4>(BlobId::line_bvh_box);
+  v.poly_bvh_range = p.array<uvec4>(BlobId::poly_bvh_range);
+  v.poly_bvh_box = p.array<ivec4>(BlobId::poly_bvh_box);
+  const size_t cells = size_t(v.grid.nx) * v.grid.ny;
+  check_bvh("lines", v.line_bvh_range, v.cell_segment_range, v.line_bvh_box.size(), cells);
+  check_bvh("polygons", v.poly_bvh_range, v.cell_poly_range, v.poly_bvh_box.size(), cells);
+  if (v.line_corners.size() != v.line_vertices.size() || v.line_vertex_line.size() != v.line_vertices.size())
+    throw format_error("evaluate: line_corners / line_vertex_line counts differ from line_vertices");
+  return v;
+}
+
+}  // namespace prep
