@@ -91,23 +91,59 @@ struct Vec {
   int64_t x, y;
 };
 
-// Even-odd containment of q in the closed polygon pts[l..r] (closing edge
-// r -> l); points on the boundary count as inside. Exact integer arithmetic.
-bool inside_or_on(const std::vector<ivec2>& pts, uint32_t l, uint32_t r, Vec q) {
-  bool inside = false;
-  for (uint32_t k = l; k <= r; ++k) {
-    const uint32_t k2 = k == r ? l : k + 1;
-    const Vec a{pts[k][0], pts[k][1]}, b{pts[k2][0], pts[k2][1]};
-    const int128 cross = int128(b.x - a.x) * (q.y - a.y) - int128(q.x - a.x) * (b.y - a.y);
-    if (cross == 0 && q.x >= std::min(a.x, b.x) && q.x <= std::max(a.x, b.x) &&
-        q.y >= std::min(a.y, b.y) && q.y <= std::max(a.y, b.y))
-      return true;
-    if ((a.y > q.y) != (b.y > q.y)) {
-      if (b.y > a.y ? cross > 0 : cross < 0) inside = !inside;
-    }
+// Even-odd containment test against the closed polygon pts[l..r] (closing
+// edge r -> l); points on the boundary count as inside. Exact integer
+// arithmetic. Edges are bucketed by horizontal bands so a query only looks
+// at the edges its +x ray (or the point itself) can meet.
+class SpanPolygon {
+ public:
+  SpanPolygon(const std::vector<ivec2>& pts, uint32_t l, uint32_t r, int64_t ymin, int64_t ymax)
+      : pts_(pts), l_(l), r_(r), ymin_(ymin) {
+    const uint32_t edges = r - l + 1;
+    bands_ = std::clamp<int64_t>(edges / 8, 1, 256);
+    height_ = ymax - ymin + 1;
+    start_.assign(static_cast<size_t>(bands_ + 1), 0);
+    auto each_band = [&](uint32_t k, auto&& f) {
+      const uint32_t k2 = k == r_ ? l_ : k + 1;
+      const int64_t y0 = std::min<int64_t>(pts_[k][1], pts_[k2][1]);
+      const int64_t y1 = std::max<int64_t>(pts_[k][1], pts_[k2][1]);
+      for (int64_t b = band(y0); b <= band(y1); ++b) f(b);
+    };
+    for (uint32_t k = l; k <= r; ++k) each_band(k, [&](int64_t b) { ++start_[static_cast<size_t>(b) + 1]; });
+    std::partial_sum(start_.begin(), start_.end(), start_.begin());
+    edges_.resize(start_.back());
+    std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (uint32_t k = l; k <= r; ++k) each_band(k, [&](int64_t b) { edges_[fill[static_cast<size_t>(b)]++] = k; });
   }
-  return inside;
-}
+
+  bool inside_or_on(Vec q) const {
+    if (q.y < ymin_ || q.y >= ymin_ + height_) return false;
+    const int64_t b = band(q.y);
+    bool inside = false;
+    for (uint32_t e = start_[static_cast<size_t>(b)]; e < start_[static_cast<size_t>(b) + 1]; ++e) {
+      const uint32_t k = edges_[e];
+      const uint32_t k2 = k == r_ ? l_ : k + 1;
+      const Vec a{pts_[k][0], pts_[k][1]}, c{pts_[k2][0], pts_[k2][1]};
+      const int128 cross = int128(c.x - a.x) * (q.y - a.y) - int128(q.x - a.x) * (c.y - a.y);
+      if (cross == 0 && q.x >= std::min(a.x, c.x) && q.x <= std::max(a.x, c.x) && q.y >= std::min(a.y, c.y) &&
+          q.y <= std::max(a.y, c.y))
+        return true;
+      if ((a.y > q.y) != (c.y > q.y)) {
+        if (c.y > a.y ? cross > 0 : cross < 0) inside = !inside;
+      }
+    }
+    return inside;
+  }
+
+ private:
+  int64_t band(int64_t y) const {
+    return std::clamp<int64_t>(static_cast<int64_t>((int128(y - ymin_) * bands_) / height_), 0, bands_ - 1);
+  }
+  const std::vector<ivec2>& pts_;
+  uint32_t l_, r_;
+  int64_t ymin_, height_ = 1, bands_ = 1;
+  std::vector<uint32_t> start_, edges_;
+};
 
 // Uniform grid over all points, for the dependee search.
 struct PointGrid {
@@ -316,6 +352,7 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
         ymax = std::max<int64_t>(ymax, pts[k][1]);
       }
       auto& mine = found[s];
+      const SpanPolygon polygon(pts, l, r, ymin, ymax);
       for (int64_t gy = grid.cy(ymin); gy <= grid.cy(ymax); ++gy)
         for (int64_t gx = grid.cx(xmin); gx <= grid.cx(xmax); ++gx) {
           const auto c = static_cast<size_t>(gx + grid.nx * gy);
@@ -328,7 +365,7 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
             // not something the baseline can cross.
             if ((qv.x == pts[l][0] && qv.y == pts[l][1]) || (qv.x == pts[r][0] && qv.y == pts[r][1]))
               continue;
-            if (inside_or_on(pts, l, r, qv)) mine.push_back(q);
+            if (polygon.inside_or_on(qv)) mine.push_back(q);
           }
         }
       std::sort(mine.begin(), mine.end());

@@ -99,7 +99,9 @@ void build_dynamic(const SceneFeatures& scene, const BuildOptions& options, cons
   if (dem_path.empty()) {
     notes.push_back("terrain: no DEM given; dynamic lines lie on flat terrain z = 0");
     match_options.lmax = options.lmax > 0 ? options.lmax : std::numeric_limits<double>::infinity();
-  } else if (!lines.empty()) {
+  } else if (lines.empty()) {
+    notes.push_back("terrain: no dynamic lines; DEM " + dem_path + " not read");
+  } else {
     dem = std::make_unique<DemSampler>(dem_path, scene.frame, options.z_scale, options.nodata_fill);
     double xmin = lines[0].points[0].x, xmax = xmin, ymin = lines[0].points[0].y, ymax = ymin;
     for (const auto& l : lines)

@@ -1,6 +1,7 @@
 // LOCALIS LOD set against an independent Douglas-Peucker oracle, and the
 // structural guarantees of the visibility rule (decal/format.hpp).
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <array>
 #include <cmath>
@@ -231,6 +232,36 @@ TEST(LodSegments, LineEndInsideBaselinePolygonKeepsTheSplitterAlways) {
   const auto chain = lodtest::visible_chain(set, 0, vis, &why);
   ASSERT_TRUE(chain) << why;
   EXPECT_EQ(chain->size(), 3u);
+}
+
+TEST(LodSegments, OutputDoesNotDependOnThreadCount) {
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<prep::LodInputLine> lines;
+  for (uint32_t i = 0; i < 200; ++i) {
+    prep::LodInputLine l;
+    l.points = random_polyline(rng, 3 + i % 40);
+    const int32_t dx = static_cast<int32_t>(u(rng) * 5e5), dy = static_cast<int32_t>(u(rng) * 5e5);
+    for (auto& p : l.points) p = {p[0] + dx, p[1] + dy};
+    l.line = i;
+    if (l.points.size() >= 2) lines.push_back(std::move(l));
+  }
+  auto bytes = [](const prep::LodSet& s) {
+    std::string b(reinterpret_cast<const char*>(s.points.data()), s.points.size() * sizeof(decal::LodPoint));
+    b.append(reinterpret_cast<const char*>(s.segments.data()), s.segments.size() * sizeof(decal::LodSegment));
+    return b;
+  };
+  std::string one, two;
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+    one = bytes(prep::build_lod(lines, {}));
+  }
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 2);
+    two = bytes(prep::build_lod(lines, {}));
+  }
+  EXPECT_GT(prep::build_lod(lines, {}).stats.dependee_edges, 0u);
+  EXPECT_EQ(one, two);
 }
 
 TEST(LodSegments, TooShortLineIsAnInputError) {

@@ -128,6 +128,26 @@ TEST(BuildDynamic, SubdividesAndSamplesADemInTheSceneCrs) {
   EXPECT_DOUBLE_EQ(m.terrain_max, 2 * (10.0 * 29 + 29));
 }
 
+TEST(BuildDynamic, DemWithoutDynamicLinesIsNotReadAndNoted) {
+  prep::SceneFeatures scene;
+  prep::DecalModel m;
+  prep::build_dynamic(scene, {}, "/nonexistent/dem.tif", m);
+  EXPECT_TRUE(m.dyn_vertices.empty());
+  ASSERT_EQ(m.manifest.notes.size(), 1u);
+  EXPECT_NE(m.manifest.notes[0].find("not read"), std::string::npos);
+}
+
+TEST(BuildDynamic, UnreadableDemIsAGdalErrorNamingTheFile) {
+  auto scene = two_layers();
+  prep::DecalModel m;
+  try {
+    prep::build_dynamic(scene, {}, "/nonexistent/dem.tif", m);
+    FAIL() << "no exception";
+  } catch (const prep::gdal_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/dem.tif"), std::string::npos) << e.what();
+  }
+}
+
 TEST(BuildDynamic, InvalidTerrainOptionIsAUsageError) {
   const auto scene = two_layers();
   prep::BuildOptions opt;

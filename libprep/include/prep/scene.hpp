@@ -133,6 +133,9 @@ using Ring = std::vector<Point2>;  // not closed: first point is not repeated
 struct SourceFeature {
   int64_t fid = -1;
   int part = 0;
+  uint64_t feature = 0;     // index of the input feature in its layer (read order)
+  std::string repairs;      // what read/project already fixed ("closed an open ring")
+  std::string drop_reason;  // non-empty: unusable; clean records it as dropped
   bool is_polygon = false;
   std::vector<Ring> rings;  // polygon: [0] shell, then holes; line: [0]
   double order_value = std::numeric_limits<double>::quiet_NaN();
@@ -156,6 +159,10 @@ struct SceneFrame {
   std::string crs_wkt;
   std::string description;  // e.g. "local TM lon0=7.42 lat0=43.73"
   double origin_x = 0, origin_y = 0;  // in the frame CRS
+  // Local TM frames only (else NaN): the central meridian and the latitude of
+  // origin, degrees, WGS84 ellipsoid, scale 1 on the central meridian.
+  double tm_lon0 = std::numeric_limits<double>::quiet_NaN();
+  double tm_lat0 = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Output of `clean`: valid, oriented (shell CCW, holes CW), clipped and

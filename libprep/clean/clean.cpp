@@ -1,0 +1,578 @@
+// Stage 3 — clean. Projected parts -> valid, oriented, clipped, simplified
+// SceneFeatures, with every repair and drop in the manifest (DESIGN.md §1.3,
+// §4.4). Parallel per part with oneTBB; each worker owns a GEOS context; the
+// results are gathered in input order, so the output does not depend on the
+// thread count.
+#include "prep/clean.hpp"
+
+#include <geos_c.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <memory>
+
+#include "prep/error.hpp"
+
+namespace prep {
+namespace {
+
+// ------------------------------------------------------------ GEOS context --
+
+struct GeosContext {
+  GEOSContextHandle_t h = nullptr;
+  std::string last_error;
+
+  GeosContext() {
+    h = GEOS_init_r();
+    GEOSContext_setErrorMessageHandler_r(h, &GeosContext::on_error, this);
+    GEOSContext_setNoticeMessageHandler_r(h, &GeosContext::on_notice, this);
+  }
+  ~GeosContext() { GEOS_finish_r(h); }
+  GeosContext(const GeosContext&) = delete;
+  GeosContext& operator=(const GeosContext&) = delete;
+
+  static void on_error(const char* msg, void* self) {
+    static_cast<GeosContext*>(self)->last_error = msg ? msg : "";
+  }
+  static void on_notice(const char*, void*) {}
+};
+
+// Owning handle for a GEOS geometry in one context.
+class Geom {
+ public:
+  Geom() = default;
+  Geom(GEOSContextHandle_t h, GEOSGeometry* g) : h_(h), g_(g) {}
+  Geom(Geom&& o) noexcept : h_(o.h_), g_(o.g_) { o.g_ = nullptr; }
+  Geom& operator=(Geom&& o) noexcept {
+    reset();
+    h_ = o.h_;
+    g_ = o.g_;
+    o.g_ = nullptr;
+    return *this;
+  }
+  ~Geom() { reset(); }
+  GEOSGeometry* get() const { return g_; }
+  GEOSGeometry* release() {
+    GEOSGeometry* g = g_;
+    g_ = nullptr;
+    return g;
+  }
+  explicit operator bool() const { return g_ != nullptr; }
+
+ private:
+  void reset() {
+    if (g_) GEOSGeom_destroy_r(h_, g_);
+    g_ = nullptr;
+  }
+  GEOSContextHandle_t h_ = nullptr;
+  GEOSGeometry* g_ = nullptr;
+};
+
+// ------------------------------------------------------------- ring helpers --
+
+// Removes consecutive duplicate vertices (zero-length segments); for rings
+// also the wrap-around duplicate. Returns how many were removed.
+size_t remove_duplicates(Ring& r, bool ring) {
+  if (r.empty()) return 0;
+  size_t w = 1;
+  for (size_t i = 1; i < r.size(); ++i) {
+    if (r[i].x != r[w - 1].x || r[i].y != r[w - 1].y) r[w++] = r[i];
+  }
+  size_t removed = r.size() - w;
+  r.resize(w);
+  if (ring) {
+    while (r.size() > 1 && r.front().x == r.back().x && r.front().y == r.back().y) {
+      r.pop_back();
+      ++removed;
+    }
+  }
+  return removed;
+}
+
+double signed_area(const Ring& r) {
+  // Shoelace, relative to the first vertex for precision.
+  double a = 0;
+  if (r.size() < 3) return 0;
+  const double x0 = r[0].x, y0 = r[0].y;
+  for (size_t i = 1; i + 1 < r.size(); ++i) {
+    a += (r[i].x - x0) * (r[i + 1].y - y0) - (r[i + 1].x - x0) * (r[i].y - y0);
+  }
+  return 0.5 * a;
+}
+
+GEOSGeometry* make_ring(GEOSContextHandle_t h, const Ring& r) {
+  std::vector<double> xy;
+  xy.reserve(2 * (r.size() + 1));
+  for (const Point2& p : r) {
+    xy.push_back(p.x);
+    xy.push_back(p.y);
+  }
+  xy.push_back(r[0].x);
+  xy.push_back(r[0].y);
+  GEOSCoordSequence* cs = GEOSCoordSeq_copyFromBuffer_r(h, xy.data(), r.size() + 1, 0, 0);
+  return GEOSGeom_createLinearRing_r(h, cs);
+}
+
+GEOSGeometry* make_line(GEOSContextHandle_t h, const Ring& r) {
+  std::vector<double> xy;
+  xy.reserve(2 * r.size());
+  for (const Point2& p : r) {
+    xy.push_back(p.x);
+    xy.push_back(p.y);
+  }
+  GEOSCoordSequence* cs = GEOSCoordSeq_copyFromBuffer_r(h, xy.data(), r.size(), 0, 0);
+  return GEOSGeom_createLineString_r(h, cs);
+}
+
+GEOSGeometry* make_polygon(GEOSContextHandle_t h, const std::vector<Ring>& rings) {
+  GEOSGeometry* shell = make_ring(h, rings[0]);
+  std::vector<GEOSGeometry*> holes;
+  for (size_t i = 1; i < rings.size(); ++i) holes.push_back(make_ring(h, rings[i]));
+  return GEOSGeom_createPolygon_r(h, shell, holes.data(), static_cast<unsigned>(holes.size()));
+}
+
+// Reads a GEOS line string / ring into a Ring; drops the closing point when
+// `drop_closing`.
+Ring read_coords(GEOSContextHandle_t h, const GEOSGeometry* g, bool drop_closing) {
+  const GEOSCoordSequence* cs = GEOSGeom_getCoordSeq_r(h, g);
+  unsigned n = 0;
+  GEOSCoordSeq_getSize_r(h, cs, &n);
+  std::vector<double> xy(2 * size_t(n));
+  if (n > 0) GEOSCoordSeq_copyToBuffer_r(h, cs, xy.data(), 0, 0);
+  Ring r(n);
+  for (unsigned i = 0; i < n; ++i) r[i] = {xy[2 * i], xy[2 * i + 1]};
+  if (drop_closing && n > 1 && r.front().x == r.back().x && r.front().y == r.back().y) r.pop_back();
+  return r;
+}
+
+// Collects the polygons (or line strings) of any geometry, recursively.
+void collect(GEOSContextHandle_t h, const GEOSGeometry* g, int want_type,
+             std::vector<const GEOSGeometry*>& out, bool& had_other) {
+  int type = GEOSGeomTypeId_r(h, g);
+  if (type == GEOS_MULTIPOLYGON || type == GEOS_MULTILINESTRING || type == GEOS_GEOMETRYCOLLECTION) {
+    int n = GEOSGetNumGeometries_r(h, g);
+    for (int i = 0; i < n; ++i) collect(h, GEOSGetGeometryN_r(h, g, i), want_type, out, had_other);
+    return;
+  }
+  if (type == GEOS_LINEARRING) type = GEOS_LINESTRING;
+  if (type == want_type) {
+    if (!GEOSisEmpty_r(h, g)) out.push_back(g);
+  } else if (!GEOSisEmpty_r(h, g)) {
+    had_other = true;
+  }
+}
+
+size_t vertex_count(GEOSContextHandle_t h, const GEOSGeometry* g) {
+  int n = GEOSGetNumCoordinates_r(h, g);
+  return n > 0 ? size_t(n) : 0;
+}
+
+// ----------------------------------------------------------- part outcome --
+
+enum class Outcome { kept, clipped_away, dropped };
+
+struct PartResult {
+  Outcome outcome = Outcome::kept;
+  std::string repairs;  // "; "-joined; empty: untouched
+  std::string drop_reason;
+  double area_before = std::numeric_limits<double>::quiet_NaN();
+  double area_after = std::numeric_limits<double>::quiet_NaN();
+  uint64_t vertices_in = 0, vertices_out = 0;
+  std::vector<ScenePolygon> polygons;
+  std::vector<SceneLine> lines;
+};
+
+void add_repair(PartResult& r, const std::string& what) {
+  if (!r.repairs.empty()) r.repairs += "; ";
+  r.repairs += what;
+}
+
+struct Cleaner {
+  const SceneSpec& scene;
+  const std::optional<Extent>& clip;
+  double resolution;
+
+  // Clip rectangle as a GEOS polygon, built per context on demand.
+  GEOSGeometry* clip_rect(GEOSContextHandle_t h) const {
+    const Extent& e = *clip;
+    return GEOSGeom_createRectangle_r(h, e.xmin, e.ymin, e.xmax, e.ymax);
+  }
+
+  // -1 fully outside, 1 fully inside (or no clip), 0 crosses the border.
+  int clip_relation(const std::vector<Ring>& rings) const {
+    if (!clip) return 1;
+    Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
+    for (const Ring& r : rings)
+      for (const Point2& p : r) {
+        b.xmin = std::min(b.xmin, p.x);
+        b.ymin = std::min(b.ymin, p.y);
+        b.xmax = std::max(b.xmax, p.x);
+        b.ymax = std::max(b.ymax, p.y);
+      }
+    const Extent& c = *clip;
+    if (b.xmin >= c.xmin && b.xmax <= c.xmax && b.ymin >= c.ymin && b.ymax <= c.ymax) return 1;
+    if (b.xmax < c.xmin || b.xmin > c.xmax || b.ymax < c.ymin || b.ymin > c.ymax) return -1;
+    return 0;
+  }
+
+  // §1.3 for one polygon part: dedupe, validity, clip, simplify, orient.
+  void polygon(GeosContext& ctx, const SourceFeature& f, PartResult& r) const {
+    GEOSContextHandle_t h = ctx.h;
+    std::vector<Ring> rings = f.rings;
+    size_t dups = 0;
+    for (Ring& ring : rings) dups += remove_duplicates(ring, true);
+    if (dups > 0) add_repair(r, "removed " + std::to_string(dups) + " duplicate vertices");
+    if (rings[0].size() < 3) {
+      r.outcome = Outcome::dropped;
+      r.drop_reason = "zero area: shell has " + std::to_string(rings[0].size()) +
+                      " distinct vertices";
+      return;
+    }
+    for (size_t i = 1; i < rings.size();) {
+      if (rings[i].size() < 3) {
+        add_repair(r, "removed degenerate hole " + std::to_string(i));
+        rings.erase(rings.begin() + static_cast<std::ptrdiff_t>(i));
+      } else {
+        ++i;
+      }
+    }
+    int rel = clip_relation(rings);
+    if (rel < 0) {
+      r.outcome = Outcome::clipped_away;
+      return;
+    }
+    Geom g(h, make_polygon(h, rings));
+    if (!g) throw error("clean: GEOS cannot build a polygon: " + ctx.last_error);
+    char valid = GEOSisValid_r(h, g.get());
+    if (valid != 1) {
+      char* why = GEOSisValidReason_r(h, g.get());
+      std::string reason = why ? why : "invalid";
+      GEOSFree_r(h, why);
+      const double before = GEOSArea_r(h, g.get(), &r.area_before) ? r.area_before : NAN;
+      Geom fixed(h, GEOSMakeValid_r(h, g.get()));
+      if (!fixed) {
+        r.outcome = Outcome::dropped;
+        r.drop_reason = "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error;
+        return;
+      }
+      double after = 0;
+      GEOSArea_r(h, fixed.get(), &after);
+      add_repair(r, "made valid (" + reason + ")");
+      if (!(std::fabs(after - before) <= 1e-6 * std::fabs(before))) {
+        r.area_before = before;
+        r.area_after = after;
+      } else {
+        r.area_before = r.area_after = NAN;
+      }
+      g = std::move(fixed);
+    }
+    if (rel == 0) {
+      Geom rect(h, clip_rect(h));
+      Geom cut(h, GEOSIntersection_r(h, g.get(), rect.get()));
+      if (!cut) throw error("clean: GEOS intersection failed: " + ctx.last_error);
+      g = std::move(cut);
+    }
+    std::vector<const GEOSGeometry*> parts;
+    bool other = false;
+    collect(h, g.get(), GEOS_POLYGON, parts, other);
+    if (other && rel != 0) add_repair(r, "discarded collapsed (non-areal) pieces");
+    if (parts.empty()) {
+      if (rel == 0) {
+        r.outcome = Outcome::clipped_away;
+      } else {
+        r.outcome = Outcome::dropped;
+        r.drop_reason = "zero area" + (r.repairs.empty() ? std::string() : " after: " + r.repairs);
+      }
+      return;
+    }
+    for (const GEOSGeometry* p : parts) {
+      r.vertices_in += vertex_count(h, p);
+      Geom simple;
+      const GEOSGeometry* use = p;
+      if (resolution > 0) {
+        simple = Geom(h, GEOSTopologyPreserveSimplify_r(h, p, resolution));
+        if (!simple) throw error("clean: GEOS simplification failed: " + ctx.last_error);
+        if (GEOSisValid_r(h, simple.get()) != 1) {
+          // Simplification is topology-preserving; keep the unsimplified
+          // part if GEOS ever disagrees.
+          simple = Geom();
+        } else {
+          use = simple.get();
+        }
+      }
+      std::vector<const GEOSGeometry*> polys;
+      bool ignored = false;
+      collect(h, use, GEOS_POLYGON, polys, ignored);
+      for (const GEOSGeometry* poly : polys) emit_polygon(h, f, poly, r);
+    }
+    if (r.polygons.empty()) {
+      r.outcome = Outcome::dropped;
+      r.drop_reason = "collapsed to zero area under simplification";
+    }
+  }
+
+  void emit_polygon(GEOSContextHandle_t h, const SourceFeature& f, const GEOSGeometry* poly,
+                    PartResult& r) const {
+    ScenePolygon out;
+    out.fid = f.fid;
+    out.part = f.part;
+    out.order_value = f.order_value;
+    out.color_value = f.color_value;
+    out.shell = read_coords(h, GEOSGetExteriorRing_r(h, poly), true);
+    // Orientation (DESIGN.md §1.3): shell counter-clockwise, holes clockwise.
+    if (signed_area(out.shell) < 0) std::reverse(out.shell.begin(), out.shell.end());
+    int nh = GEOSGetNumInteriorRings_r(h, poly);
+    for (int i = 0; i < nh; ++i) {
+      Ring hole = read_coords(h, GEOSGetInteriorRingN_r(h, poly, i), true);
+      if (signed_area(hole) > 0) std::reverse(hole.begin(), hole.end());
+      out.holes.push_back(std::move(hole));
+    }
+    GEOSArea_r(h, poly, &out.area);
+    r.vertices_out += out.shell.size() + 1;
+    for (const Ring& hole : out.holes) r.vertices_out += hole.size() + 1;
+    r.polygons.push_back(std::move(out));
+  }
+
+  void line(GeosContext& ctx, const SourceFeature& f, PartResult& r) const {
+    GEOSContextHandle_t h = ctx.h;
+    Ring pts = f.rings[0];
+    const bool was_closed =
+        pts.size() >= 3 && pts.front().x == pts.back().x && pts.front().y == pts.back().y;
+    size_t dups = remove_duplicates(pts, false);
+    if (dups > 0) add_repair(r, "removed " + std::to_string(dups) + " duplicate vertices");
+    if (pts.size() < 2) {
+      r.outcome = Outcome::dropped;
+      r.drop_reason = "zero length: " + std::to_string(pts.size()) + " distinct vertices";
+      return;
+    }
+    int rel = clip_relation({pts});
+    if (rel < 0) {
+      r.outcome = Outcome::clipped_away;
+      return;
+    }
+    Geom g(h, make_line(h, pts));
+    if (rel == 0) {
+      Geom rect(h, clip_rect(h));
+      Geom cut(h, GEOSIntersection_r(h, g.get(), rect.get()));
+      if (!cut) throw error("clean: GEOS intersection failed: " + ctx.last_error);
+      // Pieces that meet at a vertex are joined again.
+      Geom merged(h, GEOSLineMerge_r(h, cut.get()));
+      g = merged ? std::move(merged) : std::move(cut);
+    }
+    std::vector<const GEOSGeometry*> parts;
+    bool other = false;
+    collect(h, g.get(), GEOS_LINESTRING, parts, other);
+    if (parts.empty()) {
+      r.outcome = Outcome::clipped_away;
+      return;
+    }
+    for (const GEOSGeometry* p : parts) {
+      r.vertices_in += vertex_count(h, p);
+      Geom simple;
+      const GEOSGeometry* use = p;
+      if (resolution > 0) {
+        simple = Geom(h, GEOSTopologyPreserveSimplify_r(h, p, resolution));
+        if (simple) use = simple.get();
+      }
+      std::vector<const GEOSGeometry*> lines;
+      bool ignored = false;
+      collect(h, use, GEOS_LINESTRING, lines, ignored);
+      for (const GEOSGeometry* l : lines) {
+        SceneLine out;
+        out.points = read_coords(h, l, false);
+        r.vertices_out += out.points.size();
+        out.closed = was_closed && rel == 1 && out.points.size() >= 4 &&
+                     out.points.front().x == out.points.back().x &&
+                     out.points.front().y == out.points.back().y;
+        if (out.closed) out.points.pop_back();
+        if (out.points.size() < 2) continue;
+        out.fid = f.fid;
+        out.part = f.part;
+        out.order_value = f.order_value;
+        out.color_value = f.color_value;
+        double len = 0;
+        GEOSLength_r(h, l, &len);
+        out.length = len;
+        r.lines.push_back(std::move(out));
+      }
+    }
+    if (r.lines.empty()) {
+      r.outcome = Outcome::dropped;
+      r.drop_reason = "collapsed under simplification";
+    }
+  }
+};
+
+}  // namespace
+
+SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
+                    const CleanOptions& options) {
+  SceneFeatures out;
+  out.frame = input.frame;
+  out.manifest.notes = input.features.manifest.notes;
+  const Manifest& in_manifest = input.features.manifest;
+
+  std::unique_ptr<tbb::global_control> limit;
+  if (options.threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  options.threads);
+  }
+  tbb::enumerable_thread_specific<GeosContext> contexts;
+  Cleaner cleaner{scene, input.clip, scene.resolution};
+
+  for (size_t li = 0; li < input.features.layers.size(); ++li) {
+    const SourceLayer& layer = input.features.layers[li];
+    const LayerSpec& spec = layer.spec;
+    out.layers.push_back(spec);
+    const std::vector<double>& k = input.scale[li];
+
+    std::vector<PartResult> results(layer.features.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, layer.features.size(), 16),
+                      [&](const tbb::blocked_range<size_t>& range) {
+      GeosContext& ctx = contexts.local();
+      for (size_t i = range.begin(); i != range.end(); ++i) {
+        const SourceFeature& f = layer.features[i];
+        PartResult& r = results[i];
+        if (!f.drop_reason.empty() || f.rings.empty() || f.rings[0].empty()) {
+          r.outcome = Outcome::dropped;
+          r.drop_reason = f.drop_reason.empty() ? "no coordinates" : f.drop_reason;
+          continue;
+        }
+        if (!f.repairs.empty()) add_repair(r, f.repairs);
+        if (f.is_polygon)
+          cleaner.polygon(ctx, f, r);
+        else
+          cleaner.line(ctx, f, r);
+      }
+    });
+
+    // Gather in input order (deterministic), feature by feature.
+    LayerCounts counts;
+    for (const LayerCounts& c : in_manifest.layers)
+      if (c.layer == spec.name) counts = c;
+    counts.layer = spec.name;
+    const uint64_t read = counts.read;
+    counts.kept = counts.repaired = counts.clipped_away = counts.dropped = 0;
+    counts.parts = counts.vertices_in = counts.vertices_out = 0;
+
+    const uint32_t layer_index = static_cast<uint32_t>(li);
+    size_t i = 0;
+    while (i < layer.features.size()) {
+      size_t j = i;
+      while (j < layer.features.size() && layer.features[j].feature == layer.features[i].feature) ++j;
+      bool any_kept = false, any_dropped = false, any_repaired = false;
+      std::string first_drop;
+      for (size_t p = i; p < j; ++p) {
+        if (results[p].outcome == Outcome::kept) any_kept = true;
+        if (results[p].outcome == Outcome::dropped) {
+          any_dropped = true;
+          if (first_drop.empty()) first_drop = results[p].drop_reason;
+        }
+      }
+      const SourceFeature& head = layer.features[i];
+      for (size_t p = i; p < j; ++p) {
+        PartResult& r = results[p];
+        const SourceFeature& f = layer.features[p];
+        const double kf = k[p];
+        if (r.outcome == Outcome::kept) {
+          counts.vertices_in += r.vertices_in;
+          counts.vertices_out += r.vertices_out;
+          if (!r.repairs.empty()) {
+            any_repaired = true;
+            ManifestEntry e{spec.name, f.fid, f.part, "repaired", r.repairs, r.area_before,
+                            r.area_after};
+            out.manifest.entries.push_back(std::move(e));
+          }
+          for (ScenePolygon& poly : r.polygons) {
+            poly.layer = layer_index;
+            if (spec.kind == DecalKind::outline) {
+              // Outline decals: the rings as closed lines, shell CCW and holes
+              // CW, so "inset" (left side) is the polygon's interior.
+              auto add_ring = [&](const Ring& ring) {
+                SceneLine l;
+                l.points = ring;
+                l.closed = true;
+                l.layer = layer_index;
+                l.fid = poly.fid;
+                l.part = poly.part;
+                l.order_value = poly.order_value;
+                l.color_value = poly.color_value;
+                double len = 0;
+                for (size_t q = 0; q < ring.size(); ++q) {
+                  const Point2& a = ring[q];
+                  const Point2& b = ring[(q + 1) % ring.size()];
+                  len += std::hypot(b.x - a.x, b.y - a.y);
+                }
+                l.length = len / kf;
+                l.width = spec.dynamic ? spec.style.width : spec.style.width * kf;
+                (spec.dynamic ? out.dynamic_lines : out.lines).push_back(std::move(l));
+                ++counts.parts;
+              };
+              add_ring(poly.shell);
+              for (const Ring& hole : poly.holes) add_ring(hole);
+            } else {
+              out.polygons.push_back(std::move(poly));
+              ++counts.parts;
+            }
+          }
+          for (SceneLine& l : r.lines) {
+            l.layer = layer_index;
+            // Widths are ground metres; the frame's metres are k times
+            // longer or shorter (DESIGN.md §1.2).
+            l.length /= kf;
+            l.width = spec.dynamic ? spec.style.width : spec.style.width * kf;
+            (spec.dynamic ? out.dynamic_lines : out.lines).push_back(std::move(l));
+            ++counts.parts;
+          }
+        } else if (r.outcome == Outcome::dropped && any_kept) {
+          ManifestEntry e{spec.name, f.fid, f.part, "part_dropped", r.drop_reason};
+          out.manifest.entries.push_back(std::move(e));
+        }
+      }
+      if (any_kept) {
+        ++counts.kept;
+        if (any_repaired) ++counts.repaired;
+      } else if (any_dropped) {
+        ++counts.dropped;
+        ManifestEntry e{spec.name, head.fid, -1, "dropped", first_drop};
+        out.manifest.entries.push_back(std::move(e));
+      } else {
+        ++counts.clipped_away;
+        ManifestEntry e{spec.name, head.fid, -1, "clipped_away", "outside the scene extent"};
+        out.manifest.entries.push_back(std::move(e));
+      }
+      i = j;
+    }
+    if (counts.kept + counts.clipped_away + counts.dropped != read) {
+      throw error("clean: layer '" + spec.name + "': accounting mismatch: read " +
+                  std::to_string(read) + " != kept " + std::to_string(counts.kept) +
+                  " + clipped " + std::to_string(counts.clipped_away) + " + dropped " +
+                  std::to_string(counts.dropped));
+    }
+    out.manifest.layers.push_back(counts);
+  }
+  // Read-stage entries (parts of kept features the kind could not draw).
+  for (const ManifestEntry& e : in_manifest.entries) out.manifest.entries.push_back(e);
+
+  // Scene extent: the bounding box of what is kept.
+  Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  auto grow = [&](const Ring& r) {
+    for (const Point2& p : r) {
+      b.xmin = std::min(b.xmin, p.x);
+      b.ymin = std::min(b.ymin, p.y);
+      b.xmax = std::max(b.xmax, p.x);
+      b.ymax = std::max(b.ymax, p.y);
+    }
+  };
+  for (const ScenePolygon& p : out.polygons) grow(p.shell);
+  for (const SceneLine& l : out.lines) grow(l.points);
+  for (const SceneLine& l : out.dynamic_lines) grow(l.points);
+  out.extent = b.xmax >= b.xmin ? b : Extent{};
+  return out;
+}
+
+}  // namespace prep

@@ -1,0 +1,27 @@
+// prep/clean.hpp — stage 3: projected features -> SceneFeatures
+// (DESIGN.md §1). GEOS (reentrant C API), one context per worker thread.
+//
+// For every part: duplicate vertices and zero-length segments removed;
+// polygons made valid (GEOSMakeValid) with every hole attached to its shell
+// and nested islands kept as separate polygons; shells CCW, holes CW; parts
+// clipped to the clip extent and simplified (topology-preserving) to
+// `scene.resolution`. Every repair and drop lands in the manifest, with the
+// area before/after when a repair changes the area by more than 1e-6.
+#pragma once
+
+#include "prep/project.hpp"
+#include "prep/scene.hpp"
+
+namespace prep {
+
+struct CleanOptions {
+  unsigned threads = 0;  // 0: all hardware threads; the output does not depend on it
+};
+
+// Cleans `input`. Never throws for bad geometry (it is dropped and recorded);
+// throws error only on a GEOS failure that is not about the data.
+// Invariant on return, per layer: read == kept + clipped_away + dropped.
+SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
+                    const CleanOptions& options = {});
+
+}  // namespace prep

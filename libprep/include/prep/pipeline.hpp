@@ -1,0 +1,39 @@
+// prep/pipeline.hpp — the whole build: read -> project -> clean -> build ->
+// write, with the JSON report (`decalprep build`).
+#pragma once
+
+#include <string>
+
+#include "prep/read.hpp"
+#include "prep/scene.hpp"
+
+namespace prep {
+
+struct BuildRequest {
+  std::string output;       // package path; written atomically
+  std::string report;       // JSON report path; empty: none
+  bool dry_run = false;     // stop after clean: write the report, no package
+  bool compress = true;
+  int zstd_level = 3;
+  ProgressFn progress;      // empty: silent
+};
+
+struct BuildResult {
+  SceneFeatures scene;      // what clean produced
+  std::string report_json;  // the report (also written to request.report)
+  bool package_written = false;
+};
+
+// Runs the pipeline. Throws prep::error subclasses; on any failure no
+// package is written at request.output (the writer is atomic and runs last).
+// Throws error(ExitCode::internal) when a package is asked for but this build
+// has no build/write stage linked (use dry_run).
+BuildResult run_build(const SceneSpec& scene, const BuildRequest& request);
+
+// The report of a cleaned scene as JSON (layer counts, manifest entries and
+// notes, frame, timings in seconds, output path).
+std::string report_json(const SceneFeatures& scene, const std::string& output,
+                        const std::vector<std::pair<std::string, double>>& timings,
+                        bool package_written);
+
+}  // namespace prep

@@ -1,0 +1,48 @@
+// prep/project.hpp — stage 2: FeatureSet (source CRS) -> FeatureSet in the
+// scene frame (DESIGN.md §1).
+//
+// The default frame is a local Transverse Mercator (scale 1 on the central
+// meridian, WGS84 ellipsoid) centred on the data's geographic extent; the
+// transformation runs through PROJ (GDAL), the frame's point scale factor
+// comes from GeographicLib. `scene.crs` picks any other projected CRS.
+// Every SRS is used with OAMS_TRADITIONAL_GIS_ORDER (x = easting/longitude).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "prep/scene.hpp"
+
+namespace prep {
+
+// Features in frame coordinates (metres relative to frame.origin), plus the
+// point scale factor of the frame at each part (frame metres per ground
+// metre), in the same order as features.layers[i].features.
+struct ProjectedFeatures {
+  SceneFrame frame;
+  FeatureSet features;                     // srs_wkt = frame.crs_wkt
+  std::vector<std::vector<double>> scale;  // [layer][feature] point scale factor k
+  std::optional<Extent> clip;              // scene coordinates; from --extent or the DEM
+};
+
+// Chooses the scene frame for `features`: `crs` when given (any PROJ/EPSG/
+// WKT string, origin at the data centre rounded to 1 m), else a local TM
+// centred on the data. Throws input_error for an unknown or geographic `crs`
+// or when there is no data to centre on.
+SceneFrame choose_frame(const FeatureSet& features, const std::string& crs);
+
+// Transforms every feature into `frame` (parallel per feature; output order
+// is the input order). A feature whose transform fails is dropped with a
+// manifest entry. Also resolves the clip extent: scene.extent (in
+// scene.extent_crs, default the frame CRS) or, when scene.dem is set, the
+// DEM's extent transformed into the frame. Throws input_error/gdal_error
+// naming the CRS or file at fault.
+ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene);
+
+// The point scale factor of `frame` at frame coordinates (x, y) relative to
+// the origin: ratio of frame distance to ground (ellipsoidal) distance. For
+// the local TM frame this is GeographicLib's k.
+double frame_scale_factor(const SceneFrame& frame, double x, double y);
+
+}  // namespace prep

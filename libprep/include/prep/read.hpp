@@ -1,0 +1,44 @@
+// prep/read.hpp — stage 1: GDAL/OGR sources -> FeatureSet (DESIGN.md §1).
+//
+// Geometry stays in the source CRS, in double precision. Multi-geometries and
+// geometry collections are split into parts; curves are linearised; Z and M
+// are dropped (with a manifest note). Features with NaN/Inf coordinates or a
+// geometry the layer kind cannot use are dropped with a manifest entry, or —
+// NaN/Inf only, without skip_failures — fail the build with their fid.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "prep/scene.hpp"
+
+namespace prep {
+
+// Progress of a long step, 0..1. `label` names the step ("read roads").
+// Called from the reading thread only.
+using ProgressFn = std::function<void(double fraction, const std::string& label)>;
+
+// A progress reporter for a terminal: a redrawn bar when stderr is a TTY,
+// otherwise one plain line per 10 %. Returned function is not thread-safe.
+ProgressFn make_console_progress();
+
+struct ReadOptions {
+  ProgressFn progress;  // empty: silent
+};
+
+// Reads every layer of `scene` (in scene order). Throws:
+//   gdal_error  — a source GDAL cannot open, an unknown layer, invalid SQL,
+//                 a read failure (message names file, layer and GDAL's text);
+//   input_error — a source without CRS and no scene.assume_crs, an invalid
+//                 assume_crs, a NaN/Inf coordinate (unless skip_failures),
+//                 an unknown order/colour attribute.
+// OSM XML whose node ids do not increase (Overpass output) is re-read with
+// OSM_USE_CUSTOM_INDEXING=NO, and the manifest says so.
+// Thread-safe with respect to other reads (GDAL config is set thread-locally).
+FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options = {});
+
+// Reads one layer, appending its counts, entries and notes to `manifest`.
+SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& manifest,
+                       const ReadOptions& options = {});
+
+}  // namespace prep

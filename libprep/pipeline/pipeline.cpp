@@ -1,0 +1,275 @@
+// The pipeline of DESIGN.md §1, in order, with timings and the JSON report.
+// Each stage hands the next its named type; nothing reaches back.
+#include "prep/pipeline.hpp"
+
+#include <cpl_vsi.h>
+#include <xxhash.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "prep/clean.hpp"
+#include "prep/error.hpp"
+#include "prep/project.hpp"
+#include "prep/read.hpp"
+#if DECALPREP_HAVE_BUILD_WRITE
+#include "prep/build.hpp"
+#include "prep/write.hpp"
+#endif
+
+namespace prep {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// JSON has no NaN: absent values are null.
+nlohmann::json number_or_null(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+const char* kind_name(DecalKind k) {
+  switch (k) {
+    case DecalKind::polygon: return "polygon";
+    case DecalKind::line: return "line";
+    case DecalKind::outline: return "outline";
+  }
+  return "?";
+}
+
+nlohmann::json layer_counts_json(const LayerCounts& c) {
+  return {{"layer", c.layer},
+          {"read", c.read},
+          {"kept", c.kept},
+          {"repaired", c.repaired},
+          {"clipped_away", c.clipped_away},
+          {"dropped", c.dropped},
+          {"parts", c.parts},
+          {"vertices_before_simplification", c.vertices_in},
+          {"vertices_after_simplification", c.vertices_out}};
+}
+
+nlohmann::json manifest_json(const Manifest& m, bool with_entries) {
+  nlohmann::json layers = nlohmann::json::array();
+  LayerCounts total;
+  for (const LayerCounts& c : m.layers) {
+    layers.push_back(layer_counts_json(c));
+    total.read += c.read;
+    total.kept += c.kept;
+    total.repaired += c.repaired;
+    total.clipped_away += c.clipped_away;
+    total.dropped += c.dropped;
+    total.parts += c.parts;
+    total.vertices_in += c.vertices_in;
+    total.vertices_out += c.vertices_out;
+  }
+  nlohmann::json totals = layer_counts_json(total);
+  totals.erase("layer");
+  nlohmann::json j = {{"layers", layers}, {"totals", totals}, {"notes", m.notes}};
+  if (with_entries) {
+    nlohmann::json entries = nlohmann::json::array();
+    for (const ManifestEntry& e : m.entries) {
+      entries.push_back({{"layer", e.layer},
+                         {"fid", e.fid},
+                         {"part", e.part},
+                         {"action", e.action},
+                         {"reason", e.reason},
+                         {"area_before", number_or_null(e.area_before)},
+                         {"area_after", number_or_null(e.area_after)}});
+    }
+    j["entries"] = std::move(entries);
+  }
+  j["entry_count"] = m.entries.size();
+  return j;
+}
+
+nlohmann::json frame_json(const SceneFrame& f, const Extent& e) {
+  return {{"crs_wkt", f.crs_wkt},
+          {"description", f.description},
+          {"origin", {f.origin_x, f.origin_y}},
+          {"extent", {e.xmin, e.ymin, e.xmax, e.ymax}}};
+}
+
+// Provenance: path, size and XXH64 of every local source (DESIGN.md §5).
+nlohmann::json provenance_json(const SceneSpec& scene) {
+  nlohmann::json sources = nlohmann::json::array();
+  std::vector<std::string> paths;
+  for (const LayerSpec& l : scene.layers) paths.push_back(l.source);
+  if (!scene.dem.empty()) paths.push_back(scene.dem);
+  std::sort(paths.begin(), paths.end());
+  paths.erase(std::unique(paths.begin(), paths.end()), paths.end());
+  for (const std::string& p : paths) {
+    nlohmann::json s = {{"path", p}};
+    // Hash the file itself (for /vsizip/x.zip/y: the archive).
+    std::string file = p;
+    if (file.rfind("/vsizip/", 0) == 0) {
+      file = file.substr(8);
+      auto zip = file.find(".zip");
+      if (zip != std::string::npos) file = file.substr(0, zip + 4);
+    }
+    std::ifstream in(file, std::ios::binary);
+    if (in) {
+      XXH64_state_t* st = XXH64_createState();
+      XXH64_reset(st, 0);
+      std::vector<char> buf(1 << 16);
+      uint64_t size = 0;
+      while (in) {
+        in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+        auto n = static_cast<size_t>(in.gcount());
+        XXH64_update(st, buf.data(), n);
+        size += n;
+      }
+      char hex[17];
+      std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(XXH64_digest(st)));
+      XXH64_freeState(st);
+      s["file"] = file;
+      s["bytes"] = size;
+      s["xxh64"] = hex;
+    }
+    sources.push_back(std::move(s));
+  }
+  return sources;
+}
+
+nlohmann::json layers_json(const std::vector<LayerSpec>& layers) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const LayerSpec& l : layers) {
+    out.push_back({{"name", l.name},
+                   {"source", l.source},
+                   {"layer", l.layer},
+                   {"where", l.where},
+                   {"sql", l.sql},
+                   {"kind", kind_name(l.kind)},
+                   {"dynamic", l.dynamic},
+                   {"width", l.style.width},
+                   {"width_unit", l.dynamic ? "pixel" : "ground metre"},
+                   {"color_rgba", l.style.color.rgba},
+                   {"color_attribute", l.style.color.attribute},
+                   {"corner", static_cast<uint32_t>(l.style.corner)},
+                   {"outline_mode", static_cast<uint32_t>(l.style.outline)},
+                   {"order_attribute", l.style.order_attribute}});
+  }
+  return out;
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+  // The report is small; write it whole, via a temp file, so a reader never
+  // sees half a report.
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw output_error("report: cannot write " + path);
+    out << text;
+    if (!out.flush()) throw output_error("report: cannot write " + path);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw output_error("report: cannot rename " + tmp + " to " + path);
+  }
+}
+
+nlohmann::json report_object(const SceneFeatures& scene, const std::string& output,
+                             const std::vector<std::pair<std::string, double>>& timings,
+                             bool package_written) {
+  nlohmann::json j;
+  j["report_version"] = 1;
+  j["output"] = output;
+  j["package_written"] = package_written;
+  j["frame"] = frame_json(scene.frame, scene.extent);
+  j["layers"] = layers_json(scene.layers);
+  j["manifest"] = manifest_json(scene.manifest, true);
+  j["output_counts"] = {{"polygons", scene.polygons.size()},
+                        {"lines", scene.lines.size()},
+                        {"dynamic_lines", scene.dynamic_lines.size()}};
+  nlohmann::json t = nlohmann::json::object();
+  for (const auto& [stage, s] : timings) t[stage] = s;
+  j["timings_s"] = t;
+  return j;
+}
+
+}  // namespace
+
+std::string report_json(const SceneFeatures& scene, const std::string& output,
+                        const std::vector<std::pair<std::string, double>>& timings,
+                        bool package_written) {
+  return report_object(scene, output, timings, package_written).dump(2) + "\n";
+}
+
+BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
+  std::vector<std::pair<std::string, double>> timings;
+  const auto t_all = Clock::now();
+  if (!request.dry_run && request.output.empty()) throw usage_error("build: no output path (-o)");
+
+  auto t0 = Clock::now();
+  ReadOptions ro;
+  ro.progress = request.progress;
+  FeatureSet features = read_scene(scene, ro);
+  timings.emplace_back("read", seconds_since(t0));
+
+  t0 = Clock::now();
+  SceneFrame frame = choose_frame(features, scene.crs);
+  ProjectedFeatures projected = project(std::move(features), frame, scene);
+  timings.emplace_back("project", seconds_since(t0));
+
+  t0 = Clock::now();
+  CleanOptions co;
+  co.threads = scene.build.threads;
+  BuildResult result;
+  result.scene = clean(projected, scene, co);
+  timings.emplace_back("clean", seconds_since(t0));
+
+#if !DECALPREP_HAVE_BUILD_WRITE
+  // Checked after clean, so bad input is still reported as such.
+  if (!request.dry_run) {
+    throw error("build: this decalprep has no build/write stage linked; use --dry-run",
+                ExitCode::internal);
+  }
+#else
+  if (!request.dry_run) {
+    t0 = Clock::now();
+    DecalModel model = build_model(result.scene, scene.build, scene.dem);
+    timings.emplace_back("build", seconds_since(t0));
+
+    t0 = Clock::now();
+    // build_model carries the manifest; make sure the package has it.
+    if (model.manifest.layers.empty()) model.manifest = result.scene.manifest;
+    // write_model writes frame, grid, counts and the manifest itself; the
+    // pipeline adds what only it knows (keys must not collide).
+    nlohmann::json totals = manifest_json(model.manifest, false)["totals"];
+    nlohmann::json extra;
+    extra["manifest"]["totals"] = totals;
+    extra["layers"] = layers_json(scene.layers);
+    extra["provenance"] = provenance_json(scene);
+    extra["scene_file"] = scene.scene_path;
+    extra["build_options"] = {{"resolution_m", scene.resolution},
+                              {"crs", scene.crs},
+                              {"dem", scene.dem},
+                              {"grid", {scene.build.grid_nx, scene.build.grid_ny}},
+                              {"qt_leaf_capacity", scene.build.qt_leaf_capacity},
+                              {"qt_max_depth", scene.build.qt_max_depth},
+                              {"miter_limit_deg", scene.build.miter_limit_deg}};
+    WriteOptions wo;
+    wo.codec = request.compress ? Codec::zstd : Codec::none;
+    wo.zstd_level = request.zstd_level;
+    write_model(request.output, model, extra.dump(), wo);
+    timings.emplace_back("write", seconds_since(t0));
+    result.package_written = true;
+  }
+#endif
+  timings.emplace_back("total", seconds_since(t_all));
+  nlohmann::json report = report_object(result.scene, request.dry_run ? "" : request.output,
+                                        timings, result.package_written);
+  report["provenance"] = provenance_json(scene);
+  report["dry_run"] = request.dry_run;
+  result.report_json = report.dump(2) + "\n";
+  if (!request.report.empty()) write_text_file(request.report, result.report_json);
+  return result;
+}
+
+}  // namespace prep

@@ -1,0 +1,479 @@
+// Stage 1 — read. GDAL/OGR sources -> FeatureSet, in the source CRS.
+//
+// Every input feature appears in the FeatureSet at least once (as one
+// SourceFeature per part, or as a placeholder carrying drop_reason), so the
+// clean stage can account for 100 % of the features (DESIGN.md §4.4).
+#include "prep/read.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <cpl_vsi.h>
+#include <gdal.h>
+#include <gdal_priv.h>
+#include <ogr_geometry.h>
+#include <ogr_spatialref.h>
+#include <ogrsf_frmts.h>
+
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <exception>
+#include <memory>
+#include <mutex>
+
+#include "prep/error.hpp"
+
+namespace prep {
+namespace {
+
+void register_gdal_once() {
+  static std::once_flag once;
+  std::call_once(once, [] { GDALAllRegister(); });
+}
+
+// Collects GDAL errors raised on this thread while it is alive, so the
+// messages can be put into our exceptions (GDAL's last-error slot keeps only
+// one, and the default handler would print to stderr).
+class ErrorCapture {
+ public:
+  ErrorCapture() { CPLPushErrorHandlerEx(&ErrorCapture::handler, this); }
+  ~ErrorCapture() { CPLPopErrorHandler(); }
+  ErrorCapture(const ErrorCapture&) = delete;
+  ErrorCapture& operator=(const ErrorCapture&) = delete;
+
+  const std::string& failures() const { return failures_; }
+  const std::vector<std::string>& warnings() const { return warnings_; }
+  void clear() {
+    failures_.clear();
+    warnings_.clear();
+  }
+
+ private:
+  static void CPL_STDCALL handler(CPLErr level, CPLErrorNum, const char* msg) {
+    auto* self = static_cast<ErrorCapture*>(CPLGetErrorHandlerUserData());
+    if (level >= CE_Failure) {
+      if (!self->failures_.empty()) self->failures_ += "; ";
+      self->failures_ += msg;
+    } else if (level == CE_Warning && self->warnings_.size() < 20) {
+      self->warnings_.emplace_back(msg);
+    }
+  }
+  std::string failures_;
+  std::vector<std::string> warnings_;
+};
+
+struct DatasetCloser {
+  void operator()(GDALDataset* ds) const { GDALClose(ds); }
+};
+using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+std::string where_of(const LayerSpec& spec, const std::string& layer_name) {
+  std::string w = "read: " + spec.source;
+  if (!spec.sql.empty()) return w + " sql \"" + spec.sql + "\"";
+  return w + " layer '" + layer_name + "'";
+}
+
+std::string kind_name(DecalKind k) {
+  switch (k) {
+    case DecalKind::polygon: return "polygon";
+    case DecalKind::line: return "line";
+    case DecalKind::outline: return "outline";
+  }
+  return "?";
+}
+
+// Per-feature state while splitting a geometry into parts.
+struct Splitter {
+  const LayerSpec& spec;
+  std::vector<SourceFeature>& out;
+  SourceFeature proto;        // fid, feature, order/colour values
+  int next_part = 0;
+  int unusable = 0;           // parts whose type the layer kind cannot draw
+  std::string unusable_type;
+  bool bad_coordinate = false;
+  std::string bad_coordinate_text;
+  bool had_zm = false;
+  bool closed_ring = false;
+
+  bool check(const OGRSimpleCurve& c) {
+    for (int i = 0; i < c.getNumPoints(); ++i) {
+      double x = c.getX(i), y = c.getY(i);
+      if (!std::isfinite(x) || !std::isfinite(y)) {
+        bad_coordinate = true;
+        bad_coordinate_text = "vertex " + std::to_string(i) + " has a non-finite coordinate (" +
+                              std::to_string(x) + ", " + std::to_string(y) + ")";
+        return false;
+      }
+    }
+    return true;
+  }
+
+  // Copies a polygon ring into an unclosed Ring (first point not repeated).
+  Ring to_ring(const OGRSimpleCurve& c) {
+    Ring r;
+    int n = c.getNumPoints();
+    r.reserve(n);
+    for (int i = 0; i < n; ++i) r.push_back({c.getX(i), c.getY(i)});
+    bool closed = n >= 2 && r.front().x == r.back().x && r.front().y == r.back().y;
+    if (closed) r.pop_back();
+    if (!closed && n >= 3) closed_ring = true;  // e.g. GeoJSON rings left open
+    return r;
+  }
+
+  // Copies a line as given; a closed line keeps its repeated end point, which
+  // tells clean that it is a ring.
+  static Ring to_line(const OGRSimpleCurve& c, bool close) {
+    Ring r;
+    int n = c.getNumPoints();
+    r.reserve(n + 1);
+    for (int i = 0; i < n; ++i) r.push_back({c.getX(i), c.getY(i)});
+    if (close && n >= 2 && (r.front().x != r.back().x || r.front().y != r.back().y))
+      r.push_back(r.front());
+    return r;
+  }
+
+  void add_polygon(const OGRPolygon& p) {
+    bool want_polygon = spec.kind != DecalKind::line;
+    if (!want_polygon) {
+      // A polygon in a line layer: its rings are drawn as closed lines.
+      for (const OGRLinearRing* ring : p) add_curve(*ring, true);
+      return;
+    }
+    SourceFeature f = proto;
+    f.part = next_part++;
+    f.is_polygon = true;
+    for (const OGRLinearRing* ring : p) {
+      if (!check(*ring)) return;
+      f.rings.push_back(to_ring(*ring));
+    }
+    if (f.rings.empty()) return;
+    out.push_back(std::move(f));
+  }
+
+  void add_curve(const OGRSimpleCurve& c, bool from_ring = false) {
+    if (spec.kind != DecalKind::line && !from_ring) {
+      ++unusable;
+      unusable_type = "LineString";
+      return;
+    }
+    if (!check(c)) return;
+    SourceFeature f = proto;
+    f.part = next_part++;
+    f.rings.push_back(to_line(c, from_ring));
+    out.push_back(std::move(f));
+  }
+
+  void add(const OGRGeometry* g) {
+    if (g == nullptr || g->IsEmpty()) return;
+    if (g->Is3D() || g->IsMeasured()) had_zm = true;
+    if (g->hasCurveGeometry()) {
+      // Circular arcs and curve polygons: linearised with GDAL's defaults.
+      std::unique_ptr<OGRGeometry> linear(g->getLinearGeometry());
+      add(linear.get());
+      return;
+    }
+    switch (wkbFlatten(g->getGeometryType())) {
+      case wkbPolygon:
+      case wkbTriangle:
+        add_polygon(*g->toPolygon());
+        break;
+      case wkbLineString:
+      case wkbLinearRing:
+        add_curve(*g->toLineString());
+        break;
+      case wkbMultiPolygon:
+      case wkbMultiLineString:
+      case wkbGeometryCollection:
+      case wkbPolyhedralSurface:
+      case wkbTIN:
+        for (const OGRGeometry* sub : *g->toGeometryCollection()) add(sub);
+        break;
+      default:
+        ++unusable;
+        unusable_type = OGRGeometryTypeToName(g->getGeometryType());
+        break;
+    }
+  }
+};
+
+int field_index(OGRLayer& layer, const std::string& name, const LayerSpec& spec,
+                const char* what) {
+  if (name.empty()) return -1;
+  int i = layer.GetLayerDefn()->GetFieldIndex(name.c_str());
+  if (i < 0) {
+    std::string fields;
+    for (int k = 0; k < layer.GetLayerDefn()->GetFieldCount(); ++k) {
+      fields += (k ? ", " : "") + std::string(layer.GetLayerDefn()->GetFieldDefn(k)->GetNameRef());
+    }
+    throw input_error(where_of(spec, layer.GetName()) + ": " + what + " attribute '" + name +
+                      "' not found (fields: " + fields + ")");
+  }
+  return i;
+}
+
+double field_value(OGRFeature& f, int index) {
+  if (index < 0 || !f.IsFieldSetAndNotNull(index)) return std::numeric_limits<double>::quiet_NaN();
+  return f.GetFieldAsDouble(index);
+}
+
+// GDAL-style progress callback: forwards to the ProgressFn in `arg`.
+int CPL_STDCALL forward_progress(double fraction, const char* label, void* arg) {
+  auto* fn = static_cast<const ProgressFn*>(arg);
+  if (fn && *fn) (*fn)(fraction, label ? label : "");
+  return TRUE;
+}
+
+struct ReadAttempt {
+  SourceLayer layer;
+  LayerCounts counts;
+  std::vector<ManifestEntry> entries;
+  std::vector<std::string> notes;
+};
+
+ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadOptions& options,
+                      ErrorCapture& errors) {
+  ReadAttempt r;
+  r.layer.spec = spec;
+  r.counts.layer = spec.name;
+
+  VSIStatBufL st;
+  if (VSIStatL(spec.source.c_str(), &st) != 0) {
+    throw gdal_error("read: " + spec.source + ": no such file" +
+                     (scene.scene_path.empty() ? std::string()
+                                               : " (scene file " + scene.scene_path + ", layer '" +
+                                                     spec.name + "')"));
+  }
+  DatasetPtr ds(GDALDataset::Open(spec.source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY,
+                                  nullptr, nullptr, nullptr));
+  if (!ds) {
+    throw gdal_error("read: " + spec.source + ": GDAL cannot open it as vector data" +
+                     (errors.failures().empty() ? std::string() : ": " + errors.failures()));
+  }
+  if (ds->GetLayerCount() == 0 && spec.sql.empty()) {
+    throw gdal_error("read: " + spec.source + ": the source has no vector layers");
+  }
+
+  OGRLayer* layer = nullptr;
+  bool from_sql = false;
+  if (!spec.sql.empty()) {
+    errors.clear();
+    layer = ds->ExecuteSQL(spec.sql.c_str(), nullptr, nullptr);
+    if (!layer) {
+      throw gdal_error("read: " + spec.source + ": invalid SQL \"" + spec.sql + "\"" +
+                       (errors.failures().empty() ? std::string() : ": " + errors.failures()));
+    }
+    from_sql = true;
+  } else if (!spec.layer.empty()) {
+    layer = ds->GetLayerByName(spec.layer.c_str());
+    if (!layer) {
+      std::string names;
+      for (int i = 0; i < ds->GetLayerCount(); ++i)
+        names += (i ? ", " : "") + std::string(ds->GetLayer(i)->GetName());
+      throw gdal_error("read: " + spec.source + ": unknown layer '" + spec.layer +
+                       "' (layers: " + names + ")");
+    }
+  } else {
+    layer = ds->GetLayer(0);
+  }
+  struct SqlRelease {
+    GDALDataset* ds;
+    OGRLayer* layer;
+    bool active;
+    ~SqlRelease() {
+      if (active) ds->ReleaseResultSet(layer);
+    }
+  } release{ds.get(), layer, from_sql};
+
+  const std::string where = where_of(spec, layer->GetName());
+  if (!spec.where.empty()) {
+    errors.clear();
+    if (layer->SetAttributeFilter(spec.where.c_str()) != OGRERR_NONE) {
+      throw gdal_error(where + ": invalid where \"" + spec.where + "\"" +
+                       (errors.failures().empty() ? std::string() : ": " + errors.failures()));
+    }
+  }
+
+  // Source CRS: the layer's, else --assume-crs; never a silent guess.
+  if (const OGRSpatialReference* srs = layer->GetSpatialRef()) {
+    const char* opts[] = {"FORMAT=WKT2_2019", nullptr};
+    char* wkt = nullptr;
+    srs->exportToWkt(&wkt, opts);
+    r.layer.srs_wkt = wkt ? wkt : "";
+    CPLFree(wkt);
+  }
+  if (r.layer.srs_wkt.empty()) {
+    if (scene.assume_crs.empty()) {
+      throw input_error(where + ": the source has no CRS; pass --assume-crs (e.g. EPSG:4326) "
+                                "or set assume_crs in the scene file");
+    }
+    OGRSpatialReference assumed;
+    if (assumed.SetFromUserInput(scene.assume_crs.c_str()) != OGRERR_NONE) {
+      throw input_error(where + ": invalid --assume-crs '" + scene.assume_crs + "'");
+    }
+    const char* opts[] = {"FORMAT=WKT2_2019", nullptr};
+    char* wkt = nullptr;
+    assumed.exportToWkt(&wkt, opts);
+    r.layer.srs_wkt = wkt ? wkt : "";
+    CPLFree(wkt);
+    r.notes.push_back("layer '" + spec.name + "': source has no CRS, assumed " + scene.assume_crs);
+  }
+
+  const int order_field = field_index(*layer, spec.style.order_attribute, spec, "order");
+  const int color_field = field_index(*layer, spec.style.color.attribute, spec, "colour");
+
+  const GIntBig total = layer->GetFeatureCount(FALSE);  // -1 for OSM until read
+  const std::string label = "read " + spec.name;
+  const ProgressFn* progress = options.progress ? &options.progress : nullptr;
+  forward_progress(total > 0 ? 0.0 : -1.0, label.c_str(), const_cast<ProgressFn*>(progress));
+
+  uint64_t zm_features = 0, closed_rings = 0;
+  errors.clear();
+  layer->ResetReading();
+  for (;;) {
+    std::unique_ptr<OGRFeature> feature(layer->GetNextFeature());
+    if (!feature) break;
+    const uint64_t index = r.counts.read++;
+    SourceFeature proto;
+    proto.fid = feature->GetFID();
+    proto.feature = index;
+    proto.order_value = field_value(*feature, order_field);
+    proto.color_value = field_value(*feature, color_field);
+
+    const size_t first = r.layer.features.size();
+    Splitter split{spec, r.layer.features, proto};
+    split.add(feature->GetGeometryRef());
+    if (split.bad_coordinate) {
+      r.layer.features.resize(first);
+      if (!scene.skip_failures) {
+        throw input_error(where + " fid " + std::to_string(proto.fid) + ": " +
+                          split.bad_coordinate_text);
+      }
+      proto.drop_reason = split.bad_coordinate_text;
+      r.layer.features.push_back(proto);
+      continue;
+    }
+    if (split.had_zm) ++zm_features;
+    if (split.closed_ring) {
+      ++closed_rings;
+      for (size_t i = first; i < r.layer.features.size(); ++i)
+        r.layer.features[i].repairs = "closed an open ring";
+    }
+    if (r.layer.features.size() == first) {
+      // No usable part: keep a placeholder so the feature is accounted for.
+      if (feature->GetGeometryRef() == nullptr || feature->GetGeometryRef()->IsEmpty())
+        proto.drop_reason = "no geometry";
+      else
+        proto.drop_reason = "geometry type " + split.unusable_type + " cannot be drawn as kind " +
+                            kind_name(spec.kind);
+      r.layer.features.push_back(proto);
+    } else if (split.unusable > 0) {
+      ManifestEntry e;
+      e.layer = spec.name;
+      e.fid = proto.fid;
+      e.action = "part_dropped";
+      e.reason = std::to_string(split.unusable) + " " + split.unusable_type +
+                 " part(s) cannot be drawn as kind " + kind_name(spec.kind);
+      r.entries.push_back(std::move(e));
+    }
+    if (progress && total > 0 && (index & 1023) == 0)
+      forward_progress(double(index) / double(total), label.c_str(), const_cast<ProgressFn*>(progress));
+  }
+  if (!errors.failures().empty()) {
+    throw gdal_error(where + ": reading failed after " + std::to_string(r.counts.read) +
+                     " features: " + errors.failures());
+  }
+  forward_progress(1.0, label.c_str(), const_cast<ProgressFn*>(progress));
+  if (zm_features > 0) {
+    r.notes.push_back("layer '" + spec.name + "': Z/M values dropped from " +
+                      std::to_string(zm_features) + " features (decals are 2D; terrain comes "
+                      "from the DEM)");
+  }
+  if (closed_rings > 0) {
+    r.notes.push_back("layer '" + spec.name + "': closed open polygon rings in " +
+                      std::to_string(closed_rings) + " features");
+  }
+  for (const std::string& w : errors.warnings())
+    r.notes.push_back("layer '" + spec.name + "': GDAL warning: " + w);
+  return r;
+}
+
+bool is_osm(const std::string& path) {
+  auto ends = [&](const char* suffix) {
+    std::string s(suffix);
+    return path.size() >= s.size() && path.compare(path.size() - s.size(), s.size(), s) == 0;
+  };
+  return ends(".osm") || ends(".pbf") || ends(".osm.bz2") || ends(".OSM") || ends(".PBF");
+}
+
+}  // namespace
+
+SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& manifest,
+                       const ReadOptions& options) {
+  register_gdal_once();
+  ErrorCapture errors;
+  ReadAttempt r;
+  try {
+    r = read_once(spec, scene, options, errors);
+  } catch (const gdal_error& e) {
+    // Overpass writes OSM XML whose node ids do not increase; GDAL's custom
+    // indexing cannot take that. Read it again with the plain index.
+    const std::string what = e.what();
+    if (!is_osm(spec.source) || what.find("OSM_USE_CUSTOM_INDEXING") == std::string::npos) throw;
+    CPLSetThreadLocalConfigOption("OSM_USE_CUSTOM_INDEXING", "NO");
+    errors.clear();
+    try {
+      r = read_once(spec, scene, options, errors);
+    } catch (...) {
+      CPLSetThreadLocalConfigOption("OSM_USE_CUSTOM_INDEXING", nullptr);
+      throw;
+    }
+    CPLSetThreadLocalConfigOption("OSM_USE_CUSTOM_INDEXING", nullptr);
+    r.notes.push_back("layer '" + spec.name + "': OSM node ids do not increase (Overpass "
+                      "output?); read with OSM_USE_CUSTOM_INDEXING=NO");
+  }
+  manifest.layers.push_back(r.counts);
+  for (auto& e : r.entries) manifest.entries.push_back(std::move(e));
+  for (auto& n : r.notes) manifest.notes.push_back(std::move(n));
+  return std::move(r.layer);
+}
+
+FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
+  if (scene.layers.empty()) throw usage_error("read: the scene has no layers");
+  register_gdal_once();
+  // Layers are read concurrently, each from its own GDAL dataset (GDAL is
+  // thread-safe across datasets; errors are captured per thread). Results
+  // are gathered in scene order, so the output does not depend on timing.
+  const size_t n = scene.layers.size();
+  std::vector<SourceLayer> layers(n);
+  std::vector<Manifest> manifests(n);
+  std::vector<std::exception_ptr> failures(n);
+  std::mutex progress_mutex;
+  ReadOptions serial = options;
+  if (options.progress) {
+    serial.progress = [&](double f, const std::string& label) {
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      options.progress(f, label);
+    };
+  }
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    try {
+      layers[i] = read_layer(scene.layers[i], scene, manifests[i], serial);
+    } catch (...) {
+      failures[i] = std::current_exception();
+    }
+  });
+  // The first failing layer in scene order is the one reported.
+  for (const std::exception_ptr& e : failures)
+    if (e) std::rethrow_exception(e);
+  FeatureSet set;
+  for (size_t i = 0; i < n; ++i) {
+    set.layers.push_back(std::move(layers[i]));
+    Manifest& m = manifests[i];
+    for (auto& c : m.layers) set.manifest.layers.push_back(std::move(c));
+    for (auto& e : m.entries) set.manifest.entries.push_back(std::move(e));
+    for (auto& note : m.notes) set.manifest.notes.push_back(std::move(note));
+  }
+  return set;
+}
+
+}  // namespace prep

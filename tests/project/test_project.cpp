@@ -1,0 +1,181 @@
+// Done-means 2 of issue 3: reprojection against GeographicLib reference
+// values (an implementation independent of PROJ), the axis order, and widths
+// in ground metres.
+#include <GeographicLib/Geodesic.hpp>
+#include <GeographicLib/TransverseMercatorExact.hpp>
+#include <GeographicLib/UTMUPS.hpp>
+#include <gtest/gtest.h>
+#include <ogr_spatialref.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "../read/fixtures.hpp"
+#include "prep/error.hpp"
+#include "prep/pipeline.hpp"
+#include "prep/project.hpp"
+
+namespace {
+
+// EPSG:4326 exported as WKT keeps its authority axis order (lat, lon); the
+// data is (lon, lat) as every GIS file stores it.
+std::string epsg_wkt(int code) {
+  OGRSpatialReference srs;
+  srs.importFromEPSG(code);
+  char* wkt = nullptr;
+  const char* opts[] = {"FORMAT=WKT2_2019", nullptr};
+  srs.exportToWkt(&wkt, opts);
+  std::string s = wkt;
+  CPLFree(wkt);
+  return s;
+}
+
+prep::FeatureSet grid_of_points(double lon_c, double lat_c, double span) {
+  prep::FeatureSet fs;
+  prep::SourceLayer layer;
+  layer.spec.name = "pts";
+  layer.spec.kind = prep::DecalKind::line;
+  layer.srs_wkt = epsg_wkt(4326);
+  prep::SourceFeature f;
+  for (int i = 0; i <= 4; ++i)
+    for (int j = 0; j <= 4; ++j)
+      f.rings.emplace_back().push_back(
+          {lon_c - span + span * 0.5 * i, lat_c - span + span * 0.5 * j});
+  layer.features.push_back(f);
+  fs.layers.push_back(layer);
+  return fs;
+}
+
+class LocalTm : public testing::TestWithParam<double> {};
+
+TEST_P(LocalTm, MatchesGeographicLibExactTransverseMercatorTo1Micrometre) {
+  const double lat_c = GetParam(), lon_c = 10.0, span = 0.05;
+  prep::FeatureSet fs = grid_of_points(lon_c, lat_c, span);
+  const prep::FeatureSet original = fs;
+  prep::SceneFrame frame = prep::choose_frame(fs, "");
+  ASSERT_TRUE(std::isfinite(frame.tm_lon0));
+  EXPECT_NEAR(frame.tm_lon0, lon_c, 1e-9);
+  EXPECT_NEAR(frame.tm_lat0, lat_c, 1e-9);
+  prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+
+  // Reference: Karney's exact TM (elliptic functions), not a series.
+  const GeographicLib::TransverseMercatorExact tm(GeographicLib::Constants::WGS84_a(),
+                                                  GeographicLib::Constants::WGS84_f(), 1.0);
+  double x0 = 0, y0 = 0;
+  tm.Forward(frame.tm_lon0, frame.tm_lat0, frame.tm_lon0, x0, y0);
+  const auto& in = original.layers[0].features[0].rings;
+  const auto& out = p.features.layers[0].features[0].rings;
+  ASSERT_EQ(in.size(), out.size());
+  for (size_t i = 0; i < in.size(); ++i) {
+    double x = 0, y = 0;
+    tm.Forward(frame.tm_lon0, in[i][0].y, in[i][0].x, x, y);
+    EXPECT_NEAR(out[i][0].x + frame.origin_x, x, 1e-6) << "lon " << in[i][0].x << " lat " << in[i][0].y;
+    EXPECT_NEAR(out[i][0].y + frame.origin_y, y - y0, 1e-6) << "lon " << in[i][0].x << " lat " << in[i][0].y;
+  }
+  // The frame's point scale factor against the exact TM's k.
+  double gamma = 0, k = 0, x = 0, y = 0;
+  tm.Forward(frame.tm_lon0, lat_c + span, lon_c + span, x, y, gamma, k);
+  EXPECT_NEAR(prep::frame_scale_factor(frame, x, y - y0), k, 1e-12);
+}
+
+INSTANTIATE_TEST_SUITE_P(Latitudes, LocalTm, testing::Values(0.0, 45.0, 70.0));
+
+TEST(Project, Epsg4326IsReadAsLonLatNotInAuthorityOrder) {
+  // Under authority order, 7.42 would be taken as a latitude: hundreds of
+  // kilometres off.
+  prep::FeatureSet fs = grid_of_points(7.42, 43.73, 0.01);
+  const prep::FeatureSet original = fs;
+  prep::SceneFrame frame = prep::choose_frame(fs, "EPSG:32632");
+  prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  const auto& in = original.layers[0].features[0].rings;
+  const auto& out = p.features.layers[0].features[0].rings;
+  for (size_t i = 0; i < in.size(); ++i) {
+    int zone = 0;
+    bool north = true;
+    double x = 0, y = 0;
+    GeographicLib::UTMUPS::Forward(in[i][0].y, in[i][0].x, zone, north, x, y, 32);
+    EXPECT_NEAR(out[i][0].x + frame.origin_x, x, 1e-6);
+    EXPECT_NEAR(out[i][0].y + frame.origin_y, y, 1e-6);
+  }
+  // The origin is the data centre, rounded to whole metres.
+  EXPECT_EQ(frame.origin_x, std::round(frame.origin_x));
+  EXPECT_NEAR(out[12][0].x, 0.0, 1.0);
+  EXPECT_NEAR(out[12][0].y, 0.0, 1.0);
+}
+
+TEST(Project, GeographicCrsIsRejectedAsSceneFrame) {
+  prep::FeatureSet fs = grid_of_points(7.42, 43.73, 0.01);
+  EXPECT_THROW(prep::choose_frame(fs, "EPSG:4326"), prep::input_error);
+  EXPECT_THROW(prep::choose_frame(fs, "not a crs"), prep::input_error);
+}
+
+// Web Mercator (spherical formulas on WGS84 geodetic coordinates).
+constexpr double kR = 6378137.0;
+double merc_x(double lon) { return kR * lon * M_PI / 180; }
+double merc_y(double lat) { return kR * std::log(std::tan(M_PI / 4 + lat * M_PI / 360)); }
+
+// A 10 ground-metre line, 10 m wide, at 60°N in EPSG:3857 (where one
+// ground metre is about two Web Mercator metres).
+std::string write_3857_line(const prep::test::TempDir& dir) {
+  double lat2 = 0, lon2 = 0;
+  GeographicLib::Geodesic::WGS84().Direct(60.0, 10.0, 90.0, 10.0, lat2, lon2);
+  char json[1024];
+  std::snprintf(json, sizeof json,
+                R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:3857"}},
+"features":[{"type":"Feature","properties":{},"geometry":{"type":"LineString","coordinates":[[%.6f,%.6f],[%.6f,%.6f]]}}]})",
+                merc_x(10.0), merc_y(60.0), merc_x(lon2), merc_y(lat2));
+  prep::test::write_text(dir.file("line3857.geojson"), json);
+  return dir.file("line3857.geojson");
+}
+
+prep::SceneFeatures build_line(const std::string& path, const std::string& crs) {
+  prep::SceneSpec s;
+  prep::LayerSpec l;
+  l.name = "l";
+  l.source = path;
+  l.kind = prep::DecalKind::line;
+  l.style.width = 10.0;
+  s.layers.push_back(l);
+  s.crs = crs;
+  prep::BuildRequest req;
+  req.dry_run = true;
+  return prep::run_build(s, req).scene;
+}
+
+TEST(Project, TenMetreLineInWebMercatorAt60NorthStaysTenGroundMetres) {
+  prep::test::TempDir dir;
+  const std::string path = write_3857_line(dir);
+  // Default frame: local TM, where frame metres are ground metres.
+  prep::SceneFeatures tm = build_line(path, "");
+  ASSERT_EQ(tm.lines.size(), 1u);
+  const auto& a = tm.lines[0].points;
+  const double tm_len = std::hypot(a[1].x - a[0].x, a[1].y - a[0].y);
+  EXPECT_NEAR(tm_len, 10.0, 0.05);
+  EXPECT_NEAR(tm.lines[0].length, 10.0, 0.05);
+  EXPECT_NEAR(tm.lines[0].width, 10.0, 0.05);
+
+  // Frame = EPSG:3857: the stored width grows with the frame's scale so that
+  // it still covers 10 ground metres.
+  prep::SceneFeatures wm = build_line(path, "EPSG:3857");
+  ASSERT_EQ(wm.lines.size(), 1u);
+  const auto& b = wm.lines[0].points;
+  const double frame_len = std::hypot(b[1].x - b[0].x, b[1].y - b[0].y);
+  const double frame_per_ground = frame_len / 10.0;  // the line is 10 ground metres
+  EXPECT_NEAR(frame_per_ground, 2.0, 0.02);
+  EXPECT_NEAR(wm.lines[0].width / frame_per_ground, 10.0, 0.05);
+  EXPECT_NEAR(wm.lines[0].length, 10.0, 0.05);
+}
+
+TEST(Project, WebMercatorScaleFactorMatchesTheAnalyticValue) {
+  prep::FeatureSet fs = grid_of_points(10.0, 60.0, 0.01);
+  prep::SceneFrame frame = prep::choose_frame(fs, "EPSG:3857");
+  const double e2 = GeographicLib::Constants::WGS84_f() * (2 - GeographicLib::Constants::WGS84_f());
+  for (double lat : {59.995, 60.0, 60.005}) {
+    const double s = std::sin(lat * M_PI / 180), c = std::cos(lat * M_PI / 180);
+    const double k = std::sqrt(1 - e2 * s * s) / c;  // east-west scale of Web Mercator
+    const double x = merc_x(10.0) - frame.origin_x, y = merc_y(lat) - frame.origin_y;
+    EXPECT_NEAR(prep::frame_scale_factor(frame, x, y), k, 1e-6 * k) << lat;
+  }
+}
+
+}  // namespace

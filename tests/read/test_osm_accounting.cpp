@@ -1,0 +1,101 @@
+// Done-means 1 of issue 3: on real OSM extracts the manifest accounts for
+// every feature read, per layer, and the read counts match ogrinfo's (an
+// independent program) for the same filters.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "fixtures.hpp"
+#include "prep/pipeline.hpp"
+
+namespace {
+
+using prep::test::TempDir;
+
+struct LayerDef {
+  const char* name;
+  const char* ogr_layer;
+  const char* where;
+  const char* sql;
+  prep::DecalKind kind;
+};
+
+const LayerDef kLayers[] = {
+    {"landuse", "multipolygons", "landuse IS NOT NULL", "", prep::DecalKind::polygon},
+    {"buildings", "multipolygons", "building IS NOT NULL", "", prep::DecalKind::polygon},
+    {"water", "", "", "SELECT * FROM multipolygons WHERE \"natural\" = 'water' OR leisure = 'swimming_pool'",
+     prep::DecalKind::polygon},
+    {"highways", "lines", "highway IS NOT NULL", "", prep::DecalKind::line},
+    {"outlines", "multipolygons", "landuse IS NOT NULL", "", prep::DecalKind::outline},
+};
+
+void check_extract(const std::string& source, double resolution) {
+  if (!prep::test::exists(source)) GTEST_SKIP() << "missing real data: " << source;
+  TempDir dir;
+  prep::SceneSpec scene;
+  for (const LayerDef& d : kLayers) {
+    prep::LayerSpec l;
+    l.name = d.name;
+    l.source = source;
+    l.layer = d.ogr_layer;
+    l.where = d.where;
+    l.sql = d.sql;
+    l.kind = d.kind;
+    scene.layers.push_back(l);
+  }
+  scene.resolution = resolution;
+  prep::BuildRequest req;
+  req.dry_run = true;
+  req.report = dir.file("report.json");
+  prep::BuildResult r = prep::run_build(scene, req);
+
+  ASSERT_EQ(r.scene.manifest.layers.size(), std::size(kLayers));
+  std::map<std::string, size_t> dropped_entries, clipped_entries, parts;
+  for (const auto& e : r.scene.manifest.entries) {
+    if (e.action == "dropped") {
+      EXPECT_EQ(e.part, -1);
+      EXPECT_FALSE(e.reason.empty());
+      ++dropped_entries[e.layer];
+    }
+    if (e.action == "clipped_away") ++clipped_entries[e.layer];
+  }
+  for (const auto& p : r.scene.polygons) ++parts[r.scene.layers[p.layer].name];
+  for (const auto& l : r.scene.lines) ++parts[r.scene.layers[l.layer].name];
+
+  for (size_t i = 0; i < std::size(kLayers); ++i) {
+    const LayerDef& d = kLayers[i];
+    const prep::LayerCounts& c = r.scene.manifest.layers[i];
+    SCOPED_TRACE(d.name);
+    EXPECT_EQ(c.layer, d.name);
+    EXPECT_GT(c.read, 0u);
+    EXPECT_EQ(c.read, c.kept + c.clipped_away + c.dropped);
+    EXPECT_EQ(dropped_entries[d.name], c.dropped);
+    EXPECT_EQ(clipped_entries[d.name], c.clipped_away);
+    EXPECT_EQ(parts[d.name], c.parts);
+    EXPECT_LE(c.repaired, c.kept);
+    const long long oracle =
+        d.sql[0] ? prep::test::ogrinfo_count_sql(source, std::string("SELECT COUNT(*) FROM (") +
+                                                          d.sql + ")",
+                                                 "SQLite", dir)
+                 : prep::test::ogrinfo_count_sql(source,
+                                                 std::string("SELECT COUNT(*) FROM ") +
+                                                     d.ogr_layer + " WHERE " + d.where,
+                                                 "", dir);
+    if (oracle < 0) GTEST_SKIP() << "ogrinfo not available";
+    EXPECT_EQ(static_cast<long long>(c.read), oracle);
+  }
+  // The report carries the same counts.
+  std::string report = prep::test::read_text(dir.file("report.json"));
+  EXPECT_NE(report.find("\"clipped_away\""), std::string::npos);
+  EXPECT_NE(report.find("\"vertices_after_simplification\""), std::string::npos);
+}
+
+TEST(OsmAccounting, MonacoManifestAccountsForEveryFeatureAndMatchesOgrinfo) {
+  check_extract(prep::test::shared_data("monaco/monaco.osm.pbf"), 0.5);
+}
+
+TEST(OsmAccounting, LiechtensteinManifestAccountsForEveryFeatureAndMatchesOgrinfo) {
+  check_extract(prep::test::shared_data("liechtenstein/liechtenstein-2013-08-03.osm.pbf"), 0.0);
+}
+
+}  // namespace

@@ -1,0 +1,153 @@
+// Scene file parsing: keys, defaults, path resolution, and errors that name
+// the key and the line.
+#include <gtest/gtest.h>
+
+#include "prep/error.hpp"
+#include "prep/scene_file.hpp"
+
+namespace {
+
+std::string error_of(const std::string& text) {
+  try {
+    prep::parse_scene(text, "/data/city/scene.toml");
+  } catch (const prep::scene_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(SceneFile, ParsesLayersStylesAndSceneKeys) {
+  const char* text = R"(
+source = "city.gpkg"
+crs = "EPSG:32632"
+resolution = 0.5
+extent = [1.0, 2.0, 3.0, 4.0]
+extent_crs = "EPSG:4326"
+dem = "/vsizip/dem.zip/dem.tif"
+[build]
+grid = [500, 400]
+leaf_capacity = 4
+max_depth = 6
+threads = 2
+[[layer]]
+name = "roads"
+layer = "roads"
+where = "class = 'A'"
+kind = "line"
+width = 4.5
+corner = "miter"
+color = "#ff000080"
+[[layer]]
+name = "parks"
+sql = "SELECT * FROM parks"
+source = "/abs/parks.shp"
+kind = "outline"
+corner = "miter"
+outline_mode = "inset"
+color_attribute = "age"
+color_ramp = [[0, "#000000"], [10, "#ffffff"]]
+order_attribute = "rank"
+[[layer]]
+name = "hw"
+kind = "line"
+dynamic = true
+)";
+  prep::SceneSpec s = prep::parse_scene(text, "/data/city/scene.toml");
+  ASSERT_EQ(s.layers.size(), 3u);
+  EXPECT_EQ(s.crs, "EPSG:32632");
+  EXPECT_DOUBLE_EQ(s.resolution, 0.5);
+  ASSERT_TRUE(s.extent.has_value());
+  EXPECT_DOUBLE_EQ(s.extent->xmax, 3.0);
+  EXPECT_EQ(s.dem, "/vsizip//data/city/dem.zip/dem.tif");
+  EXPECT_EQ(s.build.grid_nx, 500u);
+  EXPECT_EQ(s.build.grid_ny, 400u);
+  EXPECT_EQ(s.build.qt_leaf_capacity, 4u);
+  EXPECT_EQ(s.build.qt_max_depth, 6u);
+  EXPECT_EQ(s.build.threads, 2u);
+  const prep::LayerSpec& roads = s.layers[0];
+  EXPECT_EQ(roads.source, "/data/city/city.gpkg");
+  EXPECT_EQ(roads.kind, prep::DecalKind::line);
+  EXPECT_EQ(roads.style.corner, decal::CornerStyle::miter);
+  EXPECT_EQ(roads.style.color.rgba, 0x800000ffu);
+  EXPECT_DOUBLE_EQ(roads.style.width, 4.5);
+  EXPECT_EQ(roads.scene_line, 13);
+  const prep::LayerSpec& parks = s.layers[1];
+  EXPECT_EQ(parks.source, "/abs/parks.shp");
+  EXPECT_EQ(parks.style.outline, decal::OutlineMode::inset);
+  ASSERT_EQ(parks.style.color.ramp.size(), 2u);
+  EXPECT_EQ(parks.style.color.ramp[1].rgba, 0xffffffffu);
+  EXPECT_EQ(parks.style.order_attribute, "rank");
+  EXPECT_TRUE(s.layers[2].dynamic);
+  EXPECT_DOUBLE_EQ(s.layers[2].style.width, 3.0);  // pixels by default
+}
+
+TEST(SceneFile, RelativePathsResolveAgainstTheSceneDirectoryAlsoInsideVsizip) {
+  EXPECT_EQ(prep::resolve_scene_path("a.pbf", "/d"), "/d/a.pbf");
+  EXPECT_EQ(prep::resolve_scene_path("sub/a.pbf", "/d"), "/d/sub/a.pbf");
+  EXPECT_EQ(prep::resolve_scene_path("/abs/a.pbf", "/d"), "/abs/a.pbf");
+  EXPECT_EQ(prep::resolve_scene_path("/vsizip/x.zip/y.hgt", "/d"), "/vsizip//d/x.zip/y.hgt");
+  EXPECT_EQ(prep::resolve_scene_path("/vsizip//abs/x.zip/y", "/d"), "/vsizip//abs/x.zip/y");
+  EXPECT_EQ(prep::resolve_scene_path("/vsicurl/https://h/x.tif", "/d"), "/vsicurl/https://h/x.tif");
+  EXPECT_EQ(prep::resolve_scene_path("https://h/x.json", "/d"), "https://h/x.json");
+}
+
+TEST(SceneFile, UnknownKeyIsAnErrorNamingKeyAndLine) {
+  std::string e = error_of("[[layer]]\nsource = \"a.shp\"\nwidht = 3\n");
+  EXPECT_NE(e.find("scene.toml:3"), std::string::npos) << e;
+  EXPECT_NE(e.find("layer[0].widht"), std::string::npos) << e;
+}
+
+TEST(SceneFile, WrongTypeIsAnErrorNamingKeyAndLine) {
+  std::string e = error_of("resolution = \"fine\"\n[[layer]]\nsource = \"a.shp\"\n");
+  EXPECT_NE(e.find("scene.toml:1: resolution"), std::string::npos) << e;
+  EXPECT_NE(e.find("expected a number"), std::string::npos) << e;
+}
+
+TEST(SceneFile, BadEnumValueNamesTheAcceptedValues) {
+  std::string e = error_of("[[layer]]\nsource = \"a.shp\"\n\nkind = \"poly\"\n");
+  EXPECT_NE(e.find("scene.toml:4: layer[0].kind"), std::string::npos) << e;
+  EXPECT_NE(e.find("polygon|line|outline"), std::string::npos) << e;
+}
+
+TEST(SceneFile, BadColourNamesKeyAndLine) {
+  std::string e = error_of("[[layer]]\nsource = \"a.shp\"\ncolor = \"red\"\n");
+  EXPECT_NE(e.find("scene.toml:3: layer[0].color"), std::string::npos) << e;
+}
+
+TEST(SceneFile, TomlSyntaxErrorNamesTheLine) {
+  std::string e = error_of("[[layer]]\nsource = \"a.shp\"\nwidth = = 3\n");
+  EXPECT_NE(e.find("scene.toml:3"), std::string::npos) << e;
+}
+
+TEST(SceneFile, LayerWithoutSourceIsAnError) {
+  std::string e = error_of("[[layer]]\nkind = \"line\"\n");
+  EXPECT_NE(e.find("no source"), std::string::npos) << e;
+}
+
+TEST(SceneFile, InsetWithoutMiterIsRejected) {
+  std::string e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"outline\"\noutline_mode = \"inset\"\n");
+  EXPECT_NE(e.find("miter"), std::string::npos) << e;
+}
+
+TEST(SceneFile, DuplicateLayerNamesAreRejected) {
+  std::string e = error_of("source = \"a.shp\"\n[[layer]]\nname = \"x\"\n[[layer]]\nname = \"x\"\n");
+  EXPECT_NE(e.find("duplicate layer name"), std::string::npos) << e;
+}
+
+TEST(SceneFile, ShippedMonacoSampleParses) {
+  prep::SceneSpec s =
+      prep::load_scene_file(std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/scene.toml");
+  ASSERT_GE(s.layers.size(), 5u);
+  EXPECT_EQ(s.layers[0].source, std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/monaco.osm.pbf");
+  EXPECT_EQ(s.dem, "/vsizip/" + std::string(DECALPREP_SOURCE_DIR) +
+                       "/samples/monaco/N43E007.hgt.zip/N43E007.hgt");
+  bool dynamic = false, outline = false;
+  for (const auto& l : s.layers) {
+    dynamic |= l.dynamic;
+    outline |= l.kind == prep::DecalKind::outline;
+  }
+  EXPECT_TRUE(dynamic);
+  EXPECT_TRUE(outline);
+}
+
+}  // namespace
