@@ -203,7 +203,9 @@ std::string report_json(const SceneFeatures& scene, const std::string& output,
   return report_object(scene, output, timings, package_written).dump(2) + "\n";
 }
 
-BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
+namespace {
+
+BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
   if (!request.dry_run && request.output.empty()) throw usage_error("build: no output path (-o)");
@@ -278,6 +280,28 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
   result.report_json = report.dump(2) + "\n";
   if (!request.report.empty()) write_text_file(request.report, result.report_json);
   return result;
+}
+
+}  // namespace
+
+BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
+  try {
+    return run_stages(scene, request);
+  } catch (const error& e) {
+    // CI reads the report even when the build fails: say why, then rethrow.
+    if (!request.report.empty()) {
+      nlohmann::json failed = {{"report_version", 1},
+                               {"package_written", false},
+                               {"error", e.what()},
+                               {"exit_code", static_cast<int>(e.code())}};
+      try {
+        write_text_file(request.report, failed.dump(2) + "\n");
+      } catch (const error&) {
+        // The original failure matters more than the report's.
+      }
+    }
+    throw;
+  }
 }
 
 }  // namespace prep
