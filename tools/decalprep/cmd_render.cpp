@@ -18,6 +18,7 @@ struct RenderArgs {
   std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye, target;
   std::string aa = "none", binding = "ssbo", only;
   double fov = 45.0, pitch = 45.0, z_scale = 1.0;
+  uint32_t frames = 1;
   bool cpu = false, stats = false, ortho = false, fit = false;
 };
 
@@ -54,6 +55,7 @@ void run(const RenderArgs& a) {
     throw prep::usage_error("render: --size '" + a.size + "' must be WxH, 1..16384");
   opt.width = w;
   opt.height = h;
+  opt.frames = a.frames;
   if (a.aa == "none") opt.aa = R::AntiAliasing::none;
   else if (a.aa == "coverage") opt.aa = R::AntiAliasing::coverage;
   else if (a.aa == "msaa4") opt.aa = R::AntiAliasing::msaa4;
@@ -151,6 +153,8 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_option("--aa", args->aa, "Anti-aliasing: none|coverage|msaa4");
   cmd->add_option("--binding", args->binding, "Blob binding: ssbo|texture");
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
+  cmd->add_option("--frames", args->frames, "GL: render N frames, report the last one's pass times (warm)")
+      ->check(CLI::Range(1u, 1000u));
   cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timer queries)");
   cmd->add_option("--raw", args->raw, "Write the decal layer as float32 RGBA (straight alpha)");
   cmd->add_option("--decals", args->decals_png, "Write the decal layer alone as PNG");

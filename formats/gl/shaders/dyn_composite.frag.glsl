@@ -7,7 +7,7 @@
 // termination: the rest of the list is never sorted in).
 layout(location = 0) out vec4 o_color;
 
-const int K = 16;
+const int K = 8;
 
 void main() {
   uint pixel = uint(gl_FragCoord.y) * uint(u_viewport.x) + uint(gl_FragCoord.x);
@@ -62,8 +62,6 @@ void main() {
   }
   DECAL_COMPOSITE_STEP(0) DECAL_COMPOSITE_STEP(1) DECAL_COMPOSITE_STEP(2) DECAL_COMPOSITE_STEP(3)
   DECAL_COMPOSITE_STEP(4) DECAL_COMPOSITE_STEP(5) DECAL_COMPOSITE_STEP(6) DECAL_COMPOSITE_STEP(7)
-  DECAL_COMPOSITE_STEP(8) DECAL_COMPOSITE_STEP(9) DECAL_COMPOSITE_STEP(10) DECAL_COMPOSITE_STEP(11)
-  DECAL_COMPOSITE_STEP(12) DECAL_COMPOSITE_STEP(13) DECAL_COMPOSITE_STEP(14) DECAL_COMPOSITE_STEP(15)
   if (acc.a <= 0.0) discard;
   o_color = acc;
 }
