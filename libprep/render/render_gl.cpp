@@ -246,6 +246,8 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
     glUniform3f(glGetUniformLocation(p_terrain, "u_light_dir"), float(light[0]), float(light[1]), float(light[2]));
     glUniform3f(glGetUniformLocation(p_terrain, "u_albedo"), float(opt.albedo[0]), float(opt.albedo[1]), float(opt.albedo[2]));
+    // Flat terrain (all heights 0) is land, not sea.
+    glUniform1f(glGetUniformLocation(p_terrain, "u_sea_level"), terrain.zmax > terrain.zmin ? 0.0f : -1e30f);
     glBindVertexArray(vao);
     glDrawElements(GL_TRIANGLES, GLsizei(idx.size()), GL_UNSIGNED_INT, nullptr);
     glDisable(GL_DEPTH_TEST);
