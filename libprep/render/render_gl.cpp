@@ -295,14 +295,18 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
       glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(mpp_ortho));
       glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(mpp_per_m));
     };
-    if (opt.draw_polygons) {
+    // A kind with no per-cell ranges is absent: its pass would index the
+    // 16-byte placeholder buffer, so it is skipped.
+    if (opt.draw_polygons && gpu->count(decal::BlobId::poly_bvh_range) == uint64_t(gp.nx) * gp.ny &&
+        gpu->count(decal::BlobId::cell_poly_range) == uint64_t(gp.nx) * gp.ny) {
       timer.begin("static polygons");
       set_common(p_poly);
       glDrawArrays(GL_TRIANGLES, 0, 3);
       timer.end();
     }
     // Lines over polygons (thesis §4.4.1): premultiplied "over".
-    if (opt.draw_lines) {
+    if (opt.draw_lines && gpu->count(decal::BlobId::line_bvh_range) == uint64_t(gp.nx) * gp.ny &&
+        gpu->count(decal::BlobId::cell_segment_range) == uint64_t(gp.nx) * gp.ny) {
       timer.begin("static lines");
       glEnable(GL_BLEND);
       glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);

@@ -67,6 +67,23 @@ TEST(GlLoader, RejectsBadNodeTypeHoleRangeAndGridCount) {
   }
 }
 
+TEST(GlLoader, RejectsDynamicVertexOutsideItsLineRun) {
+  auto m = render_test::hand_model();
+  // two dynamic lines of two vertices each
+  m.dyn_vertices = {{0, 0, 0, 0}, {1000, 0, 0, 0}, {0, 1000, 0, 1}, {1000, 1000, 0, 1}};
+  m.dyn_prev_next = {{-1, 1}, {0, -1}, {-1, 3}, {2, -1}};
+  m.dyn_line_start = {0, 2};
+  m.dyn_line_props.resize(2, decal::LineProps{2.0f, 0xff0000ffu, 0, 0, 0.f, 0, 0, 0});
+  EXPECT_TRUE(validate(m).ok) << validate(m).message;
+  m.dyn_vertices[1][3] = 1;  // vertex 1 claims line 1 but lies in line 0's run
+  auto s = validate(m);
+  ASSERT_FALSE(s.ok);
+  EXPECT_NE(s.message.find("dyn_vertices[1]"), std::string::npos) << s.message;
+  m.dyn_vertices[1][3] = 0;
+  m.dyn_line_start = {0, 0};
+  EXPECT_NE(validate(m).message.find("does not increase"), std::string::npos);
+}
+
 TEST(GlLoader, RenderRejectsCorruptModelBeforeCreatingAContext) {
   // render_gl validates first: the validation message (not an EGL one) comes
   // back whether or not this machine has EGL.
