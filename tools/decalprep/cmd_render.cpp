@@ -113,7 +113,12 @@ void run(const RenderArgs& a) {
                                a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
   }
 
+#ifdef PREP_RENDER_HAVE_GL
   R::Image img = a.cpu ? R::render_cpu(src, terrain, opt) : R::render_gl(src, terrain, opt);
+#else
+  if (!a.cpu) throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
+  R::Image img = R::render_cpu(src, terrain, opt);
+#endif
   R::write_png(a.output, img.rgba, img.width, img.height);
   if (topdown) R::write_world_file(a.output, view_extent, w, h, src.frame);
   if (!a.decals_png.empty()) R::write_png(a.decals_png, R::quantise(img.decals), img.width, img.height);
