@@ -330,7 +330,8 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     const uint64_t n_dyn = gpu->count(decal::BlobId::dyn_vertices);
     const uint64_t n_dyn_lines = gpu->count(decal::BlobId::dyn_line_start);
     if (opt.draw_dynamic && n_dyn > 0 && n_dyn_lines > 0) {
-      const std::string dd = defines + "#define DECAL_DYNAMIC 1\n";
+      const std::string dd = defines + (opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
+                             "#define DECAL_DYNAMIC 1\n";
       auto comp = [&](const char* file, const std::string& extra) {
         return gl.program({{}, {}, {}, {"decal_blobs.glsl", "dyn_common.glsl", file}, dd + extra});
       };

@@ -49,12 +49,14 @@ struct Shot {
   bool ok = false;
 };
 
-Shot shoot(const prep::DecalModel& m, const prep::Extent& view, uint32_t w, uint32_t h) {
+Shot shoot(const prep::DecalModel& m, const prep::Extent& view, uint32_t w, uint32_t h,
+           R::AntiAliasing aa = R::AntiAliasing::none) {
   R::DecalSource src = R::source_of(m);
   R::RenderOptions opt;
   opt.width = w;
   opt.height = h;
   opt.camera = R::topdown_camera(view, 0, 0);
+  opt.aa = aa;
   Shot s;
   try {
     s.img = R::render_gl(src, R::flat_heightfield(view), opt);
@@ -94,6 +96,25 @@ TEST(DynamicLines, KeepTheirPixelWidthWhenZoomedOut) {
       EXPECT_LT(s.img.dyn_kept, m.dyn_vertices.size() / 5) << "same-pixel removal kept " << s.img.dyn_kept;
       EXPECT_GT(s.img.dyn_kept, 20u);
     }
+  }
+}
+
+TEST(DynamicLines, CoverageAntiAliasingKeepsTheIntegratedPixelWidth) {
+  // With coverage AA a column across the red line integrates to its width
+  // (alpha 128/255 times 4 px), at any zoom, also off the pixel grid.
+  auto m = dynamic_model();
+  const uint32_t W = 320, H = 160;
+  for (double zoom : {1.0, 16.0}) {
+    double hw = 100 * zoom, hh = 50 * zoom;
+    prep::Extent view{100 - hw, 50.37 - hh, 100 + hw, 50.37 + hh};  // line off the pixel centres
+    Shot s = shoot(m, view, W, H, R::AntiAliasing::coverage);
+    if (!s.ok) GTEST_SKIP() << "no headless GL";
+    double sum = 0;
+    const uint32_t col = W / 2 - 6;
+    for (uint32_t j = 0; j < H; ++j) sum += s.img.dynamic[4 * (col + size_t(W) * j) + 3];
+    const double width = sum / (128 / 255.0);
+    RecordProperty("aa_width_px_zoom" + std::to_string(int(zoom)), std::to_string(width));
+    EXPECT_NEAR(width, 4.0, 0.5) << "zoom " << zoom;
   }
 }
 
