@@ -60,6 +60,9 @@ void run(const RenderArgs& a) {
   else if (a.aa == "coverage") opt.aa = R::AntiAliasing::coverage;
   else if (a.aa == "msaa4") opt.aa = R::AntiAliasing::msaa4;
   else throw prep::usage_error("render: --aa '" + a.aa + "' must be none, coverage or msaa4");
+  // The CPU evaluator answers per point: it draws aliased, so comparisons
+  // with the GL path use --aa none.
+  if (a.cpu && opt.aa != R::AntiAliasing::none) throw prep::usage_error("render: --cpu draws without anti-aliasing; use --aa none");
   if (a.binding == "ssbo") opt.binding = R::Binding::ssbo;
   else if (a.binding == "texture") opt.binding = R::Binding::texture;
   else throw prep::usage_error("render: --binding '" + a.binding + "' must be ssbo or texture");
@@ -160,8 +163,8 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
   cmd->add_option("--frames", args->frames, "GL: render N frames, report the last one's pass times (warm)")
       ->check(CLI::Range(1u, 1000u));
-  cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timer queries)");
-  cmd->add_option("--raw", args->raw, "Write the decal layer as float32 RGBA (straight alpha)");
+  cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timestamp queries and wall time)");
+  cmd->add_option("--raw", args->raw, "Write the static decal layer as float32 RGBA (straight alpha, row 0 at the top)");
   cmd->add_option("--decals", args->decals_png, "Write the decal layer alone as PNG");
   cmd->callback([args] {
     run(*args);
