@@ -147,6 +147,35 @@ TEST(DemSampler, SrtmInsideZipOpensAndMatchesGdal) {
   EXPECT_GT(clean, 200);
 }
 
+TEST(DemSampler, VrtAndFeetUnitsAreHonoured) {
+  const std::string dir = terraintest::temp_dir("vrt");
+  const double gt[6] = {0, 5, 0, 100, 0, -5};
+  const std::string tif = terraintest::write_dem(dir + "/feet.tif", 20, 20, gt, "EPSG:32632",
+                                                 [](int i, int j) { return 100.0 + i - j; });
+  {
+    GDALDatasetUniquePtr ds(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE));
+    ASSERT_TRUE(ds);
+    ds->GetRasterBand(1)->SetUnitType("ft");
+  }
+  // A VRT over the GeoTIFF, made by GDAL itself.
+  const std::string vrt = dir + "/feet.vrt";
+  {
+    GDALDatasetUniquePtr src(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("VRT");
+    GDALDatasetUniquePtr out(drv->CreateCopy(vrt.c_str(), src.get(), FALSE, nullptr, nullptr, nullptr));
+    ASSERT_TRUE(out);
+  }
+  prep::DemSampler dem(vrt, {}, 1.0, std::nullopt);
+  EXPECT_NE(dem.stats().description.find("VRT"), std::string::npos) << dem.stats().description;
+  dem.load(0, 0, 20, 20);
+  const GdalBilinear oracle(vrt);
+  for (double x = 3; x < 97; x += 7.3)
+    for (double y = 3; y < 97; y += 6.1) {
+      const prep::Point2 px = dem.to_pixel({x, y});
+      EXPECT_NEAR(dem.height(px.x, px.y), 0.3048 * oracle.at(x, y), 1e-3);
+    }
+}
+
 TEST(DemSampler, MissingFileIsAGdalError) {
   EXPECT_THROW(prep::DemSampler("/nonexistent/dem.tif", {}, 1.0, std::nullopt), prep::gdal_error);
 }

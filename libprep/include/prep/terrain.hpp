@@ -31,10 +31,12 @@ struct TerrainStats {
 
 // A DEM opened for sampling heights at scene points.
 //
-// No-data policy: a no-data (or NaN) cell takes the value of the nearest
-// valid cell in the window read (8-connected breadth-first distance; ties
-// to the first in row-major scan order), or `nodata_fill` (raw DEM units)
-// when given. Heights are raw * band scale + band offset, converted from
+// No-data policy: a no-data (or NaN) cell takes the value of a nearest
+// valid cell in the window read (Chebyshev distance in cells, computed by a
+// breadth-first search over the 8-neighbourhood seeded with the valid cells
+// in row-major order; among equally near cells the search's first wins), or
+// `nodata_fill` (raw DEM units) when given. Filled cells and the vertex
+// heights that used one are counted in TerrainStats (and the manifest). Heights are raw * band scale + band offset, converted from
 // feet when the band's unit says so, times `z_scale`.
 class DemSampler {
  public:
