@@ -68,46 +68,50 @@ GridParams grid_with_cell(const QBox& e, int64_t cw, int64_t ch) {
   return g;
 }
 
-// Mean primitives per occupied cell of grid `g` for the primitive boxes,
-// counted with a 2D difference array (O(primitives + cells)).
-double mean_per_occupied_cell(const GridParams& g, const std::vector<QBox>& prims) {
+// Entry-weighted mean number of primitives per cell of grid `g` for the
+// primitive boxes, counted with a 2D difference array (O(primitives + cells)).
+double weighted_mean_per_cell(const GridParams& g, const std::vector<QBox>& prims,
+                              const std::vector<float>& weights) {
   const size_t nx = g.nx, ny = g.ny;
-  std::vector<int64_t> diff((nx + 1) * (ny + 1), 0);
-  for (const QBox& b : prims) {
+  std::vector<double> diff((nx + 1) * (ny + 1), 0);
+  for (size_t i = 0; i < prims.size(); ++i) {
     int64_t x0, y0, x1, y1;
-    if (!cell_range(g, b, x0, y0, x1, y1)) continue;
-    diff[y0 * (nx + 1) + x0] += 1;
-    diff[y0 * (nx + 1) + x1 + 1] -= 1;
-    diff[(y1 + 1) * (nx + 1) + x0] -= 1;
-    diff[(y1 + 1) * (nx + 1) + x1 + 1] += 1;
+    if (!cell_range(g, prims[i], x0, y0, x1, y1)) continue;
+    const double w = weights[i];
+    diff[y0 * (nx + 1) + x0] += w;
+    diff[y0 * (nx + 1) + x1 + 1] -= w;
+    diff[(y1 + 1) * (nx + 1) + x0] -= w;
+    diff[(y1 + 1) * (nx + 1) + x1 + 1] += w;
   }
-  double entries = 0, occupied = 0;
-  std::vector<int64_t> row(nx + 1, 0);
+  double entries = 0, squares = 0;
+  std::vector<double> row(nx + 1, 0);
   for (size_t y = 0; y < ny; ++y) {
-    int64_t run = 0;
+    double run = 0;
     for (size_t x = 0; x < nx; ++x) {
       run += diff[y * (nx + 1) + x];
       row[x] += run;
-      if (row[x] > 0) {
-        entries += double(row[x]);
-        occupied += 1;
-      }
+      entries += row[x];
+      squares += row[x] * row[x];
     }
   }
-  return occupied > 0 ? entries / occupied : 0.0;
+  // Weighted by the entries themselves: the list length a random primitive
+  // (so, roughly, a random covered point) shares its cell with. Dense areas
+  // dominate, as they dominate the query cost.
+  return entries > 0 ? squares / entries : 0.0;
 }
 
 }  // namespace
 
-GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims, const BuildOptions& o) {
+GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims,
+                       const std::vector<float>& weights, const BuildOptions& o) {
   if (e.empty()) return GridParams{};
   const double w = double(e.x1 - e.x0 + 1), h = double(e.y1 - e.y0 + 1);
   if (o.grid_nx > 0 && o.grid_ny > 0) {
     // Thesis §4.2.1: a fixed number of cells over the data's AABB (500x500).
     return grid_with_cell(e, int64_t(std::ceil(w / o.grid_nx)), int64_t(std::ceil(h / o.grid_ny)));
   }
-  // Adaptive: square cells whose size makes the mean number of primitives
-  // per occupied cell approach target_per_cell. Start from a uniform-density
+  // Adaptive: square cells whose size makes the entry-weighted mean number
+  // of (weighted) primitives per cell approach target_per_cell. Start from a uniform-density
   // guess and correct with the measured occupancy (clustered data occupies
   // few cells, so the uniform guess is far too coarse for it).
   const double target = std::max<uint32_t>(o.target_per_cell, 1);
@@ -123,7 +127,7 @@ GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims, const Buil
       side *= 1.05;
       continue;
     }
-    double mean = mean_per_occupied_cell(g, prims);
+    double mean = weighted_mean_per_cell(g, prims, weights);
     double score = mean > 0 ? std::fabs(std::log(mean / target)) : 0.0;
     if (score < best_score) {
       best_score = score;

@@ -3,12 +3,14 @@
 #include "prep/pipeline.hpp"
 
 #include <cpl_vsi.h>
+#include <tbb/global_control.h>
 #include <xxhash.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "prep/clean.hpp"
@@ -205,6 +207,12 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
   if (!request.dry_run && request.output.empty()) throw usage_error("build: no output path (-o)");
+  // --threads caps every stage's oneTBB work (the output does not depend on it).
+  std::unique_ptr<tbb::global_control> threads;
+  if (scene.build.threads > 0) {
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    scene.build.threads);
+  }
 
   auto t0 = Clock::now();
   ReadOptions ro;

@@ -1,11 +1,17 @@
 // cmd_info.cpp — `decalprep info PACKAGE [--json]`: header, metadata and
 // blob table of a package (formats/SPEC.md), as text or JSON. Checks the
 // structure (decal::read_layout) but not the blob checksums; `verify` does.
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cinttypes>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
 #include <iostream>
-#include <iterator>
+#include <span>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -17,15 +23,41 @@ namespace {
 
 using json = nlohmann::ordered_json;
 
-std::vector<std::byte> slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw prep::input_error("info: cannot open '" + path + "'");
-  std::vector<char> c((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw prep::input_error("info: cannot read '" + path + "'");
-  std::vector<std::byte> out(c.size());
-  std::copy(c.begin(), c.end(), reinterpret_cast<char*>(out.data()));
-  return out;
-}
+// The file's bytes, memory-mapped (info reads only the header, the table
+// and the metadata, so even a huge package costs a few pages).
+class MappedFile {
+ public:
+  explicit MappedFile(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) throw prep::input_error("info: cannot open '" + path + "': " + std::strerror(errno));
+    struct stat st;
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+      ::close(fd);
+      throw prep::input_error("info: '" + path + "' is not a regular file");
+    }
+    size_ = static_cast<size_t>(st.st_size);
+    if (size_ > 0) {
+      void* m = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
+      if (m == MAP_FAILED) {
+        const int err = errno;
+        ::close(fd);
+        throw prep::input_error("info: cannot map '" + path + "': " + std::strerror(err));
+      }
+      data_ = static_cast<const std::byte*>(m);
+    }
+    ::close(fd);
+  }
+  ~MappedFile() {
+    if (data_) ::munmap(const_cast<std::byte*>(data_), size_);
+  }
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  std::span<const std::byte> bytes() const { return {data_, size_}; }
+
+ private:
+  const std::byte* data_ = nullptr;
+  size_t size_ = 0;
+};
 
 std::string hex64(uint64_t v) {
   char b[17];
@@ -54,7 +86,8 @@ json blob_json(size_t index, const decal::BlobTableEntry& e) {
 }
 
 void run_info(const std::string& path, bool as_json) {
-  const std::vector<std::byte> bytes = slurp(path);
+  const MappedFile file(path);
+  const std::span<const std::byte> bytes = file.bytes();
   decal::PackageLayout layout;
   if (decal::Status s = decal::read_layout(bytes, layout); !s)
     throw prep::format_error("info: " + path + ": " + s.message);

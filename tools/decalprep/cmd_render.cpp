@@ -16,7 +16,7 @@ namespace {
 
 struct RenderArgs {
   std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye, target;
-  std::string aa = "none", binding = "ssbo";
+  std::string aa = "none", binding = "ssbo", only;
   double fov = 45.0, pitch = 45.0, z_scale = 1.0;
   bool cpu = false, stats = false, ortho = false, fit = false;
 };
@@ -62,6 +62,17 @@ void run(const RenderArgs& a) {
   else if (a.binding == "texture") opt.binding = R::Binding::texture;
   else throw prep::usage_error("render: --binding '" + a.binding + "' must be ssbo or texture");
 
+  if (!a.only.empty()) {
+    opt.draw_polygons = opt.draw_lines = opt.draw_dynamic = false;
+    std::stringstream ss(a.only);
+    std::string kind;
+    while (std::getline(ss, kind, ',')) {
+      if (kind == "polygons") opt.draw_polygons = true;
+      else if (kind == "lines") opt.draw_lines = true;
+      else if (kind == "dynamic") opt.draw_dynamic = true;
+      else throw prep::usage_error("render: --only '" + a.only + "': kinds are polygons, lines, dynamic");
+    }
+  }
   // The terrain covers the package extent, and the requested extent too.
   prep::Extent view_extent;
   bool topdown = !a.extent.empty();
@@ -110,8 +121,12 @@ void run(const RenderArgs& a) {
     if (!out) throw prep::output_error("render: cannot write '" + a.raw + "'");
   }
   if (a.stats) {
-    std::printf("device: %s\n", img.device.c_str());
-    for (const auto& t : img.times) std::printf("%-48s %10.3f ms\n", t.pass.c_str(), t.ms);
+    std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), w, h, a.binding.c_str(), a.aa.c_str());
+    std::printf("%-48s %12s %12s\n", "pass", "gpu ms", "wall ms");
+    for (const auto& t : img.times) std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
+    if (img.dyn_kept || img.dyn_segments)
+      std::printf("dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
+                  img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
   }
 #endif
 }
@@ -135,6 +150,7 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_flag("--cpu", args->cpu, "Render with the CPU evaluator instead of GL");
   cmd->add_option("--aa", args->aa, "Anti-aliasing: none|coverage|msaa4");
   cmd->add_option("--binding", args->binding, "Blob binding: ssbo|texture");
+  cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
   cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timer queries)");
   cmd->add_option("--raw", args->raw, "Write the decal layer as float32 RGBA (straight alpha)");
   cmd->add_option("--decals", args->decals_png, "Write the decal layer alone as PNG");
