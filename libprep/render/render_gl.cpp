@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <map>
 #include <cmath>
 #include <cstring>
 
@@ -65,12 +66,21 @@ struct GlObjects {
       throw render_error("render: framebuffer incomplete");
     return f;
   }
+  // Built once per distinct source list (repeated frames reuse them).
   GLuint program(decal::gl::ProgramSources src) {
+    std::string key = src.defines;
+    for (const auto* list : {&src.vertex, &src.geometry, &src.fragment, &src.compute}) {
+      key += "|";
+      for (const auto& f : *list) key += f + ",";
+    }
+    if (auto it = program_cache.find(key); it != program_cache.end()) return it->second;
     GLuint p = 0;
     check(decal::gl::build_program(src, p));
     programs.push_back(p);
+    program_cache.emplace(key, p);
     return p;
   }
+  std::map<std::string, GLuint> program_cache;
 };
 
 // GPU pass timing with GL timestamp queries (--stats): a timestamp before
@@ -218,6 +228,10 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     glViewport(0, 0, GLsizei(W), GLsizei(H));
     glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
 
+    // Frames after the first show warm times (software GL compiles shader
+    // variants at their first draw); pass times are the last frame's.
+    for (uint32_t frame = 0; frame < std::max<uint32_t>(opt.frames, 1); ++frame) {
+    timer.passes.clear();
     // --- terrain pass
     timer.begin("terrain");
     glBindFramebuffer(GL_FRAMEBUFFER, f_terrain);
@@ -232,6 +246,8 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
     glUniform3f(glGetUniformLocation(p_terrain, "u_light_dir"), float(light[0]), float(light[1]), float(light[2]));
     glUniform3f(glGetUniformLocation(p_terrain, "u_albedo"), float(opt.albedo[0]), float(opt.albedo[1]), float(opt.albedo[2]));
+    // Flat terrain (all heights 0) is land, not sea.
+    glUniform1f(glGetUniformLocation(p_terrain, "u_sea_level"), terrain.zmax > terrain.zmin ? 0.0f : -1e30f);
     glBindVertexArray(vao);
     glDrawElements(GL_TRIANGLES, GLsizei(idx.size()), GL_UNSIGNED_INT, nullptr);
     glDisable(GL_DEPTH_TEST);
@@ -279,14 +295,18 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
       glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(mpp_ortho));
       glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(mpp_per_m));
     };
-    if (opt.draw_polygons) {
+    // A kind with no per-cell ranges is absent: its pass would index the
+    // 16-byte placeholder buffer, so it is skipped.
+    if (opt.draw_polygons && gpu->count(decal::BlobId::poly_bvh_range) == uint64_t(gp.nx) * gp.ny &&
+        gpu->count(decal::BlobId::cell_poly_range) == uint64_t(gp.nx) * gp.ny) {
       timer.begin("static polygons");
       set_common(p_poly);
       glDrawArrays(GL_TRIANGLES, 0, 3);
       timer.end();
     }
     // Lines over polygons (thesis §4.4.1): premultiplied "over".
-    if (opt.draw_lines) {
+    if (opt.draw_lines && gpu->count(decal::BlobId::line_bvh_range) == uint64_t(gp.nx) * gp.ny &&
+        gpu->count(decal::BlobId::cell_segment_range) == uint64_t(gp.nx) * gp.ny) {
       timer.begin("static lines");
       glEnable(GL_BLEND);
       glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
@@ -310,7 +330,8 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     const uint64_t n_dyn = gpu->count(decal::BlobId::dyn_vertices);
     const uint64_t n_dyn_lines = gpu->count(decal::BlobId::dyn_line_start);
     if (opt.draw_dynamic && n_dyn > 0 && n_dyn_lines > 0) {
-      const std::string dd = defines + "#define DECAL_DYNAMIC 1\n";
+      const std::string dd = defines + (opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
+                             "#define DECAL_DYNAMIC 1\n";
       auto comp = [&](const char* file, const std::string& extra) {
         return gl.program({{}, {}, {}, {"decal_blobs.glsl", "dyn_common.glsl", file}, dd + extra});
       };
@@ -419,6 +440,7 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     glBindTextureUnit(28, t_dyn);
     glDrawArrays(GL_TRIANGLES, 0, 3);
     timer.end();
+    }  // frames
 
     // --- read back (GL rows are bottom-up)
     std::vector<uint8_t> rgba(size_t(W) * H * 4);

@@ -5,7 +5,10 @@
 // exercises every decal type and style. PNGs go to render-out/smoke/.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
 #include <gdal_priv.h>
+#include <sys/file.h>
+#include <unistd.h>
 #include <ogrsf_frmts.h>
 
 #include <algorithm>
@@ -39,7 +42,24 @@ fs::path out_dir() {
   return p;
 }
 
-// Builds a package once per test binary run; "" with a reason when it cannot.
+// ctest runs every test in its own process, two at a time: the first one
+// builds a package under an exclusive lock, later ones reuse it when it is
+// newer than the tool binary that would build it.
+struct BuildLock {
+  int fd;
+  explicit BuildLock(const fs::path& p) : fd(::open(p.c_str(), O_CREAT | O_RDWR, 0644)) {
+    if (fd >= 0) ::flock(fd, LOCK_EX);
+  }
+  ~BuildLock() {
+    if (fd >= 0) ::close(fd);
+  }
+};
+bool fresh(const fs::path& pkg) {
+  std::error_code ec;
+  return fs::exists(pkg) && fs::last_write_time(pkg, ec) > fs::last_write_time(DECALPREP_TOOL, ec);
+}
+
+// The Monaco package; "" with a reason when it cannot be built.
 const std::string& monaco_package(std::string* why) {
   static std::string path, reason;
   static bool tried = false;
@@ -48,10 +68,13 @@ const std::string& monaco_package(std::string* why) {
     if (!fs::exists(std::string(DECALPREP_SHARED_DATA) + "/monaco/monaco.osm.pbf")) {
       reason = "Monaco data missing under " + std::string(DECALPREP_SHARED_DATA);
     } else {
-      std::string pkg = (out_dir() / "monaco.decals").string();
-      auto r = tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg + " -q");
-      if (r.rc != 0) reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
-      else path = pkg;
+      const fs::path pkg = out_dir() / "monaco.decals";
+      BuildLock lock(out_dir() / "monaco.lock");
+      if (!fresh(pkg)) {
+        auto r = tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
+        if (r.rc != 0) reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
+      }
+      if (reason.empty()) path = pkg.string();
     }
   }
   if (why) *why = reason;
@@ -250,6 +273,12 @@ const std::string& styles_package(std::string* why) {
     tried = true;
     fs::path d = out_dir() / "styles";
     fs::create_directories(d);
+    BuildLock lock(out_dir() / "styles.lock");
+    if (fresh(d / "styles.decals")) {
+      path = (d / "styles.decals").string();
+      if (why) *why = reason;
+      return path;
+    }
     // Polygon with a hole, and an island inside the hole (its own feature).
     write_text(d / "polys.geojson",
                collection({feature(R"({"type":"Polygon","coordinates":[)" + ring(7.4200, 43.7400, 7.4216, 43.7412) + "," +

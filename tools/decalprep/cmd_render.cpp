@@ -18,6 +18,7 @@ struct RenderArgs {
   std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye, target;
   std::string aa = "none", binding = "ssbo", only;
   double fov = 45.0, pitch = 45.0, z_scale = 1.0;
+  uint32_t frames = 1;
   bool cpu = false, stats = false, ortho = false, fit = false;
 };
 
@@ -54,10 +55,14 @@ void run(const RenderArgs& a) {
     throw prep::usage_error("render: --size '" + a.size + "' must be WxH, 1..16384");
   opt.width = w;
   opt.height = h;
+  opt.frames = a.frames;
   if (a.aa == "none") opt.aa = R::AntiAliasing::none;
   else if (a.aa == "coverage") opt.aa = R::AntiAliasing::coverage;
   else if (a.aa == "msaa4") opt.aa = R::AntiAliasing::msaa4;
   else throw prep::usage_error("render: --aa '" + a.aa + "' must be none, coverage or msaa4");
+  // The CPU evaluator answers per point: it draws aliased, so comparisons
+  // with the GL path use --aa none.
+  if (a.cpu && opt.aa != R::AntiAliasing::none) throw prep::usage_error("render: --cpu draws without anti-aliasing; use --aa none");
   if (a.binding == "ssbo") opt.binding = R::Binding::ssbo;
   else if (a.binding == "texture") opt.binding = R::Binding::texture;
   else throw prep::usage_error("render: --binding '" + a.binding + "' must be ssbo or texture");
@@ -111,7 +116,12 @@ void run(const RenderArgs& a) {
                                a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
   }
 
+#ifdef PREP_RENDER_HAVE_GL
   R::Image img = a.cpu ? R::render_cpu(src, terrain, opt) : R::render_gl(src, terrain, opt);
+#else
+  if (!a.cpu) throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
+  R::Image img = R::render_cpu(src, terrain, opt);
+#endif
   R::write_png(a.output, img.rgba, img.width, img.height);
   if (topdown) R::write_world_file(a.output, view_extent, w, h, src.frame);
   if (!a.decals_png.empty()) R::write_png(a.decals_png, R::quantise(img.decals), img.width, img.height);
@@ -151,8 +161,10 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_option("--aa", args->aa, "Anti-aliasing: none|coverage|msaa4");
   cmd->add_option("--binding", args->binding, "Blob binding: ssbo|texture");
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
-  cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timer queries)");
-  cmd->add_option("--raw", args->raw, "Write the decal layer as float32 RGBA (straight alpha)");
+  cmd->add_option("--frames", args->frames, "GL: render N frames, report the last one's pass times (warm)")
+      ->check(CLI::Range(1u, 1000u));
+  cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timestamp queries and wall time)");
+  cmd->add_option("--raw", args->raw, "Write the static decal layer as float32 RGBA (straight alpha, row 0 at the top)");
   cmd->add_option("--decals", args->decals_png, "Write the decal layer alone as PNG");
   cmd->callback([args] {
     run(*args);

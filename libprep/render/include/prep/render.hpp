@@ -109,6 +109,8 @@ struct RenderOptions {
   std::array<double, 3> albedo{0.62, 0.66, 0.58};
   // Which decal kinds to draw (e.g. polygons alone for a coverage check).
   bool draw_polygons = true, draw_lines = true, draw_dynamic = true;
+  // GL: frames rendered in one context; pass times are the last one's.
+  uint32_t frames = 1;
 };
 
 struct PassTime {
