@@ -134,12 +134,13 @@ struct Shapes {
     for (auto* g : boundaries) GEOSGeom_destroy_r(h, g);
     for (auto* g : geoms) GEOSGeom_destroy_r(h, g);
   }
-  void add(GEOSGeometry* g) {
+  void add(GEOSGeometry* g, const std::string& tag = "") {
     if (!g || GEOSisEmpty_r(h, g) == 1) {
       if (g) GEOSGeom_destroy_r(h, g);
       return;
     }
     geoms.push_back(g);
+    tags.push_back(tag);
   }
   void index() {
     tree = GEOSSTRtree_create_r(h, 10);
@@ -177,13 +178,17 @@ struct Shapes {
   }
   // Distance from (x, y) to the nearest shape boundary (search grows until
   // a candidate answers; infinity when there is none).
-  double boundary_distance(double x, double y, double span) const {
+  std::vector<std::string> tags;  // layer name per shape (for breakdowns)
+  double boundary_distance(double x, double y, double span, size_t* nearest = nullptr) const {
     GEOSGeometry* p = GEOSGeom_createPointFromXY_r(h, x, y);
     double best = INFINITY;
     for (double r = 1.0; r < 4 * span + 4; r *= 4) {
       for (size_t i : candidates(x - r, y - r, x + r, y + r)) {
         double d = 0;
-        if (GEOSDistance_r(h, boundaries[i], p, &d) == 1) best = std::min(best, d);
+        if (GEOSDistance_r(h, boundaries[i], p, &d) == 1 && d < best) {
+          best = d;
+          if (nearest) *nearest = i;
+        }
       }
       if (best <= r) break;
     }
@@ -317,9 +322,16 @@ void score(const char* what, const char* name, const std::vector<Sample>& sample
            double span, F classify, const char* extra_fmt = "", double e1 = 0) {
   size_t wrong = 0, excluded = 0, fp = 0, fn = 0;
   double max_err = 0;
+  std::map<std::string, std::pair<size_t, double>> by_layer;  // nearest boundary's layer: count, max error
   for (const auto& s : samples) {
     if (classify(s) == s.truth) continue;
-    const double d = oracle.boundary_distance(s.x, s.y, span);
+    size_t near = SIZE_MAX;
+    const double d = oracle.boundary_distance(s.x, s.y, span, &near);
+    if (d >= 0.002 && near < oracle.tags.size()) {
+      auto& e = by_layer[oracle.tags[near]];
+      e.first += 1;
+      e.second = std::max(e.second, d);
+    }
     if (d < 0.002) {
       ++excluded;
       continue;
@@ -330,9 +342,16 @@ void score(const char* what, const char* name, const std::vector<Sample>& sample
   }
   char extra[256] = "";
   if (*extra_fmt) std::snprintf(extra, sizeof extra, extra_fmt, e1);
+  std::string layers = "{";
+  for (const auto& [k, v] : by_layer) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%s\"%s\":[%zu,%.6g]", layers.size() > 1 ? "," : "", k.c_str(), v.first, v.second);
+    layers += buf;
+  }
+  layers += "}";
   emit("{\"what\":\"%s\",\"name\":\"%s\",\"samples\":%zu,\"misclassified\":%zu,\"false_pos\":%zu,"
-       "\"false_neg\":%zu,\"excluded_2mm\":%zu,\"max_position_error_m\":%.6g%s}",
-       what, name, samples.size(), wrong, fp, fn, excluded, max_err, extra);
+       "\"false_neg\":%zu,\"excluded_2mm\":%zu,\"max_position_error_m\":%.6g,\"by_layer\":%s%s}",
+       what, name, samples.size(), wrong, fp, fn, excluded, max_err, layers.c_str(), extra);
 }
 
 }  // namespace
@@ -354,8 +373,8 @@ int main(int argc, char** argv) try {
   g_origin_y = scene.frame.origin_y;
 
   Shapes oracle(h);
-  for (const auto& p : scene.polygons) oracle.add(polygon_geom(h, p));
-  for (const auto& l : scene.lines) oracle.add(line_band(h, l, scene.layers[l.layer]));
+  for (const auto& p : scene.polygons) oracle.add(polygon_geom(h, p), scene.layers[p.layer].name);
+  for (const auto& l : scene.lines) oracle.add(line_band(h, l, scene.layers[l.layer]), scene.layers[l.layer].name);
   oracle.index();
   if (oracle.geoms.empty()) throw std::runtime_error("no static polygons or lines in " + a.input);
 
