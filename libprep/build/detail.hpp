@@ -93,10 +93,13 @@ uint32_t resolve_color(const LayerColor& color, double value);
 
 // Chooses the decal grid over `extent` (quanta): fixed nx x ny when both are
 // non-zero, else adapted to the density of `primitives` (boxes of segments
-// and polygon leaves) aiming at options.target_per_cell per occupied cell,
-// within options.max_cells.
+// and polygon leaves, each with a query-cost weight): the cell size makes
+// the entry-weighted mean of the weighted primitive count per cell (the list
+// a random primitive shares its cell with, so dense areas dominate as they
+// dominate query cost) approach options.target_per_cell, within
+// options.max_cells. bench/bench_build compares it with 500x500.
 GridParams choose_grid(const QBox& extent, const std::vector<QBox>& primitives,
-                       const BuildOptions& options);
+                       const std::vector<float>& weights, const BuildOptions& options);
 
 // Calls fn(cell_index) for every cell whose closed box, expanded by one
 // quantum, meets `shape` (conservatively). Cells are visited in increasing

@@ -68,48 +68,60 @@ GridParams grid_with_cell(const QBox& e, int64_t cw, int64_t ch) {
   return g;
 }
 
-// Mean primitives per occupied cell of grid `g` for the primitive boxes,
-// counted with a 2D difference array (O(primitives + cells)).
-double mean_per_occupied_cell(const GridParams& g, const std::vector<QBox>& prims,
-                              double* total_entries = nullptr) {
+// Entry-weighted mean number of primitives per cell of grid `g` for the
+// primitive boxes, counted with a 2D difference array (O(primitives + cells)).
+double weighted_mean_per_cell(const GridParams& g, const std::vector<QBox>& prims,
+                              const std::vector<float>& weights) {
   const size_t nx = g.nx, ny = g.ny;
-  std::vector<int64_t> diff((nx + 1) * (ny + 1), 0);
-  for (const QBox& b : prims) {
+  std::vector<double> diff((nx + 1) * (ny + 1), 0);
+  for (size_t i = 0; i < prims.size(); ++i) {
     int64_t x0, y0, x1, y1;
-    if (!cell_range(g, b, x0, y0, x1, y1)) continue;
-    diff[y0 * (nx + 1) + x0] += 1;
-    diff[y0 * (nx + 1) + x1 + 1] -= 1;
-    diff[(y1 + 1) * (nx + 1) + x0] -= 1;
-    diff[(y1 + 1) * (nx + 1) + x1 + 1] += 1;
+    if (!cell_range(g, prims[i], x0, y0, x1, y1)) continue;
+    const double w = weights[i];
+    diff[y0 * (nx + 1) + x0] += w;
+    diff[y0 * (nx + 1) + x1 + 1] -= w;
+    diff[(y1 + 1) * (nx + 1) + x0] -= w;
+    diff[(y1 + 1) * (nx + 1) + x1 + 1] += w;
   }
-  double entries = 0, occupied = 0;
-  std::vector<int64_t> row(nx + 1, 0);
+  double entries = 0, squares = 0;
+  std::vector<double> row(nx + 1, 0);
   for (size_t y = 0; y < ny; ++y) {
-    int64_t run = 0;
+    double run = 0;
     for (size_t x = 0; x < nx; ++x) {
       run += diff[y * (nx + 1) + x];
       row[x] += run;
-      if (row[x] > 0) {
-        entries += double(row[x]);
-        occupied += 1;
-      }
+      entries += row[x];
+      squares += row[x] * row[x];
     }
   }
-  if (total_entries) *total_entries = entries;
-  return occupied > 0 ? entries / occupied : 0.0;
+  // Weighted by the entries themselves: the list length a random primitive
+  // (so, roughly, a random covered point) shares its cell with. Dense areas
+  // dominate, as they dominate the query cost.
+  return entries > 0 ? squares / entries : 0.0;
+}
+
+// Cell entries the primitive boxes make on grid `g` (O(primitives)).
+double entry_count(const GridParams& g, const std::vector<QBox>& prims) {
+  double entries = 0;
+  for (const QBox& b : prims) {
+    int64_t x0, y0, x1, y1;
+    if (cell_range(g, b, x0, y0, x1, y1)) entries += double(x1 - x0 + 1) * double(y1 - y0 + 1);
+  }
+  return entries;
 }
 
 }  // namespace
 
-GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims, const BuildOptions& o) {
+GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims,
+                       const std::vector<float>& weights, const BuildOptions& o) {
   if (e.empty()) return GridParams{};
   const double w = double(e.x1 - e.x0 + 1), h = double(e.y1 - e.y0 + 1);
   if (o.grid_nx > 0 && o.grid_ny > 0) {
     // Thesis §4.2.1: a fixed number of cells over the data's AABB (500x500).
     return grid_with_cell(e, int64_t(std::ceil(w / o.grid_nx)), int64_t(std::ceil(h / o.grid_ny)));
   }
-  // Adaptive: square cells whose size makes the mean number of primitives
-  // per occupied cell approach target_per_cell. Start from a uniform-density
+  // Adaptive: square cells whose size makes the entry-weighted mean number
+  // of (weighted) primitives per cell approach target_per_cell. Start from a uniform-density
   // guess and correct with the measured occupancy (clustered data occupies
   // few cells, so the uniform guess is far too coarse for it).
   const double target = std::max<uint32_t>(o.target_per_cell, 1);
@@ -120,8 +132,8 @@ GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims, const Buil
   // Cell-entry budget: where primitives overlap heavily (10^5 collinear
   // 1 cm segments of a 2 m wide line), no cell size reaches the target and
   // shrinking cells only multiplies the entries (each box then covers
-  // (box/side)^2 cells: tens of GB). Grids above the budget are refused and
-  // the search moves to larger cells.
+  // (box/side)^2 cells: ~10^9 entries, tens of GB). Grids over the budget
+  // are refused and the search moves to larger cells.
   const double entry_budget = std::max(64.0 * n, double(1u << 22));
   GridParams best = grid_with_cell(e, int64_t(std::ceil(side)), int64_t(std::ceil(side)));
   double best_score = std::numeric_limits<double>::infinity();
@@ -132,13 +144,12 @@ GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims, const Buil
       side *= 1.05;
       continue;
     }
-    double entries = 0;
-    double mean = mean_per_occupied_cell(g, prims, &entries);
-    if (entries > entry_budget) {
+    if (entry_count(g, prims) > entry_budget) {
       side *= 2;
       continue;
     }
     best_in_budget = true;
+    double mean = weighted_mean_per_cell(g, prims, weights);
     double score = mean > 0 ? std::fabs(std::log(mean / target)) : 0.0;
     if (score < best_score) {
       best_score = score;
@@ -151,8 +162,8 @@ GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims, const Buil
   }
   if (!best_in_budget) {
     throw resource_error("build: decal grid: no cell size keeps the segment/cell entries under " +
-                         std::to_string(uint64_t(entry_budget)) + " (primitives overlap too much; "
-                         "raise --resolution to simplify the lines)");
+                         std::to_string(uint64_t(entry_budget)) +
+                         " (primitives overlap too much; raise --resolution to simplify the lines)");
   }
   return best;
 }

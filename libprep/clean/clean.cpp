@@ -11,8 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include <cmath>
-#include <cstdarg>
-#include <cstdio>
+#include <algorithm>
 #include <memory>
 
 #include "prep/error.hpp"
@@ -192,7 +191,6 @@ void add_repair(PartResult& r, const std::string& what) {
 }
 
 struct Cleaner {
-  const SceneSpec& scene;
   const std::optional<Extent>& clip;
   double resolution;
 
@@ -416,13 +414,14 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
   out.manifest.notes = input.features.manifest.notes;
   const Manifest& in_manifest = input.features.manifest;
 
+  // Also capped by the pipeline; kept so clean() alone honours it.
   std::unique_ptr<tbb::global_control> limit;
   if (options.threads > 0) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                   options.threads);
   }
   tbb::enumerable_thread_specific<GeosContext> contexts;
-  Cleaner cleaner{scene, input.clip, scene.resolution};
+  Cleaner cleaner{input.clip, scene.resolution};
 
   for (size_t li = 0; li < input.features.layers.size(); ++li) {
     const SourceLayer& layer = input.features.layers[li];

@@ -3,12 +3,14 @@
 #include "prep/pipeline.hpp"
 
 #include <cpl_vsi.h>
+#include <tbb/global_control.h>
 #include <xxhash.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "prep/clean.hpp"
@@ -201,10 +203,18 @@ std::string report_json(const SceneFeatures& scene, const std::string& output,
   return report_object(scene, output, timings, package_written).dump(2) + "\n";
 }
 
-BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
+namespace {
+
+BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
   if (!request.dry_run && request.output.empty()) throw usage_error("build: no output path (-o)");
+  // --threads caps every stage's oneTBB work (the output does not depend on it).
+  std::unique_ptr<tbb::global_control> threads;
+  if (scene.build.threads > 0) {
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    scene.build.threads);
+  }
 
   auto t0 = Clock::now();
   ReadOptions ro;
@@ -273,6 +283,28 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
   result.report_json = report.dump(2) + "\n";
   if (!request.report.empty()) write_text_file(request.report, result.report_json);
   return result;
+}
+
+}  // namespace
+
+BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
+  try {
+    return run_stages(scene, request);
+  } catch (const error& e) {
+    // CI reads the report even when the build fails: say why, then rethrow.
+    if (!request.report.empty()) {
+      nlohmann::json failed = {{"report_version", 1},
+                               {"package_written", false},
+                               {"error", e.what()},
+                               {"exit_code", static_cast<int>(e.code())}};
+      try {
+        write_text_file(request.report, failed.dump(2) + "\n");
+      } catch (const error&) {
+        // The original failure matters more than the report's.
+      }
+    }
+    throw;
+  }
 }
 
 }  // namespace prep

@@ -41,10 +41,17 @@ class ErrorCapture {
   ErrorCapture(const ErrorCapture&) = delete;
   ErrorCapture& operator=(const ErrorCapture&) = delete;
 
-  const std::string& failures() const { return failures_; }
+  // The first failure, with how many more followed (GDAL often repeats one
+  // problem for every remaining feature).
+  std::string failures() const {
+    if (count_ <= 1) return first_;
+    return first_ + " (and " + std::to_string(count_ - 1) + " more GDAL errors)";
+  }
+  bool failed() const { return count_ > 0; }
   const std::vector<std::string>& warnings() const { return warnings_; }
   void clear() {
-    failures_.clear();
+    first_.clear();
+    count_ = 0;
     warnings_.clear();
   }
 
@@ -52,13 +59,13 @@ class ErrorCapture {
   static void CPL_STDCALL handler(CPLErr level, CPLErrorNum, const char* msg) {
     auto* self = static_cast<ErrorCapture*>(CPLGetErrorHandlerUserData());
     if (level >= CE_Failure) {
-      if (!self->failures_.empty()) self->failures_ += "; ";
-      self->failures_ += msg;
+      if (self->count_++ == 0) self->first_ = msg;
     } else if (level == CE_Warning && self->warnings_.size() < 20) {
       self->warnings_.emplace_back(msg);
     }
   }
-  std::string failures_;
+  std::string first_;
+  size_t count_ = 0;
   std::vector<std::string> warnings_;
 };
 
@@ -327,11 +334,13 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
   forward_progress(total > 0 ? 0.0 : -1.0, label.c_str(), const_cast<ProgressFn*>(progress));
 
   uint64_t zm_features = 0, closed_rings = 0;
+  int64_t first_failing_fid = -1;
   errors.clear();
   layer->ResetReading();
   for (;;) {
     std::unique_ptr<OGRFeature> feature(layer->GetNextFeature());
     if (!feature) break;
+    if (errors.failed() && first_failing_fid < 0) first_failing_fid = feature->GetFID();
     const uint64_t index = r.counts.read++;
     SourceFeature proto;
     proto.fid = feature->GetFID();
@@ -378,9 +387,11 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
     if (progress && total > 0 && (index & 1023) == 0)
       forward_progress(double(index) / double(total), label.c_str(), const_cast<ProgressFn*>(progress));
   }
-  if (!errors.failures().empty()) {
-    throw gdal_error(where + ": reading failed after " + std::to_string(r.counts.read) +
-                     " features: " + errors.failures());
+  if (errors.failed()) {
+    throw gdal_error(where + ": reading failed" +
+                     (first_failing_fid >= 0 ? " at fid " + std::to_string(first_failing_fid) : "") +
+                     " (" + std::to_string(r.counts.read) + " features read): " +
+                     errors.failures());
   }
   forward_progress(1.0, label.c_str(), const_cast<ProgressFn*>(progress));
   if (zm_features > 0) {

@@ -105,8 +105,32 @@ Camera fit_camera(const Extent& e, double zmin, double zmax, uint32_t width, uin
   double half = std::min(half_fov, std::atan(std::tan(half_fov) * aspect));
   double dist = radius / std::sin(half);
   c.target = {cx, cy, cz};
-  c.eye = {cx, cy - dist * std::cos(pitch), cz + dist * std::sin(pitch)};
   c.up = {0, 0, 1};
+  auto place = [&](double r) { c.eye = {cx, cy - r * std::cos(pitch), cz + r * std::sin(pitch)}; };
+  // Perspective: the nearest distance (bisection) at which all eight corners
+  // of the extent box project inside the image; the enclosing sphere above
+  // is the safe upper bound.
+  if (projection == Projection::perspective) {
+    auto fits = [&](double r) {
+      place(r);
+      c.near = std::max(0.1, r * 1e-3);
+      const detail::Mat4 m = detail::mat_mul(detail::projection_matrix(c, aspect), detail::view_matrix(c, c.eye));
+      for (int k = 0; k < 8; ++k) {
+        const double x = k & 1 ? e.xmax : e.xmin, y = k & 2 ? e.ymax : e.ymin, z = k & 4 ? zmax : zmin;
+        double v[4] = {0, 0, 0, 0};
+        for (int row = 0; row < 4; ++row) v[row] = m[row] * x + m[4 + row] * y + m[8 + row] * z + m[12 + row];
+        if (v[3] <= 0 || std::abs(v[0] / v[3]) > 1 || std::abs(v[1] / v[3]) > 1) return false;
+      }
+      return true;
+    };
+    double lo = 0.05 * dist, hi = dist;
+    for (int it = 0; it < 40; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (fits(mid) ? hi : lo) = mid;
+    }
+    dist = hi * 1.02;
+  }
+  place(dist);
   c.near = std::max(0.1, dist - 2 * radius) * 0.5;
   c.ortho_h = 2 * radius;
   c.ortho_w = 2 * radius * aspect;

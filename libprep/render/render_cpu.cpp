@@ -2,6 +2,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <thread>
+#include <vector>
 
 #include "detail/math.hpp"
 #include "prep/error.hpp"
@@ -13,13 +15,16 @@ namespace {
 
 // Terrain colour of the CPU path: the same Lambert model as terrain.frag.glsl
 // with the vertex normals averaged over the hit triangle's cell.
-std::array<double, 3> shade(const Heightfield& t, const RenderOptions& opt, double x, double y) {
+std::array<double, 3> shade(const Heightfield& t, const RenderOptions& opt, double x, double y, double z) {
   const Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
   int i = std::clamp(int((x - t.x0) / t.dx), 0, int(t.nx) - 2), j = std::clamp(int((y - t.y0) / t.dy), 0, int(t.ny) - 2);
   Vec3 n = detail::add(detail::add(t.normal_at(i, j), t.normal_at(i + 1, j)),
                        detail::add(t.normal_at(i, j + 1), t.normal_at(i + 1, j + 1)));
   double l = std::max(detail::dot(detail::normalize(n), light), 0.0);
-  return {opt.albedo[0] * (0.35 + 0.65 * l), opt.albedo[1] * (0.35 + 0.65 * l), opt.albedo[2] * (0.35 + 0.65 * l)};
+  // Sea tint at or below 0 m, as terrain.frag.glsl (flat terrain is land).
+  std::array<double, 3> albedo = opt.albedo;
+  if (t.zmax > t.zmin && z <= 0.0) albedo = {0.45, 0.58, 0.70};
+  return {albedo[0] * (0.35 + 0.65 * l), albedo[1] * (0.35 + 0.65 * l), albedo[2] * (0.35 + 0.65 * l)};
 }
 
 }  // namespace
@@ -38,16 +43,21 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
   img.decals.assign(size_t(W) * H * 4, 0.0f);
   img.rgba.assign(size_t(W) * H * 4, 0);
   const Camera& cam = opt.camera;
-  std::vector<double> hit_x(size_t(W) * H, NAN), hit_y(size_t(W) * H, NAN);
+  // Kinds not drawn are left out of the view the evaluator sees.
+  StaticView view = source.view;
+  if (!opt.draw_polygons) view.poly_bvh_range = {};
+  if (!opt.draw_lines) view.line_bvh_range = {};
+  std::vector<double> hit_x(size_t(W) * H, NAN), hit_y(size_t(W) * H, NAN), hit_z(size_t(W) * H, 0.0);
 
   Extent td;
   if (is_topdown(cam, W, H, &td)) {
     // Exactly the render_topdown pixel grid; the terrain is under every pixel.
-    img.decals = render_topdown(source.view, td, W, H);
+    img.decals = render_topdown(view, td, W, H);
     for (uint32_t j = 0; j < H; ++j)
       for (uint32_t i = 0; i < W; ++i) {
         hit_x[i + size_t(W) * j] = td.xmin + (i + 0.5) * (td.xmax - td.xmin) / W;
         hit_y[i + size_t(W) * j] = td.ymax - (j + 0.5) * (td.ymax - td.ymin) / H;
+        hit_z[i + size_t(W) * j] = 1.0;  // top-down: terrain tint not derived per pixel
       }
   } else {
     // Ray-cast the heightfield mesh in double precision from the pixel centre.
@@ -60,7 +70,9 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
       return {r[0] / r[3], r[1] / r[3], r[2] / r[3]};
     };
     const Vec3 fwd = detail::camera_basis(cam).forward;
-    for (uint32_t j = 0; j < H; ++j)
+    // Rows in parallel (evaluate() is thread-safe; each pixel is written once).
+    auto rows = [&](uint32_t j0, uint32_t step) {
+    for (uint32_t j = j0; j < H; j += step)
       for (uint32_t i = 0; i < W; ++i) {
         double nx = (i + 0.5) / W * 2 - 1, ny = 1 - (j + 0.5) / H * 2;
         Vec3 o, d;
@@ -76,16 +88,23 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
         const size_t k = i + size_t(W) * j;
         hit_x[k] = o[0] + *t * d[0];
         hit_y[k] = o[1] + *t * d[1];
-        EvalSample s = evaluate(source.view, hit_x[k], hit_y[k]);
+        hit_z[k] = o[2] + *t * d[2];
+        EvalSample s = evaluate(view, hit_x[k], hit_y[k]);
         float a = s.rgba[3];
         for (int c = 0; c < 3; ++c) img.decals[4 * k + c] = a > 0 ? s.rgba[c] / a : 0.0f;
         img.decals[4 * k + 3] = a;
       }
+    };
+    const uint32_t n = std::max(1u, std::min(16u, std::thread::hardware_concurrency()));
+    std::vector<std::thread> workers;
+    for (uint32_t t = 1; t < n; ++t) workers.emplace_back(rows, t, n);
+    rows(0, n);
+    for (auto& w : workers) w.join();
   }
   // Final image: decal layer over the shaded terrain, sky where no terrain.
   for (size_t k = 0; k < size_t(W) * H; ++k) {
     std::array<double, 3> base{0.80, 0.86, 0.93};
-    if (!std::isnan(hit_x[k])) base = shade(terrain, opt, hit_x[k], hit_y[k]);
+    if (!std::isnan(hit_x[k])) base = shade(terrain, opt, hit_x[k], hit_y[k], hit_z[k]);
     double a = img.decals[4 * k + 3];
     for (int c = 0; c < 3; ++c) {
       double v = img.decals[4 * k + c] * a + (1 - a) * base[c];
@@ -93,8 +112,8 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
     }
     img.rgba[4 * k + 3] = 255;
   }
-  img.times.push_back({"cpu frame (wall)",
-                       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count()});
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
+  img.times.push_back({"cpu frame", ms, ms});
   return img;
 #endif
 }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <map>
 #include <cmath>
 #include <cstring>
 
@@ -65,31 +66,60 @@ struct GlObjects {
       throw render_error("render: framebuffer incomplete");
     return f;
   }
+  // Built once per distinct source list (repeated frames reuse them).
   GLuint program(decal::gl::ProgramSources src) {
+    std::string key = src.defines;
+    for (const auto* list : {&src.vertex, &src.geometry, &src.fragment, &src.compute}) {
+      key += "|";
+      for (const auto& f : *list) key += f + ",";
+    }
+    if (auto it = program_cache.find(key); it != program_cache.end()) return it->second;
     GLuint p = 0;
     check(decal::gl::build_program(src, p));
     programs.push_back(p);
+    program_cache.emplace(key, p);
     return p;
   }
+  std::map<std::string, GLuint> program_cache;
 };
 
-// GPU pass timing with GL timer queries (--stats).
+// GPU pass timing with GL timestamp queries (--stats): a timestamp before
+// and after each pass. (GL_TIME_ELAPSED gave a nonsense first value on
+// llvmpipe.)
 struct PassTimer {
   GlObjects& gl;
-  std::vector<std::pair<std::string, GLuint>> open;
-  void begin(const std::string& name) {
+  struct Pass {
+    std::string name;
+    GLuint begin = 0, end = 0;
+    std::chrono::steady_clock::time_point wall0, wall1;
+  };
+  std::vector<Pass> passes;
+  GLuint stamp() {
     GLuint q = 0;
     glGenQueries(1, &q);
     gl.queries.push_back(q);
-    glBeginQuery(GL_TIME_ELAPSED, q);
-    open.emplace_back(name, q);
+    glQueryCounter(q, GL_TIMESTAMP);
+    return q;
   }
-  void end() { glEndQuery(GL_TIME_ELAPSED); }
+  // glFinish around each pass: software GL (llvmpipe) defers work to the
+  // next flush, so without it a pass's time lands in a later pass.
+  void begin(const std::string& name) {
+    glFinish();
+    passes.push_back({name, 0, 0, std::chrono::steady_clock::now(), {}});
+    passes.back().begin = stamp();
+  }
+  void end() {
+    passes.back().end = stamp();
+    glFinish();
+    passes.back().wall1 = std::chrono::steady_clock::now();
+  }
   void collect(std::vector<PassTime>& out) {
-    for (auto& [name, q] : open) {
-      GLuint64 ns = 0;
-      glGetQueryObjectui64v(q, GL_QUERY_RESULT, &ns);
-      out.push_back({name, double(ns) * 1e-6});
+    for (const auto& p : passes) {
+      GLuint64 t0 = 0, t1 = 0;
+      glGetQueryObjectui64v(p.begin, GL_QUERY_RESULT, &t0);
+      glGetQueryObjectui64v(p.end, GL_QUERY_RESULT, &t1);
+      out.push_back({p.name, t1 >= t0 ? double(t1 - t0) * 1e-6 : 0.0,
+                     std::chrono::duration<double, std::milli>(p.wall1 - p.wall0).count()});
     }
   }
 };
@@ -184,17 +214,24 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
 
     const bool tex = opt.binding == Binding::texture;
     std::string defines = tex ? "#define DECAL_TEXTURE 1\n" : "";
+    std::string aa_defines = opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n"
+                             : opt.aa == AntiAliasing::msaa4  ? "#define DECAL_MSAA 1\n"
+                                                              : "";
     GLuint p_terrain = gl.program({{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, ""});
     GLuint p_poly = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"}, {},
-                                defines + "#define DECAL_POLYGONS 1\n"});
+                                defines + aa_defines + "#define DECAL_POLYGONS 1\n"});
     GLuint p_line = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "static_common.glsl", "static_lines.glsl"}, {},
-                                defines + "#define DECAL_LINES 1\n"});
+                                defines + aa_defines + "#define DECAL_LINES 1\n"});
     GLuint p_comp = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
     (void)max_frag_ssbo;
 
     glViewport(0, 0, GLsizei(W), GLsizei(H));
     glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
 
+    // Frames after the first show warm times (software GL compiles shader
+    // variants at their first draw); pass times are the last frame's.
+    for (uint32_t frame = 0; frame < std::max<uint32_t>(opt.frames, 1); ++frame) {
+    timer.passes.clear();
     // --- terrain pass
     timer.begin("terrain");
     glBindFramebuffer(GL_FRAMEBUFFER, f_terrain);
@@ -209,6 +246,8 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
     glUniform3f(glGetUniformLocation(p_terrain, "u_light_dir"), float(light[0]), float(light[1]), float(light[2]));
     glUniform3f(glGetUniformLocation(p_terrain, "u_albedo"), float(opt.albedo[0]), float(opt.albedo[1]), float(opt.albedo[2]));
+    // Flat terrain (all heights 0) is land, not sea.
+    glUniform1f(glGetUniformLocation(p_terrain, "u_sea_level"), terrain.zmax > terrain.zmin ? 0.0f : -1e30f);
     glBindVertexArray(vao);
     glDrawElements(GL_TRIANGLES, GLsizei(idx.size()), GL_UNSIGNED_INT, nullptr);
     glDisable(GL_DEPTH_TEST);
@@ -217,10 +256,29 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     // --- static decal passes over the back-projected depth
     gpu->bind(tex ? decal::gl::BindingMode::texture : decal::gl::BindingMode::ssbo);
     glBindTextureUnit(31, t_depth);
-    glBindFramebuffer(GL_FRAMEBUFFER, f_decal);
+    // MSAA (option): the static passes shade every sample (per-sample
+    // shading, forced by gl_SamplePosition) into a 4x target, resolved into
+    // the decal layer afterwards (thesis §4.5).
+    GLuint f_static = f_decal;
+    if (opt.aa == AntiAliasing::msaa4) {
+      GLuint t_ms = 0;
+      glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &t_ms);
+      gl.textures.push_back(t_ms);
+      glTextureStorage2DMultisample(t_ms, 4, GL_RGBA32F, GLsizei(W), GLsizei(H), GL_TRUE);
+      f_static = gl.framebuffer(t_ms, 0);
+      glEnable(GL_SAMPLE_SHADING);
+      glMinSampleShading(1.0f);
+    }
+    glBindFramebuffer(GL_FRAMEBUFFER, f_static);
     const float clear0[4] = {0, 0, 0, 0};
+    glClearNamedFramebufferfv(f_static, GL_COLOR, 0, clear0);
     glClearNamedFramebufferfv(f_decal, GL_COLOR, 0, clear0);
     glBindVertexArray(empty_vao);
+    // Metres per pixel (thesis Eq. 4.1/4.2, per pixel): coverage AA and dynamic lines.
+    const double mpp_ortho = cam.projection == Projection::orthographic ? cam.ortho_h / H : 0.0;
+    const double mpp_per_m = cam.projection == Projection::perspective
+                                 ? 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H
+                                 : 0.0;
     const int64_t rx = ax - gp.origin_x, ry = ay - gp.origin_y;
     const int64_t cxi = floor_div(rx, gp.cell_w), cyi = floor_div(ry, gp.cell_h);
     auto set_common = [&](GLuint p) {
@@ -233,27 +291,47 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
                   float(double(ry - cyi * gp.cell_h) * q));
       glUniform2f(glGetUniformLocation(p, "u_cell_size"), float(double(gp.cell_w) * q), float(double(gp.cell_h) * q));
       glUniform2i(glGetUniformLocation(p, "u_grid_n"), GLint(gp.nx), GLint(gp.ny));
+      glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]), float(eye_rel[2]));
+      glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(mpp_ortho));
+      glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(mpp_per_m));
     };
-    timer.begin("static polygons");
-    set_common(p_poly);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-    timer.end();
+    // A kind with no per-cell ranges is absent: its pass would index the
+    // 16-byte placeholder buffer, so it is skipped.
+    if (opt.draw_polygons && gpu->count(decal::BlobId::poly_bvh_range) == uint64_t(gp.nx) * gp.ny &&
+        gpu->count(decal::BlobId::cell_poly_range) == uint64_t(gp.nx) * gp.ny) {
+      timer.begin("static polygons");
+      set_common(p_poly);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+      timer.end();
+    }
     // Lines over polygons (thesis §4.4.1): premultiplied "over".
-    timer.begin("static lines");
-    glEnable(GL_BLEND);
-    glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-    set_common(p_line);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-    glDisable(GL_BLEND);
-    timer.end();
+    if (opt.draw_lines && gpu->count(decal::BlobId::line_bvh_range) == uint64_t(gp.nx) * gp.ny &&
+        gpu->count(decal::BlobId::cell_segment_range) == uint64_t(gp.nx) * gp.ny) {
+      timer.begin("static lines");
+      glEnable(GL_BLEND);
+      glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+      set_common(p_line);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+      glDisable(GL_BLEND);
+      timer.end();
+    }
+
+    if (f_static != f_decal) {
+      timer.begin("msaa resolve");
+      glDisable(GL_SAMPLE_SHADING);
+      glBlitNamedFramebuffer(f_static, f_decal, 0, 0, GLint(W), GLint(H), 0, 0, GLint(W), GLint(H), GL_COLOR_BUFFER_BIT,
+                             GL_NEAREST);
+      timer.end();
+    }
 
     // --- dynamic lines (thesis §4.3, §4.4.2)
     const float clear_dyn[4] = {0, 0, 0, 0};
     glClearNamedFramebufferfv(f_dyn, GL_COLOR, 0, clear_dyn);
     const uint64_t n_dyn = gpu->count(decal::BlobId::dyn_vertices);
     const uint64_t n_dyn_lines = gpu->count(decal::BlobId::dyn_line_start);
-    if (n_dyn > 0 && n_dyn_lines > 0) {
-      const std::string dd = defines + "#define DECAL_DYNAMIC 1\n";
+    if (opt.draw_dynamic && n_dyn > 0 && n_dyn_lines > 0) {
+      const std::string dd = defines + (opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
+                             "#define DECAL_DYNAMIC 1\n";
       auto comp = [&](const char* file, const std::string& extra) {
         return gl.program({{}, {}, {}, {"decal_blobs.glsl", "dyn_common.glsl", file}, dd + extra});
       };
@@ -285,12 +363,6 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
       const uint32_t init[8] = {0, 1, 0, 0, 0, 0, capacity, uint32_t(n_dyn)};
       glNamedBufferSubData(counters, 0, sizeof init, init);
 
-      const Vec3 fwd = detail::camera_basis(cam).forward;
-      (void)fwd;
-      const double mpp_ortho = cam.projection == Projection::orthographic ? cam.ortho_h / H : 0.0;
-      const double mpp_per_m = cam.projection == Projection::perspective
-                                   ? 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H
-                                   : 0.0;
       auto set_dyn = [&](GLuint p) {
         glUseProgram(p);
         glUniform2i(glGetUniformLocation(p, "u_anchor_q"), GLint(ax), GLint(ay));
@@ -368,6 +440,7 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     glBindTextureUnit(28, t_dyn);
     glDrawArrays(GL_TRIANGLES, 0, 3);
     timer.end();
+    }  // frames
 
     // --- read back (GL rows are bottom-up)
     std::vector<uint8_t> rgba(size_t(W) * H * 4);
@@ -377,8 +450,8 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     glGetTextureImage(t_decal, 0, GL_RGBA, GL_FLOAT, GLsizei(dec.size() * sizeof(float)), dec.data());
     if (GLenum e = glGetError(); e != GL_NO_ERROR) throw render_error("render: GL error " + std::to_string(e));
     timer.collect(img.times);
-    img.times.push_back({"frame (wall, incl. upload and shader compile)",
-                         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count()});
+    const double frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
+    img.times.push_back({"total (incl. upload, shader compile, read-back)", frame, frame});
     img.rgba.resize(rgba.size());
     img.decals.resize(dec.size());
     img.dynamic.resize(dyn.size());

@@ -5,6 +5,7 @@
 #include "prep/render.hpp"
 
 #ifdef PREP_RENDER_HAVE_READER
+#include "decal/inspect.hpp"
 #include "decal/reader.hpp"
 #endif
 
@@ -76,6 +77,9 @@ DecalSource source_of(const DecalModel& m) {
 
 #ifdef PREP_RENDER_HAVE_READER
 DecalSource source_of(const decal::Package& package) {
+  // The reader's structural index checks first: nothing below (and no GL
+  // call later) sees a package that fails them.
+  if (decal::Status st = decal::validate_indices(package); !st) throw format_error("render: " + st.message);
   DecalSource s;
 #ifdef PREP_RENDER_HAVE_EVALUATE
   s.view = view_of(package);  // grid from the metadata, checked against the blobs

@@ -153,4 +153,102 @@ inline PolygonSet polygon_set(uint64_t seed, int tiles, double tile, double ox, 
   return s;
 }
 
+// ------------------------------------------------------- line oracle --
+// GEOS region a static line covers, on its double-precision geometry (see
+// tests/evaluate/test_line_accuracy.cpp for the definition per style).
+constexpr double kLimitDeg = 40.0;
+
+inline bool fallback(const prep::Point2& p, const prep::Point2& v, const prep::Point2& n) {
+  double ax = v.x - p.x, ay = v.y - p.y, bx = n.x - v.x, by = n.y - v.y;
+  const double la = std::hypot(ax, ay), lb = std::hypot(bx, by);
+  ax /= la; ay /= la; bx /= lb; by /= lb;
+  return -(ax * bx + ay * by) > std::cos(kLimitDeg * M_PI / 180.0);
+}
+
+inline G disc(GEOSContextHandle_t h, const prep::Point2& c, double r) {
+  G p = synth::point(h, c.x, c.y);
+  return G(h, GEOSBuffer_r(h, p.g, r, 64));
+}
+
+inline G unite(GEOSContextHandle_t h, std::vector<G>& parts) {
+  G coll = synth::collection(h, GEOS_GEOMETRYCOLLECTION, parts);
+  return G(h, GEOSUnaryUnion_r(h, coll.g));
+}
+
+inline G oracle(GEOSContextHandle_t h, const prep::SceneLine& l, const prep::LayerSpec& layer) {
+  const double hw = l.width * 0.5 * (layer.style.outline == decal::OutlineMode::normal ? 1 : 2);
+  const auto& pts = l.points;
+  const size_t n = pts.size();
+  G band;
+  const double limit = 1.0 / std::sin(kLimitDeg * M_PI / 360.0) * (1 + 1e-9);
+  switch (layer.style.corner) {
+    case decal::CornerStyle::round: {
+      G g = synth::linestring(h, pts, l.closed);
+      band = G(h, GEOSBufferWithStyle_r(h, g.g, hw, 64, GEOSBUF_CAP_ROUND, GEOSBUF_JOIN_ROUND, 5));
+      break;
+    }
+    case decal::CornerStyle::bevel: {
+      G g = synth::linestring(h, pts, l.closed);
+      band = G(h, GEOSBufferWithStyle_r(h, g.g, hw, 64, GEOSBUF_CAP_ROUND, GEOSBUF_JOIN_BEVEL, 5));
+      break;
+    }
+    case decal::CornerStyle::miter: {
+      std::vector<bool> fb(n, false);
+      bool any = false;
+      for (size_t i = 0; i < n; ++i) {
+        if (!l.closed && (i == 0 || i + 1 == n)) continue;
+        fb[i] = fallback(pts[(i + n - 1) % n], pts[i], pts[(i + 1) % n]);
+        any = any || fb[i];
+      }
+      if (l.closed && !any) {
+        G poly = synth::polygon(h, pts);
+        G outer(h, GEOSBufferWithStyle_r(h, poly.g, hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE, limit));
+        G inner(h, GEOSBufferWithStyle_r(h, poly.g, -hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE, limit));
+        band = G(h, GEOSDifference_r(h, outer.g, inner.g));
+        break;
+      }
+      // Walk the line from a break vertex (an end, or a fallback vertex of a
+      // ring), cutting at every break vertex.
+      std::vector<size_t> order;
+      size_t start = 0;
+      if (l.closed)
+        while (!fb[start]) ++start;
+      for (size_t k = 0; k < n; ++k) order.push_back((start + k) % n);
+      if (l.closed) order.push_back(start);
+      std::vector<G> parts;
+      prep::Ring piece{pts[order[0]]};
+      parts.push_back(disc(h, pts[order[0]], hw));
+      for (size_t k = 1; k < order.size(); ++k) {
+        const size_t i = order[k];
+        piece.push_back(pts[i]);
+        const bool brk = k + 1 == order.size() || fb[i];
+        if (!brk) continue;
+        // GEOS buffers a closed LineString as a ring (a join, no caps), so a
+        // ring with a single fallback vertex is cut into two open pieces
+        // sharing one segment; their union keeps every mitre join.
+        std::vector<prep::Ring> pieces{piece};
+        if (piece.size() >= 4 && piece.front().x == piece.back().x && piece.front().y == piece.back().y)
+          pieces = {prep::Ring(piece.begin(), piece.begin() + 3), prep::Ring(piece.begin() + 1, piece.end())};
+        for (const auto& pc : pieces) {
+          G g = synth::linestring(h, pc);
+          parts.push_back(G(h, GEOSBufferWithStyle_r(h, g.g, hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE, limit)));
+        }
+        parts.push_back(disc(h, pts[i], hw));
+        piece = {pts[i]};
+      }
+      band = unite(h, parts);
+      break;
+    }
+  }
+  if (layer.style.outline == decal::OutlineMode::normal) return band;
+  double area2 = 0;
+  for (size_t i = 0; i < n; ++i)
+    area2 += pts[i].x * pts[(i + 1) % n].y - pts[(i + 1) % n].x * pts[i].y;
+  const bool ccw = area2 > 0;
+  G poly = synth::polygon(h, pts);
+  if ((layer.style.outline == decal::OutlineMode::inset) == ccw)
+    return G(h, GEOSIntersection_r(h, band.g, poly.g));
+  return G(h, GEOSDifference_r(h, band.g, poly.g));
+}
+
 }  // namespace synth

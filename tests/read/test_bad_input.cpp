@@ -50,6 +50,20 @@ TEST(BadInput, MissingFileNamesTheFile) {
   expect_no_output(dir);
 }
 
+TEST(BadInput, AFailedBuildStillWritesAReportSayingWhy) {
+  TempDir dir;
+  auto r = run_tool("build " + shell_quote(dir.file("nope.shp")) + " -o " +
+                        shell_quote(dir.file("out.decals")) + " --report " +
+                        shell_quote(dir.file("r.json")),
+                    dir);
+  EXPECT_EQ(r.rc, kInput) << r.output;
+  const std::string report = prep::test::read_text(dir.file("r.json"));
+  EXPECT_NE(report.find("\"package_written\": false"), std::string::npos) << report;
+  EXPECT_NE(report.find("nope.shp: no such file"), std::string::npos) << report;
+  EXPECT_NE(report.find("\"exit_code\": 3"), std::string::npos) << report;
+  expect_no_output(dir);
+}
+
 TEST(BadInput, GarbageShapefileIsRejectedNamingTheFile) {
   TempDir dir;
   prep::test::write_text(dir.file("junk.shp"), std::string(300, '\x5a'));
@@ -72,7 +86,8 @@ TEST(BadInput, TruncatedShapefileIsRejectedNamingFileAndLayer) {
                         shell_quote(dir.file("out.decals")) + " --kind line",
                     dir);
   EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("roads.shp layer 'roads'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("roads.shp layer 'roads': reading failed at fid "), std::string::npos)
+      << r.output;
   expect_no_output(dir);
 }
 

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <nlohmann/json.hpp>
 
 #include "fixtures.hpp"
 #include "prep/pipeline.hpp"
@@ -88,6 +89,46 @@ void check_extract(const std::string& source, double resolution) {
   std::string report = prep::test::read_text(dir.file("report.json"));
   EXPECT_NE(report.find("\"clipped_away\""), std::string::npos);
   EXPECT_NE(report.find("\"vertices_after_simplification\""), std::string::npos);
+
+  // The full path: a package built by the tool carries the same manifest in
+  // its metadata (read back with `decalprep info --json`).
+  std::string toml;
+  for (const LayerDef& d : kLayers) {
+    toml += "[[layer]]\nname = \"" + std::string(d.name) + "\"\nsource = \"" + source + "\"\n";
+    if (d.sql[0]) {
+      std::string escaped;  // a TOML basic string: escape the double quotes
+      for (const char* c = d.sql; *c; ++c) escaped += *c == '"' ? std::string("\\\"") : std::string(1, *c);
+      toml += "sql = \"" + escaped + "\"\n";
+    }
+    if (d.ogr_layer[0]) toml += "layer = \"" + std::string(d.ogr_layer) + "\"\n";
+    if (d.where[0]) toml += "where = \"" + std::string(d.where) + "\"\n";
+    toml += std::string("kind = \"") +
+            (d.kind == prep::DecalKind::polygon ? "polygon" : d.kind == prep::DecalKind::line ? "line" : "outline") +
+            "\"\n";
+  }
+  toml = "resolution = " + std::to_string(resolution) + "\n" + toml;
+  prep::test::write_text(dir.file("scene.toml"), toml);
+  const std::string pkg = dir.file("extract.decals");
+  auto built = prep::test::run_tool("build -q " + prep::test::shell_quote(dir.file("scene.toml")) +
+                                        " -o " + prep::test::shell_quote(pkg),
+                                    dir);
+  if (built.output.find("no build/write stage linked") != std::string::npos)
+    GTEST_SKIP() << "this decalprep has no build/write stage";
+  ASSERT_EQ(built.rc, 0) << built.output;
+  auto info = prep::test::run_tool("info --json " + prep::test::shell_quote(pkg) + " 2>/dev/null", dir);
+  ASSERT_EQ(info.rc, 0) << info.output;
+  nlohmann::json meta = nlohmann::json::parse(info.output)["metadata"];
+  const nlohmann::json& layers = meta["manifest"]["layers"];
+  ASSERT_EQ(layers.size(), std::size(kLayers));
+  for (size_t i = 0; i < std::size(kLayers); ++i) {
+    const prep::LayerCounts& c = r.scene.manifest.layers[i];
+    SCOPED_TRACE(kLayers[i].name);
+    EXPECT_EQ(layers[i]["layer"], c.layer);
+    EXPECT_EQ(layers[i]["read"].get<uint64_t>(), c.read);
+    EXPECT_EQ(layers[i]["read"].get<uint64_t>(),
+              layers[i]["kept"].get<uint64_t>() + layers[i]["clipped_away"].get<uint64_t>() +
+                  layers[i]["dropped"].get<uint64_t>());
+  }
 }
 
 TEST(OsmAccounting, MonacoManifestAccountsForEveryFeatureAndMatchesOgrinfo) {

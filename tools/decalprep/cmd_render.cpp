@@ -16,8 +16,9 @@ namespace {
 
 struct RenderArgs {
   std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye, target;
-  std::string aa = "none", binding = "ssbo";
+  std::string aa = "none", binding = "ssbo", only;
   double fov = 45.0, pitch = 45.0, z_scale = 1.0;
+  uint32_t frames = 1;
   bool cpu = false, stats = false, ortho = false, fit = false;
 };
 
@@ -54,14 +55,29 @@ void run(const RenderArgs& a) {
     throw prep::usage_error("render: --size '" + a.size + "' must be WxH, 1..16384");
   opt.width = w;
   opt.height = h;
+  opt.frames = a.frames;
   if (a.aa == "none") opt.aa = R::AntiAliasing::none;
   else if (a.aa == "coverage") opt.aa = R::AntiAliasing::coverage;
   else if (a.aa == "msaa4") opt.aa = R::AntiAliasing::msaa4;
   else throw prep::usage_error("render: --aa '" + a.aa + "' must be none, coverage or msaa4");
+  // The CPU evaluator answers per point: it draws aliased, so comparisons
+  // with the GL path use --aa none.
+  if (a.cpu && opt.aa != R::AntiAliasing::none) throw prep::usage_error("render: --cpu draws without anti-aliasing; use --aa none");
   if (a.binding == "ssbo") opt.binding = R::Binding::ssbo;
   else if (a.binding == "texture") opt.binding = R::Binding::texture;
   else throw prep::usage_error("render: --binding '" + a.binding + "' must be ssbo or texture");
 
+  if (!a.only.empty()) {
+    opt.draw_polygons = opt.draw_lines = opt.draw_dynamic = false;
+    std::stringstream ss(a.only);
+    std::string kind;
+    while (std::getline(ss, kind, ',')) {
+      if (kind == "polygons") opt.draw_polygons = true;
+      else if (kind == "lines") opt.draw_lines = true;
+      else if (kind == "dynamic") opt.draw_dynamic = true;
+      else throw prep::usage_error("render: --only '" + a.only + "': kinds are polygons, lines, dynamic");
+    }
+  }
   // The terrain covers the package extent, and the requested extent too.
   prep::Extent view_extent;
   bool topdown = !a.extent.empty();
@@ -100,7 +116,12 @@ void run(const RenderArgs& a) {
                                a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
   }
 
+#ifdef PREP_RENDER_HAVE_GL
   R::Image img = a.cpu ? R::render_cpu(src, terrain, opt) : R::render_gl(src, terrain, opt);
+#else
+  if (!a.cpu) throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
+  R::Image img = R::render_cpu(src, terrain, opt);
+#endif
   R::write_png(a.output, img.rgba, img.width, img.height);
   if (topdown) R::write_world_file(a.output, view_extent, w, h, src.frame);
   if (!a.decals_png.empty()) R::write_png(a.decals_png, R::quantise(img.decals), img.width, img.height);
@@ -110,8 +131,12 @@ void run(const RenderArgs& a) {
     if (!out) throw prep::output_error("render: cannot write '" + a.raw + "'");
   }
   if (a.stats) {
-    std::printf("device: %s\n", img.device.c_str());
-    for (const auto& t : img.times) std::printf("%-48s %10.3f ms\n", t.pass.c_str(), t.ms);
+    std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), w, h, a.binding.c_str(), a.aa.c_str());
+    std::printf("%-48s %12s %12s\n", "pass", "gpu ms", "wall ms");
+    for (const auto& t : img.times) std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
+    if (img.dyn_kept || img.dyn_segments)
+      std::printf("dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
+                  img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
   }
 #endif
 }
@@ -135,8 +160,11 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_flag("--cpu", args->cpu, "Render with the CPU evaluator instead of GL");
   cmd->add_option("--aa", args->aa, "Anti-aliasing: none|coverage|msaa4");
   cmd->add_option("--binding", args->binding, "Blob binding: ssbo|texture");
-  cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timer queries)");
-  cmd->add_option("--raw", args->raw, "Write the decal layer as float32 RGBA (straight alpha)");
+  cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
+  cmd->add_option("--frames", args->frames, "GL: render N frames, report the last one's pass times (warm)")
+      ->check(CLI::Range(1u, 1000u));
+  cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timestamp queries and wall time)");
+  cmd->add_option("--raw", args->raw, "Write the static decal layer as float32 RGBA (straight alpha, row 0 at the top)");
   cmd->add_option("--decals", args->decals_png, "Write the decal layer alone as PNG");
   cmd->callback([args] {
     run(*args);

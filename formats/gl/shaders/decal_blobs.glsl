@@ -23,6 +23,7 @@ DECAL_BLOB(7, usamplerBuffer, cell_polys, uvec4)
 DECAL_BLOB(8, usamplerBuffer, cell_holes, uvec2)
 DECAL_BLOB(9, usamplerBuffer, poly_bvh_range, uvec4)
 DECAL_BLOB(10, isamplerBuffer, poly_bvh_box, ivec4)
+DECAL_BLOB(23, usamplerBuffer, poly_root_node, uint)
 #ifdef DECAL_TEXTURE
 uint  poly_rgba(uint i)         { return texelFetch(t_poly_props, int(2u * i)).x; }
 ivec4 qt_node_box(uint i)       { return texelFetch(t_qt_node_box, int(i)); }
@@ -35,6 +36,7 @@ uvec4 cell_poly(uint i)         { return texelFetch(t_cell_polys, int(i)); }
 uvec2 cell_hole(uint i)         { return texelFetch(t_cell_holes, int(i)).xy; }
 uvec4 poly_bvh_range(uint c)    { return texelFetch(t_poly_bvh_range, int(c)); }
 ivec4 poly_bvh_box(uint i)      { return texelFetch(t_poly_bvh_box, int(i)); }
+uint  poly_root(uint i)         { return texelFetch(t_poly_root_node, int(i)).x; }
 #else
 uint  poly_rgba(uint i)         { return d_poly_props[i].rgba; }
 ivec4 qt_node_box(uint i)       { return d_qt_node_box[i]; }
@@ -47,6 +49,7 @@ uvec4 cell_poly(uint i)         { return d_cell_polys[i]; }
 uvec2 cell_hole(uint i)         { return d_cell_holes[i]; }
 uvec4 poly_bvh_range(uint c)    { return d_poly_bvh_range[c]; }
 ivec4 poly_bvh_box(uint i)      { return d_poly_bvh_box[i]; }
+uint  poly_root(uint i)         { return d_poly_root_node[i]; }
 #endif
 #endif  // DECAL_POLYGONS
 

@@ -7,7 +7,7 @@
 // termination: the rest of the list is never sorted in).
 layout(location = 0) out vec4 o_color;
 
-const int K = 16;
+const int K = 8;
 
 void main() {
   uint pixel = uint(gl_FragCoord.y) * uint(u_viewport.x) + uint(gl_FragCoord.x);
@@ -17,9 +17,11 @@ void main() {
   // compiler may exploit that (observed with llvmpipe).
   uint orders[K];
   uint lines[K];
+  float covs[K];  // a line's coverage: the largest over its entries
   for (int i = 0; i < K; ++i) {
     orders[i] = NONE;
     lines[i] = 0u;
+    covs[i] = 0.0;
   }
   int count = 0;
   uint n = head;
@@ -28,27 +30,34 @@ void main() {
     n = e.z;
     // position of e.x in the sorted prefix
     int pos = count;
-    bool repeat = false;
+    int repeat = -1;
     for (int i = 0; i < K; ++i) {
       if (i >= count) break;
-      if (orders[i] == e.x) { repeat = true; break; }
+      if (orders[i] == e.x) { repeat = i; break; }
       if (orders[i] > e.x) { pos = i; break; }
     }
-    if (repeat || pos >= K) continue;
+    float cov = uintBitsToFloat(e.w);
+    if (repeat >= 0) {
+      covs[repeat] = max(covs[repeat], cov);
+      continue;
+    }
+    if (pos >= K) continue;
     // shift down (dropping the last when full) and insert
     int last = min(count, K - 1);
     for (int i = K - 1; i > 0; --i) {
       if (i > last || i <= pos) continue;
       orders[i] = orders[i - 1];
       lines[i] = lines[i - 1];
+      covs[i] = covs[i - 1];
     }
     orders[pos] = e.x;
     lines[pos] = e.y;
+    covs[pos] = cov;
     count = min(count + 1, K);
     // cut after the first opaque entry
     for (int i = 0; i < K; ++i) {
       if (i >= count) break;
-      if (unpackUnorm4x8(dyn_line_props(lines[i]).y).a >= 1.0) { count = i + 1; break; }
+      if (unpackUnorm4x8(dyn_line_props(lines[i]).y).a * covs[i] >= 1.0) { count = i + 1; break; }
     }
   }
   // Composited with constant indices: llvmpipe (Mesa 22.3) miscompiles this
@@ -58,12 +67,11 @@ void main() {
 #define DECAL_COMPOSITE_STEP(i) \
   if (count > i) { \
     vec4 c = unpackUnorm4x8(dyn_line_props(lines[i]).y); \
+    c.a *= covs[i]; \
     acc += (1.0 - acc.a) * vec4(c.rgb * c.a, c.a); \
   }
   DECAL_COMPOSITE_STEP(0) DECAL_COMPOSITE_STEP(1) DECAL_COMPOSITE_STEP(2) DECAL_COMPOSITE_STEP(3)
   DECAL_COMPOSITE_STEP(4) DECAL_COMPOSITE_STEP(5) DECAL_COMPOSITE_STEP(6) DECAL_COMPOSITE_STEP(7)
-  DECAL_COMPOSITE_STEP(8) DECAL_COMPOSITE_STEP(9) DECAL_COMPOSITE_STEP(10) DECAL_COMPOSITE_STEP(11)
-  DECAL_COMPOSITE_STEP(12) DECAL_COMPOSITE_STEP(13) DECAL_COMPOSITE_STEP(14) DECAL_COMPOSITE_STEP(15)
   if (acc.a <= 0.0) discard;
   o_color = acc;
 }

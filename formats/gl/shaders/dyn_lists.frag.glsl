@@ -2,7 +2,8 @@
 // segment box, back-project the pixel with the terrain depth, test the pixel
 // against the line segment at the pixel's own scale (Eq. 4.1/4.2) per corner
 // style, and push (order, line) onto the pixel's list with an atomic counter
-// and an atomic head exchange. Nodes beyond the capacity are only counted;
+// and an atomic head exchange, with the pixel's coverage of the line (1
+// when aliased). Nodes beyond the capacity are only counted;
 // the host grows the buffer and repeats the pass.
 flat in uvec4 g_seg;
 layout(binding = 31) uniform sampler2D u_depth;
@@ -79,12 +80,27 @@ void main() {
   vec3 p = w.xyz / w.w;
   uint line = uint(dyn_vertex(g_seg.x).w);
   uvec4 props = dyn_line_props(line);
-  float hw = uintBitsToFloat(props.x) * metres_per_pixel(p);
+  float wpix = metres_per_pixel(p);
+  float hw = uintBitsToFloat(props.x) * wpix;
+#ifdef DECAL_AA_COVERAGE
+  // Coverage AA (Thöny et al. §3.5): band coverage over the distance to the
+  // segment, width at least one pixel; the exact style test keeps corners.
+  bool inside = covers(p.xy, hw, props.w & 3u);
+  vec2 a = dyn_position(g_seg.x).xy, b = dyn_position(g_seg.y).xy, ab = b - a;
+  float t = clamp(dot(p.xy - a, ab) / max(dot(ab, ab), 1e-20), 0.0, 1.0);
+  float dist = length(a + t * ab - p.xy);
+  float wl = max(2.0 * hw, wpix);
+  float cov = clamp((min(0.5 * wpix - dist, 0.5 * wl) + min(0.5 * wpix + dist, 0.5 * wl)) / wpix, 0.0, 1.0);
+  if (inside) cov = max(cov, 0.5);
+  if (cov <= 0.0) discard;
+#else
   if (!covers(p.xy, hw, props.w & 3u)) discard;
+  float cov = 1.0;
+#endif
   uint node = atomicAdd(list_nodes, 1u);
   if (node < list_capacity) {
     uint pixel = uint(px.y) * uint(u_viewport.x) + uint(px.x);
     uint next = atomicExchange(dyn_head[pixel], node);
-    dyn_node[node] = uvec4(props.z, line, next, 0u);
+    dyn_node[node] = uvec4(props.z, line, next, floatBitsToUint(cov));
   }
 }

@@ -19,6 +19,18 @@ uniform vec2 u_anchor_in_cell;    // anchor minus that cell's lower-left corner,
 uniform vec2 u_cell_size;         // metres
 uniform ivec2 u_grid_n;           // nx, ny
 
+// Anti-aliasing: the pixel's footprint in metres at a point (the scale of
+// thesis Eq. 4.1/4.2) for coverage AA; the sample position for MSAA.
+uniform vec3 u_eye_rel;
+uniform float u_mpp_ortho;       // > 0: orthographic metres per pixel
+uniform float u_mpp_per_metre;   // perspective: metres per pixel per metre of distance
+float pixel_metres(vec3 p) { return u_mpp_ortho > 0.0 ? u_mpp_ortho : length(p - u_eye_rel) * u_mpp_per_metre; }
+#ifdef DECAL_MSAA
+vec2 sample_offset() { return gl_SamplePosition; }  // forces per-sample shading
+#else
+vec2 sample_offset() { return vec2(0.5); }
+#endif
+
 // Anchor-relative metres of an integer position.
 vec2 rel(ivec2 q) { return vec2(q - u_anchor_q) * QUANTUM; }
 
@@ -27,7 +39,7 @@ vec2 rel(ivec2 q) { return vec2(q - u_anchor_q) * QUANTUM; }
 bool pixel_world(out vec3 p) {
   float depth = texelFetch(u_depth, ivec2(gl_FragCoord.xy), 0).r;
   if (depth <= 0.0) return false;  // reversed Z: cleared to 0 (far)
-  vec2 ndc = gl_FragCoord.xy / u_viewport * 2.0 - 1.0;
+  vec2 ndc = (floor(gl_FragCoord.xy) + sample_offset()) / u_viewport * 2.0 - 1.0;
   vec4 w = u_inv_view_proj * vec4(ndc, depth, 1.0);
   p = w.xyz / w.w;
   return true;
@@ -44,6 +56,24 @@ bool box_contains(ivec4 b, vec2 p) {
   if (b.x > b.z) return false;  // empty BVH node
   vec2 lo = rel(b.xy), hi = rel(b.zw);
   return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
+}
+// The same with the box grown by `m` metres (coverage AA reaches beyond it).
+bool box_near(ivec4 b, vec2 p, float m) {
+  if (b.x > b.z) return false;
+  vec2 lo = rel(b.xy) - m, hi = rel(b.zw) + m;
+  return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
+}
+// Front-to-back compositing with a coverage factor on the alpha.
+void composite_under_cov(inout vec4 acc, uint rgba, float cov) {
+  vec4 c = unpackUnorm4x8(rgba);
+  float w = (1.0 - acc.a) * c.a * cov;
+  acc.rgb += w * c.rgb;
+  acc.a += w;
+}
+// Thöny et al. §3.5: coverage of a pixel of width wpix by a band of width
+// wline whose centre line lies at distance d from the pixel centre.
+float band_coverage(float d, float wline, float wpix) {
+  return clamp((min(0.5 * wpix - d, 0.5 * wline) + min(0.5 * wpix + d, 0.5 * wline)) / wpix, 0.0, 1.0);
 }
 
 // Front-to-back compositing of a straight-alpha colour under `acc`

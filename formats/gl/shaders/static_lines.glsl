@@ -11,60 +11,97 @@ layout(location = 0) out vec4 o_color;
 
 float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
 
-bool in_triangle(vec2 p, vec2 a, vec2 b, vec2 c) {
-  float d1 = cross2(b - a, p - a), d2 = cross2(c - b, p - b), d3 = cross2(a - c, p - c);
-  bool neg = d1 < 0.0 || d2 < 0.0 || d3 < 0.0;
-  bool pos = d1 > 0.0 || d2 > 0.0 || d3 > 0.0;
-  return !(neg && pos);
+// T(A, B, C, d) of the evaluator: all three edge values >= 0 or all <= 0.
+bool in_triangle(vec2 a, vec2 b, vec2 c, vec2 d) {
+  float c0 = cross2(b - a, d - a), c1 = cross2(c - b, d - b), c2 = cross2(a - c, d - c);
+  return (c0 >= 0.0 && c1 >= 0.0 && c2 >= 0.0) || (c0 <= 0.0 && c1 <= 0.0 && c2 <= 0.0);
 }
+bool is_null(vec2 v) { return v == vec2(0.0); }
 
-float dist2_to_segment(vec2 p, vec2 a, vec2 b) {
-  vec2 d = b - a;
-  float len2 = dot(d, d);
-  float t = len2 > 0.0 ? clamp(dot(p - a, d) / len2, 0.0, 1.0) : 0.0;
-  vec2 q = a + t * d - p;
-  return dot(q, q);
-}
-
-// Corner triangle of the bevel style at vertex v (position pv); a null pair
-// of bevel vectors marks a round end.
-bool bevel_corner(uint v, vec2 pv, vec2 p, float hw) {
-  vec2 bi = corner_bevel_in(v), bo = corner_bevel_out(v);
-  if (bi == vec2(0.0) && bo == vec2(0.0)) return dot(p - pv, p - pv) <= hw * hw;
-  return in_triangle(p, pv, pv + bi, pv + bo);
-}
-
-// props = (half_width bits, rgba, order, style)
-bool segment_covers(uint s, uint e, vec2 p, uvec4 props) {
-  float hw = uintBitsToFloat(props.x);
+// props = (half_width bits, rgba, order, style). Step 6 of the query block
+// in libprep/evaluate/evaluate.cpp, in metres relative to vertex a: the
+// segment vector e is an exact integer difference.
+bool segment_covers(uint s, uint eidx, vec2 p, uvec4 props) {
+  float hw = uintBitsToFloat(props.x), hw2 = hw * hw;
   uint corner = props.w & 3u;
   uint outline = (props.w >> 2) & 3u;
-  vec2 a = rel(line_vertex(s)), b = rel(line_vertex(e));
-  vec2 d = b - a;
-  float len2 = dot(d, d);
-  float side = cross2(d, p - a);  // > 0: left of the directed segment
-  // Outline modes (width doubled at build time): inset keeps the left half,
-  // offset the right half (thesis §3.6).
-  if (outline == 1u && side < 0.0) return false;
-  if (outline == 2u && side > 0.0) return false;
-  if (corner == 0u || len2 == 0.0) return dist2_to_segment(p, a, b) <= hw * hw;
-  if (corner == 1u) {
-    // Miter: the quad spanned by the two miter vectors (two triangles); a
-    // null miter is a round end or round fallback: square cut plus a disc.
-    vec2 n = vec2(-d.y, d.x) * (hw / sqrt(len2));
-    vec2 ma = corner_miter(s), mb = corner_miter(e);
-    bool round_a = ma == vec2(0.0), round_b = mb == vec2(0.0);
-    vec2 qa = round_a ? n : ma, qb = round_b ? n : mb;
-    if (in_triangle(p, a + qa, a - qa, b - qb) || in_triangle(p, a + qa, b - qb, b + qb)) return true;
-    if (round_a && dot(p - a, p - a) <= hw * hw) return true;
-    if (round_b && dot(p - b, p - b) <= hw * hw) return true;
-    return false;
+  ivec2 ai = line_vertex(s);
+  vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
+  vec2 d = p - rel(ai);
+  bool covered = false;
+  if (corner == 0u) {  // round
+    float ee = dot(e, e);
+    float t = ee > 0.0 ? clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0;
+    vec2 r = d - t * e;
+    covered = dot(r, r) <= hw2;
+  } else if (corner == 1u) {  // miter; a null miter falls back to the left normal + a disc
+    vec2 ma = corner_miter(s), mb = corner_miter(eidx);
+    bool na = is_null(ma), nb = is_null(mb);
+    if (na) { ma = corner_bevel_out(s); if (cross2(e, ma) < 0.0) ma = -ma; }
+    if (nb) { mb = corner_bevel_in(eidx); if (cross2(e, mb) < 0.0) mb = -mb; }
+    covered = in_triangle(-ma, e - mb, e + mb, d) || in_triangle(-ma, e + mb, ma, d) ||
+              (na && dot(d, d) <= hw2) || (nb && dot(d - e, d - e) <= hw2);
+  } else {  // bevel: rectangle, then the corner triangles (null: round end)
+    vec2 n = corner_bevel_out(s);
+    float c = cross2(e, n);
+    if (c != 0.0) {
+      float sv = cross2(e, d) / c, tv = cross2(d, n) / c;
+      covered = tv >= 0.0 && tv <= 1.0 && abs(sv) <= 1.0;
+    }
+    vec2 ai_in = corner_bevel_in(s), b_out = corner_bevel_out(eidx);
+    if (!covered)
+      covered = is_null(ai_in) ? dot(d, d) <= hw2 : in_triangle(vec2(0.0), ai_in, n, d);
+    if (!covered)
+      covered = is_null(b_out) ? dot(d - e, d - e) <= hw2 : in_triangle(e, e + corner_bevel_in(eidx), e + b_out, d);
   }
-  // Bevel: the segment rectangle, then the two corner triangles.
-  float t = dot(p - a, d) / len2;
-  if (t >= 0.0 && t <= 1.0 && side * side <= hw * hw * len2) return true;
-  return bevel_corner(s, a, p, hw) || bevel_corner(e, b, p, hw);
+  if (!covered || outline == 0u) return covered;
+  // Outline modes (thesis §3.6, width doubled at build time): inset keeps the
+  // left half (K = +1), offset the right half (K = -1); at a corner turning
+  // towards the kept side the kept part is the intersection of both halves.
+  float K = outline == 1u ? 1.0 : -1.0;
+  if (K * cross2(e, d) < 0.0) return false;
+  vec2 cb_out = corner_bevel_out(eidx);
+  if (!is_null(cb_out)) {
+    float o = cross2(e, corner_bevel_in(eidx)) >= 0.0 ? 1.0 : -1.0;
+    if (K * o < 0.0 && K * dot(d - e, o * cb_out) < 0.0) return false;
+  }
+  vec2 ca_in = corner_bevel_in(s);
+  if (!is_null(ca_in)) {
+    float o = cross2(e, corner_bevel_out(s)) >= 0.0 ? 1.0 : -1.0;
+    if (K * o < 0.0 && K * dot(d, o * ca_in) < 0.0) return false;
+  }
+  return true;
 }
+
+#ifdef DECAL_AA_COVERAGE
+// Coverage AA (Thöny et al. §3.5): the band formula over the distance to
+// the segment's centre line, with the width raised to at least one pixel.
+// Inset/offset lines cover the band [0, hw] on the kept side (their stored
+// half width is the doubled one). Pixels the exact style test puts inside
+// keep at least half coverage (miter tips, bevel corners).
+float segment_coverage(uint s, uint eidx, vec2 p, uvec4 props, float wpix) {
+  bool inside = segment_covers(s, eidx, p, props);
+  float hw = uintBitsToFloat(props.x);
+  uint outline = (props.w >> 2) & 3u;
+  ivec2 ai = line_vertex(s);
+  vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
+  vec2 d = p - rel(ai);
+  float ee = max(dot(e, e), 1e-20);
+  float t = dot(d, e) / ee;
+  float c;
+  if (outline == 0u) {
+    float dist = length(d - clamp(t, 0.0, 1.0) * e);
+    c = band_coverage(dist, max(2.0 * hw, wpix), wpix);
+  } else {
+    if (!inside && (t < 0.0 || t > 1.0)) return 0.0;
+    float K = outline == 1u ? 1.0 : -1.0;
+    float sd = K * cross2(e, d) / sqrt(ee);  // > 0 on the kept side
+    float w = max(hw, wpix);
+    c = band_coverage(abs(sd - 0.5 * hw), w, wpix);
+  }
+  return inside ? max(c, 0.5) : c;
+}
+#endif
 
 void main() {
   vec3 p;
@@ -75,16 +112,41 @@ void main() {
   uvec4 bvh = line_bvh_range(uint(cell));
   vec4 acc = vec4(0.0);
   uint last_line = 0xffffffffu;
+#ifdef DECAL_AA_COVERAGE
+  // One coverage per line: the largest over its (consecutive) segments.
+  float wpix = pixel_metres(p);
+  float margin = wpix;
+  uint cur_line = 0xffffffffu, cur_rgba = 0u;
+  float cur_cov = 0.0;
+  bool done = false;
+#else
+  float margin = 0.0;
+#endif
   if (bvh.y > 0u) {
     uint internal = bvh.z;
     uint i = 0u;
     do {
-      if (box_contains(line_bvh_box(bvh.x + i), p.xy)) {
+      if (box_near(line_bvh_box(bvh.x + i), p.xy, margin)) {
         if (i < internal) { i = 2u * i + 1u; continue; }
         uint k = i - internal;  // leaf k = the cell's k-th segment in drawing order
         if (k < range.y) {
           uvec2 seg = cell_segment(range.x + k);
           uint line = line_of_vertex(seg.x);
+#ifdef DECAL_AA_COVERAGE
+          uvec4 props = line_props(line);
+          float cov = segment_coverage(seg.x, seg.y, p.xy, props, wpix);
+          if (line == cur_line) {
+            cur_cov = max(cur_cov, cov);
+          } else {
+            if (cur_cov > 0.0) {
+              composite_under_cov(acc, cur_rgba, cur_cov);
+              if (opaque(acc)) { done = true; break; }
+            }
+            cur_line = line;
+            cur_rgba = props.y;
+            cur_cov = cov;
+          }
+#else
           // Segments of one line are consecutive: a line adds its colour once (thesis Fig. 4.7).
           if (line != last_line) {
             uvec4 props = line_props(line);
@@ -94,11 +156,15 @@ void main() {
               if (opaque(acc)) break;
             }
           }
+#endif
         }
       }
       i = bvh_next(i);
     } while (i != 0u);
   }
+#ifdef DECAL_AA_COVERAGE
+  if (!done && cur_cov > 0.0) composite_under_cov(acc, cur_rgba, cur_cov);
+#endif
   if (acc.a <= 0.0) discard;
   o_color = acc;
 }

@@ -4,8 +4,10 @@
 // grid cell -> stack-less BVH over the cell's exterior polygons in drawing
 // order -> quad-tree descent from the (cell, polygon) culling node -> leaf
 // test (outside / inside / even-odd over the leaf polygon) -> the cell's
-// interior polygons of that exterior toggle inside/outside (holes, and
-// nested islands inside holes) -> front-to-back compositing, early exit.
+// interior polygons of that exterior cut it out (nested islands inside
+// holes are exterior polygons themselves) -> front-to-back compositing,
+// early exit. The numbered steps of the query block at the top of
+// libprep/evaluate/evaluate.cpp are the specification.
 // Output: premultiplied colour of the polygon layer at this pixel.
 
 layout(location = 0) out vec4 o_color;
@@ -32,24 +34,99 @@ bool qt_contains(uint node, vec2 p) {
     bool inside = false;
     for (uint s = r.x; s < r.x + r.y; ++s) {
       uvec2 e = qt_leaf_segment(s);
-      vec2 a = rel(qt_leaf_vertex(e.x)), b = rel(qt_leaf_vertex(e.y));
-      if ((a.y > p.y) != (b.y > p.y)) {
-        float x = a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y);
-        if (p.x < x) inside = !inside;
-      }
+      // Step 8 of the query block: A, B relative to the point; the sign of
+      // cross(H - L, -L) decides the crossing exactly as the evaluator does.
+      vec2 A = rel(qt_leaf_vertex(e.x)) - p, B = rel(qt_leaf_vertex(e.y)) - p;
+      if ((A.y > 0.0) == (B.y > 0.0)) continue;
+      vec2 L = A.y > 0.0 ? B : A, H = A.y > 0.0 ? A : B;
+      if ((H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0.0) inside = !inside;
     }
     return inside;
   }
 }
 
 // Exterior polygon entry (polygon, culling node, first hole, hole count).
+// Step 7: a point in any of the cell's holes of this polygon is outside
+// (islands inside holes are exterior polygons of their own).
 bool polygon_covers(uvec4 e, vec2 p) {
   if (!qt_contains(e.y, p)) return false;
-  bool inside = true;
   for (uint h = e.z; h < e.z + e.w; ++h)
-    if (qt_contains(cell_hole(h).y, p)) inside = !inside;
-  return inside;
+    if (qt_contains(cell_hole(h).y, p)) return false;
+  return true;
 }
+
+#ifdef DECAL_AA_COVERAGE
+// Signed distance of p to the boundary of the box (lo, hi), positive inside.
+float inside_distance(vec2 lo, vec2 hi, vec2 p) {
+  vec2 q = clamp(p, lo, hi);
+  float out_d = length(p - q);
+  if (out_d > 0.0) return -out_d;
+  return min(min(p.x - lo.x, hi.x - p.x), min(p.y - lo.y, hi.y - p.y));
+}
+
+// Coverage AA (Thöny et al. §3.5 applied to polygon edges): the fraction of
+// the pixel inside polygon `poly`, from the signed distance to its nearest
+// edge, clamp(0.5 + sd / wpix). The descent uses p clamped into the sub-tree
+// box so pixels just outside still find the leaf beside them. Edges: the
+// real edges of a partial leaf (closing segments along the node box are
+// skipped unless they lie on the polygon's bounding box, where they are real
+// edges), and the bounding box itself where an inside region touches it.
+float qt_coverage(uint poly, uint node, vec2 p, float wpix) {
+  ivec4 rootq = qt_node_box(poly_root(poly));
+  vec2 blo = rel(rootq.xy), bhi = rel(rootq.zw);
+  ivec4 nb = qt_node_box(node);
+  vec2 pc = clamp(p, rel(nb.xy), rel(nb.zw));
+  if (length(p - pc) > 0.5 * wpix) return 0.0;
+  float sd_box = inside_distance(blo, bhi, p);
+  for (;;) {
+    ivec2 n = qt_node(node);
+    if (n.x == 0) {
+      uint c = uint(n.y);
+      uint next = 0xffffffffu;
+      for (uint k = 0u; k < 4u; ++k) {
+        if (box_contains(qt_node_box(c + k), pc)) { next = c + k; break; }
+      }
+      if (next == 0xffffffffu) return 0.0;
+      node = next;
+      continue;
+    }
+    if (n.x == 1) return 0.0;
+    if (n.x == 2) return clamp(0.5 + sd_box / wpix, 0.0, 1.0);
+    ivec4 lb = qt_node_box(node);
+    uvec2 r = qt_leaf_range(uint(n.y));
+    bool inside = false;
+    float dist = 1e30;
+    for (uint s = r.x; s < r.x + r.y; ++s) {
+      uvec2 e = qt_leaf_segment(s);
+      ivec2 ua = qt_leaf_vertex(e.x), ub = qt_leaf_vertex(e.y);
+      vec2 A = rel(ua) - p, B = rel(ub) - p;
+      if ((A.y > 0.0) != (B.y > 0.0)) {
+        vec2 L = A.y > 0.0 ? B : A, H = A.y > 0.0 ? A : B;
+        if ((H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0.0) inside = !inside;
+      }
+      bool closing = (ua.x == lb.x && ub.x == lb.x && lb.x != rootq.x) || (ua.x == lb.z && ub.x == lb.z && lb.z != rootq.z) ||
+                     (ua.y == lb.y && ub.y == lb.y && lb.y != rootq.y) || (ua.y == lb.w && ub.y == lb.w && lb.w != rootq.w);
+      if (closing) continue;
+      vec2 ab = B - A;
+      float t = clamp(dot(-A, ab) / max(dot(ab, ab), 1e-20), 0.0, 1.0);
+      dist = min(dist, length(A + t * ab));
+    }
+    float sd = min(inside ? dist : -dist, sd_box);
+    return clamp(0.5 + sd / wpix, 0.0, 1.0);
+  }
+}
+
+float polygon_coverage(uvec4 e, vec2 p, float wpix) {
+  float c = qt_coverage(e.x, e.y, p, wpix);
+  if (c <= 0.0) return 0.0;
+  float h = 0.0;
+  for (uint j = e.z; j < e.z + e.w; ++j) {
+    uvec2 hole = cell_hole(j);
+    h = max(h, qt_coverage(hole.x, hole.y, p, wpix));
+  }
+  return c * (1.0 - h);
+}
+#endif
 
 void main() {
   vec3 p;
@@ -59,19 +136,33 @@ void main() {
   uvec2 range = cell_poly_range(uint(cell));
   uvec4 bvh = poly_bvh_range(uint(cell));
   vec4 acc = vec4(0.0);
+#ifdef DECAL_AA_COVERAGE
+  float wpix = pixel_metres(p);
+  float margin = 0.5 * wpix;
+#else
+  float margin = 0.0;
+#endif
   if (bvh.y > 0u) {
     uint internal = bvh.z;
     uint i = 0u;
     do {
-      if (box_contains(poly_bvh_box(bvh.x + i), p.xy)) {
+      if (box_near(poly_bvh_box(bvh.x + i), p.xy, margin)) {
         if (i < internal) { i = 2u * i + 1u; continue; }
         uint k = i - internal;  // leaf k = the cell's k-th polygon in drawing order
         if (k < range.y) {
           uvec4 e = cell_poly(range.x + k);
+#ifdef DECAL_AA_COVERAGE
+          float cov = polygon_coverage(e, p.xy, wpix);
+          if (cov > 0.0) {
+            composite_under_cov(acc, poly_rgba(e.x), cov);
+            if (opaque(acc)) break;
+          }
+#else
           if (polygon_covers(e, p.xy)) {
             composite_under(acc, poly_rgba(e.x));
             if (opaque(acc)) break;
           }
+#endif
         }
       }
       i = bvh_next(i);

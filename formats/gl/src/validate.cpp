@@ -162,6 +162,20 @@ Status validate_blobs(std::span<const BlobBytes> blobs, const Grid& grid) {
   }
   for (uint64_t i = 0; i < dls.n; ++i)
     if (dls[i] >= dv.n) return Status::failure(where("dyn_line_start", i) + "vertex " + std::to_string(dls[i]) + " >= " + std::to_string(dv.n));
+  // The dynamic update walks lines as consecutive vertex runs: line l owns
+  // [start[l], start[l+1]), starts increase from 0, and every vertex names
+  // the run it lies in.
+  if (dv.n > 0 && (dls.n == 0 || dls[0] != 0))
+    return Status::failure(where("dyn_line_start", 0) + "must be 0 when dynamic vertices exist");
+  for (uint64_t l = 0; l < dls.n; ++l) {
+    const uint64_t end = l + 1 < dls.n ? dls[l + 1] : dv.n;
+    if (end <= dls[l]) return Status::failure(where("dyn_line_start", l + 1) + "does not increase");
+    for (uint64_t v = dls[l]; v < end; ++v)
+      if (uint64_t(dv[v][3]) != l)
+        return Status::failure(where("dyn_vertices", v) + "line " + std::to_string(dv[v][3]) + " lies in the run of line " + std::to_string(l));
+  }
+  if (dls.n != dlp.n && dv.n > 0)
+    return Status::failure(where("dyn_line_start", dls.n) + "count differs from dyn_line_props " + std::to_string(dlp.n));
   return Status::success();
 }
 

@@ -81,7 +81,10 @@ enum class BlobId : uint32_t {
   qt_node = 13,            // ivec2  per node: (type 0..3, offset), see QtNodeType
   qt_leaf_range = 14,      // uvec2  per partial leaf: (first, count) into qt_leaf_segments
   qt_leaf_segments = 15,   // uvec2  per leaf-polygon segment: (start, end) into qt_leaf_vertices
-  qt_leaf_vertices = 16,   // ivec2  per leaf-polygon vertex, quanta
+  qt_leaf_vertices = 16,   // ivec2  per leaf-polygon vertex, quanta. Leaf polygons are the
+                           //        unclipped ring edges meeting the node box plus closing
+                           //        segments outside it (vertices may lie outside the box);
+                           //        even-odd is exact only for points inside the box.
   cell_poly_range = 17,    // uvec2  per cell: (first, count) into cell_polys
   cell_polys = 18,         // uvec4  per (cell, exterior polygon): (polygon, culling node,
                            //        first hole entry, hole count) — holes index cell_holes
@@ -144,6 +147,14 @@ static_assert(sizeof(LineProps) == 32);
 // round end or a round fallback (< 40° between segments). The two bevel
 // vectors point from the vertex to the outer corners of the incoming and
 // outgoing segment rectangles, on the outer side of the turn. Metres.
+// Precisely (libprep/build/lines.cpp): bevel_in / bevel_out = half width x
+// the unit normal of the incoming / outgoing segment, both on the outer side
+// of the turn (CGAL orientation; the left side where the turn is straight and
+// at open ends), null where that segment does not exist (open line ends).
+// They are stored for every corner style: a miter segment uses them at its
+// null-miter ends, and inset/offset use them to clip by the neighbouring
+// segment. The exact per-segment test is the comment block at the top of
+// libprep/evaluate/evaluate.cpp.
 struct LineCorner {
   float miter[2];
   float bevel_in[2];

@@ -25,7 +25,9 @@ struct BuildResult {
 };
 
 // Runs the pipeline. Throws prep::error subclasses; on any failure no
-// package is written at request.output (the writer is atomic and runs last).
+// package is written at request.output (the writer is atomic and runs last),
+// and request.report (if set) receives {"error", "exit_code",
+// "package_written": false} before the exception propagates.
 // Throws error(ExitCode::internal) when a package is asked for but this build
 // has no build/write stage linked (use dry_run).
 BuildResult run_build(const SceneSpec& scene, const BuildRequest& request);

@@ -107,11 +107,16 @@ struct RenderOptions {
   AntiAliasing aa = AntiAliasing::none;
   Binding binding = Binding::ssbo;
   std::array<double, 3> albedo{0.62, 0.66, 0.58};
+  // Which decal kinds to draw (e.g. polygons alone for a coverage check).
+  bool draw_polygons = true, draw_lines = true, draw_dynamic = true;
+  // GL: frames rendered in one context; pass times are the last one's.
+  uint32_t frames = 1;
 };
 
 struct PassTime {
   std::string pass;
-  double ms = 0;  // GL timer query (GPU time) or CPU wall time
+  double ms = 0;       // GL timestamp queries around the pass (GPU time), or CPU time
+  double wall_ms = 0;  // host wall time of the pass, glFinish() on both sides
 };
 
 // Row 0 is the top row in both images.

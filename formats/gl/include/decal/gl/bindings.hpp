@@ -50,11 +50,13 @@ enum class Binding : uint32_t {
   dyn_prev_next = 20,
   dyn_line_start = 21,
   dyn_line_props = 22,
+  // polygon roots (their boxes are the polygon bounding boxes; coverage AA)
+  poly_root_node = 23,
   none = 0xffffffffu,
 };
 
 // Binding of a blob id; Binding::none for blobs the renderer does not read
-// (poly_root_node, LOD blobs, unknown ids).
+// (LOD blobs, unknown ids).
 constexpr Binding binding_of(BlobId id) {
   switch (id) {
     case BlobId::poly_props: return Binding::poly_props;
@@ -80,6 +82,7 @@ constexpr Binding binding_of(BlobId id) {
     case BlobId::dyn_prev_next: return Binding::dyn_prev_next;
     case BlobId::dyn_line_start: return Binding::dyn_line_start;
     case BlobId::dyn_line_props: return Binding::dyn_line_props;
+    case BlobId::poly_root_node: return Binding::poly_root_node;
     default: return Binding::none;
   }
 }

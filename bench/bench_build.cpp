@@ -1,0 +1,202 @@
+// bench_build — build time, package size and per-point query cost of the
+// static decal structures, adaptive grid vs the thesis 500x500 grid in the
+// same run (issue 4, Done 6). Prints a table; not a unit test.
+//
+//   bench_build [--vertices N] [--samples N] [--threads N]
+//
+// Datasets (synthetic until real SceneFeatures come from read/clean):
+//   parcels: tiled star polygons with a hole and an island each;
+//   roads:   random polylines (round, miter and bevel layers);
+//   big:     a polygon set of ~N vertices (default 10^6; --vertices 10000000
+//            for the 10^7 figure).
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "prep/build.hpp"
+#include "prep/evaluate.hpp"
+#include "prep/write.hpp"
+
+namespace {
+
+prep::LayerSpec layer(const char* name, prep::DecalKind kind, decal::CornerStyle corner) {
+  prep::LayerSpec l;
+  l.name = name;
+  l.kind = kind;
+  l.style.corner = corner;
+  l.style.color.rgba = 0xc0406080u;
+  return l;
+}
+
+prep::Ring star(std::mt19937_64& rng, double cx, double cy, double r0, double r1, int n, bool cw) {
+  std::uniform_real_distribution<double> rad(r0, r1), jit(-0.3, 0.3);
+  prep::Ring r;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * (i + 0.5 + jit(rng)) / n, rr = rad(rng);
+    r.push_back({cx + rr * std::cos(a), cy + rr * std::sin(a)});
+  }
+  if (cw) std::reverse(r.begin(), r.end());
+  return r;
+}
+
+// Clustered polygons: a city-like density gradient (most polygons near the
+// centre) so that the adaptive grid has something to adapt to.
+prep::SceneFeatures parcels(uint64_t vertices, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> N(0, 1);
+  std::uniform_int_distribution<int> nv(6, 40);
+  prep::SceneFeatures s;
+  s.layers.push_back(layer("parcels", prep::DecalKind::polygon, decal::CornerStyle::round));
+  uint64_t v = 0;
+  int64_t fid = 0;
+  while (v < vertices) {
+    const double cx = 3000 * N(rng), cy = 2000 * N(rng);
+    const double size = 8 + 30 * std::abs(N(rng));
+    prep::ScenePolygon p;
+    p.shell = star(rng, cx, cy, 0.6 * size, size, fid % 50 == 0 ? 400 : nv(rng), false);
+    if (fid % 3 == 0) p.holes.push_back(star(rng, cx, cy, 0.15 * size, 0.3 * size, nv(rng), true));
+    v += p.shell.size() + (p.holes.empty() ? 0 : p.holes[0].size());
+    p.fid = fid++;
+    p.area = size * size;
+    s.polygons.push_back(std::move(p));
+  }
+  return s;
+}
+
+prep::SceneFeatures roads(uint64_t vertices, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> N(0, 1);
+  std::uniform_real_distribution<double> U(0, 1);
+  prep::SceneFeatures s;
+  s.layers.push_back(layer("round", prep::DecalKind::line, decal::CornerStyle::round));
+  s.layers.push_back(layer("miter", prep::DecalKind::line, decal::CornerStyle::miter));
+  s.layers.push_back(layer("bevel", prep::DecalKind::line, decal::CornerStyle::bevel));
+  uint64_t v = 0;
+  int64_t fid = 0;
+  while (v < vertices) {
+    prep::SceneLine l;
+    double x = 3000 * N(rng), y = 2000 * N(rng), a = 2 * M_PI * U(rng);
+    const int n = 2 + int(40 * U(rng));
+    for (int k = 0; k < n; ++k) {
+      l.points.push_back({x, y});
+      const double len = 5 + 40 * U(rng);
+      x += len * std::cos(a);
+      y += len * std::sin(a);
+      a += 0.6 * N(rng);
+      l.length += len;
+    }
+    l.layer = uint32_t(fid % 3);
+    l.width = 3 + 10 * U(rng);
+    l.fid = fid++;
+    v += l.points.size();
+    s.lines.push_back(std::move(l));
+  }
+  return s;
+}
+
+uint64_t input_vertices(const prep::SceneFeatures& s) {
+  uint64_t v = 0;
+  for (const auto& p : s.polygons) {
+    v += p.shell.size();
+    for (const auto& h : p.holes) v += h.size();
+  }
+  for (const auto& l : s.lines) v += l.points.size();
+  return v;
+}
+
+uint64_t static_bytes(const prep::DecalModel& m) {
+  uint64_t b = 0;
+  const bool detail = std::getenv("BENCH_BLOBS") != nullptr;
+  for (const prep::BlobInput& blob : prep::model_blobs(m, false)) {
+    b += blob.bytes.size();
+    if (detail)
+      std::printf("   %-20s %12zu\n", std::string(decal::find_blob_info(blob.id)->name).c_str(), blob.bytes.size());
+  }
+  return b;
+}
+
+struct Stat {
+  double mean = 0, p99 = 0;
+};
+Stat stat(std::vector<uint32_t>& v) {
+  if (v.empty()) return {};
+  double s = 0;
+  for (uint32_t x : v) s += x;
+  std::sort(v.begin(), v.end());
+  return {s / double(v.size()), double(v[std::min(v.size() - 1, size_t(0.99 * double(v.size())))])};
+}
+
+uint32_t g_target = 0;
+
+void run(const char* name, const prep::SceneFeatures& scene, uint64_t samples, unsigned threads) {
+  const uint64_t nv = input_vertices(scene);
+  std::printf("\n== %s: %zu polygons, %zu lines, %llu input vertices\n", name, scene.polygons.size(),
+              scene.lines.size(), (unsigned long long)nv);
+  std::printf("%-10s %9s %8s %10s %9s %8s | %-27s | %-27s | %-27s | %-27s | %-27s\n", "grid", "cells",
+              "build s", "bytes", "B/vertex", "covered", "BVH nodes mean/p99", "QT nodes mean/p99",
+              "edge tests mean/p99", "segment tests mean/p99", "all tests mean/p99");
+  for (int fixed = 0; fixed < 2; ++fixed) {
+    prep::BuildOptions o;
+    o.threads = threads;
+    if (g_target) o.target_per_cell = g_target;
+    if (fixed) o.grid_nx = o.grid_ny = 500;
+    const auto t0 = std::chrono::steady_clock::now();
+    const prep::DecalModel m = prep::build_model(scene, o);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const uint64_t bytes = static_bytes(m);
+    const prep::StaticView v = prep::view_of(m);
+    std::mt19937_64 rng(77);
+    const double x0 = m.grid.origin_x * decal::kQuantumMetres, y0 = m.grid.origin_y * decal::kQuantumMetres;
+    const double w = double(m.grid.cell_w) * m.grid.nx * decal::kQuantumMetres;
+    const double h = double(m.grid.cell_h) * m.grid.ny * decal::kQuantumMetres;
+    std::uniform_real_distribution<double> X(x0, x0 + w), Y(y0, y0 + h);
+    std::vector<uint32_t> bvh, qt, edge, seg, all;
+    // Sample covered points: uniformly over the grid, keeping covered ones.
+    for (uint64_t i = 0; i < samples * 50 && bvh.size() < samples; ++i) {
+      prep::EvalCounters c;
+      const prep::EvalSample s = prep::evaluate(v, X(rng), Y(rng), &c);
+      if (!s.line_covered && !s.polygon_covered) continue;
+      bvh.push_back(uint32_t(c.bvh_nodes));
+      qt.push_back(uint32_t(c.qt_nodes));
+      edge.push_back(uint32_t(c.edge_tests));
+      seg.push_back(uint32_t(c.segment_tests));
+      all.push_back(uint32_t(c.bvh_nodes + c.qt_nodes + c.edge_tests + c.segment_tests));
+    }
+    const size_t covered = bvh.size();
+    Stat sb = stat(bvh), sq = stat(qt), se = stat(edge), ss = stat(seg), sa = stat(all);
+    char grid[32];
+    std::snprintf(grid, sizeof grid, "%ux%u", m.grid.nx, m.grid.ny);
+    std::printf("%-10s %9llu %8.2f %10llu %9.1f %8zu | %12.2f %12.0f  | %12.2f %12.0f  | %12.2f %12.0f  | %12.2f %12.0f  | %12.2f %12.0f\n",
+                grid, (unsigned long long)m.grid.nx * m.grid.ny, secs, (unsigned long long)bytes,
+                double(bytes) / double(nv), covered, sb.mean, sb.p99, sq.mean, sq.p99, se.mean, se.p99,
+                ss.mean, ss.p99, sa.mean, sa.p99);
+    std::fflush(stdout);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  uint64_t big = 1'000'000, samples = 200'000;
+  unsigned threads = 0;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--vertices")) big = std::stoull(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--samples")) samples = std::stoull(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--threads")) threads = unsigned(std::stoul(argv[i + 1]));
+    else if (!std::strcmp(argv[i], "--target")) g_target = uint32_t(std::stoul(argv[i + 1]));
+  }
+  run("parcels (clustered polygons)", parcels(300'000, 1), samples, threads);
+  run("roads (clustered lines)", roads(300'000, 2), samples, threads);
+  run("big polygon set", parcels(big, 3), samples, threads);
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  std::printf("\npeak RSS %.1f MiB\n", double(ru.ru_maxrss) / 1024.0);
+  return 0;
+}

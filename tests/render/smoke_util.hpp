@@ -1,0 +1,65 @@
+// Helpers of the render smoke tests: running the decalprep tool, reading
+// raw decal layers, and the pixel agreement of two layers.
+#pragma once
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+namespace render_test {
+
+struct ToolResult {
+  int rc = -1;
+  std::string output;
+};
+
+inline ToolResult tool(const std::string& args, const std::string& env = "") {
+  namespace fs = std::filesystem;
+  fs::path log = fs::temp_directory_path() / ("decalprep_smoke_" + std::to_string(::getpid()) + ".log");
+  std::string cmd = env + " " + DECALPREP_TOOL + " " + args + " > " + log.string() + " 2>&1";
+  int status = std::system(cmd.c_str());
+  ToolResult r;
+  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream in(log);
+  r.output.assign(std::istreambuf_iterator<char>(in), {});
+  fs::remove(log);
+  return r;
+}
+
+inline std::vector<float> read_raw(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), {});
+  std::vector<float> v(bytes.size() / 4);
+  std::memcpy(v.data(), bytes.data(), v.size() * 4);
+  return v;
+}
+
+struct Agreement {
+  size_t considered = 0, agree = 0;
+  double ratio() const { return considered ? double(agree) / double(considered) : 0.0; }
+};
+
+// Pixels where either layer has coverage agree when every straight-alpha
+// RGBA channel is within 2/255 (colour only compared where alpha > 0).
+inline Agreement agreement(const std::vector<float>& a, const std::vector<float>& b) {
+  Agreement r;
+  const double tol = 2.0 / 255.0 + 1e-6;
+  for (size_t p = 0; p + 3 < a.size() && p + 3 < b.size(); p += 4) {
+    if (a[p + 3] <= 0 && b[p + 3] <= 0) continue;
+    ++r.considered;
+    bool ok = std::abs(a[p + 3] - b[p + 3]) <= tol;
+    for (int c = 0; c < 3 && ok; ++c) ok = std::abs(a[p + c] - b[p + c]) <= tol;
+    r.agree += ok;
+  }
+  return r;
+}
+
+}  // namespace render_test

@@ -1,0 +1,468 @@
+// The render smoke test of issue 6: Monaco (building, landuse, water and
+// highway polygons and lines, dynamic highway lines) over N43E007 at 640x360
+// on llvmpipe, top-down orthographic and oblique perspective, against the
+// CPU evaluator (--cpu) and gdal_rasterize; plus a synthetic scene that
+// exercises every decal type and style. PNGs go to render-out/smoke/.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <gdal_priv.h>
+#include <sys/file.h>
+#include <unistd.h>
+#include <ogrsf_frmts.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "decal/reader.hpp"
+#include "prep/pipeline.hpp"
+#include "prep/scene_file.hpp"
+#include "smoke_util.hpp"
+
+namespace fs = std::filesystem;
+using render_test::agreement;
+using render_test::read_raw;
+using render_test::tool;
+
+namespace {
+
+const std::string kSource = DECALPREP_SOURCE_DIR;
+const std::string kDem = "/vsizip/" + kSource + "/samples/monaco/N43E007.hgt.zip/N43E007.hgt";
+// Central Monaco in the package frame (local TM on the data, metres).
+const std::string kTopDown = "-800,-450,800,450";
+
+fs::path out_dir() {
+  fs::path p = fs::current_path() / "render-out" / "smoke";
+  fs::create_directories(p);
+  return p;
+}
+
+// ctest runs every test in its own process, two at a time: the first one
+// builds a package under an exclusive lock, later ones reuse it when it is
+// newer than the tool binary that would build it.
+struct BuildLock {
+  int fd;
+  explicit BuildLock(const fs::path& p) : fd(::open(p.c_str(), O_CREAT | O_RDWR, 0644)) {
+    if (fd >= 0) ::flock(fd, LOCK_EX);
+  }
+  ~BuildLock() {
+    if (fd >= 0) ::close(fd);
+  }
+};
+bool fresh(const fs::path& pkg) {
+  std::error_code ec;
+  return fs::exists(pkg) && fs::last_write_time(pkg, ec) > fs::last_write_time(DECALPREP_TOOL, ec);
+}
+
+// The Monaco package; "" with a reason when it cannot be built.
+const std::string& monaco_package(std::string* why) {
+  static std::string path, reason;
+  static bool tried = false;
+  if (!tried) {
+    tried = true;
+    if (!fs::exists(std::string(DECALPREP_SHARED_DATA) + "/monaco/monaco.osm.pbf")) {
+      reason = "Monaco data missing under " + std::string(DECALPREP_SHARED_DATA);
+    } else {
+      const fs::path pkg = out_dir() / "monaco.decals";
+      BuildLock lock(out_dir() / "monaco.lock");
+      if (!fresh(pkg)) {
+        auto r = tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
+        if (r.rc != 0) reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
+      }
+      if (reason.empty()) path = pkg.string();
+    }
+  }
+  if (why) *why = reason;
+  return path;
+}
+
+// GL and CPU renders of the same view; returns false (with a skip reason)
+// when there is no EGL display.
+bool render_pair(const std::string& pkg, const std::string& name, const std::string& view_args,
+                 std::vector<float>& gl, std::vector<float>& cpu, std::string& why) {
+  const fs::path d = out_dir();
+  auto g = tool("render " + pkg + " " + view_args + " --size 640x360 --aa none --raw " + (d / (name + "_gl.rgba")).string() +
+                " -o " + (d / (name + "_gl.png")).string());
+  if (g.rc == 8) {
+    why = "no headless GL: " + g.output;
+    return false;
+  }
+  EXPECT_EQ(g.rc, 0) << g.output;
+  auto c = tool("render " + pkg + " " + view_args + " --size 640x360 --cpu --raw " + (d / (name + "_cpu.rgba")).string() +
+                " -o " + (d / (name + "_cpu.png")).string());
+  EXPECT_EQ(c.rc, 0) << c.output;
+  gl = read_raw((d / (name + "_gl.rgba")).string());
+  cpu = read_raw((d / (name + "_cpu.rgba")).string());
+  EXPECT_EQ(gl.size(), 640u * 360u * 4u);
+  EXPECT_EQ(cpu.size(), gl.size());
+  return true;
+}
+
+TEST(RenderSmoke, MonacoTopDownDecalLayerAgreesWithCpuEvaluator) {
+  std::string why;
+  const std::string& pkg = monaco_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  std::vector<float> gl, cpu;
+  if (!render_pair(pkg, "monaco_topdown", "--dem " + kDem + " --extent " + kTopDown, gl, cpu, why)) GTEST_SKIP() << why;
+  auto a = agreement(gl, cpu);
+  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
+  std::printf("top-down agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
+  EXPECT_GT(a.considered, 50000u);
+  EXPECT_GE(a.ratio(), 0.999);
+}
+
+TEST(RenderSmoke, MonacoObliquePerspectiveDecalLayerAgreesWithCpuEvaluator) {
+  std::string why;
+  const std::string& pkg = monaco_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  std::vector<float> gl, cpu;
+  // Looking north over the harbour from above the sea.
+  if (!render_pair(pkg, "monaco_oblique", "--dem " + kDem + " --eye 300,-2200,900 --target 0,0,60 --fov 40", gl, cpu, why))
+    GTEST_SKIP() << why;
+  auto a = agreement(gl, cpu);
+  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
+  std::printf("oblique agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
+  EXPECT_GT(a.considered, 20000u);
+  EXPECT_GE(a.ratio(), 0.999);
+}
+
+// Writes the cleaned polygons (holes included) to a GeoPackage in the frame
+// CRS, absolute coordinates; returns every ring for the edge-distance check.
+std::vector<prep::Ring> write_polygons(const prep::SceneFeatures& scene, const std::string& path) {
+  GDALAllRegister();
+  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");
+  std::unique_ptr<GDALDataset> ds(drv->Create(path.c_str(), 0, 0, 0, GDT_Unknown, nullptr));
+  OGRSpatialReference srs;
+  srs.importFromWkt(scene.frame.crs_wkt.c_str());
+  OGRLayer* layer = ds->CreateLayer("polygons", &srs, wkbPolygon, nullptr);
+  std::vector<prep::Ring> rings;
+  auto ring_of = [&](const prep::Ring& r) {
+    OGRLinearRing lr;
+    for (const auto& p : r) lr.addPoint(p.x + scene.frame.origin_x, p.y + scene.frame.origin_y);
+    lr.closeRings();
+    rings.push_back(r);
+    return lr;
+  };
+  for (const auto& poly : scene.polygons) {
+    OGRPolygon g;
+    g.addRingDirectly(new OGRLinearRing(ring_of(poly.shell)));
+    for (const auto& h : poly.holes) g.addRingDirectly(new OGRLinearRing(ring_of(h)));
+    OGRFeature f(layer->GetLayerDefn());
+    f.SetGeometry(&g);
+    EXPECT_EQ(layer->CreateFeature(&f), OGRERR_NONE);
+  }
+  return rings;
+}
+
+double distance_to_rings(const std::vector<prep::Ring>& rings, double x, double y) {
+  double best = 1e300;
+  for (const auto& r : rings)
+    for (size_t i = 0; i < r.size(); ++i) {
+      const auto& a = r[i];
+      const auto& b = r[(i + 1) % r.size()];
+      double dx = b.x - a.x, dy = b.y - a.y, l2 = dx * dx + dy * dy;
+      double t = l2 > 0 ? std::clamp(((x - a.x) * dx + (y - a.y) * dy) / l2, 0.0, 1.0) : 0.0;
+      best = std::min(best, std::hypot(a.x + t * dx - x, a.y + t * dy - y));
+    }
+  return best;
+}
+
+TEST(RenderSmoke, MonacoTopDownPolygonCoverageMatchesGdalRasterize) {
+  std::string why;
+  const std::string& pkg = monaco_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  const fs::path d = out_dir();
+  // Aliased GL coverage of the polygons alone.
+  auto g = tool("render " + pkg + " --extent " + kTopDown + " --size 640x360 --aa none --only polygons --raw " +
+                (d / "monaco_polygons_gl.rgba").string() + " -o " + (d / "monaco_polygons_gl.png").string());
+  if (g.rc == 8) GTEST_SKIP() << "no headless GL: " << g.output;
+  ASSERT_EQ(g.rc, 0) << g.output;
+  auto gl = read_raw((d / "monaco_polygons_gl.rgba").string());
+  // The same cleaned polygons (the pipeline is deterministic), burnt by GDAL.
+  prep::SceneSpec spec = prep::load_scene_file(kSource + "/samples/monaco/scene.toml");
+  prep::BuildRequest req;
+  req.dry_run = true;
+  prep::BuildResult built = prep::run_build(spec, req);
+  const std::string gpkg = (d / "monaco_polygons.gpkg").string(), tif = (d / "monaco_polygons.tif").string();
+  fs::remove(gpkg);
+  auto rings = write_polygons(built.scene, gpkg);
+  const auto& o = built.scene.frame;
+  char te[256];
+  std::snprintf(te, sizeof te, "-te %.6f %.6f %.6f %.6f", -800 + o.origin_x, -450 + o.origin_y, 800 + o.origin_x,
+                450 + o.origin_y);
+  std::string cmd = "gdal_rasterize -q -burn 1 -init 0 -ot Byte " + std::string(te) + " -ts 640 360 -l polygons " + gpkg +
+                    " " + tif;
+  fs::remove(tif);
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  std::unique_ptr<GDALDataset> ras(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER));
+  ASSERT_TRUE(ras);
+  std::vector<uint8_t> burn(640 * 360);
+  ASSERT_EQ(ras->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, 640, 360, burn.data(), 640, 360, GDT_Byte, 0, 0), CE_None);
+  size_t total = 0, agree = 0, excluded = 0, covered = 0;
+  for (uint32_t j = 0; j < 360; ++j)
+    for (uint32_t i = 0; i < 640; ++i) {
+      const size_t k = i + 640 * size_t(j);
+      const bool a = gl[4 * k + 3] > 0, b = burn[k] != 0;
+      covered += b;
+      if (a != b) {
+        const double x = -800 + (i + 0.5) * 1600.0 / 640, y = 450 - (j + 0.5) * 900.0 / 360;
+        if (distance_to_rings(rings, x, y) <= 1e-6) {
+          ++excluded;
+          continue;
+        }
+      }
+      ++total;
+      agree += a == b;
+    }
+  std::printf("gdal_rasterize agreement %zu / %zu (%zu excluded, %zu burnt)\n", agree, total, excluded, covered);
+  RecordProperty("agreement", std::to_string(agree) + "/" + std::to_string(total));
+  EXPECT_GT(covered, 50000u);
+  EXPECT_GE(double(agree) / double(total), 0.999);
+}
+
+// ---------------------------------------------------------------------------
+// Every decal type and style: a synthetic scene written as GeoJSON and read
+// through GDAL by `decalprep build` (lon/lat around 7.42 E, 43.74 N).
+// ---------------------------------------------------------------------------
+
+void write_text(const fs::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+}
+
+std::string feature(const std::string& geometry, const std::string& props = "{}") {
+  return R"({"type":"Feature","properties":)" + props + R"(,"geometry":)" + geometry + "}";
+}
+std::string collection(const std::vector<std::string>& features) {
+  std::string s = R"({"type":"FeatureCollection","features":[)";
+  for (size_t i = 0; i < features.size(); ++i) s += (i ? "," : "") + features[i];
+  return s + "]}";
+}
+std::string ring(double x0, double y0, double x1, double y1, bool ccw = true) {
+  char b[256];
+  if (ccw)
+    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0, y0, x1, y0, x1, y1, x0, y1, x0, y0);
+  else
+    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0, y0, x0, y1, x1, y1, x1, y0, x0, y0);
+  return b;
+}
+// An L-shaped polygon with its lower-left corner at (x, y), about 120 m.
+std::string l_shape(double x, double y) {
+  char b[512];
+  std::snprintf(b, sizeof b,
+                R"({"type":"Polygon","coordinates":[[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]]})",
+                x, y, x + 0.0015, y, x + 0.0015, y + 0.0005, x + 0.0006, y + 0.0005, x + 0.0006, y + 0.0011, x, y + 0.0011, x, y);
+  return b;
+}
+// A zigzag with a sharp (< 40 degrees, round fallback) and obtuse turns.
+std::string zigzag(double x, double y) {
+  char b[512];
+  std::snprintf(b, sizeof b, R"({"type":"LineString","coordinates":[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]})", x, y,
+                x + 0.0005, y + 0.0008, x + 0.0007, y, x + 0.0012, y + 0.0004, x + 0.0018, y + 0.0002);
+  return b;
+}
+
+const std::string& styles_package(std::string* why) {
+  static std::string path, reason;
+  static bool tried = false;
+  if (!tried) {
+    tried = true;
+    fs::path d = out_dir() / "styles";
+    fs::create_directories(d);
+    BuildLock lock(out_dir() / "styles.lock");
+    if (fresh(d / "styles.decals")) {
+      path = (d / "styles.decals").string();
+      if (why) *why = reason;
+      return path;
+    }
+    // Polygon with a hole, and an island inside the hole (its own feature).
+    write_text(d / "polys.geojson",
+               collection({feature(R"({"type":"Polygon","coordinates":[)" + ring(7.4200, 43.7400, 7.4216, 43.7412) + "," +
+                                   ring(7.4204, 43.7403, 7.4212, 43.7409, false) + "]}"),
+                           feature(R"({"type":"Polygon","coordinates":[)" + ring(7.4206, 43.7405, 7.4210, 43.7407) + "]}")}));
+    write_text(d / "l_normal.geojson", collection({feature(l_shape(7.4222, 43.7400))}));
+    write_text(d / "l_inset.geojson", collection({feature(l_shape(7.4241, 43.7400))}));
+    write_text(d / "l_offset.geojson", collection({feature(l_shape(7.4222, 43.7414))}));
+    write_text(d / "z_round.geojson", collection({feature(zigzag(7.4200, 43.7415))}));
+    write_text(d / "z_miter.geojson", collection({feature(zigzag(7.4241, 43.7414))}));
+    write_text(d / "z_bevel.geojson", collection({feature(zigzag(7.4200, 43.7426))}));
+    write_text(d / "cross.geojson",
+               collection({feature(R"({"type":"LineString","coordinates":[[7.4225,43.7428],[7.4255,43.7436]]})", R"({"imp":1})"),
+                           feature(R"({"type":"LineString","coordinates":[[7.4225,43.7436],[7.4255,43.7428]]})", R"({"imp":2})")}));
+    write_text(d / "scene.toml", R"(
+[[layer]]
+name = "polys"
+source = "polys.geojson"
+kind = "polygon"
+color = "#3060c0c0"
+[[layer]]
+name = "l_normal"
+source = "l_normal.geojson"
+kind = "outline"
+corner = "miter"
+width = 6
+color = "#202020a0"
+[[layer]]
+name = "l_inset"
+source = "l_inset.geojson"
+kind = "outline"
+corner = "miter"
+outline_mode = "inset"
+width = 6
+color = "#802020c0"
+[[layer]]
+name = "l_offset"
+source = "l_offset.geojson"
+kind = "outline"
+corner = "miter"
+outline_mode = "offset"
+width = 6
+color = "#208020c0"
+[[layer]]
+name = "z_round"
+source = "z_round.geojson"
+kind = "line"
+corner = "round"
+width = 8
+color = "#e0a000b0"
+[[layer]]
+name = "z_miter"
+source = "z_miter.geojson"
+kind = "line"
+corner = "miter"
+width = 8
+color = "#a000e0b0"
+[[layer]]
+name = "z_bevel"
+source = "z_bevel.geojson"
+kind = "line"
+corner = "bevel"
+width = 8
+color = "#00a0a0b0"
+[[layer]]
+name = "cross"
+source = "cross.geojson"
+kind = "line"
+width = 10
+order_attribute = "imp"
+color_attribute = "imp"
+color_ramp = [[1, "#ff000080"], [2, "#0000ff80"]]
+)");
+    std::string pkg = (d / "styles.decals").string();
+    auto r = tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
+    if (r.rc != 0) reason = "decalprep build of the styles scene failed (rc " + std::to_string(r.rc) + "): " + r.output;
+    else path = pkg;
+  }
+  if (why) *why = reason;
+  return path;
+}
+
+const std::string kStylesView = "--extent 7.4196,43.7396,7.4262,43.7440 --extent-crs EPSG:4326";
+
+TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorTopDown) {
+  std::string why;
+  const std::string& pkg = styles_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  std::vector<float> gl, cpu;
+  if (!render_pair(pkg, "styles_topdown", kStylesView, gl, cpu, why)) GTEST_SKIP() << why;
+  auto a = agreement(gl, cpu);
+  std::printf("styles top-down agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
+  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
+  EXPECT_GT(a.considered, 10000u);
+  EXPECT_GE(a.ratio(), 0.999);
+
+  // The crossing of the two transparent lines shows the more important one
+  // (imp 2, blue) over the other (red): read the pixel at the crossing.
+  // World file: pixel size and the upper-left pixel centre in the frame.
+  std::ifstream wf(out_dir() / "styles_topdown_gl.pgw");
+  double dx, r1, r2, dy, x0, y0;
+  wf >> dx >> r1 >> r2 >> dy >> x0 >> y0;
+  ASSERT_TRUE(wf) << "world file";
+  decal::Package package;
+  ASSERT_TRUE(decal::Package::open(pkg, package));
+  auto meta = nlohmann::json::parse(package.metadata_json());
+  OGRSpatialReference ll, frame;
+  ll.importFromEPSG(4326);
+  ll.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  frame.importFromWkt(meta["crs_wkt"].get<std::string>().c_str());
+  frame.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&ll, &frame));
+  double cx = 7.4240, cy = 43.7432;  // where the two lines cross
+  ASSERT_TRUE(ct->Transform(1, &cx, &cy));
+  cx -= meta["origin"]["x"].get<double>();
+  cy -= meta["origin"]["y"].get<double>();
+  const int i = int(std::lround((cx - x0) / dx)), j = int(std::lround((cy - y0) / dy));
+  ASSERT_TRUE(i >= 0 && i < 640 && j >= 0 && j < 360);
+  const float* c = &gl[4 * (size_t(i) + 640 * size_t(j))];
+  const double a_top = 128 / 255.0, alpha = a_top + (1 - a_top) * a_top;
+  EXPECT_NEAR(c[3], alpha, 2.0 / 255);
+  EXPECT_NEAR(c[2], a_top / alpha, 2.0 / 255);               // blue on top
+  EXPECT_NEAR(c[0], (1 - a_top) * a_top / alpha, 2.0 / 255);  // red below
+}
+
+TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorInPerspective) {
+  std::string why;
+  const std::string& pkg = styles_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  std::vector<float> gl, cpu;
+  if (!render_pair(pkg, "styles_oblique", "--fit --pitch 35", gl, cpu, why)) GTEST_SKIP() << why;
+  auto a = agreement(gl, cpu);
+  std::printf("styles oblique agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
+  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
+  EXPECT_GT(a.considered, 5000u);
+  EXPECT_GE(a.ratio(), 0.999);
+}
+
+// Quality of the anti-aliasing modes: mean absolute difference of the
+// premultiplied decal layer from a 16x supersampled reference (4x4 box
+// filter of an aliased 2560x1440 render of the same view).
+TEST(RenderSmoke, AntiAliasingModesAreCloserToSupersampledReferenceThanAliased) {
+  std::string why;
+  const std::string& pkg = styles_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  const fs::path d = out_dir();
+  auto render = [&](const std::string& aa, const std::string& size, const std::string& name) {
+    auto r = tool("render " + pkg + " " + kStylesView + " --size " + size + " --aa " + aa + " --raw " +
+                  (d / (name + ".rgba")).string() + " -o " + (d / (name + ".png")).string());
+    return r;
+  };
+  auto ref_run = render("none", "2560x1440", "aa_reference");
+  if (ref_run.rc == 8) GTEST_SKIP() << "no headless GL: " << ref_run.output;
+  ASSERT_EQ(ref_run.rc, 0) << ref_run.output;
+  auto big = read_raw((d / "aa_reference.rgba").string());
+  ASSERT_EQ(big.size(), 2560u * 1440u * 4u);
+  std::vector<double> ref(640 * 360 * 4, 0.0);
+  for (uint32_t j = 0; j < 1440; ++j)
+    for (uint32_t i = 0; i < 2560; ++i) {
+      const float* c = &big[4 * (i + 2560 * size_t(j))];
+      double* o = &ref[4 * (i / 4 + 640 * size_t(j / 4))];
+      for (int k = 0; k < 3; ++k) o[k] += c[k] * c[3] / 16.0;
+      o[3] += c[3] / 16.0;
+    }
+  std::map<std::string, double> error;
+  for (const std::string aa : {"none", "coverage", "msaa4"}) {
+    auto r = render(aa, "640x360", "aa_" + aa);
+    ASSERT_EQ(r.rc, 0) << r.output;
+    auto img = read_raw((d / ("aa_" + aa + ".rgba")).string());
+    ASSERT_EQ(img.size(), ref.size());
+    double sum = 0;
+    size_t n = 0;
+    for (size_t p = 0; p < ref.size(); p += 4) {
+      if (ref[p + 3] == 0 && img[p + 3] == 0) continue;
+      for (int k = 0; k < 3; ++k) sum += std::abs(img[p + k] * img[p + 3] - ref[p + k]);
+      sum += std::abs(img[p + 3] - ref[p + 3]);
+      n += 4;
+    }
+    error[aa] = sum / double(n);
+    std::printf("aa %-9s mean |difference| from 16x supersampling: %.5f\n", aa.c_str(), error[aa]);
+    RecordProperty("mean_abs_error_" + aa, std::to_string(error[aa]));
+  }
+  EXPECT_LT(error["coverage"], 0.8 * error["none"]);
+  EXPECT_LT(error["msaa4"], 0.8 * error["none"]);
+}
+
+}  // namespace
