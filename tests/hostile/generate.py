@@ -203,6 +203,12 @@ def main():
     write_shapefile(os.path.join(out, "coord_inf"), 3,
                     [[[ll(0, 0), ll(10, 0)]], [[(LON0, LAT0), (float("inf"), LAT0)]]])
     case("coord_inf", "coord_inf.shp", "line", extra_args=args_w)
+    # The same files with --skip-failures: the failing feature is dropped and
+    # recorded, the rest builds, exit code 4 (partial).
+    cases.append({"name": "coord_nan_skip_failures", "path": os.path.join(out, "coord_nan.shp"), "kind": "polygon",
+                  "args": ["--skip-failures"], "big": False})
+    cases.append({"name": "coord_inf_skip_failures", "path": os.path.join(out, "coord_inf.shp"), "kind": "line",
+                  "args": args_w + ["--skip-failures"], "big": False})
     case("coord_1e300", "coord_1e300.geojson", "line",
          [feature({"type": "LineString", "coordinates": [[LON0, LAT0], [1e300, LAT0]]}, 1),
           feature(line([(0, 0), (10, 0)]), 2)], args_w)
