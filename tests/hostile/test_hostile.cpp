@@ -145,6 +145,8 @@ struct Geos {
   }
   GEOSGeometry* unite(std::vector<GEOSGeometry*>& parts) const {
     if (parts.empty()) return GEOSGeom_createEmptyPolygon_r(h);
+    // One polygon is its own union (a union of a 10^5-hole polygon takes minutes).
+    if (parts.size() == 1) return parts[0];
     GEOSGeometry* coll =
         GEOSGeom_createCollection_r(h, GEOS_GEOMETRYCOLLECTION, parts.data(), unsigned(parts.size()));
     GEOSGeometry* u = GEOSUnaryUnion_r(h, coll);
