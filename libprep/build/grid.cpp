@@ -100,6 +100,16 @@ double weighted_mean_per_cell(const GridParams& g, const std::vector<QBox>& prim
   return entries > 0 ? squares / entries : 0.0;
 }
 
+// Cell entries the primitive boxes make on grid `g` (O(primitives)).
+double entry_count(const GridParams& g, const std::vector<QBox>& prims) {
+  double entries = 0;
+  for (const QBox& b : prims) {
+    int64_t x0, y0, x1, y1;
+    if (cell_range(g, b, x0, y0, x1, y1)) entries += double(x1 - x0 + 1) * double(y1 - y0 + 1);
+  }
+  return entries;
+}
+
 }  // namespace
 
 GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims,
@@ -119,14 +129,26 @@ GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims,
   const double max_cells = std::max<uint32_t>(o.max_cells, 1);
   const double min_side = std::sqrt(w * h / max_cells);
   double side = std::max(std::sqrt(w * h * target / n), min_side);
+  // Cell-entry budget: where primitives overlap heavily (10^5 collinear
+  // 1 cm segments of a 2 m wide line), no cell size reaches the target and
+  // shrinking cells only multiplies the entries (each box then covers
+  // (box/side)^2 cells: ~10^9 entries, tens of GB). Grids over the budget
+  // are refused and the search moves to larger cells.
+  const double entry_budget = std::max(64.0 * n, double(1u << 22));
   GridParams best = grid_with_cell(e, int64_t(std::ceil(side)), int64_t(std::ceil(side)));
   double best_score = std::numeric_limits<double>::infinity();
-  for (int it = 0; it < 8; ++it) {
+  bool best_in_budget = false;
+  for (int it = 0; it < 64 && (it < 8 || !best_in_budget); ++it) {
     GridParams g = grid_with_cell(e, int64_t(std::ceil(side)), int64_t(std::ceil(side)));
     if (double(g.nx) * double(g.ny) > max_cells) {
       side *= 1.05;
       continue;
     }
+    if (entry_count(g, prims) > entry_budget) {
+      side *= 2;
+      continue;
+    }
+    best_in_budget = true;
     double mean = weighted_mean_per_cell(g, prims, weights);
     double score = mean > 0 ? std::fabs(std::log(mean / target)) : 0.0;
     if (score < best_score) {
@@ -137,6 +159,11 @@ GridParams choose_grid(const QBox& e, const std::vector<QBox>& prims,
     double f = std::clamp(std::sqrt(target / mean), 0.5, 2.0);
     side = std::max(side * f, min_side);
     if (side < 1.0) side = 1.0;
+  }
+  if (!best_in_budget) {
+    throw resource_error("build: decal grid: no cell size keeps the segment/cell entries under " +
+                         std::to_string(uint64_t(entry_budget)) +
+                         " (primitives overlap too much; raise --resolution to simplify the lines)");
   }
   return best;
 }

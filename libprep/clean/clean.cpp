@@ -441,6 +441,22 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
           r.drop_reason = f.drop_reason.empty() ? "no coordinates" : f.drop_reason;
           continue;
         }
+        // Read rejects NaN/Inf, but a transform can still yield them; GEOS
+        // must never see one (its quad-tree index loops forever on a NaN
+        // envelope inside TopologyPreserveSimplify: found by fuzz_build).
+        std::string bad;
+        for (size_t ri = 0; ri < f.rings.size() && bad.empty(); ++ri)
+          for (size_t v = 0; v < f.rings[ri].size(); ++v)
+            if (!std::isfinite(f.rings[ri][v].x) || !std::isfinite(f.rings[ri][v].y)) {
+              bad = "ring " + std::to_string(ri) + " vertex " + std::to_string(v) +
+                    " has a non-finite coordinate";
+              break;
+            }
+        if (!bad.empty()) {
+          r.outcome = Outcome::dropped;
+          r.drop_reason = bad;
+          continue;
+        }
         if (!f.repairs.empty()) add_repair(r, f.repairs);
         if (f.is_polygon)
           cleaner.polygon(ctx, f, r);

@@ -249,6 +249,9 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     t0 = Clock::now();
     // build_model carries the manifest; make sure the package has it.
     if (model.manifest.layers.empty()) model.manifest = result.scene.manifest;
+    // The report carries what the build stage added too (quad-tree depth
+    // cap / leaf overflow notes, dynamic-line notes), not only clean's part.
+    result.scene.manifest = model.manifest;
     // write_model writes frame, grid, counts and the manifest itself; the
     // pipeline adds what only it knows (keys must not collide).
     nlohmann::json totals = manifest_json(model.manifest, false)["totals"];

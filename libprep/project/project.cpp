@@ -154,7 +154,9 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
              -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   for (const SourceLayer& layer : features.layers) {
     Extent e = bounds_of(layer);
-    if (e.empty()) continue;
+    // A single horizontal or vertical line has a zero-height (or zero-width)
+    // box; only a layer without any vertex is skipped.
+    if (!(e.xmax >= e.xmin && e.ymax >= e.ymin)) continue;
     auto src = srs_from(layer.srs_wkt, "source CRS");
     auto t = make_transform(*src, *geo, "layer '" + layer.spec.name + "' to WGS84");
     Extent g = transform_bounds(*t, e, "layer '" + layer.spec.name + "'");
@@ -165,6 +167,24 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   }
   if (!(all.xmax >= all.xmin)) {
     throw input_error("project: no features to centre the scene frame on (every layer is empty)");
+  }
+  // More than 180 degrees of longitude away from the poles is, for local
+  // data, a line or ring that crosses the antimeridian in a geographic CRS
+  // (179.9 -> -179.9 read the long way round): the local TM frame would put
+  // it around the globe. Say what to do instead of failing later on the
+  // int32 range (or worse). Near a pole, a wide longitude range is normal and
+  // the TM frame holds it.
+  const bool polar = all.ymin > 60.0 || all.ymax < -60.0;
+  if (crs.empty() && all.xmax - all.xmin > 180.0 && !polar) {
+    char msg[512];
+    std::snprintf(msg, sizeof msg,
+                  "project: the data spans %.10g..%.10g degrees of longitude (more than 180: "
+                  "it crosses the antimeridian in a geographic CRS, or is not local); the "
+                  "default local TM frame cannot hold it. Pass --crs with a projected CRS "
+                  "for the area (e.g. EPSG:3832 across the Pacific, EPSG:3413 or EPSG:3031 "
+                  "at the poles), or split the scene",
+                  all.xmin, all.xmax);
+    throw input_error(msg);
   }
   // Rounded to 1e-7 degrees (~1 cm) so the frame definition prints exactly.
   const double lon0 = std::round((all.xmin + all.xmax) * 0.5 * 1e7) / 1e7;
@@ -193,10 +213,46 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   frame.crs_wkt = to_wkt(*srs);
   const char* name = srs->GetName();
   frame.description = name ? name : crs;
-  auto t = make_transform(*geo, *srs, "WGS84 to --crs");
-  double x = lon0, y = lat0;
-  if (!t->Transform(1, &x, &y)) {
-    throw input_error("project: the data centre cannot be expressed in --crs '" + crs + "'");
+  // The origin is the centre of the data's vertices transformed into --crs
+  // (up to ~4096 per layer), not the transformed centre of the geographic
+  // box: for data across the antimeridian that box is the whole globe and
+  // its centre (lon 0) lies half a world away from the data.
+  Extent fe{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+            -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  for (const SourceLayer& layer : features.layers) {
+    std::vector<double> xs, ys;
+    size_t total = 0;
+    for (const SourceFeature& f : layer.features)
+      if (f.drop_reason.empty())
+        for (const Ring& r : f.rings) total += r.size();
+    if (total == 0) continue;
+    const size_t stride = std::max<size_t>(1, total / 4096);
+    size_t i = 0;
+    for (const SourceFeature& f : layer.features) {
+      if (!f.drop_reason.empty()) continue;
+      for (const Ring& r : f.rings)
+        for (const Point2& p : r)
+          if (i++ % stride == 0) xs.push_back(p.x), ys.push_back(p.y);
+    }
+    auto src = srs_from(layer.srs_wkt, "source CRS");
+    auto lt = make_transform(*src, *srs, "layer '" + layer.spec.name + "' to --crs");
+    std::vector<int> ok(xs.size(), 0);
+    lt->Transform(static_cast<int>(xs.size()), xs.data(), ys.data(), nullptr, ok.data());
+    for (size_t k = 0; k < xs.size(); ++k) {
+      if (!ok[k] || !std::isfinite(xs[k]) || !std::isfinite(ys[k])) continue;
+      fe.xmin = std::min(fe.xmin, xs[k]);
+      fe.ymin = std::min(fe.ymin, ys[k]);
+      fe.xmax = std::max(fe.xmax, xs[k]);
+      fe.ymax = std::max(fe.ymax, ys[k]);
+    }
+  }
+  double x = (fe.xmin + fe.xmax) * 0.5, y = (fe.ymin + fe.ymax) * 0.5;
+  if (!(fe.xmax >= fe.xmin)) {
+    auto t = make_transform(*geo, *srs, "WGS84 to --crs");
+    x = lon0, y = lat0;
+    if (!t->Transform(1, &x, &y)) {
+      throw input_error("project: the data centre cannot be expressed in --crs '" + crs + "'");
+    }
   }
   frame.origin_x = std::round(x);
   frame.origin_y = std::round(y);

@@ -164,7 +164,9 @@ def main():
                for i in range(n)]
         case("poly_million_vertices", "poly_million_vertices.geojson", "polygon",
              [feature(poly(ring(pts)), 1)], big_case=True)
-        holes = [ring(square_cw(-4990 + 31.6 * (k % 316), -4990 + 31.6 * (k // 316), 10)) for k in range(100_000)]
+        # 316 columns x 317 rows of 20 m holes, 11.4 m apart, clear of the
+        # shell (-4960 - 10 > -5000, -4960 + 316 * 31.4 + 10 < 5000): valid.
+        holes = [ring(square_cw(-4960 + 31.4 * (k % 316), -4960 + 31.4 * (k // 316), 10)) for k in range(100_000)]
         case("poly_100k_holes", "poly_100k_holes.geojson", "polygon",
              [feature(poly(ring(square(0, 0, 5000)), *holes), 1)], big_case=True)
         teeth = [(0, 0)]
@@ -201,6 +203,12 @@ def main():
     write_shapefile(os.path.join(out, "coord_inf"), 3,
                     [[[ll(0, 0), ll(10, 0)]], [[(LON0, LAT0), (float("inf"), LAT0)]]])
     case("coord_inf", "coord_inf.shp", "line", extra_args=args_w)
+    # The same files with --skip-failures: the failing feature is dropped and
+    # recorded, the rest builds, exit code 4 (partial).
+    cases.append({"name": "coord_nan_skip_failures", "path": os.path.join(out, "coord_nan.shp"), "kind": "polygon",
+                  "args": ["--skip-failures"], "big": False})
+    cases.append({"name": "coord_inf_skip_failures", "path": os.path.join(out, "coord_inf.shp"), "kind": "line",
+                  "args": args_w + ["--skip-failures"], "big": False})
     case("coord_1e300", "coord_1e300.geojson", "line",
          [feature({"type": "LineString", "coordinates": [[LON0, LAT0], [1e300, LAT0]]}, 1),
           feature(line([(0, 0), (10, 0)]), 2)], args_w)
@@ -215,6 +223,13 @@ def main():
     case("coord_utm_north_1mm", "coord_utm_north_1mm.geojson", "line", extra_args=["--width", "0.001"])
     case("coord_antimeridian", "coord_antimeridian.geojson", "line",
          [feature({"type": "LineString", "coordinates": [[179.9, 10.0], [-179.9, 10.1]]}, 1)], args_w)
+    # The same line in a CRS that holds it (PDC Mercator, centred on 150 E).
+    case("coord_antimeridian_crs", "coord_antimeridian_crs.geojson", "line",
+         [feature({"type": "LineString", "coordinates": [[179.9, 10.0], [-179.9, 10.1]]}, 1)],
+         args_w + ["--crs", "EPSG:3832"])
+    # Around the north pole only: the local TM frame holds it.
+    case("coord_north_pole", "coord_north_pole.geojson", "polygon",
+         [feature({"type": "Polygon", "coordinates": [[[0, 89.99], [120, 89.99], [-120, 89.99], [0, 89.99]]]}, 1)])
     case("coord_poles", "coord_poles.geojson", "polygon",
          [feature({"type": "Polygon", "coordinates": [[[0, 89.9], [120, 89.9], [-120, 89.9], [0, 89.9]]]}, 1),
           feature({"type": "Polygon", "coordinates": [[[-180, -90], [180, -90], [180, -89.9], [-180, -89.9], [-180, -90]]]}, 2)])

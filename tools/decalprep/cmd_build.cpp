@@ -1,9 +1,18 @@
 // decalprep build — SCENE.toml (or one GDAL source) -> .decals package.
 // Thin: parses options into a SceneSpec and calls prep::run_build.
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 #include "command.hpp"
@@ -14,6 +23,8 @@ namespace {
 
 struct BuildArgs {
   std::string input, output, report;
+  std::vector<std::string> inputs;  // as given; several (or a folder): batch mode
+  unsigned jobs = 1;
   // file-less layer options
   std::string layer, where, sql, kind, corner, outline_mode, color;
   std::optional<double> width;
@@ -22,8 +33,10 @@ struct BuildArgs {
   std::string crs, assume_crs, extent, extent_crs, dem, grid;
   std::optional<double> resolution;
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
+  // terrain matching of dynamic lines (override the scene file's [build])
+  std::optional<double> lmax, terrain_tolerance, z_scale, nodata_fill;
   int zstd_level = 3;
-  bool no_compress = false, dry_run = false, quiet = false;
+  bool no_compress = false, dry_run = false, quiet = false, skip_failures = false;
 };
 
 bool ends_with(const std::string& s, const std::string& suffix) {
@@ -112,6 +125,24 @@ int run(const BuildArgs& a) {
   if (a.leaf_capacity) scene.build.qt_leaf_capacity = *a.leaf_capacity;
   if (a.max_depth) scene.build.qt_max_depth = *a.max_depth;
   if (a.threads) scene.build.threads = *a.threads;
+  if (a.skip_failures) scene.skip_failures = true;
+  if (a.lmax) {
+    if (!(*a.lmax >= 0)) throw prep::usage_error("--lmax: must be >= 0 metres (0: half the DEM cell)");
+    scene.build.lmax = *a.lmax;
+  }
+  if (a.terrain_tolerance) {
+    if (!(*a.terrain_tolerance >= 0))
+      throw prep::usage_error("--terrain-tolerance: must be >= 0 metres (0: uniform subdivision)");
+    scene.build.terrain_tolerance = *a.terrain_tolerance;
+  }
+  if (a.z_scale) {
+    if (!std::isfinite(*a.z_scale)) throw prep::usage_error("--z-scale: must be a finite number");
+    scene.build.z_scale = *a.z_scale;
+  }
+  if (a.nodata_fill) {
+    if (!std::isfinite(*a.nodata_fill)) throw prep::usage_error("--nodata-fill: must be a finite height");
+    scene.build.nodata_fill = *a.nodata_fill;
+  }
 
   if (!a.dry_run && a.output.empty()) throw prep::usage_error("build: -o OUT.decals is required (or --dry-run)");
 
@@ -144,18 +175,189 @@ int run(const BuildArgs& a) {
     if (a.dry_run) std::fprintf(stderr, "dry run: no package written\n");
     if (!a.report.empty()) std::fprintf(stderr, "report %s\n", a.report.c_str());
   }
+  // --skip-failures: features that would have stopped the build (read
+  // reports them as "... has a non-finite coordinate") were dropped and
+  // recorded; the package is partial (ogr2ogr -skipfailures).
+  if (scene.skip_failures) {
+    size_t skipped = 0;
+    for (const prep::ManifestEntry& e : result.scene.manifest.entries)
+      if (e.action == "dropped" && e.reason.find("non-finite coordinate") != std::string::npos) ++skipped;
+    if (skipped > 0) {
+      if (!a.quiet)
+        std::fprintf(stderr, "decalprep build: --skip-failures dropped %zu failing features (see the manifest)\n",
+                     skipped);
+      return static_cast<int>(prep::ExitCode::partial);
+    }
+  }
   return static_cast<int>(prep::ExitCode::ok);
+}
+
+// ------------------------------------------------------------ batch mode --
+// Several scene files (or a folder of *.toml) -> OUTDIR/<stem>.decals each.
+// Every scene builds in its own forked child (at most --jobs at once), so a
+// crash or an out-of-memory kill in one leaves the others running and the
+// kernel's rusage gives each package's peak memory. One summary JSON
+// (--report, default OUTDIR/summary.json) lists status, exit code, error,
+// counts, wall time and peak RSS per scene; the exit code is that of the
+// first failed scene (input order), 0 when all built.
+
+struct BatchItem {
+  std::string scene, output, report, log;
+  pid_t pid = -1;
+  int exit_code = -1;
+  double seconds = 0;
+  long peak_rss_kb = 0;
+  std::chrono::steady_clock::time_point start;
+};
+
+std::string last_line(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "r");
+  if (!f) return "";
+  std::string all, line, last;
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) all.append(buf, n);
+  std::fclose(f);
+  std::istringstream in(all);
+  while (std::getline(in, line))
+    if (!line.empty() && line.find('%') == std::string::npos) last = line;
+  return last;
+}
+
+int run_batch(const BuildArgs& a) {
+  namespace fs = std::filesystem;
+  if (a.output.empty()) throw prep::usage_error("build: batch mode needs -o OUTDIR");
+  std::vector<std::string> scenes;
+  for (const std::string& in : a.inputs) {
+    std::error_code ec;
+    if (fs::is_directory(in, ec)) {
+      std::vector<std::string> found;
+      for (const auto& e : fs::directory_iterator(in))
+        if (e.path().extension() == ".toml") found.push_back(e.path().string());
+      std::sort(found.begin(), found.end());
+      if (found.empty()) throw prep::usage_error("build: folder " + in + " has no *.toml scene files");
+      scenes.insert(scenes.end(), found.begin(), found.end());
+    } else if (ends_with(in, ".toml")) {
+      scenes.push_back(in);
+    } else {
+      throw prep::usage_error("build: batch mode takes scene files (.toml) or folders of them; got " + in);
+    }
+  }
+  std::error_code ec;
+  fs::create_directories(a.output, ec);
+  if (!fs::is_directory(a.output)) throw prep::output_error("build: cannot create output folder " + a.output);
+  std::vector<BatchItem> items(scenes.size());
+  std::set<std::string> stems;
+  for (size_t i = 0; i < scenes.size(); ++i) {
+    std::string stem = fs::path(scenes[i]).stem().string();
+    if (!stems.insert(stem).second)
+      throw prep::usage_error("build: two scenes would both write " + stem + ".decals; rename one");
+    items[i].scene = scenes[i];
+    items[i].output = (fs::path(a.output) / (stem + ".decals")).string();
+    items[i].report = (fs::path(a.output) / (stem + ".report.json")).string();
+    items[i].log = (fs::path(a.output) / (stem + ".log")).string();
+  }
+  const unsigned jobs = std::max(1u, a.jobs);
+  size_t next = 0, running = 0;
+  std::fflush(nullptr);
+  while (next < items.size() || running > 0) {
+    while (running < jobs && next < items.size()) {
+      BatchItem& it = items[next++];
+      it.start = std::chrono::steady_clock::now();
+      const pid_t pid = fork();
+      if (pid < 0) throw prep::error("build: fork failed", prep::ExitCode::internal);
+      if (pid == 0) {
+        // Child: one ordinary single-scene build, its stderr in the log.
+        if (std::FILE* log = std::freopen(it.log.c_str(), "w", stderr)) (void)log;
+        int code = static_cast<int>(prep::ExitCode::internal);
+        try {
+          BuildArgs one = a;
+          one.inputs.clear();
+          one.input = it.scene;
+          one.output = it.output;
+          one.report = it.report;
+          one.quiet = true;
+          code = run(one);
+        } catch (const prep::error& e) {
+          std::fprintf(stderr, "decalprep: %s\n", e.what());
+          code = static_cast<int>(e.code());
+        } catch (const std::bad_alloc&) {
+          std::fprintf(stderr, "decalprep: out of memory\n");
+          code = static_cast<int>(prep::ExitCode::resource);
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "decalprep: internal error: %s\n", e.what());
+        }
+        std::fflush(nullptr);
+        _exit(code);
+      }
+      it.pid = pid;
+      ++running;
+    }
+    int status = 0;
+    struct rusage ru {};
+    const pid_t done = wait4(-1, &status, 0, &ru);
+    if (done < 0) break;
+    for (BatchItem& it : items) {
+      if (it.pid != done) continue;
+      it.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it.start).count();
+      it.peak_rss_kb = ru.ru_maxrss;
+      it.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      --running;
+      if (!a.quiet)
+        std::fprintf(stderr, "%s: %s (%.2f s, peak %.1f MiB)\n", it.scene.c_str(),
+                     it.exit_code == 0 ? "built" : "FAILED", it.seconds, it.peak_rss_kb / 1024.0);
+    }
+  }
+  nlohmann::json summary;
+  int first_fail = 0;
+  size_t failed = 0;
+  for (const BatchItem& it : items) {
+    nlohmann::json e{{"scene", it.scene},
+                     {"status", it.exit_code == 0 ? "built" : "failed"},
+                     {"exit_code", it.exit_code},
+                     {"seconds", it.seconds},
+                     {"peak_rss_mib", it.peak_rss_kb / 1024.0}};
+    if (it.exit_code == 0) {
+      e["output"] = it.output;
+      e["report"] = it.report;
+      std::ifstream rin(it.report);
+      const nlohmann::json r = nlohmann::json::parse(rin, nullptr, false);
+      if (r.is_object() && r.contains("manifest")) e["counts"] = r["manifest"].value("totals", nlohmann::json());
+    } else {
+      e["error"] = last_line(it.log);
+      e["log"] = it.log;
+      ++failed;
+      if (first_fail == 0) first_fail = it.exit_code;
+    }
+    summary["packages"].push_back(e);
+  }
+  summary["built"] = items.size() - failed;
+  summary["failed"] = failed;
+  summary["jobs"] = jobs;
+  const std::string path = a.report.empty() ? (fs::path(a.output) / "summary.json").string() : a.report;
+  std::ofstream out(path);
+  out << summary.dump(2) << "\n";
+  if (!out) throw prep::output_error("build: cannot write the batch summary " + path);
+  if (!a.quiet)
+    std::fprintf(stderr, "decalprep build: %zu of %zu scenes built; summary %s\n", items.size() - failed,
+                 items.size(), path.c_str());
+  return first_fail;
 }
 
 const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   auto args = std::make_shared<BuildArgs>();
   CLI::App* cmd = app.add_subcommand(
       "build", "Build a .decals package from a scene file (SCENE.toml) or one GDAL source");
-  cmd->add_option("input", args->input, "Scene file (.toml) or any GDAL vector source")->required();
+  cmd->add_option("input", args->inputs,
+                  "Scene file (.toml) or any GDAL vector source; several scene files or folders "
+                  "of them: batch mode, -o is then a folder")->required();
+  cmd->add_option("--jobs", args->jobs, "Batch mode: scenes built side by side (default 1)");
   cmd->add_option("-o,--output", args->output, "Package to write (atomically)");
   cmd->add_option("--report", args->report, "Write the JSON report (counts, manifest, timings)");
   cmd->add_flag("--dry-run", args->dry_run, "Stop after clean: write the report, no package");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress or summary on stderr");
+  cmd->add_flag("--skip-failures", args->skip_failures,
+                "Drop a failing feature (recorded in the manifest) and go on; exit code 4 (partial)");
   auto* g = "File-less form (one layer)";
   cmd->add_option("--layer", args->layer, "Source layer name (default: the first)")->group(g);
   cmd->add_option("--where", args->where, "OGR attribute filter")->group(g);
@@ -173,6 +375,13 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (default: the frame)")->group(s);
   cmd->add_option("--resolution", args->resolution, "Simplification tolerance, metres (0: keep all)")->group(s);
   cmd->add_option("--dem", args->dem, "DEM raster (GDAL path); clips to its extent")->group(s);
+  auto* t = "Terrain (dynamic lines; override the scene file)";
+  cmd->add_option("--lmax", args->lmax, "Longest terrain-matched segment, metres (0: half the DEM cell)")->group(t);
+  cmd->add_option("--terrain-tolerance", args->terrain_tolerance,
+                  "Adaptive subdivision tolerance, metres (0: uniform)")->group(t);
+  cmd->add_option("--z-scale", args->z_scale, "Height exaggeration (default 1)")->group(t);
+  cmd->add_option("--nodata-fill", args->nodata_fill,
+                  "Height for DEM no-data samples (default: nearest valid sample)")->group(t);
   auto* b = "Build";
   cmd->add_option("--grid", args->grid, "Decal grid NXxNY (500x500 = thesis) or auto")->group(b);
   cmd->add_option("--leaf-capacity", args->leaf_capacity, "Quad-tree leaf capacity (thesis: 8)")->group(b);
@@ -180,7 +389,16 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_option("--threads", args->threads, "Worker threads (0: all); output is identical")->group(b);
   cmd->add_option("--zstd-level", args->zstd_level, "zstd level (default 3)")->group(b);
   cmd->add_flag("--no-compress", args->no_compress, "Store blobs uncompressed (memory-mappable)")->group(b);
-  cmd->callback([args] { decalprep::set_exit_code(run(*args)); });
+  cmd->callback([args] {
+    std::error_code ec;
+    const bool batch = args->inputs.size() > 1 || std::filesystem::is_directory(args->inputs[0], ec);
+    if (batch) {
+      decalprep::set_exit_code(run_batch(*args));
+      return;
+    }
+    args->input = args->inputs[0];
+    decalprep::set_exit_code(run(*args));
+  });
 });
 
 }  // namespace
