@@ -2,6 +2,7 @@
 // from a DecalModel (formats/SPEC.md §"Metadata"), then write_package.
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <string>
 
 #include "prep/error.hpp"
@@ -15,6 +16,8 @@ using json = nlohmann::json;
 // NaN areas ("not measured") become null rather than an invalid number.
 json number_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
+// The manifest summary for the metadata chunk; the entries go to the
+// manifest_entries blob (manifest_entries_json).
 json manifest_json(const Manifest& m) {
   json layers = json::array();
   for (const LayerCounts& l : m.layers)
@@ -27,6 +30,10 @@ json manifest_json(const Manifest& m) {
                       {"parts", l.parts},
                       {"vertices_in", l.vertices_in},
                       {"vertices_out", l.vertices_out}});
+  return {{"layers", layers}, {"notes", m.notes}, {"entry_count", m.entries.size()}};
+}
+
+std::string manifest_entries_json(const Manifest& m) {
   json entries = json::array();
   for (const ManifestEntry& e : m.entries)
     entries.push_back({{"layer", e.layer},
@@ -36,7 +43,7 @@ json manifest_json(const Manifest& m) {
                        {"reason", e.reason},
                        {"area_before", number_or_null(e.area_before)},
                        {"area_after", number_or_null(e.area_after)}});
-  return {{"layers", layers}, {"entries", entries}, {"notes", m.notes}};
+  return entries.dump();
 }
 
 // Adds `extra` into `base`; objects present in both merge recursively, any
@@ -60,7 +67,10 @@ void merge(json& base, const json& extra, const std::string& where, const std::s
 
 void write_model(const std::string& path, const DecalModel& model,
                  const std::string& extra_metadata_json, const WriteOptions& options) {
-  const std::vector<BlobInput> blobs = model_blobs(model, /*include_empty=*/true);
+  std::vector<BlobInput> blobs = model_blobs(model, /*include_empty=*/true);
+  const std::string entries = manifest_entries_json(model.manifest);
+  blobs.push_back({decal::BlobId::manifest_entries, decal::ElementType::u8, 1, entries.size(),
+                   std::as_bytes(std::span(entries.data(), entries.size()))});
   json counts = json::object();
   for (const BlobInput& b : blobs)
     counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;

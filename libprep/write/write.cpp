@@ -378,7 +378,8 @@ std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
       blob_of(BlobId::lod_segments, m.lod_segments),
       blob_of(BlobId::lod_line_range, m.lod_line_range),
   };
-  static_assert(std::size(decal::kBlobCatalogue) == 27, "model_blobs must list every blob");
+  // Every catalogue blob but manifest_entries, which write_model adds.
+  static_assert(std::size(decal::kBlobCatalogue) == 28, "model_blobs must list every model blob");
   std::vector<BlobInput> out;
   for (const BlobInput& b : all)
     if (include_empty || b.count > 0) out.push_back(b);

@@ -272,7 +272,14 @@ TEST(WriteModel, EmptyModelStillListsEveryBlob) {
   decal::Package p;
   ASSERT_TRUE(decal::Package::from_memory(bytes, p));
   ASSERT_EQ(p.blobs().size(), std::size(decal::kBlobCatalogue));
-  for (const auto& b : p.blobs()) EXPECT_EQ(b.count, 0u) << b.name;
+  for (const auto& b : p.blobs()) {
+    if (b.id == static_cast<uint32_t>(decal::BlobId::manifest_entries)) {
+      // An empty manifest is still a JSON array.
+      EXPECT_EQ(std::string(reinterpret_cast<const char*>(b.bytes.data()), b.count), "[]");
+    } else {
+      EXPECT_EQ(b.count, 0u) << b.name;
+    }
+  }
 }
 
 TEST(WriteModel, MetadataCarriesFrameGridCountsManifestAndExtraKeys) {
@@ -299,8 +306,15 @@ TEST(WriteModel, MetadataCarriesFrameGridCountsManifestAndExtraKeys) {
   EXPECT_EQ(j.at("counts").at("lines"), m.line_props.size());
   EXPECT_EQ(j.at("counts").at("polygons"), m.poly_props.size());
   EXPECT_EQ(j.at("manifest").at("layers").at(0).at("dropped"), 1);
-  EXPECT_EQ(j.at("manifest").at("entries").at(0).at("fid"), 17);
-  EXPECT_TRUE(j.at("manifest").at("entries").at(0).at("area_before").is_null());
+  EXPECT_FALSE(j.at("manifest").contains("entries"));  // they live in their own blob
+  EXPECT_EQ(j.at("manifest").at("entry_count"), m.manifest.entries.size());
+  const decal::BlobView* eb = p.find(decal::BlobId::manifest_entries);
+  ASSERT_NE(eb, nullptr);
+  const auto entries =
+      nlohmann::json::parse(std::string(reinterpret_cast<const char*>(eb->bytes.data()), eb->count));
+  ASSERT_EQ(entries.size(), m.manifest.entries.size());
+  EXPECT_EQ(entries.at(0).at("fid"), 17);
+  EXPECT_TRUE(entries.at(0).at("area_before").is_null());
   EXPECT_EQ(j.at("manifest").at("notes").at(0), "flat terrain");
   EXPECT_EQ(j.at("build").at("threads"), 2);
   EXPECT_EQ(j.at("provenance").at("inputs").at(0).at("path"), "a.shp");

@@ -197,6 +197,10 @@ json scene_metres(const decal::BlobView& b, uint64_t i, int n) {
   return arr;
 }
 
+std::string as_text(const decal::BlobView& b) {
+  return {reinterpret_cast<const char*>(b.bytes.data()), static_cast<size_t>(b.count)};
+}
+
 std::string type_name(const decal::BlobView& b) { return std::string(decal::element_type_name(b.type)); }
 
 void run_dump(const std::string& path, bool as_json, const std::string& only) {
@@ -220,6 +224,18 @@ void run_dump(const std::string& path, bool as_json, const std::string& only) {
     json blobs = json::array();
     for (const auto& b : p.blobs()) {
       if (!only.empty() && b.name != only) continue;
+      if (b.id == static_cast<uint32_t>(BlobId::manifest_entries)) {
+        // A JSON document stored as bytes: decode it instead of listing bytes.
+        json entries;
+        try {
+          entries = json::parse(as_text(b));
+        } catch (const json::exception& e) {
+          throw prep::format_error("dump: " + path + ": manifest_entries is not valid JSON: " + e.what());
+        }
+        blobs.push_back({{"id", b.id}, {"name", b.name}, {"type", type_name(b)}, {"stride", b.stride},
+                         {"count", b.count}, {"elements", std::move(entries)}});
+        continue;
+      }
       json elements = json::array();
       const int pos = position_components(b.id);
       json scene = json::array();
@@ -246,6 +262,11 @@ void run_dump(const std::string& path, bool as_json, const std::string& only) {
     if (!only.empty() && b.name != only) continue;
     std::printf("blob %s id=%u type=%s stride=%u count=%" PRIu64 "\n", b.name.c_str(), b.id,
                 type_name(b).c_str(), b.stride, b.count);
+    if (b.id == static_cast<uint32_t>(BlobId::manifest_entries)) {
+      const std::string text = as_text(b);  // one JSON line, canonical (sorted keys)
+      std::printf("  %s\n", text.c_str());
+      continue;
+    }
     for (uint64_t i = 0; i < b.count; ++i) {
       line = "  [" + std::to_string(i) + "] ";
       element(b, i, &line, nullptr);

@@ -103,6 +103,9 @@ enum class BlobId : uint32_t {
   lod_points = 40,         // record LodPoint per point
   lod_segments = 41,       // record LodSegment per attributed segment
   lod_line_range = 42,     // uvec2  per LOD line: (first, count) into lod_segments
+  // --- provenance ---
+  manifest_entries = 50,   // u8     UTF-8 JSON array: one object per repaired,
+                           //        dropped or clipped-away feature (SPEC §Metadata)
 };
 
 struct BlobInfo {
@@ -273,6 +276,7 @@ inline constexpr BlobInfo kBlobCatalogue[] = {
     {BlobId::lod_points, "lod_points", ElementType::record, sizeof(LodPoint)},
     {BlobId::lod_segments, "lod_segments", ElementType::record, sizeof(LodSegment)},
     {BlobId::lod_line_range, "lod_line_range", ElementType::uvec2, 8},
+    {BlobId::manifest_entries, "manifest_entries", ElementType::u8, 1},
 };
 
 // Returns the catalogue row of `id`, or nullptr for an id this build does not
