@@ -15,6 +15,7 @@
 
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
+#include "prep/manifest_json.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
 #if DECALPREP_HAVE_BUILD_WRITE
@@ -29,11 +30,6 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-// JSON has no NaN: absent values are null.
-nlohmann::json number_or_null(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
 const char* kind_name(DecalKind k) {
@@ -76,15 +72,7 @@ nlohmann::json manifest_json(const Manifest& m, bool with_entries) {
   nlohmann::json j = {{"layers", layers}, {"totals", totals}, {"notes", m.notes}};
   if (with_entries) {
     nlohmann::json entries = nlohmann::json::array();
-    for (const ManifestEntry& e : m.entries) {
-      entries.push_back({{"layer", e.layer},
-                         {"fid", e.fid},
-                         {"part", e.part},
-                         {"action", e.action},
-                         {"reason", e.reason},
-                         {"area_before", number_or_null(e.area_before)},
-                         {"area_after", number_or_null(e.area_after)}});
-    }
+    for (const ManifestEntry& e : m.entries) entries.push_back(manifest_entry_json(e));
     j["entries"] = std::move(entries);
   }
   j["entry_count"] = m.entries.size();

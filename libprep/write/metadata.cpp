@@ -6,15 +6,13 @@
 #include <string>
 
 #include "prep/error.hpp"
+#include "prep/manifest_json.hpp"
 #include "prep/write.hpp"
 
 namespace prep {
 namespace {
 
 using json = nlohmann::json;
-
-// NaN areas ("not measured") become null rather than an invalid number.
-json number_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 // The manifest summary for the metadata chunk; the entries go to the
 // manifest_entries blob (manifest_entries_json).
@@ -35,14 +33,7 @@ json manifest_json(const Manifest& m) {
 
 std::string manifest_entries_json(const Manifest& m) {
   json entries = json::array();
-  for (const ManifestEntry& e : m.entries)
-    entries.push_back({{"layer", e.layer},
-                       {"fid", e.fid},
-                       {"part", e.part},
-                       {"action", e.action},
-                       {"reason", e.reason},
-                       {"area_before", number_or_null(e.area_before)},
-                       {"area_after", number_or_null(e.area_after)}});
+  for (const ManifestEntry& e : m.entries) entries.push_back(manifest_entry_json(e));
   return entries.dump();
 }
 
