@@ -21,6 +21,7 @@
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/manifest_json.hpp"
+#include "prep/memory_estimate.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
 #if DECALPREP_HAVE_BUILD_WRITE
@@ -301,24 +302,45 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
                                                     scene.build.threads);
   }
 
+  // Peak RSS after each stage (the process high-water mark so far), for the
+  // report and the memory model (memory_estimate.hpp).
+  std::vector<std::pair<std::string, double>> peaks;
+  // Estimates of the peak, checked against --max-memory as soon as each is
+  // known (and always reported, so the model can be checked).
+  const MemoryLimit limit{request.max_memory};
+  std::vector<MemoryEstimate> estimates;
+  auto estimate = [&](MemoryEstimate e) {
+    estimates.push_back(e);
+    if (limit) check_memory(limit, e);
+  };
+  estimate(estimate_before_read(scene, request.dry_run));
+
   auto t0 = Clock::now();
-  ReadOptions ro;
-  ro.progress = request.progress;
-  FeatureSet features = read_scene(scene, ro);
-  timings.emplace_back("read", seconds_since(t0));
-
-  t0 = Clock::now();
-  SceneFrame frame = choose_frame(features, scene.crs);
-  ProjectedFeatures projected = project(std::move(features), frame, scene);
-  timings.emplace_back("project", seconds_since(t0));
-
-  t0 = Clock::now();
-  CleanOptions co;
-  co.threads = scene.build.threads;
   BuildResult result;
-  result.scene = clean(projected, scene, co);
-  check_build_range(result.scene, scene.skip_failures);
-  timings.emplace_back("clean", seconds_since(t0));
+  {
+    // Scoped: the projected features are freed before the build stage.
+    ReadOptions ro;
+    ro.progress = request.progress;
+    FeatureSet features = read_scene(scene, ro);
+    timings.emplace_back("read", seconds_since(t0));
+    peaks.emplace_back("read", peak_rss_mib());
+    estimate(estimate_after_read(scene, features, request.dry_run));
+
+    t0 = Clock::now();
+    SceneFrame frame = choose_frame(features, scene.crs);
+    ProjectedFeatures projected = project(std::move(features), frame, scene);
+    timings.emplace_back("project", seconds_since(t0));
+    peaks.emplace_back("project", peak_rss_mib());
+
+    t0 = Clock::now();
+    CleanOptions co;
+    co.threads = scene.build.threads;
+    result.scene = clean(projected, scene, co);
+    check_build_range(result.scene, scene.skip_failures);
+    timings.emplace_back("clean", seconds_since(t0));
+  }
+  peaks.emplace_back("clean", peak_rss_mib());
+  if (!request.dry_run) estimate(estimate_after_clean(scene, result.scene));
 
 #if !DECALPREP_HAVE_BUILD_WRITE
   // Checked after clean, so bad input is still reported as such.
@@ -331,6 +353,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     t0 = Clock::now();
     DecalModel model = build_model(result.scene, scene.build, scene.dem);
     timings.emplace_back("build", seconds_since(t0));
+    peaks.emplace_back("build", peak_rss_mib());
 
     t0 = Clock::now();
     // build_model carries the manifest; make sure the package has it.
@@ -358,6 +381,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     wo.zstd_level = request.zstd_level;
     write_model(request.output, model, extra.dump(), wo);
     timings.emplace_back("write", seconds_since(t0));
+    peaks.emplace_back("write", peak_rss_mib());
     result.package_written = true;
   }
 #endif
@@ -366,6 +390,20 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
                                         timings, result.package_written);
   report["provenance"] = provenance_json(scene);
   report["dry_run"] = request.dry_run;
+  nlohmann::json pk = nlohmann::json::object();
+  for (const auto& [stage, mib] : peaks) pk[stage] = mib;
+  report["peak_rss_mib_after"] = pk;
+  nlohmann::json est = nlohmann::json::object();
+  for (const MemoryEstimate& e : estimates)
+    est[e.point] = {{"mib", e.bytes / (1024.0 * 1024.0)},
+                    {"basis", e.basis},
+                    {"polygon_vertices", e.polygon_vertices},
+                    {"line_vertices", e.line_vertices},
+                    {"polygon_parts", e.polygon_parts},
+                    {"line_parts", e.line_parts},
+                    {"source_bytes", e.source_bytes}};
+  report["memory_estimate"] = est;
+  if (limit) report["max_memory_mib"] = double(limit.bytes) / (1024.0 * 1024.0);
   result.skipped_failures = count_skipped_failures(result.scene.manifest);
   report["skipped_failures"] = result.skipped_failures;
   result.report_json = report.dump(2) + "\n";

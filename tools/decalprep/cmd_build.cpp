@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "command.hpp"
+#include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/scene_file.hpp"
 
@@ -36,6 +37,7 @@ struct BuildArgs {
   // terrain matching of dynamic lines (override the scene file's [build])
   std::optional<double> lmax, terrain_tolerance, z_scale, nodata_fill;
   int zstd_level = 3;
+  std::string max_memory;  // --max-memory SIZE
   bool no_compress = false, dry_run = false, quiet = false, skip_failures = false;
 };
 
@@ -152,6 +154,7 @@ int run(const BuildArgs& a) {
   req.dry_run = a.dry_run;
   req.compress = !a.no_compress;
   req.zstd_level = a.zstd_level;
+  if (!a.max_memory.empty()) req.max_memory = prep::parse_memory_size(a.max_memory);
   if (!a.quiet) req.progress = prep::make_console_progress();
   prep::BuildResult result = prep::run_build(scene, req);
 
@@ -356,6 +359,9 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_flag("-q,--quiet", args->quiet, "No progress or summary on stderr");
   cmd->add_flag("--skip-failures", args->skip_failures,
                 "Drop a failing feature (recorded in the manifest) and go on; exit code 4 (partial)");
+  cmd->add_option("--max-memory", args->max_memory,
+                  "Stop early (exit 6) when the estimated peak memory exceeds SIZE (e.g. 2G, 512M); "
+                  "batch mode: per scene");
   auto* g = "File-less form (one layer)";
   cmd->add_option("--layer", args->layer, "Source layer name (default: the first)")->group(g);
   cmd->add_option("--where", args->where, "OGR attribute filter")->group(g);

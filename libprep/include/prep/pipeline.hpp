@@ -15,6 +15,10 @@ struct BuildRequest {
   bool dry_run = false;     // stop after clean: write the report, no package
   bool compress = true;
   int zstd_level = 3;
+  // --max-memory in bytes (0: none): the build stops with resource_error
+  // (exit 6) as soon as an estimate of its peak RSS exceeds it
+  // (prep/memory_estimate.hpp); no package is written.
+  uint64_t max_memory = 0;
   ProgressFn progress;      // empty: silent
 };
 

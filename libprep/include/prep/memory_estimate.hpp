@@ -1,0 +1,62 @@
+// prep/memory_estimate.hpp — `decalprep build --max-memory SIZE`: a
+// measured model of the build's peak resident memory, checked at the
+// earliest points where its inputs are known, so that a build that will not
+// fit stops early with a clear error (resource_error, exit code 6) instead of
+// being killed by the kernel's OOM killer half-way.
+//
+// The model (coefficients and their fit: libprep/pipeline/memory_estimate.cpp
+// and bench/memory/) is linear in what each point knows:
+//   before read   the source files' sizes (a lower bound: what GDAL and the
+//                 FeatureSet need at least for that many bytes of input);
+//   after read    vertices of polygon parts, of line parts, and parts;
+//   after clean   the same counts after repair, clipping and simplification,
+//                 and line widths; added to the memory resident now (read and
+//                 clean have run, so their peak is measured, not estimated).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "prep/scene.hpp"
+
+namespace prep {
+
+struct MemoryLimit {
+  uint64_t bytes = 0;  // 0: no limit
+  explicit operator bool() const { return bytes > 0; }
+};
+
+// One estimate of the build's peak RSS, with what it was computed from.
+struct MemoryEstimate {
+  const char* point = "";  // "before read", "after read", "after clean"
+  double bytes = 0;
+  std::string basis;       // e.g. "1204332 polygon vertices, 98211 line vertices, 5120 parts"
+  // What it was computed from (after read / after clean; source bytes before read).
+  double polygon_vertices = 0, line_vertices = 0, polygon_parts = 0, line_parts = 0;
+  double source_bytes = 0;
+};
+
+// Parses a size: a number of bytes with an optional binary suffix K, M, G, T
+// (also KB/KiB, MB/MiB, GB/GiB, TB/TiB; case-insensitive), e.g. "2G", "512M",
+// "1.5G", "1073741824". Throws usage_error for anything else or for 0.
+uint64_t parse_memory_size(const std::string& text);
+
+// "1.50 GiB", "512.0 MiB".
+std::string format_memory_size(double bytes);
+
+// The process's peak resident set so far, MiB (getrusage ru_maxrss).
+double peak_rss_mib();
+// The process's resident set now, bytes (/proc/self/statm).
+double current_rss_bytes();
+
+// The estimates. `dry_run`: the build stops after clean (no build/write).
+MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run);
+MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features, bool dry_run);
+MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& scene);
+
+// Throws resource_error when `estimate` exceeds `limit`; the message gives
+// the estimate, the limit, its basis and what to do (raise --max-memory, set
+// --resolution or --extent, split the scene).
+void check_memory(const MemoryLimit& limit, const MemoryEstimate& estimate);
+
+}  // namespace prep

@@ -1,0 +1,300 @@
+// The --max-memory model (prep/memory_estimate.hpp). Coefficients are fitted
+// from peak RSS measurements: see the table below and bench/memory/.
+#include "prep/memory_estimate.hpp"
+
+#include <cpl_vsi.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <sstream>
+#include <thread>
+
+#include "prep/error.hpp"
+
+namespace prep {
+namespace {
+
+// ---- the model ------------------------------------------------------------
+// Peak RSS of `decalprep build` (the maximum over its stages: the build
+// stage, or write for polygon-heavy scenes) measured with bench/memory/
+// measure.sh (/usr/bin/time -v; RelWithDebInfo, 2 threads, 2026-11-21) on
+// generated FlatGeobuf inputs; rows in bench/memory/peak_rss.csv:
+//
+//   input (after read)                 vertices  parts    peak MiB  estimate MiB
+//   polygons 1e5 (star, 0-3 holes)        98594     563       86.0     95
+//   polygons 3e5                         295890    1671      144.6    165
+//   polygons 1e6                         985985    5655      367.5    409
+//   lines 1e5 (width 4 m)                100000    2024      104.0    118
+//   lines 3e5                            300000    6029      211.8    233
+//   lines 1e6                           1000000   20077      567.2    637
+//   squares 20000 (5 vertices)            80000   20000       76.0     93
+//   squares 100000                       400000  100000      157.0    225
+//   3-vertex lines 20000                  60000   20000       78.9     99
+//   3-vertex lines 100000                300000  100000      192.3    256
+//
+// Least squares on the big inputs gives 331 B per polygon vertex and 536 B
+// per line vertex over a 54 MiB base (GDAL/PROJ/GEOS loaded, thread
+// pools); the per-part costs fit to about 0 (slightly negative). The
+// coefficients below add ~10 % so that the estimate stays above every
+// measured peak (1.05x..1.45x of it).
+//
+// Line width matters: a segment widened to w covers more cells. Measured on
+// lines 3e5 (mean segment 20 m): width 1, 4, 10, 20, 40, 100 m -> 205, 212,
+// 209, 232, 458, 2177 MiB, i.e. about +300 B x r^2 per line vertex with
+// r = width / mean segment length. That term needs metres and widths, so it
+// is in the estimate after clean only; the estimate after read assumes thin
+// lines (r ~ 0.2) and the one after clean corrects it (w = 100: 2377 MiB
+// estimated, 2177 measured).
+//
+// A dry run (read -> clean) peaks in clean: 88 MiB for polygons 1e6, 96 for
+// lines 1e6, 134 for 100000 squares: 40 B per vertex and 700 B per part.
+//
+// Before read only the source files' sizes are known: one byte of memory per
+// byte of source is a lower bound (a vertex costs >= 330 B in the build and
+// <= 40 B on disk, in GeoJSON text; 16 B in FlatGeobuf/Shapefile), so it
+// stops only builds that cannot fit, unless attributes are most of the file.
+constexpr double kMiB = 1024.0 * 1024.0;
+constexpr double kBaseBytes = 60.0 * kMiB;
+constexpr double kPerPolygonVertex = 370;
+constexpr double kPerLineVertex = 600;
+constexpr double kPerPolygonPart = 256;
+constexpr double kPerLinePart = 256;
+constexpr double kPerLineVertexWidthSquared = 300;  // x (width / mean segment length)^2
+constexpr double kMaxWidthRatio = 20;               // r is capped: degenerate short lines
+constexpr double kPerVertexDryRun = 40;
+constexpr double kPerPartDryRun = 700;
+constexpr double kPerSourceByte = 1.0;
+// OSM sources: GDAL's OSM driver keeps its node index in memory (up to
+// OSM_MAX_TMPFILE_SIZE, 100 MB, then on disk), once per layer read, and
+// layers are read side by side. One multipolygons layer, 1 thread, dry run:
+// Liechtenstein (0.59 MB .pbf, 37k vertices) 83 MiB, Monaco (1.76 MB, 184k
+// vertices) 125 MiB, i.e. about 27 MiB per MB of .pbf + 12 MiB over the
+// base and the features. The full Liechtenstein scene (4 layers, 2
+// threads) peaks at 129 MiB in read. This term is in the read stage only
+// (the datasets are closed before project).
+constexpr double kOsmPerSourceByte = 32;
+constexpr double kOsmPerDataset = 20.0 * kMiB;
+constexpr double kOsmCap = 150.0 * kMiB;
+
+struct Counts {
+  double polygon_vertices = 0, line_vertices = 0, polygon_parts = 0, line_parts = 0;
+  double line_width_term = 0;  // sum over line vertices of min(r, kMaxWidthRatio)^2
+};
+
+// Memory the read stage needs for OSM sources on top of the features.
+double osm_read_bytes(const SceneSpec& scene) {
+  auto is_osm = [](const std::string& p) {
+    auto ends = [&](const char* sfx) {
+      const std::string x(sfx);
+      return p.size() >= x.size() && p.compare(p.size() - x.size(), x.size(), x) == 0;
+    };
+    return ends(".pbf") || ends(".osm") || ends(".PBF") || ends(".OSM") || ends(".osm.bz2");
+  };
+  std::vector<double> per_layer;
+  for (const LayerSpec& l : scene.layers) {
+    if (!is_osm(l.source)) continue;
+    VSIStatBufL st;
+    const double bytes = VSIStatL(l.source.c_str(), &st) == 0 ? double(st.st_size) : 0.0;
+    per_layer.push_back(std::min(kOsmCap, kOsmPerDataset + kOsmPerSourceByte * bytes));
+  }
+  // Layers are read side by side, at most `threads` at once: the largest ones.
+  unsigned threads = scene.build.threads > 0 ? scene.build.threads : std::thread::hardware_concurrency();
+  threads = std::max(1u, threads);
+  std::sort(per_layer.begin(), per_layer.end(), std::greater<>());
+  double sum = 0;
+  for (size_t i = 0; i < per_layer.size() && i < threads; ++i) sum += per_layer[i];
+  return sum;
+}
+
+MemoryEstimate model(const char* point, const Counts& c, bool dry_run, double read_extra) {
+  MemoryEstimate e;
+  e.point = point;
+  e.polygon_vertices = c.polygon_vertices;
+  e.line_vertices = c.line_vertices;
+  e.polygon_parts = c.polygon_parts;
+  e.line_parts = c.line_parts;
+  // Read -> clean: the features and the OSM driver (read only).
+  const double early = kBaseBytes + read_extra +
+                       kPerVertexDryRun * (c.polygon_vertices + c.line_vertices) +
+                       kPerPartDryRun * (c.polygon_parts + c.line_parts);
+  e.bytes = early;
+  if (!dry_run) {
+    const double build = kBaseBytes + kPerPolygonVertex * c.polygon_vertices +
+                         kPerLineVertex * c.line_vertices + kPerPolygonPart * c.polygon_parts +
+                         kPerLinePart * c.line_parts + kPerLineVertexWidthSquared * c.line_width_term;
+    e.bytes = std::max(early, build);
+  }
+  std::ostringstream m;
+  m << uint64_t(c.polygon_vertices) << " polygon vertices, " << uint64_t(c.line_vertices)
+    << " line vertices, " << uint64_t(c.polygon_parts + c.line_parts) << " parts";
+  e.basis = m.str();
+  return e;
+}
+
+// Local file behind a GDAL path (/vsizip/x.zip/y -> x.zip); empty if none.
+std::string local_file(const std::string& path) {
+  std::string file = path;
+  if (file.rfind("/vsizip/", 0) == 0) {
+    file = file.substr(8);
+    const auto zip = file.find(".zip");
+    if (zip != std::string::npos) file = file.substr(0, zip + 4);
+  } else if (file.rfind("/vsi", 0) == 0) {
+    return "";
+  }
+  return file;
+}
+
+}  // namespace
+
+uint64_t parse_memory_size(const std::string& text) {
+  std::string t;
+  for (char c : text)
+    if (!std::isspace(static_cast<unsigned char>(c))) t += char(std::toupper(static_cast<unsigned char>(c)));
+  size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(t, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  std::string unit = t.substr(used);
+  if (unit.size() > 1 && unit.back() == 'B') unit.pop_back();        // GB, GiB
+  if (unit.size() > 1 && unit.back() == 'I') unit.pop_back();        // Gi
+  double scale = 0;
+  if (unit.empty()) scale = 1;
+  else if (unit == "K") scale = 1024.0;
+  else if (unit == "M") scale = 1024.0 * 1024;
+  else if (unit == "G") scale = 1024.0 * 1024 * 1024;
+  else if (unit == "T") scale = 1024.0 * 1024 * 1024 * 1024;
+  else if (unit == "B" && used > 0) scale = 1;
+  if (used == 0 || scale == 0 || !(value > 0) || !std::isfinite(value * scale) ||
+      value * scale >= 1.8e19) {
+    throw usage_error("--max-memory: expected a size such as 2G, 512M or 1073741824 (bytes), got \"" +
+                      text + "\"");
+  }
+  return uint64_t(std::llround(value * scale));
+}
+
+std::string format_memory_size(double bytes) {
+  char buf[64];
+  if (bytes >= 1024.0 * 1024 * 1024)
+    std::snprintf(buf, sizeof buf, "%.2f GiB", bytes / (1024.0 * 1024 * 1024));
+  else
+    std::snprintf(buf, sizeof buf, "%.1f MiB", bytes / (1024.0 * 1024));
+  return buf;
+}
+
+double current_rss_bytes() {
+  // /proc/self/statm: size resident ... in pages.
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  if (!f) return peak_rss_mib() * 1024.0 * 1024.0;
+  unsigned long size = 0, resident = 0;
+  const int n = std::fscanf(f, "%lu %lu", &size, &resident);
+  std::fclose(f);
+  if (n != 2) return peak_rss_mib() * 1024.0 * 1024.0;
+  return double(resident) * double(sysconf(_SC_PAGESIZE));
+}
+
+double peak_rss_mib() {
+  struct rusage ru {};
+  getrusage(RUSAGE_SELF, &ru);
+  return double(ru.ru_maxrss) / 1024.0;  // Linux: KiB
+}
+
+MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run) {
+  double bytes = 0;
+  std::vector<std::string> seen;
+  for (const LayerSpec& l : scene.layers) {
+    const std::string file = local_file(l.source);
+    if (file.empty() || std::find(seen.begin(), seen.end(), file) != seen.end()) continue;
+    seen.push_back(file);
+    VSIStatBufL st;
+    if (VSIStatL(file.c_str(), &st) == 0 && VSI_ISREG(st.st_mode)) bytes += double(st.st_size);
+  }
+  MemoryEstimate e;
+  e.point = "before read";
+  e.source_bytes = bytes;
+  (void)dry_run;
+  e.bytes = kBaseBytes + std::max(kPerSourceByte * bytes, osm_read_bytes(scene));
+  std::ostringstream m;
+  m << uint64_t(bytes) << " bytes of source files";
+  e.basis = m.str();
+  return e;
+}
+
+MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features, bool dry_run) {
+  Counts c;
+  for (const SourceLayer& layer : features.layers) {
+    const bool polygons = layer.spec.kind == DecalKind::polygon;
+    for (const SourceFeature& f : layer.features) {
+      if (!f.drop_reason.empty()) continue;
+      double v = 0;
+      for (const Ring& r : f.rings) v += double(r.size());
+      // Polygons of outline layers (and rings in line layers) become lines.
+      if (f.is_polygon && polygons) {
+        c.polygon_vertices += v;
+        c.polygon_parts += 1;
+      } else {
+        c.line_vertices += v;
+        c.line_parts += double(f.rings.size());
+      }
+    }
+  }
+  return model("after read", c, dry_run, osm_read_bytes(scene));
+}
+
+MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& scene) {
+  Counts c;
+  for (const ScenePolygon& p : scene.polygons) {
+    c.polygon_parts += 1;
+    c.polygon_vertices += double(p.shell.size());
+    for (const Ring& h : p.holes) c.polygon_vertices += double(h.size());
+  }
+  for (const SceneLine& l : scene.lines) {
+    c.line_parts += 1;
+    const double n = double(l.points.size());
+    c.line_vertices += n;
+    // Width over the mean segment length (frame metres; l.width is already
+    // scaled to the frame).
+    double length = 0;
+    for (size_t i = 1; i < l.points.size(); ++i)
+      length += std::hypot(l.points[i].x - l.points[i - 1].x, l.points[i].y - l.points[i - 1].y);
+    const double segments = l.closed ? n : n - 1;
+    const double mean = segments > 0 ? length / segments : 0;
+    const double r = mean > 0 ? std::min(l.width / mean, kMaxWidthRatio) : kMaxWidthRatio;
+    c.line_width_term += n * r * r;
+  }
+  // Dynamic lines: widths are pixels; their build cost is the subdivided
+  // 3D line, counted like a static line vertex.
+  for (const SceneLine& l : scene.dynamic_lines) {
+    c.line_parts += 1;
+    c.line_vertices += double(l.points.size());
+  }
+  // Read and clean have run: their peak is measured, not estimated, and the
+  // build adds its part to what is resident now (freed read memory is not
+  // always handed back to the kernel: the Monaco scene stays at 208 MiB
+  // after read and peaks at 239 MiB in write).
+  (void)spec;
+  MemoryEstimate e = model("after clean", c, false, 0.0);
+  const double build_part = e.bytes - kBaseBytes;
+  e.bytes = std::max(peak_rss_mib() * kMiB, current_rss_bytes() + build_part);
+  e.basis += ", on top of " + format_memory_size(current_rss_bytes()) + " resident now";
+  return e;
+}
+
+void check_memory(const MemoryLimit& limit, const MemoryEstimate& estimate) {
+  if (!limit || estimate.bytes <= double(limit.bytes)) return;
+  throw resource_error(
+      std::string("memory: the build needs an estimated ") + format_memory_size(estimate.bytes) +
+      " at its peak (estimate " + estimate.point + ", from " + estimate.basis +
+      "), over --max-memory " + format_memory_size(double(limit.bytes)) +
+      "; stopped before running out. Raise --max-memory, thin the input (--resolution to "
+      "simplify, --extent or --where to keep less), or split the scene into tiles");
+}
+
+}  // namespace prep
