@@ -258,7 +258,28 @@ int run_batch(const BuildArgs& a) {
     items[i].report = (fs::path(a.output) / (stem + ".report.json")).string();
     items[i].log = (fs::path(a.output) / (stem + ".log")).string();
   }
-  const unsigned jobs = std::max(1u, a.jobs);
+  unsigned jobs = std::max(1u, a.jobs);
+  // --max-memory is per scene: run no more scenes side by side than the
+  // memory the kernel reports available holds at that limit each.
+  if (!a.max_memory.empty()) {
+    const uint64_t per_job = prep::parse_memory_size(a.max_memory);
+    uint64_t available_kb = 0;
+    std::ifstream meminfo("/proc/meminfo");
+    std::string key;
+    uint64_t value = 0;
+    std::string unit;
+    while (meminfo >> key >> value >> unit)
+      if (key == "MemAvailable:") available_kb = value;
+    if (available_kb > 0) {
+      const uint64_t fit = std::max<uint64_t>(1, available_kb * 1024 / per_job);
+      if (fit < jobs) {
+        if (!a.quiet)
+          std::fprintf(stderr, "decalprep build: --jobs %u lowered to %llu: %.1f GiB available, --max-memory %s per scene\n",
+                       jobs, (unsigned long long)fit, available_kb / 1048576.0, a.max_memory.c_str());
+        jobs = unsigned(fit);
+      }
+    }
+  }
   size_t next = 0, running = 0;
   std::fflush(nullptr);
   while (next < items.size() || running > 0) {

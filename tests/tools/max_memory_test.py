@@ -1,0 +1,89 @@
+#!/usr/bin/env python3
+"""`decalprep build --max-memory` (issue 8): the build stops early with exit
+code 6 and writes nothing when the estimate exceeds the limit; a generous
+limit builds; and the estimate of the peak for a mid-size generated input is
+at least the peak RSS measured for the child process (getrusage via wait4)
+and at most 3x it. Batch mode applies the limit to every scene.
+
+  max_memory_test.py DECALPREP SOURCE_DIR WORK_DIR
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+tool, src, work = sys.argv[1], sys.argv[2], sys.argv[3]
+shutil.rmtree(work, ignore_errors=True)
+os.makedirs(work)
+failures = []
+
+
+def check(cond, what):
+    print(("ok   " if cond else "FAIL ") + what)
+    if not cond:
+        failures.append(what)
+
+
+def build(args):
+    """Runs decalprep in a child; returns (exit code, peak RSS MiB, stderr)."""
+    err = open(os.path.join(work, "stderr.txt"), "w+")
+    p = subprocess.Popen([tool] + args, stdout=subprocess.DEVNULL, stderr=err)
+    _, status, ru = os.wait4(p.pid, 0)
+    err.seek(0)
+    return os.waitstatus_to_exitcode(status), ru.ru_maxrss / 1024.0, err.read()
+
+
+# A mid-size input: 3e5 polygon vertices (~1700 star polygons with holes), in
+# a projected CRS, through the real GDAL path.
+geojsonl = os.path.join(work, "polygons.geojsonl")
+source = os.path.join(work, "polygons.fgb")
+subprocess.run([sys.executable, os.path.join(src, "bench/gen_synthetic.py"), "polygons", "3e5", geojsonl], check=True)
+subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", source, geojsonl, "-a_srs", "EPSG:32632"], check=True)
+common = [source, "--kind", "polygon", "-q", "--threads", "2"]
+
+# 1. A limit below the base (GDAL, PROJ, GEOS loaded): stops before reading.
+pkg = os.path.join(work, "tiny.decals")
+code, _, err = build(["build"] + common + ["-o", pkg, "--max-memory", "16M"])
+check(code == 6, f"--max-memory 16M exits 6 (got {code})")
+check(not os.path.exists(pkg), "--max-memory 16M writes no package")
+check("estimate before read" in err and "over --max-memory 16.0 MiB" in err and "Raise --max-memory" in err,
+      "the error gives the estimate, the limit and what to do: " + err.strip())
+
+# 2. A limit the source sizes pass but the vertex count does not: stops
+#    after read, before the build stage.
+pkg = os.path.join(work, "small.decals")
+report = os.path.join(work, "small.json")
+code, _, err = build(["build"] + common + ["-o", pkg, "--report", report, "--max-memory", "100M"])
+check(code == 6, f"--max-memory 100M exits 6 (got {code})")
+check(not os.path.exists(pkg), "--max-memory 100M writes no package")
+check("estimate after read" in err and "polygon vertices" in err, "it stops after read: " + err.strip())
+check(json.load(open(report)).get("exit_code") == 6, "the report of the failed build says exit_code 6")
+
+# 3. A generous limit builds, and the estimates bound the measured peak.
+pkg = os.path.join(work, "ok.decals")
+report = os.path.join(work, "ok.json")
+code, peak, err = build(["build"] + common + ["-o", pkg, "--report", report, "--max-memory", "4G"])
+check(code == 0 and os.path.exists(pkg), f"--max-memory 4G builds (exit {code}) {err.strip()}")
+if code == 0:
+    est = json.load(open(report))["memory_estimate"]
+    for point in ("after read", "after clean"):
+        e = est[point]["mib"]
+        print(f"     estimate {point}: {e:.1f} MiB, measured peak RSS {peak:.1f} MiB, ratio {e / peak:.2f}")
+        check(peak <= e <= 3 * peak, f"estimate {point} within [1, 3] x the measured peak")
+
+# 4. Batch mode: the limit applies to every scene (each fails with exit 6).
+scenes = os.path.join(work, "scenes")
+os.makedirs(scenes)
+for name in ("a", "b"):
+    with open(os.path.join(scenes, name + ".toml"), "w") as f:
+        f.write(f'source = "{source}"\n\n[[layer]]\nname = "{name}"\nkind = "polygon"\n')
+out = os.path.join(work, "batch")
+code, _, err = build(["build", scenes, "-o", out, "-q", "--max-memory", "100M", "--jobs", "2"])
+check(code == 6, f"batch with --max-memory 100M exits 6 (got {code})")
+summary = json.load(open(os.path.join(out, "summary.json")))
+check(all(p["exit_code"] == 6 and "--max-memory" in p["error"] for p in summary["packages"]),
+      "every scene of the batch failed on --max-memory: " + json.dumps(summary["packages"])[:400])
+check(not any(n.endswith(".decals") for n in os.listdir(out)), "the batch wrote no package")
+
+sys.exit(1 if failures else 0)
