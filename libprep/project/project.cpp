@@ -175,7 +175,12 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
     all.ymax = std::max(all.ymax, g.ymax);
   }
   if (!(all.xmax >= all.xmin)) {
-    throw input_error("project: no features to centre the scene frame on (every layer is empty)");
+    std::string layers;
+    for (const SourceLayer& layer : features.layers)
+      layers += (layers.empty() ? "" : ", ") + ("'" + layer.spec.name + "' (" + layer.spec.source + ")");
+    throw input_error("project: no features to centre the scene frame on: every layer is empty "
+                      "or has only dropped features: " + layers +
+                      "; check the source, --layer and --where");
   }
   // More than 180 degrees of longitude away from the poles is, for local
   // data, a line or ring that crosses the antimeridian in a geographic CRS

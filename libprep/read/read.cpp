@@ -412,6 +412,14 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
                                              : ""));
   }
   forward_progress(1.0, label.c_str(), const_cast<ProgressFn*>(progress));
+  if (r.counts.read == 0) {
+    // Not an error while another layer has data (project fails only when
+    // every layer is empty): the package carries the layer, empty.
+    r.notes.push_back("layer '" + spec.name + "': no features in " + spec.source +
+                      (spec.where.empty() && spec.sql.empty() ? std::string()
+                                                              : std::string(" matching the filter")) +
+                      "; the layer is in the package, empty");
+  }
   if (zm_features > 0) {
     r.notes.push_back("layer '" + spec.name + "': Z/M values dropped from " +
                       std::to_string(zm_features) + " features (decals are 2D; terrain comes "

@@ -307,6 +307,15 @@ def main():
             open(base + ".prj", "w").write("GEOGCS[this is not a CRS")
         case(f"file_{variant}", f"file_{variant}.shp", "polygon")
     case("file_zero_features", "file_zero_features.geojson", "polygon", [])
+    # The same empty layer beside a layer with data: the package is built,
+    # with the empty layer in it and a manifest note.
+    case("file_zero_features_beside_data", "zero_beside_data.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5))), 1)])
+    with open(os.path.join(out, "file_zero_features_beside_data.toml"), "w", encoding="utf-8") as f:
+        f.write(f'[[layer]]\nname = "empty"\nsource = "{os.path.join(out, "file_zero_features.geojson")}"\n'
+                f'kind = "polygon"\n\n[[layer]]\nname = "data"\nsource = "{os.path.join(out, "zero_beside_data.geojson")}"\n'
+                f'kind = "polygon"\n')
+    cases[-1]["path"] = os.path.join(out, "file_zero_features_beside_data.toml")
     odd = "path with spaces ü é"
     os.makedirs(os.path.join(out, odd), exist_ok=True)
     case("file_odd_path", os.path.join(odd, "données.geojson"), "polygon", [feature(poly(ring(square(5, 5, 5))), 1)])
