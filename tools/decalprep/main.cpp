@@ -19,7 +19,8 @@ constexpr const char* kFooter = R"(Examples:
 
 Exit codes:
   0 ok, 1 internal error, 2 usage, 3 input, 4 partial (--skip-failures),
-  5 corrupt or unsupported package, 6 resource budget, 7 output, 8 render)";
+  5 corrupt or unsupported package, 6 resource (--max-memory, budgets), 7 output,
+  8 render)";
 
 }  // namespace
 
