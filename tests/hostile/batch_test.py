@@ -59,6 +59,31 @@ def main():
             v = subprocess.run([tool, "verify", p["output"]], capture_output=True, text=True)
             if v.returncode != 0:
                 fails.append(f"{name}: verify rejected {p['output']}: {v.stdout}{v.stderr}")
+    # A partial scene (skip_failures dropped a failing feature) beside a clean
+    # one: both packages are written, the summary says "partial", exit 4.
+    scenes2 = os.path.join(work, "scenes2")
+    os.makedirs(scenes2)
+    sq = lambda cx: [[cx - 5, 5423000 - 5], [cx + 5, 5423000 - 5], [cx + 5, 5423000 + 5], [cx - 5, 5423000 + 5], [cx - 5, 5423000 - 5]]
+    src = os.path.join(work, "far_apart.geojson")
+    with open(src, "w") as f:
+        json.dump({"type": "FeatureCollection", "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::3857"}},
+                   "features": [{"type": "Feature", "id": i + 1, "properties": {}, "geometry": {"type": "Polygon", "coordinates": [sq(cx)]}}
+                                for i, cx in enumerate([826000.0, 826000.0 + 3e6, 826000.0 - 3e6])]}, f)
+    with open(os.path.join(scenes2, "partial.toml"), "w") as f:
+        f.write(f'source = "{src}"\ncrs = "EPSG:3857"\nskip_failures = true\n\n[[layer]]\nname = "far"\nkind = "polygon"\n')
+    shutil.copy(os.path.join(scenes, "scene0.toml"), os.path.join(scenes2, "whole.toml"))
+    out2 = os.path.join(work, "out2")
+    r = subprocess.run([tool, "build", scenes2, "-o", out2], capture_output=True, text=True)
+    print(r.stderr)
+    summary = json.load(open(os.path.join(out2, "summary.json")))
+    status = {os.path.basename(p["scene"]): p["status"] for p in summary["packages"]}
+    if r.returncode != 4:
+        fails.append(f"batch with a partial scene: exit {r.returncode}, expected 4")
+    if status != {"partial.toml": "partial", "whole.toml": "built"} or summary.get("partial") != 1:
+        fails.append(f"batch with a partial scene: summary {json.dumps(summary)[:400]}")
+    for name in ("partial", "whole"):
+        if not os.path.exists(os.path.join(out2, name + ".decals")):
+            fails.append(f"{name}.decals missing")
     for f in fails:
         print("FAIL:", f)
     return 1 if fails else 0

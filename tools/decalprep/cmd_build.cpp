@@ -200,7 +200,8 @@ int run(const BuildArgs& a) {
 // kernel's rusage gives each package's peak memory. One summary JSON
 // (--report, default OUTDIR/summary.json) lists status, exit code, error,
 // counts, wall time and peak RSS per scene; the exit code is that of the
-// first failed scene (input order), 0 when all built.
+// first failed scene (input order), else 4 (partial) when --skip-failures
+// dropped features in some scene, 0 when all built.
 
 struct BatchItem {
   std::string scene, output, report, log;
@@ -224,6 +225,8 @@ std::string last_line(const std::string& path) {
     if (!line.empty() && line.find('%') == std::string::npos) last = line;
   return last;
 }
+
+constexpr int kPartial = static_cast<int>(prep::ExitCode::partial);
 
 int run_batch(const BuildArgs& a) {
   namespace fs = std::filesystem;
@@ -327,19 +330,22 @@ int run_batch(const BuildArgs& a) {
       --running;
       if (!a.quiet)
         std::fprintf(stderr, "%s: %s (%.2f s, peak %.1f MiB)\n", it.scene.c_str(),
-                     it.exit_code == 0 ? "built" : "FAILED", it.seconds, it.peak_rss_kb / 1024.0);
+                     it.exit_code == 0 ? "built" : it.exit_code == kPartial ? "built (partial)" : "FAILED",
+                     it.seconds, it.peak_rss_kb / 1024.0);
     }
   }
   nlohmann::json summary;
   int first_fail = 0;
-  size_t failed = 0;
+  size_t failed = 0, partial = 0;
   for (const BatchItem& it : items) {
     nlohmann::json e{{"scene", it.scene},
-                     {"status", it.exit_code == 0 ? "built" : "failed"},
+                     {"status", it.exit_code == 0 ? "built" : it.exit_code == kPartial ? "partial" : "failed"},
                      {"exit_code", it.exit_code},
                      {"seconds", it.seconds},
                      {"peak_rss_mib", it.peak_rss_kb / 1024.0}};
-    if (it.exit_code == 0) {
+    // Partial: --skip-failures dropped features; the package was written.
+    if (it.exit_code == kPartial) ++partial;
+    if (it.exit_code == 0 || it.exit_code == kPartial) {
       e["output"] = it.output;
       e["report"] = it.report;
       std::ifstream rin(it.report);
@@ -355,6 +361,7 @@ int run_batch(const BuildArgs& a) {
   }
   summary["built"] = items.size() - failed;
   summary["failed"] = failed;
+  summary["partial"] = partial;
   summary["jobs"] = jobs;
   const std::string path = a.report.empty() ? (fs::path(a.output) / "summary.json").string() : a.report;
   std::ofstream out(path);
@@ -363,7 +370,7 @@ int run_batch(const BuildArgs& a) {
   if (!a.quiet)
     std::fprintf(stderr, "decalprep build: %zu of %zu scenes built; summary %s\n", items.size() - failed,
                  items.size(), path.c_str());
-  return first_fail;
+  return first_fail != 0 ? first_fail : partial > 0 ? kPartial : 0;
 }
 
 const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
