@@ -55,9 +55,10 @@ namespace {
 // lines 1e6, 134 for 100000 squares: 40 B per vertex and 700 B per part.
 //
 // Before read only the source files' sizes are known: one byte of memory per
-// byte of source is a lower bound (a vertex costs >= 330 B in the build and
-// <= 40 B on disk, in GeoJSON text; 16 B in FlatGeobuf/Shapefile), so it
-// stops only builds that cannot fit, unless attributes are most of the file.
+// byte of GeoJSON (GDAL holds the parsed document) or of .shp (geometry only,
+// 16 B per vertex on disk, >= 330 B in the build) is a lower bound, so it
+// stops only builds that cannot fit. Other formats (GeoPackage, FlatGeobuf:
+// possibly mostly attributes; zips) count only through the OSM term below.
 constexpr double kMiB = 1024.0 * 1024.0;
 constexpr double kBaseBytes = 60.0 * kMiB;
 constexpr double kPerPolygonVertex = 370;
@@ -209,9 +210,24 @@ double peak_rss_mib() {
 MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run) {
   double bytes = 0;
   std::vector<std::string> seen;
+  // Only files whose size bounds what the read holds: GeoJSON (GDAL parses
+  // the whole text into memory; GeoJSONSeq streams, so it is not one) and the
+  // .shp of a Shapefile (geometry only).
+  // A GeoPackage or FlatGeobuf may be mostly attributes; a zip is compressed.
+  auto bounds_memory = [](const std::string& f) {
+    std::string lower;
+    for (char ch : f) lower += char(std::tolower(static_cast<unsigned char>(ch)));
+    for (const char* ext : {".geojson", ".json", ".shp"}) {
+      const std::string x(ext);
+      if (lower.size() >= x.size() && lower.compare(lower.size() - x.size(), x.size(), x) == 0) return true;
+    }
+    return false;
+  };
   for (const LayerSpec& l : scene.layers) {
     const std::string file = local_file(l.source);
-    if (file.empty() || std::find(seen.begin(), seen.end(), file) != seen.end()) continue;
+    if (file.empty() || file != l.source || !bounds_memory(file) ||
+        std::find(seen.begin(), seen.end(), file) != seen.end())
+      continue;
     seen.push_back(file);
     VSIStatBufL st;
     if (VSIStatL(file.c_str(), &st) == 0 && VSI_ISREG(st.st_mode)) bytes += double(st.st_size);
@@ -220,9 +236,11 @@ MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run) {
   e.point = "before read";
   e.source_bytes = bytes;
   (void)dry_run;
-  e.bytes = kBaseBytes + std::max(kPerSourceByte * bytes, osm_read_bytes(scene));
+  const double osm = osm_read_bytes(scene);
+  e.bytes = kBaseBytes + std::max(kPerSourceByte * bytes, osm);
   std::ostringstream m;
-  m << uint64_t(bytes) << " bytes of source files";
+  m << uint64_t(bytes) << " bytes of GeoJSON/Shapefile geometry sources";
+  if (osm > 0) m << ", the OSM driver's cache " << format_memory_size(osm);
   e.basis = m.str();
   return e;
 }

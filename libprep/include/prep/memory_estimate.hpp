@@ -6,8 +6,8 @@
 //
 // The model (coefficients and their fit: libprep/pipeline/memory_estimate.cpp
 // and bench/memory/) is linear in what each point knows:
-//   before read   the source files' sizes (a lower bound: what GDAL and the
-//                 FeatureSet need at least for that many bytes of input);
+//   before read   the sizes of GeoJSON and .shp sources and the OSM driver's
+//                 cache for .pbf/.osm sources (a lower bound);
 //   after read    vertices of polygon parts, of line parts, and parts;
 //   after clean   the same counts after repair, clipping and simplification,
 //                 and line widths; added to the memory resident now (read and
