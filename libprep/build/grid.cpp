@@ -148,8 +148,17 @@ double grid_bytes(const GridParams& g, const GridInput& in) {
   std::atomic<uint64_t> holes{0};
   const std::vector<SegmentShape>& shapes = *in.shapes;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, shapes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i)
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      // A shape whose box lies in one cell meets exactly that cell (the
+      // shape is inside its box): skip the band clipping of for_each_cell.
+      int64_t x0, y0, x1, y1;
+      if (!cell_range(g, shapes[i].box, x0, y0, x1, y1)) continue;
+      if (x0 == x1 && y0 == y1) {
+        seg[size_t(x0 + int64_t(g.nx) * y0)].fetch_add(1, std::memory_order_relaxed);
+        continue;
+      }
       for_each_cell(g, shapes[i], [&](uint32_t c) { seg[c].fetch_add(1, std::memory_order_relaxed); });
+    }
   });
   const auto& leaves = *in.ring_leaves;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
