@@ -22,45 +22,57 @@ namespace {
 // ---- the model ------------------------------------------------------------
 // Peak RSS of `decalprep build` (the maximum over its stages: the build
 // stage, or write for polygon-heavy scenes) measured with bench/memory/
-// measure.sh (/usr/bin/time -v; RelWithDebInfo, 2 threads, 2026-11-21) on
-// generated FlatGeobuf inputs; rows in bench/memory/peak_rss.csv:
+// measure.sh (/usr/bin/time; RelWithDebInfo, 2 threads, 2026-11-21, with the
+// size-aware adaptive grid of main 9f9bfaf) on generated FlatGeobuf inputs;
+// rows in bench/memory/peak_rss.csv. Estimates in MiB after read / after
+// clean:
 //
-//   input (after read)                 vertices  parts    peak MiB  estimate MiB
-//   polygons 1e5 (star, 0-3 holes)        98594     563       86.0     95
-//   polygons 3e5                         295890    1671      144.6    165
-//   polygons 1e6                         985985    5655      367.5    409
-//   lines 1e5 (width 4 m)                100000    2024      104.0    118
-//   lines 3e5                            300000    6029      211.8    233
-//   lines 1e6                           1000000   20077      567.2    637
-//   squares 20000 (5 vertices)            80000   20000       76.0     93
-//   squares 100000                       400000  100000      157.0    225
-//   3-vertex lines 20000                  60000   20000       78.9     99
-//   3-vertex lines 100000                300000  100000      192.3    256
+//   input (after read)              vertices   parts   peak   est. read  est. clean
+//   polygons 1e5 (star, 0-3 holes)     98594     563  137.8     144.9      141.6
+//   polygons 3e5                      295890    1671  205.4     214.8      218.4
+//   polygons 1e6                      985985    5655  418.6     465.2      486.4
+//   lines 1e5 (width 4 m)             100000    2024  131.4     167.7      165.3
+//   lines 3e5                         300000    6029  252.4     283.1      290.8
+//   lines 1e6                        1000000   20077  627.2     695.3      729.9
+//   squares 20000 (5 vertices)         80000   20000   91.6     143.1      147.6
+//   squares 100000                    400000  100000  205.1     289.7      322.6
+//   3-vertex lines 20000               60000   20000  108.6     149.2      153.5
+//   3-vertex lines 100000             300000  100000  239.0     318.7      354.9
+//   lines 3e5, width 40 m             300000    6029  418.8     283.1      635.0
+//   Liechtenstein scene (OSM, 4 l.)    62425    6724  157.3     201        202
+//   Monaco scene (OSM, DEM, 7 l.)          -       -  268.2     449        333
 //
-// Least squares on the big inputs gives 331 B per polygon vertex and 536 B
-// per line vertex over a 54 MiB base (GDAL/PROJ/GEOS loaded, thread
-// pools); the per-part costs fit to about 0 (slightly negative). The
+// Least squares on the big inputs gives ~335 B per polygon vertex and ~550 B
+// per line vertex; the per-part costs fit to about 0. The read and clean
+// stages sit on a 54 MiB base (GDAL/PROJ/GEOS loaded, thread pools); the
+// build stage on ~105 MiB: the adaptive decal grid (2e5..5e5 cells on these
+// inputs; its cell count is only known inside build_model) adds ~50 MiB. The
 // coefficients below add ~10 % so that the estimate stays above every
-// measured peak (1.05x..1.45x of it).
+// measured peak: after clean 1.03x..1.61x of it, after read 1.05x..1.67x
+// except very wide lines (next paragraph).
 //
 // Line width matters: a segment widened to w covers more cells. Measured on
-// lines 3e5 (mean segment 20 m): width 1, 4, 10, 20, 40, 100 m -> 205, 212,
-// 209, 232, 458, 2177 MiB, i.e. about +300 B x r^2 per line vertex with
-// r = width / mean segment length. That term needs metres and widths, so it
-// is in the estimate after clean only; the estimate after read assumes thin
-// lines (r ~ 0.2) and the one after clean corrects it (w = 100: 2377 MiB
-// estimated, 2177 measured).
+// lines 3e5 (mean segment 20 m, previous grid): width 1, 4, 10, 20, 40, 100 m
+// -> 205, 212, 209, 232, 458, 2177 MiB, i.e. about +300 B x r^2 per line
+// vertex with r = width / mean segment length. That term needs metres and
+// widths, so it is in the estimate after clean only; the estimate after read
+// assumes thin lines (r ~ 0.2) and the one after clean corrects it.
 //
 // A dry run (read -> clean) peaks in clean: 88 MiB for polygons 1e6, 96 for
 // lines 1e6, 134 for 100000 squares: 40 B per vertex and 700 B per part.
 //
-// Before read only the source files' sizes are known: one byte of memory per
+// After read and after clean the stages before have run, so the build part
+// is added to the resident set then (freed read memory, e.g. the OSM
+// driver's cache, is not always handed back to the kernel).
+//
+// Before read only file sizes are known: one byte of memory per
 // byte of GeoJSON (GDAL holds the parsed document) or of .shp (geometry only,
 // 16 B per vertex on disk, >= 330 B in the build) is a lower bound, so it
 // stops only builds that cannot fit. Other formats (GeoPackage, FlatGeobuf:
 // possibly mostly attributes; zips) count only through the OSM term below.
 constexpr double kMiB = 1024.0 * 1024.0;
-constexpr double kBaseBytes = 60.0 * kMiB;
+constexpr double kBaseBytes = 60.0 * kMiB;       // read -> clean
+constexpr double kBuildBaseBytes = 110.0 * kMiB; // build -> write, with the decal grid
 constexpr double kPerPolygonVertex = 370;
 constexpr double kPerLineVertex = 600;
 constexpr double kPerPolygonPart = 256;
@@ -112,7 +124,10 @@ double osm_read_bytes(const SceneSpec& scene) {
   return sum;
 }
 
-MemoryEstimate model(const char* point, const Counts& c, bool dry_run, double read_extra) {
+// `build_part` (if given) receives what the build stage adds over the read
+// stage's base: the part to add to a measured resident set.
+MemoryEstimate model(const char* point, const Counts& c, bool dry_run, double read_extra,
+                     double* build_part = nullptr) {
   MemoryEstimate e;
   e.point = point;
   e.polygon_vertices = c.polygon_vertices;
@@ -125,10 +140,11 @@ MemoryEstimate model(const char* point, const Counts& c, bool dry_run, double re
                        kPerPartDryRun * (c.polygon_parts + c.line_parts);
   e.bytes = early;
   if (!dry_run) {
-    const double build = kBaseBytes + kPerPolygonVertex * c.polygon_vertices +
+    const double build = kBuildBaseBytes + kPerPolygonVertex * c.polygon_vertices +
                          kPerLineVertex * c.line_vertices + kPerPolygonPart * c.polygon_parts +
                          kPerLinePart * c.line_parts + kPerLineVertexWidthSquared * c.line_width_term;
     e.bytes = std::max(early, build);
+    if (build_part) *build_part = build - kBaseBytes;
   }
   std::ostringstream m;
   m << uint64_t(c.polygon_vertices) << " polygon vertices, " << uint64_t(c.line_vertices)
@@ -263,7 +279,17 @@ MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& fea
       }
     }
   }
-  return model("after read", c, dry_run, osm_read_bytes(scene));
+  double build_part = 0;
+  MemoryEstimate e = model("after read", c, dry_run, osm_read_bytes(scene), &build_part);
+  // The read stage has run: freed read memory (the OSM driver's cache) is not
+  // always handed back, so the build adds to what is resident now (the full
+  // Liechtenstein scene: 120 MiB after read, 154 MiB peak in write).
+  const double now = current_rss_bytes();
+  if (!dry_run && now + build_part > e.bytes) {
+    e.bytes = now + build_part;
+    e.basis += ", on top of " + format_memory_size(now) + " resident after read";
+  }
+  return e;
 }
 
 MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& scene) {
@@ -298,8 +324,8 @@ MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& 
   // always handed back to the kernel: the Monaco scene stays at 208 MiB
   // after read and peaks at 239 MiB in write).
   (void)spec;
-  MemoryEstimate e = model("after clean", c, false, 0.0);
-  const double build_part = e.bytes - kBaseBytes;
+  double build_part = 0;
+  MemoryEstimate e = model("after clean", c, false, 0.0, &build_part);
   e.bytes = std::max(peak_rss_mib() * kMiB, current_rss_bytes() + build_part);
   e.basis += ", on top of " + format_memory_size(current_rss_bytes()) + " resident now";
   return e;
