@@ -170,6 +170,167 @@ size_t vertex_count(GEOSContextHandle_t h, const GEOSGeometry* g) {
   return n > 0 ? size_t(n) : 0;
 }
 
+// ------------------------------------------------- validity fast path --
+//
+// Most parts arrive valid; GEOS's isValid (noding every ring, building a
+// topology graph) and the copies into and out of GEOS cost more than reading
+// them. `certainly_valid` proves validity for the plain case with filtered
+// predicates and answers false whenever it cannot be sure, so GEOS still
+// decides every doubtful part (and repairs the invalid ones): a false
+// "valid" is impossible, a false "not sure" only costs time.
+
+// Sign of the orientation of (a, b, c): +1 left turn, -1 right turn, 0 when
+// the floating-point determinant is too close to zero to trust (Shewchuk's
+// orient2d error bound A, which also covers the rounding of the differences).
+int orientation(const Point2& a, const Point2& b, const Point2& c) {
+  const double l = (b.x - a.x) * (c.y - a.y), r = (b.y - a.y) * (c.x - a.x);
+  const double det = l - r;
+  const double bound = 3.3306690738754716e-16 * (std::fabs(l) + std::fabs(r));
+  if (det > bound) return 1;
+  if (det < -bound) return -1;
+  return 0;
+}
+
+struct Edge {
+  double xmin, xmax, ymin, ymax;
+  uint32_t ring, index;  // edge index..index+1 (mod ring size) of `ring`
+};
+
+// True when p lies certainly inside `ring` (crossing number, with every
+// orientation certain); false when outside or not sure (`sure` says which).
+bool inside_ring(const Point2& p, const Ring& ring, bool& sure) {
+  bool in = false;
+  const size_t n = ring.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Point2& a = ring[i];
+    const Point2& b = ring[(i + 1) % n];
+    const bool up = a.y <= p.y && b.y > p.y, down = b.y <= p.y && a.y > p.y;
+    if (!up && !down) continue;
+    const int o = orientation(a, b, p);
+    if (o == 0) {
+      sure = false;
+      return false;
+    }
+    if ((up && o > 0) || (down && o < 0)) in = !in;
+  }
+  return in;
+}
+
+// Proves a polygon (rings[0] shell, then holes; unclosed, consecutive
+// vertices distinct, each ring >= 3 vertices, finite) valid in GEOS's sense:
+// every ring simple with no two non-adjacent edges meeting and adjacent edges
+// meeting only at their shared vertex (certain orientations), no ring meeting
+// another, every hole strictly inside the shell and outside the other holes.
+// Then the rings do not cross or touch, so the interior is connected and the
+// holes are where they belong. False: not proven (GEOS decides).
+bool certainly_valid(const std::vector<Ring>& rings) {
+  constexpr size_t kMaxHoles = 8;  // hole-in-hole checks are quadratic
+  if (rings.size() > 1 + kMaxHoles) return false;
+  std::vector<Edge> edges;
+  size_t total = 0;
+  for (const Ring& r : rings) total += r.size();
+  edges.reserve(total);
+  for (uint32_t ri = 0; ri < rings.size(); ++ri) {
+    const Ring& r = rings[ri];
+    if (r.size() < 3) return false;
+    for (uint32_t i = 0; i < r.size(); ++i) {
+      const Point2& a = r[i];
+      const Point2& b = r[(i + 1) % r.size()];
+      edges.push_back({std::min(a.x, b.x), std::max(a.x, b.x), std::min(a.y, b.y),
+                       std::max(a.y, b.y), ri, i});
+    }
+  }
+  std::sort(edges.begin(), edges.end(), [](const Edge& a, const Edge& b) {
+    return a.xmin < b.xmin || (a.xmin == b.xmin && (a.ring < b.ring ||
+                                                    (a.ring == b.ring && a.index < b.index)));
+  });
+  // Sweep in x; `active` holds the edges whose x range reaches the current
+  // one. The work is bounded: beyond the budget GEOS decides.
+  std::vector<uint32_t> active;
+  size_t budget = 64 * edges.size() + 4096;
+  for (uint32_t e = 0; e < edges.size(); ++e) {
+    const Edge& a = edges[e];
+    size_t w = 0;
+    for (size_t k = 0; k < active.size(); ++k) {
+      const Edge& b = edges[active[k]];
+      if (b.xmax < a.xmin) continue;  // left behind for good
+      active[w++] = active[k];
+      if (b.ymax < a.ymin || b.ymin > a.ymax) continue;
+      if (budget-- == 0) return false;
+      const Ring& ra = rings[a.ring];
+      const size_t n = ra.size();
+      const Point2& p = ra[a.index];
+      const Point2& q = ra[(a.index + 1) % n];
+      const Ring& rb = rings[b.ring];
+      const Point2& r = rb[b.index];
+      const Point2& t = rb[(b.index + 1) % rb.size()];
+      if (a.ring == b.ring) {
+        const bool next = (a.index + 1) % n == b.index, prev = (b.index + 1) % n == a.index;
+        if (next || prev) {
+          // Adjacent: they share one vertex; they meet nowhere else unless
+          // collinear (a spike folds back along itself). With three
+          // vertices, two edges can be adjacent at both ends.
+          if (next && prev) return false;
+          const Point2& far = next ? t : r;  // the other edge's far vertex
+          if (orientation(p, q, far) == 0) return false;
+          continue;
+        }
+      }
+      // Non-adjacent: they must be strictly apart (one's end points
+      // strictly on one side of the other's line).
+      const int o1 = orientation(p, q, r), o2 = orientation(p, q, t);
+      const int o3 = orientation(r, t, p), o4 = orientation(r, t, q);
+      if (o1 == 0 || o2 == 0 || o3 == 0 || o4 == 0) return false;
+      if (o1 == o2 || o3 == o4) continue;
+      return false;  // they cross
+    }
+    active.resize(w);
+    active.push_back(e);
+  }
+  // No two rings meet, so each hole lies wholly inside or outside the shell
+  // (and any other hole): one vertex decides.
+  for (size_t h = 1; h < rings.size(); ++h) {
+    bool sure = true;
+    if (!inside_ring(rings[h][0], rings[0], sure) || !sure) return false;
+    for (size_t o = 1; o < rings.size(); ++o) {
+      if (o == h) continue;
+      if (inside_ring(rings[h][0], rings[o], sure) || !sure) return false;
+    }
+  }
+  return true;
+}
+
+// GEOS's shoelace (Area::ofRingSigned) over the closed ring, so the fast
+// path reports the very area GEOS would.
+double geos_ring_area(const Ring& r) {
+  const size_t n = r.size() + 1;  // closed
+  if (n < 3) return 0.0;
+  auto at = [&](size_t i) -> const Point2& { return r[i % r.size()]; };
+  const double x0 = at(0).x;
+  double p1x = at(0).x, p1y = at(0).y;
+  double p2x = at(1).x - x0, p2y = at(1).y;
+  double sum = 0.0;
+  for (size_t i = 1; i < n - 1; ++i) {
+    const double p0y = p1y;
+    p1x = p2x;
+    p1y = p2y;
+    p2x = at(i + 1).x - x0;
+    p2y = at(i + 1).y;
+    sum += p1x * (p0y - p2y);
+  }
+  return std::fabs(sum / 2.0);
+}
+
+// GEOS's Length::ofLine.
+double geos_line_length(const Ring& pts) {
+  double len = 0.0;
+  for (size_t i = 1; i < pts.size(); ++i) {
+    const double dx = pts[i].x - pts[i - 1].x, dy = pts[i].y - pts[i - 1].y;
+    len += std::sqrt(dx * dx + dy * dy);
+  }
+  return len;
+}
+
 // ----------------------------------------------------------- part outcome --
 
 enum class Outcome { kept, clipped_away, dropped };
@@ -243,9 +404,16 @@ struct Cleaner {
       r.outcome = Outcome::clipped_away;
       return;
     }
+    // Proven valid, inside the extent, nothing to simplify: GEOS would hand
+    // the rings back unchanged (emit_rings reproduces what it reports).
+    const bool proven = certainly_valid(rings);
+    if (proven && rel == 1 && !(resolution > 0)) {
+      emit_rings(f, std::move(rings), r);
+      return;
+    }
     Geom g(h, make_polygon(h, rings));
     if (!g) throw error("clean: GEOS cannot build a polygon: " + ctx.last_error);
-    char valid = GEOSisValid_r(h, g.get());
+    char valid = proven ? 1 : GEOSisValid_r(h, g.get());
     if (valid != 1) {
       char* why = GEOSisValidReason_r(h, g.get());
       std::string reason = why ? why : "invalid";
@@ -313,6 +481,31 @@ struct Cleaner {
     }
   }
 
+  // emit_polygon for a part proven valid, without the GEOS round trip: the
+  // same rings, counts and (GEOS's) area.
+  static void emit_rings(const SourceFeature& f, std::vector<Ring> rings, PartResult& r) {
+    ScenePolygon out;
+    out.fid = f.fid;
+    out.part = f.part;
+    out.order_value = f.order_value;
+    out.color_value = f.color_value;
+    double area = geos_ring_area(rings[0]);
+    for (size_t i = 1; i < rings.size(); ++i) area -= geos_ring_area(rings[i]);
+    out.area = area;
+    for (const Ring& ring : rings) r.vertices_in += ring.size() + 1;
+    out.shell = std::move(rings[0]);
+    // Orientation (DESIGN.md §1.3): shell counter-clockwise, holes clockwise.
+    if (signed_area(out.shell) < 0) std::reverse(out.shell.begin(), out.shell.end());
+    for (size_t i = 1; i < rings.size(); ++i) {
+      Ring hole = std::move(rings[i]);
+      if (signed_area(hole) > 0) std::reverse(hole.begin(), hole.end());
+      out.holes.push_back(std::move(hole));
+    }
+    r.vertices_out += out.shell.size() + 1;
+    for (const Ring& hole : out.holes) r.vertices_out += hole.size() + 1;
+    r.polygons.push_back(std::move(out));
+  }
+
   void emit_polygon(GEOSContextHandle_t h, const SourceFeature& f, const GEOSGeometry* poly,
                     PartResult& r) const {
     ScenePolygon out;
@@ -350,6 +543,25 @@ struct Cleaner {
     int rel = clip_relation({pts});
     if (rel < 0) {
       r.outcome = Outcome::clipped_away;
+      return;
+    }
+    if (rel == 1 && !(resolution > 0)) {
+      // Inside the extent, nothing to simplify: GEOS would hand the points
+      // back unchanged; the same counts and (GEOS's) length without it.
+      SceneLine out;
+      r.vertices_in += pts.size();
+      r.vertices_out += pts.size();
+      out.length = geos_line_length(pts);
+      out.points = std::move(pts);
+      out.closed = was_closed && out.points.size() >= 4 &&
+                   out.points.front().x == out.points.back().x &&
+                   out.points.front().y == out.points.back().y;
+      if (out.closed) out.points.pop_back();
+      out.fid = f.fid;
+      out.part = f.part;
+      out.order_value = f.order_value;
+      out.color_value = f.color_value;
+      r.lines.push_back(std::move(out));
       return;
     }
     Geom g(h, make_line(h, pts));
