@@ -19,6 +19,7 @@
 #include <optional>
 
 #include "prep/error.hpp"
+#include "prep/feature_failure.hpp"
 
 namespace prep {
 namespace {
@@ -361,6 +362,13 @@ class ApproxTransform {
   std::vector<Node> nodes_;
   std::vector<Fit> fits_;
 };
+// What to do when a vertex falls out of the frame projection's domain.
+std::string frame_hint(const SceneFrame& frame) {
+  const bool named = !frame.description.empty() && frame.description != "unknown";
+  return " (out of the domain of " + (named ? frame.description : std::string("the --crs projection")) +
+         "; pass --crs with a projection valid for this area, or leave the feature out with "
+         "--extent or --where)";
+}
 
 }  // namespace
 
@@ -555,16 +563,23 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
             if (!(approx && approx->apply(x, y))) {
               int ok = 0;
               if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {
-                f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
-                                ", " + std::to_string(r[j].y) +
-                                ") cannot be transformed into the scene frame";
+                // Out of the projection's domain (PROJ error or HUGE_VAL).
+                f.drop_reason = failure_reason(
+                    "project", "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
+                                   ", " + std::to_string(r[j].y) +
+                                   ") cannot be transformed into the scene frame" +
+                                   frame_hint(frame));
                 break;
               }
             }
+            const Point2 source = r[j];
             r[j].x = x - frame.origin_x;
             r[j].y = y - frame.origin_y;
-            if (!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) {
-              f.drop_reason = "vertex " + std::to_string(j) + " is not finite in the scene frame";
+            if ((!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) && f.drop_reason.empty()) {
+              f.drop_reason = failure_reason(
+                  "project", "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
+                                 ", " + std::to_string(source.y) +
+                                 ") is not finite in the scene frame" + frame_hint(frame));
             }
             cx += r[j].x;
             cy += r[j].y;
@@ -586,6 +601,14 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
         if (!std::isfinite(k[i])) k[i] = 1.0;
       }
     });
+    // Without skip_failures the first failing feature in input order stops
+    // the build (the loop above runs in any order).
+    if (!scene.skip_failures) {
+      for (const SourceFeature& f : layer.features)
+        if (is_failure_reason(f.drop_reason))
+          throw feature_failure_error("project", layer.spec.source, layer.spec.name, f.fid,
+                                      f.drop_reason);
+    }
     layer.srs_wkt = frame.crs_wkt;
   }
 
