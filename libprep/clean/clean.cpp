@@ -193,11 +193,6 @@ int orientation(const Point2& a, const Point2& b, const Point2& c) {
   return 0;
 }
 
-struct Edge {
-  double xmin, xmax, ymin, ymax;
-  uint32_t ring, index;  // edge index..index+1 (mod ring size) of `ring`
-};
-
 // True when p lies certainly inside `ring` (crossing number, with every
 // orientation certain); false when outside or not sure (`sure` says which).
 bool inside_ring(const Point2& p, const Ring& ring, bool& sure) {
@@ -218,76 +213,140 @@ bool inside_ring(const Point2& p, const Ring& ring, bool& sure) {
   return in;
 }
 
+// A maximal run of edges of one ring along which x strictly increases (or
+// strictly decreases; a vertical edge is a chain of its own). Two edges of
+// one chain that are not neighbours lie in disjoint x ranges, so they cannot
+// meet; only edges of different chains need testing (the monotone chains of
+// GEOS's noder, on plain arrays).
+struct Chain {
+  double xmin, xmax, ymin, ymax;
+  uint32_t ring, first, count;  // edges first .. first+count-1 (mod ring size)
+  bool reversed;                // x decreases along the ring
+};
+
+struct ValidityScratch {
+  std::vector<Chain> chains;
+  std::vector<uint32_t> order, active;
+};
+
 // Proves a polygon (rings[0] shell, then holes; unclosed, consecutive
-// vertices distinct, each ring >= 3 vertices, finite) valid in GEOS's sense:
-// every ring simple with no two non-adjacent edges meeting and adjacent edges
-// meeting only at their shared vertex (certain orientations), no ring meeting
-// another, every hole strictly inside the shell and outside the other holes.
-// Then the rings do not cross or touch, so the interior is connected and the
-// holes are where they belong. False: not proven (GEOS decides).
+// vertices distinct, finite) valid in GEOS's sense: at every vertex the two
+// edges turn (certain orientation: adjacent edges then meet only at their
+// shared vertex), no two non-adjacent edges meet (certainly apart), every
+// hole strictly inside the shell and outside the other holes. Then no rings
+// cross or touch, so the interior is connected and the holes are where they
+// belong. False: not proven (GEOS decides). The work is bounded; past the
+// budget the answer is false.
 bool certainly_valid(const std::vector<Ring>& rings) {
   constexpr size_t kMaxHoles = 8;  // hole-in-hole checks are quadratic
   if (rings.size() > 1 + kMaxHoles) return false;
-  std::vector<Edge> edges;
+  thread_local ValidityScratch scratch;
+  std::vector<Chain>& chains = scratch.chains;
+  chains.clear();
   size_t total = 0;
-  for (const Ring& r : rings) total += r.size();
-  edges.reserve(total);
   for (uint32_t ri = 0; ri < rings.size(); ++ri) {
     const Ring& r = rings[ri];
-    if (r.size() < 3) return false;
-    for (uint32_t i = 0; i < r.size(); ++i) {
-      const Point2& a = r[i];
-      const Point2& b = r[(i + 1) % r.size()];
-      edges.push_back({std::min(a.x, b.x), std::max(a.x, b.x), std::min(a.y, b.y),
-                       std::max(a.y, b.y), ri, i});
+    const uint32_t n = static_cast<uint32_t>(r.size());
+    if (n < 3) return false;
+    total += n;
+    for (uint32_t i = 0; i < n; ++i)
+      if (orientation(r[(i + n - 1) % n], r[i], r[(i + 1) % n]) == 0) return false;
+    // Chains: start at an edge whose direction class differs from the
+    // previous edge's, so no chain wraps around the ring's start.
+    auto dir = [&](uint32_t e) {
+      const double dx = r[(e + 1) % n].x - r[e].x;
+      return dx > 0 ? 1 : (dx < 0 ? -1 : 0);
+    };
+    uint32_t start = 0;
+    while (start < n && dir(start) != 0 && dir(start) == dir((start + n - 1) % n)) ++start;
+    if (start == n) return false;  // x monotone around a closed ring: impossible
+    uint32_t e = 0;
+    while (e < n) {
+      const uint32_t first = (start + e) % n;
+      const int d = dir(first);
+      uint32_t count = 1;
+      if (d != 0)
+        while (e + count < n && dir((start + e + count) % n) == d) ++count;
+      Chain c{INFINITY, -INFINITY, INFINITY, -INFINITY, ri, first, count, d < 0};
+      for (uint32_t k = 0; k <= count; ++k) {
+        const Point2& p = r[(first + k) % n];
+        c.xmin = std::min(c.xmin, p.x);
+        c.xmax = std::max(c.xmax, p.x);
+        c.ymin = std::min(c.ymin, p.y);
+        c.ymax = std::max(c.ymax, p.y);
+      }
+      chains.push_back(c);
+      e += count;
     }
   }
-  std::sort(edges.begin(), edges.end(), [](const Edge& a, const Edge& b) {
-    return a.xmin < b.xmin || (a.xmin == b.xmin && (a.ring < b.ring ||
-                                                    (a.ring == b.ring && a.index < b.index)));
+  std::vector<uint32_t>& order = scratch.order;
+  order.resize(chains.size());
+  for (uint32_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    return chains[a].xmin < chains[b].xmin || (chains[a].xmin == chains[b].xmin && a < b);
   });
-  // Sweep in x; `active` holds the edges whose x range reaches the current
-  // one. The work is bounded: beyond the budget GEOS decides.
-  std::vector<uint32_t> active;
-  size_t budget = 64 * edges.size() + 4096;
-  for (uint32_t e = 0; e < edges.size(); ++e) {
-    const Edge& a = edges[e];
+  size_t budget = 32 * total + 4096;
+  // Edge k (in increasing x) of chain c, as its two end points.
+  auto edge = [&](const Chain& c, uint32_t k, const Point2*& p, const Point2*& q, uint32_t& index) {
+    const Ring& r = rings[c.ring];
+    const uint32_t n = static_cast<uint32_t>(r.size());
+    index = (c.first + (c.reversed ? c.count - 1 - k : k)) % n;
+    p = &r[index];
+    q = &r[(index + 1) % n];
+  };
+  // Tests every pair of edges of chains a and b whose x ranges meet.
+  auto chains_apart = [&](const Chain& a, const Chain& b) -> bool {
+    uint32_t jb = 0;
+    for (uint32_t ka = 0; ka < a.count; ++ka) {
+      const Point2 *p, *q;
+      uint32_t ia;
+      edge(a, ka, p, q, ia);
+      const double axmin = std::min(p->x, q->x), axmax = std::max(p->x, q->x);
+      const double aymin = std::min(p->y, q->y), aymax = std::max(p->y, q->y);
+      for (;;) {  // skip b's edges wholly left of this one (b is sorted in x)
+        if (jb >= b.count) break;
+        const Point2 *r, *t;
+        uint32_t ib;
+        edge(b, jb, r, t, ib);
+        if (std::max(r->x, t->x) < axmin) ++jb;
+        else break;
+      }
+      for (uint32_t kb = jb; kb < b.count; ++kb) {
+        const Point2 *r, *t;
+        uint32_t ib;
+        edge(b, kb, r, t, ib);
+        if (std::min(r->x, t->x) > axmax) break;
+        if (std::max(r->y, t->y) < aymin || std::min(r->y, t->y) > aymax) continue;
+        if (budget-- == 0) return false;
+        if (a.ring == b.ring) {
+          const uint32_t n = static_cast<uint32_t>(rings[a.ring].size());
+          // Neighbours share a vertex; the turn test above covers them.
+          if ((ia + 1) % n == ib || (ib + 1) % n == ia) continue;
+        }
+        const int o1 = orientation(*p, *q, *r), o2 = orientation(*p, *q, *t);
+        const int o3 = orientation(*r, *t, *p), o4 = orientation(*r, *t, *q);
+        if (o1 == 0 || o2 == 0 || o3 == 0 || o4 == 0) return false;
+        if (o1 == o2 || o3 == o4) continue;  // one strictly on one side of the other
+        return false;                        // they cross
+      }
+    }
+    return true;
+  };
+  std::vector<uint32_t>& active = scratch.active;
+  active.clear();
+  for (uint32_t ci : order) {
+    const Chain& a = chains[ci];
     size_t w = 0;
     for (size_t k = 0; k < active.size(); ++k) {
-      const Edge& b = edges[active[k]];
+      const Chain& b = chains[active[k]];
       if (b.xmax < a.xmin) continue;  // left behind for good
       active[w++] = active[k];
       if (b.ymax < a.ymin || b.ymin > a.ymax) continue;
       if (budget-- == 0) return false;
-      const Ring& ra = rings[a.ring];
-      const size_t n = ra.size();
-      const Point2& p = ra[a.index];
-      const Point2& q = ra[(a.index + 1) % n];
-      const Ring& rb = rings[b.ring];
-      const Point2& r = rb[b.index];
-      const Point2& t = rb[(b.index + 1) % rb.size()];
-      if (a.ring == b.ring) {
-        const bool next = (a.index + 1) % n == b.index, prev = (b.index + 1) % n == a.index;
-        if (next || prev) {
-          // Adjacent: they share one vertex; they meet nowhere else unless
-          // collinear (a spike folds back along itself). With three
-          // vertices, two edges can be adjacent at both ends.
-          if (next && prev) return false;
-          const Point2& far = next ? t : r;  // the other edge's far vertex
-          if (orientation(p, q, far) == 0) return false;
-          continue;
-        }
-      }
-      // Non-adjacent: they must be strictly apart (one's end points
-      // strictly on one side of the other's line).
-      const int o1 = orientation(p, q, r), o2 = orientation(p, q, t);
-      const int o3 = orientation(r, t, p), o4 = orientation(r, t, q);
-      if (o1 == 0 || o2 == 0 || o3 == 0 || o4 == 0) return false;
-      if (o1 == o2 || o3 == o4) continue;
-      return false;  // they cross
+      if (!chains_apart(a, b)) return false;
     }
     active.resize(w);
-    active.push_back(e);
+    active.push_back(ci);
   }
   // No two rings meet, so each hole lies wholly inside or outside the shell
   // (and any other hole): one vertex decides.
