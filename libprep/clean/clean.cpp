@@ -249,12 +249,14 @@ bool certainly_valid(const std::vector<Ring>& rings) {
     const uint32_t n = static_cast<uint32_t>(r.size());
     if (n < 3) return false;
     total += n;
-    for (uint32_t i = 0; i < n; ++i)
-      if (orientation(r[(i + n - 1) % n], r[i], r[(i + 1) % n]) == 0) return false;
+    if (orientation(r[n - 1], r[0], r[1]) == 0 || orientation(r[n - 2], r[n - 1], r[0]) == 0)
+      return false;
+    for (uint32_t i = 1; i + 1 < n; ++i)
+      if (orientation(r[i - 1], r[i], r[i + 1]) == 0) return false;
     // Chains: start at an edge whose direction class differs from the
     // previous edge's, so no chain wraps around the ring's start.
     auto dir = [&](uint32_t e) {
-      const double dx = r[(e + 1) % n].x - r[e].x;
+      const double dx = r[e + 1 == n ? 0 : e + 1].x - r[e].x;
       return dx > 0 ? 1 : (dx < 0 ? -1 : 0);
     };
     uint32_t start = 0;
@@ -262,14 +264,15 @@ bool certainly_valid(const std::vector<Ring>& rings) {
     if (start == n) return false;  // x monotone around a closed ring: impossible
     uint32_t e = 0;
     while (e < n) {
-      const uint32_t first = (start + e) % n;
+      const uint32_t first = start + e >= n ? start + e - n : start + e;
       const int d = dir(first);
       uint32_t count = 1;
       if (d != 0)
-        while (e + count < n && dir((start + e + count) % n) == d) ++count;
+        while (e + count < n && dir(first + count >= n ? first + count - n : first + count) == d)
+          ++count;
       Chain c{INFINITY, -INFINITY, INFINITY, -INFINITY, ri, first, count, d < 0};
-      for (uint32_t k = 0; k <= count; ++k) {
-        const Point2& p = r[(first + k) % n];
+      for (uint32_t k = 0, v = first; k <= count; ++k, v = v + 1 == n ? 0 : v + 1) {
+        const Point2& p = r[v];
         c.xmin = std::min(c.xmin, p.x);
         c.xmax = std::max(c.xmax, p.x);
         c.ymin = std::min(c.ymin, p.y);
@@ -290,9 +293,10 @@ bool certainly_valid(const std::vector<Ring>& rings) {
   auto edge = [&](const Chain& c, uint32_t k, const Point2*& p, const Point2*& q, uint32_t& index) {
     const Ring& r = rings[c.ring];
     const uint32_t n = static_cast<uint32_t>(r.size());
-    index = (c.first + (c.reversed ? c.count - 1 - k : k)) % n;
+    index = c.first + (c.reversed ? c.count - 1 - k : k);
+    if (index >= n) index -= n;
     p = &r[index];
-    q = &r[(index + 1) % n];
+    q = &r[index + 1 == n ? 0 : index + 1];
   };
   // Tests every pair of edges of chains a and b whose x ranges meet.
   auto chains_apart = [&](const Chain& a, const Chain& b) -> bool {
@@ -459,9 +463,10 @@ struct Cleaner {
   }
 
   // §1.3 for one polygon part: dedupe, validity, clip, simplify, orient.
-  void polygon(GeosContext& ctx, const SourceFeature& f, PartResult& r) const {
+  // Takes the part's rings (f.rings is left empty).
+  void polygon(GeosContext& ctx, SourceFeature& f, PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
-    std::vector<Ring> rings = f.rings;
+    std::vector<Ring> rings = std::move(f.rings);
     size_t dups = 0;
     for (Ring& ring : rings) dups += remove_duplicates(ring, true);
     if (dups > 0) add_repair(r, "removed " + std::to_string(dups) + " duplicate vertices");
@@ -613,9 +618,10 @@ struct Cleaner {
     r.polygons.push_back(std::move(out));
   }
 
-  void line(GeosContext& ctx, const SourceFeature& f, PartResult& r) const {
+  // Takes the part's points (f.rings[0] is left empty).
+  void line(GeosContext& ctx, SourceFeature& f, PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
-    Ring pts = f.rings[0];
+    Ring pts = std::move(f.rings[0]);
     const bool was_closed =
         pts.size() >= 3 && pts.front().x == pts.back().x && pts.front().y == pts.back().y;
     size_t dups = remove_duplicates(pts, false);
@@ -708,6 +714,11 @@ struct Cleaner {
 
 SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
                     const CleanOptions& options) {
+  ProjectedFeatures copy = input;
+  return clean(std::move(copy), scene, options);
+}
+
+SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const CleanOptions& options) {
   SceneFeatures out;
   out.frame = input.frame;
   out.manifest.notes = input.features.manifest.notes;
@@ -724,7 +735,7 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
   if (const char* fid = std::getenv("DECALPREP_TEST_GEOS_FAIL_FID")) cleaner.geos_fail_fid = std::atoll(fid);
 
   for (size_t li = 0; li < input.features.layers.size(); ++li) {
-    const SourceLayer& layer = input.features.layers[li];
+    SourceLayer& layer = input.features.layers[li];
     const LayerSpec& spec = layer.spec;
     out.layers.push_back(spec);
     const std::vector<double>& k = input.scale[li];
@@ -734,7 +745,7 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
                       [&](const tbb::blocked_range<size_t>& range) {
       GeosContext& ctx = contexts.local();
       for (size_t i = range.begin(); i != range.end(); ++i) {
-        const SourceFeature& f = layer.features[i];
+        SourceFeature& f = layer.features[i];
         PartResult& r = results[i];
         if (!f.drop_reason.empty() || f.rings.empty() || f.rings[0].empty()) {
           r.outcome = Outcome::dropped;

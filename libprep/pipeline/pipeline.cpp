@@ -316,7 +316,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   CleanOptions co;
   co.threads = scene.build.threads;
   BuildResult result;
-  result.scene = clean(projected, scene, co);
+  result.scene = clean(std::move(projected), scene, co);
   check_build_range(result.scene, scene.skip_failures);
   timings.emplace_back("clean", seconds_since(t0));
 

@@ -139,22 +139,26 @@ class NumericScale {
 // PROJ's exact transverse Mercator (inverse for a UTM source, forward into
 // the local frame) costs ~250 ns per vertex, four times what GDAL needs to
 // read the vertex. The transformation is analytic over a scene, so it is
-// replaced, cell by cell, by its degree-5 Chebyshev interpolant (the idea of
+// replaced, cell by cell, by its degree-3 Chebyshev interpolant (the idea of
 // GDAL's approximate transformer, with a polynomial instead of a straight
 // line and a far tighter tolerance). A cell is used only after the
-// interpolant has been checked against the exact transformation on a 7x7
-// grid that includes the cell's corners and edges (where a degree-5
+// interpolant has been checked against the exact transformation on a 9x9
+// grid that includes the cell's corners and edges (where a degree-3
 // interpolation error peaks); a cell that misses kApproxTolerance is split in
 // four, and a cell still failing at kApproxMaxDepth (or where the exact
 // transformation itself fails) keeps the exact per-vertex path. The cells
 // depend on the data alone (extent, occupancy), never on timing, so the
 // output stays identical at any thread count.
-constexpr int kApproxDegree = 5;
+constexpr int kApproxDegree = 3;
 constexpr int kApproxNodes = kApproxDegree + 1;
-constexpr int kApproxCheck = 7;              // check grid per axis
+constexpr int kApproxCheck = 9;              // check grid per axis
 constexpr double kApproxTolerance = 1e-8;    // frame metres; tests ask 1e-6
 constexpr int kApproxMaxDepth = 12;
 constexpr int kApproxOccupancy = 256;        // occupancy grid per axis
+// A fit costs about 100 exact transformations: a cell holding fewer
+// vertices than this keeps the exact path (sparse or small data: the
+// approximation would cost more than it saves).
+constexpr uint64_t kApproxMinVertices = 1024;
 
 class ApproxTransform {
  public:
@@ -168,14 +172,15 @@ class ApproxTransform {
     const double pad_x = w > 0 ? 0 : 1e-9 * std::max(1.0, std::fabs(box.xmin));
     const double pad_y = h > 0 ? 0 : 1e-9 * std::max(1.0, std::fabs(box.ymin));
     root_ = {box.xmin - pad_x, box.ymin - pad_y, box.xmax + pad_x, box.ymax + pad_y};
-    // Occupancy (summed-area table): cells without a vertex are never fitted.
+    // Vertex counts (summed-area table): cells with few vertices are never
+    // fitted.
     const int g = kApproxOccupancy;
     sat_.assign(size_t(g + 1) * (g + 1), 0);
     const double sx = g / (root_.xmax - root_.xmin), sy = g / (root_.ymax - root_.ymin);
     for_each([&](double x, double y) {
       const int i = std::clamp(static_cast<int>((x - root_.xmin) * sx), 0, g - 1);
       const int j = std::clamp(static_cast<int>((y - root_.ymin) * sy), 0, g - 1);
-      sat_[size_t(j + 1) * (g + 1) + size_t(i + 1)] = 1;
+      ++sat_[size_t(j + 1) * (g + 1) + size_t(i + 1)];
     });
     for (int j = 1; j <= g; ++j)
       for (int i = 1; i <= g; ++i)
@@ -184,7 +189,7 @@ class ApproxTransform {
                                          sat_[size_t(j - 1) * (g + 1) + i - 1];
     for (int k = 0; k < kApproxNodes; ++k)
       node_[k] = std::cos(M_PI * (k + 0.5) / kApproxNodes);
-    // Monomial coefficients of the Chebyshev polynomials T_0..T_5.
+    // Monomial coefficients of the Chebyshev polynomials T_0..T_degree.
     for (auto& row : cheb_) row.fill(0);
     cheb_[0][0] = 1;
     cheb_[1][1] = 1;
@@ -196,13 +201,23 @@ class ApproxTransform {
 
   // Frame coordinates of source (x, y); false when (x, y) lies in a cell
   // that keeps the exact transformation (the caller then calls it).
-  bool apply(double& x, double& y) const {
+  // `leaf` caches the cell of the previous vertex (-1: none); a vertex
+  // strictly inside it (half-open, as the descent splits) skips the descent.
+  bool apply(double& x, double& y, int& leaf) const {
+    if (leaf >= 0) {
+      const Node& node = nodes_[size_t(leaf)];
+      if (x >= node.box.xmin && x < node.box.xmax && y >= node.box.ymin && y < node.box.ymax) {
+        eval(fits_[size_t(node.fit)], x, y);
+        return true;
+      }
+    }
     if (!(x >= root_.xmin && x <= root_.xmax && y >= root_.ymin && y <= root_.ymax)) return false;
     int n = 0;
     for (;;) {
       const Node& node = nodes_[size_t(n)];
       if (node.child < 0) {
         if (node.fit < 0) return false;
+        leaf = n;
         eval(fits_[size_t(node.fit)], x, y);
         return true;
       }
@@ -216,7 +231,7 @@ class ApproxTransform {
 
  private:
   struct Fit {
-    double cx, cy, hx, hy;   // cell centre and half size (source units)
+    double cx, cy, ix, iy;   // cell centre and 1 / half size (source units)
     double fx, fy;           // exact value at the centre
     double ax[kApproxNodes][kApproxNodes], ay[kApproxNodes][kApproxNodes];  // [i][j]: u^i v^j
   };
@@ -227,7 +242,7 @@ class ApproxTransform {
   };
 
   static void eval(const Fit& f, double& x, double& y) {
-    const double u = (x - f.cx) / f.hx, v = (y - f.cy) / f.hy;
+    const double u = (x - f.cx) * f.ix, v = (y - f.cy) * f.iy;
     double px = 0, py = 0;
     for (int i = kApproxDegree; i >= 0; --i) {
       double rx = f.ax[i][kApproxDegree], ry = f.ay[i][kApproxDegree];
@@ -242,25 +257,27 @@ class ApproxTransform {
     y = f.fy + py;
   }
 
-  // Does the cell (in occupancy-grid units [i0, i1) x [j0, j1)) hold a vertex?
-  bool occupied(const Extent& b) const {
+  // Vertices in the cell, counted on the occupancy grid: an upper bound for
+  // a cell smaller than a grid cell (it counts the grid cells it touches).
+  uint64_t vertices_in(const Extent& b) const {
     const int g = kApproxOccupancy;
     const double sx = g / (root_.xmax - root_.xmin), sy = g / (root_.ymax - root_.ymin);
     const int i0 = std::clamp(static_cast<int>(std::floor((b.xmin - root_.xmin) * sx)), 0, g);
     const int j0 = std::clamp(static_cast<int>(std::floor((b.ymin - root_.ymin) * sy)), 0, g);
-    const int i1 = std::clamp(static_cast<int>(std::ceil((b.xmax - root_.xmin) * sx)), 0, g);
-    const int j1 = std::clamp(static_cast<int>(std::ceil((b.ymax - root_.ymin) * sy)), 0, g);
-    if (i1 <= i0 || j1 <= j0) return true;  // below the grid's resolution: assume so
+    const int i1 = std::clamp(std::max(i0 + 1, static_cast<int>(std::ceil((b.xmax - root_.xmin) * sx))), 0, g);
+    const int j1 = std::clamp(std::max(j0 + 1, static_cast<int>(std::ceil((b.ymax - root_.ymin) * sy))), 0, g);
+    if (i1 <= i0 || j1 <= j0) return 0;
     const auto at = [&](int i, int j) { return sat_[size_t(j) * (g + 1) + size_t(i)]; };
-    return at(i1, j1) - at(i0, j1) - at(i1, j0) + at(i0, j0) > 0;
+    return at(i1, j1) - at(i0, j1) - at(i1, j0) + at(i0, j0);
   }
 
   bool fit(const Extent& b, Fit& f) const {
     f.cx = 0.5 * (b.xmin + b.xmax);
     f.cy = 0.5 * (b.ymin + b.ymax);
-    f.hx = 0.5 * (b.xmax - b.xmin);
-    f.hy = 0.5 * (b.ymax - b.ymin);
-    if (!(f.hx > 0) || !(f.hy > 0)) return false;
+    const double hx = 0.5 * (b.xmax - b.xmin), hy = 0.5 * (b.ymax - b.ymin);
+    if (!(hx > 0) || !(hy > 0)) return false;
+    f.ix = 1.0 / hx;
+    f.iy = 1.0 / hy;
     // One exact call: centre, the Chebyshev nodes, the check grid.
     constexpr int kN = kApproxNodes * kApproxNodes, kC = kApproxCheck * kApproxCheck;
     std::vector<double> xs(1 + kN + kC), ys(1 + kN + kC);
@@ -269,17 +286,17 @@ class ApproxTransform {
     ys[0] = f.cy;
     for (int i = 0; i < kApproxNodes; ++i)
       for (int j = 0; j < kApproxNodes; ++j) {
-        xs[size_t(1 + i * kApproxNodes + j)] = f.cx + f.hx * node_[i];
-        ys[size_t(1 + i * kApproxNodes + j)] = f.cy + f.hy * node_[j];
+        xs[size_t(1 + i * kApproxNodes + j)] = f.cx + hx * node_[i];
+        ys[size_t(1 + i * kApproxNodes + j)] = f.cy + hy * node_[j];
       }
     for (int i = 0; i < kApproxCheck; ++i)
       for (int j = 0; j < kApproxCheck; ++j) {
         // Corners and edges exactly: clamp the last row/column to the box.
         const double u = -1.0 + 2.0 * i / (kApproxCheck - 1), v = -1.0 + 2.0 * j / (kApproxCheck - 1);
         xs[size_t(1 + kN + i * kApproxCheck + j)] =
-            i == kApproxCheck - 1 ? b.xmax : (i == 0 ? b.xmin : f.cx + f.hx * u);
+            i == kApproxCheck - 1 ? b.xmax : (i == 0 ? b.xmin : f.cx + hx * u);
         ys[size_t(1 + kN + i * kApproxCheck + j)] =
-            j == kApproxCheck - 1 ? b.ymax : (j == 0 ? b.ymin : f.cy + f.hy * v);
+            j == kApproxCheck - 1 ? b.ymax : (j == 0 ? b.ymin : f.cy + hy * v);
       }
     const std::vector<double> cx_in = xs, cy_in = ys;
     CPLErrorReset();
@@ -304,7 +321,7 @@ class ApproxTransform {
         c[0][p][q] = sx * w;
         c[1][p][q] = sy * w;
       }
-    // To monomials in u, v (|coefficients of T_5| <= 20: no cancellation worth
+    // To monomials in u, v (|coefficients of T_3| <= 4: no cancellation worth
     // speaking of at these magnitudes).
     for (int i = 0; i < kApproxNodes; ++i)
       for (int j = 0; j < kApproxNodes; ++j) {
@@ -337,6 +354,7 @@ class ApproxTransform {
 
   void subtree(int at, int depth) {
     const Extent b = nodes_[size_t(at)].box;
+    if (vertices_in(b) < kApproxMinVertices) return;  // exact
     Fit f;
     if (fit(b, f)) {
       fits_.push_back(f);
@@ -350,13 +368,12 @@ class ApproxTransform {
     const int first = static_cast<int>(nodes_.size());
     nodes_[size_t(at)].child = first;
     for (const Extent& k : kids) nodes_.push_back(Node{k, -1, -1});
-    for (int c = 0; c < 4; ++c)
-      if (occupied(kids[c])) subtree(first + c, depth + 1);
+    for (int c = 0; c < 4; ++c) subtree(first + c, depth + 1);
   }
 
   OGRCoordinateTransformation& exact_;
   Extent root_{};
-  std::vector<uint32_t> sat_;
+  std::vector<uint64_t> sat_;
   double node_[kApproxNodes] = {};
   std::array<std::array<double, kApproxNodes>, kApproxNodes> cheb_{};
   std::vector<Node> nodes_;
@@ -556,11 +573,12 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
         if (!f.drop_reason.empty()) continue;
         double cx = 0, cy = 0;
         size_t n_all = 0;
+        int leaf = -1;
         for (Ring& r : f.rings) {
           const size_t n = r.size();
           for (size_t j = 0; j < n; ++j) {
             double x = r[j].x, y = r[j].y;
-            if (!(approx && approx->apply(x, y))) {
+            if (!(approx && approx->apply(x, y, leaf))) {
               int ok = 0;
               if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {
                 // Out of the projection's domain (PROJ error or HUGE_VAL).
