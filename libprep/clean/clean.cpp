@@ -300,13 +300,30 @@ bool certainly_valid(const std::vector<Ring>& rings) {
   };
   // Tests every pair of edges of chains a and b whose x ranges meet.
   auto chains_apart = [&](const Chain& a, const Chain& b) -> bool {
-    uint32_t jb = 0;
-    for (uint32_t ka = 0; ka < a.count; ++ka) {
+    // Only the part of each chain inside the other's box can meet it.
+    const double lo = std::max(a.xmin, b.xmin), hi = std::min(a.xmax, b.xmax);
+    const double ylo = std::max(a.ymin, b.ymin), yhi = std::min(a.ymax, b.ymax);
+    auto first_reaching = [&](const Chain& c, double x) {  // first edge with max x >= x
+      uint32_t l = 0, h = c.count;
+      while (l < h) {
+        const uint32_t m = (l + h) / 2;
+        const Point2 *p, *q;
+        uint32_t i;
+        edge(c, m, p, q, i);
+        if (std::max(p->x, q->x) < x) l = m + 1;
+        else h = m;
+      }
+      return l;
+    };
+    uint32_t jb = first_reaching(b, lo);
+    for (uint32_t ka = first_reaching(a, lo); ka < a.count; ++ka) {
       const Point2 *p, *q;
       uint32_t ia;
       edge(a, ka, p, q, ia);
       const double axmin = std::min(p->x, q->x), axmax = std::max(p->x, q->x);
+      if (axmin > hi) break;
       const double aymin = std::min(p->y, q->y), aymax = std::max(p->y, q->y);
+      if (aymax < ylo || aymin > yhi) continue;
       for (;;) {  // skip b's edges wholly left of this one (b is sorted in x)
         if (jb >= b.count) break;
         const Point2 *r, *t;

@@ -551,9 +551,13 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
       }
       return *scales[slot];
     };
+    // The same CRS as the frame: PROJ's transformation is the identity (a
+    // no-op); skip it, and the approximation too, which would move vertices
+    // by up to kApproxTolerance and could part vertices that touch exactly.
+    const bool identity = src->IsSame(frame_srs.get()) != 0;
     std::optional<ApproxTransform> approx;
     const Extent box = bounds_of(layer);
-    if (box.xmax >= box.xmin && box.ymax >= box.ymin && std::isfinite(box.xmin) &&
+    if (!identity && box.xmax >= box.xmin && box.ymax >= box.ymin && std::isfinite(box.xmin) &&
         std::isfinite(box.ymin) && std::isfinite(box.xmax) && std::isfinite(box.ymax)) {
       approx.emplace(*exact, box, [&](auto&& visit) {
         for (const SourceFeature& f : layer.features) {
@@ -578,7 +582,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
           const size_t n = r.size();
           for (size_t j = 0; j < n; ++j) {
             double x = r[j].x, y = r[j].y;
-            if (!(approx && approx->apply(x, y, leaf))) {
+            if (!identity && !(approx && approx->apply(x, y, leaf))) {
               int ok = 0;
               if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {
                 // Out of the projection's domain (PROJ error or HUGE_VAL).
