@@ -8,6 +8,7 @@
 #include <ogr_spatialref.h>
 #include <tbb/task_arena.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
@@ -76,20 +77,30 @@ std::string to_wkt(const OGRSpatialReference& srs) {
 }
 
 Extent bounds_of(const SourceLayer& layer) {
-  Extent e{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
-           -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
-  for (const SourceFeature& f : layer.features) {
-    if (!f.drop_reason.empty()) continue;
-    for (const Ring& r : f.rings) {
-      for (const Point2& p : r) {
-        e.xmin = std::min(e.xmin, p.x);
-        e.ymin = std::min(e.ymin, p.y);
-        e.xmax = std::max(e.xmax, p.x);
-        e.ymax = std::max(e.ymax, p.y);
-      }
-    }
-  }
-  return e;
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  // Parallel; min and max are exact, so the result does not depend on the
+  // split.
+  return tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, layer.features.size(), 1024), Extent{inf, inf, -inf, -inf},
+      [&](const tbb::blocked_range<size_t>& range, Extent e) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+          const SourceFeature& f = layer.features[i];
+          if (!f.drop_reason.empty()) continue;
+          for (const Ring& r : f.rings) {
+            for (const Point2& p : r) {
+              e.xmin = std::min(e.xmin, p.x);
+              e.ymin = std::min(e.ymin, p.y);
+              e.xmax = std::max(e.xmax, p.x);
+              e.ymax = std::max(e.ymax, p.y);
+            }
+          }
+        }
+        return e;
+      },
+      [](const Extent& a, const Extent& b) {
+        return Extent{std::min(a.xmin, b.xmin), std::min(a.ymin, b.ymin), std::max(a.xmax, b.xmax),
+                      std::max(a.ymax, b.ymax)};
+      });
 }
 
 // Transforms an extent with densified edges (GDAL's TransformBounds).
@@ -523,6 +534,8 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
   out.frame = frame;
   auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
   const bool local_tm = std::isfinite(frame.tm_lon0);
+  double tm_x0 = 0, tm_y0 = 0;
+  if (local_tm) tm_wgs84().Forward(frame.tm_lon0, frame.tm_lat0, frame.tm_lon0, tm_x0, tm_y0);
 
   for (SourceLayer& layer : features.layers) {
     auto src = srs_from(layer.srs_wkt, "source CRS of layer '" + layer.spec.name + "'");
@@ -618,8 +631,14 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
         cy /= double(n_all);
         // Scale factor at the part's vertex centroid: widths are ground
         // metres, the frame is not (DESIGN.md §1.2).
-        k[i] = local_tm ? frame_scale_factor(frame, cx, cy)
-                        : slot_scale(slot).at(cx + frame.origin_x, cy + frame.origin_y);
+        if (local_tm) {
+          // frame_scale_factor, with the frame's false northing y0 hoisted.
+          double lat = 0, lon = 0, gamma = 0;
+          tm_wgs84().Reverse(frame.tm_lon0, cx + frame.origin_x, cy + frame.origin_y + tm_y0, lat,
+                             lon, gamma, k[i]);
+        } else {
+          k[i] = slot_scale(slot).at(cx + frame.origin_x, cy + frame.origin_y);
+        }
         if (!std::isfinite(k[i])) k[i] = 1.0;
       }
     });
