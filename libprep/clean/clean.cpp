@@ -436,12 +436,26 @@ void add_repair(PartResult& r, const std::string& what) {
 struct Cleaner {
   const std::optional<Extent>& clip;
   double resolution;
+  RepairMethod repair = RepairMethod::linework;
   // Test hook (tests/hostile, case clean_geos_error): the feature with this
   // fid has its simplification run with tolerance -1, which GEOS rejects
   // ("Tolerance must be non-negative"), so that a real GEOS error travels
   // the failure path. No input is known to make GEOS 3.11 fail on its own.
   // Set by DECALPREP_TEST_GEOS_FAIL_FID; -2: off.
   int64_t geos_fail_fid = -2;
+
+  // GEOS MakeValid with the scene's method (prep/scene.hpp RepairMethod).
+  GEOSGeometry* make_valid(GEOSContextHandle_t h, const GEOSGeometry* g) const {
+    if (repair == RepairMethod::linework) return GEOSMakeValid_r(h, g);
+    GEOSMakeValidParams* params = GEOSMakeValidParams_create_r(h);
+    if (!params) return nullptr;
+    GEOSMakeValidParams_setMethod_r(h, params, GEOS_MAKE_VALID_STRUCTURE);
+    // Collapsed (zero-area) pieces are not kept: only polygons are used.
+    GEOSMakeValidParams_setKeepCollapsed_r(h, params, 0);
+    GEOSGeometry* fixed = GEOSMakeValidWithParams_r(h, g, params);
+    GEOSMakeValidParams_destroy_r(h, params);
+    return fixed;
+  }
 
   double tolerance_for(const SourceFeature& f) const {
     return f.fid == geos_fail_fid ? -1.0 : resolution;
@@ -521,7 +535,7 @@ struct Cleaner {
       std::string reason = why ? why : "invalid";
       GEOSFree_r(h, why);
       const double before = GEOSArea_r(h, g.get(), &r.area_before) ? r.area_before : NAN;
-      Geom fixed(h, GEOSMakeValid_r(h, g.get()));
+      Geom fixed(h, make_valid(h, g.get()));
       if (!fixed)
         return fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
       // A repair that is still invalid would break point-in-polygon later.
@@ -534,7 +548,8 @@ struct Cleaner {
       }
       double after = 0;
       GEOSArea_r(h, fixed.get(), &after);
-      add_repair(r, "made valid (" + reason + ")");
+      add_repair(r, "made valid (" + reason + ")" +
+                        (repair == RepairMethod::structure ? " by the structure method" : ""));
       if (!(std::fabs(after - before) <= 1e-6 * std::fabs(before))) {
         r.area_before = before;
         r.area_after = after;
@@ -748,7 +763,7 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
                                                   options.threads);
   }
   tbb::enumerable_thread_specific<GeosContext> contexts;
-  Cleaner cleaner{input.clip, scene.resolution};
+  Cleaner cleaner{input.clip, scene.resolution, scene.repair};
   if (const char* fid = std::getenv("DECALPREP_TEST_GEOS_FAIL_FID")) cleaner.geos_fail_fid = std::atoll(fid);
 
   for (size_t li = 0; li < input.features.layers.size(); ++li) {
