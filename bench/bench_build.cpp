@@ -1,27 +1,48 @@
-// bench_build — build time, package size and per-point query cost of the
-// static decal structures, adaptive grid vs the thesis 500x500 grid in the
-// same run (issue 4, Done 6). Prints a table; not a unit test.
+// bench_build — build time, peak RSS, package size and per-point query cost
+// of the static decal structures, adaptive grid vs the thesis 500x500 grid in
+// the same run (issue 4, Done 6). Prints a table; not a unit test.
 //
-//   bench_build [--vertices N] [--samples N] [--threads N]
+//   bench_build [--vertices N] [--samples N] [--threads N] [--target T]
+//               [--only parcels,roads,big] [--scene FILE.toml ...] [--grids 500,1000]
 //
-// Datasets (synthetic until real SceneFeatures come from read/clean):
-//   parcels: tiled star polygons with a hole and an island each;
-//   roads:   random polylines (round, miter and bevel layers);
-//   big:     a polygon set of ~N vertices (default 10^6; --vertices 10000000
-//            for the 10^7 figure).
-#include <sys/resource.h>
+// Datasets:
+//   parcels: 3*10^5 vertices of clustered star polygons (hole, island);
+//   roads:   3*10^5 vertices of clustered polylines (round, miter, bevel);
+//   big:     a clustered polygon set of ~N vertices (default 10^6;
+//            --vertices 10000000 for the 10^7 figure: about 3 GB, minutes);
+//   --scene: a scene file (samples/monaco/scene.toml,
+//            bench/scenes/liechtenstein.toml), read and cleaned once through
+//            the real pipeline; dynamic (terrain) lines are dropped, as they
+//            are not part of the static structures measured here.
+// With --scene and no --only, only the scenes run.
+//
+// Per dataset, one row per grid: the adaptive default first, then each
+// --grids N (N x N cells; default 500, the thesis grid). "build s" is
+// build_model alone (stage 4; reading and cleaning are printed once per
+// scene); "peak MiB" is the process's peak RSS during that build and its
+// sampling (VmHWM, reset through /proc/self/clear_refs before each build;
+// the scene held in memory is included). "bytes" are the raw static blobs
+// (what a renderer uploads; BENCH_BLOBS=1 lists them). Query cost: covered
+// points sampled uniformly over the grid, counters of prep::evaluate. The
+// last line per dataset gives adaptive / 500x500 ratios of bytes and mean
+// tests (all counters summed).
+#include <malloc.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "prep/build.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/pipeline.hpp"
+#include "prep/scene_file.hpp"
 #include "prep/write.hpp"
 
 namespace {
@@ -111,13 +132,17 @@ uint64_t input_vertices(const prep::SceneFeatures& s) {
   return v;
 }
 
-uint64_t static_bytes(const prep::DecalModel& m) {
+// Raw static blob bytes; `index` receives the grid-dependent part (cell
+// lists and per-cell BVHs), the rest is geometry (lines, quad-trees).
+uint64_t static_bytes(const prep::DecalModel& m, uint64_t& index) {
   uint64_t b = 0;
+  index = 0;
   const bool detail = std::getenv("BENCH_BLOBS") != nullptr;
   for (const prep::BlobInput& blob : prep::model_blobs(m, false)) {
+    const std::string name(decal::find_blob_info(blob.id)->name);
     b += blob.bytes.size();
-    if (detail)
-      std::printf("   %-20s %12zu\n", std::string(decal::find_blob_info(blob.id)->name).c_str(), blob.bytes.size());
+    if (name.rfind("cell_", 0) == 0 || name.find("_bvh_") != std::string::npos) index += blob.bytes.size();
+    if (detail) std::printf("   %-20s %12zu\n", name.c_str(), blob.bytes.size());
   }
   return b;
 }
@@ -134,51 +159,90 @@ Stat stat(std::vector<uint32_t>& v) {
 }
 
 uint32_t g_target = 0;
+std::vector<uint32_t> g_grids{500};
 
-void run(const char* name, const prep::SceneFeatures& scene, uint64_t samples, unsigned threads) {
-  const uint64_t nv = input_vertices(scene);
-  std::printf("\n== %s: %zu polygons, %zu lines, %llu input vertices\n", name, scene.polygons.size(),
-              scene.lines.size(), (unsigned long long)nv);
-  std::printf("%-10s %9s %8s %10s %9s %8s | %-27s | %-27s | %-27s | %-27s | %-27s\n", "grid", "cells",
-              "build s", "bytes", "B/vertex", "covered", "BVH nodes mean/p99", "QT nodes mean/p99",
-              "edge tests mean/p99", "segment tests mean/p99", "all tests mean/p99");
-  for (int fixed = 0; fixed < 2; ++fixed) {
-    prep::BuildOptions o;
-    o.threads = threads;
-    if (g_target) o.target_per_cell = g_target;
-    if (fixed) o.grid_nx = o.grid_ny = 500;
-    const auto t0 = std::chrono::steady_clock::now();
-    const prep::DecalModel m = prep::build_model(scene, o);
-    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const uint64_t bytes = static_bytes(m);
-    const prep::StaticView v = prep::view_of(m);
-    std::mt19937_64 rng(77);
-    const double x0 = m.grid.origin_x * decal::kQuantumMetres, y0 = m.grid.origin_y * decal::kQuantumMetres;
-    const double w = double(m.grid.cell_w) * m.grid.nx * decal::kQuantumMetres;
-    const double h = double(m.grid.cell_h) * m.grid.ny * decal::kQuantumMetres;
-    std::uniform_real_distribution<double> X(x0, x0 + w), Y(y0, y0 + h);
-    std::vector<uint32_t> bvh, qt, edge, seg, all;
-    // Sample covered points: uniformly over the grid, keeping covered ones.
-    for (uint64_t i = 0; i < samples * 50 && bvh.size() < samples; ++i) {
-      prep::EvalCounters c;
-      const prep::EvalSample s = prep::evaluate(v, X(rng), Y(rng), &c);
-      if (!s.line_covered && !s.polygon_covered) continue;
-      bvh.push_back(uint32_t(c.bvh_nodes));
-      qt.push_back(uint32_t(c.qt_nodes));
-      edge.push_back(uint32_t(c.edge_tests));
-      seg.push_back(uint32_t(c.segment_tests));
-      all.push_back(uint32_t(c.bvh_nodes + c.qt_nodes + c.edge_tests + c.segment_tests));
-    }
-    const size_t covered = bvh.size();
-    Stat sb = stat(bvh), sq = stat(qt), se = stat(edge), ss = stat(seg), sa = stat(all);
-    char grid[32];
-    std::snprintf(grid, sizeof grid, "%ux%u", m.grid.nx, m.grid.ny);
-    std::printf("%-10s %9llu %8.2f %10llu %9.1f %8zu | %12.2f %12.0f  | %12.2f %12.0f  | %12.2f %12.0f  | %12.2f %12.0f  | %12.2f %12.0f\n",
-                grid, (unsigned long long)m.grid.nx * m.grid.ny, secs, (unsigned long long)bytes,
-                double(bytes) / double(nv), covered, sb.mean, sb.p99, sq.mean, sq.p99, se.mean, se.p99,
-                ss.mean, ss.p99, sa.mean, sa.p99);
-    std::fflush(stdout);
+// Peak RSS (VmHWM) of this process in MiB; reset_peak_rss() starts a new
+// measurement (Linux >= 4.0: "5" > /proc/self/clear_refs).
+double peak_rss_mib() {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  return 0;
+}
+void reset_peak_rss() {
+  malloc_trim(0);
+  std::ofstream("/proc/self/clear_refs") << "5";
+}
+
+struct Row {
+  uint64_t bytes = 0;
+  double mean_all = 0;
+};
+
+Row measure(const prep::SceneFeatures& scene, const prep::BuildOptions& o, uint64_t nv, uint64_t samples) {
+  reset_peak_rss();
+  const auto t0 = std::chrono::steady_clock::now();
+  const prep::DecalModel m = prep::build_model(scene, o);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  uint64_t index = 0;
+  const uint64_t bytes = static_bytes(m, index);
+  const prep::StaticView v = prep::view_of(m);
+  std::mt19937_64 rng(77);
+  const double x0 = m.grid.origin_x * decal::kQuantumMetres, y0 = m.grid.origin_y * decal::kQuantumMetres;
+  const double w = double(m.grid.cell_w) * m.grid.nx * decal::kQuantumMetres;
+  const double h = double(m.grid.cell_h) * m.grid.ny * decal::kQuantumMetres;
+  std::uniform_real_distribution<double> X(x0, x0 + w), Y(y0, y0 + h);
+  std::vector<uint32_t> bvh, qt, edge, seg, all;
+  // Sample covered points: uniformly over the grid, keeping covered ones.
+  for (uint64_t i = 0; i < samples * 200 && bvh.size() < samples; ++i) {
+    prep::EvalCounters c;
+    const prep::EvalSample s = prep::evaluate(v, X(rng), Y(rng), &c);
+    if (!s.line_covered && !s.polygon_covered) continue;
+    bvh.push_back(uint32_t(c.bvh_nodes));
+    qt.push_back(uint32_t(c.qt_nodes));
+    edge.push_back(uint32_t(c.edge_tests));
+    seg.push_back(uint32_t(c.segment_tests));
+    all.push_back(uint32_t(c.bvh_nodes + c.qt_nodes + c.edge_tests + c.segment_tests));
   }
+  const size_t covered = bvh.size();
+  Stat sb = stat(bvh), sq = stat(qt), se = stat(edge), ss = stat(seg), sa = stat(all);
+  char grid[32];
+  std::snprintf(grid, sizeof grid, "%ux%u", m.grid.nx, m.grid.ny);
+  std::printf("%-10s %9llu %8.2f %8.1f %11llu %9.1f %8zu | %8.2f %5.0f | %8.2f %5.0f | %8.2f %5.0f | %8.2f %5.0f | %8.2f %5.0f  index %.1f B/v\n",
+              grid, (unsigned long long)m.grid.nx * m.grid.ny, secs, peak_rss_mib(), (unsigned long long)bytes,
+              double(bytes) / double(nv), covered, sb.mean, sb.p99, sq.mean, sq.p99, se.mean, se.p99, ss.mean,
+              ss.p99, sa.mean, sa.p99, double(index) / double(nv));
+  std::fflush(stdout);
+  return {bytes, sa.mean};
+}
+
+void run(const std::string& name, const prep::SceneFeatures& scene, uint64_t samples, unsigned threads) {
+  const uint64_t nv = input_vertices(scene);
+  std::printf("\n== %s: %zu polygons, %zu lines, %llu input vertices\n", name.c_str(), scene.polygons.size(),
+              scene.lines.size(), (unsigned long long)nv);
+  std::printf("%-10s %9s %8s %8s %11s %9s %8s | %-14s | %-14s | %-14s | %-14s | %-14s\n", "grid", "cells",
+              "build s", "peak MiB", "bytes", "B/vertex", "covered", "BVH mean/p99", "QT mean/p99",
+              "edges mean/p99", "segs mean/p99", "all mean/p99");
+  prep::BuildOptions o;
+  o.threads = threads;
+  if (g_target) o.target_per_cell = g_target;
+  const Row adaptive = measure(scene, o, nv, samples);
+  for (uint32_t n : g_grids) {
+    o.grid_nx = o.grid_ny = n;
+    const Row fixed = measure(scene, o, nv, samples);
+    std::printf("adaptive / %ux%u: bytes %.3f, mean tests %.3f\n", n, n,
+                double(adaptive.bytes) / double(fixed.bytes), adaptive.mean_all / fixed.mean_all);
+  }
+  std::fflush(stdout);
+}
+
+std::vector<std::string> split(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) if (!item.empty()) out.push_back(item);
+  return out;
 }
 
 }  // namespace
@@ -186,17 +250,36 @@ void run(const char* name, const prep::SceneFeatures& scene, uint64_t samples, u
 int main(int argc, char** argv) {
   uint64_t big = 1'000'000, samples = 200'000;
   unsigned threads = 0;
+  std::vector<std::string> only, scenes;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--vertices")) big = std::stoull(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--samples")) samples = std::stoull(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--threads")) threads = unsigned(std::stoul(argv[i + 1]));
     else if (!std::strcmp(argv[i], "--target")) g_target = uint32_t(std::stoul(argv[i + 1]));
+    else if (!std::strcmp(argv[i], "--only")) only = split(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--scene")) scenes.push_back(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--grids")) {
+      g_grids.clear();
+      for (const std::string& g : split(argv[i + 1])) g_grids.push_back(uint32_t(std::stoul(g)));
+    } else {
+      std::fprintf(stderr, "bench_build: unknown option %s\n", argv[i]);
+      return 2;
+    }
   }
-  run("parcels (clustered polygons)", parcels(300'000, 1), samples, threads);
-  run("roads (clustered lines)", roads(300'000, 2), samples, threads);
-  run("big polygon set", parcels(big, 3), samples, threads);
-  rusage ru{};
-  getrusage(RUSAGE_SELF, &ru);
-  std::printf("\npeak RSS %.1f MiB\n", double(ru.ru_maxrss) / 1024.0);
+  if (only.empty() && scenes.empty()) only = {"parcels", "roads", "big"};
+  auto want = [&](const char* n) { return std::find(only.begin(), only.end(), n) != only.end(); };
+  for (const std::string& path : scenes) {
+    const auto t0 = std::chrono::steady_clock::now();
+    prep::BuildRequest req;
+    req.dry_run = true;
+    prep::SceneFeatures scene = prep::run_build(prep::load_scene_file(path), req).scene;
+    scene.dynamic_lines.clear();
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("\nread + clean %s: %.2f s, peak RSS so far %.1f MiB\n", path.c_str(), secs, peak_rss_mib());
+    run(path, scene, samples, threads);
+  }
+  if (want("parcels")) run("parcels (clustered polygons)", parcels(300'000, 1), samples, threads);
+  if (want("roads")) run("roads (clustered lines)", roads(300'000, 2), samples, threads);
+  if (want("big")) run("big polygon set", parcels(big, 3), samples, threads);
   return 0;
 }

@@ -322,7 +322,24 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
         weights.push_back(kPolygonWeight);
       }
   }
-  m.grid = choose_grid(extent, prims, weights, options);
+  GridInput gin;
+  gin.extent = extent;
+  gin.primitives = &prims;
+  gin.weights = &weights;
+  gin.shapes = &shapes;
+  gin.ring_leaves = &solid_leaves;
+  gin.node_box = &m.qt_node_box;
+  std::vector<uint8_t> ring_is_hole(rings.size());
+  for (size_t r = 0; r < rings.size(); ++r) ring_is_hole[r] = rings[r].exterior >= 0;
+  gin.ring_is_hole = &ring_is_hole;
+  // Grid-independent static blobs, so that the grid's share of the package
+  // can be weighed (the per-cell lists and BVHs are counted in choose_grid).
+  auto bytes_of = [](const auto& v) { return uint64_t(v.size()) * sizeof(v[0]); };
+  gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
+                       bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
+                       bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_range) +
+                       bytes_of(m.qt_leaf_segments) + bytes_of(m.qt_leaf_vertices);
+  m.grid = choose_grid(gin, options);
   prims = {};
   weights = {};
   const GridParams& g = m.grid;

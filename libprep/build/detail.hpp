@@ -91,15 +91,33 @@ uint32_t resolve_color(const LayerColor& color, double value);
 
 // ------------------------------------------------------------------ grid --
 
-// Chooses the decal grid over `extent` (quanta): fixed nx x ny when both are
-// non-zero, else adapted to the density of `primitives` (boxes of segments
-// and polygon leaves, each with a query-cost weight): the cell size makes
-// the entry-weighted mean of the weighted primitive count per cell (the list
-// a random primitive shares its cell with, so dense areas dominate as they
-// dominate query cost) approach options.target_per_cell, within
-// options.max_cells. bench/bench_build compares it with 500x500.
-GridParams choose_grid(const QBox& extent, const std::vector<QBox>& primitives,
-                       const std::vector<float>& weights, const BuildOptions& options);
+// What choose_grid() looks at. Pointers are borrowed for the call.
+struct GridInput {
+  QBox extent;                                    // of every static primitive, quanta
+  const std::vector<QBox>* primitives = nullptr;  // segment boxes and exterior solid-leaf boxes
+  const std::vector<float>* weights = nullptr;    // query-cost weight per primitive
+  const std::vector<SegmentShape>* shapes = nullptr;            // every static segment
+  const std::vector<std::vector<uint32_t>>* ring_leaves = nullptr;  // solid leaf nodes per ring
+  const std::vector<ivec4>* node_box = nullptr;                  // quad-tree node boxes
+  const std::vector<uint8_t>* ring_is_hole = nullptr;            // per ring
+  uint64_t geometry_bytes = 0;  // static blobs that do not depend on the grid
+};
+
+// Chooses the decal grid over input.extent: fixed nx x ny when both options
+// are non-zero (500x500 = thesis §4.2.1), else adaptive and size-aware (rule
+// documented at choose_grid in grid.cpp): square cells chosen by an explicit
+// cost, log(1 + query-cost proxy) + 0.1 log(package bytes), where the bytes
+// of each candidate's cell lists and per-cell BVHs are counted exactly from
+// the cells the segments and quad-tree leaves will be assigned to; packages
+// over kGridSizeBudget times the thesis 500x500 grid's on the same data are
+// refused, as are grids over options.max_cells. Deterministic (integer
+// counts). bench/bench_build compares it with 500x500. Throws resource_error
+// when no grid fits.
+GridParams choose_grid(const GridInput& input, const BuildOptions& options);
+
+// The adaptive grid's package never exceeds this factor times the package
+// the thesis 500x500 grid gives on the same data (grid.cpp).
+inline constexpr double kGridSizeBudget = 1.2;
 
 // Calls fn(cell_index) for every cell whose closed box, expanded by one
 // quantum, meets `shape` (conservatively). Cells are visited in increasing

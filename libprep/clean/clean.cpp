@@ -11,10 +11,12 @@
 #include <tbb/parallel_for.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <algorithm>
 #include <memory>
 
 #include "prep/error.hpp"
+#include "prep/feature_failure.hpp"
 
 namespace prep {
 namespace {
@@ -193,6 +195,25 @@ void add_repair(PartResult& r, const std::string& what) {
 struct Cleaner {
   const std::optional<Extent>& clip;
   double resolution;
+  // Test hook (tests/hostile, case clean_geos_error): the feature with this
+  // fid has its simplification run with tolerance -1, which GEOS rejects
+  // ("Tolerance must be non-negative"), so that a real GEOS error travels
+  // the failure path. No input is known to make GEOS 3.11 fail on its own.
+  // Set by DECALPREP_TEST_GEOS_FAIL_FID; -2: off.
+  int64_t geos_fail_fid = -2;
+
+  double tolerance_for(const SourceFeature& f) const {
+    return f.fid == geos_fail_fid ? -1.0 : resolution;
+  }
+
+  // A per-feature failure (feature_failure.hpp): recorded here, turned into
+  // an error or a drop by clean() in input order.
+  static void fail(PartResult& r, const std::string& what) {
+    r.outcome = Outcome::dropped;
+    r.drop_reason = failure_reason("clean", what);
+    r.polygons.clear();
+    r.lines.clear();
+  }
 
   // Clip rectangle as a GEOS polygon, built per context on demand.
   GEOSGeometry* clip_rect(GEOSContextHandle_t h) const {
@@ -244,7 +265,7 @@ struct Cleaner {
       return;
     }
     Geom g(h, make_polygon(h, rings));
-    if (!g) throw error("clean: GEOS cannot build a polygon: " + ctx.last_error);
+    if (!g) return fail(r, "GEOS cannot build the polygon: " + ctx.last_error);
     char valid = GEOSisValid_r(h, g.get());
     if (valid != 1) {
       char* why = GEOSisValidReason_r(h, g.get());
@@ -252,10 +273,15 @@ struct Cleaner {
       GEOSFree_r(h, why);
       const double before = GEOSArea_r(h, g.get(), &r.area_before) ? r.area_before : NAN;
       Geom fixed(h, GEOSMakeValid_r(h, g.get()));
-      if (!fixed) {
-        r.outcome = Outcome::dropped;
-        r.drop_reason = "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error;
-        return;
+      if (!fixed)
+        return fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
+      // A repair that is still invalid would break point-in-polygon later.
+      if (GEOSisValid_r(h, fixed.get()) != 1) {
+        char* still = GEOSisValidReason_r(h, fixed.get());
+        const std::string after_reason = still ? still : "invalid";
+        GEOSFree_r(h, still);
+        return fail(r, "invalid (" + reason + ") and still invalid after GEOS MakeValid (" +
+                           after_reason + ")");
       }
       double after = 0;
       GEOSArea_r(h, fixed.get(), &after);
@@ -271,7 +297,7 @@ struct Cleaner {
     if (rel == 0) {
       Geom rect(h, clip_rect(h));
       Geom cut(h, GEOSIntersection_r(h, g.get(), rect.get()));
-      if (!cut) throw error("clean: GEOS intersection failed: " + ctx.last_error);
+      if (!cut) return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error);
       g = std::move(cut);
     }
     std::vector<const GEOSGeometry*> parts;
@@ -291,9 +317,9 @@ struct Cleaner {
       r.vertices_in += vertex_count(h, p);
       Geom simple;
       const GEOSGeometry* use = p;
-      if (resolution > 0) {
-        simple = Geom(h, GEOSTopologyPreserveSimplify_r(h, p, resolution));
-        if (!simple) throw error("clean: GEOS simplification failed: " + ctx.last_error);
+      if (resolution > 0 || f.fid == geos_fail_fid) {
+        simple = Geom(h, GEOSTopologyPreserveSimplify_r(h, p, tolerance_for(f)));
+        if (!simple) return fail(r, "GEOS simplification failed: " + ctx.last_error);
         if (GEOSisValid_r(h, simple.get()) != 1) {
           // Simplification is topology-preserving; keep the unsimplified
           // part if GEOS ever disagrees.
@@ -353,10 +379,11 @@ struct Cleaner {
       return;
     }
     Geom g(h, make_line(h, pts));
+    if (!g) return fail(r, "GEOS cannot build the line: " + ctx.last_error);
     if (rel == 0) {
       Geom rect(h, clip_rect(h));
       Geom cut(h, GEOSIntersection_r(h, g.get(), rect.get()));
-      if (!cut) throw error("clean: GEOS intersection failed: " + ctx.last_error);
+      if (!cut) return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error);
       // Pieces that meet at a vertex are joined again.
       Geom merged(h, GEOSLineMerge_r(h, cut.get()));
       g = merged ? std::move(merged) : std::move(cut);
@@ -372,9 +399,10 @@ struct Cleaner {
       r.vertices_in += vertex_count(h, p);
       Geom simple;
       const GEOSGeometry* use = p;
-      if (resolution > 0) {
-        simple = Geom(h, GEOSTopologyPreserveSimplify_r(h, p, resolution));
-        if (simple) use = simple.get();
+      if (resolution > 0 || f.fid == geos_fail_fid) {
+        simple = Geom(h, GEOSTopologyPreserveSimplify_r(h, p, tolerance_for(f)));
+        if (!simple) return fail(r, "GEOS simplification failed: " + ctx.last_error);
+        use = simple.get();
       }
       std::vector<const GEOSGeometry*> lines;
       bool ignored = false;
@@ -422,6 +450,7 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
   }
   tbb::enumerable_thread_specific<GeosContext> contexts;
   Cleaner cleaner{input.clip, scene.resolution};
+  if (const char* fid = std::getenv("DECALPREP_TEST_GEOS_FAIL_FID")) cleaner.geos_fail_fid = std::atoll(fid);
 
   for (size_t li = 0; li < input.features.layers.size(); ++li) {
     const SourceLayer& layer = input.features.layers[li];
@@ -453,15 +482,20 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
               break;
             }
         if (!bad.empty()) {
-          r.outcome = Outcome::dropped;
-          r.drop_reason = bad;
+          Cleaner::fail(r, bad);
           continue;
         }
         if (!f.repairs.empty()) add_repair(r, f.repairs);
-        if (f.is_polygon)
-          cleaner.polygon(ctx, f, r);
-        else
-          cleaner.line(ctx, f, r);
+        try {
+          if (f.is_polygon)
+            cleaner.polygon(ctx, f, r);
+          else
+            cleaner.line(ctx, f, r);
+        } catch (const std::bad_alloc&) {
+          throw;  // not this feature's fault: the build is out of memory
+        } catch (const std::exception& e) {
+          Cleaner::fail(r, e.what());
+        }
       }
     });
 
@@ -489,6 +523,20 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
         }
       }
       const SourceFeature& head = layer.features[i];
+      // A failing part fails its whole feature (ogr2ogr -skipfailures drops
+      // features, not parts); without skip_failures it stops the build.
+      std::string failure;
+      for (size_t p = i; p < j && failure.empty(); ++p)
+        if (results[p].outcome == Outcome::dropped && is_failure_reason(results[p].drop_reason))
+          failure = results[p].drop_reason;
+      if (!failure.empty()) {
+        if (!scene.skip_failures)
+          throw feature_failure_error("clean", spec.source, spec.name, head.fid, failure);
+        ++counts.dropped;
+        out.manifest.entries.push_back(ManifestEntry{spec.name, head.fid, -1, "dropped", failure});
+        i = j;
+        continue;
+      }
       for (size_t p = i; p < j; ++p) {
         PartResult& r = results[p];
         const SourceFeature& f = layer.features[p];

@@ -6,15 +6,20 @@
 #include <tbb/global_control.h>
 #include <xxhash.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
 
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
+#include "prep/feature_failure.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
@@ -193,6 +198,98 @@ std::string report_json(const SceneFeatures& scene, const std::string& output,
 
 namespace {
 
+// The build stage holds positions as int32 millimetres from the origin
+// (decal/format.hpp): a vertex farther than ~2147 km cannot be stored, and
+// build_model would stop the whole build at it. Checked here, per feature,
+// so that it is a per-feature failure like the others (feature_failure.hpp):
+// without skip_failures the first such feature stops the build (input error),
+// with it the feature is dropped and recorded. Polygons, then static lines,
+// then dynamic lines, each in input order.
+void check_build_range(SceneFeatures& s, bool skip_failures) {
+  // One quantum below INT32_MAX is kept free by the build (quad-tree frame).
+  const double limit = double(2147483647LL - 2) * decal::kQuantumMetres;
+  using Key = std::pair<uint32_t, int64_t>;  // (layer, fid)
+  std::map<Key, std::string> failed;
+  std::vector<Key> order;
+  auto check_ring = [&](const Ring& ring, uint32_t layer, int64_t fid) {
+    if (failed.count({layer, fid})) return;
+    for (const Point2& p : ring) {
+      if (std::fabs(p.x) <= limit && std::fabs(p.y) <= limit) continue;
+      std::ostringstream m;
+      m.precision(12);
+      m << "vertex (" << p.x << ", " << p.y
+        << ") m lies more than 2147 km from the package origin; int32 millimetre positions "
+           "cannot hold it (split the scene, or leave it out with --extent)";
+      const std::string reason = failure_reason("build", m.str());
+      if (!skip_failures) {
+        const LayerSpec& l = s.layers.at(layer);
+        throw feature_failure_error("build", l.source, l.name, fid, reason);
+      }
+      failed[{layer, fid}] = reason;
+      order.push_back({layer, fid});
+      return;
+    }
+  };
+  for (const ScenePolygon& p : s.polygons) {
+    check_ring(p.shell, p.layer, p.fid);
+    for (const Ring& h : p.holes) check_ring(h, p.layer, p.fid);
+  }
+  for (const SceneLine& l : s.lines) check_ring(l.points, l.layer, l.fid);
+  for (const SceneLine& l : s.dynamic_lines) check_ring(l.points, l.layer, l.fid);
+  if (failed.empty()) return;
+
+  // Drop every part of a failed feature and move it from kept to dropped.
+  std::map<Key, uint64_t> parts_removed;
+  auto gone = [&](uint32_t layer, int64_t fid) {
+    if (!failed.count({layer, fid})) return false;
+    ++parts_removed[{layer, fid}];
+    return true;
+  };
+  std::erase_if(s.polygons, [&](const ScenePolygon& p) { return gone(p.layer, p.fid); });
+  std::erase_if(s.lines, [&](const SceneLine& l) { return gone(l.layer, l.fid); });
+  std::erase_if(s.dynamic_lines, [&](const SceneLine& l) { return gone(l.layer, l.fid); });
+  std::set<Key> was_repaired;
+  std::erase_if(s.manifest.entries, [&](const ManifestEntry& e) {
+    for (uint32_t li = 0; li < s.layers.size(); ++li) {
+      if (s.layers[li].name != e.layer || !failed.count({li, e.fid})) continue;
+      if (e.action == "repaired") was_repaired.insert({li, e.fid});
+      return e.action == "repaired" || e.action == "part_dropped";
+    }
+    return false;
+  });
+  for (const Key& k : order) {
+    const std::string& name = s.layers[k.first].name;
+    for (LayerCounts& c : s.manifest.layers) {
+      if (c.layer != name) continue;
+      --c.kept;
+      ++c.dropped;
+      if (was_repaired.count(k)) --c.repaired;
+      c.parts -= parts_removed[k];
+    }
+    s.manifest.entries.push_back(ManifestEntry{name, k.second, -1, "dropped", failed[k]});
+  }
+  // The scene extent is the box of what is kept (as clean computes it).
+  Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  auto grow = [&](const Ring& r) {
+    for (const Point2& p : r) {
+      b.xmin = std::min(b.xmin, p.x);
+      b.ymin = std::min(b.ymin, p.y);
+      b.xmax = std::max(b.xmax, p.x);
+      b.ymax = std::max(b.ymax, p.y);
+    }
+  };
+  for (const ScenePolygon& p : s.polygons) grow(p.shell);
+  for (const SceneLine& l : s.lines) grow(l.points);
+  for (const SceneLine& l : s.dynamic_lines) grow(l.points);
+  s.extent = b.xmax >= b.xmin ? b : Extent{};
+}
+
+size_t count_skipped_failures(const Manifest& m) {
+  size_t n = 0;
+  for (const ManifestEntry& e : m.entries) n += is_skipped_failure(e) ? 1 : 0;
+  return n;
+}
+
 BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
@@ -220,6 +317,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   co.threads = scene.build.threads;
   BuildResult result;
   result.scene = clean(projected, scene, co);
+  check_build_range(result.scene, scene.skip_failures);
   timings.emplace_back("clean", seconds_since(t0));
 
 #if !DECALPREP_HAVE_BUILD_WRITE
@@ -268,6 +366,8 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
                                         timings, result.package_written);
   report["provenance"] = provenance_json(scene);
   report["dry_run"] = request.dry_run;
+  result.skipped_failures = count_skipped_failures(result.scene.manifest);
+  report["skipped_failures"] = result.skipped_failures;
   result.report_json = report.dump(2) + "\n";
   if (!request.report.empty()) write_text_file(request.report, result.report_json);
   return result;

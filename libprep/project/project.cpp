@@ -16,6 +16,7 @@
 #include <mutex>
 
 #include "prep/error.hpp"
+#include "prep/feature_failure.hpp"
 
 namespace prep {
 namespace {
@@ -128,6 +129,14 @@ class NumericScale {
  private:
   TransformPtr to_geo_, from_geo_;
 };
+
+// What to do when a vertex falls out of the frame projection's domain.
+std::string frame_hint(const SceneFrame& frame) {
+  const bool named = !frame.description.empty() && frame.description != "unknown";
+  return " (out of the domain of " + (named ? frame.description : std::string("the --crs projection")) +
+         "; pass --crs with a projection valid for this area, or leave the feature out with "
+         "--extent or --where)";
+}
 
 }  // namespace
 
@@ -308,20 +317,28 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
           if (n > 0 && !t.Transform(static_cast<int>(n), xs.data(), ys.data(), nullptr, ok.data())) {
             for (size_t j = 0; j < n; ++j) {
               if (!ok[j]) {
-                f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
-                                ", " + std::to_string(r[j].y) +
-                                ") cannot be transformed into the scene frame";
+                // Out of the projection's domain (PROJ error or HUGE_VAL).
+                f.drop_reason = failure_reason(
+                    "project", "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
+                                   ", " + std::to_string(r[j].y) +
+                                   ") cannot be transformed into the scene frame" +
+                                   frame_hint(frame));
                 break;
               }
             }
-            if (f.drop_reason.empty()) f.drop_reason = "transformation into the scene frame failed";
+            if (f.drop_reason.empty())
+              f.drop_reason = failure_reason("project", "transformation into the scene frame failed");
             break;
           }
           for (size_t j = 0; j < n; ++j) {
+            const Point2 source = r[j];
             r[j].x = xs[j] - frame.origin_x;
             r[j].y = ys[j] - frame.origin_y;
-            if (!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) {
-              f.drop_reason = "vertex " + std::to_string(j) + " is not finite in the scene frame";
+            if ((!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) && f.drop_reason.empty()) {
+              f.drop_reason = failure_reason(
+                  "project", "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
+                                 ", " + std::to_string(source.y) +
+                                 ") is not finite in the scene frame" + frame_hint(frame));
             }
             cx += r[j].x;
             cy += r[j].y;
@@ -342,6 +359,14 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
         if (!std::isfinite(k[i])) k[i] = 1.0;
       }
     });
+    // Without skip_failures the first failing feature in input order stops
+    // the build (the loop above runs in any order).
+    if (!scene.skip_failures) {
+      for (const SourceFeature& f : layer.features)
+        if (is_failure_reason(f.drop_reason))
+          throw feature_failure_error("project", layer.spec.source, layer.spec.name, f.fid,
+                                      f.drop_reason);
+    }
     layer.srs_wkt = frame.crs_wkt;
   }
 

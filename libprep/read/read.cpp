@@ -22,6 +22,7 @@
 #include <mutex>
 
 #include "prep/error.hpp"
+#include "prep/feature_failure.hpp"
 
 namespace prep {
 namespace {
@@ -48,6 +49,8 @@ class ErrorCapture {
     return first_ + " (and " + std::to_string(count_ - 1) + " more GDAL errors)";
   }
   bool failed() const { return count_ > 0; }
+  size_t count() const { return count_; }
+  const std::string& last() const { return last_; }
   const std::vector<std::string>& warnings() const { return warnings_; }
   void clear() {
     first_.clear();
@@ -60,11 +63,12 @@ class ErrorCapture {
     auto* self = static_cast<ErrorCapture*>(CPLGetErrorHandlerUserData());
     if (level >= CE_Failure) {
       if (self->count_++ == 0) self->first_ = msg;
+      self->last_ = msg;
     } else if (level == CE_Warning && self->warnings_.size() < 20) {
       self->warnings_.emplace_back(msg);
     }
   }
-  std::string first_;
+  std::string first_, last_;
   size_t count_ = 0;
   std::vector<std::string> warnings_;
 };
@@ -337,16 +341,28 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
   int64_t first_failing_fid = -1;
   errors.clear();
   layer->ResetReading();
+  size_t skipped_errors = 0;  // GDAL errors of features dropped under skip_failures
   for (;;) {
+    const size_t errors_before = errors.count();
     std::unique_ptr<OGRFeature> feature(layer->GetNextFeature());
     if (!feature) break;
-    if (errors.failed() && first_failing_fid < 0) first_failing_fid = feature->GetFID();
+    // A GDAL error while this feature was fetched: OGR could not decode it
+    // (e.g. a corrupt shapefile record). With skip_failures it is dropped
+    // like ogr2ogr -skipfailures does; without, the read fails below.
+    const bool decode_failed = errors.count() > errors_before;
+    if (decode_failed && first_failing_fid < 0) first_failing_fid = feature->GetFID();
     const uint64_t index = r.counts.read++;
     SourceFeature proto;
     proto.fid = feature->GetFID();
     proto.feature = index;
     proto.order_value = field_value(*feature, order_field);
     proto.color_value = field_value(*feature, color_field);
+    if (decode_failed && scene.skip_failures) {
+      skipped_errors += errors.count() - errors_before;
+      proto.drop_reason = failure_reason("read", "OGR cannot decode the feature: " + errors.last());
+      r.layer.features.push_back(proto);
+      continue;
+    }
 
     const size_t first = r.layer.features.size();
     Splitter split{spec, r.layer.features, proto};
@@ -354,10 +370,10 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
     if (split.bad_coordinate) {
       r.layer.features.resize(first);
       if (!scene.skip_failures) {
-        throw input_error(where + " fid " + std::to_string(proto.fid) + ": " +
-                          split.bad_coordinate_text);
+        throw feature_failure_error("read", spec.source, layer->GetName(), proto.fid,
+                                    split.bad_coordinate_text);
       }
-      proto.drop_reason = split.bad_coordinate_text;
+      proto.drop_reason = failure_reason("read", split.bad_coordinate_text);
       r.layer.features.push_back(proto);
       continue;
     }
@@ -387,11 +403,13 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
     if (progress && total > 0 && (index & 1023) == 0)
       forward_progress(double(index) / double(total), label.c_str(), const_cast<ProgressFn*>(progress));
   }
-  if (errors.failed()) {
+  if (errors.count() > skipped_errors) {
     throw gdal_error(where + ": reading failed" +
                      (first_failing_fid >= 0 ? " at fid " + std::to_string(first_failing_fid) : "") +
                      " (" + std::to_string(r.counts.read) + " features read): " +
-                     errors.failures());
+                     errors.failures() +
+                     (first_failing_fid >= 0 ? " (--skip-failures drops features OGR cannot decode)"
+                                             : ""));
   }
   forward_progress(1.0, label.c_str(), const_cast<ProgressFn*>(progress));
   if (zm_features > 0) {

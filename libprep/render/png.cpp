@@ -5,10 +5,10 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 
 #include "prep/error.hpp"
+#include "prep/evaluate.hpp"
 #include "prep/render.hpp"
 
 namespace prep::render {
@@ -47,16 +47,12 @@ std::vector<uint8_t> quantise(const std::vector<float>& rgba) {
 
 void write_world_file(const std::string& png_path, const Extent& e, uint32_t width, uint32_t height,
                       const SceneFrame& frame) {
-  std::string wf = png_path;
-  auto dot = wf.find_last_of('.');
-  wf = (dot == std::string::npos ? wf : wf.substr(0, dot)) + ".pgw";
-  std::ofstream out(wf);
-  if (!out) throw output_error("render: cannot write world file '" + wf + "'");
-  const double dx = (e.xmax - e.xmin) / width, dy = (e.ymax - e.ymin) / height;
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "%.10f\n0\n0\n%.10f\n%.6f\n%.6f\n", dx, -dy, frame.origin_x + e.xmin + 0.5 * dx,
-                frame.origin_y + e.ymax - 0.5 * dy);
-  out << buf;
+  // One writer for every raster (prep/evaluate.hpp): `.pgw` plus `.aux.xml`
+  // with the frame's WKT, in absolute frame coordinates so GDAL and QGIS
+  // place the image without knowing the scene origin.
+  const Extent absolute{frame.origin_x + e.xmin, frame.origin_y + e.ymin, frame.origin_x + e.xmax,
+                        frame.origin_y + e.ymax};
+  prep::write_world_file(png_path, absolute, width, height, frame.crs_wkt);
 }
 
 }  // namespace prep::render

@@ -244,6 +244,52 @@ def main():
          [feature(poly(ring(square(5, 5, 5))), 1), feature(line([(0, 0), (20, 0)]), 2),
           feature({"type": "Point", "coordinates": ll(3, 3)}, 3)])
 
+    # ------------------------------------------- per-feature failures (--skip-failures)
+    # Each failure category once without the flag (the first failing feature
+    # stops the build, exit 3, the message names it) and once with it (the
+    # feature is dropped with "failed in <stage>", exit 4 partial).
+    def with_skip(name):
+        c = dict(cases[-1])
+        c["name"] = name
+        c["args"] = c["args"] + ["--skip-failures"]
+        cases.append(c)
+
+    # read: OGR cannot decode record 1 of a shapefile (nParts > nPoints).
+    base = os.path.join(out, "fail_read_corrupt_record")
+    write_shapefile(base, 5, [[ring(square(5, 5, 5))], [ring(square(20, 5, 5))], [ring(square(40, 5, 5))]])
+    with open(base + ".shx", "rb") as f:
+        rec1 = struct.unpack(">i", f.read()[108:112])[0] * 2
+    with open(base + ".shp", "r+b") as f:
+        f.seek(rec1 + 8 + 36)   # record header, shape type, bbox -> nParts
+        f.write(struct.pack("<i", 7))
+    case("fail_read_corrupt_record", "fail_read_corrupt_record.shp", "polygon")
+    with_skip("fail_read_corrupt_record_skip_failures")
+    # project: a vertex out of the frame projection's domain (the antipode of
+    # an orthographic frame centred on the data).
+    ortho = "+proj=ortho +lat_0=43.73 +lon_0=7.42 +datum=WGS84 +units=m +no_defs +type=crs"
+    case("fail_project_out_of_domain", "fail_project_out_of_domain.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5))), 1),
+          feature(poly([ll(20, 0), ll(30, 0), [LON0 - 180, -LAT0], ll(20, 0)]), 2),
+          feature(poly(ring(square(50, 5, 5))), 3)], ["--crs", ortho])
+    with_skip("fail_project_out_of_domain_skip_failures")
+    # clean: a GEOS error (GEOS 3.11 fails on no known geometry, so the test
+    # hook DECALPREP_TEST_GEOS_FAIL_FID makes GEOS reject fid 2's
+    # simplification tolerance: a real GEOS error on the real path).
+    case("fail_clean_geos_error", "fail_clean_geos_error.geojson", "polygon",
+         [feature(poly(ring(square(5, 5, 5))), 1), feature(poly(ring(square(20, 5, 5))), 2),
+          feature(poly(ring(square(35, 5, 5))), 3)])
+    cases[-1]["env"] = {"DECALPREP_TEST_GEOS_FAIL_FID": "2"}
+    with_skip("fail_clean_geos_error_skip_failures")
+    # build: vertices 3000 km east and west of the data centre, beyond the
+    # int32 millimetre positions of the package (EPSG:3857 in and out, so the
+    # projection itself is the identity).
+    mx, my = 826_000.0, 5_423_000.0
+    sq_m = lambda cx, cy, r: [[cx - r, cy - r], [cx + r, cy - r], [cx + r, cy + r], [cx - r, cy + r], [cx - r, cy - r]]
+    case("fail_build_out_of_range", "fail_build_out_of_range.geojson", "polygon",
+         [feature(poly(sq_m(mx, my, 5)), 1), feature(poly(sq_m(mx + 3e6, my, 5)), 2),
+          feature(poly(sq_m(mx - 3e6, my, 5)), 3)], ["--crs", "EPSG:3857"], crs="urn:ogc:def:crs:EPSG::3857")
+    with_skip("fail_build_out_of_range_skip_failures")
+
     # ------------------------------------------------------------------- files
     sq = [[ring(square(5, 5, 5))]]
     for variant in ("missing_shx", "missing_dbf", "truncated_shp", "bad_prj", "non_utf8"):

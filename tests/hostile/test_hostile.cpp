@@ -78,9 +78,15 @@ struct RunResult {
   std::string err;
 };
 
-// Runs the tool with stderr captured to a file.
-RunResult run_tool(const std::vector<std::string>& args, const fs::path& err_file) {
-  std::string cmd = shell_quote(DECALPREP_TOOL);
+// Runs the tool with stderr captured to a file, with the case's extra
+// environment (`env` in cases.json: test hooks such as
+// DECALPREP_TEST_GEOS_FAIL_FID).
+RunResult run_tool(const std::vector<std::string>& args, const fs::path& err_file,
+                   const json& env = json::object()) {
+  std::string cmd;
+  for (auto it = env.begin(); it != env.end(); ++it)
+    cmd += it.key() + "=" + shell_quote(it.value().get<std::string>()) + " ";
+  cmd += shell_quote(DECALPREP_TOOL);
   for (const auto& a : args) cmd += " " + shell_quote(a);
   cmd += " 2>" + shell_quote(err_file.string());
   const int st = std::system(cmd.c_str());
@@ -114,6 +120,7 @@ prep::SceneSpec scene_of(const json& c) {
     else if (args[i] == "--crs") s.crs = args[i + 1];
     else if (args[i] == "--assume-crs") s.assume_crs = args[i + 1];
     else if (args[i] == "--resolution") s.resolution = std::stod(args[i + 1]);
+    else if (args[i] == "--max-memory") continue;  // a limit, not part of the scene
     else ADD_FAILURE() << "scene_of: option " << args[i] << " not mirrored by the test";
   }
   s.layers.push_back(l);
@@ -344,7 +351,8 @@ TEST_P(Hostile, BehavesAsExpected) {
                                 "--report", report_path.string(), "-q", "--kind",
                                 (*c)["kind"].get<std::string>()};
   for (const auto& a : (*c)["args"]) args.push_back(a.get<std::string>());
-  const RunResult r = run_tool(args, out / "stderr.txt");
+  const json env = c->value("env", json::object());
+  const RunResult r = run_tool(args, out / "stderr.txt", env);
   const int want_exit = want.at("exit").get<int>();
   ASSERT_EQ(r.exit_code, want_exit) << name << " stderr: " << r.err;
   constexpr int kPartial = 4;  // prep::ExitCode::partial: --skip-failures dropped features
@@ -373,6 +381,23 @@ TEST_P(Hostile, BehavesAsExpected) {
     }
     EXPECT_TRUE(found) << name << ": no manifest entry " << e.dump() << " in " << got.dump(1);
   }
+  // No silent loss (DESIGN.md §4.4): every feature read is kept, clipped
+  // away or dropped, and each drop has its entry.
+  const json& totals = report["manifest"]["totals"];
+  EXPECT_EQ(totals["read"].get<uint64_t>(), totals["kept"].get<uint64_t>() +
+                                                totals["clipped_away"].get<uint64_t>() +
+                                                totals["dropped"].get<uint64_t>())
+      << name << ": totals " << totals.dump();
+  size_t dropped_entries = 0, failure_entries = 0;
+  for (const json& x : got) {
+    if (x["action"] != "dropped" || x["part"] != -1) continue;
+    ++dropped_entries;
+    if (x["reason"].get<std::string>().rfind("failed in ", 0) == 0) ++failure_entries;
+  }
+  EXPECT_EQ(totals["dropped"].get<size_t>(), dropped_entries) << name << ": totals " << totals.dump();
+  // Exit 4 exactly when --skip-failures dropped a failing feature.
+  EXPECT_EQ(report.value("skipped_failures", size_t(0)), failure_entries) << name;
+  EXPECT_EQ(want_exit == kPartial, failure_entries > 0) << name;
   if (want.contains("notes")) {
     const std::string notes = report["manifest"]["notes"].dump();
     for (const auto& n : want["notes"])
@@ -382,7 +407,10 @@ TEST_P(Hostile, BehavesAsExpected) {
   // The cleaned geometry of the same scene, in process, for the oracle.
   prep::BuildRequest dry;
   dry.dry_run = true;
+  for (auto it = env.begin(); it != env.end(); ++it)
+    setenv(it.key().c_str(), it.value().get<std::string>().c_str(), 1);
   const prep::BuildResult cleaned = prep::run_build(scene_of(*c), dry);
+  for (auto it = env.begin(); it != env.end(); ++it) unsetenv(it.key().c_str());
   // Repairs that change the area: area_after is the area of what was kept
   // (GEOS on the cleaned polygons of that feature).
   Geos g;

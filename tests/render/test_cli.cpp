@@ -10,6 +10,9 @@
 #include <iterator>
 #include <string>
 
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
 #include "hand_model.hpp"
 #include "prep/write.hpp"
 
@@ -66,6 +69,62 @@ TEST_F(RenderCli, TopDownWritesPngWorldFileAndRawDecalLayer) {
   EXPECT_NEAR(c[0], 0xe0 / 255.0, 1e-3);
   // Pixel (5, 5) lies outside every decal.
   EXPECT_EQ(px[4 * (5 + 100 * 5) + 3], 0.0f);
+}
+
+// A package records the DEM it was built with (build_options.dem): render
+// uses it without --dem, falls back to flat terrain with a warning when it
+// is gone, and --flat ignores it. Checked on the CPU path (no GL needed).
+TEST_F(RenderCli, UsesThePackagesBuildDemUnlessFlatIsAsked) {
+  GDALAllRegister();
+  OGRSpatialReference utm;
+  utm.importFromEPSG(32632);
+  char* wkt = nullptr;
+  utm.exportToWkt(&wkt);
+  const std::string frame_wkt = wkt;
+  CPLFree(wkt);
+  // A 20 x 20 DEM over the scene (origin 0), a 300 m ramp from west to east.
+  const std::string dem = (dir_ / "ramp.tif").string();
+  {
+    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+    ASSERT_NE(gtiff, nullptr);
+    GDALDatasetUniquePtr ds(gtiff->Create(dem.c_str(), 20, 20, 1, GDT_Float32, nullptr));
+    ASSERT_TRUE(ds);
+    double gt[6] = {-50, 10, 0, 150, 0, -10};
+    ds->SetGeoTransform(gt);
+    ds->SetProjection(frame_wkt.c_str());
+    std::vector<float> z(400);
+    for (int j = 0; j < 20; ++j)
+      for (int i = 0; i < 20; ++i) z[size_t(j * 20 + i)] = float(15 * i);
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 20, 20, z.data(), 20, 20, GDT_Float32, 0, 0), CE_None);
+  }
+  const std::string pkg = (dir_ / "hand_dem.decals").string();
+  prep::DecalModel m = render_test::hand_model();
+  m.frame.crs_wkt = frame_wkt;
+  prep::write_model(pkg, m, R"({"build_options": {"dem": ")" + dem + R"("}})");
+
+  const std::string with = (dir_ / "dem_pkg.png").string(), flat = (dir_ / "dem_flat.png").string();
+  ToolRun r = run_tool("render " + pkg + " --cpu --size 96x64 -o " + with);
+  ASSERT_EQ(r.rc, 0) << r.output;
+  EXPECT_NE(r.output.find("terrain from the package's build DEM " + dem), std::string::npos) << r.output;
+  ToolRun f = run_tool("render " + pkg + " --cpu --size 96x64 --flat -o " + flat);
+  ASSERT_EQ(f.rc, 0) << f.output;
+  EXPECT_EQ(f.output.find("DEM"), std::string::npos) << f.output;
+  auto bytes = [](const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  // The ramp changes the camera fit and the drape: the images differ.
+  EXPECT_NE(bytes(with), bytes(flat));
+
+  // The DEM is gone: a warning that names it, flat terrain, exit 0.
+  fs::remove(dem);
+  ToolRun g = run_tool("render " + pkg + " --cpu --size 96x64 -o " + (dir_ / "dem_gone.png").string());
+  ASSERT_EQ(g.rc, 0) << g.output;
+  EXPECT_NE(g.output.find("cannot be read here"), std::string::npos) << g.output;
+  EXPECT_EQ(bytes((dir_ / "dem_gone.png").string()), bytes(flat));
+
+  // --flat with --dem is a usage error.
+  EXPECT_EQ(run_tool("render " + pkg + " --cpu --flat --dem x.tif -o " + (dir_ / "x.png").string()).rc, 2);
 }
 
 TEST_F(RenderCli, ExitsWithRenderCodeWhenNoEglDisplayCanBeCreated) {

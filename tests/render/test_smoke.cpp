@@ -393,8 +393,20 @@ TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorTopDown) {
   std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&ll, &frame));
   double cx = 7.4240, cy = 43.7432;  // where the two lines cross
   ASSERT_TRUE(ct->Transform(1, &cx, &cy));
-  cx -= meta["origin"]["x"].get<double>();
-  cy -= meta["origin"]["y"].get<double>();
+  // The world file is in absolute frame coordinates (not scene-relative),
+  // and GDAL reads the same placement and CRS from the PNG's .aux.xml.
+  {
+    GDALAllRegister();
+    GDALDatasetUniquePtr img(GDALDataset::Open((out_dir() / "styles_topdown_gl.png").string().c_str(),
+                                               GDAL_OF_RASTER | GDAL_OF_READONLY));
+    ASSERT_TRUE(img);
+    double gt[6];
+    ASSERT_EQ(img->GetGeoTransform(gt), CE_None);
+    EXPECT_NEAR(gt[0] + 0.5 * gt[1], x0, 1e-6);
+    EXPECT_NEAR(gt[3] + 0.5 * gt[5], y0, 1e-6);
+    ASSERT_NE(img->GetSpatialRef(), nullptr);
+    EXPECT_TRUE(img->GetSpatialRef()->IsSame(&frame));
+  }
   const int i = int(std::lround((cx - x0) / dx)), j = int(std::lround((cy - y0) / dy));
   ASSERT_TRUE(i >= 0 && i < 640 && j >= 0 && j < 360);
   const float* c = &gl[4 * (size_t(i) + 640 * size_t(j))];

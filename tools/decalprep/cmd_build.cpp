@@ -175,13 +175,11 @@ int run(const BuildArgs& a) {
     if (a.dry_run) std::fprintf(stderr, "dry run: no package written\n");
     if (!a.report.empty()) std::fprintf(stderr, "report %s\n", a.report.c_str());
   }
-  // --skip-failures: features that would have stopped the build (read
-  // reports them as "... has a non-finite coordinate") were dropped and
-  // recorded; the package is partial (ogr2ogr -skipfailures).
+  // --skip-failures: features that would have stopped the build (OGR
+  // decode, PROJ, GEOS, out of the build's range: prep/feature_failure.hpp)
+  // were dropped and recorded; the package is partial (ogr2ogr -skipfailures).
   if (scene.skip_failures) {
-    size_t skipped = 0;
-    for (const prep::ManifestEntry& e : result.scene.manifest.entries)
-      if (e.action == "dropped" && e.reason.find("non-finite coordinate") != std::string::npos) ++skipped;
+    const size_t skipped = result.skipped_failures;
     if (skipped > 0) {
       if (!a.quiet)
         std::fprintf(stderr, "decalprep build: --skip-failures dropped %zu failing features (see the manifest)\n",

@@ -9,6 +9,8 @@
 #include "prep/render.hpp"
 
 #ifdef PREP_RENDER_HAVE_READER
+#include <nlohmann/json.hpp>
+
 #include "decal/reader.hpp"
 #endif
 
@@ -19,7 +21,7 @@ struct RenderArgs {
   std::string aa = "none", binding = "ssbo", only;
   double fov = 45.0, pitch = 45.0, z_scale = 1.0;
   uint32_t frames = 1;
-  bool cpu = false, stats = false, ortho = false, fit = false;
+  bool cpu = false, stats = false, ortho = false, fit = false, flat = false;
 };
 
 [[maybe_unused]] std::vector<double> numbers(const std::string& s, size_t n, const char* what) {
@@ -94,8 +96,34 @@ void run(const RenderArgs& a) {
     terrain_extent.xmax = std::max(terrain_extent.xmax, view_extent.xmax);
     terrain_extent.ymax = std::max(terrain_extent.ymax, view_extent.ymax);
   }
-  R::Heightfield terrain = a.dem.empty() ? R::flat_heightfield(terrain_extent)
-                                         : R::load_heightfield(a.dem, src.frame, terrain_extent, 512, a.z_scale);
+  // Terrain: --dem, else the DEM the package was built with (its metadata's
+  // build_options.dem) when it can still be read, else flat. --flat forces flat.
+  if (a.flat && !a.dem.empty()) throw prep::usage_error("render: --flat and --dem exclude each other");
+  std::string dem = a.flat ? std::string() : a.dem;
+  bool dem_from_package = false;
+  if (!a.flat && dem.empty()) {
+    const auto meta = nlohmann::json::parse(pkg.metadata_json(), nullptr, /*allow_exceptions=*/false);
+    if (meta.is_object() && meta.contains("build_options") && meta["build_options"].is_object()) {
+      const auto& bo = meta["build_options"];
+      if (bo.contains("dem") && bo["dem"].is_string()) dem = bo["dem"].get<std::string>();
+    }
+    dem_from_package = !dem.empty();
+  }
+  R::Heightfield terrain;
+  if (dem.empty()) {
+    terrain = R::flat_heightfield(terrain_extent);
+  } else if (!dem_from_package) {
+    terrain = R::load_heightfield(dem, src.frame, terrain_extent, 512, a.z_scale);
+  } else {
+    try {
+      terrain = R::load_heightfield(dem, src.frame, terrain_extent, 512, a.z_scale);
+      std::fprintf(stderr, "render: terrain from the package's build DEM %s (--flat to ignore it)\n", dem.c_str());
+    } catch (const prep::error& e) {
+      std::fprintf(stderr, "render: warning: the package was built with DEM %s, which cannot be read here (%s); "
+                   "drawing flat terrain (pass --dem PATH)\n", dem.c_str(), e.what());
+      terrain = R::flat_heightfield(terrain_extent);
+    }
+  }
   if (topdown) {
     opt.camera = R::topdown_camera(view_extent, terrain.zmin, terrain.zmax);
   } else if (!a.eye.empty() || !a.target.empty()) {
@@ -146,7 +174,9 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("render", "Draw a package over terrain (headless GL, or --cpu) into a PNG");
   cmd->add_option("package", args->package, "Package (.decals)")->required();
   cmd->add_option("-o,--output", args->output, "Output PNG")->required();
-  cmd->add_option("--dem", args->dem, "DEM raster (any GDAL path); flat terrain when absent");
+  cmd->add_option("--dem", args->dem,
+                  "DEM raster (any GDAL path); default: the DEM the package was built with, if readable, else flat");
+  cmd->add_flag("--flat", args->flat, "Flat terrain, even if the package was built with a DEM");
   cmd->add_option("--z-scale", args->z_scale, "Height exaggeration");
   cmd->add_option("--extent", args->extent, "Top-down orthographic view xmin,ymin,xmax,ymax (scene metres)");
   cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (e.g. EPSG:4326)");

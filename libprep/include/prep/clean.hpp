@@ -18,8 +18,12 @@ struct CleanOptions {
   unsigned threads = 0;  // 0: all hardware threads; the output does not depend on it
 };
 
-// Cleans `input`. Never throws for bad geometry (it is dropped and recorded);
-// throws error only on a GEOS failure that is not about the data.
+// Cleans `input`. Bad geometry that is expected (zero area, too few
+// vertices) is dropped and recorded. A per-feature failure (a GEOS error, a
+// repair that is still invalid, a non-finite coordinate; feature_failure.hpp)
+// throws input_error naming the first failing feature in input order, or,
+// with scene.skip_failures, drops the whole feature with reason
+// "failed in <stage>: ..." (also for failures read/project recorded).
 // Invariant on return, per layer: read == kept + clipped_away + dropped.
 SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
                     const CleanOptions& options = {});

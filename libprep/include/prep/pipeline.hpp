@@ -22,6 +22,9 @@ struct BuildResult {
   SceneFeatures scene;      // what clean produced
   std::string report_json;  // the report (also written to request.report)
   bool package_written = false;
+  // Features dropped for a per-feature failure under scene.skip_failures
+  // (prep/feature_failure.hpp); > 0 makes the build partial (exit code 4).
+  size_t skipped_failures = 0;
 };
 
 // Runs the pipeline. Throws prep::error subclasses; on any failure no

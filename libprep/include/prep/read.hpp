@@ -2,9 +2,10 @@
 //
 // Geometry stays in the source CRS, in double precision. Multi-geometries and
 // geometry collections are split into parts; curves are linearised; Z and M
-// are dropped (with a manifest note). Features with NaN/Inf coordinates or a
-// geometry the layer kind cannot use are dropped with a manifest entry, or —
-// NaN/Inf only, without skip_failures — fail the build with their fid.
+// are dropped (with a manifest note). A geometry the layer kind cannot use is
+// dropped with a manifest entry. A per-feature failure (NaN/Inf coordinates,
+// a feature OGR cannot decode; prep/feature_failure.hpp) fails the build with
+// its fid, or, with skip_failures, is dropped with reason "failed in read: ...".
 #pragma once
 
 #include <functional>
@@ -30,7 +31,8 @@ struct ReadOptions {
 //   gdal_error  — a source GDAL cannot open, an unknown layer, invalid SQL,
 //                 a read failure (message names file, layer and GDAL's text);
 //   input_error — a source without CRS and no scene.assume_crs, an invalid
-//                 assume_crs, a NaN/Inf coordinate (unless skip_failures),
+//                 assume_crs, a NaN/Inf coordinate (unless skip_failures;
+//                 a feature OGR cannot decode is a gdal_error then),
 //                 an unknown order/colour attribute.
 // OSM XML whose node ids do not increase (Overpass output) is re-read with
 // OSM_USE_CUSTOM_INDEXING=NO, and the manifest says so.

@@ -64,7 +64,7 @@ struct Extent {
 // Build-stage knobs (thesis defaults noted).
 struct BuildOptions {
   uint32_t grid_nx = 0, grid_ny = 0;   // 0: adaptive (default); 500x500 = thesis
-  uint32_t target_per_cell = 16;       // adaptive grid aim: primitives per cell
+  uint32_t target_per_cell = 0;        // adaptive grid: stop refining at this proxy (0: off)
   uint32_t max_cells = 4'000'000;      // grid cell budget
   uint32_t qt_leaf_capacity = 8;       // thesis default
   uint32_t qt_max_depth = 8;           // thesis default
