@@ -5,7 +5,12 @@
 // Each command runs as a child process; wall time and peak RSS come from
 // wait4(). Prints a Markdown table; target: decalprep <= 1.5x ogr2ogr.
 //
-//   bench_read [--vertices N] [--data DIR] [--out DIR] [--tool PATH] [--repeat R]
+// The two commands alternate (ours, ogr2ogr, ours, ...) and each keeps its
+// best of R runs, so a burst of load on the shared machine hits both alike.
+// Writes the table as CSV too (--csv, default DIR/read_floor.csv) and ends
+// with one "ratio" line per input.
+//
+//   bench_read [--vertices N] [--data DIR] [--out DIR] [--tool PATH] [--repeat R] [--csv PATH]
 //   (run from the repo root; DIR defaults: ../shared/data, bench/out/read)
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -147,6 +152,7 @@ int main(int argc, char** argv) {
   uint64_t vertices = 10'000'000;
   std::string data = "../shared/data", out = "bench/out/read", tool;
   int repeat = 3;
+  std::string csv_path;
   for (int i = 1; i + 1 < argc; i += 2) {
     std::string k = argv[i];
     if (k == "--vertices") vertices = std::strtoull(argv[i + 1], nullptr, 10);
@@ -154,6 +160,7 @@ int main(int argc, char** argv) {
     else if (k == "--out") out = argv[i + 1];
     else if (k == "--tool") tool = argv[i + 1];
     else if (k == "--repeat") repeat = std::atoi(argv[i + 1]);
+    else if (k == "--csv") csv_path = argv[i + 1];
   }
   if (tool.empty()) {
     // Next to this binary's build tree: build/<preset>/tools/decalprep/decalprep.
@@ -161,6 +168,11 @@ int main(int argc, char** argv) {
   }
   fs::create_directories(out);
   out = fs::absolute(out).string();
+  if (csv_path.empty()) csv_path = out + "/read_floor.csv";
+  std::ofstream csv(csv_path);
+  csv << "input,vertices,wall_s,cpu_s,mvertices_per_s,rss_mib,ogr_wall_s,ogr_cpu_s,ogr_rss_mib,"
+         "wall_ratio,cpu_ratio\n";
+  std::vector<std::string> summary;
 
   std::vector<Input> inputs;
   for (auto [name, rel] : {std::pair{"liechtenstein", "liechtenstein/liechtenstein-2013-08-03.osm.pbf"},
@@ -195,17 +207,36 @@ int main(int argc, char** argv) {
         s << "[[layer]]\nname = \"lines\"\nlayer = \"lines\"\nkind = \"line\"\n";
       }
     }
-    RunStats ours = best_of(repeat, {tool, "build", scene, "--dry-run", "-q", "--report", report},
-                            out + "/decalprep.log");
     std::vector<std::string> ogr = {"ogr2ogr", "-f", "FlatGeobuf", "-overwrite", out + "/floor", in.source};
     for (const auto& l : in.layers) ogr.push_back(l);
-    RunStats floor = best_of(repeat, ogr, out + "/ogr2ogr.log", out + "/floor");
+    RunStats ours, floor;
+    for (int i = 0; i < repeat; ++i) {
+      RunStats a = best_of(1, {tool, "build", scene, "--dry-run", "-q", "--report", report},
+                           out + "/decalprep.log");
+      RunStats b = best_of(1, ogr, out + "/ogr2ogr.log", out + "/floor");
+      if (i == 0 || a.wall_s < ours.wall_s) ours = a;
+      if (i == 0 || b.wall_s < floor.wall_s) floor = b;
+    }
     const uint64_t v = report_vertices(report);
+    const double ratio = ours.wall_s / floor.wall_s, cpu_ratio = ours.cpu_s / floor.cpu_s;
     std::printf("| %s | %llu | %.2f | %.2f | %.2f | %.0f | %.2f | %.2f | %.0f | %.2f |\n",
                 in.name.c_str(), static_cast<unsigned long long>(v), ours.wall_s, ours.cpu_s,
                 double(v) / ours.wall_s / 1e6, ours.peak_rss_kib / 1024.0, floor.wall_s,
-                floor.cpu_s, floor.peak_rss_kib / 1024.0, ours.wall_s / floor.wall_s);
+                floor.cpu_s, floor.peak_rss_kib / 1024.0, ratio);
     std::fflush(stdout);
+    char line[512];
+    std::snprintf(line, sizeof line, "\"%s\",%llu,%.4f,%.4f,%.4f,%.1f,%.4f,%.4f,%.1f,%.3f,%.3f\n",
+                  in.name.c_str(), static_cast<unsigned long long>(v), ours.wall_s, ours.cpu_s,
+                  double(v) / ours.wall_s / 1e6, ours.peak_rss_kib / 1024.0, floor.wall_s, floor.cpu_s,
+                  floor.peak_rss_kib / 1024.0, ratio, cpu_ratio);
+    csv << line;
+    csv.flush();
+    std::snprintf(line, sizeof line, "ratio %s: %.2fx ogr2ogr wall (CPU %.2fx), target <= 1.5x: %s",
+                  in.name.c_str(), ratio, cpu_ratio, ratio <= 1.5 ? "met" : "NOT met");
+    summary.emplace_back(line);
   }
+  std::printf("\n");
+  for (const std::string& l : summary) std::printf("%s\n", l.c_str());
+  std::printf("csv: %s\n", csv_path.c_str());
   return 0;
 }

@@ -172,6 +172,247 @@ size_t vertex_count(GEOSContextHandle_t h, const GEOSGeometry* g) {
   return n > 0 ? size_t(n) : 0;
 }
 
+// ------------------------------------------------- validity fast path --
+//
+// Most parts arrive valid; GEOS's isValid (noding every ring, building a
+// topology graph) and the copies into and out of GEOS cost more than reading
+// them. `certainly_valid` proves validity for the plain case with filtered
+// predicates and answers false whenever it cannot be sure, so GEOS still
+// decides every doubtful part (and repairs the invalid ones): a false
+// "valid" is impossible, a false "not sure" only costs time.
+
+// Sign of the orientation of (a, b, c): +1 left turn, -1 right turn, 0 when
+// the floating-point determinant is too close to zero to trust (Shewchuk's
+// orient2d error bound A, which also covers the rounding of the differences).
+int orientation(const Point2& a, const Point2& b, const Point2& c) {
+  const double l = (b.x - a.x) * (c.y - a.y), r = (b.y - a.y) * (c.x - a.x);
+  const double det = l - r;
+  const double bound = 3.3306690738754716e-16 * (std::fabs(l) + std::fabs(r));
+  if (det > bound) return 1;
+  if (det < -bound) return -1;
+  return 0;
+}
+
+// True when p lies certainly inside `ring` (crossing number, with every
+// orientation certain); false when outside or not sure (`sure` says which).
+bool inside_ring(const Point2& p, const Ring& ring, bool& sure) {
+  bool in = false;
+  const size_t n = ring.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Point2& a = ring[i];
+    const Point2& b = ring[(i + 1) % n];
+    const bool up = a.y <= p.y && b.y > p.y, down = b.y <= p.y && a.y > p.y;
+    if (!up && !down) continue;
+    const int o = orientation(a, b, p);
+    if (o == 0) {
+      sure = false;
+      return false;
+    }
+    if ((up && o > 0) || (down && o < 0)) in = !in;
+  }
+  return in;
+}
+
+// A maximal run of edges of one ring along which x strictly increases (or
+// strictly decreases; a vertical edge is a chain of its own). Two edges of
+// one chain that are not neighbours lie in disjoint x ranges, so they cannot
+// meet; only edges of different chains need testing (the monotone chains of
+// GEOS's noder, on plain arrays).
+struct Chain {
+  double xmin, xmax, ymin, ymax;
+  uint32_t ring, first, count;  // edges first .. first+count-1 (mod ring size)
+  bool reversed;                // x decreases along the ring
+};
+
+struct ValidityScratch {
+  std::vector<Chain> chains;
+  std::vector<uint32_t> order, active;
+};
+
+// Proves a polygon (rings[0] shell, then holes; unclosed, consecutive
+// vertices distinct, finite) valid in GEOS's sense: at every vertex the two
+// edges turn (certain orientation: adjacent edges then meet only at their
+// shared vertex), no two non-adjacent edges meet (certainly apart), every
+// hole strictly inside the shell and outside the other holes. Then no rings
+// cross or touch, so the interior is connected and the holes are where they
+// belong. False: not proven (GEOS decides). The work is bounded; past the
+// budget the answer is false.
+bool certainly_valid(const std::vector<Ring>& rings) {
+  constexpr size_t kMaxHoles = 8;  // hole-in-hole checks are quadratic
+  if (rings.size() > 1 + kMaxHoles) return false;
+  thread_local ValidityScratch scratch;
+  std::vector<Chain>& chains = scratch.chains;
+  chains.clear();
+  size_t total = 0;
+  for (uint32_t ri = 0; ri < rings.size(); ++ri) {
+    const Ring& r = rings[ri];
+    const uint32_t n = static_cast<uint32_t>(r.size());
+    if (n < 3) return false;
+    total += n;
+    if (orientation(r[n - 1], r[0], r[1]) == 0 || orientation(r[n - 2], r[n - 1], r[0]) == 0)
+      return false;
+    for (uint32_t i = 1; i + 1 < n; ++i)
+      if (orientation(r[i - 1], r[i], r[i + 1]) == 0) return false;
+    // Chains: start at an edge whose direction class differs from the
+    // previous edge's, so no chain wraps around the ring's start.
+    auto dir = [&](uint32_t e) {
+      const double dx = r[e + 1 == n ? 0 : e + 1].x - r[e].x;
+      return dx > 0 ? 1 : (dx < 0 ? -1 : 0);
+    };
+    uint32_t start = 0;
+    while (start < n && dir(start) != 0 && dir(start) == dir((start + n - 1) % n)) ++start;
+    if (start == n) return false;  // x monotone around a closed ring: impossible
+    uint32_t e = 0;
+    while (e < n) {
+      const uint32_t first = start + e >= n ? start + e - n : start + e;
+      const int d = dir(first);
+      uint32_t count = 1;
+      if (d != 0)
+        while (e + count < n && dir(first + count >= n ? first + count - n : first + count) == d)
+          ++count;
+      Chain c{INFINITY, -INFINITY, INFINITY, -INFINITY, ri, first, count, d < 0};
+      for (uint32_t k = 0, v = first; k <= count; ++k, v = v + 1 == n ? 0 : v + 1) {
+        const Point2& p = r[v];
+        c.xmin = std::min(c.xmin, p.x);
+        c.xmax = std::max(c.xmax, p.x);
+        c.ymin = std::min(c.ymin, p.y);
+        c.ymax = std::max(c.ymax, p.y);
+      }
+      chains.push_back(c);
+      e += count;
+    }
+  }
+  std::vector<uint32_t>& order = scratch.order;
+  order.resize(chains.size());
+  for (uint32_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    return chains[a].xmin < chains[b].xmin || (chains[a].xmin == chains[b].xmin && a < b);
+  });
+  size_t budget = 32 * total + 4096;
+  // Edge k (in increasing x) of chain c, as its two end points.
+  auto edge = [&](const Chain& c, uint32_t k, const Point2*& p, const Point2*& q, uint32_t& index) {
+    const Ring& r = rings[c.ring];
+    const uint32_t n = static_cast<uint32_t>(r.size());
+    index = c.first + (c.reversed ? c.count - 1 - k : k);
+    if (index >= n) index -= n;
+    p = &r[index];
+    q = &r[index + 1 == n ? 0 : index + 1];
+  };
+  // Tests every pair of edges of chains a and b whose x ranges meet.
+  auto chains_apart = [&](const Chain& a, const Chain& b) -> bool {
+    // Only the part of each chain inside the other's box can meet it.
+    const double lo = std::max(a.xmin, b.xmin), hi = std::min(a.xmax, b.xmax);
+    const double ylo = std::max(a.ymin, b.ymin), yhi = std::min(a.ymax, b.ymax);
+    auto first_reaching = [&](const Chain& c, double x) {  // first edge with max x >= x
+      uint32_t l = 0, h = c.count;
+      while (l < h) {
+        const uint32_t m = (l + h) / 2;
+        const Point2 *p, *q;
+        uint32_t i;
+        edge(c, m, p, q, i);
+        if (std::max(p->x, q->x) < x) l = m + 1;
+        else h = m;
+      }
+      return l;
+    };
+    uint32_t jb = first_reaching(b, lo);
+    for (uint32_t ka = first_reaching(a, lo); ka < a.count; ++ka) {
+      const Point2 *p, *q;
+      uint32_t ia;
+      edge(a, ka, p, q, ia);
+      const double axmin = std::min(p->x, q->x), axmax = std::max(p->x, q->x);
+      if (axmin > hi) break;
+      const double aymin = std::min(p->y, q->y), aymax = std::max(p->y, q->y);
+      if (aymax < ylo || aymin > yhi) continue;
+      for (;;) {  // skip b's edges wholly left of this one (b is sorted in x)
+        if (jb >= b.count) break;
+        const Point2 *r, *t;
+        uint32_t ib;
+        edge(b, jb, r, t, ib);
+        if (std::max(r->x, t->x) < axmin) ++jb;
+        else break;
+      }
+      for (uint32_t kb = jb; kb < b.count; ++kb) {
+        const Point2 *r, *t;
+        uint32_t ib;
+        edge(b, kb, r, t, ib);
+        if (std::min(r->x, t->x) > axmax) break;
+        if (std::max(r->y, t->y) < aymin || std::min(r->y, t->y) > aymax) continue;
+        if (budget-- == 0) return false;
+        if (a.ring == b.ring) {
+          const uint32_t n = static_cast<uint32_t>(rings[a.ring].size());
+          // Neighbours share a vertex; the turn test above covers them.
+          if ((ia + 1) % n == ib || (ib + 1) % n == ia) continue;
+        }
+        const int o1 = orientation(*p, *q, *r), o2 = orientation(*p, *q, *t);
+        const int o3 = orientation(*r, *t, *p), o4 = orientation(*r, *t, *q);
+        if (o1 == 0 || o2 == 0 || o3 == 0 || o4 == 0) return false;
+        if (o1 == o2 || o3 == o4) continue;  // one strictly on one side of the other
+        return false;                        // they cross
+      }
+    }
+    return true;
+  };
+  std::vector<uint32_t>& active = scratch.active;
+  active.clear();
+  for (uint32_t ci : order) {
+    const Chain& a = chains[ci];
+    size_t w = 0;
+    for (size_t k = 0; k < active.size(); ++k) {
+      const Chain& b = chains[active[k]];
+      if (b.xmax < a.xmin) continue;  // left behind for good
+      active[w++] = active[k];
+      if (b.ymax < a.ymin || b.ymin > a.ymax) continue;
+      if (budget-- == 0) return false;
+      if (!chains_apart(a, b)) return false;
+    }
+    active.resize(w);
+    active.push_back(ci);
+  }
+  // No two rings meet, so each hole lies wholly inside or outside the shell
+  // (and any other hole): one vertex decides.
+  for (size_t h = 1; h < rings.size(); ++h) {
+    bool sure = true;
+    if (!inside_ring(rings[h][0], rings[0], sure) || !sure) return false;
+    for (size_t o = 1; o < rings.size(); ++o) {
+      if (o == h) continue;
+      if (inside_ring(rings[h][0], rings[o], sure) || !sure) return false;
+    }
+  }
+  return true;
+}
+
+// GEOS's shoelace (Area::ofRingSigned) over the closed ring, so the fast
+// path reports the very area GEOS would.
+double geos_ring_area(const Ring& r) {
+  const size_t n = r.size() + 1;  // closed
+  if (n < 3) return 0.0;
+  auto at = [&](size_t i) -> const Point2& { return r[i % r.size()]; };
+  const double x0 = at(0).x;
+  double p1x = at(0).x, p1y = at(0).y;
+  double p2x = at(1).x - x0, p2y = at(1).y;
+  double sum = 0.0;
+  for (size_t i = 1; i < n - 1; ++i) {
+    const double p0y = p1y;
+    p1x = p2x;
+    p1y = p2y;
+    p2x = at(i + 1).x - x0;
+    p2y = at(i + 1).y;
+    sum += p1x * (p0y - p2y);
+  }
+  return std::fabs(sum / 2.0);
+}
+
+// GEOS's Length::ofLine.
+double geos_line_length(const Ring& pts) {
+  double len = 0.0;
+  for (size_t i = 1; i < pts.size(); ++i) {
+    const double dx = pts[i].x - pts[i - 1].x, dy = pts[i].y - pts[i - 1].y;
+    len += std::sqrt(dx * dx + dy * dy);
+  }
+  return len;
+}
+
 // ----------------------------------------------------------- part outcome --
 
 enum class Outcome { kept, clipped_away, dropped };
@@ -195,12 +436,26 @@ void add_repair(PartResult& r, const std::string& what) {
 struct Cleaner {
   const std::optional<Extent>& clip;
   double resolution;
+  RepairMethod repair = RepairMethod::linework;
   // Test hook (tests/hostile, case clean_geos_error): the feature with this
   // fid has its simplification run with tolerance -1, which GEOS rejects
   // ("Tolerance must be non-negative"), so that a real GEOS error travels
   // the failure path. No input is known to make GEOS 3.11 fail on its own.
   // Set by DECALPREP_TEST_GEOS_FAIL_FID; -2: off.
   int64_t geos_fail_fid = -2;
+
+  // GEOS MakeValid with the scene's method (prep/scene.hpp RepairMethod).
+  GEOSGeometry* make_valid(GEOSContextHandle_t h, const GEOSGeometry* g) const {
+    if (repair == RepairMethod::linework) return GEOSMakeValid_r(h, g);
+    GEOSMakeValidParams* params = GEOSMakeValidParams_create_r(h);
+    if (!params) return nullptr;
+    GEOSMakeValidParams_setMethod_r(h, params, GEOS_MAKE_VALID_STRUCTURE);
+    // Collapsed (zero-area) pieces are not kept: only polygons are used.
+    GEOSMakeValidParams_setKeepCollapsed_r(h, params, 0);
+    GEOSGeometry* fixed = GEOSMakeValidWithParams_r(h, g, params);
+    GEOSMakeValidParams_destroy_r(h, params);
+    return fixed;
+  }
 
   double tolerance_for(const SourceFeature& f) const {
     return f.fid == geos_fail_fid ? -1.0 : resolution;
@@ -239,9 +494,10 @@ struct Cleaner {
   }
 
   // §1.3 for one polygon part: dedupe, validity, clip, simplify, orient.
-  void polygon(GeosContext& ctx, const SourceFeature& f, PartResult& r) const {
+  // Takes the part's rings (f.rings is left empty).
+  void polygon(GeosContext& ctx, SourceFeature& f, PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
-    std::vector<Ring> rings = f.rings;
+    std::vector<Ring> rings = std::move(f.rings);
     size_t dups = 0;
     for (Ring& ring : rings) dups += remove_duplicates(ring, true);
     if (dups > 0) add_repair(r, "removed " + std::to_string(dups) + " duplicate vertices");
@@ -264,15 +520,22 @@ struct Cleaner {
       r.outcome = Outcome::clipped_away;
       return;
     }
+    // Proven valid, inside the extent, nothing to simplify: GEOS would hand
+    // the rings back unchanged (emit_rings reproduces what it reports).
+    const bool proven = certainly_valid(rings);
+    if (proven && rel == 1 && !(resolution > 0) && f.fid != geos_fail_fid) {
+      emit_rings(f, std::move(rings), r);
+      return;
+    }
     Geom g(h, make_polygon(h, rings));
     if (!g) return fail(r, "GEOS cannot build the polygon: " + ctx.last_error);
-    char valid = GEOSisValid_r(h, g.get());
+    char valid = proven ? 1 : GEOSisValid_r(h, g.get());
     if (valid != 1) {
       char* why = GEOSisValidReason_r(h, g.get());
       std::string reason = why ? why : "invalid";
       GEOSFree_r(h, why);
       const double before = GEOSArea_r(h, g.get(), &r.area_before) ? r.area_before : NAN;
-      Geom fixed(h, GEOSMakeValid_r(h, g.get()));
+      Geom fixed(h, make_valid(h, g.get()));
       if (!fixed)
         return fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
       // A repair that is still invalid would break point-in-polygon later.
@@ -285,7 +548,8 @@ struct Cleaner {
       }
       double after = 0;
       GEOSArea_r(h, fixed.get(), &after);
-      add_repair(r, "made valid (" + reason + ")");
+      add_repair(r, "made valid (" + reason + ")" +
+                        (repair == RepairMethod::structure ? " by the structure method" : ""));
       if (!(std::fabs(after - before) <= 1e-6 * std::fabs(before))) {
         r.area_before = before;
         r.area_after = after;
@@ -339,6 +603,31 @@ struct Cleaner {
     }
   }
 
+  // emit_polygon for a part proven valid, without the GEOS round trip: the
+  // same rings, counts and (GEOS's) area.
+  static void emit_rings(const SourceFeature& f, std::vector<Ring> rings, PartResult& r) {
+    ScenePolygon out;
+    out.fid = f.fid;
+    out.part = f.part;
+    out.order_value = f.order_value;
+    out.color_value = f.color_value;
+    double area = geos_ring_area(rings[0]);
+    for (size_t i = 1; i < rings.size(); ++i) area -= geos_ring_area(rings[i]);
+    out.area = area;
+    for (const Ring& ring : rings) r.vertices_in += ring.size() + 1;
+    out.shell = std::move(rings[0]);
+    // Orientation (DESIGN.md §1.3): shell counter-clockwise, holes clockwise.
+    if (signed_area(out.shell) < 0) std::reverse(out.shell.begin(), out.shell.end());
+    for (size_t i = 1; i < rings.size(); ++i) {
+      Ring hole = std::move(rings[i]);
+      if (signed_area(hole) > 0) std::reverse(hole.begin(), hole.end());
+      out.holes.push_back(std::move(hole));
+    }
+    r.vertices_out += out.shell.size() + 1;
+    for (const Ring& hole : out.holes) r.vertices_out += hole.size() + 1;
+    r.polygons.push_back(std::move(out));
+  }
+
   void emit_polygon(GEOSContextHandle_t h, const SourceFeature& f, const GEOSGeometry* poly,
                     PartResult& r) const {
     ScenePolygon out;
@@ -361,9 +650,10 @@ struct Cleaner {
     r.polygons.push_back(std::move(out));
   }
 
-  void line(GeosContext& ctx, const SourceFeature& f, PartResult& r) const {
+  // Takes the part's points (f.rings[0] is left empty).
+  void line(GeosContext& ctx, SourceFeature& f, PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
-    Ring pts = f.rings[0];
+    Ring pts = std::move(f.rings[0]);
     const bool was_closed =
         pts.size() >= 3 && pts.front().x == pts.back().x && pts.front().y == pts.back().y;
     size_t dups = remove_duplicates(pts, false);
@@ -376,6 +666,25 @@ struct Cleaner {
     int rel = clip_relation({pts});
     if (rel < 0) {
       r.outcome = Outcome::clipped_away;
+      return;
+    }
+    if (rel == 1 && !(resolution > 0) && f.fid != geos_fail_fid) {
+      // Inside the extent, nothing to simplify: GEOS would hand the points
+      // back unchanged; the same counts and (GEOS's) length without it.
+      SceneLine out;
+      r.vertices_in += pts.size();
+      r.vertices_out += pts.size();
+      out.length = geos_line_length(pts);
+      out.points = std::move(pts);
+      out.closed = was_closed && out.points.size() >= 4 &&
+                   out.points.front().x == out.points.back().x &&
+                   out.points.front().y == out.points.back().y;
+      if (out.closed) out.points.pop_back();
+      out.fid = f.fid;
+      out.part = f.part;
+      out.order_value = f.order_value;
+      out.color_value = f.color_value;
+      r.lines.push_back(std::move(out));
       return;
     }
     Geom g(h, make_line(h, pts));
@@ -437,6 +746,11 @@ struct Cleaner {
 
 SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
                     const CleanOptions& options) {
+  ProjectedFeatures copy = input;
+  return clean(std::move(copy), scene, options);
+}
+
+SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const CleanOptions& options) {
   SceneFeatures out;
   out.frame = input.frame;
   out.manifest.notes = input.features.manifest.notes;
@@ -449,11 +763,11 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
                                                   options.threads);
   }
   tbb::enumerable_thread_specific<GeosContext> contexts;
-  Cleaner cleaner{input.clip, scene.resolution};
+  Cleaner cleaner{input.clip, scene.resolution, scene.repair};
   if (const char* fid = std::getenv("DECALPREP_TEST_GEOS_FAIL_FID")) cleaner.geos_fail_fid = std::atoll(fid);
 
   for (size_t li = 0; li < input.features.layers.size(); ++li) {
-    const SourceLayer& layer = input.features.layers[li];
+    SourceLayer& layer = input.features.layers[li];
     const LayerSpec& spec = layer.spec;
     out.layers.push_back(spec);
     const std::vector<double>& k = input.scale[li];
@@ -463,7 +777,7 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
                       [&](const tbb::blocked_range<size_t>& range) {
       GeosContext& ctx = contexts.local();
       for (size_t i = range.begin(); i != range.end(); ++i) {
-        const SourceFeature& f = layer.features[i];
+        SourceFeature& f = layer.features[i];
         PartResult& r = results[i];
         if (!f.drop_reason.empty() || f.rings.empty() || f.rings[0].empty()) {
           r.outcome = Outcome::dropped;

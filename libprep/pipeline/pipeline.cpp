@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <future>
+#include <optional>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -301,6 +303,16 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
                                                     scene.build.threads);
   }
 
+  // The sources' hashes (provenance) are computed once, beside the read:
+  // hashing a large source costs as much as a stage.
+  std::future<nlohmann::json> provenance =
+      std::async(std::launch::async, [&scene] { return provenance_json(scene); });
+  std::optional<nlohmann::json> provenance_value;
+  auto provenance_of = [&]() -> const nlohmann::json& {
+    if (!provenance_value) provenance_value = provenance.get();
+    return *provenance_value;
+  };
+
   auto t0 = Clock::now();
   ReadOptions ro;
   ro.progress = request.progress;
@@ -316,7 +328,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   CleanOptions co;
   co.threads = scene.build.threads;
   BuildResult result;
-  result.scene = clean(projected, scene, co);
+  result.scene = clean(std::move(projected), scene, co);
   check_build_range(result.scene, scene.skip_failures);
   timings.emplace_back("clean", seconds_since(t0));
 
@@ -344,7 +356,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     nlohmann::json extra;
     extra["manifest"]["totals"] = totals;
     extra["layers"] = layers_json(scene.layers);
-    extra["provenance"] = provenance_json(scene);
+    extra["provenance"] = provenance_of();
     extra["scene_file"] = scene.scene_path;
     extra["build_options"] = {{"resolution_m", scene.resolution},
                               {"crs", scene.crs},
@@ -364,7 +376,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   timings.emplace_back("total", seconds_since(t_all));
   nlohmann::json report = report_object(result.scene, request.dry_run ? "" : request.output,
                                         timings, result.package_written);
-  report["provenance"] = provenance_json(scene);
+  report["provenance"] = provenance_of();
   report["dry_run"] = request.dry_run;
   result.skipped_failures = count_skipped_failures(result.scene.manifest);
   report["skipped_failures"] = result.skipped_failures;

@@ -8,12 +8,16 @@
 #include <ogr_spatialref.h>
 #include <tbb/task_arena.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
@@ -73,20 +77,30 @@ std::string to_wkt(const OGRSpatialReference& srs) {
 }
 
 Extent bounds_of(const SourceLayer& layer) {
-  Extent e{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
-           -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
-  for (const SourceFeature& f : layer.features) {
-    if (!f.drop_reason.empty()) continue;
-    for (const Ring& r : f.rings) {
-      for (const Point2& p : r) {
-        e.xmin = std::min(e.xmin, p.x);
-        e.ymin = std::min(e.ymin, p.y);
-        e.xmax = std::max(e.xmax, p.x);
-        e.ymax = std::max(e.ymax, p.y);
-      }
-    }
-  }
-  return e;
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  // Parallel; min and max are exact, so the result does not depend on the
+  // split.
+  return tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, layer.features.size(), 1024), Extent{inf, inf, -inf, -inf},
+      [&](const tbb::blocked_range<size_t>& range, Extent e) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+          const SourceFeature& f = layer.features[i];
+          if (!f.drop_reason.empty()) continue;
+          for (const Ring& r : f.rings) {
+            for (const Point2& p : r) {
+              e.xmin = std::min(e.xmin, p.x);
+              e.ymin = std::min(e.ymin, p.y);
+              e.xmax = std::max(e.xmax, p.x);
+              e.ymax = std::max(e.ymax, p.y);
+            }
+          }
+        }
+        return e;
+      },
+      [](const Extent& a, const Extent& b) {
+        return Extent{std::min(a.xmin, b.xmin), std::min(a.ymin, b.ymin), std::max(a.xmax, b.xmax),
+                      std::max(a.ymax, b.ymax)};
+      });
 }
 
 // Transforms an extent with densified edges (GDAL's TransformBounds).
@@ -130,6 +144,252 @@ class NumericScale {
   TransformPtr to_geo_, from_geo_;
 };
 
+
+// ------------------------------------------------ verified approximation --
+//
+// PROJ's exact transverse Mercator (inverse for a UTM source, forward into
+// the local frame) costs ~250 ns per vertex, four times what GDAL needs to
+// read the vertex. The transformation is analytic over a scene, so it is
+// replaced, cell by cell, by its degree-3 Chebyshev interpolant (the idea of
+// GDAL's approximate transformer, with a polynomial instead of a straight
+// line and a far tighter tolerance). A cell is used only after the
+// interpolant has been checked against the exact transformation on a 9x9
+// grid that includes the cell's corners and edges (where a degree-3
+// interpolation error peaks); a cell that misses kApproxTolerance is split in
+// four, and a cell still failing at kApproxMaxDepth (or where the exact
+// transformation itself fails) keeps the exact per-vertex path. The cells
+// depend on the data alone (extent, occupancy), never on timing, so the
+// output stays identical at any thread count.
+constexpr int kApproxDegree = 3;
+constexpr int kApproxNodes = kApproxDegree + 1;
+constexpr int kApproxCheck = 9;              // check grid per axis
+constexpr double kApproxTolerance = 1e-8;    // frame metres; tests ask 1e-6
+constexpr int kApproxMaxDepth = 12;
+constexpr int kApproxOccupancy = 256;        // occupancy grid per axis
+// A fit costs about 100 exact transformations: a cell holding fewer
+// vertices than this keeps the exact path (sparse or small data: the
+// approximation would cost more than it saves).
+constexpr uint64_t kApproxMinVertices = 1024;
+
+class ApproxTransform {
+ public:
+  // `exact` maps source (x, y) to frame coordinates in place; `points` are
+  // every source vertex, visited through `for_each(fn)`.
+  template <class ForEachPoint>
+  ApproxTransform(OGRCoordinateTransformation& exact, const Extent& box, ForEachPoint&& for_each)
+      : exact_(exact) {
+    double w = box.xmax - box.xmin, h = box.ymax - box.ymin;
+    // A degenerate box (one point, an axis-parallel line) still gets an area.
+    const double pad_x = w > 0 ? 0 : 1e-9 * std::max(1.0, std::fabs(box.xmin));
+    const double pad_y = h > 0 ? 0 : 1e-9 * std::max(1.0, std::fabs(box.ymin));
+    root_ = {box.xmin - pad_x, box.ymin - pad_y, box.xmax + pad_x, box.ymax + pad_y};
+    // Vertex counts (summed-area table): cells with few vertices are never
+    // fitted.
+    const int g = kApproxOccupancy;
+    sat_.assign(size_t(g + 1) * (g + 1), 0);
+    const double sx = g / (root_.xmax - root_.xmin), sy = g / (root_.ymax - root_.ymin);
+    for_each([&](double x, double y) {
+      const int i = std::clamp(static_cast<int>((x - root_.xmin) * sx), 0, g - 1);
+      const int j = std::clamp(static_cast<int>((y - root_.ymin) * sy), 0, g - 1);
+      ++sat_[size_t(j + 1) * (g + 1) + size_t(i + 1)];
+    });
+    for (int j = 1; j <= g; ++j)
+      for (int i = 1; i <= g; ++i)
+        sat_[size_t(j) * (g + 1) + i] += sat_[size_t(j - 1) * (g + 1) + i] +
+                                         sat_[size_t(j) * (g + 1) + i - 1] -
+                                         sat_[size_t(j - 1) * (g + 1) + i - 1];
+    for (int k = 0; k < kApproxNodes; ++k)
+      node_[k] = std::cos(M_PI * (k + 0.5) / kApproxNodes);
+    // Monomial coefficients of the Chebyshev polynomials T_0..T_degree.
+    for (auto& row : cheb_) row.fill(0);
+    cheb_[0][0] = 1;
+    cheb_[1][1] = 1;
+    for (int n = 2; n < kApproxNodes; ++n)
+      for (int m = 0; m < kApproxNodes; ++m)
+        cheb_[n][m] = (m > 0 ? 2 * cheb_[n - 1][m - 1] : 0) - cheb_[n - 2][m];
+    build(root_);
+  }
+
+  // Frame coordinates of source (x, y); false when (x, y) lies in a cell
+  // that keeps the exact transformation (the caller then calls it).
+  // `leaf` caches the cell of the previous vertex (-1: none); a vertex
+  // strictly inside it (half-open, as the descent splits) skips the descent.
+  bool apply(double& x, double& y, int& leaf) const {
+    if (leaf >= 0) {
+      const Node& node = nodes_[size_t(leaf)];
+      if (x >= node.box.xmin && x < node.box.xmax && y >= node.box.ymin && y < node.box.ymax) {
+        eval(fits_[size_t(node.fit)], x, y);
+        return true;
+      }
+    }
+    if (!(x >= root_.xmin && x <= root_.xmax && y >= root_.ymin && y <= root_.ymax)) return false;
+    int n = 0;
+    for (;;) {
+      const Node& node = nodes_[size_t(n)];
+      if (node.child < 0) {
+        if (node.fit < 0) return false;
+        leaf = n;
+        eval(fits_[size_t(node.fit)], x, y);
+        return true;
+      }
+      const double mx = 0.5 * (node.box.xmin + node.box.xmax);
+      const double my = 0.5 * (node.box.ymin + node.box.ymax);
+      n = node.child + (x >= mx ? 1 : 0) + (y >= my ? 2 : 0);
+    }
+  }
+
+  size_t cells() const { return fits_.size(); }
+
+ private:
+  struct Fit {
+    double cx, cy, ix, iy;   // cell centre and 1 / half size (source units)
+    double fx, fy;           // exact value at the centre
+    double ax[kApproxNodes][kApproxNodes], ay[kApproxNodes][kApproxNodes];  // [i][j]: u^i v^j
+  };
+  struct Node {
+    Extent box;
+    int child = -1;  // index of the first of four children (SW, SE, NW, NE)
+    int fit = -1;    // leaf: index into fits_, or -1 for exact
+  };
+
+  static void eval(const Fit& f, double& x, double& y) {
+    const double u = (x - f.cx) * f.ix, v = (y - f.cy) * f.iy;
+    double px = 0, py = 0;
+    for (int i = kApproxDegree; i >= 0; --i) {
+      double rx = f.ax[i][kApproxDegree], ry = f.ay[i][kApproxDegree];
+      for (int j = kApproxDegree - 1; j >= 0; --j) {
+        rx = rx * v + f.ax[i][j];
+        ry = ry * v + f.ay[i][j];
+      }
+      px = px * u + rx;
+      py = py * u + ry;
+    }
+    x = f.fx + px;
+    y = f.fy + py;
+  }
+
+  // Vertices in the cell, counted on the occupancy grid: an upper bound for
+  // a cell smaller than a grid cell (it counts the grid cells it touches).
+  uint64_t vertices_in(const Extent& b) const {
+    const int g = kApproxOccupancy;
+    const double sx = g / (root_.xmax - root_.xmin), sy = g / (root_.ymax - root_.ymin);
+    const int i0 = std::clamp(static_cast<int>(std::floor((b.xmin - root_.xmin) * sx)), 0, g);
+    const int j0 = std::clamp(static_cast<int>(std::floor((b.ymin - root_.ymin) * sy)), 0, g);
+    const int i1 = std::clamp(std::max(i0 + 1, static_cast<int>(std::ceil((b.xmax - root_.xmin) * sx))), 0, g);
+    const int j1 = std::clamp(std::max(j0 + 1, static_cast<int>(std::ceil((b.ymax - root_.ymin) * sy))), 0, g);
+    if (i1 <= i0 || j1 <= j0) return 0;
+    const auto at = [&](int i, int j) { return sat_[size_t(j) * (g + 1) + size_t(i)]; };
+    return at(i1, j1) - at(i0, j1) - at(i1, j0) + at(i0, j0);
+  }
+
+  bool fit(const Extent& b, Fit& f) const {
+    f.cx = 0.5 * (b.xmin + b.xmax);
+    f.cy = 0.5 * (b.ymin + b.ymax);
+    const double hx = 0.5 * (b.xmax - b.xmin), hy = 0.5 * (b.ymax - b.ymin);
+    if (!(hx > 0) || !(hy > 0)) return false;
+    f.ix = 1.0 / hx;
+    f.iy = 1.0 / hy;
+    // One exact call: centre, the Chebyshev nodes, the check grid.
+    constexpr int kN = kApproxNodes * kApproxNodes, kC = kApproxCheck * kApproxCheck;
+    std::vector<double> xs(1 + kN + kC), ys(1 + kN + kC);
+    std::vector<int> ok(xs.size(), 0);
+    xs[0] = f.cx;
+    ys[0] = f.cy;
+    for (int i = 0; i < kApproxNodes; ++i)
+      for (int j = 0; j < kApproxNodes; ++j) {
+        xs[size_t(1 + i * kApproxNodes + j)] = f.cx + hx * node_[i];
+        ys[size_t(1 + i * kApproxNodes + j)] = f.cy + hy * node_[j];
+      }
+    for (int i = 0; i < kApproxCheck; ++i)
+      for (int j = 0; j < kApproxCheck; ++j) {
+        // Corners and edges exactly: clamp the last row/column to the box.
+        const double u = -1.0 + 2.0 * i / (kApproxCheck - 1), v = -1.0 + 2.0 * j / (kApproxCheck - 1);
+        xs[size_t(1 + kN + i * kApproxCheck + j)] =
+            i == kApproxCheck - 1 ? b.xmax : (i == 0 ? b.xmin : f.cx + hx * u);
+        ys[size_t(1 + kN + i * kApproxCheck + j)] =
+            j == kApproxCheck - 1 ? b.ymax : (j == 0 ? b.ymin : f.cy + hy * v);
+      }
+    const std::vector<double> cx_in = xs, cy_in = ys;
+    CPLErrorReset();
+    exact_.Transform(static_cast<int>(xs.size()), xs.data(), ys.data(), nullptr, ok.data());
+    for (size_t k = 0; k < xs.size(); ++k)
+      if (!ok[k] || !std::isfinite(xs[k]) || !std::isfinite(ys[k])) return false;
+    f.fx = xs[0];
+    f.fy = ys[0];
+    // Chebyshev coefficients by discrete orthogonality over the nodes.
+    double c[2][kApproxNodes][kApproxNodes];
+    for (int p = 0; p < kApproxNodes; ++p)
+      for (int q = 0; q < kApproxNodes; ++q) {
+        double sx = 0, sy = 0;
+        for (int i = 0; i < kApproxNodes; ++i)
+          for (int j = 0; j < kApproxNodes; ++j) {
+            const double t = std::cos(M_PI * p * (i + 0.5) / kApproxNodes) *
+                             std::cos(M_PI * q * (j + 0.5) / kApproxNodes);
+            sx += (xs[size_t(1 + i * kApproxNodes + j)] - f.fx) * t;
+            sy += (ys[size_t(1 + i * kApproxNodes + j)] - f.fy) * t;
+          }
+        const double w = (p ? 2.0 : 1.0) * (q ? 2.0 : 1.0) / kN;
+        c[0][p][q] = sx * w;
+        c[1][p][q] = sy * w;
+      }
+    // To monomials in u, v (|coefficients of T_3| <= 4: no cancellation worth
+    // speaking of at these magnitudes).
+    for (int i = 0; i < kApproxNodes; ++i)
+      for (int j = 0; j < kApproxNodes; ++j) {
+        double ax = 0, ay = 0;
+        for (int p = i; p < kApproxNodes; ++p)
+          for (int q = j; q < kApproxNodes; ++q) {
+            const double t = cheb_[p][i] * cheb_[q][j];
+            if (t == 0) continue;
+            ax += c[0][p][q] * t;
+            ay += c[1][p][q] * t;
+          }
+        f.ax[i][j] = ax;
+        f.ay[i][j] = ay;
+      }
+    // Verify on the check grid and at the centre.
+    for (int k = 0; k <= kC; ++k) {
+      const size_t at = k == kC ? 0 : size_t(1 + kN + k);
+      double x = cx_in[at], y = cy_in[at];
+      eval(f, x, y);
+      if (!(std::fabs(x - xs[at]) <= kApproxTolerance && std::fabs(y - ys[at]) <= kApproxTolerance))
+        return false;
+    }
+    return true;
+  }
+
+  void build(const Extent& root) {
+    nodes_.push_back(Node{root, -1, -1});
+    subtree(0, 0);
+  }
+
+  void subtree(int at, int depth) {
+    const Extent b = nodes_[size_t(at)].box;
+    if (vertices_in(b) < kApproxMinVertices) return;  // exact
+    Fit f;
+    if (fit(b, f)) {
+      fits_.push_back(f);
+      nodes_[size_t(at)].fit = static_cast<int>(fits_.size() - 1);
+      return;
+    }
+    if (depth >= kApproxMaxDepth) return;
+    const double mx = 0.5 * (b.xmin + b.xmax), my = 0.5 * (b.ymin + b.ymax);
+    const Extent kids[4] = {{b.xmin, b.ymin, mx, my}, {mx, b.ymin, b.xmax, my},
+                            {b.xmin, my, mx, b.ymax}, {mx, my, b.xmax, b.ymax}};
+    const int first = static_cast<int>(nodes_.size());
+    nodes_[size_t(at)].child = first;
+    for (const Extent& k : kids) nodes_.push_back(Node{k, -1, -1});
+    for (int c = 0; c < 4; ++c) subtree(first + c, depth + 1);
+  }
+
+  OGRCoordinateTransformation& exact_;
+  Extent root_{};
+  std::vector<uint64_t> sat_;
+  double node_[kApproxNodes] = {};
+  std::array<std::array<double, kApproxNodes>, kApproxNodes> cheb_{};
+  std::vector<Node> nodes_;
+  std::vector<Fit> fits_;
+};
 // What to do when a vertex falls out of the frame projection's domain.
 std::string frame_hint(const SceneFrame& frame) {
   const bool named = !frame.description.empty() && frame.description != "unknown";
@@ -274,49 +534,70 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
   out.frame = frame;
   auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
   const bool local_tm = std::isfinite(frame.tm_lon0);
+  double tm_x0 = 0, tm_y0 = 0;
+  if (local_tm) tm_wgs84().Forward(frame.tm_lon0, frame.tm_lat0, frame.tm_lon0, tm_x0, tm_y0);
 
   for (SourceLayer& layer : features.layers) {
     auto src = srs_from(layer.srs_wkt, "source CRS of layer '" + layer.spec.name + "'");
     const std::string ctx = "layer '" + layer.spec.name + "' to the scene frame";
-    // OGRCoordinateTransformation is not thread-safe: one per worker slot,
-    // cloned here on one thread (a clone skips PROJ's database search).
-    TransformPtr first = make_transform(*src, *frame_srs, ctx);
+    // OGRCoordinateTransformation is not thread-safe: `exact` fits the
+    // approximation here, on one thread; the workers clone it (a clone skips
+    // PROJ's database search) only if some vertex needs the exact path.
+    TransformPtr exact = make_transform(*src, *frame_srs, ctx);
     const int slots = tbb::this_task_arena::max_concurrency();
-    std::vector<TransformPtr> transforms;
-    transforms.push_back(std::move(first));
-    for (int i = 1; i < slots; ++i) {
-      TransformPtr c(transforms[0]->Clone());
-      if (!c) c = make_transform(*src, *frame_srs, ctx);
-      transforms.push_back(std::move(c));
+    std::vector<TransformPtr> transforms(static_cast<size_t>(slots));
+    std::vector<std::unique_ptr<NumericScale>> scales(static_cast<size_t>(slots));
+    std::mutex clone_mutex;
+    auto slot_transform = [&](size_t slot) -> OGRCoordinateTransformation& {
+      if (!transforms[slot]) {
+        std::lock_guard<std::mutex> lock(clone_mutex);
+        TransformPtr c(exact->Clone());
+        if (!c) c = make_transform(*src, *frame_srs, ctx);
+        transforms[slot] = std::move(c);
+      }
+      return *transforms[slot];
+    };
+    auto slot_scale = [&](size_t slot) -> NumericScale& {
+      if (!scales[slot]) {
+        std::lock_guard<std::mutex> lock(clone_mutex);
+        scales[slot] = std::make_unique<NumericScale>(*frame_srs);
+      }
+      return *scales[slot];
+    };
+    // The same CRS as the frame: PROJ's transformation is the identity (a
+    // no-op); skip it, and the approximation too, which would move vertices
+    // by up to kApproxTolerance and could part vertices that touch exactly.
+    const bool identity = src->IsSame(frame_srs.get()) != 0;
+    std::optional<ApproxTransform> approx;
+    const Extent box = bounds_of(layer);
+    if (!identity && box.xmax >= box.xmin && box.ymax >= box.ymin && std::isfinite(box.xmin) &&
+        std::isfinite(box.ymin) && std::isfinite(box.xmax) && std::isfinite(box.ymax)) {
+      approx.emplace(*exact, box, [&](auto&& visit) {
+        for (const SourceFeature& f : layer.features) {
+          if (!f.drop_reason.empty()) continue;
+          for (const Ring& r : f.rings)
+            for (const Point2& p : r) visit(p.x, p.y);
+        }
+      });
     }
-    std::vector<std::unique_ptr<NumericScale>> scales(slots);
-    if (!local_tm)
-      for (auto& sc : scales) sc = std::make_unique<NumericScale>(*frame_srs);
     std::vector<double>& k = out.scale.emplace_back(layer.features.size(), 1.0);
 
     tbb::parallel_for(tbb::blocked_range<size_t>(0, layer.features.size(), 64),
                       [&](const tbb::blocked_range<size_t>& range) {
-      const int slot = tbb::this_task_arena::current_thread_index();
-      OGRCoordinateTransformation& t = *transforms[static_cast<size_t>(slot)];
-      std::vector<double> xs, ys;
-      std::vector<int> ok;
+      const size_t slot = static_cast<size_t>(tbb::this_task_arena::current_thread_index());
       for (size_t i = range.begin(); i != range.end(); ++i) {
         SourceFeature& f = layer.features[i];
         if (!f.drop_reason.empty()) continue;
         double cx = 0, cy = 0;
         size_t n_all = 0;
+        int leaf = -1;
         for (Ring& r : f.rings) {
           const size_t n = r.size();
-          xs.resize(n);
-          ys.resize(n);
-          ok.assign(n, 0);
           for (size_t j = 0; j < n; ++j) {
-            xs[j] = r[j].x;
-            ys[j] = r[j].y;
-          }
-          if (n > 0 && !t.Transform(static_cast<int>(n), xs.data(), ys.data(), nullptr, ok.data())) {
-            for (size_t j = 0; j < n; ++j) {
-              if (!ok[j]) {
+            double x = r[j].x, y = r[j].y;
+            if (!identity && !(approx && approx->apply(x, y, leaf))) {
+              int ok = 0;
+              if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {
                 // Out of the projection's domain (PROJ error or HUGE_VAL).
                 f.drop_reason = failure_reason(
                     "project", "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
@@ -326,14 +607,9 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
                 break;
               }
             }
-            if (f.drop_reason.empty())
-              f.drop_reason = failure_reason("project", "transformation into the scene frame failed");
-            break;
-          }
-          for (size_t j = 0; j < n; ++j) {
             const Point2 source = r[j];
-            r[j].x = xs[j] - frame.origin_x;
-            r[j].y = ys[j] - frame.origin_y;
+            r[j].x = x - frame.origin_x;
+            r[j].y = y - frame.origin_y;
             if ((!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) && f.drop_reason.empty()) {
               f.drop_reason = failure_reason(
                   "project", "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
@@ -343,6 +619,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
             cx += r[j].x;
             cy += r[j].y;
           }
+          if (!f.drop_reason.empty()) break;
           n_all += n;
         }
         if (!f.drop_reason.empty()) {
@@ -354,8 +631,14 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
         cy /= double(n_all);
         // Scale factor at the part's vertex centroid: widths are ground
         // metres, the frame is not (DESIGN.md §1.2).
-        k[i] = local_tm ? frame_scale_factor(frame, cx, cy)
-                        : scales[static_cast<size_t>(slot)]->at(cx + frame.origin_x, cy + frame.origin_y);
+        if (local_tm) {
+          // frame_scale_factor, with the frame's false northing y0 hoisted.
+          double lat = 0, lon = 0, gamma = 0;
+          tm_wgs84().Reverse(frame.tm_lon0, cx + frame.origin_x, cy + frame.origin_y + tm_y0, lat,
+                             lon, gamma, k[i]);
+        } else {
+          k[i] = slot_scale(slot).at(cx + frame.origin_x, cy + frame.origin_y);
+        }
         if (!std::isfinite(k[i])) k[i] = 1.0;
       }
     });

@@ -232,6 +232,12 @@ decal::CornerStyle parse_corner(const std::string& t) {
   throw usage_error("expected round|miter|bevel, got \"" + t + "\"");
 }
 
+RepairMethod parse_repair_method(const std::string& t) {
+  if (t == "linework") return RepairMethod::linework;
+  if (t == "structure") return RepairMethod::structure;
+  throw usage_error("expected linework|structure, got \"" + t + "\"");
+}
+
 decal::OutlineMode parse_outline_mode(const std::string& t) {
   if (t == "normal") return decal::OutlineMode::normal;
   if (t == "inset") return decal::OutlineMode::inset;
@@ -304,6 +310,12 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
       scene.extent = e;
     } else if (key == "resolution") {
       scene.resolution = get_non_negative(v, ref);
+    } else if (key == "repair") {
+      try {
+        scene.repair = parse_repair_method(get_string(v, ref));
+      } catch (const usage_error& e) {
+        fail(ref, e.what());
+      }
     } else if (key == "dem") {
       scene.dem = resolve_scene_path(get_string(v, ref), base);
     } else if (key == "skip_failures") {

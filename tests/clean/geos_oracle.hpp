@@ -20,11 +20,22 @@ class Geos {
   GEOSContextHandle_t h() const { return h_; }
 
   // Area GEOS MakeValid gives the WKT geometry (0 when nothing areal is left).
-  double make_valid_area(const std::string& wkt) const {
+  // Area of GEOS MakeValid of `wkt`: the default (linework) method, or with
+  // `structure` GEOS_MAKE_VALID_STRUCTURE without collapsed pieces.
+  double make_valid_area(const std::string& wkt, bool structure = false) const {
     GEOSWKTReader* r = GEOSWKTReader_create_r(h_);
     GEOSGeometry* g = GEOSWKTReader_read_r(h_, r, wkt.c_str());
     GEOSWKTReader_destroy_r(h_, r);
-    GEOSGeometry* v = GEOSMakeValid_r(h_, g);
+    GEOSGeometry* v = nullptr;
+    if (!structure) {
+      v = GEOSMakeValid_r(h_, g);
+    } else {
+      GEOSMakeValidParams* p = GEOSMakeValidParams_create_r(h_);
+      GEOSMakeValidParams_setMethod_r(h_, p, GEOS_MAKE_VALID_STRUCTURE);
+      GEOSMakeValidParams_setKeepCollapsed_r(h_, p, 0);
+      v = GEOSMakeValidWithParams_r(h_, g, p);
+      GEOSMakeValidParams_destroy_r(h_, p);
+    }
     double a = 0;
     GEOSArea_r(h_, v, &a);
     GEOSGeom_destroy_r(h_, v);

@@ -8,6 +8,7 @@
 
 #include "fixtures.hpp"
 #include "prep/pipeline.hpp"
+#include "prep/read.hpp"
 
 namespace {
 
@@ -137,6 +138,61 @@ TEST(OsmAccounting, MonacoManifestAccountsForEveryFeatureAndMatchesOgrinfo) {
 
 TEST(OsmAccounting, LiechtensteinManifestAccountsForEveryFeatureAndMatchesOgrinfo) {
   check_extract(prep::test::shared_data("liechtenstein/liechtenstein-2013-08-03.osm.pbf"), 0.0);
+}
+
+// Scene layers that take whole OSM layers share one pass over the file
+// (read.cpp, read_osm_group): the counts must still be ogrinfo's, and each
+// layer must hold exactly what reading it alone gives (same features, same
+// order, same coordinates).
+TEST(OsmAccounting, WholeOsmLayersReadInOnePassMatchOgrinfoAndSeparateReads) {
+  const std::string source = prep::test::shared_data("monaco/monaco.osm.pbf");
+  if (!prep::test::exists(source)) GTEST_SKIP() << "missing real data: " << source;
+  TempDir dir;
+  prep::SceneSpec scene;
+  const std::pair<const char*, prep::DecalKind> defs[] = {{"multipolygons", prep::DecalKind::polygon},
+                                                          {"lines", prep::DecalKind::line},
+                                                          {"multipolygons", prep::DecalKind::outline}};
+  for (const auto& [ogr_layer, kind] : defs) {
+    prep::LayerSpec l;
+    l.name = std::string(ogr_layer) + "_" + std::to_string(scene.layers.size());
+    l.source = source;
+    l.layer = ogr_layer;
+    l.kind = kind;
+    scene.layers.push_back(l);
+  }
+  prep::FeatureSet together = prep::read_scene(scene, prep::ReadOptions{});
+  ASSERT_EQ(together.layers.size(), scene.layers.size());
+  ASSERT_EQ(together.manifest.layers.size(), scene.layers.size());
+  for (size_t i = 0; i < scene.layers.size(); ++i) {
+    SCOPED_TRACE(scene.layers[i].name);
+    const long long oracle = prep::test::ogrinfo_count_sql(
+        source, std::string("SELECT COUNT(*) FROM ") + scene.layers[i].layer, "", dir);
+    if (oracle < 0) GTEST_SKIP() << "ogrinfo not available";
+    EXPECT_EQ(static_cast<long long>(together.manifest.layers[i].read), oracle);
+
+    prep::Manifest alone_manifest;
+    prep::SourceLayer alone = prep::read_layer(scene.layers[i], scene, alone_manifest, prep::ReadOptions{});
+    ASSERT_EQ(alone_manifest.layers.size(), 1u);
+    EXPECT_EQ(alone_manifest.layers[0].read, together.manifest.layers[i].read);
+    const prep::SourceLayer& got = together.layers[i];
+    EXPECT_EQ(got.srs_wkt, alone.srs_wkt);
+    ASSERT_EQ(got.features.size(), alone.features.size());
+    for (size_t f = 0; f < got.features.size(); ++f) {
+      ASSERT_EQ(got.features[f].fid, alone.features[f].fid) << f;
+      ASSERT_EQ(got.features[f].feature, alone.features[f].feature) << f;
+      ASSERT_EQ(got.features[f].drop_reason, alone.features[f].drop_reason) << f;
+      ASSERT_EQ(got.features[f].rings.size(), alone.features[f].rings.size()) << f;
+      for (size_t r = 0; r < got.features[f].rings.size(); ++r) {
+        const prep::Ring& a = got.features[f].rings[r];
+        const prep::Ring& b = alone.features[f].rings[r];
+        ASSERT_EQ(a.size(), b.size()) << f;
+        for (size_t v = 0; v < a.size(); ++v) {
+          ASSERT_EQ(a[v].x, b[v].x) << f;
+          ASSERT_EQ(a[v].y, b[v].y) << f;
+        }
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -28,4 +28,9 @@ struct CleanOptions {
 SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
                     const CleanOptions& options = {});
 
+// The same, taking the parts' coordinates out of `input` instead of copying
+// them (the pipeline's call: `input` is not used afterwards).
+SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene,
+                    const CleanOptions& options = {});
+
 }  // namespace prep

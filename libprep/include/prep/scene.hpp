@@ -22,6 +22,15 @@ namespace prep {
 
 enum class DecalKind { polygon, line, outline };
 
+// How `clean` repairs an invalid polygon (GEOS MakeValid's two methods).
+//   linework:  GEOS's default (and OGR's): rebuild from all the ring lines,
+//              even-odd; a hole sharing an edge with its shell or another
+//              hole toggles coverage, and collapsed pieces become lines.
+//   structure: union the shells, subtract the holes (GEOS >= 3.10); what a
+//              hole is meant to do, and far faster on polygons with very many
+//              touching holes (10^5 holes: 25 s instead of 180 s).
+enum class RepairMethod { linework, structure };
+
 struct ColorStop {
   double value;
   uint32_t rgba;  // R in the low byte
@@ -84,6 +93,7 @@ struct SceneSpec {
   std::optional<Extent> extent;        // in `extent_crs` (default: scene frame)
   std::string extent_crs;
   double resolution = 0.0;             // metres; 0 keeps every vertex
+  RepairMethod repair = RepairMethod::linework;  // invalid polygons (see RepairMethod)
   std::string dem;                     // GDAL raster path; empty: flat terrain
   bool skip_failures = false;
   BuildOptions build;

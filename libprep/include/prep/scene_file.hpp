@@ -34,6 +34,8 @@ uint32_t parse_color(const std::string& text);
 // Throw usage_error naming the accepted values.
 decal::CornerStyle parse_corner(const std::string& text);
 decal::OutlineMode parse_outline_mode(const std::string& text);
+// Parses "linework|structure" (SceneSpec::repair).
+RepairMethod parse_repair_method(const std::string& text);
 DecalKind parse_kind(const std::string& text);
 
 }  // namespace prep
