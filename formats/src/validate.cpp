@@ -36,6 +36,9 @@ class Checker {
     return p_.array<T>(id);
   }
   static const char* name(BlobId id) { return find_blob_info(id)->name.data(); }
+  // SPEC §Versioning: reserved fields of a newer minor version may carry a
+  // meaning this reader does not know; they are ignored then.
+  bool newer_minor() const { return p_.minor() > kVersionMinor; }
 
   // Blobs that hold one element per element of `of` must match its count;
   // an empty dependent blob means the feature is absent.
@@ -81,10 +84,16 @@ Status check_lines(const Checker& c) {
   for (size_t i = 0; i < vl.size(); ++i)
     CHECK(c.index(BlobId::line_vertex_line, i, "line", vl[i], BlobId::line_props));
   const auto props = c.get<LineProps>(BlobId::line_props);
-  for (size_t i = 0; i < props.size(); ++i)
-    if (props[i].reserved != 0)
-      return Status::failure(fmt("line_props[%zu].reserved = %u, must be zero", i,
-                                 props[i].reserved));
+  for (size_t i = 0; i < props.size(); ++i) {
+    // A clipped outline's ring quad-tree lives in the polygon node arrays
+    // (check_polygons() checks every node); its root must be one of them.
+    if (props[i].style & kStyleClipBit)
+      CHECK(c.index(BlobId::line_props, i, "clip_node", props[i].clip_node, BlobId::qt_node));
+    else if (props[i].clip_node != 0 && !c.newer_minor())
+      return Status::failure(fmt("line_props[%zu].clip_node = %u without style bit 5 (clipped); "
+                                 "must be zero",
+                                 i, props[i].clip_node));
+  }
   const auto ranges = c.get<u2>(BlobId::cell_segment_range);
   for (size_t i = 0; i < ranges.size(); ++i)
     CHECK(c.range(BlobId::cell_segment_range, i, ranges[i][0], ranges[i][1],
@@ -102,7 +111,7 @@ Status check_polygons(const Checker& c) {
   CHECK(c.same_count(BlobId::qt_node_box, BlobId::qt_node));
   const auto props = c.get<PolyProps>(BlobId::poly_props);
   for (size_t i = 0; i < props.size(); ++i) {
-    if (props[i].reserved[0] != 0 || props[i].reserved[1] != 0)
+    if ((props[i].reserved[0] != 0 || props[i].reserved[1] != 0) && !c.newer_minor())
       return Status::failure(fmt("poly_props[%zu].reserved is not zero", i));
     if (props[i].exterior < -1 || (props[i].exterior >= 0 &&
                                    uint64_t(props[i].exterior) >= props.size()))
@@ -180,9 +189,10 @@ Status check_dynamic(const Checker& c) {
     CHECK(c.index(BlobId::dyn_line_start, i, "vertex", starts[i], BlobId::dyn_vertices));
   const auto props = c.get<LineProps>(BlobId::dyn_line_props);
   for (size_t i = 0; i < props.size(); ++i)
-    if (props[i].reserved != 0)
-      return Status::failure(fmt("dyn_line_props[%zu].reserved = %u, must be zero", i,
-                                 props[i].reserved));
+    if (props[i].clip_node != 0 && !c.newer_minor())
+      return Status::failure(fmt("dyn_line_props[%zu].clip_node = %u, must be zero (dynamic lines "
+                                 "are never clipped)",
+                                 i, props[i].clip_node));
   return Status::success();
 }
 

@@ -129,7 +129,7 @@ LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const Bu
   pr.value = float(line.color_value);
   pr.layer = line.layer;
   pr.feature = uint32_t(line.fid);
-  pr.reserved = 0;
+  pr.clip_node = 0;  // set by build_model() for clipped outlines
   out.kept = true;
   return out;
 }

@@ -30,9 +30,11 @@
 //      A >= 0.999. Lines are composited before polygons (lines on top).
 // 5. Line leaf k: (s, e) = cell_segments[cell_segment_range[cell].x + k];
 //    line = line_vertex_line[s]; props = line_props[line]. If `line` is the
-//    last line that covered P, skip (a line contributes once; its segments
-//    are consecutive in leaf order). Else test the segment (step 6); if it
-//    covers, composite props.rgba and remember `line`.
+//    last line decided, skip (a line contributes once; its segments are
+//    consecutive in leaf order). Else test the segment (step 6): "covered"
+//    composites props.rgba and remembers `line`; "clipped" only remembers
+//    `line` (the ring test of step 6 says no segment of it covers P);
+//    "none" goes on.
 // 6. Segment test, in metres relative to a = line_vertices[s]:
 //      e = (b - a) * q, d = (Pq - a) * q, hw = props.half_width,
 //      Ca = line_corners[s], Cb = line_corners[e] (the vertex e).
@@ -51,8 +53,16 @@
 //             or (null(Ca.bevel_in) ? |d|^2 <= hw^2 : T(0, Ca.bevel_in, Ca.bevel_out, d))
 //             or (null(Cb.bevel_out) ? |d - e|^2 <= hw^2
 //                                    : T(e, e + Cb.bevel_in, e + Cb.bevel_out, d)).
-//    Outline modes (only ever stored with miter): K = +1 for inset, -1 for
-//    offset, and a covered point is kept only if K * cross(e, d) >= 0 and
+//    Not covered: "none". Normal outline mode: "covered".
+//    Clipped outlines (style bit 5, kStyleClipBit; closed inset/offset rings,
+//    miter): the two-sided band above, cut by the line's own ring: "covered"
+//    if Q(props.clip_node) (step 8) equals style bit 6 (kStyleClipInsideBit),
+//    else "clipped". This is band ∩ ring (or band − ring) exactly, where the
+//    thesis's one-sided test below leaks past other edges of a narrow ring
+//    (Fig. 4.8).
+//    Other inset/offset lines (open; only ever stored with miter): K = +1 for
+//    inset, -1 for offset, and a covered point is kept ("covered", else
+//    "none") only if K * cross(e, d) >= 0 and
 //      at b, if !null(Cb.bevel_out): o = sign(cross(e, Cb.bevel_in)) (+1 when
 //        the outer side is the left); if K * o < 0 (the turn is towards the
 //        kept side) also require K * dot(d - e, o * Cb.bevel_out) >= 0;
@@ -155,7 +165,13 @@ bool quadtree_covers(const StaticView& v, uint32_t node, const PointQ& p, EvalCo
   }
 }
 
-bool segment_covers_q(const StaticView& v, uint32_t s, uint32_t e_idx, const PointQ& p) {
+// Outcome of the segment test (step 6): outside the band; in the band of a
+// clipped outline but on the dropped side of its ring (no segment of that
+// line can cover the point then); covered.
+enum class SegmentHit { none, clipped, covered };
+
+SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const PointQ& p,
+                        EvalCounters* k) {
   const ivec2& ai = v.line_vertices[s];
   const ivec2& bi = v.line_vertices[e_idx];
   const decal::LineProps& pr = v.line_props[v.line_vertex_line[s]];
@@ -206,18 +222,25 @@ bool segment_covers_q(const StaticView& v, uint32_t s, uint32_t e_idx, const Poi
       break;
     }
   }
-  if (!covered || mode == decal::OutlineMode::normal) return covered;
+  if (!covered) return SegmentHit::none;
+  if (mode == decal::OutlineMode::normal) return SegmentHit::covered;
+  if (pr.style & decal::kStyleClipBit) {
+    // Clipped ring: the two-sided band, cut by the ring itself.
+    const bool inside = quadtree_covers(v, pr.clip_node, p, k);
+    return inside == ((pr.style & decal::kStyleClipInsideBit) != 0) ? SegmentHit::covered
+                                                                     : SegmentHit::clipped;
+  }
   const double K = mode == decal::OutlineMode::inset ? 1.0 : -1.0;
-  if (K * cross(e, d) < 0) return false;
+  if (K * cross(e, d) < 0) return SegmentHit::none;
   if (!null_vec(cb.bevel_out)) {
     const double o = cross(e, vec(cb.bevel_in)) >= 0 ? 1.0 : -1.0;
-    if (K * o < 0 && K * dot(d - e, o * vec(cb.bevel_out)) < 0) return false;
+    if (K * o < 0 && K * dot(d - e, o * vec(cb.bevel_out)) < 0) return SegmentHit::none;
   }
   if (!null_vec(ca.bevel_in)) {
     const double o = cross(e, vec(ca.bevel_out)) >= 0 ? 1.0 : -1.0;
-    if (K * o < 0 && K * dot(d, o * vec(ca.bevel_in)) < 0) return false;
+    if (K * o < 0 && K * dot(d, o * vec(ca.bevel_in)) < 0) return SegmentHit::none;
   }
-  return true;
+  return SegmentHit::covered;
 }
 
 struct Compositor {
@@ -298,7 +321,7 @@ bool polygon_ring_covers(const StaticView& v, uint32_t poly, double x, double y)
 }
 
 bool segment_covers(const StaticView& v, uint32_t start, uint32_t end, double x, double y) {
-  return segment_covers_q(v, start, end, {x / kQ, y / kQ});
+  return segment_test(v, start, end, {x / kQ, y / kQ}, nullptr) == SegmentHit::covered;
 }
 
 EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
@@ -316,8 +339,10 @@ EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
       const uint32_t line = v.line_vertex_line[seg[0]];
       if (int64_t(line) == last_line) return false;
       if (k) ++k->segment_tests;
-      if (!segment_covers_q(v, seg[0], seg[1], p)) return false;
-      last_line = line;
+      const SegmentHit hit = segment_test(v, seg[0], seg[1], p, k);
+      if (hit == SegmentHit::none) return false;
+      last_line = line;  // decided: covered, or clipped away for every segment
+      if (hit == SegmentHit::clipped) return false;
       if (!out.line_covered) out.top_line = int32_t(line);
       out.line_covered = true;
       opaque = comp.add(v.line_props[line].rgba);

@@ -173,7 +173,7 @@ void build_dynamic(const SceneFeatures& scene, const BuildOptions& options, cons
     p.value = static_cast<float>(l.color_value);
     p.layer = l.layer;
     p.feature = l.fid >= 0 && l.fid <= int64_t(0xfffffffe) ? static_cast<uint32_t>(l.fid) : 0xffffffffu;
-    p.reserved = 0;
+    p.clip_node = 0;  // dynamic lines are never clipped
   }
 
   // LOD segments for the dynamic lines of LOD layers (LOCALIS).

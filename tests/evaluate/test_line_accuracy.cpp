@@ -11,8 +11,12 @@
 //     of a CCW ring, offset of a CW ring) or minus (the other cases) the ring
 //     polygon.
 // Every turn angle 1°..179° for each corner style, random zig-zags, and
-// random closed rings in all three outline modes; >= 10^6 samples, uniform
-// and near the oracle's boundary; points within 2 mm of it are excluded.
+// random closed rings in all three outline modes, including rings narrower
+// than the doubled outline width (slivers, and U shapes whose gap is
+// narrower than the band) where the thesis's one-sided outline leaks past
+// the opposite edge (Fig. 4.8) and the package clips by the ring (SPEC
+// "Clipped outlines"); >= 10^6 samples, uniform and near the oracle's
+// boundary; points within 2 mm of it are excluded.
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
 
@@ -51,8 +55,8 @@ struct LineSet {
 };
 
 // Layers: 0 round, 1 miter, 2 bevel (open lines); 3 normal, 4 inset,
-// 5 offset (closed miter rings).
-LineSet line_set(uint64_t seed, double scale, double ox, double oy) {
+// 5 offset (closed miter rings). `narrow_only`: only the narrow rings.
+LineSet line_set(uint64_t seed, double scale, double ox, double oy, bool narrow_only = false) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> U(0, 1);
   LineSet s;
@@ -82,7 +86,7 @@ LineSet line_set(uint64_t seed, double scale, double ox, double oy) {
     l.length = 1000.0 - double(fid);  // distinct drawing order
     s.scene.lines.push_back(std::move(l));
   };
-  for (uint32_t style = 0; style < 3; ++style) {
+  for (uint32_t style = 0; style < (narrow_only ? 0u : 3u); ++style) {
     for (int turn = 1; turn <= 179; ++turn) {  // every turn angle, alternating sides
       const prep::Point2 c = centre(tile++);
       const double a0 = 2 * M_PI * U(rng);
@@ -111,7 +115,7 @@ LineSet line_set(uint64_t seed, double scale, double ox, double oy) {
       add(l, style);
     }
   }
-  for (uint32_t mode = 3; mode < 6; ++mode)
+  for (uint32_t mode = 3; mode < 6 && !narrow_only; ++mode)
     for (int k = 0; k < 16; ++k) {
       const prep::Point2 c = centre(tile++);
       prep::SceneLine l;
@@ -119,7 +123,7 @@ LineSet line_set(uint64_t seed, double scale, double ox, double oy) {
       l.closed = true;
       add(l, mode);
     }
-  for (uint32_t mode = 3; mode < 6; ++mode)
+  for (uint32_t mode = 3; mode < 6 && !narrow_only; ++mode)
     for (int k = 0; k < 8; ++k) {
       // Kites with a sharp convex tip (~19°) and a sharp reflex notch
       // (~33°): round fallbacks on both kinds of corner.
@@ -132,6 +136,27 @@ LineSet line_set(uint64_t seed, double scale, double ox, double oy) {
       l.closed = true;
       add(l, mode);
     }
+  for (uint32_t mode = 3; mode < 6; ++mode)
+    for (int k = 0; k < 8; ++k) {
+      // Rings narrower than the band (outline half width 2 m, doubled from
+      // the 2 m width): slivers 0.5-1.5 m wide, and U shapes with 1.2 m
+      // arms around a 1 m gap. Both orientations.
+      const prep::Point2 c = centre(tile++);
+      const double a = 2 * M_PI * U(rng), ca = std::cos(a), sa = std::sin(a);
+      std::vector<std::pair<double, double>> shape;
+      if (k % 2 == 0) {
+        const double w = 0.5 + U(rng);
+        shape = {{-15, -w / 2}, {15, -w / 2}, {15, w / 2}, {-15, w / 2}};
+      } else {
+        shape = {{-1.7, -5}, {1.7, -5}, {1.7, 5}, {0.5, 5}, {0.5, -3.8}, {-0.5, -3.8}, {-0.5, 5}, {-1.7, 5}};
+      }
+      prep::SceneLine l;
+      for (auto [x, y] : shape)
+        l.points.push_back({c.x + scale * (ca * x - sa * y), c.y + scale * (sa * x + ca * y)});
+      if (k % 4 >= 2) std::reverse(l.points.begin(), l.points.end());
+      l.closed = true;
+      add(l, mode);
+    }
   s.rows = (tile + s.cols - 1) / s.cols;
   s.scene.extent = {ox, oy, ox + s.cols * s.tile, oy + s.rows * s.tile};
   return s;
@@ -141,7 +166,10 @@ struct Outcome {
   uint64_t tested = 0, excluded = 0, inside = 0, wrong = 0;
 };
 
-Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n, double band) {
+// `report`: ADD_FAILURE for the first misclassified points (off when a
+// disagreement is the expected outcome).
+Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n, double band,
+                    bool report = true) {
   const prep::StaticView view = prep::view_of(model);
   const auto& lines = set.scene.lines;
   // Oracle boundary segments per line, for near-edge sampling.
@@ -217,7 +245,7 @@ Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n,
       if (got.line_covered != truth) {
         ++my_wrong;
         std::lock_guard<std::mutex> lock(log_mutex);
-        if (logged++ < 10) {
+        if (report && logged++ < 10) {
           const auto& l = lines[tile < lines.size() ? tile : 0];
           ADD_FAILURE() << "misclassified (" << std::fixed << x << ", " << y << ") tile " << tile
                         << " layer " << set.scene.layers[l.layer].name << " fid " << l.fid
@@ -240,6 +268,15 @@ Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n,
     wrong += my_wrong;
   });
   return {tested.load(), excluded.load(), inside.load(), wrong.load()};
+}
+
+// Clears the clipped-outline bits (SPEC "Clipped outlines"): the package
+// then draws inset/offset rings with the thesis's one-sided rule.
+void unclip(prep::DecalModel& m) {
+  for (auto& p : m.line_props) {
+    p.style &= ~(decal::kStyleClipBit | decal::kStyleClipInsideBit);
+    p.clip_node = 0;
+  }
 }
 
 void run_case(const char* name, const LineSet& set, double min_tested = 0.5, uint32_t grid = 0) {
@@ -280,4 +317,33 @@ TEST(LineAccuracy, MillimetreWideLinesAgreeWithGeosOutsideTheBand) {
   // Widths of 3 mm (open lines) and 2 mm (outlines; 1 mm half width before
   // doubling) at 1 mm quanta.
   run_case("mm", line_set(7, 0.001, 3.0, 4.0), 0.05);
+}
+
+TEST(LineAccuracy, OutlinesOfRingsNarrowerThanTheirBandAreClippedByTheRing) {
+  // The narrow rings alone: every inset/offset ring is clipped, and the
+  // evaluator agrees with band ∩ ring / band − ring. The same package with
+  // the clip bits cleared (the thesis's one-sided rule) must disagree, which
+  // shows that the oracle sees the Fig. 4.8 leak this test is about.
+  VariantSamples variant;
+  const LineSet set = line_set(9, 1.0, -300.0, 200.0, true);
+  prep::DecalModel model = prep::build_model(set.scene, prep::BuildOptions{});
+  size_t clipped = 0;
+  for (const auto& p : model.line_props) {
+    const auto mode = (p.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift;
+    EXPECT_EQ((p.style & decal::kStyleClipBit) != 0, mode != uint32_t(decal::OutlineMode::normal));
+    if (p.style & decal::kStyleClipBit) {
+      ++clipped;
+      EXPECT_LT(p.clip_node, model.qt_node.size());
+    }
+  }
+  EXPECT_EQ(clipped, 16u);
+  const Outcome exact = check_lines(set, model, sample_count(), 0.002);
+  unclip(model);
+  const Outcome thesis = check_lines(set, model, sample_count(), 0.002, false);
+  std::printf("[narrow rings] %llu tested, %llu covered: %llu misclassified clipped by the ring, "
+              "%llu with the one-sided rule\n",
+              (unsigned long long)exact.tested, (unsigned long long)exact.inside,
+              (unsigned long long)exact.wrong, (unsigned long long)thesis.wrong);
+  EXPECT_EQ(exact.wrong, 0u);
+  EXPECT_GT(thesis.wrong, exact.tested / 100);
 }

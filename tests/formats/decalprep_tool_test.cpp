@@ -80,7 +80,10 @@ TEST_F(Tool, InfoJsonParsesAndListsEveryBlob) {
 TEST_F(Tool, InfoTextShowsVersionAndEveryBlobName) {
   const ToolRun r = run("info '" + none_ + "'");
   ASSERT_EQ(r.rc, 0) << r.err;
-  EXPECT_NE(r.out.find("version   1.0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("version   " + std::to_string(decal::kVersionMajor) + "." +
+                       std::to_string(decal::kVersionMinor)),
+            std::string::npos)
+      << r.out;
   for (const auto& b : decal::kBlobCatalogue) EXPECT_NE(r.out.find(std::string(b.name)), std::string::npos) << b.name;
 }
 
@@ -150,7 +153,7 @@ TEST_F(Tool, DumpTextListsEveryElementOfTheModel) {
                 std::to_string(model_.line_vertices[i][1]) + "\n";
   EXPECT_NE(r.out.find(expected), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("  [1] half_width=0.75 rgba=0x8000ff00 order=0 style=0x00000010 value=nan layer=1 "
-                       "feature=8 reserved=0\n"),
+                       "feature=8 clip_node=0\n"),
             std::string::npos);
   for (const auto& b : decal::kBlobCatalogue)
     EXPECT_NE(r.out.find("blob " + std::string(b.name) + " id="), std::string::npos) << b.name;

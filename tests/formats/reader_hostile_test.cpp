@@ -293,7 +293,12 @@ TEST(ValidateIndices, EachKindOfDanglingIndexIsNamed) {
       {"dyn_line_start[1].vertex = 4", [](prep::DecalModel& m) { m.dyn_line_start[1] = 4; }},
       {"lod_segments[1].b = 3", [](prep::DecalModel& m) { m.lod_segments[1].b = 3; }},
       {"poly_props[1].exterior = 2", [](prep::DecalModel& m) { m.poly_props[1].exterior = 2; }},
-      {"line_props[0].reserved", [](prep::DecalModel& m) { m.line_props[0].reserved = 1; }},
+      {"line_props[0].clip_node = 1 without style bit 5", [](prep::DecalModel& m) { m.line_props[0].clip_node = 1; }},
+      {"line_props[1].clip_node = 99 is out of range", [](prep::DecalModel& m) {
+         m.line_props[1].style |= decal::kStyleClipBit;
+         m.line_props[1].clip_node = 99;
+       }},
+      {"dyn_line_props[1].clip_node = 3", [](prep::DecalModel& m) { m.dyn_line_props[1].clip_node = 3; }},
       {"line_corners has 4 elements", [](prep::DecalModel& m) { m.line_corners.pop_back(); }},
   };
   for (const Case& c : cases) {

@@ -75,7 +75,7 @@ TEST(BuildDynamic, PropertiesCarryPixelWidthOrderColourAndStyle) {
   EXPECT_TRUE(std::isnan(p[0].value));
   EXPECT_EQ(p[0].style & decal::kStyleCornerMask, uint32_t(decal::CornerStyle::miter));
   EXPECT_EQ(p[2].layer, 1u);
-  EXPECT_EQ(p[0].reserved, 0u);
+  EXPECT_EQ(p[0].clip_node, 0u);
 }
 
 TEST(BuildDynamic, LodLayerGetsAttributedSegmentsForItsLinesOnly) {

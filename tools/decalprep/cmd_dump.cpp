@@ -66,12 +66,12 @@ std::string text_line_props(const decal::LineProps& p) {
   return "half_width=" + num(p.half_width) + " rgba=" + hex32(p.rgba) +
          " order=" + std::to_string(p.order) + " style=" + hex32(p.style) + " value=" + num(p.value) +
          " layer=" + std::to_string(p.layer) + " feature=" + std::to_string(p.feature) +
-         " reserved=" + std::to_string(p.reserved);
+         " clip_node=" + std::to_string(p.clip_node);
 }
 json json_line_props(const decal::LineProps& p) {
   return {{"half_width", jnum(p.half_width)}, {"rgba", p.rgba},       {"order", p.order},
           {"style", p.style},                 {"value", jnum(p.value)}, {"layer", p.layer},
-          {"feature", p.feature},             {"reserved", p.reserved}};
+          {"feature", p.feature},             {"clip_node", p.clip_node}};
 }
 std::string text_corner(const decal::LineCorner& c) {
   return "miter=(" + num(c.miter[0]) + "," + num(c.miter[1]) + ") bevel_in=(" + num(c.bevel_in[0]) +

@@ -10,14 +10,33 @@
 #define DECAL_BLOB(bp, stex, name, stype) layout(std430, binding = bp) readonly buffer B_##name { stype d_##name[]; };
 #endif
 
-#ifdef DECAL_POLYGONS
-struct PolyProps { uint rgba; uint order; int exterior; float value; uint layer; uint feature; uint r0; uint r1; };
-DECAL_BLOB(0, usamplerBuffer, poly_props, PolyProps)
+// Quad-tree blobs: the polygon pass reads them for polygons, the line pass
+// for the rings of clipped outlines (LineProps bit 5).
+#if defined(DECAL_POLYGONS) || defined(DECAL_LINES)
+#define DECAL_QUADTREE 1
 DECAL_BLOB(1, isamplerBuffer, qt_node_box, ivec4)
 DECAL_BLOB(2, isamplerBuffer, qt_node, ivec2)
 DECAL_BLOB(3, usamplerBuffer, qt_leaf_range, uvec2)
 DECAL_BLOB(4, usamplerBuffer, qt_leaf_segments, uvec2)
 DECAL_BLOB(5, isamplerBuffer, qt_leaf_vertices, ivec2)
+#ifdef DECAL_TEXTURE
+ivec4 qt_node_box(uint i)       { return texelFetch(t_qt_node_box, int(i)); }
+ivec2 qt_node(uint i)           { return texelFetch(t_qt_node, int(i)).xy; }
+uvec2 qt_leaf_range(uint i)     { return texelFetch(t_qt_leaf_range, int(i)).xy; }
+uvec2 qt_leaf_segment(uint i)   { return texelFetch(t_qt_leaf_segments, int(i)).xy; }
+ivec2 qt_leaf_vertex(uint i)    { return texelFetch(t_qt_leaf_vertices, int(i)).xy; }
+#else
+ivec4 qt_node_box(uint i)       { return d_qt_node_box[i]; }
+ivec2 qt_node(uint i)           { return d_qt_node[i]; }
+uvec2 qt_leaf_range(uint i)     { return d_qt_leaf_range[i]; }
+uvec2 qt_leaf_segment(uint i)   { return d_qt_leaf_segments[i]; }
+ivec2 qt_leaf_vertex(uint i)    { return d_qt_leaf_vertices[i]; }
+#endif
+#endif  // DECAL_POLYGONS || DECAL_LINES
+
+#ifdef DECAL_POLYGONS
+struct PolyProps { uint rgba; uint order; int exterior; float value; uint layer; uint feature; uint r0; uint r1; };
+DECAL_BLOB(0, usamplerBuffer, poly_props, PolyProps)
 DECAL_BLOB(6, usamplerBuffer, cell_poly_range, uvec2)
 DECAL_BLOB(7, usamplerBuffer, cell_polys, uvec4)
 DECAL_BLOB(8, usamplerBuffer, cell_holes, uvec2)
@@ -26,11 +45,6 @@ DECAL_BLOB(10, isamplerBuffer, poly_bvh_box, ivec4)
 DECAL_BLOB(23, usamplerBuffer, poly_root_node, uint)
 #ifdef DECAL_TEXTURE
 uint  poly_rgba(uint i)         { return texelFetch(t_poly_props, int(2u * i)).x; }
-ivec4 qt_node_box(uint i)       { return texelFetch(t_qt_node_box, int(i)); }
-ivec2 qt_node(uint i)           { return texelFetch(t_qt_node, int(i)).xy; }
-uvec2 qt_leaf_range(uint i)     { return texelFetch(t_qt_leaf_range, int(i)).xy; }
-uvec2 qt_leaf_segment(uint i)   { return texelFetch(t_qt_leaf_segments, int(i)).xy; }
-ivec2 qt_leaf_vertex(uint i)    { return texelFetch(t_qt_leaf_vertices, int(i)).xy; }
 uvec2 cell_poly_range(uint c)   { return texelFetch(t_cell_poly_range, int(c)).xy; }
 uvec4 cell_poly(uint i)         { return texelFetch(t_cell_polys, int(i)); }
 uvec2 cell_hole(uint i)         { return texelFetch(t_cell_holes, int(i)).xy; }
@@ -39,11 +53,6 @@ ivec4 poly_bvh_box(uint i)      { return texelFetch(t_poly_bvh_box, int(i)); }
 uint  poly_root(uint i)         { return texelFetch(t_poly_root_node, int(i)).x; }
 #else
 uint  poly_rgba(uint i)         { return d_poly_props[i].rgba; }
-ivec4 qt_node_box(uint i)       { return d_qt_node_box[i]; }
-ivec2 qt_node(uint i)           { return d_qt_node[i]; }
-uvec2 qt_leaf_range(uint i)     { return d_qt_leaf_range[i]; }
-uvec2 qt_leaf_segment(uint i)   { return d_qt_leaf_segments[i]; }
-ivec2 qt_leaf_vertex(uint i)    { return d_qt_leaf_vertices[i]; }
 uvec2 cell_poly_range(uint c)   { return d_cell_poly_range[c]; }
 uvec4 cell_poly(uint i)         { return d_cell_polys[i]; }
 uvec2 cell_hole(uint i)         { return d_cell_holes[i]; }
@@ -54,7 +63,7 @@ uint  poly_root(uint i)         { return d_poly_root_node[i]; }
 #endif  // DECAL_POLYGONS
 
 #ifdef DECAL_LINES
-struct LineProps { float half_width; uint rgba; uint order; uint style; float value; uint layer; uint feature; uint r0; };
+struct LineProps { float half_width; uint rgba; uint order; uint style; float value; uint layer; uint feature; uint clip_node; };
 struct LineCorner { vec2 miter; vec2 bevel_in; vec2 bevel_out; };
 DECAL_BLOB(11, isamplerBuffer, line_vertices, ivec2)
 DECAL_BLOB(12, usamplerBuffer, line_vertex_line, uint)
@@ -69,6 +78,7 @@ ivec2 line_vertex(uint i)        { return texelFetch(t_line_vertices, int(i)).xy
 uint  line_of_vertex(uint i)     { return texelFetch(t_line_vertex_line, int(i)).x; }
 // (half_width, rgba, order, style) of a line
 uvec4 line_props(uint l)         { return texelFetch(t_line_props, int(2u * l)); }
+uint  line_clip_node(uint l)     { return texelFetch(t_line_props, int(2u * l + 1u)).w; }
 vec2  corner_miter(uint v)       { return texelFetch(t_line_corners, int(3u * v)).xy; }
 vec2  corner_bevel_in(uint v)    { return texelFetch(t_line_corners, int(3u * v + 1u)).xy; }
 vec2  corner_bevel_out(uint v)   { return texelFetch(t_line_corners, int(3u * v + 2u)).xy; }
@@ -80,6 +90,7 @@ ivec4 line_bvh_box(uint i)       { return texelFetch(t_line_bvh_box, int(i)); }
 ivec2 line_vertex(uint i)        { return d_line_vertices[i]; }
 uint  line_of_vertex(uint i)     { return d_line_vertex_line[i]; }
 uvec4 line_props(uint l)         { LineProps p = d_line_props[l]; return uvec4(floatBitsToUint(p.half_width), p.rgba, p.order, p.style); }
+uint  line_clip_node(uint l)     { return d_line_props[l].clip_node; }
 vec2  corner_miter(uint v)       { return d_line_corners[v].miter; }
 vec2  corner_bevel_in(uint v)    { return d_line_corners[v].bevel_in; }
 vec2  corner_bevel_out(uint v)   { return d_line_corners[v].bevel_out; }
@@ -95,7 +106,7 @@ DECAL_BLOB(19, isamplerBuffer, dyn_vertices, ivec4)
 DECAL_BLOB(20, isamplerBuffer, dyn_prev_next, ivec2)
 DECAL_BLOB(21, usamplerBuffer, dyn_line_start, uint)
 #ifndef DECAL_LINES
-struct LineProps { float half_width; uint rgba; uint order; uint style; float value; uint layer; uint feature; uint r0; };
+struct LineProps { float half_width; uint rgba; uint order; uint style; float value; uint layer; uint feature; uint clip_node; };
 #endif
 DECAL_BLOB(22, usamplerBuffer, dyn_line_props, LineProps)
 #ifdef DECAL_TEXTURE

@@ -57,6 +57,44 @@ bool box_contains(ivec4 b, vec2 p) {
   vec2 lo = rel(b.xy), hi = rel(b.zw);
   return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
 }
+#ifdef DECAL_QUADTREE
+// Step 8 of the query block (libprep/evaluate/evaluate.cpp): point-in-ring
+// through the quad-tree sub-tree rooted at `node`. The polygon pass queries
+// polygon rings from their culling nodes; the line pass the ring of a
+// clipped outline from its root (LineProps.clip_node).
+bool qt_contains(uint node, vec2 p) {
+  if (!box_contains(qt_node_box(node), p)) return false;
+  for (;;) {
+    ivec2 n = qt_node(node);
+    if (n.x == 0) {  // internal: descend into the child holding p (SW, SE, NW, NE)
+      uint c = uint(n.y);
+      uint next = 0xffffffffu;
+      for (uint k = 0u; k < 4u; ++k) {
+        if (box_contains(qt_node_box(c + k), p)) { next = c + k; break; }
+      }
+      if (next == 0xffffffffu) return false;
+      node = next;
+      continue;
+    }
+    if (n.x == 1) return false;  // fully outside
+    if (n.x == 2) return true;   // fully inside
+    // partial leaf: even-odd rule over the leaf polygon (closing segments included)
+    uvec2 r = qt_leaf_range(uint(n.y));
+    bool inside = false;
+    for (uint s = r.x; s < r.x + r.y; ++s) {
+      uvec2 e = qt_leaf_segment(s);
+      // Step 8 of the query block: A, B relative to the point; the sign of
+      // cross(H - L, -L) decides the crossing exactly as the evaluator does.
+      vec2 A = rel(qt_leaf_vertex(e.x)) - p, B = rel(qt_leaf_vertex(e.y)) - p;
+      if ((A.y > 0.0) == (B.y > 0.0)) continue;
+      vec2 L = A.y > 0.0 ? B : A, H = A.y > 0.0 ? A : B;
+      if ((H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0.0) inside = !inside;
+    }
+    return inside;
+  }
+}
+#endif  // DECAL_QUADTREE
+
 // The same with the box grown by `m` metres (coverage AA reaches beyond it).
 bool box_near(ivec4 b, vec2 p, float m) {
   if (b.x > b.z) return false;

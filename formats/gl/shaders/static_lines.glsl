@@ -3,8 +3,9 @@
 // Lines"), with decal_blobs.glsl (DECAL_LINES) and static_common.glsl.
 // Mirrors prep::evaluate(): grid cell -> stack-less BVH over the cell's
 // segments in drawing order -> point-in-line test per corner style ->
-// outline side test -> front-to-back compositing, skipping further segments
-// of a line that already covered the pixel; early exit when opaque.
+// outline side test (clipped outlines: their ring's quad-tree) ->
+// front-to-back compositing, skipping further segments of a line that
+// already covered the pixel (or was clipped away); early exit when opaque.
 // Output: premultiplied colour, blended over the polygon layer.
 
 layout(location = 0) out vec4 o_color;
@@ -18,10 +19,13 @@ bool in_triangle(vec2 a, vec2 b, vec2 c, vec2 d) {
 }
 bool is_null(vec2 v) { return v == vec2(0.0); }
 
-// props = (half_width bits, rgba, order, style). Step 6 of the query block
-// in libprep/evaluate/evaluate.cpp, in metres relative to vertex a: the
-// segment vector e is an exact integer difference.
-bool segment_covers(uint s, uint eidx, vec2 p, uvec4 props) {
+// Outcomes of the segment test (SegmentHit in the evaluator).
+const int HIT_NONE = 0, HIT_CLIPPED = 1, HIT_COVERED = 2;
+
+// props = (half_width bits, rgba, order, style) of `line`. Step 6 of the
+// query block in libprep/evaluate/evaluate.cpp, in metres relative to vertex
+// a: the segment vector e is an exact integer difference.
+int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
   float hw = uintBitsToFloat(props.x), hw2 = hw * hw;
   uint corner = props.w & 3u;
   uint outline = (props.w >> 2) & 3u;
@@ -54,23 +58,30 @@ bool segment_covers(uint s, uint eidx, vec2 p, uvec4 props) {
     if (!covered)
       covered = is_null(b_out) ? dot(d - e, d - e) <= hw2 : in_triangle(e, e + corner_bevel_in(eidx), e + b_out, d);
   }
-  if (!covered || outline == 0u) return covered;
-  // Outline modes (thesis §3.6, width doubled at build time): inset keeps the
+  if (!covered) return HIT_NONE;
+  if (outline == 0u) return HIT_COVERED;
+  // Clipped outline (style bit 5): the two-sided band cut by the line's own
+  // ring, whose quad-tree root is clip_node; bit 6 says which side is kept.
+  if ((props.w & 32u) != 0u) {
+    bool inside = qt_contains(line_clip_node(line), p);
+    return inside == ((props.w & 64u) != 0u) ? HIT_COVERED : HIT_CLIPPED;
+  }
+  // Other outlines (thesis §3.6, width doubled at build time): inset keeps the
   // left half (K = +1), offset the right half (K = -1); at a corner turning
   // towards the kept side the kept part is the intersection of both halves.
   float K = outline == 1u ? 1.0 : -1.0;
-  if (K * cross2(e, d) < 0.0) return false;
+  if (K * cross2(e, d) < 0.0) return HIT_NONE;
   vec2 cb_out = corner_bevel_out(eidx);
   if (!is_null(cb_out)) {
     float o = cross2(e, corner_bevel_in(eidx)) >= 0.0 ? 1.0 : -1.0;
-    if (K * o < 0.0 && K * dot(d - e, o * cb_out) < 0.0) return false;
+    if (K * o < 0.0 && K * dot(d - e, o * cb_out) < 0.0) return HIT_NONE;
   }
   vec2 ca_in = corner_bevel_in(s);
   if (!is_null(ca_in)) {
     float o = cross2(e, corner_bevel_out(s)) >= 0.0 ? 1.0 : -1.0;
-    if (K * o < 0.0 && K * dot(d, o * ca_in) < 0.0) return false;
+    if (K * o < 0.0 && K * dot(d, o * ca_in) < 0.0) return HIT_NONE;
   }
-  return true;
+  return HIT_COVERED;
 }
 
 #ifdef DECAL_AA_COVERAGE
@@ -78,9 +89,13 @@ bool segment_covers(uint s, uint eidx, vec2 p, uvec4 props) {
 // the segment's centre line, with the width raised to at least one pixel.
 // Inset/offset lines cover the band [0, hw] on the kept side (their stored
 // half width is the doubled one). Pixels the exact style test puts inside
-// keep at least half coverage (miter tips, bevel corners).
-float segment_coverage(uint s, uint eidx, vec2 p, uvec4 props, float wpix) {
-  bool inside = segment_covers(s, eidx, p, props);
+// keep at least half coverage (miter tips, bevel corners). A clipped outline
+// gives no coverage to a pixel on the kept side of this segment that its
+// ring test drops (the band reaching past another edge of a narrow ring);
+// that edge's own segment shades the pixels beside it.
+float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float wpix) {
+  int hit = segment_test(s, eidx, p, line, props);
+  bool inside = hit == HIT_COVERED;
   float hw = uintBitsToFloat(props.x);
   uint outline = (props.w >> 2) & 3u;
   ivec2 ai = line_vertex(s);
@@ -96,6 +111,9 @@ float segment_coverage(uint s, uint eidx, vec2 p, uvec4 props, float wpix) {
     if (!inside && (t < 0.0 || t > 1.0)) return 0.0;
     float K = outline == 1u ? 1.0 : -1.0;
     float sd = K * cross2(e, d) / sqrt(ee);  // > 0 on the kept side
+    if ((props.w & 32u) != 0u && !inside && sd >= 0.0 &&
+        (hit == HIT_CLIPPED || qt_contains(line_clip_node(line), p) != ((props.w & 64u) != 0u)))
+      return 0.0;
     float w = max(hw, wpix);
     c = band_coverage(abs(sd - 0.5 * hw), w, wpix);
   }
@@ -134,7 +152,7 @@ void main() {
           uint line = line_of_vertex(seg.x);
 #ifdef DECAL_AA_COVERAGE
           uvec4 props = line_props(line);
-          float cov = segment_coverage(seg.x, seg.y, p.xy, props, wpix);
+          float cov = segment_coverage(seg.x, seg.y, p.xy, line, props, wpix);
           if (line == cur_line) {
             cur_cov = max(cur_cov, cov);
           } else {
@@ -147,11 +165,13 @@ void main() {
             cur_cov = cov;
           }
 #else
-          // Segments of one line are consecutive: a line adds its colour once (thesis Fig. 4.7).
+          // Segments of one line are consecutive: a line adds its colour once
+          // (thesis Fig. 4.7); a clipped-away line is decided as well.
           if (line != last_line) {
             uvec4 props = line_props(line);
-            if (segment_covers(seg.x, seg.y, p.xy, props)) {
-              last_line = line;
+            int hit = segment_test(seg.x, seg.y, p.xy, line, props);
+            if (hit != HIT_NONE) last_line = line;
+            if (hit == HIT_COVERED) {
               composite_under(acc, props.y);
               if (opaque(acc)) break;
             }

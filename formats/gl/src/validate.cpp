@@ -87,6 +87,9 @@ Status validate_blobs(std::span<const BlobBytes> blobs, const Grid& grid) {
   for (uint64_t i = 0; i < lp.n; ++i) {
     LineProps p = lp[i];
     if (!(p.half_width >= 0.0f && p.half_width < 1e7f)) return Status::failure(where("line_props", i) + "half_width " + std::to_string(p.half_width));
+    // A clipped outline's ring query starts at clip_node (static_lines.glsl).
+    if ((p.style & kStyleClipBit) && p.clip_node >= qn.n)
+      return Status::failure(where("line_props", i) + "clip_node " + std::to_string(p.clip_node) + " >= " + std::to_string(qn.n));
   }
   for (uint64_t i = 0; i < cs.n; ++i) {
     U2 s = cs[i];

@@ -127,10 +127,20 @@ enum class OutlineMode : uint32_t { normal = 0, inset = 1, offset = 2 };
 //   bits 2-3  OutlineMode (inset keeps the left side of the directed segment,
 //             which is the polygon interior for CCW shells and CW holes)
 //   bit  4    closed ring (no line ends)
+//   bit  5    clipped to its ring (v1.1): LineProps::clip_node is the root of
+//             the ring's own quad-tree, and a point counts as covered only if
+//             it lies in the line's two-sided band AND the even-odd query of
+//             that quad-tree equals bit 6 (the exact outline test; see the
+//             comment block of libprep/evaluate/evaluate.cpp, step 6)
+//   bit  6    with bit 5: the kept half is the ring's inside (inset of a CCW
+//             ring, offset of a CW ring); clear: its outside
+//   bits 7-31 zero
 inline constexpr uint32_t kStyleCornerMask = 0x3u;
 inline constexpr uint32_t kStyleOutlineShift = 2;
 inline constexpr uint32_t kStyleOutlineMask = 0x3u << kStyleOutlineShift;
 inline constexpr uint32_t kStyleClosedBit = 1u << 4;
+inline constexpr uint32_t kStyleClipBit = 1u << 5;
+inline constexpr uint32_t kStyleClipInsideBit = 1u << 6;
 
 struct LineProps {
   float half_width;    // metres for static lines (already doubled for inset/offset);
@@ -141,7 +151,10 @@ struct LineProps {
   float value;         // attribute value for colour ramps (NaN when none)
   uint32_t layer;      // index into metadata `layers`
   uint32_t feature;    // index into metadata provenance (source feature)
-  uint32_t reserved;   // must be zero
+  uint32_t clip_node;  // with kStyleClipBit: root node (qt_node index) of the
+                       // quad-tree of the line's own ring, a quad-tree that
+                       // no polygon and no cell refers to; else zero (v1.0:
+                       // `reserved`, zero). Always zero in dyn_line_props.
 };
 static_assert(sizeof(LineProps) == 32);
 
@@ -306,12 +319,12 @@ inline constexpr unsigned char kMagic[8] = {0x89, 'D', 'C', 'L', '\r', '\n', 0x1
 // version other than its own, naming the version; it reads any minor
 // version of its major (newer minors only add optional things).
 inline constexpr uint16_t kVersionMajor = 1;
-inline constexpr uint16_t kVersionMinor = 0;
+inline constexpr uint16_t kVersionMinor = 1;
 
 // Flags. Bits 0-15 are "required": a reader rejects a file with a required
 // bit it does not know. Bits 16-31 are "optional": unknown ones are ignored.
 inline constexpr uint32_t kRequiredFlagsMask = 0x0000FFFFu;
-inline constexpr uint32_t kKnownRequiredFlags = 0;  // none in v1.0
+inline constexpr uint32_t kKnownRequiredFlags = 0;  // none in v1.x
 // Every blob is stored with codec none, so the whole package can be mapped.
 inline constexpr uint32_t kFlagAllUncompressed = 1u << 16;
 inline constexpr uint32_t kKnownOptionalFlags = kFlagAllUncompressed;

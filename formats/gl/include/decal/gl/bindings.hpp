@@ -8,8 +8,10 @@
 // compiles them against this table).
 //
 // The static pass reads the polygon blobs in one draw and the line blobs in
-// another (thesis §4.4.1 renders polygons first, then lines over them), so
-// each draw stays within 16 storage blocks per fragment shader.
+// another (thesis §4.4.1 renders polygons first, then lines over them); the
+// line draw also reads the five quad-tree blobs (qt_*), for the rings of
+// clipped outlines (SPEC "Clipped outlines"). Each draw stays within 16
+// storage blocks per fragment shader (polygons 12, lines 13).
 //
 // Buffer-texture formats (texel per element unless noted):
 //   ivec2 -> RG32I, uvec2 -> RG32UI, ivec4 -> RGBA32I, uvec4 -> RGBA32UI,
@@ -24,7 +26,7 @@
 namespace decal::gl {
 
 enum class Binding : uint32_t {
-  // static polygons (polygon draw)
+  // static polygons (polygon draw; qt_* also in the line draw)
   poly_props = 0,
   qt_node_box = 1,
   qt_node = 2,
