@@ -382,6 +382,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     extra["provenance"] = provenance_of();
     extra["scene_file"] = scene.scene_path;
     extra["build_options"] = {{"resolution_m", scene.resolution},
+                              {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
                               {"crs", scene.crs},
                               {"dem", scene.dem},
                               {"grid", {scene.build.grid_nx, scene.build.grid_ny}},

@@ -169,6 +169,16 @@ def main():
         holes = [ring(square_cw(-4960 + 31.4 * (k % 316), -4960 + 31.4 * (k // 316), 10)) for k in range(100_000)]
         case("poly_100k_holes", "poly_100k_holes.geojson", "polygon",
              [feature(poly(ring(square(0, 0, 5000)), *holes), 1)], big_case=True)
+        # The same, but the first row and column of holes reach the shell and
+        # share an edge with it (invalid): repaired with --repair structure
+        # (GEOS MakeValid's default linework method takes ~3 minutes here).
+        def touching(k):
+            cx, cy = -4960 + 31.4 * (k % 316), -4960 + 31.4 * (k // 316)
+            x0, y0 = (-5000 if k % 316 == 0 else cx - 10), (-5000 if k // 316 == 0 else cy - 10)
+            return ring([(x0, y0), (x0, cy + 10), (cx + 10, cy + 10), (cx + 10, y0), (x0, y0)])
+        case("poly_100k_holes_touching_shell", "poly_100k_holes_touching_shell.geojson", "polygon",
+             [feature(poly(ring(square(0, 0, 5000)), *[touching(k) for k in range(100_000)]), 1)],
+             ["--repair", "structure"], big_case=True)
         teeth = [(0, 0)]
         for t in range(10_000):
             teeth += [(t * 2 + 0.5, 0), (t * 2 + 0.5, 100), (t * 2 + 1.5, 100), (t * 2 + 1.5, 0)]

@@ -127,6 +127,7 @@ prep::SceneSpec scene_of(const json& c) {
     else if (args[i] == "--crs") s.crs = args[i + 1];
     else if (args[i] == "--assume-crs") s.assume_crs = args[i + 1];
     else if (args[i] == "--resolution") s.resolution = std::stod(args[i + 1]);
+    else if (args[i] == "--repair") s.repair = prep::parse_repair_method(args[i + 1]);
     else if (args[i] == "--max-memory") continue;  // a limit, not part of the scene
     else ADD_FAILURE() << "scene_of: option " << args[i] << " not mirrored by the test";
   }

@@ -33,6 +33,7 @@ struct BuildArgs {
   // scene-wide overrides
   std::string crs, assume_crs, extent, extent_crs, dem, grid;
   std::optional<double> resolution;
+  std::string repair;
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
   // terrain matching of dynamic lines (override the scene file's [build])
   std::optional<double> lmax, terrain_tolerance, z_scale, nodata_fill;
@@ -123,6 +124,7 @@ int run(const BuildArgs& a) {
     if (!(*a.resolution >= 0)) throw prep::usage_error("--resolution: must be >= 0 metres");
     scene.resolution = *a.resolution;
   }
+  if (!a.repair.empty()) scene.repair = prep::parse_repair_method(a.repair);
   if (!a.grid.empty()) parse_grid(a.grid, scene.build);
   if (a.leaf_capacity) scene.build.qt_leaf_capacity = *a.leaf_capacity;
   if (a.max_depth) scene.build.qt_max_depth = *a.max_depth;
@@ -407,6 +409,9 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (default: the frame)")->group(s);
   cmd->add_option("--resolution", args->resolution, "Simplification tolerance, metres (0: keep all)")->group(s);
   cmd->add_option("--dem", args->dem, "DEM raster (GDAL path); clips to its extent")->group(s);
+  cmd->add_option("--repair", args->repair,
+                  "Invalid polygons: linework (GEOS default, even-odd) | structure (every hole subtracted)")
+      ->group(s);
   auto* t = "Terrain (dynamic lines; override the scene file)";
   cmd->add_option("--lmax", args->lmax, "Longest terrain-matched segment, metres (0: half the DEM cell)")->group(t);
   cmd->add_option("--terrain-tolerance", args->terrain_tolerance,
