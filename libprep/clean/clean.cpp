@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <algorithm>
 #include <memory>
@@ -787,14 +788,29 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
         // Read rejects NaN/Inf, but a transform can still yield them; GEOS
         // must never see one (its quad-tree index loops forever on a NaN
         // envelope inside TopologyPreserveSimplify: found by fuzz_build).
+        // Nor a coordinate near DBL_MAX (the quad-tree's 2^level overflows to
+        // inf, the same endless loop; found by fuzz_build with a frame equal
+        // to the source CRS). Nothing on Earth lies kMaxCoordinate from the
+        // origin of any frame, so such a vertex is a failure of the feature.
+        constexpr double kMaxCoordinate = 1e9;  // metres
         std::string bad;
         for (size_t ri = 0; ri < f.rings.size() && bad.empty(); ++ri)
-          for (size_t v = 0; v < f.rings[ri].size(); ++v)
-            if (!std::isfinite(f.rings[ri][v].x) || !std::isfinite(f.rings[ri][v].y)) {
+          for (size_t v = 0; v < f.rings[ri].size(); ++v) {
+            const Point2& q = f.rings[ri][v];
+            if (!std::isfinite(q.x) || !std::isfinite(q.y)) {
               bad = "ring " + std::to_string(ri) + " vertex " + std::to_string(v) +
                     " has a non-finite coordinate";
               break;
             }
+            if (std::fabs(q.x) > kMaxCoordinate || std::fabs(q.y) > kMaxCoordinate) {
+              char text[160];
+              std::snprintf(text, sizeof text,
+                            "ring %zu vertex %zu at (%.17g, %.17g) is more than 1e9 m from the "
+                            "scene origin", ri, v, q.x, q.y);
+              bad = text;
+              break;
+            }
+          }
         if (!bad.empty()) {
           Cleaner::fail(r, bad);
           continue;

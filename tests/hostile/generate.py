@@ -222,6 +222,13 @@ def main():
     case("coord_1e300", "coord_1e300.geojson", "line",
          [feature({"type": "LineString", "coordinates": [[LON0, LAT0], [1e300, LAT0]]}, 1),
           feature(line([(0, 0), (10, 0)]), 2)], args_w)
+    # The same magnitude in a projected source whose CRS is the frame (no
+    # transformation to fail): clean must refuse it before GEOS, whose
+    # simplifier's quad-tree loops forever on envelopes near DBL_MAX.
+    case("coord_1e307_in_frame_crs", "coord_1e307_in_frame_crs.geojson", "line",
+         [feature({"type": "LineString", "coordinates": [[500000.0, 4800000.0], [1e307, 4800000.0]]}, 1),
+          feature({"type": "LineString", "coordinates": [[500000.0, 4800000.0], [500010.0, 4800000.0]]}, 2)],
+         args_w + ["--crs", "EPSG:32632", "--resolution", "0.5"], crs="urn:ogc:def:crs:EPSG::32632")
     utm = {"type": "FeatureCollection", "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}},
            "features": [feature({"type": "LineString", "coordinates": [[500000.0, 9999000.0], [500000.001, 9999000.001],
                                                                          [500010.0, 9999000.002]]}, 1),
