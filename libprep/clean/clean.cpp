@@ -951,7 +951,11 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
   // Read-stage entries (parts of kept features the kind could not draw).
   for (const ManifestEntry& e : in_manifest.entries) out.manifest.entries.push_back(e);
 
-  // Scene extent: the bounding box of what is kept.
+  out.extent = kept_extent(out);
+  return out;
+}
+
+Extent kept_extent(const SceneFeatures& s) {
   Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
   auto grow = [&](const Ring& r) {
     for (const Point2& p : r) {
@@ -961,11 +965,10 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
       b.ymax = std::max(b.ymax, p.y);
     }
   };
-  for (const ScenePolygon& p : out.polygons) grow(p.shell);
-  for (const SceneLine& l : out.lines) grow(l.points);
-  for (const SceneLine& l : out.dynamic_lines) grow(l.points);
-  out.extent = b.xmax >= b.xmin ? b : Extent{};
-  return out;
+  for (const ScenePolygon& p : s.polygons) grow(p.shell);
+  for (const SceneLine& l : s.lines) grow(l.points);
+  for (const SceneLine& l : s.dynamic_lines) grow(l.points);
+  return b.xmax >= b.xmin ? b : Extent{};
 }
 
 }  // namespace prep

@@ -271,20 +271,7 @@ void check_build_range(SceneFeatures& s, bool skip_failures) {
     }
     s.manifest.entries.push_back(ManifestEntry{name, k.second, -1, "dropped", failed[k]});
   }
-  // The scene extent is the box of what is kept (as clean computes it).
-  Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
-  auto grow = [&](const Ring& r) {
-    for (const Point2& p : r) {
-      b.xmin = std::min(b.xmin, p.x);
-      b.ymin = std::min(b.ymin, p.y);
-      b.xmax = std::max(b.xmax, p.x);
-      b.ymax = std::max(b.ymax, p.y);
-    }
-  };
-  for (const ScenePolygon& p : s.polygons) grow(p.shell);
-  for (const SceneLine& l : s.lines) grow(l.points);
-  for (const SceneLine& l : s.dynamic_lines) grow(l.points);
-  s.extent = b.xmax >= b.xmin ? b : Extent{};
+  s.extent = kept_extent(s);
 }
 
 size_t count_skipped_failures(const Manifest& m) {

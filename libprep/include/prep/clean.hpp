@@ -33,4 +33,8 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
 SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene,
                     const CleanOptions& options = {});
 
+// The bounding box of every kept polygon shell and line (empty when nothing
+// is kept): SceneFeatures::extent as clean sets it.
+Extent kept_extent(const SceneFeatures& scene);
+
 }  // namespace prep
