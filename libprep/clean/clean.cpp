@@ -462,6 +462,17 @@ struct Cleaner {
     return f.fid == geos_fail_fid ? -1.0 : resolution;
   }
 
+  // Topology-preserving simplification of one part to the scene resolution:
+  // `out` stays empty when there is nothing to simplify. False (and the
+  // feature recorded as failed) when GEOS reports an error.
+  bool simplify(GeosContext& ctx, const SourceFeature& f, const GEOSGeometry* part, Geom& out,
+                PartResult& r) const {
+    if (!(resolution > 0) && f.fid != geos_fail_fid) return true;
+    out = Geom(ctx.h, GEOSTopologyPreserveSimplify_r(ctx.h, part, tolerance_for(f)));
+    if (!out) fail(r, "GEOS simplification failed: " + ctx.last_error);
+    return bool(out);
+  }
+
   // A per-feature failure (feature_failure.hpp): recorded here, turned into
   // an error or a drop by clean() in input order.
   static void fail(PartResult& r, const std::string& what) {
@@ -581,18 +592,11 @@ struct Cleaner {
     for (const GEOSGeometry* p : parts) {
       r.vertices_in += vertex_count(h, p);
       Geom simple;
-      const GEOSGeometry* use = p;
-      if (resolution > 0 || f.fid == geos_fail_fid) {
-        simple = Geom(h, GEOSTopologyPreserveSimplify_r(h, p, tolerance_for(f)));
-        if (!simple) return fail(r, "GEOS simplification failed: " + ctx.last_error);
-        if (GEOSisValid_r(h, simple.get()) != 1) {
-          // Simplification is topology-preserving; keep the unsimplified
-          // part if GEOS ever disagrees.
-          simple = Geom();
-        } else {
-          use = simple.get();
-        }
-      }
+      if (!simplify(ctx, f, p, simple, r)) return;
+      // Simplification is topology-preserving; keep the unsimplified part if
+      // GEOS ever disagrees.
+      if (simple && GEOSisValid_r(h, simple.get()) != 1) simple = Geom();
+      const GEOSGeometry* use = simple ? simple.get() : p;
       std::vector<const GEOSGeometry*> polys;
       bool ignored = false;
       collect(h, use, GEOS_POLYGON, polys, ignored);
@@ -708,12 +712,8 @@ struct Cleaner {
     for (const GEOSGeometry* p : parts) {
       r.vertices_in += vertex_count(h, p);
       Geom simple;
-      const GEOSGeometry* use = p;
-      if (resolution > 0 || f.fid == geos_fail_fid) {
-        simple = Geom(h, GEOSTopologyPreserveSimplify_r(h, p, tolerance_for(f)));
-        if (!simple) return fail(r, "GEOS simplification failed: " + ctx.last_error);
-        use = simple.get();
-      }
+      if (!simplify(ctx, f, p, simple, r)) return;
+      const GEOSGeometry* use = simple ? simple.get() : p;
       std::vector<const GEOSGeometry*> lines;
       bool ignored = false;
       collect(h, use, GEOS_LINESTRING, lines, ignored);
