@@ -90,6 +90,10 @@ struct DecalSource {
     uint64_t bytes = 0;
   };
   std::vector<Blob> blobs;
+  // The blobs passed the package's structural check with this grid
+  // (decal::validate_blobs; source_of(Package) runs it), so render_gl does
+  // not run it again. False for models in memory: render_gl checks them.
+  bool validated = false;
 };
 
 // Views of a model in memory (for tests and `build --render`).
