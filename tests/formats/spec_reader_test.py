@@ -225,8 +225,8 @@ def compare_blob(name, b, db, stats):
 
 def check_writer_rules(path, p, spec_minor):
     name = os.path.basename(path)
-    check(p.minor == spec_minor, "%s: written as v%d.%d, SPEC.md is at minor %d (writers write the newest)"
-          % (name, p.major, p.minor, spec_minor))
+    check(p.minor == spec_minor, "%s: written as v%d.%d, but the 'Version' line of SPEC.md says minor %d "
+          "(writers write the newest version; bump one of them)" % (name, p.major, p.minor, spec_minor))
     ids = [b.id for b in p.blobs]
     check(ids == list(sr.CATALOGUE), "%s: blobs %s are not every catalogue blob in catalogue order" % (name, ids))
     for b in p.blobs:
