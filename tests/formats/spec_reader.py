@@ -483,8 +483,8 @@ def check_indices(p):
             bad(name, n, [i for i, v in enumerate(f) if v >= limit][0] * n, what)
 
     def same_count(name, ref):
-        if cnt(name) not in (0, cnt(ref)):
-            errs.append("%s has %d elements, must have #%s = %d or none" % (name, cnt(name), ref, cnt(ref)))
+        if cnt(name) != cnt(ref):
+            errs.append("%s has %d elements, must have #%s = %d" % (name, cnt(name), ref, cnt(ref)))
 
     def sums_within(name, n, ks, limit, what):
         """The sum of components `ks` of every element of `name` <= limit."""
@@ -499,6 +499,10 @@ def check_indices(p):
     same_count("line_vertex_line", "line_vertices")
     same_count("line_corners", "line_vertices")
     all_below("line_vertex_line", 1, 0, cnt("line_props"), ">= #line_props = %d" % cnt("line_props"))
+    for i, hw in enumerate(_flat(p, "line_props", "f")[0::8]):
+        if not 0.0 <= hw < 1e7:
+            errs.append("line_props[%d].half_width = %r: not in [0, 1e7)" % (i, hw))
+            break
     for rng, target in (("cell_segment_range", "cell_segments"), ("qt_leaf_range", "qt_leaf_segments"),
                         ("cell_poly_range", "cell_polys"), ("lod_line_range", "lod_segments")):
         sums_within(rng, 2, (0, 1), cnt(target), "first + count > #%s = %d" % (target, cnt(target)))
@@ -519,15 +523,42 @@ def check_indices(p):
             break
     node = _flat(p, "qt_node", "i")
     for i, (t, o) in enumerate(zip(node[0::2], node[1::2])):
-        if not (0 <= t <= 3 and o >= 0 and (t != 0 or o + 4 <= nq) and (t != 3 or o < nlr)):
+        if not (0 <= t <= 3 and o >= 0 and (t != 0 or i < o and o + 4 <= nq) and (t != 3 or o < nlr)):
             errs.append("qt_node[%d] = [%d, %d]: bad type, or offset out of range (#qt_node %d, #qt_leaf_range %d)"
                         % (i, t, o, nq, nlr))
             break
     for name, n in (("cell_polys", 4), ("cell_holes", 2)):
         all_below(name, n, 0, npp, "polygon >= #poly_props = %d" % npp)
         all_below(name, n, 1, nq, "culling node >= #qt_node = %d" % nq)
-    for rng, box in (("line_bvh_range", "line_bvh_box"), ("poly_bvh_range", "poly_bvh_box")):
-        sums_within(rng, 4, (0, 1, 2), cnt(box), "first + leaf slots + internal nodes > #%s = %d" % (box, cnt(box)))
+    grid = p.metadata.get("grid") if isinstance(p.metadata, dict) else None
+    cells = None
+    try:
+        (ox, oy), (cw, ch), (nx, ny) = grid["origin"], grid["cell"], grid["dims"]
+        cells = nx * ny
+        lim = 2 ** 31
+        if cw <= 0 or ch <= 0:
+            errs.append("grid cell %sx%s is not positive" % (cw, ch))
+        elif not (-lim < ox < lim and -lim < oy < lim and cw < lim and ch < lim and ox + cw * nx < lim
+                  and oy + ch * ny < lim):
+            errs.append("grid exceeds the int32 quantum range")
+    except (TypeError, KeyError, ValueError):
+        pass  # no grid: the per-cell counts are checked without it
+    for rng, lst, bvh, box in (("cell_segment_range", "cell_segments", "line_bvh_range", "line_bvh_box"),
+                               ("cell_poly_range", "cell_polys", "poly_bvh_range", "poly_bvh_box")):
+        if cnt(rng) == 0 and cnt(lst) == 0 and cnt(bvh) == 0:
+            continue
+        same_count(bvh, rng)
+        if cells is not None and cnt(rng) != cells:
+            errs.append("%s has %d elements for the %d grid cells" % (rng, cnt(rng), cells))
+        entries = _flat(p, rng)[1::2]
+        b = _flat(p, bvh)
+        nbox = cnt(box)
+        for i, (first, slots, internal) in enumerate(zip(b[0::4], b[1::4], b[2::4])):
+            n = entries[i] if i < len(entries) else 0
+            if (slots & (slots - 1)) or slots < n or internal != max(slots - 1, 0) or first + slots + internal > nbox:
+                errs.append("%s[%d] = (%d, %d, %d): not a full binary tree over %d entries inside #%s = %d"
+                            % (bvh, i, first, slots, internal, n, box, nbox))
+                break
     nd = cnt("dyn_vertices")
     same_count("dyn_prev_next", "dyn_vertices")
     pn = _flat(p, "dyn_prev_next", "i")
@@ -536,8 +567,24 @@ def check_indices(p):
         bad("dyn_prev_next", 2, i, "not -1 or < #dyn_vertices = %d" % nd)
     all_below("dyn_line_start", 1, 0, nd, ">= #dyn_vertices = %d" % nd)
     ndl = cnt("dyn_line_props")
-    if p.blob("dyn_line_props") is not None:
-        all_below("dyn_vertices", 4, 3, ndl, "line index not in [0, #dyn_line_props = %d)" % ndl)
+    dv = _flat(p, "dyn_vertices", "i")
+    if dv and (min(dv[3::4]) < 0 or max(dv[3::4]) >= ndl):
+        errs.append("dyn_vertices: a line index not in [0, #dyn_line_props = %d)" % ndl)
+    if nd > 0:
+        starts = list(_flat(p, "dyn_line_start"))
+        if len(starts) != ndl:
+            errs.append("dyn_line_start has %d elements, must have #dyn_line_props = %d" % (len(starts), ndl))
+        elif not starts or starts[0] != 0:
+            errs.append("dyn_line_start[0] must be 0 when dynamic vertices exist")
+        else:
+            ends = starts[1:] + [nd]
+            for l, (a, e) in enumerate(zip(starts, ends)):
+                if e <= a:
+                    errs.append("dyn_line_start[%d]: starts do not increase" % (l + 1))
+                    break
+                if any(x != l for x in dv[4 * a + 3:4 * e:4]):
+                    errs.append("dyn_vertices in the run of line %d name another line" % l)
+                    break
     nlp = cnt("lod_points")
     for k, field in enumerate(("a", "b", "generator", "splitter")):
         f = _flat(p, "lod_segments")[k::4]
