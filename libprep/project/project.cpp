@@ -710,7 +710,8 @@ Extent extent_in_frame_crs(const Extent& extent, const std::string& crs, const S
   } catch (const input_error& e) {
     // srs_from and friends speak for the project stage.
     std::string what = e.what();
-    if (context != "project" && what.rfind("project: ", 0) == 0) what = context + ": " + what.substr(9);
+    if (context != "project" && what.rfind("project: ", 0) == 0)
+      what = context + ": " + what.substr(9);
     throw input_error(what);
   }
 }

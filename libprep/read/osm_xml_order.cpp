@@ -108,8 +108,9 @@ OsmXmlOrder scan_osm_xml(const std::string& path) {
           out.earlier_kind = earlier_kind;
           out.earlier_id = earlier_id;
         }
-      } else if (earlier_kind.empty() && ((tag.compare(0, 3, "way") == 0 && name_ends(tag, 3)) ||
-                                          (tag.compare(0, 8, "relation") == 0 && name_ends(tag, 8)))) {
+      } else if (earlier_kind.empty() &&
+                 ((tag.compare(0, 3, "way") == 0 && name_ends(tag, 3)) ||
+                  (tag.compare(0, 8, "relation") == 0 && name_ends(tag, 8)))) {
         earlier_kind = tag[0] == 'w' ? "way" : "relation";
         earlier_id = std::string(id_of(tag));
       }

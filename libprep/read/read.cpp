@@ -94,7 +94,8 @@ class ReadConfig {
  public:
   explicit ReadConfig(bool plain_osm_index) {
     geojson_.emplace("OGR_GEOJSON_MAX_OBJ_SIZE", "0", /*bSetOnlyIfUndefined=*/true);
-    if (plain_osm_index) osm_.emplace("OSM_USE_CUSTOM_INDEXING", "NO", /*bSetOnlyIfUndefined=*/false);
+    if (plain_osm_index)
+      osm_.emplace("OSM_USE_CUSTOM_INDEXING", "NO", /*bSetOnlyIfUndefined=*/false);
   }
 
  private:
@@ -102,7 +103,8 @@ class ReadConfig {
 };
 
 std::string osm_plain_index_note(const std::string& layer) {
-  return "layer '" + layer + "': OSM node ids do not increase (Overpass output?); read with "
+  return "layer '" + layer +
+         "': OSM node ids do not increase (Overpass output?); read with "
          "OSM_USE_CUSTOM_INDEXING=NO";
 }
 
@@ -111,13 +113,16 @@ std::string osm_plain_index_note(const std::string& layer) {
 // multipolygons without a word. Only the `points` layer reads right.
 [[noreturn]] void throw_late_nodes(const std::string& source, const std::string& where,
                                    const detail::OsmXmlOrder& order) {
-  throw input_error(where + ": OSM XML lists node " + order.late_node_id + " (byte " +
-                    std::to_string(order.late_node_offset) + ") after " + order.earlier_kind +
-                    " " + order.earlier_id +
+  const std::string found = "OSM XML lists node " + order.late_node_id + " (byte " +
+                            std::to_string(order.late_node_offset) + ") after " +
+                            order.earlier_kind + " " + order.earlier_id;
+  const std::string what_to_do =
+      "Put the nodes first: sort the file (osmium sort " + source +
+      " -o sorted.osm), or end the Overpass query with '(._;>;); out body;' instead of "
+      "'out; >; out skel qt;'";
+  throw input_error(where + ": " + found +
                     "; GDAL's OSM driver assembles ways and multipolygons only from nodes that "
-                    "come before them, so they would be lost. Put the nodes first: sort the file "
-                    "(osmium sort " + source + " -o sorted.osm), or end the Overpass query with "
-                    "'(._;>;); out body;' instead of 'out; >; out skel qt;'");
+                    "come before them, so they would be lost. " + what_to_do);
 }
 
 std::string where_of(const LayerSpec& spec, const std::string& layer_name) {

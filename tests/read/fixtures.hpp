@@ -105,9 +105,10 @@ inline void write_big_polygon(const std::string& path, size_t n, size_t pad) {
   FILE* f = std::fopen(path.c_str(), "wb");
   ASSERT_NE(f, nullptr) << path;
   const std::string zeros(pad, '0');
-  std::fputs(R"({"type":"FeatureCollection","features":[{"type":"Feature","properties":{"name":"big"},)"
-             R"("geometry":{"type":"Polygon","coordinates":[[)",
-             f);
+  std::fputs(
+      R"({"type":"FeatureCollection","features":[{"type":"Feature","properties":{"name":"big"},)"
+      R"("geometry":{"type":"Polygon","coordinates":[[)",
+      f);
   for (size_t i = 0; i <= n; ++i) {
     const double a = 2 * M_PI * double(i % n) / double(n);
     std::fprintf(f, "%s[%.9f%s,%.9f%s]", i ? "," : "", 7.42 + 0.01 * std::cos(a), zeros.c_str(),

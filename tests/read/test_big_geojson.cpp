@@ -31,15 +31,17 @@ TEST(BigGeoJson, OneFeatureOver250MbBuildsWithNoEnvironmentVariable) {
 
   // The oracle that the file needs the option: GDAL's own ogrinfo, with the
   // option unset, refuses it.
-  auto gdal = run_command("env -u OGR_GEOJSON_MAX_OBJ_SIZE ogrinfo -ro -so -al " + shell_quote(path), dir);
+  auto gdal =
+      run_command("env -u OGR_GEOJSON_MAX_OBJ_SIZE ogrinfo -ro -so -al " + shell_quote(path), dir);
   EXPECT_NE(gdal.output.find("too complex/large"), std::string::npos) << gdal.output;
   const auto t2 = std::chrono::steady_clock::now();
 
   const std::string report = dir.file("report.json");
-  auto r = run_command("env -u OGR_GEOJSON_MAX_OBJ_SIZE " + shell_quote(DECALPREP_TOOL) + " build " +
-                           shell_quote(path) + " --kind polygon -q -o " + shell_quote(dir.file("coast.decals")) +
-                           " --report " + shell_quote(report),
-                       dir);
+  auto r =
+      run_command("env -u OGR_GEOJSON_MAX_OBJ_SIZE " + shell_quote(DECALPREP_TOOL) + " build " +
+                      shell_quote(path) + " --kind polygon -q -o " +
+                      shell_quote(dir.file("coast.decals")) + " --report " + shell_quote(report),
+                  dir);
   const auto t3 = std::chrono::steady_clock::now();
   ASSERT_EQ(r.rc, 0) << r.output;
   const auto rep = nlohmann::json::parse(prep::test::read_text(report));

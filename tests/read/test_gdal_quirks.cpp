@@ -37,7 +37,8 @@ std::string overpass_xml() {
   char b[160];
   auto node = [&](double lon, double lat) {
     --next_node;
-    std::snprintf(b, sizeof b, "  <node id=\"%lld\" lat=\"%.7f\" lon=\"%.7f\"/>\n", next_node, lat, lon);
+    std::snprintf(b, sizeof b, "  <node id=\"%lld\" lat=\"%.7f\" lon=\"%.7f\"/>\n", next_node, lat,
+                  lon);
     nodes_xml += b;
     return next_node;
   };
@@ -48,15 +49,19 @@ std::string overpass_xml() {
     return r;
   };
   for (int k = 0; k < 5; ++k)
-    ways.push_back({--next_way, square(7.42 + k * 0.001, 43.73, 0.0005), "<tag k=\"building\" v=\"yes\"/>"});
+    ways.push_back(
+        {--next_way, square(7.42 + k * 0.001, 43.73, 0.0005), "<tag k=\"building\" v=\"yes\"/>"});
   for (int k = 0; k < 3; ++k)
     ways.push_back({--next_way,
-                    {node(7.42 + k * 0.001, 43.735), node(7.4205 + k * 0.001, 43.7355), node(7.421 + k * 0.001, 43.735)},
+                    {node(7.42 + k * 0.001, 43.735), node(7.4205 + k * 0.001, 43.7355),
+                     node(7.421 + k * 0.001, 43.735)},
                     "<tag k=\"highway\" v=\"residential\"/>"});
   const long long outer = --next_way, inner = --next_way;
   ways.push_back({outer, square(7.43, 43.74, 0.002), ""});
   ways.push_back({inner, square(7.4305, 43.7405, 0.0005), ""});
-  std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<osm version=\"0.6\" generator=\"Overpass API\">\n";
+  std::string xml =
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<osm version=\"0.6\" generator=\"Overpass "
+      "API\">\n";
   xml += nodes_xml;
   for (const Way& w : ways) {
     xml += "  <way id=\"" + std::to_string(w.id) + "\">";
@@ -65,7 +70,8 @@ std::string overpass_xml() {
   }
   xml += "  <relation id=\"900\"><member type=\"way\" ref=\"" + std::to_string(outer) +
          "\" role=\"outer\"/><member type=\"way\" ref=\"" + std::to_string(inner) +
-         "\" role=\"inner\"/><tag k=\"type\" v=\"multipolygon\"/><tag k=\"landuse\" v=\"grass\"/></relation>\n";
+         "\" role=\"inner\"/><tag k=\"type\" v=\"multipolygon\"/><tag k=\"landuse\" "
+         "v=\"grass\"/></relation>\n";
   return xml + "</osm>\n";
 }
 
@@ -112,10 +118,11 @@ TEST_P(OverpassOsm, BuildsWithOgrinfosCountsUnderThePlainNodeIndex) {
   write_text(dir.file("scene.toml"), osm_scene(osm));
   const std::string report = dir.file("report.json");
   // No GDAL option in the build's environment.
-  auto r = run_command("env -u OSM_USE_CUSTOM_INDEXING " + shell_quote(DECALPREP_TOOL) + " build " +
-                           shell_quote(dir.file("scene.toml")) + " -o " + shell_quote(dir.file("o.decals")) +
-                           " -q --report " + shell_quote(report),
-                       dir);
+  auto r =
+      run_command("env -u OSM_USE_CUSTOM_INDEXING " + shell_quote(DECALPREP_TOOL) + " build " +
+                      shell_quote(dir.file("scene.toml")) + " -o " +
+                      shell_quote(dir.file("o.decals")) + " -q --report " + shell_quote(report),
+                  dir);
   ASSERT_EQ(r.rc, 0) << r.output;
   const auto rep = nlohmann::json::parse(read_text(report));
   const auto& counts = rep.at("manifest").at("layers");
@@ -133,7 +140,8 @@ TEST_P(OverpassOsm, BuildsWithOgrinfosCountsUnderThePlainNodeIndex) {
   }
   EXPECT_EQ(total, 6 + 3 + 5 + 1);  // what the generator wrote
   // GDAL's default index stops at the first decreasing id: this file needs it.
-  EXPECT_EQ(prep::test::ogrinfo_count_sql(osm, "SELECT COUNT(*) FROM lines", "", dir, "OSM_USE_CUSTOM_INDEXING=YES"),
+  EXPECT_EQ(prep::test::ogrinfo_count_sql(osm, "SELECT COUNT(*) FROM lines", "", dir,
+                                          "OSM_USE_CUSTOM_INDEXING=YES"),
             0);
   std::string notes;
   for (const auto& n : rep.at("manifest").at("notes")) notes += n.get<std::string>() + "\n";
@@ -143,7 +151,8 @@ TEST_P(OverpassOsm, BuildsWithOgrinfosCountsUnderThePlainNodeIndex) {
 std::string file_kind(const ::testing::TestParamInfo<const char*>& p) {
   return p.index == 0 ? "osm" : p.index == 1 ? "xml" : "no_extension";
 }
-INSTANTIATE_TEST_SUITE_P(FileName, OverpassOsm, ::testing::Values("overpass.osm", "export.xml", "interpreter"), file_kind);
+INSTANTIATE_TEST_SUITE_P(FileName, OverpassOsm,
+                         ::testing::Values("overpass.osm", "export.xml", "interpreter"), file_kind);
 
 // Overpass's `out; >; out skel qt;` lists the ways first and their nodes
 // after them. GDAL (with either node index) then assembles no way at all and
@@ -168,7 +177,8 @@ TEST(OverpassOsmXml, NodesListedAfterTheirWaysStopTheBuildWithWhatToDo) {
     EXPECT_EQ(prep::test::ogrinfo_count_sql(osm, "SELECT COUNT(*) FROM lines", "", dir,
                                             std::string("OSM_USE_CUSTOM_INDEXING=") + index),
               0);
-  auto r = run_tool("build " + shell_quote(osm) + " --layer lines --kind line -o " + shell_quote(dir.file("w.decals")),
+  auto r = run_tool("build " + shell_quote(osm) + " --layer lines --kind line -o " +
+                        shell_quote(dir.file("w.decals")),
                     dir);
   EXPECT_EQ(r.rc, 3) << r.output;
   EXPECT_NE(r.output.find("ways_first.osm"), std::string::npos) << r.output;
@@ -183,11 +193,14 @@ TEST(GeoJsonObjectLimit, AUserSetLimitIsKept) {
   TempDir dir;
   const std::string path = dir.file("polygon.geojson");
   write_big_polygon(path, 100000, 0);  // GDAL estimates about 17 MB
-  auto limited = run_tool("build " + shell_quote(path) + " --kind polygon -o " + shell_quote(dir.file("l.decals")), dir);
+  auto limited = run_tool(
+      "build " + shell_quote(path) + " --kind polygon -o " + shell_quote(dir.file("l.decals")),
+      dir);
   ASSERT_EQ(limited.rc, 0) << limited.output;
-  auto r = run_command("env OGR_GEOJSON_MAX_OBJ_SIZE=10 " + shell_quote(DECALPREP_TOOL) + " build " +
-                           shell_quote(path) + " --kind polygon -o " + shell_quote(dir.file("p.decals")),
-                       dir);
+  auto r =
+      run_command("env OGR_GEOJSON_MAX_OBJ_SIZE=10 " + shell_quote(DECALPREP_TOOL) + " build " +
+                      shell_quote(path) + " --kind polygon -o " + shell_quote(dir.file("p.decals")),
+                  dir);
   EXPECT_EQ(r.rc, 3) << r.output;
   EXPECT_NE(r.output.find("OGR_GEOJSON_MAX_OBJ_SIZE"), std::string::npos) << r.output;
 }
