@@ -660,12 +660,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
 
   // The clip extent: --extent, else the DEM's extent.
   if (scene.extent) {
-    Extent e = *scene.extent;
-    if (!scene.extent_crs.empty()) {
-      auto ext_srs = srs_from(scene.extent_crs, "--extent-crs");
-      auto t = make_transform(*ext_srs, *frame_srs, "--extent-crs to the scene frame");
-      e = transform_bounds(*t, e, "--extent");
-    }
+    Extent e = extent_in_frame_crs(*scene.extent, scene.extent_crs, frame, "project");
     e.xmin -= frame.origin_x;
     e.xmax -= frame.origin_x;
     e.ymin -= frame.origin_y;
@@ -701,6 +696,24 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
   }
   out.features = std::move(features);
   return out;
+}
+
+Extent extent_in_frame_crs(const Extent& extent, const std::string& crs, const SceneFrame& frame,
+                           const std::string& context) {
+  if (crs.empty()) return extent;
+  register_gdal_once();
+  try {
+    auto from = srs_from(crs, "--extent-crs");
+    auto to = srs_from(frame.crs_wkt, "frame CRS");
+    auto t = make_transform(*from, *to, "--extent-crs to the frame CRS");
+    return transform_bounds(*t, extent, "--extent");
+  } catch (const input_error& e) {
+    // srs_from and friends speak for the project stage.
+    std::string what = e.what();
+    if (context != "project" && what.rfind("project: ", 0) == 0)
+      what = context + ": " + what.substr(9);
+    throw input_error(what);
+  }
 }
 
 }  // namespace prep

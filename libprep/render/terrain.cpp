@@ -195,29 +195,3 @@ std::optional<double> Heightfield::intersect(const Vec3& o, const Vec3& d) const
 }
 
 }  // namespace prep::render
-
-namespace prep::render {
-
-Extent extent_to_scene(const Extent& e, const std::string& crs, const SceneFrame& frame) {
-  OGRSpatialReference from, to;
-  if (from.SetFromUserInput(crs.c_str()) != OGRERR_NONE) throw usage_error("render: --extent-crs '" + crs + "' is not a CRS");
-  if (to.importFromWkt(frame.crs_wkt.c_str()) != OGRERR_NONE)
-    throw usage_error("render: the package frame has no CRS to transform --extent into");
-  from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&from, &to));
-  if (!ct) throw usage_error("render: no transformation from '" + crs + "' to the scene frame");
-  double xs[8] = {e.xmin, e.xmax, e.xmax, e.xmin, 0.5 * (e.xmin + e.xmax), e.xmax, 0.5 * (e.xmin + e.xmax), e.xmin};
-  double ys[8] = {e.ymin, e.ymin, e.ymax, e.ymax, e.ymin, 0.5 * (e.ymin + e.ymax), e.ymax, 0.5 * (e.ymin + e.ymax)};
-  if (!ct->Transform(8, xs, ys)) throw usage_error("render: --extent cannot be transformed from '" + crs + "'");
-  Extent out{1e300, 1e300, -1e300, -1e300};
-  for (int k = 0; k < 8; ++k) {
-    out.xmin = std::min(out.xmin, xs[k] - frame.origin_x);
-    out.xmax = std::max(out.xmax, xs[k] - frame.origin_x);
-    out.ymin = std::min(out.ymin, ys[k] - frame.origin_y);
-    out.ymax = std::max(out.ymax, ys[k] - frame.origin_y);
-  }
-  return out;
-}
-
-}  // namespace prep::render

@@ -405,7 +405,10 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   auto* s = "Scene (override the scene file)";
   cmd->add_option("--crs", args->crs, "Scene frame CRS (PROJ/EPSG/WKT); default local TM")->group(s);
   cmd->add_option("--assume-crs", args->assume_crs, "CRS for sources that have none")->group(s);
-  cmd->add_option("--extent", args->extent, "Clip extent xmin,ymin,xmax,ymax")->group(s);
+  cmd->add_option("--extent", args->extent,
+                  "Clip extent xmin,ymin,xmax,ymax, absolute coordinates of the frame CRS (as "
+                  "render --extent)")
+      ->group(s);
   cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (default: the frame)")->group(s);
   cmd->add_option("--resolution", args->resolution, "Simplification tolerance, metres (0: keep all)")->group(s);
   cmd->add_option("--dem", args->dem, "DEM raster (GDAL path); clips to its extent")->group(s);

@@ -5,7 +5,10 @@
 //   .decals --load--> DecalSource --render_gl / render_cpu--> Image --> PNG
 //
 // Coordinates are scene metres relative to the package origin (the frame of
-// prep::evaluate). GL work happens in anchor-relative metres (DESIGN.md §4.1).
+// prep::evaluate); GL work happens in anchor-relative metres. `decalprep
+// render --extent` takes absolute coordinates of the frame CRS, as `build
+// --extent` and the world file do (prep::extent_in_frame_crs), and
+// subtracts the origin before it gets here.
 #pragma once
 
 #include <array>
@@ -150,11 +153,6 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
 // and axis-aligned image (the render_topdown case); `extent` is then the
 // imaged area.
 bool is_topdown(const Camera& camera, uint32_t width, uint32_t height, Extent* extent = nullptr);
-
-// `extent` given in `crs` (any GDAL SRS string, e.g. EPSG:4326 as lon/lat)
-// as scene metres relative to the frame origin: the bounding box of its
-// transformed corners and edge midpoints. Throws usage_error on a bad CRS.
-Extent extent_to_scene(const Extent& extent, const std::string& crs, const SceneFrame& frame);
 
 // PNG (8-bit RGBA) through libpng; throws output_error naming the path.
 void write_png(const std::string& path, const std::vector<uint8_t>& rgba, uint32_t width, uint32_t height);
