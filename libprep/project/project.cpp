@@ -19,6 +19,7 @@
 #include <mutex>
 #include <optional>
 
+#include "prep/dem.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 
@@ -667,27 +668,11 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     e.ymax -= frame.origin_y;
     out.clip = e;
   } else if (!scene.dem.empty()) {
-    CPLErrorReset();
-    std::unique_ptr<GDALDataset> dem(
-        GDALDataset::Open(scene.dem.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-    if (!dem) {
-      throw gdal_error("project: DEM " + scene.dem + ": cannot open: " + CPLGetLastErrorMsg());
-    }
-    double gt[6];
-    if (dem->GetGeoTransform(gt) != CE_None) {
-      throw input_error("project: DEM " + scene.dem + ": has no geotransform");
-    }
-    const OGRSpatialReference* dem_srs = dem->GetSpatialRef();
-    if (!dem_srs) throw input_error("project: DEM " + scene.dem + ": has no CRS");
-    OGRSpatialReference dsrs(*dem_srs);
-    dsrs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    const double w = dem->GetRasterXSize(), h = dem->GetRasterYSize();
-    Extent de{std::min(gt[0], gt[0] + w * gt[1] + h * gt[2]),
-              std::min(gt[3], gt[3] + w * gt[4] + h * gt[5]),
-              std::max(gt[0], gt[0] + w * gt[1] + h * gt[2]),
-              std::max(gt[3], gt[3] + w * gt[4] + h * gt[5])};
-    auto t = make_transform(dsrs, *frame_srs, "DEM to the scene frame");
-    Extent e = transform_bounds(*t, de, "DEM " + scene.dem);
+    // The DEM module opens it and resolves its CRS (own, or assume_crs).
+    const DemFootprint footprint = dem_footprint({scene.dem, scene.assume_crs});
+    const auto dem_srs = srs_from(footprint.crs_wkt, "DEM CRS");
+    auto t = make_transform(*dem_srs, *frame_srs, "DEM to the scene frame");
+    Extent e = transform_bounds(*t, footprint.bounds, "DEM " + scene.dem);
     e.xmin -= frame.origin_x;
     e.xmax -= frame.origin_x;
     e.ymin -= frame.origin_y;

@@ -1,8 +1,10 @@
 // decalprep render — draws a package over terrain headless (GL via EGL, or
 // the CPU evaluator with --cpu) and writes a PNG. Thin: parsing and calls
 // into prep_render (prep/render.hpp).
+#include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include "command.hpp"
@@ -10,8 +12,6 @@
 #include "prep/render.hpp"
 
 #ifdef PREP_RENDER_HAVE_READER
-#include <nlohmann/json.hpp>
-
 #include "decal/reader.hpp"
 #endif
 
@@ -19,8 +19,9 @@ namespace {
 
 struct RenderArgs {
   std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye, target;
-  std::string aa = "none", binding = "ssbo", only;
-  double fov = 45.0, pitch = 45.0, z_scale = 1.0;
+  std::string aa = "none", binding = "ssbo", only, assume_crs;
+  double fov = 45.0, pitch = 45.0;
+  std::optional<double> z_scale, nodata_fill;  // none: the package's
   uint32_t frames = 1;
   bool cpu = false, stats = false, ortho = false, fit = false, flat = false;
 };
@@ -120,30 +121,37 @@ void run(const RenderArgs& a) {
     terrain_extent.ymax = std::max(terrain_extent.ymax, view_extent.ymax);
   }
   // Terrain: --dem, else the DEM the package was built with (its metadata's
-  // build_options.dem) when it can still be read, else flat. --flat forces flat.
+  // build_options.dem) when it can still be read, else flat. --flat forces
+  // flat. The surface settings the package was built with (z-scale, no-data
+  // fill, assumed CRS) apply unless given here, so the terrain is the
+  // surface the dynamic lines were matched to (prep/dem.hpp).
   if (a.flat && !a.dem.empty()) throw prep::usage_error("render: --flat and --dem exclude each other");
-  std::string dem = a.flat ? std::string() : a.dem;
-  bool dem_from_package = false;
-  if (!a.flat && dem.empty()) {
-    const auto meta = nlohmann::json::parse(pkg.metadata_json(), nullptr, /*allow_exceptions=*/false);
-    if (meta.is_object() && meta.contains("build_options") && meta["build_options"].is_object()) {
-      const auto& bo = meta["build_options"];
-      if (bo.contains("dem") && bo["dem"].is_string()) dem = bo["dem"].get<std::string>();
-    }
-    dem_from_package = !dem.empty();
+  prep::DemSpec dem = R::recorded_dem(std::string(pkg.metadata_json()));
+  const bool dem_from_package = !a.flat && a.dem.empty() && !dem.path.empty();
+  if (a.flat) dem.path.clear();
+  else if (!a.dem.empty()) dem.path = a.dem;
+  if (a.z_scale) {
+    if (!(*a.z_scale > 0) || !std::isfinite(*a.z_scale))
+      throw prep::usage_error("render: --z-scale must be a positive number");
+    dem.z_scale = *a.z_scale;
   }
+  if (a.nodata_fill) {
+    if (!std::isfinite(*a.nodata_fill)) throw prep::usage_error("render: --nodata-fill must be a finite height");
+    dem.nodata_fill = *a.nodata_fill;
+  }
+  if (!a.assume_crs.empty()) dem.assume_crs = a.assume_crs;
   R::Heightfield terrain;
-  if (dem.empty()) {
+  if (dem.path.empty()) {
     terrain = R::flat_heightfield(terrain_extent);
   } else if (!dem_from_package) {
-    terrain = R::load_heightfield(dem, src.frame, terrain_extent, 512, a.z_scale);
+    terrain = R::load_heightfield(dem, src.frame, terrain_extent, R::kMeshSamples);
   } else {
     try {
-      terrain = R::load_heightfield(dem, src.frame, terrain_extent, 512, a.z_scale);
-      std::fprintf(stderr, "render: terrain from the package's build DEM %s (--flat to ignore it)\n", dem.c_str());
+      terrain = R::load_heightfield(dem, src.frame, terrain_extent, R::kMeshSamples);
+      std::fprintf(stderr, "render: terrain from the package's build DEM %s (--flat to ignore it)\n", dem.path.c_str());
     } catch (const prep::error& e) {
       std::fprintf(stderr, "render: warning: the package was built with DEM %s, which cannot be read here (%s); "
-                   "drawing flat terrain (pass --dem PATH)\n", dem.c_str(), e.what());
+                   "drawing flat terrain (pass --dem PATH)\n", dem.path.c_str(), e.what());
       terrain = R::flat_heightfield(terrain_extent);
     }
   }
@@ -186,6 +194,10 @@ void run(const RenderArgs& a) {
     std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), w, h, a.binding.c_str(), a.aa.c_str());
     std::printf("%-48s %12s %12s\n", "pass", "gpu ms", "wall ms");
     for (const auto& t : img.times) std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
+    std::printf("terrain: %ux%u vertices, within %s of the DEM surface\n", terrain.nx, terrain.ny,
+                std::isfinite(terrain.surface_error_bound)
+                    ? (std::to_string(terrain.surface_error_bound * 1e3) + " mm").c_str()
+                    : "an unbounded distance (mesh not on the DEM lattice)");
     if (img.dyn_kept || img.dyn_segments)
       std::printf("dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
                   img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
@@ -210,7 +222,13 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_option("--dem", args->dem,
                   "DEM raster (any GDAL path); default: the DEM the package was built with, if readable, else flat");
   cmd->add_flag("--flat", args->flat, "Flat terrain, even if the package was built with a DEM");
-  cmd->add_option("--z-scale", args->z_scale, "Height exaggeration");
+  cmd->add_option("--z-scale", args->z_scale, "Height exaggeration (default: the package's build --z-scale, else 1)");
+  cmd->add_option("--nodata-fill", args->nodata_fill,
+                  "Height for DEM no-data, raw DEM units (default: the package's build --nodata-fill, else the "
+                  "nearest valid cell)");
+  cmd->add_option("--assume-crs", args->assume_crs,
+                  "CRS of a DEM that has none (default: the package's build --assume-crs; otherwise such a DEM is an "
+                  "error)");
   cmd->add_option("--extent", args->extent,
                   "Top-down orthographic view xmin,ymin,xmax,ymax in absolute coordinates of the package's frame CRS "
                   "(as build --extent and the world file)");
