@@ -1,4 +1,4 @@
-// libprep/evaluate/png_writer.cpp — PNG and world-file output for
+// libprep/evaluate/png_writer.cpp — the one PNG and world-file writer, for
 // `decalprep render --cpu` (and anything else that writes rasters).
 #include <png.h>
 

@@ -84,7 +84,7 @@ TEST(DynamicLines, KeepTheirPixelWidthWhenZoomedOut) {
     Shot s = shoot(m, view, W, H);
     if (!s.ok) GTEST_SKIP() << "no headless GL";
     std::filesystem::create_directories("render-out");
-    R::write_png("render-out/dynamic_zoom" + std::to_string(int(zoom)) + ".png", s.img.rgba, W, H);
+    prep::write_png_rgba("render-out/dynamic_zoom" + std::to_string(int(zoom)) + ".png", W, H, s.img.rgba);
     // A column through the red line away from the blue one: 4 px = 2 x half width.
     uint32_t col = W / 2 - 6;
     int width_px = column_coverage(s.img, col);

@@ -76,7 +76,7 @@ TEST_P(RenderGlBinding, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
   } catch (const prep::render_error& e) {
     GTEST_SKIP() << "no headless GL here: " << e.what();
   }
-  R::write_png((out_dir() / (GetParam() == R::Binding::ssbo ? "hand_topdown_ssbo.png" : "hand_topdown_texture.png")).string(), img.rgba, img.width, img.height);
+  prep::write_png_rgba((out_dir() / (GetParam() == R::Binding::ssbo ? "hand_topdown_ssbo.png" : "hand_topdown_texture.png")).string(), img.width, img.height, img.rgba);
   size_t covered = 0, bad = 0;
   for (uint32_t j = 0; j < opt.height; ++j)
     for (uint32_t i = 0; i < opt.width; ++i) {
@@ -141,7 +141,7 @@ TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) 
   } catch (const prep::render_error& e) {
     GTEST_SKIP() << "no headless GL here: " << e.what();
   }
-  R::write_png((out_dir() / "hand_perspective.png").string(), img.rgba, img.width, img.height);
+  prep::write_png_rgba((out_dir() / "hand_perspective.png").string(), img.width, img.height, img.rgba);
   // Rays exactly as render_cpu builds them.
   const double aspect = double(opt.width) / opt.height;
   const auto& c = opt.camera;

@@ -11,9 +11,7 @@
 #include "prep/project.hpp"
 #include "prep/render.hpp"
 
-#ifdef PREP_RENDER_HAVE_READER
 #include "decal/reader.hpp"
-#endif
 
 namespace {
 
@@ -45,10 +43,6 @@ struct RenderArgs {
 
 void run(const RenderArgs& a) {
   namespace R = prep::render;
-#ifndef PREP_RENDER_HAVE_READER
-  (void)a;
-  throw prep::render_error("render: this build has no package reader (decal_reader)");
-#else
   decal::Package pkg;
   if (decal::Status s = decal::Package::open(a.package, pkg); !s) throw prep::format_error(s.message);
   R::DecalSource src = R::source_of(pkg);
@@ -181,10 +175,10 @@ void run(const RenderArgs& a) {
   if (!a.cpu) throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
   R::Image img = R::render_cpu(src, terrain, opt);
 #endif
-  R::write_png(a.output, img.rgba, img.width, img.height);
+  prep::write_png_rgba(a.output, img.width, img.height, img.rgba);
   // The world file carries the absolute extent as given (not origin + relative).
   if (topdown) prep::write_world_file(a.output, abs_view, w, h, src.frame.crs_wkt);
-  if (!a.decals_png.empty()) R::write_png(a.decals_png, R::quantise(img.decals), img.width, img.height);
+  if (!a.decals_png.empty()) prep::write_png_rgba(a.decals_png, img.width, img.height, prep::to_rgba8(img.decals));
   if (!a.raw.empty()) {
     std::ofstream out(a.raw, std::ios::binary);
     out.write(reinterpret_cast<const char*>(img.decals.data()), std::streamsize(img.decals.size() * sizeof(float)));
@@ -202,7 +196,6 @@ void run(const RenderArgs& a) {
       std::printf("dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
                   img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
   }
-#endif
 }
 
 const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {

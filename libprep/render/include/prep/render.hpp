@@ -183,13 +183,7 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
 // imaged area.
 bool is_topdown(const Camera& camera, uint32_t width, uint32_t height, Extent* extent = nullptr);
 
-// PNG (8-bit RGBA) through libpng; throws output_error naming the path.
-void write_png(const std::string& path, const std::vector<uint8_t>& rgba, uint32_t width, uint32_t height);
-// Decal layer as 8-bit PNG (straight alpha).
-std::vector<uint8_t> quantise(const std::vector<float>& rgba);
-// ESRI world file beside a top-down PNG (pixel size and upper-left pixel
-// centre in the frame CRS, absolute coordinates).
-void write_world_file(const std::string& png_path, const Extent& extent, uint32_t width, uint32_t height,
-                      const SceneFrame& frame);
+// PNG and world-file output: prep::write_png_rgba, prep::to_rgba8 and
+// prep::write_world_file (prep/evaluate.hpp), one writer for every raster.
 
 }  // namespace prep::render
