@@ -18,6 +18,8 @@
 
 namespace prep {
 
+class Progress;  // prep/progress.hpp
+
 // ----------------------------------------------------------------- the ask --
 
 enum class DecalKind { polygon, line, outline };
@@ -84,6 +86,10 @@ struct BuildOptions {
   double z_scale = 1.0;
   std::optional<double> nodata_fill;   // none: nearest valid sample
   unsigned threads = 0;                // 0: all hardware threads
+  // Not from the scene file: where the build stage reports its sub-stages
+  // (build.lines, build.quadtrees, build.grid, build.cells, build.dynamic;
+  // prep/progress.hpp). Null: silent. Output only.
+  Progress* progress = nullptr;
 };
 
 struct SceneSpec {
