@@ -451,9 +451,10 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_flag("--dry-run", args->dry_run, "Stop after clean: write the report, no package");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress or summary on stderr (unless --progress is given)");
   cmd->add_option("--progress", args->progress,
-                  "auto | tty | plain | json | none (default auto: tty on a terminal, else plain). "
-                  "tty: one redrawn line per stage; plain: a line per stage every 5 s and at its end; "
-                  "json: one JSON object per line; batch mode: each scene's log")
+                  "Progress on stderr: auto (default: tty on a terminal, else plain) | tty (one redrawn "
+                  "line per stage) | plain (a line per stage every 5 s and at its end) | json (one "
+                  "object per line) | none. A feature in GEOS for over 30 s is named. Batch mode: "
+                  "in each scene's log")
       ->check(CLI::IsMember({"auto", "tty", "plain", "json", "none"}));
   cmd->add_flag("--skip-failures", args->skip_failures,
                 "Drop a failing feature (recorded in the manifest) and go on; exit code 4 (partial)");
