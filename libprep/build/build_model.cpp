@@ -24,22 +24,17 @@
 
 namespace prep {
 
-using namespace detail;
+namespace detail {
 
-namespace {
-
-// Drawing order (thesis §4.2.1 BVHs): importance, else length (lines) or area
-// (polygons), largest first; ties by layer, feature id, part, input index, so
-// the order is total. Returns rank per item (0 = drawn on top).
-template <class Key>
-std::vector<uint32_t> ranks_of(const std::vector<Key>& keys) {
+std::vector<uint32_t> draw_ranks(const std::vector<DrawKey>& keys) {
   std::vector<uint32_t> idx(keys.size());
   std::iota(idx.begin(), idx.end(), 0u);
   std::sort(idx.begin(), idx.end(), [&](uint32_t a, uint32_t b) {
-    const Key& x = keys[a];
-    const Key& y = keys[b];
+    const DrawKey& x = keys[a];
+    const DrawKey& y = keys[b];
+    if (x.layer != y.layer) return x.layer > y.layer;  // later layer on top
+    if (x.kind != y.kind) return x.kind < y.kind;      // a layer's lines over its polygons
     if (x.primary != y.primary) return x.primary > y.primary;
-    if (x.layer != y.layer) return x.layer < y.layer;
     if (x.fid != y.fid) return x.fid < y.fid;
     if (x.part != y.part) return x.part < y.part;
     return x.input < y.input;
@@ -48,6 +43,12 @@ std::vector<uint32_t> ranks_of(const std::vector<Key>& keys) {
   for (uint32_t r = 0; r < idx.size(); ++r) rank[idx[r]] = r;
   return rank;
 }
+
+}  // namespace detail
+
+using namespace detail;
+
+namespace {
 
 struct PolyRing {
   std::vector<QPoint> ring;
@@ -181,10 +182,9 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
 
   // ---- lines: vertices, properties, corners, widened segments -------------
   std::vector<SegmentShape> shapes;
-  std::vector<LineSortKey> line_keys;
-  build_lines(scene, options, m, shapes, line_keys);
-  const std::vector<uint32_t> line_rank = ranks_of(line_keys);
-  for (size_t i = 0; i < m.line_props.size(); ++i) m.line_props[i].order = line_rank[i];
+  std::vector<DrawKey> draw_keys;  // lines first, then exterior polygons
+  build_lines(scene, options, m, shapes, draw_keys);
+  const size_t n_lines = draw_keys.size();
   m.stats.line_segments = shapes.size();
 
   // ---- polygons: quantised rings, then one quad-tree per ring --------------
@@ -200,14 +200,6 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
     for (const Ring& h : p.holes) qrings[i].push_back(quantise_ring(h, qerr[i], w.str() + " hole"));
   });
   std::vector<PolyRing> rings;
-  struct PolyKey {
-    double primary;
-    uint32_t layer;
-    int64_t fid;
-    int part;
-    uint32_t input;
-  };
-  std::vector<PolyKey> ext_keys;
   std::vector<uint32_t> ext_index;  // package index of each exterior
   for (size_t i = 0; i < np; ++i) {
     const ScenePolygon& p = scene.polygons[i];
@@ -232,8 +224,8 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
     const int32_t ext = int32_t(rings.size());
     rings.push_back({std::move(qrings[i][0]), -1, uint32_t(i)});
     ext_index.push_back(uint32_t(ext));
-    ext_keys.push_back({std::isnan(p.order_value) ? p.area : p.order_value, p.layer, p.fid, p.part,
-                        uint32_t(i)});
+    draw_keys.push_back({std::isnan(p.order_value) ? p.area : p.order_value, p.layer, DrawKind::polygon,
+                         p.fid, p.part, uint32_t(i)});
     for (size_t h = 1; h < qrings[i].size(); ++h) {
       if (qrings[i][h].size() < 3) {
         drop("interior ring " + std::to_string(h - 1) +
@@ -243,9 +235,12 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
       rings.push_back({std::move(qrings[i][h]), ext, uint32_t(i)});
     }
   }
-  const std::vector<uint32_t> ext_rank = ranks_of(ext_keys);
+  // One rank space for lines and exterior polygons; interiors take their
+  // exterior's rank.
+  const std::vector<uint32_t> rank = draw_ranks(draw_keys);
+  for (size_t i = 0; i < n_lines; ++i) m.line_props[i].order = rank[i];
   std::vector<uint32_t> order_of_poly(rings.size(), 0);
-  for (size_t k = 0; k < ext_index.size(); ++k) order_of_poly[ext_index[k]] = ext_rank[k];
+  for (size_t k = 0; k < ext_index.size(); ++k) order_of_poly[ext_index[k]] = rank[n_lines + k];
   for (size_t r = 0; r < rings.size(); ++r)
     if (rings[r].exterior >= 0) order_of_poly[r] = order_of_poly[size_t(rings[r].exterior)];
 

@@ -76,15 +76,27 @@ struct SegmentShape {
 // Lines converted to package arrays (line_vertices, line_vertex_line,
 // line_props without `order`, line_corners) plus one shape per segment.
 // Sort keys for the drawing order are returned per line.
-struct LineSortKey {
-  double primary;  // importance, else length
-  uint32_t layer;
+//
+// Drawing order (formats/SPEC.md "Drawing order"): static lines and exterior
+// polygons share one rank space, rank 0 drawn on top. A later scene layer is
+// above an earlier one; within a layer its lines are above its polygons
+// (a layer's outlines over its own fill); within a layer and kind the
+// importance attribute, else length or area, larger on top (thesis §4.2.1);
+// then feature id, part and input index, so the order is total.
+enum class DrawKind : uint8_t { line = 0, polygon = 1 };
+struct DrawKey {
+  double primary;  // importance, else length (lines) or area (polygons)
+  uint32_t layer;  // scene layer index (file order)
+  DrawKind kind;
   int64_t fid;
   int part;
-  uint32_t input;
+  uint32_t input;  // index among the items of this kind
 };
 void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalModel& model,
-                 std::vector<SegmentShape>& shapes, std::vector<LineSortKey>& keys);
+                 std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys);
+
+// Rank per key (0 = drawn on top) under the drawing order above.
+std::vector<uint32_t> draw_ranks(const std::vector<DrawKey>& keys);
 
 // Resolves a layer colour for one feature value (ramp or constant).
 uint32_t resolve_color(const LayerColor& color, double value);

@@ -157,7 +157,7 @@ uint32_t resolve_color(const LayerColor& color, double value) {
 }
 
 void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalModel& model,
-                 std::vector<SegmentShape>& shapes, std::vector<LineSortKey>& keys) {
+                 std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys) {
   const size_t nl = scene.lines.size();
   // Per-layer style, with the outline-mode fallback of thesis §3.6 (inset and
   // offset need the miter corner style).
@@ -224,8 +224,8 @@ void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalM
     model.line_props.push_back(o.props);
     const bool closed = o.props.style & decal::kStyleClosedBit;
     nseg += uint32_t(closed ? o.q.size() : o.q.size() - 1);
-    keys.push_back({std::isnan(l.order_value) ? l.length : l.order_value, l.layer, l.fid, l.part,
-                    uint32_t(i)});
+    keys.push_back({std::isnan(l.order_value) ? l.length : l.order_value, l.layer, DrawKind::line, l.fid,
+                    l.part, uint32_t(i)});
   }
   first_vertex.push_back(uint32_t(model.line_vertices.size()));
   seg_first.push_back(nseg);

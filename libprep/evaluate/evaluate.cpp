@@ -17,7 +17,7 @@
 // 2. Box test used everywhere: P in box (xmin,ymin,xmax,ymax) <=>
 //    xmin <= Pq.x <= xmax and ymin <= Pq.y <= ymax (closed). Empty boxes have
 //    xmin > xmax and contain nothing.
-// 3. BVH traversal (stack-less, Eq. 4.5-4.7), for lines first, then polygons:
+// 3. BVH traversal (stack-less, Eq. 4.5-4.7), one for lines, one for polygons:
 //      (first, P, I, _) = *_bvh_range[cell]; if P == 0 skip. i = 0.
 //      loop: if P in box[first + i]:
 //              if i < I: i = 2i + 1; continue            // descend left
@@ -25,9 +25,18 @@
 //            while i > 0 and i is even: i = (i - 1) / 2   // climb from right children
 //            if i == 0: stop;  i = i + 1                   // right sibling
 //    Leaves are in drawing order, so leaf k is visited before leaf k+1.
-// 4. Compositing (front to back, colours straight alpha, R in the low byte):
+//    Leaves k >= the cell's list count (padding slots) are skipped.
+// 4. Merge and composite. Lines and exterior polygons share one rank space
+//    (LineProps.order, PolyProps.order; 0 = top; formats/SPEC.md "Drawing
+//    order"). The two traversals are two streams in rank order; take the
+//    next leaf of the stream whose rank is smaller (a line on a tie) and
+//    handle it (steps 5, 7). Packages older than format 1.2 ranked lines and
+//    polygons separately and drew every line over every polygon: there a
+//    polygon's rank is read as order + the number of lines
+//    (StaticView::polygon_rank_bias). Compositing is front to back, colours
+//    straight alpha, R in the low byte:
 //      C += (1 - A) * a * rgb;  A += (1 - A) * a;  stop everything once
-//      A >= 0.999. Lines are composited before polygons (lines on top).
+//      A >= 0.999.
 // 5. Line leaf k: (s, e) = cell_segments[cell_segment_range[cell].x + k];
 //    line = line_vertex_line[s]; props = line_props[line]. If `line` is the
 //    last line decided, skip (a line contributes once; its segments are
@@ -255,29 +264,54 @@ struct Compositor {
   }
 };
 
-// Stack-less traversal of one cell's implicit BVH (Eq. 4.5-4.7); calls
-// leaf(k) for every leaf whose box holds P, in leaf order, until it returns
-// true (stop).
-template <class Leaf>
-void traverse(const uvec4& range, std::span<const ivec4> boxes, const PointQ& p, EvalCounters* k,
-              Leaf&& leaf) {
-  const uint32_t first = range[0], slots = range[1], internal = range[2];
-  if (slots == 0) return;
-  uint32_t i = 0;
-  for (;;) {
-    if (k) ++k->bvh_nodes;
-    if (in_box(boxes[first + i], p)) {
-      if (i < internal) {
-        i = 2 * i + 1;
+// Stack-less traversal of one cell's implicit BVH (Eq. 4.5-4.7) as a cursor:
+// next() returns the next leaf whose box holds P, in leaf order (which is
+// drawing order), or kNoLeaf once the traversal has ended. Leaves past the
+// cell's list (padding slots) are skipped.
+constexpr uint32_t kNoLeaf = ~0u;
+
+class BvhCursor {
+ public:
+  BvhCursor() = default;
+  BvhCursor(const uvec4& range, uint32_t leaves, std::span<const ivec4> boxes, const PointQ& p,
+            EvalCounters* k)
+      : boxes_(boxes), p_(p), k_(k), first_(range[0]), internal_(range[2]), leaves_(leaves),
+        done_(range[1] == 0) {}
+
+  uint32_t next() {
+    while (!done_) {
+      if (k_) ++k_->bvh_nodes;
+      if (in_box(boxes_[first_ + i_], p_)) {
+        if (i_ < internal_) {
+          i_ = 2 * i_ + 1;
+          continue;
+        }
+        const uint32_t leaf = i_ - internal_;
+        climb();
+        if (leaf < leaves_) return leaf;
         continue;
       }
-      if (leaf(i - internal)) return;
+      climb();
     }
-    while (i > 0 && (i & 1u) == 0) i = (i - 1) / 2;
-    if (i == 0) return;
-    ++i;
+    return kNoLeaf;
   }
-}
+
+ private:
+  // Up from right children, then to the right sibling; the root ends it.
+  void climb() {
+    while (i_ > 0 && (i_ & 1u) == 0) i_ = (i_ - 1) / 2;
+    if (i_ == 0)
+      done_ = true;
+    else
+      ++i_;
+  }
+
+  std::span<const ivec4> boxes_;
+  PointQ p_{0, 0};
+  EvalCounters* k_ = nullptr;
+  uint32_t first_ = 0, internal_ = 0, leaves_ = 0, i_ = 0;
+  bool done_ = true;
+};
 
 bool cell_of(const GridParams& g, const PointQ& p, uint32_t& cell) {
   if (g.nx == 0 || g.ny == 0) return false;
@@ -316,6 +350,31 @@ StaticView view_of(const DecalModel& m) {
   return v;
 }
 
+std::vector<DrawRun> draw_runs(const StaticView& v) {
+  struct Item {
+    uint64_t rank;
+    DrawRun::Kind kind;
+    uint32_t order;
+  };
+  std::vector<Item> items;
+  items.reserve(v.line_props.size() + v.poly_props.size());
+  for (const decal::LineProps& l : v.line_props) items.push_back({l.order, DrawRun::Kind::lines, l.order});
+  for (const decal::PolyProps& g : v.poly_props)
+    if (g.exterior < 0) items.push_back({g.order + v.polygon_rank_bias, DrawRun::Kind::polygons, g.order});
+  // Ties (none in a valid package) put the line first, as evaluate() does.
+  std::sort(items.begin(), items.end(), [](const Item& a, const Item& b) {
+    return a.rank != b.rank ? a.rank < b.rank : a.kind < b.kind;
+  });
+  std::vector<DrawRun> runs;
+  for (const Item& it : items) {
+    if (runs.empty() || runs.back().kind != it.kind)
+      runs.push_back({it.kind, it.order, it.order + 1});
+    else
+      runs.back().hi = std::max(runs.back().hi, it.order + 1);
+  }
+  return runs;
+}
+
 bool polygon_ring_covers(const StaticView& v, uint32_t poly, double x, double y) {
   return quadtree_covers(v, v.poly_root_node[poly], {x / kQ, y / kQ}, nullptr);
 }
@@ -330,36 +389,52 @@ EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
   uint32_t cell;
   if (!cell_of(v.grid, p, cell)) return out;
   Compositor comp{out};
-  bool opaque = false;
-  if (!v.line_bvh_range.empty()) {
-    const uvec2 list = v.cell_segment_range[cell];
-    int64_t last_line = -1;
-    traverse(v.line_bvh_range[cell], v.line_bvh_box, p, k, [&](uint32_t leaf) {
-      const uvec2 seg = v.cell_segments[list[0] + leaf];
-      const uint32_t line = v.line_vertex_line[seg[0]];
-      if (int64_t(line) == last_line) return false;
-      if (k) ++k->segment_tests;
-      const SegmentHit hit = segment_test(v, seg[0], seg[1], p, k);
-      if (hit == SegmentHit::none) return false;
-      last_line = line;  // decided: covered, or clipped away for every segment
-      if (hit == SegmentHit::clipped) return false;
-      if (!out.line_covered) out.top_line = int32_t(line);
-      out.line_covered = true;
-      opaque = comp.add(v.line_props[line].rgba);
-      return opaque;
-    });
-  }
-  if (opaque || v.poly_bvh_range.empty()) return out;
-  const uvec2 list = v.cell_poly_range[cell];
-  traverse(v.poly_bvh_range[cell], v.poly_bvh_box, p, k, [&](uint32_t leaf) {
-    const uvec4 cp = v.cell_polys[list[0] + leaf];
+  // Step 3/4: two front-to-back streams, one per BVH, merged by rank.
+  const uvec2 lines = v.line_bvh_range.empty() ? uvec2{0, 0} : v.cell_segment_range[cell];
+  const uvec2 polys = v.poly_bvh_range.empty() ? uvec2{0, 0} : v.cell_poly_range[cell];
+  BvhCursor line_cursor, poly_cursor;
+  if (!v.line_bvh_range.empty()) line_cursor = {v.line_bvh_range[cell], lines[1], v.line_bvh_box, p, k};
+  if (!v.poly_bvh_range.empty()) poly_cursor = {v.poly_bvh_range[cell], polys[1], v.poly_bvh_box, p, k};
+  auto line_of_leaf = [&](uint32_t leaf) { return v.line_vertex_line[v.cell_segments[lines[0] + leaf][0]]; };
+  auto line_rank = [&](uint32_t leaf) { return uint64_t(v.line_props[line_of_leaf(leaf)].order); };
+  auto poly_rank = [&](uint32_t leaf) {
+    return uint64_t(v.poly_props[v.cell_polys[polys[0] + leaf][0]].order) + v.polygon_rank_bias;
+  };
+  int64_t last_line = -1;
+  // Line leaf (step 5): true once opaque.
+  auto line_leaf = [&](uint32_t leaf) {
+    const uvec2 seg = v.cell_segments[lines[0] + leaf];
+    const uint32_t line = v.line_vertex_line[seg[0]];
+    if (int64_t(line) == last_line) return false;
+    if (k) ++k->segment_tests;
+    const SegmentHit hit = segment_test(v, seg[0], seg[1], p, k);
+    if (hit == SegmentHit::none) return false;
+    last_line = line;  // decided: covered, or clipped away for every segment
+    if (hit == SegmentHit::clipped) return false;
+    if (!out.line_covered) out.top_line = int32_t(line);
+    out.line_covered = true;
+    return comp.add(v.line_props[line].rgba);
+  };
+  // Polygon leaf (step 7): true once opaque.
+  auto poly_leaf = [&](uint32_t leaf) {
+    const uvec4 cp = v.cell_polys[polys[0] + leaf];
     if (!quadtree_covers(v, cp[1], p, k)) return false;
     for (uint32_t j = cp[2]; j < cp[2] + cp[3]; ++j)
       if (quadtree_covers(v, v.cell_holes[j][1], p, k)) return false;
     if (!out.polygon_covered) out.top_polygon = int32_t(cp[0]);
     out.polygon_covered = true;
     return comp.add(v.poly_props[cp[0]].rgba);
-  });
+  };
+  uint32_t l = line_cursor.next(), g = poly_cursor.next();
+  while (l != kNoLeaf || g != kNoLeaf) {
+    if (g == kNoLeaf || (l != kNoLeaf && line_rank(l) < poly_rank(g))) {
+      if (line_leaf(l)) break;
+      l = line_cursor.next();
+    } else {
+      if (poly_leaf(g)) break;
+      g = poly_cursor.next();
+    }
+  }
   return out;
 }
 

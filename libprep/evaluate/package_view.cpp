@@ -85,6 +85,7 @@ StaticView view_of(const decal::Package& p) {
   v.line_bvh_box = p.array<ivec4>(BlobId::line_bvh_box);
   v.poly_bvh_range = p.array<uvec4>(BlobId::poly_bvh_range);
   v.poly_bvh_box = p.array<ivec4>(BlobId::poly_bvh_box);
+  if (p.minor() < 2) v.polygon_rank_bias = v.line_props.size();
   const size_t cells = size_t(v.grid.nx) * v.grid.ny;
   check_bvh("lines", v.line_bvh_range, v.cell_segment_range, v.line_bvh_box.size(), cells);
   check_bvh("polygons", v.poly_bvh_range, v.cell_poly_range, v.poly_bvh_box.size(), cells);

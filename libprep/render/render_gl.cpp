@@ -1,5 +1,6 @@
 // The GL path (thesis §4.4): terrain G-buffer, static polygon and line
-// passes over the back-projected depth, composite, read back.
+// passes over the back-projected depth (one per run of the drawing order),
+// composite, read back.
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>
 
@@ -212,6 +213,7 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     GLuint f_terrain = gl.framebuffer(t_color, t_depth), f_decal = gl.framebuffer(t_decal, 0),
            f_final = gl.framebuffer(t_final, 0), f_dyn = gl.framebuffer(t_dyn, 0);
 
+    const std::vector<DrawRun> runs = draw_runs(source.view);
     const bool tex = opt.binding == Binding::texture;
     std::string defines = tex ? "#define DECAL_TEXTURE 1\n" : "";
     std::string aa_defines = opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n"
@@ -297,24 +299,30 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     };
     // A kind with no per-cell ranges is absent: its pass would index the
     // 16-byte placeholder buffer, so it is skipped.
-    if (opt.draw_polygons && gpu->count(decal::BlobId::poly_bvh_range) == uint64_t(gp.nx) * gp.ny &&
-        gpu->count(decal::BlobId::cell_poly_range) == uint64_t(gp.nx) * gp.ny) {
-      timer.begin("static polygons");
-      set_common(p_poly);
+    const bool have_polygons = opt.draw_polygons &&
+                               gpu->count(decal::BlobId::poly_bvh_range) == uint64_t(gp.nx) * gp.ny &&
+                               gpu->count(decal::BlobId::cell_poly_range) == uint64_t(gp.nx) * gp.ny;
+    const bool have_lines = opt.draw_lines &&
+                            gpu->count(decal::BlobId::line_bvh_range) == uint64_t(gp.nx) * gp.ny &&
+                            gpu->count(decal::BlobId::cell_segment_range) == uint64_t(gp.nx) * gp.ny;
+    // The drawing order as runs of one kind, top first (formats/SPEC.md
+    // "Drawing order"), each pass blended under the earlier ones: front to
+    // back, as the evaluator composites.
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_ONE_MINUS_DST_ALPHA, GL_ONE);
+    for (const DrawRun& run : runs) {
+      const bool lines = run.kind == DrawRun::Kind::lines;
+      if (lines ? !have_lines : !have_polygons) continue;
+      timer.begin(std::string(lines ? "static lines" : "static polygons") + " [" + std::to_string(run.lo) + ", " +
+                  std::to_string(run.hi) + ")");
+      const GLuint p = lines ? p_line : p_poly;
+      set_common(p);
+      glUniform1ui(glGetUniformLocation(p, "u_order_lo"), run.lo);
+      glUniform1ui(glGetUniformLocation(p, "u_order_hi"), run.hi);
       glDrawArrays(GL_TRIANGLES, 0, 3);
       timer.end();
     }
-    // Lines over polygons (thesis §4.4.1): premultiplied "over".
-    if (opt.draw_lines && gpu->count(decal::BlobId::line_bvh_range) == uint64_t(gp.nx) * gp.ny &&
-        gpu->count(decal::BlobId::cell_segment_range) == uint64_t(gp.nx) * gp.ny) {
-      timer.begin("static lines");
-      glEnable(GL_BLEND);
-      glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-      set_common(p_line);
-      glDrawArrays(GL_TRIANGLES, 0, 3);
-      glDisable(GL_BLEND);
-      timer.end();
-    }
+    glDisable(GL_BLEND);
 
     if (f_static != f_decal) {
       timer.begin("msaa resolve");

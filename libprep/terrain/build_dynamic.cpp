@@ -148,14 +148,18 @@ void build_dynamic(const SceneFeatures& scene, const BuildOptions& options, cons
     }
   }
 
-  // Line properties; drawing order: importance attribute (order_value) when
-  // present, else length; larger on top (rank 0), ties by input order.
+  // Line properties; drawing order (formats/SPEC.md "Drawing order"): a
+  // later scene layer on top of an earlier one; within a layer the
+  // importance attribute (order_value) when present, else length, larger on
+  // top (rank 0); ties by input order.
   const auto nl = static_cast<uint32_t>(lines.size());
   std::vector<uint32_t> by_rank(nl);
   std::iota(by_rank.begin(), by_rank.end(), 0u);
   auto key = [&](const SceneLine& l) { return std::isfinite(l.order_value) ? l.order_value : l.length; };
-  std::stable_sort(by_rank.begin(), by_rank.end(),
-                   [&](uint32_t a, uint32_t b) { return key(lines[a]) > key(lines[b]); });
+  std::stable_sort(by_rank.begin(), by_rank.end(), [&](uint32_t a, uint32_t b) {
+    if (lines[a].layer != lines[b].layer) return lines[a].layer > lines[b].layer;
+    return key(lines[a]) > key(lines[b]);
+  });
   model.dyn_line_props.resize(nl);
   for (uint32_t r = 0; r < nl; ++r) model.dyn_line_props[by_rank[r]].order = r;
   for (uint32_t i = 0; i < nl; ++i) {

@@ -1,4 +1,4 @@
-// Determinism (DESIGN.md §4.3): the same scene built with 1 thread and with
+// Determinism (ARCHITECTURE.md, build): the same scene built with 1 thread and with
 // 2 threads gives byte-identical arrays.
 #include <gtest/gtest.h>
 
@@ -79,19 +79,37 @@ TEST(BuildDeterminism, OneThreadAndTwoThreadsGiveIdenticalBytes) {
   EXPECT_EQ(a.manifest.notes, b.manifest.notes);
 }
 
-TEST(BuildDrawingOrder, RanksAreUniqueAndLargestIsOnTop) {
+TEST(BuildDrawingOrder, LinesAndPolygonsShareOneLayerMajorRankSpace) {
   const prep::SceneFeatures scene = mixed_scene();
   const prep::DecalModel m = prep::build_model(scene, {});
-  std::vector<bool> seen(m.line_props.size(), false);
-  for (const auto& p : m.line_props) {
-    ASSERT_LT(p.order, seen.size());
-    EXPECT_FALSE(seen[p.order]);
-    seen[p.order] = true;
+  // Every static line and exterior polygon holds one rank of 0..N-1.
+  struct Item {
+    uint32_t order, layer;
+    bool line;
+  };
+  std::vector<Item> items;
+  for (size_t i = 0; i < m.line_props.size(); ++i)
+    items.push_back({m.line_props[i].order, m.line_props[i].layer, true});
+  for (const auto& p : m.poly_props)
+    if (p.exterior < 0) items.push_back({p.order, p.layer, false});
+  ASSERT_GT(items.size(), m.line_props.size() + 100u);
+  std::vector<bool> seen(items.size(), false);
+  for (const Item& it : items) {
+    ASSERT_LT(it.order, seen.size());
+    EXPECT_FALSE(seen[it.order]);
+    seen[it.order] = true;
   }
-  // Longest line (input order: lines have length = fid % 17 then outlines with 0).
-  uint32_t top = 0;
+  // Layer-major: a later scene layer (edges 2, roads 1, polygons 0) is on
+  // top of every feature of an earlier one, lines or polygons.
+  std::vector<Item> by_rank(items.size());
+  for (const Item& it : items) by_rank[it.order] = it;
+  for (size_t r = 1; r < by_rank.size(); ++r) EXPECT_GE(by_rank[r - 1].layer, by_rank[r].layer) << "rank " << r;
+  EXPECT_EQ(by_rank.front().layer, 2u);
+  EXPECT_FALSE(by_rank.back().line);
+  // Within the roads layer the longest line is on top (lengths fid % 17).
+  uint32_t top = 0, best = ~0u;
   for (uint32_t i = 0; i < m.line_props.size(); ++i)
-    if (m.line_props[i].order == 0) top = i;
+    if (m.line_props[i].layer == 1 && m.line_props[i].order < best) best = m.line_props[i].order, top = i;
   EXPECT_EQ(scene.lines[top].length, 16.0);
   // Within every cell, segments are sorted by their line's rank.
   for (size_t c = 0; c < m.cell_segment_range.size(); ++c) {

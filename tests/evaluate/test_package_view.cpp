@@ -109,3 +109,24 @@ TEST(RenderTopdown, PngAndWorldFileArePlacedLikeGdalRasterize) {
   GDALClose(ds);
   std::filesystem::remove_all(dir);
 }
+
+// A package written by format 1.1 (tests/formats/legacy/golden_v1_1.decals:
+// the golden scene, tests/tools/golden/scene.toml, built by the last 1.1
+// writer) ranked lines and polygons separately and drew every line over
+// every polygon; a 1.2 reader keeps that.
+TEST(PackageView, FormatOneOnePackageKeepsEveryLineOverEveryPolygon) {
+  const std::string path = std::string(DECALPREP_SOURCE_DIR) + "/tests/formats/legacy/golden_v1_1.decals";
+  decal::Package p;
+  const decal::Status st = decal::Package::open(path, p);
+  ASSERT_TRUE(bool(st)) << st.message;
+  EXPECT_EQ(p.minor(), 1u);
+  const prep::StaticView v = prep::view_of(p);
+  ASSERT_FALSE(v.line_props.empty());
+  EXPECT_EQ(v.polygon_rank_bias, v.line_props.size());
+  const std::vector<prep::DrawRun> runs = prep::draw_runs(v);
+  ASSERT_EQ(runs.size(), 2u);
+  EXPECT_EQ(runs[0].kind, prep::DrawRun::Kind::lines);
+  EXPECT_EQ(runs[0].lo, 0u);
+  EXPECT_EQ(runs[0].hi, uint32_t(v.line_props.size()));
+  EXPECT_EQ(runs[1].kind, prep::DrawRun::Kind::polygons);
+}

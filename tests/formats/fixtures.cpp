@@ -28,8 +28,9 @@ prep::DecalModel small_model() {
     m.line_corners.push_back({{0.1f * i, -0.2f}, {0.5f, 0.25f * i}, {-1.0f, 2.0f}});
   m.cell_segment_range = {{0, 2}, {2, 2}};
   m.cell_segments = {{0, 1}, {1, 2}, {1, 2}, {3, 4}};
-  // polygons: 0 = exterior, 1 = its hole
-  m.poly_props = {{0xffffffffu, 0, -1, 1.0f, 0, 3, {0, 0}}, {0u, 0, 0, NAN, 0, 3, {0, 0}}};
+  // polygons: 0 = exterior, 1 = its hole; rank 2, below both lines (one
+  // rank space, formats/SPEC.md "Drawing order")
+  m.poly_props = {{0xffffffffu, 2, -1, 1.0f, 0, 3, {0, 0}}, {0u, 2, 0, NAN, 0, 3, {0, 0}}};
   m.poly_root_node = {0, 5};
   m.qt_node = {{0, 1}, {1, 0}, {2, 0}, {3, 0}, {1, 0}, {3, 1}};
   m.qt_node_box = {{-8000, -4000, 8000, 4000}, {-8000, -4000, 0, 0}, {0, -4000, 8000, 0},

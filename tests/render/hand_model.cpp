@@ -27,9 +27,11 @@ prep::DecalModel hand_model() {
   m.extent = {0, 0, 100, 100};
   m.grid = {0, 0, 50000, 50000, 2, 2};
   uint32_t n_ext = add_square(m, 20, 80), n_hole = add_square(m, 40, 60), n_island = add_square(m, 45, 55);
-  m.poly_props.push_back({HandShapes::kPolyRgba, 0, -1, 0.f, 0, 0, {0, 0}});
-  m.poly_props.push_back({0, 0, 0, 0.f, 0, 0, {0, 0}});
-  m.poly_props.push_back({HandShapes::kIslandRgba, 1, -1, 0.f, 0, 1, {0, 0}});
+  // One rank space (formats/SPEC.md "Drawing order"): the two lines (ranks 0
+  // and 1) over the exterior (2, its hole too) over the island (3).
+  m.poly_props.push_back({HandShapes::kPolyRgba, 2, -1, 0.f, 0, 0, {0, 0}});
+  m.poly_props.push_back({0, 2, 0, 0.f, 0, 0, {0, 0}});
+  m.poly_props.push_back({HandShapes::kIslandRgba, 3, -1, 0.f, 0, 1, {0, 0}});
   m.poly_root_node = {n_ext, n_hole, n_island};
   // Every cell holds the exterior (with its hole) then the island, in
   // drawing order; BVH of 2 leaves + 1 internal node per cell.

@@ -64,9 +64,10 @@ TEST(BuildDynamic, PropertiesCarryPixelWidthOrderColourAndStyle) {
   prep::build_dynamic(scene, {}, "", m);
   const auto& p = m.dyn_line_props;
   EXPECT_FLOAT_EQ(p[0].half_width, 2.0f);  // 4 px wide
-  // Longest on top: 300 m (rank 0), 240 m, 100 m.
-  EXPECT_EQ(p[1].order, 0u);
-  EXPECT_EQ(p[2].order, 1u);
+  // The later layer on top (rivers, 240 m: rank 0), then within roads the
+  // longest on top: 300 m, 100 m.
+  EXPECT_EQ(p[2].order, 0u);
+  EXPECT_EQ(p[1].order, 1u);
   EXPECT_EQ(p[0].order, 2u);
   EXPECT_EQ(p[0].rgba, 0xff0000ffu);
   // Ramp halfway between black and red.

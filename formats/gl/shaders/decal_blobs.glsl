@@ -45,6 +45,7 @@ DECAL_BLOB(10, isamplerBuffer, poly_bvh_box, ivec4)
 DECAL_BLOB(23, usamplerBuffer, poly_root_node, uint)
 #ifdef DECAL_TEXTURE
 uint  poly_rgba(uint i)         { return texelFetch(t_poly_props, int(2u * i)).x; }
+uint  poly_order(uint i)        { return texelFetch(t_poly_props, int(2u * i)).y; }
 uvec2 cell_poly_range(uint c)   { return texelFetch(t_cell_poly_range, int(c)).xy; }
 uvec4 cell_poly(uint i)         { return texelFetch(t_cell_polys, int(i)); }
 uvec2 cell_hole(uint i)         { return texelFetch(t_cell_holes, int(i)).xy; }
@@ -53,6 +54,7 @@ ivec4 poly_bvh_box(uint i)      { return texelFetch(t_poly_bvh_box, int(i)); }
 uint  poly_root(uint i)         { return texelFetch(t_poly_root_node, int(i)).x; }
 #else
 uint  poly_rgba(uint i)         { return d_poly_props[i].rgba; }
+uint  poly_order(uint i)        { return d_poly_props[i].order; }
 uvec2 cell_poly_range(uint c)   { return d_cell_poly_range[c]; }
 uvec4 cell_poly(uint i)         { return d_cell_polys[i]; }
 uvec2 cell_hole(uint i)         { return d_cell_holes[i]; }

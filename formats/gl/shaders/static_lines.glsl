@@ -6,9 +6,15 @@
 // outline side test (clipped outlines: their ring's quad-tree) ->
 // front-to-back compositing, skipping further segments of a line that
 // already covered the pixel (or was clipped away); early exit when opaque.
-// Output: premultiplied colour, blended over the polygon layer.
+// One pass draws the lines of ranks [u_order_lo, u_order_hi), one run of the
+// drawing order (formats/SPEC.md "Drawing order"; prep::draw_runs); leaves
+// are in rank order, so the walk stops at the first rank past the run.
+// Output: premultiplied colour, blended under what the passes of earlier
+// (higher) runs drew.
 
 layout(location = 0) out vec4 o_color;
+uniform uint u_order_lo;
+uniform uint u_order_hi;
 
 float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
 
@@ -150,8 +156,10 @@ void main() {
         if (k < range.y) {
           uvec2 seg = cell_segment(range.x + k);
           uint line = line_of_vertex(seg.x);
-#ifdef DECAL_AA_COVERAGE
           uvec4 props = line_props(line);
+          if (props.z >= u_order_hi) break;
+          if (props.z < u_order_lo) { i = bvh_next(i); continue; }
+#ifdef DECAL_AA_COVERAGE
           float cov = segment_coverage(seg.x, seg.y, p.xy, line, props, wpix);
           if (line == cur_line) {
             cur_cov = max(cur_cov, cov);
@@ -168,7 +176,6 @@ void main() {
           // Segments of one line are consecutive: a line adds its colour once
           // (thesis Fig. 4.7); a clipped-away line is decided as well.
           if (line != last_line) {
-            uvec4 props = line_props(line);
             int hit = segment_test(seg.x, seg.y, p.xy, line, props);
             if (hit != HIT_NONE) last_line = line;
             if (hit == HIT_COVERED) {

@@ -8,9 +8,15 @@
 // holes are exterior polygons themselves) -> front-to-back compositing,
 // early exit. The numbered steps of the query block at the top of
 // libprep/evaluate/evaluate.cpp are the specification.
-// Output: premultiplied colour of the polygon layer at this pixel.
+// One pass draws the exterior polygons of ranks [u_order_lo, u_order_hi),
+// one run of the drawing order (formats/SPEC.md "Drawing order"); leaves are
+// in rank order, so the walk stops at the first rank past the run.
+// Output: premultiplied colour of the run at this pixel, blended under what
+// the passes of earlier (higher) runs drew.
 
 layout(location = 0) out vec4 o_color;
+uniform uint u_order_lo;
+uniform uint u_order_hi;
 
 // Exterior polygon entry (polygon, culling node, first hole, hole count).
 // Step 7: a point in any of the cell's holes of this polygon is outside
@@ -118,6 +124,9 @@ void main() {
         uint k = i - internal;  // leaf k = the cell's k-th polygon in drawing order
         if (k < range.y) {
           uvec4 e = cell_poly(range.x + k);
+          uint order = poly_order(e.x);
+          if (order >= u_order_hi) break;
+          if (order < u_order_lo) { i = bvh_next(i); continue; }
 #ifdef DECAL_AA_COVERAGE
           float cov = polygon_coverage(e, p.xy, wpix);
           if (cov > 0.0) {

@@ -319,7 +319,7 @@ inline constexpr unsigned char kMagic[8] = {0x89, 'D', 'C', 'L', '\r', '\n', 0x1
 // version other than its own, naming the version; it reads any minor
 // version of its major (newer minors only add optional things).
 inline constexpr uint16_t kVersionMajor = 1;
-inline constexpr uint16_t kVersionMinor = 1;
+inline constexpr uint16_t kVersionMinor = 2;
 
 // Flags. Bits 0-15 are "required": a reader rejects a file with a required
 // bit it does not know. Bits 16-31 are "optional": unknown ones are ignored.

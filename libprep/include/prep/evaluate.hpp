@@ -36,9 +36,25 @@ struct StaticView {
   std::span<const uvec2> cell_holes;
   std::span<const uvec4> line_bvh_range, poly_bvh_range;
   std::span<const ivec4> line_bvh_box, poly_bvh_box;
+  // Added to PolyProps.order when merging the line and polygon streams: 0
+  // for format 1.2 and later (one rank space), the number of lines for older
+  // packages (every line over every polygon).
+  uint64_t polygon_rank_bias = 0;
 };
 
 StaticView view_of(const DecalModel& model);
+
+// The drawing order (formats/SPEC.md "Drawing order") as runs: maximal
+// intervals of consecutive ranks held by one kind, top first. A renderer
+// that draws one kind per pass draws the runs in this order, each pass
+// restricted to ranks [lo, hi) of its kind (PolyProps.order without
+// polygon_rank_bias), compositing front to back; the result equals
+// evaluate()'s merge. At most two runs per scene layer.
+struct DrawRun {
+  enum class Kind : uint8_t { lines, polygons } kind;
+  uint32_t lo = 0, hi = 0;  // ranks of that kind, half-open
+};
+std::vector<DrawRun> draw_runs(const StaticView& view);
 // Reads grid parameters from the package metadata; throws format_error when
 // they are missing or inconsistent with the blobs.
 StaticView view_of(const decal::Package& package);
@@ -51,8 +67,9 @@ struct EvalCounters {
   uint64_t segment_tests = 0;  // line point-in-segment tests
 };
 
-// Result for one world point: colour composited front to back (lines over
-// polygons, early exit at alpha >= 0.999), plus what covered it.
+// Result for one world point: colour composited front to back in drawing
+// order (formats/SPEC.md "Drawing order"; early exit at alpha >= 0.999),
+// plus what covered it.
 struct EvalSample {
   float rgba[4] = {0, 0, 0, 0};  // PREMULTIPLIED, 0..1
   bool polygon_covered = false;  // inside some exterior polygon and no hole of it
