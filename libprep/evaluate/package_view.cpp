@@ -1,6 +1,7 @@
 // libprep/evaluate/package_view.cpp — StaticView over a package read from
-// disk: blobs from decal::Package, grid from the metadata chunk, and the
-// cross-blob checks the evaluator relies on (it indexes without checks).
+// disk: blobs from decal::Package, grid from the metadata chunk, checked by
+// the package's structural check with that grid (the evaluator indexes
+// without checks).
 #include <nlohmann/json.hpp>
 
 #include "decal/inspect.hpp"
@@ -36,35 +37,16 @@ GridParams grid_from_metadata(std::string_view metadata) {
   return g;
 }
 
-// The BVH ranges must describe implicit full trees inside the box blob whose
-// leaves cover the cell's list (thesis layout, libprep/build/bvh.cpp).
-void check_bvh(const char* name, std::span<const uvec4> range, std::span<const uvec2> list,
-               size_t boxes, size_t cells) {
-  if (range.empty() && list.empty()) return;
-  if (range.size() != cells || list.size() != cells)
-    throw format_error(std::string("evaluate: ") + name + ": " + std::to_string(range.size()) +
-                       " BVH ranges / " + std::to_string(list.size()) + " list ranges for " +
-                       std::to_string(cells) + " grid cells");
-  for (size_t c = 0; c < cells; ++c) {
-    const uint64_t first = range[c][0], slots = range[c][1], internal = range[c][2];
-    const bool pow2 = slots == 0 || (slots & (slots - 1)) == 0;
-    if (!pow2 || (slots > 0 && internal != slots - 1) || (slots == 0 && internal != 0) ||
-        list[c][1] > slots || (slots > 0 && first + 2 * slots - 1 > boxes))
-      throw format_error(std::string("evaluate: ") + name + " cell " + std::to_string(c) +
-                         ": BVH range (" + std::to_string(first) + ", " + std::to_string(slots) + ", " +
-                         std::to_string(internal) + ") does not fit " + std::to_string(boxes) +
-                         " boxes and " + std::to_string(list[c][1]) + " leaves");
-  }
-}
-
 }  // namespace
 
 StaticView view_of(const decal::Package& p) {
   using decal::BlobId;
-  if (decal::Status st = decal::validate_indices(p); !st)
-    throw format_error("evaluate: " + st.message);
   StaticView v;
   v.grid = grid_from_metadata(p.metadata_json());
+  // The package's one structural check, with the grid: every index the
+  // evaluator follows is in range and every BVH is a full tree per cell.
+  const decal::Grid grid{v.grid.origin_x, v.grid.origin_y, v.grid.cell_w, v.grid.cell_h, v.grid.nx, v.grid.ny};
+  if (decal::Status st = decal::validate_indices(p, &grid); !st) throw format_error("evaluate: " + st.message);
   v.line_vertices = p.array<ivec2>(BlobId::line_vertices);
   v.line_vertex_line = p.array<uint32_t>(BlobId::line_vertex_line);
   v.line_props = p.array<decal::LineProps>(BlobId::line_props);
@@ -86,11 +68,6 @@ StaticView view_of(const decal::Package& p) {
   v.poly_bvh_range = p.array<uvec4>(BlobId::poly_bvh_range);
   v.poly_bvh_box = p.array<ivec4>(BlobId::poly_bvh_box);
   if (p.minor() < 2) v.polygon_rank_bias = v.line_props.size();
-  const size_t cells = size_t(v.grid.nx) * v.grid.ny;
-  check_bvh("lines", v.line_bvh_range, v.cell_segment_range, v.line_bvh_box.size(), cells);
-  check_bvh("polygons", v.poly_bvh_range, v.cell_poly_range, v.poly_bvh_box.size(), cells);
-  if (v.line_corners.size() != v.line_vertices.size() || v.line_vertex_line.size() != v.line_vertices.size())
-    throw format_error("evaluate: line_corners / line_vertex_line counts differ from line_vertices");
   return v;
 }
 

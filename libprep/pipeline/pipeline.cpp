@@ -352,6 +352,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   if (!request.dry_run) {
     t0 = Clock::now();
     BuildOptions build_options = scene.build;
+    build_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
     build_options.progress = request.progress;
     DecalModel model = build_model(result.scene, build_options, scene.dem);
     timings.emplace_back("build", seconds_since(t0));
@@ -379,6 +380,15 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
                               {"qt_leaf_capacity", scene.build.qt_leaf_capacity},
                               {"qt_max_depth", scene.build.qt_max_depth},
                               {"miter_limit_deg", scene.build.miter_limit_deg}};
+    // What decides the DEM surface (prep/dem.hpp), so that `decalprep render`
+    // draws the surface the dynamic lines were matched to. Only with a DEM.
+    if (!scene.dem.empty()) {
+      auto& bo = extra["build_options"];
+      bo["dem_assume_crs"] = scene.assume_crs;
+      bo["z_scale"] = scene.build.z_scale;
+      bo["nodata_fill"] = scene.build.nodata_fill ? nlohmann::json(*scene.build.nodata_fill)
+                                                  : nlohmann::json(nullptr);
+    }
     WriteOptions wo;
     wo.codec = request.compress ? Codec::zstd : Codec::none;
     wo.zstd_level = request.zstd_level;

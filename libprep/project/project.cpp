@@ -19,6 +19,7 @@
 #include <mutex>
 #include <optional>
 
+#include "prep/dem.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/progress.hpp"
@@ -666,39 +667,18 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
 
   // The clip extent: --extent, else the DEM's extent.
   if (scene.extent) {
-    Extent e = *scene.extent;
-    if (!scene.extent_crs.empty()) {
-      auto ext_srs = srs_from(scene.extent_crs, "--extent-crs");
-      auto t = make_transform(*ext_srs, *frame_srs, "--extent-crs to the scene frame");
-      e = transform_bounds(*t, e, "--extent");
-    }
+    Extent e = extent_in_frame_crs(*scene.extent, scene.extent_crs, frame, "project");
     e.xmin -= frame.origin_x;
     e.xmax -= frame.origin_x;
     e.ymin -= frame.origin_y;
     e.ymax -= frame.origin_y;
     out.clip = e;
   } else if (!scene.dem.empty()) {
-    CPLErrorReset();
-    std::unique_ptr<GDALDataset> dem(
-        GDALDataset::Open(scene.dem.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-    if (!dem) {
-      throw gdal_error("project: DEM " + scene.dem + ": cannot open: " + CPLGetLastErrorMsg());
-    }
-    double gt[6];
-    if (dem->GetGeoTransform(gt) != CE_None) {
-      throw input_error("project: DEM " + scene.dem + ": has no geotransform");
-    }
-    const OGRSpatialReference* dem_srs = dem->GetSpatialRef();
-    if (!dem_srs) throw input_error("project: DEM " + scene.dem + ": has no CRS");
-    OGRSpatialReference dsrs(*dem_srs);
-    dsrs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    const double w = dem->GetRasterXSize(), h = dem->GetRasterYSize();
-    Extent de{std::min(gt[0], gt[0] + w * gt[1] + h * gt[2]),
-              std::min(gt[3], gt[3] + w * gt[4] + h * gt[5]),
-              std::max(gt[0], gt[0] + w * gt[1] + h * gt[2]),
-              std::max(gt[3], gt[3] + w * gt[4] + h * gt[5])};
-    auto t = make_transform(dsrs, *frame_srs, "DEM to the scene frame");
-    Extent e = transform_bounds(*t, de, "DEM " + scene.dem);
+    // The DEM module opens it and resolves its CRS (own, or assume_crs).
+    const DemFootprint footprint = dem_footprint({scene.dem, scene.assume_crs});
+    const auto dem_srs = srs_from(footprint.crs_wkt, "DEM CRS");
+    auto t = make_transform(*dem_srs, *frame_srs, "DEM to the scene frame");
+    Extent e = transform_bounds(*t, footprint.bounds, "DEM " + scene.dem);
     e.xmin -= frame.origin_x;
     e.xmax -= frame.origin_x;
     e.ymin -= frame.origin_y;
@@ -708,6 +688,24 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
   out.features = std::move(features);
   stage.finish();
   return out;
+}
+
+Extent extent_in_frame_crs(const Extent& extent, const std::string& crs, const SceneFrame& frame,
+                           const std::string& context) {
+  if (crs.empty()) return extent;
+  register_gdal_once();
+  try {
+    auto from = srs_from(crs, "--extent-crs");
+    auto to = srs_from(frame.crs_wkt, "frame CRS");
+    auto t = make_transform(*from, *to, "--extent-crs to the frame CRS");
+    return transform_bounds(*t, extent, "--extent");
+  } catch (const input_error& e) {
+    // srs_from and friends speak for the project stage.
+    std::string what = e.what();
+    if (context != "project" && what.rfind("project: ", 0) == 0)
+      what = context + ": " + what.substr(9);
+    throw input_error(what);
+  }
 }
 
 }  // namespace prep

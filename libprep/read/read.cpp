@@ -22,7 +22,9 @@
 #include <exception>
 #include <memory>
 #include <mutex>
+#include <optional>
 
+#include "osm_xml_order.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/progress.hpp"
@@ -80,6 +82,50 @@ struct DatasetCloser {
   void operator()(GDALDataset* ds) const { GDALClose(ds); }
 };
 using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+// GDAL configuration options a read sets for the user (README "GDAL
+// configuration options"), thread-locally on the reading thread for as long
+// as the object lives, each restored afterwards (CPLConfigOptionSetter):
+//  - OGR_GEOJSON_MAX_OBJ_SIZE=0: GDAL's GeoJSON reader refuses a single
+//    object whose parse it estimates above 200 MB ("GeoJSON object too
+//    complex/large"); a large coastline or country polygon is such an object.
+//    Only when the user has not set it.
+//  - OSM_USE_CUSTOM_INDEXING=NO when `plain_osm_index`: OSM XML whose node
+//    ids do not increase (osm_xml_order.hpp).
+class ReadConfig {
+ public:
+  explicit ReadConfig(bool plain_osm_index) {
+    geojson_.emplace("OGR_GEOJSON_MAX_OBJ_SIZE", "0", /*bSetOnlyIfUndefined=*/true);
+    if (plain_osm_index)
+      osm_.emplace("OSM_USE_CUSTOM_INDEXING", "NO", /*bSetOnlyIfUndefined=*/false);
+  }
+
+ private:
+  std::optional<CPLConfigOptionSetter> geojson_, osm_;
+};
+
+std::string osm_plain_index_note(const std::string& layer) {
+  return "layer '" + layer +
+         "': OSM node ids do not increase (Overpass output?); read with "
+         "OSM_USE_CUSTOM_INDEXING=NO";
+}
+
+// An OSM XML file listing a node after a way or relation: GDAL's OSM driver
+// builds a way only from nodes read before it, so it would drop ways and
+// multipolygons without a word. Only the `points` layer reads right.
+[[noreturn]] void throw_late_nodes(const std::string& source, const std::string& where,
+                                   const detail::OsmXmlOrder& order) {
+  const std::string found = "OSM XML lists node " + order.late_node_id + " (byte " +
+                            std::to_string(order.late_node_offset) + ") after " +
+                            order.earlier_kind + " " + order.earlier_id;
+  const std::string what_to_do =
+      "Put the nodes first: sort the file (osmium sort " + source +
+      " -o sorted.osm), or end the Overpass query with '(._;>;); out body;' instead of "
+      "'out; >; out skel qt;'";
+  throw input_error(where + ": " + found +
+                    "; GDAL's OSM driver assembles ways and multipolygons only from nodes that "
+                    "come before them, so they would be lost. " + what_to_do);
+}
 
 std::string where_of(const LayerSpec& spec, const std::string& layer_name) {
   std::string w = "read: " + spec.source;
@@ -386,7 +432,7 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
 }
 
 ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress& progress,
-                      ErrorCapture& errors) {
+                      ErrorCapture& errors, bool plain_osm_index) {
   ReadAttempt r;
   r.layer.spec = spec;
   r.counts.layer = spec.name;
@@ -398,6 +444,13 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
                                                : " (scene file " + scene.scene_path + ", layer '" +
                                                      spec.name + "')"));
   }
+  // OSM XML: its element order decides the node index GDAL opens it with.
+  const detail::OsmXmlOrder osm_order = detail::scan_osm_xml(spec.source);
+  if (osm_order.scanned && !osm_order.node_ids_increase && !plain_osm_index) {
+    plain_osm_index = true;
+    r.notes.push_back(osm_plain_index_note(spec.name));
+  }
+  const ReadConfig config(plain_osm_index);
   DatasetPtr ds(GDALDataset::Open(spec.source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY,
                                   nullptr, nullptr, nullptr));
   if (!ds) {
@@ -440,6 +493,8 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
   } release{ds.get(), layer, from_sql};
 
   const std::string where = where_of(spec, layer->GetName());
+  if (osm_order.late_node_offset >= 0 && (from_sql || std::string(layer->GetName()) != "points"))
+    throw_late_nodes(spec.source, where, osm_order);
   if (!spec.where.empty()) {
     errors.clear();
     if (layer->SetAttributeFilter(spec.where.c_str()) != OGRERR_NONE) {
@@ -521,6 +576,11 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
   try {
     ErrorCapture errors;
     const std::string& source = specs.front()->source;
+    // Nodes after ways: the per-layer read says what to do.
+    const detail::OsmXmlOrder osm_order = detail::scan_osm_xml(source);
+    if (osm_order.late_node_offset >= 0) return false;
+    const bool plain_osm_index = osm_order.scanned && !osm_order.node_ids_increase;
+    const ReadConfig config(plain_osm_index);
     DatasetPtr ds(GDALDataset::Open(source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
                                     nullptr, nullptr));
     if (!ds || errors.failed()) return false;
@@ -572,6 +632,8 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
     if (errors.failed()) return false;
     progress.update(fetched, fetched);
     for (LayerSink& sink : sinks) sink.finish(errors);
+    if (plain_osm_index)
+      for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
     out = std::move(attempts);
     return true;
   } catch (const std::exception&) {
@@ -584,23 +646,23 @@ SourceLayer read_layer_job(const LayerSpec& spec, const SceneSpec& scene, Manife
   ErrorCapture errors;
   ReadAttempt r;
   try {
-    r = read_once(spec, scene, progress, errors);
+    r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/false);
   } catch (const gdal_error& e) {
-    // Overpass writes OSM XML whose node ids do not increase; GDAL's custom
-    // indexing cannot take that. Read it again with the plain index.
+    // GDAL's OSM driver stopped at a node id that does not increase in a
+    // file the scan could not read (osm_xml_order.hpp): read it again with
+    // the plain index. The message is the OSM driver's own.
     const std::string what = e.what();
-    if (!is_osm(spec.source) || what.find("OSM_USE_CUSTOM_INDEXING") == std::string::npos) throw;
-    CPLSetThreadLocalConfigOption("OSM_USE_CUSTOM_INDEXING", "NO");
+    if (what.find("OSM_USE_CUSTOM_INDEXING") == std::string::npos) throw;
     errors.clear();
     try {
-      r = read_once(spec, scene, progress, errors);
-    } catch (...) {
-      CPLSetThreadLocalConfigOption("OSM_USE_CUSTOM_INDEXING", nullptr);
-      throw;
+      r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/true);
+    } catch (const gdal_error& again) {
+      throw gdal_error(std::string(again.what()) +
+                       " (read again with OSM_USE_CUSTOM_INDEXING=NO after: " + what +
+                       "); convert the file to OSM PBF with sorted ids, e.g. osmium sort " +
+                       spec.source + " -o sorted.osm.pbf, and build from that");
     }
-    CPLSetThreadLocalConfigOption("OSM_USE_CUSTOM_INDEXING", nullptr);
-    r.notes.push_back("layer '" + spec.name + "': OSM node ids do not increase (Overpass "
-                      "output?); read with OSM_USE_CUSTOM_INDEXING=NO");
+    r.notes.push_back(osm_plain_index_note(spec.name));
   }
   manifest.layers.push_back(r.counts);
   for (auto& e : r.entries) manifest.entries.push_back(std::move(e));

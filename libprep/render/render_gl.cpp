@@ -131,13 +131,14 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
   const uint32_t W = opt.width, H = opt.height;
   if (W == 0 || H == 0 || W > 16384 || H > 16384) throw usage_error("render: image size must be 1..16384 pixels");
 
-  // Validate before anything touches GL (formats/gl validate_blobs).
+  // Validate before anything touches GL (formats/gl validate_blobs), once:
+  // a package's source was checked when it was made.
   std::vector<decal::gl::BlobBytes> blobs;
   for (const auto& b : source.blobs)
     blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
   const GridParams& gp = source.view.grid;
   decal::gl::Grid grid{gp.origin_x, gp.origin_y, gp.cell_w, gp.cell_h, gp.nx, gp.ny};
-  check(decal::gl::validate_blobs(blobs, grid));
+  if (!source.validated) check(decal::gl::validate_blobs(blobs, grid));
 
   std::unique_ptr<decal::gl::Context> context;
   check(decal::gl::Context::create(context));
@@ -152,7 +153,7 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     PassTimer timer{gl, {}};
     auto wall0 = std::chrono::steady_clock::now();
     std::unique_ptr<decal::gl::GpuPackage> gpu;
-    check(decal::gl::GpuPackage::upload(blobs, grid, gpu));
+    check(decal::gl::GpuPackage::upload(blobs, grid, gpu, true));
 
     // Camera anchor: the eye rounded to whole quanta; everything on the GPU
     // is relative to it (DESIGN.md §4.1).

@@ -4,10 +4,8 @@
 #include "prep/error.hpp"
 #include "prep/render.hpp"
 
-#ifdef PREP_RENDER_HAVE_READER
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
-#endif
 
 namespace prep::render {
 
@@ -54,15 +52,12 @@ DecalSource source_of(const DecalModel& m) {
   return s;
 }
 
-#ifdef PREP_RENDER_HAVE_READER
 DecalSource source_of(const decal::Package& package) {
-  // The reader's structural index checks first: nothing below (and no GL
-  // call later) sees a package that fails them.
-  if (decal::Status st = decal::validate_indices(package); !st) throw format_error("render: " + st.message);
   DecalSource s;
-#ifdef PREP_RENDER_HAVE_EVALUATE
+  // view_of runs the package's structural check with the grid: nothing below
+  // (and no GL call later) sees a package that fails it.
   s.view = view_of(package);  // grid from the metadata, checked against the blobs
-#endif
+  s.validated = true;
   for (const decal::BlobView& b : package.blobs())
     if (b.known()) s.blobs.push_back({static_cast<decal::BlobId>(b.id), b.count, b.bytes.data(), b.bytes.size()});
   // Frame and extent from the metadata chunk (formats/SPEC.md).
@@ -94,18 +89,6 @@ DecalSource source_of(const decal::Package& package) {
         s.extent = {e->value("xmin", 0.0), e->value("ymin", 0.0), e->value("xmax", 0.0), e->value("ymax", 0.0)};
       }
     }
-#ifndef PREP_RENDER_HAVE_EVALUATE
-    // Without the evaluator's view_of(package), read the grid here.
-    if (meta.contains("grid")) {
-      const auto& g = meta["grid"];
-      s.view.grid.origin_x = g.at("origin").at(0).get<int64_t>();
-      s.view.grid.origin_y = g.at("origin").at(1).get<int64_t>();
-      s.view.grid.cell_w = g.at("cell").at(0).get<int64_t>();
-      s.view.grid.cell_h = g.at("cell").at(1).get<int64_t>();
-      s.view.grid.nx = g.at("dims").at(0).get<uint32_t>();
-      s.view.grid.ny = g.at("dims").at(1).get<uint32_t>();
-    }
-#endif
   } catch (const nlohmann::json::exception& ex) {
     throw format_error(std::string("render: package metadata: ") + ex.what());
   }
@@ -118,6 +101,5 @@ DecalSource source_of(const decal::Package& package) {
   }
   return s;
 }
-#endif
 
 }  // namespace prep::render

@@ -1,6 +1,6 @@
-// Terrain heightfield: DEM sampling in the scene frame and ray casting of the
-// mesh the GL path rasterises (the CPU path's terrain).
-#include <gdal_priv.h>
+// Terrain heightfield: the mesh of the DEM surface (prep/dem.hpp) that the GL
+// path rasterises and the CPU path ray-casts, and --extent-crs transforms.
+#include <nlohmann/json.hpp>
 #include <ogr_spatialref.h>
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "detail/math.hpp"
+#include "prep/dem.hpp"
 #include "prep/error.hpp"
 
 namespace prep::render {
@@ -28,89 +29,162 @@ Heightfield flat_heightfield(const Extent& e) {
   return h;
 }
 
-Heightfield load_heightfield(const std::string& dem, const SceneFrame& frame, const Extent& e,
-                             uint32_t max_samples, double z_scale) {
-  GDALAllRegister();
-  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(dem.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  if (!ds) throw input_error("render: DEM '" + dem + "' cannot be opened: " + CPLGetLastErrorMsg());
-  double gt[6];
-  if (ds->GetGeoTransform(gt) != CE_None || gt[2] != 0 || gt[4] != 0)
-    throw input_error("render: DEM '" + dem + "' has no north-up geotransform");
-  OGRSpatialReference dem_srs, scene_srs;
-  if (const OGRSpatialReference* s = ds->GetSpatialRef()) dem_srs = *s;
-  else dem_srs.importFromEPSG(4326);
-  dem_srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  if (scene_srs.importFromWkt(frame.crs_wkt.c_str()) != OGRERR_NONE)
-    throw input_error("render: package frame CRS cannot be parsed for DEM '" + dem + "'");
-  scene_srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&scene_srs, &dem_srs));
-  if (!ct) throw input_error("render: no transformation from the scene frame to the CRS of DEM '" + dem + "'");
+namespace {
 
-  GDALRasterBand* band = ds->GetRasterBand(1);
-  const int W = ds->GetRasterXSize(), H = ds->GetRasterYSize();
-  int has_nodata = 0;
-  double nodata = band->GetNoDataValue(&has_nodata);
+// Nodes base + k * step, k = k0 .. k0 + n - 1, covering [lo, hi].
+struct AxisNodes {
+  double first = 0, step = 1;
+  uint32_t n = 2;
+};
 
-  // Grid in the scene frame: spacing about the DEM cell size there.
-  double cx = 0.5 * (e.xmin + e.xmax), cy = 0.5 * (e.ymin + e.ymax);
-  double px = cx + frame.origin_x, py = cy + frame.origin_y, qx = px + 1.0, qy = py;
-  double cell = 30.0;
-  if (ct->Transform(1, &px, &py) && ct->Transform(1, &qx, &qy)) {
-    double per_metre = std::hypot(qx - px, qy - py);  // DEM units per scene metre
-    if (per_metre > 0) cell = std::abs(gt[1]) / per_metre;
-  }
-  Heightfield h;
-  h.nx = std::clamp<uint32_t>(uint32_t(std::ceil((e.xmax - e.xmin) / cell)) + 1, 2, max_samples);
-  h.ny = std::clamp<uint32_t>(uint32_t(std::ceil((e.ymax - e.ymin) / cell)) + 1, 2, max_samples);
-  h.x0 = e.xmin;
-  h.y0 = e.ymin;
-  h.dx = (e.xmax - e.xmin) / (h.nx - 1);
-  h.dy = (e.ymax - e.ymin) / (h.ny - 1);
-  std::vector<double> xs(size_t(h.nx) * h.ny), ys(xs.size());
-  for (uint32_t j = 0; j < h.ny; ++j)
-    for (uint32_t i = 0; i < h.nx; ++i) {
-      xs[i + size_t(h.nx) * j] = frame.origin_x + h.x0 + i * h.dx;
-      ys[i + size_t(h.nx) * j] = frame.origin_y + h.y0 + j * h.dy;
+AxisNodes lattice_axis(double lo, double hi, double base, double step) {
+  const double k0 = std::floor((lo - base) / step), k1 = std::ceil((hi - base) / step);
+  AxisNodes a;
+  a.first = base + k0 * step;
+  a.step = step;
+  a.n = uint32_t(std::max(2.0, std::min(k1 - k0 + 1, 1e9)));
+  return a;
+}
+
+}  // namespace
+
+Heightfield load_heightfield(const DemSpec& spec, const SceneFrame& frame, const Extent& e,
+                             uint32_t max_samples) {
+  max_samples = std::max<uint32_t>(max_samples, 2);
+  DemSampler dem(spec, frame);
+  // The DEM window under the extent: its boundary, densely sampled.
+  auto pixel_box = [&](const std::vector<Point2>& scene, double box[4]) {
+    std::vector<Point2> px(scene.size());
+    dem.to_pixel(scene, px);
+    for (const Point2& p : px) {
+      box[0] = std::min(box[0], p.x);
+      box[1] = std::min(box[1], p.y);
+      box[2] = std::max(box[2], p.x);
+      box[3] = std::max(box[3], p.y);
     }
-  std::vector<int> ok(xs.size());
-  ct->Transform(xs.size(), xs.data(), ys.data(), nullptr, ok.data());
-  // Read the DEM window the samples need.
-  double cmin = 1e300, cmax = -1e300, rmin = 1e300, rmax = -1e300;
-  for (size_t k = 0; k < xs.size(); ++k) {
-    if (!ok[k]) continue;
-    double c = (xs[k] - gt[0]) / gt[1] - 0.5, r = (ys[k] - gt[3]) / gt[5] - 0.5;
-    xs[k] = c;
-    ys[k] = r;
-    cmin = std::min(cmin, c); cmax = std::max(cmax, c); rmin = std::min(rmin, r); rmax = std::max(rmax, r);
-  }
-  int c0 = std::clamp(int(std::floor(cmin)), 0, W - 1), c1 = std::clamp(int(std::floor(cmax)) + 1, 0, W - 1);
-  int r0 = std::clamp(int(std::floor(rmin)), 0, H - 1), r1 = std::clamp(int(std::floor(rmax)) + 1, 0, H - 1);
-  int ww = c1 - c0 + 1, wh = r1 - r0 + 1;
-  std::vector<double> win(size_t(ww) * wh);
-  if (band->RasterIO(GF_Read, c0, r0, ww, wh, win.data(), ww, wh, GDT_Float64, 0, 0) != CE_None)
-    throw input_error("render: DEM '" + dem + "' cannot be read: " + CPLGetLastErrorMsg());
-  auto at = [&](int c, int r) {
-    c = std::clamp(c, c0, c1) - c0;
-    r = std::clamp(r, r0, r1) - r0;
-    double v = win[size_t(c) + size_t(ww) * r];
-    return (has_nodata && v == nodata) || std::isnan(v) ? 0.0 : v;
   };
-  h.z.resize(xs.size());
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  double box[4] = {inf, inf, -inf, -inf};
+  {
+    std::vector<Point2> edge;
+    for (int k = 0; k <= 20; ++k) {
+      const double t = k / 20.0, x = e.xmin + t * (e.xmax - e.xmin),
+                   y = e.ymin + t * (e.ymax - e.ymin);
+      edge.insert(edge.end(), {{x, e.ymin}, {x, e.ymax}, {e.xmin, y}, {e.xmax, y}});
+    }
+    pixel_box(edge, box);
+  }
+  dem.load(box[0], box[1], box[2], box[3]);
+
+  // Splits per DEM cell that keep the triangles within kMeshTolerance of the
+  // bilinear surface (prep/dem.hpp: twist / (4 s^2)).
+  const double twist = dem.max_twist();
+  const uint32_t splits =
+      twist > 4 * kMeshTolerance
+          ? uint32_t(std::min(1e4, std::ceil(std::sqrt(twist / (4 * kMeshTolerance)))))
+          : 1u;
+  Heightfield h;
+  h.surface_error_bound = inf;
+  if (const std::optional<DemLattice> lat = dem.lattice()) {
+    // Vertices on the lattice: every cell split s times per axis, fewer when
+    // max_samples says so; decimated lattice lines when even s = 1 is too fine.
+    auto axis = [&](double lo, double hi, double base, double cell, uint32_t& s) {
+      for (s = splits; s > 1; --s) {
+        const AxisNodes a = lattice_axis(lo, hi, base, cell / s);
+        if (a.n <= max_samples) return a;
+      }
+      AxisNodes a = lattice_axis(lo, hi, base, cell);
+      if (a.n <= max_samples) return a;
+      for (double m = std::ceil(double(a.n) / double(max_samples - 1)); a.n > max_samples; ++m)
+        a = lattice_axis(lo, hi, base, cell * m);
+      return a;
+    };
+    uint32_t sx = 1, sy = 1;
+    const AxisNodes ax = axis(e.xmin, e.xmax, lat->x0, std::abs(lat->dx), sx);
+    const AxisNodes ay = axis(e.ymin, e.ymax, lat->y0, std::abs(lat->dy), sy);
+    h.x0 = ax.first;
+    h.dx = ax.step;
+    h.nx = ax.n;
+    h.y0 = ay.first;
+    h.dy = ay.step;
+    h.ny = ay.n;
+    if (ax.step <= std::abs(lat->dx) * (1 + 1e-12) && ay.step <= std::abs(lat->dy) * (1 + 1e-12))
+      h.surface_error_bound = -1;  // set below from the window's twist
+  } else {
+    // The frame grid at the spacing of the DEM cell near the centre. Its
+    // vertices are surface heights, but the lattice's edges (where the
+    // bilinear surface bends) run across its triangles, so no split count
+    // gives a bound; finer grids would only cost ray-casting time.
+    const double cell = dem.cell_size_metres({0.5 * (e.xmin + e.xmax), 0.5 * (e.ymin + e.ymax)});
+    const double step = cell > 0 && std::isfinite(cell) ? cell : 30.0;
+    h.nx = std::clamp<uint32_t>(uint32_t(std::min(std::ceil((e.xmax - e.xmin) / step), 1e9)) + 1, 2,
+                                max_samples);
+    h.ny = std::clamp<uint32_t>(uint32_t(std::min(std::ceil((e.ymax - e.ymin) / step), 1e9)) + 1, 2,
+                                max_samples);
+    h.x0 = e.xmin;
+    h.y0 = e.ymin;
+    h.dx = (e.xmax - e.xmin) / (h.nx - 1);
+    h.dy = (e.ymax - e.ymin) / (h.ny - 1);
+  }
+  std::vector<Point2> nodes(size_t(h.nx) * h.ny), px(nodes.size());
+  for (uint32_t j = 0; j < h.ny; ++j)
+    for (uint32_t i = 0; i < h.nx; ++i)
+      nodes[i + size_t(h.nx) * j] = {h.x0 + i * h.dx, h.y0 + j * h.dy};
+  dem.to_pixel(nodes, px);
+  // Vertices beyond the window read (the lattice overhangs the extent by up
+  // to a step): read again with them, so that every vertex sees its cells.
+  double nbox[4] = {box[0], box[1], box[2], box[3]};
+  for (const Point2& p : px) {
+    nbox[0] = std::min(nbox[0], p.x);
+    nbox[1] = std::min(nbox[1], p.y);
+    nbox[2] = std::max(nbox[2], p.x);
+    nbox[3] = std::max(nbox[3], p.y);
+  }
+  if (nbox[0] < box[0] || nbox[1] < box[1] || nbox[2] > box[2] || nbox[3] > box[3])
+    dem.load(nbox[0], nbox[1], nbox[2], nbox[3]);
+  if (h.surface_error_bound < 0) {
+    const double sx = std::abs(h.dx) > 0 ? std::round(std::abs(dem.lattice()->dx) / h.dx) : 1;
+    const double sy = std::abs(h.dy) > 0 ? std::round(std::abs(dem.lattice()->dy) / h.dy) : 1;
+    h.surface_error_bound = dem.max_twist() / (4 * sx * sy);
+  }
+  h.z.resize(nodes.size());
   h.zmin = std::numeric_limits<double>::max();
   h.zmax = std::numeric_limits<double>::lowest();
-  for (size_t k = 0; k < xs.size(); ++k) {
-    double z = 0;
-    if (ok[k] && xs[k] > -1 && xs[k] < W && ys[k] > -1 && ys[k] < H) {
-      // Bilinear between pixel centres.
-      int ci = int(std::floor(xs[k])), ri = int(std::floor(ys[k]));
-      double fx = xs[k] - ci, fy = ys[k] - ri;
-      z = (1 - fy) * ((1 - fx) * at(ci, ri) + fx * at(ci + 1, ri)) + fy * ((1 - fx) * at(ci, ri + 1) + fx * at(ci + 1, ri + 1));
-    }
-    h.z[k] = z * z_scale;
+  for (size_t k = 0; k < nodes.size(); ++k) {
+    h.z[k] = dem.height(px[k].x, px[k].y);
     h.zmin = std::min(h.zmin, h.z[k]);
     h.zmax = std::max(h.zmax, h.z[k]);
   }
   return h;
+}
+
+DemSpec recorded_dem(const std::string& metadata_json) {
+  DemSpec spec;
+  const auto meta = nlohmann::json::parse(metadata_json, nullptr, /*allow_exceptions=*/false);
+  if (!meta.is_object() || !meta.contains("build_options") || !meta["build_options"].is_object())
+    return spec;
+  const auto& bo = meta["build_options"];
+  if (bo.contains("dem") && bo["dem"].is_string()) spec.path = bo["dem"].get<std::string>();
+  if (bo.contains("dem_assume_crs") && bo["dem_assume_crs"].is_string())
+    spec.assume_crs = bo["dem_assume_crs"].get<std::string>();
+  if (bo.contains("z_scale") && bo["z_scale"].is_number())
+    spec.z_scale = bo["z_scale"].get<double>();
+  if (bo.contains("nodata_fill") && bo["nodata_fill"].is_number())
+    spec.nodata_fill = bo["nodata_fill"].get<double>();
+  return spec;
+}
+
+double Heightfield::height_at(double x, double y) const {
+  const double fx = (x - x0) / dx, fy = (y - y0) / dy;
+  if (!(fx >= 0 && fy >= 0 && fx <= nx - 1 && fy <= ny - 1))
+    return std::numeric_limits<double>::quiet_NaN();
+  const uint32_t i = std::min(uint32_t(fx), nx - 2), j = std::min(uint32_t(fy), ny - 2);
+  const double u = fx - i, v = fy - j;
+  auto at = [&](uint32_t a, uint32_t b) { return z[a + size_t(nx) * b]; };
+  const double z00 = at(i, j), z10 = at(i + 1, j), z01 = at(i, j + 1), z11 = at(i + 1, j + 1);
+  // Triangles (00, 10, 11) below the diagonal u = v, (00, 11, 01) above it.
+  if (u >= v) return z00 + u * (z10 - z00) + v * (z11 - z10);
+  return z00 + v * (z01 - z00) + u * (z11 - z01);
 }
 
 Vec3 Heightfield::normal_at(uint32_t i, uint32_t j) const {
@@ -192,32 +266,6 @@ std::optional<double> Heightfield::intersect(const Vec3& o, const Vec3& d) const
     if (i < 0 || j < 0 || i > int(nx) - 2 || j > int(ny) - 2) break;
   }
   return std::nullopt;
-}
-
-}  // namespace prep::render
-
-namespace prep::render {
-
-Extent extent_to_scene(const Extent& e, const std::string& crs, const SceneFrame& frame) {
-  OGRSpatialReference from, to;
-  if (from.SetFromUserInput(crs.c_str()) != OGRERR_NONE) throw usage_error("render: --extent-crs '" + crs + "' is not a CRS");
-  if (to.importFromWkt(frame.crs_wkt.c_str()) != OGRERR_NONE)
-    throw usage_error("render: the package frame has no CRS to transform --extent into");
-  from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&from, &to));
-  if (!ct) throw usage_error("render: no transformation from '" + crs + "' to the scene frame");
-  double xs[8] = {e.xmin, e.xmax, e.xmax, e.xmin, 0.5 * (e.xmin + e.xmax), e.xmax, 0.5 * (e.xmin + e.xmax), e.xmin};
-  double ys[8] = {e.ymin, e.ymin, e.ymax, e.ymax, e.ymin, 0.5 * (e.ymin + e.ymax), e.ymax, 0.5 * (e.ymin + e.ymax)};
-  if (!ct->Transform(8, xs, ys)) throw usage_error("render: --extent cannot be transformed from '" + crs + "'");
-  Extent out{1e300, 1e300, -1e300, -1e300};
-  for (int k = 0; k < 8; ++k) {
-    out.xmin = std::min(out.xmin, xs[k] - frame.origin_x);
-    out.xmax = std::max(out.xmax, xs[k] - frame.origin_x);
-    out.ymin = std::min(out.ymin, ys[k] - frame.origin_y);
-    out.ymax = std::max(out.ymax, ys[k] - frame.origin_y);
-  }
-  return out;
 }
 
 }  // namespace prep::render

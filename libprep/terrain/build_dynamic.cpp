@@ -102,7 +102,8 @@ void build_dynamic(const SceneFeatures& scene, const BuildOptions& options, cons
   } else if (lines.empty()) {
     notes.push_back("terrain: no dynamic lines; DEM " + dem_path + " not read");
   } else {
-    dem = std::make_unique<DemSampler>(dem_path, scene.frame, options.z_scale, options.nodata_fill);
+    dem = std::make_unique<DemSampler>(
+        DemSpec{dem_path, options.dem_assume_crs, options.z_scale, options.nodata_fill}, scene.frame);
     double xmin = lines[0].points[0].x, xmax = xmin, ymin = lines[0].points[0].y, ymax = ymin;
     for (const auto& l : lines)
       for (const auto& p : l.points) {

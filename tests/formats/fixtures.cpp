@@ -42,9 +42,11 @@ prep::DecalModel small_model() {
   m.cell_polys = {{0, 0, 0, 1}};
   m.cell_holes = {{1, 5}};
   // BVHs
-  m.line_bvh_range = {{0, 2, 1, 0}, {3, 1, 0, 0}};
+  // (first box, leaf slots, internal nodes): full binary trees, leaf k =
+  // the cell's k-th segment
+  m.line_bvh_range = {{0, 2, 1, 0}, {3, 2, 1, 0}};
   m.line_bvh_box = {{-9000, -100, 1000, 100}, {-1000, -100, 1000, 100}, {-9000, -100, 1000, 100},
-                    {2000, 2000, 9000, 4000}};
+                    {-1000, -100, 9000, 4000}, {-1000, -100, 1000, 100},   {2000, 2000, 9000, 4000}};
   m.poly_bvh_range = {{0, 1, 0, 0}, {1, 0, 0, 0}};
   m.poly_bvh_box = {{-8000, -4000, 8000, 4000}};
   // dynamic lines

@@ -285,6 +285,10 @@ TEST(ValidateIndices, EachKindOfDanglingIndexIsNamed) {
       {"poly_root_node[1].node = 6", [](prep::DecalModel& m) { m.poly_root_node[1] = 6; }},
       {"qt_node[3].type = 4", [](prep::DecalModel& m) { m.qt_node[3] = {4, 0}; }},
       {"qt_node[5].offset = 2", [](prep::DecalModel& m) { m.qt_node[5] = {3, 2}; }},
+      // An internal node whose children include itself: a descent would
+      // never end (the CPU evaluator and the shaders loop until a leaf).
+      {"qt_node[0].offset = 0: children must come after their parent",
+       [](prep::DecalModel& m) { m.qt_node[0] = {0, 0}; }},
       {"qt_leaf_segments[2].end = 6", [](prep::DecalModel& m) { m.qt_leaf_segments[2] = {2, 6}; }},
       {"cell_polys[0]", [](prep::DecalModel& m) { m.cell_polys[0] = {0, 0, 1, 1}; }},
       {"cell_holes[0].polygon = 2", [](prep::DecalModel& m) { m.cell_holes[0] = {2, 5}; }},

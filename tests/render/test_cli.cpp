@@ -45,20 +45,35 @@ class RenderCli : public ::testing::Test {
     pkg_ = (dir_ / "hand.decals").string();
     prep::DecalModel m = render_test::hand_model();
     m.frame.crs_wkt = "";  // no CRS needed without a DEM
+    // Far from 0: --extent is absolute (origin + the model's 0..100 m).
+    m.frame.origin_x = kOriginX;
+    m.frame.origin_y = kOriginY;
     prep::write_model(pkg_, m, "");
   }
+  static constexpr double kOriginX = 500000, kOriginY = 4000000;
+  // The model's 0..100 m square in absolute frame coordinates.
+  static constexpr const char* kExtent = "--extent 500000,4000000,500100,4000100";
   fs::path dir_;
   std::string pkg_;
 };
 
 TEST_F(RenderCli, TopDownWritesPngWorldFileAndRawDecalLayer) {
   std::string png = (dir_ / "hand_cli.png").string(), raw = (dir_ / "hand_cli.rgba").string();
-  ToolRun r = run_tool("render " + pkg_ + " --extent 0,0,100,100 --size 100x100 --stats --raw " + raw + " -o " + png);
+  ToolRun r = run_tool("render " + pkg_ + " " + kExtent + " --size 100x100 --stats --raw " + raw + " -o " + png);
   if (r.rc == 8) GTEST_SKIP() << "no headless GL here: " << r.output;
   ASSERT_EQ(r.rc, 0) << r.output;
   EXPECT_NE(r.output.find("static polygons"), std::string::npos) << r.output;  // --stats pass times
+  EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
   ASSERT_TRUE(fs::exists(png));
-  ASSERT_TRUE(fs::exists(dir_ / "hand_cli.pgw"));
+  // World file: 1 m pixels, upper-left pixel centre at (0.5, 99.5) from the origin.
+  std::ifstream wf(dir_ / "hand_cli.pgw");
+  double pixel_w, rot1, rot2, pixel_h, centre_x, centre_y;
+  wf >> pixel_w >> rot1 >> rot2 >> pixel_h >> centre_x >> centre_y;
+  ASSERT_TRUE(wf);
+  EXPECT_EQ(pixel_w, 1.0);
+  EXPECT_EQ(pixel_h, -1.0);
+  EXPECT_EQ(centre_x, kOriginX + 0.5);
+  EXPECT_EQ(centre_y, kOriginY + 99.5);
   ASSERT_EQ(fs::file_size(raw), 100u * 100u * 16u);
   // Pixel (70, 20): centre (70.5, 79.5) lies inside the exterior, off both lines.
   std::ifstream in(raw, std::ios::binary);
@@ -129,7 +144,7 @@ TEST_F(RenderCli, UsesThePackagesBuildDemUnlessFlatIsAsked) {
 
 TEST_F(RenderCli, ExitsWithRenderCodeWhenNoEglDisplayCanBeCreated) {
   // glvnd finds no vendor library: no EGL display at all.
-  ToolRun r = run_tool("render " + pkg_ + " --extent 0,0,100,100 --size 16x16 -o " + (dir_ / "none.png").string(),
+  ToolRun r = run_tool("render " + pkg_ + " " + kExtent + " --size 16x16 -o " + (dir_ / "none.png").string(),
               "__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/egl_vendor.json __EGL_VENDOR_LIBRARY_DIRS=/nonexistent");
   EXPECT_EQ(r.rc, 8) << r.output;
   EXPECT_NE(r.output.find("EGL"), std::string::npos) << r.output;
@@ -150,7 +165,7 @@ TEST_F(RenderCli, RejectsACorruptPackageWithAClearMessage) {
   f.seekp(std::streamoff(size / 2));
   f.write(&b, 1);
   f.close();
-  ToolRun r = run_tool("render " + bad + " --extent 0,0,100,100 --size 16x16 -o " + (dir_ / "corrupt.png").string());
+  ToolRun r = run_tool("render " + bad + " " + kExtent + " --size 16x16 -o " + (dir_ / "corrupt.png").string());
   EXPECT_EQ(r.rc, 5) << r.output;
   EXPECT_NE(r.output.find("decalprep:"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir_ / "corrupt.png"));

@@ -30,7 +30,7 @@ TEST(GlLoader, RejectsOutOfRangeSegmentVertex) {
   auto s = validate(m);
   ASSERT_FALSE(s.ok);
   EXPECT_NE(s.message.find("cell_segments[2]"), std::string::npos) << s.message;
-  EXPECT_NE(s.message.find("vertex 7"), std::string::npos) << s.message;
+  EXPECT_NE(s.message.find("end = 7"), std::string::npos) << s.message;
 }
 
 TEST(GlLoader, RejectsQuadTreeChildBeforeParentSoDescentCannotLoop) {
@@ -53,7 +53,7 @@ TEST(GlLoader, RejectsBadNodeTypeHoleRangeAndGridCount) {
   {
     auto m = render_test::hand_model();
     m.qt_node[0][0] = 7;
-    EXPECT_NE(validate(m).message.find("type 7"), std::string::npos);
+    EXPECT_NE(validate(m).message.find("type = 7"), std::string::npos);
   }
   {
     auto m = render_test::hand_model();

@@ -33,8 +33,9 @@ namespace {
 
 const std::string kSource = DECALPREP_SOURCE_DIR;
 const std::string kDem = "/vsizip/" + kSource + "/samples/monaco/N43E007.hgt.zip/N43E007.hgt";
-// Central Monaco in the package frame (local TM on the data, metres).
-const std::string kTopDown = "-800,-450,800,450";
+// Central Monaco: metres relative to the package origin (local TM on the
+// data); --extent takes them absolute (topdown_extent below).
+const prep::Extent kTopDown{-800, -450, 800, 450};
 
 fs::path out_dir() {
   fs::path p = fs::current_path() / "render-out" / "smoke";
@@ -81,6 +82,134 @@ const std::string& monaco_package(std::string* why) {
   return path;
 }
 
+// A package's frame from its metadata: origin (frame CRS) and CRS.
+struct PackageFrame {
+  double origin_x = 0, origin_y = 0;
+  prep::Extent extent;  // relative to the origin, as the metadata stores it
+  std::string crs_wkt;
+  prep::Extent absolute(const prep::Extent& e) const {
+    return {e.xmin + origin_x, e.ymin + origin_y, e.xmax + origin_x, e.ymax + origin_y};
+  }
+};
+PackageFrame package_frame(const std::string& pkg) {
+  decal::Package package;
+  PackageFrame f;
+  if (!decal::Package::open(pkg, package)) return f;
+  const auto meta = nlohmann::json::parse(package.metadata_json());
+  f.origin_x = meta.at("origin").at("x").get<double>();
+  f.origin_y = meta.at("origin").at("y").get<double>();
+  const auto& e = meta.at("extent");
+  f.extent = {e.at(0).get<double>(), e.at(1).get<double>(), e.at(2).get<double>(), e.at(3).get<double>()};
+  f.crs_wkt = meta.at("crs_wkt").get<std::string>();
+  return f;
+}
+std::string extent_text(const prep::Extent& e, const char* format = "%.6f,%.6f,%.6f,%.6f") {
+  char b[200];
+  std::snprintf(b, sizeof b, format, e.xmin, e.ymin, e.xmax, e.ymax);
+  return b;
+}
+// `--extent` for `relative` (metres from the package origin) in the absolute
+// frame coordinates render takes.
+std::string topdown_extent(const std::string& pkg, const prep::Extent& relative) {
+  return "--extent " + extent_text(package_frame(pkg).absolute(relative));
+}
+
+// gdal_rasterize (the real program) burns 1 inside the polygons of `layer`
+// of `source` on the grid -te `e` -ts w h; row 0 is the top row.
+std::vector<uint8_t> gdal_burn(const std::string& source, const std::string& layer, const prep::Extent& e, uint32_t w,
+                               uint32_t h, const fs::path& tif) {
+  char args[400];
+  std::snprintf(args, sizeof args, "-te %.9f %.9f %.9f %.9f -ts %u %u", e.xmin, e.ymin, e.xmax, e.ymax, w, h);
+  const std::string cmd = "gdal_rasterize -q -burn 1 -init 0 -ot Byte " + std::string(args) + " -l " + layer + " " +
+                          source + " " + tif.string();
+  fs::remove(tif);
+  std::vector<uint8_t> burn;
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset> ras(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER));
+  EXPECT_TRUE(ras) << tif;
+  if (!ras) return burn;
+  burn.resize(size_t(w) * h);
+  EXPECT_EQ(ras->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, int(w), int(h), burn.data(), int(w), int(h), GDT_Byte, 0, 0),
+            CE_None);
+  return burn;
+}
+
+// Alpha > 0 of an 8-bit RGBA PNG (`render --decals`), read through GDAL.
+std::vector<uint8_t> png_coverage(const fs::path& png, uint32_t w, uint32_t h) {
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(png.c_str(), GDAL_OF_RASTER));
+  std::vector<uint8_t> alpha;
+  EXPECT_TRUE(ds && ds->GetRasterCount() == 4 && ds->GetRasterXSize() == int(w) && ds->GetRasterYSize() == int(h))
+      << png;
+  if (!ds || ds->GetRasterCount() != 4) return alpha;
+  alpha.resize(size_t(w) * h);
+  EXPECT_EQ(ds->GetRasterBand(4)->RasterIO(GF_Read, 0, 0, int(w), int(h), alpha.data(), int(w), int(h), GDT_Byte, 0, 0),
+            CE_None);
+  for (uint8_t& a : alpha) a = a > 0;
+  return alpha;
+}
+
+// Every ring of every polygon in `layer` of `source` (absolute coordinates).
+std::vector<prep::Ring> rings_of(const std::string& source, const std::string& layer_name) {
+  GDALAllRegister();
+  std::vector<prep::Ring> rings;
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(source.c_str(), GDAL_OF_VECTOR));
+  OGRLayer* layer = ds ? ds->GetLayerByName(layer_name.c_str()) : nullptr;
+  EXPECT_NE(layer, nullptr) << source << " " << layer_name;
+  if (!layer) return rings;
+  auto add_polygon = [&](const OGRPolygon& p) {
+    for (const OGRLinearRing* r : p) {
+      prep::Ring ring;
+      for (int k = 0; k < r->getNumPoints(); ++k) ring.push_back({r->getX(k), r->getY(k)});
+      rings.push_back(std::move(ring));
+    }
+  };
+  for (auto& f : *layer) {
+    const OGRGeometry* g = f->GetGeometryRef();
+    if (!g) continue;
+    if (wkbFlatten(g->getGeometryType()) == wkbPolygon) add_polygon(*g->toPolygon());
+    if (wkbFlatten(g->getGeometryType()) == wkbMultiPolygon)
+      for (const OGRPolygon* p : *g->toMultiPolygon()) add_polygon(*p);
+  }
+  return rings;
+}
+
+double distance_to_rings(const std::vector<prep::Ring>& rings, double x, double y);
+
+// Drawn against burnt coverage, pixel by pixel, on the grid of extent `e`
+// (absolute), leaving out pixels whose centre lies within `band` of a ring.
+struct CoverageComparison {
+  size_t considered = 0, mismatched = 0, in_band = 0, burnt = 0, drawn = 0;
+  double mismatch() const { return considered ? double(mismatched) / double(considered) : 1.0; }
+};
+CoverageComparison compare_coverage(const std::vector<uint8_t>& drawn, const std::vector<uint8_t>& burnt,
+                                    const prep::Extent& e, uint32_t w, uint32_t h,
+                                    const std::vector<prep::Ring>& rings, double band) {
+  CoverageComparison c;
+  if (drawn.size() != size_t(w) * h || burnt.size() != drawn.size()) {
+    ADD_FAILURE() << "coverage sizes " << drawn.size() << " and " << burnt.size() << " for " << w << "x" << h;
+    return c;
+  }
+  for (uint32_t j = 0; j < h; ++j)
+    for (uint32_t i = 0; i < w; ++i) {
+      const size_t k = i + size_t(w) * j;
+      const bool a = drawn[k] != 0, b = burnt[k] != 0;
+      c.burnt += b;
+      c.drawn += a;
+      if (a != b) {
+        const double x = e.xmin + (i + 0.5) * (e.xmax - e.xmin) / w, y = e.ymax - (j + 0.5) * (e.ymax - e.ymin) / h;
+        if (distance_to_rings(rings, x, y) <= band) {
+          ++c.in_band;
+          continue;
+        }
+        ++c.mismatched;
+      }
+      ++c.considered;
+    }
+  return c;
+}
+
 // GL and CPU renders of the same view; returns false (with a skip reason)
 // when there is no EGL display.
 bool render_pair(const std::string& pkg, const std::string& name, const std::string& view_args,
@@ -108,7 +237,8 @@ TEST(RenderSmoke, MonacoTopDownDecalLayerAgreesWithCpuEvaluator) {
   const std::string& pkg = monaco_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
   std::vector<float> gl, cpu;
-  if (!render_pair(pkg, "monaco_topdown", "--dem " + kDem + " --extent " + kTopDown, gl, cpu, why)) GTEST_SKIP() << why;
+  if (!render_pair(pkg, "monaco_topdown", "--dem " + kDem + " " + topdown_extent(pkg, kTopDown), gl, cpu, why))
+    GTEST_SKIP() << why;
   auto a = agreement(gl, cpu);
   RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
   std::printf("top-down agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
@@ -132,7 +262,8 @@ TEST(RenderSmoke, MonacoObliquePerspectiveDecalLayerAgreesWithCpuEvaluator) {
 }
 
 // Writes the cleaned polygons (holes included) to a GeoPackage in the frame
-// CRS, absolute coordinates; returns every ring for the edge-distance check.
+// CRS, absolute coordinates; returns every ring (absolute) for the
+// edge-distance check.
 std::vector<prep::Ring> write_polygons(const prep::SceneFeatures& scene, const std::string& path) {
   GDALAllRegister();
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");
@@ -143,9 +274,13 @@ std::vector<prep::Ring> write_polygons(const prep::SceneFeatures& scene, const s
   std::vector<prep::Ring> rings;
   auto ring_of = [&](const prep::Ring& r) {
     OGRLinearRing lr;
-    for (const auto& p : r) lr.addPoint(p.x + scene.frame.origin_x, p.y + scene.frame.origin_y);
+    prep::Ring absolute;
+    for (const auto& p : r) {
+      lr.addPoint(p.x + scene.frame.origin_x, p.y + scene.frame.origin_y);
+      absolute.push_back({p.x + scene.frame.origin_x, p.y + scene.frame.origin_y});
+    }
     lr.closeRings();
-    rings.push_back(r);
+    rings.push_back(std::move(absolute));
     return lr;
   };
   for (const auto& poly : scene.polygons) {
@@ -161,7 +296,13 @@ std::vector<prep::Ring> write_polygons(const prep::SceneFeatures& scene, const s
 
 double distance_to_rings(const std::vector<prep::Ring>& rings, double x, double y) {
   double best = 1e300;
-  for (const auto& r : rings)
+  for (const auto& r : rings) {
+    if (r.empty()) continue;
+    double x0 = r[0].x, x1 = r[0].x, y0 = r[0].y, y1 = r[0].y;
+    for (const auto& p : r) {
+      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y), y1 = std::max(y1, p.y);
+    }
+    if (x < x0 - best || x > x1 + best || y < y0 - best || y > y1 + best) continue;  // farther than the best
     for (size_t i = 0; i < r.size(); ++i) {
       const auto& a = r[i];
       const auto& b = r[(i + 1) % r.size()];
@@ -169,6 +310,7 @@ double distance_to_rings(const std::vector<prep::Ring>& rings, double x, double 
       double t = l2 > 0 ? std::clamp(((x - a.x) * dx + (y - a.y) * dy) / l2, 0.0, 1.0) : 0.0;
       best = std::min(best, std::hypot(a.x + t * dx - x, a.y + t * dy - y));
     }
+  }
   return best;
 }
 
@@ -178,51 +320,184 @@ TEST(RenderSmoke, MonacoTopDownPolygonCoverageMatchesGdalRasterize) {
   if (pkg.empty()) GTEST_SKIP() << why;
   const fs::path d = out_dir();
   // Aliased GL coverage of the polygons alone.
-  auto g = tool("render " + pkg + " --extent " + kTopDown + " --size 640x360 --aa none --only polygons --raw " +
+  auto g = tool("render " + pkg + " " + topdown_extent(pkg, kTopDown) + " --size 640x360 --aa none --only polygons --raw " +
                 (d / "monaco_polygons_gl.rgba").string() + " -o " + (d / "monaco_polygons_gl.png").string());
   if (g.rc == 8) GTEST_SKIP() << "no headless GL: " << g.output;
   ASSERT_EQ(g.rc, 0) << g.output;
   auto gl = read_raw((d / "monaco_polygons_gl.rgba").string());
+  std::vector<uint8_t> drawn(640 * 360);
+  for (size_t k = 0; k < drawn.size() && 4 * k + 3 < gl.size(); ++k) drawn[k] = gl[4 * k + 3] > 0;
   // The same cleaned polygons (the pipeline is deterministic), burnt by GDAL.
   prep::SceneSpec spec = prep::load_scene_file(kSource + "/samples/monaco/scene.toml");
   prep::BuildRequest req;
   req.dry_run = true;
   prep::BuildResult built = prep::run_build(spec, req);
-  const std::string gpkg = (d / "monaco_polygons.gpkg").string(), tif = (d / "monaco_polygons.tif").string();
+  const std::string gpkg = (d / "monaco_polygons.gpkg").string();
   fs::remove(gpkg);
   auto rings = write_polygons(built.scene, gpkg);
-  const auto& o = built.scene.frame;
-  char te[256];
-  std::snprintf(te, sizeof te, "-te %.6f %.6f %.6f %.6f", -800 + o.origin_x, -450 + o.origin_y, 800 + o.origin_x,
-                450 + o.origin_y);
-  std::string cmd = "gdal_rasterize -q -burn 1 -init 0 -ot Byte " + std::string(te) + " -ts 640 360 -l polygons " + gpkg +
-                    " " + tif;
-  fs::remove(tif);
-  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
-  std::unique_ptr<GDALDataset> ras(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER));
-  ASSERT_TRUE(ras);
-  std::vector<uint8_t> burn(640 * 360);
-  ASSERT_EQ(ras->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, 640, 360, burn.data(), 640, 360, GDT_Byte, 0, 0), CE_None);
-  size_t total = 0, agree = 0, excluded = 0, covered = 0;
-  for (uint32_t j = 0; j < 360; ++j)
-    for (uint32_t i = 0; i < 640; ++i) {
-      const size_t k = i + 640 * size_t(j);
-      const bool a = gl[4 * k + 3] > 0, b = burn[k] != 0;
-      covered += b;
-      if (a != b) {
-        const double x = -800 + (i + 0.5) * 1600.0 / 640, y = 450 - (j + 0.5) * 900.0 / 360;
-        if (distance_to_rings(rings, x, y) <= 1e-6) {
-          ++excluded;
-          continue;
-        }
-      }
-      ++total;
-      agree += a == b;
+  const prep::Extent view = package_frame(pkg).absolute(kTopDown);
+  const auto burn = gdal_burn(gpkg, "polygons", view, 640, 360, d / "monaco_polygons.tif");
+  // Only pixel centres exactly on an edge may go either way.
+  const CoverageComparison c = compare_coverage(drawn, burn, view, 640, 360, rings, 1e-6);
+  std::printf("gdal_rasterize agreement %zu / %zu (%zu excluded, %zu burnt)\n", c.considered - c.mismatched,
+              c.considered, c.in_band, c.burnt);
+  RecordProperty("agreement", std::to_string(c.considered - c.mismatched) + "/" + std::to_string(c.considered));
+  EXPECT_GT(c.burnt, 50000u);
+  EXPECT_LE(c.mismatch(), 0.001);
+}
+
+// ---------------------------------------------------------------------------
+// One coordinate convention: `render --extent` takes absolute coordinates of
+// the package's frame CRS, like `build --extent` and the world file. A
+// package built with --crs EPSG:32632 (absolute UTM metres) from the sample's
+// buildings, rendered by the CPU evaluator, against gdal_rasterize of the
+// same source layer reprojected by ogr2ogr (GDAL's programs, not ours).
+// ---------------------------------------------------------------------------
+
+const std::string kBuildingsWhere = "building IS NOT NULL";
+
+// The UTM package and the oracle's GeoPackage (layer "buildings"); "" with
+// a reason when either cannot be made.
+struct UtmBuildings {
+  std::string package, oracle;
+};
+const UtmBuildings& utm_buildings(std::string* why) {
+  static UtmBuildings made;
+  static std::string reason;
+  static bool tried = false;
+  if (!tried) {
+    tried = true;
+    const fs::path d = out_dir() / "utm";
+    fs::create_directories(d);
+    BuildLock lock(out_dir() / "utm.lock");
+    const fs::path pkg = d / "buildings_utm.decals", gpkg = d / "buildings_utm.gpkg";
+    const std::string pbf = kSource + "/samples/monaco/monaco.osm.pbf";
+    if (!fresh(pkg) || !fs::exists(gpkg)) {
+      // --resolution 0: every vertex kept, as gdal_rasterize sees them.
+      auto r = tool("build " + pbf + " --layer multipolygons --where '" + kBuildingsWhere +
+                    "' --kind polygon --crs EPSG:32632 --resolution 0 -q -o " + pkg.string());
+      if (r.rc != 0) reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
+      fs::remove(gpkg);
+      const std::string cmd = "ogr2ogr -f GPKG -t_srs EPSG:32632 -nln buildings -where '" + kBuildingsWhere + "' " +
+                              gpkg.string() + " " + pbf + " multipolygons";
+      if (reason.empty() && std::system(cmd.c_str()) != 0) reason = "ogr2ogr failed: " + cmd;
     }
-  std::printf("gdal_rasterize agreement %zu / %zu (%zu excluded, %zu burnt)\n", agree, total, excluded, covered);
-  RecordProperty("agreement", std::to_string(agree) + "/" + std::to_string(total));
-  EXPECT_GT(covered, 50000u);
-  EXPECT_GE(double(agree) / double(total), 0.999);
+    if (reason.empty()) made = {pkg.string(), gpkg.string()};
+  }
+  if (why) *why = reason;
+  return made;
+}
+
+// Renders `view_args` with the CPU evaluator (--decals PNG) and compares its
+// coverage with gdal_rasterize over `oracle_extent`, outside a band of one
+// pixel around the source polygons' edges.
+CoverageComparison cpu_against_gdal(const UtmBuildings& b, const std::string& name, const std::string& view_args,
+                                    const prep::Extent& oracle_extent, uint32_t w, uint32_t h) {
+  const fs::path d = out_dir() / "utm";
+  const fs::path decals = d / (name + "_decals.png");
+  fs::remove(decals);
+  auto r = tool("render " + b.package + " --cpu " + view_args + " --size " + std::to_string(w) + "x" + std::to_string(h) +
+                " --decals " + decals.string() + " -o " + (d / (name + ".png")).string());
+  EXPECT_EQ(r.rc, 0) << r.output;
+  EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
+  const auto drawn = png_coverage(decals, w, h);
+  const auto burnt = gdal_burn(b.oracle, "buildings", oracle_extent, w, h, d / (name + "_gdal.tif"));
+  static const std::vector<prep::Ring> rings = rings_of(b.oracle, "buildings");
+  const double pixel = std::max((oracle_extent.xmax - oracle_extent.xmin) / w, (oracle_extent.ymax - oracle_extent.ymin) / h);
+  return compare_coverage(drawn, burnt, oracle_extent, w, h, rings, pixel);
+}
+
+// Central Monaco in UTM 32N: absolute metres, off the package's 1 m origin grid.
+const prep::Extent kUtmView{372000.25, 4843200.75, 373600.25, 4844200.75};
+
+TEST(RenderExtent, CpuTopDownInAbsoluteUtmMatchesGdalRasterizeOfTheSourceLayer) {
+  std::string why;
+  const UtmBuildings& b = utm_buildings(&why);
+  if (b.package.empty()) GTEST_SKIP() << why;
+  const CoverageComparison c = cpu_against_gdal(b, "absolute", "--extent " + extent_text(kUtmView, "%.2f,%.2f,%.2f,%.2f"),
+                                                kUtmView, 800, 500);
+  std::printf("absolute UTM view: %zu of %zu pixels outside the one-pixel band differ (%.2e); %zu in the band, "
+              "%zu burnt, %zu drawn\n",
+              c.mismatched, c.considered, c.mismatch(), c.in_band, c.burnt, c.drawn);
+  RecordProperty("mismatch", std::to_string(c.mismatch()));
+  EXPECT_GT(c.burnt, 50000u);
+  EXPECT_LT(c.mismatch(), 5e-4);
+  // The world file beside the image holds the extent as given.
+  std::ifstream wf(out_dir() / "utm" / "absolute.pgw");
+  double dx, r1, r2, dy, x0, y0;
+  wf >> dx >> r1 >> r2 >> dy >> x0 >> y0;
+  ASSERT_TRUE(wf);
+  EXPECT_NEAR(dx, 2.0, 1e-12);
+  EXPECT_NEAR(dy, -2.0, 1e-12);
+  EXPECT_NEAR(x0, kUtmView.xmin + 1.0, 1e-6);
+  EXPECT_NEAR(y0, kUtmView.ymax - 1.0, 1e-6);
+}
+
+TEST(RenderExtent, AnExtentInAnotherCrsIsTransformedIntoTheFrameCrs) {
+  std::string why;
+  const UtmBuildings& b = utm_buildings(&why);
+  if (b.package.empty()) GTEST_SKIP() << why;
+  const prep::Extent lonlat{7.4155, 43.7295, 7.4305, 43.7385};
+  // The oracle: gdaltransform (GDAL's program) of 21 points along each edge,
+  // their bounding box in UTM 32N.
+  const fs::path pts = out_dir() / "utm" / "edge_points.txt", utm = out_dir() / "utm" / "edge_points_utm.txt";
+  {
+    std::ofstream o(pts);
+    o.precision(12);
+    for (int k = 0; k <= 20; ++k) {
+      const double t = k / 20.0, x = lonlat.xmin + t * (lonlat.xmax - lonlat.xmin),
+                   y = lonlat.ymin + t * (lonlat.ymax - lonlat.ymin);
+      o << x << " " << lonlat.ymin << "\n" << x << " " << lonlat.ymax << "\n";
+      o << lonlat.xmin << " " << y << "\n" << lonlat.xmax << " " << y << "\n";
+    }
+  }
+  const std::string cmd =
+      "gdaltransform -s_srs EPSG:4326 -t_srs EPSG:32632 < " + pts.string() + " > " + utm.string();
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  prep::Extent oracle{1e300, 1e300, -1e300, -1e300};
+  std::ifstream in(utm);
+  double x, y, z;
+  int n = 0;
+  while (in >> x >> y >> z) {
+    oracle = {std::min(oracle.xmin, x), std::min(oracle.ymin, y), std::max(oracle.xmax, x), std::max(oracle.ymax, y)};
+    ++n;
+  }
+  ASSERT_EQ(n, 84);
+  const CoverageComparison c = cpu_against_gdal(
+      b, "lonlat", "--extent " + extent_text(lonlat, "%.4f,%.4f,%.4f,%.4f") + " --extent-crs EPSG:4326", oracle, 600, 500);
+  std::printf("EPSG:4326 view: %zu of %zu pixels outside the one-pixel band differ (%.2e); %zu burnt\n", c.mismatched,
+              c.considered, c.mismatch(), c.burnt);
+  EXPECT_GT(c.burnt, 20000u);
+  EXPECT_LT(c.mismatch(), 5e-4);
+  std::ifstream wf(out_dir() / "utm" / "lonlat.pgw");
+  double dx, r1, r2, dy, x0, y0;
+  wf >> dx >> r1 >> r2 >> dy >> x0 >> y0;
+  ASSERT_TRUE(wf);
+  EXPECT_NEAR(x0 - 0.5 * dx, oracle.xmin, 1e-3);
+  EXPECT_NEAR(y0 - 0.5 * dy, oracle.ymax, 1e-3);
+  EXPECT_NEAR(x0 - 0.5 * dx + 600 * dx, oracle.xmax, 1e-3);
+  EXPECT_NEAR(y0 - 0.5 * dy + 500 * dy, oracle.ymin, 1e-3);
+}
+
+TEST(RenderExtent, AViewThatMissesThePackageWarnsWithBothExtents) {
+  std::string why;
+  const UtmBuildings& b = utm_buildings(&why);
+  if (b.package.empty()) GTEST_SKIP() << why;
+  const PackageFrame f = package_frame(b.package);
+  // Metres relative to the origin (the old convention) lie far off in UTM.
+  auto r = tool("render " + b.package + " --cpu --extent 0,0,800,500 --size 80x50 -o " +
+                (out_dir() / "utm" / "miss.png").string());
+  EXPECT_EQ(r.rc, 0) << r.output;
+  EXPECT_NE(r.output.find("warning"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("0.000,0.000,800.000,500.000"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(extent_text(f.absolute(f.extent), "%.3f,%.3f,%.3f,%.3f")), std::string::npos) << r.output;
+  // --extent-crs alone, and a CRS PROJ does not know.
+  EXPECT_EQ(tool("render " + b.package + " --cpu --extent-crs EPSG:4326 -o " + (out_dir() / "utm" / "x.png").string()).rc,
+            2);
+  auto bad = tool("render " + b.package + " --cpu --extent 0,0,1,1 --extent-crs EPSG:999999 -o " +
+                  (out_dir() / "utm" / "x.png").string());
+  EXPECT_EQ(bad.rc, 3) << bad.output;
+  EXPECT_NE(bad.output.find("EPSG:999999"), std::string::npos) << bad.output;
 }
 
 // ---------------------------------------------------------------------------

@@ -473,11 +473,14 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_flag("--dynamic", args->dynamic, "Dynamic lines: width in pixels, terrain-matched")->group(g);
   auto* s = "Scene (override the scene file)";
   cmd->add_option("--crs", args->crs, "Scene frame CRS (PROJ/EPSG/WKT); default local TM")->group(s);
-  cmd->add_option("--assume-crs", args->assume_crs, "CRS for sources that have none")->group(s);
-  cmd->add_option("--extent", args->extent, "Clip extent xmin,ymin,xmax,ymax")->group(s);
+  cmd->add_option("--assume-crs", args->assume_crs, "CRS for sources and a DEM that have none (otherwise an error)")->group(s);
+  cmd->add_option("--extent", args->extent,
+                  "Clip extent xmin,ymin,xmax,ymax, absolute coordinates of the frame CRS (as "
+                  "render --extent)")
+      ->group(s);
   cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (default: the frame)")->group(s);
   cmd->add_option("--resolution", args->resolution, "Simplification tolerance, metres (0: keep all)")->group(s);
-  cmd->add_option("--dem", args->dem, "DEM raster (GDAL path); clips to its extent")->group(s);
+  cmd->add_option("--dem", args->dem, "DEM raster (GDAL path; its CRS, else --assume-crs); clips to its extent")->group(s);
   cmd->add_option("--repair", args->repair,
                   "Invalid polygons: linework (GEOS default, even-odd) | structure (every hole subtracted)")
       ->group(s);
@@ -487,7 +490,7 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
                   "Adaptive subdivision tolerance, metres (0: uniform)")->group(t);
   cmd->add_option("--z-scale", args->z_scale, "Height exaggeration (default 1)")->group(t);
   cmd->add_option("--nodata-fill", args->nodata_fill,
-                  "Height for DEM no-data samples (default: nearest valid sample)")->group(t);
+                  "Height for DEM no-data cells, raw DEM units (default: the nearest valid cell)")->group(t);
   auto* b = "Build";
   cmd->add_option("--grid", args->grid, "Decal grid NXxNY (500x500 = thesis) or auto")->group(b);
   cmd->add_option("--leaf-capacity", args->leaf_capacity, "Quad-tree leaf capacity (thesis: 8)")->group(b);

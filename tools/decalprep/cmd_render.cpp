@@ -1,16 +1,17 @@
 // decalprep render — draws a package over terrain headless (GL via EGL, or
 // the CPU evaluator with --cpu) and writes a PNG. Thin: parsing and calls
 // into prep_render (prep/render.hpp).
+#include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include "command.hpp"
+#include "prep/project.hpp"
 #include "prep/render.hpp"
 
 #ifdef PREP_RENDER_HAVE_READER
-#include <nlohmann/json.hpp>
-
 #include "decal/reader.hpp"
 #endif
 
@@ -18,8 +19,9 @@ namespace {
 
 struct RenderArgs {
   std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye, target;
-  std::string aa = "none", binding = "ssbo", only;
-  double fov = 45.0, pitch = 45.0, z_scale = 1.0;
+  std::string aa = "none", binding = "ssbo", only, assume_crs;
+  double fov = 45.0, pitch = 45.0;
+  std::optional<double> z_scale, nodata_fill;  // none: the package's
   uint32_t frames = 1;
   bool cpu = false, stats = false, ortho = false, fit = false, flat = false;
 };
@@ -80,14 +82,36 @@ void run(const RenderArgs& a) {
       else throw prep::usage_error("render: --only '" + a.only + "': kinds are polygons, lines, dynamic");
     }
   }
-  // The terrain covers the package extent, and the requested extent too.
-  prep::Extent view_extent;
+  // --extent is in absolute coordinates of the package's frame CRS (or in
+  // --extent-crs), as `build --extent` and the world file written below;
+  // the renderer works relative to the package origin.
+  prep::Extent view_extent, abs_view;
   bool topdown = !a.extent.empty();
+  if (!a.extent_crs.empty() && !topdown) throw prep::usage_error("render: --extent-crs needs --extent");
   if (topdown) {
     auto v = numbers(a.extent, 4, "--extent");
-    view_extent = {v[0], v[1], v[2], v[3]};
-    if (!a.extent_crs.empty()) view_extent = R::extent_to_scene(view_extent, a.extent_crs, src.frame);
-    if (view_extent.empty()) throw prep::usage_error("render: --extent '" + a.extent + "' is empty");
+    prep::Extent given{v[0], v[1], v[2], v[3]};
+    if (given.empty())
+      throw prep::usage_error("render: --extent '" + a.extent + "' is empty (xmin,ymin,xmax,ymax with max > min)");
+    if (!a.extent_crs.empty() && src.frame.crs_wkt.empty())
+      throw prep::usage_error("render: the package records no frame CRS, so --extent-crs cannot be used; "
+                              "give --extent in the package's frame coordinates");
+    abs_view = prep::extent_in_frame_crs(given, a.extent_crs, src.frame, "render");
+    const prep::Extent abs_package{src.extent.xmin + src.frame.origin_x, src.extent.ymin + src.frame.origin_y,
+                                   src.extent.xmax + src.frame.origin_x, src.extent.ymax + src.frame.origin_y};
+    view_extent = {abs_view.xmin - src.frame.origin_x, abs_view.ymin - src.frame.origin_y,
+                   abs_view.xmax - src.frame.origin_x, abs_view.ymax - src.frame.origin_y};
+    if (view_extent.empty()) throw prep::usage_error("render: --extent '" + a.extent + "' is empty in the frame CRS");
+    const bool misses = abs_view.xmax < abs_package.xmin || abs_view.xmin > abs_package.xmax ||
+                        abs_view.ymax < abs_package.ymin || abs_view.ymin > abs_package.ymax;
+    if (misses) {
+      std::fprintf(stderr,
+                   "render: warning: the view %.3f,%.3f,%.3f,%.3f misses the package extent %.3f,%.3f,%.3f,%.3f "
+                   "(xmin,ymin,xmax,ymax in the frame CRS); --extent takes absolute coordinates of the package's "
+                   "frame CRS unless --extent-crs names another\n",
+                   abs_view.xmin, abs_view.ymin, abs_view.xmax, abs_view.ymax, abs_package.xmin, abs_package.ymin,
+                   abs_package.xmax, abs_package.ymax);
+    }
   }
   prep::Extent terrain_extent = src.extent;
   if (topdown) {
@@ -97,30 +121,37 @@ void run(const RenderArgs& a) {
     terrain_extent.ymax = std::max(terrain_extent.ymax, view_extent.ymax);
   }
   // Terrain: --dem, else the DEM the package was built with (its metadata's
-  // build_options.dem) when it can still be read, else flat. --flat forces flat.
+  // build_options.dem) when it can still be read, else flat. --flat forces
+  // flat. The surface settings the package was built with (z-scale, no-data
+  // fill, assumed CRS) apply unless given here, so the terrain is the
+  // surface the dynamic lines were matched to (prep/dem.hpp).
   if (a.flat && !a.dem.empty()) throw prep::usage_error("render: --flat and --dem exclude each other");
-  std::string dem = a.flat ? std::string() : a.dem;
-  bool dem_from_package = false;
-  if (!a.flat && dem.empty()) {
-    const auto meta = nlohmann::json::parse(pkg.metadata_json(), nullptr, /*allow_exceptions=*/false);
-    if (meta.is_object() && meta.contains("build_options") && meta["build_options"].is_object()) {
-      const auto& bo = meta["build_options"];
-      if (bo.contains("dem") && bo["dem"].is_string()) dem = bo["dem"].get<std::string>();
-    }
-    dem_from_package = !dem.empty();
+  prep::DemSpec dem = R::recorded_dem(std::string(pkg.metadata_json()));
+  const bool dem_from_package = !a.flat && a.dem.empty() && !dem.path.empty();
+  if (a.flat) dem.path.clear();
+  else if (!a.dem.empty()) dem.path = a.dem;
+  if (a.z_scale) {
+    if (!(*a.z_scale > 0) || !std::isfinite(*a.z_scale))
+      throw prep::usage_error("render: --z-scale must be a positive number");
+    dem.z_scale = *a.z_scale;
   }
+  if (a.nodata_fill) {
+    if (!std::isfinite(*a.nodata_fill)) throw prep::usage_error("render: --nodata-fill must be a finite height");
+    dem.nodata_fill = *a.nodata_fill;
+  }
+  if (!a.assume_crs.empty()) dem.assume_crs = a.assume_crs;
   R::Heightfield terrain;
-  if (dem.empty()) {
+  if (dem.path.empty()) {
     terrain = R::flat_heightfield(terrain_extent);
   } else if (!dem_from_package) {
-    terrain = R::load_heightfield(dem, src.frame, terrain_extent, 512, a.z_scale);
+    terrain = R::load_heightfield(dem, src.frame, terrain_extent, R::kMeshSamples);
   } else {
     try {
-      terrain = R::load_heightfield(dem, src.frame, terrain_extent, 512, a.z_scale);
-      std::fprintf(stderr, "render: terrain from the package's build DEM %s (--flat to ignore it)\n", dem.c_str());
+      terrain = R::load_heightfield(dem, src.frame, terrain_extent, R::kMeshSamples);
+      std::fprintf(stderr, "render: terrain from the package's build DEM %s (--flat to ignore it)\n", dem.path.c_str());
     } catch (const prep::error& e) {
       std::fprintf(stderr, "render: warning: the package was built with DEM %s, which cannot be read here (%s); "
-                   "drawing flat terrain (pass --dem PATH)\n", dem.c_str(), e.what());
+                   "drawing flat terrain (pass --dem PATH)\n", dem.path.c_str(), e.what());
       terrain = R::flat_heightfield(terrain_extent);
     }
   }
@@ -151,7 +182,8 @@ void run(const RenderArgs& a) {
   R::Image img = R::render_cpu(src, terrain, opt);
 #endif
   R::write_png(a.output, img.rgba, img.width, img.height);
-  if (topdown) R::write_world_file(a.output, view_extent, w, h, src.frame);
+  // The world file carries the absolute extent as given (not origin + relative).
+  if (topdown) prep::write_world_file(a.output, abs_view, w, h, src.frame.crs_wkt);
   if (!a.decals_png.empty()) R::write_png(a.decals_png, R::quantise(img.decals), img.width, img.height);
   if (!a.raw.empty()) {
     std::ofstream out(a.raw, std::ios::binary);
@@ -162,6 +194,10 @@ void run(const RenderArgs& a) {
     std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), w, h, a.binding.c_str(), a.aa.c_str());
     std::printf("%-48s %12s %12s\n", "pass", "gpu ms", "wall ms");
     for (const auto& t : img.times) std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
+    std::printf("terrain: %ux%u vertices, within %s of the DEM surface\n", terrain.nx, terrain.ny,
+                std::isfinite(terrain.surface_error_bound)
+                    ? (std::to_string(terrain.surface_error_bound * 1e3) + " mm").c_str()
+                    : "an unbounded distance (mesh not on the DEM lattice)");
     if (img.dyn_kept || img.dyn_segments)
       std::printf("dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
                   img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
@@ -172,17 +208,34 @@ void run(const RenderArgs& a) {
 const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand("render", "Draw a package over terrain (headless GL, or --cpu) into a PNG");
+  cmd->footer(
+      "Coordinates: --extent is in absolute coordinates of the package's frame CRS (the crs and\n"
+      "origin of `decalprep info`), like build --extent; --extent-crs gives it in another CRS.\n"
+      "The .pgw/.aux.xml world file of a top-down view uses the frame CRS's absolute coordinates.\n"
+      "--eye and --target are metres relative to the package origin.\n"
+      "Examples:\n"
+      "  decalprep render city.decals --dem dem.tif --fit --pitch 50 --size 1280x720 -o city.png\n"
+      "  decalprep render city.decals --extent 372000,4843200,373600,4844100 --size 800x450 -o top.png\n"
+      "  decalprep render city.decals --extent 7.41,43.73,7.43,43.745 --extent-crs EPSG:4326 --cpu -o top.png");
   cmd->add_option("package", args->package, "Package (.decals)")->required();
   cmd->add_option("-o,--output", args->output, "Output PNG")->required();
   cmd->add_option("--dem", args->dem,
                   "DEM raster (any GDAL path); default: the DEM the package was built with, if readable, else flat");
   cmd->add_flag("--flat", args->flat, "Flat terrain, even if the package was built with a DEM");
-  cmd->add_option("--z-scale", args->z_scale, "Height exaggeration");
-  cmd->add_option("--extent", args->extent, "Top-down orthographic view xmin,ymin,xmax,ymax (scene metres)");
-  cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (e.g. EPSG:4326)");
+  cmd->add_option("--z-scale", args->z_scale, "Height exaggeration (default: the package's build --z-scale, else 1)");
+  cmd->add_option("--nodata-fill", args->nodata_fill,
+                  "Height for DEM no-data, raw DEM units (default: the package's build --nodata-fill, else the "
+                  "nearest valid cell)");
+  cmd->add_option("--assume-crs", args->assume_crs,
+                  "CRS of a DEM that has none (default: the package's build --assume-crs; otherwise such a DEM is an "
+                  "error)");
+  cmd->add_option("--extent", args->extent,
+                  "Top-down orthographic view xmin,ymin,xmax,ymax in absolute coordinates of the package's frame CRS "
+                  "(as build --extent and the world file)");
+  cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (e.g. EPSG:4326, lon/lat order; default: the frame)");
   cmd->add_option("--size", args->size, "Image size WxH (default 640x360)");
-  cmd->add_option("--eye", args->eye, "Camera position x,y,z (scene metres)");
-  cmd->add_option("--target", args->target, "Camera target x,y,z (scene metres)");
+  cmd->add_option("--eye", args->eye, "Camera position x,y,z (metres relative to the package origin)");
+  cmd->add_option("--target", args->target, "Camera target x,y,z (metres relative to the package origin)");
   cmd->add_option("--fov", args->fov, "Vertical field of view, degrees");
   cmd->add_option("--pitch", args->pitch, "--fit: camera pitch below the horizon, degrees");
   cmd->add_flag("--ortho", args->ortho, "Orthographic projection");

@@ -89,21 +89,21 @@ Status Context::create(std::unique_ptr<Context>& out) {
   }
   if (dpy == EGL_NO_DISPLAY) {
     if (!client_ext) why = egl_error("eglQueryString(EGL_EXTENSIONS)") + " (no EGL vendor library?)";
-    return Status::failure("render: no headless EGL display could be created: " + why);
+    return Status::failure("gl loader: no headless EGL display could be created: " + why);
   }
   ctx->display_ = dpy;
 
   const char* dpy_ext = eglQueryString(dpy, EGL_EXTENSIONS);
   if (!has_extension(dpy_ext, "EGL_KHR_surfaceless_context"))
-    return Status::failure("render: EGL display lacks EGL_KHR_surfaceless_context");
-  if (eglBindAPI(EGL_OPENGL_API) != EGL_TRUE) return Status::failure("render: " + egl_error("eglBindAPI(OpenGL)"));
+    return Status::failure("gl loader: EGL display lacks EGL_KHR_surfaceless_context");
+  if (eglBindAPI(EGL_OPENGL_API) != EGL_TRUE) return Status::failure("gl loader: " + egl_error("eglBindAPI(OpenGL)"));
   const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5,
                             EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
   EGLContext glc = eglCreateContext(dpy, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attribs);
-  if (glc == EGL_NO_CONTEXT) return Status::failure("render: " + egl_error("eglCreateContext(GL 4.5 core)"));
+  if (glc == EGL_NO_CONTEXT) return Status::failure("gl loader: " + egl_error("eglCreateContext(GL 4.5 core)"));
   ctx->context_ = glc;
   if (eglMakeCurrent(dpy, EGL_NO_SURFACE, EGL_NO_SURFACE, glc) != EGL_TRUE)
-    return Status::failure("render: " + egl_error("eglMakeCurrent"));
+    return Status::failure("gl loader: " + egl_error("eglMakeCurrent"));
 
   auto str = [](GLenum e) {
     const auto* s = reinterpret_cast<const char*>(glGetString(e));

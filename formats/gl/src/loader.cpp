@@ -5,9 +5,6 @@
 
 #include "decal/gl/gl.hpp"
 
-#ifdef DECAL_GL_HAVE_READER
-#include "decal/reader.hpp"
-#endif
 
 namespace decal::gl {
 
@@ -34,14 +31,6 @@ GLenum texture_format(BlobId id) {
 
 }  // namespace
 
-#ifdef DECAL_GL_HAVE_READER
-std::vector<BlobBytes> blobs_of(const Package& package) {
-  std::vector<BlobBytes> out;
-  for (const BlobView& b : package.blobs())
-    if (b.known()) out.push_back({static_cast<BlobId>(b.id), b.count, b.bytes});
-  return out;
-}
-#endif
 
 GpuPackage::GpuPackage() = default;
 
@@ -52,9 +41,11 @@ GpuPackage::~GpuPackage() {
   }
 }
 
-Status GpuPackage::upload(std::span<const BlobBytes> blobs, const Grid& grid, std::unique_ptr<GpuPackage>& out) {
+Status GpuPackage::upload(std::span<const BlobBytes> blobs, const Grid& grid, std::unique_ptr<GpuPackage>& out,
+                          bool validated) {
   // No GL call before the data passed every structural check.
-  if (Status s = validate_blobs(blobs, grid); !s) return s;
+  if (!validated)
+    if (Status s = validate_blobs(blobs, grid); !s) return s;
   auto pkg = std::unique_ptr<GpuPackage>(new GpuPackage());
   pkg->grid_ = grid;
   pkg->slots_.resize(kSlots);
@@ -89,7 +80,7 @@ Status GpuPackage::upload(std::span<const BlobBytes> blobs, const Grid& grid, st
     }
   }
   if (GLenum e = glGetError(); e != GL_NO_ERROR)
-    return Status::failure("render: GL error 0x" + std::to_string(e) + " while uploading blobs (out of memory?)");
+    return Status::failure("gl loader: GL error 0x" + std::to_string(e) + " while uploading blobs (out of memory?)");
   out = std::move(pkg);
   return Status::success();
 }

@@ -26,7 +26,7 @@ Status compile(GLenum stage, const std::vector<std::string>& files, const std::s
   std::string src = "#version 450 core\n" + defines + "\n";
   for (const auto& f : files) {
     std::string_view text = shader_source(f);
-    if (text.empty()) return Status::failure("render: no embedded shader named '" + f + "'");
+    if (text.empty()) return Status::failure("gl loader: no embedded shader named '" + f + "'");
     src += "#line 1\n";
     src.append(text);
     src += "\n";
@@ -45,7 +45,7 @@ Status compile(GLenum stage, const std::vector<std::string>& files, const std::s
     glDeleteShader(sh);
     std::string names;
     for (const auto& f : files) names += (names.empty() ? "" : "+") + f;
-    return Status::failure("render: shader " + names + " failed to compile: " + log);
+    return Status::failure("gl loader: shader " + names + " failed to compile: " + log);
   }
   out = sh;
   return Status::success();
@@ -78,7 +78,7 @@ Status build_program(const ProgramSources& sources, uint32_t& out) {
       glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
       std::string log(static_cast<size_t>(len > 0 ? len : 1), '\0');
       glGetProgramInfoLog(prog, len, nullptr, log.data());
-      s = Status::failure("render: program failed to link: " + log);
+      s = Status::failure("gl loader: program failed to link: " + log);
     }
   }
   for (GLuint sh : shaders) glDeleteShader(sh);

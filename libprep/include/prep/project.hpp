@@ -44,6 +44,16 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs);
 ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene,
                           Progress* progress = nullptr);
 
+// `extent` given in `crs` (any PROJ/EPSG/WKT string; empty: the frame CRS
+// itself) as ABSOLUTE coordinates of the frame CRS: unchanged when `crs` is
+// empty, else GDAL's TransformBounds with densified edges (21 points per
+// edge), every SRS in OAMS_TRADITIONAL_GIS_ORDER (x = easting/longitude).
+// The one convention of `build --extent` and `render --extent`. Throws
+// input_error, its message starting with `context` ("project", "render"),
+// for an unknown CRS or an extent that cannot be transformed.
+Extent extent_in_frame_crs(const Extent& extent, const std::string& crs, const SceneFrame& frame,
+                           const std::string& context);
+
 // The point scale factor of `frame` at frame coordinates (x, y) relative to
 // the origin: ratio of frame distance to ground (ellipsoidal) distance. For
 // the local TM frame this is GeographicLib's k.

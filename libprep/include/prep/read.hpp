@@ -29,9 +29,13 @@ struct ReadOptions {
 //                 assume_crs, a NaN/Inf coordinate (unless skip_failures;
 //                 a feature OGR cannot decode is a gdal_error then),
 //                 an unknown order/colour attribute.
-// OSM XML whose node ids do not increase (Overpass output) is re-read with
-// OSM_USE_CUSTOM_INDEXING=NO, and the manifest says so.
-// Thread-safe with respect to other reads (GDAL config is set thread-locally).
+// OSM XML whose node ids do not increase (Overpass output) is read with
+// OSM_USE_CUSTOM_INDEXING=NO, and the manifest says so; OSM XML listing a
+// node after a way or relation (which GDAL would silently drop ways for) is
+// an input_error that says how to reorder it. A GeoJSON object of any size
+// is read (OGR_GEOJSON_MAX_OBJ_SIZE=0 unless the user set it).
+// Thread-safe with respect to other reads (GDAL config is set thread-locally
+// for the read and restored after it).
 FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options = {});
 
 // Reads one layer, appending its counts, entries and notes to `manifest`.

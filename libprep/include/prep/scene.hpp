@@ -84,7 +84,8 @@ struct BuildOptions {
   double lmax = 0.0;                   // 0: half the DEM cell size
   double terrain_tolerance = 0.0;      // >0: adaptive subdivision, metres
   double z_scale = 1.0;
-  std::optional<double> nodata_fill;   // none: nearest valid sample
+  std::optional<double> nodata_fill;   // raw DEM units; none: nearest valid cell (prep/dem.hpp)
+  std::string dem_assume_crs;          // CRS of a DEM that has none (the scene's assume_crs)
   unsigned threads = 0;                // 0: all hardware threads
   // Not from the scene file: where the build stage reports its sub-stages
   // (build.lines, build.quadtrees, build.grid, build.cells, build.dynamic;

@@ -1,7 +1,7 @@
 // prep/terrain.hpp — terrain matching of dynamic lines (thesis §3.2.2,
-// §4.2.2): DEM sampling (any GDAL raster, any CRS, no-data fill) and the
-// subdivision of dynamic lines into 3D vertices, fixed (lmax) or adaptive
-// (--terrain-tolerance). GDAL stays inside libprep/terrain.
+// §4.2.2): the subdivision of dynamic lines into 3D vertices on the DEM
+// surface of prep/dem.hpp (the one the renderer draws), fixed (lmax) or
+// adaptive (--terrain-tolerance).
 #pragma once
 
 #include <cstdint>
@@ -11,75 +11,11 @@
 #include <string>
 #include <vector>
 
+#include "prep/dem.hpp"
 #include "prep/model.hpp"
 #include "prep/scene.hpp"
 
 namespace prep {
-
-// What a build learned about its DEM, for the manifest.
-struct TerrainStats {
-  std::string description;            // path, driver, size, CRS name, units
-  double cell_size_m = 0;             // ground size of a DEM cell (smaller side) near the data
-  uint64_t window_cells = 0;          // cells read
-  uint64_t nodata_cells = 0;          // of them: no-data (or NaN) cells, filled per policy
-  std::string fill_policy;            // "nearest valid cell" or "value V"
-  uint64_t samples = 0;               // heights sampled for stored vertices
-  uint64_t samples_touching_fill = 0; // of them: bilinear stencil used a filled cell
-  uint64_t samples_outside = 0;       // of them: outside the raster (edge value used)
-  double min = 0, max = 0;            // over the cells read, metres after all scaling
-};
-
-// A DEM opened for sampling heights at scene points.
-//
-// No-data policy: a no-data (or NaN) cell takes the value of a nearest
-// valid cell in the window read (Chebyshev distance in cells, computed by a
-// breadth-first search over the 8-neighbourhood seeded with the valid cells
-// in row-major order; among equally near cells the search's first wins), or
-// `nodata_fill` (raw DEM units) when given. Filled cells and the vertex
-// heights that used one are counted in TerrainStats (and the manifest). Heights are raw * band scale + band offset, converted from
-// feet when the band's unit says so, times `z_scale`.
-class DemSampler {
- public:
-  // Opens `path` (GeoTIFF, SRTM .hgt, /vsizip/..., VRT: anything GDAL
-  // reads). Scene coordinates are metres relative to frame.origin in
-  // frame.crs_wkt; an empty crs_wkt means the DEM's own CRS. Points are
-  // transformed to the DEM CRS (OAMS_TRADITIONAL_GIS_ORDER); the raster is
-  // never warped. Throws gdal_error when the file or a CRS cannot be used.
-  DemSampler(const std::string& path, const SceneFrame& frame, double z_scale,
-             std::optional<double> nodata_fill);
-  ~DemSampler();
-  DemSampler(const DemSampler&) = delete;
-  DemSampler& operator=(const DemSampler&) = delete;
-
-  // Pixel/line coordinates in the full raster, pixel-is-area (the centre of
-  // cell (i, j) is (i + 0.5, j + 0.5)), of scene points. Thread-safe.
-  void to_pixel(std::span<const Point2> scene, std::span<Point2> pixel) const;
-  Point2 to_pixel(Point2 scene) const;
-
-  // Ground size in metres of one DEM cell at scene point p (the smaller of
-  // its two sides, measured in the scene frame).
-  double cell_size_metres(Point2 p) const;
-
-  // Reads the cells covering the pixel box (plus a 16-cell margin, clipped
-  // to the raster) and fills no-data. Call before height(). Not thread-safe.
-  void load(double px0, double py0, double px1, double py1);
-
-  // GDAL's bilinear height at pixel coordinates: weights from the
-  // half-pixel cell centres, the edge cell's value beyond the outermost
-  // centres. Thread-safe after load(); points outside the window read use
-  // its edge. `touched_fill`, when given, is set if a filled cell has
-  // non-zero weight.
-  double height(double px, double py, bool* touched_fill = nullptr) const;
-
-  // True when the pixel position lies outside the raster.
-  bool outside(double px, double py) const;
-
-  const TerrainStats& stats() const;
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-};
 
 struct MatchOptions {
   double lmax = 0;       // maximum horizontal piece length, metres (>= 0.01;

@@ -1,6 +1,7 @@
 // decal/inspect.hpp — lower-level views of a .decals package for tools and
 // loaders: the raw header and blob table (for `decalprep info`), and the
-// index checks that need the blob contents (for `verify` and the GL loader).
+// structural check of the blob contents (for `verify`, the evaluator and the
+// GL loader).
 //
 // Like reader.hpp, nothing here throws (std::bad_alloc aside); failures are
 // a Status with a one-line message. Depends on the standard library only.
@@ -26,13 +27,44 @@ struct PackageLayout {
 // decoding) and fills `out`. On failure `out` is left empty.
 Status read_layout(std::span<const std::byte> file, PackageLayout& out);
 
-// Checks, from the blobs alone, that every index a blob holds points inside
-// the blob it indexes (vertex indices < vertex count, (first, count) ranges
-// inside their list blob, node types and child offsets in range, (prev, next)
-// links in range, reserved record fields zero) and that blobs which run in
-// parallel have equal counts. Absent or empty blobs are treated as empty.
-// Returns the first problem found, naming the blob, element and value.
-Status validate_indices(const Package& package);
+// Decoded blob bytes, as a loader holds them (from a Package, or from a
+// model in memory).
+struct BlobBytes {
+  BlobId id{};
+  uint64_t count = 0;                // elements
+  std::span<const std::byte> bytes;  // count * catalogue stride
+};
+
+// The decal grid (thesis Eq. 4.3/4.4), in quanta relative to the origin.
+struct Grid {
+  int64_t origin_x = 0, origin_y = 0;
+  int64_t cell_w = 1, cell_h = 1;
+  uint32_t nx = 0, ny = 0;
+};
+
+struct ValidateOptions {
+  const Grid* grid = nullptr;  // when known: per-cell blobs hold one element per cell
+  bool newer_minor = false;    // the file is of a newer minor version: reserved fields are ignored
+};
+
+// The structural check of decoded blobs, the one every consumer runs (the
+// `verify` command, the CPU evaluator, the GL loader): sizes against the
+// catalogue stride; every index inside the blob it indexes (vertex, line,
+// polygon, node, hole, box, LOD point), every (first, count) range inside
+// its list; quad-tree node types 0..3 with children after their parent (so
+// every descent ends); per-cell BVHs that are full binary trees over their
+// list; blobs that run in parallel of equal counts; dynamic lines as
+// consecutive vertex runs; reserved record fields zero; with a grid, its
+// int32 range and one per-cell element per cell. Unknown ids are skipped;
+// absent blobs are empty. Returns the first problem, naming the blob,
+// element and value. Thread-safe; reads nothing outside `blobs`.
+Status validate_blobs(std::span<const BlobBytes> blobs, const ValidateOptions& options = {});
+
+// The known blobs of an opened package, as BlobBytes (views into it).
+std::vector<BlobBytes> blobs_of(const Package& package);
+
+// validate_blobs over an opened package (newer_minor from its header).
+Status validate_indices(const Package& package, const Grid* grid = nullptr);
 
 // "none", "zstd", or "" for an unknown codec id.
 constexpr std::string_view codec_name(uint32_t codec) {

@@ -5,7 +5,10 @@
 //   .decals --load--> DecalSource --render_gl / render_cpu--> Image --> PNG
 //
 // Coordinates are scene metres relative to the package origin (the frame of
-// prep::evaluate). GL work happens in anchor-relative metres (DESIGN.md §4.1).
+// prep::evaluate); GL work happens in anchor-relative metres. `decalprep
+// render --extent` takes absolute coordinates of the frame CRS, as `build
+// --extent` and the world file do (prep::extent_in_frame_crs), and
+// subtracts the origin before it gets here.
 #pragma once
 
 #include <array>
@@ -16,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "prep/dem.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/model.hpp"
 #include "prep/scene.hpp"
@@ -54,28 +58,56 @@ Camera fit_camera(const Extent& extent, double zmin, double zmax, uint32_t width
 
 // A terrain heightfield sampled on a regular grid of the scene frame:
 // sample (i, j) lies at (x0 + i * dx, y0 + j * dy) with height z[i + nx * j].
-// The mesh splits every cell into the triangles (00, 10, 11) and (00, 11, 01).
+// The mesh splits every cell into the triangles (00, 10, 11) and (00, 11, 01);
+// the GL path rasterises exactly these triangles and the CPU path ray-casts
+// them.
 struct Heightfield {
   double x0 = 0, y0 = 0, dx = 1, dy = 1;
   uint32_t nx = 2, ny = 2;
   std::vector<double> z;
   double zmin = 0, zmax = 0;
+  // Bound on |mesh - DEM surface| in metres: 0 for flat terrain, the
+  // twist bound of prep::DemSampler::max_twist() when the mesh lies on the
+  // DEM's lattice, +infinity when no bound is known (a DEM in another CRS,
+  // or a lattice too fine for max_samples).
+  double surface_error_bound = 0;
   // First intersection of the ray o + t d (t > 0) with the mesh; t or nullopt.
   std::optional<double> intersect(const Vec3& o, const Vec3& d) const;
   Vec3 normal_at(uint32_t i, uint32_t j) const;  // vertex normal (central differences)
+  // Height of the mesh (the triangles drawn) at scene point (x, y); NaN
+  // outside the grid.
+  double height_at(double x, double y) const;
 };
 
 // Flat terrain at height 0 covering `extent`.
 Heightfield flat_heightfield(const Extent& extent);
 
-// Samples the DEM (any GDAL raster, any CRS; /vsizip/ paths work) bilinearly
-// at a regular grid of the scene frame covering `extent`: each grid point is
-// transformed from the scene frame to the DEM CRS (traditional GIS axis
-// order). Spacing follows the DEM resolution, at most `max_samples` per axis.
-// No-data and points outside the DEM read as 0. Throws input_error naming the
-// file when the DEM cannot be read or transformed.
-Heightfield load_heightfield(const std::string& dem, const SceneFrame& frame, const Extent& extent,
-                             uint32_t max_samples = 512, double z_scale = 1.0);
+// The terrain mesh of the DEM surface (prep/dem.hpp: the surface terrain
+// matching drapes dynamic lines on, with the same CRS rule, no-data fill,
+// band scale and offset, vertical units and z-scale) covering `extent`.
+// Every mesh vertex is a height of that surface. When the DEM's cell-centre
+// lattice is a regular grid of the scene frame (DEM in the frame CRS,
+// north-up), the vertices lie on that lattice, each cell split s x s times
+// with s the smallest that keeps the mesh within kMeshTolerance of the
+// bilinear surface (DemSampler::max_twist); otherwise the grid follows the
+// frame with the spacing of the DEM cell near the centre (vertices on the
+// surface, no bound between them: surface_error_bound is infinite).
+// At most `max_samples` vertices per axis (coarser when the extent needs
+// more). Throws input_error / gdal_error naming the file when the DEM cannot
+// be read or transformed.
+// kMeshTolerance: a quarter of the package's height quantum, so that a stored
+// dynamic-line height (rounded to 1 mm) and the mesh under it agree to
+// 0.75 mm. kMeshSamples: `decalprep render`'s vertices per axis.
+constexpr double kMeshTolerance = 0.25e-3;
+constexpr uint32_t kMeshSamples = 512;
+Heightfield load_heightfield(const DemSpec& dem, const SceneFrame& frame, const Extent& extent,
+                             uint32_t max_samples = kMeshSamples);
+
+// The DEM a package was built with and the settings that made its surface,
+// from its metadata (build_options: dem, dem_assume_crs, z_scale,
+// nodata_fill); an empty path when it records none. Missing keys keep the
+// DemSpec defaults.
+DemSpec recorded_dem(const std::string& metadata_json);
 
 // The decal data a renderer reads: frame, extent, grid and the static view
 // (CPU) plus the raw blobs (GL), all views into an owner that must outlive it.
@@ -90,6 +122,10 @@ struct DecalSource {
     uint64_t bytes = 0;
   };
   std::vector<Blob> blobs;
+  // The blobs passed the package's structural check with this grid
+  // (decal::validate_blobs; source_of(Package) runs it), so render_gl does
+  // not run it again. False for models in memory: render_gl checks them.
+  bool validated = false;
 };
 
 // Views of a model in memory (for tests and `build --render`).
@@ -146,11 +182,6 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
 // and axis-aligned image (the render_topdown case); `extent` is then the
 // imaged area.
 bool is_topdown(const Camera& camera, uint32_t width, uint32_t height, Extent* extent = nullptr);
-
-// `extent` given in `crs` (any GDAL SRS string, e.g. EPSG:4326 as lon/lat)
-// as scene metres relative to the frame origin: the bounding box of its
-// transformed corners and edge midpoints. Throws usage_error on a bad CRS.
-Extent extent_to_scene(const Extent& extent, const std::string& crs, const SceneFrame& frame);
 
 // PNG (8-bit RGBA) through libpng; throws output_error naming the path.
 void write_png(const std::string& path, const std::vector<uint8_t>& rgba, uint32_t width, uint32_t height);

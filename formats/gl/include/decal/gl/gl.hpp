@@ -19,7 +19,8 @@
 
 #include "decal/format.hpp"
 #include "decal/gl/bindings.hpp"
-#include "decal/reader.hpp"  // decal::Status
+#include "decal/inspect.hpp"  // BlobBytes, Grid, validate_blobs
+#include "decal/reader.hpp"   // decal::Status
 
 namespace decal { class Package; }
 
@@ -72,33 +73,17 @@ Status build_program(const ProgramSources& sources, uint32_t& out);
 
 // ---------------------------------------------------------------- blobs ----
 
-// Blob bytes as the renderer sees them (from a Package or a model in memory).
-struct BlobBytes {
-  BlobId id{};
-  uint64_t count = 0;  // elements
-  std::span<const std::byte> bytes;  // count * catalogue stride, 4-byte aligned
-};
+// Blob bytes and grid as the renderer sees them (decal/inspect.hpp).
+using BlobBytes = decal::BlobBytes;
+using Grid = decal::Grid;
 
-// The decal grid (thesis Eq. 4.3/4.4), in quanta relative to the origin.
-struct Grid {
-  int64_t origin_x = 0, origin_y = 0;
-  int64_t cell_w = 1, cell_h = 1;
-  uint32_t nx = 0, ny = 0;
-};
-
-// Structural checks every shader access relies on (thesis §4.2.1 layouts):
-// sizes against the catalogue stride, one range per grid cell, every
-// (first, count) range inside its list, every vertex / node / polygon / line
-// index inside its blob, quad-tree children after their parent (so descent
-// terminates), BVH slots inside the box blob, node types 0..3, prev/next
-// indices of dynamic lines. Makes no GL call. Returns the first violation,
-// naming blob, element and value.
+// The package's structural check (decal::validate_blobs, with the grid) as
+// every shader access relies on it; messages start "gl loader: invalid
+// package: " and name blob, element and value. Makes no GL call.
 Status validate_blobs(std::span<const BlobBytes> blobs, const Grid& grid);
 
-#ifdef DECAL_GL_HAVE_READER
 // The blobs of an opened package (known ids only).
-std::vector<BlobBytes> blobs_of(const Package& package);
-#endif
+using decal::blobs_of;
 
 // Blobs uploaded to GL buffers, one buffer per blob. Missing blobs get an
 // empty 16-byte buffer so that every binding point is valid.
@@ -110,9 +95,11 @@ class GpuPackage {
   GpuPackage& operator=(const GpuPackage&) = delete;
 
   // Validates (validate_blobs) and, only when that passes, uploads. Needs a
-  // current Context.
+  // current Context. `validated`: the caller has already run
+  // validate_blobs on exactly these blobs with this grid and it passed (so
+  // it runs once per draw); never set it for data not checked that way.
   static Status upload(std::span<const BlobBytes> blobs, const Grid& grid,
-                       std::unique_ptr<GpuPackage>& out);
+                       std::unique_ptr<GpuPackage>& out, bool validated = false);
 
   // Binds every blob buffer at its Binding (bindings.hpp), as SSBOs or as
   // buffer textures.

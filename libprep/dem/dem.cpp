@@ -1,0 +1,425 @@
+// The terrain surface (prep/dem.hpp): open a DEM through GDAL, resolve its
+// CRS, transform scene points to pixel space, read the used window, fill
+// no-data, scale to metres, bilinear sampling (GDAL's kernel).
+#include "prep/dem.hpp"
+
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <mutex>
+#include <sstream>
+#include <vector>
+
+#include "prep/error.hpp"
+
+namespace prep {
+namespace {
+
+struct TransformDeleter {
+  void operator()(OGRCoordinateTransformation* t) const {
+    OGRCoordinateTransformation::DestroyCT(t);
+  }
+};
+using TransformPtr = std::unique_ptr<OGRCoordinateTransformation, TransformDeleter>;
+
+std::string lower(std::string s) {
+  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// Metres per unit of the band's unit type (prep/dem.hpp lists the names).
+double metres_per_unit(const std::string& unit) {
+  if (unit == "ft" || unit == "foot" || unit == "feet" || unit == "international foot")
+    return 0.3048;
+  if (unit == "us-ft" || unit == "us survey foot" || unit == "ftus") return 1200.0 / 3937.0;
+  return 1.0;
+}
+
+// The opened raster, its geotransform and its CRS (own or assumed).
+struct OpenedDem {
+  GDALDatasetUniquePtr ds;
+  double gt[6] = {0, 1, 0, 0, 0, 1};
+  OGRSpatialReference srs;
+  bool assumed = false;
+};
+
+OpenedDem open_dem(const DemSpec& spec) {
+  static std::once_flag once;
+  std::call_once(once, [] { GDALAllRegister(); });
+  const std::string& path = spec.path;
+  OpenedDem d;
+  CPLErrorReset();
+  d.ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!d.ds) throw gdal_error("dem: " + path + ": cannot open DEM: " + CPLGetLastErrorMsg());
+  if (d.ds->GetRasterCount() < 1) throw gdal_error("dem: " + path + ": DEM has no raster band");
+  if (d.ds->GetGeoTransform(d.gt) != CE_None)
+    throw input_error("dem: " + path + ": DEM has no geotransform");
+  if (const OGRSpatialReference* own = d.ds->GetSpatialRef()) {
+    d.srs = *own;
+  } else if (!spec.assume_crs.empty()) {
+    CPLErrorReset();
+    if (d.srs.SetFromUserInput(spec.assume_crs.c_str()) != OGRERR_NONE)
+      throw input_error("dem: " + path + ": DEM has no CRS and --assume-crs '" + spec.assume_crs +
+                        "' is not a CRS: " + CPLGetLastErrorMsg());
+    d.assumed = true;
+  } else {
+    throw input_error("dem: " + path +
+                      ": DEM has no CRS; pass --assume-crs (e.g. EPSG:4326) or set assume_crs in "
+                      "the scene file");
+  }
+  d.srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return d;
+}
+
+std::string wkt2_of(const OGRSpatialReference& srs) {
+  const char* opts[] = {"FORMAT=WKT2_2019", "MULTILINE=NO", nullptr};
+  char* wkt = nullptr;
+  srs.exportToWkt(&wkt, opts);
+  std::string s = wkt ? wkt : "";
+  CPLFree(wkt);
+  return s;
+}
+
+constexpr int kMargin = 16;  // cells read beyond the requested area, at least
+
+}  // namespace
+
+DemFootprint dem_footprint(const DemSpec& spec) {
+  const OpenedDem d = open_dem(spec);
+  const double* gt = d.gt;
+  const double w = d.ds->GetRasterXSize(), h = d.ds->GetRasterYSize();
+  DemFootprint f;
+  f.crs_wkt = wkt2_of(d.srs);
+  f.crs_assumed = d.assumed;
+  f.bounds = {std::min(gt[0], gt[0] + w * gt[1] + h * gt[2]),
+              std::min(gt[3], gt[3] + w * gt[4] + h * gt[5]),
+              std::max(gt[0], gt[0] + w * gt[1] + h * gt[2]),
+              std::max(gt[3], gt[3] + w * gt[4] + h * gt[5])};
+  return f;
+}
+
+struct DemSampler::Impl {
+  std::string path;
+  GDALDatasetUniquePtr ds;
+  GDALRasterBand* band = nullptr;
+  int width = 0, height = 0;
+  double gt[6] = {0, 1, 0, 0, 0, 1};
+  double inv_gt[6] = {0, 1, 0, 0, 0, 1};
+  double origin_x = 0, origin_y = 0;
+  OGRSpatialReference scene_srs, dem_srs;
+  bool same_crs = true;
+  double z_scale = 1, scale = 1, offset = 0, unit = 1;
+  std::optional<double> nodata_fill;
+  bool has_nodata = false;
+  double nodata = 0;
+  // The window read: cells [wx0, wx0 + ww) x [wy0, wy0 + wh).
+  int wx0 = 0, wy0 = 0, ww = 0, wh = 0;
+  std::vector<double> z;
+  std::vector<uint8_t> filled;
+  double max_twist = 0;
+  TerrainStats stats;
+  std::string base_fill_policy;
+  mutable tbb::enumerable_thread_specific<TransformPtr> forward, inverse;
+
+  TransformPtr make(bool to_dem) const {
+    if (same_crs) return nullptr;
+    OGRCoordinateTransformation* t = to_dem
+                                         ? OGRCreateCoordinateTransformation(&scene_srs, &dem_srs)
+                                         : OGRCreateCoordinateTransformation(&dem_srs, &scene_srs);
+    if (!t)
+      throw gdal_error(
+          "dem: " + path +
+          ": cannot transform between the scene CRS and the DEM CRS: " + CPLGetLastErrorMsg());
+    return TransformPtr(t);
+  }
+  OGRCoordinateTransformation* fwd() const {
+    auto& t = forward.local();
+    if (!t && !same_crs) t = make(true);
+    return t.get();
+  }
+  OGRCoordinateTransformation* inv() const {
+    auto& t = inverse.local();
+    if (!t && !same_crs) t = make(false);
+    return t.get();
+  }
+  double cell(int i, int j) const { return z[static_cast<size_t>(j - wy0) * ww + (i - wx0)]; }
+  bool cell_filled(int i, int j) const {
+    return filled[static_cast<size_t>(j - wy0) * ww + (i - wx0)];
+  }
+
+  void read_window(int x0, int y0, int x1, int y1);
+  bool fill(int bx0, int by0, int bx1, int by1, uint64_t& invalid_count, bool& none_valid);
+};
+
+DemSampler::DemSampler(const std::string& path, const SceneFrame& frame, double z_scale,
+                       std::optional<double> nodata_fill)
+    : DemSampler(DemSpec{path, "", z_scale, nodata_fill}, frame) {}
+
+DemSampler::DemSampler(const DemSpec& spec, const SceneFrame& frame)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  OpenedDem d = open_dem(spec);
+  const std::string& path = spec.path;
+  m.path = path;
+  m.z_scale = spec.z_scale;
+  m.nodata_fill = spec.nodata_fill;
+  m.origin_x = frame.origin_x;
+  m.origin_y = frame.origin_y;
+  m.ds = std::move(d.ds);
+  std::copy(d.gt, d.gt + 6, m.gt);
+  m.dem_srs = d.srs;
+  m.band = m.ds->GetRasterBand(1);
+  m.width = m.ds->GetRasterXSize();
+  m.height = m.ds->GetRasterYSize();
+  if (!GDALInvGeoTransform(m.gt, m.inv_gt))
+    throw gdal_error("dem: " + path + ": DEM geotransform is not invertible");
+  int ok = 0;
+  m.scale = m.band->GetScale(&ok);
+  if (!ok) m.scale = 1;
+  m.offset = m.band->GetOffset(&ok);
+  if (!ok) m.offset = 0;
+  const std::string unit = lower(m.band->GetUnitType() ? m.band->GetUnitType() : "");
+  m.unit = metres_per_unit(unit);
+  m.nodata = m.band->GetNoDataValue(&ok);
+  m.has_nodata = ok != 0;
+
+  if (!frame.crs_wkt.empty()) {
+    if (m.scene_srs.importFromWkt(frame.crs_wkt.c_str()) != OGRERR_NONE)
+      throw gdal_error("dem: " + path + ": the scene CRS WKT cannot be read");
+    m.scene_srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    m.same_crs = m.scene_srs.IsSame(&m.dem_srs) != 0;
+    (void)m.fwd();  // fail early when PROJ cannot make the transformation
+  }
+  std::ostringstream desc;
+  desc << "DEM " << path << " (" << m.ds->GetDriver()->GetDescription() << ", " << m.width << "x"
+       << m.height << ", CRS " << (m.dem_srs.GetName() ? m.dem_srs.GetName() : "none")
+       << (d.assumed ? " (assumed)" : "")
+       << (m.same_crs ? ", same as scene" : ", points transformed") << ", unit '" << unit << "' x"
+       << m.unit << ", scale " << m.scale << ", offset " << m.offset << ", z-scale " << spec.z_scale
+       << ")";
+  m.stats.description = desc.str();
+  m.base_fill_policy = spec.nodata_fill ? "value " + std::to_string(*spec.nodata_fill)
+                                        : std::string("nearest valid cell");
+  m.stats.fill_policy = m.base_fill_policy;
+}
+
+DemSampler::~DemSampler() = default;
+
+void DemSampler::to_pixel(std::span<const Point2> scene, std::span<Point2> pixel) const {
+  const Impl& m = *impl_;
+  std::vector<double> xs(scene.size()), ys(scene.size());
+  for (size_t i = 0; i < scene.size(); ++i) {
+    xs[i] = scene[i].x + m.origin_x;
+    ys[i] = scene[i].y + m.origin_y;
+  }
+  if (auto* t = m.fwd(); t && !scene.empty()) {
+    std::vector<int> ok(scene.size(), 0);
+    if (!t->Transform(static_cast<int>(scene.size()), xs.data(), ys.data(), nullptr, ok.data()))
+      for (size_t i = 0; i < scene.size(); ++i)
+        if (!ok[i])
+          throw gdal_error("dem: " + m.path + ": cannot transform scene point (" +
+                           std::to_string(scene[i].x) + ", " + std::to_string(scene[i].y) +
+                           ") to the DEM CRS");
+  }
+  for (size_t i = 0; i < scene.size(); ++i) {
+    pixel[i].x = m.inv_gt[0] + m.inv_gt[1] * xs[i] + m.inv_gt[2] * ys[i];
+    pixel[i].y = m.inv_gt[3] + m.inv_gt[4] * xs[i] + m.inv_gt[5] * ys[i];
+  }
+}
+
+Point2 DemSampler::to_pixel(Point2 scene) const {
+  Point2 out;
+  to_pixel(std::span<const Point2>(&scene, 1), std::span<Point2>(&out, 1));
+  return out;
+}
+
+double DemSampler::cell_size_metres(Point2 p) const {
+  const Impl& m = *impl_;
+  const Point2 c = to_pixel(p);
+  // Scene positions of the cell's edge midpoints around c.
+  double px[4] = {c.x - 0.5, c.x + 0.5, c.x, c.x};
+  double py[4] = {c.y, c.y, c.y - 0.5, c.y + 0.5};
+  double xs[4], ys[4];
+  for (int i = 0; i < 4; ++i) {
+    xs[i] = m.gt[0] + m.gt[1] * px[i] + m.gt[2] * py[i];
+    ys[i] = m.gt[3] + m.gt[4] * px[i] + m.gt[5] * py[i];
+  }
+  if (auto* t = m.inv()) {
+    int ok[4] = {0, 0, 0, 0};
+    if (!t->Transform(4, xs, ys, nullptr, ok))
+      throw gdal_error("dem: " + m.path + ": cannot transform DEM cell corners to the scene CRS");
+  }
+  const double w = std::hypot(xs[1] - xs[0], ys[1] - ys[0]);
+  const double h = std::hypot(xs[3] - xs[2], ys[3] - ys[2]);
+  return std::min(w, h);
+}
+
+std::optional<DemLattice> DemSampler::lattice() const {
+  const Impl& m = *impl_;
+  if (!m.same_crs || m.gt[2] != 0 || m.gt[4] != 0) return std::nullopt;
+  return DemLattice{m.gt[0] + 0.5 * m.gt[1] - m.origin_x, m.gt[3] + 0.5 * m.gt[5] - m.origin_y,
+                    m.gt[1], m.gt[5]};
+}
+
+void DemSampler::Impl::read_window(int x0, int y0, int x1, int y1) {
+  wx0 = x0;
+  wy0 = y0;
+  ww = x1 - x0 + 1;
+  wh = y1 - y0 + 1;
+  const size_t n = static_cast<size_t>(ww) * wh;
+  z.assign(n, 0.0);
+  filled.assign(n, 0);
+  if (band->RasterIO(GF_Read, x0, y0, ww, wh, z.data(), ww, wh, GDT_Float64, 0, 0, nullptr) !=
+      CE_None)
+    throw gdal_error("dem: " + path + ": cannot read DEM window: " + CPLGetLastErrorMsg());
+}
+
+// No-data policy of prep/dem.hpp, on raw values of the window read. Returns
+// whether every filled cell of the box [bx0, bx1] x [by0, by1] (absolute
+// cells) found its nearest valid cell of the whole raster: its search
+// distance d fits inside the window on every side that is not the raster's
+// edge, so no nearer valid cell lies outside, and the whole search that
+// decided it (cells within d) lies inside.
+bool DemSampler::Impl::fill(int bx0, int by0, int bx1, int by1, uint64_t& invalid_count,
+                            bool& none_valid) {
+  const size_t n = z.size();
+  std::deque<size_t> queue;
+  for (size_t i = 0; i < n; ++i) {
+    const bool invalid = std::isnan(z[i]) || (has_nodata && z[i] == nodata);
+    if (invalid) {
+      filled[i] = 1;
+      if (nodata_fill) z[i] = *nodata_fill;
+    } else {
+      queue.push_back(i);
+    }
+  }
+  invalid_count = static_cast<uint64_t>(std::count(filled.begin(), filled.end(), 1));
+  none_valid = queue.empty();
+  if (nodata_fill || invalid_count == 0) return true;
+  const bool whole = wx0 == 0 && wy0 == 0 && wx0 + ww == width && wy0 + wh == height;
+  if (none_valid) return whole;
+  // Breadth-first search from the valid cells; level = Chebyshev distance.
+  constexpr uint32_t kUnreached = std::numeric_limits<uint32_t>::max();
+  std::vector<uint32_t> level(n, kUnreached);
+  for (size_t i : queue) level[i] = 0;
+  while (!queue.empty()) {
+    const size_t i = queue.front();
+    queue.pop_front();
+    const int ix = static_cast<int>(i % ww), iy = static_cast<int>(i / ww);
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int jx = ix + dx, jy = iy + dy;
+        if (jx < 0 || jy < 0 || jx >= ww || jy >= wh) continue;
+        const size_t j = static_cast<size_t>(jy) * ww + jx;
+        if (level[j] != kUnreached) continue;
+        level[j] = level[i] + 1;
+        z[j] = z[i];
+        queue.push_back(j);
+      }
+  }
+  const int x_lo = std::max(bx0, wx0), x_hi = std::min(bx1, wx0 + ww - 1);
+  const int y_lo = std::max(by0, wy0), y_hi = std::min(by1, wy0 + wh - 1);
+  for (int j = y_lo; j <= y_hi; ++j)
+    for (int i = x_lo; i <= x_hi; ++i) {
+      const size_t k = static_cast<size_t>(j - wy0) * ww + (i - wx0);
+      if (!filled[k]) continue;
+      const int d = static_cast<int>(level[k]);
+      if ((i - d < wx0 && wx0 > 0) || (i + d >= wx0 + ww && wx0 + ww < width) ||
+          (j - d < wy0 && wy0 > 0) || (j + d >= wy0 + wh && wy0 + wh < height))
+        return false;
+    }
+  return true;
+}
+
+void DemSampler::load(double px0, double py0, double px1, double py1) {
+  Impl& m = *impl_;
+  auto clampi = [](double v, int lo, int hi) {
+    if (!(v > lo)) return lo;  // NaN too
+    if (v > hi) return hi;
+    return static_cast<int>(v);
+  };
+  // Cells a height() inside the box can weigh.
+  const int bx0 = clampi(std::floor(px0) - 1, 0, m.width - 1),
+            bx1 = clampi(std::ceil(px1) + 1, 0, m.width - 1);
+  const int by0 = clampi(std::floor(py0) - 1, 0, m.height - 1),
+            by1 = clampi(std::ceil(py1) + 1, 0, m.height - 1);
+  uint64_t invalid_count = 0;
+  bool none_valid = false, settled = false;
+  for (int margin = kMargin;; margin *= 4) {
+    const int x0 = clampi(std::floor(px0) - margin, 0, m.width - 1);
+    const int x1 = clampi(std::ceil(px1) + margin, 0, m.width - 1);
+    const int y0 = clampi(std::floor(py0) - margin, 0, m.height - 1);
+    const int y1 = clampi(std::ceil(py1) + margin, 0, m.height - 1);
+    m.read_window(x0, y0, x1, y1);
+    settled = m.fill(bx0, by0, bx1, by1, invalid_count, none_valid);
+    const bool whole = x0 == 0 && y0 == 0 && x1 == m.width - 1 && y1 == m.height - 1;
+    if (settled || whole || margin >= kMaxFillMargin) break;
+  }
+  m.stats.fill_policy = m.base_fill_policy;
+  if (!settled && !none_valid)
+    m.stats.fill_policy += " (voids deeper than " + std::to_string(kMaxFillMargin) +
+                           " cells: nearest within that reach)";
+  const double k = m.unit * m.z_scale;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (auto& v : m.z) {
+    // No valid cell within reach (and no nodata_fill): flat at 0 m.
+    v = none_valid && !m.nodata_fill ? 0.0 : (v * m.scale + m.offset) * k;
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+  double twist = 0;
+  for (int j = 0; j + 1 < m.wh; ++j)
+    for (int i = 0; i + 1 < m.ww; ++i) {
+      const size_t a = static_cast<size_t>(j) * m.ww + i;
+      twist = std::max(twist, std::abs(m.z[a] - m.z[a + 1] - m.z[a + m.ww] + m.z[a + m.ww + 1]));
+    }
+  m.max_twist = twist;
+  m.stats.window_cells = m.z.size();
+  m.stats.nodata_cells = invalid_count;
+  m.stats.min = lo;
+  m.stats.max = hi;
+}
+
+double DemSampler::height(double px, double py, bool* touched_fill) const {
+  const Impl& m = *impl_;
+  // GDAL bilinear: cell centres at i + 0.5; beyond the outermost centres
+  // the kernel renormalises onto the edge cell, which equals clamping.
+  const double fx = px - 0.5, fy = py - 0.5;
+  const double flx = std::floor(fx), fly = std::floor(fy);
+  const double tx = fx - flx, ty = fy - fly;
+  auto cx = [&](double i) {
+    return static_cast<int>(std::clamp(i, double(m.wx0), double(m.wx0 + m.ww - 1)));
+  };
+  auto cy = [&](double j) {
+    return static_cast<int>(std::clamp(j, double(m.wy0), double(m.wy0 + m.wh - 1)));
+  };
+  const int i0 = cx(flx), i1 = cx(flx + 1), j0 = cy(fly), j1 = cy(fly + 1);
+  const double a = m.cell(i0, j0), b = m.cell(i1, j0), c = m.cell(i0, j1), d = m.cell(i1, j1);
+  if (touched_fill) {
+    *touched_fill = ((1 - tx) * (1 - ty) > 0 && m.cell_filled(i0, j0)) ||
+                    (tx * (1 - ty) > 0 && m.cell_filled(i1, j0)) ||
+                    ((1 - tx) * ty > 0 && m.cell_filled(i0, j1)) ||
+                    (tx * ty > 0 && m.cell_filled(i1, j1));
+  }
+  return (1 - ty) * ((1 - tx) * a + tx * b) + ty * ((1 - tx) * c + tx * d);
+}
+
+double DemSampler::max_twist() const {
+  return impl_->max_twist;
+}
+
+bool DemSampler::outside(double px, double py) const {
+  const Impl& m = *impl_;
+  return !(px >= 0 && py >= 0 && px <= m.width && py <= m.height);
+}
+
+const TerrainStats& DemSampler::stats() const {
+  return impl_->stats;
+}
+
+}  // namespace prep
