@@ -344,7 +344,8 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
   const GridParams& g = m.grid;
   const uint64_t ncells = uint64_t(g.nx) * g.ny;
   if (ncells > 0xffffffffULL) throw resource_error("build: decal grid has too many cells");
-  ProgressStage cells_stage(options.progress, "build.cells", m.line_props.size() + rings.size(), "items");
+  ProgressStage cells_stage(options.progress, "build.cells", m.line_props.size() + rings.size(),
+                            "items");
 
   // ---- segments -> cells (exact shapes, thesis §4.2.1) --------------------
   struct SegEntry {
@@ -497,7 +498,8 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
 
   // ---- dynamic lines and LOD ----------------------------------------------
 #ifdef DECALPREP_HAVE_DYNAMIC
-  ProgressStage dynamic_stage(options.progress, "build.dynamic", scene.dynamic_lines.size(), "lines");
+  ProgressStage dynamic_stage(options.progress, "build.dynamic", scene.dynamic_lines.size(),
+                              "lines");
   build_dynamic(scene, options, dem, m);
   dynamic_stage.finish();
 #else

@@ -28,7 +28,9 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+double seconds(Clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
 
 constexpr int kSlots = 256;  // items watched at once (more than any thread count here)
 
@@ -56,7 +58,9 @@ std::string duration_text(double s) {
 }
 
 // v rounded to 1/per_unit (10: tenths), printed short: 3.195, not 3.1950000000000003.
-double round_to(double v, double per_unit) { return std::round(v * per_unit) / per_unit; }
+double round_to(double v, double per_unit) {
+  return std::round(v * per_unit) / per_unit;
+}
 
 }  // namespace
 
@@ -152,9 +156,9 @@ struct Progress::Impl {
       char p[32];
       std::snprintf(p, sizeof p, "%.0f%%", std::floor(pct));
       const std::string unit = s.unit == "bytes" ? "" : " " + s.unit;
-      t += (s.unit == "bytes" ? amount(double(x.done), s.unit) + " of " + amount(double(x.total), s.unit)
-                              : amount(double(x.done), s.unit) + "/" + amount(double(x.total), s.unit) +
-                                    unit);
+      t += (s.unit == "bytes"
+                ? amount(double(x.done), s.unit) + " of " + amount(double(x.total), s.unit)
+                : amount(double(x.done), s.unit) + "/" + amount(double(x.total), s.unit) + unit);
       t += tty ? std::string("  ") + p : std::string(" (") + p + ")";
     } else {
       t += amount(double(x.done), s.unit) + (s.unit == "bytes" ? "" : " " + s.unit);
@@ -206,8 +210,8 @@ struct Progress::Impl {
 
   void check_watchdog(Clock::time_point now) {
     if (!(opt.watchdog_s > 0)) return;
-    const auto period = std::chrono::duration_cast<Clock::duration>(
-        std::chrono::duration<double>(opt.watchdog_s));
+    const auto period =
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(opt.watchdog_s));
     for (Slot& slot : slots) {
       if (!slot.busy.load(std::memory_order_acquire)) continue;
       std::string line;
@@ -217,9 +221,12 @@ struct Progress::Impl {
         slot.next_report += period;
         const double so_far = seconds(now - slot.start);
         if (opt.mode == ProgressMode::json) {
-          nlohmann::json j = {{"event", "slow"},          {"stage", slot.stage},
-                              {"layer", slot.layer},      {"fid", slot.fid},
-                              {"vertices", slot.vertices}, {"operation", slot.operation},
+          nlohmann::json j = {{"event", "slow"},
+                              {"stage", slot.stage},
+                              {"layer", slot.layer},
+                              {"fid", slot.fid},
+                              {"vertices", slot.vertices},
+                              {"operation", slot.operation},
                               {"seconds", round_to(so_far, 1000)}};
           line = j.dump() + "\n";
         } else {
@@ -285,7 +292,9 @@ Progress::~Progress() {
   if (impl_->monitor.joinable()) impl_->monitor.join();
 }
 
-ProgressMode Progress::mode() const { return impl_->opt.mode; }
+ProgressMode Progress::mode() const {
+  return impl_->opt.mode;
+}
 
 void Progress::message(std::string_view line) {
   if (impl_->opt.mode == ProgressMode::none) return;
@@ -298,8 +307,8 @@ void Progress::message(std::string_view line) {
 
 // ---------------------------------------------------------------- stage --
 
-ProgressStage::ProgressStage(Progress* progress, std::string name, uint64_t total,
-                             std::string unit, ProgressTotal kind) {
+ProgressStage::ProgressStage(Progress* progress, std::string name, uint64_t total, std::string unit,
+                             ProgressTotal kind) {
   if (!progress || progress->mode() == ProgressMode::none) return;
   exceptions_ = std::uncaught_exceptions();
   progress_ = progress;
@@ -312,7 +321,8 @@ ProgressStage::ProgressStage(Progress* progress, std::string name, uint64_t tota
   Progress::Impl& im = *progress_->impl_;
   std::lock_guard<std::mutex> lock(im.mu);
   im.open.push_back(state_);
-  if (im.opt.mode == ProgressMode::json) im.emit(im.json(*state_, snapshot_of(*state_, state_->start), "start"));
+  if (im.opt.mode == ProgressMode::json)
+    im.emit(im.json(*state_, snapshot_of(*state_, state_->start), "start"));
 }
 
 ProgressStage::~ProgressStage() {
@@ -423,7 +433,9 @@ ProgressWatch ProgressStage::watch(std::string_view layer, int64_t fid, uint64_t
   return w;  // every slot taken: this item goes unwatched
 }
 
-ProgressWatch::~ProgressWatch() { release(); }
+ProgressWatch::~ProgressWatch() {
+  release();
+}
 
 void ProgressWatch::release() noexcept {
   if (!impl_) return;
@@ -437,7 +449,8 @@ void ProgressWatch::release() noexcept {
   slot_ = -1;
 }
 
-ProgressWatch::ProgressWatch(ProgressWatch&& other) noexcept : impl_(other.impl_), slot_(other.slot_) {
+ProgressWatch::ProgressWatch(ProgressWatch&& other) noexcept
+    : impl_(other.impl_), slot_(other.slot_) {
   other.impl_ = nullptr;
   other.slot_ = -1;
 }

@@ -537,7 +537,8 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
 
     sink.take_geometry(*feature, proto);
     if ((index & 1023) == 1023)
-      progress.update(index + 1, estimate == JobProgress::kUnknown ? estimate : std::max(estimate, index + 1));
+      progress.update(index + 1,
+                      estimate == JobProgress::kUnknown ? estimate : std::max(estimate, index + 1));
   }
   if (errors.count() > skipped_errors) {
     throw gdal_error(where + ": reading failed" +
@@ -626,8 +627,9 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
         sinks[i].take_geometry(*feature, proto);
       }
       if ((++fetched & 1023) == 0)
-        progress.update(fetched, fraction > 0.01 ? std::max(fetched, uint64_t(double(fetched) / fraction))
-                                                 : JobProgress::kUnknown);
+        progress.update(fetched, fraction > 0.01
+                                     ? std::max(fetched, uint64_t(double(fetched) / fraction))
+                                     : JobProgress::kUnknown);
     }
     if (errors.failed()) return false;
     progress.update(fetched, fetched);
@@ -642,7 +644,7 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
 }
 
 SourceLayer read_layer_job(const LayerSpec& spec, const SceneSpec& scene, Manifest& manifest,
-                          JobProgress& progress) {
+                           JobProgress& progress) {
   ErrorCapture errors;
   ReadAttempt r;
   try {

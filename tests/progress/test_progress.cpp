@@ -42,7 +42,9 @@ struct Capture {
   }
 };
 
-double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+double seconds(Clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
 
 TEST(Progress, AutoModeIsTtyOnATerminalAndPlainOtherwise) {
   EXPECT_EQ(prep::parse_progress_mode("auto", true), prep::ProgressMode::tty);
@@ -85,7 +87,8 @@ TEST(Progress, WatchdogNamesAnItemThatStaysLongerThanTheThresholdAndRepeats) {
   ASSERT_GE(named.size(), 2u) << "named once past 0.05 s, again every 0.05 s while it ran";
   // At most once per threshold while the item was held (0.4 s / 0.05 s).
   EXPECT_LE(named.size(), size_t(elapsed / 0.05) + 1);
-  EXPECT_NE(named[0].find("clean: layer 'buildings' fid 1832 (120000 vertices) has been in GEOS MakeValid"),
+  EXPECT_NE(named[0].find(
+                "clean: layer 'buildings' fid 1832 (120000 vertices) has been in GEOS MakeValid"),
             std::string::npos)
       << named[0];
   EXPECT_TRUE(out.containing("fid 7").empty()) << "the fast item was named";
@@ -167,8 +170,10 @@ TEST(Progress, PlainModePrintsAtMostOneLinePerIntervalPlusTheEnd) {
       if (out.lines[i].rfind("clean: ", 0) != 0) continue;
       EXPECT_EQ(out.lines[i].find('\r'), std::string::npos);
       EXPECT_EQ(out.lines[i].back(), '\n');
-      if (out.lines[i].find(" elapsed") != std::string::npos) periodic.push_back(out.at[i]);
-      else end = out.lines[i];
+      if (out.lines[i].find(" elapsed") != std::string::npos)
+        periodic.push_back(out.at[i]);
+      else
+        end = out.lines[i];
     }
   }
   const double run = seconds(t1 - t0);
@@ -178,7 +183,8 @@ TEST(Progress, PlainModePrintsAtMostOneLinePerIntervalPlusTheEnd) {
   // lines at least one interval apart (5 ms: the capture's own clock reads).
   EXPECT_GE(seconds(periodic[0] - t0), 0.2 - 0.005);
   for (size_t i = 1; i < periodic.size(); ++i)
-    EXPECT_GE(seconds(periodic[i] - periodic[i - 1]), 0.2 - 0.005) << "lines " << i - 1 << " and " << i;
+    EXPECT_GE(seconds(periodic[i] - periodic[i - 1]), 0.2 - 0.005)
+        << "lines " << i - 1 << " and " << i;
   EXPECT_EQ(end.rfind("clean: 1000/1000 parts (100%) in ", 0), 0u) << end;
 }
 

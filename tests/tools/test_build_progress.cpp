@@ -82,10 +82,10 @@ TEST(BuildProgress, JsonStagesOfTheMonacoSampleComeInPipelineOrderAndEndWithDone
   if (!fs::exists(scene.parent_path() / "monaco.osm.pbf"))
     GTEST_SKIP() << "Monaco sample data missing";
   TempDir dir("decalprep_progress_json");
-  const ToolRun r = run_tool("build '" + scene.string() + "' -o '" + (dir.path / "m.decals").string() +
-                                 "' --report '" + (dir.path / "report.json").string() +
-                                 "' --progress json",
-                             dir.path);
+  const ToolRun r =
+      run_tool("build '" + scene.string() + "' -o '" + (dir.path / "m.decals").string() +
+                   "' --report '" + (dir.path / "report.json").string() + "' --progress json",
+               dir.path);
   ASSERT_EQ(r.rc, 0) << r.err;
   EXPECT_EQ(r.out, "");
   const std::vector<json> objects = parse_lines(r.err);
@@ -110,9 +110,9 @@ TEST(BuildProgress, JsonStagesOfTheMonacoSampleComeInPipelineOrderAndEndWithDone
     }
     last[stage] = j;
   }
-  std::vector<std::string> expected = {"read",        "project",       "clean",
+  std::vector<std::string> expected = {"read",        "project",         "clean",
                                        "build.lines", "build.quadtrees", "build.grid",
-                                       "build.cells", "build.dynamic", "write"};
+                                       "build.cells", "build.dynamic",   "write"};
   if (!last.count("build.dynamic"))  // a tool built without prep_terrain
     expected.erase(std::find(expected.begin(), expected.end(), "build.dynamic"));
   EXPECT_EQ(order, expected);
@@ -150,23 +150,28 @@ std::string golden_scene_text() {
   const std::string rel = "../../../samples/monaco/monaco.osm.pbf";
   const size_t at = text.find(rel);
   EXPECT_NE(at, std::string::npos);
-  if (at != std::string::npos) text.replace(at, rel.size(), (kSource / "samples/monaco/monaco.osm.pbf").string());
+  if (at != std::string::npos)
+    text.replace(at, rel.size(), (kSource / "samples/monaco/monaco.osm.pbf").string());
   return text;
 }
 
 TEST(BuildProgress, PackageBytesAreTheSameWithAndWithoutProgressOutput) {
-  if (!fs::exists(kSource / "samples/monaco/monaco.osm.pbf")) GTEST_SKIP() << "Monaco sample data missing";
+  if (!fs::exists(kSource / "samples/monaco/monaco.osm.pbf"))
+    GTEST_SKIP() << "Monaco sample data missing";
   TempDir dir("decalprep_progress_bytes");
   std::ofstream(dir.path / "window.toml") << golden_scene_text();
   const std::string scene = "'" + (dir.path / "window.toml").string() + "'";
-  const ToolRun quiet = run_tool("build " + scene + " -o '" + (dir.path / "quiet.decals").string() + "' -q", dir.path);
+  const ToolRun quiet = run_tool(
+      "build " + scene + " -o '" + (dir.path / "quiet.decals").string() + "' -q", dir.path);
   ASSERT_EQ(quiet.rc, 0) << quiet.err;
   EXPECT_EQ(quiet.err, "") << "-q printed something";
   const ToolRun json_run = run_tool(
-      "build " + scene + " -o '" + (dir.path / "json.decals").string() + "' --progress json", dir.path);
+      "build " + scene + " -o '" + (dir.path / "json.decals").string() + "' --progress json",
+      dir.path);
   ASSERT_EQ(json_run.rc, 0) << json_run.err;
   const ToolRun plain = run_tool(
-      "build " + scene + " -o '" + (dir.path / "plain.decals").string() + "' --progress plain", dir.path);
+      "build " + scene + " -o '" + (dir.path / "plain.decals").string() + "' --progress plain",
+      dir.path);
   ASSERT_EQ(plain.rc, 0) << plain.err;
   EXPECT_NE(plain.err.find("write: "), std::string::npos) << plain.err;
   const std::string a = slurp(dir.path / "quiet.decals");
@@ -176,14 +181,15 @@ TEST(BuildProgress, PackageBytesAreTheSameWithAndWithoutProgressOutput) {
 }
 
 TEST(BuildProgress, BatchModeKeepsEachScenesProgressInItsLogAndPrintsJsonObjects) {
-  if (!fs::exists(kSource / "samples/monaco/monaco.osm.pbf")) GTEST_SKIP() << "Monaco sample data missing";
+  if (!fs::exists(kSource / "samples/monaco/monaco.osm.pbf"))
+    GTEST_SKIP() << "Monaco sample data missing";
   TempDir dir("decalprep_progress_batch");
   std::ofstream(dir.path / "a.toml") << golden_scene_text();
   std::ofstream(dir.path / "b.toml") << golden_scene_text();
-  const ToolRun r = run_tool("build '" + (dir.path / "a.toml").string() + "' '" +
-                                 (dir.path / "b.toml").string() + "' -o '" + (dir.path / "out").string() +
-                                 "' --jobs 2 --progress json",
-                             dir.path);
+  const ToolRun r =
+      run_tool("build '" + (dir.path / "a.toml").string() + "' '" + (dir.path / "b.toml").string() +
+                   "' -o '" + (dir.path / "out").string() + "' --jobs 2 --progress json",
+               dir.path);
   ASSERT_EQ(r.rc, 0) << r.err;
   const std::vector<json> objects = parse_lines(r.err);
   size_t scenes = 0;
@@ -197,7 +203,8 @@ TEST(BuildProgress, BatchModeKeepsEachScenesProgressInItsLogAndPrintsJsonObjects
   EXPECT_EQ(objects.back()["event"], "summary");
   EXPECT_EQ(objects.back()["built"], 2);
   for (const char* name : {"a", "b"}) {
-    const std::vector<json> log = parse_lines(slurp(dir.path / "out" / (std::string(name) + ".log")));
+    const std::vector<json> log =
+        parse_lines(slurp(dir.path / "out" / (std::string(name) + ".log")));
     ASSERT_FALSE(log.empty()) << name;
     const json& end = log.back();
     EXPECT_EQ(end["stage"], "write") << name << ": " << end.dump();

@@ -173,7 +173,8 @@ int run(const BuildArgs& a) {
 
   if (json && !a.quiet) {
     // --progress json: stderr carries JSON objects only; the summary is one.
-    nlohmann::json totals = {{"read", 0}, {"kept", 0}, {"repaired", 0}, {"clipped_away", 0}, {"dropped", 0}};
+    nlohmann::json totals = {
+        {"read", 0}, {"kept", 0}, {"repaired", 0}, {"clipped_away", 0}, {"dropped", 0}};
     for (const prep::LayerCounts& c : result.scene.manifest.layers) {
       totals["read"] = totals["read"].get<uint64_t>() + c.read;
       totals["kept"] = totals["kept"].get<uint64_t>() + c.kept;
@@ -376,19 +377,28 @@ int run_batch(const BuildArgs& a) {
       it.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
       --running;
       ++finished;
-      const char* outcome = it.exit_code == 0 ? "built" : it.exit_code == kPartial ? "partial" : "failed";
+      const char* outcome = it.exit_code == 0          ? "built"
+                            : it.exit_code == kPartial ? "partial"
+                                                       : "failed";
       if (json)
         std::fprintf(stderr, "%s\n",
-                     nlohmann::json({{"event", "scene"}, {"scene", it.scene}, {"status", outcome},
-                                     {"exit_code", it.exit_code}, {"done", finished},
-                                     {"total", items.size()}, {"seconds", it.seconds},
-                                     {"peak_rss_mib", it.peak_rss_kb / 1024.0}, {"log", it.log}})
+                     nlohmann::json({{"event", "scene"},
+                                     {"scene", it.scene},
+                                     {"status", outcome},
+                                     {"exit_code", it.exit_code},
+                                     {"done", finished},
+                                     {"total", items.size()},
+                                     {"seconds", it.seconds},
+                                     {"peak_rss_mib", it.peak_rss_kb / 1024.0},
+                                     {"log", it.log}})
                          .dump()
                          .c_str());
       else if (!a.quiet)
         std::fprintf(stderr, "[%zu/%zu] %s: %s (%.2f s, peak %.1f MiB)\n", finished, items.size(),
                      it.scene.c_str(),
-                     it.exit_code == 0 ? "built" : it.exit_code == kPartial ? "built (partial)" : "FAILED",
+                     it.exit_code == 0          ? "built"
+                     : it.exit_code == kPartial ? "built (partial)"
+                                                : "FAILED",
                      it.seconds, it.peak_rss_kb / 1024.0);
     }
   }
@@ -427,8 +437,11 @@ int run_batch(const BuildArgs& a) {
   if (!out) throw prep::output_error("build: cannot write the batch summary " + path);
   if (json)
     std::fprintf(stderr, "%s\n",
-                 nlohmann::json({{"event", "summary"}, {"built", items.size() - failed},
-                                 {"failed", failed}, {"partial", partial}, {"total", items.size()},
+                 nlohmann::json({{"event", "summary"},
+                                 {"built", items.size() - failed},
+                                 {"failed", failed},
+                                 {"partial", partial},
+                                 {"total", items.size()},
                                  {"summary", path}})
                      .dump()
                      .c_str());
@@ -449,12 +462,14 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_option("-o,--output", args->output, "Package to write (atomically)");
   cmd->add_option("--report", args->report, "Write the JSON report (counts, manifest, timings)");
   cmd->add_flag("--dry-run", args->dry_run, "Stop after clean: write the report, no package");
-  cmd->add_flag("-q,--quiet", args->quiet, "No progress or summary on stderr (unless --progress is given)");
-  cmd->add_option("--progress", args->progress,
-                  "Progress on stderr: auto (default: tty on a terminal, else plain) | tty (one redrawn "
-                  "line per stage) | plain (a line per stage every 5 s and at its end) | json (one "
-                  "object per line) | none. A feature in GEOS for over 30 s is named. Batch mode: "
-                  "in each scene's log")
+  cmd->add_flag("-q,--quiet", args->quiet,
+                "No progress or summary on stderr (unless --progress is given)");
+  cmd->add_option(
+         "--progress", args->progress,
+         "Progress on stderr: auto (default: tty on a terminal, else plain) | tty (one redrawn "
+         "line per stage) | plain (a line per stage every 5 s and at its end) | json (one "
+         "object per line) | none. A feature in GEOS for over 30 s is named. Batch mode: "
+         "in each scene's log")
       ->check(CLI::IsMember({"auto", "tty", "plain", "json", "none"}));
   cmd->add_flag("--skip-failures", args->skip_failures,
                 "Drop a failing feature (recorded in the manifest) and go on; exit code 4 (partial)");
