@@ -20,6 +20,7 @@
 #include "detail.hpp"
 #include "prep/build.hpp"
 #include "prep/error.hpp"
+#include "prep/progress.hpp"
 
 namespace prep {
 
@@ -244,8 +245,10 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
     if (rings[r].exterior >= 0) order_of_poly[r] = order_of_poly[size_t(rings[r].exterior)];
 
   std::vector<PolyQuadTree> trees(rings.size());
+  ProgressStage quadtree_stage(options.progress, "build.quadtrees", rings.size(), "rings");
   tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
     trees[r] = build_quadtree(rings[r].ring, options.qt_leaf_capacity, options.qt_max_depth);
+    quadtree_stage.add();
   });
 
   // Concatenate the trees, rebasing their local indices.
@@ -266,6 +269,7 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
   }
   m.stats.quadtrees = rings.size();
   add_outline_clip_trees(options, m);
+  quadtree_stage.finish();
   m.stats.qt_nodes = m.qt_node.size();
   if (m.stats.qt_depth_capped > 0) {
     std::ostringstream note;
@@ -340,6 +344,8 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
   const GridParams& g = m.grid;
   const uint64_t ncells = uint64_t(g.nx) * g.ny;
   if (ncells > 0xffffffffULL) throw resource_error("build: decal grid has too many cells");
+  ProgressStage cells_stage(options.progress, "build.cells", m.line_props.size() + rings.size(),
+                            "items");
 
   // ---- segments -> cells (exact shapes, thesis §4.2.1) --------------------
   struct SegEntry {
@@ -361,6 +367,7 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
           per_line[li].push_back({cell, m.line_props[li].order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
         });
       }
+      cells_stage.add();
     });
   }
   std::vector<SegEntry> seg_entries;
@@ -427,6 +434,7 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
       per_ring[r].push_back({hits[i].first, uint32_t(r), node, to_ivec4(u)});
       i = j;
     }
+    cells_stage.add();
   });
   std::vector<CellPoly> ext_entries, hole_entries;
   for (size_t r = 0; r < rings.size(); ++r) {
@@ -486,10 +494,14 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
   }
   build_bvhs(seg_first, seg_boxes, m.line_bvh_range, m.line_bvh_box);
   build_bvhs(poly_first, poly_boxes, m.poly_bvh_range, m.poly_bvh_box);
+  cells_stage.finish();
 
   // ---- dynamic lines and LOD ----------------------------------------------
 #ifdef DECALPREP_HAVE_DYNAMIC
+  ProgressStage dynamic_stage(options.progress, "build.dynamic", scene.dynamic_lines.size(),
+                              "lines");
   build_dynamic(scene, options, dem, m);
+  dynamic_stage.finish();
 #else
   (void)dem;
   if (!scene.dynamic_lines.empty())

@@ -12,6 +12,7 @@
 
 #include "detail.hpp"
 #include "prep/error.hpp"
+#include "prep/progress.hpp"
 
 namespace prep::detail {
 
@@ -233,10 +234,13 @@ double grid_bytes(const GridParams& g, const GridInput& in) {
 // the first (coarsest) candidate whose proxy reaches it: a smaller package
 // for a chosen query cost.
 GridParams choose_grid(const GridInput& in, const BuildOptions& o) {
+  // Candidates measured; how many the search takes is known at its end.
+  ProgressStage stage(o.progress, "build.grid", 0, "candidates", ProgressTotal::estimate);
   const QBox& e = in.extent;
   if (e.empty()) return GridParams{};
   const double w = double(e.x1 - e.x0 + 1), h = double(e.y1 - e.y0 + 1);
   if (o.grid_nx > 0 && o.grid_ny > 0) {
+    stage.add();
     // Thesis §4.2.1: a fixed number of cells over the data's AABB (500x500).
     return grid_with_cell(e, int64_t(std::ceil(w / o.grid_nx)), int64_t(std::ceil(h / o.grid_ny)));
   }
@@ -269,6 +273,7 @@ GridParams choose_grid(const GridInput& in, const BuildOptions& o) {
     c.proxy = weighted_mean_per_cell(c.g, prims, weights);
     c.score = std::log(1.0 + c.proxy) + kBytesWeight * std::log(std::max(c.bytes, 1.0));
     c.feasible = c.bytes <= byte_budget;
+    stage.add();
     return c;
   };
   auto better = [](const Candidate& a, const Candidate& b) {  // a strictly better than b

@@ -22,6 +22,7 @@
 
 #include "detail.hpp"
 #include "prep/error.hpp"
+#include "prep/progress.hpp"
 
 namespace prep::detail {
 namespace {
@@ -182,12 +183,15 @@ void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalM
                         std::to_string(l.layer) + ", but the scene has " +
                         std::to_string(scene.layers.size()) + " layers");
 
+  // Counted once per line converted, and again per kept line's shapes.
+  ProgressStage stage(options.progress, "build.lines", 2 * nl, "lines");
   std::vector<LineOut> outs(nl);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, nl, 64), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
       const SceneLine& l = scene.lines[i];
       outs[i] = convert_line(scene, l, options, corner[l.layer], outline[l.layer]);
     }
+    stage.add(r.size());
   });
 
   // Concatenate in input order (deterministic); record drops.
@@ -228,6 +232,7 @@ void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalM
 
   // Widened segment shapes (quanta), parallel per line.
   shapes.resize(nseg);
+  stage.set_total(nl + model.line_props.size());
   const double inv_q = 1.0 / decal::kQuantumMetres;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, model.line_props.size(), 64),
                     [&](const tbb::blocked_range<size_t>& r) {
@@ -290,7 +295,9 @@ void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalM
         sh.box.y1 = int64_t(std::ceil(maxy)) + 1;
       }
     }
+    stage.add(r.size());
   });
+  stage.finish();
 }
 
 }  // namespace prep::detail

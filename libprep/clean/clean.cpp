@@ -18,6 +18,7 @@
 
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
+#include "prep/progress.hpp"
 
 namespace prep {
 namespace {
@@ -27,6 +28,12 @@ namespace {
 struct GeosContext {
   GEOSContextHandle_t h = nullptr;
   std::string last_error;
+  // The part this thread is cleaning, for the progress watchdog
+  // (prep/progress.hpp); null when progress is off.
+  ProgressWatch* watch = nullptr;
+  void step(const char* operation) {
+    if (watch) watch->operation(operation);
+  }
 
   GeosContext() {
     h = GEOS_init_r();
@@ -468,6 +475,7 @@ struct Cleaner {
   bool simplify(GeosContext& ctx, const SourceFeature& f, const GEOSGeometry* part, Geom& out,
                 PartResult& r) const {
     if (!(resolution > 0) && f.fid != geos_fail_fid) return true;
+    ctx.step("GEOS TopologyPreserveSimplify");
     out = Geom(ctx.h, GEOSTopologyPreserveSimplify_r(ctx.h, part, tolerance_for(f)));
     if (!out) fail(r, "GEOS simplification failed: " + ctx.last_error);
     return bool(out);
@@ -534,6 +542,7 @@ struct Cleaner {
     }
     // Proven valid, inside the extent, nothing to simplify: GEOS would hand
     // the rings back unchanged (emit_rings reproduces what it reports).
+    ctx.step("the validity sweep");
     const bool proven = certainly_valid(rings);
     if (proven && rel == 1 && !(resolution > 0) && f.fid != geos_fail_fid) {
       emit_rings(f, std::move(rings), r);
@@ -541,16 +550,19 @@ struct Cleaner {
     }
     Geom g(h, make_polygon(h, rings));
     if (!g) return fail(r, "GEOS cannot build the polygon: " + ctx.last_error);
+    ctx.step("GEOS isValid");
     char valid = proven ? 1 : GEOSisValid_r(h, g.get());
     if (valid != 1) {
       char* why = GEOSisValidReason_r(h, g.get());
       std::string reason = why ? why : "invalid";
       GEOSFree_r(h, why);
       const double before = GEOSArea_r(h, g.get(), &r.area_before) ? r.area_before : NAN;
+      ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid (structure)" : "GEOS MakeValid");
       Geom fixed(h, make_valid(h, g.get()));
       if (!fixed)
         return fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
       // A repair that is still invalid would break point-in-polygon later.
+      ctx.step("GEOS isValid of the repair");
       if (GEOSisValid_r(h, fixed.get()) != 1) {
         char* still = GEOSisValidReason_r(h, fixed.get());
         const std::string after_reason = still ? still : "invalid";
@@ -571,6 +583,7 @@ struct Cleaner {
       g = std::move(fixed);
     }
     if (rel == 0) {
+      ctx.step("GEOS Intersection with the extent");
       Geom rect(h, clip_rect(h));
       Geom cut(h, GEOSIntersection_r(h, g.get(), rect.get()));
       if (!cut) return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error);
@@ -595,6 +608,7 @@ struct Cleaner {
       if (!simplify(ctx, f, p, simple, r)) return;
       // Simplification is topology-preserving; keep the unsimplified part if
       // GEOS ever disagrees.
+      ctx.step("GEOS isValid of the simplified part");
       if (simple && GEOSisValid_r(h, simple.get()) != 1) simple = Geom();
       const GEOSGeometry* use = simple ? simple.get() : p;
       std::vector<const GEOSGeometry*> polys;
@@ -695,6 +709,7 @@ struct Cleaner {
     Geom g(h, make_line(h, pts));
     if (!g) return fail(r, "GEOS cannot build the line: " + ctx.last_error);
     if (rel == 0) {
+      ctx.step("GEOS Intersection with the extent");
       Geom rect(h, clip_rect(h));
       Geom cut(h, GEOSIntersection_r(h, g.get(), rect.get()));
       if (!cut) return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error);
@@ -765,6 +780,9 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
   }
   tbb::enumerable_thread_specific<GeosContext> contexts;
   Cleaner cleaner{input.clip, scene.resolution, scene.repair};
+  uint64_t parts = 0;
+  for (const SourceLayer& layer : input.features.layers) parts += layer.features.size();
+  ProgressStage stage(options.progress, "clean", parts, "parts");
   if (const char* fid = std::getenv("DECALPREP_TEST_GEOS_FAIL_FID")) cleaner.geos_fail_fid = std::atoll(fid);
 
   for (size_t li = 0; li < input.features.layers.size(); ++li) {
@@ -778,6 +796,10 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
                       [&](const tbb::blocked_range<size_t>& range) {
       GeosContext& ctx = contexts.local();
       for (size_t i = range.begin(); i != range.end(); ++i) {
+        struct CountPart {  // one part done, whichever way the body leaves
+          ProgressStage& stage;
+          ~CountPart() { stage.add(); }
+        } count_part{stage};
         SourceFeature& f = layer.features[i];
         PartResult& r = results[i];
         if (!f.drop_reason.empty() || f.rings.empty() || f.rings[0].empty()) {
@@ -816,16 +838,23 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
           continue;
         }
         if (!f.repairs.empty()) add_repair(r, f.repairs);
+        // The watchdog names this part if it stays here (in GEOS) too long.
+        uint64_t vertices = 0;
+        for (const Ring& ring : f.rings) vertices += ring.size();
+        ProgressWatch watch = stage.watch(spec.name, f.fid, vertices, "clean");
+        ctx.watch = &watch;
         try {
           if (f.is_polygon)
             cleaner.polygon(ctx, f, r);
           else
             cleaner.line(ctx, f, r);
         } catch (const std::bad_alloc&) {
+          ctx.watch = nullptr;
           throw;  // not this feature's fault: the build is out of memory
         } catch (const std::exception& e) {
           Cleaner::fail(r, e.what());
         }
+        ctx.watch = nullptr;
       }
     });
 
@@ -952,6 +981,7 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
   for (const ManifestEntry& e : in_manifest.entries) out.manifest.entries.push_back(e);
 
   out.extent = kept_extent(out);
+  stage.finish();
   return out;
 }
 

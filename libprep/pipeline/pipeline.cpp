@@ -327,13 +327,14 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
 
     t0 = Clock::now();
     SceneFrame frame = choose_frame(features, scene.crs);
-    ProjectedFeatures projected = project(std::move(features), frame, scene);
+    ProjectedFeatures projected = project(std::move(features), frame, scene, request.progress);
     timings.emplace_back("project", seconds_since(t0));
     peaks.emplace_back("project", peak_rss_mib());
 
     t0 = Clock::now();
     CleanOptions co;
     co.threads = scene.build.threads;
+    co.progress = request.progress;
     result.scene = clean(std::move(projected), scene, co);
     check_build_range(result.scene, scene.skip_failures);
     timings.emplace_back("clean", seconds_since(t0));
@@ -352,6 +353,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     t0 = Clock::now();
     BuildOptions build_options = scene.build;
     build_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
+    build_options.progress = request.progress;
     DecalModel model = build_model(result.scene, build_options, scene.dem);
     timings.emplace_back("build", seconds_since(t0));
     peaks.emplace_back("build", peak_rss_mib());
@@ -390,6 +392,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     WriteOptions wo;
     wo.codec = request.compress ? Codec::zstd : Codec::none;
     wo.zstd_level = request.zstd_level;
+    wo.progress = request.progress;
     write_model(request.output, model, extra.dump(), wo);
     timings.emplace_back("write", seconds_since(t0));
     peaks.emplace_back("write", peak_rss_mib());

@@ -22,6 +22,7 @@
 #include "prep/dem.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
+#include "prep/progress.hpp"
 
 namespace prep {
 namespace {
@@ -534,8 +535,12 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   return frame;
 }
 
-ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene) {
+ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene,
+                          Progress* progress) {
   register_gdal_once();
+  uint64_t parts = 0;
+  for (const SourceLayer& layer : features.layers) parts += layer.features.size();
+  ProgressStage stage(progress, "project", parts, "parts");
   ProjectedFeatures out;
   out.frame = frame;
   auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
@@ -647,6 +652,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
         }
         if (!std::isfinite(k[i])) k[i] = 1.0;
       }
+      stage.add(range.size());
     });
     // Without skip_failures the first failing feature in input order stops
     // the build (the loop above runs in any order).
@@ -680,6 +686,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     out.clip = e;
   }
   out.features = std::move(features);
+  stage.finish();
   return out;
 }
 

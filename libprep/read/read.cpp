@@ -17,6 +17,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <exception>
 #include <memory>
@@ -26,6 +27,7 @@
 #include "osm_xml_order.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
+#include "prep/progress.hpp"
 
 namespace prep {
 namespace {
@@ -274,12 +276,39 @@ double field_value(OGRFeature& f, int index) {
   return f.GetFieldAsDouble(index);
 }
 
-// GDAL-style progress callback: forwards to the ProgressFn in `arg`.
-int CPL_STDCALL forward_progress(double fraction, const char* label, void* arg) {
-  auto* fn = static_cast<const ProgressFn*>(arg);
-  if (fn && *fn) (*fn)(fraction, label ? label : "");
-  return TRUE;
-}
+// One read job's share of the stage "read": layers are read concurrently,
+// each job (one layer, or one pass over an OSM file for several layers)
+// counts its features into the stage and keeps an estimate of its total
+// (the layer's feature count, or features so far / the fraction of the file
+// GDAL has read); the stage's total is the sum once every job has one.
+class JobProgress {
+ public:
+  static constexpr uint64_t kUnknown = UINT64_MAX;
+  JobProgress() = default;
+  JobProgress(ProgressStage* stage, std::vector<std::atomic<uint64_t>>* estimates, size_t job)
+      : stage_(stage), estimates_(estimates), job_(job) {}
+
+  // `features` read so far by this job, of about `estimate` (kUnknown).
+  void update(uint64_t features, uint64_t estimate) {
+    if (!stage_ || !stage_->active()) return;
+    if (features > counted_) stage_->add(features - counted_);
+    counted_ = std::max(counted_, features);
+    (*estimates_)[job_].store(estimate, std::memory_order_relaxed);
+    uint64_t sum = 0;
+    for (const std::atomic<uint64_t>& e : *estimates_) {
+      const uint64_t v = e.load(std::memory_order_relaxed);
+      if (v == kUnknown) return;  // the stage total stays unknown
+      sum += v;
+    }
+    stage_->set_total(sum);
+  }
+
+ private:
+  ProgressStage* stage_ = nullptr;
+  std::vector<std::atomic<uint64_t>>* estimates_ = nullptr;
+  size_t job_ = 0;
+  uint64_t counted_ = 0;
+};
 
 struct ReadAttempt {
   SourceLayer layer;
@@ -402,7 +431,7 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
 
 }
 
-ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadOptions& options,
+ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress& progress,
                       ErrorCapture& errors, bool plain_osm_index) {
   ReadAttempt r;
   r.layer.spec = spec;
@@ -481,9 +510,8 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
   sink.color_field = field_index(*layer, spec.style.color.attribute, spec, "colour");
 
   const GIntBig total = layer->GetFeatureCount(FALSE);  // -1 for OSM until read
-  const std::string label = "read " + spec.name;
-  const ProgressFn* progress = options.progress ? &options.progress : nullptr;
-  forward_progress(total > 0 ? 0.0 : -1.0, label.c_str(), const_cast<ProgressFn*>(progress));
+  const uint64_t estimate = total >= 0 ? uint64_t(total) : JobProgress::kUnknown;
+  progress.update(0, estimate);
 
   int64_t first_failing_fid = -1;
   errors.clear();
@@ -508,8 +536,9 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
     }
 
     sink.take_geometry(*feature, proto);
-    if (progress && total > 0 && (index & 1023) == 0)
-      forward_progress(double(index) / double(total), label.c_str(), const_cast<ProgressFn*>(progress));
+    if ((index & 1023) == 1023)
+      progress.update(index + 1,
+                      estimate == JobProgress::kUnknown ? estimate : std::max(estimate, index + 1));
   }
   if (errors.count() > skipped_errors) {
     throw gdal_error(where + ": reading failed" +
@@ -519,7 +548,7 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, const ReadO
                      (first_failing_fid >= 0 ? " (--skip-failures drops features OGR cannot decode)"
                                              : ""));
   }
-  forward_progress(1.0, label.c_str(), const_cast<ProgressFn*>(progress));
+  progress.update(r.counts.read, r.counts.read);
   sink.finish(errors);
   return r;
 }
@@ -544,7 +573,7 @@ bool is_osm(const std::string& path) {
 // feature): the caller then reads the layers one by one, which reports the
 // problem exactly as before.
 bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec& scene,
-                    const ReadOptions& options, std::vector<ReadAttempt>& out) {
+                    JobProgress& progress, std::vector<ReadAttempt>& out) {
   try {
     ErrorCapture errors;
     const std::string& source = specs.front()->source;
@@ -560,7 +589,7 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
     std::vector<OGRLayer*> layers(specs.size(), nullptr);
     std::vector<LayerSink> sinks;
     sinks.reserve(specs.size());
-    std::string interest, label = "read";
+    std::string interest;
     for (size_t i = 0; i < specs.size(); ++i) {
       const LayerSpec& spec = *specs[i];
       ReadAttempt& r = attempts[i];
@@ -577,15 +606,13 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
       const std::string name = layer->GetName();
       if (("," + interest + ",").find("," + name + ",") == std::string::npos)
         interest += (interest.empty() ? "" : ",") + name;
-      label += (i ? ", " : " ") + spec.name;
     }
     if (errors.failed()) return false;
     // Only the OGR layers in use are assembled (ogr2ogr does the same).
     ds->ExecuteSQL(("SET interest_layers = " + interest).c_str(), nullptr, nullptr);
     if (errors.failed()) return false;
 
-    const ProgressFn* progress = options.progress ? &options.progress : nullptr;
-    forward_progress(0.0, label.c_str(), const_cast<ProgressFn*>(progress));
+    progress.update(0, JobProgress::kUnknown);
     ds->ResetReading();
     uint64_t fetched = 0;
     for (;;) {
@@ -599,11 +626,13 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
         SourceFeature proto = sinks[i].proto_of(*feature);
         sinks[i].take_geometry(*feature, proto);
       }
-      if (progress && (++fetched & 1023) == 0)
-        forward_progress(fraction, label.c_str(), const_cast<ProgressFn*>(progress));
+      if ((++fetched & 1023) == 0)
+        progress.update(fetched, fraction > 0.01
+                                     ? std::max(fetched, uint64_t(double(fetched) / fraction))
+                                     : JobProgress::kUnknown);
     }
     if (errors.failed()) return false;
-    forward_progress(1.0, label.c_str(), const_cast<ProgressFn*>(progress));
+    progress.update(fetched, fetched);
     for (LayerSink& sink : sinks) sink.finish(errors);
     if (plain_osm_index)
       for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
@@ -614,15 +643,12 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
   }
 }
 
-}  // namespace
-
-SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& manifest,
-                       const ReadOptions& options) {
-  register_gdal_once();
+SourceLayer read_layer_job(const LayerSpec& spec, const SceneSpec& scene, Manifest& manifest,
+                           JobProgress& progress) {
   ErrorCapture errors;
   ReadAttempt r;
   try {
-    r = read_once(spec, scene, options, errors, /*plain_osm_index=*/false);
+    r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/false);
   } catch (const gdal_error& e) {
     // GDAL's OSM driver stopped at a node id that does not increase in a
     // file the scan could not read (osm_xml_order.hpp): read it again with
@@ -631,7 +657,7 @@ SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& 
     if (what.find("OSM_USE_CUSTOM_INDEXING") == std::string::npos) throw;
     errors.clear();
     try {
-      r = read_once(spec, scene, options, errors, /*plain_osm_index=*/true);
+      r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/true);
     } catch (const gdal_error& again) {
       throw gdal_error(std::string(again.what()) +
                        " (read again with OSM_USE_CUSTOM_INDEXING=NO after: " + what +
@@ -646,6 +672,20 @@ SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& 
   return std::move(r.layer);
 }
 
+}  // namespace
+
+SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& manifest,
+                       const ReadOptions& options) {
+  register_gdal_once();
+  ProgressStage stage(options.progress, "read", 0, "features", ProgressTotal::estimate);
+  std::vector<std::atomic<uint64_t>> estimates(1);
+  estimates[0] = JobProgress::kUnknown;
+  JobProgress progress(&stage, &estimates, 0);
+  SourceLayer layer = read_layer_job(spec, scene, manifest, progress);
+  stage.finish();
+  return layer;
+}
+
 FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   if (scene.layers.empty()) throw usage_error("read: the scene has no layers");
   register_gdal_once();
@@ -656,14 +696,9 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   std::vector<SourceLayer> layers(n);
   std::vector<Manifest> manifests(n);
   std::vector<std::exception_ptr> failures(n);
-  std::mutex progress_mutex;
-  ReadOptions serial = options;
-  if (options.progress) {
-    serial.progress = [&](double f, const std::string& label) {
-      std::lock_guard<std::mutex> lock(progress_mutex);
-      options.progress(f, label);
-    };
-  }
+  ProgressStage stage(options.progress, "read", 0, "features", ProgressTotal::estimate);
+  std::vector<std::atomic<uint64_t>> estimates(n);  // per scene layer
+  for (std::atomic<uint64_t>& e : estimates) e = JobProgress::kUnknown;
   // Jobs: scene layers drawn whole (no `sql`, no `where`) from the same OSM
   // file share one pass over it; every other layer is a job of its own.
   // A `where` is not evaluated on the shared pass: GDAL's OSM driver applies
@@ -691,7 +726,8 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   }
   auto read_alone = [&](size_t i) {
     try {
-      layers[i] = read_layer(scene.layers[i], scene, manifests[i], serial);
+      JobProgress progress(&stage, &estimates, i);
+      layers[i] = read_layer_job(scene.layers[i], scene, manifests[i], progress);
     } catch (...) {
       failures[i] = std::current_exception();
     }
@@ -702,7 +738,10 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
       std::vector<const LayerSpec*> specs;
       for (size_t i : job) specs.push_back(&scene.layers[i]);
       std::vector<ReadAttempt> got;
-      if (read_osm_group(specs, scene, serial, got)) {
+      // The pass counts under its first layer; the others add nothing.
+      for (size_t k = 1; k < job.size(); ++k) estimates[job[k]] = 0;
+      JobProgress progress(&stage, &estimates, job.front());
+      if (read_osm_group(specs, scene, progress, got)) {
         for (size_t k = 0; k < job.size(); ++k) {
           ReadAttempt& r = got[k];
           Manifest& m = manifests[job[k]];
@@ -719,6 +758,7 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   // The first failing layer in scene order is the one reported.
   for (const std::exception_ptr& e : failures)
     if (e) std::rethrow_exception(e);
+  stage.finish();
   FeatureSet set;
   for (size_t i = 0; i < n; ++i) {
     set.layers.push_back(std::move(layers[i]));

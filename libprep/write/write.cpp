@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "prep/error.hpp"
+#include "prep/progress.hpp"
 #include "prep/write.hpp"
 
 static_assert(std::endian::native == std::endian::little,
@@ -252,6 +253,9 @@ void write_package(const std::string& path, const std::string& metadata_json,
                    "]");
   if (blobs.size() > UINT32_MAX) fail(path, "too many blobs");
 
+  uint64_t raw_bytes = 0;
+  for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
+  ProgressStage stage(options.progress, "write", raw_bytes, "bytes");
   std::vector<EncodedBlob> enc(blobs.size());
   ZSTD_CCtx* cctx = nullptr;
   struct CctxFree {
@@ -297,6 +301,7 @@ void write_package(const std::string& path, const std::string& metadata_json,
     }
     e.stored_size = enc[i].stored.size();
     e.checksum = XXH64(enc[i].stored.data(), enc[i].stored.size(), 0);
+    stage.add(b.bytes.size());
   }
 
   decal::FileHeader h{};
@@ -334,6 +339,7 @@ void write_package(const std::string& path, const std::string& metadata_json,
     at = b.entry.offset + b.stored.size();
   }
   out.commit();
+  stage.finish();
 }
 
 namespace {

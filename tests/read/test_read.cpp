@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <mutex>
+#include <nlohmann/json.hpp>
 
 #include "fixtures.hpp"
 #include "prep/error.hpp"
+#include "prep/progress.hpp"
 #include "prep/read.hpp"
 
 namespace {
@@ -154,16 +157,34 @@ TEST(Read, OrderAndColourAttributesAreReadAsNumbers) {
   }
 }
 
-TEST(Read, ConsoleProgressWritesPlainLinesWhenNotATerminal) {
-  // stderr of a test run is a pipe or file: plain lines, one per 10 %.
-  prep::ProgressFn p = prep::make_console_progress();
-  testing::internal::CaptureStderr();
-  for (int i = 0; i <= 100; ++i) p(i / 100.0, "read x");
-  std::string out = testing::internal::GetCapturedStderr();
-  if (isatty(fileno(stderr))) GTEST_SKIP() << "stderr is a terminal";
-  EXPECT_NE(out.find("read x: 50%\n"), std::string::npos) << out;
-  EXPECT_NE(out.find("read x: 100%\n"), std::string::npos) << out;
-  EXPECT_EQ(out.find('\r'), std::string::npos);
+TEST(Read, CountsEveryFeatureReadIntoTheProgressStage) {
+  // kMixed has 5 features (ogrinfo -so: Feature Count: 5); the read stage
+  // ends with done == total == 5, across two layers read concurrently: 10.
+  TempDir dir;
+  write_text(dir.file("mixed.geojson"), kMixed);
+  prep::SceneSpec s = one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon);
+  s.layers.push_back(s.layers[0]);
+  s.layers[1].name = "again";
+  std::vector<std::string> lines;
+  std::mutex mu;
+  prep::ProgressOptions po;
+  po.mode = prep::ProgressMode::json;
+  po.write = [&](std::string_view line) {
+    std::lock_guard<std::mutex> lock(mu);
+    lines.emplace_back(line);
+  };
+  {
+    prep::Progress progress(po);
+    prep::ReadOptions ro;
+    ro.progress = &progress;
+    prep::read_scene(s, ro);
+  }
+  ASSERT_FALSE(lines.empty());
+  const nlohmann::json end = nlohmann::json::parse(lines.back());
+  EXPECT_EQ(end["event"], "end") << lines.back();
+  EXPECT_EQ(end["stage"], "read");
+  EXPECT_EQ(end["done"], 10);
+  EXPECT_EQ(end["total"], 10);
 }
 
 }  // namespace

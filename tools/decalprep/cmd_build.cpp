@@ -18,6 +18,7 @@
 #include "command.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
+#include "prep/progress.hpp"
 #include "prep/scene_file.hpp"
 
 namespace {
@@ -40,7 +41,13 @@ struct BuildArgs {
   int zstd_level = 3;
   std::string max_memory;  // --max-memory SIZE
   bool no_compress = false, dry_run = false, quiet = false, skip_failures = false;
+  std::string progress;  // --progress MODE; empty: auto, or none with --quiet
 };
+
+// --progress as given, else auto (none with --quiet).
+std::string progress_text(const BuildArgs& a) {
+  return !a.progress.empty() ? a.progress : a.quiet ? "none" : "auto";
+}
 
 bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
@@ -157,10 +164,33 @@ int run(const BuildArgs& a) {
   req.compress = !a.no_compress;
   req.zstd_level = a.zstd_level;
   if (!a.max_memory.empty()) req.max_memory = prep::parse_memory_size(a.max_memory);
-  if (!a.quiet) req.progress = prep::make_console_progress();
+  prep::ProgressOptions po;
+  po.mode = prep::parse_progress_mode(progress_text(a), isatty(STDERR_FILENO) != 0);
+  const bool json = po.mode == prep::ProgressMode::json;
+  prep::Progress progress(po);
+  req.progress = &progress;
   prep::BuildResult result = prep::run_build(scene, req);
 
-  if (!a.quiet) {
+  if (json && !a.quiet) {
+    // --progress json: stderr carries JSON objects only; the summary is one.
+    nlohmann::json totals = {
+        {"read", 0}, {"kept", 0}, {"repaired", 0}, {"clipped_away", 0}, {"dropped", 0}};
+    for (const prep::LayerCounts& c : result.scene.manifest.layers) {
+      totals["read"] = totals["read"].get<uint64_t>() + c.read;
+      totals["kept"] = totals["kept"].get<uint64_t>() + c.kept;
+      totals["repaired"] = totals["repaired"].get<uint64_t>() + c.repaired;
+      totals["clipped_away"] = totals["clipped_away"].get<uint64_t>() + c.clipped_away;
+      totals["dropped"] = totals["dropped"].get<uint64_t>() + c.dropped;
+    }
+    nlohmann::json summary = {{"event", "summary"},
+                              {"features", totals},
+                              {"frame", result.scene.frame.description},
+                              {"package_written", result.package_written},
+                              {"output", result.package_written ? a.output : ""},
+                              {"report", a.report},
+                              {"skipped_failures", result.skipped_failures}};
+    progress.message(summary.dump());
+  } else if (!a.quiet) {
     uint64_t read = 0, kept = 0, clipped = 0, dropped = 0, repaired = 0;
     for (const prep::LayerCounts& c : result.scene.manifest.layers) {
       read += c.read;
@@ -186,7 +216,7 @@ int run(const BuildArgs& a) {
   if (scene.skip_failures) {
     const size_t skipped = result.skipped_failures;
     if (skipped > 0) {
-      if (!a.quiet)
+      if (!a.quiet && !json)
         std::fprintf(stderr, "decalprep build: --skip-failures dropped %zu failing features (see the manifest)\n",
                      skipped);
       return static_cast<int>(prep::ExitCode::partial);
@@ -223,9 +253,18 @@ std::string last_line(const std::string& path) {
   while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) all.append(buf, n);
   std::fclose(f);
   std::istringstream in(all);
-  while (std::getline(in, line))
-    if (!line.empty() && line.find('%') == std::string::npos) last = line;
-  return last;
+  // The scene's error line ("decalprep: ..."), else the last line that is not
+  // progress (plain: a '%' or "elapsed" at the end; json: an object), such as
+  // the watchdog's naming of a feature a killed scene was stuck on.
+  std::string error;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    if (line.rfind("decalprep: ", 0) == 0) error = line;
+    const bool progress = line.find('%') != std::string::npos || line.front() == '{' ||
+                          (line.size() >= 8 && line.compare(line.size() - 8, 8, " elapsed") == 0);
+    if (!progress) last = line;
+  }
+  return error.empty() ? last : error;
 }
 
 constexpr int kPartial = static_cast<int>(prep::ExitCode::partial);
@@ -263,6 +302,9 @@ int run_batch(const BuildArgs& a) {
     items[i].report = (fs::path(a.output) / (stem + ".report.json")).string();
     items[i].log = (fs::path(a.output) / (stem + ".log")).string();
   }
+  // --progress json: the batch's own lines are JSON objects too (one per
+  // scene as it ends, then the batch); the scenes' progress is in their logs.
+  const bool json = progress_text(a) == "json";
   unsigned jobs = std::max(1u, a.jobs);
   // --max-memory is per scene: run no more scenes side by side than the
   // memory the kernel reports available holds at that limit each.
@@ -278,14 +320,14 @@ int run_batch(const BuildArgs& a) {
     if (available_kb > 0) {
       const uint64_t fit = std::max<uint64_t>(1, available_kb * 1024 / per_job);
       if (fit < jobs) {
-        if (!a.quiet)
+        if (!a.quiet && !json)
           std::fprintf(stderr, "decalprep build: --jobs %u lowered to %llu: %.1f GiB available, --max-memory %s per scene\n",
                        jobs, (unsigned long long)fit, available_kb / 1048576.0, a.max_memory.c_str());
         jobs = unsigned(fit);
       }
     }
   }
-  size_t next = 0, running = 0;
+  size_t next = 0, running = 0, finished = 0;
   std::fflush(nullptr);
   while (next < items.size() || running > 0) {
     while (running < jobs && next < items.size()) {
@@ -304,6 +346,10 @@ int run_batch(const BuildArgs& a) {
           one.output = it.output;
           one.report = it.report;
           one.quiet = true;
+          // The log gets the scene's progress (plain lines unless json),
+          // and the watchdog's lines.
+          const std::string mode = progress_text(a);
+          one.progress = mode == "tty" || mode == "auto" ? "plain" : mode;
           code = run(one);
         } catch (const prep::error& e) {
           std::fprintf(stderr, "decalprep: %s\n", e.what());
@@ -330,9 +376,29 @@ int run_batch(const BuildArgs& a) {
       it.peak_rss_kb = ru.ru_maxrss;
       it.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
       --running;
-      if (!a.quiet)
-        std::fprintf(stderr, "%s: %s (%.2f s, peak %.1f MiB)\n", it.scene.c_str(),
-                     it.exit_code == 0 ? "built" : it.exit_code == kPartial ? "built (partial)" : "FAILED",
+      ++finished;
+      const char* outcome = it.exit_code == 0          ? "built"
+                            : it.exit_code == kPartial ? "partial"
+                                                       : "failed";
+      if (json)
+        std::fprintf(stderr, "%s\n",
+                     nlohmann::json({{"event", "scene"},
+                                     {"scene", it.scene},
+                                     {"status", outcome},
+                                     {"exit_code", it.exit_code},
+                                     {"done", finished},
+                                     {"total", items.size()},
+                                     {"seconds", it.seconds},
+                                     {"peak_rss_mib", it.peak_rss_kb / 1024.0},
+                                     {"log", it.log}})
+                         .dump()
+                         .c_str());
+      else if (!a.quiet)
+        std::fprintf(stderr, "[%zu/%zu] %s: %s (%.2f s, peak %.1f MiB)\n", finished, items.size(),
+                     it.scene.c_str(),
+                     it.exit_code == 0          ? "built"
+                     : it.exit_code == kPartial ? "built (partial)"
+                                                : "FAILED",
                      it.seconds, it.peak_rss_kb / 1024.0);
     }
   }
@@ -369,7 +435,17 @@ int run_batch(const BuildArgs& a) {
   std::ofstream out(path);
   out << summary.dump(2) << "\n";
   if (!out) throw prep::output_error("build: cannot write the batch summary " + path);
-  if (!a.quiet)
+  if (json)
+    std::fprintf(stderr, "%s\n",
+                 nlohmann::json({{"event", "summary"},
+                                 {"built", items.size() - failed},
+                                 {"failed", failed},
+                                 {"partial", partial},
+                                 {"total", items.size()},
+                                 {"summary", path}})
+                     .dump()
+                     .c_str());
+  else if (!a.quiet)
     std::fprintf(stderr, "decalprep build: %zu of %zu scenes built; summary %s\n", items.size() - failed,
                  items.size(), path.c_str());
   return first_fail != 0 ? first_fail : partial > 0 ? kPartial : 0;
@@ -386,7 +462,15 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_option("-o,--output", args->output, "Package to write (atomically)");
   cmd->add_option("--report", args->report, "Write the JSON report (counts, manifest, timings)");
   cmd->add_flag("--dry-run", args->dry_run, "Stop after clean: write the report, no package");
-  cmd->add_flag("-q,--quiet", args->quiet, "No progress or summary on stderr");
+  cmd->add_flag("-q,--quiet", args->quiet,
+                "No progress or summary on stderr (unless --progress is given)");
+  cmd->add_option(
+         "--progress", args->progress,
+         "Progress on stderr: auto (default: tty on a terminal, else plain) | tty (one redrawn "
+         "line per stage) | plain (a line per stage every 5 s and at its end) | json (one "
+         "object per line) | none. A feature in GEOS for over 30 s is named. Batch mode: "
+         "in each scene's log")
+      ->check(CLI::IsMember({"auto", "tty", "plain", "json", "none"}));
   cmd->add_flag("--skip-failures", args->skip_failures,
                 "Drop a failing feature (recorded in the manifest) and go on; exit code 4 (partial)");
   cmd->add_option("--max-memory", args->max_memory,

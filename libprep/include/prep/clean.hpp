@@ -14,8 +14,14 @@
 
 namespace prep {
 
+class Progress;  // prep/progress.hpp
+
 struct CleanOptions {
   unsigned threads = 0;  // 0: all hardware threads; the output does not depend on it
+  // Stage "clean", counted in parts; every part in GEOS is watched (the
+  // watchdog names one that takes longer than the Progress's threshold).
+  // Null: silent.
+  Progress* progress = nullptr;
 };
 
 // Cleans `input`. Bad geometry that is expected (zero area, too few

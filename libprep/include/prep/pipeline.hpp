@@ -19,7 +19,10 @@ struct BuildRequest {
   // (exit 6) as soon as an estimate of its peak RSS exceeds it
   // (prep/memory_estimate.hpp); no package is written.
   uint64_t max_memory = 0;
-  ProgressFn progress;      // empty: silent
+  // Progress of every stage, in pipeline order: read, project, clean,
+  // build.lines, build.quadtrees, build.grid, build.cells, build.dynamic,
+  // write (prep/progress.hpp). Null: silent. Output only.
+  Progress* progress = nullptr;
 };
 
 struct BuildResult {

@@ -16,6 +16,8 @@
 
 namespace prep {
 
+class Progress;  // prep/progress.hpp
+
 // Features in frame coordinates (metres relative to frame.origin), plus the
 // point scale factor of the frame at each part (frame metres per ground
 // metre), in the same order as features.layers[i].features.
@@ -37,8 +39,10 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs);
 // manifest entry. Also resolves the clip extent: scene.extent (in
 // scene.extent_crs, default the frame CRS) or, when scene.dem is set, the
 // DEM's extent transformed into the frame. Throws input_error/gdal_error
-// naming the CRS or file at fault.
-ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene);
+// naming the CRS or file at fault. `progress` (may be null) gets the stage
+// "project", counted in parts.
+ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene,
+                          Progress* progress = nullptr);
 
 // `extent` given in `crs` (any PROJ/EPSG/WKT string; empty: the frame CRS
 // itself) as ABSOLUTE coordinates of the frame CRS: unchanged when `crs` is

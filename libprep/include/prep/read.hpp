@@ -8,23 +8,18 @@
 // its fid, or, with skip_failures, is dropped with reason "failed in read: ...".
 #pragma once
 
-#include <functional>
 #include <string>
 
 #include "prep/scene.hpp"
 
 namespace prep {
 
-// Progress of a long step, 0..1. `label` names the step ("read roads").
-// Called from the reading thread only.
-using ProgressFn = std::function<void(double fraction, const std::string& label)>;
-
-// A progress reporter for a terminal: a redrawn bar when stderr is a TTY,
-// otherwise one plain line per 10 %. Returned function is not thread-safe.
-ProgressFn make_console_progress();
+class Progress;  // prep/progress.hpp
 
 struct ReadOptions {
-  ProgressFn progress;  // empty: silent
+  // Stage "read" (features; the total is an estimate for sources that do not
+  // know their feature count, such as OSM). Null: silent.
+  Progress* progress = nullptr;
 };
 
 // Reads every layer of `scene` (in scene order). Throws:

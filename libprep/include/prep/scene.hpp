@@ -18,6 +18,8 @@
 
 namespace prep {
 
+class Progress;  // prep/progress.hpp
+
 // ----------------------------------------------------------------- the ask --
 
 enum class DecalKind { polygon, line, outline };
@@ -85,6 +87,10 @@ struct BuildOptions {
   std::optional<double> nodata_fill;   // raw DEM units; none: nearest valid cell (prep/dem.hpp)
   std::string dem_assume_crs;          // CRS of a DEM that has none (the scene's assume_crs)
   unsigned threads = 0;                // 0: all hardware threads
+  // Not from the scene file: where the build stage reports its sub-stages
+  // (build.lines, build.quadtrees, build.grid, build.cells, build.dynamic;
+  // prep/progress.hpp). Null: silent. Output only.
+  Progress* progress = nullptr;
 };
 
 struct SceneSpec {

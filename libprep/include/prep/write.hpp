@@ -11,11 +11,16 @@
 
 namespace prep {
 
+class Progress;  // prep/progress.hpp
+
 enum class Codec { none, zstd };
 
 struct WriteOptions {
   Codec codec = Codec::zstd;
   int zstd_level = 3;
+  // Stage "write", counted in blob bytes compressed and checksummed. Null:
+  // silent. Output only: the package bytes do not depend on it.
+  Progress* progress = nullptr;
 };
 
 // One blob to write: `count` elements of `stride` bytes at `bytes`.
