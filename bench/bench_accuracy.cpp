@@ -1,4 +1,4 @@
-// bench_accuracy — the accuracy axis of bench/run (issue 7). Not a Google
+// bench_accuracy — the accuracy axis of bench/run. Not a Google
 // Benchmark: a helper that bench/run calls once per configuration, printing
 // one JSON object per line on stdout.
 //

@@ -1,6 +1,6 @@
 // bench_build — build time, peak RSS, package size and per-point query cost
 // of the static decal structures, adaptive grid vs the thesis 500x500 grid in
-// the same run (issue 4, Done 6). Prints a table; not a unit test.
+// the same run. Prints a table; not a unit test.
 //
 //   bench_build [--vertices N] [--samples N] [--threads N] [--target T]
 //               [--only parcels,roads,big] [--scene FILE.toml ...] [--grids 500,1000]

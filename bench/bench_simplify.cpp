@@ -1,4 +1,4 @@
-// bench_simplify — the --resolution table of issue 3 (done-means 5): on the
+// bench_simplify — the --resolution table: on the
 // Monaco extract, for each resolution, the vertex counts before and after
 // simplification, the largest Hausdorff deviation of a simplified part from
 // its unsimplified self (GEOS, densified discrete Hausdorff), and how many

@@ -1,4 +1,4 @@
-// Terrain matching and LOD preprocessing figures (issue 5):
+// Terrain matching and LOD preprocessing figures:
 //  - terrain matching throughput (output vertices per second) and output
 //    vertex count, fixed lmax and adaptive (--terrain-tolerance), on
 //    Monaco's roads with SRTM N43E007;

@@ -1,4 +1,4 @@
-// fuzz_build — libFuzzer target for the builder (issue 8): bytes -> WKT or
+// fuzz_build — libFuzzer target for the builder: bytes -> WKT or
 // WKB geometries plus a style -> clean -> build_model. Any input must end in
 // a model or a prep::error (input/resource/...), never a crash, hang,
 // sanitizer report or another exception type.

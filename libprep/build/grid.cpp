@@ -195,7 +195,7 @@ double grid_bytes(const GridParams& g, const GridInput& in) {
 
 }  // namespace
 
-// The adaptive rule (issue 4; measured with bench/bench_build):
+// The adaptive rule (measured with bench/bench_build):
 //
 // Cost of a grid = log(1 + proxy) + kBytesWeight * log(package bytes). The
 // proxy is the entry-weighted mean number of weighted primitives per cell
@@ -216,7 +216,7 @@ double grid_bytes(const GridParams& g, const GridInput& in) {
 // kGridSizeBudget (1.2) times the package of the thesis 500x500 grid on the
 // same data (counted the same way), when it has more than max_cells cells,
 // or more segment/leaf-cell entries than the entry budget. The thesis grid is
-// the reference the package is compared against (issue 4: fewer tests per
+// the reference the package is compared against (the goal: fewer tests per
 // point than 500x500 at no more than 1.25x its size). The budget is what
 // binds on large dense inputs: with 10^7 clustered polygon vertices, the
 // polygons' proxy never falls to a fixed target (their overlap alone keeps

@@ -1,5 +1,5 @@
 // Stage 3 — clean. Projected parts -> valid, oriented, clipped, simplified
-// SceneFeatures, with every repair and drop in the manifest (DESIGN.md §1.3,
+// SceneFeatures, with every repair and drop in the manifest (ARCHITECTURE.md "3. clean",
 // §4.4). Parallel per part with oneTBB; each worker owns a GEOS context; the
 // results are gathered in input order, so the output does not depend on the
 // thread count.
@@ -635,7 +635,7 @@ struct Cleaner {
     out.area = area;
     for (const Ring& ring : rings) r.vertices_in += ring.size() + 1;
     out.shell = std::move(rings[0]);
-    // Orientation (DESIGN.md §1.3): shell counter-clockwise, holes clockwise.
+    // Orientation (ARCHITECTURE.md "3. clean"): shell counter-clockwise, holes clockwise.
     if (signed_area(out.shell) < 0) std::reverse(out.shell.begin(), out.shell.end());
     for (size_t i = 1; i < rings.size(); ++i) {
       Ring hole = std::move(rings[i]);
@@ -655,7 +655,7 @@ struct Cleaner {
     out.order_value = f.order_value;
     out.color_value = f.color_value;
     out.shell = read_coords(h, GEOSGetExteriorRing_r(h, poly), true);
-    // Orientation (DESIGN.md §1.3): shell counter-clockwise, holes clockwise.
+    // Orientation (ARCHITECTURE.md "3. clean"): shell counter-clockwise, holes clockwise.
     if (signed_area(out.shell) < 0) std::reverse(out.shell.begin(), out.shell.end());
     int nh = GEOSGetNumInteriorRings_r(h, poly);
     for (int i = 0; i < nh; ++i) {
@@ -944,7 +944,7 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
           for (SceneLine& l : r.lines) {
             l.layer = layer_index;
             // Widths are ground metres; the frame's metres are k times
-            // longer or shorter (DESIGN.md §1.2).
+            // longer or shorter (ARCHITECTURE.md "2. project").
             l.length /= kf;
             l.width = spec.dynamic ? spec.style.width : spec.style.width * kf;
             (spec.dynamic ? out.dynamic_lines : out.lines).push_back(std::move(l));

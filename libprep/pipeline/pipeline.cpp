@@ -1,4 +1,4 @@
-// The pipeline of DESIGN.md §1, in order, with timings and the JSON report.
+// The pipeline of ARCHITECTURE.md, in order, with timings and the JSON report.
 // Each stage hands the next its named type; nothing reaches back.
 #include "prep/pipeline.hpp"
 
@@ -94,7 +94,7 @@ nlohmann::json frame_json(const SceneFrame& f, const Extent& e) {
           {"extent", {e.xmin, e.ymin, e.xmax, e.ymax}}};
 }
 
-// Provenance: path, size and XXH64 of every local source (DESIGN.md §5).
+// Provenance: path, size and XXH64 of every local source (formats/SPEC.md "Metadata").
 nlohmann::json provenance_json(const SceneSpec& scene) {
   nlohmann::json sources = nlohmann::json::array();
   std::vector<std::string> paths;

@@ -1,5 +1,5 @@
 // Stage 2 — project. FeatureSet in source CRSs -> FeatureSet in the scene
-// frame, metres relative to the frame origin (DESIGN.md §1, §4.1).
+// frame, metres relative to the frame origin (ARCHITECTURE.md "2. project", "Precision").
 #include "prep/project.hpp"
 
 #include <GeographicLib/Geodesic.hpp>
@@ -641,7 +641,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
         cx /= double(n_all);
         cy /= double(n_all);
         // Scale factor at the part's vertex centroid: widths are ground
-        // metres, the frame is not (DESIGN.md §1.2).
+        // metres, the frame is not (ARCHITECTURE.md "2. project").
         if (local_tm) {
           // frame_scale_factor, with the frame's false northing y0 hoisted.
           double lat = 0, lon = 0, gamma = 0;

@@ -2,7 +2,7 @@
 //
 // Every input feature appears in the FeatureSet at least once (as one
 // SourceFeature per part, or as a placeholder carrying drop_reason), so the
-// clean stage can account for 100 % of the features (DESIGN.md §4.4).
+// clean stage can account for 100 % of the features (ARCHITECTURE.md "Guarantees" 4).
 #include "prep/read.hpp"
 
 #include <cpl_conv.h>

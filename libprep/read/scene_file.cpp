@@ -199,7 +199,7 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     fail(here, "color_attribute needs a color_ramp");
   if (layer.style.outline != decal::OutlineMode::normal &&
       layer.style.corner != decal::CornerStyle::miter)
-    fail(here, "outline_mode inset/offset needs corner = \"miter\" (DESIGN.md §2)");
+    fail(here, "outline_mode inset/offset needs corner = \"miter\" (the kept half is cut at the miter corners)");
   if (layer.dynamic && !width_set) layer.style.width = 3.0;  // pixels
   if (layer.name.empty()) layer.name = layer.layer.empty() ? "layer" + std::to_string(index) : layer.layer;
   return layer;

@@ -156,7 +156,7 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     check(decal::gl::GpuPackage::upload(blobs, grid, gpu, true));
 
     // Camera anchor: the eye rounded to whole quanta; everything on the GPU
-    // is relative to it (DESIGN.md §4.1).
+    // is relative to it (ARCHITECTURE.md "Guarantees" 1).
     const Camera& cam = opt.camera;
     const double q = decal::kQuantumMetres;
     const int64_t ax = std::llround(cam.eye[0] / q), ay = std::llround(cam.eye[1] / q);

@@ -1,4 +1,4 @@
-// The adaptive decal grid (issue 4, Done 6; libprep/build/grid.cpp
+// The adaptive decal grid (libprep/build/grid.cpp
 // choose_grid): size-aware against the thesis 500x500 grid on the same data,
 // coarse for sparse data, and stopped early by target_per_cell. Sizes are
 // read from the built arrays, not from the estimate choose_grid makes.

@@ -1,4 +1,4 @@
-// Quad-tree correctness (issue 4, Done 3) against GEOS: for random polygons
+// Quad-tree correctness against GEOS: for random polygons
 // with holes and nested islands, every leaf's covered area (type 2: its box;
 // type 3: the even-odd region of its leaf polygon inside the box) equals the
 // GEOS area of polygon ∩ leaf box to 1e-9 relative, and no type-1/2 leaf box

@@ -1,4 +1,4 @@
-// Done-means 3 of issue 3: clean on synthetic GeoJSON written to a temp dir
+// Clean on synthetic GeoJSON written to a temp dir
 // and read through GDAL. Each case ends valid (GEOS isValid) with the area
 // GEOS MakeValid gives the original geometry (1e-9 relative), or dropped with
 // a reason.

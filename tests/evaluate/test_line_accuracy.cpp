@@ -1,4 +1,4 @@
-// Line coverage of the CPU evaluator against GEOS buffers (issue 4, Done 1-2).
+// Line coverage of the CPU evaluator against GEOS buffers.
 // Oracle per line, on the cleaned double-precision geometry:
 //   round: round buffer (round caps and joins);
 //   bevel: bevel buffer with round caps;

@@ -1,4 +1,4 @@
-// Polygon coverage of the CPU evaluator against GEOS (issue 4, Done 1-2):
+// Polygon coverage of the CPU evaluator against GEOS:
 // GEOSContains on the cleaned polygon with holes (nested islands are their
 // own polygons), >= 10^6 samples, uniform and near edges, points within 2 mm
 // of a boundary excluded, 0 misclassified.

@@ -1,4 +1,4 @@
-// Real data (issue 4, Done 1): Monaco (the sample scene: landuse, green,
+// Real data: Monaco (the sample scene: landuse, green,
 // water, buildings; inset building outlines, offset green outlines, normal
 // water outlines; bevel paths, round streets, miter main roads) and
 // Liechtenstein (buildings, landuse, offset building outlines, highways) through

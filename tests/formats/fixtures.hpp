@@ -52,7 +52,7 @@ struct Hostile {
   bool structure_valid = false;  // Package::open accepts it; validate_indices must not
 };
 
-// The hostile cases of issue 2 built from `good`, the image of
+// The hostile package cases built from `good`, the image of
 // small_model() written with zstd: truncation, zero length, not a package,
 // unknown major version, offsets past the end, overlapping blobs, count x
 // stride overflow, bit flips, bad indices and more. Resealed where needed so

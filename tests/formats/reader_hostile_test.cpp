@@ -1,6 +1,6 @@
 // Hostile inputs: the reader must return a clear failure status, never
 // crash, never read out of bounds (run under ASan+UBSan), for every
-// truncated prefix, every single-bit flip and each crafted case of issue 2.
+// truncated prefix, every single-bit flip and each crafted hostile case (fixtures.hpp).
 #include <gtest/gtest.h>
 
 #include <cstring>

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Batch mode (issue 8, Done 6): 5 scene files, one with a missing source, in
+"""Batch mode: 5 scene files, one with a missing source, in
 one folder. `decalprep build DIR -o OUT --jobs 2` must build the other 4
 (each accepted by `decalprep verify`), exit non-zero, and write a summary
 that names the failed scene and why.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes the hostile-input corpus (issue 8) into OUTDIR.
+"""Writes the hostile-input corpus (tests/hostile/README.md) into OUTDIR.
 
 Every case is a small file that decalprep reads through GDAL, plus a row in
 OUTDIR/cases.json naming the file, the build arguments and the expected

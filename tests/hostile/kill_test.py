@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Atomic output under SIGKILL (issue 8, Done 7).
+"""Atomic output under SIGKILL (ARCHITECTURE.md "Guarantees" 6).
 
 Builds a scene once to learn how long a build takes, then N times runs
 `timeout -s KILL T decalprep build ... -o TARGET` with T drawn uniformly over

@@ -1,4 +1,4 @@
-// The hostile-input corpus (issue 8, Done 1-2). For every case that
+// The hostile-input corpus (tests/hostile/README.md). For every case that
 // tests/hostile/generate.py writes, tests/hostile/expected.json says what
 // `decalprep build` must do:
 //   exit     the exit code (0 built, 4 partial with --skip-failures, 3 input, 6 resource);
@@ -392,7 +392,7 @@ TEST_P(Hostile, BehavesAsExpected) {
     }
     EXPECT_TRUE(found) << name << ": no manifest entry " << e.dump() << " in " << got.dump(1);
   }
-  // No silent loss (DESIGN.md §4.4): every feature read is kept, clipped
+  // No silent loss (ARCHITECTURE.md "Guarantees" 4): every feature read is kept, clipped
   // away or dropped, and each drop has its entry.
   const json& totals = report["manifest"]["totals"];
   EXPECT_EQ(totals["read"].get<uint64_t>(), totals["kept"].get<uint64_t>() +

@@ -1,4 +1,4 @@
-// Done-means 2 of issue 3: reprojection against GeographicLib reference
+// Reprojection against GeographicLib reference
 // values (an implementation independent of PROJ), the axis order, and widths
 // in ground metres.
 #include <GeographicLib/Geodesic.hpp>

@@ -1,4 +1,4 @@
-// Done-means 4 of issue 3: bad input gets a clear error naming what is wrong,
+// Bad input gets a clear error naming what is wrong,
 // a non-zero exit code, and no package. Runs the real decalprep binary.
 #include <gtest/gtest.h>
 #include <ogrsf_frmts.h>

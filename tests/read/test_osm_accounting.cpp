@@ -1,4 +1,4 @@
-// Done-means 1 of issue 3: on real OSM extracts the manifest accounts for
+// On real OSM extracts the manifest accounts for
 // every feature read, per layer, and the read counts match ogrinfo's (an
 // independent program) for the same filters.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// The render smoke test of issue 6: Monaco (building, landuse, water and
+// The render smoke test: Monaco (building, landuse, water and
 // highway polygons and lines, dynamic highway lines) over N43E007 at 640x360
 // on llvmpipe, top-down orthographic and oblique perspective, against the
 // CPU evaluator (--cpu) and gdal_rasterize; plus a synthetic scene that

@@ -81,7 +81,7 @@ std::vector<prep::SceneLine> MonacoTerrain::roads;
 std::unique_ptr<GdalBilinear> MonacoTerrain::oracle;
 std::unique_ptr<GdalBilinear> MonacoTerrain::filled;
 
-// Item 1 of issue 5. The SRTM tile has voids (-32768) near the coast, so:
+// Terrain matching on real data. The SRTM tile has voids (-32768) near the coast, so:
 // (a) every no-data cell a stored vertex uses must hold the value of a valid
 //     cell at the smallest Chebyshev distance (the documented policy;
 //     brute-force search here), read back from a DemSampler at the cell

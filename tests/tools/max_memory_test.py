@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""`decalprep build --max-memory` (issue 8): the build stops early with exit
+"""`decalprep build --max-memory`: the build stops early with exit
 code 6 and writes nothing when the estimate exceeds the limit; a generous
 limit builds; and the estimate of the peak for a mid-size generated input is
 at least the peak RSS measured for the child process (getrusage via wait4)

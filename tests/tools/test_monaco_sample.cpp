@@ -1,4 +1,4 @@
-// The shipped Monaco sample end to end (issue 4, Done 8): the real
+// The shipped Monaco sample end to end: the real
 // decalprep binary (DECALPREP_TOOL) builds samples/monaco/scene.toml, whose
 // static lines use all three corner styles and whose outlines use all three
 // outline modes, `decalprep verify` accepts the package, and the package's

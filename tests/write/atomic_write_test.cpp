@@ -1,4 +1,4 @@
-// Atomic output (DESIGN.md non-negotiable 6): a killed, interrupted or
+// Atomic output (ARCHITECTURE.md "Guarantees" 6): a killed, interrupted or
 // failing writer leaves the previous file at the target untouched and no
 // temporary file behind. The writers run in forked children so that they
 // can be killed for real.

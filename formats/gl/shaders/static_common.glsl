@@ -2,7 +2,7 @@
 // back-projection of the pixel centre with the terrain depth, the grid cell
 // of that point, and front-to-back compositing.
 //
-// Precision (DESIGN.md §4.1): every position in these shaders is metres
+// Precision (ARCHITECTURE.md "Guarantees" 1): every position in these shaders is metres
 // relative to the camera anchor u_anchor_q (integer quanta from the package
 // origin). Stored vertices are int32 quanta; the shader subtracts the anchor
 // in integers first and converts the small difference to float, so no

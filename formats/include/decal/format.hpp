@@ -14,7 +14,7 @@
 namespace decal {
 
 // ---------------------------------------------------------------------------
-// Coordinates (DESIGN.md §4.1). Every stored position is a signed 32-bit
+// Coordinates (ARCHITECTURE.md "Precision"). Every stored position is a signed 32-bit
 // integer count of `kQuantumMetres` relative to the package origin (metadata
 // `origin`), so any point within ±2147 km of the origin is held to 0.5 mm.
 // No absolute float32 coordinate is ever stored.

@@ -1,5 +1,5 @@
 // prep/clean.hpp — stage 3: projected features -> SceneFeatures
-// (DESIGN.md §1). GEOS (reentrant C API), one context per worker thread.
+// (ARCHITECTURE.md "3. clean"). GEOS (reentrant C API), one context per worker thread.
 //
 // For every part: duplicate vertices and zero-length segments removed;
 // polygons made valid (GEOSMakeValid) with every hole attached to its shell

@@ -1,5 +1,5 @@
 // prep/project.hpp — stage 2: FeatureSet (source CRS) -> FeatureSet in the
-// scene frame (DESIGN.md §1).
+// scene frame (ARCHITECTURE.md "2. project").
 //
 // The default frame is a local Transverse Mercator (scale 1 on the central
 // meridian, WGS84 ellipsoid) centred on the data's geographic extent; the

@@ -1,4 +1,4 @@
-// prep/read.hpp — stage 1: GDAL/OGR sources -> FeatureSet (DESIGN.md §1).
+// prep/read.hpp — stage 1: GDAL/OGR sources -> FeatureSet (ARCHITECTURE.md "1. read").
 //
 // Geometry stays in the source CRS, in double precision. Multi-geometries and
 // geometry collections are split into parts; curves are linearised; Z and M

@@ -80,7 +80,7 @@ struct BuildOptions {
   uint32_t qt_leaf_capacity = 8;       // thesis default
   uint32_t qt_max_depth = 8;           // thesis default
   double miter_limit_deg = 40.0;       // below this angle, miter falls back to round
-  // dynamic lines / terrain (issue 5)
+  // dynamic lines / terrain
   double lmax = 0.0;                   // 0: half the DEM cell size
   double terrain_tolerance = 0.0;      // >0: adaptive subdivision, metres
   double z_scale = 1.0;
