@@ -217,7 +217,7 @@ double grid_bytes(const GridParams& g, const GridInput& in) {
 // same data (counted the same way), when it has more than max_cells cells,
 // or more segment/leaf-cell entries than the entry budget. The thesis grid is
 // the reference the package is compared against (the goal: fewer tests per
-// point than 500x500 at no more than 1.25x its size). The budget is what
+// point than 500x500 at no more than 1.2x its size). The budget is what
 // binds on large dense inputs: with 10^7 clustered polygon vertices, the
 // polygons' proxy never falls to a fixed target (their overlap alone keeps
 // it above), and the former target-only rule refined to millions of cells,

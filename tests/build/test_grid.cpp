@@ -4,6 +4,8 @@
 // read from the built arrays, not from the estimate choose_grid makes.
 #include <gtest/gtest.h>
 
+#include <cstdio>
+
 #include <cmath>
 #include <random>
 
@@ -94,7 +96,7 @@ prep::Extent extent_of(const prep::DecalModel& m) {
 
 }  // namespace
 
-TEST(DecalGrid, AdaptivePackageIsAtMostAQuarterLargerThanWithTheThesisGridAndQueriesCostLess) {
+TEST(DecalGrid, AdaptivePackageIsAtMost1Point2TimesTheThesisGridsAndQueriesCostLess) {
   for (const int lines : {1500, 0}) {
     SCOPED_TRACE(lines ? "polygons and lines" : "polygons only");
     const prep::SceneFeatures scene = clustered_scene(3000, lines);
@@ -104,7 +106,10 @@ TEST(DecalGrid, AdaptivePackageIsAtMostAQuarterLargerThanWithTheThesisGridAndQue
     ASSERT_EQ(t.grid.nx, 500u);
     ASSERT_GT(a.grid.nx, 0u);
     const double ratio = double(static_bytes(a)) / double(static_bytes(t));
-    EXPECT_LE(ratio, 1.25) << "adaptive grid " << a.grid.nx << "x" << a.grid.ny;
+    // The size contract of the README and grid.cpp (kGridSizeBudget).
+    EXPECT_LE(ratio, 1.2) << "adaptive grid " << a.grid.nx << "x" << a.grid.ny;
+    std::printf("[%s] adaptive %ux%u: %.4f x the 500x500 package\n", lines ? "polygons and lines" : "polygons only",
+                a.grid.nx, a.grid.ny, ratio);
     // Same points for both: sample over the larger of the two grid extents.
     const prep::Extent ea = extent_of(a), et = extent_of(t);
     const prep::Extent e{std::min(ea.xmin, et.xmin), std::min(ea.ymin, et.ymin), std::max(ea.xmax, et.xmax),
