@@ -497,17 +497,10 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
   cells_stage.finish();
 
   // ---- dynamic lines and LOD ----------------------------------------------
-#ifdef DECALPREP_HAVE_DYNAMIC
   ProgressStage dynamic_stage(options.progress, "build.dynamic", scene.dynamic_lines.size(),
                               "lines");
   build_dynamic(scene, options, dem, m);
   dynamic_stage.finish();
-#else
-  (void)dem;
-  if (!scene.dynamic_lines.empty())
-    m.manifest.notes.push_back("build: " + std::to_string(scene.dynamic_lines.size()) +
-                               " dynamic lines were not built (this build has no prep_terrain)");
-#endif
   return m;
 }
 

@@ -26,10 +26,8 @@
 #include "prep/memory_estimate.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
-#if DECALPREP_HAVE_BUILD_WRITE
 #include "prep/build.hpp"
 #include "prep/write.hpp"
-#endif
 
 namespace prep {
 namespace {
@@ -342,13 +340,6 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   peaks.emplace_back("clean", peak_rss_mib());
   if (!request.dry_run) estimate(estimate_after_clean(scene, result.scene));
 
-#if !DECALPREP_HAVE_BUILD_WRITE
-  // Checked after clean, so bad input is still reported as such.
-  if (!request.dry_run) {
-    throw error("build: this decalprep has no build/write stage linked; use --dry-run",
-                ExitCode::internal);
-  }
-#else
   if (!request.dry_run) {
     t0 = Clock::now();
     BuildOptions build_options = scene.build;
@@ -398,7 +389,6 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     peaks.emplace_back("write", peak_rss_mib());
     result.package_written = true;
   }
-#endif
   timings.emplace_back("total", seconds_since(t_all));
   nlohmann::json report = report_object(result.scene, request.dry_run ? "" : request.output,
                                         timings, result.package_written);

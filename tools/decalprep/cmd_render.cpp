@@ -169,7 +169,7 @@ void run(const RenderArgs& a) {
                                a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
   }
 
-#ifdef PREP_RENDER_HAVE_GL
+#ifdef PREP_RENDER_WITH_GL
   R::Image img = a.cpu ? R::render_cpu(src, terrain, opt) : R::render_gl(src, terrain, opt);
 #else
   if (!a.cpu) throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
