@@ -213,7 +213,7 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
       e.layer = scene.layers[p.layer].name;
       e.fid = p.fid;
       e.part = p.part;
-      e.action = "dropped";
+      e.action = ManifestAction::dropped;
       e.reason = "build: " + why;
       m.manifest.entries.push_back(e);
     };

@@ -207,7 +207,7 @@ void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalM
       e.layer = scene.layers[l.layer].name;
       e.fid = l.fid;
       e.part = l.part;
-      e.action = "dropped";
+      e.action = ManifestAction::dropped;
       e.reason = "build: " + o.reason;
       model.manifest.entries.push_back(e);
       continue;

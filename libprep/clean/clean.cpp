@@ -429,6 +429,7 @@ struct PartResult {
   Outcome outcome = Outcome::kept;
   std::string repairs;  // "; "-joined; empty: untouched
   std::string drop_reason;
+  std::optional<FailureStage> failed_in;  // set: drop_reason is a per-feature failure
   double area_before = std::numeric_limits<double>::quiet_NaN();
   double area_after = std::numeric_limits<double>::quiet_NaN();
   uint64_t vertices_in = 0, vertices_out = 0;
@@ -485,7 +486,8 @@ struct Cleaner {
   // an error or a drop by clean() in input order.
   static void fail(PartResult& r, const std::string& what) {
     r.outcome = Outcome::dropped;
-    r.drop_reason = failure_reason("clean", what);
+    r.drop_reason = what;
+    r.failed_in = FailureStage::clean;
     r.polygons.clear();
     r.lines.clear();
   }
@@ -805,6 +807,7 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
         if (!f.drop_reason.empty() || f.rings.empty() || f.rings[0].empty()) {
           r.outcome = Outcome::dropped;
           r.drop_reason = f.drop_reason.empty() ? "no coordinates" : f.drop_reason;
+          r.failed_in = f.failed_in;
           continue;
         }
         // Read rejects NaN/Inf, but a transform can still yield them; GEOS
@@ -884,15 +887,17 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
       const SourceFeature& head = layer.features[i];
       // A failing part fails its whole feature (ogr2ogr -skipfailures drops
       // features, not parts); without skip_failures it stops the build.
-      std::string failure;
-      for (size_t p = i; p < j && failure.empty(); ++p)
-        if (results[p].outcome == Outcome::dropped && is_failure_reason(results[p].drop_reason))
-          failure = results[p].drop_reason;
-      if (!failure.empty()) {
+      const PartResult* failure = nullptr;
+      for (size_t p = i; p < j && !failure; ++p)
+        if (results[p].outcome == Outcome::dropped && results[p].failed_in) failure = &results[p];
+      if (failure) {
         if (!scene.skip_failures)
-          throw feature_failure_error("clean", spec.source, spec.name, head.fid, failure);
+          throw feature_failure_error(*failure->failed_in, spec.source, spec.name, head.fid,
+                                      failure->drop_reason);
         ++counts.dropped;
-        out.manifest.entries.push_back(ManifestEntry{spec.name, head.fid, -1, "dropped", failure});
+        ManifestEntry e{spec.name, head.fid, -1, ManifestAction::dropped, failure->drop_reason};
+        e.failed_in = failure->failed_in;
+        out.manifest.entries.push_back(std::move(e));
         i = j;
         continue;
       }
@@ -905,7 +910,7 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
           counts.vertices_out += r.vertices_out;
           if (!r.repairs.empty()) {
             any_repaired = true;
-            ManifestEntry e{spec.name, f.fid, f.part, "repaired", r.repairs, r.area_before,
+            ManifestEntry e{spec.name, f.fid, f.part, ManifestAction::repaired, r.repairs, r.area_before,
                             r.area_after};
             out.manifest.entries.push_back(std::move(e));
           }
@@ -951,7 +956,7 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
             ++counts.parts;
           }
         } else if (r.outcome == Outcome::dropped && any_kept) {
-          ManifestEntry e{spec.name, f.fid, f.part, "part_dropped", r.drop_reason};
+          ManifestEntry e{spec.name, f.fid, f.part, ManifestAction::part_dropped, r.drop_reason};
           out.manifest.entries.push_back(std::move(e));
         }
       }
@@ -960,11 +965,11 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
         if (any_repaired) ++counts.repaired;
       } else if (any_dropped) {
         ++counts.dropped;
-        ManifestEntry e{spec.name, head.fid, -1, "dropped", first_drop};
+        ManifestEntry e{spec.name, head.fid, -1, ManifestAction::dropped, first_drop};
         out.manifest.entries.push_back(std::move(e));
       } else {
         ++counts.clipped_away;
-        ManifestEntry e{spec.name, head.fid, -1, "clipped_away", "outside the scene extent"};
+        ManifestEntry e{spec.name, head.fid, -1, ManifestAction::clipped_away, "outside the scene extent"};
         out.manifest.entries.push_back(std::move(e));
       }
       i = j;

@@ -221,10 +221,10 @@ void check_build_range(SceneFeatures& s, bool skip_failures) {
       m << "vertex (" << p.x << ", " << p.y
         << ") m lies more than 2147 km from the package origin; int32 millimetre positions "
            "cannot hold it (split the scene, or leave it out with --extent)";
-      const std::string reason = failure_reason("build", m.str());
+      const std::string reason = m.str();
       if (!skip_failures) {
         const LayerSpec& l = s.layers.at(layer);
-        throw feature_failure_error("build", l.source, l.name, fid, reason);
+        throw feature_failure_error(FailureStage::build, l.source, l.name, fid, reason);
       }
       failed[{layer, fid}] = reason;
       order.push_back({layer, fid});
@@ -253,8 +253,8 @@ void check_build_range(SceneFeatures& s, bool skip_failures) {
   std::erase_if(s.manifest.entries, [&](const ManifestEntry& e) {
     for (uint32_t li = 0; li < s.layers.size(); ++li) {
       if (s.layers[li].name != e.layer || !failed.count({li, e.fid})) continue;
-      if (e.action == "repaired") was_repaired.insert({li, e.fid});
-      return e.action == "repaired" || e.action == "part_dropped";
+      if (e.action == ManifestAction::repaired) was_repaired.insert({li, e.fid});
+      return e.action == ManifestAction::repaired || e.action == ManifestAction::part_dropped;
     }
     return false;
   });
@@ -267,7 +267,9 @@ void check_build_range(SceneFeatures& s, bool skip_failures) {
       if (was_repaired.count(k)) --c.repaired;
       c.parts -= parts_removed[k];
     }
-    s.manifest.entries.push_back(ManifestEntry{name, k.second, -1, "dropped", failed[k]});
+    ManifestEntry e{name, k.second, -1, ManifestAction::dropped, failed[k]};
+    e.failed_in = FailureStage::build;
+    s.manifest.entries.push_back(std::move(e));
   }
   s.extent = kept_extent(s);
 }

@@ -610,11 +610,10 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
               int ok = 0;
               if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {
                 // Out of the projection's domain (PROJ error or HUGE_VAL).
-                f.drop_reason = failure_reason(
-                    "project", "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
-                                   ", " + std::to_string(r[j].y) +
-                                   ") cannot be transformed into the scene frame" +
-                                   frame_hint(frame));
+                f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
+                                ", " + std::to_string(r[j].y) +
+                                ") cannot be transformed into the scene frame" + frame_hint(frame);
+                f.failed_in = FailureStage::project;
                 break;
               }
             }
@@ -622,10 +621,10 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
             r[j].x = x - frame.origin_x;
             r[j].y = y - frame.origin_y;
             if ((!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) && f.drop_reason.empty()) {
-              f.drop_reason = failure_reason(
-                  "project", "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
-                                 ", " + std::to_string(source.y) +
-                                 ") is not finite in the scene frame" + frame_hint(frame));
+              f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
+                              ", " + std::to_string(source.y) +
+                              ") is not finite in the scene frame" + frame_hint(frame);
+              f.failed_in = FailureStage::project;
             }
             cx += r[j].x;
             cy += r[j].y;
@@ -658,8 +657,8 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     // the build (the loop above runs in any order).
     if (!scene.skip_failures) {
       for (const SourceFeature& f : layer.features)
-        if (is_failure_reason(f.drop_reason))
-          throw feature_failure_error("project", layer.spec.source, layer.spec.name, f.fid,
+        if (f.failed_in)
+          throw feature_failure_error(*f.failed_in, layer.spec.source, layer.spec.name, f.fid,
                                       f.drop_reason);
     }
     layer.srs_wkt = frame.crs_wkt;

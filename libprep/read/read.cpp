@@ -346,10 +346,11 @@ struct LayerSink {
     if (split.bad_coordinate) {
       r.layer.features.resize(first);
       if (!scene.skip_failures) {
-        throw feature_failure_error("read", spec.source, ogr_layer.c_str(), proto.fid,
+        throw feature_failure_error(FailureStage::read, spec.source, ogr_layer.c_str(), proto.fid,
                                     split.bad_coordinate_text);
       }
-      proto.drop_reason = failure_reason("read", split.bad_coordinate_text);
+      proto.drop_reason = split.bad_coordinate_text;
+      proto.failed_in = FailureStage::read;
       r.layer.features.push_back(proto);
       return;
     }
@@ -371,7 +372,7 @@ struct LayerSink {
       ManifestEntry e;
       e.layer = spec.name;
       e.fid = proto.fid;
-      e.action = "part_dropped";
+      e.action = ManifestAction::part_dropped;
       e.reason = std::to_string(split.unusable) + " " + split.unusable_type +
                  " part(s) cannot be drawn as kind " + kind_name(spec.kind);
       r.entries.push_back(std::move(e));
@@ -530,7 +531,8 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
     const uint64_t index = proto.feature;
     if (decode_failed && scene.skip_failures) {
       skipped_errors += errors.count() - errors_before;
-      proto.drop_reason = failure_reason("read", "OGR cannot decode the feature: " + errors.last());
+      proto.drop_reason = "OGR cannot decode the feature: " + errors.last();
+      proto.failed_in = FailureStage::read;
       r.layer.features.push_back(proto);
       continue;
     }

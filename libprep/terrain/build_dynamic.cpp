@@ -74,7 +74,7 @@ void build_dynamic(const SceneFeatures& scene, const BuildOptions& options, cons
   lines.reserve(scene.dynamic_lines.size());
   for (const SceneLine& l : scene.dynamic_lines) {
     if (l.points.size() < 2 || (l.closed && l.points.size() < 3)) {
-      model.manifest.entries.push_back({layer_name(l.layer), l.fid, l.part, "dropped",
+      model.manifest.entries.push_back({layer_name(l.layer), l.fid, l.part, ManifestAction::dropped,
                                         "build: dynamic line has " + std::to_string(l.points.size()) +
                                             " points, too few to draw"});
       continue;
@@ -196,7 +196,7 @@ void build_dynamic(const SceneFeatures& scene, const BuildOptions& options, cons
     }
     if (in.closed && in.points.size() > 1 && in.points.front() == in.points.back()) in.points.pop_back();
     if (in.points.size() < (in.closed ? 3u : 2u)) {
-      model.manifest.entries.push_back({layer_name(l.layer), l.fid, l.part, "note",
+      model.manifest.entries.push_back({layer_name(l.layer), l.fid, l.part, ManifestAction::note,
                                         "lod: line collapses at 1 mm; no LOD segments"});
       continue;
     }

@@ -143,7 +143,7 @@ TEST(Clean, EveryBrokenPolygonEndsValidWithMakeValidsAreaOrIsDroppedWithAReason)
   for (const auto& p : sf.polygons) by_fid[p.fid].push_back(&p);
   std::map<int64_t, std::string> dropped;
   for (const auto& e : sf.manifest.entries)
-    if (e.action == "dropped") dropped[e.fid] = e.reason;
+    if (e.action == prep::ManifestAction::dropped) dropped[e.fid] = e.reason;
 
   for (const Case& c : cs) {
     SCOPED_TRACE(c.name);
@@ -195,7 +195,7 @@ TEST(Clean, EveryBrokenPolygonEndsValidWithMakeValidsAreaOrIsDroppedWithAReason)
   EXPECT_EQ(n.dropped, 2u);
   std::map<int64_t, const prep::ManifestEntry*> repaired;
   for (const auto& e : sf.manifest.entries)
-    if (e.action == "repaired") repaired[e.fid] = &e;
+    if (e.action == prep::ManifestAction::repaired) repaired[e.fid] = &e;
   for (int fid : {1, 2, 3, 4, 6, 7, 8}) EXPECT_TRUE(repaired.count(fid)) << fid;
   EXPECT_FALSE(repaired.count(9));
   // The outside hole becomes its own area: the repair changed the area, so
@@ -244,7 +244,7 @@ TEST(Clean, StructureRepairMatchesGeosStructureMethodAndSubtractsEveryHole) {
   EXPECT_NEAR(area[14], 10000 - 40 * 60, 1e-6);
   bool named = false;
   for (const auto& e : sf.manifest.entries)
-    if (e.fid == 13 && e.action == "repaired") named = e.reason.find("structure method") != std::string::npos;
+    if (e.fid == 13 && e.action == prep::ManifestAction::repaired) named = e.reason.find("structure method") != std::string::npos;
   EXPECT_TRUE(named) << "the manifest names the repair method";
 }
 
@@ -266,7 +266,7 @@ TEST(Clean, ClipKeepsTheInsideAndRecordsFeaturesEntirelyOutside) {
   EXPECT_EQ(n.kept, 2u);
   EXPECT_EQ(n.clipped_away, 1u);
   bool entry = false;
-  for (const auto& m : sf.manifest.entries) entry |= m.fid == 2 && m.action == "clipped_away";
+  for (const auto& m : sf.manifest.entries) entry |= m.fid == 2 && m.action == prep::ManifestAction::clipped_away;
   EXPECT_TRUE(entry);
 }
 
@@ -489,8 +489,8 @@ TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
   GEOSWKTReader* reader = GEOSWKTReader_create_r(geos.h());
   std::map<int64_t, std::string> repaired, dropped;
   for (const auto& e : sf.manifest.entries) {
-    if (e.action == "repaired" || e.action == "part_dropped") repaired[e.fid] += e.reason + ";";
-    if (e.action == "dropped") dropped[e.fid] = e.reason;
+    if (e.action == prep::ManifestAction::repaired || e.action == prep::ManifestAction::part_dropped) repaired[e.fid] += e.reason + ";";
+    if (e.action == prep::ManifestAction::dropped) dropped[e.fid] = e.reason;
   }
   std::map<int64_t, double> area;
   std::map<int64_t, int> parts;

@@ -64,7 +64,8 @@ prep::DecalModel small_model() {
   m.lod_line_range = {{0, 3}};
   m.max_representation_error = 0.0004;
   m.manifest.layers.push_back({"roads", 3, 2, 1, 0, 1, 2, 10, 5});
-  m.manifest.entries.push_back({"roads", 17, -1, "dropped", "ring has NaN coordinate", NAN, NAN});
+  m.manifest.entries.push_back(
+      {"roads", 17, -1, prep::ManifestAction::dropped, "ring has NaN coordinate", NAN, NAN});
   m.manifest.notes.push_back("flat terrain");
   return m;
 }

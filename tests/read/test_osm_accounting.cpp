@@ -54,12 +54,12 @@ void check_extract(const std::string& source, double resolution) {
   ASSERT_EQ(r.scene.manifest.layers.size(), std::size(kLayers));
   std::map<std::string, size_t> dropped_entries, clipped_entries, parts;
   for (const auto& e : r.scene.manifest.entries) {
-    if (e.action == "dropped") {
+    if (e.action == prep::ManifestAction::dropped) {
       EXPECT_EQ(e.part, -1);
       EXPECT_FALSE(e.reason.empty());
       ++dropped_entries[e.layer];
     }
-    if (e.action == "clipped_away") ++clipped_entries[e.layer];
+    if (e.action == prep::ManifestAction::clipped_away) ++clipped_entries[e.layer];
   }
   for (const auto& p : r.scene.polygons) ++parts[r.scene.layers[p.layer].name];
   for (const auto& l : r.scene.lines) ++parts[r.scene.layers[l.layer].name];

@@ -64,7 +64,7 @@ TEST(Read, MultiGeometriesAndCollectionsAreSplitIntoParts) {
   EXPECT_EQ(f[6].fid, 5);
   EXPECT_EQ(fs.manifest.layers[0].read, 5u);
   bool part_note = false;
-  for (const auto& e : fs.manifest.entries) part_note |= e.fid == 2 && e.action == "part_dropped";
+  for (const auto& e : fs.manifest.entries) part_note |= e.fid == 2 && e.action == prep::ManifestAction::part_dropped;
   EXPECT_TRUE(part_note);
 }
 

@@ -53,7 +53,7 @@ TEST(BuildDynamic, FlatTerrainWithoutDemIsNotedAndLinesKeepTheirVertices) {
   for (const auto& n : m.manifest.notes) flat = flat || n.find("flat terrain z = 0") != std::string::npos;
   EXPECT_TRUE(flat);
   ASSERT_EQ(m.manifest.entries.size(), 1u);
-  EXPECT_EQ(m.manifest.entries[0].action, "dropped");
+  EXPECT_EQ(m.manifest.entries[0].action, prep::ManifestAction::dropped);
   EXPECT_EQ(m.terrain_min, 0);
   EXPECT_EQ(m.terrain_max, 0);
 }

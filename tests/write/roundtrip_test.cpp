@@ -12,6 +12,7 @@
 #include "decal/reader.hpp"
 #include "fixtures.hpp"
 #include "prep/error.hpp"
+#include "prep/manifest_json.hpp"
 #include "prep/write.hpp"
 
 namespace {
@@ -318,6 +319,58 @@ TEST(WriteModel, MetadataCarriesFrameGridCountsManifestAndExtraKeys) {
   EXPECT_EQ(j.at("manifest").at("notes").at(0), "flat terrain");
   EXPECT_EQ(j.at("build").at("threads"), 2);
   EXPECT_EQ(j.at("provenance").at("inputs").at(0).at("path"), "a.shp");
+}
+
+// The manifest's enums are written as the words formats/SPEC.md "Manifest
+// entries" lists (literals here, from the SPEC tables), and read back.
+TEST(ManifestEntryJson, WordsAreThoseOfTheSpecAndReadBack) {
+  prep::ManifestEntry failed{"roads", 7, -1, prep::ManifestAction::dropped, "vertex 1 is NaN"};
+  failed.failed_in = prep::FailureStage::project;
+  const nlohmann::json j = prep::manifest_entry_json(failed);
+  EXPECT_EQ(j.at("action"), "dropped");
+  EXPECT_EQ(j.at("reason"), "failed in project: vertex 1 is NaN");
+  const prep::ManifestEntry back = prep::manifest_entry_from_json(j);
+  EXPECT_EQ(back.action, prep::ManifestAction::dropped);
+  ASSERT_TRUE(back.failed_in.has_value());
+  EXPECT_EQ(*back.failed_in, prep::FailureStage::project);
+  EXPECT_EQ(back.reason, "vertex 1 is NaN");
+  EXPECT_EQ(prep::manifest_entry_json(back), j);
+
+  const std::pair<prep::ManifestAction, const char*> actions[] = {
+      {prep::ManifestAction::repaired, "repaired"},
+      {prep::ManifestAction::part_dropped, "part_dropped"},
+      {prep::ManifestAction::dropped, "dropped"},
+      {prep::ManifestAction::clipped_away, "clipped_away"},
+      {prep::ManifestAction::note, "note"}};
+  for (const auto& [a, w] : actions) {
+    prep::ManifestEntry e{"l", 1, 0, a, "why", 2.5, 3.0};
+    const nlohmann::json je = prep::manifest_entry_json(e);
+    EXPECT_EQ(je.at("action"), w);
+    EXPECT_EQ(je.at("reason"), "why");
+    const prep::ManifestEntry eb = prep::manifest_entry_from_json(je);
+    EXPECT_EQ(eb.action, a) << w;
+    EXPECT_FALSE(eb.failed_in.has_value()) << w;
+    EXPECT_DOUBLE_EQ(eb.area_after, 3.0);
+  }
+  const std::pair<prep::FailureStage, const char*> stages[] = {
+      {prep::FailureStage::read, "failed in read: x: y"},
+      {prep::FailureStage::project, "failed in project: x: y"},
+      {prep::FailureStage::clean, "failed in clean: x: y"},
+      {prep::FailureStage::build, "failed in build: x: y"}};
+  for (const auto& [st, w] : stages) {
+    prep::ManifestEntry e{"l", 1, -1, prep::ManifestAction::dropped, "x: y"};
+    e.failed_in = st;
+    EXPECT_EQ(prep::manifest_entry_json(e).at("reason"), w);
+    EXPECT_EQ(prep::manifest_entry_from_json(prep::manifest_entry_json(e)).failed_in, st) << w;
+  }
+  // A reason that merely starts like a failure, with no stage of the SPEC,
+  // stays free text.
+  nlohmann::json odd = j;
+  odd["reason"] = "failed in style: no colour";
+  EXPECT_FALSE(prep::manifest_entry_from_json(odd).failed_in.has_value());
+  EXPECT_EQ(prep::manifest_entry_from_json(odd).reason, "failed in style: no colour");
+  odd["action"] = "vanished";
+  EXPECT_THROW(prep::manifest_entry_from_json(odd), prep::format_error);
 }
 
 TEST(WriteModel, ExtraMetadataThatOverridesAModelKeyIsRejected) {

@@ -8,15 +8,17 @@
 // It is not an ordinary drop (no geometry, zero area, a type the layer kind
 // cannot draw): those are expected and never stop a build.
 //
-// Stages record a failure as the feature's drop reason, made by
-// failure_reason(); parallel stages then call the stage's own check after
-// their loop, in input order, so the failure reported without skip_failures
-// is the first one in input order at any thread count. Without
-// skip_failures the first failure stops the build: feature_failure_error()
-// (an input_error, exit code 3) names the stage, file, layer, fid and the bad
-// value. With skip_failures the feature is dropped, its manifest entry
-// (action "dropped") carries the reason, and the build exits with
-// ExitCode::partial.
+// Stages record a failure as the feature's drop reason (the bare "<what>")
+// together with the stage it failed in (SourceFeature::failed_in,
+// ManifestEntry::failed_in, a FailureStage of manifest_words.hpp); parallel
+// stages then call the stage's own check after their loop, in input order, so
+// the failure reported without skip_failures is the first one in input order
+// at any thread count. Without skip_failures the first failure stops the
+// build: feature_failure_error() (an input_error, exit code 3) names the
+// stage, file, layer, fid and the bad value. With skip_failures the feature
+// is dropped, its manifest entry (ManifestAction::dropped, failed_in set)
+// carries the reason, written "failed in <stage>: <what>", and the build
+// exits with ExitCode::partial.
 #pragma once
 
 #include <cstdint>
@@ -27,33 +29,18 @@
 
 namespace prep {
 
-// The manifest reason of a feature dropped for a failure:
-// "failed in <stage>: <what>". `what` names the bad value.
-inline std::string failure_reason(const std::string& stage, const std::string& what) {
-  return "failed in " + stage + ": " + what;
-}
-
-// True for a reason made by failure_reason().
-inline bool is_failure_reason(const std::string& reason) {
-  return reason.rfind("failed in ", 0) == 0;
-}
-
 // True for a manifest entry of a feature dropped for a failure.
 inline bool is_skipped_failure(const ManifestEntry& e) {
-  return e.action == "dropped" && is_failure_reason(e.reason);
+  return e.action == ManifestAction::dropped && e.failed_in.has_value();
 }
 
 // The error that stops a build at a failing feature (skip_failures off):
 //   "<stage>: <source> layer '<layer>' fid <fid>: <what> (--skip-failures drops ...)"
-// `reason` is either a failure_reason() text or a bare description.
-inline input_error feature_failure_error(const std::string& stage, const std::string& source,
+inline input_error feature_failure_error(FailureStage stage, const std::string& source,
                                          const std::string& layer, int64_t fid,
-                                         const std::string& reason) {
-  std::string what = reason;
-  const std::string prefix = "failed in " + stage + ": ";
-  if (what.rfind(prefix, 0) == 0) what = what.substr(prefix.size());
-  return input_error(stage + ": " + source + " layer '" + layer + "' fid " + std::to_string(fid) +
-                     ": " + what +
+                                         const std::string& what) {
+  return input_error(std::string(word(stage)) + ": " + source + " layer '" + layer + "' fid " +
+                     std::to_string(fid) + ": " + what +
                      " (--skip-failures drops failing features, records them in the manifest and "
                      "exits 4)");
 }

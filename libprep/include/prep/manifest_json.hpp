@@ -4,8 +4,13 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
 
+#include "prep/error.hpp"
+#include "prep/manifest_words.hpp"
 #include "prep/scene.hpp"
 
 namespace prep {
@@ -21,10 +26,36 @@ inline nlohmann::json manifest_entry_json(const ManifestEntry& e) {
   return {{"layer", e.layer},
           {"fid", e.fid},
           {"part", e.part},
-          {"action", e.action},
-          {"reason", e.reason},
+          {"action", word(e.action)},
+          {"reason", reason_text(e.failed_in, e.reason)},
           {"area_before", number_or_null(e.area_before)},
           {"area_after", number_or_null(e.area_after)}};
+}
+
+// The inverse of manifest_entry_json(), for code that reads a package's
+// manifest_entries or a build report back. Throws format_error for an
+// action word formats/SPEC.md does not list.
+inline ManifestEntry manifest_entry_from_json(const nlohmann::json& j) {
+  ManifestEntry e;
+  e.layer = j.at("layer").get<std::string>();
+  e.fid = j.at("fid").get<int64_t>();
+  e.part = j.at("part").get<int>();
+  const std::string action = j.at("action").get<std::string>();
+  const std::optional<ManifestAction> a = manifest_action_from_word(action);
+  if (!a)
+    throw format_error("manifest entry of layer '" + e.layer + "' fid " + std::to_string(e.fid) +
+                       ": unknown action '" + action + "'");
+  e.action = *a;
+  ParsedReason r = parse_reason_text(j.at("reason").get<std::string>());
+  e.failed_in = r.failed_in;
+  e.reason = std::move(r.reason);
+  auto number = [&](const char* key) {
+    const nlohmann::json& v = j.at(key);
+    return v.is_null() ? std::numeric_limits<double>::quiet_NaN() : v.get<double>();
+  };
+  e.area_before = number("area_before");
+  e.area_after = number("area_after");
+  return e;
 }
 
 }  // namespace prep

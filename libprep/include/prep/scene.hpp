@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "decal/format.hpp"
+#include "prep/manifest_words.hpp"
 
 namespace prep {
 
@@ -114,10 +115,14 @@ struct ManifestEntry {
   std::string layer;
   int64_t fid = -1;
   int part = -1;            // -1: the whole feature
-  std::string action;       // "repaired", "dropped", "clipped_away", "note", ...
+  ManifestAction action = ManifestAction::dropped;
   std::string reason;       // human-readable: what was wrong / what was done
   double area_before = std::numeric_limits<double>::quiet_NaN();
   double area_after = std::numeric_limits<double>::quiet_NaN();
+  // Set for a feature dropped for a per-feature failure (feature_failure.hpp):
+  // the stage it failed in; `reason` is then the bare "<what>", and the JSON
+  // reason reads "failed in <stage>: <what>" (manifest_words.hpp).
+  std::optional<FailureStage> failed_in;
 };
 
 // Per-layer accounting. Invariant: read == kept + clipped_away + dropped.
@@ -153,6 +158,7 @@ struct SourceFeature {
   uint64_t feature = 0;     // index of the input feature in its layer (read order)
   std::string repairs;      // what read/project already fixed ("closed an open ring")
   std::string drop_reason;  // non-empty: unusable; clean records it as dropped
+  std::optional<FailureStage> failed_in;  // set: drop_reason is a per-feature failure
   bool is_polygon = false;
   std::vector<Ring> rings;  // polygon: [0] shell, then holes; line: [0]
   double order_value = std::numeric_limits<double>::quiet_NaN();
