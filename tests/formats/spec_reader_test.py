@@ -76,8 +76,19 @@ def spec_tables(spec_text):
     return sections
 
 
+# The words SPEC "Manifest entries" lists: {"action": {...}, "stage": {...}}.
+MANIFEST_WORDS = {}
+
+
 def check_reader_tables(spec_text):
     t = spec_tables(spec_text)
+    for row in t.get("Manifest entries", []):
+        if row[0] in ("action", "stage"):
+            key = row[0]
+        elif row[0].startswith("`"):
+            MANIFEST_WORDS.setdefault(key, set()).add(row[0].strip("`"))
+    check(len(MANIFEST_WORDS.get("action", ())) >= 4 and len(MANIFEST_WORDS.get("stage", ())) >= 4,
+          "SPEC.md \"Manifest entries\" lists no action/stage words: %s" % MANIFEST_WORDS)
     unq = lambda s: s.strip("`")  # noqa: E731
     m = re.search(r"^Version (\d+)\.(\d+) \(major \d+, minor \d+\)", spec_text, re.M)
     check(m is not None, "SPEC.md has no 'Version X.Y' line")
@@ -271,6 +282,12 @@ def check_writer_rules(path, p, spec_minor):
     entries = sr.elements(p.blob("manifest_entries"))
     check(man["entry_count"] == len(entries), "%s: manifest entry_count %s, %d entries"
           % (name, man["entry_count"], len(entries)))
+    for e in entries:
+        check(e["action"] in MANIFEST_WORDS["action"], "%s: manifest action %r is not one SPEC lists"
+              % (name, e["action"]))
+        f = re.match(r"failed in (\w+): ", e["reason"])
+        check(f is None or (e["action"] == "dropped" and f.group(1) in MANIFEST_WORDS["stage"]),
+              "%s: manifest failure %r: not a dropped entry with a stage SPEC lists" % (name, e["reason"]))
     for layer in man["layers"]:
         check(layer["read"] == layer["kept"] + layer["clipped_away"] + layer["dropped"],
               "%s: manifest layer %s: read != kept + clipped_away + dropped" % (name, layer["layer"]))
