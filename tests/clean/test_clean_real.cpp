@@ -16,7 +16,7 @@ prep::SceneFeatures monaco(double resolution) {
         std::tuple{"roads", "lines", "highway IS NOT NULL", prep::DecalKind::line}}) {
     prep::LayerSpec l;
     l.name = name;
-    l.source = prep::test::shared_data("monaco/monaco.osm.pbf");
+    l.source = prep::test::monaco_sample("monaco.osm.pbf");
     l.layer = layer;
     l.where = where;
     l.kind = kind;
@@ -29,8 +29,8 @@ prep::SceneFeatures monaco(double resolution) {
 }
 
 TEST(CleanMonaco, SimplifiedOutputIsValidAndWithinHalfAMetre) {
-  if (!prep::test::exists(prep::test::shared_data("monaco/monaco.osm.pbf")))
-    GTEST_SKIP() << "missing real data monaco/monaco.osm.pbf";
+  if (!prep::test::exists(prep::test::monaco_sample("monaco.osm.pbf")))
+    GTEST_SKIP() << "missing " << prep::test::monaco_sample("monaco.osm.pbf");
   prep::SceneFeatures full = monaco(0.0), simple = monaco(0.5);
   ASSERT_EQ(full.polygons.size(), simple.polygons.size());
   ASSERT_EQ(full.lines.size(), simple.lines.size());

@@ -125,7 +125,7 @@ TEST(DemSampler, NoDataTakesNearestValidCellAndIsCounted) {
 }
 
 TEST(DemSampler, SrtmInsideZipOpensAndMatchesGdal) {
-  if (!terraintest::monaco_available()) GTEST_SKIP() << "missing " << DECALPREP_SHARED_DATA << "/monaco";
+  if (!terraintest::monaco_available()) GTEST_SKIP() << "missing " << terraintest::monaco_pbf();
   const terraintest::MonacoFrame mf;
   prep::DemSampler dem(terraintest::monaco_dem(), mf.frame(), 1.0, std::nullopt);
   EXPECT_NE(dem.stats().description.find("SRTMHGT"), std::string::npos) << dem.stats().description;

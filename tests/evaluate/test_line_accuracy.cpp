@@ -27,6 +27,7 @@
 #include "prep/build.hpp"
 #include "prep/evaluate.hpp"
 #include "synthetic.hpp"
+#include "test_support.hpp"
 
 using synth::oracle;
 
@@ -37,15 +38,8 @@ using synth::G;
 // 10^6 samples for each dataset at the origin; the variants (900 km, mm
 // scale, 500x500 grid) default to 2.5x10^5 to keep ctest short.
 // DECALPREP_SAMPLES overrides both.
-size_t g_default_samples = 1'000'000;
-size_t sample_count() {
-  const char* e = std::getenv("DECALPREP_SAMPLES");
-  return e ? size_t(std::atoll(e)) : g_default_samples;
-}
-struct VariantSamples {
-  VariantSamples() { g_default_samples = 250'000; }
-  ~VariantSamples() { g_default_samples = 1'000'000; }
-};
+using prep::test::sample_count;
+using prep::test::VariantSamples;
 
 
 struct LineSet {

@@ -19,6 +19,7 @@
 #include "prep/pipeline.hpp"
 #include "prep/scene_file.hpp"
 #include "synthetic.hpp"
+#include "test_support.hpp"
 
 namespace {
 
@@ -245,18 +246,18 @@ void run(const char* name, const prep::SceneSpec& spec) {
 }  // namespace
 
 TEST(RealData, MonacoSampleSceneAgreesWithGeos) {
-  const std::string data = std::string(DECALPREP_SHARED_DATA) + "/monaco/monaco.osm.pbf";
+  const std::string data = prep::test::monaco_sample("monaco.osm.pbf");
   const std::string scene = std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/scene.toml";
   if (!std::filesystem::exists(data) || !std::filesystem::exists(scene))
     GTEST_SKIP() << "Monaco data missing: " << data;
   prep::SceneSpec spec = prep::load_scene_file(scene);
   for (auto& l : spec.layers) l.source = data;
-  spec.dem = "/vsizip/" + std::string(DECALPREP_SHARED_DATA) + "/monaco/N43E007.hgt.zip/N43E007.hgt";
+  spec.dem = "/vsizip/" + prep::test::monaco_sample("N43E007.hgt.zip/N43E007.hgt");
   run("Monaco", spec);
 }
 
 TEST(RealData, LiechtensteinAgreesWithGeos) {
-  const std::string data = std::string(DECALPREP_SHARED_DATA) + "/liechtenstein/liechtenstein-2013-08-03.osm.pbf";
+  const std::string data = prep::test::shared_data("liechtenstein/liechtenstein-2013-08-03.osm.pbf");
   if (!std::filesystem::exists(data)) GTEST_SKIP() << "Liechtenstein data missing: " << data;
   prep::SceneSpec spec = prep::parse_scene(R"(
 source = ")" + data + R"("

@@ -2,7 +2,6 @@
 // (DECALPREP_TOOL) on packages written by the writer and on every hostile
 // variant.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -11,35 +10,13 @@
 #include <sstream>
 
 #include "fixtures.hpp"
+#include "test_support.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-struct ToolRun {
-  int rc = -1;
-  std::string out, err;
-};
-
-std::string slurp_text(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-ToolRun run_tool(const std::string& args, const std::string& dir) {
-  const std::string out = dir + "/stdout.txt", err = dir + "/stderr.txt";
-  const std::string cmd = std::string("'") + DECALPREP_TOOL + "' " + args + " >'" + out + "' 2>'" + err + "'";
-  const int status = std::system(cmd.c_str());
-  ToolRun r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 1000 + status;
-  r.out = slurp_text(out);
-  r.err = slurp_text(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
-}
+using prep::test::ToolRun;
 
 class Tool : public ::testing::Test {
  protected:
@@ -52,7 +29,7 @@ class Tool : public ::testing::Test {
     decal_test::write_file(none_, decal_test::model_package_bytes(model_, {prep::Codec::none, 0}));
   }
   void TearDown() override { fs::remove_all(dir_); }
-  ToolRun run(const std::string& args) { return run_tool(args, dir_); }
+  ToolRun run(const std::string& args) { return prep::test::run_tool(args, dir_, {.split_stderr = true}); }
 
   std::string dir_, zstd_, none_;
   prep::DecalModel model_;
@@ -61,7 +38,7 @@ class Tool : public ::testing::Test {
 TEST_F(Tool, InfoJsonParsesAndListsEveryBlob) {
   const ToolRun r = run("info --json '" + zstd_ + "'");
   ASSERT_EQ(r.rc, 0) << r.err;
-  const auto j = nlohmann::json::parse(r.out);
+  const auto j = nlohmann::json::parse(r.output);
   EXPECT_EQ(j.at("version").at("major"), decal::kVersionMajor);
   EXPECT_EQ(j.at("file_size"), fs::file_size(zstd_));
   EXPECT_EQ(j.at("metadata").at("format"), "decals");
@@ -80,18 +57,18 @@ TEST_F(Tool, InfoJsonParsesAndListsEveryBlob) {
 TEST_F(Tool, InfoTextShowsVersionAndEveryBlobName) {
   const ToolRun r = run("info '" + none_ + "'");
   ASSERT_EQ(r.rc, 0) << r.err;
-  EXPECT_NE(r.out.find("version   " + std::to_string(decal::kVersionMajor) + "." +
+  EXPECT_NE(r.output.find("version   " + std::to_string(decal::kVersionMajor) + "." +
                        std::to_string(decal::kVersionMinor)),
             std::string::npos)
-      << r.out;
-  for (const auto& b : decal::kBlobCatalogue) EXPECT_NE(r.out.find(std::string(b.name)), std::string::npos) << b.name;
+      << r.output;
+  for (const auto& b : decal::kBlobCatalogue) EXPECT_NE(r.output.find(std::string(b.name)), std::string::npos) << b.name;
 }
 
 TEST_F(Tool, VerifyAcceptsGoodPackages) {
   const ToolRun r = run("verify '" + zstd_ + "' '" + none_ + "'");
   EXPECT_EQ(r.rc, 0) << r.err;
-  EXPECT_NE(r.out.find(zstd_ + ": ok"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find(none_ + ": ok"), std::string::npos) << r.out;
+  EXPECT_NE(r.output.find(zstd_ + ": ok"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(none_ + ": ok"), std::string::npos) << r.output;
   EXPECT_TRUE(r.err.empty()) << r.err;
 }
 
@@ -103,7 +80,7 @@ TEST_F(Tool, VerifyRejectsEachHostileCaseWithOneLineReason) {
     decal_test::write_file(path, h.bytes);
     const ToolRun r = run("verify '" + path + "'");
     EXPECT_EQ(r.rc, 5);
-    EXPECT_TRUE(r.out.empty()) << r.out;
+    EXPECT_TRUE(r.output.empty()) << r.output;
     ASSERT_FALSE(r.err.empty());
     EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "reason is not one line: " << r.err;
     EXPECT_EQ(r.err.rfind(path + ": FAILED: ", 0), 0u) << r.err;
@@ -119,7 +96,7 @@ TEST_F(Tool, VerifyFailsWhenAnyOfSeveralPackagesIsBad) {
   decal_test::write_file(dir_ + "/empty.decals", {});
   const ToolRun r = run("verify '" + zstd_ + "' '" + dir_ + "/empty.decals' '" + dir_ + "/missing.decals'");
   EXPECT_EQ(r.rc, 5);
-  EXPECT_NE(r.out.find(zstd_ + ": ok"), std::string::npos);
+  EXPECT_NE(r.output.find(zstd_ + ": ok"), std::string::npos);
   EXPECT_NE(r.err.find("empty.decals: FAILED: empty file"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("missing.decals: FAILED: cannot open"), std::string::npos) << r.err;
 }
@@ -139,7 +116,7 @@ TEST_F(Tool, DumpTextIsTheSameForCompressedAndUncompressedPackages) {
   const ToolRun b = run("dump '" + none_ + "'");
   ASSERT_EQ(a.rc, 0) << a.err;
   ASSERT_EQ(b.rc, 0) << b.err;
-  EXPECT_EQ(a.out, b.out);
+  EXPECT_EQ(a.output, b.output);
 }
 
 TEST_F(Tool, DumpTextListsEveryElementOfTheModel) {
@@ -151,18 +128,18 @@ TEST_F(Tool, DumpTextListsEveryElementOfTheModel) {
   for (size_t i = 0; i < model_.line_vertices.size(); ++i)
     expected += "  [" + std::to_string(i) + "] " + std::to_string(model_.line_vertices[i][0]) + " " +
                 std::to_string(model_.line_vertices[i][1]) + "\n";
-  EXPECT_NE(r.out.find(expected), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("  [1] half_width=0.75 rgba=0x8000ff00 order=0 style=0x00000010 value=nan layer=1 "
+  EXPECT_NE(r.output.find(expected), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  [1] half_width=0.75 rgba=0x8000ff00 order=0 style=0x00000010 value=nan layer=1 "
                        "feature=8 clip_node=0\n"),
             std::string::npos);
   for (const auto& b : decal::kBlobCatalogue)
-    EXPECT_NE(r.out.find("blob " + std::string(b.name) + " id="), std::string::npos) << b.name;
+    EXPECT_NE(r.output.find("blob " + std::string(b.name) + " id="), std::string::npos) << b.name;
 }
 
 TEST_F(Tool, DumpJsonGivesElementsAndPositionsInSceneMetres) {
   const ToolRun r = run("dump --json '" + zstd_ + "'");
   ASSERT_EQ(r.rc, 0) << r.err;
-  const auto j = nlohmann::json::parse(r.out);
+  const auto j = nlohmann::json::parse(r.output);
   const auto& blobs = j.at("blobs");
   ASSERT_EQ(blobs.size(), std::size(decal::kBlobCatalogue));
   auto blob = [&](const std::string& name) -> const nlohmann::json& {
@@ -191,7 +168,7 @@ TEST_F(Tool, DumpJsonGivesElementsAndPositionsInSceneMetres) {
 TEST_F(Tool, DumpOfOneBlobAndOfAMissingBlob) {
   const ToolRun r = run("dump --json --blob cell_segments '" + none_ + "'");
   ASSERT_EQ(r.rc, 0) << r.err;
-  const auto j = nlohmann::json::parse(r.out);
+  const auto j = nlohmann::json::parse(r.output);
   ASSERT_EQ(j.at("blobs").size(), 1u);
   EXPECT_EQ(j.at("blobs")[0].at("elements"), nlohmann::json({{0, 1}, {1, 2}, {1, 2}, {3, 4}}));
   EXPECT_EQ(run("dump --blob no_such_blob '" + none_ + "'").rc, 2);
@@ -201,7 +178,7 @@ TEST_F(Tool, VersionAndHelpExitZero) {
   EXPECT_EQ(run("--version").rc, 0);
   const ToolRun h = run("--help");
   EXPECT_EQ(h.rc, 0);
-  EXPECT_NE(h.out.find("verify"), std::string::npos);
+  EXPECT_NE(h.output.find("verify"), std::string::npos);
   EXPECT_EQ(run("info").rc, 2);  // missing PACKAGE: usage error
 }
 

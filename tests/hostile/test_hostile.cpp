@@ -22,7 +22,6 @@
 // hostile_corpus); HOSTILE_CORPUS overrides the folder (the --big run).
 #include <geos_c.h>
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cmath>
 #include <cstdio>
@@ -39,6 +38,7 @@
 #include "prep/pipeline.hpp"
 #include "prep/scene.hpp"
 #include "prep/scene_file.hpp"
+#include "test_support.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -68,36 +68,18 @@ std::vector<std::string> case_names() {
   return names;
 }
 
-std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
+using prep::test::shell_quote;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string err;
-};
-
-// Runs the tool with stderr captured to a file, with the case's extra
-// environment (`env` in cases.json: test hooks such as
-// DECALPREP_TEST_GEOS_FAIL_FID).
-RunResult run_tool(const std::vector<std::string>& args, const fs::path& err_file,
-                   const json& env = json::object()) {
-  std::string cmd;
+// Runs the tool in `dir` with the case's extra environment (`env` in
+// cases.json: test hooks such as DECALPREP_TEST_GEOS_FAIL_FID); stderr in
+// ToolRun::err.
+prep::test::ToolRun run_case(const std::vector<std::string>& args, const fs::path& dir,
+                             const json& env = json::object()) {
+  std::string vars, line;
   for (auto it = env.begin(); it != env.end(); ++it)
-    cmd += it.key() + "=" + shell_quote(it.value().get<std::string>()) + " ";
-  cmd += shell_quote(DECALPREP_TOOL);
-  for (const auto& a : args) cmd += " " + shell_quote(a);
-  cmd += " 2>" + shell_quote(err_file.string());
-  const int st = std::system(cmd.c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  std::ifstream in(err_file);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  r.err = ss.str();
-  return r;
+    vars += it.key() + "=" + shell_quote(it.value().get<std::string>()) + " ";
+  for (const auto& arg : args) line += (line.empty() ? "" : " ") + shell_quote(arg);
+  return prep::test::run_tool(line, dir, {.env = vars, .split_stderr = true});
 }
 
 // The scene `decalprep build PATH <args>` describes (the options the corpus
@@ -364,9 +346,9 @@ TEST_P(Hostile, BehavesAsExpected) {
   }
   for (const auto& a : (*c)["args"]) args.push_back(a.get<std::string>());
   const json env = c->value("env", json::object());
-  const RunResult r = run_tool(args, out / "stderr.txt", env);
+  const prep::test::ToolRun r = run_case(args, out, env);
   const int want_exit = want.at("exit").get<int>();
-  ASSERT_EQ(r.exit_code, want_exit) << name << " stderr: " << r.err;
+  ASSERT_EQ(r.rc, want_exit) << name << " stderr: " << r.err;
   constexpr int kPartial = 4;  // prep::ExitCode::partial: --skip-failures dropped features
   if (want_exit != 0 && want_exit != kPartial) {
     const std::string msg = want.at("message").get<std::string>();

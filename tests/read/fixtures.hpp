@@ -1,12 +1,8 @@
-// Shared test fixtures for the read/project/clean tests: a temp directory,
-// file writing, running the decalprep tool, and ogrinfo as an independent
-// counting oracle.
+// Fixtures of the read/project/clean tests beyond tests/support: ogrinfo as
+// an independent counting oracle and a big GeoJSON polygon.
 #pragma once
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -16,70 +12,9 @@
 #include <sstream>
 #include <string>
 
+#include "test_support.hpp"
+
 namespace prep::test {
-
-class TempDir {
- public:
-  TempDir() {
-    std::string tmpl = (std::filesystem::temp_directory_path() / "decalprep-XXXXXX").string();
-    if (!mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = tmpl;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
-
-inline void write_text(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
-
-inline std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-inline std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-struct ToolRun {
-  int rc = -1;
-  std::string output;  // stdout + stderr
-};
-
-// Runs a command line through /bin/sh, capturing stdout and stderr.
-inline ToolRun run_command(const std::string& cmd, const TempDir& dir) {
-  const std::string log = dir.file("command.log");
-  int status = std::system((cmd + " >" + shell_quote(log) + " 2>&1").c_str());
-  ToolRun r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-  r.output = read_text(log);
-  return r;
-}
-
-inline ToolRun run_tool(const std::string& args, const TempDir& dir) {
-  return run_command(shell_quote(DECALPREP_TOOL) + " " + args, dir);
-}
-
-inline std::string shared_data(const std::string& rel) {
-  return std::string(DECALPREP_SHARED_DATA) + "/" + rel;
-}
-
-inline bool exists(const std::string& p) { return std::filesystem::exists(p); }
 
 // ogrinfo's answer to `SELECT COUNT(*) ...` over `source`: the independent
 // oracle for read counts (GDAL's own command-line program, not our reader;

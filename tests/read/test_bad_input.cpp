@@ -4,11 +4,14 @@
 #include <ogrsf_frmts.h>
 
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include "fixtures.hpp"
 
 namespace {
 
+using prep::test::read_text;
 using prep::test::run_tool;
 using prep::test::shell_quote;
 using prep::test::TempDir;
@@ -40,157 +43,154 @@ void expect_no_output(const TempDir& dir) {
   }
 }
 
-TEST(BadInput, MissingFileNamesTheFile) {
-  TempDir dir;
-  auto r = run_tool("build " + shell_quote(dir.file("nope.shp")) + " -o " +
-                        shell_quote(dir.file("out.decals")) + " --kind line",
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("nope.shp: no such file"), std::string::npos) << r.output;
-  expect_no_output(dir);
+// What a case writes into its temp directory before running the tool.
+enum class Input { none, garbage_shp, shapefile, truncated_shapefile, shapefile_without_crs, bad_scene };
+
+void write_input(Input in, const TempDir& dir) {
+  switch (in) {
+    case Input::none:
+      break;
+    case Input::garbage_shp:
+      prep::test::write_text(dir.file("junk.shp"), std::string(300, '\x5a'));
+      break;
+    case Input::shapefile:
+      write_shapefile(dir.file("roads.shp"), true);
+      break;
+    case Input::truncated_shapefile:
+      write_shapefile(dir.file("roads.shp"), true);
+      // Cut the .shp in the middle of its records; the .shx still points past it.
+      std::filesystem::resize_file(dir.file("roads.shp"),
+                                   std::filesystem::file_size(dir.file("roads.shp")) / 2);
+      break;
+    case Input::shapefile_without_crs:
+      write_shapefile(dir.file("roads.shp"), false);
+      break;
+    case Input::bad_scene:
+      write_shapefile(dir.file("roads.shp"), true);
+      prep::test::write_text(dir.file("scene.toml"),
+                             "source = \"roads.shp\"\n\n[[layer]]\nkind = \"line\"\nwidht = 4\n");
+      break;
+  }
 }
 
-TEST(BadInput, AFailedBuildStillWritesAReportSayingWhy) {
-  TempDir dir;
-  auto r = run_tool("build " + shell_quote(dir.file("nope.shp")) + " -o " +
-                        shell_quote(dir.file("out.decals")) + " --report " +
-                        shell_quote(dir.file("r.json")),
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  const std::string report = prep::test::read_text(dir.file("r.json"));
-  EXPECT_NE(report.find("\"package_written\": false"), std::string::npos) << report;
-  EXPECT_NE(report.find("nope.shp: no such file"), std::string::npos) << report;
-  EXPECT_NE(report.find("\"exit_code\": 3"), std::string::npos) << report;
-  expect_no_output(dir);
+// One run of the tool: `args` with every `@name` standing for the quoted path
+// of `name` in the case's temp directory.
+struct Step {
+  std::string args;
+  int rc;
+  std::vector<std::string> output_has;  // substrings of stdout + stderr
+  std::vector<std::string> report_has;  // substrings of @r.json afterwards
+  bool no_package = true;               // no .decals left in the directory
+};
+
+struct Case {
+  const char* name;  // the test's name
+  Input input;
+  std::vector<Step> steps;
+};
+
+std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.name; }
+
+std::string expand(const std::string& args, const TempDir& dir) {
+  std::string out;
+  for (size_t i = 0; i < args.size();) {
+    if (args[i] != '@') {
+      out += args[i++];
+      continue;
+    }
+    const size_t end = std::min(args.find(' ', i), args.size());
+    out += shell_quote(dir.file(args.substr(i + 1, end - i - 1)));
+    i = end;
+  }
+  return out;
 }
 
-TEST(BadInput, GarbageShapefileIsRejectedNamingTheFile) {
+const std::vector<Case> kCases = {
+    {"MissingFileNamesTheFile",
+     Input::none,
+     {{"build @nope.shp -o @out.decals --kind line", kInput, {"nope.shp: no such file"}, {}}}},
+    {"AFailedBuildStillWritesAReportSayingWhy",
+     Input::none,
+     {{"build @nope.shp -o @out.decals --report @r.json",
+       kInput,
+       {},
+       {"\"package_written\": false", "nope.shp: no such file", "\"exit_code\": 3"}}}},
+    {"GarbageShapefileIsRejectedNamingTheFile",
+     Input::garbage_shp,
+     {{"build @junk.shp -o @out.decals", kInput, {"junk.shp", "cannot open"}, {}}}},
+    {"TruncatedShapefileIsRejectedNamingFileAndLayer",
+     Input::truncated_shapefile,
+     {{"build @roads.shp -o @out.decals --kind line",
+       kInput,
+       {"roads.shp layer 'roads': reading failed at fid "},
+       {}}}},
+    {"UnknownLayerListsTheLayersThereAre",
+     Input::shapefile,
+     {{"build @roads.shp --layer rods -o @out.decals --kind line",
+       kInput,
+       {"unknown layer 'rods' (layers: roads)"},
+       {}}}},
+    {"InvalidSqlQuotesTheStatementAndGdalsMessage",
+     Input::shapefile,
+     {{"build @roads.shp --sql 'SELEC * FROM roads' -o @out.decals --kind line",
+       kInput,
+       {"invalid SQL \"SELEC * FROM roads\""},
+       {}}}},
+    {"InvalidWhereIsRejected",
+     Input::shapefile,
+     {{"build @roads.shp --where 'nosuchfield = 3' -o @out.decals --kind line",
+       kInput,
+       {"invalid where"},
+       {}}}},
+    {"SourceWithoutCrsIsAnErrorUnlessAssumeCrsIsGiven",
+     Input::shapefile_without_crs,
+     {{"build @roads.shp -o @out.decals --kind line",
+       kInput,
+       {"roads.shp layer 'roads': the source has no CRS", "--assume-crs"},
+       {}},
+      {"build @roads.shp --assume-crs EPSG:4326 --dry-run -q --kind line --report @r.json",
+       0,
+       {},
+       {"assumed EPSG:4326"},
+       false}}},
+    {"InvalidCrsIsRejectedNamingIt",
+     Input::shapefile,
+     {{"build @roads.shp --crs EPSG:999999 -o @out.decals --kind line",
+       kInput,
+       {"invalid --crs 'EPSG:999999'"},
+       {}},
+      {"build @roads.shp --crs EPSG:4326 -o @out.decals --kind line", kInput, {"not a projected CRS"}, {}}}},
+    {"InvalidSceneFileNamesKeyAndLine",
+     Input::bad_scene,
+     {{"build @scene.toml -o @out.decals", kInput, {"scene.toml:5: layer[0].widht: unknown key"}, {}}}},
+    {"BadOptionValueIsAUsageError",
+     Input::shapefile,
+     {{"build @roads.shp --corner sharp -o @out.decals --kind line", kUsage, {"round|miter|bevel"}, {}, false},
+      {"build @roads.shp --grid 500 -o @out.decals --kind line", kUsage, {}, {}}}},
+};
+
+class BadInput : public ::testing::TestWithParam<Case> {};
+
+TEST_P(BadInput, FailsWithTheDocumentedCodeAndAMessageNamingTheCause) {
+  const Case& c = GetParam();
   TempDir dir;
-  prep::test::write_text(dir.file("junk.shp"), std::string(300, '\x5a'));
-  auto r = run_tool("build " + shell_quote(dir.file("junk.shp")) + " -o " +
-                        shell_quote(dir.file("out.decals")),
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("junk.shp"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("cannot open"), std::string::npos) << r.output;
-  expect_no_output(dir);
+  write_input(c.input, dir);
+  for (const Step& run : c.steps) {
+    SCOPED_TRACE(run.args);
+    const auto r = run_tool(expand(run.args, dir), dir);
+    EXPECT_EQ(r.rc, run.rc) << r.output;
+    for (const std::string& s : run.output_has)
+      EXPECT_NE(r.output.find(s), std::string::npos) << s << "\n" << r.output;
+    if (!run.report_has.empty()) {
+      const std::string report = read_text(dir.file("r.json"));
+      for (const std::string& s : run.report_has)
+        EXPECT_NE(report.find(s), std::string::npos) << s << "\n" << report;
+    }
+    if (run.no_package) expect_no_output(dir);
+  }
 }
 
-TEST(BadInput, TruncatedShapefileIsRejectedNamingFileAndLayer) {
-  TempDir dir;
-  write_shapefile(dir.file("roads.shp"), true);
-  // Cut the .shp in the middle of its records; the .shx still points past it.
-  std::filesystem::resize_file(dir.file("roads.shp"),
-                               std::filesystem::file_size(dir.file("roads.shp")) / 2);
-  auto r = run_tool("build " + shell_quote(dir.file("roads.shp")) + " -o " +
-                        shell_quote(dir.file("out.decals")) + " --kind line",
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("roads.shp layer 'roads': reading failed at fid "), std::string::npos)
-      << r.output;
-  expect_no_output(dir);
-}
-
-TEST(BadInput, UnknownLayerListsTheLayersThereAre) {
-  TempDir dir;
-  write_shapefile(dir.file("roads.shp"), true);
-  auto r = run_tool("build " + shell_quote(dir.file("roads.shp")) + " --layer rods -o " +
-                        shell_quote(dir.file("out.decals")) + " --kind line",
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("unknown layer 'rods' (layers: roads)"), std::string::npos) << r.output;
-  expect_no_output(dir);
-}
-
-TEST(BadInput, InvalidSqlQuotesTheStatementAndGdalsMessage) {
-  TempDir dir;
-  write_shapefile(dir.file("roads.shp"), true);
-  auto r = run_tool("build " + shell_quote(dir.file("roads.shp")) +
-                        " --sql 'SELEC * FROM roads' -o " + shell_quote(dir.file("out.decals")) +
-                        " --kind line",
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("invalid SQL \"SELEC * FROM roads\""), std::string::npos) << r.output;
-  expect_no_output(dir);
-}
-
-TEST(BadInput, InvalidWhereIsRejected) {
-  TempDir dir;
-  write_shapefile(dir.file("roads.shp"), true);
-  auto r = run_tool("build " + shell_quote(dir.file("roads.shp")) +
-                        " --where 'nosuchfield = 3' -o " + shell_quote(dir.file("out.decals")) +
-                        " --kind line",
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("invalid where"), std::string::npos) << r.output;
-  expect_no_output(dir);
-}
-
-TEST(BadInput, SourceWithoutCrsIsAnErrorUnlessAssumeCrsIsGiven) {
-  TempDir dir;
-  write_shapefile(dir.file("roads.shp"), false);
-  auto r = run_tool("build " + shell_quote(dir.file("roads.shp")) + " -o " +
-                        shell_quote(dir.file("out.decals")) + " --kind line",
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("roads.shp layer 'roads': the source has no CRS"), std::string::npos)
-      << r.output;
-  EXPECT_NE(r.output.find("--assume-crs"), std::string::npos) << r.output;
-  expect_no_output(dir);
-
-  auto ok = run_tool("build " + shell_quote(dir.file("roads.shp")) +
-                         " --assume-crs EPSG:4326 --dry-run -q --kind line --report " +
-                         shell_quote(dir.file("r.json")),
-                     dir);
-  EXPECT_EQ(ok.rc, 0) << ok.output;
-  EXPECT_NE(prep::test::read_text(dir.file("r.json")).find("assumed EPSG:4326"), std::string::npos);
-}
-
-TEST(BadInput, InvalidCrsIsRejectedNamingIt) {
-  TempDir dir;
-  write_shapefile(dir.file("roads.shp"), true);
-  auto r = run_tool("build " + shell_quote(dir.file("roads.shp")) + " --crs EPSG:999999 -o " +
-                        shell_quote(dir.file("out.decals")) + " --kind line",
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("invalid --crs 'EPSG:999999'"), std::string::npos) << r.output;
-  expect_no_output(dir);
-
-  auto geo = run_tool("build " + shell_quote(dir.file("roads.shp")) + " --crs EPSG:4326 -o " +
-                          shell_quote(dir.file("out.decals")) + " --kind line",
-                      dir);
-  EXPECT_EQ(geo.rc, kInput) << geo.output;
-  EXPECT_NE(geo.output.find("not a projected CRS"), std::string::npos) << geo.output;
-  expect_no_output(dir);
-}
-
-TEST(BadInput, InvalidSceneFileNamesKeyAndLine) {
-  TempDir dir;
-  write_shapefile(dir.file("roads.shp"), true);
-  prep::test::write_text(dir.file("scene.toml"),
-                         "source = \"roads.shp\"\n\n[[layer]]\nkind = \"line\"\nwidht = 4\n");
-  auto r = run_tool("build " + shell_quote(dir.file("scene.toml")) + " -o " +
-                        shell_quote(dir.file("out.decals")),
-                    dir);
-  EXPECT_EQ(r.rc, kInput) << r.output;
-  EXPECT_NE(r.output.find("scene.toml:5: layer[0].widht: unknown key"), std::string::npos)
-      << r.output;
-  expect_no_output(dir);
-}
-
-TEST(BadInput, BadOptionValueIsAUsageError) {
-  TempDir dir;
-  write_shapefile(dir.file("roads.shp"), true);
-  auto r = run_tool("build " + shell_quote(dir.file("roads.shp")) + " --corner sharp -o " +
-                        shell_quote(dir.file("out.decals")) + " --kind line",
-                    dir);
-  EXPECT_EQ(r.rc, kUsage) << r.output;
-  EXPECT_NE(r.output.find("round|miter|bevel"), std::string::npos) << r.output;
-  auto g = run_tool("build " + shell_quote(dir.file("roads.shp")) + " --grid 500 -o " +
-                        shell_quote(dir.file("out.decals")) + " --kind line",
-                    dir);
-  EXPECT_EQ(g.rc, kUsage) << g.output;
-  expect_no_output(dir);
-}
+INSTANTIATE_TEST_SUITE_P(Cases, BadInput, ::testing::ValuesIn(kCases),
+                         [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });
 
 }  // namespace

@@ -133,7 +133,7 @@ void check_extract(const std::string& source, double resolution) {
 }
 
 TEST(OsmAccounting, MonacoManifestAccountsForEveryFeatureAndMatchesOgrinfo) {
-  check_extract(prep::test::shared_data("monaco/monaco.osm.pbf"), 0.5);
+  check_extract(prep::test::monaco_sample("monaco.osm.pbf"), 0.5);
 }
 
 TEST(OsmAccounting, LiechtensteinManifestAccountsForEveryFeatureAndMatchesOgrinfo) {
@@ -145,7 +145,7 @@ TEST(OsmAccounting, LiechtensteinManifestAccountsForEveryFeatureAndMatchesOgrinf
 // layer must hold exactly what reading it alone gives (same features, same
 // order, same coordinates).
 TEST(OsmAccounting, WholeOsmLayersReadInOnePassMatchOgrinfoAndSeparateReads) {
-  const std::string source = prep::test::shared_data("monaco/monaco.osm.pbf");
+  const std::string source = prep::test::monaco_sample("monaco.osm.pbf");
   if (!prep::test::exists(source)) GTEST_SKIP() << "missing real data: " << source;
   TempDir dir;
   prep::SceneSpec scene;

@@ -1,5 +1,5 @@
-// Helpers of the render smoke tests: running the decalprep tool, reading
-// raw decal layers, and the pixel agreement of two layers.
+// Helpers of the render smoke tests (running the tool is in tests/support):
+// reading raw decal layers, and the pixel agreement of two layers.
 #pragma once
 
 #include <sys/wait.h>
@@ -14,25 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "test_support.hpp"
+
 namespace render_test {
-
-struct ToolResult {
-  int rc = -1;
-  std::string output;
-};
-
-inline ToolResult tool(const std::string& args, const std::string& env = "") {
-  namespace fs = std::filesystem;
-  fs::path log = fs::temp_directory_path() / ("decalprep_smoke_" + std::to_string(::getpid()) + ".log");
-  std::string cmd = env + " " + DECALPREP_TOOL + " " + args + " > " + log.string() + " 2>&1";
-  int status = std::system(cmd.c_str());
-  ToolResult r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream in(log);
-  r.output.assign(std::istreambuf_iterator<char>(in), {});
-  fs::remove(log);
-  return r;
-}
 
 inline std::vector<float> read_raw(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -14,28 +14,15 @@
 #include <ogr_spatialref.h>
 
 #include "hand_model.hpp"
+#include "test_support.hpp"
 #include "prep/write.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-struct ToolRun {
-  int rc = -1;
-  std::string output;
-};
-
-ToolRun run_tool(const std::string& args, const std::string& env = "") {
-  fs::path log = fs::temp_directory_path() / ("decalprep_render_cli_" + std::to_string(::getpid()) + ".log");
-  std::string cmd = env + " " + DECALPREP_TOOL + " " + args + " > " + log.string() + " 2>&1";
-  int status = std::system(cmd.c_str());
-  ToolRun r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream in(log);
-  r.output.assign(std::istreambuf_iterator<char>(in), {});
-  fs::remove(log);
-  return r;
-}
+using prep::test::run_tool;
+using prep::test::ToolRun;
 
 class RenderCli : public ::testing::Test {
  protected:
@@ -145,7 +132,7 @@ TEST_F(RenderCli, UsesThePackagesBuildDemUnlessFlatIsAsked) {
 TEST_F(RenderCli, ExitsWithRenderCodeWhenNoEglDisplayCanBeCreated) {
   // glvnd finds no vendor library: no EGL display at all.
   ToolRun r = run_tool("render " + pkg_ + " " + kExtent + " --size 16x16 -o " + (dir_ / "none.png").string(),
-              "__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/egl_vendor.json __EGL_VENDOR_LIBRARY_DIRS=/nonexistent");
+              {.env = "__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/egl_vendor.json __EGL_VENDOR_LIBRARY_DIRS=/nonexistent"});
   EXPECT_EQ(r.rc, 8) << r.output;
   EXPECT_NE(r.output.find("EGL"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir_ / "none.png"));

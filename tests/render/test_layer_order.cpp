@@ -28,7 +28,7 @@
 #include "smoke_util.hpp"
 
 namespace fs = std::filesystem;
-using render_test::tool;
+using prep::test::run_tool;
 
 namespace {
 
@@ -166,7 +166,7 @@ struct Counts {
 Counts run(const std::string& name, bool buildings_on_top, bool& gl_ran, std::string& why) {
   Counts c;
   const std::string pkg = (out_dir() / (name + ".decals")).string();
-  auto r = tool("build " + write_scene(name, buildings_on_top) + " -o " + pkg + " -q");
+  auto r = run_tool("build " + write_scene(name, buildings_on_top) + " -o " + pkg + " -q");
   EXPECT_EQ(r.rc, 0) << r.output;
   decal::Package package;
   const decal::Status st = decal::Package::open(pkg, package);

@@ -27,7 +27,7 @@
 namespace fs = std::filesystem;
 using render_test::agreement;
 using render_test::read_raw;
-using render_test::tool;
+using prep::test::run_tool;
 
 namespace {
 
@@ -66,13 +66,13 @@ const std::string& monaco_package(std::string* why) {
   static bool tried = false;
   if (!tried) {
     tried = true;
-    if (!fs::exists(std::string(DECALPREP_SHARED_DATA) + "/monaco/monaco.osm.pbf")) {
-      reason = "Monaco data missing under " + std::string(DECALPREP_SHARED_DATA);
+    if (!fs::exists(prep::test::monaco_sample("monaco.osm.pbf"))) {
+      reason = "Monaco sample missing: " + prep::test::monaco_sample("monaco.osm.pbf");
     } else {
       const fs::path pkg = out_dir() / "monaco.decals";
       BuildLock lock(out_dir() / "monaco.lock");
       if (!fresh(pkg)) {
-        auto r = tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
+        auto r = run_tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
         if (r.rc != 0) reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
       }
       if (reason.empty()) path = pkg.string();
@@ -215,14 +215,14 @@ CoverageComparison compare_coverage(const std::vector<uint8_t>& drawn, const std
 bool render_pair(const std::string& pkg, const std::string& name, const std::string& view_args,
                  std::vector<float>& gl, std::vector<float>& cpu, std::string& why) {
   const fs::path d = out_dir();
-  auto g = tool("render " + pkg + " " + view_args + " --size 640x360 --aa none --raw " + (d / (name + "_gl.rgba")).string() +
+  auto g = run_tool("render " + pkg + " " + view_args + " --size 640x360 --aa none --raw " + (d / (name + "_gl.rgba")).string() +
                 " -o " + (d / (name + "_gl.png")).string());
   if (g.rc == 8) {
     why = "no headless GL: " + g.output;
     return false;
   }
   EXPECT_EQ(g.rc, 0) << g.output;
-  auto c = tool("render " + pkg + " " + view_args + " --size 640x360 --cpu --raw " + (d / (name + "_cpu.rgba")).string() +
+  auto c = run_tool("render " + pkg + " " + view_args + " --size 640x360 --cpu --raw " + (d / (name + "_cpu.rgba")).string() +
                 " -o " + (d / (name + "_cpu.png")).string());
   EXPECT_EQ(c.rc, 0) << c.output;
   gl = read_raw((d / (name + "_gl.rgba")).string());
@@ -320,7 +320,7 @@ TEST(RenderSmoke, MonacoTopDownPolygonCoverageMatchesGdalRasterize) {
   if (pkg.empty()) GTEST_SKIP() << why;
   const fs::path d = out_dir();
   // Aliased GL coverage of the polygons alone.
-  auto g = tool("render " + pkg + " " + topdown_extent(pkg, kTopDown) + " --size 640x360 --aa none --only polygons --raw " +
+  auto g = run_tool("render " + pkg + " " + topdown_extent(pkg, kTopDown) + " --size 640x360 --aa none --only polygons --raw " +
                 (d / "monaco_polygons_gl.rgba").string() + " -o " + (d / "monaco_polygons_gl.png").string());
   if (g.rc == 8) GTEST_SKIP() << "no headless GL: " << g.output;
   ASSERT_EQ(g.rc, 0) << g.output;
@@ -374,7 +374,7 @@ const UtmBuildings& utm_buildings(std::string* why) {
     const std::string pbf = kSource + "/samples/monaco/monaco.osm.pbf";
     if (!fresh(pkg) || !fs::exists(gpkg)) {
       // --resolution 0: every vertex kept, as gdal_rasterize sees them.
-      auto r = tool("build " + pbf + " --layer multipolygons --where '" + kBuildingsWhere +
+      auto r = run_tool("build " + pbf + " --layer multipolygons --where '" + kBuildingsWhere +
                     "' --kind polygon --crs EPSG:32632 --resolution 0 -q -o " + pkg.string());
       if (r.rc != 0) reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
       fs::remove(gpkg);
@@ -396,7 +396,7 @@ CoverageComparison cpu_against_gdal(const UtmBuildings& b, const std::string& na
   const fs::path d = out_dir() / "utm";
   const fs::path decals = d / (name + "_decals.png");
   fs::remove(decals);
-  auto r = tool("render " + b.package + " --cpu " + view_args + " --size " + std::to_string(w) + "x" + std::to_string(h) +
+  auto r = run_tool("render " + b.package + " --cpu " + view_args + " --size " + std::to_string(w) + "x" + std::to_string(h) +
                 " --decals " + decals.string() + " -o " + (d / (name + ".png")).string());
   EXPECT_EQ(r.rc, 0) << r.output;
   EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
@@ -485,16 +485,16 @@ TEST(RenderExtent, AViewThatMissesThePackageWarnsWithBothExtents) {
   if (b.package.empty()) GTEST_SKIP() << why;
   const PackageFrame f = package_frame(b.package);
   // Metres relative to the origin (the old convention) lie far off in UTM.
-  auto r = tool("render " + b.package + " --cpu --extent 0,0,800,500 --size 80x50 -o " +
+  auto r = run_tool("render " + b.package + " --cpu --extent 0,0,800,500 --size 80x50 -o " +
                 (out_dir() / "utm" / "miss.png").string());
   EXPECT_EQ(r.rc, 0) << r.output;
   EXPECT_NE(r.output.find("warning"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("0.000,0.000,800.000,500.000"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(extent_text(f.absolute(f.extent), "%.3f,%.3f,%.3f,%.3f")), std::string::npos) << r.output;
   // --extent-crs alone, and a CRS PROJ does not know.
-  EXPECT_EQ(tool("render " + b.package + " --cpu --extent-crs EPSG:4326 -o " + (out_dir() / "utm" / "x.png").string()).rc,
+  EXPECT_EQ(run_tool("render " + b.package + " --cpu --extent-crs EPSG:4326 -o " + (out_dir() / "utm" / "x.png").string()).rc,
             2);
-  auto bad = tool("render " + b.package + " --cpu --extent 0,0,1,1 --extent-crs EPSG:999999 -o " +
+  auto bad = run_tool("render " + b.package + " --cpu --extent 0,0,1,1 --extent-crs EPSG:999999 -o " +
                   (out_dir() / "utm" / "x.png").string());
   EXPECT_EQ(bad.rc, 3) << bad.output;
   EXPECT_NE(bad.output.find("EPSG:999999"), std::string::npos) << bad.output;
@@ -628,7 +628,7 @@ color_attribute = "imp"
 color_ramp = [[1, "#ff000080"], [2, "#0000ff80"]]
 )");
     std::string pkg = (d / "styles.decals").string();
-    auto r = tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
+    auto r = run_tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
     if (r.rc != 0) reason = "decalprep build of the styles scene failed (rc " + std::to_string(r.rc) + "): " + r.output;
     else path = pkg;
   }
@@ -713,7 +713,7 @@ TEST(RenderSmoke, AntiAliasingModesAreCloserToSupersampledReferenceThanAliased) 
   if (pkg.empty()) GTEST_SKIP() << why;
   const fs::path d = out_dir();
   auto render = [&](const std::string& aa, const std::string& size, const std::string& name) {
-    auto r = tool("render " + pkg + " " + kStylesView + " --size " + size + " --aa " + aa + " --raw " +
+    auto r = run_tool("render " + pkg + " " + kStylesView + " --size " + size + " --aa " + aa + " --raw " +
                   (d / (name + ".rgba")).string() + " -o " + (d / (name + ".png")).string());
     return r;
   };
@@ -806,11 +806,11 @@ width = 6
 color = "#20a020ff"
 )");
   const std::string pkg = (d / "narrow.decals").string();
-  auto b = tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
+  auto b = run_tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
   ASSERT_EQ(b.rc, 0) << b.output;
   auto render = [&](const std::string& view, const std::string& how, const std::string& name) {
     const std::string raw = (d / (name + ".rgba")).string();
-    auto r = tool("render " + pkg + " " + view + " --size 200x120 " + how + " --raw " + raw + " -o " +
+    auto r = run_tool("render " + pkg + " " + view + " --size 200x120 " + how + " --raw " + raw + " -o " +
                   (d / (name + ".png")).string());
     return std::make_pair(r, read_raw(raw));
   };

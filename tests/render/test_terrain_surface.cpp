@@ -25,7 +25,7 @@
 
 namespace fs = std::filesystem;
 namespace R = prep::render;
-using render_test::tool;
+using prep::test::run_tool;
 
 namespace {
 
@@ -220,7 +220,7 @@ TEST(TerrainSurface, DynamicLineVerticesLieOnTheTerrainRenderDraws) {
   write_trails((d / "trails.gpkg").string());
   write_scene(d / "scene.toml", "dem.tif");
   const std::string pkg = (d / "trails.decals").string();
-  auto b = tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
+  auto b = run_tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
   ASSERT_EQ(b.rc, 0) << b.output;
 
   const SurfaceCheck c = check_package(pkg);
@@ -230,7 +230,7 @@ TEST(TerrainSurface, DynamicLineVerticesLieOnTheTerrainRenderDraws) {
   EXPECT_LE(c.mesh_bound, R::kMeshTolerance);
 
   // The tool draws that mesh: from the package's build DEM, within the bound.
-  auto r = tool("render " + pkg + " --cpu --size 64x48 --stats -o " + (d / "trails.png").string());
+  auto r = run_tool("render " + pkg + " --cpu --size 64x48 --stats -o " + (d / "trails.png").string());
   ASSERT_EQ(r.rc, 0) << r.output;
   EXPECT_NE(r.output.find("terrain from the package's build DEM"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(" mm of the DEM surface"), std::string::npos) << r.output;
@@ -246,7 +246,7 @@ TEST(TerrainSurface, DemWithoutCrsIsAnErrorUnlessAssumeCrsIsGiven) {
   fs::remove(pkg);
 
   // build: an input error (exit 3) naming the file and the way out.
-  auto b = tool("build " + (d / "nocrs.toml").string() + " -o " + pkg + " -q");
+  auto b = run_tool("build " + (d / "nocrs.toml").string() + " -o " + pkg + " -q");
   EXPECT_EQ(b.rc, 3) << b.output;
   EXPECT_NE(b.output.find(nocrs), std::string::npos) << b.output;
   EXPECT_NE(b.output.find("--assume-crs"), std::string::npos) << b.output;
@@ -263,7 +263,7 @@ TEST(TerrainSurface, DemWithoutCrsIsAnErrorUnlessAssumeCrsIsGiven) {
     } else {
       args += " --assume-crs EPSG:32632";
     }
-    auto ok = tool(args);
+    auto ok = run_tool(args);
     ASSERT_EQ(ok.rc, 0) << ok.output;
     const SurfaceCheck c = check_package(pkg);
     report(c, in_scene ? "nocrs.tif, assume_crs in the scene" : "nocrs.tif, --assume-crs");
@@ -272,15 +272,15 @@ TEST(TerrainSurface, DemWithoutCrsIsAnErrorUnlessAssumeCrsIsGiven) {
 
   // render: a package without a DEM drawn over the CRS-less DEM.
   const std::string plain = (d / "plain.decals").string();
-  auto p = tool("build " + (d / "trails.gpkg").string() + " -o " + plain +
+  auto p = run_tool("build " + (d / "trails.gpkg").string() + " -o " + plain +
                 " --kind line --dynamic --crs EPSG:32632 -q");
   ASSERT_EQ(p.rc, 0) << p.output;
-  auto r = tool("render " + plain + " --dem " + nocrs + " --cpu --size 32x24 -o " +
+  auto r = run_tool("render " + plain + " --dem " + nocrs + " --cpu --size 32x24 -o " +
                 (d / "plain.png").string());
   EXPECT_EQ(r.rc, 3) << r.output;
   EXPECT_NE(r.output.find(nocrs), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--assume-crs"), std::string::npos) << r.output;
-  auto ra = tool("render " + plain + " --dem " + nocrs +
+  auto ra = run_tool("render " + plain + " --dem " + nocrs +
                  " --assume-crs EPSG:32632 --cpu --size 32x24 -o " + (d / "plain.png").string());
   EXPECT_EQ(ra.rc, 0) << ra.output;
 }

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "prep/scene.hpp"
+#include "test_support.hpp"
 
 namespace terraintest {
 
@@ -168,13 +169,12 @@ struct MonacoFrame {
   void reverse(double x, double y, double& lon, double& lat) const { tm.Reverse(lon0, x, y + y0, lat, lon); }
 };
 
-inline std::string monaco_pbf() { return std::string(DECALPREP_SHARED_DATA) + "/monaco/monaco.osm.pbf"; }
-inline std::string monaco_dem() {
-  return std::string("/vsizip/") + DECALPREP_SHARED_DATA + "/monaco/N43E007.hgt.zip/N43E007.hgt";
-}
+// The shipped Monaco sample (samples/monaco).
+inline std::string monaco_pbf() { return prep::test::monaco_sample("monaco.osm.pbf"); }
+inline std::string monaco_dem() { return "/vsizip/" + prep::test::monaco_sample("N43E007.hgt.zip/N43E007.hgt"); }
 inline bool monaco_available() {
   return std::filesystem::exists(monaco_pbf()) &&
-         std::filesystem::exists(std::string(DECALPREP_SHARED_DATA) + "/monaco/N43E007.hgt.zip");
+         std::filesystem::exists(prep::test::monaco_sample("N43E007.hgt.zip"));
 }
 
 // Monaco's roads (OSM `lines` with a highway tag) as dynamic SceneLines.

@@ -64,7 +64,7 @@ class MonacoTerrain : public ::testing::Test {
     frame.reset();
   }
   void SetUp() override {
-    if (!terraintest::monaco_available()) GTEST_SKIP() << "missing " << DECALPREP_SHARED_DATA << "/monaco";
+    if (!terraintest::monaco_available()) GTEST_SKIP() << "missing " << terraintest::monaco_pbf();
     ASSERT_GT(roads.size(), 1000u);
   }
   static prep::DecalModel build(const prep::BuildOptions& opt) {

@@ -5,8 +5,6 @@
 // and without progress output; batch mode keeps each scene's progress in its
 // log and prints JSON objects of its own.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -18,34 +16,20 @@
 #include <string>
 #include <vector>
 
+#include "test_support.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-struct ToolRun {
-  int rc = -1;
-  std::string out, err;
-};
+using prep::test::read_text;
+using prep::test::run_tool;
+using prep::test::TempDir;
+using prep::test::ToolRun;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-ToolRun run_tool(const std::string& args, const fs::path& dir) {
-  const fs::path out = dir / "tool.out", err = dir / "tool.err";
-  const std::string cmd = std::string("'") + DECALPREP_TOOL + "' " + args + " >'" + out.string() +
-                          "' 2>'" + err.string() + "'";
-  const int status = std::system(cmd.c_str());
-  ToolRun r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 1000 + status;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
-}
+// stdout in ToolRun::output, the progress lines (stderr) in ToolRun::err.
+const prep::test::RunOptions kSplit{.split_stderr = true};
 
 std::vector<std::string> lines_of(const std::string& text) {
   std::vector<std::string> out;
@@ -65,16 +49,6 @@ std::vector<json> parse_lines(const std::string& text) {
   return out;
 }
 
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
-
 const fs::path kSource = DECALPREP_SOURCE_DIR;
 
 TEST(BuildProgress, JsonStagesOfTheMonacoSampleComeInPipelineOrderAndEndWithDoneEqualTotal) {
@@ -83,11 +57,11 @@ TEST(BuildProgress, JsonStagesOfTheMonacoSampleComeInPipelineOrderAndEndWithDone
     GTEST_SKIP() << "Monaco sample data missing";
   TempDir dir("decalprep_progress_json");
   const ToolRun r =
-      run_tool("build '" + scene.string() + "' -o '" + (dir.path / "m.decals").string() +
-                   "' --report '" + (dir.path / "report.json").string() + "' --progress json",
-               dir.path);
+      run_tool("build '" + scene.string() + "' -o '" + (dir.path() / "m.decals").string() +
+                   "' --report '" + (dir.path() / "report.json").string() + "' --progress json",
+               dir, kSplit);
   ASSERT_EQ(r.rc, 0) << r.err;
-  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.output, "");
   const std::vector<json> objects = parse_lines(r.err);
   ASSERT_FALSE(objects.empty());
 
@@ -125,7 +99,7 @@ TEST(BuildProgress, JsonStagesOfTheMonacoSampleComeInPipelineOrderAndEndWithDone
 
   // The read stage counted what the report says was read; write counts the
   // blobs' uncompressed bytes.
-  const json report = json::parse(slurp(dir.path / "report.json"));
+  const json report = json::parse(read_text(dir.path() / "report.json"));
   EXPECT_EQ(last["read"]["done"], report["manifest"]["totals"]["read"]);
   EXPECT_EQ(last["build.lines"]["unit"], "lines");
   EXPECT_EQ(last["write"]["unit"], "bytes");
@@ -146,7 +120,7 @@ TEST(BuildProgress, JsonStagesOfTheMonacoSampleComeInPipelineOrderAndEndWithDone
 // The small Monaco window of the golden test, with its source made absolute
 // so the scene file can live anywhere.
 std::string golden_scene_text() {
-  std::string text = slurp(kSource / "tests/tools/golden/scene.toml");
+  std::string text = read_text(kSource / "tests/tools/golden/scene.toml");
   const std::string rel = "../../../samples/monaco/monaco.osm.pbf";
   const size_t at = text.find(rel);
   EXPECT_NE(at, std::string::npos);
@@ -159,37 +133,37 @@ TEST(BuildProgress, PackageBytesAreTheSameWithAndWithoutProgressOutput) {
   if (!fs::exists(kSource / "samples/monaco/monaco.osm.pbf"))
     GTEST_SKIP() << "Monaco sample data missing";
   TempDir dir("decalprep_progress_bytes");
-  std::ofstream(dir.path / "window.toml") << golden_scene_text();
-  const std::string scene = "'" + (dir.path / "window.toml").string() + "'";
+  std::ofstream(dir.path() / "window.toml") << golden_scene_text();
+  const std::string scene = "'" + (dir.path() / "window.toml").string() + "'";
   const ToolRun quiet = run_tool(
-      "build " + scene + " -o '" + (dir.path / "quiet.decals").string() + "' -q", dir.path);
+      "build " + scene + " -o '" + (dir.path() / "quiet.decals").string() + "' -q", dir, kSplit);
   ASSERT_EQ(quiet.rc, 0) << quiet.err;
   EXPECT_EQ(quiet.err, "") << "-q printed something";
   const ToolRun json_run = run_tool(
-      "build " + scene + " -o '" + (dir.path / "json.decals").string() + "' --progress json",
-      dir.path);
+      "build " + scene + " -o '" + (dir.path() / "json.decals").string() + "' --progress json",
+      dir, kSplit);
   ASSERT_EQ(json_run.rc, 0) << json_run.err;
   const ToolRun plain = run_tool(
-      "build " + scene + " -o '" + (dir.path / "plain.decals").string() + "' --progress plain",
-      dir.path);
+      "build " + scene + " -o '" + (dir.path() / "plain.decals").string() + "' --progress plain",
+      dir, kSplit);
   ASSERT_EQ(plain.rc, 0) << plain.err;
   EXPECT_NE(plain.err.find("write: "), std::string::npos) << plain.err;
-  const std::string a = slurp(dir.path / "quiet.decals");
+  const std::string a = read_text(dir.path() / "quiet.decals");
   ASSERT_FALSE(a.empty());
-  EXPECT_TRUE(a == slurp(dir.path / "json.decals")) << "--progress json changed the package";
-  EXPECT_TRUE(a == slurp(dir.path / "plain.decals")) << "--progress plain changed the package";
+  EXPECT_TRUE(a == read_text(dir.path() / "json.decals")) << "--progress json changed the package";
+  EXPECT_TRUE(a == read_text(dir.path() / "plain.decals")) << "--progress plain changed the package";
 }
 
 TEST(BuildProgress, BatchModeKeepsEachScenesProgressInItsLogAndPrintsJsonObjects) {
   if (!fs::exists(kSource / "samples/monaco/monaco.osm.pbf"))
     GTEST_SKIP() << "Monaco sample data missing";
   TempDir dir("decalprep_progress_batch");
-  std::ofstream(dir.path / "a.toml") << golden_scene_text();
-  std::ofstream(dir.path / "b.toml") << golden_scene_text();
+  std::ofstream(dir.path() / "a.toml") << golden_scene_text();
+  std::ofstream(dir.path() / "b.toml") << golden_scene_text();
   const ToolRun r =
-      run_tool("build '" + (dir.path / "a.toml").string() + "' '" + (dir.path / "b.toml").string() +
-                   "' -o '" + (dir.path / "out").string() + "' --jobs 2 --progress json",
-               dir.path);
+      run_tool("build '" + (dir.path() / "a.toml").string() + "' '" + (dir.path() / "b.toml").string() +
+                   "' -o '" + (dir.path() / "out").string() + "' --jobs 2 --progress json",
+               dir, kSplit);
   ASSERT_EQ(r.rc, 0) << r.err;
   const std::vector<json> objects = parse_lines(r.err);
   size_t scenes = 0;
@@ -204,14 +178,14 @@ TEST(BuildProgress, BatchModeKeepsEachScenesProgressInItsLogAndPrintsJsonObjects
   EXPECT_EQ(objects.back()["built"], 2);
   for (const char* name : {"a", "b"}) {
     const std::vector<json> log =
-        parse_lines(slurp(dir.path / "out" / (std::string(name) + ".log")));
+        parse_lines(read_text(dir.path() / "out" / (std::string(name) + ".log")));
     ASSERT_FALSE(log.empty()) << name;
     const json& end = log.back();
     EXPECT_EQ(end["stage"], "write") << name << ": " << end.dump();
     EXPECT_EQ(end["done"], end["total"]) << name;
   }
   // summary.json is unchanged in shape: status per package.
-  const json summary = json::parse(slurp(dir.path / "out" / "summary.json"));
+  const json summary = json::parse(read_text(dir.path() / "out" / "summary.json"));
   EXPECT_EQ(summary["built"], 2);
 }
 

@@ -5,7 +5,6 @@
 // line properties carry every style and mode the scene asks for, with every
 // closed inset/offset ring clipped by its own ring (SPEC "Clipped outlines").
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <array>
 #include <cstdlib>
@@ -16,45 +15,29 @@
 #include <string>
 
 #include "decal/reader.hpp"
+#include "test_support.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-struct ToolRun {
-  int rc = -1;
-  std::string out;  // stdout and stderr
-};
-
-ToolRun run_tool(const std::string& args, const fs::path& dir) {
-  const fs::path log = dir / "tool.log";
-  const std::string cmd =
-      std::string("'") + DECALPREP_TOOL + "' " + args + " >'" + log.string() + "' 2>&1";
-  const int status = std::system(cmd.c_str());
-  ToolRun r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 1000 + status;
-  std::ifstream in(log);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  r.out = ss.str();
-  return r;
-}
+using prep::test::run_tool;
+using prep::test::ToolRun;
 
 TEST(MonacoSample, BuildsWithEveryCornerStyleAndOutlineModeAndVerifies) {
   const fs::path scene = fs::path(DECALPREP_SOURCE_DIR) / "samples/monaco/scene.toml";
   if (!fs::exists(scene.parent_path() / "monaco.osm.pbf"))
     GTEST_SKIP() << "Monaco sample data missing: " << scene.parent_path() / "monaco.osm.pbf";
-  const fs::path dir =
-      fs::temp_directory_path() / ("decalprep_monaco_sample_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const prep::test::TempDir tmp("decalprep_monaco_sample");
+  const fs::path& dir = tmp.path();
   const fs::path pkg = dir / "monaco.decals";
 
   const ToolRun build = run_tool("build '" + scene.string() + "' -o '" + pkg.string() +
                                      "' --report '" + (dir / "report.json").string() + "' -q",
                                  dir);
-  ASSERT_EQ(build.rc, 0) << build.out;
+  ASSERT_EQ(build.rc, 0) << build.output;
   const ToolRun verify = run_tool("verify '" + pkg.string() + "'", dir);
-  EXPECT_EQ(verify.rc, 0) << verify.out;
+  EXPECT_EQ(verify.rc, 0) << verify.output;
 
   decal::Package p;
   const decal::Status s = decal::Package::open(pkg.string(), p);
@@ -107,7 +90,6 @@ TEST(MonacoSample, BuildsWithEveryCornerStyleAndOutlineModeAndVerifies) {
   // Every closed inset/offset ring is clipped (zero-area rings would not be;
   // Monaco has none at 1 mm).
   EXPECT_EQ(clipped, closed_inset_offset);
-  fs::remove_all(dir);
 }
 
 }  // namespace
