@@ -465,7 +465,9 @@ Status Package::open(const std::string& path, Package& out, const OpenOptions& o
     impl->file_copy = AlignedBuffer(size);
     uint64_t done = 0;
     while (done < size) {
-      const ssize_t n = ::pread(fd, impl->file_copy.data + done, size - done, done);
+      // done < size, and size came from a non-negative off_t (st_size), so
+      // the offset fits off_t.
+      const ssize_t n = ::pread(fd, impl->file_copy.data + done, size - done, static_cast<off_t>(done));
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) {
         const int err = errno;

@@ -247,7 +247,7 @@ Status check_dynamic(const Checker& c) {
   }
   const auto links = c.get<i2>(BlobId::dyn_prev_next);
   for (uint64_t i = 0; i < links.size(); ++i)
-    for (int k = 0; k < 2; ++k) {
+    for (size_t k = 0; k < 2; ++k) {
       const int32_t v = links[i][k];
       if (v < -1 || (v >= 0 && uint64_t(v) >= verts.size()))
         return Status::failure(fmt("dyn_prev_next[%llu].%s = %d is out of range (%llu vertices)", ull(i),

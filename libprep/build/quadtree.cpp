@@ -1,12 +1,12 @@
 // libprep/build/quadtree.cpp — polygon quad-trees (thesis §4.2.1 "Polygon
 // Quad-Trees"): rectangular nodes, leaf capacity and maximum depth, child
 // boxes expanded by one quantum, node types 0..3, leaf polygons closed with
-// closing segments, and exact (CGAL) classification.
+// closing segments, and exact (integer) classification.
 //
 // Exactness. Every node carries the parity (inside/outside) of the ring at its
-// centre under the evaluator's even-odd rule, evaluated EXACTLY with CGAL's
-// orientation predicate on integer coordinates (doubled, so that box centres
-// are integers). The root's parity is a full crossing count; a child's is its
+// centre under the evaluator's even-odd rule, evaluated EXACTLY with an
+// orientation predicate in 128-bit integers on integer coordinates (doubled,
+// so that box centres are integers). The root's parity is a full crossing count; a child's is its
 // parent's, flipped by every ring edge the path parent-centre -> child-centre
 // crosses (only edges of the parent's list can). The evaluator's rule
 // "edge straddles q.y (half-open: y > q.y) and meets the ray at x > q.x" is
@@ -23,8 +23,6 @@
 // if the constant is 1 (checked exactly at the leaf centre) the frame itself
 // is added once more. Result: for every point of the closed leaf box the
 // even-odd test on the leaf polygon equals the even-odd test on the ring.
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-
 #include <algorithm>
 #include <deque>
 
@@ -33,11 +31,22 @@
 namespace prep::detail {
 namespace {
 
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
-using P2 = Kernel::Point_2;
+__extension__ typedef __int128 int128;  // products of 33-bit differences
 
-// Doubled integer coordinates held exactly in double (|v| < 2^33).
-inline P2 dbl(const QPoint& p) { return P2(2.0 * double(p.x), 2.0 * double(p.y)); }
+// Doubled integer coordinates (|v| < 2^33), so box centres are integers.
+struct P2 {
+  int64_t px = 0, py = 0;
+  int64_t x() const { return px; }
+  int64_t y() const { return py; }
+};
+inline P2 dbl(const QPoint& p) { return {2 * p.x, 2 * p.y}; }
+
+// Sign of the orientation of (p, q, r): > 0 when r lies left of p->q. Exact:
+// differences are below 2^34, products below 2^68, well inside int128.
+inline int orientation(const P2& p, const P2& q, const P2& r) {
+  const int128 d = int128(q.x() - p.x()) * (r.y() - p.y()) - int128(q.y() - p.y()) * (r.x() - p.x());
+  return (d > 0) - (d < 0);
+}
 
 // Evaluator rule at q (doubled coordinates): does edge a-b cross the ray
 // from q towards +x?
@@ -46,28 +55,25 @@ inline bool ray_crosses(const P2& a, const P2& b, const P2& q) {
   if (ya == yb) return false;
   const P2& lo = ya ? b : a;
   const P2& hi = ya ? a : b;
-  return CGAL::orientation(lo, hi, q) == CGAL::LEFT_TURN;
+  return orientation(lo, hi, q) > 0;
 }
 
 // For an edge straddling the vertical line x + e1: is its crossing above the
 // perturbed point (x + e1, y + e2)?
-inline bool crossing_above(const P2& a, const P2& b, double x, double y) {
+inline bool crossing_above(const P2& a, const P2& b, int64_t x, int64_t y) {
   const P2& l = a.x() < b.x() ? a : b;
   const P2& r = a.x() < b.x() ? b : a;
-  switch (CGAL::orientation(l, r, P2(x, y))) {
-    case CGAL::RIGHT_TURN: return true;   // point below the edge's line
-    case CGAL::LEFT_TURN: return false;
-    default: return r.y() > l.y();         // on the line: the slope decides (e2 << e1)
-  }
+  const int o = orientation(l, r, P2{x, y});
+  if (o < 0) return true;   // point below the edge's line
+  if (o > 0) return false;
+  return r.y() > l.y();     // on the line: the slope decides (e2 << e1)
 }
 
 // Parity change along the vertical path (x, y1) -> (x, y2), perturbed.
-inline bool vertical_flip(const P2& a, const P2& b, double x, double y1, double y2) {
+inline bool vertical_flip(const P2& a, const P2& b, int64_t x, int64_t y1, int64_t y2) {
   if ((a.x() > x) == (b.x() > x)) return false;
   return crossing_above(a, b, x, y1) != crossing_above(a, b, x, y2);
 }
-
-__extension__ typedef __int128 int128;  // products of 33-bit differences
 
 // Closed segment vs closed box, exact (int128 orientation).
 inline bool segment_meets_box(const QPoint& a, const QPoint& b, const QBox& bx) {
@@ -132,7 +138,7 @@ class LeafPolygonBuilder {
       }
     }
     // Parity fix at the leaf centre (exact).
-    const P2 c(double(w.box.x0 + w.box.x1), double(w.box.y0 + w.box.y1));
+    const P2 c{w.box.x0 + w.box.x1, w.box.y0 + w.box.y1};
     bool leaf_parity = false;
     for (size_t s = first_seg; s < t.leaf_segments.size(); ++s) {
       const ivec2& a = t.leaf_vertices[t.leaf_segments[s][0]];
@@ -223,8 +229,8 @@ PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capac
   rw.edges.resize(n);
   for (size_t i = 0; i < n; ++i) rw.edges[i] = uint32_t(i);
   {
-    // Exact crossing count at the root centre (CGAL orientation).
-    const P2 c(double(root.x0 + root.x1), double(root.y0 + root.y1));
+    // Exact crossing count at the root centre (integer orientation).
+    const P2 c{root.x0 + root.x1, root.y0 + root.y1};
     for (size_t i = 0; i < n; ++i) rw.parity ^= ray_crosses(v2[i], v2[(i + 1) % n], c);
   }
 
@@ -254,7 +260,7 @@ PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capac
     const int64_t mx = (w.box.x0 + w.box.x1) >> 1, my = (w.box.y0 + w.box.y1) >> 1;
     const uint32_t first_child = uint32_t(t.box.size());
     t.node[id] = {int32_t(decal::QtNodeType::internal), int32_t(first_child)};
-    const double pcx = double(w.box.x0 + w.box.x1), pcy = double(w.box.y0 + w.box.y1);
+    const int64_t pcx = w.box.x0 + w.box.x1, pcy = w.box.y0 + w.box.y1;
     for (int c = 0; c < 4; ++c) {  // SW, SE, NW, NE
       Work cw;
       cw.depth = w.depth + 1;
@@ -263,8 +269,8 @@ PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capac
       cw.box.x1 = east ? w.box.x1 : std::min(mx + kEps, w.box.x1);
       cw.box.y0 = north ? std::max(my - kEps, w.box.y0) : w.box.y0;
       cw.box.y1 = north ? w.box.y1 : std::min(my + kEps, w.box.y1);
-      const double ccx = double(cw.box.x0 + cw.box.x1), ccy = double(cw.box.y0 + cw.box.y1);
-      const P2 q1(pcx, ccy), q2(ccx, ccy);
+      const int64_t ccx = cw.box.x0 + cw.box.x1, ccy = cw.box.y0 + cw.box.y1;
+      const P2 q1{pcx, ccy}, q2{ccx, ccy};
       bool parity = w.parity;
       for (uint32_t e : w.edges) {
         const P2& a = v2[e];
