@@ -39,7 +39,7 @@
 #include <string>
 #include <vector>
 
-#include "prep/build.hpp"
+#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/scene_file.hpp"

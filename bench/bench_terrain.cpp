@@ -15,8 +15,8 @@
 #include <memory>
 #include <string>
 
-#include "prep/lod.hpp"
-#include "prep/terrain.hpp"
+#include "lod/lod.hpp"
+#include "terrain/terrain.hpp"
 
 namespace {
 

@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-#include "prep/build.hpp"
+#include "prep/model.hpp"
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
 #include "prep/project.hpp"

@@ -26,7 +26,7 @@
 #include "prep/memory_estimate.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
-#include "prep/build.hpp"
+#include "prep/model.hpp"
 #include "prep/write.hpp"
 
 namespace prep {

@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-#include "prep/build.hpp"
+#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
 #include "synthetic.hpp"
 

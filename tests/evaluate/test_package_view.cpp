@@ -8,7 +8,7 @@
 #include <filesystem>
 
 #include "decal/reader.hpp"
-#include "prep/build.hpp"
+#include "prep/model.hpp"
 #include "prep/error.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/write.hpp"

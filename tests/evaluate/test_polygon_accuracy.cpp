@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <mutex>
 
-#include "prep/build.hpp"
+#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
 #include "synthetic.hpp"
 #include "test_support.hpp"

@@ -14,7 +14,7 @@
 #include <filesystem>
 #include <mutex>
 
-#include "prep/build.hpp"
+#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/scene_file.hpp"

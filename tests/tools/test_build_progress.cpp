@@ -87,7 +87,7 @@ TEST(BuildProgress, JsonStagesOfTheMonacoSampleComeInPipelineOrderAndEndWithDone
   std::vector<std::string> expected = {"read",        "project",         "clean",
                                        "build.lines", "build.quadtrees", "build.grid",
                                        "build.cells", "build.dynamic",   "write"};
-  if (!last.count("build.dynamic"))  // a tool built without prep_terrain
+  if (!last.count("build.dynamic"))  // a tool built without prep_model_terrain
     expected.erase(std::find(expected.begin(), expected.end(), "build.dynamic"));
   EXPECT_EQ(order, expected);
   for (const auto& [stage, j] : last) {

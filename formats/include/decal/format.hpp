@@ -163,7 +163,7 @@ static_assert(sizeof(LineProps) == 32);
 // round end or a round fallback (< 40° between segments). The two bevel
 // vectors point from the vertex to the outer corners of the incoming and
 // outgoing segment rectangles, on the outer side of the turn. Metres.
-// Precisely (libprep/build/lines.cpp): bevel_in / bevel_out = half width x
+// Precisely (libprep/model/lines.cpp): bevel_in / bevel_out = half width x
 // the unit normal of the incoming / outgoing segment, both on the outer side
 // of the turn (CGAL orientation; the left side where the turn is straight and
 // at open ends), null where that segment does not exist (open line ends).

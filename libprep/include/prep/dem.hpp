@@ -1,6 +1,6 @@
 // prep/dem.hpp — the terrain surface: one DEM module for the whole toolchain
 // (libprep/dem). The project stage takes the DEM's footprint from it,
-// terrain matching drapes dynamic lines on it (libprep/terrain) and the
+// terrain matching drapes dynamic lines on it (libprep/model/terrain) and the
 // renderer draws its terrain mesh from it (libprep/render), so all three
 // see the same heights. GDAL stays inside libprep/dem.
 //

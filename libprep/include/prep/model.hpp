@@ -1,6 +1,7 @@
-// prep/model.hpp — DecalModel: the output of the build stage and the input of
-// the write stage. One typed array per package blob (formats/SPEC.md §Blob
-// catalogue), plus the grid parameters and build statistics.
+// prep/model.hpp — stage 4, model: SceneFeatures -> DecalModel (thesis ch. 4.2).
+// DecalModel is the input of the write stage: one typed array per package
+// blob (formats/SPEC.md §Blob catalogue), plus the grid parameters and build
+// statistics.
 #pragma once
 
 #include <array>
@@ -87,5 +88,19 @@ struct DecalModel {
   BuildStats stats;
   Manifest manifest;                    // carried from SceneFeatures, plus build notes
 };
+
+// Builds every static structure (grid, line segments with corner data,
+// polygon quad-trees, per-cell BVHs) and, through build_dynamic(), the
+// terrain-matched dynamic lines and LOD segments. Parallel with oneTBB; the
+// result is byte-identical at any thread count. Throws resource_error when a
+// budget is exceeded. `dem` is the DEM path ("" for flat terrain).
+DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
+                       const std::string& dem = "");
+
+// Fills the dyn_* and lod_* arrays of `model` from scene.dynamic_lines and
+// LOD-enabled layers (libprep/model/terrain, libprep/model/lod). Appends
+// notes and counts to model.manifest.
+void build_dynamic(const SceneFeatures& scene, const BuildOptions& options,
+                   const std::string& dem, DecalModel& model);
 
 }  // namespace prep

@@ -1,0 +1,507 @@
+// libprep/model/build_model.cpp — stage 4 driver: SceneFeatures -> DecalModel
+// (thesis §4.2.1). Order of work: lines and their widened segments, polygon
+// quad-trees, the decal grid over everything, assignment of segments and
+// quad-tree parts to cells, per-cell BVHs sorted by drawing order, then the
+// dynamic lines and LOD segments (prep_model_terrain, when linked).
+//
+// Determinism: every parallel loop writes to its own slot; results are
+// concatenated in input order and sorted with total keys, so the arrays are
+// byte-identical at any thread count.
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <optional>
+#include <sstream>
+
+#include "detail.hpp"
+#include "prep/model.hpp"
+#include "prep/error.hpp"
+#include "prep/progress.hpp"
+
+namespace prep {
+
+namespace detail {
+
+std::vector<uint32_t> draw_ranks(const std::vector<DrawKey>& keys) {
+  std::vector<uint32_t> idx(keys.size());
+  std::iota(idx.begin(), idx.end(), 0u);
+  std::sort(idx.begin(), idx.end(), [&](uint32_t a, uint32_t b) {
+    const DrawKey& x = keys[a];
+    const DrawKey& y = keys[b];
+    if (x.layer != y.layer) return x.layer > y.layer;  // later layer on top
+    if (x.kind != y.kind) return x.kind < y.kind;      // a layer's lines over its polygons
+    if (x.primary != y.primary) return x.primary > y.primary;
+    if (x.fid != y.fid) return x.fid < y.fid;
+    if (x.part != y.part) return x.part < y.part;
+    return x.input < y.input;
+  });
+  std::vector<uint32_t> rank(keys.size());
+  for (uint32_t r = 0; r < idx.size(); ++r) rank[idx[r]] = r;
+  return rank;
+}
+
+}  // namespace detail
+
+using namespace detail;
+
+namespace {
+
+struct PolyRing {
+  std::vector<QPoint> ring;
+  int32_t exterior = -1;   // package index of the exterior (interiors only)
+  uint32_t scene_index = 0;
+};
+
+QBox box_of(const ivec4& b) { return {b[0], b[1], b[2], b[3]}; }
+QBox intersect(const QBox& a, const QBox& b) {
+  return {std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1), std::min(a.y1, b.y1)};
+}
+ivec4 to_ivec4(const QBox& b) { return {int32_t(b.x0), int32_t(b.y0), int32_t(b.x1), int32_t(b.y1)}; }
+bool contains(const ivec4& outer, const QBox& in) {
+  return outer[0] <= in.x0 && outer[1] <= in.y0 && in.x1 <= outer[2] && in.y1 <= outer[3];
+}
+
+// Quantised ring without repeated consecutive or closing vertices.
+std::vector<QPoint> quantise_ring(const Ring& r, double& err, const std::string& where) {
+  std::vector<QPoint> q;
+  q.reserve(r.size());
+  for (const Point2& p : r) {
+    QPoint v = quantise(p, err, where);
+    if (q.empty() || !(q.back() == v)) q.push_back(v);
+  }
+  while (q.size() > 1 && q.back() == q.front()) q.pop_back();
+  return q;
+}
+
+// One (cell, polygon) pair: BVH leaf box and culling node.
+struct CellPoly {
+  uint32_t cell;
+  uint32_t poly;
+  uint32_t cull;
+  ivec4 box;
+};
+
+// Appends quad-tree `t` (local indices) to the model's node arrays and
+// returns the index of its root node.
+uint32_t append_quadtree(PolyQuadTree& t, DecalModel& m) {
+  const uint32_t node_base = uint32_t(m.qt_node.size());
+  const uint32_t range_base = uint32_t(m.qt_leaf_range.size());
+  const uint32_t seg_base = uint32_t(m.qt_leaf_segments.size());
+  const uint32_t vert_base = uint32_t(m.qt_leaf_vertices.size());
+  for (ivec2 n : t.node) {
+    if (n[0] == int32_t(decal::QtNodeType::internal)) n[1] += int32_t(node_base);
+    if (n[0] == int32_t(decal::QtNodeType::partial)) n[1] += int32_t(range_base);
+    m.qt_node.push_back(n);
+  }
+  m.qt_node_box.insert(m.qt_node_box.end(), t.box.begin(), t.box.end());
+  for (uvec2 lr : t.leaf_range) m.qt_leaf_range.push_back({lr[0] + seg_base, lr[1]});
+  for (uvec2 s : t.leaf_segments) m.qt_leaf_segments.push_back({s[0] + vert_base, s[1] + vert_base});
+  m.qt_leaf_vertices.insert(m.qt_leaf_vertices.end(), t.leaf_vertices.begin(), t.leaf_vertices.end());
+  m.stats.qt_depth_capped += t.depth_capped;
+  m.stats.qt_max_leaf_segments = std::max(m.stats.qt_max_leaf_segments, t.max_leaf_segments);
+  m.stats.qt_partial_leaves += t.leaf_range.size();
+  t = PolyQuadTree();  // free early
+  return node_base;
+}
+
+// Exact outlines (thesis §3.6 made exact). An inset/offset outline keeps one
+// half of its doubled-width band; the thesis keeps the half on one side of
+// each directed segment, which leaks past other edges of the ring where the
+// polygon is narrower than the width or an edge is shorter than its
+// neighbour's miter reach (thesis Fig. 4.8). Instead every closed inset or
+// offset ring gets a quad-tree of its own quantised ring (the polygon
+// builder, same node arrays, referenced by no polygon and no cell), and the
+// evaluator keeps a point of the band iff that ring's even-odd query says it
+// lies on the kept side: band ∩ ring or band − ring, per ring, exactly what
+// the GEOS oracle of the accuracy tests computes.
+void add_outline_clip_trees(const BuildOptions& options, DecalModel& m) {
+  struct Clip {
+    uint32_t line, first, count;
+  };
+  std::vector<Clip> clips;
+  const size_t nv = m.line_vertices.size();
+  for (size_t v = 0; v < nv;) {
+    const uint32_t line = m.line_vertex_line[v];
+    size_t e = v;
+    while (e < nv && m.line_vertex_line[e] == line) ++e;
+    const uint32_t style = m.line_props[line].style;
+    const auto mode = decal::OutlineMode((style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift);
+    // build_lines() leaves rings of fewer than 3 distinct vertices open.
+    if (mode != decal::OutlineMode::normal && (style & decal::kStyleClosedBit) && e - v >= 3)
+      clips.push_back({line, uint32_t(v), uint32_t(e - v)});
+    v = e;
+  }
+  std::vector<PolyQuadTree> trees(clips.size());
+  std::vector<int> orientation(clips.size(), 0);  // sign of the ring's area
+  tbb::parallel_for(size_t(0), clips.size(), [&](size_t i) {
+    const Clip& c = clips[i];
+    std::vector<QPoint> ring(c.count);
+    __extension__ __int128 area2 = 0;  // exact shoelace on quanta
+    for (uint32_t k = 0; k < c.count; ++k) {
+      const ivec2& a = m.line_vertices[c.first + k];
+      const ivec2& b = m.line_vertices[c.first + (k + 1) % c.count];
+      ring[k] = {a[0], a[1]};
+      area2 += __int128(int64_t(a[0]) * b[1]) - __int128(int64_t(b[0]) * a[1]);
+    }
+    orientation[i] = area2 > 0 ? 1 : area2 < 0 ? -1 : 0;
+    if (orientation[i] != 0)
+      trees[i] = build_quadtree(ring, options.qt_leaf_capacity, options.qt_max_depth);
+  });
+  for (size_t i = 0; i < clips.size(); ++i) {
+    if (orientation[i] == 0) continue;  // zero area: nothing is inside; one-sided test
+    decal::LineProps& pr = m.line_props[clips[i].line];
+    const bool inset = ((pr.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift) ==
+                       uint32_t(decal::OutlineMode::inset);
+    // Inset keeps the left side: the inside of a CCW ring, the outside of a CW one.
+    const bool keep_inside = inset == (orientation[i] > 0);
+    pr.clip_node = append_quadtree(trees[i], m);
+    pr.style |= decal::kStyleClipBit | (keep_inside ? decal::kStyleClipInsideBit : 0u);
+  }
+}
+
+}  // namespace
+
+DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
+                       const std::string& dem) {
+  std::optional<tbb::global_control> threads;
+  if (options.threads > 0)
+    threads.emplace(tbb::global_control::max_allowed_parallelism, options.threads);
+  if (options.qt_leaf_capacity == 0 || options.qt_max_depth > 24)
+    throw usage_error("build: quad-tree leaf capacity must be >= 1 and max depth <= 24 (got " +
+                      std::to_string(options.qt_leaf_capacity) + ", " +
+                      std::to_string(options.qt_max_depth) + ")");
+
+  DecalModel m;
+  m.frame = scene.frame;
+  m.extent = scene.extent;
+  m.manifest = scene.manifest;
+
+  // ---- lines: vertices, properties, corners, widened segments -------------
+  std::vector<SegmentShape> shapes;
+  std::vector<DrawKey> draw_keys;  // lines first, then exterior polygons
+  build_lines(scene, options, m, shapes, draw_keys);
+  const size_t n_lines = draw_keys.size();
+  m.stats.line_segments = shapes.size();
+
+  // ---- polygons: quantised rings, then one quad-tree per ring --------------
+  const size_t np = scene.polygons.size();
+  std::vector<std::vector<std::vector<QPoint>>> qrings(np);  // [polygon][ring]
+  std::vector<double> qerr(np, 0.0);
+  tbb::parallel_for(size_t(0), np, [&](size_t i) {
+    const ScenePolygon& p = scene.polygons[i];
+    std::ostringstream w;
+    w << "layer '" << (p.layer < scene.layers.size() ? scene.layers[p.layer].name : "?") << "' fid "
+      << p.fid << " part " << p.part;
+    qrings[i].push_back(quantise_ring(p.shell, qerr[i], w.str()));
+    for (const Ring& h : p.holes) qrings[i].push_back(quantise_ring(h, qerr[i], w.str() + " hole"));
+  });
+  std::vector<PolyRing> rings;
+  std::vector<uint32_t> ext_index;  // package index of each exterior
+  for (size_t i = 0; i < np; ++i) {
+    const ScenePolygon& p = scene.polygons[i];
+    m.max_representation_error = std::max(m.max_representation_error, qerr[i]);
+    if (p.layer >= scene.layers.size())
+      throw input_error("build: polygon fid " + std::to_string(p.fid) + " refers to layer index " +
+                        std::to_string(p.layer) + ", but the scene has " +
+                        std::to_string(scene.layers.size()) + " layers");
+    auto drop = [&](const std::string& why) {
+      ManifestEntry e;
+      e.layer = scene.layers[p.layer].name;
+      e.fid = p.fid;
+      e.part = p.part;
+      e.action = ManifestAction::dropped;
+      e.reason = "build: " + why;
+      m.manifest.entries.push_back(e);
+    };
+    if (qrings[i][0].size() < 3) {
+      drop("exterior ring has fewer than 3 distinct vertices at 1 mm resolution");
+      continue;
+    }
+    const int32_t ext = int32_t(rings.size());
+    rings.push_back({std::move(qrings[i][0]), -1, uint32_t(i)});
+    ext_index.push_back(uint32_t(ext));
+    draw_keys.push_back({std::isnan(p.order_value) ? p.area : p.order_value, p.layer, DrawKind::polygon,
+                         p.fid, p.part, uint32_t(i)});
+    for (size_t h = 1; h < qrings[i].size(); ++h) {
+      if (qrings[i][h].size() < 3) {
+        drop("interior ring " + std::to_string(h - 1) +
+             " has fewer than 3 distinct vertices at 1 mm resolution; polygon kept without it");
+        continue;
+      }
+      rings.push_back({std::move(qrings[i][h]), ext, uint32_t(i)});
+    }
+  }
+  // One rank space for lines and exterior polygons; interiors take their
+  // exterior's rank.
+  const std::vector<uint32_t> rank = draw_ranks(draw_keys);
+  for (size_t i = 0; i < n_lines; ++i) m.line_props[i].order = rank[i];
+  std::vector<uint32_t> order_of_poly(rings.size(), 0);
+  for (size_t k = 0; k < ext_index.size(); ++k) order_of_poly[ext_index[k]] = rank[n_lines + k];
+  for (size_t r = 0; r < rings.size(); ++r)
+    if (rings[r].exterior >= 0) order_of_poly[r] = order_of_poly[size_t(rings[r].exterior)];
+
+  std::vector<PolyQuadTree> trees(rings.size());
+  ProgressStage quadtree_stage(options.progress, "build.quadtrees", rings.size(), "rings");
+  tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
+    trees[r] = build_quadtree(rings[r].ring, options.qt_leaf_capacity, options.qt_max_depth);
+    quadtree_stage.add();
+  });
+
+  // Concatenate the trees, rebasing their local indices.
+  m.poly_props.resize(rings.size());
+  m.poly_root_node.resize(rings.size());
+  for (size_t r = 0; r < rings.size(); ++r) {
+    const ScenePolygon& sp = scene.polygons[rings[r].scene_index];
+    decal::PolyProps& pp = m.poly_props[r];
+    pp.rgba = rings[r].exterior < 0 ? resolve_color(scene.layers[sp.layer].style.color, sp.color_value)
+                                    : 0u;
+    pp.order = order_of_poly[r];
+    pp.exterior = rings[r].exterior;
+    pp.value = float(sp.color_value);
+    pp.layer = sp.layer;
+    pp.feature = uint32_t(sp.fid);
+    pp.reserved[0] = pp.reserved[1] = 0;
+    m.poly_root_node[r] = append_quadtree(trees[r], m);
+  }
+  m.stats.quadtrees = rings.size();
+  add_outline_clip_trees(options, m);
+  quadtree_stage.finish();
+  m.stats.qt_nodes = m.qt_node.size();
+  if (m.stats.qt_depth_capped > 0) {
+    std::ostringstream note;
+    note << "build: " << m.stats.qt_depth_capped << " quad-tree leaves reached the maximum depth "
+         << options.qt_max_depth << " with more than " << options.qt_leaf_capacity
+         << " segments (fullest leaf: " << m.stats.qt_max_leaf_segments << ")";
+    m.manifest.notes.push_back(note.str());
+  }
+
+  // Non-outside leaves of every tree: the polygon parts that go to cells.
+  std::vector<std::vector<uint32_t>> solid_leaves(rings.size());
+  tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
+    std::vector<uint32_t> stack{m.poly_root_node[r]};
+    while (!stack.empty()) {
+      uint32_t n = stack.back();
+      stack.pop_back();
+      const auto type = decal::QtNodeType(m.qt_node[n][0]);
+      if (type == decal::QtNodeType::internal) {
+        for (int c = 3; c >= 0; --c) stack.push_back(uint32_t(m.qt_node[n][1] + c));
+      } else if (type != decal::QtNodeType::outside) {
+        solid_leaves[r].push_back(n);
+      }
+    }
+  });
+
+  // ---- the decal grid -----------------------------------------------------
+  QBox extent;
+  std::vector<QBox> prims;
+  std::vector<float> weights;
+  prims.reserve(shapes.size());
+  // A line entry costs more per query than a polygon entry (segment test and
+  // a deeper, less coherent BVH), measured with bench_build.
+  constexpr float kLineWeight = 1.0f, kPolygonWeight = 2.0f / 3.0f;
+  auto grow = [&](const QBox& b) {
+    if (extent.empty()) extent = b;
+    else extent = {std::min(extent.x0, b.x0), std::min(extent.y0, b.y0), std::max(extent.x1, b.x1),
+                   std::max(extent.y1, b.y1)};
+  };
+  for (const SegmentShape& s : shapes) {
+    grow(s.box);
+    prims.push_back(s.box);
+    weights.push_back(kLineWeight);
+  }
+  for (size_t r = 0; r < rings.size(); ++r) {
+    grow(box_of(m.qt_node_box[m.poly_root_node[r]]));
+    if (rings[r].exterior < 0)
+      for (uint32_t n : solid_leaves[r]) {
+        prims.push_back(box_of(m.qt_node_box[n]));
+        weights.push_back(kPolygonWeight);
+      }
+  }
+  GridInput gin;
+  gin.extent = extent;
+  gin.primitives = &prims;
+  gin.weights = &weights;
+  gin.shapes = &shapes;
+  gin.ring_leaves = &solid_leaves;
+  gin.node_box = &m.qt_node_box;
+  std::vector<uint8_t> ring_is_hole(rings.size());
+  for (size_t r = 0; r < rings.size(); ++r) ring_is_hole[r] = rings[r].exterior >= 0;
+  gin.ring_is_hole = &ring_is_hole;
+  // Grid-independent static blobs, so that the grid's share of the package
+  // can be weighed (the per-cell lists and BVHs are counted in choose_grid).
+  auto bytes_of = [](const auto& v) { return uint64_t(v.size()) * sizeof(v[0]); };
+  gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
+                       bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
+                       bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_range) +
+                       bytes_of(m.qt_leaf_segments) + bytes_of(m.qt_leaf_vertices);
+  m.grid = choose_grid(gin, options);
+  prims = {};
+  weights = {};
+  const GridParams& g = m.grid;
+  const uint64_t ncells = uint64_t(g.nx) * g.ny;
+  if (ncells > 0xffffffffULL) throw resource_error("build: decal grid has too many cells");
+  ProgressStage cells_stage(options.progress, "build.cells", m.line_props.size() + rings.size(),
+                            "items");
+
+  // ---- segments -> cells (exact shapes, thesis §4.2.1) --------------------
+  struct SegEntry {
+    uint32_t cell, order, start, end;
+    ivec4 box;
+  };
+  std::vector<std::vector<SegEntry>> per_line(m.line_props.size());
+  {
+    std::vector<uint32_t> first_shape(m.line_props.size() + 1, 0);
+    for (const SegmentShape& s : shapes) ++first_shape[s.line + 1];
+    for (size_t i = 0; i < m.line_props.size(); ++i) first_shape[i + 1] += first_shape[i];
+    tbb::parallel_for(size_t(0), m.line_props.size(), [&](size_t li) {
+      for (uint32_t k = first_shape[li]; k < first_shape[li + 1]; ++k) {
+        const SegmentShape& s = shapes[k];
+        for_each_cell(g, s, [&](uint32_t cell) {
+          const int64_t ix = cell % g.nx, iy = cell / g.nx;
+          QBox cb = cell_box(g, ix, iy);
+          cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
+          per_line[li].push_back({cell, m.line_props[li].order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
+        });
+      }
+      cells_stage.add();
+    });
+  }
+  std::vector<SegEntry> seg_entries;
+  {
+    size_t total = 0;
+    for (auto& v : per_line) total += v.size();
+    seg_entries.reserve(total);
+    for (auto& v : per_line) {
+      seg_entries.insert(seg_entries.end(), v.begin(), v.end());
+      std::vector<SegEntry>().swap(v);
+    }
+  }
+  tbb::parallel_sort(seg_entries.begin(), seg_entries.end(), [](const SegEntry& a, const SegEntry& b) {
+    if (a.cell != b.cell) return a.cell < b.cell;
+    if (a.order != b.order) return a.order < b.order;
+    return a.start < b.start;
+  });
+  m.stats.line_cell_entries = seg_entries.size();
+
+  // ---- polygons -> cells with culling nodes (thesis §4.2.1) ---------------
+  std::vector<std::vector<CellPoly>> per_ring(rings.size());
+  tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
+    std::vector<std::pair<uint32_t, QBox>> hits;
+    for (uint32_t n : solid_leaves[r]) {
+      const QBox lb = box_of(m.qt_node_box[n]);
+      int64_t x0, y0, x1, y1;
+      if (!cell_range(g, lb, x0, y0, x1, y1)) continue;
+      for (int64_t iy = y0; iy <= y1; ++iy)
+        for (int64_t ix = x0; ix <= x1; ++ix) {
+          QBox cb = cell_box(g, ix, iy);
+          cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
+          const QBox part = intersect(lb, cb);
+          if (part.empty()) continue;
+          hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
+        }
+    }
+    std::sort(hits.begin(), hits.end(), [](const auto& a, const auto& b) {
+      if (a.first != b.first) return a.first < b.first;
+      return std::tie(a.second.x0, a.second.y0, a.second.x1, a.second.y1) <
+             std::tie(b.second.x0, b.second.y0, b.second.x1, b.second.y1);
+    });
+    for (size_t i = 0; i < hits.size();) {
+      size_t j = i;
+      QBox u = hits[i].second;
+      for (; j < hits.size() && hits[j].first == hits[i].first; ++j)
+        u = {std::min(u.x0, hits[j].second.x0), std::min(u.y0, hits[j].second.y0),
+             std::max(u.x1, hits[j].second.x1), std::max(u.y1, hits[j].second.y1)};
+      // Culling: the deepest node whose box holds every part of the polygon
+      // that can matter in this cell.
+      uint32_t node = m.poly_root_node[r];
+      for (;;) {
+        if (m.qt_node[node][0] != int32_t(decal::QtNodeType::internal)) break;
+        uint32_t next = node;
+        for (int c = 0; c < 4; ++c) {
+          const uint32_t ch = uint32_t(m.qt_node[node][1] + c);
+          if (contains(m.qt_node_box[ch], u)) {
+            next = ch;
+            break;
+          }
+        }
+        if (next == node) break;
+        node = next;
+      }
+      per_ring[r].push_back({hits[i].first, uint32_t(r), node, to_ivec4(u)});
+      i = j;
+    }
+    cells_stage.add();
+  });
+  std::vector<CellPoly> ext_entries, hole_entries;
+  for (size_t r = 0; r < rings.size(); ++r) {
+    auto& dst = rings[r].exterior < 0 ? ext_entries : hole_entries;
+    dst.insert(dst.end(), per_ring[r].begin(), per_ring[r].end());
+    std::vector<CellPoly>().swap(per_ring[r]);
+  }
+  auto ext_of = [&](uint32_t poly) {
+    return rings[poly].exterior < 0 ? poly : uint32_t(rings[poly].exterior);
+  };
+  auto poly_less = [&](const CellPoly& a, const CellPoly& b) {
+    if (a.cell != b.cell) return a.cell < b.cell;
+    if (order_of_poly[a.poly] != order_of_poly[b.poly]) return order_of_poly[a.poly] < order_of_poly[b.poly];
+    if (ext_of(a.poly) != ext_of(b.poly)) return ext_of(a.poly) < ext_of(b.poly);
+    return a.poly < b.poly;
+  };
+  tbb::parallel_sort(ext_entries.begin(), ext_entries.end(), poly_less);
+  tbb::parallel_sort(hole_entries.begin(), hole_entries.end(), poly_less);
+
+  // ---- per-cell lists and BVHs ---------------------------------------------
+  m.cell_segment_range.assign(ncells, uvec2{0, 0});
+  m.cell_poly_range.assign(ncells, uvec2{0, 0});
+  std::vector<uint32_t> seg_first(ncells + 1, 0), poly_first(ncells + 1, 0);
+  std::vector<ivec4> seg_boxes(seg_entries.size()), poly_boxes;
+  m.cell_segments.resize(seg_entries.size());
+  for (size_t i = 0; i < seg_entries.size(); ++i) {
+    ++seg_first[seg_entries[i].cell + 1];
+    m.cell_segments[i] = {seg_entries[i].start, seg_entries[i].end};
+    seg_boxes[i] = seg_entries[i].box;
+  }
+  std::vector<SegEntry>().swap(seg_entries);
+  size_t h = 0;
+  for (const CellPoly& e : ext_entries) {
+    ++poly_first[e.cell + 1];
+    const uint32_t first_hole = uint32_t(m.cell_holes.size());
+    // Holes of this exterior in this cell are contiguous in hole_entries
+    // (same sort key prefix); skip holes whose exterior is absent here.
+    while (h < hole_entries.size() &&
+           (hole_entries[h].cell < e.cell ||
+            (hole_entries[h].cell == e.cell && order_of_poly[hole_entries[h].poly] < order_of_poly[e.poly])))
+      ++h;
+    while (h < hole_entries.size() && hole_entries[h].cell == e.cell &&
+           uint32_t(rings[hole_entries[h].poly].exterior) == e.poly) {
+      m.cell_holes.push_back({hole_entries[h].poly, hole_entries[h].cull});
+      ++h;
+    }
+    m.cell_polys.push_back({e.poly, e.cull, first_hole, uint32_t(m.cell_holes.size()) - first_hole});
+    poly_boxes.push_back(e.box);
+  }
+  m.stats.poly_cell_entries = m.cell_polys.size();
+  m.stats.hole_cell_entries = m.cell_holes.size();
+  for (size_t c = 0; c < ncells; ++c) {
+    seg_first[c + 1] += seg_first[c];
+    poly_first[c + 1] += poly_first[c];
+    m.cell_segment_range[c] = {seg_first[c], seg_first[c + 1] - seg_first[c]};
+    m.cell_poly_range[c] = {poly_first[c], poly_first[c + 1] - poly_first[c]};
+  }
+  build_bvhs(seg_first, seg_boxes, m.line_bvh_range, m.line_bvh_box);
+  build_bvhs(poly_first, poly_boxes, m.poly_bvh_range, m.poly_bvh_box);
+  cells_stage.finish();
+
+  // ---- dynamic lines and LOD ----------------------------------------------
+  ProgressStage dynamic_stage(options.progress, "build.dynamic", scene.dynamic_lines.size(),
+                              "lines");
+  build_dynamic(scene, options, dem, m);
+  dynamic_stage.finish();
+  return m;
+}
+
+}  // namespace prep

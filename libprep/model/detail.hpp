@@ -1,0 +1,165 @@
+// libprep/model/detail.hpp — internals of the build stage (static decals).
+// Not a public header: only libprep/model/*.cpp include it. No CGAL here.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "prep/model.hpp"
+#include "prep/scene.hpp"
+
+namespace prep::detail {
+
+// An integer position in quanta relative to the package origin (int64 so
+// that sums and doubled coordinates never overflow).
+struct QPoint {
+  int64_t x = 0, y = 0;
+  bool operator==(const QPoint&) const = default;
+};
+
+// Closed integer rectangle [x0, x1] x [y0, y1] in quanta.
+struct QBox {
+  int64_t x0 = 0, y0 = 0, x1 = -1, y1 = -1;
+  bool empty() const { return x0 > x1 || y0 > y1; }
+};
+
+// Largest |coordinate| in quanta that a stored position may have: one
+// quantum is kept free so the quad-tree closing frame (root box + 1) still
+// fits in int32.
+inline constexpr int64_t kMaxQuanta = 2147483647LL - 2;
+
+// Quantises a point given in metres relative to the origin (llround to the
+// 1 mm quantum). Updates `max_err` with the Euclidean representation error
+// in metres. Throws resource_error (message built from `where`) when the
+// point is not finite or lies more than ~2147 km from the origin.
+QPoint quantise(const Point2& p, double& max_err, const std::string& where);
+
+// ------------------------------------------------------------- quad-tree --
+
+// One polygon's quad-tree (thesis §4.2.1 "Polygon Quad-Trees"), with indices
+// local to this tree: node children, leaf ranges and leaf segments index the
+// vectors of this struct; build_model() rebases them when concatenating.
+struct PolyQuadTree {
+  std::vector<ivec4> box;          // per node
+  std::vector<ivec2> node;         // per node: (QtNodeType, offset)
+  std::vector<uvec2> leaf_range;   // per partial leaf: (first, count) into leaf_segments
+  std::vector<uvec2> leaf_segments;
+  std::vector<ivec2> leaf_vertices;
+  uint32_t depth_capped = 0;       // leaves that stopped at max depth with > capacity segments
+  uint32_t max_leaf_segments = 0;  // ring segments in the fullest leaf
+};
+
+// Builds the quad-tree of one closed ring (no repeated closing vertex, at
+// least 3 vertices, every |coordinate| <= kMaxQuanta). Thread-safe.
+PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capacity,
+                            uint32_t max_depth);
+
+// ----------------------------------------------------------------- lines --
+
+// The conservative coverage shape of one widened segment, in quanta (double):
+// the union of up to four triangles and, when `capsule`, the capsule of radius
+// `hw` around a-b. Every point the evaluator counts as covered by the segment
+// lies inside it.
+struct SegmentShape {
+  double ax = 0, ay = 0, bx = 0, by = 0;
+  double hw = 0;      // half width, quanta
+  bool capsule = false;
+  int ntri = 0;
+  std::array<std::array<double, 6>, 4> tri{};  // (x0,y0,x1,y1,x2,y2)
+  QBox box;           // integer AABB of the shape (conservative)
+  uint32_t line = 0;  // line index
+  uint32_t start = 0, end = 0;  // vertex indices
+};
+
+// Lines converted to package arrays (line_vertices, line_vertex_line,
+// line_props without `order`, line_corners) plus one shape per segment.
+// Sort keys for the drawing order are returned per line.
+//
+// Drawing order (formats/SPEC.md "Drawing order"): static lines and exterior
+// polygons share one rank space, rank 0 drawn on top. A later scene layer is
+// above an earlier one; within a layer its lines are above its polygons
+// (a layer's outlines over its own fill); within a layer and kind the
+// importance attribute, else length or area, larger on top (thesis §4.2.1);
+// then feature id, part and input index, so the order is total.
+enum class DrawKind : uint8_t { line = 0, polygon = 1 };
+struct DrawKey {
+  double primary;  // importance, else length (lines) or area (polygons)
+  uint32_t layer;  // scene layer index (file order)
+  DrawKind kind;
+  int64_t fid;
+  int part;
+  uint32_t input;  // index among the items of this kind
+};
+void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalModel& model,
+                 std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys);
+
+// Rank per key (0 = drawn on top) under the drawing order above.
+std::vector<uint32_t> draw_ranks(const std::vector<DrawKey>& keys);
+
+// Resolves a layer colour for one feature value (ramp or constant).
+uint32_t resolve_color(const LayerColor& color, double value);
+
+// ------------------------------------------------------------------ grid --
+
+// What choose_grid() looks at. Pointers are borrowed for the call.
+struct GridInput {
+  QBox extent;                                    // of every static primitive, quanta
+  const std::vector<QBox>* primitives = nullptr;  // segment boxes and exterior solid-leaf boxes
+  const std::vector<float>* weights = nullptr;    // query-cost weight per primitive
+  const std::vector<SegmentShape>* shapes = nullptr;            // every static segment
+  const std::vector<std::vector<uint32_t>>* ring_leaves = nullptr;  // solid leaf nodes per ring
+  const std::vector<ivec4>* node_box = nullptr;                  // quad-tree node boxes
+  const std::vector<uint8_t>* ring_is_hole = nullptr;            // per ring
+  uint64_t geometry_bytes = 0;  // static blobs that do not depend on the grid
+};
+
+// Chooses the decal grid over input.extent: fixed nx x ny when both options
+// are non-zero (500x500 = thesis §4.2.1), else adaptive and size-aware (rule
+// documented at choose_grid in grid.cpp): square cells chosen by an explicit
+// cost, log(1 + query-cost proxy) + 0.1 log(package bytes), where the bytes
+// of each candidate's cell lists and per-cell BVHs are counted exactly from
+// the cells the segments and quad-tree leaves will be assigned to; packages
+// over kGridSizeBudget times the thesis 500x500 grid's on the same data are
+// refused, as are grids over options.max_cells. Deterministic (integer
+// counts). bench/bench_build compares it with 500x500. Throws resource_error
+// when no grid fits.
+GridParams choose_grid(const GridInput& input, const BuildOptions& options);
+
+// The adaptive grid's package never exceeds this factor times the package
+// the thesis 500x500 grid gives on the same data (grid.cpp).
+inline constexpr double kGridSizeBudget = 1.2;
+
+// Calls fn(cell_index) for every cell whose closed box, expanded by one
+// quantum, meets `shape` (conservatively). Cells are visited in increasing
+// row, then column.
+template <class Fn>
+void for_each_cell(const GridParams& g, const SegmentShape& shape, Fn&& fn);
+
+// The inclusive cell index range overlapped by box `b` expanded by one
+// quantum, clamped to the grid; returns false when outside the grid.
+bool cell_range(const GridParams& g, const QBox& b, int64_t& ix0, int64_t& iy0, int64_t& ix1,
+                int64_t& iy1);
+
+// Closed box of cell (ix, iy).
+inline QBox cell_box(const GridParams& g, int64_t ix, int64_t iy) {
+  QBox b;
+  b.x0 = g.origin_x + ix * g.cell_w;
+  b.y0 = g.origin_y + iy * g.cell_h;
+  b.x1 = b.x0 + g.cell_w;
+  b.y1 = b.y0 + g.cell_h;
+  return b;
+}
+
+// ------------------------------------------------------------------- bvh --
+
+// Builds per-cell implicit full binary BVHs (thesis §4.2.1 "Bounding Volume
+// Hierarchies"): for cell c the leaves are leaf_boxes[first[c] .. first[c+1]).
+// Fills range (first node, leaf slots, internal nodes, 0) and boxes.
+void build_bvhs(const std::vector<uint32_t>& first, const std::vector<ivec4>& leaf_boxes,
+                std::vector<uvec4>& range, std::vector<ivec4>& boxes);
+
+}  // namespace prep::detail
+
+#include "grid_inl.hpp"

@@ -1,0 +1,303 @@
+// libprep/model/lines.cpp — static lines and outlines (thesis §3.6, §4.2.1
+// "Line Segments"): quantised vertices, per-line properties, per-vertex
+// corner data, and the widened shape of every segment for cell assignment.
+//
+// Corner data per vertex (decal::LineCorner), in metres, computed from the
+// cleaned double-precision geometry (not the quantised one, so that stored
+// corners sit within the representation error of the true ones):
+//   bevel_in / bevel_out: half width times the unit normal of the incoming /
+//     outgoing segment, on the OUTER side of the turn (decided by CGAL's exact
+//     orientation predicate); the left normal where the turn is straight and
+//     at line ends; null where the segment does not exist (open line ends).
+//   miter (miter style only): vertex -> LEFT miter corner, length
+//     hw / sin(theta/2); null at open line ends and where the interior angle
+//     theta is below options.miter_limit_deg (round fallback, thesis §4.2.1).
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include "detail.hpp"
+#include "prep/error.hpp"
+#include "prep/progress.hpp"
+
+namespace prep::detail {
+namespace {
+
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+
+struct V2 {
+  double x, y;
+};
+inline V2 sub(V2 a, V2 b) { return {a.x - b.x, a.y - b.y}; }
+inline V2 unit(V2 a) {
+  double l = std::hypot(a.x, a.y);
+  return {a.x / l, a.y / l};
+}
+inline V2 left(V2 u) { return {-u.y, u.x}; }
+
+struct LineOut {
+  bool kept = false;
+  std::string reason;
+  std::vector<QPoint> q;
+  std::vector<decal::LineCorner> corners;
+  decal::LineProps props{};
+  double max_err = 0;
+};
+
+std::string where_of(const SceneFeatures& s, const SceneLine& l) {
+  std::ostringstream m;
+  m << "layer '" << (l.layer < s.layers.size() ? s.layers[l.layer].name : std::string("?"))
+    << "' fid " << l.fid << " part " << l.part;
+  return m.str();
+}
+
+LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const BuildOptions& opt,
+                     decal::CornerStyle corner, decal::OutlineMode outline) {
+  LineOut out;
+  const std::string where = where_of(scene, line);
+  if (!(line.width > 0) || !std::isfinite(line.width)) {
+    out.reason = "line width is not a positive finite number";
+    return out;
+  }
+  // Quantise; drop vertices that quantise onto their predecessor, keeping the
+  // first original position of each run for the corner directions.
+  std::vector<V2> orig;
+  for (const Point2& p : line.points) {
+    QPoint q = quantise(p, out.max_err, where);
+    if (!out.q.empty() && out.q.back() == q) continue;
+    out.q.push_back(q);
+    orig.push_back({p.x, p.y});
+  }
+  bool closed = line.closed;
+  if (closed && out.q.size() > 1 && out.q.back() == out.q.front()) {
+    out.q.pop_back();
+    orig.pop_back();
+  }
+  if (closed && out.q.size() < 3) closed = false;
+  if (out.q.size() < 2) {
+    out.reason = "fewer than 2 distinct vertices at 1 mm resolution";
+    return out;
+  }
+  const size_t n = out.q.size();
+  const double hw = line.width * 0.5 * (outline == decal::OutlineMode::normal ? 1.0 : 2.0);
+  const double cos_limit = std::cos(opt.miter_limit_deg * M_PI / 180.0);
+  out.corners.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const bool has_prev = closed || i > 0, has_next = closed || i + 1 < n;
+    const V2 v = orig[i];
+    const V2 p = has_prev ? orig[(i + n - 1) % n] : v;
+    const V2 nx = has_next ? orig[(i + 1) % n] : v;
+    V2 u_in{0, 0}, u_out{0, 0};
+    if (has_prev) u_in = unit(sub(v, p));
+    if (has_next) u_out = unit(sub(nx, v));
+    double side = 1.0;  // +1: outer side is the left
+    if (has_prev && has_next) {
+      auto o = CGAL::orientation(Kernel::Point_2(p.x, p.y), Kernel::Point_2(v.x, v.y),
+                                 Kernel::Point_2(nx.x, nx.y));
+      if (o == CGAL::LEFT_TURN) side = -1.0;
+    }
+    decal::LineCorner& c = out.corners[i];
+    if (has_prev) {
+      V2 n_in = left(u_in);
+      c.bevel_in[0] = float(side * hw * n_in.x);
+      c.bevel_in[1] = float(side * hw * n_in.y);
+    }
+    if (has_next) {
+      V2 n_out = left(u_out);
+      c.bevel_out[0] = float(side * hw * n_out.x);
+      c.bevel_out[1] = float(side * hw * n_out.y);
+    }
+    if (corner == decal::CornerStyle::miter && has_prev && has_next) {
+      const double dot = u_in.x * u_out.x + u_in.y * u_out.y;  // = -cos(theta)
+      if (-dot <= cos_limit) {  // theta >= limit: keep the miter
+        V2 n_in = left(u_in), n_out = left(u_out);
+        const double k = hw / (1.0 + dot);
+        c.miter[0] = float((n_in.x + n_out.x) * k);
+        c.miter[1] = float((n_in.y + n_out.y) * k);
+      }
+    }
+  }
+  const LayerSpec& layer = scene.layers[line.layer];
+  decal::LineProps& pr = out.props;
+  pr.half_width = float(hw);
+  pr.rgba = resolve_color(layer.style.color, line.color_value);
+  pr.style = uint32_t(corner) | (uint32_t(outline) << decal::kStyleOutlineShift) |
+             (closed ? decal::kStyleClosedBit : 0u);
+  pr.value = float(line.color_value);
+  pr.layer = line.layer;
+  pr.feature = uint32_t(line.fid);
+  pr.clip_node = 0;  // set by build_model() for clipped outlines
+  out.kept = true;
+  return out;
+}
+
+}  // namespace
+
+uint32_t resolve_color(const LayerColor& color, double value) {
+  if (color.attribute.empty() || color.ramp.empty() || std::isnan(value)) return color.rgba;
+  const auto& r = color.ramp;
+  if (value <= r.front().value) return r.front().rgba;
+  if (value >= r.back().value) return r.back().rgba;
+  for (size_t i = 1; i < r.size(); ++i) {
+    if (value > r[i].value) continue;
+    const double span = r[i].value - r[i - 1].value;
+    const double t = span > 0 ? (value - r[i - 1].value) / span : 1.0;
+    uint32_t out = 0;
+    for (int ch = 0; ch < 4; ++ch) {
+      double a = double((r[i - 1].rgba >> (8 * ch)) & 0xffu), b = double((r[i].rgba >> (8 * ch)) & 0xffu);
+      out |= uint32_t(std::lround(a + t * (b - a))) << (8 * ch);
+    }
+    return out;
+  }
+  return r.back().rgba;
+}
+
+void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalModel& model,
+                 std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys) {
+  const size_t nl = scene.lines.size();
+  // Per-layer style, with the outline-mode fallback of thesis §3.6 (inset and
+  // offset need the miter corner style).
+  std::vector<decal::CornerStyle> corner(scene.layers.size());
+  std::vector<decal::OutlineMode> outline(scene.layers.size());
+  for (size_t l = 0; l < scene.layers.size(); ++l) {
+    const LayerStyle& st = scene.layers[l].style;
+    corner[l] = st.corner;
+    outline[l] = st.outline;
+    if (st.outline != decal::OutlineMode::normal && st.corner != decal::CornerStyle::miter) {
+      outline[l] = decal::OutlineMode::normal;
+      bool used = std::any_of(scene.lines.begin(), scene.lines.end(),
+                              [&](const SceneLine& x) { return x.layer == l; });
+      if (used)
+        model.manifest.notes.push_back("build: layer '" + scene.layers[l].name +
+                                       "': outline mode inset/offset needs corner style miter; "
+                                       "drawn in normal mode");
+    }
+  }
+  for (const SceneLine& l : scene.lines)
+    if (l.layer >= scene.layers.size())
+      throw input_error("build: line fid " + std::to_string(l.fid) + " refers to layer index " +
+                        std::to_string(l.layer) + ", but the scene has " +
+                        std::to_string(scene.layers.size()) + " layers");
+
+  // Counted once per line converted, and again per kept line's shapes.
+  ProgressStage stage(options.progress, "build.lines", 2 * nl, "lines");
+  std::vector<LineOut> outs(nl);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, nl, 64), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const SceneLine& l = scene.lines[i];
+      outs[i] = convert_line(scene, l, options, corner[l.layer], outline[l.layer]);
+    }
+    stage.add(r.size());
+  });
+
+  // Concatenate in input order (deterministic); record drops.
+  std::vector<uint32_t> first_vertex, seg_first;
+  std::vector<size_t> kept_input;
+  uint32_t nseg = 0;
+  for (size_t i = 0; i < nl; ++i) {
+    LineOut& o = outs[i];
+    model.max_representation_error = std::max(model.max_representation_error, o.max_err);
+    const SceneLine& l = scene.lines[i];
+    if (!o.kept) {
+      ManifestEntry e;
+      e.layer = scene.layers[l.layer].name;
+      e.fid = l.fid;
+      e.part = l.part;
+      e.action = ManifestAction::dropped;
+      e.reason = "build: " + o.reason;
+      model.manifest.entries.push_back(e);
+      continue;
+    }
+    const uint32_t line_index = uint32_t(model.line_props.size());
+    first_vertex.push_back(uint32_t(model.line_vertices.size()));
+    seg_first.push_back(nseg);
+    kept_input.push_back(i);
+    for (const QPoint& q : o.q) {
+      model.line_vertices.push_back({int32_t(q.x), int32_t(q.y)});
+      model.line_vertex_line.push_back(line_index);
+    }
+    model.line_corners.insert(model.line_corners.end(), o.corners.begin(), o.corners.end());
+    model.line_props.push_back(o.props);
+    const bool closed = o.props.style & decal::kStyleClosedBit;
+    nseg += uint32_t(closed ? o.q.size() : o.q.size() - 1);
+    keys.push_back({std::isnan(l.order_value) ? l.length : l.order_value, l.layer, DrawKind::line, l.fid,
+                    l.part, uint32_t(i)});
+  }
+  first_vertex.push_back(uint32_t(model.line_vertices.size()));
+  seg_first.push_back(nseg);
+
+  // Widened segment shapes (quanta), parallel per line.
+  shapes.resize(nseg);
+  stage.set_total(nl + model.line_props.size());
+  const double inv_q = 1.0 / decal::kQuantumMetres;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, model.line_props.size(), 64),
+                    [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t li = r.begin(); li != r.end(); ++li) {
+      const decal::LineProps& pr = model.line_props[li];
+      const uint32_t v0 = first_vertex[li], v1 = first_vertex[li + 1];
+      const uint32_t nv = v1 - v0;
+      const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
+      const double hw = double(pr.half_width) * inv_q;
+      for (uint32_t s = 0; s < seg_first[li + 1] - seg_first[li]; ++s) {
+        SegmentShape& sh = shapes[seg_first[li] + s];
+        const uint32_t ia = v0 + s, ib = v0 + (s + 1) % nv;
+        sh.line = uint32_t(li);
+        sh.start = ia;
+        sh.end = ib;
+        sh.ax = model.line_vertices[ia][0];
+        sh.ay = model.line_vertices[ia][1];
+        sh.bx = model.line_vertices[ib][0];
+        sh.by = model.line_vertices[ib][1];
+        sh.hw = hw * (1.0 + 1e-6);  // float-stored vectors may be a hair longer
+        const decal::LineCorner& ca = model.line_corners[ia];
+        const decal::LineCorner& cb = model.line_corners[ib];
+        const bool null_a = ca.miter[0] == 0.f && ca.miter[1] == 0.f;
+        const bool null_b = cb.miter[0] == 0.f && cb.miter[1] == 0.f;
+        double minx = std::min(sh.ax, sh.bx), maxx = std::max(sh.ax, sh.bx);
+        double miny = std::min(sh.ay, sh.by), maxy = std::max(sh.ay, sh.by);
+        sh.capsule = style != decal::CornerStyle::miter || null_a || null_b;
+        if (sh.capsule) {
+          minx -= sh.hw; maxx += sh.hw; miny -= sh.hw; maxy += sh.hw;
+        }
+        if (style == decal::CornerStyle::miter) {
+          // The quad (a - ma, b - mb, b + mb, a + ma) as the evaluator splits it.
+          double max_, may_, mbx, mby;
+          if (!null_a) { max_ = ca.miter[0]; may_ = ca.miter[1]; }
+          else { max_ = ca.bevel_out[0]; may_ = ca.bevel_out[1]; }
+          if (!null_b) { mbx = cb.miter[0]; mby = cb.miter[1]; }
+          else { mbx = cb.bevel_in[0]; mby = cb.bevel_in[1]; }
+          max_ *= inv_q; may_ *= inv_q; mbx *= inv_q; mby *= inv_q;
+          const double A1x = sh.ax + max_, A1y = sh.ay + may_, A2x = sh.ax - max_, A2y = sh.ay - may_;
+          const double B1x = sh.bx + mbx, B1y = sh.by + mby, B2x = sh.bx - mbx, B2y = sh.by - mby;
+          // Carathéodory: the four triangles of three of the four corners cover
+          // their convex hull, hence the evaluator's two triangles whatever
+          // the quad's shape.
+          const double xs[4] = {A1x, A2x, B1x, B2x}, ys[4] = {A1y, A2y, B1y, B2y};
+          sh.ntri = 4;
+          for (int k = 0; k < 4; ++k) {
+            int t = 0;
+            for (int j = 0; j < 4; ++j)
+              if (j != k) {
+                sh.tri[k][t++] = xs[j];
+                sh.tri[k][t++] = ys[j];
+              }
+            minx = std::min(minx, xs[k]); maxx = std::max(maxx, xs[k]);
+            miny = std::min(miny, ys[k]); maxy = std::max(maxy, ys[k]);
+          }
+        }
+        sh.box.x0 = int64_t(std::floor(minx)) - 1;
+        sh.box.y0 = int64_t(std::floor(miny)) - 1;
+        sh.box.x1 = int64_t(std::ceil(maxx)) + 1;
+        sh.box.y1 = int64_t(std::ceil(maxy)) + 1;
+      }
+    }
+    stage.add(r.size());
+  });
+  stage.finish();
+}
+
+}  // namespace prep::detail

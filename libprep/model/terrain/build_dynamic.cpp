@@ -1,0 +1,221 @@
+// build_dynamic(): the dyn_* blobs (terrain-matched dynamic lines, thesis
+// §4.2.2) and the lod_* blobs (LOCALIS) of a DecalModel.
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <sstream>
+
+#include "prep/model.hpp"
+#include "prep/error.hpp"
+#include "lod/lod.hpp"
+#include "terrain/terrain.hpp"
+
+namespace prep {
+namespace {
+
+uint32_t channel(uint32_t rgba, int c) { return (rgba >> (8 * c)) & 0xffu; }
+
+// Layer colour: constant, or the attribute value through the ramp (linear
+// per channel between stops, clamped at both ends).
+uint32_t resolve_color(const LayerColor& color, double value) {
+  if (color.attribute.empty() || color.ramp.empty() || !std::isfinite(value)) return color.rgba;
+  const auto& ramp = color.ramp;
+  if (value <= ramp.front().value) return ramp.front().rgba;
+  if (value >= ramp.back().value) return ramp.back().rgba;
+  size_t k = 1;
+  while (k < ramp.size() && ramp[k].value < value) ++k;
+  const ColorStop& a = ramp[k - 1];
+  const ColorStop& b = ramp[k];
+  const double t = b.value > a.value ? (value - a.value) / (b.value - a.value) : 0.0;
+  uint32_t out = 0;
+  for (int c = 0; c < 4; ++c) {
+    const double v = channel(a.rgba, c) + t * (double(channel(b.rgba, c)) - double(channel(a.rgba, c)));
+    out |= static_cast<uint32_t>(std::clamp(std::lround(v), 0L, 255L)) << (8 * c);
+  }
+  return out;
+}
+
+std::string fmt(double v, int digits = 3) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(digits);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+void build_dynamic(const SceneFeatures& scene, const BuildOptions& options, const std::string& dem_path,
+                   DecalModel& model) {
+  std::unique_ptr<tbb::global_control> threads;
+  if (options.threads > 0)
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    options.threads);
+  auto& notes = model.manifest.notes;
+  model.dyn_vertices.clear();
+  model.dyn_prev_next.clear();
+  model.dyn_line_start.clear();
+  model.dyn_line_props.clear();
+  model.lod_points.clear();
+  model.lod_segments.clear();
+  model.lod_line_range.clear();
+  model.terrain_min = model.terrain_max = 0;
+
+  auto layer_name = [&](uint32_t layer) {
+    return layer < scene.layers.size() ? scene.layers[layer].name : std::to_string(layer);
+  };
+
+  // Usable lines; anything else goes to the manifest with its reason.
+  std::vector<SceneLine> lines;
+  lines.reserve(scene.dynamic_lines.size());
+  for (const SceneLine& l : scene.dynamic_lines) {
+    if (l.points.size() < 2 || (l.closed && l.points.size() < 3)) {
+      model.manifest.entries.push_back({layer_name(l.layer), l.fid, l.part, ManifestAction::dropped,
+                                        "build: dynamic line has " + std::to_string(l.points.size()) +
+                                            " points, too few to draw"});
+      continue;
+    }
+    lines.push_back(l);
+  }
+  for (size_t i = 0; i < scene.layers.size(); ++i)
+    if (scene.layers[i].lod && !scene.layers[i].dynamic)
+      notes.push_back("lod: layer '" + scene.layers[i].name +
+                      "' is static; LOD segments are built for dynamic lines only, its lines keep "
+                      "full detail");
+
+  // Terrain: the DEM, lmax (default half the DEM cell, thesis §4.2.2).
+  std::unique_ptr<DemSampler> dem;
+  MatchOptions match_options;
+  match_options.tolerance = options.terrain_tolerance;
+  if (!(options.lmax >= 0) || !(options.terrain_tolerance >= 0) || !(options.z_scale > 0) ||
+      !std::isfinite(options.z_scale))
+    throw usage_error("build: invalid terrain option (lmax " + std::to_string(options.lmax) +
+                      ", terrain tolerance " + std::to_string(options.terrain_tolerance) +
+                      ", z-scale " + std::to_string(options.z_scale) + ")");
+  if (dem_path.empty()) {
+    notes.push_back("terrain: no DEM given; dynamic lines lie on flat terrain z = 0");
+    match_options.lmax = options.lmax > 0 ? options.lmax : std::numeric_limits<double>::infinity();
+  } else if (lines.empty()) {
+    notes.push_back("terrain: no dynamic lines; DEM " + dem_path + " not read");
+  } else {
+    dem = std::make_unique<DemSampler>(
+        DemSpec{dem_path, options.dem_assume_crs, options.z_scale, options.nodata_fill}, scene.frame);
+    double xmin = lines[0].points[0].x, xmax = xmin, ymin = lines[0].points[0].y, ymax = ymin;
+    for (const auto& l : lines)
+      for (const auto& p : l.points) {
+        xmin = std::min(xmin, p.x);
+        xmax = std::max(xmax, p.x);
+        ymin = std::min(ymin, p.y);
+        ymax = std::max(ymax, p.y);
+      }
+    const double cell = dem->cell_size_metres({0.5 * (xmin + xmax), 0.5 * (ymin + ymax)});
+    match_options.lmax = options.lmax > 0 ? options.lmax : 0.5 * cell;
+    notes.push_back("terrain: " + dem->stats().description + "; DEM cell " + fmt(cell) +
+                    " m near the data centre");
+  }
+
+  if (!lines.empty()) {
+    MatchedLines m = match_terrain(lines, dem.get(), match_options);
+    model.dyn_vertices = std::move(m.vertices);
+    model.dyn_prev_next = std::move(m.prev_next);
+    model.dyn_line_start = std::move(m.line_start);
+    std::string mode = match_options.tolerance > 0 && dem
+                           ? "adaptive, tolerance " + fmt(match_options.tolerance) + " m"
+                           : "fixed lmax";
+    notes.push_back("terrain: dynamic lines " + std::to_string(lines.size()) + ", vertices in " +
+                    std::to_string(m.vertices_in) + ", after subdivision to lmax " +
+                    (std::isinf(match_options.lmax) ? std::string("inf (none)") : fmt(match_options.lmax)) +
+                    " m " + std::to_string(m.vertices_fixed) + ", stored " +
+                    std::to_string(m.vertices_out) + " (" + mode + "); longest stored piece " +
+                    fmt(m.max_piece_length, 4) + " m; max deviation from the DEM surface " +
+                    fmt(m.max_deviation, 4) + " m");
+    if (m.tolerance_misses > 0)
+      notes.push_back("terrain: " + std::to_string(m.tolerance_misses) +
+                      " pieces reached 1 cm and still exceed the terrain tolerance");
+    if (dem) {
+      const TerrainStats& t = m.terrain;
+      model.terrain_min = t.min;
+      model.terrain_max = t.max;
+      notes.push_back("terrain: DEM window " + std::to_string(t.window_cells) + " cells, " +
+                      std::to_string(t.nodata_cells) + " no-data cells filled (" + t.fill_policy +
+                      "); " + std::to_string(t.samples_touching_fill) + " of " +
+                      std::to_string(t.samples) + " vertex heights used a filled cell, " +
+                      std::to_string(t.samples_outside) + " lie outside the DEM (edge value); terrain " +
+                      fmt(t.min) + " .. " + fmt(t.max) + " m");
+    }
+  }
+
+  // Line properties; drawing order (formats/SPEC.md "Drawing order"): a
+  // later scene layer on top of an earlier one; within a layer the
+  // importance attribute (order_value) when present, else length, larger on
+  // top (rank 0); ties by input order.
+  const auto nl = static_cast<uint32_t>(lines.size());
+  std::vector<uint32_t> by_rank(nl);
+  std::iota(by_rank.begin(), by_rank.end(), 0u);
+  auto key = [&](const SceneLine& l) { return std::isfinite(l.order_value) ? l.order_value : l.length; };
+  std::stable_sort(by_rank.begin(), by_rank.end(), [&](uint32_t a, uint32_t b) {
+    if (lines[a].layer != lines[b].layer) return lines[a].layer > lines[b].layer;
+    return key(lines[a]) > key(lines[b]);
+  });
+  model.dyn_line_props.resize(nl);
+  for (uint32_t r = 0; r < nl; ++r) model.dyn_line_props[by_rank[r]].order = r;
+  for (uint32_t i = 0; i < nl; ++i) {
+    const SceneLine& l = lines[i];
+    const LayerStyle* style = l.layer < scene.layers.size() ? &scene.layers[l.layer].style : nullptr;
+    auto& p = model.dyn_line_props[i];
+    const double width = l.width > 0 ? l.width : (style ? style->width : 2.0);
+    p.half_width = static_cast<float>(0.5 * width);  // pixels
+    p.rgba = style ? resolve_color(style->color, l.color_value) : 0xffffffffu;
+    p.style = (style ? static_cast<uint32_t>(style->corner) & decal::kStyleCornerMask : 0u) |
+              (style ? (static_cast<uint32_t>(style->outline) << decal::kStyleOutlineShift) &
+                           decal::kStyleOutlineMask
+                     : 0u) |
+              (l.closed ? decal::kStyleClosedBit : 0u);
+    p.value = static_cast<float>(l.color_value);
+    p.layer = l.layer;
+    p.feature = l.fid >= 0 && l.fid <= int64_t(0xfffffffe) ? static_cast<uint32_t>(l.fid) : 0xffffffffu;
+    p.clip_node = 0;  // dynamic lines are never clipped
+  }
+
+  // LOD segments for the dynamic lines of LOD layers (LOCALIS).
+  std::vector<LodInputLine> lod_lines;
+  for (uint32_t i = 0; i < nl; ++i) {
+    const SceneLine& l = lines[i];
+    if (l.layer >= scene.layers.size() || !scene.layers[l.layer].lod) continue;
+    LodInputLine in;
+    in.line = i;
+    in.closed = l.closed;
+    for (const auto& pt : l.points) {
+      const ivec2 q = {static_cast<int32_t>(std::llround(pt.x / decal::kQuantumMetres)),
+                       static_cast<int32_t>(std::llround(pt.y / decal::kQuantumMetres))};
+      if (in.points.empty() || in.points.back() != q) in.points.push_back(q);
+    }
+    if (in.closed && in.points.size() > 1 && in.points.front() == in.points.back()) in.points.pop_back();
+    if (in.points.size() < (in.closed ? 3u : 2u)) {
+      model.manifest.entries.push_back({layer_name(l.layer), l.fid, l.part, ManifestAction::note,
+                                        "lod: line collapses at 1 mm; no LOD segments"});
+      continue;
+    }
+    lod_lines.push_back(std::move(in));
+  }
+  if (!lod_lines.empty()) {
+    LodSet lod = build_lod(lod_lines);
+    model.lod_points = std::move(lod.points);
+    model.lod_segments = std::move(lod.segments);
+    model.lod_line_range = std::move(lod.line_range);
+    const auto& s = lod.stats;
+    notes.push_back("lod: " + std::to_string(s.lines) + " lines, " + std::to_string(s.original_segments) +
+                    " original segments -> " + std::to_string(s.attributed_segments) +
+                    " attributed segments (x" +
+                    fmt(s.original_segments ? double(s.attributed_segments) / double(s.original_segments) : 0, 2) +
+                    "); " + std::to_string(s.dependee_edges) + " dependees, " + std::to_string(s.cycles) +
+                    " cycles merged into proxies (" + std::to_string(s.points_in_cycles) + " points), " +
+                    std::to_string(s.always_points) + " points always drawn");
+  }
+}
+
+}  // namespace prep

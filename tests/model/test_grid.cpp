@@ -1,0 +1,144 @@
+// The adaptive decal grid (libprep/model/grid.cpp
+// choose_grid): size-aware against the thesis 500x500 grid on the same data,
+// coarse for sparse data, and stopped early by target_per_cell. Sizes are
+// read from the built arrays, not from the estimate choose_grid makes.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include <cmath>
+#include <random>
+
+#include "../evaluate/synthetic.hpp"
+#include "prep/model.hpp"
+#include "prep/evaluate.hpp"
+
+namespace {
+
+template <class T>
+uint64_t bytes_of(const std::vector<T>& v) {
+  return uint64_t(v.size()) * sizeof(T);
+}
+
+// Every static blob of the model (what the package stores for static decals).
+uint64_t static_bytes(const prep::DecalModel& m) {
+  return bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
+         bytes_of(m.line_corners) + bytes_of(m.cell_segment_range) + bytes_of(m.cell_segments) +
+         bytes_of(m.poly_props) + bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) + bytes_of(m.qt_node) +
+         bytes_of(m.qt_leaf_range) + bytes_of(m.qt_leaf_segments) + bytes_of(m.qt_leaf_vertices) +
+         bytes_of(m.cell_poly_range) + bytes_of(m.cell_polys) + bytes_of(m.cell_holes) +
+         bytes_of(m.line_bvh_range) + bytes_of(m.line_bvh_box) + bytes_of(m.poly_bvh_range) +
+         bytes_of(m.poly_bvh_box);
+}
+
+// A city-like scene: polygons (a third with a hole) and polylines, denser
+// towards the centre, so that cells near it hold many primitives.
+prep::SceneFeatures clustered_scene(int polygons, int lines) {
+  std::mt19937_64 rng(21);
+  std::normal_distribution<double> N(0, 1);
+  std::uniform_real_distribution<double> U(0, 1);
+  std::uniform_int_distribution<int> nv(6, 30);
+  prep::SceneFeatures s;
+  s.layers.push_back(synth::layer("parcels", prep::DecalKind::polygon, 0xc0406080u));
+  s.layers.push_back(synth::layer("roads", prep::DecalKind::line, 0xffffffffu, decal::CornerStyle::bevel,
+                                  decal::OutlineMode::normal, 4.0));
+  for (int i = 0; i < polygons; ++i) {
+    const double cx = 800 * N(rng), cy = 500 * N(rng), size = 6 + 20 * std::abs(N(rng));
+    prep::ScenePolygon p;
+    p.shell = synth::star(rng, cx, cy, 0.6 * size, size, nv(rng), false);
+    if (i % 3 == 0) p.holes.push_back(synth::star(rng, cx, cy, 0.15 * size, 0.3 * size, nv(rng), true));
+    p.fid = i;
+    p.area = size * size;
+    s.polygons.push_back(std::move(p));
+  }
+  for (int i = 0; i < lines; ++i) {
+    prep::SceneLine l;
+    double x = 800 * N(rng), y = 500 * N(rng), a = 2 * M_PI * U(rng);
+    for (int k = 0; k < 12; ++k) {
+      l.points.push_back({x, y});
+      x += 20 * std::cos(a);
+      y += 20 * std::sin(a);
+      a += 0.5 * N(rng);
+    }
+    l.layer = 1;
+    l.width = 4;
+    l.length = 220;
+    l.fid = i;
+    s.lines.push_back(std::move(l));
+  }
+  return s;
+}
+
+// Mean of all query-cost counters over `n` covered points sampled uniformly
+// over the grid (the same points for any grid over the same extent).
+double mean_tests(const prep::DecalModel& m, const prep::Extent& e, int n) {
+  const prep::StaticView v = prep::view_of(m);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> X(e.xmin, e.xmax), Y(e.ymin, e.ymax);
+  double sum = 0;
+  int covered = 0;
+  for (int i = 0; i < 200 * n && covered < n; ++i) {
+    prep::EvalCounters c;
+    const prep::EvalSample s = prep::evaluate(v, X(rng), Y(rng), &c);
+    if (!s.line_covered && !s.polygon_covered) continue;
+    sum += double(c.bvh_nodes + c.qt_nodes + c.edge_tests + c.segment_tests);
+    ++covered;
+  }
+  EXPECT_EQ(covered, n);
+  return sum / covered;
+}
+
+prep::Extent extent_of(const prep::DecalModel& m) {
+  const double q = decal::kQuantumMetres;
+  return {m.grid.origin_x * q, m.grid.origin_y * q, (m.grid.origin_x + m.grid.cell_w * int64_t(m.grid.nx)) * q,
+          (m.grid.origin_y + m.grid.cell_h * int64_t(m.grid.ny)) * q};
+}
+
+}  // namespace
+
+TEST(DecalGrid, AdaptivePackageIsAtMost1Point2TimesTheThesisGridsAndQueriesCostLess) {
+  for (const int lines : {1500, 0}) {
+    SCOPED_TRACE(lines ? "polygons and lines" : "polygons only");
+    const prep::SceneFeatures scene = clustered_scene(3000, lines);
+    prep::BuildOptions adaptive, thesis;
+    thesis.grid_nx = thesis.grid_ny = 500;
+    const prep::DecalModel a = prep::build_model(scene, adaptive), t = prep::build_model(scene, thesis);
+    ASSERT_EQ(t.grid.nx, 500u);
+    ASSERT_GT(a.grid.nx, 0u);
+    const double ratio = double(static_bytes(a)) / double(static_bytes(t));
+    // The size contract of the README and grid.cpp (kGridSizeBudget).
+    EXPECT_LE(ratio, 1.2) << "adaptive grid " << a.grid.nx << "x" << a.grid.ny;
+    std::printf("[%s] adaptive %ux%u: %.4f x the 500x500 package\n", lines ? "polygons and lines" : "polygons only",
+                a.grid.nx, a.grid.ny, ratio);
+    // Same points for both: sample over the larger of the two grid extents.
+    const prep::Extent ea = extent_of(a), et = extent_of(t);
+    const prep::Extent e{std::min(ea.xmin, et.xmin), std::min(ea.ymin, et.ymin), std::max(ea.xmax, et.xmax),
+                         std::max(ea.ymax, et.ymax)};
+    const double ta = mean_tests(a, e, 20000), tt = mean_tests(t, e, 20000);
+    EXPECT_LT(ta, tt) << "adaptive " << a.grid.nx << "x" << a.grid.ny << " bytes ratio " << ratio;
+  }
+}
+
+TEST(DecalGrid, OnePolygonGetsAFewCellsRatherThanTheThesisQuarterMillion) {
+  std::mt19937_64 rng(4);
+  prep::SceneFeatures s;
+  s.layers.push_back(synth::layer("parcel", prep::DecalKind::polygon, 0xff0000ffu));
+  prep::ScenePolygon p;
+  p.shell = synth::star(rng, 0, 0, 60, 100, 200, false);
+  p.area = 1;
+  s.polygons.push_back(p);
+  prep::BuildOptions adaptive, thesis;
+  thesis.grid_nx = thesis.grid_ny = 500;
+  const prep::DecalModel a = prep::build_model(s, adaptive), t = prep::build_model(s, thesis);
+  EXPECT_LT(uint64_t(a.grid.nx) * a.grid.ny, 250000u / 16) << a.grid.nx << "x" << a.grid.ny;
+  EXPECT_LT(static_bytes(a) * 4, static_bytes(t));
+}
+
+TEST(DecalGrid, TargetPerCellStopsTheRefinementAtACoarserGrid) {
+  const prep::SceneFeatures scene = clustered_scene(1500, 0);
+  prep::BuildOptions dflt, aimed;
+  aimed.target_per_cell = 48;
+  const prep::DecalModel d = prep::build_model(scene, dflt), a = prep::build_model(scene, aimed);
+  EXPECT_LT(uint64_t(a.grid.nx) * a.grid.ny, uint64_t(d.grid.nx) * d.grid.ny);
+  EXPECT_LT(static_bytes(a), static_bytes(d));
+}
