@@ -1,0 +1,142 @@
+// The GL path's objects and passes (thesis §4.4), internal to prep_render:
+// render_gl.cpp runs them, gl_passes.cpp holds setup, terrain, static and
+// composite passes, gl_dynamic.cpp the dynamic-line pass. Only those files
+// include this header (it pulls in the GL prototypes).
+#pragma once
+
+#ifndef GL_GLEXT_PROTOTYPES
+#define GL_GLEXT_PROTOTYPES 1
+#endif
+#include <GL/glcorearb.h>
+
+#include <array>
+#include <chrono>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "decal/gl/gl.hpp"
+#include "prep/render.hpp"
+
+namespace prep::render::detail {
+
+// Throws render_error with the status message when `s` failed.
+void check(const decal::Status& s);
+
+// Owns every GL object a render_gl call creates; deletes them on scope exit
+// (before the context goes).
+struct GlObjects {
+  std::vector<GLuint> programs, textures, framebuffers, buffers, arrays, queries;
+  std::map<std::string, GLuint> program_cache;
+  GlObjects() = default;
+  GlObjects(const GlObjects&) = delete;
+  GlObjects& operator=(const GlObjects&) = delete;
+  ~GlObjects();
+  GLuint texture(GLenum format, uint32_t w, uint32_t h);
+  // Colour attachment plus optional depth (0: none); throws when incomplete.
+  GLuint framebuffer(GLuint color, GLuint depth);
+  // Built once per distinct source list (repeated frames reuse them).
+  GLuint program(decal::gl::ProgramSources src);
+};
+
+// GPU pass timing with GL timestamp queries (--stats): a timestamp before
+// and after each pass. (GL_TIME_ELAPSED gave a nonsense first value on
+// llvmpipe.)
+struct PassTimer {
+  GlObjects& gl;
+  struct Pass {
+    std::string name;
+    GLuint begin = 0, end = 0;
+    std::chrono::steady_clock::time_point wall0, wall1;
+  };
+  std::vector<Pass> passes;
+  GLuint stamp();
+  // glFinish around each pass: software GL (llvmpipe) defers work to the
+  // next flush, so without it a pass's time lands in a later pass.
+  void begin(const std::string& name);
+  void end();
+  void collect(std::vector<PassTime>& out);
+};
+
+// The camera as the shaders take it. The anchor is the eye rounded to whole
+// quanta; everything on the GPU is relative to it (ARCHITECTURE.md
+// "Guarantees" 1).
+struct ViewUniforms {
+  int64_t ax = 0, ay = 0;              // anchor in quanta
+  Vec3 anchor{}, eye_rel{};            // anchor in metres; eye relative to it
+  std::array<float, 16> view_proj{}, inv_view_proj{};
+  // Anchor relative to the grid origin (quanta), its cell and the grid.
+  int64_t rx = 0, ry = 0, cell_x = 0, cell_y = 0;
+  GridParams grid{};
+  // Metres per pixel (thesis Eq. 4.1/4.2, per pixel): coverage AA and
+  // dynamic lines.
+  double mpp_ortho = 0, mpp_per_metre = 0;
+};
+ViewUniforms view_uniforms(const Camera& cam, const GridParams& grid, uint32_t width, uint32_t height);
+
+// G-buffer: terrain colour + float depth (reversed Z); decal layer; final;
+// dynamic-line layer. Each colour texture has its framebuffer.
+struct Targets {
+  GLuint color = 0, depth = 0, decal = 0, final = 0, dyn = 0;
+  GLuint f_terrain = 0, f_decal = 0, f_final = 0, f_dyn = 0;
+};
+Targets make_targets(GlObjects& gl, uint32_t width, uint32_t height);
+
+// Terrain mesh in anchor-relative metres (position + normal per vertex).
+struct TerrainMesh {
+  GLuint vao = 0;
+  GLsizei index_count = 0;
+};
+TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const Vec3& anchor);
+
+// The programs of the terrain, static and composite passes; `defines` is
+// the binding's define, shared with the dynamic programs.
+struct StaticPrograms {
+  std::string defines;
+  GLuint terrain = 0, polygons = 0, lines = 0, composite = 0;
+};
+StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt);
+
+// One render_gl call: the state set up once (constructor) and the passes of
+// a frame, in order.
+class GlRenderer {
+ public:
+  // Uploads the blobs, the terrain mesh, makes the targets and programs.
+  // The GL context must be current and outlive this object.
+  GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal::gl::Grid& grid, const DecalSource& source,
+             const Heightfield& terrain, const RenderOptions& opt);
+  // All passes of one frame; dynamic-line counts go to `img`.
+  void frame(Image& img);
+  // Reads the layers back into `img` (rows top-down, straight alpha) with
+  // the pass times of the last frame.
+  void read_back(Image& img);
+
+ private:
+  void terrain_pass();
+  // gl_passes.cpp: one pass per run of the drawing order.
+  void static_passes();
+  GLuint static_target();
+  void set_static_uniforms(GLuint p) const;
+  // gl_dynamic.cpp (thesis §4.3, §4.4.2).
+  void dynamic_pass(Image& img);
+  void composite_pass();
+
+  const DecalSource& source_;
+  const Heightfield& terrain_;
+  const RenderOptions& opt_;
+  const uint32_t W_, H_;
+  GlObjects gl_;
+  PassTimer timer_{gl_, {}};
+  std::chrono::steady_clock::time_point wall0_;
+  std::unique_ptr<decal::gl::GpuPackage> gpu_;
+  ViewUniforms view_;
+  TerrainMesh mesh_;
+  GLuint empty_vao_ = 0;
+  Targets t_;
+  std::vector<DrawRun> runs_;
+  StaticPrograms p_;
+};
+
+}  // namespace prep::render::detail

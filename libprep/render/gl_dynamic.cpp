@@ -1,0 +1,195 @@
+// The GL path's dynamic-line pass (thesis §4.3, §4.4.2): update indices
+// (cull + same-pixel removal, stream compaction, segments) in compute
+// shaders, segment boxes into per-pixel linked lists, then sort and blend
+// them into the dynamic layer.
+#include <algorithm>
+#include <string>
+
+#include "detail/gl_render.hpp"
+
+namespace prep::render::detail {
+
+namespace {
+
+struct DynPrograms {
+  GLuint cull = 0, scan_local = 0, scan_blocks = 0, scatter = 0, segments = 0, lists = 0, composite = 0;
+};
+
+// `dd`: the binding, coverage-AA and dynamic defines.
+DynPrograms dyn_programs(GlObjects& gl, const std::string& dd) {
+  auto comp = [&](const char* file, const std::string& extra) {
+    return gl.program({{}, {}, {}, {"decal_blobs.glsl", "dyn_common.glsl", file}, dd + extra});
+  };
+  DynPrograms p;
+  p.cull = comp("dyn_cull.comp.glsl", "");
+  p.scan_local = comp("dyn_scan.comp.glsl", "#define SCAN_LOCAL 1\n");
+  p.scan_blocks = comp("dyn_scan.comp.glsl", "#define SCAN_BLOCKS 1\n");
+  p.scatter = comp("dyn_scan.comp.glsl", "#define SCATTER 1\n");
+  p.segments = comp("dyn_segments.comp.glsl", "");
+  p.lists = gl.program({{"dyn_box.vert.glsl"},
+                        {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_box.geom.glsl"},
+                        {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_lists.frag.glsl"}, {}, dd});
+  p.composite =
+      gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "dyn_common.glsl", "dyn_composite.frag.glsl"}, {}, dd});
+  return p;
+}
+
+// One frame of the pass: its work buffers, bound at their SSBO bindings
+// (24..29, 31, 32), and the uniforms every stage takes.
+class DynamicLines {
+ public:
+  DynamicLines(GlObjects& gl, PassTimer& timer, const ViewUniforms& view, const Heightfield& terrain, uint32_t W,
+               uint32_t H, uint64_t n_vertices, uint64_t n_lines)
+      : gl_(gl), timer_(timer), view_(view), terrain_(terrain), W_(W), H_(H), n_dyn_(n_vertices),
+        n_lines_(n_lines), blocks_(uint32_t((n_vertices + 255) / 256)) {}
+
+  void make_buffers();
+  void update(const DynPrograms& p);
+  // Returns how often the node buffer grew.
+  uint32_t lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao);
+  void composite(GLuint p_composite);
+  // Counters 0 (segments drawn), 4 (vertices kept) and 5 (list nodes).
+  void read_counters(Image& img) const;
+
+ private:
+  GLuint buffer(uint64_t bytes, uint32_t binding);
+  void set_uniforms(GLuint p) const;
+
+  GlObjects& gl_;
+  PassTimer& timer_;
+  const ViewUniforms& view_;
+  const Heightfield& terrain_;
+  const uint32_t W_, H_;
+  const uint64_t n_dyn_, n_lines_;
+  const uint32_t blocks_;
+  GLuint counters_ = 0, heads_ = 0, nodes_ = 0;
+  uint32_t capacity_ = 0;
+};
+
+GLuint DynamicLines::buffer(uint64_t bytes, uint32_t binding) {
+  GLuint b = 0;
+  glCreateBuffers(1, &b);
+  gl_.buffers.push_back(b);
+  glNamedBufferData(b, GLsizeiptr(std::max<uint64_t>(bytes, 16)), nullptr, GL_DYNAMIC_COPY);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, b);
+  return b;
+}
+
+void DynamicLines::make_buffers() {
+  buffer(n_dyn_ * 4, 24);
+  buffer(n_dyn_ * 4, 25);
+  buffer(uint64_t(blocks_) * 4, 26);
+  buffer(n_dyn_ * 4, 27);
+  buffer(n_dyn_ * 16, 28);
+  counters_ = buffer(32, 29);
+  heads_ = buffer(uint64_t(W_) * H_ * 4, 31);
+  capacity_ = W_ * H_ * 2;
+  nodes_ = buffer(uint64_t(capacity_) * 16, 32);
+  const uint32_t init[8] = {0, 1, 0, 0, 0, 0, capacity_, uint32_t(n_dyn_)};
+  glNamedBufferSubData(counters_, 0, sizeof init, init);
+}
+
+void DynamicLines::set_uniforms(GLuint p) const {
+  const Vec3& eye_rel = view_.eye_rel;
+  glUseProgram(p);
+  glUniform2i(glGetUniformLocation(p, "u_anchor_q"), GLint(view_.ax), GLint(view_.ay));
+  glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
+  glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE, view_.inv_view_proj.data());
+  glUniform2f(glGetUniformLocation(p, "u_viewport"), float(W_), float(H_));
+  glUniform1ui(glGetUniformLocation(p, "u_vertex_count"), GLuint(n_dyn_));
+  glUniform1ui(glGetUniformLocation(p, "u_line_count"), GLuint(n_lines_));
+  glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]), float(eye_rel[2]));
+  glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(view_.mpp_ortho));
+  glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
+  glUniform1f(glGetUniformLocation(p, "u_zmin"), float(terrain_.zmin));
+  glUniform1f(glGetUniformLocation(p, "u_zmax"), float(terrain_.zmax));
+}
+
+// Update indices: cull + same-pixel removal, own stream compaction, segments.
+void DynamicLines::update(const DynPrograms& p) {
+  timer_.begin("dynamic update (cull, compact, segments)");
+  set_uniforms(p.cull);
+  glDispatchCompute(blocks_, 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  set_uniforms(p.scan_local);
+  glDispatchCompute(blocks_, 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  set_uniforms(p.scan_blocks);
+  glDispatchCompute(1, 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  set_uniforms(p.scatter);
+  glDispatchCompute(blocks_, 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  set_uniforms(p.segments);
+  glDispatchCompute(blocks_, 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+  timer_.end();
+}
+
+// Pixel data: segment boxes -> per-pixel linked lists; grow on overflow.
+uint32_t DynamicLines::lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao) {
+  uint32_t grows = 0;
+  timer_.begin("dynamic lists (boxes + linked lists)");
+  glBindFramebuffer(GL_FRAMEBUFFER, f_dyn);
+  glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  glBindBuffer(GL_DRAW_INDIRECT_BUFFER, counters_);
+  glBindVertexArray(empty_vao);
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    const uint32_t none = 0xffffffffu;
+    glClearNamedBufferData(heads_, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
+    const uint32_t zero_cap[2] = {0, capacity_};
+    glNamedBufferSubData(counters_, 20, sizeof zero_cap, zero_cap);
+    set_uniforms(p_lists);
+    glDrawArraysIndirect(GL_POINTS, nullptr);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    uint32_t used = 0;
+    glGetNamedBufferSubData(counters_, 20, 4, &used);
+    if (used <= capacity_) break;
+    capacity_ = uint32_t(std::min<uint64_t>(uint64_t(used) * 5 / 4 + 1024, 0x7fffffff / 16));
+    glNamedBufferData(nodes_, GLsizeiptr(uint64_t(capacity_) * 16), nullptr, GL_DYNAMIC_COPY);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 32, nodes_);
+    grows++;
+  }
+  glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  timer_.end();
+  return grows;
+}
+
+void DynamicLines::composite(GLuint p_composite) {
+  timer_.begin("dynamic composite (sort + blend)");
+  set_uniforms(p_composite);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  timer_.end();
+}
+
+void DynamicLines::read_counters(Image& img) const {
+  uint32_t stats[8] = {};
+  glGetNamedBufferSubData(counters_, 0, sizeof stats, stats);
+  img.dyn_segments = stats[0];
+  img.dyn_kept = stats[4];
+  img.dyn_nodes = stats[5];
+}
+
+}  // namespace
+
+// Clears the dynamic layer, then draws into it when there are dynamic lines
+// to draw.
+void GlRenderer::dynamic_pass(Image& img) {
+  const float clear_dyn[4] = {0, 0, 0, 0};
+  glClearNamedFramebufferfv(t_.f_dyn, GL_COLOR, 0, clear_dyn);
+  const uint64_t n_dyn = gpu_->count(decal::BlobId::dyn_vertices);
+  const uint64_t n_dyn_lines = gpu_->count(decal::BlobId::dyn_line_start);
+  if (!opt_.draw_dynamic || n_dyn == 0 || n_dyn_lines == 0) return;
+  const std::string dd = p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
+                         "#define DECAL_DYNAMIC 1\n";
+  const DynPrograms p = dyn_programs(gl_, dd);
+  DynamicLines dyn(gl_, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines);
+  dyn.make_buffers();
+  dyn.update(p);
+  img.list_grows += dyn.lists(p.lists, t_.f_dyn, empty_vao_);
+  dyn.composite(p.composite);
+  dyn.read_counters(img);
+}
+
+}  // namespace prep::render::detail

@@ -1,0 +1,342 @@
+// The GL path's objects, setup and passes (thesis §4.4) other than the
+// dynamic lines (gl_dynamic.cpp): terrain G-buffer, static polygon and line
+// passes over the back-projected depth, composite.
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "detail/gl_render.hpp"
+#include "detail/math.hpp"
+#include "prep/error.hpp"
+
+namespace prep::render::detail {
+
+namespace {
+
+std::array<float, 16> to_float(const Mat4& m) {
+  std::array<float, 16> f{};
+  for (int k = 0; k < 16; ++k) f[k] = static_cast<float>(m[k]);
+  return f;
+}
+
+// Floor division for the grid cell of the anchor.
+int64_t floor_div(int64_t a, int64_t b) {
+  int64_t q = a / b;
+  if ((a % b != 0) && ((a < 0) != (b < 0))) --q;
+  return q;
+}
+
+}  // namespace
+
+void check(const decal::Status& s) {
+  if (!s) throw render_error(s.message);
+}
+
+// --- GlObjects, PassTimer
+
+GlObjects::~GlObjects() {
+  for (GLuint p : programs) glDeleteProgram(p);
+  if (!textures.empty()) glDeleteTextures(GLsizei(textures.size()), textures.data());
+  if (!framebuffers.empty()) glDeleteFramebuffers(GLsizei(framebuffers.size()), framebuffers.data());
+  if (!buffers.empty()) glDeleteBuffers(GLsizei(buffers.size()), buffers.data());
+  if (!arrays.empty()) glDeleteVertexArrays(GLsizei(arrays.size()), arrays.data());
+  if (!queries.empty()) glDeleteQueries(GLsizei(queries.size()), queries.data());
+}
+
+GLuint GlObjects::texture(GLenum format, uint32_t w, uint32_t h) {
+  GLuint t = 0;
+  glCreateTextures(GL_TEXTURE_2D, 1, &t);
+  glTextureStorage2D(t, 1, format, GLsizei(w), GLsizei(h));
+  glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  textures.push_back(t);
+  return t;
+}
+
+GLuint GlObjects::framebuffer(GLuint color, GLuint depth) {
+  GLuint f = 0;
+  glCreateFramebuffers(1, &f);
+  glNamedFramebufferTexture(f, GL_COLOR_ATTACHMENT0, color, 0);
+  if (depth) glNamedFramebufferTexture(f, GL_DEPTH_ATTACHMENT, depth, 0);
+  framebuffers.push_back(f);
+  if (glCheckNamedFramebufferStatus(f, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    throw render_error("render: framebuffer incomplete");
+  return f;
+}
+
+GLuint GlObjects::program(decal::gl::ProgramSources src) {
+  std::string key = src.defines;
+  for (const auto* list : {&src.vertex, &src.geometry, &src.fragment, &src.compute}) {
+    key += "|";
+    for (const auto& f : *list) key += f + ",";
+  }
+  if (auto it = program_cache.find(key); it != program_cache.end()) return it->second;
+  GLuint p = 0;
+  check(decal::gl::build_program(src, p));
+  programs.push_back(p);
+  program_cache.emplace(key, p);
+  return p;
+}
+
+GLuint PassTimer::stamp() {
+  GLuint q = 0;
+  glGenQueries(1, &q);
+  gl.queries.push_back(q);
+  glQueryCounter(q, GL_TIMESTAMP);
+  return q;
+}
+
+void PassTimer::begin(const std::string& name) {
+  glFinish();
+  passes.push_back({name, 0, 0, std::chrono::steady_clock::now(), {}});
+  passes.back().begin = stamp();
+}
+
+void PassTimer::end() {
+  passes.back().end = stamp();
+  glFinish();
+  passes.back().wall1 = std::chrono::steady_clock::now();
+}
+
+void PassTimer::collect(std::vector<PassTime>& out) {
+  for (const auto& p : passes) {
+    GLuint64 t0 = 0, t1 = 0;
+    glGetQueryObjectui64v(p.begin, GL_QUERY_RESULT, &t0);
+    glGetQueryObjectui64v(p.end, GL_QUERY_RESULT, &t1);
+    out.push_back({p.name, t1 >= t0 ? double(t1 - t0) * 1e-6 : 0.0,
+                   std::chrono::duration<double, std::milli>(p.wall1 - p.wall0).count()});
+  }
+}
+
+// --- setup
+
+ViewUniforms view_uniforms(const Camera& cam, const GridParams& gp, uint32_t W, uint32_t H) {
+  ViewUniforms v;
+  const double q = decal::kQuantumMetres;
+  v.ax = std::llround(cam.eye[0] / q);
+  v.ay = std::llround(cam.eye[1] / q);
+  v.anchor = {double(v.ax) * q, double(v.ay) * q, 0.0};
+  v.eye_rel = sub(cam.eye, v.anchor);
+  const Mat4 vp = mat_mul(projection_matrix(cam, double(W) / H), view_matrix(cam, v.eye_rel));
+  v.view_proj = to_float(vp);
+  v.inv_view_proj = to_float(mat_inverse(vp));
+  v.rx = v.ax - gp.origin_x;
+  v.ry = v.ay - gp.origin_y;
+  v.cell_x = floor_div(v.rx, gp.cell_w);
+  v.cell_y = floor_div(v.ry, gp.cell_h);
+  v.grid = gp;
+  v.mpp_ortho = cam.projection == Projection::orthographic ? cam.ortho_h / H : 0.0;
+  v.mpp_per_metre = cam.projection == Projection::perspective
+                        ? 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H
+                        : 0.0;
+  return v;
+}
+
+Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H) {
+  Targets t;
+  t.color = gl.texture(GL_RGBA8, W, H);
+  t.depth = gl.texture(GL_DEPTH_COMPONENT32F, W, H);
+  t.decal = gl.texture(GL_RGBA32F, W, H);
+  t.final = gl.texture(GL_RGBA8, W, H);
+  t.dyn = gl.texture(GL_RGBA32F, W, H);
+  t.f_terrain = gl.framebuffer(t.color, t.depth);
+  t.f_decal = gl.framebuffer(t.decal, 0);
+  t.f_final = gl.framebuffer(t.final, 0);
+  t.f_dyn = gl.framebuffer(t.dyn, 0);
+  return t;
+}
+
+TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const Vec3& anchor) {
+  std::vector<float> verts;
+  verts.reserve(size_t(terrain.nx) * terrain.ny * 6);
+  for (uint32_t j = 0; j < terrain.ny; ++j)
+    for (uint32_t i = 0; i < terrain.nx; ++i) {
+      Vec3 n = terrain.normal_at(i, j);
+      verts.push_back(float(terrain.x0 + i * terrain.dx - anchor[0]));
+      verts.push_back(float(terrain.y0 + j * terrain.dy - anchor[1]));
+      verts.push_back(float(terrain.z[i + size_t(terrain.nx) * j]));
+      verts.push_back(float(n[0]));
+      verts.push_back(float(n[1]));
+      verts.push_back(float(n[2]));
+    }
+  std::vector<uint32_t> idx;
+  idx.reserve(size_t(terrain.nx - 1) * (terrain.ny - 1) * 6);
+  for (uint32_t j = 0; j + 1 < terrain.ny; ++j)
+    for (uint32_t i = 0; i + 1 < terrain.nx; ++i) {
+      uint32_t v00 = i + terrain.nx * j, v10 = v00 + 1, v01 = v00 + terrain.nx, v11 = v01 + 1;
+      idx.insert(idx.end(), {v00, v10, v11, v00, v11, v01});
+    }
+  GLuint vbo = 0, ibo = 0, vao = 0;
+  glCreateBuffers(1, &vbo);
+  gl.buffers.push_back(vbo);
+  glNamedBufferStorage(vbo, GLsizeiptr(verts.size() * sizeof(float)), verts.data(), 0);
+  glCreateBuffers(1, &ibo);
+  gl.buffers.push_back(ibo);
+  glNamedBufferStorage(ibo, GLsizeiptr(idx.size() * sizeof(uint32_t)), idx.data(), 0);
+  glCreateVertexArrays(1, &vao);
+  gl.arrays.push_back(vao);
+  glVertexArrayVertexBuffer(vao, 0, vbo, 0, 6 * sizeof(float));
+  glVertexArrayElementBuffer(vao, ibo);
+  glEnableVertexArrayAttrib(vao, 0);
+  glEnableVertexArrayAttrib(vao, 1);
+  glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
+  glVertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float));
+  glVertexArrayAttribBinding(vao, 0, 0);
+  glVertexArrayAttribBinding(vao, 1, 0);
+  return {vao, GLsizei(idx.size())};
+}
+
+StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt) {
+  StaticPrograms p;
+  p.defines = opt.binding == Binding::texture ? "#define DECAL_TEXTURE 1\n" : "";
+  const std::string aa_defines = opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n"
+                                 : opt.aa == AntiAliasing::msaa4  ? "#define DECAL_MSAA 1\n"
+                                                                  : "";
+  p.terrain = gl.program({{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, ""});
+  p.polygons = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
+                           {}, p.defines + aa_defines + "#define DECAL_POLYGONS 1\n"});
+  p.lines = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "static_common.glsl", "static_lines.glsl"}, {},
+                        p.defines + aa_defines + "#define DECAL_LINES 1\n"});
+  p.composite = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
+  return p;
+}
+
+GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal::gl::Grid& grid,
+                       const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt)
+    : source_(source), terrain_(terrain), opt_(opt), W_(opt.width), H_(opt.height) {
+  wall0_ = std::chrono::steady_clock::now();
+  check(decal::gl::GpuPackage::upload(blobs, grid, gpu_, true));
+  view_ = view_uniforms(opt.camera, source.view.grid, W_, H_);
+  mesh_ = upload_terrain_mesh(gl_, terrain, view_.anchor);
+  glCreateVertexArrays(1, &empty_vao_);
+  gl_.arrays.push_back(empty_vao_);
+  t_ = make_targets(gl_, W_, H_);
+  runs_ = draw_runs(source.view);
+  p_ = static_programs(gl_, opt);
+  glViewport(0, 0, GLsizei(W_), GLsizei(H_));
+  glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+}
+
+void GlRenderer::frame(Image& img) {
+  timer_.passes.clear();
+  terrain_pass();
+  static_passes();
+  dynamic_pass(img);
+  composite_pass();
+}
+
+// --- passes
+
+void GlRenderer::terrain_pass() {
+  timer_.begin("terrain");
+  glBindFramebuffer(GL_FRAMEBUFFER, t_.f_terrain);
+  const float sky[4] = {0.80f, 0.86f, 0.93f, 1.0f};
+  glClearNamedFramebufferfv(t_.f_terrain, GL_COLOR, 0, sky);
+  const float zero = 0.0f;
+  glClearNamedFramebufferfv(t_.f_terrain, GL_DEPTH, 0, &zero);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_GREATER);
+  const GLuint p = p_.terrain;
+  glUseProgram(p);
+  glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
+  Vec3 light = normalize({-0.4, -0.5, 0.75});
+  glUniform3f(glGetUniformLocation(p, "u_light_dir"), float(light[0]), float(light[1]), float(light[2]));
+  glUniform3f(glGetUniformLocation(p, "u_albedo"), float(opt_.albedo[0]), float(opt_.albedo[1]), float(opt_.albedo[2]));
+  // Flat terrain (all heights 0) is land, not sea.
+  glUniform1f(glGetUniformLocation(p, "u_sea_level"), terrain_.zmax > terrain_.zmin ? 0.0f : -1e30f);
+  glBindVertexArray(mesh_.vao);
+  glDrawElements(GL_TRIANGLES, mesh_.index_count, GL_UNSIGNED_INT, nullptr);
+  glDisable(GL_DEPTH_TEST);
+  timer_.end();
+}
+
+// MSAA (option): the static passes shade every sample (per-sample shading,
+// forced by gl_SamplePosition) into a 4x target, resolved into the decal
+// layer afterwards (thesis §4.5). Otherwise they draw into the decal layer.
+GLuint GlRenderer::static_target() {
+  if (opt_.aa != AntiAliasing::msaa4) return t_.f_decal;
+  GLuint t_ms = 0;
+  glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &t_ms);
+  gl_.textures.push_back(t_ms);
+  glTextureStorage2DMultisample(t_ms, 4, GL_RGBA32F, GLsizei(W_), GLsizei(H_), GL_TRUE);
+  const GLuint f = gl_.framebuffer(t_ms, 0);
+  glEnable(GL_SAMPLE_SHADING);
+  glMinSampleShading(1.0f);
+  return f;
+}
+
+void GlRenderer::set_static_uniforms(GLuint p) const {
+  const double q = decal::kQuantumMetres;
+  const GridParams& gp = view_.grid;
+  const int64_t cxi = view_.cell_x, cyi = view_.cell_y;
+  const Vec3& eye_rel = view_.eye_rel;
+  glUseProgram(p);
+  glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE, view_.inv_view_proj.data());
+  glUniform2f(glGetUniformLocation(p, "u_viewport"), float(W_), float(H_));
+  glUniform2i(glGetUniformLocation(p, "u_anchor_q"), GLint(view_.ax), GLint(view_.ay));
+  glUniform2i(glGetUniformLocation(p, "u_anchor_cell"), GLint(cxi), GLint(cyi));
+  glUniform2f(glGetUniformLocation(p, "u_anchor_in_cell"), float(double(view_.rx - cxi * gp.cell_w) * q),
+              float(double(view_.ry - cyi * gp.cell_h) * q));
+  glUniform2f(glGetUniformLocation(p, "u_cell_size"), float(double(gp.cell_w) * q), float(double(gp.cell_h) * q));
+  glUniform2i(glGetUniformLocation(p, "u_grid_n"), GLint(gp.nx), GLint(gp.ny));
+  glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]), float(eye_rel[2]));
+  glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(view_.mpp_ortho));
+  glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
+}
+
+// Static decal passes over the back-projected depth.
+void GlRenderer::static_passes() {
+  gpu_->bind(opt_.binding == Binding::texture ? decal::gl::BindingMode::texture : decal::gl::BindingMode::ssbo);
+  glBindTextureUnit(31, t_.depth);
+  const GLuint f_static = static_target();
+  glBindFramebuffer(GL_FRAMEBUFFER, f_static);
+  const float clear0[4] = {0, 0, 0, 0};
+  glClearNamedFramebufferfv(f_static, GL_COLOR, 0, clear0);
+  glClearNamedFramebufferfv(t_.f_decal, GL_COLOR, 0, clear0);
+  glBindVertexArray(empty_vao_);
+  // A kind with no per-cell ranges is absent: its pass would index the
+  // 16-byte placeholder buffer, so it is skipped.
+  const uint64_t cells = uint64_t(view_.grid.nx) * view_.grid.ny;
+  const bool have_polygons = opt_.draw_polygons && gpu_->count(decal::BlobId::poly_bvh_range) == cells &&
+                             gpu_->count(decal::BlobId::cell_poly_range) == cells;
+  const bool have_lines = opt_.draw_lines && gpu_->count(decal::BlobId::line_bvh_range) == cells &&
+                          gpu_->count(decal::BlobId::cell_segment_range) == cells;
+  // The drawing order as runs of one kind, top first (formats/SPEC.md
+  // "Drawing order"), each pass blended under the earlier ones: front to
+  // back, as the evaluator composites.
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_ONE_MINUS_DST_ALPHA, GL_ONE);
+  for (const DrawRun& run : runs_) {
+    const bool lines = run.kind == DrawRun::Kind::lines;
+    if (lines ? !have_lines : !have_polygons) continue;
+    timer_.begin(std::string(lines ? "static lines" : "static polygons") + " [" + std::to_string(run.lo) + ", " +
+                 std::to_string(run.hi) + ")");
+    const GLuint p = lines ? p_.lines : p_.polygons;
+    set_static_uniforms(p);
+    glUniform1ui(glGetUniformLocation(p, "u_order_lo"), run.lo);
+    glUniform1ui(glGetUniformLocation(p, "u_order_hi"), run.hi);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    timer_.end();
+  }
+  glDisable(GL_BLEND);
+  if (f_static != t_.f_decal) {
+    timer_.begin("msaa resolve");
+    glDisable(GL_SAMPLE_SHADING);
+    glBlitNamedFramebuffer(f_static, t_.f_decal, 0, 0, GLint(W_), GLint(H_), 0, 0, GLint(W_), GLint(H_),
+                           GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    timer_.end();
+  }
+}
+
+void GlRenderer::composite_pass() {
+  timer_.begin("composite");
+  glBindFramebuffer(GL_FRAMEBUFFER, t_.f_final);
+  glUseProgram(p_.composite);
+  glBindTextureUnit(29, t_.color);
+  glBindTextureUnit(30, t_.decal);
+  glBindTextureUnit(28, t_.dyn);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  timer_.end();
+}
+
+}  // namespace prep::render::detail
