@@ -163,31 +163,27 @@ void add_outline_clip_trees(const BuildOptions& options, DecalModel& m) {
   }
 }
 
-}  // namespace
+// The polygons of the scene as quantised rings: exteriors in input order,
+// each followed by its interiors.
+struct PolygonRings {
+  std::vector<PolyRing> rings;
+  std::vector<uint32_t> ext_index;                // package index of each exterior
+  std::vector<uint32_t> order;                    // drawing rank of each ring
+  std::vector<std::vector<uint32_t>> solid_leaves;  // non-outside leaves per ring
+  bool is_hole(size_t r) const { return rings[r].exterior >= 0; }
+};
 
-DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
-                       const std::string& dem) {
-  std::optional<tbb::global_control> threads;
-  if (options.threads > 0)
-    threads.emplace(tbb::global_control::max_allowed_parallelism, options.threads);
+void check_options(const BuildOptions& options) {
   if (options.qt_leaf_capacity == 0 || options.qt_max_depth > 24)
     throw usage_error("build: quad-tree leaf capacity must be >= 1 and max depth <= 24 (got " +
                       std::to_string(options.qt_leaf_capacity) + ", " +
                       std::to_string(options.qt_max_depth) + ")");
+}
 
-  DecalModel m;
-  m.frame = scene.frame;
-  m.extent = scene.extent;
-  m.manifest = scene.manifest;
-
-  // ---- lines: vertices, properties, corners, widened segments -------------
-  std::vector<SegmentShape> shapes;
-  std::vector<DrawKey> draw_keys;  // lines first, then exterior polygons
-  build_lines(scene, options, m, shapes, draw_keys);
-  const size_t n_lines = draw_keys.size();
-  m.stats.line_segments = shapes.size();
-
-  // ---- polygons: quantised rings, then one quad-tree per ring --------------
+// Quantises every polygon ring (in parallel), drops rings of fewer than 3
+// distinct quanta (noted in the manifest) and appends a drawing key per kept
+// exterior to `draw_keys`.
+PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m, std::vector<DrawKey>& draw_keys) {
   const size_t np = scene.polygons.size();
   std::vector<std::vector<std::vector<QPoint>>> qrings(np);  // [polygon][ring]
   std::vector<double> qerr(np, 0.0);
@@ -199,8 +195,7 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
     qrings[i].push_back(quantise_ring(p.shell, qerr[i], w.str()));
     for (const Ring& h : p.holes) qrings[i].push_back(quantise_ring(h, qerr[i], w.str() + " hole"));
   });
-  std::vector<PolyRing> rings;
-  std::vector<uint32_t> ext_index;  // package index of each exterior
+  PolygonRings out;
   for (size_t i = 0; i < np; ++i) {
     const ScenePolygon& p = scene.polygons[i];
     m.max_representation_error = std::max(m.max_representation_error, qerr[i]);
@@ -221,9 +216,9 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
       drop("exterior ring has fewer than 3 distinct vertices at 1 mm resolution");
       continue;
     }
-    const int32_t ext = int32_t(rings.size());
-    rings.push_back({std::move(qrings[i][0]), -1, uint32_t(i)});
-    ext_index.push_back(uint32_t(ext));
+    const int32_t ext = int32_t(out.rings.size());
+    out.rings.push_back({std::move(qrings[i][0]), -1, uint32_t(i)});
+    out.ext_index.push_back(uint32_t(ext));
     draw_keys.push_back({std::isnan(p.order_value) ? p.area : p.order_value, p.layer, DrawKind::polygon,
                          p.fid, p.part, uint32_t(i)});
     for (size_t h = 1; h < qrings[i].size(); ++h) {
@@ -232,26 +227,35 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
              " has fewer than 3 distinct vertices at 1 mm resolution; polygon kept without it");
         continue;
       }
-      rings.push_back({std::move(qrings[i][h]), ext, uint32_t(i)});
+      out.rings.push_back({std::move(qrings[i][h]), ext, uint32_t(i)});
     }
   }
-  // One rank space for lines and exterior polygons; interiors take their
-  // exterior's rank.
+  return out;
+}
+
+// One rank space for lines and exterior polygons (`draw_keys`: the lines
+// first, then the exteriors); interiors take their exterior's rank.
+void assign_ranks(const std::vector<DrawKey>& draw_keys, size_t n_lines, PolygonRings& pr,
+                  DecalModel& m) {
   const std::vector<uint32_t> rank = draw_ranks(draw_keys);
   for (size_t i = 0; i < n_lines; ++i) m.line_props[i].order = rank[i];
-  std::vector<uint32_t> order_of_poly(rings.size(), 0);
-  for (size_t k = 0; k < ext_index.size(); ++k) order_of_poly[ext_index[k]] = rank[n_lines + k];
-  for (size_t r = 0; r < rings.size(); ++r)
-    if (rings[r].exterior >= 0) order_of_poly[r] = order_of_poly[size_t(rings[r].exterior)];
+  pr.order.assign(pr.rings.size(), 0);
+  for (size_t k = 0; k < pr.ext_index.size(); ++k) pr.order[pr.ext_index[k]] = rank[n_lines + k];
+  for (size_t r = 0; r < pr.rings.size(); ++r)
+    if (pr.is_hole(r)) pr.order[r] = pr.order[size_t(pr.rings[r].exterior)];
+}
 
+// One quad-tree per ring (in parallel), concatenated into the model's node
+// arrays with the polygon properties, then the outline clip trees.
+void build_polygon_trees(const SceneFeatures& scene, const BuildOptions& options, const PolygonRings& pr,
+                         DecalModel& m) {
+  const std::vector<PolyRing>& rings = pr.rings;
   std::vector<PolyQuadTree> trees(rings.size());
   ProgressStage quadtree_stage(options.progress, "build.quadtrees", rings.size(), "rings");
   tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
     trees[r] = build_quadtree(rings[r].ring, options.qt_leaf_capacity, options.qt_max_depth);
     quadtree_stage.add();
   });
-
-  // Concatenate the trees, rebasing their local indices.
   m.poly_props.resize(rings.size());
   m.poly_root_node.resize(rings.size());
   for (size_t r = 0; r < rings.size(); ++r) {
@@ -259,7 +263,7 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
     decal::PolyProps& pp = m.poly_props[r];
     pp.rgba = rings[r].exterior < 0 ? resolve_color(scene.layers[sp.layer].style.color, sp.color_value)
                                     : 0u;
-    pp.order = order_of_poly[r];
+    pp.order = pr.order[r];
     pp.exterior = rings[r].exterior;
     pp.value = float(sp.color_value);
     pp.layer = sp.layer;
@@ -278,10 +282,12 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
          << " segments (fullest leaf: " << m.stats.qt_max_leaf_segments << ")";
     m.manifest.notes.push_back(note.str());
   }
+}
 
-  // Non-outside leaves of every tree: the polygon parts that go to cells.
-  std::vector<std::vector<uint32_t>> solid_leaves(rings.size());
-  tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
+// Non-outside leaves of every ring's tree: the polygon parts that go to cells.
+std::vector<std::vector<uint32_t>> solid_leaves(const DecalModel& m, size_t n_rings) {
+  std::vector<std::vector<uint32_t>> out(n_rings);
+  tbb::parallel_for(size_t(0), n_rings, [&](size_t r) {
     std::vector<uint32_t> stack{m.poly_root_node[r]};
     while (!stack.empty()) {
       uint32_t n = stack.back();
@@ -290,12 +296,18 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
       if (type == decal::QtNodeType::internal) {
         for (int c = 3; c >= 0; --c) stack.push_back(uint32_t(m.qt_node[n][1] + c));
       } else if (type != decal::QtNodeType::outside) {
-        solid_leaves[r].push_back(n);
+        out[r].push_back(n);
       }
     }
   });
+  return out;
+}
 
-  // ---- the decal grid -----------------------------------------------------
+// The decal grid over every segment and solid polygon leaf, weighed against
+// the grid-independent blobs (the per-cell lists and BVHs are counted in
+// choose_grid).
+GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const PolygonRings& pr,
+                             const BuildOptions& options, const DecalModel& m) {
   QBox extent;
   std::vector<QBox> prims;
   std::vector<float> weights;
@@ -313,10 +325,10 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
     prims.push_back(s.box);
     weights.push_back(kLineWeight);
   }
-  for (size_t r = 0; r < rings.size(); ++r) {
+  for (size_t r = 0; r < pr.rings.size(); ++r) {
     grow(box_of(m.qt_node_box[m.poly_root_node[r]]));
-    if (rings[r].exterior < 0)
-      for (uint32_t n : solid_leaves[r]) {
+    if (!pr.is_hole(r))
+      for (uint32_t n : pr.solid_leaves[r]) {
         prims.push_back(box_of(m.qt_node_box[n]));
         weights.push_back(kPolygonWeight);
       }
@@ -326,135 +338,145 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
   gin.primitives = &prims;
   gin.weights = &weights;
   gin.shapes = &shapes;
-  gin.ring_leaves = &solid_leaves;
+  gin.ring_leaves = &pr.solid_leaves;
   gin.node_box = &m.qt_node_box;
-  std::vector<uint8_t> ring_is_hole(rings.size());
-  for (size_t r = 0; r < rings.size(); ++r) ring_is_hole[r] = rings[r].exterior >= 0;
+  std::vector<uint8_t> ring_is_hole(pr.rings.size());
+  for (size_t r = 0; r < pr.rings.size(); ++r) ring_is_hole[r] = pr.is_hole(r);
   gin.ring_is_hole = &ring_is_hole;
-  // Grid-independent static blobs, so that the grid's share of the package
-  // can be weighed (the per-cell lists and BVHs are counted in choose_grid).
   auto bytes_of = [](const auto& v) { return uint64_t(v.size()) * sizeof(v[0]); };
   gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
                        bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
                        bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_range) +
                        bytes_of(m.qt_leaf_segments) + bytes_of(m.qt_leaf_vertices);
-  m.grid = choose_grid(gin, options);
-  prims = {};
-  weights = {};
-  const GridParams& g = m.grid;
-  const uint64_t ncells = uint64_t(g.nx) * g.ny;
-  if (ncells > 0xffffffffULL) throw resource_error("build: decal grid has too many cells");
-  ProgressStage cells_stage(options.progress, "build.cells", m.line_props.size() + rings.size(),
-                            "items");
+  return choose_grid(gin, options);
+}
 
-  // ---- segments -> cells (exact shapes, thesis §4.2.1) --------------------
-  struct SegEntry {
-    uint32_t cell, order, start, end;
-    ivec4 box;
-  };
+// One (cell, line segment) pair: the segment's box clipped to the cell.
+struct SegEntry {
+  uint32_t cell, order, start, end;
+  ivec4 box;
+};
+
+// Segments -> cells by their exact shapes (thesis §4.2.1), sorted by cell,
+// drawing rank and segment.
+std::vector<SegEntry> line_cell_entries(const DecalModel& m, const std::vector<SegmentShape>& shapes,
+                                        ProgressStage& cells_stage) {
+  const GridParams& g = m.grid;
   std::vector<std::vector<SegEntry>> per_line(m.line_props.size());
-  {
-    std::vector<uint32_t> first_shape(m.line_props.size() + 1, 0);
-    for (const SegmentShape& s : shapes) ++first_shape[s.line + 1];
-    for (size_t i = 0; i < m.line_props.size(); ++i) first_shape[i + 1] += first_shape[i];
-    tbb::parallel_for(size_t(0), m.line_props.size(), [&](size_t li) {
-      for (uint32_t k = first_shape[li]; k < first_shape[li + 1]; ++k) {
-        const SegmentShape& s = shapes[k];
-        for_each_cell(g, s, [&](uint32_t cell) {
-          const int64_t ix = cell % g.nx, iy = cell / g.nx;
-          QBox cb = cell_box(g, ix, iy);
-          cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
-          per_line[li].push_back({cell, m.line_props[li].order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
-        });
-      }
-      cells_stage.add();
-    });
-  }
-  std::vector<SegEntry> seg_entries;
-  {
-    size_t total = 0;
-    for (auto& v : per_line) total += v.size();
-    seg_entries.reserve(total);
-    for (auto& v : per_line) {
-      seg_entries.insert(seg_entries.end(), v.begin(), v.end());
-      std::vector<SegEntry>().swap(v);
+  std::vector<uint32_t> first_shape(m.line_props.size() + 1, 0);
+  for (const SegmentShape& s : shapes) ++first_shape[s.line + 1];
+  for (size_t i = 0; i < m.line_props.size(); ++i) first_shape[i + 1] += first_shape[i];
+  tbb::parallel_for(size_t(0), m.line_props.size(), [&](size_t li) {
+    for (uint32_t k = first_shape[li]; k < first_shape[li + 1]; ++k) {
+      const SegmentShape& s = shapes[k];
+      for_each_cell(g, s, [&](uint32_t cell) {
+        const int64_t ix = cell % g.nx, iy = cell / g.nx;
+        QBox cb = cell_box(g, ix, iy);
+        cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
+        per_line[li].push_back({cell, m.line_props[li].order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
+      });
     }
+    cells_stage.add();
+  });
+  std::vector<SegEntry> entries;
+  size_t total = 0;
+  for (auto& v : per_line) total += v.size();
+  entries.reserve(total);
+  for (auto& v : per_line) {
+    entries.insert(entries.end(), v.begin(), v.end());
+    std::vector<SegEntry>().swap(v);
   }
-  tbb::parallel_sort(seg_entries.begin(), seg_entries.end(), [](const SegEntry& a, const SegEntry& b) {
+  tbb::parallel_sort(entries.begin(), entries.end(), [](const SegEntry& a, const SegEntry& b) {
     if (a.cell != b.cell) return a.cell < b.cell;
     if (a.order != b.order) return a.order < b.order;
     return a.start < b.start;
   });
-  m.stats.line_cell_entries = seg_entries.size();
+  return entries;
+}
 
-  // ---- polygons -> cells with culling nodes (thesis §4.2.1) ---------------
-  std::vector<std::vector<CellPoly>> per_ring(rings.size());
-  tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
-    std::vector<std::pair<uint32_t, QBox>> hits;
-    for (uint32_t n : solid_leaves[r]) {
-      const QBox lb = box_of(m.qt_node_box[n]);
-      int64_t x0, y0, x1, y1;
-      if (!cell_range(g, lb, x0, y0, x1, y1)) continue;
-      for (int64_t iy = y0; iy <= y1; ++iy)
-        for (int64_t ix = x0; ix <= x1; ++ix) {
-          QBox cb = cell_box(g, ix, iy);
-          cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
-          const QBox part = intersect(lb, cb);
-          if (part.empty()) continue;
-          hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
-        }
-    }
-    std::sort(hits.begin(), hits.end(), [](const auto& a, const auto& b) {
-      if (a.first != b.first) return a.first < b.first;
-      return std::tie(a.second.x0, a.second.y0, a.second.x1, a.second.y1) <
-             std::tie(b.second.x0, b.second.y0, b.second.x1, b.second.y1);
-    });
-    for (size_t i = 0; i < hits.size();) {
-      size_t j = i;
-      QBox u = hits[i].second;
-      for (; j < hits.size() && hits[j].first == hits[i].first; ++j)
-        u = {std::min(u.x0, hits[j].second.x0), std::min(u.y0, hits[j].second.y0),
-             std::max(u.x1, hits[j].second.x1), std::max(u.y1, hits[j].second.y1)};
-      // Culling: the deepest node whose box holds every part of the polygon
-      // that can matter in this cell.
-      uint32_t node = m.poly_root_node[r];
-      for (;;) {
-        if (m.qt_node[node][0] != int32_t(decal::QtNodeType::internal)) break;
-        uint32_t next = node;
-        for (int c = 0; c < 4; ++c) {
-          const uint32_t ch = uint32_t(m.qt_node[node][1] + c);
-          if (contains(m.qt_node_box[ch], u)) {
-            next = ch;
-            break;
-          }
-        }
-        if (next == node) break;
-        node = next;
+// The (cell, ring) pairs of one ring: its solid leaves clipped to each cell
+// they touch, merged per cell, with the culling node: the deepest node whose
+// box holds every part of the polygon that can matter in that cell.
+std::vector<CellPoly> ring_cell_entries(const DecalModel& m, uint32_t r, const std::vector<uint32_t>& leaves) {
+  const GridParams& g = m.grid;
+  std::vector<std::pair<uint32_t, QBox>> hits;
+  for (uint32_t n : leaves) {
+    const QBox lb = box_of(m.qt_node_box[n]);
+    int64_t x0, y0, x1, y1;
+    if (!cell_range(g, lb, x0, y0, x1, y1)) continue;
+    for (int64_t iy = y0; iy <= y1; ++iy)
+      for (int64_t ix = x0; ix <= x1; ++ix) {
+        QBox cb = cell_box(g, ix, iy);
+        cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
+        const QBox part = intersect(lb, cb);
+        if (part.empty()) continue;
+        hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
       }
-      per_ring[r].push_back({hits[i].first, uint32_t(r), node, to_ivec4(u)});
-      i = j;
+  }
+  std::sort(hits.begin(), hits.end(), [](const auto& a, const auto& b) {
+    if (a.first != b.first) return a.first < b.first;
+    return std::tie(a.second.x0, a.second.y0, a.second.x1, a.second.y1) <
+           std::tie(b.second.x0, b.second.y0, b.second.x1, b.second.y1);
+  });
+  std::vector<CellPoly> out;
+  for (size_t i = 0; i < hits.size();) {
+    size_t j = i;
+    QBox u = hits[i].second;
+    for (; j < hits.size() && hits[j].first == hits[i].first; ++j)
+      u = {std::min(u.x0, hits[j].second.x0), std::min(u.y0, hits[j].second.y0),
+           std::max(u.x1, hits[j].second.x1), std::max(u.y1, hits[j].second.y1)};
+    uint32_t node = m.poly_root_node[r];
+    for (;;) {
+      if (m.qt_node[node][0] != int32_t(decal::QtNodeType::internal)) break;
+      uint32_t next = node;
+      for (int c = 0; c < 4; ++c) {
+        const uint32_t ch = uint32_t(m.qt_node[node][1] + c);
+        if (contains(m.qt_node_box[ch], u)) {
+          next = ch;
+          break;
+        }
+      }
+      if (next == node) break;
+      node = next;
     }
+    out.push_back({hits[i].first, r, node, to_ivec4(u)});
+    i = j;
+  }
+  return out;
+}
+
+// Polygons -> cells with culling nodes (thesis §4.2.1): exteriors and holes
+// apart, each sorted by cell, drawing rank, exterior and ring.
+void polygon_cell_entries(const DecalModel& m, const PolygonRings& pr, ProgressStage& cells_stage,
+                          std::vector<CellPoly>& ext_entries, std::vector<CellPoly>& hole_entries) {
+  std::vector<std::vector<CellPoly>> per_ring(pr.rings.size());
+  tbb::parallel_for(size_t(0), pr.rings.size(), [&](size_t r) {
+    per_ring[r] = ring_cell_entries(m, uint32_t(r), pr.solid_leaves[r]);
     cells_stage.add();
   });
-  std::vector<CellPoly> ext_entries, hole_entries;
-  for (size_t r = 0; r < rings.size(); ++r) {
-    auto& dst = rings[r].exterior < 0 ? ext_entries : hole_entries;
+  for (size_t r = 0; r < pr.rings.size(); ++r) {
+    auto& dst = pr.is_hole(r) ? hole_entries : ext_entries;
     dst.insert(dst.end(), per_ring[r].begin(), per_ring[r].end());
     std::vector<CellPoly>().swap(per_ring[r]);
   }
   auto ext_of = [&](uint32_t poly) {
-    return rings[poly].exterior < 0 ? poly : uint32_t(rings[poly].exterior);
+    return pr.rings[poly].exterior < 0 ? poly : uint32_t(pr.rings[poly].exterior);
   };
   auto poly_less = [&](const CellPoly& a, const CellPoly& b) {
     if (a.cell != b.cell) return a.cell < b.cell;
-    if (order_of_poly[a.poly] != order_of_poly[b.poly]) return order_of_poly[a.poly] < order_of_poly[b.poly];
+    if (pr.order[a.poly] != pr.order[b.poly]) return pr.order[a.poly] < pr.order[b.poly];
     if (ext_of(a.poly) != ext_of(b.poly)) return ext_of(a.poly) < ext_of(b.poly);
     return a.poly < b.poly;
   };
   tbb::parallel_sort(ext_entries.begin(), ext_entries.end(), poly_less);
   tbb::parallel_sort(hole_entries.begin(), hole_entries.end(), poly_less);
+}
 
-  // ---- per-cell lists and BVHs ---------------------------------------------
+// The per-cell lists (segments, exteriors with their holes) and the per-cell
+// BVHs over them.
+void fill_cells(std::vector<SegEntry>&& seg_entries, const std::vector<CellPoly>& ext_entries,
+                const std::vector<CellPoly>& hole_entries, const PolygonRings& pr, DecalModel& m) {
+  const size_t ncells = size_t(m.grid.nx) * m.grid.ny;
   m.cell_segment_range.assign(ncells, uvec2{0, 0});
   m.cell_poly_range.assign(ncells, uvec2{0, 0});
   std::vector<uint32_t> seg_first(ncells + 1, 0), poly_first(ncells + 1, 0);
@@ -474,10 +496,10 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
     // (same sort key prefix); skip holes whose exterior is absent here.
     while (h < hole_entries.size() &&
            (hole_entries[h].cell < e.cell ||
-            (hole_entries[h].cell == e.cell && order_of_poly[hole_entries[h].poly] < order_of_poly[e.poly])))
+            (hole_entries[h].cell == e.cell && pr.order[hole_entries[h].poly] < pr.order[e.poly])))
       ++h;
     while (h < hole_entries.size() && hole_entries[h].cell == e.cell &&
-           uint32_t(rings[hole_entries[h].poly].exterior) == e.poly) {
+           uint32_t(pr.rings[hole_entries[h].poly].exterior) == e.poly) {
       m.cell_holes.push_back({hole_entries[h].poly, hole_entries[h].cull});
       ++h;
     }
@@ -494,9 +516,49 @@ DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
   }
   build_bvhs(seg_first, seg_boxes, m.line_bvh_range, m.line_bvh_box);
   build_bvhs(poly_first, poly_boxes, m.poly_bvh_range, m.poly_bvh_box);
+}
+
+}  // namespace
+
+DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
+                       const std::string& dem) {
+  std::optional<tbb::global_control> threads;
+  if (options.threads > 0)
+    threads.emplace(tbb::global_control::max_allowed_parallelism, options.threads);
+  check_options(options);
+
+  DecalModel m;
+  m.frame = scene.frame;
+  m.extent = scene.extent;
+  m.manifest = scene.manifest;
+
+  // Lines: vertices, properties, corners, widened segments.
+  std::vector<SegmentShape> shapes;
+  std::vector<DrawKey> draw_keys;  // lines first, then exterior polygons
+  build_lines(scene, options, m, shapes, draw_keys);
+  const size_t n_lines = draw_keys.size();
+  m.stats.line_segments = shapes.size();
+
+  // Polygons: quantised rings, drawing ranks, one quad-tree per ring.
+  PolygonRings rings = quantise_polygons(scene, m, draw_keys);
+  assign_ranks(draw_keys, n_lines, rings, m);
+  build_polygon_trees(scene, options, rings, m);
+  rings.solid_leaves = solid_leaves(m, rings.rings.size());
+
+  // The decal grid, then segments and polygon parts to cells, and the BVHs.
+  m.grid = choose_model_grid(shapes, rings, options, m);
+  if (uint64_t(m.grid.nx) * m.grid.ny > 0xffffffffULL)
+    throw resource_error("build: decal grid has too many cells");
+  ProgressStage cells_stage(options.progress, "build.cells", m.line_props.size() + rings.rings.size(),
+                            "items");
+  std::vector<SegEntry> seg_entries = line_cell_entries(m, shapes, cells_stage);
+  m.stats.line_cell_entries = seg_entries.size();
+  std::vector<CellPoly> ext_entries, hole_entries;
+  polygon_cell_entries(m, rings, cells_stage, ext_entries, hole_entries);
+  fill_cells(std::move(seg_entries), ext_entries, hole_entries, rings, m);
   cells_stage.finish();
 
-  // ---- dynamic lines and LOD ----------------------------------------------
+  // Dynamic lines and LOD.
   ProgressStage dynamic_stage(options.progress, "build.dynamic", scene.dynamic_lines.size(),
                               "lines");
   build_dynamic(scene, options, dem, m);
