@@ -9,6 +9,7 @@
 // The text depends only on the package contents, never on how the blobs are
 // stored (codec, offsets), so a compressed and an uncompressed package of the
 // same model dump identically. Floats print with %.9g (round-trips float32).
+#include <xxhash.h>
 #include <algorithm>
 #include <cinttypes>
 #include <cmath>
@@ -19,7 +20,6 @@
 #include <string>
 #include <tuple>
 #include <vector>
-#include <xxhash.h>
 
 #include "command.hpp"
 #include "decal/reader.hpp"
@@ -220,7 +220,8 @@ constexpr uint64_t kSummaryEnds = 3;
 // `decalprep info` prints the checksum of a blob stored uncompressed.
 std::string xxh64_hex(const decal::BlobView& b) {
   char h[17];
-  std::snprintf(h, sizeof h, "%016" PRIx64, static_cast<uint64_t>(XXH64(b.bytes.data(), b.bytes.size(), 0)));
+  std::snprintf(h, sizeof h, "%016" PRIx64,
+                static_cast<uint64_t>(XXH64(b.bytes.data(), b.bytes.size(), 0)));
   return h;
 }
 
@@ -239,7 +240,8 @@ void flatten(const json& v, const std::string& path, std::string& out) {
   out += "  " + path + " " + v.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
 }
 
-// The entry indices shown: all when few, else the first and last kSummaryEnds.
+// Calls show(i) for the elements a summary lists: all of a short blob, else
+// the first and last kSummaryEnds with a `... N more` line between.
 template <class F>
 void ends(uint64_t count, F&& show) {
   for (uint64_t i = 0; i < count; ++i) {
@@ -261,7 +263,8 @@ void summarise_manifest(const std::string& path, const decal::BlobView& b) {
   } catch (const json::exception& e) {
     throw prep::format_error("dump: " + path + ": manifest_entries is not valid JSON: " + e.what());
   }
-  if (!entries.is_array()) throw prep::format_error("dump: " + path + ": manifest_entries is not a JSON array");
+  if (!entries.is_array())
+    throw prep::format_error("dump: " + path + ": manifest_entries is not a JSON array");
   // (action rank, stage rank, label) -> count, per layer.
   using Key = std::tuple<int, int, std::string>;
   std::vector<std::pair<std::string, std::vector<std::pair<Key, uint64_t>>>> layers;
@@ -270,31 +273,35 @@ void summarise_manifest(const std::string& path, const decal::BlobView& b) {
     const auto text = [&](const char* k) {
       const auto it = e.is_object() ? e.find(k) : e.end();
       if (it == e.end() || !it->is_string())
-        throw prep::format_error("dump: " + path + ": manifest entry " + std::to_string(i) + " has no string '" +
-                                 k + "'");
+        throw prep::format_error("dump: " + path + ": manifest entry " + std::to_string(i) +
+                                 " has no string '" + k + "'");
       return it->get<std::string>();
     };
     const std::string layer = text("layer"), action = text("action");
     const auto a = prep::manifest_action_from_word(action);
-    Key key{a ? static_cast<int>(*a) : 99, -1, action};
+    Key key{a ? static_cast<int>(*a) : 99, -1, action};  // a word outside the vocabulary: last
     if (a == prep::ManifestAction::dropped) {
       if (const auto stage = prep::parse_reason_text(text("reason")).failed_in) {
         std::get<1>(key) = static_cast<int>(*stage);
         std::get<2>(key) = action + " (failed in " + prep::word(*stage) + ")";
       }
     }
-    auto l = std::find_if(layers.begin(), layers.end(), [&](const auto& x) { return x.first == layer; });
+    auto l =
+        std::find_if(layers.begin(), layers.end(), [&](const auto& x) { return x.first == layer; });
     if (l == layers.end()) l = layers.insert(layers.end(), {layer, {}});
-    auto c = std::find_if(l->second.begin(), l->second.end(), [&](const auto& x) { return x.first == key; });
+    auto c = std::find_if(l->second.begin(), l->second.end(),
+                          [&](const auto& x) { return x.first == key; });
     if (c == l->second.end()) c = l->second.insert(l->second.end(), {key, 0});
     ++c->second;
   }
   std::printf("  entries %zu\n", entries.size());
   for (auto& [layer, counts] : layers) {
     std::sort(counts.begin(), counts.end());
-    std::string line = "  layer " + json(layer).dump(-1, ' ', false, json::error_handler_t::replace) + ":";
+    std::string line =
+        "  layer " + json(layer).dump(-1, ' ', false, json::error_handler_t::replace) + ":";
     for (size_t k = 0; k < counts.size(); ++k)
-      line += (k ? ", " : " ") + std::get<2>(counts[k].first) + " " + std::to_string(counts[k].second);
+      line +=
+          (k ? ", " : " ") + std::get<2>(counts[k].first) + " " + std::to_string(counts[k].second);
     std::printf("%s\n", line.c_str());
   }
   ends(entries.size(), [&](uint64_t i) {
@@ -319,8 +326,8 @@ void run_summary(const decal::Package& p, const std::string& path, const std::st
   std::string line;
   for (const auto& b : p.blobs()) {
     if (!only.empty() && b.name != only) continue;
-    std::printf("blob %s id=%u type=%s stride=%u count=%" PRIu64 " xxh64=%s\n", b.name.c_str(), b.id,
-                type_name(b).c_str(), b.stride, b.count, xxh64_hex(b).c_str());
+    std::printf("blob %s id=%u type=%s stride=%u count=%" PRIu64 " xxh64=%s\n", b.name.c_str(),
+                b.id, type_name(b).c_str(), b.stride, b.count, xxh64_hex(b).c_str());
     if (b.id == static_cast<uint32_t>(BlobId::manifest_entries)) {
       summarise_manifest(path, b);
       continue;
@@ -429,8 +436,9 @@ const decalprep::CommandRegistrar kDump(22, [](CLI::App& app) {
   auto only = std::make_shared<std::string>();
   cmd->add_option("PACKAGE", *path, "the .decals file")->required();
   auto* json_flag = cmd->add_flag("--json", *as_json, "print the decoded elements as JSON");
-  cmd->add_flag("--summary", *summary,
-                "print a short text to review as a diff (golden tests): hashes and counts, see below")
+  cmd->add_flag(
+         "--summary", *summary,
+         "print a short text to review as a diff (golden tests): hashes and counts, see below")
       ->excludes(json_flag);
   cmd->add_option("--blob", *only, "only the blob with this name (e.g. line_vertices)");
   cmd->callback([path, as_json, summary, only] {
