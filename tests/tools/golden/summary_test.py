@@ -1,19 +1,25 @@
 #!/usr/bin/env python3
-"""The golden summary can fail: one changed manifest entry or one changed blob
-element changes `decalprep dump --summary`, so check.sh would fail.
+"""`decalprep dump --summary` of the golden scene against an independent read
+of the package, and the golden can fail.
 
-Builds tests/tools/golden/scene.toml uncompressed, checks that its summary is
-golden.summary.txt, then rewrites copies of the package with (a) one digit of
-one manifest entry's fid changed and (b) one coordinate of one line vertex
-moved by 1 mm, both in the middle of their blob (not among the elements the
-summary shows), with the blob, table and header checksums recomputed
-(formats/SPEC.md "File header", "Blob table"). Each summary must differ from
-the golden in exactly the changed blob's line, whose xxh64 must be the XXH64
-of the changed bytes as computed here (an independent implementation of
-XXH64, seed 0, after the xxHash specification).
+Builds tests/tools/golden/scene.toml uncompressed and checks that its summary
+is golden.summary.txt. Then, reading the package bytes here (formats/SPEC.md
+"File header", "Blob table"; uncompressed, so stored bytes = decoded bytes):
+every blob's summary line has the table's count and the XXH64 of its bytes as
+computed here (an independent implementation of XXH64, seed 0, after the
+xxHash specification), and the manifest lines are the entries of the stored
+JSON counted here per layer and action.
 
-Usage: perturb_test.py DECALPREP REPO_ROOT WORK_DIR
+Then it rewrites copies of the package with (a) one digit of one manifest
+entry's fid changed and (b) one coordinate of one line vertex moved by 1 mm,
+both in the middle of their blob (not among the elements the summary shows),
+with the blob, table and header checksums recomputed. Each summary must
+differ from the golden in exactly the changed blob's line, whose xxh64 must
+be that of the changed bytes: so check.sh fails on such a change.
+
+Usage: summary_test.py DECALPREP REPO_ROOT WORK_DIR
 """
+import json
 import os
 import re
 import struct
@@ -108,6 +114,63 @@ def move_vertex(blob):
     struct.pack_into("<i", blob, k * 8, x + 1)
 
 
+def blobs_of(package):
+    """name -> (count, stored bytes) of an uncompressed package, in table order."""
+    h = HEADER.unpack_from(package, 0)
+    out = {}
+    for k in range(h[6]):
+        e = ENTRY.unpack_from(package, h[9] + k * 96)
+        assert e[3] == 0, "blob %d is compressed" % k
+        out[e[9].rstrip(b"\0").decode()] = (e[4], package[e[5]:e[5] + e[6]])
+    return out
+
+
+ACTIONS = ["repaired", "part_dropped", "dropped", "clipped_away", "note"]  # formats/SPEC.md
+STAGES = ["read", "project", "clean", "build"]
+
+
+def expected_manifest(raw):
+    """The summary's manifest lines, from the stored JSON."""
+    entries = json.loads(raw.decode("utf-8"))
+    layers = {}
+    for e in entries:
+        m = re.match(r"failed in (\w+): ", e["reason"]) if e["action"] == "dropped" else None
+        key = (ACTIONS.index(e["action"]), STAGES.index(m.group(1)) if m else -1,
+               e["action"] + (" (failed in %s)" % m.group(1) if m else ""))
+        counts = layers.setdefault(e["layer"], {})
+        counts[key] = counts.get(key, 0) + 1
+    lines = ["  entries %d" % len(entries)]
+    for layer, counts in layers.items():
+        lines.append("  layer %s: " % json.dumps(layer, ensure_ascii=False) +
+                     ", ".join("%s %d" % (k[2], n) for k, n in sorted(counts.items())))
+    return lines
+
+
+def check_independently(lines, package):
+    """Problems of the summary `lines` against the package bytes read here."""
+    blobs, problems, seen = blobs_of(package), [], []
+    for i, line in enumerate(lines):
+        m = re.match(r"blob (\S+) id=\d+ type=\w+ stride=\d+ count=(\d+) xxh64=([0-9a-f]{16})$", line)
+        if not m:
+            continue
+        name, count, digest = m.group(1), int(m.group(2)), m.group(3)
+        seen.append(name)
+        if name not in blobs:
+            problems.append("summary lists blob %s, the package has none" % name)
+            continue
+        want = (blobs[name][0], "%016x" % xxh64(blobs[name][1]))
+        if (count, digest) != want:
+            problems.append("%s: summary count %d xxh64 %s, package %d %s" % (name, count, digest, *want))
+        if name == "manifest_entries":
+            want_lines = expected_manifest(blobs[name][1])
+            got = lines[i + 1:i + 1 + len(want_lines)]
+            if got != want_lines:
+                problems.append("manifest lines %s, counted here %s" % (got, want_lines))
+    if seen != list(blobs):
+        problems.append("summary lists blobs %s, package %s" % (seen, list(blobs)))
+    return problems
+
+
 def summary(tool, path):
     r = subprocess.run([tool, "dump", path, "--summary"], capture_output=True, text=True)
     if r.returncode != 0:
@@ -128,8 +191,13 @@ def main():
         raise SystemExit("the uncompressed build's summary is not golden.summary.txt (check.sh says where)")
     with open(base, "rb") as f:
         package = f.read()
+    problems = check_independently(golden, package)
+    for p in problems:
+        print("FAIL: %s" % p)
+    print("%s: every blob's count and xxh64 and the manifest counts agree with the package read here"
+          % ("FAIL" if problems else "ok"))
 
-    failures = 0
+    failures = len(problems)
     for name, change, what in (("manifest_entries", change_fid, "one fid digit of the middle entry"),
                                ("line_vertices", move_vertex, "x of the middle vertex + 1 mm")):
         data, blob = perturb(package, name, change)
