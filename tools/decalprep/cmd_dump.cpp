@@ -1,11 +1,16 @@
-// cmd_dump.cpp — `decalprep dump PACKAGE [--json] [--blob NAME]`: the
-// canonical text of every blob, for golden tests, or every blob's decoded
-// elements as JSON (positions also in scene metres), so that outside tools
-// can check a package without knowing its encoding.
+// cmd_dump.cpp — `decalprep dump PACKAGE [--json|--summary] [--blob NAME]`:
+// the canonical text of every blob, every blob's decoded elements as JSON
+// (positions also in scene metres), so that outside tools can check a package
+// without knowing its encoding, or a summary short enough to review as a
+// diff (golden tests: tests/tools/golden): the metadata one value per line,
+// each blob as its count, the xxh64 of its decoded bytes and its first and
+// last elements, the manifest entries counted per layer and action.
 //
 // The text depends only on the package contents, never on how the blobs are
 // stored (codec, offsets), so a compressed and an uncompressed package of the
 // same model dump identically. Floats print with %.9g (round-trips float32).
+#include <xxhash.h>
+#include <algorithm>
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
@@ -13,9 +18,12 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "command.hpp"
 #include "decal/reader.hpp"
+#include "prep/manifest_words.hpp"
 
 namespace {
 
@@ -203,7 +211,137 @@ std::string as_text(const decal::BlobView& b) {
 
 std::string type_name(const decal::BlobView& b) { return std::string(decal::element_type_name(b.type)); }
 
-void run_dump(const std::string& path, bool as_json, const std::string& only) {
+// ------------------------------------------------------------- summary --
+
+// Elements shown at each end of a blob in the summary.
+constexpr uint64_t kSummaryEnds = 3;
+
+// XXH64 (seed 0) of a blob's decoded bytes as 16 hex digits, the way
+// `decalprep info` prints the checksum of a blob stored uncompressed.
+std::string xxh64_hex(const decal::BlobView& b) {
+  char h[17];
+  std::snprintf(h, sizeof h, "%016" PRIx64,
+                static_cast<uint64_t>(XXH64(b.bytes.data(), b.bytes.size(), 0)));
+  return h;
+}
+
+// One line per leaf: `  path value`, objects and arrays that hold more than
+// numbers unfolded (`a.b`, `a[2].c`), other values as compact JSON.
+void flatten(const json& v, const std::string& path, std::string& out) {
+  const auto structured = [](const json& x) { return x.is_structured() || x.is_string(); };
+  if (v.is_object() && !v.empty()) {
+    for (const auto& [k, x] : v.items()) flatten(x, path.empty() ? k : path + "." + k, out);
+    return;
+  }
+  if (v.is_array() && std::any_of(v.begin(), v.end(), structured)) {
+    for (size_t i = 0; i < v.size(); ++i) flatten(v[i], path + "[" + std::to_string(i) + "]", out);
+    return;
+  }
+  out += "  " + path + " " + v.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
+}
+
+// Calls show(i) for the elements a summary lists: all of a short blob, else
+// the first and last kSummaryEnds with a `... N more` line between.
+template <class F>
+void ends(uint64_t count, F&& show) {
+  for (uint64_t i = 0; i < count; ++i) {
+    if (count > 2 * kSummaryEnds && i == kSummaryEnds) {
+      std::printf("  ... %" PRIu64 " more\n", count - 2 * kSummaryEnds);
+      i = count - kSummaryEnds;
+    }
+    show(i);
+  }
+}
+
+// The manifest entries counted per layer (in order of first appearance) and
+// action word, dropped entries split by the failure stage their reason names
+// (formats/SPEC.md "Manifest entries"); then the first and last entries.
+void summarise_manifest(const std::string& path, const decal::BlobView& b) {
+  json entries;
+  try {
+    entries = json::parse(as_text(b));
+  } catch (const json::exception& e) {
+    throw prep::format_error("dump: " + path + ": manifest_entries is not valid JSON: " + e.what());
+  }
+  if (!entries.is_array())
+    throw prep::format_error("dump: " + path + ": manifest_entries is not a JSON array");
+  // (action rank, stage rank, label) -> count, per layer.
+  using Key = std::tuple<int, int, std::string>;
+  std::vector<std::pair<std::string, std::vector<std::pair<Key, uint64_t>>>> layers;
+  for (size_t i = 0; i < entries.size(); ++i) {
+    const json& e = entries[i];
+    const auto text = [&](const char* k) {
+      const auto it = e.is_object() ? e.find(k) : e.end();
+      if (it == e.end() || !it->is_string())
+        throw prep::format_error("dump: " + path + ": manifest entry " + std::to_string(i) +
+                                 " has no string '" + k + "'");
+      return it->get<std::string>();
+    };
+    const std::string layer = text("layer"), action = text("action");
+    const auto a = prep::manifest_action_from_word(action);
+    Key key{a ? static_cast<int>(*a) : 99, -1, action};  // a word outside the vocabulary: last
+    if (a == prep::ManifestAction::dropped) {
+      if (const auto stage = prep::parse_reason_text(text("reason")).failed_in) {
+        std::get<1>(key) = static_cast<int>(*stage);
+        std::get<2>(key) = action + " (failed in " + prep::word(*stage) + ")";
+      }
+    }
+    auto l =
+        std::find_if(layers.begin(), layers.end(), [&](const auto& x) { return x.first == layer; });
+    if (l == layers.end()) l = layers.insert(layers.end(), {layer, {}});
+    auto c = std::find_if(l->second.begin(), l->second.end(),
+                          [&](const auto& x) { return x.first == key; });
+    if (c == l->second.end()) c = l->second.insert(l->second.end(), {key, 0});
+    ++c->second;
+  }
+  std::printf("  entries %zu\n", entries.size());
+  for (auto& [layer, counts] : layers) {
+    std::sort(counts.begin(), counts.end());
+    std::string line =
+        "  layer " + json(layer).dump(-1, ' ', false, json::error_handler_t::replace) + ":";
+    for (size_t k = 0; k < counts.size(); ++k)
+      line +=
+          (k ? ", " : " ") + std::get<2>(counts[k].first) + " " + std::to_string(counts[k].second);
+    std::printf("%s\n", line.c_str());
+  }
+  ends(entries.size(), [&](uint64_t i) {
+    std::printf("  [%" PRIu64 "] %s\n", i,
+                entries[i].dump(-1, ' ', false, json::error_handler_t::replace).c_str());
+  });
+}
+
+void run_summary(const decal::Package& p, const std::string& path, const std::string& only) {
+  std::printf("decals %u.%u\n", p.major(), p.minor());
+  if (only.empty()) {
+    json meta;
+    try {
+      meta = json::parse(p.metadata_json());
+    } catch (const json::exception& e) {
+      throw prep::format_error("dump: " + path + ": metadata is not valid JSON: " + e.what());
+    }
+    std::string text;
+    flatten(meta, "", text);
+    std::printf("metadata\n%s", text.c_str());
+  }
+  std::string line;
+  for (const auto& b : p.blobs()) {
+    if (!only.empty() && b.name != only) continue;
+    std::printf("blob %s id=%u type=%s stride=%u count=%" PRIu64 " xxh64=%s\n", b.name.c_str(),
+                b.id, type_name(b).c_str(), b.stride, b.count, xxh64_hex(b).c_str());
+    if (b.id == static_cast<uint32_t>(BlobId::manifest_entries)) {
+      summarise_manifest(path, b);
+      continue;
+    }
+    ends(b.count, [&](uint64_t i) {
+      line = "  [" + std::to_string(i) + "] ";
+      element(b, i, &line, nullptr);
+      line += '\n';
+      std::fwrite(line.data(), 1, line.size(), stdout);
+    });
+  }
+}
+
+void run_dump(const std::string& path, bool as_json, bool summary, const std::string& only) {
   decal::Package p;
   if (decal::Status s = decal::Package::open(path, p); !s)
     throw prep::format_error("dump: " + s.message);
@@ -211,6 +349,7 @@ void run_dump(const std::string& path, bool as_json, const std::string& only) {
   for (const auto& b : p.blobs()) found = found || b.name == only;
   if (!found) throw prep::usage_error("dump: " + path + " has no blob named '" + only + "'");
 
+  if (summary) return run_summary(p, path, only);
   if (as_json) {
     json out = {{"version", {{"major", p.major()}, {"minor", p.minor()}}}};
     json meta;
@@ -283,16 +422,27 @@ const decalprep::CommandRegistrar kDump(22, [](CLI::App& app) {
       "compressed and uncompressed packages of the same model (golden tests).\n"
       "JSON: {version, metadata, quantum_m, blobs:[{id,name,type,stride,count,elements,\n"
       "scene_m}]}; scene_m (position blobs only) holds coordinates in scene metres.\n"
+      "Summary: text short enough to review as a diff: the metadata one value per\n"
+      "line (`path value`); per blob its count, xxh64 (seed 0, hex) of its decoded\n"
+      "bytes (what `info` lists for a blob stored uncompressed) and its first and\n"
+      "last 3 elements; for manifest_entries (hashed as the JSON text stored) the\n"
+      "entries counted per layer and action, then the first and last 3 entries.\n"
       "Examples:\n  decalprep dump city.decals > city.txt\n"
+      "  decalprep dump city.decals --summary > city.summary.txt\n"
       "  decalprep dump city.decals --json --blob line_vertices");
   auto path = std::make_shared<std::string>();
   auto as_json = std::make_shared<bool>(false);
+  auto summary = std::make_shared<bool>(false);
   auto only = std::make_shared<std::string>();
   cmd->add_option("PACKAGE", *path, "the .decals file")->required();
-  cmd->add_flag("--json", *as_json, "print the decoded elements as JSON");
+  auto* json_flag = cmd->add_flag("--json", *as_json, "print the decoded elements as JSON");
+  cmd->add_flag(
+         "--summary", *summary,
+         "print a short text to review as a diff (golden tests): hashes and counts, see below")
+      ->excludes(json_flag);
   cmd->add_option("--blob", *only, "only the blob with this name (e.g. line_vertices)");
-  cmd->callback([path, as_json, only] {
-    run_dump(*path, *as_json, *only);
+  cmd->callback([path, as_json, summary, only] {
+    run_dump(*path, *as_json, *summary, *only);
     decalprep::set_exit_code(prep::ExitCode::ok);
   });
 });

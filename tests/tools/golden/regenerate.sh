@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Regenerates the golden dump of tests/tools/golden/scene.toml.
+# Regenerates golden.summary.txt, the `decalprep dump --summary` of
+# tests/tools/golden/scene.toml (built with the scene's 2 threads).
 # Usage: tests/tools/golden/regenerate.sh [path/to/decalprep]
 # Review the diff before committing: a change here is a change of the package.
 set -euo pipefail
@@ -8,5 +9,5 @@ tool="${1:-$here/../../../build/release/tools/decalprep/decalprep}"
 tmp="$(mktemp -d)"; trap 'rm -rf "$tmp"' EXIT
 "$tool" build "$here/scene.toml" -o "$tmp/golden.decals" -q
 # Strip what depends on where the checkout lives (absolute paths).
-"$tool" dump "$tmp/golden.decals" | sed -e "s#$(cd "$here/../../.." && pwd)#<ROOT>#g" | gzip -9n > "$here/golden.dump.gz"
-echo "wrote $here/golden.dump.gz ($(zcat "$here/golden.dump.gz" | wc -l) lines)"
+"$tool" dump "$tmp/golden.decals" --summary | sed -e "s#$(cd "$here/../../.." && pwd)#<ROOT>#g" > "$here/golden.summary.txt"
+echo "wrote $here/golden.summary.txt ($(wc -l < "$here/golden.summary.txt") lines)"
