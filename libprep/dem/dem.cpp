@@ -15,6 +15,7 @@
 #include <sstream>
 #include <vector>
 
+#include "gdal_util.hpp"
 #include "prep/error.hpp"
 
 namespace prep {
@@ -76,15 +77,6 @@ OpenedDem open_dem(const DemSpec& spec) {
   return d;
 }
 
-std::string wkt2_of(const OGRSpatialReference& srs) {
-  const char* opts[] = {"FORMAT=WKT2_2019", "MULTILINE=NO", nullptr};
-  char* wkt = nullptr;
-  srs.exportToWkt(&wkt, opts);
-  std::string s = wkt ? wkt : "";
-  CPLFree(wkt);
-  return s;
-}
-
 constexpr int kMargin = 16;  // cells read beyond the requested area, at least
 
 }  // namespace
@@ -94,7 +86,7 @@ DemFootprint dem_footprint(const DemSpec& spec) {
   const double* gt = d.gt;
   const double w = d.ds->GetRasterXSize(), h = d.ds->GetRasterYSize();
   DemFootprint f;
-  f.crs_wkt = wkt2_of(d.srs);
+  f.crs_wkt = crs_wkt2(d.srs);
   f.crs_assumed = d.assumed;
   f.bounds = {std::min(gt[0], gt[0] + w * gt[1] + h * gt[2]),
               std::min(gt[3], gt[3] + w * gt[4] + h * gt[5]),

@@ -19,6 +19,7 @@
 #include <mutex>
 #include <optional>
 
+#include "gdal_util.hpp"
 #include "prep/dem.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
@@ -67,15 +68,6 @@ TransformPtr make_transform(const OGRSpatialReference& from, const OGRSpatialRef
                       CPLGetLastErrorMsg());
   }
   return t;
-}
-
-std::string to_wkt(const OGRSpatialReference& srs) {
-  const char* opts[] = {"FORMAT=WKT2_2019", "MULTILINE=NO", nullptr};
-  char* wkt = nullptr;
-  srs.exportToWkt(&wkt, opts);
-  std::string s = wkt ? wkt : "";
-  CPLFree(wkt);
-  return s;
 }
 
 Extent bounds_of(const SourceLayer& layer) {
@@ -474,7 +466,7 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
                   "+units=m +no_defs +type=crs",
                   lat0, lon0);
     auto srs = srs_from(def, "local TM frame");
-    frame.crs_wkt = to_wkt(*srs);
+    frame.crs_wkt = crs_wkt2(*srs);
     std::snprintf(def, sizeof def, "local TM lon0=%.7f lat0=%.7f (WGS84, k0=1)", lon0, lat0);
     frame.description = def;
     frame.tm_lon0 = lon0;
@@ -486,7 +478,7 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
     throw input_error("project: --crs '" + crs + "' is not a projected CRS; the scene frame "
                       "needs metres (try a UTM zone or leave --crs out for a local TM)");
   }
-  frame.crs_wkt = to_wkt(*srs);
+  frame.crs_wkt = crs_wkt2(*srs);
   const char* name = srs->GetName();
   frame.description = name ? name : crs;
   // The origin is the centre of the data's vertices transformed into --crs

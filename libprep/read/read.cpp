@@ -24,6 +24,7 @@
 #include <mutex>
 #include <optional>
 
+#include "gdal_util.hpp"
 #include "osm_xml_order.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
@@ -407,11 +408,7 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
                 const std::string& where, ReadAttempt& r) {
   OGRLayer* layer = layer_ptr;
   if (const OGRSpatialReference* srs = layer->GetSpatialRef()) {
-    const char* opts[] = {"FORMAT=WKT2_2019", nullptr};
-    char* wkt = nullptr;
-    srs->exportToWkt(&wkt, opts);
-    r.layer.srs_wkt = wkt ? wkt : "";
-    CPLFree(wkt);
+    r.layer.srs_wkt = crs_wkt2(*srs);
   }
   if (r.layer.srs_wkt.empty()) {
     if (scene.assume_crs.empty()) {
@@ -422,11 +419,7 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
     if (assumed.SetFromUserInput(scene.assume_crs.c_str()) != OGRERR_NONE) {
       throw input_error(where + ": invalid --assume-crs '" + scene.assume_crs + "'");
     }
-    const char* opts[] = {"FORMAT=WKT2_2019", nullptr};
-    char* wkt = nullptr;
-    assumed.exportToWkt(&wkt, opts);
-    r.layer.srs_wkt = wkt ? wkt : "";
-    CPLFree(wkt);
+    r.layer.srs_wkt = crs_wkt2(assumed);
     r.notes.push_back("layer '" + spec.name + "': source has no CRS, assumed " + scene.assume_crs);
   }
 

@@ -22,6 +22,17 @@ std::string_view shader_source(std::string_view name) {
 
 namespace {
 
+// The info log of a shader or program (glGetShaderiv/glGetShaderInfoLog or
+// the program pair).
+template <class GetIv, class GetLog>
+std::string info_log(GLuint object, GetIv get_iv, GetLog get_log) {
+  GLint len = 0;
+  get_iv(object, GL_INFO_LOG_LENGTH, &len);
+  std::string log(static_cast<size_t>(len > 0 ? len : 1), '\0');
+  get_log(object, len, nullptr, log.data());
+  return log;
+}
+
 Status compile(GLenum stage, const std::vector<std::string>& files, const std::string& defines, GLuint& out) {
   std::string src = "#version 450 core\n" + defines + "\n";
   for (const auto& f : files) {
@@ -38,10 +49,7 @@ Status compile(GLenum stage, const std::vector<std::string>& files, const std::s
   GLint ok = 0;
   glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
   if (!ok) {
-    GLint len = 0;
-    glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
-    std::string log(static_cast<size_t>(len > 0 ? len : 1), '\0');
-    glGetShaderInfoLog(sh, len, nullptr, log.data());
+    const std::string log = info_log(sh, glGetShaderiv, glGetShaderInfoLog);
     glDeleteShader(sh);
     std::string names;
     for (const auto& f : files) names += (names.empty() ? "" : "+") + f;
@@ -74,11 +82,7 @@ Status build_program(const ProgramSources& sources, uint32_t& out) {
     GLint ok = 0;
     glGetProgramiv(prog, GL_LINK_STATUS, &ok);
     if (!ok) {
-      GLint len = 0;
-      glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
-      std::string log(static_cast<size_t>(len > 0 ? len : 1), '\0');
-      glGetProgramInfoLog(prog, len, nullptr, log.data());
-      s = Status::failure("gl loader: program failed to link: " + log);
+      s = Status::failure("gl loader: program failed to link: " + info_log(prog, glGetProgramiv, glGetProgramInfoLog));
     }
   }
   for (GLuint sh : shaders) glDeleteShader(sh);
