@@ -61,19 +61,8 @@ nlohmann::json layer_counts_json(const LayerCounts& c) {
 
 nlohmann::json manifest_json(const Manifest& m, bool with_entries) {
   nlohmann::json layers = nlohmann::json::array();
-  LayerCounts total;
-  for (const LayerCounts& c : m.layers) {
-    layers.push_back(layer_counts_json(c));
-    total.read += c.read;
-    total.kept += c.kept;
-    total.repaired += c.repaired;
-    total.clipped_away += c.clipped_away;
-    total.dropped += c.dropped;
-    total.parts += c.parts;
-    total.vertices_in += c.vertices_in;
-    total.vertices_out += c.vertices_out;
-  }
-  nlohmann::json totals = layer_counts_json(total);
+  for (const LayerCounts& c : m.layers) layers.push_back(layer_counts_json(c));
+  nlohmann::json totals = layer_counts_json(manifest_totals(m));
   totals.erase("layer");
   nlohmann::json j = {{"layers", layers}, {"totals", totals}, {"notes", m.notes}};
   if (with_entries) {
@@ -190,6 +179,21 @@ nlohmann::json report_object(const SceneFeatures& scene, const std::string& outp
 }
 
 }  // namespace
+
+LayerCounts manifest_totals(const Manifest& manifest) {
+  LayerCounts total;
+  for (const LayerCounts& c : manifest.layers) {
+    total.read += c.read;
+    total.kept += c.kept;
+    total.repaired += c.repaired;
+    total.clipped_away += c.clipped_away;
+    total.dropped += c.dropped;
+    total.parts += c.parts;
+    total.vertices_in += c.vertices_in;
+    total.vertices_out += c.vertices_out;
+  }
+  return total;
+}
 
 std::string report_json(const SceneFeatures& scene, const std::string& output,
                         const std::vector<std::pair<std::string, double>>& timings,
