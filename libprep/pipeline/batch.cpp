@@ -62,7 +62,8 @@ std::string error_line(const std::string& log_path) {
 }
 
 bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 // The scene files, in input order; a folder gives its *.toml sorted by name.
@@ -80,7 +81,8 @@ std::vector<std::string> list_scene_files(const std::vector<std::string>& inputs
     } else if (ends_with(in, ".toml")) {
       scenes.push_back(in);
     } else {
-      throw usage_error("build: batch mode takes scene files (.toml) or folders of them; got " + in);
+      throw usage_error("build: batch mode takes scene files (.toml) or folders of them; got " +
+                        in);
     }
   }
   return scenes;
@@ -125,7 +127,8 @@ unsigned batch_jobs(const BatchRequest& request) {
   if (available_kb == 0) return jobs;
   const uint64_t fit = std::max<uint64_t>(1, available_kb * 1024 / per_job);
   if (fit >= jobs) return jobs;
-  if (request.on_jobs_lowered) request.on_jobs_lowered(jobs, unsigned(fit), available_kb / 1048576.0);
+  if (request.on_jobs_lowered)
+    request.on_jobs_lowered(jobs, unsigned(fit), available_kb / 1048576.0);
   return unsigned(fit);
 }
 
@@ -229,7 +232,8 @@ void write_summary(const BatchResult& result) {
       e["report"] = s.report;
       std::ifstream rin(s.report);
       const nlohmann::json r = nlohmann::json::parse(rin, nullptr, false);
-      if (r.is_object() && r.contains("manifest")) e["counts"] = r["manifest"].value("totals", nlohmann::json());
+      if (r.is_object() && r.contains("manifest"))
+        e["counts"] = r["manifest"].value("totals", nlohmann::json());
     } else {
       e["error"] = s.error;
       e["log"] = s.log;
@@ -260,8 +264,9 @@ BatchResult run_batch(const BatchRequest& request) {
     ++result.failed;
     if (first_fail == 0) first_fail = s.exit_code;
   }
-  result.summary = request.summary.empty() ? (fs::path(request.output_dir) / "summary.json").string()
-                                           : request.summary;
+  result.summary = request.summary.empty()
+                       ? (fs::path(request.output_dir) / "summary.json").string()
+                       : request.summary;
   write_summary(result);
   result.exit_code = first_fail != 0 ? first_fail : result.partial > 0 ? kPartial : 0;
   return result;

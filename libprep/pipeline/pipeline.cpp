@@ -296,14 +296,15 @@ nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest
   extra["layers"] = layers_json(scene.layers);
   extra["provenance"] = provenance;
   extra["scene_file"] = scene.scene_path;
-  extra["build_options"] = {{"resolution_m", scene.resolution},
-                            {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
-                            {"crs", scene.crs},
-                            {"dem", scene.dem},
-                            {"grid", {scene.build.grid_nx, scene.build.grid_ny}},
-                            {"qt_leaf_capacity", scene.build.qt_leaf_capacity},
-                            {"qt_max_depth", scene.build.qt_max_depth},
-                            {"miter_limit_deg", scene.build.miter_limit_deg}};
+  extra["build_options"] = {
+      {"resolution_m", scene.resolution},
+      {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
+      {"crs", scene.crs},
+      {"dem", scene.dem},
+      {"grid", {scene.build.grid_nx, scene.build.grid_ny}},
+      {"qt_leaf_capacity", scene.build.qt_leaf_capacity},
+      {"qt_max_depth", scene.build.qt_max_depth},
+      {"miter_limit_deg", scene.build.miter_limit_deg}};
   // What decides the DEM surface (prep/dem.hpp), so that `decalprep render`
   // draws the surface the dynamic lines were matched to. Only with a DEM.
   if (!scene.dem.empty()) {
@@ -318,7 +319,8 @@ nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest
 
 // The report's memory part: peak RSS after each stage, every estimate with
 // its basis, and the limit (prep/memory_estimate.hpp).
-void add_memory_report(nlohmann::json& report, const std::vector<std::pair<std::string, double>>& peaks,
+void add_memory_report(nlohmann::json& report,
+                       const std::vector<std::pair<std::string, double>>& peaks,
                        const std::vector<MemoryEstimate>& estimates, const MemoryLimit& limit) {
   nlohmann::json pk = nlohmann::json::object();
   for (const auto& [stage, mib] : peaks) pk[stage] = mib;

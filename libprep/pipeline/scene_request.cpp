@@ -12,7 +12,8 @@ namespace prep {
 namespace {
 
 bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 bool any_given(const FilelessLayer& l) {
@@ -26,7 +27,8 @@ Extent parse_extent(const std::string& text) {
   std::istringstream in(text);
   if (!(in >> e.xmin >> c1 >> e.ymin >> c2 >> e.xmax >> c3 >> e.ymax) || c1 != ',' || c2 != ',' ||
       c3 != ',' || e.empty()) {
-    throw usage_error("--extent: expected xmin,ymin,xmax,ymax with max > min, got \"" + text + "\"");
+    throw usage_error("--extent: expected xmin,ymin,xmax,ymax with max > min, got \"" + text +
+                      "\"");
   }
   return e;
 }

@@ -26,7 +26,8 @@ std::string square_scene(const TempDir& dir, const std::string& name, const std:
                  "properties": {}, "geometry": {"type": "Polygon", "coordinates":
                  [[[7.42, 43.73], [7.4201, 43.73], [7.4201, 43.7301], [7.42, 43.7301], [7.42, 43.73]]]}}]})");
   const std::string scene = dir.file(name);
-  write_text(scene, "source = \"" + source + "\"\n\n[[layer]]\nname = \"squares\"\nkind = \"polygon\"\n");
+  write_text(scene,
+             "source = \"" + source + "\"\n\n[[layer]]\nname = \"squares\"\nkind = \"polygon\"\n");
   return scene;
 }
 

@@ -46,7 +46,15 @@ std::string progress_text(const BuildArgs& a) {
 prep::SceneRequest scene_request(const BuildArgs& a, const std::string& input) {
   prep::SceneRequest r;
   r.input = input;
-  r.layer = {a.layer, a.where, a.sql, a.kind, a.corner, a.outline_mode, a.color, a.width, a.dynamic};
+  r.layer.layer = a.layer;
+  r.layer.where = a.where;
+  r.layer.sql = a.sql;
+  r.layer.kind = a.kind;
+  r.layer.corner = a.corner;
+  r.layer.outline_mode = a.outline_mode;
+  r.layer.color = a.color;
+  r.layer.width = a.width;
+  r.layer.dynamic = a.dynamic;
   prep::SceneOverrides& o = r.overrides;
   o.crs = a.crs;
   o.assume_crs = a.assume_crs;
@@ -79,7 +87,8 @@ prep::BuildRequest build_request(const BuildArgs& a) {
 }
 
 // --progress json: stderr carries JSON objects only; the summary is one.
-void print_json_summary(const BuildArgs& a, const prep::BuildResult& result, prep::Progress& progress) {
+void print_json_summary(const BuildArgs& a, const prep::BuildResult& result,
+                        prep::Progress& progress) {
   const prep::LayerCounts t = prep::manifest_totals(result.scene.manifest);
   nlohmann::json totals = {{"read", t.read},
                            {"kept", t.kept},
@@ -98,15 +107,18 @@ void print_json_summary(const BuildArgs& a, const prep::BuildResult& result, pre
 
 void print_summary(const BuildArgs& a, const prep::BuildResult& result) {
   for (const prep::LayerCounts& c : result.scene.manifest.layers) {
-    std::fprintf(stderr, "  %-20s read %llu, kept %llu (repaired %llu), clipped away %llu, dropped %llu\n",
+    std::fprintf(stderr,
+                 "  %-20s read %llu, kept %llu (repaired %llu), clipped away %llu, dropped %llu\n",
                  c.layer.c_str(), (unsigned long long)c.read, (unsigned long long)c.kept,
                  (unsigned long long)c.repaired, (unsigned long long)c.clipped_away,
                  (unsigned long long)c.dropped);
   }
   const prep::LayerCounts t = prep::manifest_totals(result.scene.manifest);
-  std::fprintf(stderr, "decalprep build: %llu features read, %llu kept, %llu clipped away, %llu dropped; frame %s\n",
-               (unsigned long long)t.read, (unsigned long long)t.kept, (unsigned long long)t.clipped_away,
-               (unsigned long long)t.dropped, result.scene.frame.description.c_str());
+  std::fprintf(
+      stderr,
+      "decalprep build: %llu features read, %llu kept, %llu clipped away, %llu dropped; frame %s\n",
+      (unsigned long long)t.read, (unsigned long long)t.kept, (unsigned long long)t.clipped_away,
+      (unsigned long long)t.dropped, result.scene.frame.description.c_str());
   if (result.package_written) std::fprintf(stderr, "wrote %s\n", a.output.c_str());
   if (a.dry_run) std::fprintf(stderr, "dry run: no package written\n");
   if (!a.report.empty()) std::fprintf(stderr, "report %s\n", a.report.c_str());
@@ -115,7 +127,8 @@ void print_summary(const BuildArgs& a, const prep::BuildResult& result) {
 // One scene.
 int run(const BuildArgs& a) {
   const prep::SceneSpec scene = prep::scene_spec(scene_request(a, a.input));
-  if (!a.dry_run && a.output.empty()) throw prep::usage_error("build: -o OUT.decals is required (or --dry-run)");
+  if (!a.dry_run && a.output.empty())
+    throw prep::usage_error("build: -o OUT.decals is required (or --dry-run)");
   prep::BuildRequest req = build_request(a);
   if (!a.max_memory.empty()) req.max_memory = prep::parse_memory_size(a.max_memory);
   prep::ProgressOptions po;
@@ -132,8 +145,10 @@ int run(const BuildArgs& a) {
   }
   const prep::ExitCode code = prep::build_exit_code(scene, result);
   if (code == prep::ExitCode::partial && !a.quiet && !json)
-    std::fprintf(stderr, "decalprep build: --skip-failures dropped %zu failing features (see the manifest)\n",
-                 result.skipped_failures);
+    std::fprintf(
+        stderr,
+        "decalprep build: --skip-failures dropped %zu failing features (see the manifest)\n",
+        result.skipped_failures);
   return static_cast<int>(code);
 }
 
@@ -143,7 +158,8 @@ int run(const BuildArgs& a) {
 // line per scene as it ends and a closing line (--progress json: one object
 // each); the scenes' progress is in their logs.
 
-void print_scene_done(const BuildArgs& a, bool json, const prep::BatchScene& s, size_t done, size_t total) {
+void print_scene_done(const BuildArgs& a, bool json, const prep::BatchScene& s, size_t done,
+                      size_t total) {
   if (json)
     std::fprintf(stderr, "%s\n",
                  nlohmann::json({{"event", "scene"},
@@ -159,8 +175,10 @@ void print_scene_done(const BuildArgs& a, bool json, const prep::BatchScene& s, 
                      .c_str());
   else if (!a.quiet)
     std::fprintf(stderr, "[%zu/%zu] %s: %s (%.2f s, peak %.1f MiB)\n", done, total, s.scene.c_str(),
-                 s.built() ? "built" : s.partial() ? "built (partial)" : "FAILED", s.seconds,
-                 s.peak_rss_kb / 1024.0);
+                 s.built()     ? "built"
+                 : s.partial() ? "built (partial)"
+                               : "FAILED",
+                 s.seconds, s.peak_rss_kb / 1024.0);
 }
 
 int run_batch(const BuildArgs& a) {
@@ -175,10 +193,13 @@ int run_batch(const BuildArgs& a) {
   req.build = build_request(a);
   req.max_memory = a.max_memory;
   // Each scene's log gets plain progress lines (json with --progress json).
-  req.scene_progress = prep::parse_progress_mode(mode == "tty" || mode == "auto" ? "plain" : mode, false);
+  req.scene_progress =
+      prep::parse_progress_mode(mode == "tty" || mode == "auto" ? "plain" : mode, false);
   req.on_jobs_lowered = [&](unsigned asked, unsigned jobs, double available_gib) {
     if (!a.quiet && !json)
-      std::fprintf(stderr, "decalprep build: --jobs %u lowered to %u: %.1f GiB available, --max-memory %s per scene\n",
+      std::fprintf(stderr,
+                   "decalprep build: --jobs %u lowered to %u: %.1f GiB available, --max-memory %s "
+                   "per scene\n",
                    asked, jobs, available_gib, a.max_memory.c_str());
   };
   req.on_scene_done = [&](const prep::BatchScene& s, size_t done, size_t total) {
@@ -197,8 +218,8 @@ int run_batch(const BuildArgs& a) {
                      .dump()
                      .c_str());
   else if (!a.quiet)
-    std::fprintf(stderr, "decalprep build: %zu of %zu scenes built; summary %s\n", built, r.scenes.size(),
-                 r.summary.c_str());
+    std::fprintf(stderr, "decalprep build: %zu of %zu scenes built; summary %s\n", built,
+                 r.scenes.size(), r.summary.c_str());
   return r.exit_code;
 }
 

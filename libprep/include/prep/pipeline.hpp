@@ -134,12 +134,12 @@ struct BatchRequest {
 };
 
 struct BatchScene {
-  std::string scene;                  // the scene file
-  std::string output, report, log;    // in output_dir
-  int exit_code = -1;                 // the process's; 128 + signal when killed
-  double seconds = 0;                 // wall time
-  long peak_rss_kb = 0;               // the process's peak resident set
-  std::string error;                  // failed: the log's error line (else its last line)
+  std::string scene;                // the scene file
+  std::string output, report, log;  // in output_dir
+  int exit_code = -1;               // the process's; 128 + signal when killed
+  double seconds = 0;               // wall time
+  long peak_rss_kb = 0;             // the process's peak resident set
+  std::string error;                // failed: the log's error line (else its last line)
 
   bool built() const { return exit_code == 0; }
   bool partial() const { return exit_code == static_cast<int>(ExitCode::partial); }
