@@ -61,19 +61,8 @@ nlohmann::json layer_counts_json(const LayerCounts& c) {
 
 nlohmann::json manifest_json(const Manifest& m, bool with_entries) {
   nlohmann::json layers = nlohmann::json::array();
-  LayerCounts total;
-  for (const LayerCounts& c : m.layers) {
-    layers.push_back(layer_counts_json(c));
-    total.read += c.read;
-    total.kept += c.kept;
-    total.repaired += c.repaired;
-    total.clipped_away += c.clipped_away;
-    total.dropped += c.dropped;
-    total.parts += c.parts;
-    total.vertices_in += c.vertices_in;
-    total.vertices_out += c.vertices_out;
-  }
-  nlohmann::json totals = layer_counts_json(total);
+  for (const LayerCounts& c : m.layers) layers.push_back(layer_counts_json(c));
+  nlohmann::json totals = layer_counts_json(manifest_totals(m));
   totals.erase("layer");
   nlohmann::json j = {{"layers", layers}, {"totals", totals}, {"notes", m.notes}};
   if (with_entries) {
@@ -191,6 +180,21 @@ nlohmann::json report_object(const SceneFeatures& scene, const std::string& outp
 
 }  // namespace
 
+LayerCounts manifest_totals(const Manifest& manifest) {
+  LayerCounts total;
+  for (const LayerCounts& c : manifest.layers) {
+    total.read += c.read;
+    total.kept += c.kept;
+    total.repaired += c.repaired;
+    total.clipped_away += c.clipped_away;
+    total.dropped += c.dropped;
+    total.parts += c.parts;
+    total.vertices_in += c.vertices_in;
+    total.vertices_out += c.vertices_out;
+  }
+  return total;
+}
+
 std::string report_json(const SceneFeatures& scene, const std::string& output,
                         const std::vector<std::pair<std::string, double>>& timings,
                         bool package_written) {
@@ -280,6 +284,60 @@ size_t count_skipped_failures(const Manifest& m) {
   return n;
 }
 
+// The package metadata only the pipeline knows (write_model writes frame,
+// grid, counts and the manifest itself; keys must not collide): the manifest
+// totals after the build stage, the layers, provenance, scene file and build
+// options.
+nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest,
+                                const nlohmann::json& provenance) {
+  nlohmann::json totals = manifest_json(manifest, false)["totals"];
+  nlohmann::json extra;
+  extra["manifest"]["totals"] = totals;
+  extra["layers"] = layers_json(scene.layers);
+  extra["provenance"] = provenance;
+  extra["scene_file"] = scene.scene_path;
+  extra["build_options"] = {
+      {"resolution_m", scene.resolution},
+      {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
+      {"crs", scene.crs},
+      {"dem", scene.dem},
+      {"grid", {scene.build.grid_nx, scene.build.grid_ny}},
+      {"qt_leaf_capacity", scene.build.qt_leaf_capacity},
+      {"qt_max_depth", scene.build.qt_max_depth},
+      {"miter_limit_deg", scene.build.miter_limit_deg}};
+  // What decides the DEM surface (prep/dem.hpp), so that `decalprep render`
+  // draws the surface the dynamic lines were matched to. Only with a DEM.
+  if (!scene.dem.empty()) {
+    auto& bo = extra["build_options"];
+    bo["dem_assume_crs"] = scene.assume_crs;
+    bo["z_scale"] = scene.build.z_scale;
+    bo["nodata_fill"] = scene.build.nodata_fill ? nlohmann::json(*scene.build.nodata_fill)
+                                                : nlohmann::json(nullptr);
+  }
+  return extra;
+}
+
+// The report's memory part: peak RSS after each stage, every estimate with
+// its basis, and the limit (prep/memory_estimate.hpp).
+void add_memory_report(nlohmann::json& report,
+                       const std::vector<std::pair<std::string, double>>& peaks,
+                       const std::vector<MemoryEstimate>& estimates, const MemoryLimit& limit) {
+  nlohmann::json pk = nlohmann::json::object();
+  for (const auto& [stage, mib] : peaks) pk[stage] = mib;
+  report["peak_rss_mib_after"] = pk;
+  nlohmann::json est = nlohmann::json::object();
+  for (const MemoryEstimate& e : estimates)
+    est[e.point] = {{"mib", e.bytes / (1024.0 * 1024.0)},
+                    {"basis", e.basis},
+                    {"polygon_vertices", e.polygon_vertices},
+                    {"line_vertices", e.line_vertices},
+                    {"polygon_parts", e.polygon_parts},
+                    {"line_parts", e.line_parts},
+                    {"source_bytes", e.source_bytes}};
+  report["memory_estimate"] = est;
+  if (limit) report["max_memory_mib"] = double(limit.bytes) / (1024.0 * 1024.0);
+}
+
 BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
@@ -357,31 +415,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     // The report carries what the build stage added too (quad-tree depth
     // cap / leaf overflow notes, dynamic-line notes), not only clean's part.
     result.scene.manifest = model.manifest;
-    // write_model writes frame, grid, counts and the manifest itself; the
-    // pipeline adds what only it knows (keys must not collide).
-    nlohmann::json totals = manifest_json(model.manifest, false)["totals"];
-    nlohmann::json extra;
-    extra["manifest"]["totals"] = totals;
-    extra["layers"] = layers_json(scene.layers);
-    extra["provenance"] = provenance_of();
-    extra["scene_file"] = scene.scene_path;
-    extra["build_options"] = {{"resolution_m", scene.resolution},
-                              {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
-                              {"crs", scene.crs},
-                              {"dem", scene.dem},
-                              {"grid", {scene.build.grid_nx, scene.build.grid_ny}},
-                              {"qt_leaf_capacity", scene.build.qt_leaf_capacity},
-                              {"qt_max_depth", scene.build.qt_max_depth},
-                              {"miter_limit_deg", scene.build.miter_limit_deg}};
-    // What decides the DEM surface (prep/dem.hpp), so that `decalprep render`
-    // draws the surface the dynamic lines were matched to. Only with a DEM.
-    if (!scene.dem.empty()) {
-      auto& bo = extra["build_options"];
-      bo["dem_assume_crs"] = scene.assume_crs;
-      bo["z_scale"] = scene.build.z_scale;
-      bo["nodata_fill"] = scene.build.nodata_fill ? nlohmann::json(*scene.build.nodata_fill)
-                                                  : nlohmann::json(nullptr);
-    }
+    const nlohmann::json extra = package_metadata(scene, model.manifest, provenance_of());
     WriteOptions wo;
     wo.codec = request.compress ? Codec::zstd : Codec::none;
     wo.zstd_level = request.zstd_level;
@@ -396,20 +430,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
                                         timings, result.package_written);
   report["provenance"] = provenance_of();
   report["dry_run"] = request.dry_run;
-  nlohmann::json pk = nlohmann::json::object();
-  for (const auto& [stage, mib] : peaks) pk[stage] = mib;
-  report["peak_rss_mib_after"] = pk;
-  nlohmann::json est = nlohmann::json::object();
-  for (const MemoryEstimate& e : estimates)
-    est[e.point] = {{"mib", e.bytes / (1024.0 * 1024.0)},
-                    {"basis", e.basis},
-                    {"polygon_vertices", e.polygon_vertices},
-                    {"line_vertices", e.line_vertices},
-                    {"polygon_parts", e.polygon_parts},
-                    {"line_parts", e.line_parts},
-                    {"source_bytes", e.source_bytes}};
-  report["memory_estimate"] = est;
-  if (limit) report["max_memory_mib"] = double(limit.bytes) / (1024.0 * 1024.0);
+  add_memory_report(report, peaks, estimates, limit);
   result.skipped_failures = count_skipped_failures(result.scene.manifest);
   report["skipped_failures"] = result.skipped_failures;
   result.report_json = report.dump(2) + "\n";

@@ -1,9 +1,16 @@
 // prep/pipeline.hpp — the whole build: read -> project -> clean -> build ->
-// write, with the JSON report (`decalprep build`).
+// write, with the JSON report (`decalprep build`): one scene, or a batch of
+// scene files each built in its own process.
 #pragma once
 
+#include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
+#include <vector>
 
+#include "prep/error.hpp"
+#include "prep/progress.hpp"
 #include "prep/read.hpp"
 #include "prep/scene.hpp"
 
@@ -47,5 +54,117 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request);
 std::string report_json(const SceneFeatures& scene, const std::string& output,
                         const std::vector<std::pair<std::string, double>>& timings,
                         bool package_written);
+
+// Sums every field of the per-layer counts (the report's manifest "totals").
+LayerCounts manifest_totals(const Manifest& manifest);
+
+// ------------------------------------------------------- one scene, as asked --
+// What `decalprep build` was given for one scene: a scene file, or one GDAL
+// source with the single layer of the file-less form, and the values that
+// override the scene file's. Values are kept as given and checked by
+// scene_spec(), which names the option in its usage_error; in batch mode each
+// scene's own process calls it, so a bad value fails every scene with the
+// message a single build gives.
+
+// The file-less form's one layer (--layer, --where, --sql, --kind, --width,
+// --corner, --outline-mode, --color, --dynamic); empty or unset: not given.
+struct FilelessLayer {
+  std::string layer, where, sql, kind, corner, outline_mode, color;
+  std::optional<double> width;
+  bool dynamic = false;
+};
+
+// Scene-wide values that replace the scene file's; empty or unset: the
+// file's. extent "xmin,ymin,xmax,ymax", grid "NXxNY" or "auto", repair
+// "linework|structure" as on the command line.
+struct SceneOverrides {
+  std::string crs, assume_crs, extent, extent_crs, dem, grid, repair;
+  std::optional<double> resolution;
+  std::optional<uint32_t> leaf_capacity, max_depth, threads;
+  std::optional<double> lmax, terrain_tolerance, z_scale, nodata_fill;
+  bool skip_failures = false;  // true turns it on; false keeps the file's
+};
+
+struct SceneRequest {
+  std::string input;  // a scene file (*.toml), else a GDAL source (file-less form)
+  FilelessLayer layer;
+  SceneOverrides overrides;
+};
+
+// The scene to build: the scene file with the overrides, or the file-less
+// form's one layer. Throws usage_error naming the option at fault (file-less
+// options given with a scene file, a bad or out-of-range value), and what
+// load_scene_file() throws.
+SceneSpec scene_spec(const SceneRequest& request);
+
+// Exit code of a build that returned: ExitCode::partial when skip_failures
+// dropped failing features, else ok.
+ExitCode build_exit_code(const SceneSpec& scene, const BuildResult& result);
+
+// ------------------------------------------------------------- batch mode --
+// Several scene files (or folders of *.toml) -> output_dir/<stem>.decals
+// each. Every scene builds in its own forked process (at most `jobs` at
+// once), so a crash or an out-of-memory kill in one leaves the others
+// running, and the kernel's rusage gives each scene's peak memory. The
+// scene's stderr (its progress, and a last line "decalprep: <error>" when it
+// fails) goes to output_dir/<stem>.log, its report to <stem>.report.json.
+
+struct BatchScene;
+
+struct BatchRequest {
+  std::vector<std::string> inputs;  // scene files (.toml) and folders of them, in order
+  std::string output_dir;           // created if missing
+  std::string summary;              // summary JSON path; empty: output_dir/summary.json
+  unsigned jobs = 1;                // scenes built side by side (0 counts as 1)
+  // Every scene: input is replaced by the scene file.
+  SceneRequest scene;
+  // Every scene: output, report and progress are replaced per scene;
+  // max_memory is ignored (see max_memory below).
+  BuildRequest build;
+  // Per scene, as given ("2G", "512M"; prep/memory_estimate.hpp); empty:
+  // none. jobs is lowered to what the available memory holds at this much
+  // per scene.
+  std::string max_memory;
+  ProgressMode scene_progress = ProgressMode::plain;  // in each scene's log
+  // Called in the calling process: when jobs is lowered for max_memory
+  // (before any scene starts), and as each scene ends (in the order they
+  // end; done counts the ended scenes). Either may be empty.
+  std::function<void(unsigned asked, unsigned jobs, double available_gib)> on_jobs_lowered;
+  std::function<void(const BatchScene& scene, size_t done, size_t total)> on_scene_done;
+};
+
+struct BatchScene {
+  std::string scene;                // the scene file
+  std::string output, report, log;  // in output_dir
+  int exit_code = -1;               // the process's; 128 + signal when killed
+  double seconds = 0;               // wall time
+  long peak_rss_kb = 0;             // the process's peak resident set
+  std::string error;                // failed: the log's error line (else its last line)
+
+  bool built() const { return exit_code == 0; }
+  bool partial() const { return exit_code == static_cast<int>(ExitCode::partial); }
+  bool failed() const { return !built() && !partial(); }
+  // "built" | "partial" (package written, skip_failures dropped features) | "failed"
+  const char* status() const { return built() ? "built" : partial() ? "partial" : "failed"; }
+};
+
+struct BatchResult {
+  std::vector<BatchScene> scenes;  // input order
+  unsigned jobs = 1;               // as run (after lowering)
+  size_t failed = 0, partial = 0;  // built: scenes.size() - failed (partial included)
+  std::string summary;             // the summary JSON's path
+  // The first failed scene's exit code (input order), else ExitCode::partial
+  // when a scene is partial, else 0.
+  int exit_code = 0;
+};
+
+// Builds every scene and writes the summary JSON: per scene its status, exit
+// code, seconds, peak RSS, and the output, report and manifest totals
+// ("counts") when written, else the error and the log; then built, failed,
+// partial and jobs. Throws usage_error (no output_dir, an input that is
+// neither a .toml nor a folder of them, two scenes with the same stem),
+// output_error (the folder or the summary cannot be written), error when fork
+// fails; a scene's own failure is only reported.
+BatchResult run_batch(const BatchRequest& request);
 
 }  // namespace prep

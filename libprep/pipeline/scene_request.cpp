@@ -1,0 +1,148 @@
+// One scene as `decalprep build` was asked for it: a scene file with the
+// command line's overrides, or the file-less form's single layer
+// (prep/pipeline.hpp "one scene, as asked"). Messages name the option.
+#include <cmath>
+#include <sstream>
+
+#include "prep/error.hpp"
+#include "prep/pipeline.hpp"
+#include "prep/scene_file.hpp"
+
+namespace prep {
+namespace {
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+bool any_given(const FilelessLayer& l) {
+  return !l.layer.empty() || !l.where.empty() || !l.sql.empty() || !l.kind.empty() || l.width ||
+         !l.corner.empty() || !l.outline_mode.empty() || !l.color.empty() || l.dynamic;
+}
+
+Extent parse_extent(const std::string& text) {
+  Extent e;
+  char c1 = 0, c2 = 0, c3 = 0;
+  std::istringstream in(text);
+  if (!(in >> e.xmin >> c1 >> e.ymin >> c2 >> e.xmax >> c3 >> e.ymax) || c1 != ',' || c2 != ',' ||
+      c3 != ',' || e.empty()) {
+    throw usage_error("--extent: expected xmin,ymin,xmax,ymax with max > min, got \"" + text +
+                      "\"");
+  }
+  return e;
+}
+
+void parse_grid(const std::string& text, BuildOptions& b) {
+  if (text == "auto") {
+    b.grid_nx = b.grid_ny = 0;
+    return;
+  }
+  unsigned nx = 0, ny = 0;
+  char x = 0;
+  std::istringstream in(text);
+  if (!(in >> nx >> x >> ny) || (x != 'x' && x != 'X') || nx == 0 || ny == 0 || nx > 65536 ||
+      ny > 65536) {
+    throw usage_error("--grid: expected NXxNY (e.g. 500x500) or auto, got \"" + text + "\"");
+  }
+  b.grid_nx = nx;
+  b.grid_ny = ny;
+}
+
+// The file-less form: one layer of one GDAL source.
+LayerSpec fileless_layer(const std::string& source, const FilelessLayer& a) {
+  LayerSpec l;
+  l.source = source;
+  l.layer = a.layer;
+  l.where = a.where;
+  l.sql = a.sql;
+  l.name = !a.layer.empty() ? a.layer : "layer0";
+  l.kind = a.kind.empty() ? DecalKind::polygon : parse_kind(a.kind);
+  l.dynamic = a.dynamic;
+  if (!a.corner.empty()) l.style.corner = parse_corner(a.corner);
+  if (!a.outline_mode.empty()) l.style.outline = parse_outline_mode(a.outline_mode);
+  if (!a.color.empty()) l.style.color.rgba = parse_color(a.color);
+  if (a.width) {
+    if (!(*a.width > 0)) throw usage_error("--width: must be > 0");
+    l.style.width = *a.width;
+  } else if (l.dynamic) {
+    l.style.width = 3.0;  // pixels
+  }
+  if (l.dynamic && l.kind == DecalKind::polygon)
+    throw usage_error("--dynamic needs --kind line or outline");
+  if (!l.sql.empty() && (!l.where.empty() || !l.layer.empty()))
+    throw usage_error("--sql replaces --layer and --where; give one or the other");
+  if (l.style.outline != decal::OutlineMode::normal && l.style.corner != decal::CornerStyle::miter)
+    throw usage_error("--outline-mode inset/offset needs --corner miter");
+  return l;
+}
+
+// Terrain matching of dynamic lines and the DEM surface (BuildOptions).
+void apply_terrain_overrides(const SceneOverrides& o, BuildOptions& b) {
+  if (o.lmax) {
+    if (!(*o.lmax >= 0)) throw usage_error("--lmax: must be >= 0 metres (0: half the DEM cell)");
+    b.lmax = *o.lmax;
+  }
+  if (o.terrain_tolerance) {
+    if (!(*o.terrain_tolerance >= 0))
+      throw usage_error("--terrain-tolerance: must be >= 0 metres (0: uniform subdivision)");
+    b.terrain_tolerance = *o.terrain_tolerance;
+  }
+  if (o.z_scale) {
+    if (!std::isfinite(*o.z_scale)) throw usage_error("--z-scale: must be a finite number");
+    b.z_scale = *o.z_scale;
+  }
+  if (o.nodata_fill) {
+    if (!std::isfinite(*o.nodata_fill)) throw usage_error("--nodata-fill: must be a finite height");
+    b.nodata_fill = *o.nodata_fill;
+  }
+}
+
+// Command-line values override the scene file's.
+void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
+  if (!o.crs.empty()) scene.crs = o.crs;
+  if (!o.assume_crs.empty()) scene.assume_crs = o.assume_crs;
+  if (!o.extent.empty()) scene.extent = parse_extent(o.extent);
+  if (!o.extent_crs.empty()) scene.extent_crs = o.extent_crs;
+  if (!o.extent_crs.empty() && !scene.extent) throw usage_error("--extent-crs needs --extent");
+  if (!o.dem.empty()) scene.dem = o.dem;
+  if (o.resolution) {
+    if (!(*o.resolution >= 0)) throw usage_error("--resolution: must be >= 0 metres");
+    scene.resolution = *o.resolution;
+  }
+  if (!o.repair.empty()) scene.repair = parse_repair_method(o.repair);
+  if (!o.grid.empty()) parse_grid(o.grid, scene.build);
+  if (o.leaf_capacity) scene.build.qt_leaf_capacity = *o.leaf_capacity;
+  if (o.max_depth) scene.build.qt_max_depth = *o.max_depth;
+  if (o.threads) scene.build.threads = *o.threads;
+  if (o.skip_failures) scene.skip_failures = true;
+  apply_terrain_overrides(o, scene.build);
+}
+
+}  // namespace
+
+SceneSpec scene_spec(const SceneRequest& request) {
+  SceneSpec scene;
+  if (ends_with(request.input, ".toml")) {
+    if (any_given(request.layer)) {
+      throw usage_error(
+          "build: --layer/--where/--sql/--kind/--width/--corner/--outline-mode/--color/--dynamic "
+          "describe the single layer of the file-less form; with a scene file set them in " +
+          request.input);
+    }
+    scene = load_scene_file(request.input);
+  } else {
+    scene.layers.push_back(fileless_layer(request.input, request.layer));
+  }
+  apply_overrides(request.overrides, scene);
+  return scene;
+}
+
+ExitCode build_exit_code(const SceneSpec& scene, const BuildResult& result) {
+  // skip_failures: features that would have stopped the build (OGR decode,
+  // PROJ, GEOS, out of the build's range: prep/feature_failure.hpp) were
+  // dropped and recorded; the package is partial (ogr2ogr -skipfailures).
+  return scene.skip_failures && result.skipped_failures > 0 ? ExitCode::partial : ExitCode::ok;
+}
+
+}  // namespace prep
