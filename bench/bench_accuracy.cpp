@@ -49,7 +49,7 @@
 #include "decal/reader.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
-#include "prep/scene_file.hpp"
+#include "prep/read.hpp"
 
 namespace {
 

@@ -42,7 +42,7 @@
 #include "prep/model.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
-#include "prep/scene_file.hpp"
+#include "prep/read.hpp"
 #include "prep/write.hpp"
 
 namespace {
@@ -180,7 +180,7 @@ struct Row {
   double mean_all = 0;
 };
 
-Row measure(const prep::SceneFeatures& scene, const prep::BuildOptions& o, uint64_t nv, uint64_t samples) {
+Row measure(const prep::SceneFeatures& scene, const prep::ModelOptions& o, uint64_t nv, uint64_t samples) {
   reset_peak_rss();
   const auto t0 = std::chrono::steady_clock::now();
   const prep::DecalModel m = prep::build_model(scene, o);
@@ -224,7 +224,7 @@ void run(const std::string& name, const prep::SceneFeatures& scene, uint64_t sam
   std::printf("%-10s %9s %8s %8s %11s %9s %8s | %-14s | %-14s | %-14s | %-14s | %-14s\n", "grid", "cells",
               "build s", "peak MiB", "bytes", "B/vertex", "covered", "BVH mean/p99", "QT mean/p99",
               "edges mean/p99", "segs mean/p99", "all mean/p99");
-  prep::BuildOptions o;
+  prep::ModelOptions o;
   o.threads = threads;
   if (g_target) o.target_per_cell = g_target;
   const Row adaptive = measure(scene, o, nv, samples);

@@ -130,12 +130,12 @@ void generate(const std::string& fgb, uint64_t vertices, const std::string& dir)
 }
 
 uint64_t report_vertices(const std::string& report) {
-  // "vertices_before_simplification": N in the totals (the last occurrence).
+  // "vertices_in": N in the totals (the last occurrence).
   std::ifstream in(report);
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string t = ss.str();
-  const std::string key = "\"vertices_before_simplification\": ";
+  const std::string key = "\"vertices_in\": ";
   auto at = t.rfind(key);
   return at == std::string::npos ? 0 : std::strtoull(t.c_str() + at + key.size(), nullptr, 10);
 }

@@ -152,8 +152,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (style & 0x80) in.clip = prep::Extent{-50, -50, 50, 50};
   // Bounded work per input: the fuzzer's -timeout catches hangs; these keep
   // legitimate big inputs from looking like one.
-  scene.build.threads = 1;
-  scene.build.max_cells = 1u << 16;
+  scene.model.threads = 1;
+  scene.model.max_cells = 1u << 16;
   // Failing features (non-finite coordinates, GEOS errors) are dropped, as
   // with --skip-failures, so the build stage still sees the rest.
   scene.skip_failures = true;
@@ -161,7 +161,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     prep::CleanOptions co;
     co.threads = 1;
     const prep::SceneFeatures cleaned = prep::clean(in, scene, co);
-    const prep::DecalModel model = prep::build_model(cleaned, scene.build);
+    const prep::DecalModel model = prep::build_model(cleaned, scene.model);
     (void)model;
   } catch (const prep::error&) {
     // A reported failure is a correct answer to a hostile input.

@@ -118,7 +118,7 @@ uint32_t append_quadtree(PolyQuadTree& t, DecalModel& m) {
 // evaluator keeps a point of the band iff that ring's even-odd query says it
 // lies on the kept side: band ∩ ring or band − ring, per ring, exactly what
 // the GEOS oracle of the accuracy tests computes.
-void add_outline_clip_trees(const BuildOptions& options, DecalModel& m) {
+void add_outline_clip_trees(const ModelOptions& options, DecalModel& m) {
   struct Clip {
     uint32_t line, first, count;
   };
@@ -173,7 +173,7 @@ struct PolygonRings {
   bool is_hole(size_t r) const { return rings[r].exterior >= 0; }
 };
 
-void check_options(const BuildOptions& options) {
+void check_options(const ModelOptions& options) {
   if (options.qt_leaf_capacity == 0 || options.qt_max_depth > 24)
     throw usage_error("build: quad-tree leaf capacity must be >= 1 and max depth <= 24 (got " +
                       std::to_string(options.qt_leaf_capacity) + ", " +
@@ -247,7 +247,7 @@ void assign_ranks(const std::vector<DrawKey>& draw_keys, size_t n_lines, Polygon
 
 // One quad-tree per ring (in parallel), concatenated into the model's node
 // arrays with the polygon properties, then the outline clip trees.
-void build_polygon_trees(const SceneFeatures& scene, const BuildOptions& options, const PolygonRings& pr,
+void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options, const PolygonRings& pr,
                          DecalModel& m) {
   const std::vector<PolyRing>& rings = pr.rings;
   std::vector<PolyQuadTree> trees(rings.size());
@@ -307,7 +307,7 @@ std::vector<std::vector<uint32_t>> solid_leaves(const DecalModel& m, size_t n_ri
 // the grid-independent blobs (the per-cell lists and BVHs are counted in
 // choose_grid).
 GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const PolygonRings& pr,
-                             const BuildOptions& options, const DecalModel& m) {
+                             const ModelOptions& options, const DecalModel& m) {
   QBox extent;
   std::vector<QBox> prims;
   std::vector<float> weights;
@@ -520,7 +520,7 @@ void fill_cells(std::vector<SegEntry>&& seg_entries, const std::vector<CellPoly>
 
 }  // namespace
 
-DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
+DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
                        const std::string& dem) {
   std::optional<tbb::global_control> threads;
   if (options.threads > 0)

@@ -92,7 +92,7 @@ struct DrawKey {
   int part;
   uint32_t input;  // index among the items of this kind
 };
-void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalModel& model,
+void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalModel& model,
                  std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys);
 
 // Rank per key (0 = drawn on top) under the drawing order above.
@@ -125,7 +125,7 @@ struct GridInput {
 // refused, as are grids over options.max_cells. Deterministic (integer
 // counts). bench/bench_build compares it with 500x500. Throws resource_error
 // when no grid fits.
-GridParams choose_grid(const GridInput& input, const BuildOptions& options);
+GridParams choose_grid(const GridInput& input, const ModelOptions& options);
 
 // The adaptive grid's package never exceeds this factor times the package
 // the thesis 500x500 grid gives on the same data (grid.cpp).

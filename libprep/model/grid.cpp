@@ -233,7 +233,7 @@ double grid_bytes(const GridParams& g, const GridInput& in) {
 // options.target_per_cell, when set (> 0; default off), stops refining at
 // the first (coarsest) candidate whose proxy reaches it: a smaller package
 // for a chosen query cost.
-GridParams choose_grid(const GridInput& in, const BuildOptions& o) {
+GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
   // Candidates measured; how many the search takes is known at its end.
   ProgressStage stage(o.progress, "build.grid", 0, "candidates", ProgressTotal::estimate);
   const QBox& e = in.extent;

@@ -55,7 +55,7 @@ std::string where_of(const SceneFeatures& s, const SceneLine& l) {
   return m.str();
 }
 
-LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const BuildOptions& opt,
+LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const ModelOptions& opt,
                      decal::CornerStyle corner, decal::OutlineMode outline) {
   LineOut out;
   const std::string where = where_of(scene, line);
@@ -156,7 +156,7 @@ uint32_t resolve_color(const LayerColor& color, double value) {
   return r.back().rgba;
 }
 
-void build_lines(const SceneFeatures& scene, const BuildOptions& options, DecalModel& model,
+void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalModel& model,
                  std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys) {
   const size_t nl = scene.lines.size();
   // Per-layer style, with the outline-mode fallback of thesis §3.6 (inset and

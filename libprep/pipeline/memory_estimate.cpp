@@ -118,7 +118,7 @@ double osm_read_bytes(const SceneSpec& scene) {
     per_layer.push_back(std::min(kOsmCap, kOsmPerDataset + kOsmPerSourceByte * bytes));
   }
   // Layers are read side by side, at most `threads` at once: the largest ones.
-  unsigned threads = scene.build.threads > 0 ? scene.build.threads : std::thread::hardware_concurrency();
+  unsigned threads = scene.model.threads > 0 ? scene.model.threads : std::thread::hardware_concurrency();
   threads = std::max(1u, threads);
   std::sort(per_layer.begin(), per_layer.end(), std::greater<>());
   double sum = 0;

@@ -47,18 +47,6 @@ const char* kind_name(DecalKind k) {
   return "?";
 }
 
-nlohmann::json layer_counts_json(const LayerCounts& c) {
-  return {{"layer", c.layer},
-          {"read", c.read},
-          {"kept", c.kept},
-          {"repaired", c.repaired},
-          {"clipped_away", c.clipped_away},
-          {"dropped", c.dropped},
-          {"parts", c.parts},
-          {"vertices_before_simplification", c.vertices_in},
-          {"vertices_after_simplification", c.vertices_out}};
-}
-
 nlohmann::json manifest_json(const Manifest& m, bool with_entries) {
   nlohmann::json layers = nlohmann::json::array();
   for (const LayerCounts& c : m.layers) layers.push_back(layer_counts_json(c));
@@ -301,17 +289,17 @@ nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest
       {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
       {"crs", scene.crs},
       {"dem", scene.dem},
-      {"grid", {scene.build.grid_nx, scene.build.grid_ny}},
-      {"qt_leaf_capacity", scene.build.qt_leaf_capacity},
-      {"qt_max_depth", scene.build.qt_max_depth},
-      {"miter_limit_deg", scene.build.miter_limit_deg}};
+      {"grid", {scene.model.grid_nx, scene.model.grid_ny}},
+      {"qt_leaf_capacity", scene.model.qt_leaf_capacity},
+      {"qt_max_depth", scene.model.qt_max_depth},
+      {"miter_limit_deg", scene.model.miter_limit_deg}};
   // What decides the DEM surface (prep/dem.hpp), so that `decalprep render`
   // draws the surface the dynamic lines were matched to. Only with a DEM.
   if (!scene.dem.empty()) {
     auto& bo = extra["build_options"];
     bo["dem_assume_crs"] = scene.assume_crs;
-    bo["z_scale"] = scene.build.z_scale;
-    bo["nodata_fill"] = scene.build.nodata_fill ? nlohmann::json(*scene.build.nodata_fill)
+    bo["z_scale"] = scene.model.z_scale;
+    bo["nodata_fill"] = scene.model.nodata_fill ? nlohmann::json(*scene.model.nodata_fill)
                                                 : nlohmann::json(nullptr);
   }
   return extra;
@@ -344,9 +332,9 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   if (!request.dry_run && request.output.empty()) throw usage_error("build: no output path (-o)");
   // --threads caps every stage's oneTBB work (the output does not depend on it).
   std::unique_ptr<tbb::global_control> threads;
-  if (scene.build.threads > 0) {
+  if (scene.model.threads > 0) {
     threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                    scene.build.threads);
+                                                    scene.model.threads);
   }
 
   // The sources' hashes (provenance) are computed once, beside the read:
@@ -391,7 +379,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
 
     t0 = Clock::now();
     CleanOptions co;
-    co.threads = scene.build.threads;
+    co.threads = scene.model.threads;
     co.progress = request.progress;
     result.scene = clean(std::move(projected), scene, co);
     check_build_range(result.scene, scene.skip_failures);
@@ -402,10 +390,10 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
 
   if (!request.dry_run) {
     t0 = Clock::now();
-    BuildOptions build_options = scene.build;
-    build_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
-    build_options.progress = request.progress;
-    DecalModel model = build_model(result.scene, build_options, scene.dem);
+    ModelOptions model_options = scene.model;
+    model_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
+    model_options.progress = request.progress;
+    DecalModel model = build_model(result.scene, model_options, scene.dem);
     timings.emplace_back("build", seconds_since(t0));
     peaks.emplace_back("build", peak_rss_mib());
 

@@ -6,7 +6,7 @@
 
 #include "prep/error.hpp"
 #include "prep/pipeline.hpp"
-#include "prep/scene_file.hpp"
+#include "prep/read.hpp"
 
 namespace prep {
 namespace {
@@ -33,7 +33,7 @@ Extent parse_extent(const std::string& text) {
   return e;
 }
 
-void parse_grid(const std::string& text, BuildOptions& b) {
+void parse_grid(const std::string& text, ModelOptions& b) {
   if (text == "auto") {
     b.grid_nx = b.grid_ny = 0;
     return;
@@ -77,8 +77,8 @@ LayerSpec fileless_layer(const std::string& source, const FilelessLayer& a) {
   return l;
 }
 
-// Terrain matching of dynamic lines and the DEM surface (BuildOptions).
-void apply_terrain_overrides(const SceneOverrides& o, BuildOptions& b) {
+// Terrain matching of dynamic lines and the DEM surface (ModelOptions).
+void apply_terrain_overrides(const SceneOverrides& o, ModelOptions& b) {
   if (o.lmax) {
     if (!(*o.lmax >= 0)) throw usage_error("--lmax: must be >= 0 metres (0: half the DEM cell)");
     b.lmax = *o.lmax;
@@ -111,12 +111,12 @@ void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
     scene.resolution = *o.resolution;
   }
   if (!o.repair.empty()) scene.repair = parse_repair_method(o.repair);
-  if (!o.grid.empty()) parse_grid(o.grid, scene.build);
-  if (o.leaf_capacity) scene.build.qt_leaf_capacity = *o.leaf_capacity;
-  if (o.max_depth) scene.build.qt_max_depth = *o.max_depth;
-  if (o.threads) scene.build.threads = *o.threads;
+  if (!o.grid.empty()) parse_grid(o.grid, scene.model);
+  if (o.leaf_capacity) scene.model.qt_leaf_capacity = *o.leaf_capacity;
+  if (o.max_depth) scene.model.qt_max_depth = *o.max_depth;
+  if (o.threads) scene.model.threads = *o.threads;
   if (o.skip_failures) scene.skip_failures = true;
-  apply_terrain_overrides(o, scene.build);
+  apply_terrain_overrides(o, scene.model);
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 // Scene file parser (toml++). Every key is documented in samples/README.md;
 // an unknown key is an error, so a typo never silently falls back to a
 // default.
-#include "prep/scene_file.hpp"
+#include "prep/read.hpp"
 
 #include <toml++/toml.h>
 
@@ -89,7 +89,7 @@ std::string dir_of(const std::string& path) {
   return path.substr(0, slash);
 }
 
-void parse_build(const toml::table& t, const std::string& file, BuildOptions& b) {
+void parse_build_table(const toml::table& t, const std::string& file, ModelOptions& b) {
   for (auto&& [k, v] : t) {
     std::string key(k.str());
     KeyRef ref{file, "build." + key, line_of(v)};
@@ -323,7 +323,7 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
     } else if (key == "build") {
       const toml::table* t = v.as_table();
       if (!t) fail(ref, "expected a table [build]");
-      parse_build(*t, path, scene.build);
+      parse_build_table(*t, path, scene.model);
     } else if (key == "layer") {
       layers = v.as_array();
       layers_line = ref.line;

@@ -19,15 +19,7 @@ using json = nlohmann::json;
 json manifest_json(const Manifest& m) {
   json layers = json::array();
   for (const LayerCounts& l : m.layers)
-    layers.push_back({{"layer", l.layer},
-                      {"read", l.read},
-                      {"kept", l.kept},
-                      {"repaired", l.repaired},
-                      {"clipped_away", l.clipped_away},
-                      {"dropped", l.dropped},
-                      {"parts", l.parts},
-                      {"vertices_in", l.vertices_in},
-                      {"vertices_out", l.vertices_out}});
+    layers.push_back(layer_counts_json(l));
   return {{"layers", layers}, {"notes", m.notes}, {"entry_count", m.entries.size()}};
 }
 

@@ -125,7 +125,7 @@ prep::SceneFeatures run(const std::string& source, prep::DecalKind kind, double 
   s.crs = "EPSG:32632";
   s.resolution = resolution;
   s.extent = extent;
-  s.build.threads = threads;
+  s.model.threads = threads;
   s.repair = repair;
   prep::BuildRequest req;
   req.dry_run = true;

@@ -274,7 +274,7 @@ void unclip(prep::DecalModel& m) {
 }
 
 void run_case(const char* name, const LineSet& set, double min_tested = 0.5, uint32_t grid = 0) {
-  prep::BuildOptions opt;
+  prep::ModelOptions opt;
   opt.grid_nx = opt.grid_ny = grid;
   const prep::DecalModel model = prep::build_model(set.scene, opt);
   ASSERT_EQ(model.line_props.size(), set.scene.lines.size());
@@ -320,7 +320,7 @@ TEST(LineAccuracy, OutlinesOfRingsNarrowerThanTheirBandAreClippedByTheRing) {
   // shows that the oracle sees the Fig. 4.8 leak this test is about.
   VariantSamples variant;
   const LineSet set = line_set(9, 1.0, -300.0, 200.0, true);
-  prep::DecalModel model = prep::build_model(set.scene, prep::BuildOptions{});
+  prep::DecalModel model = prep::build_model(set.scene, prep::ModelOptions{});
   size_t clipped = 0;
   for (const auto& p : model.line_props) {
     const auto mode = (p.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift;

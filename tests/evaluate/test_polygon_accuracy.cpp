@@ -119,7 +119,7 @@ Outcome check_polygons(const synth::PolygonSet& set, const prep::DecalModel& mod
 
 void run_case(const char* name, const synth::PolygonSet& set, double near, double min_tested = 0.5,
               uint32_t grid = 0) {
-  prep::BuildOptions opt;
+  prep::ModelOptions opt;
   opt.grid_nx = opt.grid_ny = grid;
   const prep::DecalModel model = prep::build_model(set.scene, opt);
   const Outcome o = check_polygons(set, model, sample_count(), near, 0.002);

@@ -17,7 +17,7 @@
 #include "prep/model.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
-#include "prep/scene_file.hpp"
+#include "prep/read.hpp"
 #include "synthetic.hpp"
 #include "test_support.hpp"
 
@@ -225,11 +225,11 @@ void run(const char* name, const prep::SceneSpec& spec) {
   const prep::BuildResult r = prep::run_build(spec, req);
   ASSERT_FALSE(r.scene.polygons.empty());
   ASSERT_FALSE(r.scene.lines.empty());
-  prep::DecalModel m = prep::build_model(r.scene, spec.build);
+  prep::DecalModel m = prep::build_model(r.scene, spec.model);
   maybe_unclip(m);
   prep::SceneFeatures polygons_only = r.scene;
   polygons_only.lines.clear();
-  const prep::DecalModel mp = prep::build_model(polygons_only, spec.build);
+  const prep::DecalModel mp = prep::build_model(polygons_only, spec.model);
   const Outcome o = check(r.scene, m, mp, sample_count());
   std::printf("[%s] %zu polygons, %zu static lines; %llu samples tested, %llu excluded (within 2 mm), "
               "%llu in polygons, %llu on lines, %llu misclassified (%llu of them only by an inset/offset "

@@ -37,7 +37,7 @@
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/scene.hpp"
-#include "prep/scene_file.hpp"
+#include "prep/read.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;

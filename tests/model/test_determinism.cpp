@@ -48,7 +48,7 @@ prep::SceneFeatures mixed_scene() {
 
 TEST(BuildDeterminism, OneThreadAndTwoThreadsGiveIdenticalBytes) {
   const prep::SceneFeatures scene = mixed_scene();
-  prep::BuildOptions o1, o2;
+  prep::ModelOptions o1, o2;
   o1.threads = 1;
   o2.threads = 2;
   const prep::DecalModel a = prep::build_model(scene, o1), b = prep::build_model(scene, o2);

@@ -100,7 +100,7 @@ TEST(DecalGrid, AdaptivePackageIsAtMost1Point2TimesTheThesisGridsAndQueriesCostL
   for (const int lines : {1500, 0}) {
     SCOPED_TRACE(lines ? "polygons and lines" : "polygons only");
     const prep::SceneFeatures scene = clustered_scene(3000, lines);
-    prep::BuildOptions adaptive, thesis;
+    prep::ModelOptions adaptive, thesis;
     thesis.grid_nx = thesis.grid_ny = 500;
     const prep::DecalModel a = prep::build_model(scene, adaptive), t = prep::build_model(scene, thesis);
     ASSERT_EQ(t.grid.nx, 500u);
@@ -127,7 +127,7 @@ TEST(DecalGrid, OnePolygonGetsAFewCellsRatherThanTheThesisQuarterMillion) {
   p.shell = synth::star(rng, 0, 0, 60, 100, 200, false);
   p.area = 1;
   s.polygons.push_back(p);
-  prep::BuildOptions adaptive, thesis;
+  prep::ModelOptions adaptive, thesis;
   thesis.grid_nx = thesis.grid_ny = 500;
   const prep::DecalModel a = prep::build_model(s, adaptive), t = prep::build_model(s, thesis);
   EXPECT_LT(uint64_t(a.grid.nx) * a.grid.ny, 250000u / 16) << a.grid.nx << "x" << a.grid.ny;
@@ -136,7 +136,7 @@ TEST(DecalGrid, OnePolygonGetsAFewCellsRatherThanTheThesisQuarterMillion) {
 
 TEST(DecalGrid, TargetPerCellStopsTheRefinementAtACoarserGrid) {
   const prep::SceneFeatures scene = clustered_scene(1500, 0);
-  prep::BuildOptions dflt, aimed;
+  prep::ModelOptions dflt, aimed;
   aimed.target_per_cell = 48;
   const prep::DecalModel d = prep::build_model(scene, dflt), a = prep::build_model(scene, aimed);
   EXPECT_LT(uint64_t(a.grid.nx) * a.grid.ny, uint64_t(d.grid.nx) * d.grid.ny);

@@ -73,7 +73,7 @@ prep::Ring quantised(const prep::Ring& r) {
 
 TEST(QuadTree, LeafAreasEqualGeosAreaOfPolygonInLeafAndSolidLeavesMissTheRing) {
   const synth::PolygonSet set = synth::polygon_set(42, 5, 80.0, 100.0, -200.0, 4, 400);
-  prep::BuildOptions opt;
+  prep::ModelOptions opt;
   const prep::DecalModel m = prep::build_model(set.scene, opt);
   synth::Geos geos;
   auto h = geos.h;
@@ -133,7 +133,7 @@ TEST(QuadTree, LeafAreasEqualGeosAreaOfPolygonInLeafAndSolidLeavesMissTheRing) {
 
 TEST(QuadTree, DepthCapAndLeafOverflowAreReportedInTheManifest) {
   synth::PolygonSet set = synth::polygon_set(3, 2, 50.0, 0.0, 0.0, 1);
-  prep::BuildOptions opt;
+  prep::ModelOptions opt;
   opt.qt_leaf_capacity = 2;
   opt.qt_max_depth = 2;
   const prep::DecalModel m = prep::build_model(set.scene, opt);

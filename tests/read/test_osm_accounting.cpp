@@ -89,7 +89,7 @@ void check_extract(const std::string& source, double resolution) {
   // The report carries the same counts.
   std::string report = prep::test::read_text(dir.file("report.json"));
   EXPECT_NE(report.find("\"clipped_away\""), std::string::npos);
-  EXPECT_NE(report.find("\"vertices_after_simplification\""), std::string::npos);
+  EXPECT_NE(report.find("\"vertices_out\""), std::string::npos);
 
   // The full path: a package built by the tool carries the same manifest in
   // its metadata (read back with `decalprep info --json`).

@@ -192,7 +192,6 @@ TEST(Read, CountsEveryFeatureReadIntoTheProgressStage) {
 #include <cpl_vsi.h>
 
 #include "prep/pipeline.hpp"
-#include "prep/scene_file.hpp"
 
 namespace {
 

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "prep/error.hpp"
-#include "prep/scene_file.hpp"
+#include "prep/read.hpp"
 
 namespace {
 
@@ -59,11 +59,11 @@ dynamic = true
   ASSERT_TRUE(s.extent.has_value());
   EXPECT_DOUBLE_EQ(s.extent->xmax, 3.0);
   EXPECT_EQ(s.dem, "/vsizip//data/city/dem.zip/dem.tif");
-  EXPECT_EQ(s.build.grid_nx, 500u);
-  EXPECT_EQ(s.build.grid_ny, 400u);
-  EXPECT_EQ(s.build.qt_leaf_capacity, 4u);
-  EXPECT_EQ(s.build.qt_max_depth, 6u);
-  EXPECT_EQ(s.build.threads, 2u);
+  EXPECT_EQ(s.model.grid_nx, 500u);
+  EXPECT_EQ(s.model.grid_ny, 400u);
+  EXPECT_EQ(s.model.qt_leaf_capacity, 4u);
+  EXPECT_EQ(s.model.qt_max_depth, 6u);
+  EXPECT_EQ(s.model.threads, 2u);
   const prep::LayerSpec& roads = s.layers[0];
   EXPECT_EQ(roads.source, "/data/city/city.gpkg");
   EXPECT_EQ(roads.kind, prep::DecalKind::line);

@@ -21,7 +21,7 @@
 
 #include "decal/reader.hpp"
 #include "prep/pipeline.hpp"
-#include "prep/scene_file.hpp"
+#include "prep/read.hpp"
 #include "smoke_util.hpp"
 
 namespace fs = std::filesystem;

@@ -56,8 +56,8 @@ TEST(SceneSpec, OverridesReplaceTheSceneFilesValuesAndABadOneNamesItsOption) {
   r.overrides.skip_failures = true;
   const prep::SceneSpec s = prep::scene_spec(r);
   EXPECT_EQ(s.resolution, 0.25);
-  EXPECT_EQ(s.build.grid_nx, 20u);
-  EXPECT_EQ(s.build.grid_ny, 30u);
+  EXPECT_EQ(s.model.grid_nx, 20u);
+  EXPECT_EQ(s.model.grid_ny, 30u);
   ASSERT_TRUE(s.extent);
   EXPECT_EQ(s.extent->xmin, 1.0);
   EXPECT_EQ(s.extent->ymax, 4.0);

@@ -32,6 +32,21 @@ inline nlohmann::json manifest_entry_json(const ManifestEntry& e) {
           {"area_after", number_or_null(e.area_after)}};
 }
 
+// The counts of one layer (or, without "layer", their totals) in the words
+// formats/SPEC.md §Metadata lists, for the package metadata and the report
+// alike.
+inline nlohmann::json layer_counts_json(const LayerCounts& c) {
+  return {{"layer", c.layer},
+          {"read", c.read},
+          {"kept", c.kept},
+          {"repaired", c.repaired},
+          {"clipped_away", c.clipped_away},
+          {"dropped", c.dropped},
+          {"parts", c.parts},
+          {"vertices_in", c.vertices_in},
+          {"vertices_out", c.vertices_out}};
+}
+
 // The inverse of manifest_entry_json(), for code that reads a package's
 // manifest_entries or a build report back. Throws format_error for an
 // action word formats/SPEC.md does not list.

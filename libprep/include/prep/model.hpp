@@ -94,13 +94,13 @@ struct DecalModel {
 // terrain-matched dynamic lines and LOD segments. Parallel with oneTBB; the
 // result is byte-identical at any thread count. Throws resource_error when a
 // budget is exceeded. `dem` is the DEM path ("" for flat terrain).
-DecalModel build_model(const SceneFeatures& scene, const BuildOptions& options,
+DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
                        const std::string& dem = "");
 
 // Fills the dyn_* and lod_* arrays of `model` from scene.dynamic_lines and
 // LOD-enabled layers (libprep/model/terrain, libprep/model/lod). Appends
 // notes and counts to model.manifest.
-void build_dynamic(const SceneFeatures& scene, const BuildOptions& options,
+void build_dynamic(const SceneFeatures& scene, const ModelOptions& options,
                    const std::string& dem, DecalModel& model);
 
 }  // namespace prep

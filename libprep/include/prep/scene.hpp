@@ -73,8 +73,8 @@ struct Extent {
   bool empty() const { return !(xmax > xmin && ymax > ymin); }
 };
 
-// Build-stage knobs (thesis defaults noted).
-struct BuildOptions {
+// Stage 4 (model) knobs (thesis defaults noted).
+struct ModelOptions {
   uint32_t grid_nx = 0, grid_ny = 0;   // 0: adaptive (default); 500x500 = thesis
   uint32_t target_per_cell = 0;        // adaptive grid: stop refining at this proxy (0: off)
   uint32_t max_cells = 4'000'000;      // grid cell budget
@@ -104,7 +104,7 @@ struct SceneSpec {
   RepairMethod repair = RepairMethod::linework;  // invalid polygons (see RepairMethod)
   std::string dem;                     // GDAL raster path; empty: flat terrain
   bool skip_failures = false;
-  BuildOptions build;
+  ModelOptions model;                  // stage 4 knobs (the scene file's [build] table)
   std::string scene_path;              // for messages and provenance
 };
 

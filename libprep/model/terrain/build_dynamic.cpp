@@ -49,7 +49,7 @@ std::string fmt(double v, int digits = 3) {
 
 }  // namespace
 
-void build_dynamic(const SceneFeatures& scene, const BuildOptions& options, const std::string& dem_path,
+void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, const std::string& dem_path,
                    DecalModel& model) {
   std::unique_ptr<tbb::global_control> threads;
   if (options.threads > 0)

@@ -104,7 +104,7 @@ TEST(BuildDynamic, SubdividesAndSamplesADemInTheSceneCrs) {
   auto scene = two_layers();
   scene.frame.crs_wkt = terraintest::wkt_of("EPSG:32632");
   scene.frame.origin_y = 100;
-  prep::BuildOptions opt;
+  prep::ModelOptions opt;
   opt.z_scale = 2;
   prep::DecalModel m;
   prep::build_dynamic(scene, opt, dem, m);
@@ -151,7 +151,7 @@ TEST(BuildDynamic, UnreadableDemIsAGdalErrorNamingTheFile) {
 
 TEST(BuildDynamic, InvalidTerrainOptionIsAUsageError) {
   const auto scene = two_layers();
-  prep::BuildOptions opt;
+  prep::ModelOptions opt;
   opt.z_scale = 0;
   prep::DecalModel m;
   EXPECT_THROW(prep::build_dynamic(scene, opt, "", m), prep::usage_error);

@@ -67,7 +67,7 @@ class MonacoTerrain : public ::testing::Test {
     if (!terraintest::monaco_available()) GTEST_SKIP() << "missing " << terraintest::monaco_pbf();
     ASSERT_GT(roads.size(), 1000u);
   }
-  static prep::DecalModel build(const prep::BuildOptions& opt) {
+  static prep::DecalModel build(const prep::ModelOptions& opt) {
     prep::DecalModel m;
     prep::build_dynamic(dynamic_scene(frame->frame(), roads), opt, terraintest::monaco_dem(), m);
     return m;
@@ -174,7 +174,7 @@ TEST_F(MonacoTerrain, StoredHeightsEqualGdalBilinearOnTenThousandVertices) {
 
 TEST_F(MonacoTerrain, NoStoredPieceIsLongerThanLmax) {
   for (double lmax : {0.0, 7.5}) {
-    prep::BuildOptions opt;
+    prep::ModelOptions opt;
     opt.lmax = lmax;
     const prep::DecalModel m = build(opt);
     double used = lmax;
@@ -220,7 +220,7 @@ TEST_F(MonacoTerrain, NoStoredPieceIsLongerThanLmax) {
 
 // Every original vertex is kept, in order, at its quantised position.
 TEST_F(MonacoTerrain, OriginalVerticesAreKeptInOrder) {
-  prep::BuildOptions opt;
+  prep::ModelOptions opt;
   opt.terrain_tolerance = 0.5;
   const prep::DecalModel m = build(opt);
   ASSERT_EQ(m.dyn_line_start.size(), roads.size());
@@ -238,9 +238,9 @@ TEST_F(MonacoTerrain, OriginalVerticesAreKeptInOrder) {
 }
 
 TEST_F(MonacoTerrain, AdaptiveModeStaysWithinToleranceUnderOneMetreSampling) {
-  prep::BuildOptions fixed_opt;
+  prep::ModelOptions fixed_opt;
   const prep::DecalModel fixed = build(fixed_opt);
-  prep::BuildOptions opt;
+  prep::ModelOptions opt;
   opt.terrain_tolerance = 0.5;
   const prep::DecalModel m = build(opt);
   double worst = 0;
@@ -274,7 +274,7 @@ TEST_F(MonacoTerrain, AdaptiveModeStaysWithinToleranceUnderOneMetreSampling) {
 }
 
 TEST_F(MonacoTerrain, OutputDoesNotDependOnThreadCount) {
-  prep::BuildOptions one, two;
+  prep::ModelOptions one, two;
   one.threads = 1;
   two.threads = 2;
   one.terrain_tolerance = two.terrain_tolerance = 0.3;
