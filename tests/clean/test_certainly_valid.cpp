@@ -97,7 +97,8 @@ Rings plainly_valid(Rng& rng) {
   const int holes = rng.below(9);
   for (int k = 0; k < holes; ++k) {
     const double a = 2 * M_PI * k / holes;
-    const double hr = 0.9 * (holes == 1 ? 0.15 * r : std::min(0.15 * r, 0.2 * r * std::sin(M_PI / holes)));
+    const double hr =
+        0.9 * (holes == 1 ? 0.15 * r : std::min(0.15 * r, 0.2 * r * std::sin(M_PI / holes)));
     const Point2 c{0.2 * r * std::cos(a), 0.2 * r * std::sin(a)};
     rings.push_back(star(rng, c, hr, 4 + rng.below(9), 0.5, 0.5, rng.below(2) == 1));
   }
@@ -124,13 +125,16 @@ std::map<std::string, Rings> shapes() {
   s["hole crossing the shell"] = {square, from({{6, 2}, {14, 2}, {14, 8}, {6, 8}})};
   s["hole containing the shell"] = {square, from({{-5, -5}, {15, -5}, {15, 15}, {-5, 15}})};
   s["hole equal to the shell"] = {square, square};
-  s["nested holes"] = {square, from({{1, 1}, {9, 1}, {9, 9}, {1, 9}}), from({{3, 3}, {7, 3}, {7, 7}, {3, 7}})};
+  s["nested holes"] = {square, from({{1, 1}, {9, 1}, {9, 9}, {1, 9}}),
+                       from({{3, 3}, {7, 3}, {7, 7}, {3, 7}})};
   s["holes touching at a point"] = {square, from({{1, 1}, {5, 1}, {5, 5}, {1, 5}}),
                                     from({{5, 5}, {9, 5}, {9, 9}, {5, 9}})};
   s["holes sharing an edge"] = {square, from({{1, 1}, {5, 1}, {5, 5}, {1, 5}}),
                                 from({{5, 1}, {9, 1}, {9, 5}, {5, 5}})};
-  s["overlapping holes"] = {square, from({{1, 1}, {6, 1}, {6, 6}, {1, 6}}), from({{4, 4}, {9, 4}, {9, 9}, {4, 9}})};
-  s["identical holes"] = {square, from({{3, 3}, {7, 3}, {7, 7}, {3, 7}}), from({{3, 3}, {7, 3}, {7, 7}, {3, 7}})};
+  s["overlapping holes"] = {square, from({{1, 1}, {6, 1}, {6, 6}, {1, 6}}),
+                            from({{4, 4}, {9, 4}, {9, 9}, {4, 9}})};
+  s["identical holes"] = {square, from({{3, 3}, {7, 3}, {7, 7}, {3, 7}}),
+                          from({{3, 3}, {7, 3}, {7, 7}, {3, 7}})};
   s["hole vertex on a hole edge"] = {square, from({{1, 1}, {5, 1}, {5, 5}, {1, 5}}),
                                      from({{5, 3}, {8, 1}, {8, 5}})};
   return s;
@@ -162,7 +166,8 @@ Rings random_points(Rng& rng) {
 Rings random_star(Rng& rng) {
   const bool snap = rng.below(2) == 0;
   const double r = 20 + 80 * rng.uniform();
-  Rings rings{star(rng, {0, 0}, r, 4 + rng.below(29), rng.below(4) == 0 ? 3.0 : 0.9, 0.5, rng.below(3) == 0)};
+  Rings rings{star(rng, {0, 0}, r, 4 + rng.below(29), rng.below(4) == 0 ? 3.0 : 0.9, 0.5,
+                   rng.below(3) == 0)};
   const int holes = rng.below(4);
   for (int h = 0; h < holes; ++h)
     rings.push_back(star(rng, {r * 0.3 * (rng.uniform() - 0.5), r * 0.3 * (rng.uniform() - 0.5)},
@@ -239,9 +244,11 @@ TEST(CertainlyValid, NeverProvesAPolygonThatGeosCallsInvalid) {
   std::map<std::string, Tally> tally;
   for (const auto& [name, rings] : shapes())
     for (int k = 0; k < 40; ++k) check(geos, name, place(rings, rng), tally);
-  for (int k = 0; k < 600; ++k) check(geos, "hole vertex nudged around the shell edge", place(nudged_hole(rng), rng), tally);
+  for (int k = 0; k < 600; ++k)
+    check(geos, "hole vertex nudged around the shell edge", place(nudged_hole(rng), rng), tally);
   for (int k = 0; k < 600; ++k) check(geos, "random points", place(random_points(rng), rng), tally);
-  for (int k = 0; k < 1500; ++k) check(geos, "random star with holes", place(random_star(rng), rng), tally);
+  for (int k = 0; k < 1500; ++k)
+    check(geos, "random star with holes", place(random_star(rng), rng), tally);
   for (int k = 0; k < 500; ++k) check(geos, "plainly valid", place(plainly_valid(rng), rng), tally);
   // Too many holes for the proof: never proven, whatever GEOS says.
   Rings many{star(rng, {0, 0}, 100, 40, 0.5, 0.9, false)};
@@ -250,7 +257,8 @@ TEST(CertainlyValid, NeverProvesAPolygonThatGeosCallsInvalid) {
   EXPECT_FALSE(prep::detail::certainly_valid(many)) << "more holes than the proof takes";
   // Degenerate rings are never proven.
   EXPECT_FALSE(prep::detail::certainly_valid({from({{0, 0}, {1, 0}})}));
-  EXPECT_FALSE(prep::detail::certainly_valid({from({{0, 0}, {1, 0}, {1, 1}}), from({{0, 0}, {1, 0}})}));
+  EXPECT_FALSE(
+      prep::detail::certainly_valid({from({{0, 0}, {1, 0}, {1, 1}}), from({{0, 0}, {1, 0}})}));
   print(tally);
 
   // The cases must exercise both answers, or the property proves nothing.
@@ -264,9 +272,10 @@ TEST(CertainlyValid, NeverProvesAPolygonThatGeosCallsInvalid) {
   EXPECT_GT(proven, samples / 5) << "too few proven samples";
   // Each hand-built invalid shape really is invalid for GEOS (exact
   // placements keep it so), so the property was tested on it.
-  for (const char* kind : {"bow-tie", "shell touching itself at a vertex", "shell vertex on its own edge",
-                           "spike", "hole outside the shell", "hole crossing the shell",
-                           "nested holes", "overlapping holes", "identical holes"})
+  for (const char* kind :
+       {"bow-tie", "shell touching itself at a vertex", "shell vertex on its own edge", "spike",
+        "hole outside the shell", "hole crossing the shell", "nested holes", "overlapping holes",
+        "identical holes"})
     EXPECT_LT(tally[kind].geos_valid, tally[kind].samples) << kind;
 }
 
@@ -278,7 +287,8 @@ TEST(CertainlyValid, ProvesAtLeast90PercentOfSimplePolygonsWithHolesApart) {
     const Rings rings = place(plainly_valid(rng), rng);
     ++samples;
     const std::optional<bool> v = geos_valid(geos, rings);
-    ASSERT_TRUE(v.has_value() && *v) << "the generator made an invalid polygon: " << describe(rings);
+    ASSERT_TRUE(v.has_value() && *v)
+        << "the generator made an invalid polygon: " << describe(rings);
     ++valid;
     proven += prep::detail::certainly_valid(rings);
   }

@@ -151,8 +151,10 @@ class ChainSweep {
       const Point2 *p, *q;
       uint32_t i;
       edge(c, m, p, q, i);
-      if (std::max(p->x, q->x) < x) l = m + 1;
-      else h = m;
+      if (std::max(p->x, q->x) < x)
+        l = m + 1;
+      else
+        h = m;
     }
     return l;
   }
@@ -176,8 +178,10 @@ class ChainSweep {
         const Point2 *r, *t;
         uint32_t ib;
         edge(b, jb, r, t, ib);
-        if (std::max(r->x, t->x) < axmin) ++jb;
-        else break;
+        if (std::max(r->x, t->x) < axmin)
+          ++jb;
+        else
+          break;
       }
       for (uint32_t kb = jb; kb < b.count; ++kb) {
         const Point2 *r, *t;
