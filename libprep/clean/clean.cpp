@@ -281,7 +281,7 @@ struct Cleaner {
   }
 
   // A per-feature failure (feature_failure.hpp): recorded here, turned into
-  // an error or a drop by clean() in input order.
+  // an error or a drop in input order by LayerGather.
   static void fail(PartResult& r, const std::string& what) {
     r.outcome = Outcome::dropped;
     r.drop_reason = what;
