@@ -12,10 +12,10 @@
 
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <algorithm>
 #include <memory>
 
+#include "detail/certainly_valid.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/progress.hpp"
@@ -182,213 +182,9 @@ size_t vertex_count(GEOSContextHandle_t h, const GEOSGeometry* g) {
 
 // ------------------------------------------------- validity fast path --
 //
-// Most parts arrive valid; GEOS's isValid (noding every ring, building a
-// topology graph) and the copies into and out of GEOS cost more than reading
-// them. `certainly_valid` proves validity for the plain case with filtered
-// predicates and answers false whenever it cannot be sure, so GEOS still
-// decides every doubtful part (and repairs the invalid ones): a false
-// "valid" is impossible, a false "not sure" only costs time.
-
-// Sign of the orientation of (a, b, c): +1 left turn, -1 right turn, 0 when
-// the floating-point determinant is too close to zero to trust (Shewchuk's
-// orient2d error bound A, which also covers the rounding of the differences).
-int orientation(const Point2& a, const Point2& b, const Point2& c) {
-  const double l = (b.x - a.x) * (c.y - a.y), r = (b.y - a.y) * (c.x - a.x);
-  const double det = l - r;
-  const double bound = 3.3306690738754716e-16 * (std::fabs(l) + std::fabs(r));
-  if (det > bound) return 1;
-  if (det < -bound) return -1;
-  return 0;
-}
-
-// True when p lies certainly inside `ring` (crossing number, with every
-// orientation certain); false when outside or not sure (`sure` says which).
-bool inside_ring(const Point2& p, const Ring& ring, bool& sure) {
-  bool in = false;
-  const size_t n = ring.size();
-  for (size_t i = 0; i < n; ++i) {
-    const Point2& a = ring[i];
-    const Point2& b = ring[(i + 1) % n];
-    const bool up = a.y <= p.y && b.y > p.y, down = b.y <= p.y && a.y > p.y;
-    if (!up && !down) continue;
-    const int o = orientation(a, b, p);
-    if (o == 0) {
-      sure = false;
-      return false;
-    }
-    if ((up && o > 0) || (down && o < 0)) in = !in;
-  }
-  return in;
-}
-
-// A maximal run of edges of one ring along which x strictly increases (or
-// strictly decreases; a vertical edge is a chain of its own). Two edges of
-// one chain that are not neighbours lie in disjoint x ranges, so they cannot
-// meet; only edges of different chains need testing (the monotone chains of
-// GEOS's noder, on plain arrays).
-struct Chain {
-  double xmin, xmax, ymin, ymax;
-  uint32_t ring, first, count;  // edges first .. first+count-1 (mod ring size)
-  bool reversed;                // x decreases along the ring
-};
-
-struct ValidityScratch {
-  std::vector<Chain> chains;
-  std::vector<uint32_t> order, active;
-};
-
-// Proves a polygon (rings[0] shell, then holes; unclosed, consecutive
-// vertices distinct, finite) valid in GEOS's sense: at every vertex the two
-// edges turn (certain orientation: adjacent edges then meet only at their
-// shared vertex), no two non-adjacent edges meet (certainly apart), every
-// hole strictly inside the shell and outside the other holes. Then no rings
-// cross or touch, so the interior is connected and the holes are where they
-// belong. False: not proven (GEOS decides). The work is bounded; past the
-// budget the answer is false.
-bool certainly_valid(const std::vector<Ring>& rings) {
-  constexpr size_t kMaxHoles = 8;  // hole-in-hole checks are quadratic
-  if (rings.size() > 1 + kMaxHoles) return false;
-  thread_local ValidityScratch scratch;
-  std::vector<Chain>& chains = scratch.chains;
-  chains.clear();
-  size_t total = 0;
-  for (uint32_t ri = 0; ri < rings.size(); ++ri) {
-    const Ring& r = rings[ri];
-    const uint32_t n = static_cast<uint32_t>(r.size());
-    if (n < 3) return false;
-    total += n;
-    if (orientation(r[n - 1], r[0], r[1]) == 0 || orientation(r[n - 2], r[n - 1], r[0]) == 0)
-      return false;
-    for (uint32_t i = 1; i + 1 < n; ++i)
-      if (orientation(r[i - 1], r[i], r[i + 1]) == 0) return false;
-    // Chains: start at an edge whose direction class differs from the
-    // previous edge's, so no chain wraps around the ring's start.
-    auto dir = [&](uint32_t e) {
-      const double dx = r[e + 1 == n ? 0 : e + 1].x - r[e].x;
-      return dx > 0 ? 1 : (dx < 0 ? -1 : 0);
-    };
-    uint32_t start = 0;
-    while (start < n && dir(start) != 0 && dir(start) == dir((start + n - 1) % n)) ++start;
-    if (start == n) return false;  // x monotone around a closed ring: impossible
-    uint32_t e = 0;
-    while (e < n) {
-      const uint32_t first = start + e >= n ? start + e - n : start + e;
-      const int d = dir(first);
-      uint32_t count = 1;
-      if (d != 0)
-        while (e + count < n && dir(first + count >= n ? first + count - n : first + count) == d)
-          ++count;
-      Chain c{INFINITY, -INFINITY, INFINITY, -INFINITY, ri, first, count, d < 0};
-      for (uint32_t k = 0, v = first; k <= count; ++k, v = v + 1 == n ? 0 : v + 1) {
-        const Point2& p = r[v];
-        c.xmin = std::min(c.xmin, p.x);
-        c.xmax = std::max(c.xmax, p.x);
-        c.ymin = std::min(c.ymin, p.y);
-        c.ymax = std::max(c.ymax, p.y);
-      }
-      chains.push_back(c);
-      e += count;
-    }
-  }
-  std::vector<uint32_t>& order = scratch.order;
-  order.resize(chains.size());
-  for (uint32_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-    return chains[a].xmin < chains[b].xmin || (chains[a].xmin == chains[b].xmin && a < b);
-  });
-  size_t budget = 32 * total + 4096;
-  // Edge k (in increasing x) of chain c, as its two end points.
-  auto edge = [&](const Chain& c, uint32_t k, const Point2*& p, const Point2*& q, uint32_t& index) {
-    const Ring& r = rings[c.ring];
-    const uint32_t n = static_cast<uint32_t>(r.size());
-    index = c.first + (c.reversed ? c.count - 1 - k : k);
-    if (index >= n) index -= n;
-    p = &r[index];
-    q = &r[index + 1 == n ? 0 : index + 1];
-  };
-  // Tests every pair of edges of chains a and b whose x ranges meet.
-  auto chains_apart = [&](const Chain& a, const Chain& b) -> bool {
-    // Only the part of each chain inside the other's box can meet it.
-    const double lo = std::max(a.xmin, b.xmin), hi = std::min(a.xmax, b.xmax);
-    const double ylo = std::max(a.ymin, b.ymin), yhi = std::min(a.ymax, b.ymax);
-    auto first_reaching = [&](const Chain& c, double x) {  // first edge with max x >= x
-      uint32_t l = 0, h = c.count;
-      while (l < h) {
-        const uint32_t m = (l + h) / 2;
-        const Point2 *p, *q;
-        uint32_t i;
-        edge(c, m, p, q, i);
-        if (std::max(p->x, q->x) < x) l = m + 1;
-        else h = m;
-      }
-      return l;
-    };
-    uint32_t jb = first_reaching(b, lo);
-    for (uint32_t ka = first_reaching(a, lo); ka < a.count; ++ka) {
-      const Point2 *p, *q;
-      uint32_t ia;
-      edge(a, ka, p, q, ia);
-      const double axmin = std::min(p->x, q->x), axmax = std::max(p->x, q->x);
-      if (axmin > hi) break;
-      const double aymin = std::min(p->y, q->y), aymax = std::max(p->y, q->y);
-      if (aymax < ylo || aymin > yhi) continue;
-      for (;;) {  // skip b's edges wholly left of this one (b is sorted in x)
-        if (jb >= b.count) break;
-        const Point2 *r, *t;
-        uint32_t ib;
-        edge(b, jb, r, t, ib);
-        if (std::max(r->x, t->x) < axmin) ++jb;
-        else break;
-      }
-      for (uint32_t kb = jb; kb < b.count; ++kb) {
-        const Point2 *r, *t;
-        uint32_t ib;
-        edge(b, kb, r, t, ib);
-        if (std::min(r->x, t->x) > axmax) break;
-        if (std::max(r->y, t->y) < aymin || std::min(r->y, t->y) > aymax) continue;
-        if (budget-- == 0) return false;
-        if (a.ring == b.ring) {
-          const uint32_t n = static_cast<uint32_t>(rings[a.ring].size());
-          // Neighbours share a vertex; the turn test above covers them.
-          if ((ia + 1) % n == ib || (ib + 1) % n == ia) continue;
-        }
-        const int o1 = orientation(*p, *q, *r), o2 = orientation(*p, *q, *t);
-        const int o3 = orientation(*r, *t, *p), o4 = orientation(*r, *t, *q);
-        if (o1 == 0 || o2 == 0 || o3 == 0 || o4 == 0) return false;
-        if (o1 == o2 || o3 == o4) continue;  // one strictly on one side of the other
-        return false;                        // they cross
-      }
-    }
-    return true;
-  };
-  std::vector<uint32_t>& active = scratch.active;
-  active.clear();
-  for (uint32_t ci : order) {
-    const Chain& a = chains[ci];
-    size_t w = 0;
-    for (size_t k = 0; k < active.size(); ++k) {
-      const Chain& b = chains[active[k]];
-      if (b.xmax < a.xmin) continue;  // left behind for good
-      active[w++] = active[k];
-      if (b.ymax < a.ymin || b.ymin > a.ymax) continue;
-      if (budget-- == 0) return false;
-      if (!chains_apart(a, b)) return false;
-    }
-    active.resize(w);
-    active.push_back(ci);
-  }
-  // No two rings meet, so each hole lies wholly inside or outside the shell
-  // (and any other hole): one vertex decides.
-  for (size_t h = 1; h < rings.size(); ++h) {
-    bool sure = true;
-    if (!inside_ring(rings[h][0], rings[0], sure) || !sure) return false;
-    for (size_t o = 1; o < rings.size(); ++o) {
-      if (o == h) continue;
-      if (inside_ring(rings[h][0], rings[o], sure) || !sure) return false;
-    }
-  }
-  return true;
-}
+// Parts that detail/certainly_valid.hpp proves valid, inside the extent and
+// with nothing to simplify skip the GEOS round trip; these reproduce what
+// GEOS would report for them.
 
 // GEOS's shoelace (Area::ofRingSigned) over the closed ring, so the fast
 // path reports the very area GEOS would.
@@ -446,12 +242,14 @@ struct Cleaner {
   const std::optional<Extent>& clip;
   double resolution;
   RepairMethod repair = RepairMethod::linework;
-  // Test hook (tests/hostile, case clean_geos_error): the feature with this
-  // fid has its simplification run with tolerance -1, which GEOS rejects
-  // ("Tolerance must be non-negative"), so that a real GEOS error travels
-  // the failure path. No input is known to make GEOS 3.11 fail on its own.
-  // Set by DECALPREP_TEST_GEOS_FAIL_FID; -2: off.
-  int64_t geos_fail_fid = -2;
+  // CleanOptions::test_geos_failure_fid (tests only; prep/clean.hpp).
+  std::optional<int64_t> geos_fail_fid;
+
+  // The feature whose simplification is made to fail (tolerance -1, which
+  // GEOS rejects: "Tolerance must be non-negative").
+  bool fails_on_purpose(const SourceFeature& f) const {
+    return geos_fail_fid && f.fid == *geos_fail_fid;
+  }
 
   // GEOS MakeValid with the scene's method (prep/scene.hpp RepairMethod).
   GEOSGeometry* make_valid(GEOSContextHandle_t h, const GEOSGeometry* g) const {
@@ -467,7 +265,7 @@ struct Cleaner {
   }
 
   double tolerance_for(const SourceFeature& f) const {
-    return f.fid == geos_fail_fid ? -1.0 : resolution;
+    return fails_on_purpose(f) ? -1.0 : resolution;
   }
 
   // Topology-preserving simplification of one part to the scene resolution:
@@ -475,7 +273,7 @@ struct Cleaner {
   // feature recorded as failed) when GEOS reports an error.
   bool simplify(GeosContext& ctx, const SourceFeature& f, const GEOSGeometry* part, Geom& out,
                 PartResult& r) const {
-    if (!(resolution > 0) && f.fid != geos_fail_fid) return true;
+    if (!(resolution > 0) && !fails_on_purpose(f)) return true;
     ctx.step("GEOS TopologyPreserveSimplify");
     out = Geom(ctx.h, GEOSTopologyPreserveSimplify_r(ctx.h, part, tolerance_for(f)));
     if (!out) fail(r, "GEOS simplification failed: " + ctx.last_error);
@@ -483,7 +281,7 @@ struct Cleaner {
   }
 
   // A per-feature failure (feature_failure.hpp): recorded here, turned into
-  // an error or a drop by clean() in input order.
+  // an error or a drop in input order by LayerGather.
   static void fail(PartResult& r, const std::string& what) {
     r.outcome = Outcome::dropped;
     r.drop_reason = what;
@@ -515,28 +313,14 @@ struct Cleaner {
     return 0;
   }
 
+  // ------------------------------------------------------------ polygons --
+
   // §1.3 for one polygon part: dedupe, validity, clip, simplify, orient.
   // Takes the part's rings (f.rings is left empty).
   void polygon(GeosContext& ctx, SourceFeature& f, PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
     std::vector<Ring> rings = std::move(f.rings);
-    size_t dups = 0;
-    for (Ring& ring : rings) dups += remove_duplicates(ring, true);
-    if (dups > 0) add_repair(r, "removed " + std::to_string(dups) + " duplicate vertices");
-    if (rings[0].size() < 3) {
-      r.outcome = Outcome::dropped;
-      r.drop_reason = "zero area: shell has " + std::to_string(rings[0].size()) +
-                      " distinct vertices";
-      return;
-    }
-    for (size_t i = 1; i < rings.size();) {
-      if (rings[i].size() < 3) {
-        add_repair(r, "removed degenerate hole " + std::to_string(i));
-        rings.erase(rings.begin() + static_cast<std::ptrdiff_t>(i));
-      } else {
-        ++i;
-      }
-    }
+    if (!remove_degenerate(rings, r)) return;
     int rel = clip_relation(rings);
     if (rel < 0) {
       r.outcome = Outcome::clipped_away;
@@ -545,45 +329,15 @@ struct Cleaner {
     // Proven valid, inside the extent, nothing to simplify: GEOS would hand
     // the rings back unchanged (emit_rings reproduces what it reports).
     ctx.step("the validity sweep");
-    const bool proven = certainly_valid(rings);
-    if (proven && rel == 1 && !(resolution > 0) && f.fid != geos_fail_fid) {
+    const bool proven = detail::certainly_valid(rings);
+    if (proven && rel == 1 && !(resolution > 0) && !fails_on_purpose(f)) {
       emit_rings(f, std::move(rings), r);
       return;
     }
     Geom g(h, make_polygon(h, rings));
     if (!g) return fail(r, "GEOS cannot build the polygon: " + ctx.last_error);
     ctx.step("GEOS isValid");
-    char valid = proven ? 1 : GEOSisValid_r(h, g.get());
-    if (valid != 1) {
-      char* why = GEOSisValidReason_r(h, g.get());
-      std::string reason = why ? why : "invalid";
-      GEOSFree_r(h, why);
-      const double before = GEOSArea_r(h, g.get(), &r.area_before) ? r.area_before : NAN;
-      ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid (structure)" : "GEOS MakeValid");
-      Geom fixed(h, make_valid(h, g.get()));
-      if (!fixed)
-        return fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
-      // A repair that is still invalid would break point-in-polygon later.
-      ctx.step("GEOS isValid of the repair");
-      if (GEOSisValid_r(h, fixed.get()) != 1) {
-        char* still = GEOSisValidReason_r(h, fixed.get());
-        const std::string after_reason = still ? still : "invalid";
-        GEOSFree_r(h, still);
-        return fail(r, "invalid (" + reason + ") and still invalid after GEOS MakeValid (" +
-                           after_reason + ")");
-      }
-      double after = 0;
-      GEOSArea_r(h, fixed.get(), &after);
-      add_repair(r, "made valid (" + reason + ")" +
-                        (repair == RepairMethod::structure ? " by the structure method" : ""));
-      if (!(std::fabs(after - before) <= 1e-6 * std::fabs(before))) {
-        r.area_before = before;
-        r.area_after = after;
-      } else {
-        r.area_before = r.area_after = NAN;
-      }
-      g = std::move(fixed);
-    }
+    if (!proven && !make_valid_if_invalid(ctx, g, r)) return;
     if (rel == 0) {
       ctx.step("GEOS Intersection with the extent");
       Geom rect(h, clip_rect(h));
@@ -604,6 +358,78 @@ struct Cleaner {
       }
       return;
     }
+    simplify_and_emit_polygons(ctx, f, parts, r);
+  }
+
+  // Removes duplicate vertices and holes with fewer than 3 distinct
+  // vertices, recording both. False: the shell itself is degenerate (the
+  // part is dropped).
+  static bool remove_degenerate(std::vector<Ring>& rings, PartResult& r) {
+    size_t dups = 0;
+    for (Ring& ring : rings) dups += remove_duplicates(ring, true);
+    if (dups > 0) add_repair(r, "removed " + std::to_string(dups) + " duplicate vertices");
+    if (rings[0].size() < 3) {
+      r.outcome = Outcome::dropped;
+      r.drop_reason =
+          "zero area: shell has " + std::to_string(rings[0].size()) + " distinct vertices";
+      return false;
+    }
+    for (size_t i = 1; i < rings.size();) {
+      if (rings[i].size() < 3) {
+        add_repair(r, "removed degenerate hole " + std::to_string(i));
+        rings.erase(rings.begin() + static_cast<std::ptrdiff_t>(i));
+      } else {
+        ++i;
+      }
+    }
+    return true;
+  }
+
+  // GEOS isValid, and GEOS MakeValid when it says invalid: `g` becomes the
+  // repair, recorded with the area before and after when they differ. False:
+  // the feature failed (GEOS error, or a repair that is still invalid).
+  bool make_valid_if_invalid(GeosContext& ctx, Geom& g, PartResult& r) const {
+    GEOSContextHandle_t h = ctx.h;
+    if (GEOSisValid_r(h, g.get()) == 1) return true;
+    char* why = GEOSisValidReason_r(h, g.get());
+    std::string reason = why ? why : "invalid";
+    GEOSFree_r(h, why);
+    const double before = GEOSArea_r(h, g.get(), &r.area_before) ? r.area_before : NAN;
+    ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid (structure)" : "GEOS MakeValid");
+    Geom fixed(h, make_valid(h, g.get()));
+    if (!fixed) {
+      fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
+      return false;
+    }
+    // A repair that is still invalid would break point-in-polygon later.
+    ctx.step("GEOS isValid of the repair");
+    if (GEOSisValid_r(h, fixed.get()) != 1) {
+      char* still = GEOSisValidReason_r(h, fixed.get());
+      const std::string after_reason = still ? still : "invalid";
+      GEOSFree_r(h, still);
+      fail(r, "invalid (" + reason + ") and still invalid after GEOS MakeValid (" + after_reason +
+                  ")");
+      return false;
+    }
+    double after = 0;
+    GEOSArea_r(h, fixed.get(), &after);
+    add_repair(r, "made valid (" + reason + ")" +
+                      (repair == RepairMethod::structure ? " by the structure method" : ""));
+    if (!(std::fabs(after - before) <= 1e-6 * std::fabs(before))) {
+      r.area_before = before;
+      r.area_after = after;
+    } else {
+      r.area_before = r.area_after = NAN;
+    }
+    g = std::move(fixed);
+    return true;
+  }
+
+  // Simplifies each valid, clipped polygon piece and emits what is left.
+  void simplify_and_emit_polygons(GeosContext& ctx, const SourceFeature& f,
+                                  const std::vector<const GEOSGeometry*>& parts,
+                                  PartResult& r) const {
+    GEOSContextHandle_t h = ctx.h;
     for (const GEOSGeometry* p : parts) {
       r.vertices_in += vertex_count(h, p);
       Geom simple;
@@ -623,7 +449,6 @@ struct Cleaner {
       r.drop_reason = "collapsed to zero area under simplification";
     }
   }
-
   // emit_polygon for a part proven valid, without the GEOS round trip: the
   // same rings, counts and (GEOS's) area.
   static void emit_rings(const SourceFeature& f, std::vector<Ring> rings, PartResult& r) {
@@ -671,6 +496,8 @@ struct Cleaner {
     r.polygons.push_back(std::move(out));
   }
 
+  // --------------------------------------------------------------- lines --
+
   // Takes the part's points (f.rings[0] is left empty).
   void line(GeosContext& ctx, SourceFeature& f, PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
@@ -689,23 +516,8 @@ struct Cleaner {
       r.outcome = Outcome::clipped_away;
       return;
     }
-    if (rel == 1 && !(resolution > 0) && f.fid != geos_fail_fid) {
-      // Inside the extent, nothing to simplify: GEOS would hand the points
-      // back unchanged; the same counts and (GEOS's) length without it.
-      SceneLine out;
-      r.vertices_in += pts.size();
-      r.vertices_out += pts.size();
-      out.length = geos_line_length(pts);
-      out.points = std::move(pts);
-      out.closed = was_closed && out.points.size() >= 4 &&
-                   out.points.front().x == out.points.back().x &&
-                   out.points.front().y == out.points.back().y;
-      if (out.closed) out.points.pop_back();
-      out.fid = f.fid;
-      out.part = f.part;
-      out.order_value = f.order_value;
-      out.color_value = f.color_value;
-      r.lines.push_back(std::move(out));
+    if (rel == 1 && !(resolution > 0) && !fails_on_purpose(f)) {
+      emit_points(f, std::move(pts), was_closed, r);
       return;
     }
     Geom g(h, make_line(h, pts));
@@ -726,6 +538,35 @@ struct Cleaner {
       r.outcome = Outcome::clipped_away;
       return;
     }
+    // Only an unclipped closed line can stay closed.
+    simplify_and_emit_lines(ctx, f, parts, was_closed && rel == 1, r);
+  }
+
+  // A line inside the extent with nothing to simplify: GEOS would hand the
+  // points back unchanged; the same counts and (GEOS's) length without it.
+  static void emit_points(const SourceFeature& f, Ring pts, bool was_closed, PartResult& r) {
+    SceneLine out;
+    r.vertices_in += pts.size();
+    r.vertices_out += pts.size();
+    out.length = geos_line_length(pts);
+    out.points = std::move(pts);
+    out.closed = was_closed && out.points.size() >= 4 &&
+                 out.points.front().x == out.points.back().x &&
+                 out.points.front().y == out.points.back().y;
+    if (out.closed) out.points.pop_back();
+    out.fid = f.fid;
+    out.part = f.part;
+    out.order_value = f.order_value;
+    out.color_value = f.color_value;
+    r.lines.push_back(std::move(out));
+  }
+
+  // Simplifies each (clipped) line piece and emits what is left; a piece
+  // stays a closed line when `may_close` and its ends meet.
+  void simplify_and_emit_lines(GeosContext& ctx, const SourceFeature& f,
+                               const std::vector<const GEOSGeometry*>& parts, bool may_close,
+                               PartResult& r) const {
+    GEOSContextHandle_t h = ctx.h;
     for (const GEOSGeometry* p : parts) {
       r.vertices_in += vertex_count(h, p);
       Geom simple;
@@ -738,7 +579,7 @@ struct Cleaner {
         SceneLine out;
         out.points = read_coords(h, l, false);
         r.vertices_out += out.points.size();
-        out.closed = was_closed && rel == 1 && out.points.size() >= 4 &&
+        out.closed = may_close && out.points.size() >= 4 &&
                      out.points.front().x == out.points.back().x &&
                      out.points.front().y == out.points.back().y;
         if (out.closed) out.points.pop_back();
@@ -760,6 +601,250 @@ struct Cleaner {
   }
 };
 
+// ------------------------------------------------------- one part, a layer --
+
+// Why GEOS must not see this part (empty: it may). Read rejects NaN/Inf,
+// but a transform can still yield them; GEOS must never see one (its
+// quad-tree index loops forever on a NaN envelope inside
+// TopologyPreserveSimplify: found by fuzz_build). Nor a coordinate near
+// DBL_MAX (the quad-tree's 2^level overflows to inf, the same endless loop;
+// found by fuzz_build with a frame equal to the source CRS). Nothing on
+// Earth lies kMaxCoordinate from the origin of any frame, so such a vertex
+// is a failure of the feature.
+std::string unsafe_vertex(const SourceFeature& f) {
+  constexpr double kMaxCoordinate = 1e9;  // metres
+  for (size_t ri = 0; ri < f.rings.size(); ++ri)
+    for (size_t v = 0; v < f.rings[ri].size(); ++v) {
+      const Point2& q = f.rings[ri][v];
+      if (!std::isfinite(q.x) || !std::isfinite(q.y))
+        return "ring " + std::to_string(ri) + " vertex " + std::to_string(v) +
+               " has a non-finite coordinate";
+      if (std::fabs(q.x) > kMaxCoordinate || std::fabs(q.y) > kMaxCoordinate) {
+        char text[160];
+        std::snprintf(text, sizeof text,
+                      "ring %zu vertex %zu at (%.17g, %.17g) is more than 1e9 m from the "
+                      "scene origin",
+                      ri, v, q.x, q.y);
+        return text;
+      }
+    }
+  return {};
+}
+
+// Cleans one part into `r` (taking its coordinates): parts read or project
+// already dropped stay dropped with their reason; an unsafe vertex or an
+// exception fails the feature. The progress watchdog names the part while
+// it is here (in GEOS) too long.
+void clean_part(const Cleaner& cleaner, GeosContext& ctx, ProgressStage& stage,
+                const std::string& layer, SourceFeature& f, PartResult& r) {
+  if (!f.drop_reason.empty() || f.rings.empty() || f.rings[0].empty()) {
+    r.outcome = Outcome::dropped;
+    r.drop_reason = f.drop_reason.empty() ? "no coordinates" : f.drop_reason;
+    r.failed_in = f.failed_in;
+    return;
+  }
+  const std::string bad = unsafe_vertex(f);
+  if (!bad.empty()) return Cleaner::fail(r, bad);
+  if (!f.repairs.empty()) add_repair(r, f.repairs);
+  uint64_t vertices = 0;
+  for (const Ring& ring : f.rings) vertices += ring.size();
+  ProgressWatch watch = stage.watch(layer, f.fid, vertices, "clean");
+  ctx.watch = &watch;
+  try {
+    if (f.is_polygon)
+      cleaner.polygon(ctx, f, r);
+    else
+      cleaner.line(ctx, f, r);
+  } catch (const std::bad_alloc&) {
+    ctx.watch = nullptr;
+    throw;  // not this feature's fault: the build is out of memory
+  } catch (const std::exception& e) {
+    Cleaner::fail(r, e.what());
+  }
+  ctx.watch = nullptr;
+}
+
+// Cleans every part of `layer` in parallel (one GEOS context per worker
+// thread); the results are in input order.
+std::vector<PartResult> clean_parts(const Cleaner& cleaner,
+                                    tbb::enumerable_thread_specific<GeosContext>& contexts,
+                                    ProgressStage& stage, SourceLayer& layer) {
+  std::vector<PartResult> results(layer.features.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, layer.features.size(), 16),
+                    [&](const tbb::blocked_range<size_t>& range) {
+                      GeosContext& ctx = contexts.local();
+                      for (size_t i = range.begin(); i != range.end(); ++i) {
+                        struct CountPart {  // one part done, whichever way it leaves
+                          ProgressStage& stage;
+                          ~CountPart() { stage.add(); }
+                        } count_part{stage};
+                        clean_part(cleaner, ctx, stage, layer.spec.name, layer.features[i],
+                                   results[i]);
+                      }
+                    });
+  return results;
+}
+
+// ------------------------------------------------------------- gathering --
+
+// Gathers one layer's part results into the scene, feature by feature in
+// input order (deterministic at any thread count), with the manifest
+// entries and the layer's counts.
+class LayerGather {
+ public:
+  LayerGather(SceneFeatures& out, const SceneSpec& scene, const SourceLayer& layer,
+              uint32_t layer_index, const std::vector<double>& scale, const Manifest& read_manifest)
+      : out_(out),
+        scene_(scene),
+        spec_(layer.spec),
+        features_(layer.features),
+        layer_index_(layer_index),
+        scale_(scale) {
+    for (const LayerCounts& c : read_manifest.layers)
+      if (c.layer == spec_.name) counts_ = c;
+    counts_.layer = spec_.name;
+    counts_.kept = counts_.repaired = counts_.clipped_away = counts_.dropped = 0;
+    counts_.parts = counts_.vertices_in = counts_.vertices_out = 0;
+  }
+
+  // Every feature (a run of parts with the same feature index).
+  void gather(std::vector<PartResult>& results) {
+    size_t i = 0;
+    while (i < features_.size()) {
+      size_t j = i;
+      while (j < features_.size() && features_[j].feature == features_[i].feature) ++j;
+      add_feature(i, j, results);
+      i = j;
+    }
+  }
+
+  // The layer's counts; read == kept + clipped_away + dropped, or an error.
+  const LayerCounts& counts() const {
+    const LayerCounts& c = counts_;
+    if (c.kept + c.clipped_away + c.dropped != c.read) {
+      throw error("clean: layer '" + spec_.name + "': accounting mismatch: read " +
+                  std::to_string(c.read) + " != kept " + std::to_string(c.kept) + " + clipped " +
+                  std::to_string(c.clipped_away) + " + dropped " + std::to_string(c.dropped));
+    }
+    return c;
+  }
+
+ private:
+  // Parts [first, end) of one feature.
+  void add_feature(size_t first, size_t end, std::vector<PartResult>& results) {
+    // A failing part fails its whole feature (ogr2ogr -skipfailures drops
+    // features, not parts); without skip_failures it stops the build.
+    for (size_t p = first; p < end; ++p)
+      if (results[p].outcome == Outcome::dropped && results[p].failed_in)
+        return add_failure(features_[first], results[p]);
+    bool any_kept = false, any_dropped = false, any_repaired = false;
+    std::string first_drop;
+    for (size_t p = first; p < end; ++p) {
+      if (results[p].outcome == Outcome::kept) any_kept = true;
+      if (results[p].outcome == Outcome::dropped) {
+        any_dropped = true;
+        if (first_drop.empty()) first_drop = results[p].drop_reason;
+      }
+    }
+    for (size_t p = first; p < end; ++p)
+      add_part(results[p], features_[p], scale_[p], any_kept, any_repaired);
+    const int64_t fid = features_[first].fid;
+    if (any_kept) {
+      ++counts_.kept;
+      if (any_repaired) ++counts_.repaired;
+    } else if (any_dropped) {
+      ++counts_.dropped;
+      out_.manifest.entries.push_back({spec_.name, fid, -1, ManifestAction::dropped, first_drop});
+    } else {
+      ++counts_.clipped_away;
+      out_.manifest.entries.push_back(
+          {spec_.name, fid, -1, ManifestAction::clipped_away, "outside the scene extent"});
+    }
+  }
+
+  void add_failure(const SourceFeature& head, const PartResult& failure) {
+    if (!scene_.skip_failures)
+      throw feature_failure_error(*failure.failed_in, spec_.source, spec_.name, head.fid,
+                                  failure.drop_reason);
+    ++counts_.dropped;
+    ManifestEntry e{spec_.name, head.fid, -1, ManifestAction::dropped, failure.drop_reason};
+    e.failed_in = failure.failed_in;
+    out_.manifest.entries.push_back(std::move(e));
+  }
+
+  // One part of a feature without failures; `kf` is the frame's point scale
+  // factor there. Sets `any_repaired` when the part was repaired.
+  void add_part(PartResult& r, const SourceFeature& f, double kf, bool any_kept,
+                bool& any_repaired) {
+    if (r.outcome == Outcome::kept) {
+      counts_.vertices_in += r.vertices_in;
+      counts_.vertices_out += r.vertices_out;
+      if (!r.repairs.empty()) {
+        any_repaired = true;
+        out_.manifest.entries.push_back({spec_.name, f.fid, f.part, ManifestAction::repaired,
+                                         r.repairs, r.area_before, r.area_after});
+      }
+      for (ScenePolygon& poly : r.polygons) add_polygon(poly, kf);
+      for (SceneLine& l : r.lines) {
+        // Widths are ground metres; the frame's metres are k times
+        // longer or shorter (ARCHITECTURE.md "2. project").
+        l.length /= kf;
+        add_line(std::move(l), kf);
+      }
+    } else if (r.outcome == Outcome::dropped && any_kept) {
+      out_.manifest.entries.push_back(
+          {spec_.name, f.fid, f.part, ManifestAction::part_dropped, r.drop_reason});
+    }
+  }
+
+  void add_polygon(ScenePolygon& poly, double kf) {
+    poly.layer = layer_index_;
+    if (spec_.kind != DecalKind::outline) {
+      out_.polygons.push_back(std::move(poly));
+      ++counts_.parts;
+      return;
+    }
+    // Outline decals: the rings as closed lines, shell CCW and holes CW, so
+    // "inset" (left side) is the polygon's interior.
+    add_outline_ring(poly, poly.shell, kf);
+    for (const Ring& hole : poly.holes) add_outline_ring(poly, hole, kf);
+  }
+
+  void add_outline_ring(const ScenePolygon& poly, const Ring& ring, double kf) {
+    SceneLine l;
+    l.points = ring;
+    l.closed = true;
+    l.fid = poly.fid;
+    l.part = poly.part;
+    l.order_value = poly.order_value;
+    l.color_value = poly.color_value;
+    double len = 0;
+    for (size_t q = 0; q < ring.size(); ++q) {
+      const Point2& a = ring[q];
+      const Point2& b = ring[(q + 1) % ring.size()];
+      len += std::hypot(b.x - a.x, b.y - a.y);
+    }
+    l.length = len / kf;
+    add_line(std::move(l), kf);
+  }
+
+  // A line (length already in ground metres) into the static or dynamic lines.
+  void add_line(SceneLine l, double kf) {
+    l.layer = layer_index_;
+    l.width = spec_.dynamic ? spec_.style.width : spec_.style.width * kf;
+    (spec_.dynamic ? out_.dynamic_lines : out_.lines).push_back(std::move(l));
+    ++counts_.parts;
+  }
+
+  SceneFeatures& out_;
+  const SceneSpec& scene_;
+  const LayerSpec& spec_;
+  const std::vector<SourceFeature>& features_;
+  const uint32_t layer_index_;
+  const std::vector<double>& scale_;
+  LayerCounts counts_;
+};
+
 }  // namespace
 
 SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
@@ -772,7 +857,7 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
   SceneFeatures out;
   out.frame = input.frame;
   out.manifest.notes = input.features.manifest.notes;
-  const Manifest& in_manifest = input.features.manifest;
+  const Manifest& read_manifest = input.features.manifest;
 
   // Also capped by the pipeline; kept so clean() alone honours it.
   std::unique_ptr<tbb::global_control> limit;
@@ -781,209 +866,22 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const Cle
                                                   options.threads);
   }
   tbb::enumerable_thread_specific<GeosContext> contexts;
-  Cleaner cleaner{input.clip, scene.resolution, scene.repair};
+  const Cleaner cleaner{input.clip, scene.resolution, scene.repair, options.test_geos_failure_fid};
   uint64_t parts = 0;
   for (const SourceLayer& layer : input.features.layers) parts += layer.features.size();
   ProgressStage stage(options.progress, "clean", parts, "parts");
-  if (const char* fid = std::getenv("DECALPREP_TEST_GEOS_FAIL_FID")) cleaner.geos_fail_fid = std::atoll(fid);
 
   for (size_t li = 0; li < input.features.layers.size(); ++li) {
     SourceLayer& layer = input.features.layers[li];
-    const LayerSpec& spec = layer.spec;
-    out.layers.push_back(spec);
-    const std::vector<double>& k = input.scale[li];
-
-    std::vector<PartResult> results(layer.features.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, layer.features.size(), 16),
-                      [&](const tbb::blocked_range<size_t>& range) {
-      GeosContext& ctx = contexts.local();
-      for (size_t i = range.begin(); i != range.end(); ++i) {
-        struct CountPart {  // one part done, whichever way the body leaves
-          ProgressStage& stage;
-          ~CountPart() { stage.add(); }
-        } count_part{stage};
-        SourceFeature& f = layer.features[i];
-        PartResult& r = results[i];
-        if (!f.drop_reason.empty() || f.rings.empty() || f.rings[0].empty()) {
-          r.outcome = Outcome::dropped;
-          r.drop_reason = f.drop_reason.empty() ? "no coordinates" : f.drop_reason;
-          r.failed_in = f.failed_in;
-          continue;
-        }
-        // Read rejects NaN/Inf, but a transform can still yield them; GEOS
-        // must never see one (its quad-tree index loops forever on a NaN
-        // envelope inside TopologyPreserveSimplify: found by fuzz_build).
-        // Nor a coordinate near DBL_MAX (the quad-tree's 2^level overflows to
-        // inf, the same endless loop; found by fuzz_build with a frame equal
-        // to the source CRS). Nothing on Earth lies kMaxCoordinate from the
-        // origin of any frame, so such a vertex is a failure of the feature.
-        constexpr double kMaxCoordinate = 1e9;  // metres
-        std::string bad;
-        for (size_t ri = 0; ri < f.rings.size() && bad.empty(); ++ri)
-          for (size_t v = 0; v < f.rings[ri].size(); ++v) {
-            const Point2& q = f.rings[ri][v];
-            if (!std::isfinite(q.x) || !std::isfinite(q.y)) {
-              bad = "ring " + std::to_string(ri) + " vertex " + std::to_string(v) +
-                    " has a non-finite coordinate";
-              break;
-            }
-            if (std::fabs(q.x) > kMaxCoordinate || std::fabs(q.y) > kMaxCoordinate) {
-              char text[160];
-              std::snprintf(text, sizeof text,
-                            "ring %zu vertex %zu at (%.17g, %.17g) is more than 1e9 m from the "
-                            "scene origin", ri, v, q.x, q.y);
-              bad = text;
-              break;
-            }
-          }
-        if (!bad.empty()) {
-          Cleaner::fail(r, bad);
-          continue;
-        }
-        if (!f.repairs.empty()) add_repair(r, f.repairs);
-        // The watchdog names this part if it stays here (in GEOS) too long.
-        uint64_t vertices = 0;
-        for (const Ring& ring : f.rings) vertices += ring.size();
-        ProgressWatch watch = stage.watch(spec.name, f.fid, vertices, "clean");
-        ctx.watch = &watch;
-        try {
-          if (f.is_polygon)
-            cleaner.polygon(ctx, f, r);
-          else
-            cleaner.line(ctx, f, r);
-        } catch (const std::bad_alloc&) {
-          ctx.watch = nullptr;
-          throw;  // not this feature's fault: the build is out of memory
-        } catch (const std::exception& e) {
-          Cleaner::fail(r, e.what());
-        }
-        ctx.watch = nullptr;
-      }
-    });
-
-    // Gather in input order (deterministic), feature by feature.
-    LayerCounts counts;
-    for (const LayerCounts& c : in_manifest.layers)
-      if (c.layer == spec.name) counts = c;
-    counts.layer = spec.name;
-    const uint64_t read = counts.read;
-    counts.kept = counts.repaired = counts.clipped_away = counts.dropped = 0;
-    counts.parts = counts.vertices_in = counts.vertices_out = 0;
-
-    const uint32_t layer_index = static_cast<uint32_t>(li);
-    size_t i = 0;
-    while (i < layer.features.size()) {
-      size_t j = i;
-      while (j < layer.features.size() && layer.features[j].feature == layer.features[i].feature) ++j;
-      bool any_kept = false, any_dropped = false, any_repaired = false;
-      std::string first_drop;
-      for (size_t p = i; p < j; ++p) {
-        if (results[p].outcome == Outcome::kept) any_kept = true;
-        if (results[p].outcome == Outcome::dropped) {
-          any_dropped = true;
-          if (first_drop.empty()) first_drop = results[p].drop_reason;
-        }
-      }
-      const SourceFeature& head = layer.features[i];
-      // A failing part fails its whole feature (ogr2ogr -skipfailures drops
-      // features, not parts); without skip_failures it stops the build.
-      const PartResult* failure = nullptr;
-      for (size_t p = i; p < j && !failure; ++p)
-        if (results[p].outcome == Outcome::dropped && results[p].failed_in) failure = &results[p];
-      if (failure) {
-        if (!scene.skip_failures)
-          throw feature_failure_error(*failure->failed_in, spec.source, spec.name, head.fid,
-                                      failure->drop_reason);
-        ++counts.dropped;
-        ManifestEntry e{spec.name, head.fid, -1, ManifestAction::dropped, failure->drop_reason};
-        e.failed_in = failure->failed_in;
-        out.manifest.entries.push_back(std::move(e));
-        i = j;
-        continue;
-      }
-      for (size_t p = i; p < j; ++p) {
-        PartResult& r = results[p];
-        const SourceFeature& f = layer.features[p];
-        const double kf = k[p];
-        if (r.outcome == Outcome::kept) {
-          counts.vertices_in += r.vertices_in;
-          counts.vertices_out += r.vertices_out;
-          if (!r.repairs.empty()) {
-            any_repaired = true;
-            ManifestEntry e{spec.name, f.fid, f.part, ManifestAction::repaired, r.repairs, r.area_before,
-                            r.area_after};
-            out.manifest.entries.push_back(std::move(e));
-          }
-          for (ScenePolygon& poly : r.polygons) {
-            poly.layer = layer_index;
-            if (spec.kind == DecalKind::outline) {
-              // Outline decals: the rings as closed lines, shell CCW and holes
-              // CW, so "inset" (left side) is the polygon's interior.
-              auto add_ring = [&](const Ring& ring) {
-                SceneLine l;
-                l.points = ring;
-                l.closed = true;
-                l.layer = layer_index;
-                l.fid = poly.fid;
-                l.part = poly.part;
-                l.order_value = poly.order_value;
-                l.color_value = poly.color_value;
-                double len = 0;
-                for (size_t q = 0; q < ring.size(); ++q) {
-                  const Point2& a = ring[q];
-                  const Point2& b = ring[(q + 1) % ring.size()];
-                  len += std::hypot(b.x - a.x, b.y - a.y);
-                }
-                l.length = len / kf;
-                l.width = spec.dynamic ? spec.style.width : spec.style.width * kf;
-                (spec.dynamic ? out.dynamic_lines : out.lines).push_back(std::move(l));
-                ++counts.parts;
-              };
-              add_ring(poly.shell);
-              for (const Ring& hole : poly.holes) add_ring(hole);
-            } else {
-              out.polygons.push_back(std::move(poly));
-              ++counts.parts;
-            }
-          }
-          for (SceneLine& l : r.lines) {
-            l.layer = layer_index;
-            // Widths are ground metres; the frame's metres are k times
-            // longer or shorter (ARCHITECTURE.md "2. project").
-            l.length /= kf;
-            l.width = spec.dynamic ? spec.style.width : spec.style.width * kf;
-            (spec.dynamic ? out.dynamic_lines : out.lines).push_back(std::move(l));
-            ++counts.parts;
-          }
-        } else if (r.outcome == Outcome::dropped && any_kept) {
-          ManifestEntry e{spec.name, f.fid, f.part, ManifestAction::part_dropped, r.drop_reason};
-          out.manifest.entries.push_back(std::move(e));
-        }
-      }
-      if (any_kept) {
-        ++counts.kept;
-        if (any_repaired) ++counts.repaired;
-      } else if (any_dropped) {
-        ++counts.dropped;
-        ManifestEntry e{spec.name, head.fid, -1, ManifestAction::dropped, first_drop};
-        out.manifest.entries.push_back(std::move(e));
-      } else {
-        ++counts.clipped_away;
-        ManifestEntry e{spec.name, head.fid, -1, ManifestAction::clipped_away, "outside the scene extent"};
-        out.manifest.entries.push_back(std::move(e));
-      }
-      i = j;
-    }
-    if (counts.kept + counts.clipped_away + counts.dropped != read) {
-      throw error("clean: layer '" + spec.name + "': accounting mismatch: read " +
-                  std::to_string(read) + " != kept " + std::to_string(counts.kept) +
-                  " + clipped " + std::to_string(counts.clipped_away) + " + dropped " +
-                  std::to_string(counts.dropped));
-    }
-    out.manifest.layers.push_back(counts);
+    out.layers.push_back(layer.spec);
+    std::vector<PartResult> results = clean_parts(cleaner, contexts, stage, layer);
+    LayerGather gather(out, scene, layer, static_cast<uint32_t>(li), input.scale[li],
+                       read_manifest);
+    gather.gather(results);
+    out.manifest.layers.push_back(gather.counts());
   }
   // Read-stage entries (parts of kept features the kind could not draw).
-  for (const ManifestEntry& e : in_manifest.entries) out.manifest.entries.push_back(e);
+  for (const ManifestEntry& e : read_manifest.entries) out.manifest.entries.push_back(e);
 
   out.extent = kept_extent(out);
   stage.finish();

@@ -70,16 +70,11 @@ std::vector<std::string> case_names() {
 
 using prep::test::shell_quote;
 
-// Runs the tool in `dir` with the case's extra environment (`env` in
-// cases.json: test hooks such as DECALPREP_TEST_GEOS_FAIL_FID); stderr in
-// ToolRun::err.
-prep::test::ToolRun run_case(const std::vector<std::string>& args, const fs::path& dir,
-                             const json& env = json::object()) {
-  std::string vars, line;
-  for (auto it = env.begin(); it != env.end(); ++it)
-    vars += it.key() + "=" + shell_quote(it.value().get<std::string>()) + " ";
+// Runs the tool in `dir`; stderr in ToolRun::err.
+prep::test::ToolRun run_case(const std::vector<std::string>& args, const fs::path& dir) {
+  std::string line;
   for (const auto& arg : args) line += (line.empty() ? "" : " ") + shell_quote(arg);
-  return prep::test::run_tool(line, dir, {.env = vars, .split_stderr = true});
+  return prep::test::run_tool(line, dir, {.split_stderr = true});
 }
 
 // The scene `decalprep build PATH <args>` describes (the options the corpus
@@ -345,8 +340,7 @@ TEST_P(Hostile, BehavesAsExpected) {
     args.push_back((*c)["kind"].get<std::string>());
   }
   for (const auto& a : (*c)["args"]) args.push_back(a.get<std::string>());
-  const json env = c->value("env", json::object());
-  const prep::test::ToolRun r = run_case(args, out, env);
+  const prep::test::ToolRun r = run_case(args, out);
   const int want_exit = want.at("exit").get<int>();
   ASSERT_EQ(r.rc, want_exit) << name << " stderr: " << r.err;
   constexpr int kPartial = 4;  // prep::ExitCode::partial: --skip-failures dropped features
@@ -403,10 +397,7 @@ TEST_P(Hostile, BehavesAsExpected) {
   // The cleaned geometry of the same scene, in process, for the oracle.
   prep::BuildRequest dry;
   dry.dry_run = true;
-  for (auto it = env.begin(); it != env.end(); ++it)
-    setenv(it.key().c_str(), it.value().get<std::string>().c_str(), 1);
   const prep::BuildResult cleaned = prep::run_build(scene_of(*c), dry);
-  for (auto it = env.begin(); it != env.end(); ++it) unsetenv(it.key().c_str());
   // Repairs that change the area: area_after is the area of what was kept
   // (GEOS on the cleaned polygons of that feature).
   Geos g;

@@ -9,6 +9,9 @@
 // area before/after when a repair changes the area by more than 1e-6.
 #pragma once
 
+#include <cstdint>
+#include <optional>
+
 #include "prep/project.hpp"
 #include "prep/scene.hpp"
 
@@ -22,6 +25,12 @@ struct CleanOptions {
   // watchdog names one that takes longer than the Progress's threshold).
   // Null: silent.
   Progress* progress = nullptr;
+  // For tests only; the pipeline never sets it. The feature with this fid
+  // has its simplification run with tolerance -1, which GEOS rejects
+  // ("Tolerance must be non-negative"), so that a real GEOS error travels
+  // the per-feature failure path (tests/hostile/test_clean_failure.cpp): no
+  // input is known to make GEOS 3.11 fail on its own.
+  std::optional<int64_t> test_geos_failure_fid;
 };
 
 // Cleans `input`. Bad geometry that is expected (zero area, too few
