@@ -46,6 +46,7 @@
 #include <tuple>
 #include <vector>
 
+#include "bench_scene.hpp"
 #include "decal/reader.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
@@ -390,12 +391,7 @@ int main(int argc, char** argv) try {
     collect_edges(h, oracle.boundaries[i], edges);
   }
   const double span = std::max(bx1 - bx0, by1 - by0);
-  uint64_t vertices = 0;
-  for (const auto& p : scene.polygons) {
-    vertices += p.shell.size();
-    for (const auto& r : p.holes) vertices += r.size();
-  }
-  for (const auto& l : scene.lines) vertices += l.points.size();
+  const uint64_t vertices = bench::scene_vertices(scene);
   emit("{\"what\":\"oracle\",\"polygons\":%zu,\"lines\":%zu,\"vertices\":%llu,\"xmin\":%.3f,\"ymin\":%.3f,"
        "\"xmax\":%.3f,\"ymax\":%.3f,\"origin_x\":%.3f,\"origin_y\":%.3f}",
        scene.polygons.size(), scene.lines.size(), static_cast<unsigned long long>(vertices), bx0, by0, bx1, by1,
@@ -529,12 +525,7 @@ int main(int argc, char** argv) try {
       ++matched;
       haus(l.points, l.closed, it->second->points, it->second->closed);
     }
-    uint64_t v2 = 0;
-    for (const auto& p : s2.polygons) {
-      v2 += p.shell.size();
-      for (const auto& r : p.holes) v2 += r.size();
-    }
-    for (const auto& l : s2.lines) v2 += l.points.size();
+    const uint64_t v2 = bench::scene_vertices(s2);
     emit("{\"what\":\"hausdorff\",\"resolution\":%.6g,\"matched_parts\":%zu,\"vertices_before\":%llu,"
          "\"vertices_after\":%llu,\"max_hausdorff_m\":%.6g}",
          package_resolution, matched, static_cast<unsigned long long>(vertices),

@@ -39,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_scene.hpp"
 #include "prep/model.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
@@ -67,41 +68,43 @@ prep::Ring star(std::mt19937_64& rng, double cx, double cy, double r0, double r1
   return r;
 }
 
+// A synthetic scene of `layers` and features from `add(s, fid)`, called
+// with fid 0, 1, ... until the features hold `vertices`; each call adds one
+// feature to s and returns its vertex count.
+template <class Add>
+prep::SceneFeatures generate(uint64_t vertices, std::vector<prep::LayerSpec> layers, Add&& add) {
+  prep::SceneFeatures s;
+  s.layers = std::move(layers);
+  for (uint64_t v = 0, fid = 0; v < vertices; ++fid) v += add(s, int64_t(fid));
+  return s;
+}
+
 // Clustered polygons: a city-like density gradient (most polygons near the
 // centre) so that the adaptive grid has something to adapt to.
 prep::SceneFeatures parcels(uint64_t vertices, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> N(0, 1);
   std::uniform_int_distribution<int> nv(6, 40);
-  prep::SceneFeatures s;
-  s.layers.push_back(layer("parcels", prep::DecalKind::polygon, decal::CornerStyle::round));
-  uint64_t v = 0;
-  int64_t fid = 0;
-  while (v < vertices) {
+  const auto add = [&](prep::SceneFeatures& s, int64_t fid) -> uint64_t {
     const double cx = 3000 * N(rng), cy = 2000 * N(rng);
     const double size = 8 + 30 * std::abs(N(rng));
     prep::ScenePolygon p;
     p.shell = star(rng, cx, cy, 0.6 * size, size, fid % 50 == 0 ? 400 : nv(rng), false);
     if (fid % 3 == 0) p.holes.push_back(star(rng, cx, cy, 0.15 * size, 0.3 * size, nv(rng), true));
-    v += p.shell.size() + (p.holes.empty() ? 0 : p.holes[0].size());
-    p.fid = fid++;
+    const uint64_t v = p.shell.size() + (p.holes.empty() ? 0 : p.holes[0].size());
+    p.fid = fid;
     p.area = size * size;
     s.polygons.push_back(std::move(p));
-  }
-  return s;
+    return v;
+  };
+  return generate(vertices, {layer("parcels", prep::DecalKind::polygon, decal::CornerStyle::round)}, add);
 }
 
 prep::SceneFeatures roads(uint64_t vertices, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> N(0, 1);
   std::uniform_real_distribution<double> U(0, 1);
-  prep::SceneFeatures s;
-  s.layers.push_back(layer("round", prep::DecalKind::line, decal::CornerStyle::round));
-  s.layers.push_back(layer("miter", prep::DecalKind::line, decal::CornerStyle::miter));
-  s.layers.push_back(layer("bevel", prep::DecalKind::line, decal::CornerStyle::bevel));
-  uint64_t v = 0;
-  int64_t fid = 0;
-  while (v < vertices) {
+  const auto add = [&](prep::SceneFeatures& s, int64_t fid) -> uint64_t {
     prep::SceneLine l;
     double x = 3000 * N(rng), y = 2000 * N(rng), a = 2 * M_PI * U(rng);
     const int n = 2 + int(40 * U(rng));
@@ -115,21 +118,16 @@ prep::SceneFeatures roads(uint64_t vertices, uint64_t seed) {
     }
     l.layer = uint32_t(fid % 3);
     l.width = 3 + 10 * U(rng);
-    l.fid = fid++;
-    v += l.points.size();
+    l.fid = fid;
+    const uint64_t v = l.points.size();
     s.lines.push_back(std::move(l));
-  }
-  return s;
-}
-
-uint64_t input_vertices(const prep::SceneFeatures& s) {
-  uint64_t v = 0;
-  for (const auto& p : s.polygons) {
-    v += p.shell.size();
-    for (const auto& h : p.holes) v += h.size();
-  }
-  for (const auto& l : s.lines) v += l.points.size();
-  return v;
+    return v;
+  };
+  return generate(vertices,
+                  {layer("round", prep::DecalKind::line, decal::CornerStyle::round),
+                   layer("miter", prep::DecalKind::line, decal::CornerStyle::miter),
+                   layer("bevel", prep::DecalKind::line, decal::CornerStyle::bevel)},
+                  add);
 }
 
 // Raw static blob bytes; `index` receives the grid-dependent part (cell
@@ -218,7 +216,7 @@ Row measure(const prep::SceneFeatures& scene, const prep::ModelOptions& o, uint6
 }
 
 void run(const std::string& name, const prep::SceneFeatures& scene, uint64_t samples, unsigned threads) {
-  const uint64_t nv = input_vertices(scene);
+  const uint64_t nv = bench::scene_vertices(scene);
   std::printf("\n== %s: %zu polygons, %zu lines, %llu input vertices\n", name.c_str(), scene.polygons.size(),
               scene.lines.size(), (unsigned long long)nv);
   std::printf("%-10s %9s %8s %8s %11s %9s %8s | %-14s | %-14s | %-14s | %-14s | %-14s\n", "grid", "cells",

@@ -19,21 +19,21 @@ namespace {
 
 prep::SceneFeatures build(const std::string& pbf, double resolution) {
   prep::SceneSpec s;
-  struct L {
-    const char *name, *layer, *where;
-    prep::DecalKind kind;
-  };
-  for (const L& l : {L{"landuse", "multipolygons", "landuse IS NOT NULL OR leisure IS NOT NULL OR \"natural\" IS NOT NULL", prep::DecalKind::polygon},
-                     L{"buildings", "multipolygons", "building IS NOT NULL", prep::DecalKind::polygon},
-                     L{"highways", "lines", "highway IS NOT NULL", prep::DecalKind::line}}) {
-    prep::LayerSpec spec;
-    spec.name = l.name;
-    spec.source = pbf;
-    spec.layer = l.layer;
-    spec.where = l.where;
-    spec.kind = l.kind;
-    s.layers.push_back(spec);
-  }
+  s.layers = {{.name = "landuse",
+               .source = pbf,
+               .layer = "multipolygons",
+               .where = "landuse IS NOT NULL OR leisure IS NOT NULL OR \"natural\" IS NOT NULL",
+               .kind = prep::DecalKind::polygon},
+              {.name = "buildings",
+               .source = pbf,
+               .layer = "multipolygons",
+               .where = "building IS NOT NULL",
+               .kind = prep::DecalKind::polygon},
+              {.name = "highways",
+               .source = pbf,
+               .layer = "lines",
+               .where = "highway IS NOT NULL",
+               .kind = prep::DecalKind::line}};
   s.resolution = resolution;
   prep::BuildRequest req;
   req.dry_run = true;

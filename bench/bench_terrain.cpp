@@ -16,6 +16,7 @@
 #include <string>
 
 #include "lod/lod.hpp"
+#include "ogr_lines.hpp"  // tests/support
 #include "terrain/terrain.hpp"
 
 namespace {
@@ -52,22 +53,19 @@ Scene read_lines(const std::string& path, const char* filter, double lon0, doubl
   if (ds && ct) {
     OGRLayer* layer = ds->GetLayerByName("lines");
     layer->SetAttributeFilter(filter);
-    for (auto& f : *layer) {
-      const OGRGeometry* g = f->GetGeometryRef();
-      if (!g || wkbFlatten(g->getGeometryType()) != wkbLineString) continue;
-      const auto* ls = g->toLineString();
+    prep::test::for_each_line_string(*layer, [&](OGRFeature& f, const OGRLineString& ls) {
       prep::SceneLine l;
-      for (int i = 0; i < ls->getNumPoints(); ++i) {
-        double x = ls->getX(i), y = ls->getY(i);
+      for (int i = 0; i < ls.getNumPoints(); ++i) {
+        double x = ls.getX(i), y = ls.getY(i);
         ct->Transform(1, &x, &y);
         if (!l.points.empty() && std::hypot(x - l.points.back().x, y - l.points.back().y) < 0.01) continue;
         l.points.push_back({x, y});
       }
-      if (l.points.size() < 2) continue;
-      l.fid = f->GetFID();
+      if (l.points.size() < 2) return;
+      l.fid = f.GetFID();
       l.width = 3;
       s.lines.push_back(std::move(l));
-    }
+    });
   }
   CPLPopErrorHandler();
   return s;

@@ -10,27 +10,19 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <cstring>
 #include <span>
 #include <vector>
 
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
+#include "package_fields.hpp"  // tests/formats: get / put
 
 namespace {
 
 volatile unsigned g_sink = 0;
 
-template <class T>
-T get(const std::vector<std::byte>& f, size_t at) {
-  T v;
-  std::memcpy(&v, f.data() + at, sizeof v);
-  return v;
-}
-template <class T>
-void put(std::vector<std::byte>& f, size_t at, T v) {
-  std::memcpy(f.data() + at, &v, sizeof v);
-}
+using decal_test::get;
+using decal_test::put;
 
 // Recomputes every checksum whose region lies inside the file.
 void reseal(std::vector<std::byte>& f) {

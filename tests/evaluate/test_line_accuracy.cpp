@@ -18,14 +18,12 @@
 // "Clipped outlines"); >= 10^6 samples, uniform and near the oracle's
 // boundary; points within 2 mm of it are excluded.
 #include <gtest/gtest.h>
-#include <tbb/parallel_for.h>
-
-#include <atomic>
 #include <cstdlib>
 #include <mutex>
 
 #include "prep/model.hpp"
 #include "prep/evaluate.hpp"
+#include "sampling.hpp"
 #include "synthetic.hpp"
 #include "test_support.hpp"
 
@@ -156,9 +154,7 @@ LineSet line_set(uint64_t seed, double scale, double ox, double oy, bool narrow_
   return s;
 }
 
-struct Outcome {
-  uint64_t tested = 0, excluded = 0, inside = 0, wrong = 0;
-};
+using synth::Outcome;
 
 // `report`: ADD_FAILURE for the first misclassified points (off when a
 // disagreement is the expected outcome).
@@ -187,27 +183,14 @@ Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n,
       }
     }
   }
-  const size_t chunks = 4;
-  std::atomic<uint64_t> tested{0}, excluded{0}, inside{0}, wrong{0};
   std::mutex log_mutex;
   int logged = 0;
-  tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
-    synth::Geos geos;
-    auto h = geos.h;
-    std::vector<G> area, bound;
-    std::vector<const GEOSPreparedGeometry*> parea, pbound;
-    for (const auto& l : lines) {
-      area.push_back(oracle(h, l, set.scene.layers[l.layer]));
-      bound.push_back(G(h, GEOSBoundary_r(h, area.back().g)));
-    }
-    for (size_t t = 0; t < lines.size(); ++t) {
-      parea.push_back(GEOSPrepare_r(h, area[t].g));
-      pbound.push_back(GEOSPrepare_r(h, bound[t].g));
-    }
-    std::mt19937_64 rng(99 + c);
+  // One chunk: `count` samples on the chunk's own GEOS context `h`.
+  auto sample = [&](GEOSContextHandle_t h, std::mt19937_64& rng, size_t count) {
+    synth::PreparedRegions regions(h);
+    for (const auto& l : lines) regions.add(oracle(h, l, set.scene.layers[l.layer]));
     std::uniform_real_distribution<double> U(0, 1);
-    uint64_t my_tested = 0, my_excluded = 0, my_inside = 0, my_wrong = 0;
-    const size_t count = n / chunks + (c < n % chunks ? 1 : 0);
+    Outcome mine;
     const double near = set.tile * 0.0005;
     for (size_t k = 0; k < count; ++k) {
       double x, y;
@@ -227,17 +210,17 @@ Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n,
       bool truth = false;
       if (ti >= 0 && tj >= 0 && ti < set.cols && tile < lines.size()) {
         G pt = synth::point(h, x, y);
-        if (GEOSPreparedDistanceWithin_r(h, pbound[tile], pt.g, band)) {
-          ++my_excluded;
+        if (regions.near_boundary(tile, pt, band)) {
+          ++mine.excluded;
           continue;
         }
-        truth = GEOSPreparedContains_r(h, parea[tile], pt.g);
+        truth = regions.contains(tile, pt);
       }
-      ++my_tested;
-      my_inside += truth;
+      ++mine.tested;
+      mine.inside += truth;
       const prep::EvalSample got = prep::evaluate(view, x, y);
       if (got.line_covered != truth) {
-        ++my_wrong;
+        ++mine.wrong;
         std::lock_guard<std::mutex> lock(log_mutex);
         if (report && logged++ < 10) {
           const auto& l = lines[tile < lines.size() ? tile : 0];
@@ -247,21 +230,16 @@ Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n,
                         << got.top_line << ")";
           for (const auto& v : l.points) std::printf("  v %.6f %.6f\n", v.x - x, v.y - y);
           if (logged == 1) {
-            char* w = GEOSGeomToWKT_r(h, area[tile].g);
+            char* w = GEOSGeomToWKT_r(h, regions.area(tile).g);
             std::printf("  oracle %s\n", w);
             GEOSFree_r(h, w);
           }
         }
       }
     }
-    for (auto* p : parea) GEOSPreparedGeom_destroy_r(h, p);
-    for (auto* p : pbound) GEOSPreparedGeom_destroy_r(h, p);
-    tested += my_tested;
-    excluded += my_excluded;
-    inside += my_inside;
-    wrong += my_wrong;
-  });
-  return {tested.load(), excluded.load(), inside.load(), wrong.load()};
+    return mine;
+  };
+  return synth::sample_in_chunks(n, 4, 99, sample);
 }
 
 // Clears the clipped-outline bits (SPEC "Clipped outlines"): the package
@@ -279,11 +257,7 @@ void run_case(const char* name, const LineSet& set, double min_tested = 0.5, uin
   const prep::DecalModel model = prep::build_model(set.scene, opt);
   ASSERT_EQ(model.line_props.size(), set.scene.lines.size());
   const Outcome o = check_lines(set, model, sample_count(), 0.002);
-  std::printf("[%s] lines: %llu samples tested, %llu excluded (within 2 mm), %llu covered, "
-              "%llu misclassified; grid %ux%u; max representation error %.6f mm\n",
-              name, (unsigned long long)o.tested, (unsigned long long)o.excluded,
-              (unsigned long long)o.inside, (unsigned long long)o.wrong, model.grid.nx, model.grid.ny,
-              model.max_representation_error * 1000);
+  synth::print_outcome(name, "lines", "covered", o, model);
   EXPECT_EQ(o.wrong, 0u);
   EXPECT_GT(double(o.tested), min_tested * double(sample_count()));
   EXPECT_LE(model.max_representation_error, 0.001);

@@ -3,14 +3,12 @@
 // own polygons), >= 10^6 samples, uniform and near edges, points within 2 mm
 // of a boundary excluded, 0 misclassified.
 #include <gtest/gtest.h>
-#include <tbb/parallel_for.h>
-
-#include <atomic>
 #include <cstdlib>
 #include <mutex>
 
 #include "prep/model.hpp"
 #include "prep/evaluate.hpp"
+#include "sampling.hpp"
 #include "synthetic.hpp"
 #include "test_support.hpp"
 
@@ -22,9 +20,7 @@ namespace {
 using prep::test::sample_count;
 using prep::test::VariantSamples;
 
-struct Outcome {
-  uint64_t tested = 0, excluded = 0, inside = 0, wrong = 0;
-};
+using synth::Outcome;
 
 // Max distance between the cleaned input vertices and the stored quanta,
 // computed here independently of the build.
@@ -45,28 +41,15 @@ Outcome check_polygons(const synth::PolygonSet& set, const prep::DecalModel& mod
                        double near, double band) {
   const prep::StaticView view = prep::view_of(model);
   const auto& polys = set.scene.polygons;  // pairs: (shell with hole, island) per tile
-  const size_t chunks = 4;
-  std::atomic<uint64_t> tested{0}, excluded{0}, inside{0}, wrong{0};
   std::mutex log_mutex;
   int logged = 0;
-  tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
-    synth::Geos geos;
-    auto h = geos.h;
-    std::vector<synth::G> area, bound;
-    std::vector<const GEOSPreparedGeometry*> parea, pbound;
-    for (size_t t = 0; t < polys.size(); ++t) {
-      area.push_back(synth::polygon(h, polys[t].shell, polys[t].holes));
-      bound.push_back(synth::G(h, GEOSBoundary_r(h, area.back().g)));
-    }
-    for (size_t t = 0; t < polys.size(); ++t) {
-      parea.push_back(GEOSPrepare_r(h, area[t].g));
-      pbound.push_back(GEOSPrepare_r(h, bound[t].g));
-    }
-    std::mt19937_64 rng(1234 + c);
+  // One chunk: `count` samples on the chunk's own GEOS context `h`.
+  auto sample = [&](GEOSContextHandle_t h, std::mt19937_64& rng, size_t count) {
+    synth::PreparedRegions oracle(h);
+    for (const auto& p : polys) oracle.add(synth::polygon(h, p.shell, p.holes));
     std::uniform_real_distribution<double> U(0, 1);
     const double span = set.tiles * set.tile;
-    uint64_t my_tested = 0, my_excluded = 0, my_inside = 0, my_wrong = 0;
-    const size_t count = n / chunks + (c < n % chunks ? 1 : 0);
+    Outcome mine;
     for (size_t k = 0; k < count; ++k) {
       double x, y;
       if (k % 2 == 0) {  // uniform over the extent and a margin around it
@@ -88,33 +71,28 @@ Outcome check_polygons(const synth::PolygonSet& set, const prep::DecalModel& mod
         const size_t base = 2 * size_t(ti + tj * set.tiles);
         synth::G pt = synth::point(h, x, y);
         for (size_t q = base; q < base + 2; ++q) {
-          if (GEOSPreparedDistanceWithin_r(h, pbound[q], pt.g, band)) skip = true;
-          truth = truth || GEOSPreparedContains_r(h, parea[q], pt.g);
+          if (oracle.near_boundary(q, pt, band)) skip = true;
+          truth = truth || oracle.contains(q, pt);
         }
       }
       if (skip) {
-        ++my_excluded;
+        ++mine.excluded;
         continue;
       }
-      ++my_tested;
-      my_inside += truth;
+      ++mine.tested;
+      mine.inside += truth;
       const bool got = prep::evaluate(view, x, y).polygon_covered;
       if (got != truth) {
-        ++my_wrong;
+        ++mine.wrong;
         std::lock_guard<std::mutex> lock(log_mutex);
         if (logged++ < 10)
           ADD_FAILURE() << "misclassified (" << std::fixed << x << ", " << y << "): GEOS " << truth
                         << " evaluator " << got;
       }
     }
-    for (auto* p : parea) GEOSPreparedGeom_destroy_r(h, p);
-    for (auto* p : pbound) GEOSPreparedGeom_destroy_r(h, p);
-    tested += my_tested;
-    excluded += my_excluded;
-    inside += my_inside;
-    wrong += my_wrong;
-  });
-  return {tested.load(), excluded.load(), inside.load(), wrong.load()};
+    return mine;
+  };
+  return synth::sample_in_chunks(n, 4, 1234, sample);
 }
 
 void run_case(const char* name, const synth::PolygonSet& set, double near, double min_tested = 0.5,
@@ -123,11 +101,7 @@ void run_case(const char* name, const synth::PolygonSet& set, double near, doubl
   opt.grid_nx = opt.grid_ny = grid;
   const prep::DecalModel model = prep::build_model(set.scene, opt);
   const Outcome o = check_polygons(set, model, sample_count(), near, 0.002);
-  std::printf("[%s] polygons: %llu samples tested, %llu excluded (within 2 mm), %llu inside, "
-              "%llu misclassified; grid %ux%u; max representation error %.6f mm\n",
-              name, (unsigned long long)o.tested, (unsigned long long)o.excluded,
-              (unsigned long long)o.inside, (unsigned long long)o.wrong, model.grid.nx, model.grid.ny,
-              model.max_representation_error * 1000);
+  synth::print_outcome(name, "polygons", "inside", o, model);
   EXPECT_EQ(o.wrong, 0u);
   EXPECT_GT(double(o.tested), min_tested * double(sample_count()));
   EXPECT_LE(model.max_representation_error, 0.001);

@@ -102,23 +102,6 @@ std::vector<std::byte> model_package_bytes(const prep::DecalModel& model,
   return bytes;
 }
 
-template <class T>
-T get(const std::vector<std::byte>& f, size_t at) {
-  T v;
-  std::memcpy(&v, f.data() + at, sizeof v);
-  return v;
-}
-template <class T>
-void put(std::vector<std::byte>& f, size_t at, T v) {
-  std::memcpy(f.data() + at, &v, sizeof v);
-}
-template uint16_t get<uint16_t>(const std::vector<std::byte>&, size_t);
-template uint32_t get<uint32_t>(const std::vector<std::byte>&, size_t);
-template uint64_t get<uint64_t>(const std::vector<std::byte>&, size_t);
-template void put<uint16_t>(std::vector<std::byte>&, size_t, uint16_t);
-template void put<uint32_t>(std::vector<std::byte>&, size_t, uint32_t);
-template void put<uint64_t>(std::vector<std::byte>&, size_t, uint64_t);
-
 size_t entry_at(size_t i) { return sizeof(decal::FileHeader) + i * sizeof(decal::BlobTableEntry); }
 
 void reseal(std::vector<std::byte>& f) {

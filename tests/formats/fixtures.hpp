@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "decal/format.hpp"
+#include "package_fields.hpp"  // get / put
 #include "prep/model.hpp"
 #include "prep/write.hpp"
 
@@ -28,12 +29,6 @@ void write_file(const std::string& path, const std::vector<std::byte>& bytes);
 
 // A fresh empty directory under the system temp dir, removed by the caller.
 std::string make_temp_dir(const std::string& tag);
-
-// Field access in a package image (little-endian, no alignment needed).
-template <class T>
-T get(const std::vector<std::byte>& f, size_t at);
-template <class T>
-void put(std::vector<std::byte>& f, size_t at, T v);
 
 // Byte offset of blob table entry `i`.
 size_t entry_at(size_t i);

@@ -43,6 +43,13 @@ decal::Status open_bytes(const std::vector<std::byte>& b, const decal::OpenOptio
   return decal::Package::from_memory(b, p, o);
 }
 
+// Opens a copy of `b` resealed (fixtures.hpp), so that the structural check,
+// not a checksum, is what must reject the edit made to `b`.
+decal::Status open_resealed(std::vector<std::byte> b) {
+  reseal(b);
+  return open_bytes(b);
+}
+
 class Hostile : public ::testing::TestWithParam<prep::Codec> {};
 
 TEST_P(Hostile, EveryTruncatedPrefixIsRejectedWithAMessage) {
@@ -156,20 +163,17 @@ TEST(HostileVariants, NonzeroReservedFieldsAreRejected) {
   const auto good = tiny_package(prep::Codec::none);
   auto b = good;
   put<uint32_t>(b, offsetof(H, reserved0), 1);
-  reseal(b);
-  EXPECT_NE(open_bytes(b).message.find("reserved"), std::string::npos);
+  EXPECT_NE(open_resealed(b).message.find("reserved"), std::string::npos);
   b = good;
   put<uint32_t>(b, entry_at(1) + offsetof(E, reserved), 1);
-  reseal(b);
-  EXPECT_NE(open_bytes(b).message.find("reserved"), std::string::npos);
+  EXPECT_NE(open_resealed(b).message.find("reserved"), std::string::npos);
 }
 
 TEST(HostileVariants, CountAndStrideCannotOverflowEvenWhenRawSizeAgrees) {
   auto b = tiny_package(prep::Codec::none);
   // count * 8 wraps to exactly the stored 32 bytes: must still be caught.
   put<uint64_t>(b, entry_at(0) + offsetof(E, count), (uint64_t(1) << 61) + 4);
-  reseal(b);
-  const decal::Status s = open_bytes(b);
+  const decal::Status s = open_resealed(b);
   ASSERT_FALSE(s);
   EXPECT_NE(s.message.find("overflows uint64"), std::string::npos) << s.message;
 }
@@ -179,8 +183,7 @@ TEST(HostileVariants, ImplausibleRawSizeIsRefusedBeforeAllocating) {
   // Claim 2^40 elements: far more than any zstd frame of this size holds.
   put<uint64_t>(b, entry_at(1) + offsetof(E, count), uint64_t(1) << 40);
   put<uint64_t>(b, entry_at(1) + offsetof(E, raw_size), uint64_t(4) << 40);
-  reseal(b);
-  const decal::Status s = open_bytes(b);
+  const decal::Status s = open_resealed(b);
   ASSERT_FALSE(s);
   EXPECT_NE(s.message.find("cannot come from"), std::string::npos) << s.message;
 }
@@ -189,8 +192,7 @@ TEST(HostileVariants, ZstdFrameThatDisagreesWithRawSizeIsRejected) {
   auto b = tiny_package(prep::Codec::zstd);
   put<uint64_t>(b, entry_at(1) + offsetof(E, count), 5);
   put<uint64_t>(b, entry_at(1) + offsetof(E, raw_size), 20);
-  reseal(b);
-  const decal::Status s = open_bytes(b);
+  const decal::Status s = open_resealed(b);
   ASSERT_FALSE(s);
   EXPECT_NE(s.message.find("content size"), std::string::npos) << s.message;
 }
@@ -213,8 +215,8 @@ TEST(HostileVariants, DuplicateBlobIdsAreRejected) {
   put<uint64_t>(b, entry_at(1) + offsetof(E, count), 4);
   put<uint64_t>(b, entry_at(1) + offsetof(E, raw_size), 32);
   put<uint64_t>(b, entry_at(1) + offsetof(E, stored_size), 32);
-  reseal(b);
-  EXPECT_NE(open_bytes(b).message.find("duplicate"), std::string::npos) << open_bytes(b).message;
+  const decal::Status s = open_resealed(b);
+  EXPECT_NE(s.message.find("duplicate"), std::string::npos) << s.message;
 }
 
 TEST(Reader, ZeroLengthDirectoryAndMissingFilesAreRejected) {

@@ -33,6 +33,14 @@ struct Capture {
       at.push_back(Clock::now());
     };
   }
+  // Options in `mode` that write into this capture; each test sets its own
+  // intervals and watchdog on top.
+  prep::ProgressOptions options(prep::ProgressMode mode) {
+    prep::ProgressOptions po;
+    po.mode = mode;
+    po.write = writer();
+    return po;
+  }
   std::vector<std::string> containing(const std::string& what) {
     std::lock_guard<std::mutex> lock(mu);
     std::vector<std::string> out;
@@ -56,11 +64,9 @@ TEST(Progress, AutoModeIsTtyOnATerminalAndPlainOtherwise) {
 
 TEST(Progress, WatchdogNamesAnItemThatStaysLongerThanTheThresholdAndRepeats) {
   Capture out;
-  prep::ProgressOptions po;
-  po.mode = prep::ProgressMode::plain;
+  prep::ProgressOptions po = out.options(prep::ProgressMode::plain);
   po.plain_interval_s = 3600;  // no periodic lines: only the watchdog and the end
   po.watchdog_s = 0.05;
-  po.write = out.writer();
   const auto t0 = Clock::now();
   {
     prep::Progress progress(po);
@@ -96,11 +102,9 @@ TEST(Progress, WatchdogNamesAnItemThatStaysLongerThanTheThresholdAndRepeats) {
 
 TEST(Progress, WatchdogInJsonNamesLayerFidVerticesOperationAndSeconds) {
   Capture out;
-  prep::ProgressOptions po;
-  po.mode = prep::ProgressMode::json;
+  prep::ProgressOptions po = out.options(prep::ProgressMode::json);
   po.json_interval_s = 3600;
   po.watchdog_s = 0.05;
-  po.write = out.writer();
   {
     prep::Progress progress(po);
     prep::ProgressStage stage(&progress, "clean", 1, "parts");
@@ -120,10 +124,8 @@ TEST(Progress, WatchdogInJsonNamesLayerFidVerticesOperationAndSeconds) {
 
 TEST(Progress, WatchdogOffWhenTheThresholdIsZero) {
   Capture out;
-  prep::ProgressOptions po;
-  po.mode = prep::ProgressMode::plain;
+  prep::ProgressOptions po = out.options(prep::ProgressMode::plain);
   po.watchdog_s = 0;
-  po.write = out.writer();
   {
     prep::Progress progress(po);
     prep::ProgressStage stage(&progress, "clean", 1, "parts");
@@ -135,10 +137,8 @@ TEST(Progress, WatchdogOffWhenTheThresholdIsZero) {
 
 TEST(Progress, PlainModePrintsAtMostOneLinePerIntervalPlusTheEnd) {
   Capture out;
-  prep::ProgressOptions po;
-  po.mode = prep::ProgressMode::plain;
+  prep::ProgressOptions po = out.options(prep::ProgressMode::plain);
   po.plain_interval_s = 0.2;
-  po.write = out.writer();
   const uint64_t total = 1000;
   Clock::time_point t0, t1;
   {
@@ -190,10 +190,8 @@ TEST(Progress, PlainModePrintsAtMostOneLinePerIntervalPlusTheEnd) {
 
 TEST(Progress, JsonLinesParseAndTheEndHasDoneEqualTotalWhenCountedFromManyThreads) {
   Capture out;
-  prep::ProgressOptions po;
-  po.mode = prep::ProgressMode::json;
+  prep::ProgressOptions po = out.options(prep::ProgressMode::json);
   po.json_interval_s = 0.01;
-  po.write = out.writer();
   constexpr int kThreads = 8;
   constexpr uint64_t kPerThread = 200000;
   {
@@ -228,9 +226,7 @@ TEST(Progress, JsonLinesParseAndTheEndHasDoneEqualTotalWhenCountedFromManyThread
 
 TEST(Progress, AnEstimatedTotalEndsAsWhatWasDone) {
   Capture out;
-  prep::ProgressOptions po;
-  po.mode = prep::ProgressMode::json;
-  po.write = out.writer();
+  prep::ProgressOptions po = out.options(prep::ProgressMode::json);
   {
     prep::Progress progress(po);
     prep::ProgressStage stage(&progress, "read", 0, "features", prep::ProgressTotal::estimate);
@@ -247,9 +243,7 @@ TEST(Progress, AnEstimatedTotalEndsAsWhatWasDone) {
 
 TEST(Progress, AStageLeftByAnExceptionPrintsNoEnd) {
   Capture out;
-  prep::ProgressOptions po;
-  po.mode = prep::ProgressMode::json;
-  po.write = out.writer();
+  prep::ProgressOptions po = out.options(prep::ProgressMode::json);
   {
     prep::Progress progress(po);
     try {
@@ -264,10 +258,8 @@ TEST(Progress, AStageLeftByAnExceptionPrintsNoEnd) {
 
 TEST(Progress, TtyModeRedrawsOneLineWithCarriageReturnsAndEndsItWithANewline) {
   Capture out;
-  prep::ProgressOptions po;
-  po.mode = prep::ProgressMode::tty;
+  prep::ProgressOptions po = out.options(prep::ProgressMode::tty);
   po.tty_interval_s = 0.02;
-  po.write = out.writer();
   {
     prep::Progress progress(po);
     prep::ProgressStage stage(&progress, "write", 4 << 20, "bytes");

@@ -35,16 +35,9 @@ void check_extract(const std::string& source, double resolution) {
   if (!prep::test::exists(source)) GTEST_SKIP() << "missing real data: " << source;
   TempDir dir;
   prep::SceneSpec scene;
-  for (const LayerDef& d : kLayers) {
-    prep::LayerSpec l;
-    l.name = d.name;
-    l.source = source;
-    l.layer = d.ogr_layer;
-    l.where = d.where;
-    l.sql = d.sql;
-    l.kind = d.kind;
-    scene.layers.push_back(l);
-  }
+  for (const LayerDef& d : kLayers)
+    scene.layers.push_back(
+        {.name = d.name, .source = source, .layer = d.ogr_layer, .where = d.where, .sql = d.sql, .kind = d.kind});
   scene.resolution = resolution;
   prep::BuildRequest req;
   req.dry_run = true;
@@ -152,14 +145,11 @@ TEST(OsmAccounting, WholeOsmLayersReadInOnePassMatchOgrinfoAndSeparateReads) {
   const std::pair<const char*, prep::DecalKind> defs[] = {{"multipolygons", prep::DecalKind::polygon},
                                                           {"lines", prep::DecalKind::line},
                                                           {"multipolygons", prep::DecalKind::outline}};
-  for (const auto& [ogr_layer, kind] : defs) {
-    prep::LayerSpec l;
-    l.name = std::string(ogr_layer) + "_" + std::to_string(scene.layers.size());
-    l.source = source;
-    l.layer = ogr_layer;
-    l.kind = kind;
-    scene.layers.push_back(l);
-  }
+  for (const auto& [ogr_layer, kind] : defs)
+    scene.layers.push_back({.name = std::string(ogr_layer) + "_" + std::to_string(scene.layers.size()),
+                            .source = source,
+                            .layer = ogr_layer,
+                            .kind = kind});
   prep::FeatureSet together = prep::read_scene(scene, prep::ReadOptions{});
   ASSERT_EQ(together.layers.size(), scene.layers.size());
   ASSERT_EQ(together.manifest.layers.size(), scene.layers.size());

@@ -1,5 +1,6 @@
 // Helpers of the render smoke tests (running the tool is in tests/support):
-// reading raw decal layers, and the pixel agreement of two layers.
+// reading raw decal layers and world files, and the pixel agreement of two
+// layers.
 #pragma once
 
 #include <sys/wait.h>
@@ -44,6 +45,21 @@ inline Agreement agreement(const std::vector<float>& a, const std::vector<float>
     r.agree += ok;
   }
   return r;
+}
+
+// A world file (.pgw beside a rendered PNG): pixel size and rotation terms,
+// and the centre of the upper-left pixel; `ok` false when it did not read.
+struct WorldFile {
+  double dx = 0, r1 = 0, r2 = 0, dy = 0, x0 = 0, y0 = 0;
+  bool ok = false;
+};
+
+inline WorldFile read_world_file(const std::filesystem::path& path) {
+  WorldFile w;
+  std::ifstream in(path);
+  in >> w.dx >> w.r1 >> w.r2 >> w.dy >> w.x0 >> w.y0;
+  w.ok = bool(in);
+  return w;
 }
 
 }  // namespace render_test

@@ -11,12 +11,32 @@ namespace {
 
 namespace R = prep::render;
 
-decal::Status validate(const prep::DecalModel& m) {
-  R::DecalSource src = R::source_of(m);
+// The loader's check of `src`, the blobs of `m` (possibly changed since).
+decal::Status validate(const R::DecalSource& src, const prep::DecalModel& m) {
   std::vector<decal::gl::BlobBytes> blobs;
   for (const auto& b : src.blobs) blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
   const auto& g = m.grid;
   return decal::gl::validate_blobs(blobs, {g.origin_x, g.origin_y, g.cell_w, g.cell_h, g.nx, g.ny});
+}
+decal::Status validate(const prep::DecalModel& m) {
+  return validate(R::source_of(m), m);
+}
+
+// A top-down GL render of `src` (the blobs of `m`) at w x h on flat ground.
+void render_topdown(const R::DecalSource& src, const prep::DecalModel& m, uint32_t w, uint32_t h) {
+  R::RenderOptions opt;
+  opt.width = w;
+  opt.height = h;
+  opt.camera = R::topdown_camera(m.extent, 0, 0);
+  R::render_gl(src, R::flat_heightfield(m.extent), opt);
+}
+
+// The hand model with the one change `corrupt` makes.
+template <class Corrupt>
+prep::DecalModel corrupted(Corrupt&& corrupt) {
+  prep::DecalModel m = render_test::hand_model();
+  corrupt(m);
+  return m;
 }
 
 TEST(GlLoader, AcceptsTheHandModel) {
@@ -25,46 +45,30 @@ TEST(GlLoader, AcceptsTheHandModel) {
 }
 
 TEST(GlLoader, RejectsOutOfRangeSegmentVertex) {
-  auto m = render_test::hand_model();
-  m.cell_segments[2][1] = 7;
-  auto s = validate(m);
+  auto s = validate(corrupted([](prep::DecalModel& m) { m.cell_segments[2][1] = 7; }));
   ASSERT_FALSE(s.ok);
   EXPECT_NE(s.message.find("cell_segments[2]"), std::string::npos) << s.message;
   EXPECT_NE(s.message.find("end = 7"), std::string::npos) << s.message;
 }
 
 TEST(GlLoader, RejectsQuadTreeChildBeforeParentSoDescentCannotLoop) {
-  auto m = render_test::hand_model();
-  m.qt_node[1] = {0, 0};  // internal node pointing back at node 0
-  auto s = validate(m);
+  // An internal node pointing back at node 0.
+  auto s = validate(corrupted([](prep::DecalModel& m) { m.qt_node[1] = {0, 0}; }));
   ASSERT_FALSE(s.ok);
   EXPECT_NE(s.message.find("qt_node[1]"), std::string::npos) << s.message;
 }
 
 TEST(GlLoader, RejectsBvhRangeBeyondBoxes) {
-  auto m = render_test::hand_model();
-  m.poly_bvh_range[3][0] = 100;
-  auto s = validate(m);
+  auto s = validate(corrupted([](prep::DecalModel& m) { m.poly_bvh_range[3][0] = 100; }));
   ASSERT_FALSE(s.ok);
   EXPECT_NE(s.message.find("poly_bvh_range[3]"), std::string::npos) << s.message;
 }
 
 TEST(GlLoader, RejectsBadNodeTypeHoleRangeAndGridCount) {
-  {
-    auto m = render_test::hand_model();
-    m.qt_node[0][0] = 7;
-    EXPECT_NE(validate(m).message.find("type = 7"), std::string::npos);
-  }
-  {
-    auto m = render_test::hand_model();
-    m.cell_polys[0][3] = 5;
-    EXPECT_NE(validate(m).message.find("cell_polys[0]"), std::string::npos);
-  }
-  {
-    auto m = render_test::hand_model();
-    m.grid.nx = 3;
-    EXPECT_NE(validate(m).message.find("grid cells"), std::string::npos);
-  }
+  const auto message = [](auto corrupt) { return validate(corrupted(corrupt)).message; };
+  EXPECT_NE(message([](prep::DecalModel& m) { m.qt_node[0][0] = 7; }).find("type = 7"), std::string::npos);
+  EXPECT_NE(message([](prep::DecalModel& m) { m.cell_polys[0][3] = 5; }).find("cell_polys[0]"), std::string::npos);
+  EXPECT_NE(message([](prep::DecalModel& m) { m.grid.nx = 3; }).find("grid cells"), std::string::npos);
 }
 
 TEST(GlLoader, RejectsDynamicVertexOutsideItsLineRun) {
@@ -89,13 +93,8 @@ TEST(GlLoader, RenderRejectsCorruptModelBeforeCreatingAContext) {
   // back whether or not this machine has EGL.
   auto m = render_test::hand_model();
   m.qt_leaf_segments[0][0] = 999;
-  R::DecalSource src = R::source_of(m);
-  R::RenderOptions opt;
-  opt.width = 8;
-  opt.height = 8;
-  opt.camera = R::topdown_camera(m.extent, 0, 0);
   try {
-    R::render_gl(src, R::flat_heightfield(m.extent), opt);
+    render_topdown(R::source_of(m), m, 8, 8);
     FAIL() << "corrupt model rendered";
   } catch (const prep::render_error& e) {
     EXPECT_NE(std::string(e.what()).find("qt_leaf_segments[0]"), std::string::npos) << e.what();
@@ -128,20 +127,13 @@ TEST(GlLoader, SurvivesRandomCorruptionsOfEveryBlob) {
     auto* w = static_cast<uint32_t*>(const_cast<void*>(blob.data)) + next() % words;
     const uint32_t kinds[] = {next(), *w + 1, *w - 1, 0xffffffffu, 0x7fffffffu, *w ^ (1u << (next() % 32))};
     *w = kinds[next() % 6];
-    std::vector<decal::gl::BlobBytes> blobs;
-    for (const auto& b : src.blobs) blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
-    const auto& g = m.grid;
-    if (!decal::gl::validate_blobs(blobs, {g.origin_x, g.origin_y, g.cell_w, g.cell_h, g.nx, g.ny})) {
+    if (!validate(src, m)) {
       ++rejected;
       continue;
     }
     if (rendered >= 25) continue;  // keep the runtime to seconds
-    R::RenderOptions opt;
-    opt.width = 24;
-    opt.height = 16;
-    opt.camera = R::topdown_camera(m.extent, 0, 0);
     try {
-      R::render_gl(src, R::flat_heightfield(m.extent), opt);
+      render_topdown(src, m, 24, 16);
       ++rendered;
     } catch (const prep::render_error& e) {
       if (std::string(e.what()).find("EGL") != std::string::npos) GTEST_SKIP() << e.what();

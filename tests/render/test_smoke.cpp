@@ -27,6 +27,8 @@
 namespace fs = std::filesystem;
 using render_test::agreement;
 using render_test::read_raw;
+using render_test::read_world_file;
+using render_test::WorldFile;
 using prep::test::run_tool;
 
 namespace {
@@ -232,33 +234,42 @@ bool render_pair(const std::string& pkg, const std::string& name, const std::str
   return true;
 }
 
+// GL against the CPU evaluator on one view (render_pair): at least
+// `min_considered` pixels compared and >= 99.9 % of them agreeing; `label`
+// names the view in the printed line; `gl_image` receives the GL layer.
+// False (with a skip reason) when there is no EGL display.
+bool expect_gl_agrees_with_cpu(const std::string& pkg, const std::string& name, const std::string& view_args,
+                               const char* label, size_t min_considered, std::string& why,
+                               std::vector<float>* gl_image = nullptr) {
+  SCOPED_TRACE(name);
+  std::vector<float> gl, cpu;
+  if (!render_pair(pkg, name, view_args, gl, cpu, why)) return false;
+  if (gl_image) *gl_image = gl;
+  auto a = agreement(gl, cpu);
+  ::testing::Test::RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
+  std::printf("%s agreement %zu / %zu = %.5f\n", label, a.agree, a.considered, a.ratio());
+  EXPECT_GT(a.considered, min_considered);
+  EXPECT_GE(a.ratio(), 0.999);
+  return true;
+}
+
 TEST(RenderSmoke, MonacoTopDownDecalLayerAgreesWithCpuEvaluator) {
   std::string why;
   const std::string& pkg = monaco_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
-  std::vector<float> gl, cpu;
-  if (!render_pair(pkg, "monaco_topdown", "--dem " + kDem + " " + topdown_extent(pkg, kTopDown), gl, cpu, why))
+  if (!expect_gl_agrees_with_cpu(pkg, "monaco_topdown", "--dem " + kDem + " " + topdown_extent(pkg, kTopDown),
+                                 "top-down", 50000, why))
     GTEST_SKIP() << why;
-  auto a = agreement(gl, cpu);
-  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
-  std::printf("top-down agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
-  EXPECT_GT(a.considered, 50000u);
-  EXPECT_GE(a.ratio(), 0.999);
 }
 
 TEST(RenderSmoke, MonacoObliquePerspectiveDecalLayerAgreesWithCpuEvaluator) {
   std::string why;
   const std::string& pkg = monaco_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
-  std::vector<float> gl, cpu;
   // Looking north over the harbour from above the sea.
-  if (!render_pair(pkg, "monaco_oblique", "--dem " + kDem + " --eye 300,-2200,900 --target 0,0,60 --fov 40", gl, cpu, why))
+  if (!expect_gl_agrees_with_cpu(pkg, "monaco_oblique", "--dem " + kDem + " --eye 300,-2200,900 --target 0,0,60 --fov 40",
+                                 "oblique", 20000, why))
     GTEST_SKIP() << why;
-  auto a = agreement(gl, cpu);
-  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
-  std::printf("oblique agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
-  EXPECT_GT(a.considered, 20000u);
-  EXPECT_GE(a.ratio(), 0.999);
 }
 
 // Writes the cleaned polygons (holes included) to a GeoPackage in the frame
@@ -423,14 +434,12 @@ TEST(RenderExtent, CpuTopDownInAbsoluteUtmMatchesGdalRasterizeOfTheSourceLayer) 
   EXPECT_GT(c.burnt, 50000u);
   EXPECT_LT(c.mismatch(), 5e-4);
   // The world file beside the image holds the extent as given.
-  std::ifstream wf(out_dir() / "utm" / "absolute.pgw");
-  double dx, r1, r2, dy, x0, y0;
-  wf >> dx >> r1 >> r2 >> dy >> x0 >> y0;
-  ASSERT_TRUE(wf);
-  EXPECT_NEAR(dx, 2.0, 1e-12);
-  EXPECT_NEAR(dy, -2.0, 1e-12);
-  EXPECT_NEAR(x0, kUtmView.xmin + 1.0, 1e-6);
-  EXPECT_NEAR(y0, kUtmView.ymax - 1.0, 1e-6);
+  const WorldFile wf = read_world_file(out_dir() / "utm" / "absolute.pgw");
+  ASSERT_TRUE(wf.ok);
+  EXPECT_NEAR(wf.dx, 2.0, 1e-12);
+  EXPECT_NEAR(wf.dy, -2.0, 1e-12);
+  EXPECT_NEAR(wf.x0, kUtmView.xmin + 1.0, 1e-6);
+  EXPECT_NEAR(wf.y0, kUtmView.ymax - 1.0, 1e-6);
 }
 
 TEST(RenderExtent, AnExtentInAnotherCrsIsTransformedIntoTheFrameCrs) {
@@ -469,14 +478,12 @@ TEST(RenderExtent, AnExtentInAnotherCrsIsTransformedIntoTheFrameCrs) {
               c.considered, c.mismatch(), c.burnt);
   EXPECT_GT(c.burnt, 20000u);
   EXPECT_LT(c.mismatch(), 5e-4);
-  std::ifstream wf(out_dir() / "utm" / "lonlat.pgw");
-  double dx, r1, r2, dy, x0, y0;
-  wf >> dx >> r1 >> r2 >> dy >> x0 >> y0;
-  ASSERT_TRUE(wf);
-  EXPECT_NEAR(x0 - 0.5 * dx, oracle.xmin, 1e-3);
-  EXPECT_NEAR(y0 - 0.5 * dy, oracle.ymax, 1e-3);
-  EXPECT_NEAR(x0 - 0.5 * dx + 600 * dx, oracle.xmax, 1e-3);
-  EXPECT_NEAR(y0 - 0.5 * dy + 500 * dy, oracle.ymin, 1e-3);
+  const WorldFile wf = read_world_file(out_dir() / "utm" / "lonlat.pgw");
+  ASSERT_TRUE(wf.ok);
+  EXPECT_NEAR(wf.x0 - 0.5 * wf.dx, oracle.xmin, 1e-3);
+  EXPECT_NEAR(wf.y0 - 0.5 * wf.dy, oracle.ymax, 1e-3);
+  EXPECT_NEAR(wf.x0 - 0.5 * wf.dx + 600 * wf.dx, oracle.xmax, 1e-3);
+  EXPECT_NEAR(wf.y0 - 0.5 * wf.dy + 500 * wf.dy, oracle.ymin, 1e-3);
 }
 
 TEST(RenderExtent, AViewThatMissesThePackageWarnsWithBothExtents) {
@@ -642,21 +649,16 @@ TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorTopDown) {
   std::string why;
   const std::string& pkg = styles_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
-  std::vector<float> gl, cpu;
-  if (!render_pair(pkg, "styles_topdown", kStylesView, gl, cpu, why)) GTEST_SKIP() << why;
-  auto a = agreement(gl, cpu);
-  std::printf("styles top-down agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
-  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
-  EXPECT_GT(a.considered, 10000u);
-  EXPECT_GE(a.ratio(), 0.999);
+  std::vector<float> gl;
+  if (!expect_gl_agrees_with_cpu(pkg, "styles_topdown", kStylesView, "styles top-down", 10000, why, &gl))
+    GTEST_SKIP() << why;
 
   // The crossing of the two transparent lines shows the more important one
   // (imp 2, blue) over the other (red): read the pixel at the crossing.
   // World file: pixel size and the upper-left pixel centre in the frame.
-  std::ifstream wf(out_dir() / "styles_topdown_gl.pgw");
-  double dx, r1, r2, dy, x0, y0;
-  wf >> dx >> r1 >> r2 >> dy >> x0 >> y0;
-  ASSERT_TRUE(wf) << "world file";
+  const WorldFile wf = read_world_file(out_dir() / "styles_topdown_gl.pgw");
+  ASSERT_TRUE(wf.ok) << "world file";
+  const double dx = wf.dx, dy = wf.dy, x0 = wf.x0, y0 = wf.y0;
   decal::Package package;
   ASSERT_TRUE(decal::Package::open(pkg, package));
   auto meta = nlohmann::json::parse(package.metadata_json());
@@ -695,13 +697,8 @@ TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorInPerspective) {
   std::string why;
   const std::string& pkg = styles_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
-  std::vector<float> gl, cpu;
-  if (!render_pair(pkg, "styles_oblique", "--fit --pitch 35", gl, cpu, why)) GTEST_SKIP() << why;
-  auto a = agreement(gl, cpu);
-  std::printf("styles oblique agreement %zu / %zu = %.5f\n", a.agree, a.considered, a.ratio());
-  RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
-  EXPECT_GT(a.considered, 5000u);
-  EXPECT_GE(a.ratio(), 0.999);
+  if (!expect_gl_agrees_with_cpu(pkg, "styles_oblique", "--fit --pitch 35", "styles oblique", 5000, why))
+    GTEST_SKIP() << why;
 }
 
 // Quality of the anti-aliasing modes: mean absolute difference of the

@@ -89,6 +89,13 @@ class AtomicWrite : public ::testing::Test {
     return status;
   }
 
+  // The old package is still the target, and nothing else (no temp file)
+  // is left beside it.
+  void expect_old_target_and_no_temp_file() {
+    EXPECT_EQ(decal_test::read_file(target_), old_);
+    EXPECT_EQ(names_in(dir_), std::set<std::string>{"out.decals"});
+  }
+
   std::string dir_, target_;
   std::vector<std::byte> old_;
 };
@@ -97,16 +104,14 @@ TEST_F(AtomicWrite, WriterKilledMidWriteLeavesOldTargetAndNoTempFile) {
   const int status = kill_writer_mid_write(SIGKILL);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL)
       << "the writer was not killed mid-write (status " << status << ")";
-  EXPECT_EQ(decal_test::read_file(target_), old_);
-  EXPECT_EQ(names_in(dir_), std::set<std::string>{"out.decals"});
+  expect_old_target_and_no_temp_file();
 }
 
 TEST_F(AtomicWrite, WriterInterruptedBySigtermLeavesOldTargetAndNoTempFile) {
   const int status = kill_writer_mid_write(SIGTERM);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM)
       << "the writer did not die of SIGTERM mid-write (status " << status << ")";
-  EXPECT_EQ(decal_test::read_file(target_), old_);
-  EXPECT_EQ(names_in(dir_), std::set<std::string>{"out.decals"});
+  expect_old_target_and_no_temp_file();
 }
 
 TEST_F(AtomicWrite, FailingWriteThrowsAndLeavesOldTargetAndNoTempFile) {
@@ -131,8 +136,7 @@ TEST_F(AtomicWrite, FailingWriteThrowsAndLeavesOldTargetAndNoTempFile) {
   ::waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 10) << "0: no failure, 11: message lacks the path, 12: wrong exception";
-  EXPECT_EQ(decal_test::read_file(target_), old_);
-  EXPECT_EQ(names_in(dir_), std::set<std::string>{"out.decals"});
+  expect_old_target_and_no_temp_file();
 }
 
 TEST_F(AtomicWrite, RenameOntoADirectoryFailsAndLeavesNoTempFile) {

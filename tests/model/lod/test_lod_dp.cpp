@@ -64,6 +64,16 @@ std::vector<ivec2> random_polyline(std::mt19937_64& rng, size_t n) {
   return pts;
 }
 
+// random_polyline moved by a random offset in [0, spread) on each axis (in
+// the integer units of the points), so that lines scattered this way overlap.
+std::vector<ivec2> scattered_polyline(std::mt19937_64& rng, size_t n, double spread) {
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<ivec2> pts = random_polyline(rng, n);
+  const int32_t dx = static_cast<int32_t>(u(rng) * spread), dy = static_cast<int32_t>(u(rng) * spread);
+  for (auto& p : pts) p = {p[0] + dx, p[1] + dy};
+  return pts;
+}
+
 std::vector<Pt> metres(const std::vector<ivec2>& q, bool closed) {
   std::vector<Pt> p;
   for (const auto& v : q) p.push_back({v[0] * 1e-3, v[1] * 1e-3});
@@ -152,13 +162,8 @@ TEST(LodSegments, DistanceDependentThresholdAlwaysGivesConnectedPolyline) {
   std::vector<prep::LodInputLine> lines;
   for (uint32_t i = 0; i < 300; ++i) {
     prep::LodInputLine l;
-    l.points = random_polyline(rng, 3 + i % 60);
-    // Scatter lines over 2 km so that some overlap (dependees, cycles).
-    const int32_t dx = static_cast<int32_t>(u(rng) * 2e6), dy = static_cast<int32_t>(u(rng) * 2e6);
-    for (auto& p : l.points) {
-      p[0] += dx;
-      p[1] += dy;
-    }
+    // Scattered over 2 km so that some overlap (dependees, cycles).
+    l.points = scattered_polyline(rng, 3 + i % 60, 2e6);
     l.closed = l.points.size() >= 3 && i % 7 == 0;
     l.line = i;
     if (l.points.size() < 3) continue;
@@ -236,13 +241,10 @@ TEST(LodSegments, LineEndInsideBaselinePolygonKeepsTheSplitterAlways) {
 
 TEST(LodSegments, OutputDoesNotDependOnThreadCount) {
   std::mt19937_64 rng(31);
-  std::uniform_real_distribution<double> u(0, 1);
   std::vector<prep::LodInputLine> lines;
   for (uint32_t i = 0; i < 200; ++i) {
     prep::LodInputLine l;
-    l.points = random_polyline(rng, 3 + i % 40);
-    const int32_t dx = static_cast<int32_t>(u(rng) * 5e5), dy = static_cast<int32_t>(u(rng) * 5e5);
-    for (auto& p : l.points) p = {p[0] + dx, p[1] + dy};
+    l.points = scattered_polyline(rng, 3 + i % 40, 5e5);
     l.line = i;
     if (l.points.size() >= 2) lines.push_back(std::move(l));
   }

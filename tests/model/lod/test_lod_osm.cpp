@@ -14,6 +14,7 @@
 
 #include "lod_chain.hpp"
 #include "lod/lod.hpp"
+#include "ogr_lines.hpp"
 
 namespace {
 
@@ -36,14 +37,11 @@ OsmLines read_liechtenstein(const std::string& path) {
   double x0 = 0, y0 = 0;
   tm.Forward(lon0, lat0, lon0, x0, y0);
   uint32_t id = 0;
-  for (auto& f : *layer) {
-    const OGRGeometry* g = f->GetGeometryRef();
-    if (!g || wkbFlatten(g->getGeometryType()) != wkbLineString) continue;
-    const auto* ls = g->toLineString();
+  prep::test::for_each_line_string(*layer, [&](OGRFeature&, const OGRLineString& ls) {
     prep::LodInputLine l;
-    for (int i = 0; i < ls->getNumPoints(); ++i) {
+    for (int i = 0; i < ls.getNumPoints(); ++i) {
       double x, y;
-      tm.Forward(lon0, ls->getY(i), ls->getX(i), x, y);
+      tm.Forward(lon0, ls.getY(i), ls.getX(i), x, y);
       const prep::ivec2 q{static_cast<int32_t>(std::llround((x - x0) * 1000)),
                           static_cast<int32_t>(std::llround((y - y0) * 1000))};
       if (l.points.empty() || l.points.back() != q) l.points.push_back(q);
@@ -52,7 +50,7 @@ OsmLines read_liechtenstein(const std::string& path) {
       l.points.pop_back();
       l.closed = true;
     }
-    if (l.points.size() < 2) continue;
+    if (l.points.size() < 2) return;
     for (const auto& q : l.points) {
       out.xmin = std::min(out.xmin, q[0] * 1e-3);
       out.xmax = std::max(out.xmax, q[0] * 1e-3);
@@ -61,7 +59,7 @@ OsmLines read_liechtenstein(const std::string& path) {
     }
     l.line = id++;
     out.lines.push_back(std::move(l));
-  }
+  });
   return out;
 }
 

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "ogr_lines.hpp"
 #include "prep/scene.hpp"
 #include "test_support.hpp"
 
@@ -189,13 +190,10 @@ inline std::vector<prep::SceneLine> monaco_roads(const MonacoFrame& mf) {
   }
   OGRLayer* layer = ds->GetLayerByName("lines");
   layer->SetAttributeFilter("highway IS NOT NULL");
-  for (auto& f : *layer) {
-    const OGRGeometry* g = f->GetGeometryRef();
-    if (!g || wkbFlatten(g->getGeometryType()) != wkbLineString) continue;
-    const auto* ls = g->toLineString();
+  prep::test::for_each_line_string(*layer, [&](OGRFeature& f, const OGRLineString& ls) {
     prep::SceneLine l;
-    for (int i = 0; i < ls->getNumPoints(); ++i) {
-      const prep::Point2 p = mf.forward(ls->getX(i), ls->getY(i));
+    for (int i = 0; i < ls.getNumPoints(); ++i) {
+      const prep::Point2 p = mf.forward(ls.getX(i), ls.getY(i));
       if (!l.points.empty() && std::hypot(p.x - l.points.back().x, p.y - l.points.back().y) < 0.01) continue;
       l.points.push_back(p);
     }
@@ -204,13 +202,13 @@ inline std::vector<prep::SceneLine> monaco_roads(const MonacoFrame& mf) {
       l.points.pop_back();
       l.closed = true;
     }
-    if (l.points.size() < 2) continue;
-    l.fid = f->GetFID();
+    if (l.points.size() < 2) return;
+    l.fid = f.GetFID();
     l.width = 3;
     for (size_t i = 1; i < l.points.size(); ++i)
       l.length += std::hypot(l.points[i].x - l.points[i - 1].x, l.points[i].y - l.points[i - 1].y);
     out.push_back(std::move(l));
-  }
+  });
   CPLPopErrorHandler();
   return out;
 }
