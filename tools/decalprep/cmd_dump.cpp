@@ -283,7 +283,7 @@ void summarise_manifest(const std::string& path, const decal::BlobView& b) {
     if (a == prep::ManifestAction::dropped) {
       if (const auto stage = prep::parse_reason_text(text("reason")).failed_in) {
         std::get<1>(key) = static_cast<int>(*stage);
-        std::get<2>(key) = action + " (failed in " + prep::word(*stage) + ")";
+        std::get<2>(key) = action + " (" + prep::failure_label(*stage) + ")";
       }
     }
     auto l =

@@ -61,10 +61,14 @@ inline std::optional<FailureStage> failure_stage_from_word(std::string_view w) {
 // The manifest reason of a feature dropped for a per-feature failure:
 // "failed in <stage>: <what>"; any other reason is written as it is.
 inline constexpr std::string_view kFailedInPrefix = "failed in ";
+// "failed in <stage>", the part of such a reason that names the stage.
+inline std::string failure_label(FailureStage stage) {
+  return std::string(kFailedInPrefix) + std::string(word(stage));
+}
 inline std::string reason_text(const std::optional<FailureStage>& failed_in,
                                const std::string& reason) {
   if (!failed_in) return reason;
-  return std::string(kFailedInPrefix) + word(*failed_in) + ": " + reason;
+  return failure_label(*failed_in) + ": " + reason;
 }
 
 // The inverse of reason_text(): the stage (if the reason names a failure)
