@@ -3,7 +3,8 @@
 // one JSON object per line on stdout.
 //
 //   bench_accuracy INPUT [--kind polygon|line|outline] [--width W] [--corner C]
-//                  [--crs CRS] [--extent X0,Y0,X1,Y1 [--extent-crs C]] [--resolution R] [--samples N] [--seed S]
+//                  [--crs CRS] [--extent X0,Y0,X1,Y1 [--extent-crs C]] [--resolution R] [--samples
+//                  N] [--seed S]
 //                  [--band B] [--package P] [--raster TIF ...]
 //                  [--export-oracle OUT.fgb] [--encoding] [--hausdorff]
 //
@@ -57,7 +58,8 @@ namespace {
 void geos_msg(const char*, void*) {}
 
 struct Args {
-  std::string input, kind = "polygon", corner = "round", crs, extent, extent_crs, package, export_oracle;
+  std::string input, kind = "polygon", corner = "round", crs, extent, extent_crs, package,
+                     export_oracle;
   std::vector<std::string> rasters;
   double width = 2.0, resolution = 0.0, band = 0.5;
   size_t samples = 20000;
@@ -73,23 +75,40 @@ Args parse(int argc, char** argv) {
       if (i + 1 >= argc) throw std::runtime_error("missing value after " + s);
       return argv[++i];
     };
-    if (s == "--kind") a.kind = next();
-    else if (s == "--width") a.width = std::stod(next());
-    else if (s == "--corner") a.corner = next();
-    else if (s == "--crs") a.crs = next();
-    else if (s == "--extent") a.extent = next();
-    else if (s == "--extent-crs") a.extent_crs = next();
-    else if (s == "--resolution") a.resolution = std::stod(next());
-    else if (s == "--samples") a.samples = std::stoul(next());
-    else if (s == "--seed") a.seed = std::stoull(next());
-    else if (s == "--band") a.band = std::stod(next());
-    else if (s == "--package") a.package = next();
-    else if (s == "--raster") a.rasters.push_back(next());
-    else if (s == "--export-oracle") a.export_oracle = next();
-    else if (s == "--encoding") a.encoding = true;
-    else if (s == "--hausdorff") a.hausdorff = true;
-    else if (!s.empty() && s[0] == '-') throw std::runtime_error("unknown option " + s);
-    else a.input = s;
+    if (s == "--kind")
+      a.kind = next();
+    else if (s == "--width")
+      a.width = std::stod(next());
+    else if (s == "--corner")
+      a.corner = next();
+    else if (s == "--crs")
+      a.crs = next();
+    else if (s == "--extent")
+      a.extent = next();
+    else if (s == "--extent-crs")
+      a.extent_crs = next();
+    else if (s == "--resolution")
+      a.resolution = std::stod(next());
+    else if (s == "--samples")
+      a.samples = std::stoul(next());
+    else if (s == "--seed")
+      a.seed = std::stoull(next());
+    else if (s == "--band")
+      a.band = std::stod(next());
+    else if (s == "--package")
+      a.package = next();
+    else if (s == "--raster")
+      a.rasters.push_back(next());
+    else if (s == "--export-oracle")
+      a.export_oracle = next();
+    else if (s == "--encoding")
+      a.encoding = true;
+    else if (s == "--hausdorff")
+      a.hausdorff = true;
+    else if (!s.empty() && s[0] == '-')
+      throw std::runtime_error("unknown option " + s);
+    else
+      a.input = s;
   }
   if (a.input.empty()) throw std::runtime_error("usage: bench_accuracy INPUT [options]");
   return a;
@@ -157,12 +176,13 @@ struct Shapes {
     const double xs[5] = {x0, x1, x1, x0, x0}, ys[5] = {y0, y0, y1, y1, y0};
     for (unsigned i = 0; i < 5; ++i) GEOSCoordSeq_setXY_r(h, cs, i, xs[i], ys[i]);
     GEOSGeometry* env = GEOSGeom_createPolygon_r(h, GEOSGeom_createLinearRing_r(h, cs), nullptr, 0);
-    GEOSSTRtree_query_r(h, tree, env,
-                        [](void* item, void* ud) {
-                          static_cast<std::vector<size_t>*>(ud)->push_back(
-                              static_cast<size_t>(reinterpret_cast<intptr_t>(item)));
-                        },
-                        &out);
+    GEOSSTRtree_query_r(
+        h, tree, env,
+        [](void* item, void* ud) {
+          static_cast<std::vector<size_t>*>(ud)->push_back(
+              static_cast<size_t>(reinterpret_cast<intptr_t>(item)));
+        },
+        &out);
     GEOSGeom_destroy_r(h, env);
     return out;
   }
@@ -204,7 +224,8 @@ GEOSGeometry* ring_geom(GEOSContextHandle_t h, const prep::Ring& r, bool linear_
   GEOSCoordSequence* cs = GEOSCoordSeq_create_r(h, static_cast<unsigned>(n), 2);
   for (size_t i = 0; i < n; ++i) {
     const auto& p = r[i % r.size()];
-    GEOSCoordSeq_setXY_r(h, cs, static_cast<unsigned>(i), q ? q(p.x, true) : p.x, q ? q(p.y, false) : p.y);
+    GEOSCoordSeq_setXY_r(h, cs, static_cast<unsigned>(i), q ? q(p.x, true) : p.x,
+                         q ? q(p.y, false) : p.y);
   }
   return linear_ring ? GEOSGeom_createLinearRing_r(h, cs) : GEOSGeom_createLineString_r(h, cs);
 }
@@ -221,7 +242,8 @@ GEOSGeometry* polygon_geom(GEOSContextHandle_t h, const prep::ScenePolygon& p,
 // with round caps; miter approximated by GEOS mitre joins with the build's
 // 40° limit (our fallback below the limit is round, GEOS bevels: the
 // difference lies at the sharpest corners only).
-GEOSGeometry* line_band(GEOSContextHandle_t h, const prep::SceneLine& l, const prep::LayerSpec& layer) {
+GEOSGeometry* line_band(GEOSContextHandle_t h, const prep::SceneLine& l,
+                        const prep::LayerSpec& layer) {
   // Inset / offset outlines (§3.3.2) draw the full width on one side of the
   // ring: a band of half-width w clipped to inside / outside the ring.
   const bool sided = layer.style.outline != decal::OutlineMode::normal && l.closed;
@@ -242,10 +264,12 @@ GEOSGeometry* line_band(GEOSContextHandle_t h, const prep::SceneLine& l, const p
   }
   GEOSGeom_destroy_r(h, g);
   if (sided && band) {
-    GEOSGeometry* area = GEOSGeom_createPolygon_r(h, ring_geom(h, l.points, true, true), nullptr, 0);
+    GEOSGeometry* area =
+        GEOSGeom_createPolygon_r(h, ring_geom(h, l.points, true, true), nullptr, 0);
     GEOSGeometry* fixed = GEOSMakeValid_r(h, area);
-    GEOSGeometry* out = layer.style.outline == decal::OutlineMode::inset ? GEOSIntersection_r(h, band, fixed)
-                                                                          : GEOSDifference_r(h, band, fixed);
+    GEOSGeometry* out = layer.style.outline == decal::OutlineMode::inset
+                            ? GEOSIntersection_r(h, band, fixed)
+                            : GEOSDifference_r(h, band, fixed);
     GEOSGeom_destroy_r(h, area);
     GEOSGeom_destroy_r(h, fixed);
     GEOSGeom_destroy_r(h, band);
@@ -295,7 +319,7 @@ void emit(const char* fmt, ...) {
 double percentile(std::vector<uint64_t> v, double p) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
-  size_t k = static_cast<size_t>(std::ceil(p * static_cast<double>(v.size()))) ;
+  size_t k = static_cast<size_t>(std::ceil(p * static_cast<double>(v.size())));
   return static_cast<double>(v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)]);
 }
 double mean(const std::vector<uint64_t>& v) {
@@ -307,8 +331,12 @@ double mean(const std::vector<uint64_t>& v) {
 // Quantisers for --encoding (coordinates relative to the frame origin in,
 // the value they decode to out).
 double g_origin_x = 0, g_origin_y = 0;
-double q_fixed(double v, bool) { return std::round(v / decal::kQuantumMetres) * decal::kQuantumMetres; }
-double q_f32_rel(double v, bool) { return static_cast<double>(static_cast<float>(v)); }
+double q_fixed(double v, bool) {
+  return std::round(v / decal::kQuantumMetres) * decal::kQuantumMetres;
+}
+double q_f32_rel(double v, bool) {
+  return static_cast<double>(static_cast<float>(v));
+}
 double q_f32_abs(double v, bool is_x) {
   const double o = is_x ? g_origin_x : g_origin_y;
   return static_cast<double>(static_cast<float>(v + o)) - o;
@@ -319,11 +347,13 @@ double q_f32_900(double v, bool) {
 
 // Classification error of `classify` against the oracle truth.
 template <class F>
-void score(const char* what, const char* name, const std::vector<Sample>& samples, const Shapes& oracle,
-           double span, F classify, const char* extra_fmt = "", double e1 = 0) {
+void score(const char* what, const char* name, const std::vector<Sample>& samples,
+           const Shapes& oracle, double span, F classify, const char* extra_fmt = "",
+           double e1 = 0) {
   size_t wrong = 0, excluded = 0, fp = 0, fn = 0;
   double max_err = 0;
-  std::map<std::string, std::pair<size_t, double>> by_layer;  // nearest boundary's layer: count, max error
+  std::map<std::string, std::pair<size_t, double>>
+      by_layer;  // nearest boundary's layer: count, max error
   for (const auto& s : samples) {
     if (classify(s) == s.truth) continue;
     size_t near = SIZE_MAX;
@@ -346,13 +376,15 @@ void score(const char* what, const char* name, const std::vector<Sample>& sample
   std::string layers = "{";
   for (const auto& [k, v] : by_layer) {
     char buf[256];
-    std::snprintf(buf, sizeof buf, "%s\"%s\":[%zu,%.6g]", layers.size() > 1 ? "," : "", k.c_str(), v.first, v.second);
+    std::snprintf(buf, sizeof buf, "%s\"%s\":[%zu,%.6g]", layers.size() > 1 ? "," : "", k.c_str(),
+                  v.first, v.second);
     layers += buf;
   }
   layers += "}";
-  emit("{\"what\":\"%s\",\"name\":\"%s\",\"samples\":%zu,\"misclassified\":%zu,\"false_pos\":%zu,"
-       "\"false_neg\":%zu,\"excluded_2mm\":%zu,\"max_position_error_m\":%.6g,\"by_layer\":%s%s}",
-       what, name, samples.size(), wrong, fp, fn, excluded, max_err, layers.c_str(), extra);
+  emit(
+      "{\"what\":\"%s\",\"name\":\"%s\",\"samples\":%zu,\"misclassified\":%zu,\"false_pos\":%zu,"
+      "\"false_neg\":%zu,\"excluded_2mm\":%zu,\"max_position_error_m\":%.6g,\"by_layer\":%s%s}",
+      what, name, samples.size(), wrong, fp, fn, excluded, max_err, layers.c_str(), extra);
 }
 
 }  // namespace
@@ -365,7 +397,8 @@ int main(int argc, char** argv) try {
 
   prep::SceneSpec spec = spec_of(a);
   const double package_resolution = a.resolution >= 0 && a.input.find(".toml") == std::string::npos
-                                        ? a.resolution : spec.resolution;
+                                        ? a.resolution
+                                        : spec.resolution;
   spec.resolution = 0.0;  // the oracle: original geometry, cleaned
   prep::BuildRequest req;
   req.dry_run = true;
@@ -375,7 +408,8 @@ int main(int argc, char** argv) try {
 
   Shapes oracle(h);
   for (const auto& p : scene.polygons) oracle.add(polygon_geom(h, p), scene.layers[p.layer].name);
-  for (const auto& l : scene.lines) oracle.add(line_band(h, l, scene.layers[l.layer]), scene.layers[l.layer].name);
+  for (const auto& l : scene.lines)
+    oracle.add(line_band(h, l, scene.layers[l.layer]), scene.layers[l.layer].name);
   oracle.index();
   if (oracle.geoms.empty()) throw std::runtime_error("no static polygons or lines in " + a.input);
 
@@ -387,15 +421,18 @@ int main(int argc, char** argv) try {
     GEOSGeom_getYMin_r(h, oracle.geoms[i], &y0);
     GEOSGeom_getXMax_r(h, oracle.geoms[i], &x1);
     GEOSGeom_getYMax_r(h, oracle.geoms[i], &y1);
-    bx0 = std::min(bx0, x0), by0 = std::min(by0, y0), bx1 = std::max(bx1, x1), by1 = std::max(by1, y1);
+    bx0 = std::min(bx0, x0), by0 = std::min(by0, y0), bx1 = std::max(bx1, x1),
+    by1 = std::max(by1, y1);
     collect_edges(h, oracle.boundaries[i], edges);
   }
   const double span = std::max(bx1 - bx0, by1 - by0);
   const uint64_t vertices = bench::scene_vertices(scene);
-  emit("{\"what\":\"oracle\",\"polygons\":%zu,\"lines\":%zu,\"vertices\":%llu,\"xmin\":%.3f,\"ymin\":%.3f,"
-       "\"xmax\":%.3f,\"ymax\":%.3f,\"origin_x\":%.3f,\"origin_y\":%.3f}",
-       scene.polygons.size(), scene.lines.size(), static_cast<unsigned long long>(vertices), bx0, by0, bx1, by1,
-       g_origin_x, g_origin_y);
+  emit(
+      "{\"what\":\"oracle\",\"polygons\":%zu,\"lines\":%zu,\"vertices\":%llu,\"xmin\":%.3f,"
+      "\"ymin\":%.3f,"
+      "\"xmax\":%.3f,\"ymax\":%.3f,\"origin_x\":%.3f,\"origin_y\":%.3f}",
+      scene.polygons.size(), scene.lines.size(), static_cast<unsigned long long>(vertices), bx0,
+      by0, bx1, by1, g_origin_x, g_origin_y);
 
   // Samples: half uniform, half near a boundary edge picked by length.
   std::mt19937_64 rng(a.seed);
@@ -411,7 +448,8 @@ int main(int argc, char** argv) try {
       x = bx0 + u(rng) * (bx1 - bx0);
       y = by0 + u(rng) * (by1 - by0);
     } else {
-      const size_t k = static_cast<size_t>(std::lower_bound(cum.begin(), cum.end(), u(rng) * total) - cum.begin());
+      const size_t k = static_cast<size_t>(
+          std::lower_bound(cum.begin(), cum.end(), u(rng) * total) - cum.begin());
       const Edge& e = edges[std::min(k, edges.size() - 1)];
       const double t = u(rng), len = std::hypot(e.x1 - e.x0, e.y1 - e.y0);
       const double off = (0.002 + u(rng) * (a.band - 0.002)) * (u(rng) < 0.5 ? -1 : 1);
@@ -439,11 +477,14 @@ int main(int argc, char** argv) try {
     }
     score("package", a.package.c_str(), samples, oracle, span,
           [&](const Sample& s) { return cls[static_cast<size_t>(&s - samples.data())] != 0; });
-    emit("{\"what\":\"cost\",\"covered\":%zu,\"bvh_mean\":%.3f,\"bvh_p99\":%.0f,\"qt_mean\":%.3f,\"qt_p99\":%.0f,"
-         "\"edge_mean\":%.3f,\"edge_p99\":%.0f,\"seg_mean\":%.3f,\"seg_p99\":%.0f,\"total_mean\":%.3f,"
-         "\"total_p99\":%.0f}",
-         sum.size(), mean(bvh), percentile(bvh, 0.99), mean(qt), percentile(qt, 0.99), mean(edge),
-         percentile(edge, 0.99), mean(seg), percentile(seg, 0.99), mean(sum), percentile(sum, 0.99));
+    emit(
+        "{\"what\":\"cost\",\"covered\":%zu,\"bvh_mean\":%.3f,\"bvh_p99\":%.0f,\"qt_mean\":%.3f,"
+        "\"qt_p99\":%.0f,"
+        "\"edge_mean\":%.3f,\"edge_p99\":%.0f,\"seg_mean\":%.3f,\"seg_p99\":%.0f,\"total_mean\":%."
+        "3f,"
+        "\"total_p99\":%.0f}",
+        sum.size(), mean(bvh), percentile(bvh, 0.99), mean(qt), percentile(qt, 0.99), mean(edge),
+        percentile(edge, 0.99), mean(seg), percentile(seg, 0.99), mean(sum), percentile(sum, 0.99));
   }
 
   for (const auto& path : a.rasters) {
@@ -457,8 +498,8 @@ int main(int argc, char** argv) try {
       const double px = std::floor((s.x - gt[0]) / gt[1]), py = std::floor((s.y - gt[3]) / gt[5]);
       if (px < 0 || py < 0 || px >= w || py >= hgt) return false;
       uint8_t v = 0;
-      if (GDALRasterIO(band, GF_Read, static_cast<int>(px), static_cast<int>(py), 1, 1, &v, 1, 1, GDT_Byte, 0, 0) !=
-          CE_None)
+      if (GDALRasterIO(band, GF_Read, static_cast<int>(px), static_cast<int>(py), 1, 1, &v, 1, 1,
+                       GDT_Byte, 0, 0) != CE_None)
         throw std::runtime_error("raster read failed: " + path);
       return v != 0;
     });
@@ -477,21 +518,26 @@ int main(int argc, char** argv) try {
     exact.index();
     std::vector<Sample> psamples = samples;
     for (auto& s : psamples) s.truth = exact.covers(s.x, s.y);
-    for (const Q& q : {Q{"int32_1mm_fixed", q_fixed}, Q{"float32_origin_relative", q_f32_rel},
-                       Q{"float32_absolute_frame", q_f32_abs}, Q{"float32_absolute_900km", q_f32_900}}) {
+    for (const Q& q :
+         {Q{"int32_1mm_fixed", q_fixed}, Q{"float32_origin_relative", q_f32_rel},
+          Q{"float32_absolute_frame", q_f32_abs}, Q{"float32_absolute_900km", q_f32_900}}) {
       Shapes qs(h);
       double max_vertex = 0;
       for (const auto& p : scene.polygons) {
         qs.add(polygon_geom(h, p, q.q));
         auto upd = [&](const prep::Ring& r) {
-          for (const auto& v : r) max_vertex = std::max(max_vertex, std::hypot(q.q(v.x, true) - v.x, q.q(v.y, false) - v.y));
+          for (const auto& v : r)
+            max_vertex =
+                std::max(max_vertex, std::hypot(q.q(v.x, true) - v.x, q.q(v.y, false) - v.y));
         };
         upd(p.shell);
         for (const auto& r : p.holes) upd(r);
       }
       qs.index();
-      score("encoding", q.name, psamples, exact, span, [&](const Sample& s) { return qs.covers(s.x, s.y); },
-            ",\"max_vertex_error_m\":%.6g", max_vertex);
+      score(
+          "encoding", q.name, psamples, exact, span,
+          [&](const Sample& s) { return qs.covers(s.x, s.y); }, ",\"max_vertex_error_m\":%.6g",
+          max_vertex);
     }
   }
 
@@ -526,10 +572,12 @@ int main(int argc, char** argv) try {
       haus(l.points, l.closed, it->second->points, it->second->closed);
     }
     const uint64_t v2 = bench::scene_vertices(s2);
-    emit("{\"what\":\"hausdorff\",\"resolution\":%.6g,\"matched_parts\":%zu,\"vertices_before\":%llu,"
-         "\"vertices_after\":%llu,\"max_hausdorff_m\":%.6g}",
-         package_resolution, matched, static_cast<unsigned long long>(vertices),
-         static_cast<unsigned long long>(v2), worst);
+    emit(
+        "{\"what\":\"hausdorff\",\"resolution\":%.6g,\"matched_parts\":%zu,\"vertices_before\":%"
+        "llu,"
+        "\"vertices_after\":%llu,\"max_hausdorff_m\":%.6g}",
+        package_resolution, matched, static_cast<unsigned long long>(vertices),
+        static_cast<unsigned long long>(v2), worst);
   }
 
   if (!a.export_oracle.empty()) {
@@ -546,7 +594,8 @@ int main(int argc, char** argv) try {
       GEOSFree_r(h, wkb);
       OGRFeatureH f = OGR_F_Create(OGR_L_GetLayerDefn(lyr));
       OGR_F_SetGeometryDirectly(f, OGR_G_ForceToMultiPolygon(og));
-      if (OGR_L_CreateFeature(lyr, f) != OGRERR_NONE) throw std::runtime_error("write failed: " + a.export_oracle);
+      if (OGR_L_CreateFeature(lyr, f) != OGRERR_NONE)
+        throw std::runtime_error("write failed: " + a.export_oracle);
       OGR_F_Destroy(f);
     }
     GEOSWKBWriter_destroy_r(h, wr);

@@ -40,8 +40,8 @@
 #include <vector>
 
 #include "bench_scene.hpp"
-#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/model.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/read.hpp"
 #include "prep/write.hpp"
@@ -97,7 +97,8 @@ prep::SceneFeatures parcels(uint64_t vertices, uint64_t seed) {
     s.polygons.push_back(std::move(p));
     return v;
   };
-  return generate(vertices, {layer("parcels", prep::DecalKind::polygon, decal::CornerStyle::round)}, add);
+  return generate(vertices, {layer("parcels", prep::DecalKind::polygon, decal::CornerStyle::round)},
+                  add);
 }
 
 prep::SceneFeatures roads(uint64_t vertices, uint64_t seed) {
@@ -139,7 +140,8 @@ uint64_t static_bytes(const prep::DecalModel& m, uint64_t& index) {
   for (const prep::BlobInput& blob : prep::model_blobs(m, false)) {
     const std::string name(decal::find_blob_info(blob.id)->name);
     b += blob.bytes.size();
-    if (name.rfind("cell_", 0) == 0 || name.find("_bvh_") != std::string::npos) index += blob.bytes.size();
+    if (name.rfind("cell_", 0) == 0 || name.find("_bvh_") != std::string::npos)
+      index += blob.bytes.size();
     if (detail) std::printf("   %-20s %12zu\n", name.c_str(), blob.bytes.size());
   }
   return b;
@@ -178,7 +180,8 @@ struct Row {
   double mean_all = 0;
 };
 
-Row measure(const prep::SceneFeatures& scene, const prep::ModelOptions& o, uint64_t nv, uint64_t samples) {
+Row measure(const prep::SceneFeatures& scene, const prep::ModelOptions& o, uint64_t nv,
+            uint64_t samples) {
   reset_peak_rss();
   const auto t0 = std::chrono::steady_clock::now();
   const prep::DecalModel m = prep::build_model(scene, o);
@@ -187,7 +190,8 @@ Row measure(const prep::SceneFeatures& scene, const prep::ModelOptions& o, uint6
   const uint64_t bytes = static_bytes(m, index);
   const prep::StaticView v = prep::view_of(m);
   std::mt19937_64 rng(77);
-  const double x0 = m.grid.origin_x * decal::kQuantumMetres, y0 = m.grid.origin_y * decal::kQuantumMetres;
+  const double x0 = m.grid.origin_x * decal::kQuantumMetres,
+               y0 = m.grid.origin_y * decal::kQuantumMetres;
   const double w = double(m.grid.cell_w) * m.grid.nx * decal::kQuantumMetres;
   const double h = double(m.grid.cell_h) * m.grid.ny * decal::kQuantumMetres;
   std::uniform_real_distribution<double> X(x0, x0 + w), Y(y0, y0 + h);
@@ -207,21 +211,24 @@ Row measure(const prep::SceneFeatures& scene, const prep::ModelOptions& o, uint6
   Stat sb = stat(bvh), sq = stat(qt), se = stat(edge), ss = stat(seg), sa = stat(all);
   char grid[32];
   std::snprintf(grid, sizeof grid, "%ux%u", m.grid.nx, m.grid.ny);
-  std::printf("%-10s %9llu %8.2f %8.1f %11llu %9.1f %8zu | %8.2f %5.0f | %8.2f %5.0f | %8.2f %5.0f | %8.2f %5.0f | %8.2f %5.0f  index %.1f B/v\n",
-              grid, (unsigned long long)m.grid.nx * m.grid.ny, secs, peak_rss_mib(), (unsigned long long)bytes,
-              double(bytes) / double(nv), covered, sb.mean, sb.p99, sq.mean, sq.p99, se.mean, se.p99, ss.mean,
-              ss.p99, sa.mean, sa.p99, double(index) / double(nv));
+  std::printf(
+      "%-10s %9llu %8.2f %8.1f %11llu %9.1f %8zu | %8.2f %5.0f | %8.2f %5.0f | %8.2f %5.0f | %8.2f "
+      "%5.0f | %8.2f %5.0f  index %.1f B/v\n",
+      grid, (unsigned long long)m.grid.nx * m.grid.ny, secs, peak_rss_mib(),
+      (unsigned long long)bytes, double(bytes) / double(nv), covered, sb.mean, sb.p99, sq.mean,
+      sq.p99, se.mean, se.p99, ss.mean, ss.p99, sa.mean, sa.p99, double(index) / double(nv));
   std::fflush(stdout);
   return {bytes, sa.mean};
 }
 
-void run(const std::string& name, const prep::SceneFeatures& scene, uint64_t samples, unsigned threads) {
+void run(const std::string& name, const prep::SceneFeatures& scene, uint64_t samples,
+         unsigned threads) {
   const uint64_t nv = bench::scene_vertices(scene);
-  std::printf("\n== %s: %zu polygons, %zu lines, %llu input vertices\n", name.c_str(), scene.polygons.size(),
-              scene.lines.size(), (unsigned long long)nv);
-  std::printf("%-10s %9s %8s %8s %11s %9s %8s | %-14s | %-14s | %-14s | %-14s | %-14s\n", "grid", "cells",
-              "build s", "peak MiB", "bytes", "B/vertex", "covered", "BVH mean/p99", "QT mean/p99",
-              "edges mean/p99", "segs mean/p99", "all mean/p99");
+  std::printf("\n== %s: %zu polygons, %zu lines, %llu input vertices\n", name.c_str(),
+              scene.polygons.size(), scene.lines.size(), (unsigned long long)nv);
+  std::printf("%-10s %9s %8s %8s %11s %9s %8s | %-14s | %-14s | %-14s | %-14s | %-14s\n", "grid",
+              "cells", "build s", "peak MiB", "bytes", "B/vertex", "covered", "BVH mean/p99",
+              "QT mean/p99", "edges mean/p99", "segs mean/p99", "all mean/p99");
   prep::ModelOptions o;
   o.threads = threads;
   if (g_target) o.target_per_cell = g_target;
@@ -239,7 +246,8 @@ std::vector<std::string> split(const std::string& text) {
   std::vector<std::string> out;
   std::stringstream ss(text);
   std::string item;
-  while (std::getline(ss, item, ',')) if (!item.empty()) out.push_back(item);
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
   return out;
 }
 
@@ -250,12 +258,18 @@ int main(int argc, char** argv) {
   unsigned threads = 0;
   std::vector<std::string> only, scenes;
   for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--vertices")) big = std::stoull(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--samples")) samples = std::stoull(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--threads")) threads = unsigned(std::stoul(argv[i + 1]));
-    else if (!std::strcmp(argv[i], "--target")) g_target = uint32_t(std::stoul(argv[i + 1]));
-    else if (!std::strcmp(argv[i], "--only")) only = split(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--scene")) scenes.push_back(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--vertices"))
+      big = std::stoull(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--samples"))
+      samples = std::stoull(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--threads"))
+      threads = unsigned(std::stoul(argv[i + 1]));
+    else if (!std::strcmp(argv[i], "--target"))
+      g_target = uint32_t(std::stoul(argv[i + 1]));
+    else if (!std::strcmp(argv[i], "--only"))
+      only = split(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--scene"))
+      scenes.push_back(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--grids")) {
       g_grids.clear();
       for (const std::string& g : split(argv[i + 1])) g_grids.push_back(uint32_t(std::stoul(g)));
@@ -272,8 +286,10 @@ int main(int argc, char** argv) {
     req.dry_run = true;
     prep::SceneFeatures scene = prep::run_build(prep::load_scene_file(path), req).scene;
     scene.dynamic_lines.clear();
-    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("\nread + clean %s: %.2f s, peak RSS so far %.1f MiB\n", path.c_str(), secs, peak_rss_mib());
+    const double secs =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("\nread + clean %s: %.2f s, peak RSS so far %.1f MiB\n", path.c_str(), secs,
+                peak_rss_mib());
     run(path, scene, samples, threads);
   }
   if (want("parcels")) run("parcels (clustered polygons)", parcels(300'000, 1), samples, threads);

@@ -58,9 +58,12 @@ const Data& data() {
     }
     r.segments.resize(kVertices);
     r.blobs = {
-        {decal::BlobId::line_vertices, decal::ElementType::ivec2, 8, r.vertices.size(), std::as_bytes(std::span(r.vertices))},
-        {decal::BlobId::line_vertex_line, decal::ElementType::u32, 4, r.vertex_line.size(), std::as_bytes(std::span(r.vertex_line))},
-        {decal::BlobId::cell_segments, decal::ElementType::uvec2, 8, r.segments.size(), std::as_bytes(std::span(r.segments))},
+        {decal::BlobId::line_vertices, decal::ElementType::ivec2, 8, r.vertices.size(),
+         std::as_bytes(std::span(r.vertices))},
+        {decal::BlobId::line_vertex_line, decal::ElementType::u32, 4, r.vertex_line.size(),
+         std::as_bytes(std::span(r.vertex_line))},
+        {decal::BlobId::cell_segments, decal::ElementType::uvec2, 8, r.segments.size(),
+         std::as_bytes(std::span(r.segments))},
     };
     for (const auto& b : r.blobs) r.raw_bytes += b.bytes.size();
     return r;
@@ -78,7 +81,8 @@ std::string bench_dir() {
 }
 
 prep::WriteOptions options(int64_t level) {
-  return level == 0 ? prep::WriteOptions{prep::Codec::none, 0} : prep::WriteOptions{prep::Codec::zstd, int(level)};
+  return level == 0 ? prep::WriteOptions{prep::Codec::none, 0}
+                    : prep::WriteOptions{prep::Codec::zstd, int(level)};
 }
 
 void BM_Write(benchmark::State& state) {
@@ -86,9 +90,10 @@ void BM_Write(benchmark::State& state) {
   const std::string path = bench_dir() + "/w" + std::to_string(state.range(0)) + ".decals";
   for (auto _ : state) prep::write_package(path, "{}", d.blobs, options(state.range(0)));
   state.SetBytesProcessed(static_cast<int64_t>(d.raw_bytes) * state.iterations());
-  state.counters["ratio"] = static_cast<double>(d.raw_bytes) / static_cast<double>(std::filesystem::file_size(path));
-  state.counters["MB/s"] = benchmark::Counter(static_cast<double>(d.raw_bytes) / 1e6 * state.iterations(),
-                                              benchmark::Counter::kIsRate);
+  state.counters["ratio"] =
+      static_cast<double>(d.raw_bytes) / static_cast<double>(std::filesystem::file_size(path));
+  state.counters["MB/s"] = benchmark::Counter(
+      static_cast<double>(d.raw_bytes) / 1e6 * state.iterations(), benchmark::Counter::kIsRate);
 }
 
 void BM_Read(benchmark::State& state) {
@@ -102,12 +107,26 @@ void BM_Read(benchmark::State& state) {
     benchmark::DoNotOptimize(p.blobs().data());
   }
   state.SetBytesProcessed(static_cast<int64_t>(d.raw_bytes) * state.iterations());
-  state.counters["MB/s"] = benchmark::Counter(static_cast<double>(d.raw_bytes) / 1e6 * state.iterations(),
-                                              benchmark::Counter::kIsRate);
+  state.counters["MB/s"] = benchmark::Counter(
+      static_cast<double>(d.raw_bytes) / 1e6 * state.iterations(), benchmark::Counter::kIsRate);
 }
 
-BENCHMARK(BM_Write)->ArgName("level")->Arg(0)->Arg(1)->Arg(3)->Arg(9)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_Read)->ArgName("level")->Arg(0)->Arg(1)->Arg(3)->Arg(9)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Write)
+    ->ArgName("level")
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(3)
+    ->Arg(9)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_Read)
+    ->ArgName("level")
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(3)
+    ->Arg(9)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
 

@@ -98,12 +98,15 @@ void generate(const std::string& fgb, uint64_t vertices, const std::string& dir)
       const double r = 20 + 80 * u(rng);
       const int n = 150 + static_cast<int>(100 * u(rng));
       const bool hole = u(rng) < 0.3;
-      std::fprintf(f, "{\"type\":\"Feature\",\"id\":%lld,\"properties\":{},\"geometry\":{\"type\":\"Polygon\",\"coordinates\":[[",
+      std::fprintf(f,
+                   "{\"type\":\"Feature\",\"id\":%lld,\"properties\":{},\"geometry\":{\"type\":"
+                   "\"Polygon\",\"coordinates\":[[",
                    static_cast<long long>(id++));
       for (int i = 0; i <= n; ++i) {
         const double a = 2 * M_PI * (i % n) / n;
         const double rr = r * (0.8 + 0.2 * std::sin(7.0 * a + cx));
-        std::fprintf(f, "%s[%.3f,%.3f]", i ? "," : "", cx + rr * std::cos(a), cy + rr * std::sin(a));
+        std::fprintf(f, "%s[%.3f,%.3f]", i ? "," : "", cx + rr * std::cos(a),
+                     cy + rr * std::sin(a));
       }
       written += n + 1;
       std::fprintf(f, "]");
@@ -111,7 +114,8 @@ void generate(const std::string& fgb, uint64_t vertices, const std::string& dir)
         std::fprintf(f, ",[");
         for (int i = 0; i <= 16; ++i) {
           const double a = -2 * M_PI * (i % 16) / 16;
-          std::fprintf(f, "%s[%.3f,%.3f]", i ? "," : "", cx + 0.3 * r * std::cos(a), cy + 0.3 * r * std::sin(a));
+          std::fprintf(f, "%s[%.3f,%.3f]", i ? "," : "", cx + 0.3 * r * std::cos(a),
+                       cy + 0.3 * r * std::sin(a));
         }
         std::fprintf(f, "]");
         written += 17;
@@ -120,8 +124,9 @@ void generate(const std::string& fgb, uint64_t vertices, const std::string& dir)
     }
     std::fclose(f);
   }
-  RunStats s = run_child({"ogr2ogr", "-f", "FlatGeobuf", "-a_srs", "EPSG:32632", "-overwrite", fgb, seq},
-                         dir + "/generate.log");
+  RunStats s =
+      run_child({"ogr2ogr", "-f", "FlatGeobuf", "-a_srs", "EPSG:32632", "-overwrite", fgb, seq},
+                dir + "/generate.log");
   fs::remove(seq);
   if (s.rc != 0) {
     std::fprintf(stderr, "ogr2ogr failed generating %s\n", fgb.c_str());
@@ -155,16 +160,24 @@ int main(int argc, char** argv) {
   std::string csv_path;
   for (int i = 1; i + 1 < argc; i += 2) {
     std::string k = argv[i];
-    if (k == "--vertices") vertices = std::strtoull(argv[i + 1], nullptr, 10);
-    else if (k == "--data") data = argv[i + 1];
-    else if (k == "--out") out = argv[i + 1];
-    else if (k == "--tool") tool = argv[i + 1];
-    else if (k == "--repeat") repeat = std::atoi(argv[i + 1]);
-    else if (k == "--csv") csv_path = argv[i + 1];
+    if (k == "--vertices")
+      vertices = std::strtoull(argv[i + 1], nullptr, 10);
+    else if (k == "--data")
+      data = argv[i + 1];
+    else if (k == "--out")
+      out = argv[i + 1];
+    else if (k == "--tool")
+      tool = argv[i + 1];
+    else if (k == "--repeat")
+      repeat = std::atoi(argv[i + 1]);
+    else if (k == "--csv")
+      csv_path = argv[i + 1];
   }
   if (tool.empty()) {
     // Next to this binary's build tree: build/<preset>/tools/decalprep/decalprep.
-    tool = (fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "tools/decalprep/decalprep").string();
+    tool = (fs::read_symlink("/proc/self/exe").parent_path().parent_path() /
+            "tools/decalprep/decalprep")
+               .string();
   }
   fs::create_directories(out);
   out = fs::absolute(out).string();
@@ -175,11 +188,14 @@ int main(int argc, char** argv) {
   std::vector<std::string> summary;
 
   std::vector<Input> inputs;
-  for (auto [name, rel] : {std::pair{"liechtenstein", "liechtenstein/liechtenstein-2013-08-03.osm.pbf"},
-                           std::pair{"monaco", "monaco/monaco.osm.pbf"}}) {
+  for (auto [name, rel] :
+       {std::pair{"liechtenstein", "liechtenstein/liechtenstein-2013-08-03.osm.pbf"},
+        std::pair{"monaco", "monaco/monaco.osm.pbf"}}) {
     const std::string p = data + "/" + rel;
-    if (fs::exists(p)) inputs.push_back({name, fs::absolute(p).string(), {"multipolygons", "lines"}, ""});
-    else std::fprintf(stderr, "skipping %s: %s missing\n", name, p.c_str());
+    if (fs::exists(p))
+      inputs.push_back({name, fs::absolute(p).string(), {"multipolygons", "lines"}, ""});
+    else
+      std::fprintf(stderr, "skipping %s: %s missing\n", name, p.c_str());
   }
   const std::string fgb = out + "/synthetic-" + std::to_string(vertices) + ".fgb";
   if (!fs::exists(fgb)) {
@@ -192,7 +208,9 @@ int main(int argc, char** argv) {
   // separates PROJ's share from read + clean.
   inputs.push_back({syn + " (frame = source CRS)", fgb, {}, "EPSG:32632"});
 
-  std::printf("| input | vertices | decalprep wall (s) | CPU (s) | Mvertices/s | peak RSS (MiB) | ogr2ogr wall (s) | CPU (s) | peak RSS (MiB) | wall ratio |\n");
+  std::printf(
+      "| input | vertices | decalprep wall (s) | CPU (s) | Mvertices/s | peak RSS (MiB) | ogr2ogr "
+      "wall (s) | CPU (s) | peak RSS (MiB) | wall ratio |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Input& in : inputs) {
     const std::string scene = out + "/scene.toml", report = out + "/report.json";
@@ -207,7 +225,8 @@ int main(int argc, char** argv) {
         s << "[[layer]]\nname = \"lines\"\nlayer = \"lines\"\nkind = \"line\"\n";
       }
     }
-    std::vector<std::string> ogr = {"ogr2ogr", "-f", "FlatGeobuf", "-overwrite", out + "/floor", in.source};
+    std::vector<std::string> ogr = {"ogr2ogr",    "-f",           "FlatGeobuf",
+                                    "-overwrite", out + "/floor", in.source};
     for (const auto& l : in.layers) ogr.push_back(l);
     RunStats ours, floor;
     for (int i = 0; i < repeat; ++i) {
@@ -227,8 +246,8 @@ int main(int argc, char** argv) {
     char line[512];
     std::snprintf(line, sizeof line, "\"%s\",%llu,%.4f,%.4f,%.4f,%.1f,%.4f,%.4f,%.1f,%.3f,%.3f\n",
                   in.name.c_str(), static_cast<unsigned long long>(v), ours.wall_s, ours.cpu_s,
-                  double(v) / ours.wall_s / 1e6, ours.peak_rss_kib / 1024.0, floor.wall_s, floor.cpu_s,
-                  floor.peak_rss_kib / 1024.0, ratio, cpu_ratio);
+                  double(v) / ours.wall_s / 1e6, ours.peak_rss_kib / 1024.0, floor.wall_s,
+                  floor.cpu_s, floor.peak_rss_kib / 1024.0, ratio, cpu_ratio);
     csv << line;
     csv.flush();
     std::snprintf(line, sizeof line, "ratio %s: %.2fx ogr2ogr wall (CPU %.2fx), target <= 1.5x: %s",

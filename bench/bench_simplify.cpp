@@ -47,7 +47,8 @@ GEOSGeometry* ring(GEOSContextHandle_t h, const prep::Ring& r, bool closed, bool
   GEOSCoordSequence* cs = GEOSCoordSeq_create_r(h, static_cast<unsigned>(n), 2);
   for (size_t i = 0; i < n; ++i)
     GEOSCoordSeq_setXY_r(h, cs, static_cast<unsigned>(i), r[i % r.size()].x, r[i % r.size()].y);
-  return closed && as_ring ? GEOSGeom_createLinearRing_r(h, cs) : GEOSGeom_createLineString_r(h, cs);
+  return closed && as_ring ? GEOSGeom_createLinearRing_r(h, cs)
+                           : GEOSGeom_createLineString_r(h, cs);
 }
 
 GEOSGeometry* polygon(GEOSContextHandle_t h, const prep::ScenePolygon& p) {
@@ -70,7 +71,9 @@ int main(int argc, char** argv) {
   const prep::SceneFeatures base = build(pbf, 0.0);
   std::printf("Monaco (%s): %zu polygons, %zu lines; Hausdorff densify fraction %.2f\n",
               pbf.c_str(), base.polygons.size(), base.lines.size(), densify);
-  std::printf("| resolution (m) | vertices in | vertices out | kept %% | max Hausdorff (m) | mean Hausdorff (m) | invalid outputs |\n");
+  std::printf(
+      "| resolution (m) | vertices in | vertices out | kept %% | max Hausdorff (m) | mean "
+      "Hausdorff (m) | invalid outputs |\n");
   std::printf("|---|---|---|---|---|---|---|\n");
   for (double res : {0.0, 0.1, 0.5, 2.0}) {
     const prep::SceneFeatures s = res == 0.0 ? base : build(pbf, res);
@@ -95,8 +98,10 @@ int main(int argc, char** argv) {
       GEOSGeom_destroy_r(h, a);
       GEOSGeom_destroy_r(h, b);
     };
-    for (size_t i = 0; i < s.polygons.size(); ++i) measure(polygon(h, base.polygons[i]), polygon(h, s.polygons[i]));
-    for (size_t i = 0; i < s.lines.size(); ++i) measure(line(h, base.lines[i]), line(h, s.lines[i]));
+    for (size_t i = 0; i < s.polygons.size(); ++i)
+      measure(polygon(h, base.polygons[i]), polygon(h, s.polygons[i]));
+    for (size_t i = 0; i < s.lines.size(); ++i)
+      measure(line(h, base.lines[i]), line(h, s.lines[i]));
     std::printf("| %.1f | %llu | %llu | %.1f | %.4f | %.4f | %zu |\n", res, (unsigned long long)vin,
                 (unsigned long long)vout, 100.0 * double(vout) / double(vin), worst,
                 n ? sum / double(n) : 0.0, invalid);

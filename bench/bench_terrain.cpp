@@ -23,7 +23,9 @@ namespace {
 
 std::string shared_data() {
   if (const char* env = std::getenv("DECALPREP_SHARED_DATA")) return env;
-  return (std::filesystem::path(__FILE__).parent_path() / ".." / ".." / "shared" / "data").lexically_normal().string();
+  return (std::filesystem::path(__FILE__).parent_path() / ".." / ".." / "shared" / "data")
+      .lexically_normal()
+      .string();
 }
 
 struct Scene {
@@ -38,8 +40,8 @@ Scene read_lines(const std::string& path, const char* filter, double lon0, doubl
   CPLPushErrorHandler(CPLQuietErrorHandler);
   Scene s;
   OGRSpatialReference tm, wgs;
-  tm.SetFromUserInput(("+proj=tmerc +lat_0=" + std::to_string(lat0) + " +lon_0=" + std::to_string(lon0) +
-                       " +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs")
+  tm.SetFromUserInput(("+proj=tmerc +lat_0=" + std::to_string(lat0) + " +lon_0=" +
+                       std::to_string(lon0) + " +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs")
                           .c_str());
   wgs.importFromEPSG(4326);
   tm.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
@@ -58,7 +60,8 @@ Scene read_lines(const std::string& path, const char* filter, double lon0, doubl
       for (int i = 0; i < ls.getNumPoints(); ++i) {
         double x = ls.getX(i), y = ls.getY(i);
         ct->Transform(1, &x, &y);
-        if (!l.points.empty() && std::hypot(x - l.points.back().x, y - l.points.back().y) < 0.01) continue;
+        if (!l.points.empty() && std::hypot(x - l.points.back().x, y - l.points.back().y) < 0.01)
+          continue;
         l.points.push_back({x, y});
       }
       if (l.points.size() < 2) return;
@@ -77,11 +80,14 @@ const Scene& monaco() {
   return s;
 }
 const Scene& liechtenstein() {
-  static const Scene s = read_lines(shared_data() + "/liechtenstein/liechtenstein-2013-08-03.osm.pbf",
-                                    "highway IS NOT NULL OR waterway IN ('river','stream')", 9.55, 47.15);
+  static const Scene s =
+      read_lines(shared_data() + "/liechtenstein/liechtenstein-2013-08-03.osm.pbf",
+                 "highway IS NOT NULL OR waterway IN ('river','stream')", 9.55, 47.15);
   return s;
 }
-std::string monaco_dem() { return "/vsizip/" + shared_data() + "/monaco/N43E007.hgt.zip/N43E007.hgt"; }
+std::string monaco_dem() {
+  return "/vsizip/" + shared_data() + "/monaco/N43E007.hgt.zip/N43E007.hgt";
+}
 
 // range(0): lmax in decimetres (0: half the DEM cell); range(1): tolerance in cm (0: fixed).
 void BM_TerrainMatch(benchmark::State& state) {
@@ -95,11 +101,14 @@ void BM_TerrainMatch(benchmark::State& state) {
   uint64_t in = 0;
   for (const auto& l : s.lines)
     for (const auto& p : l.points) {
-      xmin = std::min(xmin, p.x), xmax = std::max(xmax, p.x), ymin = std::min(ymin, p.y), ymax = std::max(ymax, p.y);
+      xmin = std::min(xmin, p.x), xmax = std::max(xmax, p.x), ymin = std::min(ymin, p.y),
+      ymax = std::max(ymax, p.y);
       ++in;
     }
   prep::MatchOptions opt;
-  opt.lmax = state.range(0) > 0 ? state.range(0) * 0.1 : 0.5 * dem.cell_size_metres({0.5 * (xmin + xmax), 0.5 * (ymin + ymax)});
+  opt.lmax = state.range(0) > 0
+                 ? state.range(0) * 0.1
+                 : 0.5 * dem.cell_size_metres({0.5 * (xmin + xmax), 0.5 * (ymin + ymax)});
   opt.tolerance = state.range(1) * 0.01;
   prep::MatchedLines m;
   for (auto _ : state) {
@@ -113,8 +122,8 @@ void BM_TerrainMatch(benchmark::State& state) {
   state.counters["vertices_fixed"] = static_cast<double>(m.vertices_fixed);
   state.counters["vertices_out"] = static_cast<double>(m.vertices_out);
   state.counters["max_deviation_m"] = m.max_deviation;
-  state.counters["out_vertices_per_s"] =
-      benchmark::Counter(static_cast<double>(state.iterations() * m.vertices_out), benchmark::Counter::kIsRate);
+  state.counters["out_vertices_per_s"] = benchmark::Counter(
+      static_cast<double>(state.iterations() * m.vertices_out), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_TerrainMatch)
     ->Args({0, 0})
@@ -131,7 +140,8 @@ std::vector<prep::LodInputLine> lod_input(const Scene& s) {
     prep::LodInputLine l;
     l.line = i;
     for (const auto& p : s.lines[i].points) {
-      const prep::ivec2 q{static_cast<int32_t>(std::llround(p.x * 1000)), static_cast<int32_t>(std::llround(p.y * 1000))};
+      const prep::ivec2 q{static_cast<int32_t>(std::llround(p.x * 1000)),
+                          static_cast<int32_t>(std::llround(p.y * 1000))};
       if (l.points.empty() || l.points.back() != q) l.points.push_back(q);
     }
     if (l.points.size() > 3 && l.points.front() == l.points.back()) {
@@ -161,11 +171,18 @@ void BM_LodBuild(benchmark::State& state) {
   state.counters["lines"] = static_cast<double>(set.stats.lines);
   state.counters["segments"] = static_cast<double>(set.stats.original_segments);
   state.counters["attributed"] = static_cast<double>(set.stats.attributed_segments);
-  state.counters["ratio"] = double(set.stats.attributed_segments) / double(set.stats.original_segments);
+  state.counters["ratio"] =
+      double(set.stats.attributed_segments) / double(set.stats.original_segments);
   state.counters["dependees"] = static_cast<double>(set.stats.dependee_edges);
   state.counters["cycles"] = static_cast<double>(set.stats.cycles);
 }
-BENCHMARK(BM_LodBuild)->Args({0, 1})->Args({0, 0})->Args({1, 1})->Args({1, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_LodBuild)
+    ->Args({0, 1})
+    ->Args({0, 0})
+    ->Args({1, 1})
+    ->Args({1, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
 

@@ -23,9 +23,9 @@
 #include <string>
 #include <vector>
 
-#include "prep/model.hpp"
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
+#include "prep/model.hpp"
 #include "prep/project.hpp"
 
 namespace {
@@ -48,7 +48,8 @@ void collect(GEOSContextHandle_t h, const GEOSGeometry* g, int64_t fid, prep::So
       out.push_back({x, y});
     }
     // Rings come closed from GEOS; SourceFeature rings are open.
-    if (out.size() > 1 && out.front().x == out.back().x && out.front().y == out.back().y) out.pop_back();
+    if (out.size() > 1 && out.front().x == out.back().x && out.front().y == out.back().y)
+      out.pop_back();
     return out;
   };
   const int type = GEOSGeomTypeId_r(h, g);
@@ -62,7 +63,8 @@ void collect(GEOSContextHandle_t h, const GEOSGeometry* g, int64_t fid, prep::So
     } else {
       f.rings.push_back(ring_of(GEOSGetExteriorRing_r(h, g)));
       const int nh = GEOSGetNumInteriorRings_r(h, g);
-      for (int i = 0; i < nh && i < 1000; ++i) f.rings.push_back(ring_of(GEOSGetInteriorRingN_r(h, g, i)));
+      for (int i = 0; i < nh && i < 1000; ++i)
+        f.rings.push_back(ring_of(GEOSGetInteriorRingN_r(h, g, i)));
     }
     layer.features.push_back(std::move(f));
   } else if (type == GEOS_LINESTRING || type == GEOS_LINEARRING) {
@@ -72,9 +74,11 @@ void collect(GEOSContextHandle_t h, const GEOSGeometry* g, int64_t fid, prep::So
     f.rings.push_back(ring_of(g));
     if (f.rings[0].empty()) f.drop_reason = "empty";
     layer.features.push_back(std::move(f));
-  } else if (type == GEOS_MULTIPOLYGON || type == GEOS_MULTILINESTRING || type == GEOS_GEOMETRYCOLLECTION) {
+  } else if (type == GEOS_MULTIPOLYGON || type == GEOS_MULTILINESTRING ||
+             type == GEOS_GEOMETRYCOLLECTION) {
     const int n = GEOSGetNumGeometries_r(h, g);
-    for (int i = 0; i < n && i < 1000; ++i) collect(h, GEOSGetGeometryN_r(h, g, i), fid, layer, depth + 1);
+    for (int i = 0; i < n && i < 1000; ++i)
+      collect(h, GEOSGetGeometryN_r(h, g, i), fid, layer, depth + 1);
   }
 }
 
@@ -94,15 +98,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   prep::LayerSpec spec;
   spec.name = "fuzz";
   const int kind = style & 3;
-  spec.kind = kind == 1 ? prep::DecalKind::line : kind == 2 ? prep::DecalKind::outline : prep::DecalKind::polygon;
+  spec.kind = kind == 1   ? prep::DecalKind::line
+              : kind == 2 ? prep::DecalKind::outline
+                          : prep::DecalKind::polygon;
   const int corner = (style >> 2) & 3;
   spec.style.corner = corner == 1   ? decal::CornerStyle::miter
                       : corner == 2 ? decal::CornerStyle::bevel
                                     : decal::CornerStyle::round;
   const int mode = (style >> 4) & 3;
   if (spec.style.corner == decal::CornerStyle::miter && spec.kind == prep::DecalKind::outline)
-    spec.style.outline = mode == 1 ? decal::OutlineMode::inset : mode == 2 ? decal::OutlineMode::offset
-                                                                           : decal::OutlineMode::normal;
+    spec.style.outline = mode == 1   ? decal::OutlineMode::inset
+                         : mode == 2 ? decal::OutlineMode::offset
+                                     : decal::OutlineMode::normal;
   spec.style.width = width;
   if (style & 0x40) scene.resolution = 0.5;
   scene.layers.push_back(spec);

@@ -38,13 +38,15 @@ void reseal(std::vector<std::byte>& f) {
       const uint64_t at = table + i * entry_size;
       const uint64_t off = get<uint64_t>(f, at + offsetof(E, offset));
       const uint64_t stored = get<uint64_t>(f, at + offsetof(E, stored_size));
-      if (off <= n && stored <= n - off) put<uint64_t>(f, at + offsetof(E, checksum), XXH64(f.data() + off, stored, 0));
+      if (off <= n && stored <= n - off)
+        put<uint64_t>(f, at + offsetof(E, checksum), XXH64(f.data() + off, stored, 0));
     }
     put<uint64_t>(f, offsetof(H, table_checksum), XXH64(f.data() + table, count * entry_size, 0));
   }
   const uint64_t moff = get<uint64_t>(f, offsetof(H, metadata_offset));
   const uint64_t msize = get<uint64_t>(f, offsetof(H, metadata_size));
-  if (moff <= n && msize <= n - moff) put<uint64_t>(f, offsetof(H, metadata_checksum), XXH64(f.data() + moff, msize, 0));
+  if (moff <= n && msize <= n - moff)
+    put<uint64_t>(f, offsetof(H, metadata_checksum), XXH64(f.data() + moff, msize, 0));
   const uint64_t hsize = get<uint32_t>(f, offsetof(H, header_size));
   if (hsize >= sizeof(H) && hsize <= n) put<uint64_t>(f, hsize - 8, XXH64(f.data(), hsize - 8, 0));
 }

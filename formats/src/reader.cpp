@@ -40,22 +40,29 @@ struct AlignedBuffer {
   size_t size = 0;
   AlignedBuffer() = default;
   explicit AlignedBuffer(size_t n) : size(n) {
-    if (n) data = static_cast<std::byte*>(::operator new(n, std::align_val_t{kBlobAlignment}));
+    if (n) data = static_cast<std::byte*>(::operator new (n, std::align_val_t{kBlobAlignment}));
   }
-  AlignedBuffer(AlignedBuffer&& o) noexcept : data(o.data), size(o.size) { o.data = nullptr; o.size = 0; }
+  AlignedBuffer(AlignedBuffer&& o) noexcept : data(o.data), size(o.size) {
+    o.data = nullptr;
+    o.size = 0;
+  }
   AlignedBuffer& operator=(AlignedBuffer&& o) noexcept {
     std::swap(data, o.data);
     std::swap(size, o.size);
     return *this;
   }
   ~AlignedBuffer() {
-    if (data) ::operator delete(data, std::align_val_t{kBlobAlignment});
+    if (data) ::operator delete (data, std::align_val_t{kBlobAlignment});
   }
 };
 
-uint64_t align_up(uint64_t v) { return (v + kBlobAlignment - 1) / kBlobAlignment * kBlobAlignment; }
+uint64_t align_up(uint64_t v) {
+  return (v + kBlobAlignment - 1) / kBlobAlignment * kBlobAlignment;
+}
 
-uint64_t xxh64(const std::byte* p, size_t n) { return XXH64(p, n, 0); }
+uint64_t xxh64(const std::byte* p, size_t n) {
+  return XXH64(p, n, 0);
+}
 
 bool all_zero(const std::byte* p, size_t n) {
   for (size_t i = 0; i < n; ++i)
@@ -80,7 +87,9 @@ std::string entry_label(size_t index, const BlobTableEntry& e) {
   return fmt("blob #%zu '%s' (id %u)", index, name.c_str(), e.id);
 }
 
-bool valid_element_type(uint32_t t) { return t >= 1 && t <= 11; }
+bool valid_element_type(uint32_t t) {
+  return t >= 1 && t <= 11;
+}
 
 // Checks the name field: [a-z0-9_]+, NUL-terminated within the field, zero
 // after the terminator.
@@ -125,20 +134,23 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
   // The version comes first: a newer major may lay out everything else
   // differently, so its checksums mean nothing to us.
   if (h.version_major != kVersionMajor)
-    return Status::failure(fmt("unsupported package major version %u (minor %u); this reader "
-                               "reads major version %u",
-                               h.version_major, h.version_minor, kVersionMajor));
+    return Status::failure(
+        fmt("unsupported package major version %u (minor %u); this reader "
+            "reads major version %u",
+            h.version_major, h.version_minor, kVersionMajor));
   if (h.header_size < sizeof(FileHeader) || h.header_size % 8 != 0 || h.header_size > size)
-    return Status::failure(fmt("header_size %u at byte 16 is invalid (must be >= %zu, a multiple "
-                               "of 8 and within the %llu-byte file)",
-                               h.header_size, sizeof(FileHeader), ull(size)));
+    return Status::failure(
+        fmt("header_size %u at byte 16 is invalid (must be >= %zu, a multiple "
+            "of 8 and within the %llu-byte file)",
+            h.header_size, sizeof(FileHeader), ull(size)));
   uint64_t stored_header_sum;
   std::memcpy(&stored_header_sum, base + h.header_size - 8, 8);
   const uint64_t header_sum = xxh64(base, h.header_size - 8);
   if (header_sum != stored_header_sum)
-    return Status::failure(fmt("header checksum mismatch at byte %u: stored %016llx, computed "
-                               "%016llx",
-                               h.header_size - 8, ull(stored_header_sum), ull(header_sum)));
+    return Status::failure(
+        fmt("header checksum mismatch at byte %u: stored %016llx, computed "
+            "%016llx",
+            h.header_size - 8, ull(stored_header_sum), ull(header_sum)));
   if (h.file_size != size)
     return Status::failure(fmt("file size mismatch: header says %llu bytes, file has %llu%s",
                                ull(h.file_size), ull(size),
@@ -152,9 +164,10 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
                                unknown_required, h.flags));
   if (!newer_minor) {
     if (h.flags & ~kRequiredFlagsMask & ~kKnownOptionalFlags)
-      return Status::failure(fmt("undefined optional flag bits set in flags 0x%08x at byte 12 "
-                                 "(version %u.%u)",
-                                 h.flags, h.version_major, h.version_minor));
+      return Status::failure(
+          fmt("undefined optional flag bits set in flags 0x%08x at byte 12 "
+              "(version %u.%u)",
+              h.flags, h.version_major, h.version_minor));
     if (h.reserved0 != 0 || h.reserved1 != 0)
       return Status::failure("reserved header field at byte 28 or 80 is not zero");
     // A longer header (from a later minor) has its extra fields between the
@@ -167,31 +180,35 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
                                  v1_end + extra, h.version_major, h.version_minor));
   }
   if (h.blob_entry_size < sizeof(BlobTableEntry) || h.blob_entry_size % 8 != 0)
-    return Status::failure(fmt("blob_entry_size %u at byte 20 is invalid (must be >= %zu and a "
-                               "multiple of 8)",
-                               h.blob_entry_size, sizeof(BlobTableEntry)));
+    return Status::failure(
+        fmt("blob_entry_size %u at byte 20 is invalid (must be >= %zu and a "
+            "multiple of 8)",
+            h.blob_entry_size, sizeof(BlobTableEntry)));
   if (h.table_offset != h.header_size)
     return Status::failure(fmt("table_offset %llu at byte 40 must equal header_size %u",
                                ull(h.table_offset), h.header_size));
   // blob_count < 2^32 and blob_entry_size < 2^32: the product fits in 64 bits.
   const uint64_t table_bytes = uint64_t(h.blob_count) * h.blob_entry_size;
   if (table_bytes > size - h.table_offset)
-    return Status::failure(fmt("blob table (%u entries x %u bytes at byte %llu) runs past the end "
-                               "of the %llu-byte file",
-                               h.blob_count, h.blob_entry_size, ull(h.table_offset), ull(size)));
+    return Status::failure(
+        fmt("blob table (%u entries x %u bytes at byte %llu) runs past the end "
+            "of the %llu-byte file",
+            h.blob_count, h.blob_entry_size, ull(h.table_offset), ull(size)));
   const uint64_t table_sum = xxh64(base + h.table_offset, table_bytes);
   if (table_sum != h.table_checksum)
     return Status::failure(fmt("blob table checksum mismatch: stored %016llx, computed %016llx",
                                ull(h.table_checksum), ull(table_sum)));
   const uint64_t table_end = h.table_offset + table_bytes;
   if (h.metadata_offset != table_end)
-    return Status::failure(fmt("metadata_offset %llu at byte 56 must equal the end of the blob "
-                               "table, %llu",
-                               ull(h.metadata_offset), ull(table_end)));
+    return Status::failure(
+        fmt("metadata_offset %llu at byte 56 must equal the end of the blob "
+            "table, %llu",
+            ull(h.metadata_offset), ull(table_end)));
   if (h.metadata_size > size - h.metadata_offset)
-    return Status::failure(fmt("metadata (%llu bytes at byte %llu) runs past the end of the "
-                               "%llu-byte file",
-                               ull(h.metadata_size), ull(h.metadata_offset), ull(size)));
+    return Status::failure(
+        fmt("metadata (%llu bytes at byte %llu) runs past the end of the "
+            "%llu-byte file",
+            ull(h.metadata_size), ull(h.metadata_offset), ull(size)));
   const uint64_t meta_sum = xxh64(base + h.metadata_offset, h.metadata_size);
   if (meta_sum != h.metadata_checksum)
     return Status::failure(fmt("metadata checksum mismatch: stored %016llx, computed %016llx",
@@ -199,9 +216,10 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
   {
     const char* m = reinterpret_cast<const char*>(base + h.metadata_offset);
     if (h.metadata_size < 2 || m[0] != '{' || m[h.metadata_size - 1] != '}')
-      return Status::failure(fmt("metadata at byte %llu is not a JSON object (must start with '{' "
-                                 "and end with '}')",
-                                 ull(h.metadata_offset)));
+      return Status::failure(
+          fmt("metadata at byte %llu is not a JSON object (must start with '{' "
+              "and end with '}')",
+              ull(h.metadata_offset)));
     if (std::memchr(m, 0, h.metadata_size) != nullptr)
       return Status::failure("metadata contains a NUL byte");
   }
@@ -216,23 +234,24 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
     const std::string label = entry_label(i, e);
     std::string_view name;
     if (!valid_name(e, name))
-      return Status::failure(fmt("%s, table entry at byte %llu: name must be 1-31 characters "
-                                 "[a-z0-9_], NUL-padded",
-                                 label.c_str(), ull(at)));
+      return Status::failure(
+          fmt("%s, table entry at byte %llu: name must be 1-31 characters "
+              "[a-z0-9_], NUL-padded",
+              label.c_str(), ull(at)));
     if (!newer_minor) {
       if (e.reserved[0] != 0 || e.reserved[1] != 0)
         return Status::failure(fmt("%s: reserved entry field is not zero", label.c_str()));
       if (!all_zero(base + at + sizeof e, h.blob_entry_size - sizeof e))
-        return Status::failure(fmt("%s: entry bytes past the v1 fields are not zero",
-                                   label.c_str()));
+        return Status::failure(
+            fmt("%s: entry bytes past the v1 fields are not zero", label.c_str()));
     }
     if (!valid_element_type(e.element_type))
       return Status::failure(fmt("%s: unknown element type %u", label.c_str(), e.element_type));
     const auto type = static_cast<ElementType>(e.element_type);
     if (type == ElementType::record) {
       if (e.stride == 0 || e.stride % 4 != 0)
-        return Status::failure(fmt("%s: record stride %u is not a positive multiple of 4",
-                                   label.c_str(), e.stride));
+        return Status::failure(
+            fmt("%s: record stride %u is not a positive multiple of 4", label.c_str(), e.stride));
     } else if (e.stride != std430_stride(type)) {
       return Status::failure(fmt("%s: stride %u does not match element type %s (std430 stride %u)",
                                  label.c_str(), e.stride, element_type_name(type).data(),
@@ -240,8 +259,8 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
     }
     if (const BlobInfo* info = find_blob_info(static_cast<BlobId>(e.id))) {
       if (name != info->name)
-        return Status::failure(fmt("%s: id %u is '%s' in the catalogue", label.c_str(), e.id,
-                                   info->name.data()));
+        return Status::failure(
+            fmt("%s: id %u is '%s' in the catalogue", label.c_str(), e.id, info->name.data()));
       if (type != info->type || e.stride != info->stride)
         return Status::failure(fmt("%s: element type %s stride %u, catalogue says %s stride %u",
                                    label.c_str(), element_type_name(type).data(), e.stride,
@@ -263,8 +282,8 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
                                    label.c_str(), ull(e.stored_size), ull(e.raw_size)));
     } else if (e.codec == uint32_t(CodecId::zstd)) {
       if (h.flags & kFlagAllUncompressed)
-        return Status::failure(fmt("%s: zstd codec in a package flagged all-uncompressed",
-                                   label.c_str()));
+        return Status::failure(
+            fmt("%s: zstd codec in a package flagged all-uncompressed", label.c_str()));
       if (!plausible_zstd_raw_size(e.stored_size, e.raw_size))
         return Status::failure(fmt("%s: raw_size %llu cannot come from %llu zstd bytes",
                                    label.c_str(), ull(e.raw_size), ull(e.stored_size)));
@@ -275,22 +294,22 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
       return Status::failure(fmt("%s: offset %llu is not a multiple of %llu", label.c_str(),
                                  ull(e.offset), ull(kBlobAlignment)));
     if (e.offset > size || e.stored_size > size - e.offset)
-      return Status::failure(fmt("%s: %llu bytes at offset %llu run past the end of the "
-                                 "%llu-byte file",
-                                 label.c_str(), ull(e.stored_size), ull(e.offset), ull(size)));
+      return Status::failure(
+          fmt("%s: %llu bytes at offset %llu run past the end of the "
+              "%llu-byte file",
+              label.c_str(), ull(e.stored_size), ull(e.offset), ull(size)));
     if (e.offset < prev_end)
       return Status::failure(fmt("%s: offset %llu overlaps %s, which ends at byte %llu",
-                                 label.c_str(), ull(e.offset), prev_label.c_str(),
-                                 ull(prev_end)));
+                                 label.c_str(), ull(e.offset), prev_label.c_str(), ull(prev_end)));
     if (e.offset != align_up(prev_end))
-      return Status::failure(fmt("%s: offset %llu leaves a gap; the next aligned offset after "
-                                 "byte %llu is %llu",
-                                 label.c_str(), ull(e.offset), ull(prev_end),
-                                 ull(align_up(prev_end))));
+      return Status::failure(
+          fmt("%s: offset %llu leaves a gap; the next aligned offset after "
+              "byte %llu is %llu",
+              label.c_str(), ull(e.offset), ull(prev_end), ull(align_up(prev_end))));
     const size_t pad = first_nonzero(base + prev_end, e.offset - prev_end);
     if (pad != e.offset - prev_end)
-      return Status::failure(fmt("padding byte %llu before %s is not zero", ull(prev_end + pad),
-                                 label.c_str()));
+      return Status::failure(
+          fmt("padding byte %llu before %s is not zero", ull(prev_end + pad), label.c_str()));
     prev_end = e.offset + e.stored_size;
     prev_label = label;
   }
@@ -392,8 +411,8 @@ Status load(std::span<const std::byte> file, const OpenOptions& opt, PackageImpl
           break;
         }
         if (ZSTD_isError(frame) || frame != e.stored_size) {
-          status = Status::failure(fmt("%s: stored bytes are not exactly one zstd frame",
-                                       entry_label(i, e).c_str()));
+          status = Status::failure(
+              fmt("%s: stored bytes are not exactly one zstd frame", entry_label(i, e).c_str()));
           break;
         }
         if (!dctx) dctx = ZSTD_createDCtx();
@@ -403,9 +422,9 @@ Status load(std::span<const std::byte> file, const OpenOptions& opt, PackageImpl
         }
         const size_t got = ZSTD_decompressDCtx(dctx, dst, e.raw_size, src, e.stored_size);
         if (ZSTD_isError(got) || got != e.raw_size) {
-          status = Status::failure(fmt("%s: zstd decoding failed: %s", entry_label(i, e).c_str(),
-                                       ZSTD_isError(got) ? ZSTD_getErrorName(got)
-                                                         : "short output"));
+          status =
+              Status::failure(fmt("%s: zstd decoding failed: %s", entry_label(i, e).c_str(),
+                                  ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short output"));
           break;
         }
       }
@@ -444,7 +463,8 @@ Status Package::from_memory(std::span<const std::byte> bytes, Package& out,
 Status Package::open(const std::string& path, Package& out, const OpenOptions& opt) {
   out = Package();
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return Status::failure(fmt("cannot open '%s': %s", path.c_str(), std::strerror(errno)));
+  if (fd < 0)
+    return Status::failure(fmt("cannot open '%s': %s", path.c_str(), std::strerror(errno)));
   struct stat st;
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
@@ -467,7 +487,8 @@ Status Package::open(const std::string& path, Package& out, const OpenOptions& o
     while (done < size) {
       // done < size, and size came from a non-negative off_t (st_size), so
       // the offset fits off_t.
-      const ssize_t n = ::pread(fd, impl->file_copy.data + done, size - done, static_cast<off_t>(done));
+      const ssize_t n =
+          ::pread(fd, impl->file_copy.data + done, size - done, static_cast<off_t>(done));
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) {
         const int err = errno;
@@ -493,16 +514,24 @@ Status Package::open(const std::string& path, Package& out, const OpenOptions& o
   return s;
 }
 
-uint16_t Package::major() const { return impl_ ? impl_->header.version_major : 0; }
-uint16_t Package::minor() const { return impl_ ? impl_->header.version_minor : 0; }
-uint32_t Package::flags() const { return impl_ ? impl_->header.flags : 0; }
+uint16_t Package::major() const {
+  return impl_ ? impl_->header.version_major : 0;
+}
+uint16_t Package::minor() const {
+  return impl_ ? impl_->header.version_minor : 0;
+}
+uint32_t Package::flags() const {
+  return impl_ ? impl_->header.flags : 0;
+}
 std::string_view Package::metadata_json() const {
   return impl_ ? std::string_view(impl_->metadata) : std::string_view();
 }
 std::span<const BlobView> Package::blobs() const {
   return impl_ ? std::span<const BlobView>(impl_->blobs) : std::span<const BlobView>();
 }
-bool Package::memory_mapped() const { return impl_ && impl_->mapped; }
+bool Package::memory_mapped() const {
+  return impl_ && impl_->mapped;
+}
 
 const BlobView* Package::find(BlobId id) const {
   if (!impl_) return nullptr;

@@ -52,9 +52,11 @@ class Checker {
     for (const BlobBytes& b : blobs_) {
       const BlobInfo* info = find_blob_info(b.id);
       if (!info) continue;
-      if (info->stride == 0 || b.bytes.size() % info->stride != 0 || b.bytes.size() / info->stride != b.count)
-        return Status::failure(fmt("blob %s holds %llu bytes for %llu elements of %u bytes", info->name.data(),
-                                   ull(b.bytes.size()), ull(b.count), info->stride));
+      if (info->stride == 0 || b.bytes.size() % info->stride != 0 ||
+          b.bytes.size() / info->stride != b.count)
+        return Status::failure(fmt("blob %s holds %llu bytes for %llu elements of %u bytes",
+                                   info->name.data(), ull(b.bytes.size()), ull(b.count),
+                                   info->stride));
       const auto id = static_cast<uint32_t>(b.id);
       if (id >= by_id_.size()) continue;
       if (by_id_[id]) return Status::failure(fmt("blob %s appears twice", info->name.data()));
@@ -81,22 +83,25 @@ class Checker {
   // Blobs that run in parallel: one element each.
   Status same_count(BlobId a, BlobId of) const {
     if (count(a) != count(of))
-      return Status::failure(fmt("%s has %llu elements but %s has %llu; they must match", name(a), ull(count(a)),
-                                 name(of), ull(count(of))));
+      return Status::failure(fmt("%s has %llu elements but %s has %llu; they must match", name(a),
+                                 ull(count(a)), name(of), ull(count(of))));
     return Status::success();
   }
   // value < count(target)
-  Status index(BlobId blob, uint64_t element, const char* field, uint64_t value, BlobId target) const {
+  Status index(BlobId blob, uint64_t element, const char* field, uint64_t value,
+               BlobId target) const {
     if (value >= count(target))
-      return Status::failure(fmt("%s[%llu].%s = %llu is out of range (%s has %llu elements)", name(blob), ull(element),
-                                 field, ull(value), name(target), ull(count(target))));
+      return Status::failure(fmt("%s[%llu].%s = %llu is out of range (%s has %llu elements)",
+                                 name(blob), ull(element), field, ull(value), name(target),
+                                 ull(count(target))));
     return Status::success();
   }
   // first + n <= count(target), without overflow (both are < 2^32).
   Status range(BlobId blob, uint64_t element, uint64_t first, uint64_t n, BlobId target) const {
     if (first + n > count(target))
-      return Status::failure(fmt("%s[%llu] = (first %llu, count %llu) runs past the end of %s (%llu elements)",
-                                 name(blob), ull(element), ull(first), ull(n), name(target), ull(count(target))));
+      return Status::failure(
+          fmt("%s[%llu] = (first %llu, count %llu) runs past the end of %s (%llu elements)",
+              name(blob), ull(element), ull(first), ull(n), name(target), ull(count(target))));
     return Status::success();
   }
 
@@ -118,8 +123,8 @@ Status check_grid(const Checker& c) {
   // A grid of no cells is a package without static decals (its per-cell
   // blobs must then be empty, check_cells); cells have a positive size.
   if (g->cell_w <= 0 || g->cell_h <= 0)
-    return Status::failure(fmt("grid %ux%u with cell %lldx%lld quanta", g->nx, g->ny, (long long)g->cell_w,
-                               (long long)g->cell_h));
+    return Status::failure(fmt("grid %ux%u with cell %lldx%lld quanta", g->nx, g->ny,
+                               (long long)g->cell_w, (long long)g->cell_h));
   // Shaders and the evaluator compute cell coordinates in int32 quanta.
   const int64_t lim = int64_t(1) << 31;
   if (g->origin_x <= -lim || g->origin_x >= lim || g->origin_y <= -lim || g->origin_y >= lim ||
@@ -133,23 +138,27 @@ Status check_lines(const Checker& c) {
   CHECK(c.same_count(BlobId::line_vertex_line, BlobId::line_vertices));
   CHECK(c.same_count(BlobId::line_corners, BlobId::line_vertices));
   const auto vl = c.get<uint32_t>(BlobId::line_vertex_line);
-  for (uint64_t i = 0; i < vl.size(); ++i) CHECK(c.index(BlobId::line_vertex_line, i, "line", vl[i], BlobId::line_props));
+  for (uint64_t i = 0; i < vl.size(); ++i)
+    CHECK(c.index(BlobId::line_vertex_line, i, "line", vl[i], BlobId::line_props));
   const auto props = c.get<LineProps>(BlobId::line_props);
   for (uint64_t i = 0; i < props.size(); ++i) {
     const LineProps p = props[i];
     if (!(p.half_width >= 0.0f && p.half_width < 1e7f))
-      return Status::failure(fmt("line_props[%llu].half_width = %g is not in [0, 1e7) metres", ull(i), double(p.half_width)));
+      return Status::failure(fmt("line_props[%llu].half_width = %g is not in [0, 1e7) metres",
+                                 ull(i), double(p.half_width)));
     // A clipped outline's ring quad-tree lives in the polygon node arrays
     // (check_polygons() checks every node); its root must be one of them.
     if (p.style & kStyleClipBit)
       CHECK(c.index(BlobId::line_props, i, "clip_node", p.clip_node, BlobId::qt_node));
     else if (p.clip_node != 0 && !c.newer_minor())
       return Status::failure(
-          fmt("line_props[%llu].clip_node = %u without style bit 5 (clipped); must be zero", ull(i), p.clip_node));
+          fmt("line_props[%llu].clip_node = %u without style bit 5 (clipped); must be zero", ull(i),
+              p.clip_node));
   }
   const auto ranges = c.get<u2>(BlobId::cell_segment_range);
   for (uint64_t i = 0; i < ranges.size(); ++i)
-    CHECK(c.range(BlobId::cell_segment_range, i, ranges[i][0], ranges[i][1], BlobId::cell_segments));
+    CHECK(
+        c.range(BlobId::cell_segment_range, i, ranges[i][0], ranges[i][1], BlobId::cell_segments));
   const auto segs = c.get<u2>(BlobId::cell_segments);
   for (uint64_t i = 0; i < segs.size(); ++i) {
     CHECK(c.index(BlobId::cell_segments, i, "start", segs[i][0], BlobId::line_vertices));
@@ -167,20 +176,23 @@ Status check_polygons(const Checker& c) {
     if ((p.reserved[0] != 0 || p.reserved[1] != 0) && !c.newer_minor())
       return Status::failure(fmt("poly_props[%llu].reserved is not zero", ull(i)));
     if (p.exterior < -1 || (p.exterior >= 0 && uint64_t(p.exterior) >= props.size()))
-      return Status::failure(
-          fmt("poly_props[%llu].exterior = %d is out of range (%llu polygons)", ull(i), p.exterior, ull(props.size())));
+      return Status::failure(fmt("poly_props[%llu].exterior = %d is out of range (%llu polygons)",
+                                 ull(i), p.exterior, ull(props.size())));
   }
   const auto roots = c.get<uint32_t>(BlobId::poly_root_node);
-  for (uint64_t i = 0; i < roots.size(); ++i) CHECK(c.index(BlobId::poly_root_node, i, "node", roots[i], BlobId::qt_node));
+  for (uint64_t i = 0; i < roots.size(); ++i)
+    CHECK(c.index(BlobId::poly_root_node, i, "node", roots[i], BlobId::qt_node));
   const auto nodes = c.get<i2>(BlobId::qt_node);
   for (uint64_t i = 0; i < nodes.size(); ++i) {
     const int32_t type = nodes[i][0], off = nodes[i][1];
-    if (type < 0 || type > 3) return Status::failure(fmt("qt_node[%llu].type = %d is not a node type 0..3", ull(i), type));
+    if (type < 0 || type > 3)
+      return Status::failure(fmt("qt_node[%llu].type = %d is not a node type 0..3", ull(i), type));
     if (off < 0) return Status::failure(fmt("qt_node[%llu].offset = %d is negative", ull(i), off));
     if (type == int32_t(QtNodeType::internal)) {
       // Children after their parent: every descent ends.
       if (uint64_t(off) <= i)
-        return Status::failure(fmt("qt_node[%llu].offset = %d: children must come after their parent", ull(i), off));
+        return Status::failure(
+            fmt("qt_node[%llu].offset = %d: children must come after their parent", ull(i), off));
       CHECK(c.range(BlobId::qt_node, i, uint64_t(off), 4, BlobId::qt_node));
     } else if (type == int32_t(QtNodeType::partial)) {
       CHECK(c.index(BlobId::qt_node, i, "offset", uint64_t(off), BlobId::qt_leaf_range));
@@ -215,25 +227,28 @@ Status check_polygons(const Checker& c) {
 // nodes) is a full binary tree inside the box blob whose leaf k is the cell's
 // k-th list entry (thesis §4.2.1, Eq. 4.5–4.7). With a grid, one of each per
 // cell; a kind that is absent has neither.
-Status check_cells(const Checker& c, BlobId range_id, BlobId list_id, BlobId bvh_id, BlobId box_id) {
+Status check_cells(const Checker& c, BlobId range_id, BlobId list_id, BlobId bvh_id,
+                   BlobId box_id) {
   const auto ranges = c.get<u2>(range_id);
   const auto bvh = c.get<u4>(bvh_id);
   if (ranges.size() == 0 && c.count(list_id) == 0 && bvh.size() == 0) return Status::success();
   CHECK(c.same_count(bvh_id, range_id));
   if (const Grid* g = c.grid(); g && ranges.size() != uint64_t(g->nx) * g->ny)
-    return Status::failure(fmt("%s has %llu elements for the %llu grid cells", Checker::name(range_id),
-                               ull(ranges.size()), ull(uint64_t(g->nx) * g->ny)));
+    return Status::failure(fmt("%s has %llu elements for the %llu grid cells",
+                               Checker::name(range_id), ull(ranges.size()),
+                               ull(uint64_t(g->nx) * g->ny)));
   const uint64_t boxes = c.count(box_id);
   for (uint64_t i = 0; i < bvh.size(); ++i) {
     const u4 b = bvh[i];
     const uint64_t first = b[0], slots = b[1], internal = b[2];
     const bool pow2 = (slots & (slots - 1)) == 0;
-    if (slots < ranges[i][1] || !pow2 || (slots > 0 && internal + 1 != slots) || (slots == 0 && internal != 0) ||
-        first + slots + internal > boxes)
-      return Status::failure(fmt("%s[%llu] = (first %llu, leaves %llu, internal %llu) is not a full binary tree over "
-                                 "the cell's %u entries inside %s (%llu boxes)",
-                                 Checker::name(bvh_id), ull(i), ull(first), ull(slots), ull(internal), ranges[i][1],
-                                 Checker::name(box_id), ull(boxes)));
+    if (slots < ranges[i][1] || !pow2 || (slots > 0 && internal + 1 != slots) ||
+        (slots == 0 && internal != 0) || first + slots + internal > boxes)
+      return Status::failure(
+          fmt("%s[%llu] = (first %llu, leaves %llu, internal %llu) is not a full binary tree over "
+              "the cell's %u entries inside %s (%llu boxes)",
+              Checker::name(bvh_id), ull(i), ull(first), ull(slots), ull(internal), ranges[i][1],
+              Checker::name(box_id), ull(boxes)));
   }
   return Status::success();
 }
@@ -242,7 +257,8 @@ Status check_dynamic(const Checker& c) {
   CHECK(c.same_count(BlobId::dyn_prev_next, BlobId::dyn_vertices));
   const auto verts = c.get<i4>(BlobId::dyn_vertices);
   for (uint64_t i = 0; i < verts.size(); ++i) {
-    if (verts[i][3] < 0) return Status::failure(fmt("dyn_vertices[%llu].line = %d is negative", ull(i), verts[i][3]));
+    if (verts[i][3] < 0)
+      return Status::failure(fmt("dyn_vertices[%llu].line = %d is negative", ull(i), verts[i][3]));
     CHECK(c.index(BlobId::dyn_vertices, i, "line", uint64_t(verts[i][3]), BlobId::dyn_line_props));
   }
   const auto links = c.get<i2>(BlobId::dyn_prev_next);
@@ -250,8 +266,8 @@ Status check_dynamic(const Checker& c) {
     for (size_t k = 0; k < 2; ++k) {
       const int32_t v = links[i][k];
       if (v < -1 || (v >= 0 && uint64_t(v) >= verts.size()))
-        return Status::failure(fmt("dyn_prev_next[%llu].%s = %d is out of range (%llu vertices)", ull(i),
-                                   k == 0 ? "previous" : "next", v, ull(verts.size())));
+        return Status::failure(fmt("dyn_prev_next[%llu].%s = %d is out of range (%llu vertices)",
+                                   ull(i), k == 0 ? "previous" : "next", v, ull(verts.size())));
     }
   const auto starts = c.get<uint32_t>(BlobId::dyn_line_start);
   for (uint64_t i = 0; i < starts.size(); ++i)
@@ -265,17 +281,21 @@ Status check_dynamic(const Checker& c) {
       return Status::failure("dyn_line_start[0] must be 0 when dynamic vertices exist");
     for (uint64_t l = 0; l < starts.size(); ++l) {
       const uint64_t end = l + 1 < starts.size() ? starts[l + 1] : verts.size();
-      if (end <= starts[l]) return Status::failure(fmt("dyn_line_start[%llu] = %llu does not increase", ull(l + 1), ull(end)));
+      if (end <= starts[l])
+        return Status::failure(
+            fmt("dyn_line_start[%llu] = %llu does not increase", ull(l + 1), ull(end)));
       for (uint64_t v = starts[l]; v < end; ++v)
         if (uint64_t(verts[v][3]) != l)
-          return Status::failure(fmt("dyn_vertices[%llu].line = %d lies in the run of line %llu", ull(v), verts[v][3], ull(l)));
+          return Status::failure(fmt("dyn_vertices[%llu].line = %d lies in the run of line %llu",
+                                     ull(v), verts[v][3], ull(l)));
     }
   }
   const auto props = c.get<LineProps>(BlobId::dyn_line_props);
   for (uint64_t i = 0; i < props.size(); ++i)
     if (props[i].clip_node != 0 && !c.newer_minor())
-      return Status::failure(fmt("dyn_line_props[%llu].clip_node = %u, must be zero (dynamic lines are never clipped)",
-                                 ull(i), props[i].clip_node));
+      return Status::failure(
+          fmt("dyn_line_props[%llu].clip_node = %u, must be zero (dynamic lines are never clipped)",
+              ull(i), props[i].clip_node));
   return Status::success();
 }
 
@@ -285,15 +305,18 @@ Status check_lod(const Checker& c) {
     const LodPoint p = points[i];
     CHECK(c.index(BlobId::lod_points, i, "line", p.line, BlobId::dyn_line_props));
     if ((p.flags & ~kLodPointAlways) != 0)
-      return Status::failure(fmt("lod_points[%llu].flags = %u, only bit 0 may be set", ull(i), p.flags));
+      return Status::failure(
+          fmt("lod_points[%llu].flags = %u, only bit 0 may be set", ull(i), p.flags));
   }
   const auto segs = c.get<LodSegment>(BlobId::lod_segments);
   for (uint64_t i = 0; i < segs.size(); ++i) {
     const LodSegment s = segs[i];
     CHECK(c.index(BlobId::lod_segments, i, "a", s.a, BlobId::lod_points));
     CHECK(c.index(BlobId::lod_segments, i, "b", s.b, BlobId::lod_points));
-    if (s.generator != kLodNone) CHECK(c.index(BlobId::lod_segments, i, "generator", s.generator, BlobId::lod_points));
-    if (s.splitter != kLodNone) CHECK(c.index(BlobId::lod_segments, i, "splitter", s.splitter, BlobId::lod_points));
+    if (s.generator != kLodNone)
+      CHECK(c.index(BlobId::lod_segments, i, "generator", s.generator, BlobId::lod_points));
+    if (s.splitter != kLodNone)
+      CHECK(c.index(BlobId::lod_segments, i, "splitter", s.splitter, BlobId::lod_points));
   }
   const auto ranges = c.get<u2>(BlobId::lod_line_range);
   for (uint64_t i = 0; i < ranges.size(); ++i)
@@ -311,8 +334,8 @@ Status validate_blobs(std::span<const BlobBytes> blobs, const ValidateOptions& o
   if (Status s = check_grid(c); !s) return s;
   if (Status s = check_lines(c); !s) return s;
   if (Status s = check_polygons(c); !s) return s;
-  if (Status s = check_cells(c, BlobId::cell_segment_range, BlobId::cell_segments, BlobId::line_bvh_range,
-                             BlobId::line_bvh_box);
+  if (Status s = check_cells(c, BlobId::cell_segment_range, BlobId::cell_segments,
+                             BlobId::line_bvh_range, BlobId::line_bvh_box);
       !s)
     return s;
   if (Status s = check_cells(c, BlobId::cell_poly_range, BlobId::cell_polys, BlobId::poly_bvh_range,

@@ -10,9 +10,9 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <algorithm>
 #include <memory>
 
 #include "detail/certainly_valid.hpp"
@@ -162,7 +162,8 @@ Ring read_coords(GEOSContextHandle_t h, const GEOSGeometry* g, bool drop_closing
 void collect(GEOSContextHandle_t h, const GEOSGeometry* g, int want_type,
              std::vector<const GEOSGeometry*>& out, bool& had_other) {
   int type = GEOSGeomTypeId_r(h, g);
-  if (type == GEOS_MULTIPOLYGON || type == GEOS_MULTILINESTRING || type == GEOS_GEOMETRYCOLLECTION) {
+  if (type == GEOS_MULTIPOLYGON || type == GEOS_MULTILINESTRING ||
+      type == GEOS_GEOMETRYCOLLECTION) {
     int n = GEOSGetNumGeometries_r(h, g);
     for (int i = 0; i < n; ++i) collect(h, GEOSGetGeometryN_r(h, g, i), want_type, out, had_other);
     return;
@@ -853,7 +854,8 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
   return clean(std::move(copy), scene, options);
 }
 
-SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene, const CleanOptions& options) {
+SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene,
+                    const CleanOptions& options) {
   SceneFeatures out;
   out.frame = input.frame;
   out.manifest.notes = input.features.manifest.notes;

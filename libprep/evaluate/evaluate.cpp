@@ -118,13 +118,27 @@ inline bool in_box(const ivec4& b, const PointQ& p) {
 struct V {
   double x, y;
 };
-inline V operator-(V a, V b) { return {a.x - b.x, a.y - b.y}; }
-inline V operator+(V a, V b) { return {a.x + b.x, a.y + b.y}; }
-inline V operator*(double s, V a) { return {s * a.x, s * a.y}; }
-inline double dot(V a, V b) { return a.x * b.x + a.y * b.y; }
-inline double cross(V a, V b) { return a.x * b.y - a.y * b.x; }
-inline V vec(const float* f) { return {double(f[0]), double(f[1])}; }
-inline bool null_vec(const float* f) { return f[0] == 0.f && f[1] == 0.f; }
+inline V operator-(V a, V b) {
+  return {a.x - b.x, a.y - b.y};
+}
+inline V operator+(V a, V b) {
+  return {a.x + b.x, a.y + b.y};
+}
+inline V operator*(double s, V a) {
+  return {s * a.x, s * a.y};
+}
+inline double dot(V a, V b) {
+  return a.x * b.x + a.y * b.y;
+}
+inline double cross(V a, V b) {
+  return a.x * b.y - a.y * b.x;
+}
+inline V vec(const float* f) {
+  return {double(f[0]), double(f[1])};
+}
+inline bool null_vec(const float* f) {
+  return f[0] == 0.f && f[1] == 0.f;
+}
 
 inline bool in_triangle(V a, V b, V c, V d) {
   const double c0 = cross(b - a, d - a), c1 = cross(c - b, d - b), c2 = cross(a - c, d - c);
@@ -166,10 +180,14 @@ bool quadtree_covers(const StaticView& v, uint32_t node, const PointQ& p, EvalCo
         if (!found) return false;
         break;
       }
-      case decal::QtNodeType::outside: return false;
-      case decal::QtNodeType::inside: return true;
-      case decal::QtNodeType::partial: return leaf_polygon_covers(v, uint32_t(n[1]), p, k);
-      default: return false;
+      case decal::QtNodeType::outside:
+        return false;
+      case decal::QtNodeType::inside:
+        return true;
+      case decal::QtNodeType::partial:
+        return leaf_polygon_covers(v, uint32_t(n[1]), p, k);
+      default:
+        return false;
     }
   }
 }
@@ -190,7 +208,8 @@ SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const P
   const V d{(p.x - double(ai[0])) * kQ, (p.y - double(ai[1])) * kQ};
   const double hw = pr.half_width, hw2 = hw * hw;
   const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
-  const auto mode = decal::OutlineMode((pr.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift);
+  const auto mode =
+      decal::OutlineMode((pr.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift);
   bool covered = false;
   switch (style) {
     case decal::CornerStyle::round: {
@@ -211,8 +230,9 @@ SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const P
         mb = vec(cb.bevel_in);
         if (cross(e, mb) < 0) mb = -1.0 * mb;
       }
-      covered = in_triangle(-1.0 * ma, e - mb, e + mb, d) || in_triangle(-1.0 * ma, e + mb, ma, d) ||
-                (na && dot(d, d) <= hw2) || (nb && dot(d - e, d - e) <= hw2);
+      covered = in_triangle(-1.0 * ma, e - mb, e + mb, d) ||
+                in_triangle(-1.0 * ma, e + mb, ma, d) || (na && dot(d, d) <= hw2) ||
+                (nb && dot(d - e, d - e) <= hw2);
       break;
     }
     case decal::CornerStyle::bevel: {
@@ -223,11 +243,13 @@ SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const P
         covered = tv >= 0 && tv <= 1 && std::fabs(sv) <= 1;
       }
       if (!covered)
-        covered = null_vec(ca.bevel_in) ? dot(d, d) <= hw2
-                                        : in_triangle({0, 0}, vec(ca.bevel_in), vec(ca.bevel_out), d);
+        covered = null_vec(ca.bevel_in)
+                      ? dot(d, d) <= hw2
+                      : in_triangle({0, 0}, vec(ca.bevel_in), vec(ca.bevel_out), d);
       if (!covered)
-        covered = null_vec(cb.bevel_out) ? dot(d - e, d - e) <= hw2
-                                         : in_triangle(e, e + vec(cb.bevel_in), e + vec(cb.bevel_out), d);
+        covered = null_vec(cb.bevel_out)
+                      ? dot(d - e, d - e) <= hw2
+                      : in_triangle(e, e + vec(cb.bevel_in), e + vec(cb.bevel_out), d);
       break;
     }
   }
@@ -237,7 +259,7 @@ SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const P
     // Clipped ring: the two-sided band, cut by the ring itself.
     const bool inside = quadtree_covers(v, pr.clip_node, p, k);
     return inside == ((pr.style & decal::kStyleClipInsideBit) != 0) ? SegmentHit::covered
-                                                                     : SegmentHit::clipped;
+                                                                    : SegmentHit::clipped;
   }
   const double K = mode == decal::OutlineMode::inset ? 1.0 : -1.0;
   if (K * cross(e, d) < 0) return SegmentHit::none;
@@ -258,7 +280,8 @@ struct Compositor {
   bool add(uint32_t rgba) {
     const double a = double((rgba >> 24) & 0xffu) / 255.0;
     const double w = (1.0 - out.rgba[3]) * a;
-    for (int ch = 0; ch < 3; ++ch) out.rgba[ch] += float(w * double((rgba >> (8 * ch)) & 0xffu) / 255.0);
+    for (int ch = 0; ch < 3; ++ch)
+      out.rgba[ch] += float(w * double((rgba >> (8 * ch)) & 0xffu) / 255.0);
     out.rgba[3] += float(w);
     return out.rgba[3] >= 0.999f;
   }
@@ -275,7 +298,12 @@ class BvhCursor {
   BvhCursor() = default;
   BvhCursor(const uvec4& range, uint32_t leaves, std::span<const ivec4> boxes, const PointQ& p,
             EvalCounters* k)
-      : boxes_(boxes), p_(p), k_(k), first_(range[0]), internal_(range[2]), leaves_(leaves),
+      : boxes_(boxes),
+        p_(p),
+        k_(k),
+        first_(range[0]),
+        internal_(range[2]),
+        leaves_(leaves),
         done_(range[1] == 0) {}
 
   uint32_t next() {
@@ -358,9 +386,11 @@ std::vector<DrawRun> draw_runs(const StaticView& v) {
   };
   std::vector<Item> items;
   items.reserve(v.line_props.size() + v.poly_props.size());
-  for (const decal::LineProps& l : v.line_props) items.push_back({l.order, DrawRun::Kind::lines, l.order});
+  for (const decal::LineProps& l : v.line_props)
+    items.push_back({l.order, DrawRun::Kind::lines, l.order});
   for (const decal::PolyProps& g : v.poly_props)
-    if (g.exterior < 0) items.push_back({g.order + v.polygon_rank_bias, DrawRun::Kind::polygons, g.order});
+    if (g.exterior < 0)
+      items.push_back({g.order + v.polygon_rank_bias, DrawRun::Kind::polygons, g.order});
   // Ties (none in a valid package) put the line first, as evaluate() does.
   std::sort(items.begin(), items.end(), [](const Item& a, const Item& b) {
     return a.rank != b.rank ? a.rank < b.rank : a.kind < b.kind;
@@ -393,9 +423,13 @@ EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
   const uvec2 lines = v.line_bvh_range.empty() ? uvec2{0, 0} : v.cell_segment_range[cell];
   const uvec2 polys = v.poly_bvh_range.empty() ? uvec2{0, 0} : v.cell_poly_range[cell];
   BvhCursor line_cursor, poly_cursor;
-  if (!v.line_bvh_range.empty()) line_cursor = {v.line_bvh_range[cell], lines[1], v.line_bvh_box, p, k};
-  if (!v.poly_bvh_range.empty()) poly_cursor = {v.poly_bvh_range[cell], polys[1], v.poly_bvh_box, p, k};
-  auto line_of_leaf = [&](uint32_t leaf) { return v.line_vertex_line[v.cell_segments[lines[0] + leaf][0]]; };
+  if (!v.line_bvh_range.empty())
+    line_cursor = {v.line_bvh_range[cell], lines[1], v.line_bvh_box, p, k};
+  if (!v.poly_bvh_range.empty())
+    poly_cursor = {v.poly_bvh_range[cell], polys[1], v.poly_bvh_box, p, k};
+  auto line_of_leaf = [&](uint32_t leaf) {
+    return v.line_vertex_line[v.cell_segments[lines[0] + leaf][0]];
+  };
   auto line_rank = [&](uint32_t leaf) { return uint64_t(v.line_props[line_of_leaf(leaf)].order); };
   auto poly_rank = [&](uint32_t leaf) {
     return uint64_t(v.poly_props[v.cell_polys[polys[0] + leaf][0]].order) + v.polygon_rank_bias;

@@ -17,8 +17,7 @@ GridParams grid_from_metadata(std::string_view metadata) {
   const auto meta = nlohmann::json::parse(metadata, nullptr, false);
   if (meta.is_discarded() || !meta.is_object())
     throw format_error("evaluate: package metadata is not a JSON object");
-  if (!meta.contains("grid"))
-    throw format_error("evaluate: package metadata has no \"grid\" key");
+  if (!meta.contains("grid")) throw format_error("evaluate: package metadata has no \"grid\" key");
   GridParams g;
   try {
     const auto& j = meta.at("grid");
@@ -32,8 +31,9 @@ GridParams grid_from_metadata(std::string_view metadata) {
     throw format_error(std::string("evaluate: package metadata \"grid\": ") + e.what());
   }
   if (g.cell_w <= 0 || g.cell_h <= 0)
-    throw format_error("evaluate: package metadata \"grid\": cell size " + std::to_string(g.cell_w) +
-                       "x" + std::to_string(g.cell_h) + " is not positive");
+    throw format_error("evaluate: package metadata \"grid\": cell size " +
+                       std::to_string(g.cell_w) + "x" + std::to_string(g.cell_h) +
+                       " is not positive");
   return g;
 }
 
@@ -45,8 +45,10 @@ StaticView view_of(const decal::Package& p) {
   v.grid = grid_from_metadata(p.metadata_json());
   // The package's one structural check, with the grid: every index the
   // evaluator follows is in range and every BVH is a full tree per cell.
-  const decal::Grid grid{v.grid.origin_x, v.grid.origin_y, v.grid.cell_w, v.grid.cell_h, v.grid.nx, v.grid.ny};
-  if (decal::Status st = decal::validate_indices(p, &grid); !st) throw format_error("evaluate: " + st.message);
+  const decal::Grid grid{v.grid.origin_x, v.grid.origin_y, v.grid.cell_w,
+                         v.grid.cell_h,   v.grid.nx,       v.grid.ny};
+  if (decal::Status st = decal::validate_indices(p, &grid); !st)
+    throw format_error("evaluate: " + st.message);
   v.line_vertices = p.array<ivec2>(BlobId::line_vertices);
   v.line_vertex_line = p.array<uint32_t>(BlobId::line_vertex_line);
   v.line_props = p.array<decal::LineProps>(BlobId::line_props);

@@ -33,11 +33,20 @@ std::string xml_escape(const std::string& s) {
   std::string o;
   for (char c : s) {
     switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
+      case '<':
+        o += "&lt;";
+        break;
+      case '>':
+        o += "&gt;";
+        break;
+      case '&':
+        o += "&amp;";
+        break;
+      case '"':
+        o += "&quot;";
+        break;
+      default:
+        o += c;
     }
   }
   return o;
@@ -55,7 +64,10 @@ void write_world_file(const std::string& png_path, const Extent& ex, uint32_t wi
     std::ofstream f(base + ".pgw");
     f.precision(17);
     // ESRI world file: A, D, B, E, C, F with C/F the centre of the top-left pixel.
-    f << pw << "\n0\n0\n" << -ph << "\n" << ex.xmin + 0.5 * pw << "\n" << ex.ymax - 0.5 * ph << "\n";
+    f << pw << "\n0\n0\n"
+      << -ph << "\n"
+      << ex.xmin + 0.5 * pw << "\n"
+      << ex.ymax - 0.5 * ph << "\n";
     if (!f) throw output_error("render: cannot write world file " + base + ".pgw");
   }
   {

@@ -18,8 +18,8 @@
 #include <sstream>
 
 #include "detail.hpp"
-#include "prep/model.hpp"
 #include "prep/error.hpp"
+#include "prep/model.hpp"
 #include "prep/progress.hpp"
 
 namespace prep {
@@ -52,15 +52,19 @@ namespace {
 
 struct PolyRing {
   std::vector<QPoint> ring;
-  int32_t exterior = -1;   // package index of the exterior (interiors only)
+  int32_t exterior = -1;  // package index of the exterior (interiors only)
   uint32_t scene_index = 0;
 };
 
-QBox box_of(const ivec4& b) { return {b[0], b[1], b[2], b[3]}; }
+QBox box_of(const ivec4& b) {
+  return {b[0], b[1], b[2], b[3]};
+}
 QBox intersect(const QBox& a, const QBox& b) {
   return {std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1), std::min(a.y1, b.y1)};
 }
-ivec4 to_ivec4(const QBox& b) { return {int32_t(b.x0), int32_t(b.y0), int32_t(b.x1), int32_t(b.y1)}; }
+ivec4 to_ivec4(const QBox& b) {
+  return {int32_t(b.x0), int32_t(b.y0), int32_t(b.x1), int32_t(b.y1)};
+}
 bool contains(const ivec4& outer, const QBox& in) {
   return outer[0] <= in.x0 && outer[1] <= in.y0 && in.x1 <= outer[2] && in.y1 <= outer[3];
 }
@@ -99,8 +103,10 @@ uint32_t append_quadtree(PolyQuadTree& t, DecalModel& m) {
   }
   m.qt_node_box.insert(m.qt_node_box.end(), t.box.begin(), t.box.end());
   for (uvec2 lr : t.leaf_range) m.qt_leaf_range.push_back({lr[0] + seg_base, lr[1]});
-  for (uvec2 s : t.leaf_segments) m.qt_leaf_segments.push_back({s[0] + vert_base, s[1] + vert_base});
-  m.qt_leaf_vertices.insert(m.qt_leaf_vertices.end(), t.leaf_vertices.begin(), t.leaf_vertices.end());
+  for (uvec2 s : t.leaf_segments)
+    m.qt_leaf_segments.push_back({s[0] + vert_base, s[1] + vert_base});
+  m.qt_leaf_vertices.insert(m.qt_leaf_vertices.end(), t.leaf_vertices.begin(),
+                            t.leaf_vertices.end());
   m.stats.qt_depth_capped += t.depth_capped;
   m.stats.qt_max_leaf_segments = std::max(m.stats.qt_max_leaf_segments, t.max_leaf_segments);
   m.stats.qt_partial_leaves += t.leaf_range.size();
@@ -129,7 +135,8 @@ void add_outline_clip_trees(const ModelOptions& options, DecalModel& m) {
     size_t e = v;
     while (e < nv && m.line_vertex_line[e] == line) ++e;
     const uint32_t style = m.line_props[line].style;
-    const auto mode = decal::OutlineMode((style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift);
+    const auto mode =
+        decal::OutlineMode((style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift);
     // build_lines() leaves rings of fewer than 3 distinct vertices open.
     if (mode != decal::OutlineMode::normal && (style & decal::kStyleClosedBit) && e - v >= 3)
       clips.push_back({line, uint32_t(v), uint32_t(e - v)});
@@ -167,8 +174,8 @@ void add_outline_clip_trees(const ModelOptions& options, DecalModel& m) {
 // each followed by its interiors.
 struct PolygonRings {
   std::vector<PolyRing> rings;
-  std::vector<uint32_t> ext_index;                // package index of each exterior
-  std::vector<uint32_t> order;                    // drawing rank of each ring
+  std::vector<uint32_t> ext_index;                  // package index of each exterior
+  std::vector<uint32_t> order;                      // drawing rank of each ring
   std::vector<std::vector<uint32_t>> solid_leaves;  // non-outside leaves per ring
   bool is_hole(size_t r) const { return rings[r].exterior >= 0; }
 };
@@ -183,7 +190,8 @@ void check_options(const ModelOptions& options) {
 // Quantises every polygon ring (in parallel), drops rings of fewer than 3
 // distinct quanta (noted in the manifest) and appends a drawing key per kept
 // exterior to `draw_keys`.
-PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m, std::vector<DrawKey>& draw_keys) {
+PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m,
+                               std::vector<DrawKey>& draw_keys) {
   const size_t np = scene.polygons.size();
   std::vector<std::vector<std::vector<QPoint>>> qrings(np);  // [polygon][ring]
   std::vector<double> qerr(np, 0.0);
@@ -219,8 +227,8 @@ PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m, std::v
     const int32_t ext = int32_t(out.rings.size());
     out.rings.push_back({std::move(qrings[i][0]), -1, uint32_t(i)});
     out.ext_index.push_back(uint32_t(ext));
-    draw_keys.push_back({std::isnan(p.order_value) ? p.area : p.order_value, p.layer, DrawKind::polygon,
-                         p.fid, p.part, uint32_t(i)});
+    draw_keys.push_back({std::isnan(p.order_value) ? p.area : p.order_value, p.layer,
+                         DrawKind::polygon, p.fid, p.part, uint32_t(i)});
     for (size_t h = 1; h < qrings[i].size(); ++h) {
       if (qrings[i][h].size() < 3) {
         drop("interior ring " + std::to_string(h - 1) +
@@ -247,8 +255,8 @@ void assign_ranks(const std::vector<DrawKey>& draw_keys, size_t n_lines, Polygon
 
 // One quad-tree per ring (in parallel), concatenated into the model's node
 // arrays with the polygon properties, then the outline clip trees.
-void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options, const PolygonRings& pr,
-                         DecalModel& m) {
+void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options,
+                         const PolygonRings& pr, DecalModel& m) {
   const std::vector<PolyRing>& rings = pr.rings;
   std::vector<PolyQuadTree> trees(rings.size());
   ProgressStage quadtree_stage(options.progress, "build.quadtrees", rings.size(), "rings");
@@ -261,8 +269,9 @@ void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options
   for (size_t r = 0; r < rings.size(); ++r) {
     const ScenePolygon& sp = scene.polygons[rings[r].scene_index];
     decal::PolyProps& pp = m.poly_props[r];
-    pp.rgba = rings[r].exterior < 0 ? resolve_color(scene.layers[sp.layer].style.color, sp.color_value)
-                                    : 0u;
+    pp.rgba = rings[r].exterior < 0
+                  ? resolve_color(scene.layers[sp.layer].style.color, sp.color_value)
+                  : 0u;
     pp.order = pr.order[r];
     pp.exterior = rings[r].exterior;
     pp.value = float(sp.color_value);
@@ -316,9 +325,11 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
   // a deeper, less coherent BVH), measured with bench_build.
   constexpr float kLineWeight = 1.0f, kPolygonWeight = 2.0f / 3.0f;
   auto grow = [&](const QBox& b) {
-    if (extent.empty()) extent = b;
-    else extent = {std::min(extent.x0, b.x0), std::min(extent.y0, b.y0), std::max(extent.x1, b.x1),
-                   std::max(extent.y1, b.y1)};
+    if (extent.empty())
+      extent = b;
+    else
+      extent = {std::min(extent.x0, b.x0), std::min(extent.y0, b.y0), std::max(extent.x1, b.x1),
+                std::max(extent.y1, b.y1)};
   };
   for (const SegmentShape& s : shapes) {
     grow(s.box);
@@ -344,10 +355,11 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
   for (size_t r = 0; r < pr.rings.size(); ++r) ring_is_hole[r] = pr.is_hole(r);
   gin.ring_is_hole = &ring_is_hole;
   auto bytes_of = [](const auto& v) { return uint64_t(v.size()) * sizeof(v[0]); };
-  gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
-                       bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
-                       bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_range) +
-                       bytes_of(m.qt_leaf_segments) + bytes_of(m.qt_leaf_vertices);
+  gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) +
+                       bytes_of(m.line_props) + bytes_of(m.line_corners) + bytes_of(m.poly_props) +
+                       bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) + bytes_of(m.qt_node) +
+                       bytes_of(m.qt_leaf_range) + bytes_of(m.qt_leaf_segments) +
+                       bytes_of(m.qt_leaf_vertices);
   return choose_grid(gin, options);
 }
 
@@ -359,7 +371,8 @@ struct SegEntry {
 
 // Segments -> cells by their exact shapes (thesis §4.2.1), sorted by cell,
 // drawing rank and segment.
-std::vector<SegEntry> line_cell_entries(const DecalModel& m, const std::vector<SegmentShape>& shapes,
+std::vector<SegEntry> line_cell_entries(const DecalModel& m,
+                                        const std::vector<SegmentShape>& shapes,
                                         ProgressStage& cells_stage) {
   const GridParams& g = m.grid;
   std::vector<std::vector<SegEntry>> per_line(m.line_props.size());
@@ -373,7 +386,8 @@ std::vector<SegEntry> line_cell_entries(const DecalModel& m, const std::vector<S
         const int64_t ix = cell % g.nx, iy = cell / g.nx;
         QBox cb = cell_box(g, ix, iy);
         cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
-        per_line[li].push_back({cell, m.line_props[li].order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
+        per_line[li].push_back(
+            {cell, m.line_props[li].order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
       });
     }
     cells_stage.add();
@@ -397,7 +411,8 @@ std::vector<SegEntry> line_cell_entries(const DecalModel& m, const std::vector<S
 // The (cell, ring) pairs of one ring: its solid leaves clipped to each cell
 // they touch, merged per cell, with the culling node: the deepest node whose
 // box holds every part of the polygon that can matter in that cell.
-std::vector<CellPoly> ring_cell_entries(const DecalModel& m, uint32_t r, const std::vector<uint32_t>& leaves) {
+std::vector<CellPoly> ring_cell_entries(const DecalModel& m, uint32_t r,
+                                        const std::vector<uint32_t>& leaves) {
   const GridParams& g = m.grid;
   std::vector<std::pair<uint32_t, QBox>> hits;
   for (uint32_t n : leaves) {
@@ -503,7 +518,8 @@ void fill_cells(std::vector<SegEntry>&& seg_entries, const std::vector<CellPoly>
       m.cell_holes.push_back({hole_entries[h].poly, hole_entries[h].cull});
       ++h;
     }
-    m.cell_polys.push_back({e.poly, e.cull, first_hole, uint32_t(m.cell_holes.size()) - first_hole});
+    m.cell_polys.push_back(
+        {e.poly, e.cull, first_hole, uint32_t(m.cell_holes.size()) - first_hole});
     poly_boxes.push_back(e.box);
   }
   m.stats.poly_cell_entries = m.cell_polys.size();
@@ -549,8 +565,8 @@ DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
   m.grid = choose_model_grid(shapes, rings, options, m);
   if (uint64_t(m.grid.nx) * m.grid.ny > 0xffffffffULL)
     throw resource_error("build: decal grid has too many cells");
-  ProgressStage cells_stage(options.progress, "build.cells", m.line_props.size() + rings.rings.size(),
-                            "items");
+  ProgressStage cells_stage(options.progress, "build.cells",
+                            m.line_props.size() + rings.rings.size(), "items");
   std::vector<SegEntry> seg_entries = line_cell_entries(m, shapes, cells_stage);
   m.stats.line_cell_entries = seg_entries.size();
   std::vector<CellPoly> ext_entries, hole_entries;

@@ -35,21 +35,22 @@ void build_bvhs(const std::vector<uint32_t>& first, const std::vector<ivec4>& le
     total += p ? 2 * uint64_t(p) - 1 : 0;
   }
   boxes.assign(total, kEmptyBox);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, cells, 256), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t c = r.begin(); c != r.end(); ++c) {
-      const uint32_t n = first[c + 1] - first[c];
-      if (n == 0) continue;
-      const uint32_t p = range[c][1];
-      ivec4* node = boxes.data() + range[c][0];
-      for (uint32_t k = 0; k < n; ++k) node[p - 1 + k] = leaf_boxes[first[c] + k];
-      for (int64_t i = int64_t(p) - 2; i >= 0; --i) {
-        const ivec4& a = node[2 * i + 1];
-        const ivec4& b = node[2 * i + 2];
-        node[i] = {std::min(a[0], b[0]), std::min(a[1], b[1]), std::max(a[2], b[2]),
-                   std::max(a[3], b[3])};
-      }
-    }
-  });
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, cells, 256),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t c = r.begin(); c != r.end(); ++c) {
+                        const uint32_t n = first[c + 1] - first[c];
+                        if (n == 0) continue;
+                        const uint32_t p = range[c][1];
+                        ivec4* node = boxes.data() + range[c][0];
+                        for (uint32_t k = 0; k < n; ++k) node[p - 1 + k] = leaf_boxes[first[c] + k];
+                        for (int64_t i = int64_t(p) - 2; i >= 0; --i) {
+                          const ivec4& a = node[2 * i + 1];
+                          const ivec4& b = node[2 * i + 2];
+                          node[i] = {std::min(a[0], b[0]), std::min(a[1], b[1]),
+                                     std::max(a[2], b[2]), std::max(a[3], b[3])};
+                        }
+                      }
+                    });
 }
 
 }  // namespace prep::detail

@@ -42,9 +42,9 @@ QPoint quantise(const Point2& p, double& max_err, const std::string& where);
 // local to this tree: node children, leaf ranges and leaf segments index the
 // vectors of this struct; build_model() rebases them when concatenating.
 struct PolyQuadTree {
-  std::vector<ivec4> box;          // per node
-  std::vector<ivec2> node;         // per node: (QtNodeType, offset)
-  std::vector<uvec2> leaf_range;   // per partial leaf: (first, count) into leaf_segments
+  std::vector<ivec4> box;         // per node
+  std::vector<ivec2> node;        // per node: (QtNodeType, offset)
+  std::vector<uvec2> leaf_range;  // per partial leaf: (first, count) into leaf_segments
   std::vector<uvec2> leaf_segments;
   std::vector<ivec2> leaf_vertices;
   uint32_t depth_capped = 0;       // leaves that stopped at max depth with > capacity segments
@@ -64,13 +64,13 @@ PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capac
 // lies inside it.
 struct SegmentShape {
   double ax = 0, ay = 0, bx = 0, by = 0;
-  double hw = 0;      // half width, quanta
+  double hw = 0;  // half width, quanta
   bool capsule = false;
   int ntri = 0;
   std::array<std::array<double, 6>, 4> tri{};  // (x0,y0,x1,y1,x2,y2)
-  QBox box;           // integer AABB of the shape (conservative)
-  uint32_t line = 0;  // line index
-  uint32_t start = 0, end = 0;  // vertex indices
+  QBox box;                                    // integer AABB of the shape (conservative)
+  uint32_t line = 0;                           // line index
+  uint32_t start = 0, end = 0;                 // vertex indices
 };
 
 // Lines converted to package arrays (line_vertices, line_vertex_line,
@@ -105,13 +105,13 @@ uint32_t resolve_color(const LayerColor& color, double value);
 
 // What choose_grid() looks at. Pointers are borrowed for the call.
 struct GridInput {
-  QBox extent;                                    // of every static primitive, quanta
-  const std::vector<QBox>* primitives = nullptr;  // segment boxes and exterior solid-leaf boxes
-  const std::vector<float>* weights = nullptr;    // query-cost weight per primitive
-  const std::vector<SegmentShape>* shapes = nullptr;            // every static segment
+  QBox extent;                                        // of every static primitive, quanta
+  const std::vector<QBox>* primitives = nullptr;      // segment boxes and exterior solid-leaf boxes
+  const std::vector<float>* weights = nullptr;        // query-cost weight per primitive
+  const std::vector<SegmentShape>* shapes = nullptr;  // every static segment
   const std::vector<std::vector<uint32_t>>* ring_leaves = nullptr;  // solid leaf nodes per ring
-  const std::vector<ivec4>* node_box = nullptr;                  // quad-tree node boxes
-  const std::vector<uint8_t>* ring_is_hole = nullptr;            // per ring
+  const std::vector<ivec4>* node_box = nullptr;                     // quad-tree node boxes
+  const std::vector<uint8_t>* ring_is_hole = nullptr;               // per ring
   uint64_t geometry_bytes = 0;  // static blobs that do not depend on the grid
 };
 

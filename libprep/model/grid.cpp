@@ -148,43 +148,49 @@ double grid_bytes(const GridParams& g, const GridInput& in) {
   std::unique_ptr<std::atomic<uint32_t>[]> poly(new std::atomic<uint32_t>[cells]());
   std::atomic<uint64_t> holes{0};
   const std::vector<SegmentShape>& shapes = *in.shapes;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, shapes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      // A shape whose box lies in one cell meets exactly that cell (the
-      // shape is inside its box): skip the band clipping of for_each_cell.
-      int64_t x0, y0, x1, y1;
-      if (!cell_range(g, shapes[i].box, x0, y0, x1, y1)) continue;
-      if (x0 == x1 && y0 == y1) {
-        seg[size_t(x0 + int64_t(g.nx) * y0)].fetch_add(1, std::memory_order_relaxed);
-        continue;
-      }
-      for_each_cell(g, shapes[i], [&](uint32_t c) { seg[c].fetch_add(1, std::memory_order_relaxed); });
-    }
-  });
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, shapes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          // A shape whose box lies in one cell meets exactly that cell (the
+          // shape is inside its box): skip the band clipping of for_each_cell.
+          int64_t x0, y0, x1, y1;
+          if (!cell_range(g, shapes[i].box, x0, y0, x1, y1)) continue;
+          if (x0 == x1 && y0 == y1) {
+            seg[size_t(x0 + int64_t(g.nx) * y0)].fetch_add(1, std::memory_order_relaxed);
+            continue;
+          }
+          for_each_cell(g, shapes[i],
+                        [&](uint32_t c) { seg[c].fetch_add(1, std::memory_order_relaxed); });
+        }
+      });
   const auto& leaves = *in.ring_leaves;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
-    std::vector<uint32_t> hit;
-    for (size_t ring = r.begin(); ring != r.end(); ++ring) {
-      hit.clear();
-      for (uint32_t n : leaves[ring]) {
-        const ivec4& b = (*in.node_box)[n];
-        int64_t x0, y0, x1, y1;
-        if (!cell_range(g, QBox{b[0], b[1], b[2], b[3]}, x0, y0, x1, y1)) continue;
-        for (int64_t iy = y0; iy <= y1; ++iy)
-          for (int64_t ix = x0; ix <= x1; ++ix) hit.push_back(uint32_t(ix + int64_t(g.nx) * iy));
-      }
-      std::sort(hit.begin(), hit.end());
-      hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
-      if ((*in.ring_is_hole)[ring]) {
-        holes.fetch_add(hit.size(), std::memory_order_relaxed);
-      } else {
-        for (uint32_t c : hit) poly[c].fetch_add(1, std::memory_order_relaxed);
-      }
-    }
-  });
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), 64),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      std::vector<uint32_t> hit;
+                      for (size_t ring = r.begin(); ring != r.end(); ++ring) {
+                        hit.clear();
+                        for (uint32_t n : leaves[ring]) {
+                          const ivec4& b = (*in.node_box)[n];
+                          int64_t x0, y0, x1, y1;
+                          if (!cell_range(g, QBox{b[0], b[1], b[2], b[3]}, x0, y0, x1, y1))
+                            continue;
+                          for (int64_t iy = y0; iy <= y1; ++iy)
+                            for (int64_t ix = x0; ix <= x1; ++ix)
+                              hit.push_back(uint32_t(ix + int64_t(g.nx) * iy));
+                        }
+                        std::sort(hit.begin(), hit.end());
+                        hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
+                        if ((*in.ring_is_hole)[ring]) {
+                          holes.fetch_add(hit.size(), std::memory_order_relaxed);
+                        } else {
+                          for (uint32_t c : hit) poly[c].fetch_add(1, std::memory_order_relaxed);
+                        }
+                      }
+                    });
   uint64_t seg_entries = 0, poly_entries = 0, boxes = 0;
   for (size_t c = 0; c < cells; ++c) {
-    const uint32_t ns = seg[c].load(std::memory_order_relaxed), np = poly[c].load(std::memory_order_relaxed);
+    const uint32_t ns = seg[c].load(std::memory_order_relaxed),
+                   np = poly[c].load(std::memory_order_relaxed);
     seg_entries += ns;
     poly_entries += np;
     boxes += bvh_nodes(ns) + bvh_nodes(np);
@@ -257,8 +263,8 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
   const double entry_budget = std::max(64.0 * n, double(1u << 22));
 
   // Size budget from the thesis grid on the same data.
-  const GridParams thesis = grid_with_cell(e, int64_t(std::ceil(w / kThesisCells)),
-                                           int64_t(std::ceil(h / kThesisCells)));
+  const GridParams thesis =
+      grid_with_cell(e, int64_t(std::ceil(w / kThesisCells)), int64_t(std::ceil(h / kThesisCells)));
   double byte_budget = std::numeric_limits<double>::infinity();
   if (entry_count(thesis, prims) <= entry_budget)
     byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + grid_bytes(thesis, in));
@@ -268,7 +274,8 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     Candidate c;
     const int64_t side = std::max<int64_t>(1, int64_t(std::ceil(side0 * std::pow(2.0, -k / 4.0))));
     c.g = grid_with_cell(e, side, side);
-    if (double(c.g.nx) * double(c.g.ny) > max_cells || entry_count(c.g, prims) > entry_budget) return c;
+    if (double(c.g.nx) * double(c.g.ny) > max_cells || entry_count(c.g, prims) > entry_budget)
+      return c;
     c.bytes = double(in.geometry_bytes) + grid_bytes(c.g, in);
     c.proxy = weighted_mean_per_cell(c.g, prims, weights);
     c.score = std::log(1.0 + c.proxy) + kBytesWeight * std::log(std::max(c.bytes, 1.0));
@@ -280,7 +287,9 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     return a.feasible && (!b.feasible || a.score < b.score);
   };
   const bool use_target = o.target_per_cell > 0;
-  auto reached = [&](const Candidate& c) { return use_target && c.feasible && c.proxy <= o.target_per_cell; };
+  auto reached = [&](const Candidate& c) {
+    return use_target && c.feasible && c.proxy <= o.target_per_cell;
+  };
 
   Candidate best = measure(0);
   double best_k = 0;
@@ -323,9 +332,10 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     }
   }
   if (!best.feasible) {
-    throw resource_error("build: decal grid: no cell size keeps the segment/cell entries under " +
-                         std::to_string(uint64_t(entry_budget)) +
-                         " (primitives overlap too much; raise --resolution to simplify the lines)");
+    throw resource_error(
+        "build: decal grid: no cell size keeps the segment/cell entries under " +
+        std::to_string(uint64_t(entry_budget)) +
+        " (primitives overlap too much; raise --resolution to simplify the lines)");
   }
   return best.g;
 }

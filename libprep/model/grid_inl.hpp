@@ -20,7 +20,11 @@ inline int clip_y(double* px, double* py, int n, double lim, bool keep_above) {
     double ya = py[i], yb = py[j];
     bool ina = keep_above ? ya >= lim : ya <= lim;
     bool inb = keep_above ? yb >= lim : yb <= lim;
-    if (ina) { ox[m] = px[i]; oy[m] = ya; ++m; }
+    if (ina) {
+      ox[m] = px[i];
+      oy[m] = ya;
+      ++m;
+    }
     if (ina != inb) {
       double t = (lim - ya) / (yb - ya);
       ox[m] = px[i] + t * (px[j] - px[i]);
@@ -34,8 +38,8 @@ inline int clip_y(double* px, double* py, int n, double lim, bool keep_above) {
 }
 
 // x-extent of a triangle inside the horizontal band [y0, y1].
-inline void triangle_band_extent(const std::array<double, 6>& t, double y0, double y1,
-                                 double& xmin, double& xmax) {
+inline void triangle_band_extent(const std::array<double, 6>& t, double y0, double y1, double& xmin,
+                                 double& xmax) {
   double px[16] = {t[0], t[2], t[4]}, py[16] = {t[1], t[3], t[5]};
   int n = clip_y(px, py, 3, y0, true);
   if (n == 0) return;
@@ -50,7 +54,10 @@ inline void triangle_band_extent(const std::array<double, 6>& t, double y0, doub
 // the part of a-b within [y0 - hw, y1 + hw], widened by hw.
 inline void capsule_band_extent(double ax, double ay, double bx, double by, double hw, double y0,
                                 double y1, double& xmin, double& xmax) {
-  if (ay > by) { std::swap(ax, bx); std::swap(ay, by); }
+  if (ay > by) {
+    std::swap(ax, bx);
+    std::swap(ay, by);
+  }
   double lo = y0 - hw, hi = y1 + hw;
   if (by < lo || ay > hi) return;
   double t0 = 0, t1 = 1;
@@ -75,8 +82,10 @@ void for_each_cell(const GridParams& g, const SegmentShape& s, Fn&& fn) {
     double y0 = double(g.origin_y + iy * g.cell_h) - 1.0;
     double y1 = double(g.origin_y + (iy + 1) * g.cell_h) + 1.0;
     double xmin = std::numeric_limits<double>::infinity(), xmax = -xmin;
-    for (int k = 0; k < s.ntri; ++k) grid_detail::triangle_band_extent(s.tri[k], y0, y1, xmin, xmax);
-    if (s.capsule) grid_detail::capsule_band_extent(s.ax, s.ay, s.bx, s.by, s.hw, y0, y1, xmin, xmax);
+    for (int k = 0; k < s.ntri; ++k)
+      grid_detail::triangle_band_extent(s.tri[k], y0, y1, xmin, xmax);
+    if (s.capsule)
+      grid_detail::capsule_band_extent(s.ax, s.ay, s.bx, s.by, s.hw, y0, y1, xmin, xmax);
     if (!(xmin <= xmax)) continue;
     int64_t a = int64_t(std::floor((xmin - 1.0 - double(g.origin_x)) / double(g.cell_w)));
     int64_t b = int64_t(std::floor((xmax + 1.0 - double(g.origin_x)) / double(g.cell_w)));

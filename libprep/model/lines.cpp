@@ -32,12 +32,16 @@ using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 struct V2 {
   double x, y;
 };
-inline V2 sub(V2 a, V2 b) { return {a.x - b.x, a.y - b.y}; }
+inline V2 sub(V2 a, V2 b) {
+  return {a.x - b.x, a.y - b.y};
+}
 inline V2 unit(V2 a) {
   double l = std::hypot(a.x, a.y);
   return {a.x / l, a.y / l};
 }
-inline V2 left(V2 u) { return {-u.y, u.x}; }
+inline V2 left(V2 u) {
+  return {-u.y, u.x};
+}
 
 struct LineOut {
   bool kept = false;
@@ -113,7 +117,7 @@ LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const Mo
     }
     if (corner == decal::CornerStyle::miter && has_prev && has_next) {
       const double dot = u_in.x * u_out.x + u_in.y * u_out.y;  // = -cos(theta)
-      if (-dot <= cos_limit) {  // theta >= limit: keep the miter
+      if (-dot <= cos_limit) {                                 // theta >= limit: keep the miter
         V2 n_in = left(u_in), n_out = left(u_out);
         const double k = hw / (1.0 + dot);
         c.miter[0] = float((n_in.x + n_out.x) * k);
@@ -148,7 +152,8 @@ uint32_t resolve_color(const LayerColor& color, double value) {
     const double t = span > 0 ? (value - r[i - 1].value) / span : 1.0;
     uint32_t out = 0;
     for (int ch = 0; ch < 4; ++ch) {
-      double a = double((r[i - 1].rgba >> (8 * ch)) & 0xffu), b = double((r[i].rgba >> (8 * ch)) & 0xffu);
+      double a = double((r[i - 1].rgba >> (8 * ch)) & 0xffu),
+             b = double((r[i].rgba >> (8 * ch)) & 0xffu);
       out |= uint32_t(std::lround(a + t * (b - a))) << (8 * ch);
     }
     return out;
@@ -186,13 +191,14 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
   // Counted once per line converted, and again per kept line's shapes.
   ProgressStage stage(options.progress, "build.lines", 2 * nl, "lines");
   std::vector<LineOut> outs(nl);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, nl, 64), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      const SceneLine& l = scene.lines[i];
-      outs[i] = convert_line(scene, l, options, corner[l.layer], outline[l.layer]);
-    }
-    stage.add(r.size());
-  });
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, nl, 64), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const SceneLine& l = scene.lines[i];
+          outs[i] = convert_line(scene, l, options, corner[l.layer], outline[l.layer]);
+        }
+        stage.add(r.size());
+      });
 
   // Concatenate in input order (deterministic); record drops.
   std::vector<uint32_t> first_vertex, seg_first;
@@ -224,8 +230,8 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
     model.line_props.push_back(o.props);
     const bool closed = o.props.style & decal::kStyleClosedBit;
     nseg += uint32_t(closed ? o.q.size() : o.q.size() - 1);
-    keys.push_back({std::isnan(l.order_value) ? l.length : l.order_value, l.layer, DrawKind::line, l.fid,
-                    l.part, uint32_t(i)});
+    keys.push_back({std::isnan(l.order_value) ? l.length : l.order_value, l.layer, DrawKind::line,
+                    l.fid, l.part, uint32_t(i)});
   }
   first_vertex.push_back(uint32_t(model.line_vertices.size()));
   seg_first.push_back(nseg);
@@ -236,67 +242,87 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
   const double inv_q = 1.0 / decal::kQuantumMetres;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, model.line_props.size(), 64),
                     [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t li = r.begin(); li != r.end(); ++li) {
-      const decal::LineProps& pr = model.line_props[li];
-      const uint32_t v0 = first_vertex[li], v1 = first_vertex[li + 1];
-      const uint32_t nv = v1 - v0;
-      const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
-      const double hw = double(pr.half_width) * inv_q;
-      for (uint32_t s = 0; s < seg_first[li + 1] - seg_first[li]; ++s) {
-        SegmentShape& sh = shapes[seg_first[li] + s];
-        const uint32_t ia = v0 + s, ib = v0 + (s + 1) % nv;
-        sh.line = uint32_t(li);
-        sh.start = ia;
-        sh.end = ib;
-        sh.ax = model.line_vertices[ia][0];
-        sh.ay = model.line_vertices[ia][1];
-        sh.bx = model.line_vertices[ib][0];
-        sh.by = model.line_vertices[ib][1];
-        sh.hw = hw * (1.0 + 1e-6);  // float-stored vectors may be a hair longer
-        const decal::LineCorner& ca = model.line_corners[ia];
-        const decal::LineCorner& cb = model.line_corners[ib];
-        const bool null_a = ca.miter[0] == 0.f && ca.miter[1] == 0.f;
-        const bool null_b = cb.miter[0] == 0.f && cb.miter[1] == 0.f;
-        double minx = std::min(sh.ax, sh.bx), maxx = std::max(sh.ax, sh.bx);
-        double miny = std::min(sh.ay, sh.by), maxy = std::max(sh.ay, sh.by);
-        sh.capsule = style != decal::CornerStyle::miter || null_a || null_b;
-        if (sh.capsule) {
-          minx -= sh.hw; maxx += sh.hw; miny -= sh.hw; maxy += sh.hw;
-        }
-        if (style == decal::CornerStyle::miter) {
-          // The quad (a - ma, b - mb, b + mb, a + ma) as the evaluator splits it.
-          double max_, may_, mbx, mby;
-          if (!null_a) { max_ = ca.miter[0]; may_ = ca.miter[1]; }
-          else { max_ = ca.bevel_out[0]; may_ = ca.bevel_out[1]; }
-          if (!null_b) { mbx = cb.miter[0]; mby = cb.miter[1]; }
-          else { mbx = cb.bevel_in[0]; mby = cb.bevel_in[1]; }
-          max_ *= inv_q; may_ *= inv_q; mbx *= inv_q; mby *= inv_q;
-          const double A1x = sh.ax + max_, A1y = sh.ay + may_, A2x = sh.ax - max_, A2y = sh.ay - may_;
-          const double B1x = sh.bx + mbx, B1y = sh.by + mby, B2x = sh.bx - mbx, B2y = sh.by - mby;
-          // Carathéodory: the four triangles of three of the four corners cover
-          // their convex hull, hence the evaluator's two triangles whatever
-          // the quad's shape.
-          const double xs[4] = {A1x, A2x, B1x, B2x}, ys[4] = {A1y, A2y, B1y, B2y};
-          sh.ntri = 4;
-          for (int k = 0; k < 4; ++k) {
-            int t = 0;
-            for (int j = 0; j < 4; ++j)
-              if (j != k) {
-                sh.tri[k][t++] = xs[j];
-                sh.tri[k][t++] = ys[j];
-              }
-            minx = std::min(minx, xs[k]); maxx = std::max(maxx, xs[k]);
-            miny = std::min(miny, ys[k]); maxy = std::max(maxy, ys[k]);
-          }
-        }
-        sh.box.x0 = int64_t(std::floor(minx)) - 1;
-        sh.box.y0 = int64_t(std::floor(miny)) - 1;
-        sh.box.x1 = int64_t(std::ceil(maxx)) + 1;
-        sh.box.y1 = int64_t(std::ceil(maxy)) + 1;
-      }
-    }
-    stage.add(r.size());
-  });
+                      for (size_t li = r.begin(); li != r.end(); ++li) {
+                        const decal::LineProps& pr = model.line_props[li];
+                        const uint32_t v0 = first_vertex[li], v1 = first_vertex[li + 1];
+                        const uint32_t nv = v1 - v0;
+                        const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
+                        const double hw = double(pr.half_width) * inv_q;
+                        for (uint32_t s = 0; s < seg_first[li + 1] - seg_first[li]; ++s) {
+                          SegmentShape& sh = shapes[seg_first[li] + s];
+                          const uint32_t ia = v0 + s, ib = v0 + (s + 1) % nv;
+                          sh.line = uint32_t(li);
+                          sh.start = ia;
+                          sh.end = ib;
+                          sh.ax = model.line_vertices[ia][0];
+                          sh.ay = model.line_vertices[ia][1];
+                          sh.bx = model.line_vertices[ib][0];
+                          sh.by = model.line_vertices[ib][1];
+                          sh.hw = hw * (1.0 + 1e-6);  // float-stored vectors may be a hair longer
+                          const decal::LineCorner& ca = model.line_corners[ia];
+                          const decal::LineCorner& cb = model.line_corners[ib];
+                          const bool null_a = ca.miter[0] == 0.f && ca.miter[1] == 0.f;
+                          const bool null_b = cb.miter[0] == 0.f && cb.miter[1] == 0.f;
+                          double minx = std::min(sh.ax, sh.bx), maxx = std::max(sh.ax, sh.bx);
+                          double miny = std::min(sh.ay, sh.by), maxy = std::max(sh.ay, sh.by);
+                          sh.capsule = style != decal::CornerStyle::miter || null_a || null_b;
+                          if (sh.capsule) {
+                            minx -= sh.hw;
+                            maxx += sh.hw;
+                            miny -= sh.hw;
+                            maxy += sh.hw;
+                          }
+                          if (style == decal::CornerStyle::miter) {
+                            // The quad (a - ma, b - mb, b + mb, a + ma) as the evaluator splits it.
+                            double max_, may_, mbx, mby;
+                            if (!null_a) {
+                              max_ = ca.miter[0];
+                              may_ = ca.miter[1];
+                            } else {
+                              max_ = ca.bevel_out[0];
+                              may_ = ca.bevel_out[1];
+                            }
+                            if (!null_b) {
+                              mbx = cb.miter[0];
+                              mby = cb.miter[1];
+                            } else {
+                              mbx = cb.bevel_in[0];
+                              mby = cb.bevel_in[1];
+                            }
+                            max_ *= inv_q;
+                            may_ *= inv_q;
+                            mbx *= inv_q;
+                            mby *= inv_q;
+                            const double A1x = sh.ax + max_, A1y = sh.ay + may_, A2x = sh.ax - max_,
+                                         A2y = sh.ay - may_;
+                            const double B1x = sh.bx + mbx, B1y = sh.by + mby, B2x = sh.bx - mbx,
+                                         B2y = sh.by - mby;
+                            // Carathéodory: the four triangles of three of the four corners cover
+                            // their convex hull, hence the evaluator's two triangles whatever
+                            // the quad's shape.
+                            const double xs[4] = {A1x, A2x, B1x, B2x}, ys[4] = {A1y, A2y, B1y, B2y};
+                            sh.ntri = 4;
+                            for (int k = 0; k < 4; ++k) {
+                              int t = 0;
+                              for (int j = 0; j < 4; ++j)
+                                if (j != k) {
+                                  sh.tri[k][t++] = xs[j];
+                                  sh.tri[k][t++] = ys[j];
+                                }
+                              minx = std::min(minx, xs[k]);
+                              maxx = std::max(maxx, xs[k]);
+                              miny = std::min(miny, ys[k]);
+                              maxy = std::max(maxy, ys[k]);
+                            }
+                          }
+                          sh.box.x0 = int64_t(std::floor(minx)) - 1;
+                          sh.box.y0 = int64_t(std::floor(miny)) - 1;
+                          sh.box.x1 = int64_t(std::ceil(maxx)) + 1;
+                          sh.box.y1 = int64_t(std::ceil(maxy)) + 1;
+                        }
+                      }
+                      stage.add(r.size());
+                    });
   stage.finish();
 }
 

@@ -39,12 +39,15 @@ struct P2 {
   int64_t x() const { return px; }
   int64_t y() const { return py; }
 };
-inline P2 dbl(const QPoint& p) { return {2 * p.x, 2 * p.y}; }
+inline P2 dbl(const QPoint& p) {
+  return {2 * p.x, 2 * p.y};
+}
 
 // Sign of the orientation of (p, q, r): > 0 when r lies left of p->q. Exact:
 // differences are below 2^34, products below 2^68, well inside int128.
 inline int orientation(const P2& p, const P2& q, const P2& r) {
-  const int128 d = int128(q.x() - p.x()) * (r.y() - p.y()) - int128(q.y() - p.y()) * (r.x() - p.x());
+  const int128 d =
+      int128(q.x() - p.x()) * (r.y() - p.y()) - int128(q.y() - p.y()) * (r.x() - p.x());
   return (d > 0) - (d < 0);
 }
 
@@ -64,9 +67,9 @@ inline bool crossing_above(const P2& a, const P2& b, int64_t x, int64_t y) {
   const P2& l = a.x() < b.x() ? a : b;
   const P2& r = a.x() < b.x() ? b : a;
   const int o = orientation(l, r, P2{x, y});
-  if (o < 0) return true;   // point below the edge's line
+  if (o < 0) return true;  // point below the edge's line
   if (o > 0) return false;
-  return r.y() > l.y();     // on the line: the slope decides (e2 << e1)
+  return r.y() > l.y();  // on the line: the slope decides (e2 << e1)
 }
 
 // Parity change along the vertical path (x, y1) -> (x, y2), perturbed.
@@ -85,9 +88,12 @@ inline bool segment_meets_box(const QPoint& a, const QPoint& b, const QBox& bx) 
   const int64_t cx[4] = {bx.x0, bx.x1, bx.x1, bx.x0}, cy[4] = {bx.y0, bx.y0, bx.y1, bx.y1};
   for (int i = 0; i < 4; ++i) {
     int128 s = dx * (cy[i] - a.y) - dy * (cx[i] - a.x);
-    if (s > 0) ++pos;
-    else if (s < 0) ++neg;
-    else return true;
+    if (s > 0)
+      ++pos;
+    else if (s < 0)
+      ++neg;
+    else
+      return true;
   }
   return pos > 0 && neg > 0;
 }
@@ -249,7 +255,8 @@ PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capac
     if (leaf) {
       t.max_leaf_segments = std::max<uint32_t>(t.max_leaf_segments, uint32_t(w.edges.size()));
       if (w.edges.empty()) {
-        t.node[id] = {int32_t(w.parity ? decal::QtNodeType::inside : decal::QtNodeType::outside), 0};
+        t.node[id] = {int32_t(w.parity ? decal::QtNodeType::inside : decal::QtNodeType::outside),
+                      0};
       } else {
         if (w.edges.size() > leaf_capacity) ++t.depth_capped;
         t.node[id] = {int32_t(decal::QtNodeType::partial), int32_t(t.leaf_range.size())};

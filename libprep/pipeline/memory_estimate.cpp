@@ -73,8 +73,8 @@ namespace {
 // stops only builds that cannot fit. Other formats (GeoPackage, FlatGeobuf:
 // possibly mostly attributes; zips) count only through the OSM term below.
 constexpr double kMiB = 1024.0 * 1024.0;
-constexpr double kBaseBytes = 60.0 * kMiB;       // read -> clean
-constexpr double kBuildBaseBytes = 120.0 * kMiB; // build -> write, with the decal grid
+constexpr double kBaseBytes = 60.0 * kMiB;        // read -> clean
+constexpr double kBuildBaseBytes = 120.0 * kMiB;  // build -> write, with the decal grid
 constexpr double kPerPolygonVertex = 370;
 constexpr double kPerLineVertex = 600;
 constexpr double kPerPolygonPart = 256;
@@ -118,7 +118,8 @@ double osm_read_bytes(const SceneSpec& scene) {
     per_layer.push_back(std::min(kOsmCap, kOsmPerDataset + kOsmPerSourceByte * bytes));
   }
   // Layers are read side by side, at most `threads` at once: the largest ones.
-  unsigned threads = scene.model.threads > 0 ? scene.model.threads : std::thread::hardware_concurrency();
+  unsigned threads =
+      scene.model.threads > 0 ? scene.model.threads : std::thread::hardware_concurrency();
   threads = std::max(1u, threads);
   std::sort(per_layer.begin(), per_layer.end(), std::greater<>());
   double sum = 0;
@@ -144,7 +145,8 @@ MemoryEstimate model(const char* point, const Counts& c, bool dry_run, double re
   if (!dry_run) {
     const double build = kBuildBaseBytes + kPerPolygonVertex * c.polygon_vertices +
                          kPerLineVertex * c.line_vertices + kPerPolygonPart * c.polygon_parts +
-                         kPerLinePart * c.line_parts + kPerLineVertexWidthSquared * c.line_width_term;
+                         kPerLinePart * c.line_parts +
+                         kPerLineVertexWidthSquared * c.line_width_term;
     e.bytes = std::max(early, build);
     if (build_part) *build_part = build - kBaseBytes;
   }
@@ -173,7 +175,8 @@ std::string local_file(const std::string& path) {
 uint64_t parse_memory_size(const std::string& text) {
   std::string t;
   for (char c : text)
-    if (!std::isspace(static_cast<unsigned char>(c))) t += char(std::toupper(static_cast<unsigned char>(c)));
+    if (!std::isspace(static_cast<unsigned char>(c)))
+      t += char(std::toupper(static_cast<unsigned char>(c)));
   size_t used = 0;
   double value = 0;
   try {
@@ -182,19 +185,26 @@ uint64_t parse_memory_size(const std::string& text) {
     used = 0;
   }
   std::string unit = t.substr(used);
-  if (unit.size() > 1 && unit.back() == 'B') unit.pop_back();        // GB, GiB
-  if (unit.size() > 1 && unit.back() == 'I') unit.pop_back();        // Gi
+  if (unit.size() > 1 && unit.back() == 'B') unit.pop_back();  // GB, GiB
+  if (unit.size() > 1 && unit.back() == 'I') unit.pop_back();  // Gi
   double scale = 0;
-  if (unit.empty()) scale = 1;
-  else if (unit == "K") scale = 1024.0;
-  else if (unit == "M") scale = 1024.0 * 1024;
-  else if (unit == "G") scale = 1024.0 * 1024 * 1024;
-  else if (unit == "T") scale = 1024.0 * 1024 * 1024 * 1024;
-  else if (unit == "B" && used > 0) scale = 1;
+  if (unit.empty())
+    scale = 1;
+  else if (unit == "K")
+    scale = 1024.0;
+  else if (unit == "M")
+    scale = 1024.0 * 1024;
+  else if (unit == "G")
+    scale = 1024.0 * 1024 * 1024;
+  else if (unit == "T")
+    scale = 1024.0 * 1024 * 1024 * 1024;
+  else if (unit == "B" && used > 0)
+    scale = 1;
   if (used == 0 || scale == 0 || !(value > 0) || !std::isfinite(value * scale) ||
       value * scale >= 1.8e19) {
-    throw usage_error("--max-memory: expected a size such as 2G, 512M or 1073741824 (bytes), got \"" +
-                      text + "\"");
+    throw usage_error(
+        "--max-memory: expected a size such as 2G, 512M or 1073741824 (bytes), got \"" + text +
+        "\"");
   }
   return uint64_t(std::llround(value * scale));
 }
@@ -237,7 +247,8 @@ MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run) {
     for (char ch : f) lower += char(std::tolower(static_cast<unsigned char>(ch)));
     for (const char* ext : {".geojson", ".json", ".shp"}) {
       const std::string x(ext);
-      if (lower.size() >= x.size() && lower.compare(lower.size() - x.size(), x.size(), x) == 0) return true;
+      if (lower.size() >= x.size() && lower.compare(lower.size() - x.size(), x.size(), x) == 0)
+        return true;
     }
     return false;
   };
@@ -263,7 +274,8 @@ MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run) {
   return e;
 }
 
-MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features, bool dry_run) {
+MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features,
+                                   bool dry_run) {
   Counts c;
   for (const SourceLayer& layer : features.layers) {
     const bool polygons = layer.spec.kind == DecalKind::polygon;

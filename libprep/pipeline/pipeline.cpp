@@ -12,10 +12,10 @@
 #include <cstdio>
 #include <fstream>
 #include <future>
-#include <optional>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -24,9 +24,9 @@
 #include "prep/feature_failure.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/memory_estimate.hpp"
+#include "prep/model.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
-#include "prep/model.hpp"
 #include "prep/write.hpp"
 
 namespace prep {
@@ -40,9 +40,12 @@ double seconds_since(Clock::time_point t0) {
 
 const char* kind_name(DecalKind k) {
   switch (k) {
-    case DecalKind::polygon: return "polygon";
-    case DecalKind::line: return "line";
-    case DecalKind::outline: return "outline";
+    case DecalKind::polygon:
+      return "polygon";
+    case DecalKind::line:
+      return "line";
+    case DecalKind::outline:
+      return "outline";
   }
   return "?";
 }
@@ -315,12 +318,9 @@ void add_memory_report(nlohmann::json& report,
   report["peak_rss_mib_after"] = pk;
   nlohmann::json est = nlohmann::json::object();
   for (const MemoryEstimate& e : estimates)
-    est[e.point] = {{"mib", e.bytes / (1024.0 * 1024.0)},
-                    {"basis", e.basis},
-                    {"polygon_vertices", e.polygon_vertices},
-                    {"line_vertices", e.line_vertices},
-                    {"polygon_parts", e.polygon_parts},
-                    {"line_parts", e.line_parts},
+    est[e.point] = {{"mib", e.bytes / (1024.0 * 1024.0)},     {"basis", e.basis},
+                    {"polygon_vertices", e.polygon_vertices}, {"line_vertices", e.line_vertices},
+                    {"polygon_parts", e.polygon_parts},       {"line_parts", e.line_parts},
                     {"source_bytes", e.source_bytes}};
   report["memory_estimate"] = est;
   if (limit) report["max_memory_mib"] = double(limit.bytes) / (1024.0 * 1024.0);

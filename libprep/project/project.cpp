@@ -2,13 +2,13 @@
 // frame, metres relative to the frame origin (ARCHITECTURE.md "2. project", "Precision").
 #include "prep/project.hpp"
 
-#include <GeographicLib/Geodesic.hpp>
-#include <GeographicLib/TransverseMercator.hpp>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
-#include <tbb/task_arena.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
+#include <tbb/task_arena.h>
+#include <GeographicLib/Geodesic.hpp>
+#include <GeographicLib/TransverseMercator.hpp>
 
 #include <algorithm>
 #include <array>
@@ -55,7 +55,9 @@ std::unique_ptr<OGRSpatialReference> wgs84() {
 }
 
 struct TransformDeleter {
-  void operator()(OGRCoordinateTransformation* t) const { OGRCoordinateTransformation::DestroyCT(t); }
+  void operator()(OGRCoordinateTransformation* t) const {
+    OGRCoordinateTransformation::DestroyCT(t);
+  }
 };
 using TransformPtr = std::unique_ptr<OGRCoordinateTransformation, TransformDeleter>;
 
@@ -64,8 +66,8 @@ TransformPtr make_transform(const OGRSpatialReference& from, const OGRSpatialRef
   CPLErrorReset();
   TransformPtr t(OGRCreateCoordinateTransformation(&from, &to));
   if (!t) {
-    throw input_error("project: " + context + ": no transformation available: " +
-                      CPLGetLastErrorMsg());
+    throw input_error("project: " + context +
+                      ": no transformation available: " + CPLGetLastErrorMsg());
   }
   return t;
 }
@@ -100,10 +102,10 @@ Extent bounds_of(const SourceLayer& layer) {
 // Transforms an extent with densified edges (GDAL's TransformBounds).
 Extent transform_bounds(OGRCoordinateTransformation& t, const Extent& e, const std::string& what) {
   Extent out;
-  if (!t.TransformBounds(e.xmin, e.ymin, e.xmax, e.ymax, &out.xmin, &out.ymin, &out.xmax,
-                         &out.ymax, 21)) {
-    throw input_error("project: " + what + ": extent cannot be transformed: " +
-                      CPLGetLastErrorMsg());
+  if (!t.TransformBounds(e.xmin, e.ymin, e.xmax, e.ymax, &out.xmin, &out.ymin, &out.xmax, &out.ymax,
+                         21)) {
+    throw input_error("project: " + what +
+                      ": extent cannot be transformed: " + CPLGetLastErrorMsg());
   }
   return out;
 }
@@ -138,7 +140,6 @@ class NumericScale {
   TransformPtr to_geo_, from_geo_;
 };
 
-
 // ------------------------------------------------ verified approximation --
 //
 // PROJ's exact transverse Mercator (inverse for a UTM source, forward into
@@ -156,10 +157,10 @@ class NumericScale {
 // output stays identical at any thread count.
 constexpr int kApproxDegree = 3;
 constexpr int kApproxNodes = kApproxDegree + 1;
-constexpr int kApproxCheck = 9;              // check grid per axis
-constexpr double kApproxTolerance = 1e-8;    // frame metres; tests ask 1e-6
+constexpr int kApproxCheck = 9;            // check grid per axis
+constexpr double kApproxTolerance = 1e-8;  // frame metres; tests ask 1e-6
 constexpr int kApproxMaxDepth = 12;
-constexpr int kApproxOccupancy = 256;        // occupancy grid per axis
+constexpr int kApproxOccupancy = 256;  // occupancy grid per axis
 // A fit costs about 100 exact transformations: a cell holding fewer
 // vertices than this keeps the exact path (sparse or small data: the
 // approximation would cost more than it saves).
@@ -192,8 +193,7 @@ class ApproxTransform {
         sat_[size_t(j) * (g + 1) + i] += sat_[size_t(j - 1) * (g + 1) + i] +
                                          sat_[size_t(j) * (g + 1) + i - 1] -
                                          sat_[size_t(j - 1) * (g + 1) + i - 1];
-    for (int k = 0; k < kApproxNodes; ++k)
-      node_[k] = std::cos(M_PI * (k + 0.5) / kApproxNodes);
+    for (int k = 0; k < kApproxNodes; ++k) node_[k] = std::cos(M_PI * (k + 0.5) / kApproxNodes);
     // Monomial coefficients of the Chebyshev polynomials T_0..T_degree.
     for (auto& row : cheb_) row.fill(0);
     cheb_[0][0] = 1;
@@ -236,8 +236,8 @@ class ApproxTransform {
 
  private:
   struct Fit {
-    double cx, cy, ix, iy;   // cell centre and 1 / half size (source units)
-    double fx, fy;           // exact value at the centre
+    double cx, cy, ix, iy;  // cell centre and 1 / half size (source units)
+    double fx, fy;          // exact value at the centre
     double ax[kApproxNodes][kApproxNodes], ay[kApproxNodes][kApproxNodes];  // [i][j]: u^i v^j
   };
   struct Node {
@@ -269,8 +269,10 @@ class ApproxTransform {
     const double sx = g / (root_.xmax - root_.xmin), sy = g / (root_.ymax - root_.ymin);
     const int i0 = std::clamp(static_cast<int>(std::floor((b.xmin - root_.xmin) * sx)), 0, g);
     const int j0 = std::clamp(static_cast<int>(std::floor((b.ymin - root_.ymin) * sy)), 0, g);
-    const int i1 = std::clamp(std::max(i0 + 1, static_cast<int>(std::ceil((b.xmax - root_.xmin) * sx))), 0, g);
-    const int j1 = std::clamp(std::max(j0 + 1, static_cast<int>(std::ceil((b.ymax - root_.ymin) * sy))), 0, g);
+    const int i1 =
+        std::clamp(std::max(i0 + 1, static_cast<int>(std::ceil((b.xmax - root_.xmin) * sx))), 0, g);
+    const int j1 =
+        std::clamp(std::max(j0 + 1, static_cast<int>(std::ceil((b.ymax - root_.ymin) * sy))), 0, g);
     if (i1 <= i0 || j1 <= j0) return 0;
     const auto at = [&](int i, int j) { return sat_[size_t(j) * (g + 1) + size_t(i)]; };
     return at(i1, j1) - at(i0, j1) - at(i1, j0) + at(i0, j0);
@@ -297,7 +299,8 @@ class ApproxTransform {
     for (int i = 0; i < kApproxCheck; ++i)
       for (int j = 0; j < kApproxCheck; ++j) {
         // Corners and edges exactly: clamp the last row/column to the box.
-        const double u = -1.0 + 2.0 * i / (kApproxCheck - 1), v = -1.0 + 2.0 * j / (kApproxCheck - 1);
+        const double u = -1.0 + 2.0 * i / (kApproxCheck - 1),
+                     v = -1.0 + 2.0 * j / (kApproxCheck - 1);
         xs[size_t(1 + kN + i * kApproxCheck + j)] =
             i == kApproxCheck - 1 ? b.xmax : (i == 0 ? b.xmin : f.cx + hx * u);
         ys[size_t(1 + kN + i * kApproxCheck + j)] =
@@ -368,8 +371,10 @@ class ApproxTransform {
     }
     if (depth >= kApproxMaxDepth) return;
     const double mx = 0.5 * (b.xmin + b.xmax), my = 0.5 * (b.ymin + b.ymax);
-    const Extent kids[4] = {{b.xmin, b.ymin, mx, my}, {mx, b.ymin, b.xmax, my},
-                            {b.xmin, my, mx, b.ymax}, {mx, my, b.xmax, b.ymax}};
+    const Extent kids[4] = {{b.xmin, b.ymin, mx, my},
+                            {mx, b.ymin, b.xmax, my},
+                            {b.xmin, my, mx, b.ymax},
+                            {mx, my, b.xmax, b.ymax}};
     const int first = static_cast<int>(nodes_.size());
     nodes_[size_t(at)].child = first;
     for (const Extent& k : kids) nodes_.push_back(Node{k, -1, -1});
@@ -387,7 +392,8 @@ class ApproxTransform {
 // What to do when a vertex falls out of the frame projection's domain.
 std::string frame_hint(const SceneFrame& frame) {
   const bool named = !frame.description.empty() && frame.description != "unknown";
-  return " (out of the domain of " + (named ? frame.description : std::string("the --crs projection")) +
+  return " (out of the domain of " +
+         (named ? frame.description : std::string("the --crs projection")) +
          "; pass --crs with a projection valid for this area, or leave the feature out with "
          "--extent or --where)";
 }
@@ -400,8 +406,8 @@ double frame_scale_factor(const SceneFrame& frame, double x, double y) {
     // equator; the frame's from lat0.
     double x0 = 0, y0 = 0, lat = 0, lon = 0, gamma = 0, k = 1;
     tm_wgs84().Forward(frame.tm_lon0, frame.tm_lat0, frame.tm_lon0, x0, y0);
-    tm_wgs84().Reverse(frame.tm_lon0, x + frame.origin_x, y + frame.origin_y + y0, lat, lon,
-                       gamma, k);
+    tm_wgs84().Reverse(frame.tm_lon0, x + frame.origin_x, y + frame.origin_y + y0, lat, lon, gamma,
+                       k);
     return k;
   }
   register_gdal_once();
@@ -431,10 +437,12 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   if (!(all.xmax >= all.xmin)) {
     std::string layers;
     for (const SourceLayer& layer : features.layers)
-      layers += (layers.empty() ? "" : ", ") + ("'" + layer.spec.name + "' (" + layer.spec.source + ")");
-    throw input_error("project: no features to centre the scene frame on: every layer is empty "
-                      "or has only dropped features: " + layers +
-                      "; check the source, --layer and --where");
+      layers +=
+          (layers.empty() ? "" : ", ") + ("'" + layer.spec.name + "' (" + layer.spec.source + ")");
+    throw input_error(
+        "project: no features to centre the scene frame on: every layer is empty "
+        "or has only dropped features: " +
+        layers + "; check the source, --layer and --where");
   }
   // More than 180 degrees of longitude away from the poles is, for local
   // data, a line or ring that crosses the antimeridian in a geographic CRS
@@ -475,7 +483,8 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   }
   auto srs = srs_from(crs, "--crs");
   if (!srs->IsProjected()) {
-    throw input_error("project: --crs '" + crs + "' is not a projected CRS; the scene frame "
+    throw input_error("project: --crs '" + crs +
+                      "' is not a projected CRS; the scene frame "
                       "needs metres (try a UTM zone or leave --crs out for a local TM)");
   }
   frame.crs_wkt = crs_wkt2(*srs);
@@ -585,66 +594,68 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     }
     std::vector<double>& k = out.scale.emplace_back(layer.features.size(), 1.0);
 
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, layer.features.size(), 64),
-                      [&](const tbb::blocked_range<size_t>& range) {
-      const size_t slot = static_cast<size_t>(tbb::this_task_arena::current_thread_index());
-      for (size_t i = range.begin(); i != range.end(); ++i) {
-        SourceFeature& f = layer.features[i];
-        if (!f.drop_reason.empty()) continue;
-        double cx = 0, cy = 0;
-        size_t n_all = 0;
-        int leaf = -1;
-        for (Ring& r : f.rings) {
-          const size_t n = r.size();
-          for (size_t j = 0; j < n; ++j) {
-            double x = r[j].x, y = r[j].y;
-            if (!identity && !(approx && approx->apply(x, y, leaf))) {
-              int ok = 0;
-              if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {
-                // Out of the projection's domain (PROJ error or HUGE_VAL).
-                f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
-                                ", " + std::to_string(r[j].y) +
-                                ") cannot be transformed into the scene frame" + frame_hint(frame);
-                f.failed_in = FailureStage::project;
-                break;
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, layer.features.size(), 64),
+        [&](const tbb::blocked_range<size_t>& range) {
+          const size_t slot = static_cast<size_t>(tbb::this_task_arena::current_thread_index());
+          for (size_t i = range.begin(); i != range.end(); ++i) {
+            SourceFeature& f = layer.features[i];
+            if (!f.drop_reason.empty()) continue;
+            double cx = 0, cy = 0;
+            size_t n_all = 0;
+            int leaf = -1;
+            for (Ring& r : f.rings) {
+              const size_t n = r.size();
+              for (size_t j = 0; j < n; ++j) {
+                double x = r[j].x, y = r[j].y;
+                if (!identity && !(approx && approx->apply(x, y, leaf))) {
+                  int ok = 0;
+                  if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {
+                    // Out of the projection's domain (PROJ error or HUGE_VAL).
+                    f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
+                                    ", " + std::to_string(r[j].y) +
+                                    ") cannot be transformed into the scene frame" +
+                                    frame_hint(frame);
+                    f.failed_in = FailureStage::project;
+                    break;
+                  }
+                }
+                const Point2 source = r[j];
+                r[j].x = x - frame.origin_x;
+                r[j].y = y - frame.origin_y;
+                if ((!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) && f.drop_reason.empty()) {
+                  f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
+                                  ", " + std::to_string(source.y) +
+                                  ") is not finite in the scene frame" + frame_hint(frame);
+                  f.failed_in = FailureStage::project;
+                }
+                cx += r[j].x;
+                cy += r[j].y;
               }
+              if (!f.drop_reason.empty()) break;
+              n_all += n;
             }
-            const Point2 source = r[j];
-            r[j].x = x - frame.origin_x;
-            r[j].y = y - frame.origin_y;
-            if ((!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) && f.drop_reason.empty()) {
-              f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
-                              ", " + std::to_string(source.y) +
-                              ") is not finite in the scene frame" + frame_hint(frame);
-              f.failed_in = FailureStage::project;
+            if (!f.drop_reason.empty()) {
+              f.rings.clear();
+              continue;
             }
-            cx += r[j].x;
-            cy += r[j].y;
+            if (n_all == 0) continue;
+            cx /= double(n_all);
+            cy /= double(n_all);
+            // Scale factor at the part's vertex centroid: widths are ground
+            // metres, the frame is not (ARCHITECTURE.md "2. project").
+            if (local_tm) {
+              // frame_scale_factor, with the frame's false northing y0 hoisted.
+              double lat = 0, lon = 0, gamma = 0;
+              tm_wgs84().Reverse(frame.tm_lon0, cx + frame.origin_x, cy + frame.origin_y + tm_y0,
+                                 lat, lon, gamma, k[i]);
+            } else {
+              k[i] = slot_scale(slot).at(cx + frame.origin_x, cy + frame.origin_y);
+            }
+            if (!std::isfinite(k[i])) k[i] = 1.0;
           }
-          if (!f.drop_reason.empty()) break;
-          n_all += n;
-        }
-        if (!f.drop_reason.empty()) {
-          f.rings.clear();
-          continue;
-        }
-        if (n_all == 0) continue;
-        cx /= double(n_all);
-        cy /= double(n_all);
-        // Scale factor at the part's vertex centroid: widths are ground
-        // metres, the frame is not (ARCHITECTURE.md "2. project").
-        if (local_tm) {
-          // frame_scale_factor, with the frame's false northing y0 hoisted.
-          double lat = 0, lon = 0, gamma = 0;
-          tm_wgs84().Reverse(frame.tm_lon0, cx + frame.origin_x, cy + frame.origin_y + tm_y0, lat,
-                             lon, gamma, k[i]);
-        } else {
-          k[i] = slot_scale(slot).at(cx + frame.origin_x, cy + frame.origin_y);
-        }
-        if (!std::isfinite(k[i])) k[i] = 1.0;
-      }
-      stage.add(range.size());
-    });
+          stage.add(range.size());
+        });
     // Without skip_failures the first failing feature in input order stops
     // the build (the loop above runs in any order).
     if (!scene.skip_failures) {

@@ -125,7 +125,8 @@ std::string osm_plain_index_note(const std::string& layer) {
       "'out; >; out skel qt;'";
   throw input_error(where + ": " + found +
                     "; GDAL's OSM driver assembles ways and multipolygons only from nodes that "
-                    "come before them, so they would be lost. " + what_to_do);
+                    "come before them, so they would be lost. " +
+                    what_to_do);
 }
 
 std::string where_of(const LayerSpec& spec, const std::string& layer_name) {
@@ -136,9 +137,12 @@ std::string where_of(const LayerSpec& spec, const std::string& layer_name) {
 
 std::string kind_name(DecalKind k) {
   switch (k) {
-    case DecalKind::polygon: return "polygon";
-    case DecalKind::line: return "line";
-    case DecalKind::outline: return "outline";
+    case DecalKind::polygon:
+      return "polygon";
+    case DecalKind::line:
+      return "line";
+    case DecalKind::outline:
+      return "outline";
   }
   return "?";
 }
@@ -147,9 +151,9 @@ std::string kind_name(DecalKind k) {
 struct Splitter {
   const LayerSpec& spec;
   std::vector<SourceFeature>& out;
-  SourceFeature proto;        // fid, feature, order/colour values
+  SourceFeature proto;  // fid, feature, order/colour values
   int next_part = 0;
-  int unusable = 0;           // parts whose type the layer kind cannot draw
+  int unusable = 0;  // parts whose type the layer kind cannot draw
   std::string unusable_type;
   bool bad_coordinate = false;
   std::string bad_coordinate_text;
@@ -257,8 +261,7 @@ struct Splitter {
   }
 };
 
-int field_index(OGRLayer& layer, const std::string& name, const LayerSpec& spec,
-                const char* what) {
+int field_index(OGRLayer& layer, const std::string& name, const LayerSpec& spec, const char* what) {
   if (name.empty()) return -1;
   int i = layer.GetLayerDefn()->GetFieldIndex(name.c_str());
   if (i < 0) {
@@ -385,13 +388,15 @@ struct LayerSink {
       // Not an error while another layer has data (project fails only when
       // every layer is empty): the package carries the layer, empty.
       r.notes.push_back("layer '" + spec.name + "': no features in " + spec.source +
-                        (spec.where.empty() && spec.sql.empty() ? std::string()
-                                                                : std::string(" matching the filter")) +
+                        (spec.where.empty() && spec.sql.empty()
+                             ? std::string()
+                             : std::string(" matching the filter")) +
                         "; the layer is in the package, empty");
     }
     if (zm_features > 0) {
       r.notes.push_back("layer '" + spec.name + "': Z/M values dropped from " +
-                        std::to_string(zm_features) + " features (decals are 2D; terrain comes "
+                        std::to_string(zm_features) +
+                        " features (decals are 2D; terrain comes "
                         "from the DEM)");
     }
     if (closed_rings > 0) {
@@ -412,8 +417,9 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
   }
   if (r.layer.srs_wkt.empty()) {
     if (scene.assume_crs.empty()) {
-      throw input_error(where + ": the source has no CRS; pass --assume-crs (e.g. EPSG:4326) "
-                                "or set assume_crs in the scene file");
+      throw input_error(where +
+                        ": the source has no CRS; pass --assume-crs (e.g. EPSG:4326) "
+                        "or set assume_crs in the scene file");
     }
     OGRSpatialReference assumed;
     if (assumed.SetFromUserInput(scene.assume_crs.c_str()) != OGRERR_NONE) {
@@ -422,7 +428,6 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
     r.layer.srs_wkt = crs_wkt2(assumed);
     r.notes.push_back("layer '" + spec.name + "': source has no CRS, assumed " + scene.assume_crs);
   }
-
 }
 
 ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress& progress,
@@ -434,9 +439,9 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
   VSIStatBufL st;
   if (VSIStatL(spec.source.c_str(), &st) != 0) {
     throw gdal_error("read: " + spec.source + ": no such file" +
-                     (scene.scene_path.empty() ? std::string()
-                                               : " (scene file " + scene.scene_path + ", layer '" +
-                                                     spec.name + "')"));
+                     (scene.scene_path.empty()
+                          ? std::string()
+                          : " (scene file " + scene.scene_path + ", layer '" + spec.name + "')"));
   }
   // OSM XML: its element order decides the node index GDAL opens it with.
   const detail::OsmXmlOrder osm_order = detail::scan_osm_xml(spec.source);
@@ -445,8 +450,8 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
     r.notes.push_back(osm_plain_index_note(spec.name));
   }
   const ReadConfig config(plain_osm_index);
-  DatasetPtr ds(GDALDataset::Open(spec.source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY,
-                                  nullptr, nullptr, nullptr));
+  DatasetPtr ds(GDALDataset::Open(spec.source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
+                                  nullptr, nullptr));
   if (!ds) {
     throw gdal_error("read: " + spec.source + ": GDAL cannot open it as vector data" +
                      (errors.failures().empty() ? std::string() : ": " + errors.failures()));
@@ -536,12 +541,11 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
                       estimate == JobProgress::kUnknown ? estimate : std::max(estimate, index + 1));
   }
   if (errors.count() > skipped_errors) {
-    throw gdal_error(where + ": reading failed" +
-                     (first_failing_fid >= 0 ? " at fid " + std::to_string(first_failing_fid) : "") +
-                     " (" + std::to_string(r.counts.read) + " features read): " +
-                     errors.failures() +
-                     (first_failing_fid >= 0 ? " (--skip-failures drops features OGR cannot decode)"
-                                             : ""));
+    throw gdal_error(
+        where + ": reading failed" +
+        (first_failing_fid >= 0 ? " at fid " + std::to_string(first_failing_fid) : "") + " (" +
+        std::to_string(r.counts.read) + " features read): " + errors.failures() +
+        (first_failing_fid >= 0 ? " (--skip-failures drops features OGR cannot decode)" : ""));
   }
   progress.update(r.counts.read, r.counts.read);
   sink.finish(errors);
@@ -590,7 +594,8 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
       ReadAttempt& r = attempts[i];
       r.layer.spec = spec;
       r.counts.layer = spec.name;
-      OGRLayer* layer = spec.layer.empty() ? ds->GetLayer(0) : ds->GetLayerByName(spec.layer.c_str());
+      OGRLayer* layer =
+          spec.layer.empty() ? ds->GetLayer(0) : ds->GetLayerByName(spec.layer.c_str());
       if (!layer) return false;
       layers[i] = layer;
       if (!spec.where.empty()) return false;  // see read_scene

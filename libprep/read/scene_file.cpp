@@ -27,17 +27,26 @@ struct KeyRef {
   throw scene_error(ref.file + ":" + std::to_string(ref.line) + ": " + ref.key + ": " + what);
 }
 
-int line_of(const toml::node& n) { return static_cast<int>(n.source().begin.line); }
+int line_of(const toml::node& n) {
+  return static_cast<int>(n.source().begin.line);
+}
 
 std::string type_name(const toml::node& n) {
   switch (n.type()) {
-    case toml::node_type::string: return "string";
-    case toml::node_type::integer: return "integer";
-    case toml::node_type::floating_point: return "float";
-    case toml::node_type::boolean: return "boolean";
-    case toml::node_type::array: return "array";
-    case toml::node_type::table: return "table";
-    default: return "date/time";
+    case toml::node_type::string:
+      return "string";
+    case toml::node_type::integer:
+      return "integer";
+    case toml::node_type::floating_point:
+      return "float";
+    case toml::node_type::boolean:
+      return "boolean";
+    case toml::node_type::array:
+      return "array";
+    case toml::node_type::table:
+      return "table";
+    default:
+      return "date/time";
   }
 }
 
@@ -67,7 +76,8 @@ uint32_t get_count(const toml::node& n, const KeyRef& ref, int64_t min, int64_t 
 
 double get_non_negative(const toml::node& n, const KeyRef& ref) {
   double v = get_number(n, ref);
-  if (!(v >= 0) || !std::isfinite(v)) fail(ref, "expected a finite number >= 0, got " + std::to_string(v));
+  if (!(v >= 0) || !std::isfinite(v))
+    fail(ref, "expected a finite number >= 0, got " + std::to_string(v));
   return v;
 }
 
@@ -181,8 +191,7 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     } else if (key == "corner") {
       layer.style.corner = with_key(ref, [&] { return parse_corner(get_string(v, ref)); });
     } else if (key == "outline_mode") {
-      layer.style.outline =
-          with_key(ref, [&] { return parse_outline_mode(get_string(v, ref)); });
+      layer.style.outline = with_key(ref, [&] { return parse_outline_mode(get_string(v, ref)); });
     } else if (key == "order_attribute") {
       layer.style.order_attribute = get_string(v, ref);
     } else {
@@ -199,9 +208,12 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     fail(here, "color_attribute needs a color_ramp");
   if (layer.style.outline != decal::OutlineMode::normal &&
       layer.style.corner != decal::CornerStyle::miter)
-    fail(here, "outline_mode inset/offset needs corner = \"miter\" (the kept half is cut at the miter corners)");
+    fail(here,
+         "outline_mode inset/offset needs corner = \"miter\" (the kept half is cut at the miter "
+         "corners)");
   if (layer.dynamic && !width_set) layer.style.width = 3.0;  // pixels
-  if (layer.name.empty()) layer.name = layer.layer.empty() ? "layer" + std::to_string(index) : layer.layer;
+  if (layer.name.empty())
+    layer.name = layer.layer.empty() ? "layer" + std::to_string(index) : layer.layer;
   return layer;
 }
 
@@ -220,7 +232,8 @@ uint32_t parse_color(const std::string& text) {
   if (text.size() != 7 && text.size() != 9) {
     throw usage_error("bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
   }
-  if (text[0] != '#') throw usage_error("bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
+  if (text[0] != '#')
+    throw usage_error("bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
   uint32_t r = hex(1), g = hex(3), b = hex(5), a = text.size() == 9 ? hex(7) : 255u;
   return r | (g << 8) | (b << 16) | (a << 24);
 }
@@ -338,7 +351,9 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
   }
   for (size_t i = 0; i < layers->size(); ++i) {
     const toml::table* t = layers->get(i)->as_table();
-    if (!t) fail({path, "layer[" + std::to_string(i) + "]", line_of(*layers->get(i))}, "expected a table");
+    if (!t)
+      fail({path, "layer[" + std::to_string(i) + "]", line_of(*layers->get(i))},
+           "expected a table");
     scene.layers.push_back(parse_layer(*t, path, i, default_source, base));
   }
   for (size_t i = 0; i < scene.layers.size(); ++i) {

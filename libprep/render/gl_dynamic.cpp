@@ -12,7 +12,8 @@ namespace prep::render::detail {
 namespace {
 
 struct DynPrograms {
-  GLuint cull = 0, scan_local = 0, scan_blocks = 0, scatter = 0, segments = 0, lists = 0, composite = 0;
+  GLuint cull = 0, scan_local = 0, scan_blocks = 0, scatter = 0, segments = 0, lists = 0,
+         composite = 0;
 };
 
 // `dd`: the binding, coverage-AA and dynamic defines.
@@ -26,11 +27,17 @@ DynPrograms dyn_programs(GlObjects& gl, const std::string& dd) {
   p.scan_blocks = comp("dyn_scan.comp.glsl", "#define SCAN_BLOCKS 1\n");
   p.scatter = comp("dyn_scan.comp.glsl", "#define SCATTER 1\n");
   p.segments = comp("dyn_segments.comp.glsl", "");
-  p.lists = gl.program({{"dyn_box.vert.glsl"},
-                        {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_box.geom.glsl"},
-                        {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_lists.frag.glsl"}, {}, dd});
-  p.composite =
-      gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "dyn_common.glsl", "dyn_composite.frag.glsl"}, {}, dd});
+  p.lists =
+      gl.program({{"dyn_box.vert.glsl"},
+                  {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_box.geom.glsl"},
+                  {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_lists.frag.glsl"},
+                  {},
+                  dd});
+  p.composite = gl.program({{"fullscreen.vert.glsl"},
+                            {},
+                            {"decal_blobs.glsl", "dyn_common.glsl", "dyn_composite.frag.glsl"},
+                            {},
+                            dd});
   return p;
 }
 
@@ -38,10 +45,18 @@ DynPrograms dyn_programs(GlObjects& gl, const std::string& dd) {
 // (24..29, 31, 32), and the uniforms every stage takes.
 class DynamicLines {
  public:
-  DynamicLines(GlObjects& gl, PassTimer& timer, const ViewUniforms& view, const Heightfield& terrain, uint32_t W,
-               uint32_t H, uint64_t n_vertices, uint64_t n_lines)
-      : gl_(gl), timer_(timer), view_(view), terrain_(terrain), W_(W), H_(H), n_dyn_(n_vertices),
-        n_lines_(n_lines), blocks_(uint32_t((n_vertices + 255) / 256)) {}
+  DynamicLines(GlObjects& gl, PassTimer& timer, const ViewUniforms& view,
+               const Heightfield& terrain, uint32_t W, uint32_t H, uint64_t n_vertices,
+               uint64_t n_lines)
+      : gl_(gl),
+        timer_(timer),
+        view_(view),
+        terrain_(terrain),
+        W_(W),
+        H_(H),
+        n_dyn_(n_vertices),
+        n_lines_(n_lines),
+        blocks_(uint32_t((n_vertices + 255) / 256)) {}
 
   void make_buffers();
   void update(const DynPrograms& p);
@@ -94,11 +109,13 @@ void DynamicLines::set_uniforms(GLuint p) const {
   glUseProgram(p);
   glUniform2i(glGetUniformLocation(p, "u_anchor_q"), GLint(view_.ax), GLint(view_.ay));
   glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
-  glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE, view_.inv_view_proj.data());
+  glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE,
+                     view_.inv_view_proj.data());
   glUniform2f(glGetUniformLocation(p, "u_viewport"), float(W_), float(H_));
   glUniform1ui(glGetUniformLocation(p, "u_vertex_count"), GLuint(n_dyn_));
   glUniform1ui(glGetUniformLocation(p, "u_line_count"), GLuint(n_lines_));
-  glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]), float(eye_rel[2]));
+  glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]),
+              float(eye_rel[2]));
   glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(view_.mpp_ortho));
   glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
   glUniform1f(glGetUniformLocation(p, "u_zmin"), float(terrain_.zmin));
@@ -181,8 +198,9 @@ void GlRenderer::dynamic_pass(Image& img) {
   const uint64_t n_dyn = gpu_->count(decal::BlobId::dyn_vertices);
   const uint64_t n_dyn_lines = gpu_->count(decal::BlobId::dyn_line_start);
   if (!opt_.draw_dynamic || n_dyn == 0 || n_dyn_lines == 0) return;
-  const std::string dd = p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
-                         "#define DECAL_DYNAMIC 1\n";
+  const std::string dd =
+      p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
+      "#define DECAL_DYNAMIC 1\n";
   const DynPrograms p = dyn_programs(gl_, dd);
   DynamicLines dyn(gl_, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines);
   dyn.make_buffers();

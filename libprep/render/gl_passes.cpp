@@ -37,7 +37,8 @@ void check(const decal::Status& s) {
 GlObjects::~GlObjects() {
   for (GLuint p : programs) glDeleteProgram(p);
   if (!textures.empty()) glDeleteTextures(GLsizei(textures.size()), textures.data());
-  if (!framebuffers.empty()) glDeleteFramebuffers(GLsizei(framebuffers.size()), framebuffers.data());
+  if (!framebuffers.empty())
+    glDeleteFramebuffers(GLsizei(framebuffers.size()), framebuffers.data());
   if (!buffers.empty()) glDeleteBuffers(GLsizei(buffers.size()), buffers.data());
   if (!arrays.empty()) glDeleteVertexArrays(GLsizei(arrays.size()), arrays.data());
   if (!queries.empty()) glDeleteQueries(GLsizei(queries.size()), queries.data());
@@ -193,16 +194,23 @@ StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt) {
                                  : opt.aa == AntiAliasing::msaa4  ? "#define DECAL_MSAA 1\n"
                                                                   : "";
   p.terrain = gl.program({{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, ""});
-  p.polygons = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
-                           {}, p.defines + aa_defines + "#define DECAL_POLYGONS 1\n"});
-  p.lines = gl.program({{"fullscreen.vert.glsl"}, {}, {"decal_blobs.glsl", "static_common.glsl", "static_lines.glsl"}, {},
+  p.polygons = gl.program({{"fullscreen.vert.glsl"},
+                           {},
+                           {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
+                           {},
+                           p.defines + aa_defines + "#define DECAL_POLYGONS 1\n"});
+  p.lines = gl.program({{"fullscreen.vert.glsl"},
+                        {},
+                        {"decal_blobs.glsl", "static_common.glsl", "static_lines.glsl"},
+                        {},
                         p.defines + aa_defines + "#define DECAL_LINES 1\n"});
   p.composite = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
   return p;
 }
 
 GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal::gl::Grid& grid,
-                       const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt)
+                       const DecalSource& source, const Heightfield& terrain,
+                       const RenderOptions& opt)
     : source_(source), terrain_(terrain), opt_(opt), W_(opt.width), H_(opt.height) {
   wall0_ = std::chrono::steady_clock::now();
   check(decal::gl::GpuPackage::upload(blobs, grid, gpu_, true));
@@ -240,10 +248,13 @@ void GlRenderer::terrain_pass() {
   glUseProgram(p);
   glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
   Vec3 light = normalize({-0.4, -0.5, 0.75});
-  glUniform3f(glGetUniformLocation(p, "u_light_dir"), float(light[0]), float(light[1]), float(light[2]));
-  glUniform3f(glGetUniformLocation(p, "u_albedo"), float(opt_.albedo[0]), float(opt_.albedo[1]), float(opt_.albedo[2]));
+  glUniform3f(glGetUniformLocation(p, "u_light_dir"), float(light[0]), float(light[1]),
+              float(light[2]));
+  glUniform3f(glGetUniformLocation(p, "u_albedo"), float(opt_.albedo[0]), float(opt_.albedo[1]),
+              float(opt_.albedo[2]));
   // Flat terrain (all heights 0) is land, not sea.
-  glUniform1f(glGetUniformLocation(p, "u_sea_level"), terrain_.zmax > terrain_.zmin ? 0.0f : -1e30f);
+  glUniform1f(glGetUniformLocation(p, "u_sea_level"),
+              terrain_.zmax > terrain_.zmin ? 0.0f : -1e30f);
   glBindVertexArray(mesh_.vao);
   glDrawElements(GL_TRIANGLES, mesh_.index_count, GL_UNSIGNED_INT, nullptr);
   glDisable(GL_DEPTH_TEST);
@@ -271,22 +282,27 @@ void GlRenderer::set_static_uniforms(GLuint p) const {
   const int64_t cxi = view_.cell_x, cyi = view_.cell_y;
   const Vec3& eye_rel = view_.eye_rel;
   glUseProgram(p);
-  glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE, view_.inv_view_proj.data());
+  glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE,
+                     view_.inv_view_proj.data());
   glUniform2f(glGetUniformLocation(p, "u_viewport"), float(W_), float(H_));
   glUniform2i(glGetUniformLocation(p, "u_anchor_q"), GLint(view_.ax), GLint(view_.ay));
   glUniform2i(glGetUniformLocation(p, "u_anchor_cell"), GLint(cxi), GLint(cyi));
-  glUniform2f(glGetUniformLocation(p, "u_anchor_in_cell"), float(double(view_.rx - cxi * gp.cell_w) * q),
+  glUniform2f(glGetUniformLocation(p, "u_anchor_in_cell"),
+              float(double(view_.rx - cxi * gp.cell_w) * q),
               float(double(view_.ry - cyi * gp.cell_h) * q));
-  glUniform2f(glGetUniformLocation(p, "u_cell_size"), float(double(gp.cell_w) * q), float(double(gp.cell_h) * q));
+  glUniform2f(glGetUniformLocation(p, "u_cell_size"), float(double(gp.cell_w) * q),
+              float(double(gp.cell_h) * q));
   glUniform2i(glGetUniformLocation(p, "u_grid_n"), GLint(gp.nx), GLint(gp.ny));
-  glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]), float(eye_rel[2]));
+  glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]),
+              float(eye_rel[2]));
   glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(view_.mpp_ortho));
   glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
 }
 
 // Static decal passes over the back-projected depth.
 void GlRenderer::static_passes() {
-  gpu_->bind(opt_.binding == Binding::texture ? decal::gl::BindingMode::texture : decal::gl::BindingMode::ssbo);
+  gpu_->bind(opt_.binding == Binding::texture ? decal::gl::BindingMode::texture
+                                              : decal::gl::BindingMode::ssbo);
   glBindTextureUnit(31, t_.depth);
   const GLuint f_static = static_target();
   glBindFramebuffer(GL_FRAMEBUFFER, f_static);
@@ -297,7 +313,8 @@ void GlRenderer::static_passes() {
   // A kind with no per-cell ranges is absent: its pass would index the
   // 16-byte placeholder buffer, so it is skipped.
   const uint64_t cells = uint64_t(view_.grid.nx) * view_.grid.ny;
-  const bool have_polygons = opt_.draw_polygons && gpu_->count(decal::BlobId::poly_bvh_range) == cells &&
+  const bool have_polygons = opt_.draw_polygons &&
+                             gpu_->count(decal::BlobId::poly_bvh_range) == cells &&
                              gpu_->count(decal::BlobId::cell_poly_range) == cells;
   const bool have_lines = opt_.draw_lines && gpu_->count(decal::BlobId::line_bvh_range) == cells &&
                           gpu_->count(decal::BlobId::cell_segment_range) == cells;
@@ -309,8 +326,8 @@ void GlRenderer::static_passes() {
   for (const DrawRun& run : runs_) {
     const bool lines = run.kind == DrawRun::Kind::lines;
     if (lines ? !have_lines : !have_polygons) continue;
-    timer_.begin(std::string(lines ? "static lines" : "static polygons") + " [" + std::to_string(run.lo) + ", " +
-                 std::to_string(run.hi) + ")");
+    timer_.begin(std::string(lines ? "static lines" : "static polygons") + " [" +
+                 std::to_string(run.lo) + ", " + std::to_string(run.hi) + ")");
     const GLuint p = lines ? p_.lines : p_.polygons;
     set_static_uniforms(p);
     glUniform1ui(glGetUniformLocation(p, "u_order_lo"), run.lo);
@@ -322,8 +339,8 @@ void GlRenderer::static_passes() {
   if (f_static != t_.f_decal) {
     timer_.begin("msaa resolve");
     glDisable(GL_SAMPLE_SHADING);
-    glBlitNamedFramebuffer(f_static, t_.f_decal, 0, 0, GLint(W_), GLint(H_), 0, 0, GLint(W_), GLint(H_),
-                           GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBlitNamedFramebuffer(f_static, t_.f_decal, 0, 0, GLint(W_), GLint(H_), 0, 0, GLint(W_),
+                           GLint(H_), GL_COLOR_BUFFER_BIT, GL_NEAREST);
     timer_.end();
   }
 }

@@ -15,16 +15,19 @@ namespace {
 
 // Terrain colour of the CPU path: the same Lambert model as terrain.frag.glsl
 // with the vertex normals averaged over the hit triangle's cell.
-std::array<double, 3> shade(const Heightfield& t, const RenderOptions& opt, double x, double y, double z) {
+std::array<double, 3> shade(const Heightfield& t, const RenderOptions& opt, double x, double y,
+                            double z) {
   const Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
-  int i = std::clamp(int((x - t.x0) / t.dx), 0, int(t.nx) - 2), j = std::clamp(int((y - t.y0) / t.dy), 0, int(t.ny) - 2);
+  int i = std::clamp(int((x - t.x0) / t.dx), 0, int(t.nx) - 2),
+      j = std::clamp(int((y - t.y0) / t.dy), 0, int(t.ny) - 2);
   Vec3 n = detail::add(detail::add(t.normal_at(i, j), t.normal_at(i + 1, j)),
                        detail::add(t.normal_at(i, j + 1), t.normal_at(i + 1, j + 1)));
   double l = std::max(detail::dot(detail::normalize(n), light), 0.0);
   // Sea tint at or below 0 m, as terrain.frag.glsl (flat terrain is land).
   std::array<double, 3> albedo = opt.albedo;
   if (t.zmax > t.zmin && z <= 0.0) albedo = {0.45, 0.58, 0.70};
-  return {albedo[0] * (0.35 + 0.65 * l), albedo[1] * (0.35 + 0.65 * l), albedo[2] * (0.35 + 0.65 * l)};
+  return {albedo[0] * (0.35 + 0.65 * l), albedo[1] * (0.35 + 0.65 * l),
+          albedo[2] * (0.35 + 0.65 * l)};
 }
 
 }  // namespace
@@ -43,7 +46,8 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
   StaticView view = source.view;
   if (!opt.draw_polygons) view.poly_bvh_range = {};
   if (!opt.draw_lines) view.line_bvh_range = {};
-  std::vector<double> hit_x(size_t(W) * H, NAN), hit_y(size_t(W) * H, NAN), hit_z(size_t(W) * H, 0.0);
+  std::vector<double> hit_x(size_t(W) * H, NAN), hit_y(size_t(W) * H, NAN),
+      hit_z(size_t(W) * H, 0.0);
 
   Extent td;
   if (is_topdown(cam, W, H, &td)) {
@@ -57,8 +61,8 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
       }
   } else {
     // Ray-cast the heightfield mesh in double precision from the pixel centre.
-    const detail::Mat4 inv = detail::mat_inverse(
-        detail::mat_mul(detail::projection_matrix(cam, double(W) / H), detail::view_matrix(cam, cam.eye)));
+    const detail::Mat4 inv = detail::mat_inverse(detail::mat_mul(
+        detail::projection_matrix(cam, double(W) / H), detail::view_matrix(cam, cam.eye)));
     auto unproject = [&](double nx, double ny, double nz) -> Vec3 {
       double v[4] = {nx, ny, nz, 1}, r[4] = {0, 0, 0, 0};
       for (int row = 0; row < 4; ++row)
@@ -68,28 +72,28 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
     const Vec3 fwd = detail::camera_basis(cam).forward;
     // Rows in parallel (evaluate() is thread-safe; each pixel is written once).
     auto rows = [&](uint32_t j0, uint32_t step) {
-    for (uint32_t j = j0; j < H; j += step)
-      for (uint32_t i = 0; i < W; ++i) {
-        double nx = (i + 0.5) / W * 2 - 1, ny = 1 - (j + 0.5) / H * 2;
-        Vec3 o, d;
-        if (cam.projection == Projection::perspective) {
-          o = cam.eye;
-          d = detail::sub(unproject(nx, ny, 1.0), cam.eye);
-        } else {
-          o = unproject(nx, ny, 1.0);
-          d = fwd;
+      for (uint32_t j = j0; j < H; j += step)
+        for (uint32_t i = 0; i < W; ++i) {
+          double nx = (i + 0.5) / W * 2 - 1, ny = 1 - (j + 0.5) / H * 2;
+          Vec3 o, d;
+          if (cam.projection == Projection::perspective) {
+            o = cam.eye;
+            d = detail::sub(unproject(nx, ny, 1.0), cam.eye);
+          } else {
+            o = unproject(nx, ny, 1.0);
+            d = fwd;
+          }
+          auto t = terrain.intersect(o, d);
+          if (!t) continue;
+          const size_t k = i + size_t(W) * j;
+          hit_x[k] = o[0] + *t * d[0];
+          hit_y[k] = o[1] + *t * d[1];
+          hit_z[k] = o[2] + *t * d[2];
+          EvalSample s = evaluate(view, hit_x[k], hit_y[k]);
+          float a = s.rgba[3];
+          for (int c = 0; c < 3; ++c) img.decals[4 * k + c] = a > 0 ? s.rgba[c] / a : 0.0f;
+          img.decals[4 * k + 3] = a;
         }
-        auto t = terrain.intersect(o, d);
-        if (!t) continue;
-        const size_t k = i + size_t(W) * j;
-        hit_x[k] = o[0] + *t * d[0];
-        hit_y[k] = o[1] + *t * d[1];
-        hit_z[k] = o[2] + *t * d[2];
-        EvalSample s = evaluate(view, hit_x[k], hit_y[k]);
-        float a = s.rgba[3];
-        for (int c = 0; c < 3; ++c) img.decals[4 * k + c] = a > 0 ? s.rgba[c] / a : 0.0f;
-        img.decals[4 * k + 3] = a;
-      }
     };
     const uint32_t n = std::max(1u, std::min(16u, std::thread::hardware_concurrency()));
     std::vector<std::thread> workers;
@@ -108,7 +112,8 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
     }
     img.rgba[4 * k + 3] = 255;
   }
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
   img.times.push_back({"cpu frame", ms, ms});
   return img;
 }

@@ -16,7 +16,8 @@ namespace detail {
 namespace {
 
 // GL rows are bottom-up; premultiplied alpha to straight.
-void straight_flipped(const std::vector<float>& from, std::vector<float>& to, uint32_t W, uint32_t H) {
+void straight_flipped(const std::vector<float>& from, std::vector<float>& to, uint32_t W,
+                      uint32_t H) {
   const size_t row = size_t(W) * 4;
   for (uint32_t y = 0; y < H; ++y) {
     const float* src = from.data() + (H - 1 - y) * row;
@@ -37,16 +38,20 @@ void GlRenderer::read_back(Image& img) {
   std::vector<float> dec(size_t(W) * H * 4), dyn(size_t(W) * H * 4);
   glGetTextureImage(t_.dyn, 0, GL_RGBA, GL_FLOAT, GLsizei(dyn.size() * sizeof(float)), dyn.data());
   glGetTextureImage(t_.final, 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(rgba.size()), rgba.data());
-  glGetTextureImage(t_.decal, 0, GL_RGBA, GL_FLOAT, GLsizei(dec.size() * sizeof(float)), dec.data());
-  if (GLenum e = glGetError(); e != GL_NO_ERROR) throw render_error("render: GL error " + std::to_string(e));
+  glGetTextureImage(t_.decal, 0, GL_RGBA, GL_FLOAT, GLsizei(dec.size() * sizeof(float)),
+                    dec.data());
+  if (GLenum e = glGetError(); e != GL_NO_ERROR)
+    throw render_error("render: GL error " + std::to_string(e));
   timer_.collect(img.times);
-  const double frame = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0_).count();
+  const double frame =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0_).count();
   img.times.push_back({"total (incl. upload, shader compile, read-back)", frame, frame});
   img.rgba.resize(rgba.size());
   img.decals.resize(dec.size());
   img.dynamic.resize(dyn.size());
   const size_t row = size_t(W) * 4;
-  for (uint32_t y = 0; y < H; ++y) std::memcpy(img.rgba.data() + y * row, rgba.data() + (H - 1 - y) * row, row);
+  for (uint32_t y = 0; y < H; ++y)
+    std::memcpy(img.rgba.data() + y * row, rgba.data() + (H - 1 - y) * row, row);
   straight_flipped(dec, img.decals, W, H);
   straight_flipped(dyn, img.dynamic, W, H);
 }
@@ -55,7 +60,8 @@ void GlRenderer::read_back(Image& img) {
 
 Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
   const uint32_t W = opt.width, H = opt.height;
-  if (W == 0 || H == 0 || W > 16384 || H > 16384) throw usage_error("render: image size must be 1..16384 pixels");
+  if (W == 0 || H == 0 || W > 16384 || H > 16384)
+    throw usage_error("render: image size must be 1..16384 pixels");
 
   // Validate before anything touches GL (formats/gl validate_blobs), once:
   // a package's source was checked when it was made.

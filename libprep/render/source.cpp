@@ -59,10 +59,13 @@ DecalSource source_of(const decal::Package& package) {
   s.view = view_of(package);  // grid from the metadata, checked against the blobs
   s.validated = true;
   for (const decal::BlobView& b : package.blobs())
-    if (b.known()) s.blobs.push_back({static_cast<decal::BlobId>(b.id), b.count, b.bytes.data(), b.bytes.size()});
+    if (b.known())
+      s.blobs.push_back(
+          {static_cast<decal::BlobId>(b.id), b.count, b.bytes.data(), b.bytes.size()});
   // Frame and extent from the metadata chunk (formats/SPEC.md).
   auto meta = nlohmann::json::parse(package.metadata_json(), nullptr, false);
-  if (meta.is_discarded() || !meta.is_object()) throw format_error("render: package metadata is not a JSON object");
+  if (meta.is_discarded() || !meta.is_object())
+    throw format_error("render: package metadata is not a JSON object");
   try {
     auto pick = [&](std::initializer_list<const char*> keys) -> const nlohmann::json* {
       for (const char* k : keys)
@@ -70,8 +73,10 @@ DecalSource source_of(const decal::Package& package) {
       return nullptr;
     };
     if (const auto* crs = pick({"crs_wkt", "crs"})) {
-      if (crs->is_string()) s.frame.crs_wkt = crs->get<std::string>();
-      else if (crs->is_object() && crs->contains("wkt")) s.frame.crs_wkt = (*crs)["wkt"].get<std::string>();
+      if (crs->is_string())
+        s.frame.crs_wkt = crs->get<std::string>();
+      else if (crs->is_object() && crs->contains("wkt"))
+        s.frame.crs_wkt = (*crs)["wkt"].get<std::string>();
     }
     if (const auto* o = pick({"origin"})) {
       if (o->is_array() && o->size() >= 2) {
@@ -84,9 +89,11 @@ DecalSource source_of(const decal::Package& package) {
     }
     if (const auto* e = pick({"extent"})) {
       if (e->is_array() && e->size() >= 4) {
-        s.extent = {(*e)[0].get<double>(), (*e)[1].get<double>(), (*e)[2].get<double>(), (*e)[3].get<double>()};
+        s.extent = {(*e)[0].get<double>(), (*e)[1].get<double>(), (*e)[2].get<double>(),
+                    (*e)[3].get<double>()};
       } else if (e->is_object()) {
-        s.extent = {e->value("xmin", 0.0), e->value("ymin", 0.0), e->value("xmax", 0.0), e->value("ymax", 0.0)};
+        s.extent = {e->value("xmin", 0.0), e->value("ymin", 0.0), e->value("xmax", 0.0),
+                    e->value("ymax", 0.0)};
       }
     }
   } catch (const nlohmann::json::exception& ex) {

@@ -1,7 +1,7 @@
 // Terrain heightfield: the mesh of the DEM surface (prep/dem.hpp) that the GL
 // path rasterises and the CPU path ray-casts, and --extent-crs transforms.
-#include <nlohmann/json.hpp>
 #include <ogr_spatialref.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -246,9 +246,13 @@ std::optional<double> Heightfield::intersect(const Vec3& o, const Vec3& d) const
   };
   double tx = next_boundary(i, step_i, x0, dx, d[0], o[0]);
   double ty = next_boundary(j, step_j, y0, dy, d[1], o[1]);
-  const double dtx = std::abs(d[0]) < 1e-300 ? std::numeric_limits<double>::max() : dx / std::abs(d[0]);
-  const double dty = std::abs(d[1]) < 1e-300 ? std::numeric_limits<double>::max() : dy / std::abs(d[1]);
-  auto P = [&](int a, int b) -> Vec3 { return {x0 + a * dx, y0 + b * dy, z[size_t(a) + size_t(nx) * b]}; };
+  const double dtx =
+      std::abs(d[0]) < 1e-300 ? std::numeric_limits<double>::max() : dx / std::abs(d[0]);
+  const double dty =
+      std::abs(d[1]) < 1e-300 ? std::numeric_limits<double>::max() : dy / std::abs(d[1]);
+  auto P = [&](int a, int b) -> Vec3 {
+    return {x0 + a * dx, y0 + b * dy, z[size_t(a) + size_t(nx) * b]};
+  };
   for (int guard = 0; guard < int(nx + ny) + 4; ++guard) {
     Vec3 p00 = P(i, j), p10 = P(i + 1, j), p11 = P(i + 1, j + 1), p01 = P(i, j + 1);
     double ta = ray_triangle(o, d, p00, p10, p11), tb = ray_triangle(o, d, p00, p11, p01);

@@ -18,8 +18,7 @@ using json = nlohmann::json;
 // manifest_entries blob (manifest_entries_json).
 json manifest_json(const Manifest& m) {
   json layers = json::array();
-  for (const LayerCounts& l : m.layers)
-    layers.push_back(layer_counts_json(l));
+  for (const LayerCounts& l : m.layers) layers.push_back(layer_counts_json(l));
   return {{"layers", layers}, {"notes", m.notes}, {"entry_count", m.entries.size()}};
 }
 
@@ -55,8 +54,7 @@ void write_model(const std::string& path, const DecalModel& model,
   blobs.push_back({decal::BlobId::manifest_entries, decal::ElementType::u8, 1, entries.size(),
                    std::as_bytes(std::span(entries.data(), entries.size()))});
   json counts = json::object();
-  for (const BlobInput& b : blobs)
-    counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;
+  for (const BlobInput& b : blobs) counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;
   counts["lines"] = model.line_props.size();
   counts["polygons"] = model.poly_props.size();
   counts["dynamic_lines"] = model.dyn_line_props.size();
@@ -71,7 +69,9 @@ void write_model(const std::string& path, const DecalModel& model,
       {"origin", {{"x", model.frame.origin_x}, {"y", model.frame.origin_y}}},
       {"extent", {model.extent.xmin, model.extent.ymin, model.extent.xmax, model.extent.ymax}},
       {"grid",
-       {{"origin", {g.origin_x, g.origin_y}}, {"cell", {g.cell_w, g.cell_h}}, {"dims", {g.nx, g.ny}}}},
+       {{"origin", {g.origin_x, g.origin_y}},
+        {"cell", {g.cell_w, g.cell_h}},
+        {"dims", {g.nx, g.ny}}}},
       {"max_representation_error_m", model.max_representation_error},
       {"terrain", {{"min", model.terrain_min}, {"max", model.terrain_max}}},
       {"counts", counts},

@@ -229,8 +229,9 @@ void check_blob(const std::string& path, const BlobInput& b, std::span<const Blo
                    std::string(decal::element_type_name(b.type)));
   if (const decal::BlobInfo* info = decal::find_blob_info(b.id))
     if (info->type != b.type || info->stride != b.stride)
-      fail(path, label + " (" + std::string(info->name) + "): type/stride differ from the "
-                 "catalogue");
+      fail(path, label + " (" + std::string(info->name) +
+                     "): type/stride differ from the "
+                     "catalogue");
   uint64_t raw = 0;
   if (__builtin_mul_overflow(b.count, uint64_t(b.stride), &raw) || raw != b.bytes.size())
     fail(path, label + ": " + std::to_string(b.bytes.size()) + " bytes given for " +

@@ -69,10 +69,12 @@ std::vector<Case> cases() {
   const Pts square = {{0, 0}, {100, 0}, {100, 100}, {0, 100}, {0, 0}};
   std::vector<Case> c;
   c.push_back(polygon_case(1, "bow-tie", {{{0, 0}, {100, 100}, {100, 0}, {0, 100}, {0, 0}}}));
-  c.push_back(polygon_case(2, "spike",
-                           {{{0, 0}, {100, 0}, {100, 100}, {50, 100}, {50, 180}, {50, 100}, {0, 100}, {0, 0}}}));
-  c.push_back(polygon_case(3, "duplicate points",
-                           {{{0, 0}, {0, 0}, {100, 0}, {100, 0}, {100, 0}, {100, 100}, {0, 100}, {0, 0}}}));
+  c.push_back(polygon_case(
+      2, "spike",
+      {{{0, 0}, {100, 0}, {100, 100}, {50, 100}, {50, 180}, {50, 100}, {0, 100}, {0, 0}}}));
+  c.push_back(
+      polygon_case(3, "duplicate points",
+                   {{{0, 0}, {0, 0}, {100, 0}, {100, 0}, {100, 0}, {100, 100}, {0, 100}, {0, 0}}}));
   c.push_back(polygon_case(4, "unclosed ring", {{{0, 0}, {100, 0}, {100, 100}, {0, 100}}}));
   c.push_back(polygon_case(5, "hole touching shell at a point",
                            {square, {{0, 50}, {40, 30}, {40, 70}, {0, 50}}}));
@@ -97,7 +99,8 @@ std::vector<Case> cases() {
     c.push_back(m);
   }
   c.push_back(polygon_case(10, "zero area (collinear)", {{{0, 0}, {50, 0}, {100, 0}, {0, 0}}}));
-  c.push_back(polygon_case(11, "zero area (two distinct points)", {{{0, 0}, {50, 0}, {50, 0}, {0, 0}}}));
+  c.push_back(
+      polygon_case(11, "zero area (two distinct points)", {{{0, 0}, {50, 0}, {50, 0}, {0, 0}}}));
   c.push_back(polygon_case(12, "clockwise shell, counter-clockwise hole",
                            {{{0, 0}, {0, 100}, {100, 100}, {100, 0}, {0, 0}},
                             {{20, 20}, {80, 20}, {80, 80}, {20, 80}, {20, 20}}}));
@@ -105,7 +108,8 @@ std::vector<Case> cases() {
 }
 
 std::string collection(const std::vector<Case>& cs) {
-  std::string s = R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:32632"}},"features":[)";
+  std::string s =
+      R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:32632"}},"features":[)";
   for (size_t i = 0; i < cs.size(); ++i) {
     s += (i ? "," : "") + std::string(R"({"type":"Feature","id":)") + std::to_string(cs[i].fid) +
          R"(,"properties":{},"geometry":)" + cs[i].geojson + "}";
@@ -169,12 +173,12 @@ TEST(Clean, EveryBrokenPolygonEndsValidWithMakeValidsAreaOrIsDroppedWithAReason)
     EXPECT_NEAR(area, oracle, 1e-9 * oracle);
   }
   // The specific outcomes the cases are about.
-  EXPECT_EQ(by_fid[1].size(), 2u);                 // bow-tie: two triangles
+  EXPECT_EQ(by_fid[1].size(), 2u);  // bow-tie: two triangles
   ASSERT_EQ(by_fid[3].size(), 1u);
-  EXPECT_EQ(by_fid[3][0]->shell.size(), 4u);       // duplicates removed
+  EXPECT_EQ(by_fid[3][0]->shell.size(), 4u);  // duplicates removed
   ASSERT_EQ(by_fid[5].size(), 1u);
-  EXPECT_EQ(by_fid[5][0]->holes.size(), 1u);       // touching hole kept, attached
-  ASSERT_EQ(by_fid[8].size(), 2u);                 // outer-with-hole + island
+  EXPECT_EQ(by_fid[5][0]->holes.size(), 1u);  // touching hole kept, attached
+  ASSERT_EQ(by_fid[8].size(), 2u);            // outer-with-hole + island
   ASSERT_EQ(by_fid[9].size(), 2u);
   for (int fid : {8, 9}) {
     size_t with_hole = 0;
@@ -214,13 +218,14 @@ TEST(Clean, StructureRepairMatchesGeosStructureMethodAndSubtractsEveryHole) {
   std::vector<Case> cs = cases();
   const Pts square = {{0, 0}, {100, 0}, {100, 100}, {0, 100}, {0, 0}};
   cs.push_back(polygon_case(13, "overlapping holes",
-                            {square, {{10, 10}, {10, 60}, {60, 60}, {60, 10}, {10, 10}},
+                            {square,
+                             {{10, 10}, {10, 60}, {60, 60}, {60, 10}, {10, 10}},
                              {{40, 40}, {40, 90}, {90, 90}, {90, 40}, {40, 40}}}));
   cs.push_back(polygon_case(14, "hole crossing the shell",
                             {square, {{60, 20}, {60, 80}, {140, 80}, {140, 20}, {60, 20}}}));
   prep::test::write_text(dir.file("cases.geojson"), collection(cs));
-  prep::SceneFeatures sf =
-      run(dir.file("cases.geojson"), prep::DecalKind::polygon, 0, std::nullopt, 0, prep::RepairMethod::structure);
+  prep::SceneFeatures sf = run(dir.file("cases.geojson"), prep::DecalKind::polygon, 0, std::nullopt,
+                               0, prep::RepairMethod::structure);
   Geos geos;
   std::map<int64_t, double> area;
   for (const auto& p : sf.polygons) {
@@ -244,7 +249,8 @@ TEST(Clean, StructureRepairMatchesGeosStructureMethodAndSubtractsEveryHole) {
   EXPECT_NEAR(area[14], 10000 - 40 * 60, 1e-6);
   bool named = false;
   for (const auto& e : sf.manifest.entries)
-    if (e.fid == 13 && e.action == prep::ManifestAction::repaired) named = e.reason.find("structure method") != std::string::npos;
+    if (e.fid == 13 && e.action == prep::ManifestAction::repaired)
+      named = e.reason.find("structure method") != std::string::npos;
   EXPECT_TRUE(named) << "the manifest names the repair method";
 }
 
@@ -266,13 +272,16 @@ TEST(Clean, ClipKeepsTheInsideAndRecordsFeaturesEntirelyOutside) {
   EXPECT_EQ(n.kept, 2u);
   EXPECT_EQ(n.clipped_away, 1u);
   bool entry = false;
-  for (const auto& m : sf.manifest.entries) entry |= m.fid == 2 && m.action == prep::ManifestAction::clipped_away;
+  for (const auto& m : sf.manifest.entries)
+    entry |= m.fid == 2 && m.action == prep::ManifestAction::clipped_away;
   EXPECT_TRUE(entry);
 }
 
 TEST(Clean, LinesLoseDuplicatesAreClippedIntoPiecesAndDegenerateOnesAreDropped) {
   TempDir dir;
-  const std::string fc = std::string(R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:32632"}},"features":[)") +
+  const std::string fc =
+      std::string(
+          R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:32632"}},"features":[)") +
       R"({"type":"Feature","id":1,"properties":{},"geometry":{"type":"LineString","coordinates":)" +
       ring_json({{0, 0}, {0, 0}, {10, 0}, {10, 0}, {20, 0}}) + "}}," +
       R"({"type":"Feature","id":2,"properties":{},"geometry":{"type":"LineString","coordinates":)" +
@@ -299,9 +308,9 @@ TEST(Clean, LinesLoseDuplicatesAreClippedIntoPiecesAndDegenerateOnesAreDropped) 
 
 TEST(Clean, OutlinesAreClosedRingsWithShellCounterClockwiseAndHolesClockwise) {
   TempDir dir;
-  std::vector<Case> cs = {polygon_case(
-      1, "cw shell", {{{0, 0}, {0, 100}, {100, 100}, {100, 0}, {0, 0}},
-                      {{20, 20}, {80, 20}, {80, 80}, {20, 80}, {20, 20}}})};
+  std::vector<Case> cs = {polygon_case(1, "cw shell",
+                                       {{{0, 0}, {0, 100}, {100, 100}, {100, 0}, {0, 0}},
+                                        {{20, 20}, {80, 20}, {80, 80}, {20, 80}, {20, 20}}})};
   prep::test::write_text(dir.file("o.geojson"), collection(cs));
   prep::SceneFeatures sf = run(dir.file("o.geojson"), prep::DecalKind::outline);
   ASSERT_EQ(sf.lines.size(), 2u);
@@ -347,11 +356,14 @@ TEST(Clean, OutputDoesNotDependOnTheThreadCount) {
   std::vector<Case> cs;
   for (int i = 0; i < 300; ++i) {
     const double x = 200.0 * (i % 20), y = 200.0 * (i / 20);
-    cs.push_back(polygon_case(i + 1, "sq", {{{x, y}, {x + 100, y + 100}, {x + 100, y}, {x, y + 100}, {x, y}}}));
+    cs.push_back(polygon_case(i + 1, "sq",
+                              {{{x, y}, {x + 100, y + 100}, {x + 100, y}, {x, y + 100}, {x, y}}}));
   }
   prep::test::write_text(dir.file("many.geojson"), collection(cs));
-  prep::SceneFeatures one = run(dir.file("many.geojson"), prep::DecalKind::polygon, 0.1, std::nullopt, 1);
-  prep::SceneFeatures two = run(dir.file("many.geojson"), prep::DecalKind::polygon, 0.1, std::nullopt, 2);
+  prep::SceneFeatures one =
+      run(dir.file("many.geojson"), prep::DecalKind::polygon, 0.1, std::nullopt, 1);
+  prep::SceneFeatures two =
+      run(dir.file("many.geojson"), prep::DecalKind::polygon, 0.1, std::nullopt, 2);
   ASSERT_EQ(one.polygons.size(), two.polygons.size());
   for (size_t i = 0; i < one.polygons.size(); ++i) {
     EXPECT_EQ(one.polygons[i].fid, two.polygons[i].fid);
@@ -383,7 +395,8 @@ std::string write_dem(const TempDir& dir) {
   srs.importFromEPSG(32632);
   ds->SetSpatialRef(&srs);
   std::vector<float> z(15 * 30, 100.0f);
-  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 15, 30, z.data(), 15, 30, GDT_Float32, 0, 0) != CE_None)
+  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 15, 30, z.data(), 15, 30, GDT_Float32, 0, 0) !=
+      CE_None)
     throw std::runtime_error("RasterIO failed");
   return path;
 }
@@ -392,7 +405,8 @@ TEST(Clean, WithADemTheSceneIsClippedToTheDemExtent) {
   TempDir dir;
   std::vector<Case> cs = {
       polygon_case(1, "crossing the DEM edge", {{{0, 0}, {100, 0}, {100, 100}, {0, 100}, {0, 0}}}),
-      polygon_case(2, "beyond the DEM", {{{1000, 0}, {1100, 0}, {1100, 100}, {1000, 100}, {1000, 0}}})};
+      polygon_case(2, "beyond the DEM",
+                   {{{1000, 0}, {1100, 0}, {1100, 100}, {1000, 100}, {1000, 0}}})};
   prep::test::write_text(dir.file("d.geojson"), collection(cs));
   prep::SceneSpec s;
   prep::LayerSpec l;
@@ -421,7 +435,8 @@ TEST(Clean, ExtentGivenInLonLatIsTransformedIntoTheFrame) {
   TempDir dir;
   std::vector<Case> cs = {
       polygon_case(1, "near the origin", {{{0, 0}, {100, 0}, {100, 100}, {0, 100}, {0, 0}}}),
-      polygon_case(2, "50 km east", {{{50000, 0}, {50100, 0}, {50100, 100}, {50000, 100}, {50000, 0}}})};
+      polygon_case(2, "50 km east",
+                   {{{50000, 0}, {50100, 0}, {50100, 100}, {50000, 100}, {50000, 0}}})};
   prep::test::write_text(dir.file("e.geojson"), collection(cs));
   // Zone 32's central meridian is 9°E; (500000, 4800000) is near 43.35°N.
   prep::SceneSpec s;
@@ -473,12 +488,14 @@ TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
       return pts;
     };
     // Jitter above 1 lets neighbouring vertices swap angles: self-crossings.
-    std::vector<Pts> rings = {make_ring(cx, cy, radius, 4 + k % 29, k % 3 == 0, k % 4 == 0 ? 3.0 : 0.9)};
+    std::vector<Pts> rings = {
+        make_ring(cx, cy, radius, 4 + k % 29, k % 3 == 0, k % 4 == 0 ? 3.0 : 0.9)};
     for (int h = 0; h < k % 4; ++h) {
       // Holes near the centre (mostly inside), sometimes large (crossing).
       const double hr = radius * (h == 2 ? 0.9 : 0.2);
-      rings.push_back(make_ring(cx + radius * 0.3 * (next() - 0.5), cy + radius * 0.3 * (next() - 0.5), hr,
-                                4 + k % 7, k % 5 != 0, 0.5));
+      rings.push_back(make_ring(cx + radius * 0.3 * (next() - 0.5),
+                                cy + radius * 0.3 * (next() - 0.5), hr, 4 + k % 7, k % 5 != 0,
+                                0.5));
     }
     cs.push_back(polygon_case(k + 1, "random", rings));
   }
@@ -489,7 +506,9 @@ TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
   GEOSWKTReader* reader = GEOSWKTReader_create_r(geos.h());
   std::map<int64_t, std::string> repaired, dropped;
   for (const auto& e : sf.manifest.entries) {
-    if (e.action == prep::ManifestAction::repaired || e.action == prep::ManifestAction::part_dropped) repaired[e.fid] += e.reason + ";";
+    if (e.action == prep::ManifestAction::repaired ||
+        e.action == prep::ManifestAction::part_dropped)
+      repaired[e.fid] += e.reason + ";";
     if (e.action == prep::ManifestAction::dropped) dropped[e.fid] = e.reason;
   }
   std::map<int64_t, double> area;
@@ -516,7 +535,8 @@ TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
       EXPECT_NEAR(area[c.fid], a, 1e-9 * a);
     } else {
       ++invalid_count;
-      EXPECT_TRUE(repaired[c.fid].find("made valid") != std::string::npos || dropped.count(c.fid) > 0)
+      EXPECT_TRUE(repaired[c.fid].find("made valid") != std::string::npos ||
+                  dropped.count(c.fid) > 0)
           << "fid " << c.fid << " is invalid for GEOS but was kept untouched";
     }
   }

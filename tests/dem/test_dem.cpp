@@ -16,12 +16,15 @@ namespace {
 using terraintest::GdalBilinear;
 
 // Bumpy synthetic terrain in UTM 32N, 10 m cells.
-double bumpy(int i, int j) { return 100 + 30 * std::sin(i * 0.37) * std::cos(j * 0.21) + 0.5 * i - 0.25 * j; }
+double bumpy(int i, int j) {
+  return 100 + 30 * std::sin(i * 0.37) * std::cos(j * 0.21) + 0.5 * i - 0.25 * j;
+}
 
 TEST(DemSampler, BilinearEqualsGdalBilinearOnSyntheticGeoTiff) {
   const std::string dir = terraintest::temp_dir("bilinear");
   const double gt[6] = {500000, 10, 0, 5000000, 0, -10};
-  const std::string path = terraintest::write_dem(dir + "/dem.tif", 60, 40, gt, "EPSG:32632", bumpy);
+  const std::string path =
+      terraintest::write_dem(dir + "/dem.tif", 60, 40, gt, "EPSG:32632", bumpy);
   prep::SceneFrame frame;
   frame.crs_wkt = terraintest::wkt_of("EPSG:32632");
   frame.origin_x = 500000;
@@ -36,7 +39,8 @@ TEST(DemSampler, BilinearEqualsGdalBilinearOnSyntheticGeoTiff) {
     const prep::Point2 px = dem.to_pixel(p);
     EXPECT_NEAR(px.x, p.x / 10, 1e-9);
     EXPECT_NEAR(px.y, (400 - p.y) / 10, 1e-9);
-    EXPECT_NEAR(dem.height(px.x, px.y), oracle.at(p.x + 500000, p.y + 4999600), 1e-3) << p.x << " " << p.y;
+    EXPECT_NEAR(dem.height(px.x, px.y), oracle.at(p.x + 500000, p.y + 4999600), 1e-3)
+        << p.x << " " << p.y;
   }
   // Edges: half a cell beyond the outermost centres GDAL uses the edge cell.
   for (const auto& q : {prep::Point2{0.3, 0.3}, prep::Point2{59.7, 0.4}, prep::Point2{0.26, 39.7},
@@ -50,9 +54,9 @@ TEST(DemSampler, PlaneIsReproducedExactly) {
   const std::string dir = terraintest::temp_dir("plane");
   const double gt[6] = {1000, 2, 0, 2000, 0, -2};
   auto plane = [](double x, double y) { return 5 + 0.3 * x - 0.7 * y; };
-  const std::string path = terraintest::write_dem(dir + "/plane.tif", 50, 50, gt, "EPSG:32631", [&](int i, int j) {
-    return plane(1000 + 2 * (i + 0.5), 2000 - 2 * (j + 0.5));
-  });
+  const std::string path = terraintest::write_dem(
+      dir + "/plane.tif", 50, 50, gt, "EPSG:32631",
+      [&](int i, int j) { return plane(1000 + 2 * (i + 0.5), 2000 - 2 * (j + 0.5)); });
   prep::SceneFrame frame;  // empty CRS: the DEM's own
   prep::DemSampler dem(path, frame, 2.0, std::nullopt);
   dem.load(0, 0, 50, 50);
@@ -67,7 +71,8 @@ TEST(DemSampler, DemInGeographicCrsIsSampledAtTransformedPoints) {
   const std::string dir = terraintest::temp_dir("geo");
   // 1 arc-second cells around Monaco, EPSG:4326 (lat/lon authority order).
   const double gt[6] = {7.40, 1.0 / 3600, 0, 43.75, 0, -1.0 / 3600};
-  const std::string path = terraintest::write_dem(dir + "/geo.tif", 150, 100, gt, "EPSG:4326", bumpy);
+  const std::string path =
+      terraintest::write_dem(dir + "/geo.tif", 150, 100, gt, "EPSG:4326", bumpy);
   const terraintest::MonacoFrame mf;
   prep::DemSampler dem(path, mf.frame(), 1.0, std::nullopt);
   dem.load(0, 0, 150, 100);
@@ -95,7 +100,8 @@ TEST(DemSampler, NoDataTakesNearestValidCellAndIsCounted) {
     if ((i == 5 && j == 5) || (i >= 10 && i <= 12 && j >= 3 && j <= 4)) return nodata;
     return 100.0 * j + i;
   };
-  const std::string path = terraintest::write_dem(dir + "/holes.tif", 20, 20, gt, "EPSG:32632", f, &nodata);
+  const std::string path =
+      terraintest::write_dem(dir + "/holes.tif", 20, 20, gt, "EPSG:32632", f, &nodata);
   {
     prep::DemSampler dem(path, {}, 1.0, std::nullopt);
     dem.load(0, 0, 20, 20);
@@ -129,7 +135,8 @@ TEST(DemSampler, SrtmInsideZipOpensAndMatchesGdal) {
   const terraintest::MonacoFrame mf;
   prep::DemSampler dem(terraintest::monaco_dem(), mf.frame(), 1.0, std::nullopt);
   EXPECT_NE(dem.stats().description.find("SRTMHGT"), std::string::npos) << dem.stats().description;
-  const prep::Point2 a = dem.to_pixel(mf.forward(7.40, 43.72)), b = dem.to_pixel(mf.forward(7.44, 43.75));
+  const prep::Point2 a = dem.to_pixel(mf.forward(7.40, 43.72)),
+                     b = dem.to_pixel(mf.forward(7.44, 43.75));
   dem.load(std::min(a.x, b.x), std::min(a.y, b.y), std::max(a.x, b.x), std::max(a.y, b.y));
   const GdalBilinear oracle(terraintest::monaco_dem());
   std::mt19937_64 rng(3);
@@ -165,7 +172,8 @@ TEST(DemSampler, VrtAndFeetUnitsAreHonoured) {
   {
     GDALDatasetUniquePtr src(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
     GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("VRT");
-    GDALDatasetUniquePtr out(drv->CreateCopy(vrt.c_str(), src.get(), FALSE, nullptr, nullptr, nullptr));
+    GDALDatasetUniquePtr out(
+        drv->CreateCopy(vrt.c_str(), src.get(), FALSE, nullptr, nullptr, nullptr));
     ASSERT_TRUE(out);
   }
   prep::DemSampler dem(vrt, {}, 1.0, std::nullopt);
@@ -181,9 +189,10 @@ TEST(DemSampler, VrtAndFeetUnitsAreHonoured) {
 
 // A GeoTIFF written through GDAL with the band settings a DEM can carry:
 // raw cell values f(i, j) of `type`, no CRS when `crs` is empty.
-std::string write_band(const std::string& path, int w, int h, const double gt[6], const std::string& crs,
-                       const std::function<double(int, int)>& f, GDALDataType type, const double* nodata,
-                       double scale, double offset, const char* unit) {
+std::string write_band(const std::string& path, int w, int h, const double gt[6],
+                       const std::string& crs, const std::function<double(int, int)>& f,
+                       GDALDataType type, const double* nodata, double scale, double offset,
+                       const char* unit) {
   GDALAllRegister();
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
   GDALDatasetUniquePtr ds(drv->Create(path.c_str(), w, h, 1, type, nullptr));
@@ -212,8 +221,8 @@ TEST(DemSampler, DemWithoutCrsIsAnErrorNamingTheFileUnlessACrsIsAssumed) {
   auto plane = [](double x, double y) { return 50 + 0.02 * (x - 500000) - 0.01 * (y - 5000000); };
   const std::string path = write_band(
       dir + "/nocrs.tif", 30, 30, gt, "",
-      [&](int i, int j) { return plane(500000 + 10 * (i + 0.5), 5000300 - 10 * (j + 0.5)); }, GDT_Float32,
-      nullptr, 1, 0, nullptr);
+      [&](int i, int j) { return plane(500000 + 10 * (i + 0.5), 5000300 - 10 * (j + 0.5)); },
+      GDT_Float32, nullptr, 1, 0, nullptr);
   prep::SceneFrame frame;
   frame.crs_wkt = terraintest::wkt_of("EPSG:32632");
   frame.origin_x = 500000;
@@ -250,7 +259,8 @@ TEST(DemSampler, DemWithoutCrsIsAnErrorNamingTheFileUnlessACrsIsAssumed) {
   utm.importFromEPSG(32632);
   EXPECT_TRUE(got.IsSame(&utm));
   // A DEM with its own CRS ignores the assumed one.
-  const std::string own = terraintest::write_dem(dir + "/own.tif", 5, 5, gt, "EPSG:32632", [](int, int) { return 1.0; });
+  const std::string own = terraintest::write_dem(dir + "/own.tif", 5, 5, gt, "EPSG:32632",
+                                                 [](int, int) { return 1.0; });
   EXPECT_FALSE(prep::dem_footprint({own, "EPSG:4326"}).crs_assumed);
 }
 
@@ -265,8 +275,9 @@ TEST(DemSampler, BandScaleOffsetAndFeetGiveMetres) {
   };
   for (const Case c : {Case{"ft", 0.3048}, Case{"US survey foot", 1200.0 / 3937.0}, Case{"m", 1.0},
                        Case{nullptr, 1.0}}) {
-    const std::string path = write_band(dir + "/u" + std::to_string(int(c.metres_per_unit * 1e4)) + ".tif", 25,
-                                        25, gt, "EPSG:32633", raw, GDT_Int16, nullptr, 0.5, 100, c.unit);
+    const std::string path =
+        write_band(dir + "/u" + std::to_string(int(c.metres_per_unit * 1e4)) + ".tif", 25, 25, gt,
+                   "EPSG:32633", raw, GDT_Int16, nullptr, 0.5, 100, c.unit);
     prep::DemSampler dem(prep::DemSpec{path, "", 2.0, std::nullopt}, prep::SceneFrame{});
     dem.load(0, 0, 25, 25);
     for (double u = 0.5; u <= 24.5; u += 1.7)
@@ -285,9 +296,9 @@ TEST(DemSampler, MaxTwistIsTheLargestCellTwistInMetres) {
   const std::string dir = terraintest::temp_dir("twist");
   const double gt[6] = {0, 1, 0, 30, 0, -1};
   // f = i j / 4 has twist 1/4 in every 2x2 block; one bump adds 2 there.
-  const std::string path = terraintest::write_dem(dir + "/twist.tif", 30, 30, gt, "EPSG:32632", [](int i, int j) {
-    return i * j / 4.0 + (i == 10 && j == 12 ? 2.0 : 0.0);
-  });
+  const std::string path = terraintest::write_dem(
+      dir + "/twist.tif", 30, 30, gt, "EPSG:32632",
+      [](int i, int j) { return i * j / 4.0 + (i == 10 && j == 12 ? 2.0 : 0.0); });
   prep::DemSampler dem(prep::DemSpec{path, "", 3.0, std::nullopt}, prep::SceneFrame{});
   dem.load(0, 0, 30, 30);
   EXPECT_NEAR(dem.max_twist(), 3.0 * (0.25 + 2.0), 1e-9);
@@ -306,7 +317,8 @@ TEST(DemSampler, LatticeIsOnlyGivenWhenTheDemGridIsAGridOfTheFrame) {
   const terraintest::MonacoFrame mf;
   EXPECT_FALSE(prep::DemSampler(geo, mf.frame(), 1.0, std::nullopt).lattice());
   const double rot[6] = {1000, 2, 0.5, 2000, 0.5, -2};
-  const std::string rotated = terraintest::write_dem(dir + "/rot.tif", 10, 10, rot, "EPSG:32632", bumpy);
+  const std::string rotated =
+      terraintest::write_dem(dir + "/rot.tif", 10, 10, rot, "EPSG:32632", bumpy);
   EXPECT_FALSE(prep::DemSampler(rotated, {}, 1.0, std::nullopt).lattice());
 }
 
@@ -319,7 +331,8 @@ TEST(DemSampler, NoDataFillDoesNotDependOnTheWindowRead) {
   const double nodata = -9999;
   // Valid: columns 0..9 at 70 m plus a bump column 5; columns 10..199 void.
   auto f = [&](int i, int j) { return i < 10 ? (i == 5 ? 70.0 + j : 70.0) : nodata; };
-  const std::string path = terraintest::write_dem(dir + "/void.tif", 200, 60, gt, "EPSG:32632", f, &nodata);
+  const std::string path =
+      terraintest::write_dem(dir + "/void.tif", 200, 60, gt, "EPSG:32632", f, &nodata);
   prep::DemSampler near(path, {}, 1.0, std::nullopt), whole(path, {}, 1.0, std::nullopt);
   near.load(150, 20, 160, 30);  // 16-cell margin: columns 134..176, all void
   whole.load(0, 0, 200, 60);
@@ -333,7 +346,8 @@ TEST(DemSampler, NoDataFillDoesNotDependOnTheWindowRead) {
   prep::DemSampler edge(path, {}, 1.0, std::nullopt);
   edge.load(12, 5, 14, 50);
   for (double u = 12; u <= 14; u += 0.25)
-    for (double v = 5; v <= 50; v += 0.75) EXPECT_DOUBLE_EQ(edge.height(u, v), whole.height(u, v)) << u << " " << v;
+    for (double v = 5; v <= 50; v += 0.75)
+      EXPECT_DOUBLE_EQ(edge.height(u, v), whole.height(u, v)) << u << " " << v;
   EXPECT_EQ(near.stats().fill_policy, "nearest valid cell");
 }
 

@@ -5,8 +5,8 @@
 
 #include <geos_c.h>
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <random>
@@ -67,7 +67,8 @@ inline GEOSCoordSequence* seq(GEOSContextHandle_t h, const prep::Ring& r, bool c
 inline G linestring(GEOSContextHandle_t h, const prep::Ring& r, bool close = false) {
   return G(h, GEOSGeom_createLineString_r(h, seq(h, r, close)));
 }
-inline G polygon(GEOSContextHandle_t h, const prep::Ring& shell, const std::vector<prep::Ring>& holes = {}) {
+inline G polygon(GEOSContextHandle_t h, const prep::Ring& shell,
+                 const std::vector<prep::Ring>& holes = {}) {
   GEOSGeometry* s = GEOSGeom_createLinearRing_r(h, seq(h, shell, true));
   std::vector<GEOSGeometry*> hs;
   for (const auto& r : holes) hs.push_back(GEOSGeom_createLinearRing_r(h, seq(h, r, true)));
@@ -89,7 +90,8 @@ inline G collection(GEOSContextHandle_t h, int type, std::vector<G>& parts) {
 
 // Star-shaped simple ring around (cx, cy), radii in [r0, r1], `n` vertices,
 // counter-clockwise unless `cw`.
-inline prep::Ring star(std::mt19937_64& rng, double cx, double cy, double r0, double r1, int n, bool cw) {
+inline prep::Ring star(std::mt19937_64& rng, double cx, double cy, double r0, double r1, int n,
+                       bool cw) {
   std::uniform_real_distribution<double> rad(r0, r1), jitter(-0.3, 0.3);
   prep::Ring r;
   for (int i = 0; i < n; ++i) {
@@ -103,7 +105,8 @@ inline prep::Ring star(std::mt19937_64& rng, double cx, double cy, double r0, do
 
 inline prep::LayerSpec layer(const std::string& name, prep::DecalKind kind, uint32_t rgba,
                              decal::CornerStyle corner = decal::CornerStyle::round,
-                             decal::OutlineMode outline = decal::OutlineMode::normal, double width = 2.0) {
+                             decal::OutlineMode outline = decal::OutlineMode::normal,
+                             double width = 2.0) {
   prep::LayerSpec l;
   l.name = name;
   l.kind = kind;
@@ -138,7 +141,8 @@ inline PolygonSet polygon_set(uint64_t seed, int tiles, double tile, double ox, 
       const double cx = ox + (i + 0.5) * tile, cy = oy + (j + 0.5) * tile;
       const bool complex = (i + j * tiles) % complex_every == 0;
       prep::ScenePolygon p;
-      p.shell = star(rng, cx, cy, 0.28 * tile, 0.48 * tile, complex ? complex_vertices : nv(rng), false);
+      p.shell =
+          star(rng, cx, cy, 0.28 * tile, 0.48 * tile, complex ? complex_vertices : nv(rng), false);
       p.holes.push_back(star(rng, cx, cy, 0.10 * tile, 0.18 * tile, nv(rng), true));
       p.fid = fid++;
       p.area = double(fid);  // any distinct order
@@ -161,7 +165,10 @@ constexpr double kLimitDeg = 40.0;
 inline bool fallback(const prep::Point2& p, const prep::Point2& v, const prep::Point2& n) {
   double ax = v.x - p.x, ay = v.y - p.y, bx = n.x - v.x, by = n.y - v.y;
   const double la = std::hypot(ax, ay), lb = std::hypot(bx, by);
-  ax /= la; ay /= la; bx /= lb; by /= lb;
+  ax /= la;
+  ay /= la;
+  bx /= lb;
+  by /= lb;
   return -(ax * bx + ay * by) > std::cos(kLimitDeg * M_PI / 180.0);
 }
 
@@ -202,8 +209,10 @@ inline G oracle(GEOSContextHandle_t h, const prep::SceneLine& l, const prep::Lay
       }
       if (l.closed && !any) {
         G poly = synth::polygon(h, pts);
-        G outer(h, GEOSBufferWithStyle_r(h, poly.g, hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE, limit));
-        G inner(h, GEOSBufferWithStyle_r(h, poly.g, -hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE, limit));
+        G outer(h, GEOSBufferWithStyle_r(h, poly.g, hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE,
+                                         limit));
+        G inner(h, GEOSBufferWithStyle_r(h, poly.g, -hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE,
+                                         limit));
         band = G(h, GEOSDifference_r(h, outer.g, inner.g));
         break;
       }
@@ -227,11 +236,14 @@ inline G oracle(GEOSContextHandle_t h, const prep::SceneLine& l, const prep::Lay
         // ring with a single fallback vertex is cut into two open pieces
         // sharing one segment; their union keeps every mitre join.
         std::vector<prep::Ring> pieces{piece};
-        if (piece.size() >= 4 && piece.front().x == piece.back().x && piece.front().y == piece.back().y)
-          pieces = {prep::Ring(piece.begin(), piece.begin() + 3), prep::Ring(piece.begin() + 1, piece.end())};
+        if (piece.size() >= 4 && piece.front().x == piece.back().x &&
+            piece.front().y == piece.back().y)
+          pieces = {prep::Ring(piece.begin(), piece.begin() + 3),
+                    prep::Ring(piece.begin() + 1, piece.end())};
         for (const auto& pc : pieces) {
           G g = synth::linestring(h, pc);
-          parts.push_back(G(h, GEOSBufferWithStyle_r(h, g.g, hw, 8, GEOSBUF_CAP_FLAT, GEOSBUF_JOIN_MITRE, limit)));
+          parts.push_back(G(h, GEOSBufferWithStyle_r(h, g.g, hw, 8, GEOSBUF_CAP_FLAT,
+                                                     GEOSBUF_JOIN_MITRE, limit)));
         }
         parts.push_back(disc(h, pts[i], hw));
         piece = {pts[i]};

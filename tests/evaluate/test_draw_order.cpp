@@ -7,13 +7,14 @@
 
 #include <cmath>
 
-#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/model.hpp"
 #include "synthetic.hpp"
 
 namespace {
 
-constexpr uint32_t kRed = 0xff0000ffu, kGreen = 0xff00ff00u, kBlue = 0xffff0000u, kGrey = 0xff808080u;
+constexpr uint32_t kRed = 0xff0000ffu, kGreen = 0xff00ff00u, kBlue = 0xffff0000u,
+                   kGrey = 0xff808080u;
 
 prep::ScenePolygon square(uint32_t layer, int64_t fid, double x0, double y0, double x1, double y1) {
   prep::ScenePolygon p;
@@ -24,7 +25,8 @@ prep::ScenePolygon square(uint32_t layer, int64_t fid, double x0, double y0, dou
   return p;
 }
 
-prep::SceneLine horizontal(uint32_t layer, int64_t fid, double x0, double x1, double y, double width) {
+prep::SceneLine horizontal(uint32_t layer, int64_t fid, double x0, double x1, double y,
+                           double width) {
   prep::SceneLine l;
   l.layer = layer;
   l.fid = fid;
@@ -36,7 +38,8 @@ prep::SceneLine horizontal(uint32_t layer, int64_t fid, double x0, double x1, do
 
 uint32_t rgba8(const prep::EvalSample& s) {
   uint32_t v = 0;
-  for (int c = 0; c < 4; ++c) v |= uint32_t(std::lround(std::clamp(s.rgba[c], 0.f, 1.f) * 255.f)) << (8 * c);
+  for (int c = 0; c < 4; ++c)
+    v |= uint32_t(std::lround(std::clamp(s.rgba[c], 0.f, 1.f) * 255.f)) << (8 * c);
   return v;
 }
 
@@ -73,8 +76,9 @@ TEST(DrawOrder, LaterLayerIsAboveEarlierWhateverItsSizeOrKind) {
   const prep::StaticView v = prep::view_of(m);
   EXPECT_EQ(rgba8(prep::evaluate(v, 200, 200)), kGreen);  // land use only
   EXPECT_EQ(rgba8(prep::evaluate(v, 200, 500)), kGrey);   // road over land use
-  EXPECT_EQ(rgba8(prep::evaluate(v, 420, 500)), kRed);    // building (layer 2) over road (1) and land use
-  EXPECT_EQ(rgba8(prep::evaluate(v, 420, 530)), kRed);    // building over land use
+  EXPECT_EQ(rgba8(prep::evaluate(v, 420, 500)),
+            kRed);  // building (layer 2) over road (1) and land use
+  EXPECT_EQ(rgba8(prep::evaluate(v, 420, 530)), kRed);   // building over land use
   EXPECT_EQ(rgba8(prep::evaluate(v, 700, 680)), kBlue);  // the top layer's ring over land use
   EXPECT_EQ(rgba8(prep::evaluate(v, 650, 650)), kGreen);
 }
@@ -110,8 +114,9 @@ TEST(DrawOrder, PackagesBeforeOneRankSpaceDrawEveryLineOverEveryPolygon) {
   prep::DecalModel legacy = m;
   std::vector<uint32_t> lines, polys;
   for (uint32_t i = 0; i < legacy.line_props.size(); ++i) lines.push_back(i);
-  std::sort(lines.begin(), lines.end(),
-            [&](uint32_t a, uint32_t b) { return legacy.line_props[a].order < legacy.line_props[b].order; });
+  std::sort(lines.begin(), lines.end(), [&](uint32_t a, uint32_t b) {
+    return legacy.line_props[a].order < legacy.line_props[b].order;
+  });
   for (uint32_t r = 0; r < lines.size(); ++r) legacy.line_props[lines[r]].order = r;
   std::vector<std::pair<uint32_t, uint32_t>> ext;  // (order, index)
   for (uint32_t i = 0; i < legacy.poly_props.size(); ++i)
@@ -122,7 +127,8 @@ TEST(DrawOrder, PackagesBeforeOneRankSpaceDrawEveryLineOverEveryPolygon) {
     if (p.exterior >= 0) p.order = legacy.poly_props[size_t(p.exterior)].order;
   prep::StaticView v = prep::view_of(legacy);
   v.polygon_rank_bias = legacy.line_props.size();
-  EXPECT_EQ(rgba8(prep::evaluate(v, 420, 500)), kGrey);  // the road over the building, as 1.1 drew it
+  EXPECT_EQ(rgba8(prep::evaluate(v, 420, 500)),
+            kGrey);  // the road over the building, as 1.1 drew it
   EXPECT_EQ(rgba8(prep::evaluate(v, 420, 530)), kRed);
   const std::vector<prep::DrawRun> runs = prep::draw_runs(v);
   ASSERT_EQ(runs.size(), 2u);

@@ -21,8 +21,8 @@
 #include <cstdlib>
 #include <mutex>
 
-#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/model.hpp"
 #include "sampling.hpp"
 #include "synthetic.hpp"
 #include "test_support.hpp"
@@ -38,7 +38,6 @@ using synth::G;
 // DECALPREP_SAMPLES overrides both.
 using prep::test::sample_count;
 using prep::test::VariantSamples;
-
 
 struct LineSet {
   prep::SceneFeatures scene;
@@ -59,13 +58,18 @@ LineSet line_set(uint64_t seed, double scale, double ox, double oy, bool narrow_
   using decal::CornerStyle;
   using decal::OutlineMode;
   const double width = 3.0 * scale;
-  s.scene.layers = {
-      synth::layer("round", prep::DecalKind::line, 0xff0000ffu, CornerStyle::round, OutlineMode::normal, width),
-      synth::layer("miter", prep::DecalKind::line, 0xff00ff00u, CornerStyle::miter, OutlineMode::normal, width),
-      synth::layer("bevel", prep::DecalKind::line, 0xffff0000u, CornerStyle::bevel, OutlineMode::normal, width),
-      synth::layer("normal", prep::DecalKind::outline, 0xff000000u, CornerStyle::miter, OutlineMode::normal, 2 * scale),
-      synth::layer("inset", prep::DecalKind::outline, 0xff000000u, CornerStyle::miter, OutlineMode::inset, 2 * scale),
-      synth::layer("offset", prep::DecalKind::outline, 0xff000000u, CornerStyle::miter, OutlineMode::offset, 2 * scale)};
+  s.scene.layers = {synth::layer("round", prep::DecalKind::line, 0xff0000ffu, CornerStyle::round,
+                                 OutlineMode::normal, width),
+                    synth::layer("miter", prep::DecalKind::line, 0xff00ff00u, CornerStyle::miter,
+                                 OutlineMode::normal, width),
+                    synth::layer("bevel", prep::DecalKind::line, 0xffff0000u, CornerStyle::bevel,
+                                 OutlineMode::normal, width),
+                    synth::layer("normal", prep::DecalKind::outline, 0xff000000u,
+                                 CornerStyle::miter, OutlineMode::normal, 2 * scale),
+                    synth::layer("inset", prep::DecalKind::outline, 0xff000000u, CornerStyle::miter,
+                                 OutlineMode::inset, 2 * scale),
+                    synth::layer("offset", prep::DecalKind::outline, 0xff000000u,
+                                 CornerStyle::miter, OutlineMode::offset, 2 * scale)};
   int tile = 0;
   auto centre = [&](int t) {
     return prep::Point2{ox + (t % s.cols + 0.5) * s.tile, oy + (t / s.cols + 0.5) * s.tile};
@@ -140,7 +144,8 @@ LineSet line_set(uint64_t seed, double scale, double ox, double oy, bool narrow_
         const double w = 0.5 + U(rng);
         shape = {{-15, -w / 2}, {15, -w / 2}, {15, w / 2}, {-15, w / 2}};
       } else {
-        shape = {{-1.7, -5}, {1.7, -5}, {1.7, 5}, {0.5, 5}, {0.5, -3.8}, {-0.5, -3.8}, {-0.5, 5}, {-1.7, 5}};
+        shape = {{-1.7, -5},  {1.7, -5},    {1.7, 5},  {0.5, 5},
+                 {0.5, -3.8}, {-0.5, -3.8}, {-0.5, 5}, {-1.7, 5}};
       }
       prep::SceneLine l;
       for (auto [x, y] : shape)
@@ -205,7 +210,8 @@ Outcome check_lines(const LineSet& set, const prep::DecalModel& model, size_t n,
         x = e[0] + t * (e[2] - e[0]) + near * (2 * U(rng) - 1);
         y = e[1] + t * (e[3] - e[1]) + near * (2 * U(rng) - 1);
       }
-      const int ti = int(std::floor((x - set.ox) / set.tile)), tj = int(std::floor((y - set.oy) / set.tile));
+      const int ti = int(std::floor((x - set.ox) / set.tile)),
+                tj = int(std::floor((y - set.oy) / set.tile));
       const size_t tile = size_t(ti + tj * set.cols);
       bool truth = false;
       if (ti >= 0 && tj >= 0 && ti < set.cols && tile < lines.size()) {
@@ -308,10 +314,11 @@ TEST(LineAccuracy, OutlinesOfRingsNarrowerThanTheirBandAreClippedByTheRing) {
   const Outcome exact = check_lines(set, model, sample_count(), 0.002);
   unclip(model);
   const Outcome thesis = check_lines(set, model, sample_count(), 0.002, false);
-  std::printf("[narrow rings] %llu tested, %llu covered: %llu misclassified clipped by the ring, "
-              "%llu with the one-sided rule\n",
-              (unsigned long long)exact.tested, (unsigned long long)exact.inside,
-              (unsigned long long)exact.wrong, (unsigned long long)thesis.wrong);
+  std::printf(
+      "[narrow rings] %llu tested, %llu covered: %llu misclassified clipped by the ring, "
+      "%llu with the one-sided rule\n",
+      (unsigned long long)exact.tested, (unsigned long long)exact.inside,
+      (unsigned long long)exact.wrong, (unsigned long long)thesis.wrong);
   EXPECT_EQ(exact.wrong, 0u);
   EXPECT_GT(thesis.wrong, exact.tested / 100);
 }

@@ -8,9 +8,9 @@
 #include <filesystem>
 
 #include "decal/reader.hpp"
-#include "prep/model.hpp"
 #include "prep/error.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/model.hpp"
 #include "prep/write.hpp"
 #include "synthetic.hpp"
 
@@ -19,7 +19,8 @@ namespace {
 prep::SceneFeatures small_scene() {
   synth::PolygonSet set = synth::polygon_set(21, 4, 50.0, -100.0, 40.0, 3, 300);
   prep::SceneFeatures s = set.scene;
-  s.layers.push_back(synth::layer("roads", prep::DecalKind::line, 0xc000ff00u, decal::CornerStyle::bevel));
+  s.layers.push_back(
+      synth::layer("roads", prep::DecalKind::line, 0xc000ff00u, decal::CornerStyle::bevel));
   prep::SceneLine l;
   l.layer = 1;
   l.width = 6;
@@ -30,8 +31,8 @@ prep::SceneFeatures small_scene() {
 
 std::filesystem::path temp_dir() {
   auto d = std::filesystem::temp_directory_path() /
-           ("decalprep_eval_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+           ("decalprep_eval_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+            "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
   std::filesystem::create_directories(d);
   return d;
 }
@@ -115,7 +116,8 @@ TEST(RenderTopdown, PngAndWorldFileArePlacedLikeGdalRasterize) {
 // writer) ranked lines and polygons separately and drew every line over
 // every polygon; a 1.2 reader keeps that.
 TEST(PackageView, FormatOneOnePackageKeepsEveryLineOverEveryPolygon) {
-  const std::string path = std::string(DECALPREP_SOURCE_DIR) + "/tests/formats/legacy/golden_v1_1.decals";
+  const std::string path =
+      std::string(DECALPREP_SOURCE_DIR) + "/tests/formats/legacy/golden_v1_1.decals";
   decal::Package p;
   const decal::Status st = decal::Package::open(path, p);
   ASSERT_TRUE(bool(st)) << st.message;

@@ -6,8 +6,8 @@
 #include <cstdlib>
 #include <mutex>
 
-#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/model.hpp"
 #include "sampling.hpp"
 #include "synthetic.hpp"
 #include "test_support.hpp"
@@ -65,7 +65,8 @@ Outcome check_polygons(const synth::PolygonSet& set, const prep::DecalModel& mod
         x = a.x + t * (b.x - a.x) + near * (2 * U(rng) - 1);
         y = a.y + t * (b.y - a.y) + near * (2 * U(rng) - 1);
       }
-      const int ti = int(std::floor((x - set.ox) / set.tile)), tj = int(std::floor((y - set.oy) / set.tile));
+      const int ti = int(std::floor((x - set.ox) / set.tile)),
+                tj = int(std::floor((y - set.oy) / set.tile));
       bool truth = false, skip = false;
       if (ti >= 0 && tj >= 0 && ti < set.tiles && tj < set.tiles) {
         const size_t base = 2 * size_t(ti + tj * set.tiles);

@@ -14,8 +14,8 @@
 #include <filesystem>
 #include <mutex>
 
-#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/model.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/read.hpp"
 #include "synthetic.hpp"
@@ -82,12 +82,13 @@ void maybe_unclip(prep::DecalModel& m) {
 // `m` is the full model (lines are evaluated first, so its line flag is
 // exact); `polys` is the model of the polygons alone, whose polygon flag an
 // opaque line above cannot hide (front-to-back early exit).
-Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m, const prep::DecalModel& polys,
-              size_t n) {
+Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m,
+              const prep::DecalModel& polys, size_t n) {
   const prep::StaticView view = prep::view_of(m), poly_view = prep::view_of(polys);
   const double q = decal::kQuantumMetres;
   const double x0 = m.grid.origin_x * q, y0 = m.grid.origin_y * q;
-  const double w = double(m.grid.cell_w) * m.grid.nx * q, hgt = double(m.grid.cell_h) * m.grid.ny * q;
+  const double w = double(m.grid.cell_w) * m.grid.nx * q,
+               hgt = double(m.grid.cell_h) * m.grid.ny * q;
   // Vertices to sample near.
   std::vector<prep::Point2> anchors;
   for (const auto& p : s.polygons) {
@@ -128,16 +129,19 @@ Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m, const pre
       // Query with the 2 mm box around the point: a boundary within 2 mm may
       // belong to a geometry whose envelope misses the point itself.
       G probe = synth::box(h, x - 0.002, y - 0.002, x + 0.002, y + 0.002);
-      GEOSSTRtree_query_r(h, o.tree, probe.g, [](void* item, void* ud) {
-        auto* qq = static_cast<Q*>(ud);
-        const size_t i = reinterpret_cast<size_t>(item);
-        auto hh = qq->o->h;
-        if (GEOSPreparedDistanceWithin_r(hh, qq->o->pbound[i], qq->pt, 0.002)) qq->skip = true;
-        if (GEOSPreparedContains_r(hh, qq->o->parea[i], qq->pt)) {
-          (qq->o->is_line[i] ? qq->line : qq->poly) = true;
-          if (qq->o->is_line[i]) qq->line_index = i;
-        }
-      }, &qd);
+      GEOSSTRtree_query_r(
+          h, o.tree, probe.g,
+          [](void* item, void* ud) {
+            auto* qq = static_cast<Q*>(ud);
+            const size_t i = reinterpret_cast<size_t>(item);
+            auto hh = qq->o->h;
+            if (GEOSPreparedDistanceWithin_r(hh, qq->o->pbound[i], qq->pt, 0.002)) qq->skip = true;
+            if (GEOSPreparedContains_r(hh, qq->o->parea[i], qq->pt)) {
+              (qq->o->is_line[i] ? qq->line : qq->poly) = true;
+              if (qq->o->is_line[i]) qq->line_index = i;
+            }
+          },
+          &qd);
       if (qd.skip) {
         ++my.excluded;
         continue;
@@ -170,9 +174,11 @@ Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m, const pre
           GEOSArea_r(h, ring.g, &a);
           GEOSLength_r(h, ring.g, &per);
           GEOSDistance_r(h, ring.g, pt.g, &dist);
-          std::printf("  outline fid %lld: %zu vertices, 2A/P = %.3f m, half width %.2f m, point %.3f m "
-                      "outside its ring\n", (long long)l.fid, l.points.size(), 2 * a / per,
-                      m.line_props[size_t(got.top_line)].half_width, dist);
+          std::printf(
+              "  outline fid %lld: %zu vertices, 2A/P = %.3f m, half width %.2f m, point %.3f m "
+              "outside its ring\n",
+              (long long)l.fid, l.points.size(), 2 * a / per,
+              m.line_props[size_t(got.top_line)].half_width, dist);
         }
         if (std::getenv("DECALPREP_DEBUG_THIN") && !inset_offset) {
           const prep::EvalSample ps = prep::evaluate(poly_view, x, y);
@@ -181,9 +187,11 @@ Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m, const pre
             for (const auto& sp : s.polygons)
               if (uint32_t(sp.fid) == pp.feature && sp.layer == pp.layer) {
                 G shell = synth::polygon(h, sp.shell);
-                std::printf("  polygon fid %lld layer %u: shell %zu vertices contains %d valid %d; holes %zu:",
-                            (long long)sp.fid, sp.layer, sp.shell.size(), GEOSContains_r(h, shell.g, pt.g),
-                            GEOSisValid_r(h, shell.g), sp.holes.size());
+                std::printf(
+                    "  polygon fid %lld layer %u: shell %zu vertices contains %d valid %d; holes "
+                    "%zu:",
+                    (long long)sp.fid, sp.layer, sp.shell.size(), GEOSContains_r(h, shell.g, pt.g),
+                    GEOSisValid_r(h, shell.g), sp.holes.size());
                 for (const auto& hr : sp.holes) {
                   G hole = synth::polygon(h, hr);
                   std::printf(" %d", GEOSContains_r(h, hole.g, pt.g));
@@ -191,22 +199,24 @@ Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m, const pre
                 std::printf("\n");
                 const uint32_t pi = uint32_t(ps.top_polygon);
                 const auto& rb = polys.qt_node_box[polys.poly_root_node[pi]];
-                std::printf("    root covers %d; root box %d %d %d %d type %d; point q %.3f %.3f; ring:",
-                            prep::polygon_ring_covers(poly_view, pi, x, y), rb[0], rb[1], rb[2], rb[3],
-                            polys.qt_node[polys.poly_root_node[pi]][0], x / 0.001, y / 0.001);
+                std::printf(
+                    "    root covers %d; root box %d %d %d %d type %d; point q %.3f %.3f; ring:",
+                    prep::polygon_ring_covers(poly_view, pi, x, y), rb[0], rb[1], rb[2], rb[3],
+                    polys.qt_node[polys.poly_root_node[pi]][0], x / 0.001, y / 0.001);
                 for (const auto& v : sp.shell) std::printf(" (%.4f %.4f)", v.x, v.y);
                 std::printf("\n");
               }
           }
         }
         if (logged++ < 10)
-          ADD_FAILURE() << std::fixed << "misclassified (" << x << ", " << y << "): GEOS polygon "
-                        << qd.poly << " line " << qd.line << ", evaluator polygon " << got.polygon_covered
-                        << " line " << got.line_covered << " (oracle line layer "
-                        << (qd.line ? s.layers[s.lines[qd.line_index - s.polygons.size()].layer].name : "-")
-                        << ", top line " << got.top_line << " layer "
-                        << (got.top_line >= 0 ? s.layers[m.line_props[size_t(got.top_line)].layer].name : "-")
-                        << ")";
+          ADD_FAILURE()
+              << std::fixed << "misclassified (" << x << ", " << y << "): GEOS polygon " << qd.poly
+              << " line " << qd.line << ", evaluator polygon " << got.polygon_covered << " line "
+              << got.line_covered << " (oracle line layer "
+              << (qd.line ? s.layers[s.lines[qd.line_index - s.polygons.size()].layer].name : "-")
+              << ", top line " << got.top_line << " layer "
+              << (got.top_line >= 0 ? s.layers[m.line_props[size_t(got.top_line)].layer].name : "-")
+              << ")";
       }
     }
     tested += my.tested;
@@ -216,7 +226,8 @@ Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m, const pre
     wrong += my.wrong;
     wrong_io += my.wrong_inset_offset;
   });
-  return {tested.load(), excluded.load(), polygon.load(), line.load(), wrong.load(), wrong_io.load()};
+  return {tested.load(), excluded.load(), polygon.load(),
+          line.load(),   wrong.load(),    wrong_io.load()};
 }
 
 void run(const char* name, const prep::SceneSpec& spec) {
@@ -231,14 +242,15 @@ void run(const char* name, const prep::SceneSpec& spec) {
   polygons_only.lines.clear();
   const prep::DecalModel mp = prep::build_model(polygons_only, spec.model);
   const Outcome o = check(r.scene, m, mp, sample_count());
-  std::printf("[%s] %zu polygons, %zu static lines; %llu samples tested, %llu excluded (within 2 mm), "
-              "%llu in polygons, %llu on lines, %llu misclassified (%llu of them only by an inset/offset "
-              "outline, see the comment in check()); grid %ux%u; max representation "
-              "error %.6f mm\n",
-              name, r.scene.polygons.size(), r.scene.lines.size(), (unsigned long long)o.tested,
-              (unsigned long long)o.excluded, (unsigned long long)o.polygon, (unsigned long long)o.line,
-              (unsigned long long)o.wrong, (unsigned long long)o.wrong_inset_offset, m.grid.nx, m.grid.ny,
-              m.max_representation_error * 1000);
+  std::printf(
+      "[%s] %zu polygons, %zu static lines; %llu samples tested, %llu excluded (within 2 mm), "
+      "%llu in polygons, %llu on lines, %llu misclassified (%llu of them only by an inset/offset "
+      "outline, see the comment in check()); grid %ux%u; max representation "
+      "error %.6f mm\n",
+      name, r.scene.polygons.size(), r.scene.lines.size(), (unsigned long long)o.tested,
+      (unsigned long long)o.excluded, (unsigned long long)o.polygon, (unsigned long long)o.line,
+      (unsigned long long)o.wrong, (unsigned long long)o.wrong_inset_offset, m.grid.nx, m.grid.ny,
+      m.max_representation_error * 1000);
   EXPECT_EQ(o.wrong, 0u);
   EXPECT_LE(m.max_representation_error, 0.001);
 }
@@ -257,7 +269,8 @@ TEST(RealData, MonacoSampleSceneAgreesWithGeos) {
 }
 
 TEST(RealData, LiechtensteinAgreesWithGeos) {
-  const std::string data = prep::test::shared_data("liechtenstein/liechtenstein-2013-08-03.osm.pbf");
+  const std::string data =
+      prep::test::shared_data("liechtenstein/liechtenstein-2013-08-03.osm.pbf");
   if (!std::filesystem::exists(data)) GTEST_SKIP() << "Liechtenstein data missing: " << data;
   prep::SceneSpec spec = prep::parse_scene(R"(
 source = ")" + data + R"("
@@ -291,6 +304,7 @@ kind = "line"
 width = 4.0
 corner = "round"
 color = "#fdfbf6"
-)", data + ".scene.toml");
+)",
+                                           data + ".scene.toml");
   run("Liechtenstein", spec);
 }

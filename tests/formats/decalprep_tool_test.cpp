@@ -29,7 +29,9 @@ class Tool : public ::testing::Test {
     decal_test::write_file(none_, decal_test::model_package_bytes(model_, {prep::Codec::none, 0}));
   }
   void TearDown() override { fs::remove_all(dir_); }
-  ToolRun run(const std::string& args) { return prep::test::run_tool(args, dir_, {.split_stderr = true}); }
+  ToolRun run(const std::string& args) {
+    return prep::test::run_tool(args, dir_, {.split_stderr = true});
+  }
 
   std::string dir_, zstd_, none_;
   prep::DecalModel model_;
@@ -58,10 +60,11 @@ TEST_F(Tool, InfoTextShowsVersionAndEveryBlobName) {
   const ToolRun r = run("info '" + none_ + "'");
   ASSERT_EQ(r.rc, 0) << r.err;
   EXPECT_NE(r.output.find("version   " + std::to_string(decal::kVersionMajor) + "." +
-                       std::to_string(decal::kVersionMinor)),
+                          std::to_string(decal::kVersionMinor)),
             std::string::npos)
       << r.output;
-  for (const auto& b : decal::kBlobCatalogue) EXPECT_NE(r.output.find(std::string(b.name)), std::string::npos) << b.name;
+  for (const auto& b : decal::kBlobCatalogue)
+    EXPECT_NE(r.output.find(std::string(b.name)), std::string::npos) << b.name;
 }
 
 TEST_F(Tool, VerifyAcceptsGoodPackages) {
@@ -94,7 +97,8 @@ TEST_F(Tool, VerifyRejectsEachHostileCaseWithOneLineReason) {
 
 TEST_F(Tool, VerifyFailsWhenAnyOfSeveralPackagesIsBad) {
   decal_test::write_file(dir_ + "/empty.decals", {});
-  const ToolRun r = run("verify '" + zstd_ + "' '" + dir_ + "/empty.decals' '" + dir_ + "/missing.decals'");
+  const ToolRun r =
+      run("verify '" + zstd_ + "' '" + dir_ + "/empty.decals' '" + dir_ + "/missing.decals'");
   EXPECT_EQ(r.rc, 5);
   EXPECT_NE(r.output.find(zstd_ + ": ok"), std::string::npos);
   EXPECT_NE(r.err.find("empty.decals: FAILED: empty file"), std::string::npos) << r.err;
@@ -104,7 +108,8 @@ TEST_F(Tool, VerifyFailsWhenAnyOfSeveralPackagesIsBad) {
 TEST_F(Tool, VerifyCatchesMetadataCountsThatDisagreeWithTheBlobs) {
   const std::string path = dir_ + "/lying.decals";
   std::vector<std::array<int32_t, 4>> v = {{1, 2, 3, 4}, {5, 6, 7, 8}, {9, 10, 11, 12}};
-  prep::BlobInput b{decal::BlobId::poly_bvh_box, decal::ElementType::ivec4, 16, 3, std::as_bytes(std::span(v))};
+  prep::BlobInput b{decal::BlobId::poly_bvh_box, decal::ElementType::ivec4, 16, 3,
+                    std::as_bytes(std::span(v))};
   prep::write_package(path, R"({"format":"decals","counts":{"poly_bvh_box":4}})", {&b, 1});
   const ToolRun r = run("verify '" + path + "'");
   EXPECT_EQ(r.rc, 5);
@@ -126,11 +131,12 @@ TEST_F(Tool, DumpTextListsEveryElementOfTheModel) {
   std::string expected = "blob line_vertices id=1 type=ivec2 stride=8 count=" +
                          std::to_string(model_.line_vertices.size()) + "\n";
   for (size_t i = 0; i < model_.line_vertices.size(); ++i)
-    expected += "  [" + std::to_string(i) + "] " + std::to_string(model_.line_vertices[i][0]) + " " +
-                std::to_string(model_.line_vertices[i][1]) + "\n";
+    expected += "  [" + std::to_string(i) + "] " + std::to_string(model_.line_vertices[i][0]) +
+                " " + std::to_string(model_.line_vertices[i][1]) + "\n";
   EXPECT_NE(r.output.find(expected), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("  [1] half_width=0.75 rgba=0x8000ff00 order=0 style=0x00000010 value=nan layer=1 "
-                       "feature=8 clip_node=0\n"),
+  EXPECT_NE(r.output.find(
+                "  [1] half_width=0.75 rgba=0x8000ff00 order=0 style=0x00000010 value=nan layer=1 "
+                "feature=8 clip_node=0\n"),
             std::string::npos);
   for (const auto& b : decal::kBlobCatalogue)
     EXPECT_NE(r.output.find("blob " + std::string(b.name) + " id="), std::string::npos) << b.name;

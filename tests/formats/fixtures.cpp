@@ -34,10 +34,11 @@ prep::DecalModel small_model() {
   m.poly_root_node = {0, 5};
   m.qt_node = {{0, 1}, {1, 0}, {2, 0}, {3, 0}, {1, 0}, {3, 1}};
   m.qt_node_box = {{-8000, -4000, 8000, 4000}, {-8000, -4000, 0, 0}, {0, -4000, 8000, 0},
-                   {-8000, 0, 0, 4000},         {0, 0, 8000, 4000},   {-2000, -1000, 2000, 1000}};
+                   {-8000, 0, 0, 4000},        {0, 0, 8000, 4000},   {-2000, -1000, 2000, 1000}};
   m.qt_leaf_range = {{0, 3}, {3, 3}};
   m.qt_leaf_segments = {{0, 1}, {1, 2}, {2, 0}, {3, 4}, {4, 5}, {5, 3}};
-  m.qt_leaf_vertices = {{-8000, 0}, {0, 0}, {-4000, 4000}, {-2000, -1000}, {2000, -1000}, {0, 1000}};
+  m.qt_leaf_vertices = {{-8000, 0},     {0, 0},        {-4000, 4000},
+                        {-2000, -1000}, {2000, -1000}, {0, 1000}};
   m.cell_poly_range = {{0, 1}, {1, 0}};
   m.cell_polys = {{0, 0, 0, 1}};
   m.cell_holes = {{1, 5}};
@@ -45,22 +46,25 @@ prep::DecalModel small_model() {
   // (first box, leaf slots, internal nodes): full binary trees, leaf k =
   // the cell's k-th segment
   m.line_bvh_range = {{0, 2, 1, 0}, {3, 2, 1, 0}};
-  m.line_bvh_box = {{-9000, -100, 1000, 100}, {-1000, -100, 1000, 100}, {-9000, -100, 1000, 100},
-                    {-1000, -100, 9000, 4000}, {-1000, -100, 1000, 100},   {2000, 2000, 9000, 4000}};
+  m.line_bvh_box = {{-9000, -100, 1000, 100},  {-1000, -100, 1000, 100}, {-9000, -100, 1000, 100},
+                    {-1000, -100, 9000, 4000}, {-1000, -100, 1000, 100}, {2000, 2000, 9000, 4000}};
   m.poly_bvh_range = {{0, 1, 0, 0}, {1, 0, 0, 0}};
   m.poly_bvh_box = {{-8000, -4000, 8000, 4000}};
   // dynamic lines
-  m.dyn_vertices = {{-5000, 0, 120500, 0}, {5000, 0, 130250, 0}, {0, -3000, 99000, 1}, {0, 3000, 101000, 1}};
+  m.dyn_vertices = {
+      {-5000, 0, 120500, 0}, {5000, 0, 130250, 0}, {0, -3000, 99000, 1}, {0, 3000, 101000, 1}};
   m.dyn_prev_next = {{-1, 1}, {0, -1}, {-1, 3}, {2, -1}};
   m.dyn_line_start = {0, 2};
-  m.dyn_line_props = {{3.0f, 0xff00ffffu, 0, 0, NAN, 2, 9, 0}, {2.0f, 0xffff00ffu, 1, 0, NAN, 2, 10, 0}};
+  m.dyn_line_props = {{3.0f, 0xff00ffffu, 0, 0, NAN, 2, 9, 0},
+                      {2.0f, 0xffff00ffu, 1, 0, NAN, 2, 10, 0}};
   m.terrain_min = 99.0;
   m.terrain_max = 130.25;
   // LOD
   m.lod_points = {{-9000, 0, -9000, 0, 0.0f, 0.0f, 0, decal::kLodPointAlways},
                   {0, 500, 0, 500, 0.5f, 4.0f, 0, 0},
                   {9000, 0, 9000, 0, 0.0f, 0.0f, 0, decal::kLodPointAlways}};
-  m.lod_segments = {{0, 2, decal::kLodNone, 1}, {0, 1, 1, decal::kLodNone}, {1, 2, 1, decal::kLodNone}};
+  m.lod_segments = {
+      {0, 2, decal::kLodNone, 1}, {0, 1, 1, decal::kLodNone}, {1, 2, 1, decal::kLodNone}};
   m.lod_line_range = {{0, 3}};
   m.max_representation_error = 0.0004;
   m.manifest.layers.push_back({"roads", 3, 2, 1, 0, 1, 2, 10, 5});
@@ -81,12 +85,14 @@ std::vector<std::byte> read_file(const std::string& path) {
 
 void write_file(const std::string& path, const std::vector<std::byte>& bytes) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
   if (!out) throw std::runtime_error("cannot write " + path);
 }
 
 std::string make_temp_dir(const std::string& tag) {
-  std::string tmpl = (std::filesystem::temp_directory_path() / ("decal-" + tag + "-XXXXXX")).string();
+  std::string tmpl =
+      (std::filesystem::temp_directory_path() / ("decal-" + tag + "-XXXXXX")).string();
   if (!mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
   return tmpl;
 }
@@ -102,7 +108,9 @@ std::vector<std::byte> model_package_bytes(const prep::DecalModel& model,
   return bytes;
 }
 
-size_t entry_at(size_t i) { return sizeof(decal::FileHeader) + i * sizeof(decal::BlobTableEntry); }
+size_t entry_at(size_t i) {
+  return sizeof(decal::FileHeader) + i * sizeof(decal::BlobTableEntry);
+}
 
 void reseal(std::vector<std::byte>& f) {
   const auto count = get<uint32_t>(f, offsetof(decal::FileHeader, blob_count));
@@ -114,7 +122,8 @@ void reseal(std::vector<std::byte>& f) {
   const auto moff = get<uint64_t>(f, offsetof(decal::FileHeader, metadata_offset));
   const auto msize = get<uint64_t>(f, offsetof(decal::FileHeader, metadata_size));
   if (moff <= f.size() && msize <= f.size() - moff)
-    put<uint64_t>(f, offsetof(decal::FileHeader, metadata_checksum), XXH64(f.data() + moff, msize, 0));
+    put<uint64_t>(f, offsetof(decal::FileHeader, metadata_checksum),
+                  XXH64(f.data() + moff, msize, 0));
   put<uint64_t>(f, offsetof(decal::FileHeader, header_checksum),
                 XXH64(f.data(), offsetof(decal::FileHeader, header_checksum), 0));
 }
@@ -157,7 +166,8 @@ std::vector<Hostile> hostile_variants(const std::vector<std::byte>& good) {
   }
   {
     auto b = good;
-    put<uint64_t>(b, entry_at(1) + offsetof(E, offset), get<uint64_t>(b, entry_at(0) + offsetof(E, offset)));
+    put<uint64_t>(b, entry_at(1) + offsetof(E, offset),
+                  get<uint64_t>(b, entry_at(0) + offsetof(E, offset)));
     reseal(b);
     add("overlapping_blobs", b, "overlaps");
   }
@@ -202,13 +212,14 @@ std::vector<Hostile> hostile_variants(const std::vector<std::byte>& good) {
   {
     prep::DecalModel m = small_model();
     m.cell_segments[1][1] = 99;  // end vertex past the 5 line vertices
-    add("index_out_of_range", model_package_bytes(m, {prep::Codec::zstd, 3}), "cell_segments[1].end = 99",
-        true);
+    add("index_out_of_range", model_package_bytes(m, {prep::Codec::zstd, 3}),
+        "cell_segments[1].end = 99", true);
   }
   {
     prep::DecalModel m = small_model();
     m.qt_node[0] = {0, 4};  // internal node whose 4 children run past the 6 nodes
-    add("child_nodes_out_of_range", model_package_bytes(m, {prep::Codec::none, 0}), "qt_node[0]", true);
+    add("child_nodes_out_of_range", model_package_bytes(m, {prep::Codec::none, 0}), "qt_node[0]",
+        true);
   }
   return v;
 }
@@ -219,8 +230,10 @@ std::vector<std::pair<std::string, std::vector<std::byte>>> seed_corpus() {
   const auto good = model_package_bytes(small, {prep::Codec::zstd, 3});
   out.emplace_back("valid_small_zstd.decals", good);
   out.emplace_back("valid_small_none.decals", model_package_bytes(small, {prep::Codec::none, 0}));
-  out.emplace_back("valid_empty_model.decals", model_package_bytes(prep::DecalModel{}, {prep::Codec::zstd, 3}));
-  for (auto& h : hostile_variants(good)) out.emplace_back("broken_" + h.name + ".decals", std::move(h.bytes));
+  out.emplace_back("valid_empty_model.decals",
+                   model_package_bytes(prep::DecalModel{}, {prep::Codec::zstd, 3}));
+  for (auto& h : hostile_variants(good))
+    out.emplace_back("broken_" + h.name + ".decals", std::move(h.bytes));
   return out;
 }
 

@@ -2,7 +2,8 @@
 // hostile variants of fixtures.cpp. The corpus is checked in under
 // fuzz/corpus/read/; the test SeedCorpus.CheckedInFilesAreWhatTheGeneratorWrites
 // keeps it current. Regenerate with:
-//   cmake --build build/dev --target make_seeds && build/dev/tests/formats/make_seeds fuzz/corpus/read
+//   cmake --build build/dev --target make_seeds && build/dev/tests/formats/make_seeds
+//   fuzz/corpus/read
 #include <cstdio>
 #include <filesystem>
 
@@ -15,6 +16,7 @@ int main(int argc, char** argv) {
   }
   const std::string dir = argv[1];
   std::filesystem::create_directories(dir);
-  for (const auto& [name, bytes] : decal_test::seed_corpus()) decal_test::write_file(dir + "/" + name, bytes);
+  for (const auto& [name, bytes] : decal_test::seed_corpus())
+    decal_test::write_file(dir + "/" + name, bytes);
   return 0;
 }

@@ -28,9 +28,12 @@ std::vector<std::byte> tiny_package(prep::Codec codec) {
   std::vector<decal::LineProps> props = {{1.0f, 0xff0000ffu, 0, 0, 0.5f, 0, 0, 0},
                                          {2.0f, 0xff00ff00u, 1, 1, 1.5f, 0, 1, 0}};
   std::vector<prep::BlobInput> blobs = {
-      {decal::BlobId::line_vertices, decal::ElementType::ivec2, 8, verts.size(), std::as_bytes(std::span(verts))},
-      {decal::BlobId::line_vertex_line, decal::ElementType::u32, 4, line.size(), std::as_bytes(std::span(line))},
-      {decal::BlobId::line_props, decal::ElementType::record, 32, props.size(), std::as_bytes(std::span(props))},
+      {decal::BlobId::line_vertices, decal::ElementType::ivec2, 8, verts.size(),
+       std::as_bytes(std::span(verts))},
+      {decal::BlobId::line_vertex_line, decal::ElementType::u32, 4, line.size(),
+       std::as_bytes(std::span(line))},
+      {decal::BlobId::line_props, decal::ElementType::record, 32, props.size(),
+       std::as_bytes(std::span(props))},
   };
   prep::write_package(dir + "/t.decals", R"({"format":"decals"})", blobs, {codec, 3});
   auto bytes = decal_test::read_file(dir + "/t.decals");
@@ -87,7 +90,8 @@ TEST_P(Hostile, EverySingleBitFlipOfAFullModelPackageIsRejected) {
   for (size_t i = 0; i < bytes.size(); ++i)
     for (int bit = 0; bit < 8; ++bit, ++flips) {
       bytes[i] ^= std::byte(1u << bit);
-      ASSERT_FALSE(open_bytes(bytes)) << "flip of bit " << bit << " of byte " << i << " was accepted";
+      ASSERT_FALSE(open_bytes(bytes))
+          << "flip of bit " << bit << " of byte " << i << " was accepted";
       bytes[i] ^= std::byte(1u << bit);
     }
   EXPECT_EQ(flips, good.size() * 8);
@@ -97,7 +101,8 @@ TEST_P(Hostile, EveryTruncatedPrefixOfAFileIsRejectedByOpenToo) {
   // Through the mmap path as well: a few prefixes written to disk.
   const auto good = tiny_package(GetParam());
   const std::string dir = decal_test::make_temp_dir("prefix");
-  for (size_t n : {size_t(0), size_t(7), size_t(95), size_t(96), good.size() / 2, good.size() - 1}) {
+  for (size_t n :
+       {size_t(0), size_t(7), size_t(95), size_t(96), good.size() / 2, good.size() - 1}) {
     decal_test::write_file(dir + "/p.decals", {good.begin(), good.begin() + static_cast<long>(n)});
     decal::Package p;
     const decal::Status s = decal::Package::open(dir + "/p.decals", p);
@@ -109,10 +114,13 @@ TEST_P(Hostile, EveryTruncatedPrefixOfAFileIsRejectedByOpenToo) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Codecs, Hostile, ::testing::Values(prep::Codec::none, prep::Codec::zstd),
-                         [](const auto& p) { return p.param == prep::Codec::none ? "none" : "zstd"; });
+                         [](const auto& p) {
+                           return p.param == prep::Codec::none ? "none" : "zstd";
+                         });
 
 TEST(HostileVariants, EachIsRejectedWithTheRightMessage) {
-  const auto good = decal_test::model_package_bytes(decal_test::small_model(), {prep::Codec::zstd, 3});
+  const auto good =
+      decal_test::model_package_bytes(decal_test::small_model(), {prep::Codec::zstd, 3});
   decal::Package ok;
   ASSERT_TRUE(decal::Package::from_memory(good, ok));
   ASSERT_TRUE(decal::validate_indices(ok)) << decal::validate_indices(ok).message;
@@ -283,28 +291,57 @@ TEST(ValidateIndices, EachKindOfDanglingIndexIsNamed) {
   };
   const Case cases[] = {
       {"line_vertex_line[4].line = 2", [](prep::DecalModel& m) { m.line_vertex_line[4] = 2; }},
-      {"cell_segment_range[1]", [](prep::DecalModel& m) { m.cell_segment_range[1] = {3, 2}; }},
+      {"cell_segment_range[1]",
+       [](prep::DecalModel& m) {
+         m.cell_segment_range[1] = {3, 2};
+       }},
       {"poly_root_node[1].node = 6", [](prep::DecalModel& m) { m.poly_root_node[1] = 6; }},
-      {"qt_node[3].type = 4", [](prep::DecalModel& m) { m.qt_node[3] = {4, 0}; }},
-      {"qt_node[5].offset = 2", [](prep::DecalModel& m) { m.qt_node[5] = {3, 2}; }},
+      {"qt_node[3].type = 4",
+       [](prep::DecalModel& m) {
+         m.qt_node[3] = {4, 0};
+       }},
+      {"qt_node[5].offset = 2",
+       [](prep::DecalModel& m) {
+         m.qt_node[5] = {3, 2};
+       }},
       // An internal node whose children include itself: a descent would
       // never end (the CPU evaluator and the shaders loop until a leaf).
       {"qt_node[0].offset = 0: children must come after their parent",
-       [](prep::DecalModel& m) { m.qt_node[0] = {0, 0}; }},
-      {"qt_leaf_segments[2].end = 6", [](prep::DecalModel& m) { m.qt_leaf_segments[2] = {2, 6}; }},
-      {"cell_polys[0]", [](prep::DecalModel& m) { m.cell_polys[0] = {0, 0, 1, 1}; }},
-      {"cell_holes[0].polygon = 2", [](prep::DecalModel& m) { m.cell_holes[0] = {2, 5}; }},
-      {"line_bvh_range[1]", [](prep::DecalModel& m) { m.line_bvh_range[1] = {3, 1, 1, 0}; }},
-      {"dyn_prev_next[1].next = 4", [](prep::DecalModel& m) { m.dyn_prev_next[1] = {0, 4}; }},
+       [](prep::DecalModel& m) {
+         m.qt_node[0] = {0, 0};
+       }},
+      {"qt_leaf_segments[2].end = 6",
+       [](prep::DecalModel& m) {
+         m.qt_leaf_segments[2] = {2, 6};
+       }},
+      {"cell_polys[0]",
+       [](prep::DecalModel& m) {
+         m.cell_polys[0] = {0, 0, 1, 1};
+       }},
+      {"cell_holes[0].polygon = 2",
+       [](prep::DecalModel& m) {
+         m.cell_holes[0] = {2, 5};
+       }},
+      {"line_bvh_range[1]",
+       [](prep::DecalModel& m) {
+         m.line_bvh_range[1] = {3, 1, 1, 0};
+       }},
+      {"dyn_prev_next[1].next = 4",
+       [](prep::DecalModel& m) {
+         m.dyn_prev_next[1] = {0, 4};
+       }},
       {"dyn_line_start[1].vertex = 4", [](prep::DecalModel& m) { m.dyn_line_start[1] = 4; }},
       {"lod_segments[1].b = 3", [](prep::DecalModel& m) { m.lod_segments[1].b = 3; }},
       {"poly_props[1].exterior = 2", [](prep::DecalModel& m) { m.poly_props[1].exterior = 2; }},
-      {"line_props[0].clip_node = 1 without style bit 5", [](prep::DecalModel& m) { m.line_props[0].clip_node = 1; }},
-      {"line_props[1].clip_node = 99 is out of range", [](prep::DecalModel& m) {
+      {"line_props[0].clip_node = 1 without style bit 5",
+       [](prep::DecalModel& m) { m.line_props[0].clip_node = 1; }},
+      {"line_props[1].clip_node = 99 is out of range",
+       [](prep::DecalModel& m) {
          m.line_props[1].style |= decal::kStyleClipBit;
          m.line_props[1].clip_node = 99;
        }},
-      {"dyn_line_props[1].clip_node = 3", [](prep::DecalModel& m) { m.dyn_line_props[1].clip_node = 3; }},
+      {"dyn_line_props[1].clip_node = 3",
+       [](prep::DecalModel& m) { m.dyn_line_props[1].clip_node = 3; }},
       {"line_corners has 4 elements", [](prep::DecalModel& m) { m.line_corners.pop_back(); }},
   };
   for (const Case& c : cases) {
@@ -315,7 +352,8 @@ TEST(ValidateIndices, EachKindOfDanglingIndexIsNamed) {
     ASSERT_TRUE(decal::Package::from_memory(b, p));
     const decal::Status s = decal::validate_indices(p);
     EXPECT_FALSE(s) << c.expect;
-    EXPECT_NE(s.message.find(c.expect), std::string::npos) << "expected '" << c.expect << "' in: " << s.message;
+    EXPECT_NE(s.message.find(c.expect), std::string::npos)
+        << "expected '" << c.expect << "' in: " << s.message;
   }
 }
 

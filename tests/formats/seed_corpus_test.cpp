@@ -16,8 +16,10 @@ const std::string kCorpus = std::string(DECALPREP_SOURCE_DIR) + "/fuzz/corpus/re
 TEST(SeedCorpus, CheckedInFilesAreWhatTheGeneratorWrites) {
   for (const auto& [name, bytes] : decal_test::seed_corpus()) {
     const std::string path = kCorpus + "/" + name;
-    ASSERT_TRUE(std::filesystem::exists(path)) << path << " missing; regenerate with make_seeds (see make_seeds.cpp)";
-    EXPECT_EQ(decal_test::read_file(path), bytes) << path << " is stale; regenerate with make_seeds";
+    ASSERT_TRUE(std::filesystem::exists(path))
+        << path << " missing; regenerate with make_seeds (see make_seeds.cpp)";
+    EXPECT_EQ(decal_test::read_file(path), bytes)
+        << path << " is stale; regenerate with make_seeds";
   }
 }
 

@@ -68,9 +68,10 @@ TEST(Spec, BlobCatalogueTableListsExactlyTheHeaderCatalogue) {
   const auto rows = table_under(spec_text(), "## Blob catalogue");
   ASSERT_GE(rows.size(), 2u) << "no table under '## Blob catalogue' in SPEC.md";
   const Row& h = rows[0];
-  const size_t c_id = column(h, "id"), c_name = column(h, "name"), c_type = column(h, "element type"),
-               c_stride = column(h, "stride");
-  ASSERT_EQ(rows.size() - 1, std::size(decal::kBlobCatalogue)) << "row count differs from kBlobCatalogue";
+  const size_t c_id = column(h, "id"), c_name = column(h, "name"),
+               c_type = column(h, "element type"), c_stride = column(h, "stride");
+  ASSERT_EQ(rows.size() - 1, std::size(decal::kBlobCatalogue))
+      << "row count differs from kBlobCatalogue";
   for (size_t i = 0; i < std::size(decal::kBlobCatalogue); ++i) {
     const auto& b = decal::kBlobCatalogue[i];
     const Row& r = rows[i + 1];
@@ -84,11 +85,13 @@ TEST(Spec, BlobCatalogueTableListsExactlyTheHeaderCatalogue) {
 
 // Checks a field table (offset | size | type | field | ...) against
 // (field name -> offset, size) taken from the struct with offsetof/sizeof.
-void expect_fields(const std::string& heading, const std::map<std::string, std::pair<size_t, size_t>>& fields,
+void expect_fields(const std::string& heading,
+                   const std::map<std::string, std::pair<size_t, size_t>>& fields,
                    size_t struct_size) {
   const auto rows = table_under(spec_text(), heading);
   ASSERT_GE(rows.size(), 2u) << heading;
-  const size_t c_off = column(rows[0], "offset"), c_size = column(rows[0], "size"), c_field = column(rows[0], "field");
+  const size_t c_off = column(rows[0], "offset"), c_size = column(rows[0], "size"),
+               c_field = column(rows[0], "field");
   std::map<std::string, bool> seen;
   size_t covered = 0;
   for (size_t i = 1; i < rows.size(); ++i) {
@@ -100,29 +103,35 @@ void expect_fields(const std::string& heading, const std::map<std::string, std::
     seen[name] = true;
     covered += it->second.second;
   }
-  for (const auto& [name, _] : fields) EXPECT_TRUE(seen[name]) << heading << ": SPEC misses field " << name;
+  for (const auto& [name, _] : fields)
+    EXPECT_TRUE(seen[name]) << heading << ": SPEC misses field " << name;
   EXPECT_EQ(covered, struct_size) << heading;
 }
 
-#define FIELD(S, f) {#f, {offsetof(S, f), sizeof(S::f)}}
+#define FIELD(S, f)                \
+  {                                \
+#f, {                          \
+      offsetof(S, f), sizeof(S::f) \
+    }                              \
+  }
 
 TEST(Spec, FileHeaderTableMatchesTheStruct) {
   using H = decal::FileHeader;
   expect_fields("## File header",
                 {FIELD(H, magic), FIELD(H, version_major), FIELD(H, version_minor), FIELD(H, flags),
-                 FIELD(H, header_size), FIELD(H, blob_entry_size), FIELD(H, blob_count), FIELD(H, reserved0),
-                 FIELD(H, file_size), FIELD(H, table_offset), FIELD(H, table_checksum), FIELD(H, metadata_offset),
-                 FIELD(H, metadata_size), FIELD(H, metadata_checksum), FIELD(H, reserved1),
-                 FIELD(H, header_checksum)},
+                 FIELD(H, header_size), FIELD(H, blob_entry_size), FIELD(H, blob_count),
+                 FIELD(H, reserved0), FIELD(H, file_size), FIELD(H, table_offset),
+                 FIELD(H, table_checksum), FIELD(H, metadata_offset), FIELD(H, metadata_size),
+                 FIELD(H, metadata_checksum), FIELD(H, reserved1), FIELD(H, header_checksum)},
                 sizeof(H));
 }
 
 TEST(Spec, BlobTableEntryTableMatchesTheStruct) {
   using E = decal::BlobTableEntry;
   expect_fields("## Blob table",
-                {FIELD(E, id), FIELD(E, element_type), FIELD(E, stride), FIELD(E, codec), FIELD(E, count),
-                 FIELD(E, offset), FIELD(E, stored_size), FIELD(E, raw_size), FIELD(E, checksum), FIELD(E, name),
-                 FIELD(E, reserved)},
+                {FIELD(E, id), FIELD(E, element_type), FIELD(E, stride), FIELD(E, codec),
+                 FIELD(E, count), FIELD(E, offset), FIELD(E, stored_size), FIELD(E, raw_size),
+                 FIELD(E, checksum), FIELD(E, name), FIELD(E, reserved)},
                 sizeof(E));
 }
 
@@ -139,11 +148,12 @@ TEST(Spec, MagicTableMatchesTheMagicBytes) {
 
 TEST(Spec, RecordHeadingsGiveTheStructSizes) {
   const std::string text = spec_text();
-  const std::pair<const char*, size_t> records[] = {{"### LineProps (", sizeof(decal::LineProps)},
-                                                    {"### LineCorner (", sizeof(decal::LineCorner)},
-                                                    {"### PolyProps (", sizeof(decal::PolyProps)},
-                                                    {"### LodPoint (", sizeof(decal::LodPoint)},
-                                                    {"### LodSegment (", sizeof(decal::LodSegment)}};
+  const std::pair<const char*, size_t> records[] = {
+      {"### LineProps (", sizeof(decal::LineProps)},
+      {"### LineCorner (", sizeof(decal::LineCorner)},
+      {"### PolyProps (", sizeof(decal::PolyProps)},
+      {"### LodPoint (", sizeof(decal::LodPoint)},
+      {"### LodSegment (", sizeof(decal::LodSegment)}};
   for (const auto& [heading, size] : records) {
     const auto at = text.find(heading);
     ASSERT_NE(at, std::string::npos) << heading;

@@ -27,8 +27,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <regex>
 #include <sstream>
@@ -36,8 +36,8 @@
 #include "decal/reader.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/pipeline.hpp"
-#include "prep/scene.hpp"
 #include "prep/read.hpp"
+#include "prep/scene.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -100,14 +100,22 @@ prep::SceneSpec scene_of(const json& c) {
       continue;
     }
     if (i + 1 >= args.size()) break;
-    if (args[i] == "--width") l.style.width = std::stod(args[i + 1]);
-    else if (args[i] == "--corner") l.style.corner = prep::parse_corner(args[i + 1]);
-    else if (args[i] == "--crs") s.crs = args[i + 1];
-    else if (args[i] == "--assume-crs") s.assume_crs = args[i + 1];
-    else if (args[i] == "--resolution") s.resolution = std::stod(args[i + 1]);
-    else if (args[i] == "--repair") s.repair = prep::parse_repair_method(args[i + 1]);
-    else if (args[i] == "--max-memory") continue;  // a limit, not part of the scene
-    else ADD_FAILURE() << "scene_of: option " << args[i] << " not mirrored by the test";
+    if (args[i] == "--width")
+      l.style.width = std::stod(args[i + 1]);
+    else if (args[i] == "--corner")
+      l.style.corner = prep::parse_corner(args[i + 1]);
+    else if (args[i] == "--crs")
+      s.crs = args[i + 1];
+    else if (args[i] == "--assume-crs")
+      s.assume_crs = args[i + 1];
+    else if (args[i] == "--resolution")
+      s.resolution = std::stod(args[i + 1]);
+    else if (args[i] == "--repair")
+      s.repair = prep::parse_repair_method(args[i + 1]);
+    else if (args[i] == "--max-memory")
+      continue;  // a limit, not part of the scene
+    else
+      ADD_FAILURE() << "scene_of: option " << args[i] << " not mirrored by the test";
   }
   s.layers.push_back(l);
   return s;
@@ -140,8 +148,8 @@ struct Geos {
     if (parts.empty()) return GEOSGeom_createEmptyPolygon_r(h);
     // One polygon is its own union (a union of a 10^5-hole polygon takes minutes).
     if (parts.size() == 1) return parts[0];
-    GEOSGeometry* coll =
-        GEOSGeom_createCollection_r(h, GEOS_GEOMETRYCOLLECTION, parts.data(), unsigned(parts.size()));
+    GEOSGeometry* coll = GEOSGeom_createCollection_r(h, GEOS_GEOMETRYCOLLECTION, parts.data(),
+                                                     unsigned(parts.size()));
     GEOSGeometry* u = GEOSUnaryUnion_r(h, coll);
     GEOSGeom_destroy_r(h, coll);
     return u;
@@ -186,7 +194,8 @@ std::vector<prep::Point2> sample_points(const prep::SceneFeatures& s, double mar
   std::vector<prep::Point2> verts;
   auto add = [&](const prep::Ring& r) {
     for (const auto& p : r) {
-      x0 = std::min(x0, p.x), y0 = std::min(y0, p.y), x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
+      x0 = std::min(x0, p.x), y0 = std::min(y0, p.y), x1 = std::max(x1, p.x),
+      y1 = std::max(y1, p.y);
       verts.push_back(p);
     }
   };
@@ -226,7 +235,8 @@ struct LineOracle {
     centre = g.line(l);
     pcentre = GEOSPrepare_r(g.h, centre);
     hw = 0.5 * l.width;
-    hw_out = corner == decal::CornerStyle::miter ? hw / std::sin(20.0 * M_PI / 180.0) * (1 + 1e-9) : hw;
+    hw_out =
+        corner == decal::CornerStyle::miter ? hw / std::sin(20.0 * M_PI / 180.0) * (1 + 1e-9) : hw;
     if (corner == decal::CornerStyle::bevel)
       bevel = std::make_unique<Region>(
           g, GEOSBufferWithStyle_r(g.h, centre, hw, 64, GEOSBUF_CAP_ROUND, GEOSBUF_JOIN_BEVEL, 5));
@@ -319,13 +329,15 @@ class Hostile : public ::testing::TestWithParam<std::string> {};
 TEST_P(Hostile, BehavesAsExpected) {
   const std::string name = GetParam();
   const json cases = load_json(corpus_dir() / "cases.json");
-  ASSERT_TRUE(cases.is_array()) << "no corpus at " << corpus_dir() << " (run tests/hostile/generate.py)";
+  ASSERT_TRUE(cases.is_array()) << "no corpus at " << corpus_dir()
+                                << " (run tests/hostile/generate.py)";
   const json* c = nullptr;
   for (const json& x : cases)
     if (x["name"] == name) c = &x;
   const json& want = expected()[name];
   if (!c) {
-    if (want.value("big", false)) GTEST_SKIP() << name << ": big case, generated only with --big (label stress)";
+    if (want.value("big", false))
+      GTEST_SKIP() << name << ": big case, generated only with --big (label stress)";
     FAIL() << name << " is in expected.json but the generator did not write it";
   }
   const fs::path out = fs::path(HOSTILE_OUT_DIR) / name;
@@ -333,8 +345,10 @@ TEST_P(Hostile, BehavesAsExpected) {
   const fs::path pkg_path = out / "out.decals", report_path = out / "report.json";
   fs::remove(pkg_path);
   fs::remove(report_path);
-  std::vector<std::string> args{"build", (*c)["path"].get<std::string>(), "-o", pkg_path.string(),
-                                "--report", report_path.string(), "-q"};
+  std::vector<std::string> args{"build",    (*c)["path"].get<std::string>(),
+                                "-o",       pkg_path.string(),
+                                "--report", report_path.string(),
+                                "-q"};
   if (!is_scene_file(*c)) {
     args.push_back("--kind");
     args.push_back((*c)["kind"].get<std::string>());
@@ -346,7 +360,8 @@ TEST_P(Hostile, BehavesAsExpected) {
   constexpr int kPartial = 4;  // prep::ExitCode::partial: --skip-failures dropped features
   if (want_exit != 0 && want_exit != kPartial) {
     const std::string msg = want.at("message").get<std::string>();
-    EXPECT_NE(r.err.find(msg), std::string::npos) << name << ": stderr lacks \"" << msg << "\":\n" << r.err;
+    EXPECT_NE(r.err.find(msg), std::string::npos) << name << ": stderr lacks \"" << msg << "\":\n"
+                                                  << r.err;
     EXPECT_FALSE(fs::exists(pkg_path)) << name << ": a failed build left a package";
     return;
   }
@@ -362,7 +377,8 @@ TEST_P(Hostile, BehavesAsExpected) {
     for (size_t i = 0; i < got.size() && !found; ++i) {
       const json& x = got[i];
       if (used[i] || x["fid"] != e["fid"] || x["action"] != e["action"]) continue;
-      if (x["reason"].get<std::string>().find(e["reason"].get<std::string>()) == std::string::npos) continue;
+      if (x["reason"].get<std::string>().find(e["reason"].get<std::string>()) == std::string::npos)
+        continue;
       const bool has_area = !x["area_before"].is_null() && !x["area_after"].is_null();
       if (has_area != e.value("area", false)) continue;
       used[i] = found = true;
@@ -384,7 +400,8 @@ TEST_P(Hostile, BehavesAsExpected) {
     ++dropped_entries;
     if (std::regex_search(x["reason"].get<std::string>(), failure_reason)) ++failure_entries;
   }
-  EXPECT_EQ(totals["dropped"].get<size_t>(), dropped_entries) << name << ": totals " << totals.dump();
+  EXPECT_EQ(totals["dropped"].get<size_t>(), dropped_entries)
+      << name << ": totals " << totals.dump();
   // Exit 4 exactly when --skip-failures dropped a failing feature.
   EXPECT_EQ(report.value("skipped_failures", size_t(0)), failure_entries) << name;
   EXPECT_EQ(want_exit == kPartial, failure_entries > 0) << name;
@@ -414,7 +431,8 @@ TEST_P(Hostile, BehavesAsExpected) {
     }
     const double after = x["area_after"].get<double>(), before = x["area_before"].get<double>();
     EXPECT_NEAR(sum, after, 1e-6 * after + 1e-9) << name << ": area_after vs the kept polygons";
-    EXPECT_GT(std::fabs(after - before), 1e-6 * std::fabs(before)) << name << ": area recorded but unchanged";
+    EXPECT_GT(std::fabs(after - before), 1e-6 * std::fabs(before))
+        << name << ": area recorded but unchanged";
   }
   decal::Package pkg;
   ASSERT_TRUE(decal::Package::open(pkg_path.string(), pkg)) << name << ": package does not open";
@@ -429,7 +447,8 @@ TEST(HostileCorpus, EveryGeneratedCaseHasAnExpectation) {
   const json cases = load_json(corpus_dir() / "cases.json");
   ASSERT_TRUE(cases.is_array()) << "no corpus at " << corpus_dir();
   for (const json& x : cases)
-    EXPECT_TRUE(expected().contains(x["name"].get<std::string>())) << x["name"] << " has no expectation";
+    EXPECT_TRUE(expected().contains(x["name"].get<std::string>()))
+        << x["name"] << " has no expectation";
 }
 
 }  // namespace

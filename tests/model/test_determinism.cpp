@@ -11,15 +11,17 @@ namespace {
 
 template <class T>
 bool same(const std::vector<T>& a, const std::vector<T>& b) {
-  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
 }
 
 prep::SceneFeatures mixed_scene() {
   synth::PolygonSet set = synth::polygon_set(11, 12, 60.0, -300.0, 200.0, 9, 600);
   prep::SceneFeatures s = set.scene;
-  s.layers.push_back(synth::layer("roads", prep::DecalKind::line, 0xff00ffffu, decal::CornerStyle::round));
-  s.layers.push_back(synth::layer("edges", prep::DecalKind::outline, 0x80000000u, decal::CornerStyle::miter,
-                                  decal::OutlineMode::inset, 1.5));
+  s.layers.push_back(
+      synth::layer("roads", prep::DecalKind::line, 0xff00ffffu, decal::CornerStyle::round));
+  s.layers.push_back(synth::layer("edges", prep::DecalKind::outline, 0x80000000u,
+                                  decal::CornerStyle::miter, decal::OutlineMode::inset, 1.5));
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> U(0, 720);
   for (int i = 0; i < 300; ++i) {
@@ -103,13 +105,15 @@ TEST(BuildDrawingOrder, LinesAndPolygonsShareOneLayerMajorRankSpace) {
   // top of every feature of an earlier one, lines or polygons.
   std::vector<Item> by_rank(items.size());
   for (const Item& it : items) by_rank[it.order] = it;
-  for (size_t r = 1; r < by_rank.size(); ++r) EXPECT_GE(by_rank[r - 1].layer, by_rank[r].layer) << "rank " << r;
+  for (size_t r = 1; r < by_rank.size(); ++r)
+    EXPECT_GE(by_rank[r - 1].layer, by_rank[r].layer) << "rank " << r;
   EXPECT_EQ(by_rank.front().layer, 2u);
   EXPECT_FALSE(by_rank.back().line);
   // Within the roads layer the longest line is on top (lengths fid % 17).
   uint32_t top = 0, best = ~0u;
   for (uint32_t i = 0; i < m.line_props.size(); ++i)
-    if (m.line_props[i].layer == 1 && m.line_props[i].order < best) best = m.line_props[i].order, top = i;
+    if (m.line_props[i].layer == 1 && m.line_props[i].order < best)
+      best = m.line_props[i].order, top = i;
   EXPECT_EQ(scene.lines[top].length, 16.0);
   // Within every cell, segments are sorted by their line's rank.
   for (size_t c = 0; c < m.cell_segment_range.size(); ++c) {

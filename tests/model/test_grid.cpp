@@ -10,8 +10,8 @@
 #include <random>
 
 #include "../evaluate/synthetic.hpp"
-#include "prep/model.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/model.hpp"
 
 namespace {
 
@@ -24,11 +24,11 @@ uint64_t bytes_of(const std::vector<T>& v) {
 uint64_t static_bytes(const prep::DecalModel& m) {
   return bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
          bytes_of(m.line_corners) + bytes_of(m.cell_segment_range) + bytes_of(m.cell_segments) +
-         bytes_of(m.poly_props) + bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) + bytes_of(m.qt_node) +
-         bytes_of(m.qt_leaf_range) + bytes_of(m.qt_leaf_segments) + bytes_of(m.qt_leaf_vertices) +
-         bytes_of(m.cell_poly_range) + bytes_of(m.cell_polys) + bytes_of(m.cell_holes) +
-         bytes_of(m.line_bvh_range) + bytes_of(m.line_bvh_box) + bytes_of(m.poly_bvh_range) +
-         bytes_of(m.poly_bvh_box);
+         bytes_of(m.poly_props) + bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) +
+         bytes_of(m.qt_node) + bytes_of(m.qt_leaf_range) + bytes_of(m.qt_leaf_segments) +
+         bytes_of(m.qt_leaf_vertices) + bytes_of(m.cell_poly_range) + bytes_of(m.cell_polys) +
+         bytes_of(m.cell_holes) + bytes_of(m.line_bvh_range) + bytes_of(m.line_bvh_box) +
+         bytes_of(m.poly_bvh_range) + bytes_of(m.poly_bvh_box);
 }
 
 // A city-like scene: polygons (a third with a hole) and polylines, denser
@@ -40,13 +40,14 @@ prep::SceneFeatures clustered_scene(int polygons, int lines) {
   std::uniform_int_distribution<int> nv(6, 30);
   prep::SceneFeatures s;
   s.layers.push_back(synth::layer("parcels", prep::DecalKind::polygon, 0xc0406080u));
-  s.layers.push_back(synth::layer("roads", prep::DecalKind::line, 0xffffffffu, decal::CornerStyle::bevel,
-                                  decal::OutlineMode::normal, 4.0));
+  s.layers.push_back(synth::layer("roads", prep::DecalKind::line, 0xffffffffu,
+                                  decal::CornerStyle::bevel, decal::OutlineMode::normal, 4.0));
   for (int i = 0; i < polygons; ++i) {
     const double cx = 800 * N(rng), cy = 500 * N(rng), size = 6 + 20 * std::abs(N(rng));
     prep::ScenePolygon p;
     p.shell = synth::star(rng, cx, cy, 0.6 * size, size, nv(rng), false);
-    if (i % 3 == 0) p.holes.push_back(synth::star(rng, cx, cy, 0.15 * size, 0.3 * size, nv(rng), true));
+    if (i % 3 == 0)
+      p.holes.push_back(synth::star(rng, cx, cy, 0.15 * size, 0.3 * size, nv(rng), true));
     p.fid = i;
     p.area = size * size;
     s.polygons.push_back(std::move(p));
@@ -90,7 +91,8 @@ double mean_tests(const prep::DecalModel& m, const prep::Extent& e, int n) {
 
 prep::Extent extent_of(const prep::DecalModel& m) {
   const double q = decal::kQuantumMetres;
-  return {m.grid.origin_x * q, m.grid.origin_y * q, (m.grid.origin_x + m.grid.cell_w * int64_t(m.grid.nx)) * q,
+  return {m.grid.origin_x * q, m.grid.origin_y * q,
+          (m.grid.origin_x + m.grid.cell_w * int64_t(m.grid.nx)) * q,
           (m.grid.origin_y + m.grid.cell_h * int64_t(m.grid.ny)) * q};
 }
 
@@ -102,18 +104,19 @@ TEST(DecalGrid, AdaptivePackageIsAtMost1Point2TimesTheThesisGridsAndQueriesCostL
     const prep::SceneFeatures scene = clustered_scene(3000, lines);
     prep::ModelOptions adaptive, thesis;
     thesis.grid_nx = thesis.grid_ny = 500;
-    const prep::DecalModel a = prep::build_model(scene, adaptive), t = prep::build_model(scene, thesis);
+    const prep::DecalModel a = prep::build_model(scene, adaptive),
+                           t = prep::build_model(scene, thesis);
     ASSERT_EQ(t.grid.nx, 500u);
     ASSERT_GT(a.grid.nx, 0u);
     const double ratio = double(static_bytes(a)) / double(static_bytes(t));
     // The size contract of the README and grid.cpp (kGridSizeBudget).
     EXPECT_LE(ratio, 1.2) << "adaptive grid " << a.grid.nx << "x" << a.grid.ny;
-    std::printf("[%s] adaptive %ux%u: %.4f x the 500x500 package\n", lines ? "polygons and lines" : "polygons only",
-                a.grid.nx, a.grid.ny, ratio);
+    std::printf("[%s] adaptive %ux%u: %.4f x the 500x500 package\n",
+                lines ? "polygons and lines" : "polygons only", a.grid.nx, a.grid.ny, ratio);
     // Same points for both: sample over the larger of the two grid extents.
     const prep::Extent ea = extent_of(a), et = extent_of(t);
-    const prep::Extent e{std::min(ea.xmin, et.xmin), std::min(ea.ymin, et.ymin), std::max(ea.xmax, et.xmax),
-                         std::max(ea.ymax, et.ymax)};
+    const prep::Extent e{std::min(ea.xmin, et.xmin), std::min(ea.ymin, et.ymin),
+                         std::max(ea.xmax, et.xmax), std::max(ea.ymax, et.ymax)};
     const double ta = mean_tests(a, e, 20000), tt = mean_tests(t, e, 20000);
     EXPECT_LT(ta, tt) << "adaptive " << a.grid.nx << "x" << a.grid.ny << " bytes ratio " << ratio;
   }

@@ -38,7 +38,8 @@ double leaf_region_area(GEOSContextHandle_t h, const prep::DecalModel& m, const 
   for (uint32_t s = range[0]; s < range[0] + range[1]; ++s) {
     const auto& a = m.qt_leaf_vertices[m.qt_leaf_segments[s][0]];
     const auto& b = m.qt_leaf_vertices[m.qt_leaf_segments[s][1]];
-    parts.push_back(synth::linestring(h, {{double(a[0]), double(a[1])}, {double(b[0]), double(b[1])}}));
+    parts.push_back(
+        synth::linestring(h, {{double(a[0]), double(a[1])}, {double(b[0]), double(b[1])}}));
   }
   G mls = synth::collection(h, GEOS_MULTILINESTRING, parts);
   G inside(h, GEOSIntersection_r(h, mls.g, boxpoly.g));
@@ -114,7 +115,8 @@ TEST(QuadTree, LeafAreasEqualGeosAreaOfPolygonInLeafAndSolidLeavesMissTheRing) {
         ASSERT_EQ(type, decal::QtNodeType::partial);
         impl = leaf_region_area(h, m, m.qt_leaf_range[m.qt_node[n][1]], boxpoly);
       }
-      EXPECT_NEAR(impl, truth, 1e-9 * box_area) << "ring " << r << " node " << n << " type " << int(type);
+      EXPECT_NEAR(impl, truth, 1e-9 * box_area)
+          << "ring " << r << " node " << n << " type " << int(type);
       worst_rel = std::max(worst_rel, std::fabs(impl - truth) / box_area);
       impl_total += impl;
       geos_total += truth;
@@ -122,10 +124,11 @@ TEST(QuadTree, LeafAreasEqualGeosAreaOfPolygonInLeafAndSolidLeavesMissTheRing) {
     }
     EXPECT_NEAR(impl_total, geos_total, 1e-9 * geos_total) << "ring " << r;
   }
-  std::printf("quad-tree leaves: %llu outside, %llu inside, %llu partial; worst |area - GEOS| / leaf "
-              "box area = %.3g\n",
-              (unsigned long long)leaves[1], (unsigned long long)leaves[2],
-              (unsigned long long)leaves[3], worst_rel);
+  std::printf(
+      "quad-tree leaves: %llu outside, %llu inside, %llu partial; worst |area - GEOS| / leaf "
+      "box area = %.3g\n",
+      (unsigned long long)leaves[1], (unsigned long long)leaves[2], (unsigned long long)leaves[3],
+      worst_rel);
   EXPECT_GT(leaves[1], 0u);
   EXPECT_GT(leaves[2], 0u);
   EXPECT_GT(leaves[3], 0u);
@@ -138,7 +141,8 @@ TEST(QuadTree, DepthCapAndLeafOverflowAreReportedInTheManifest) {
   opt.qt_max_depth = 2;
   const prep::DecalModel m = prep::build_model(set.scene, opt);
   bool found = false;
-  for (const auto& n : m.manifest.notes) found = found || n.find("maximum depth 2") != std::string::npos;
+  for (const auto& n : m.manifest.notes)
+    found = found || n.find("maximum depth 2") != std::string::npos;
   EXPECT_TRUE(found);
   EXPECT_GT(m.stats.qt_depth_capped, 0u);
   EXPECT_GT(m.stats.qt_max_leaf_segments, 2u);

@@ -1,16 +1,16 @@
 // Reprojection against GeographicLib reference
 // values (an implementation independent of PROJ), the axis order, and widths
 // in ground metres.
+#include <gtest/gtest.h>
+#include <ogr_spatialref.h>
 #include <GeographicLib/Geodesic.hpp>
 #include <GeographicLib/TransverseMercatorExact.hpp>
 #include <GeographicLib/UTMUPS.hpp>
-#include <gtest/gtest.h>
-#include <ogr_spatialref.h>
 
-#include <cmath>
-#include <memory>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <memory>
 
 #include "../read/fixtures.hpp"
 #include "prep/error.hpp"
@@ -71,8 +71,10 @@ TEST_P(LocalTm, MatchesGeographicLibExactTransverseMercatorTo1Micrometre) {
   for (size_t i = 0; i < in.size(); ++i) {
     double x = 0, y = 0;
     tm.Forward(frame.tm_lon0, in[i][0].y, in[i][0].x, x, y);
-    EXPECT_NEAR(out[i][0].x + frame.origin_x, x, 1e-6) << "lon " << in[i][0].x << " lat " << in[i][0].y;
-    EXPECT_NEAR(out[i][0].y + frame.origin_y, y - y0, 1e-6) << "lon " << in[i][0].x << " lat " << in[i][0].y;
+    EXPECT_NEAR(out[i][0].x + frame.origin_x, x, 1e-6)
+        << "lon " << in[i][0].x << " lat " << in[i][0].y;
+    EXPECT_NEAR(out[i][0].y + frame.origin_y, y - y0, 1e-6)
+        << "lon " << in[i][0].x << " lat " << in[i][0].y;
   }
   // The frame's point scale factor against the exact TM's k.
   double gamma = 0, k = 0, x = 0, y = 0;
@@ -113,8 +115,12 @@ TEST(Project, GeographicCrsIsRejectedAsSceneFrame) {
 
 // Web Mercator (spherical formulas on WGS84 geodetic coordinates).
 constexpr double kR = 6378137.0;
-double merc_x(double lon) { return kR * lon * M_PI / 180; }
-double merc_y(double lat) { return kR * std::log(std::tan(M_PI / 4 + lat * M_PI / 360)); }
+double merc_x(double lon) {
+  return kR * lon * M_PI / 180;
+}
+double merc_y(double lat) {
+  return kR * std::log(std::tan(M_PI / 4 + lat * M_PI / 360));
+}
 
 // A 10 ground-metre line, 10 m wide, at 60°N in EPSG:3857 (where one
 // ground metre is about two Web Mercator metres).
@@ -122,10 +128,11 @@ std::string write_3857_line(const prep::test::TempDir& dir) {
   double lat2 = 0, lon2 = 0;
   GeographicLib::Geodesic::WGS84().Direct(60.0, 10.0, 90.0, 10.0, lat2, lon2);
   char json[1024];
-  std::snprintf(json, sizeof json,
-                R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:3857"}},
+  std::snprintf(
+      json, sizeof json,
+      R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:3857"}},
 "features":[{"type":"Feature","properties":{},"geometry":{"type":"LineString","coordinates":[[%.6f,%.6f],[%.6f,%.6f]]}}]})",
-                merc_x(10.0), merc_y(60.0), merc_x(lon2), merc_y(lat2));
+      merc_x(10.0), merc_y(60.0), merc_x(lon2), merc_y(lat2));
   prep::test::write_text(dir.file("line3857.geojson"), json);
   return dir.file("line3857.geojson");
 }

@@ -44,7 +44,14 @@ void expect_no_output(const TempDir& dir) {
 }
 
 // What a case writes into its temp directory before running the tool.
-enum class Input { none, garbage_shp, shapefile, truncated_shapefile, shapefile_without_crs, bad_scene };
+enum class Input {
+  none,
+  garbage_shp,
+  shapefile,
+  truncated_shapefile,
+  shapefile_without_crs,
+  bad_scene
+};
 
 void write_input(Input in, const TempDir& dir) {
   switch (in) {
@@ -89,7 +96,9 @@ struct Case {
   std::vector<Step> steps;
 };
 
-std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.name; }
+std::ostream& operator<<(std::ostream& os, const Case& c) {
+  return os << c.name;
+}
 
 std::string expand(const std::string& args, const TempDir& dir) {
   std::string out;
@@ -159,13 +168,23 @@ const std::vector<Case> kCases = {
        kInput,
        {"invalid --crs 'EPSG:999999'"},
        {}},
-      {"build @roads.shp --crs EPSG:4326 -o @out.decals --kind line", kInput, {"not a projected CRS"}, {}}}},
+      {"build @roads.shp --crs EPSG:4326 -o @out.decals --kind line",
+       kInput,
+       {"not a projected CRS"},
+       {}}}},
     {"InvalidSceneFileNamesKeyAndLine",
      Input::bad_scene,
-     {{"build @scene.toml -o @out.decals", kInput, {"scene.toml:5: layer[0].widht: unknown key"}, {}}}},
+     {{"build @scene.toml -o @out.decals",
+       kInput,
+       {"scene.toml:5: layer[0].widht: unknown key"},
+       {}}}},
     {"BadOptionValueIsAUsageError",
      Input::shapefile,
-     {{"build @roads.shp --corner sharp -o @out.decals --kind line", kUsage, {"round|miter|bevel"}, {}, false},
+     {{"build @roads.shp --corner sharp -o @out.decals --kind line",
+       kUsage,
+       {"round|miter|bevel"},
+       {},
+       false},
       {"build @roads.shp --grid 500 -o @out.decals --kind line", kUsage, {}, {}}}},
 };
 
@@ -191,6 +210,8 @@ TEST_P(BadInput, FailsWithTheDocumentedCodeAndAMessageNamingTheCause) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, BadInput, ::testing::ValuesIn(kCases),
-                         [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });
+                         [](const ::testing::TestParamInfo<Case>& i) {
+                           return std::string(i.param.name);
+                         });
 
 }  // namespace

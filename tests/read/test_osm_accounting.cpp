@@ -25,7 +25,8 @@ struct LayerDef {
 const LayerDef kLayers[] = {
     {"landuse", "multipolygons", "landuse IS NOT NULL", "", prep::DecalKind::polygon},
     {"buildings", "multipolygons", "building IS NOT NULL", "", prep::DecalKind::polygon},
-    {"water", "", "", "SELECT * FROM multipolygons WHERE \"natural\" = 'water' OR leisure = 'swimming_pool'",
+    {"water", "", "",
+     "SELECT * FROM multipolygons WHERE \"natural\" = 'water' OR leisure = 'swimming_pool'",
      prep::DecalKind::polygon},
     {"highways", "lines", "highway IS NOT NULL", "", prep::DecalKind::line},
     {"outlines", "multipolygons", "landuse IS NOT NULL", "", prep::DecalKind::outline},
@@ -36,8 +37,12 @@ void check_extract(const std::string& source, double resolution) {
   TempDir dir;
   prep::SceneSpec scene;
   for (const LayerDef& d : kLayers)
-    scene.layers.push_back(
-        {.name = d.name, .source = source, .layer = d.ogr_layer, .where = d.where, .sql = d.sql, .kind = d.kind});
+    scene.layers.push_back({.name = d.name,
+                            .source = source,
+                            .layer = d.ogr_layer,
+                            .where = d.where,
+                            .sql = d.sql,
+                            .kind = d.kind});
   scene.resolution = resolution;
   prep::BuildRequest req;
   req.dry_run = true;
@@ -69,13 +74,12 @@ void check_extract(const std::string& source, double resolution) {
     EXPECT_EQ(parts[d.name], c.parts);
     EXPECT_LE(c.repaired, c.kept);
     const long long oracle =
-        d.sql[0] ? prep::test::ogrinfo_count_sql(source, std::string("SELECT COUNT(*) FROM (") +
-                                                          d.sql + ")",
-                                                 "SQLite", dir)
-                 : prep::test::ogrinfo_count_sql(source,
-                                                 std::string("SELECT COUNT(*) FROM ") +
-                                                     d.ogr_layer + " WHERE " + d.where,
-                                                 "", dir);
+        d.sql[0]
+            ? prep::test::ogrinfo_count_sql(
+                  source, std::string("SELECT COUNT(*) FROM (") + d.sql + ")", "SQLite", dir)
+            : prep::test::ogrinfo_count_sql(
+                  source, std::string("SELECT COUNT(*) FROM ") + d.ogr_layer + " WHERE " + d.where,
+                  "", dir);
     if (oracle < 0) GTEST_SKIP() << "ogrinfo not available";
     EXPECT_EQ(static_cast<long long>(c.read), oracle);
   }
@@ -91,13 +95,16 @@ void check_extract(const std::string& source, double resolution) {
     toml += "[[layer]]\nname = \"" + std::string(d.name) + "\"\nsource = \"" + source + "\"\n";
     if (d.sql[0]) {
       std::string escaped;  // a TOML basic string: escape the double quotes
-      for (const char* c = d.sql; *c; ++c) escaped += *c == '"' ? std::string("\\\"") : std::string(1, *c);
+      for (const char* c = d.sql; *c; ++c)
+        escaped += *c == '"' ? std::string("\\\"") : std::string(1, *c);
       toml += "sql = \"" + escaped + "\"\n";
     }
     if (d.ogr_layer[0]) toml += "layer = \"" + std::string(d.ogr_layer) + "\"\n";
     if (d.where[0]) toml += "where = \"" + std::string(d.where) + "\"\n";
     toml += std::string("kind = \"") +
-            (d.kind == prep::DecalKind::polygon ? "polygon" : d.kind == prep::DecalKind::line ? "line" : "outline") +
+            (d.kind == prep::DecalKind::polygon ? "polygon"
+             : d.kind == prep::DecalKind::line  ? "line"
+                                                : "outline") +
             "\"\n";
   }
   toml = "resolution = " + std::to_string(resolution) + "\n" + toml;
@@ -109,7 +116,8 @@ void check_extract(const std::string& source, double resolution) {
   if (built.output.find("no build/write stage linked") != std::string::npos)
     GTEST_SKIP() << "this decalprep has no build/write stage";
   ASSERT_EQ(built.rc, 0) << built.output;
-  auto info = prep::test::run_tool("info --json " + prep::test::shell_quote(pkg) + " 2>/dev/null", dir);
+  auto info =
+      prep::test::run_tool("info --json " + prep::test::shell_quote(pkg) + " 2>/dev/null", dir);
   ASSERT_EQ(info.rc, 0) << info.output;
   nlohmann::json meta = nlohmann::json::parse(info.output)["metadata"];
   const nlohmann::json& layers = meta["manifest"]["layers"];
@@ -119,9 +127,9 @@ void check_extract(const std::string& source, double resolution) {
     SCOPED_TRACE(kLayers[i].name);
     EXPECT_EQ(layers[i]["layer"], c.layer);
     EXPECT_EQ(layers[i]["read"].get<uint64_t>(), c.read);
-    EXPECT_EQ(layers[i]["read"].get<uint64_t>(),
-              layers[i]["kept"].get<uint64_t>() + layers[i]["clipped_away"].get<uint64_t>() +
-                  layers[i]["dropped"].get<uint64_t>());
+    EXPECT_EQ(layers[i]["read"].get<uint64_t>(), layers[i]["kept"].get<uint64_t>() +
+                                                     layers[i]["clipped_away"].get<uint64_t>() +
+                                                     layers[i]["dropped"].get<uint64_t>());
   }
 }
 
@@ -142,14 +150,16 @@ TEST(OsmAccounting, WholeOsmLayersReadInOnePassMatchOgrinfoAndSeparateReads) {
   if (!prep::test::exists(source)) GTEST_SKIP() << "missing real data: " << source;
   TempDir dir;
   prep::SceneSpec scene;
-  const std::pair<const char*, prep::DecalKind> defs[] = {{"multipolygons", prep::DecalKind::polygon},
-                                                          {"lines", prep::DecalKind::line},
-                                                          {"multipolygons", prep::DecalKind::outline}};
+  const std::pair<const char*, prep::DecalKind> defs[] = {
+      {"multipolygons", prep::DecalKind::polygon},
+      {"lines", prep::DecalKind::line},
+      {"multipolygons", prep::DecalKind::outline}};
   for (const auto& [ogr_layer, kind] : defs)
-    scene.layers.push_back({.name = std::string(ogr_layer) + "_" + std::to_string(scene.layers.size()),
-                            .source = source,
-                            .layer = ogr_layer,
-                            .kind = kind});
+    scene.layers.push_back(
+        {.name = std::string(ogr_layer) + "_" + std::to_string(scene.layers.size()),
+         .source = source,
+         .layer = ogr_layer,
+         .kind = kind});
   prep::FeatureSet together = prep::read_scene(scene, prep::ReadOptions{});
   ASSERT_EQ(together.layers.size(), scene.layers.size());
   ASSERT_EQ(together.manifest.layers.size(), scene.layers.size());
@@ -161,7 +171,8 @@ TEST(OsmAccounting, WholeOsmLayersReadInOnePassMatchOgrinfoAndSeparateReads) {
     EXPECT_EQ(static_cast<long long>(together.manifest.layers[i].read), oracle);
 
     prep::Manifest alone_manifest;
-    prep::SourceLayer alone = prep::read_layer(scene.layers[i], scene, alone_manifest, prep::ReadOptions{});
+    prep::SourceLayer alone =
+        prep::read_layer(scene.layers[i], scene, alone_manifest, prep::ReadOptions{});
     ASSERT_EQ(alone_manifest.layers.size(), 1u);
     EXPECT_EQ(alone_manifest.layers[0].read, together.manifest.layers[i].read);
     const prep::SourceLayer& got = together.layers[i];

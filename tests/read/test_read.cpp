@@ -64,23 +64,27 @@ TEST(Read, MultiGeometriesAndCollectionsAreSplitIntoParts) {
   EXPECT_EQ(f[6].fid, 5);
   EXPECT_EQ(fs.manifest.layers[0].read, 5u);
   bool part_note = false;
-  for (const auto& e : fs.manifest.entries) part_note |= e.fid == 2 && e.action == prep::ManifestAction::part_dropped;
+  for (const auto& e : fs.manifest.entries)
+    part_note |= e.fid == 2 && e.action == prep::ManifestAction::part_dropped;
   EXPECT_TRUE(part_note);
 }
 
 TEST(Read, ZValuesAreDroppedAndTheManifestSaysSo) {
   TempDir dir;
   write_text(dir.file("mixed.geojson"), kMixed);
-  prep::FeatureSet fs = prep::read_scene(one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon));
+  prep::FeatureSet fs =
+      prep::read_scene(one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon));
   bool note = false;
-  for (const auto& n : fs.manifest.notes) note |= n.find("Z/M values dropped from 1 features") != std::string::npos;
+  for (const auto& n : fs.manifest.notes)
+    note |= n.find("Z/M values dropped from 1 features") != std::string::npos;
   EXPECT_TRUE(note);
 }
 
 TEST(Read, PolygonsInALineLayerBecomeClosedLines) {
   TempDir dir;
   write_text(dir.file("mixed.geojson"), kMixed);
-  prep::FeatureSet fs = prep::read_scene(one_layer(dir.file("mixed.geojson"), prep::DecalKind::line));
+  prep::FeatureSet fs =
+      prep::read_scene(one_layer(dir.file("mixed.geojson"), prep::DecalKind::line));
   const auto& f = fs.layers[0].features;
   ASSERT_FALSE(f.empty());
   EXPECT_FALSE(f[0].is_polygon);
@@ -131,7 +135,8 @@ TEST(Read, OverpassOsmWithNonIncreasingIdsIsReadWithPlainIndexing) {
   EXPECT_EQ(fs.layers[0].features[0].rings[0].size(), 4u);
   EXPECT_EQ(fs.layers[0].features[0].fid, 100);
   bool note = false;
-  for (const auto& n : fs.manifest.notes) note |= n.find("OSM_USE_CUSTOM_INDEXING=NO") != std::string::npos;
+  for (const auto& n : fs.manifest.notes)
+    note |= n.find("OSM_USE_CUSTOM_INDEXING=NO") != std::string::npos;
   EXPECT_TRUE(note);
 }
 
@@ -206,9 +211,10 @@ TEST(Read, SceneFileWithRelativeVsizipSourceReadsFromTheArchiveNextToIt) {
   ASSERT_NE(f, nullptr);
   ASSERT_EQ(VSIFWriteL(json.data(), 1, json.size(), f), json.size());
   VSIFCloseL(f);
-  prep::test::write_text(dir.file("scene.toml"),
-                         "[[layer]]\nname = \"roads\"\nsource = \"/vsizip/data.zip/roads.geojson\"\n"
-                         "kind = \"line\"\nwidth = 4\n");
+  prep::test::write_text(
+      dir.file("scene.toml"),
+      "[[layer]]\nname = \"roads\"\nsource = \"/vsizip/data.zip/roads.geojson\"\n"
+      "kind = \"line\"\nwidth = 4\n");
   prep::SceneSpec s = prep::load_scene_file(dir.file("scene.toml"));
   prep::BuildRequest req;
   req.dry_run = true;

@@ -125,12 +125,14 @@ TEST(SceneFile, LayerWithoutSourceIsAnError) {
 }
 
 TEST(SceneFile, InsetWithoutMiterIsRejected) {
-  std::string e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"outline\"\noutline_mode = \"inset\"\n");
+  std::string e =
+      error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"outline\"\noutline_mode = \"inset\"\n");
   EXPECT_NE(e.find("miter"), std::string::npos) << e;
 }
 
 TEST(SceneFile, DuplicateLayerNamesAreRejected) {
-  std::string e = error_of("source = \"a.shp\"\n[[layer]]\nname = \"x\"\n[[layer]]\nname = \"x\"\n");
+  std::string e =
+      error_of("source = \"a.shp\"\n[[layer]]\nname = \"x\"\n[[layer]]\nname = \"x\"\n");
   EXPECT_NE(e.find("duplicate layer name"), std::string::npos) << e;
 }
 
@@ -138,7 +140,8 @@ TEST(SceneFile, ShippedMonacoSampleParses) {
   prep::SceneSpec s =
       prep::load_scene_file(std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/scene.toml");
   ASSERT_GE(s.layers.size(), 5u);
-  EXPECT_EQ(s.layers[0].source, std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/monaco.osm.pbf");
+  EXPECT_EQ(s.layers[0].source,
+            std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/monaco.osm.pbf");
   EXPECT_EQ(s.dem, "/vsizip/" + std::string(DECALPREP_SOURCE_DIR) +
                        "/samples/monaco/N43E007.hgt.zip/N43E007.hgt");
   bool dynamic = false, outline = false;

@@ -4,7 +4,9 @@ namespace render_test {
 
 namespace {
 
-int32_t q(double m) { return int32_t(m * 1000.0); }
+int32_t q(double m) {
+  return int32_t(m * 1000.0);
+}
 
 // Adds polygon `poly` as a one-node quad-tree (a partial leaf holding the
 // whole ring) and returns the node index.
@@ -12,8 +14,10 @@ uint32_t add_square(prep::DecalModel& m, double lo, double hi) {
   uint32_t node = uint32_t(m.qt_node.size());
   uint32_t first_v = uint32_t(m.qt_leaf_vertices.size());
   uint32_t first_s = uint32_t(m.qt_leaf_segments.size());
-  m.qt_leaf_vertices.insert(m.qt_leaf_vertices.end(), {{q(lo), q(lo)}, {q(hi), q(lo)}, {q(hi), q(hi)}, {q(lo), q(hi)}});
-  for (uint32_t k = 0; k < 4; ++k) m.qt_leaf_segments.push_back({first_v + k, first_v + (k + 1) % 4});
+  m.qt_leaf_vertices.insert(m.qt_leaf_vertices.end(),
+                            {{q(lo), q(lo)}, {q(hi), q(lo)}, {q(hi), q(hi)}, {q(lo), q(hi)}});
+  for (uint32_t k = 0; k < 4; ++k)
+    m.qt_leaf_segments.push_back({first_v + k, first_v + (k + 1) % 4});
   m.qt_leaf_range.push_back({first_s, 4});
   m.qt_node_box.push_back({q(lo), q(lo), q(hi), q(hi)});
   m.qt_node.push_back({3, int32_t(m.qt_leaf_range.size() - 1)});
@@ -26,7 +30,8 @@ prep::DecalModel hand_model() {
   prep::DecalModel m;
   m.extent = {0, 0, 100, 100};
   m.grid = {0, 0, 50000, 50000, 2, 2};
-  uint32_t n_ext = add_square(m, 20, 80), n_hole = add_square(m, 40, 60), n_island = add_square(m, 45, 55);
+  uint32_t n_ext = add_square(m, 20, 80), n_hole = add_square(m, 40, 60),
+           n_island = add_square(m, 45, 55);
   // One rank space (formats/SPEC.md "Drawing order"): the two lines (ranks 0
   // and 1) over the exterior (2, its hole too) over the island (3).
   m.poly_props.push_back({HandShapes::kPolyRgba, 2, -1, 0.f, 0, 0, {0, 0}});

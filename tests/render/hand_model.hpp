@@ -27,10 +27,10 @@ struct HandShapes {
     double px = 10 + 80 * t - x, py = 90 - 80 * t - y;
     return px * px + py * py <= 9.0;
   }
-  static constexpr uint32_t kLine2Rgba = 0x9000c0ffu;  // orange, alpha 0x90
-  static constexpr uint32_t kPolyRgba = 0xff2020e0u;   // R=e0 G=20 B=20, opaque
-  static constexpr uint32_t kIslandRgba = 0xff20e020u; // green
-  static constexpr uint32_t kLineRgba = 0x80e02020u;   // blue, alpha 0x80
+  static constexpr uint32_t kLine2Rgba = 0x9000c0ffu;   // orange, alpha 0x90
+  static constexpr uint32_t kPolyRgba = 0xff2020e0u;    // R=e0 G=20 B=20, opaque
+  static constexpr uint32_t kIslandRgba = 0xff20e020u;  // green
+  static constexpr uint32_t kLineRgba = 0x80e02020u;    // blue, alpha 0x80
 };
 
 prep::DecalModel hand_model();

@@ -14,8 +14,8 @@
 #include <ogr_spatialref.h>
 
 #include "hand_model.hpp"
-#include "test_support.hpp"
 #include "prep/write.hpp"
+#include "test_support.hpp"
 
 namespace fs = std::filesystem;
 
@@ -46,7 +46,8 @@ class RenderCli : public ::testing::Test {
 
 TEST_F(RenderCli, TopDownWritesPngWorldFileAndRawDecalLayer) {
   std::string png = (dir_ / "hand_cli.png").string(), raw = (dir_ / "hand_cli.rgba").string();
-  ToolRun r = run_tool("render " + pkg_ + " " + kExtent + " --size 100x100 --stats --raw " + raw + " -o " + png);
+  ToolRun r = run_tool("render " + pkg_ + " " + kExtent + " --size 100x100 --stats --raw " + raw +
+                       " -o " + png);
   if (r.rc == 8) GTEST_SKIP() << "no headless GL here: " << r.output;
   ASSERT_EQ(r.rc, 0) << r.output;
   EXPECT_NE(r.output.find("static polygons"), std::string::npos) << r.output;  // --stats pass times
@@ -97,7 +98,9 @@ TEST_F(RenderCli, UsesThePackagesBuildDemUnlessFlatIsAsked) {
     std::vector<float> z(400);
     for (int j = 0; j < 20; ++j)
       for (int i = 0; i < 20; ++i) z[size_t(j * 20 + i)] = float(15 * i);
-    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 20, 20, z.data(), 20, 20, GDT_Float32, 0, 0), CE_None);
+    ASSERT_EQ(
+        ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 20, 20, z.data(), 20, 20, GDT_Float32, 0, 0),
+        CE_None);
   }
   const std::string pkg = (dir_ / "hand_dem.decals").string();
   prep::DecalModel m = render_test::hand_model();
@@ -107,7 +110,8 @@ TEST_F(RenderCli, UsesThePackagesBuildDemUnlessFlatIsAsked) {
   const std::string with = (dir_ / "dem_pkg.png").string(), flat = (dir_ / "dem_flat.png").string();
   ToolRun r = run_tool("render " + pkg + " --cpu --size 96x64 -o " + with);
   ASSERT_EQ(r.rc, 0) << r.output;
-  EXPECT_NE(r.output.find("terrain from the package's build DEM " + dem), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("terrain from the package's build DEM " + dem), std::string::npos)
+      << r.output;
   ToolRun f = run_tool("render " + pkg + " --cpu --size 96x64 --flat -o " + flat);
   ASSERT_EQ(f.rc, 0) << f.output;
   EXPECT_EQ(f.output.find("DEM"), std::string::npos) << f.output;
@@ -120,19 +124,24 @@ TEST_F(RenderCli, UsesThePackagesBuildDemUnlessFlatIsAsked) {
 
   // The DEM is gone: a warning that names it, flat terrain, exit 0.
   fs::remove(dem);
-  ToolRun g = run_tool("render " + pkg + " --cpu --size 96x64 -o " + (dir_ / "dem_gone.png").string());
+  ToolRun g =
+      run_tool("render " + pkg + " --cpu --size 96x64 -o " + (dir_ / "dem_gone.png").string());
   ASSERT_EQ(g.rc, 0) << g.output;
   EXPECT_NE(g.output.find("cannot be read here"), std::string::npos) << g.output;
   EXPECT_EQ(bytes((dir_ / "dem_gone.png").string()), bytes(flat));
 
   // --flat with --dem is a usage error.
-  EXPECT_EQ(run_tool("render " + pkg + " --cpu --flat --dem x.tif -o " + (dir_ / "x.png").string()).rc, 2);
+  EXPECT_EQ(
+      run_tool("render " + pkg + " --cpu --flat --dem x.tif -o " + (dir_ / "x.png").string()).rc,
+      2);
 }
 
 TEST_F(RenderCli, ExitsWithRenderCodeWhenNoEglDisplayCanBeCreated) {
   // glvnd finds no vendor library: no EGL display at all.
-  ToolRun r = run_tool("render " + pkg_ + " " + kExtent + " --size 16x16 -o " + (dir_ / "none.png").string(),
-              {.env = "__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/egl_vendor.json __EGL_VENDOR_LIBRARY_DIRS=/nonexistent"});
+  ToolRun r = run_tool(
+      "render " + pkg_ + " " + kExtent + " --size 16x16 -o " + (dir_ / "none.png").string(),
+      {.env = "__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/egl_vendor.json "
+              "__EGL_VENDOR_LIBRARY_DIRS=/nonexistent"});
   EXPECT_EQ(r.rc, 8) << r.output;
   EXPECT_NE(r.output.find("EGL"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir_ / "none.png"));
@@ -152,7 +161,8 @@ TEST_F(RenderCli, RejectsACorruptPackageWithAClearMessage) {
   f.seekp(std::streamoff(size / 2));
   f.write(&b, 1);
   f.close();
-  ToolRun r = run_tool("render " + bad + " " + kExtent + " --size 16x16 -o " + (dir_ / "corrupt.png").string());
+  ToolRun r = run_tool("render " + bad + " " + kExtent + " --size 16x16 -o " +
+                       (dir_ / "corrupt.png").string());
   EXPECT_EQ(r.rc, 5) << r.output;
   EXPECT_NE(r.output.find("decalprep:"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir_ / "corrupt.png"));

@@ -33,8 +33,10 @@ prep::DecalModel dynamic_model(int corner = 0) {
     for (int k = 0; k <= n; ++k) {
       double t = double(k) / n;
       m.dyn_vertices.push_back({int32_t(std::lround((x0 + t * (x1 - x0)) * 1000)),
-                                int32_t(std::lround((y0 + t * (y1 - y0)) * 1000)), 0, int32_t(line)});
-      m.dyn_prev_next.push_back({k == 0 ? -1 : int32_t(first + k - 1), k == n ? -1 : int32_t(first + k + 1)});
+                                int32_t(std::lround((y0 + t * (y1 - y0)) * 1000)), 0,
+                                int32_t(line)});
+      m.dyn_prev_next.push_back(
+          {k == 0 ? -1 : int32_t(first + k - 1), k == n ? -1 : int32_t(first + k + 1)});
     }
     m.dyn_line_start.push_back(first);
     m.dyn_line_props.push_back({2.0f, rgba, order, uint32_t(corner), 0.f, 0, line, 0});
@@ -70,7 +72,8 @@ Shot shoot(const prep::DecalModel& m, const prep::Extent& view, uint32_t w, uint
 // Covered pixels of the dynamic layer in image column i.
 int column_coverage(const R::Image& img, uint32_t i) {
   int n = 0;
-  for (uint32_t j = 0; j < img.height; ++j) n += img.dynamic[4 * (i + size_t(img.width) * j) + 3] > 0;
+  for (uint32_t j = 0; j < img.height; ++j)
+    n += img.dynamic[4 * (i + size_t(img.width) * j) + 3] > 0;
   return n;
 }
 
@@ -84,7 +87,8 @@ TEST(DynamicLines, KeepTheirPixelWidthWhenZoomedOut) {
     Shot s = shoot(m, view, W, H);
     if (!s.ok) GTEST_SKIP() << "no headless GL";
     std::filesystem::create_directories("render-out");
-    prep::write_png_rgba("render-out/dynamic_zoom" + std::to_string(int(zoom)) + ".png", W, H, s.img.rgba);
+    prep::write_png_rgba("render-out/dynamic_zoom" + std::to_string(int(zoom)) + ".png", W, H,
+                         s.img.rgba);
     // A column through the red line away from the blue one: 4 px = 2 x half width.
     uint32_t col = W / 2 - 6;
     int width_px = column_coverage(s.img, col);
@@ -93,7 +97,8 @@ TEST(DynamicLines, KeepTheirPixelWidthWhenZoomedOut) {
     EXPECT_LE(width_px, 5) << "zoom " << zoom;
     if (zoom == 16.0) {
       // 3200 m over 320 px: 10 m per pixel, vertices 0.5 m apart: most share a pixel.
-      EXPECT_LT(s.img.dyn_kept, m.dyn_vertices.size() / 5) << "same-pixel removal kept " << s.img.dyn_kept;
+      EXPECT_LT(s.img.dyn_kept, m.dyn_vertices.size() / 5)
+          << "same-pixel removal kept " << s.img.dyn_kept;
       EXPECT_GT(s.img.dyn_kept, 20u);
     }
   }
@@ -158,7 +163,8 @@ TEST(DynamicLines, GrowTheListBufferWhenItOverflows) {
       v[3] = int32_t(copy);
       m.dyn_vertices.push_back(v);
       auto pn = base_pn[k];
-      m.dyn_prev_next.push_back({pn[0] < 0 ? -1 : int32_t(first + pn[0]), pn[1] < 0 ? -1 : int32_t(first + pn[1])});
+      m.dyn_prev_next.push_back(
+          {pn[0] < 0 ? -1 : int32_t(first + pn[0]), pn[1] < 0 ? -1 : int32_t(first + pn[1])});
     }
     props.order = copy;
     props.rgba = 0x10ffffffu;  // nearly transparent so no early exit

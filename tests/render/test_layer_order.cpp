@@ -48,10 +48,12 @@ fs::path out_dir() {
 // A two-layer scene: `first` drawn lowest, `second` above it. No
 // simplification, so the package keeps the OSM geometry to 1 mm.
 std::string write_scene(const std::string& name, bool buildings_on_top) {
-  const std::string landuse = "[[layer]]\nname = \"landuse\"\nlayer = \"multipolygons\"\nwhere = \"" + kLanduseWhere +
-                              "\"\nkind = \"polygon\"\ncolor = \"#00ff00\"\n\n";
-  const std::string buildings = "[[layer]]\nname = \"buildings\"\nlayer = \"multipolygons\"\nwhere = \"" +
-                                kBuildingWhere + "\"\nkind = \"polygon\"\ncolor = \"#ff0000\"\n\n";
+  const std::string landuse =
+      "[[layer]]\nname = \"landuse\"\nlayer = \"multipolygons\"\nwhere = \"" + kLanduseWhere +
+      "\"\nkind = \"polygon\"\ncolor = \"#00ff00\"\n\n";
+  const std::string buildings =
+      "[[layer]]\nname = \"buildings\"\nlayer = \"multipolygons\"\nwhere = \"" + kBuildingWhere +
+      "\"\nkind = \"polygon\"\ncolor = \"#ff0000\"\n\n";
   const fs::path scene = out_dir() / (name + ".toml");
   std::ofstream(scene) << "source = \"" << kPbf << "\"\n"
                        << "extent = [7.400, 43.722, 7.445, 43.755]\nextent_crs = \"EPSG:4326\"\n"
@@ -64,13 +66,14 @@ std::string write_scene(const std::string& name, bool buildings_on_top) {
 std::unique_ptr<OGRPoint> point_on_surface(const OGRGeometry& g) {
   OGRGeometryH h = OGR_G_PointOnSurface(OGRGeometry::ToHandle(const_cast<OGRGeometry*>(&g)));
   OGRGeometry* p = h ? OGRGeometry::FromHandle(h) : nullptr;
-  if (p && wkbFlatten(p->getGeometryType()) == wkbPoint) return std::unique_ptr<OGRPoint>(p->toPoint());
+  if (p && wkbFlatten(p->getGeometryType()) == wkbPoint)
+    return std::unique_ptr<OGRPoint>(p->toPoint());
   delete p;
   return nullptr;
 }
 
 struct Probe {
-  double x = 0, y = 0;  // scene metres (relative to the package origin)
+  double x = 0, y = 0;                  // scene metres (relative to the package origin)
   std::unique_ptr<OGRGeometry> region;  // building ∩ land use, shrunk by 1 cm
 };
 
@@ -78,16 +81,19 @@ struct Probe {
 // polygon, as probes in the frame of `frame`. Buildings OGR reports invalid
 // are left out (the pipeline repairs them; their point on surface is not
 // well defined), as are those outside `extent` (clipped by the scene).
-std::vector<Probe> probes(const prep::SceneFrame& frame, const prep::Extent& extent, size_t& buildings) {
+std::vector<Probe> probes(const prep::SceneFrame& frame, const prep::Extent& extent,
+                          size_t& buildings) {
   GDALAllRegister();
-  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(kPbf.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
+  std::unique_ptr<GDALDataset> ds(
+      GDALDataset::Open(kPbf.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
   if (!ds) throw std::runtime_error("cannot open " + kPbf);
   OGRSpatialReference wgs84, target;
   wgs84.importFromEPSG(4326);
   wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   target.importFromWkt(frame.crs_wkt.c_str());
   target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&wgs84, &target));
+  std::unique_ptr<OGRCoordinateTransformation> ct(
+      OGRCreateCoordinateTransformation(&wgs84, &target));
   if (!ct) throw std::runtime_error("no transformation to the package frame");
   // Features are read into frame coordinates, then shifted to the origin.
   auto read = [&](const std::string& where) {
@@ -105,7 +111,9 @@ std::vector<Probe> probes(const prep::SceneFrame& frame, const prep::Extent& ext
             double dx, dy;
             Shift(double x, double y) : dx(x), dy(y) {}
             using OGRDefaultGeometryVisitor::visit;
-            void visit(OGRPoint* pt) override { pt->setX(pt->getX() - dx), pt->setY(pt->getY() - dy); }
+            void visit(OGRPoint* pt) override {
+              pt->setX(pt->getX() - dx), pt->setY(pt->getY() - dy);
+            }
             void visit(OGRLineString* ls) override {
               for (int i = 0; i < ls->getNumPoints(); ++i)
                 ls->setPoint(i, ls->getX(i) - dx, ls->getY(i) - dy);
@@ -131,9 +139,12 @@ std::vector<Probe> probes(const prep::SceneFrame& frame, const prep::Extent& ext
     std::unique_ptr<OGRPoint> pos = point_on_surface(*b);
     if (!pos || pos->IsEmpty()) continue;
     const double px = pos->getX(), py = pos->getY();
-    if (px < extent.xmin + 1 || px > extent.xmax - 1 || py < extent.ymin + 1 || py > extent.ymax - 1) continue;
+    if (px < extent.xmin + 1 || px > extent.xmax - 1 || py < extent.ymin + 1 ||
+        py > extent.ymax - 1)
+      continue;
     for (size_t i = 0; i < landuse.size(); ++i) {
-      if (!(lenv[i].MinX <= px && px <= lenv[i].MaxX && lenv[i].MinY <= py && py <= lenv[i].MaxY)) continue;
+      if (!(lenv[i].MinX <= px && px <= lenv[i].MaxX && lenv[i].MinY <= py && py <= lenv[i].MaxY))
+        continue;
       if (!landuse[i]->IsValid() || !landuse[i]->Contains(pos.get())) continue;
       std::unique_ptr<OGRGeometry> both(b->Intersection(landuse[i].get()));
       if (!both) break;
@@ -179,7 +190,8 @@ Counts run(const std::string& name, bool buildings_on_top, bool& gl_ran, std::st
   const uint32_t want = buildings_on_top ? kBuildingRgba : kLanduseRgba;
   auto is = [](const float* rgba, uint32_t colour) {
     for (int ch = 0; ch < 4; ++ch)
-      if (std::abs(rgba[ch] - float((colour >> (8 * ch)) & 0xffu) / 255.f) > 1.5f / 255.f) return false;
+      if (std::abs(rgba[ch] - float((colour >> (8 * ch)) & 0xffu) / 255.f) > 1.5f / 255.f)
+        return false;
     return true;
   };
   for (const Probe& p : pr) {
@@ -190,8 +202,10 @@ Counts run(const std::string& name, bool buildings_on_top, bool& gl_ran, std::st
   // GL: top-down orthographic tiles at 1 m per pixel over the probes' box.
   prep::Extent box{1e300, 1e300, -1e300, -1e300};
   for (const Probe& p : pr) {
-    box.xmin = std::min(box.xmin, std::floor(p.x) - 2), box.ymin = std::min(box.ymin, std::floor(p.y) - 2);
-    box.xmax = std::max(box.xmax, std::ceil(p.x) + 2), box.ymax = std::max(box.ymax, std::ceil(p.y) + 2);
+    box.xmin = std::min(box.xmin, std::floor(p.x) - 2),
+    box.ymin = std::min(box.ymin, std::floor(p.y) - 2);
+    box.xmax = std::max(box.xmax, std::ceil(p.x) + 2),
+    box.ymax = std::max(box.ymax, std::ceil(p.y) + 2);
   }
   const uint32_t W = uint32_t(box.xmax - box.xmin), H = uint32_t(box.ymax - box.ymin);
   std::vector<float> layer(size_t(W) * H * 4, 0.f);
@@ -206,9 +220,11 @@ Counts run(const std::string& name, bool buildings_on_top, bool& gl_ran, std::st
       opt.camera = prep::render::topdown_camera(e, 0, 0);
       opt.draw_dynamic = false;
       try {
-        const prep::render::Image img = prep::render::render_gl(src, prep::render::flat_heightfield(e), opt);
+        const prep::render::Image img =
+            prep::render::render_gl(src, prep::render::flat_heightfield(e), opt);
         for (uint32_t j = 0; j < th; ++j)
-          std::copy_n(&img.decals[size_t(j) * tw * 4], size_t(tw) * 4, &layer[(size_t(ty + j) * W + tx) * 4]);
+          std::copy_n(&img.decals[size_t(j) * tw * 4], size_t(tw) * 4,
+                      &layer[(size_t(ty + j) * W + tx) * 4]);
       } catch (const prep::render_error& err) {
         why = std::string("no headless GL: ") + err.what();
         gl_ran = false;
@@ -219,13 +235,17 @@ Counts run(const std::string& name, bool buildings_on_top, bool& gl_ran, std::st
     OGREnvelope env;
     p.region->getEnvelope(&env);
     size_t inside = 0, right = 0;
-    for (int64_t j = int64_t(std::floor(box.ymax - env.MaxY)); j <= int64_t(std::ceil(box.ymax - env.MinY)); ++j)
-      for (int64_t i = int64_t(std::floor(env.MinX - box.xmin)); i <= int64_t(std::ceil(env.MaxX - box.xmin)); ++i) {
+    for (int64_t j = int64_t(std::floor(box.ymax - env.MaxY));
+         j <= int64_t(std::ceil(box.ymax - env.MinY)); ++j)
+      for (int64_t i = int64_t(std::floor(env.MinX - box.xmin));
+           i <= int64_t(std::ceil(env.MaxX - box.xmin)); ++i) {
         if (i < 0 || j < 0 || i >= int64_t(W) || j >= int64_t(H)) continue;
         OGRPoint centre(box.xmin + double(i) + 0.5, box.ymax - double(j) - 0.5);
         const double cx = centre.getX(), cy = centre.getY();
         const prep::Extent& ex = src.extent;  // the scene clips to it
-        if (cx < ex.xmin + 0.01 || cx > ex.xmax - 0.01 || cy < ex.ymin + 0.01 || cy > ex.ymax - 0.01) continue;
+        if (cx < ex.xmin + 0.01 || cx > ex.xmax - 0.01 || cy < ex.ymin + 0.01 ||
+            cy > ex.ymax - 0.01)
+          continue;
         if (!p.region->Contains(&centre)) continue;
         ++inside;
         const bool ok = is(&layer[(size_t(j) * W + size_t(i)) * 4], want);
@@ -233,8 +253,10 @@ Counts run(const std::string& name, bool buildings_on_top, bool& gl_ran, std::st
         if (!ok && std::getenv("DEBUG_LAYER_ORDER")) {
           const float* g = &layer[(size_t(j) * W + size_t(i)) * 4];
           const prep::EvalSample cs = prep::evaluate(src.view, centre.getX(), centre.getY());
-          std::printf("pixel %lld,%lld at %.3f,%.3f gl %.3f %.3f %.3f %.3f cpu %.3f %.3f %.3f %.3f\n", (long long)i, (long long)j,
-                      centre.getX(), centre.getY(), g[0], g[1], g[2], g[3], cs.rgba[0], cs.rgba[1], cs.rgba[2], cs.rgba[3]);
+          std::printf(
+              "pixel %lld,%lld at %.3f,%.3f gl %.3f %.3f %.3f %.3f cpu %.3f %.3f %.3f %.3f\n",
+              (long long)i, (long long)j, centre.getX(), centre.getY(), g[0], g[1], g[2], g[3],
+              cs.rgba[0], cs.rgba[1], cs.rgba[2], cs.rgba[3]);
         }
       }
     if (inside == 0) continue;  // no pixel centre inside at 1 m
@@ -243,11 +265,14 @@ Counts run(const std::string& name, bool buildings_on_top, bool& gl_ran, std::st
     c.gl_pixels_expected += right;
     c.gl_expected += right == inside;
   }
-  std::printf("[%s] %zu buildings in the extract, %zu inside a land-use polygon; CPU evaluator shows the %s colour "
-              "at %zu / %zu points on surface; GL (1 m pixels): %zu / %zu buildings with every pixel centre right, "
-              "%zu / %zu pixels\n",
-              name.c_str(), buildings, c.probes, buildings_on_top ? "building" : "land-use", c.cpu_expected, c.probes,
-              c.gl_expected, c.gl_buildings, c.gl_pixels_expected, c.gl_pixels);
+  std::printf(
+      "[%s] %zu buildings in the extract, %zu inside a land-use polygon; CPU evaluator shows the "
+      "%s colour "
+      "at %zu / %zu points on surface; GL (1 m pixels): %zu / %zu buildings with every pixel "
+      "centre right, "
+      "%zu / %zu pixels\n",
+      name.c_str(), buildings, c.probes, buildings_on_top ? "building" : "land-use", c.cpu_expected,
+      c.probes, c.gl_expected, c.gl_buildings, c.gl_pixels_expected, c.gl_pixels);
   return c;
 }
 
@@ -266,6 +291,10 @@ void check_stack(const std::string& name, bool buildings_on_top) {
 
 }  // namespace
 
-TEST(LayerOrder, MonacoBuildingsAfterLandUseAreDrawnAboveIt) { check_stack("buildings_on_top", true); }
+TEST(LayerOrder, MonacoBuildingsAfterLandUseAreDrawnAboveIt) {
+  check_stack("buildings_on_top", true);
+}
 
-TEST(LayerOrder, MonacoLandUseAfterBuildingsIsDrawnAboveThem) { check_stack("landuse_on_top", false); }
+TEST(LayerOrder, MonacoLandUseAfterBuildingsIsDrawnAboveThem) {
+  check_stack("landuse_on_top", false);
+}

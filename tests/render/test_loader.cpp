@@ -14,7 +14,8 @@ namespace R = prep::render;
 // The loader's check of `src`, the blobs of `m` (possibly changed since).
 decal::Status validate(const R::DecalSource& src, const prep::DecalModel& m) {
   std::vector<decal::gl::BlobBytes> blobs;
-  for (const auto& b : src.blobs) blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
+  for (const auto& b : src.blobs)
+    blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
   const auto& g = m.grid;
   return decal::gl::validate_blobs(blobs, {g.origin_x, g.origin_y, g.cell_w, g.cell_h, g.nx, g.ny});
 }
@@ -66,9 +67,12 @@ TEST(GlLoader, RejectsBvhRangeBeyondBoxes) {
 
 TEST(GlLoader, RejectsBadNodeTypeHoleRangeAndGridCount) {
   const auto message = [](auto corrupt) { return validate(corrupted(corrupt)).message; };
-  EXPECT_NE(message([](prep::DecalModel& m) { m.qt_node[0][0] = 7; }).find("type = 7"), std::string::npos);
-  EXPECT_NE(message([](prep::DecalModel& m) { m.cell_polys[0][3] = 5; }).find("cell_polys[0]"), std::string::npos);
-  EXPECT_NE(message([](prep::DecalModel& m) { m.grid.nx = 3; }).find("grid cells"), std::string::npos);
+  EXPECT_NE(message([](prep::DecalModel& m) { m.qt_node[0][0] = 7; }).find("type = 7"),
+            std::string::npos);
+  EXPECT_NE(message([](prep::DecalModel& m) { m.cell_polys[0][3] = 5; }).find("cell_polys[0]"),
+            std::string::npos);
+  EXPECT_NE(message([](prep::DecalModel& m) { m.grid.nx = 3; }).find("grid cells"),
+            std::string::npos);
 }
 
 TEST(GlLoader, RejectsDynamicVertexOutsideItsLineRun) {
@@ -125,7 +129,8 @@ TEST(GlLoader, SurvivesRandomCorruptionsOfEveryBlob) {
     const size_t words = size_t(blob.bytes / 4);
     if (words == 0) continue;
     auto* w = static_cast<uint32_t*>(const_cast<void*>(blob.data)) + next() % words;
-    const uint32_t kinds[] = {next(), *w + 1, *w - 1, 0xffffffffu, 0x7fffffffu, *w ^ (1u << (next() % 32))};
+    const uint32_t kinds[] = {next(),      *w + 1,      *w - 1,
+                              0xffffffffu, 0x7fffffffu, *w ^ (1u << (next() % 32))};
     *w = kinds[next() % 6];
     if (!validate(src, m)) {
       ++rejected;

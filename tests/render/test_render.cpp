@@ -38,7 +38,8 @@ Vec3Basis basis(const R::Camera& c) {
 // Expected straight-alpha colour: line (alpha 0x80) over the polygon layer.
 std::array<double, 4> expected(double x, double y) {
   auto unpack = [](uint32_t c) {
-    return std::array<double, 4>{(c & 0xff) / 255.0, ((c >> 8) & 0xff) / 255.0, ((c >> 16) & 0xff) / 255.0, (c >> 24) / 255.0};
+    return std::array<double, 4>{(c & 0xff) / 255.0, ((c >> 8) & 0xff) / 255.0,
+                                 ((c >> 16) & 0xff) / 255.0, (c >> 24) / 255.0};
   };
   std::array<double, 4> acc{0, 0, 0, 0};  // premultiplied
   auto under = [&](uint32_t rgba) {
@@ -50,8 +51,10 @@ std::array<double, 4> expected(double x, double y) {
   if (HandShapes::in_line(x, y)) under(HandShapes::kLineRgba);
   if (HandShapes::in_line2(x, y)) under(HandShapes::kLine2Rgba);
   auto in = [&](double a, double b) { return x > a && x < b && y > a && y < b; };
-  if (in(20, 80) && !in(40, 60)) under(HandShapes::kPolyRgba);
-  else if (in(45, 55)) under(HandShapes::kIslandRgba);
+  if (in(20, 80) && !in(40, 60))
+    under(HandShapes::kPolyRgba);
+  else if (in(45, 55))
+    under(HandShapes::kIslandRgba);
   if (acc[3] > 0)
     for (int k = 0; k < 3; ++k) acc[k] /= acc[3];
   return acc;
@@ -76,7 +79,10 @@ TEST_P(RenderGlBinding, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
   } catch (const prep::render_error& e) {
     GTEST_SKIP() << "no headless GL here: " << e.what();
   }
-  prep::write_png_rgba((out_dir() / (GetParam() == R::Binding::ssbo ? "hand_topdown_ssbo.png" : "hand_topdown_texture.png")).string(), img.width, img.height, img.rgba);
+  prep::write_png_rgba((out_dir() / (GetParam() == R::Binding::ssbo ? "hand_topdown_ssbo.png"
+                                                                    : "hand_topdown_texture.png"))
+                           .string(),
+                       img.width, img.height, img.rgba);
   size_t covered = 0, bad = 0;
   for (uint32_t j = 0; j < opt.height; ++j)
     for (uint32_t i = 0; i < opt.width; ++i) {
@@ -89,9 +95,10 @@ TEST_P(RenderGlBinding, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
       for (int k = 0; k < 3 && e[3] > 0; ++k) ok = ok && std::abs(g[k] - e[k]) <= 2.0 / 255;
       if (!ok) {
         ++bad;
-        if (bad < 5) ADD_FAILURE() << "pixel " << i << "," << j << " at (" << x << ", " << y << ") GL rgba " << g[0]
-                                   << " " << g[1] << " " << g[2] << " " << g[3] << " expected " << e[0] << " " << e[1]
-                                   << " " << e[2] << " " << e[3];
+        if (bad < 5)
+          ADD_FAILURE() << "pixel " << i << "," << j << " at (" << x << ", " << y << ") GL rgba "
+                        << g[0] << " " << g[1] << " " << g[2] << " " << g[3] << " expected " << e[0]
+                        << " " << e[1] << " " << e[2] << " " << e[3];
       }
     }
   EXPECT_GT(covered, 3000u);
@@ -109,7 +116,9 @@ TEST_P(RenderGlBinding, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
   const double blue = a0 * (0xe0 / 255.0) + (1 - a0) * (1 - a1) * (0x20 / 255.0);
   EXPECT_NEAR(g[3], 1.0, 2.0 / 255);
   EXPECT_NEAR(g[2], blue, 2.0 / 255);
-  EXPECT_NEAR(g[0], a0 * (0x20 / 255.0) + (1 - a0) * a1 * 1.0 + (1 - a0) * (1 - a1) * (0x20 / 255.0), 2.0 / 255);
+  EXPECT_NEAR(g[0],
+              a0 * (0x20 / 255.0) + (1 - a0) * a1 * 1.0 + (1 - a0) * (1 - a1) * (0x20 / 255.0),
+              2.0 / 255);
 }
 
 TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) {
@@ -134,14 +143,16 @@ TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) 
   R::RenderOptions opt;
   opt.width = 320;
   opt.height = 180;
-  opt.camera = R::fit_camera(model.extent, hills.zmin, hills.zmax, opt.width, opt.height, R::Projection::perspective, 40);
+  opt.camera = R::fit_camera(model.extent, hills.zmin, hills.zmax, opt.width, opt.height,
+                             R::Projection::perspective, 40);
   R::Image img;
   try {
     img = R::render_gl(src, hills, opt);
   } catch (const prep::render_error& e) {
     GTEST_SKIP() << "no headless GL here: " << e.what();
   }
-  prep::write_png_rgba((out_dir() / "hand_perspective.png").string(), img.width, img.height, img.rgba);
+  prep::write_png_rgba((out_dir() / "hand_perspective.png").string(), img.width, img.height,
+                       img.rgba);
   // Rays exactly as render_cpu builds them.
   const double aspect = double(opt.width) / opt.height;
   const auto& c = opt.camera;
@@ -168,7 +179,10 @@ TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) 
   RecordProperty("agreement", std::to_string(agree) + "/" + std::to_string(considered));
 }
 
-INSTANTIATE_TEST_SUITE_P(Bindings, RenderGlBinding, ::testing::Values(R::Binding::ssbo, R::Binding::texture),
-                         [](const auto& p) { return p.param == R::Binding::ssbo ? "ssbo" : "texture"; });
+INSTANTIATE_TEST_SUITE_P(Bindings, RenderGlBinding,
+                         ::testing::Values(R::Binding::ssbo, R::Binding::texture),
+                         [](const auto& p) {
+                           return p.param == R::Binding::ssbo ? "ssbo" : "texture";
+                         });
 
 }  // namespace

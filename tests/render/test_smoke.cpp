@@ -7,9 +7,9 @@
 
 #include <fcntl.h>
 #include <gdal_priv.h>
+#include <ogrsf_frmts.h>
 #include <sys/file.h>
 #include <unistd.h>
-#include <ogrsf_frmts.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -25,11 +25,11 @@
 #include "smoke_util.hpp"
 
 namespace fs = std::filesystem;
+using prep::test::run_tool;
 using render_test::agreement;
 using render_test::read_raw;
 using render_test::read_world_file;
 using render_test::WorldFile;
-using prep::test::run_tool;
 
 namespace {
 
@@ -74,8 +74,10 @@ const std::string& monaco_package(std::string* why) {
       const fs::path pkg = out_dir() / "monaco.decals";
       BuildLock lock(out_dir() / "monaco.lock");
       if (!fresh(pkg)) {
-        auto r = run_tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
-        if (r.rc != 0) reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
+        auto r =
+            run_tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
+        if (r.rc != 0)
+          reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
       }
       if (reason.empty()) path = pkg.string();
     }
@@ -101,7 +103,8 @@ PackageFrame package_frame(const std::string& pkg) {
   f.origin_x = meta.at("origin").at("x").get<double>();
   f.origin_y = meta.at("origin").at("y").get<double>();
   const auto& e = meta.at("extent");
-  f.extent = {e.at(0).get<double>(), e.at(1).get<double>(), e.at(2).get<double>(), e.at(3).get<double>()};
+  f.extent = {e.at(0).get<double>(), e.at(1).get<double>(), e.at(2).get<double>(),
+              e.at(3).get<double>()};
   f.crs_wkt = meta.at("crs_wkt").get<std::string>();
   return f;
 }
@@ -118,12 +121,13 @@ std::string topdown_extent(const std::string& pkg, const prep::Extent& relative)
 
 // gdal_rasterize (the real program) burns 1 inside the polygons of `layer`
 // of `source` on the grid -te `e` -ts w h; row 0 is the top row.
-std::vector<uint8_t> gdal_burn(const std::string& source, const std::string& layer, const prep::Extent& e, uint32_t w,
-                               uint32_t h, const fs::path& tif) {
+std::vector<uint8_t> gdal_burn(const std::string& source, const std::string& layer,
+                               const prep::Extent& e, uint32_t w, uint32_t h, const fs::path& tif) {
   char args[400];
-  std::snprintf(args, sizeof args, "-te %.9f %.9f %.9f %.9f -ts %u %u", e.xmin, e.ymin, e.xmax, e.ymax, w, h);
-  const std::string cmd = "gdal_rasterize -q -burn 1 -init 0 -ot Byte " + std::string(args) + " -l " + layer + " " +
-                          source + " " + tif.string();
+  std::snprintf(args, sizeof args, "-te %.9f %.9f %.9f %.9f -ts %u %u", e.xmin, e.ymin, e.xmax,
+                e.ymax, w, h);
+  const std::string cmd = "gdal_rasterize -q -burn 1 -init 0 -ot Byte " + std::string(args) +
+                          " -l " + layer + " " + source + " " + tif.string();
   fs::remove(tif);
   std::vector<uint8_t> burn;
   EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
@@ -132,7 +136,8 @@ std::vector<uint8_t> gdal_burn(const std::string& source, const std::string& lay
   EXPECT_TRUE(ras) << tif;
   if (!ras) return burn;
   burn.resize(size_t(w) * h);
-  EXPECT_EQ(ras->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, int(w), int(h), burn.data(), int(w), int(h), GDT_Byte, 0, 0),
+  EXPECT_EQ(ras->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, int(w), int(h), burn.data(), int(w),
+                                            int(h), GDT_Byte, 0, 0),
             CE_None);
   return burn;
 }
@@ -142,11 +147,13 @@ std::vector<uint8_t> png_coverage(const fs::path& png, uint32_t w, uint32_t h) {
   GDALAllRegister();
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(png.c_str(), GDAL_OF_RASTER));
   std::vector<uint8_t> alpha;
-  EXPECT_TRUE(ds && ds->GetRasterCount() == 4 && ds->GetRasterXSize() == int(w) && ds->GetRasterYSize() == int(h))
+  EXPECT_TRUE(ds && ds->GetRasterCount() == 4 && ds->GetRasterXSize() == int(w) &&
+              ds->GetRasterYSize() == int(h))
       << png;
   if (!ds || ds->GetRasterCount() != 4) return alpha;
   alpha.resize(size_t(w) * h);
-  EXPECT_EQ(ds->GetRasterBand(4)->RasterIO(GF_Read, 0, 0, int(w), int(h), alpha.data(), int(w), int(h), GDT_Byte, 0, 0),
+  EXPECT_EQ(ds->GetRasterBand(4)->RasterIO(GF_Read, 0, 0, int(w), int(h), alpha.data(), int(w),
+                                           int(h), GDT_Byte, 0, 0),
             CE_None);
   for (uint8_t& a : alpha) a = a > 0;
   return alpha;
@@ -185,12 +192,14 @@ struct CoverageComparison {
   size_t considered = 0, mismatched = 0, in_band = 0, burnt = 0, drawn = 0;
   double mismatch() const { return considered ? double(mismatched) / double(considered) : 1.0; }
 };
-CoverageComparison compare_coverage(const std::vector<uint8_t>& drawn, const std::vector<uint8_t>& burnt,
-                                    const prep::Extent& e, uint32_t w, uint32_t h,
-                                    const std::vector<prep::Ring>& rings, double band) {
+CoverageComparison compare_coverage(const std::vector<uint8_t>& drawn,
+                                    const std::vector<uint8_t>& burnt, const prep::Extent& e,
+                                    uint32_t w, uint32_t h, const std::vector<prep::Ring>& rings,
+                                    double band) {
   CoverageComparison c;
   if (drawn.size() != size_t(w) * h || burnt.size() != drawn.size()) {
-    ADD_FAILURE() << "coverage sizes " << drawn.size() << " and " << burnt.size() << " for " << w << "x" << h;
+    ADD_FAILURE() << "coverage sizes " << drawn.size() << " and " << burnt.size() << " for " << w
+                  << "x" << h;
     return c;
   }
   for (uint32_t j = 0; j < h; ++j)
@@ -200,7 +209,8 @@ CoverageComparison compare_coverage(const std::vector<uint8_t>& drawn, const std
       c.burnt += b;
       c.drawn += a;
       if (a != b) {
-        const double x = e.xmin + (i + 0.5) * (e.xmax - e.xmin) / w, y = e.ymax - (j + 0.5) * (e.ymax - e.ymin) / h;
+        const double x = e.xmin + (i + 0.5) * (e.xmax - e.xmin) / w,
+                     y = e.ymax - (j + 0.5) * (e.ymax - e.ymin) / h;
         if (distance_to_rings(rings, x, y) <= band) {
           ++c.in_band;
           continue;
@@ -217,15 +227,17 @@ CoverageComparison compare_coverage(const std::vector<uint8_t>& drawn, const std
 bool render_pair(const std::string& pkg, const std::string& name, const std::string& view_args,
                  std::vector<float>& gl, std::vector<float>& cpu, std::string& why) {
   const fs::path d = out_dir();
-  auto g = run_tool("render " + pkg + " " + view_args + " --size 640x360 --aa none --raw " + (d / (name + "_gl.rgba")).string() +
-                " -o " + (d / (name + "_gl.png")).string());
+  auto g =
+      run_tool("render " + pkg + " " + view_args + " --size 640x360 --aa none --raw " +
+               (d / (name + "_gl.rgba")).string() + " -o " + (d / (name + "_gl.png")).string());
   if (g.rc == 8) {
     why = "no headless GL: " + g.output;
     return false;
   }
   EXPECT_EQ(g.rc, 0) << g.output;
-  auto c = run_tool("render " + pkg + " " + view_args + " --size 640x360 --cpu --raw " + (d / (name + "_cpu.rgba")).string() +
-                " -o " + (d / (name + "_cpu.png")).string());
+  auto c =
+      run_tool("render " + pkg + " " + view_args + " --size 640x360 --cpu --raw " +
+               (d / (name + "_cpu.rgba")).string() + " -o " + (d / (name + "_cpu.png")).string());
   EXPECT_EQ(c.rc, 0) << c.output;
   gl = read_raw((d / (name + "_gl.rgba")).string());
   cpu = read_raw((d / (name + "_cpu.rgba")).string());
@@ -238,15 +250,17 @@ bool render_pair(const std::string& pkg, const std::string& name, const std::str
 // `min_considered` pixels compared and >= 99.9 % of them agreeing; `label`
 // names the view in the printed line; `gl_image` receives the GL layer.
 // False (with a skip reason) when there is no EGL display.
-bool expect_gl_agrees_with_cpu(const std::string& pkg, const std::string& name, const std::string& view_args,
-                               const char* label, size_t min_considered, std::string& why,
+bool expect_gl_agrees_with_cpu(const std::string& pkg, const std::string& name,
+                               const std::string& view_args, const char* label,
+                               size_t min_considered, std::string& why,
                                std::vector<float>* gl_image = nullptr) {
   SCOPED_TRACE(name);
   std::vector<float> gl, cpu;
   if (!render_pair(pkg, name, view_args, gl, cpu, why)) return false;
   if (gl_image) *gl_image = gl;
   auto a = agreement(gl, cpu);
-  ::testing::Test::RecordProperty("agreement", std::to_string(a.agree) + "/" + std::to_string(a.considered));
+  ::testing::Test::RecordProperty("agreement",
+                                  std::to_string(a.agree) + "/" + std::to_string(a.considered));
   std::printf("%s agreement %zu / %zu = %.5f\n", label, a.agree, a.considered, a.ratio());
   EXPECT_GT(a.considered, min_considered);
   EXPECT_GE(a.ratio(), 0.999);
@@ -257,8 +271,9 @@ TEST(RenderSmoke, MonacoTopDownDecalLayerAgreesWithCpuEvaluator) {
   std::string why;
   const std::string& pkg = monaco_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
-  if (!expect_gl_agrees_with_cpu(pkg, "monaco_topdown", "--dem " + kDem + " " + topdown_extent(pkg, kTopDown),
-                                 "top-down", 50000, why))
+  if (!expect_gl_agrees_with_cpu(pkg, "monaco_topdown",
+                                 "--dem " + kDem + " " + topdown_extent(pkg, kTopDown), "top-down",
+                                 50000, why))
     GTEST_SKIP() << why;
 }
 
@@ -267,7 +282,8 @@ TEST(RenderSmoke, MonacoObliquePerspectiveDecalLayerAgreesWithCpuEvaluator) {
   const std::string& pkg = monaco_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
   // Looking north over the harbour from above the sea.
-  if (!expect_gl_agrees_with_cpu(pkg, "monaco_oblique", "--dem " + kDem + " --eye 300,-2200,900 --target 0,0,60 --fov 40",
+  if (!expect_gl_agrees_with_cpu(pkg, "monaco_oblique",
+                                 "--dem " + kDem + " --eye 300,-2200,900 --target 0,0,60 --fov 40",
                                  "oblique", 20000, why))
     GTEST_SKIP() << why;
 }
@@ -311,9 +327,11 @@ double distance_to_rings(const std::vector<prep::Ring>& rings, double x, double 
     if (r.empty()) continue;
     double x0 = r[0].x, x1 = r[0].x, y0 = r[0].y, y1 = r[0].y;
     for (const auto& p : r) {
-      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y), y1 = std::max(y1, p.y);
+      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y),
+      y1 = std::max(y1, p.y);
     }
-    if (x < x0 - best || x > x1 + best || y < y0 - best || y > y1 + best) continue;  // farther than the best
+    if (x < x0 - best || x > x1 + best || y < y0 - best || y > y1 + best)
+      continue;  // farther than the best
     for (size_t i = 0; i < r.size(); ++i) {
       const auto& a = r[i];
       const auto& b = r[(i + 1) % r.size()];
@@ -331,8 +349,10 @@ TEST(RenderSmoke, MonacoTopDownPolygonCoverageMatchesGdalRasterize) {
   if (pkg.empty()) GTEST_SKIP() << why;
   const fs::path d = out_dir();
   // Aliased GL coverage of the polygons alone.
-  auto g = run_tool("render " + pkg + " " + topdown_extent(pkg, kTopDown) + " --size 640x360 --aa none --only polygons --raw " +
-                (d / "monaco_polygons_gl.rgba").string() + " -o " + (d / "monaco_polygons_gl.png").string());
+  auto g = run_tool("render " + pkg + " " + topdown_extent(pkg, kTopDown) +
+                    " --size 640x360 --aa none --only polygons --raw " +
+                    (d / "monaco_polygons_gl.rgba").string() + " -o " +
+                    (d / "monaco_polygons_gl.png").string());
   if (g.rc == 8) GTEST_SKIP() << "no headless GL: " << g.output;
   ASSERT_EQ(g.rc, 0) << g.output;
   auto gl = read_raw((d / "monaco_polygons_gl.rgba").string());
@@ -350,9 +370,10 @@ TEST(RenderSmoke, MonacoTopDownPolygonCoverageMatchesGdalRasterize) {
   const auto burn = gdal_burn(gpkg, "polygons", view, 640, 360, d / "monaco_polygons.tif");
   // Only pixel centres exactly on an edge may go either way.
   const CoverageComparison c = compare_coverage(drawn, burn, view, 640, 360, rings, 1e-6);
-  std::printf("gdal_rasterize agreement %zu / %zu (%zu excluded, %zu burnt)\n", c.considered - c.mismatched,
-              c.considered, c.in_band, c.burnt);
-  RecordProperty("agreement", std::to_string(c.considered - c.mismatched) + "/" + std::to_string(c.considered));
+  std::printf("gdal_rasterize agreement %zu / %zu (%zu excluded, %zu burnt)\n",
+              c.considered - c.mismatched, c.considered, c.in_band, c.burnt);
+  RecordProperty("agreement",
+                 std::to_string(c.considered - c.mismatched) + "/" + std::to_string(c.considered));
   EXPECT_GT(c.burnt, 50000u);
   EXPECT_LE(c.mismatch(), 0.001);
 }
@@ -386,11 +407,12 @@ const UtmBuildings& utm_buildings(std::string* why) {
     if (!fresh(pkg) || !fs::exists(gpkg)) {
       // --resolution 0: every vertex kept, as gdal_rasterize sees them.
       auto r = run_tool("build " + pbf + " --layer multipolygons --where '" + kBuildingsWhere +
-                    "' --kind polygon --crs EPSG:32632 --resolution 0 -q -o " + pkg.string());
-      if (r.rc != 0) reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
+                        "' --kind polygon --crs EPSG:32632 --resolution 0 -q -o " + pkg.string());
+      if (r.rc != 0)
+        reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
       fs::remove(gpkg);
-      const std::string cmd = "ogr2ogr -f GPKG -t_srs EPSG:32632 -nln buildings -where '" + kBuildingsWhere + "' " +
-                              gpkg.string() + " " + pbf + " multipolygons";
+      const std::string cmd = "ogr2ogr -f GPKG -t_srs EPSG:32632 -nln buildings -where '" +
+                              kBuildingsWhere + "' " + gpkg.string() + " " + pbf + " multipolygons";
       if (reason.empty() && std::system(cmd.c_str()) != 0) reason = "ogr2ogr failed: " + cmd;
     }
     if (reason.empty()) made = {pkg.string(), gpkg.string()};
@@ -402,19 +424,23 @@ const UtmBuildings& utm_buildings(std::string* why) {
 // Renders `view_args` with the CPU evaluator (--decals PNG) and compares its
 // coverage with gdal_rasterize over `oracle_extent`, outside a band of one
 // pixel around the source polygons' edges.
-CoverageComparison cpu_against_gdal(const UtmBuildings& b, const std::string& name, const std::string& view_args,
-                                    const prep::Extent& oracle_extent, uint32_t w, uint32_t h) {
+CoverageComparison cpu_against_gdal(const UtmBuildings& b, const std::string& name,
+                                    const std::string& view_args, const prep::Extent& oracle_extent,
+                                    uint32_t w, uint32_t h) {
   const fs::path d = out_dir() / "utm";
   const fs::path decals = d / (name + "_decals.png");
   fs::remove(decals);
-  auto r = run_tool("render " + b.package + " --cpu " + view_args + " --size " + std::to_string(w) + "x" + std::to_string(h) +
-                " --decals " + decals.string() + " -o " + (d / (name + ".png")).string());
+  auto r = run_tool("render " + b.package + " --cpu " + view_args + " --size " + std::to_string(w) +
+                    "x" + std::to_string(h) + " --decals " + decals.string() + " -o " +
+                    (d / (name + ".png")).string());
   EXPECT_EQ(r.rc, 0) << r.output;
   EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
   const auto drawn = png_coverage(decals, w, h);
-  const auto burnt = gdal_burn(b.oracle, "buildings", oracle_extent, w, h, d / (name + "_gdal.tif"));
+  const auto burnt =
+      gdal_burn(b.oracle, "buildings", oracle_extent, w, h, d / (name + "_gdal.tif"));
   static const std::vector<prep::Ring> rings = rings_of(b.oracle, "buildings");
-  const double pixel = std::max((oracle_extent.xmax - oracle_extent.xmin) / w, (oracle_extent.ymax - oracle_extent.ymin) / h);
+  const double pixel = std::max((oracle_extent.xmax - oracle_extent.xmin) / w,
+                                (oracle_extent.ymax - oracle_extent.ymin) / h);
   return compare_coverage(drawn, burnt, oracle_extent, w, h, rings, pixel);
 }
 
@@ -425,11 +451,14 @@ TEST(RenderExtent, CpuTopDownInAbsoluteUtmMatchesGdalRasterizeOfTheSourceLayer) 
   std::string why;
   const UtmBuildings& b = utm_buildings(&why);
   if (b.package.empty()) GTEST_SKIP() << why;
-  const CoverageComparison c = cpu_against_gdal(b, "absolute", "--extent " + extent_text(kUtmView, "%.2f,%.2f,%.2f,%.2f"),
-                                                kUtmView, 800, 500);
-  std::printf("absolute UTM view: %zu of %zu pixels outside the one-pixel band differ (%.2e); %zu in the band, "
-              "%zu burnt, %zu drawn\n",
-              c.mismatched, c.considered, c.mismatch(), c.in_band, c.burnt, c.drawn);
+  const CoverageComparison c =
+      cpu_against_gdal(b, "absolute", "--extent " + extent_text(kUtmView, "%.2f,%.2f,%.2f,%.2f"),
+                       kUtmView, 800, 500);
+  std::printf(
+      "absolute UTM view: %zu of %zu pixels outside the one-pixel band differ (%.2e); %zu in the "
+      "band, "
+      "%zu burnt, %zu drawn\n",
+      c.mismatched, c.considered, c.mismatch(), c.in_band, c.burnt, c.drawn);
   RecordProperty("mismatch", std::to_string(c.mismatch()));
   EXPECT_GT(c.burnt, 50000u);
   EXPECT_LT(c.mismatch(), 5e-4);
@@ -449,7 +478,8 @@ TEST(RenderExtent, AnExtentInAnotherCrsIsTransformedIntoTheFrameCrs) {
   const prep::Extent lonlat{7.4155, 43.7295, 7.4305, 43.7385};
   // The oracle: gdaltransform (GDAL's program) of 21 points along each edge,
   // their bounding box in UTM 32N.
-  const fs::path pts = out_dir() / "utm" / "edge_points.txt", utm = out_dir() / "utm" / "edge_points_utm.txt";
+  const fs::path pts = out_dir() / "utm" / "edge_points.txt",
+                 utm = out_dir() / "utm" / "edge_points_utm.txt";
   {
     std::ofstream o(pts);
     o.precision(12);
@@ -468,14 +498,18 @@ TEST(RenderExtent, AnExtentInAnotherCrsIsTransformedIntoTheFrameCrs) {
   double x, y, z;
   int n = 0;
   while (in >> x >> y >> z) {
-    oracle = {std::min(oracle.xmin, x), std::min(oracle.ymin, y), std::max(oracle.xmax, x), std::max(oracle.ymax, y)};
+    oracle = {std::min(oracle.xmin, x), std::min(oracle.ymin, y), std::max(oracle.xmax, x),
+              std::max(oracle.ymax, y)};
     ++n;
   }
   ASSERT_EQ(n, 84);
   const CoverageComparison c = cpu_against_gdal(
-      b, "lonlat", "--extent " + extent_text(lonlat, "%.4f,%.4f,%.4f,%.4f") + " --extent-crs EPSG:4326", oracle, 600, 500);
-  std::printf("EPSG:4326 view: %zu of %zu pixels outside the one-pixel band differ (%.2e); %zu burnt\n", c.mismatched,
-              c.considered, c.mismatch(), c.burnt);
+      b, "lonlat",
+      "--extent " + extent_text(lonlat, "%.4f,%.4f,%.4f,%.4f") + " --extent-crs EPSG:4326", oracle,
+      600, 500);
+  std::printf(
+      "EPSG:4326 view: %zu of %zu pixels outside the one-pixel band differ (%.2e); %zu burnt\n",
+      c.mismatched, c.considered, c.mismatch(), c.burnt);
   EXPECT_GT(c.burnt, 20000u);
   EXPECT_LT(c.mismatch(), 5e-4);
   const WorldFile wf = read_world_file(out_dir() / "utm" / "lonlat.pgw");
@@ -493,16 +527,21 @@ TEST(RenderExtent, AViewThatMissesThePackageWarnsWithBothExtents) {
   const PackageFrame f = package_frame(b.package);
   // Metres relative to the origin (the old convention) lie far off in UTM.
   auto r = run_tool("render " + b.package + " --cpu --extent 0,0,800,500 --size 80x50 -o " +
-                (out_dir() / "utm" / "miss.png").string());
+                    (out_dir() / "utm" / "miss.png").string());
   EXPECT_EQ(r.rc, 0) << r.output;
   EXPECT_NE(r.output.find("warning"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("0.000,0.000,800.000,500.000"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find(extent_text(f.absolute(f.extent), "%.3f,%.3f,%.3f,%.3f")), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(extent_text(f.absolute(f.extent), "%.3f,%.3f,%.3f,%.3f")),
+            std::string::npos)
+      << r.output;
   // --extent-crs alone, and a CRS PROJ does not know.
-  EXPECT_EQ(run_tool("render " + b.package + " --cpu --extent-crs EPSG:4326 -o " + (out_dir() / "utm" / "x.png").string()).rc,
+  EXPECT_EQ(run_tool("render " + b.package + " --cpu --extent-crs EPSG:4326 -o " +
+                     (out_dir() / "utm" / "x.png").string())
+                .rc,
             2);
-  auto bad = run_tool("render " + b.package + " --cpu --extent 0,0,1,1 --extent-crs EPSG:999999 -o " +
-                  (out_dir() / "utm" / "x.png").string());
+  auto bad =
+      run_tool("render " + b.package + " --cpu --extent 0,0,1,1 --extent-crs EPSG:999999 -o " +
+               (out_dir() / "utm" / "x.png").string());
   EXPECT_EQ(bad.rc, 3) << bad.output;
   EXPECT_NE(bad.output.find("EPSG:999999"), std::string::npos) << bad.output;
 }
@@ -527,24 +566,30 @@ std::string collection(const std::vector<std::string>& features) {
 std::string ring(double x0, double y0, double x1, double y1, bool ccw = true) {
   char b[256];
   if (ccw)
-    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0, y0, x1, y0, x1, y1, x0, y1, x0, y0);
+    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0,
+                  y0, x1, y0, x1, y1, x0, y1, x0, y0);
   else
-    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0, y0, x0, y1, x1, y1, x1, y0, x0, y0);
+    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0,
+                  y0, x0, y1, x1, y1, x1, y0, x0, y0);
   return b;
 }
 // An L-shaped polygon with its lower-left corner at (x, y), about 120 m.
 std::string l_shape(double x, double y) {
   char b[512];
-  std::snprintf(b, sizeof b,
-                R"({"type":"Polygon","coordinates":[[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]]})",
-                x, y, x + 0.0015, y, x + 0.0015, y + 0.0005, x + 0.0006, y + 0.0005, x + 0.0006, y + 0.0011, x, y + 0.0011, x, y);
+  std::snprintf(
+      b, sizeof b,
+      R"({"type":"Polygon","coordinates":[[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]]})",
+      x, y, x + 0.0015, y, x + 0.0015, y + 0.0005, x + 0.0006, y + 0.0005, x + 0.0006, y + 0.0011,
+      x, y + 0.0011, x, y);
   return b;
 }
 // A zigzag with a sharp (< 40 degrees, round fallback) and obtuse turns.
 std::string zigzag(double x, double y) {
   char b[512];
-  std::snprintf(b, sizeof b, R"({"type":"LineString","coordinates":[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]})", x, y,
-                x + 0.0005, y + 0.0008, x + 0.0007, y, x + 0.0012, y + 0.0004, x + 0.0018, y + 0.0002);
+  std::snprintf(
+      b, sizeof b,
+      R"({"type":"LineString","coordinates":[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]})",
+      x, y, x + 0.0005, y + 0.0008, x + 0.0007, y, x + 0.0012, y + 0.0004, x + 0.0018, y + 0.0002);
   return b;
 }
 
@@ -563,18 +608,24 @@ const std::string& styles_package(std::string* why) {
     }
     // Polygon with a hole, and an island inside the hole (its own feature).
     write_text(d / "polys.geojson",
-               collection({feature(R"({"type":"Polygon","coordinates":[)" + ring(7.4200, 43.7400, 7.4216, 43.7412) + "," +
+               collection({feature(R"({"type":"Polygon","coordinates":[)" +
+                                   ring(7.4200, 43.7400, 7.4216, 43.7412) + "," +
                                    ring(7.4204, 43.7403, 7.4212, 43.7409, false) + "]}"),
-                           feature(R"({"type":"Polygon","coordinates":[)" + ring(7.4206, 43.7405, 7.4210, 43.7407) + "]}")}));
+                           feature(R"({"type":"Polygon","coordinates":[)" +
+                                   ring(7.4206, 43.7405, 7.4210, 43.7407) + "]}")}));
     write_text(d / "l_normal.geojson", collection({feature(l_shape(7.4222, 43.7400))}));
     write_text(d / "l_inset.geojson", collection({feature(l_shape(7.4241, 43.7400))}));
     write_text(d / "l_offset.geojson", collection({feature(l_shape(7.4222, 43.7414))}));
     write_text(d / "z_round.geojson", collection({feature(zigzag(7.4200, 43.7415))}));
     write_text(d / "z_miter.geojson", collection({feature(zigzag(7.4241, 43.7414))}));
     write_text(d / "z_bevel.geojson", collection({feature(zigzag(7.4200, 43.7426))}));
-    write_text(d / "cross.geojson",
-               collection({feature(R"({"type":"LineString","coordinates":[[7.4225,43.7428],[7.4255,43.7436]]})", R"({"imp":1})"),
-                           feature(R"({"type":"LineString","coordinates":[[7.4225,43.7436],[7.4255,43.7428]]})", R"({"imp":2})")}));
+    write_text(
+        d / "cross.geojson",
+        collection(
+            {feature(R"({"type":"LineString","coordinates":[[7.4225,43.7428],[7.4255,43.7436]]})",
+                     R"({"imp":1})"),
+             feature(R"({"type":"LineString","coordinates":[[7.4225,43.7436],[7.4255,43.7428]]})",
+                     R"({"imp":2})")}));
     write_text(d / "scene.toml", R"(
 [[layer]]
 name = "polys"
@@ -636,8 +687,11 @@ color_ramp = [[1, "#ff000080"], [2, "#0000ff80"]]
 )");
     std::string pkg = (d / "styles.decals").string();
     auto r = run_tool("build " + (d / "scene.toml").string() + " -o " + pkg + " -q");
-    if (r.rc != 0) reason = "decalprep build of the styles scene failed (rc " + std::to_string(r.rc) + "): " + r.output;
-    else path = pkg;
+    if (r.rc != 0)
+      reason = "decalprep build of the styles scene failed (rc " + std::to_string(r.rc) +
+               "): " + r.output;
+    else
+      path = pkg;
   }
   if (why) *why = reason;
   return path;
@@ -650,7 +704,8 @@ TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorTopDown) {
   const std::string& pkg = styles_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
   std::vector<float> gl;
-  if (!expect_gl_agrees_with_cpu(pkg, "styles_topdown", kStylesView, "styles top-down", 10000, why, &gl))
+  if (!expect_gl_agrees_with_cpu(pkg, "styles_topdown", kStylesView, "styles top-down", 10000, why,
+                                 &gl))
     GTEST_SKIP() << why;
 
   // The crossing of the two transparent lines shows the more important one
@@ -674,8 +729,8 @@ TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorTopDown) {
   // and GDAL reads the same placement and CRS from the PNG's .aux.xml.
   {
     GDALAllRegister();
-    GDALDatasetUniquePtr img(GDALDataset::Open((out_dir() / "styles_topdown_gl.png").string().c_str(),
-                                               GDAL_OF_RASTER | GDAL_OF_READONLY));
+    GDALDatasetUniquePtr img(GDALDataset::Open(
+        (out_dir() / "styles_topdown_gl.png").string().c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
     ASSERT_TRUE(img);
     double gt[6];
     ASSERT_EQ(img->GetGeoTransform(gt), CE_None);
@@ -689,7 +744,7 @@ TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorTopDown) {
   const float* c = &gl[4 * (size_t(i) + 640 * size_t(j))];
   const double a_top = 128 / 255.0, alpha = a_top + (1 - a_top) * a_top;
   EXPECT_NEAR(c[3], alpha, 2.0 / 255);
-  EXPECT_NEAR(c[2], a_top / alpha, 2.0 / 255);               // blue on top
+  EXPECT_NEAR(c[2], a_top / alpha, 2.0 / 255);                // blue on top
   EXPECT_NEAR(c[0], (1 - a_top) * a_top / alpha, 2.0 / 255);  // red below
 }
 
@@ -697,7 +752,8 @@ TEST(RenderSmoke, EveryDecalTypeAndStyleAgreesWithCpuEvaluatorInPerspective) {
   std::string why;
   const std::string& pkg = styles_package(&why);
   if (pkg.empty()) GTEST_SKIP() << why;
-  if (!expect_gl_agrees_with_cpu(pkg, "styles_oblique", "--fit --pitch 35", "styles oblique", 5000, why))
+  if (!expect_gl_agrees_with_cpu(pkg, "styles_oblique", "--fit --pitch 35", "styles oblique", 5000,
+                                 why))
     GTEST_SKIP() << why;
 }
 
@@ -710,8 +766,9 @@ TEST(RenderSmoke, AntiAliasingModesAreCloserToSupersampledReferenceThanAliased) 
   if (pkg.empty()) GTEST_SKIP() << why;
   const fs::path d = out_dir();
   auto render = [&](const std::string& aa, const std::string& size, const std::string& name) {
-    auto r = run_tool("render " + pkg + " " + kStylesView + " --size " + size + " --aa " + aa + " --raw " +
-                  (d / (name + ".rgba")).string() + " -o " + (d / (name + ".png")).string());
+    auto r = run_tool("render " + pkg + " " + kStylesView + " --size " + size + " --aa " + aa +
+                      " --raw " + (d / (name + ".rgba")).string() + " -o " +
+                      (d / (name + ".png")).string());
     return r;
   };
   auto ref_run = render("none", "2560x1440", "aa_reference");
@@ -749,7 +806,6 @@ TEST(RenderSmoke, AntiAliasingModesAreCloserToSupersampledReferenceThanAliased) 
   EXPECT_LT(error["msaa4"], 0.8 * error["none"]);
 }
 
-
 // Clipped outlines (SPEC "Clipped outlines", thesis Fig. 4.8): U-shaped
 // buildings whose 4 m arms are narrower than the 6 m band of a 6 m wide
 // inset/offset outline. Built at (7.42 E, 43.745 N), metres converted with
@@ -761,19 +817,21 @@ struct Metres {
 };
 // The U: 14 m x 30 m, arms 4 m wide around a 6 m gap (x 4..10, y 4..30).
 std::string u_shape(const Metres& m, double x0) {
-  const double xy[][2] = {{0, 0}, {14, 0}, {14, 30}, {10, 30}, {10, 4}, {4, 4}, {4, 30}, {0, 30}, {0, 0}};
+  const double xy[][2] = {{0, 0}, {14, 0}, {14, 30}, {10, 30}, {10, 4},
+                          {4, 4}, {4, 30}, {0, 30},  {0, 0}};
   std::string s = R"({"type":"Polygon","coordinates":[[)";
   char b[64];
   for (size_t i = 0; i < std::size(xy); ++i) {
-    std::snprintf(b, sizeof b, "%s[%.8f,%.8f]", i ? "," : "", m.lon(x0 + xy[i][0]), m.lat(xy[i][1]));
+    std::snprintf(b, sizeof b, "%s[%.8f,%.8f]", i ? "," : "", m.lon(x0 + xy[i][0]),
+                  m.lat(xy[i][1]));
     s += b;
   }
   return s + "]]}";
 }
 std::string extent_of(const Metres& m, double x0, double y0, double x1, double y1) {
   char b[160];
-  std::snprintf(b, sizeof b, "--extent %.8f,%.8f,%.8f,%.8f --extent-crs EPSG:4326", m.lon(x0), m.lat(y0), m.lon(x1),
-                m.lat(y1));
+  std::snprintf(b, sizeof b, "--extent %.8f,%.8f,%.8f,%.8f --extent-crs EPSG:4326", m.lon(x0),
+                m.lat(y0), m.lon(x1), m.lat(y1));
   return b;
 }
 
@@ -807,8 +865,8 @@ color = "#20a020ff"
   ASSERT_EQ(b.rc, 0) << b.output;
   auto render = [&](const std::string& view, const std::string& how, const std::string& name) {
     const std::string raw = (d / (name + ".rgba")).string();
-    auto r = run_tool("render " + pkg + " " + view + " --size 200x120 " + how + " --raw " + raw + " -o " +
-                  (d / (name + ".png")).string());
+    auto r = run_tool("render " + pkg + " " + view + " --size 200x120 " + how + " --raw " + raw +
+                      " -o " + (d / (name + ".png")).string());
     return std::make_pair(r, read_raw(raw));
   };
   // Whole scene: GPU (both bindings) against the CPU evaluator, which the
@@ -821,17 +879,19 @@ color = "#20a020ff"
     if (r.rc == 8) GTEST_SKIP() << "no headless GL: " << r.output;
     ASSERT_EQ(r.rc, 0) << r.output;
     const auto a = agreement(gl, cpu);
-    std::printf("narrow rings, %s binding: agreement %zu / %zu = %.5f\n", binding.c_str(), a.agree, a.considered,
-                a.ratio());
+    std::printf("narrow rings, %s binding: agreement %zu / %zu = %.5f\n", binding.c_str(), a.agree,
+                a.considered, a.ratio());
     EXPECT_GT(a.considered, 2000u);
     EXPECT_GE(a.ratio(), 0.999) << binding;
     // Analytic: inside the inset U's gap (outside the polygon, 0.5 m from
     // both arms) nothing is drawn, though the one-sided band of each arm
     // reaches 2 m into it; the offset U's gap lies within 6 m of the ring
     // outside the polygon, so all of it is drawn.
-    auto [ri, gap_inset] = render(extent_of(m, 4.5, 8, 9.5, 26), "--aa none --binding " + binding, "gap_inset_" + binding);
+    auto [ri, gap_inset] = render(extent_of(m, 4.5, 8, 9.5, 26), "--aa none --binding " + binding,
+                                  "gap_inset_" + binding);
     ASSERT_EQ(ri.rc, 0) << ri.output;
-    auto [ro, gap_offset] = render(extent_of(m, 104.5, 8, 109.5, 26), "--aa none --binding " + binding, "gap_offset_" + binding);
+    auto [ro, gap_offset] = render(extent_of(m, 104.5, 8, 109.5, 26),
+                                   "--aa none --binding " + binding, "gap_offset_" + binding);
     ASSERT_EQ(ro.rc, 0) << ro.output;
     ASSERT_EQ(gap_inset.size(), 200u * 120u * 4u);
     ASSERT_EQ(gap_offset.size(), gap_inset.size());

@@ -230,7 +230,8 @@ TEST(TerrainSurface, DynamicLineVerticesLieOnTheTerrainRenderDraws) {
   EXPECT_LE(c.mesh_bound, R::kMeshTolerance);
 
   // The tool draws that mesh: from the package's build DEM, within the bound.
-  auto r = run_tool("render " + pkg + " --cpu --size 64x48 --stats -o " + (d / "trails.png").string());
+  auto r =
+      run_tool("render " + pkg + " --cpu --size 64x48 --stats -o " + (d / "trails.png").string());
   ASSERT_EQ(r.rc, 0) << r.output;
   EXPECT_NE(r.output.find("terrain from the package's build DEM"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(" mm of the DEM surface"), std::string::npos) << r.output;
@@ -273,15 +274,16 @@ TEST(TerrainSurface, DemWithoutCrsIsAnErrorUnlessAssumeCrsIsGiven) {
   // render: a package without a DEM drawn over the CRS-less DEM.
   const std::string plain = (d / "plain.decals").string();
   auto p = run_tool("build " + (d / "trails.gpkg").string() + " -o " + plain +
-                " --kind line --dynamic --crs EPSG:32632 -q");
+                    " --kind line --dynamic --crs EPSG:32632 -q");
   ASSERT_EQ(p.rc, 0) << p.output;
   auto r = run_tool("render " + plain + " --dem " + nocrs + " --cpu --size 32x24 -o " +
-                (d / "plain.png").string());
+                    (d / "plain.png").string());
   EXPECT_EQ(r.rc, 3) << r.output;
   EXPECT_NE(r.output.find(nocrs), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--assume-crs"), std::string::npos) << r.output;
-  auto ra = run_tool("render " + plain + " --dem " + nocrs +
-                 " --assume-crs EPSG:32632 --cpu --size 32x24 -o " + (d / "plain.png").string());
+  auto ra =
+      run_tool("render " + plain + " --dem " + nocrs +
+               " --assume-crs EPSG:32632 --cpu --size 32x24 -o " + (d / "plain.png").string());
   EXPECT_EQ(ra.rc, 0) << ra.output;
 }
 

@@ -39,13 +39,16 @@ std::string shell_quote(const std::string& s) {
   return q + "'";
 }
 
-ToolRun run_command(const std::string& cmd, const std::filesystem::path& dir, const RunOptions& opt) {
+ToolRun run_command(const std::string& cmd, const std::filesystem::path& dir,
+                    const RunOptions& opt) {
   const std::string out = (dir / "command.out").string(), err = (dir / "command.err").string();
   std::string line = opt.env.empty() ? std::string() : opt.env + " ";
   line += cmd + " >" + shell_quote(out) + (opt.split_stderr ? " 2>" + shell_quote(err) : " 2>&1");
   const int status = std::system(line.c_str());
   ToolRun r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1;
+  r.rc = WIFEXITED(status)     ? WEXITSTATUS(status)
+         : WIFSIGNALED(status) ? 128 + WTERMSIG(status)
+                               : -1;
   r.output = read_text(out);
   if (opt.split_stderr) r.err = read_text(err);
   std::error_code ec;
@@ -71,7 +74,9 @@ std::string monaco_sample(const std::string& name) {
   return std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/" + name;
 }
 
-std::string shared_data(const std::string& rel) { return std::string(DECALPREP_SHARED_DATA) + "/" + rel; }
+std::string shared_data(const std::string& rel) {
+  return std::string(DECALPREP_SHARED_DATA) + "/" + rel;
+}
 
 namespace {
 std::size_t g_default_samples = 1'000'000;
@@ -82,7 +87,11 @@ std::size_t sample_count() {
   return e ? std::size_t(std::atoll(e)) : g_default_samples;
 }
 
-VariantSamples::VariantSamples() { g_default_samples = 250'000; }
-VariantSamples::~VariantSamples() { g_default_samples = 1'000'000; }
+VariantSamples::VariantSamples() {
+  g_default_samples = 250'000;
+}
+VariantSamples::~VariantSamples() {
+  g_default_samples = 1'000'000;
+}
 
 }  // namespace prep::test

@@ -63,7 +63,9 @@ std::string monaco_sample(const std::string& name);
 // The shared real data folder beside the checkout (DECALPREP_SHARED_DATA):
 // Liechtenstein lives only there; tests skip, naming the path, when missing.
 std::string shared_data(const std::string& rel);
-inline bool exists(const std::string& p) { return std::filesystem::exists(p); }
+inline bool exists(const std::string& p) {
+  return std::filesystem::exists(p);
+}
 
 // Samples of the statistical evaluator tests: the current default (10^6, or
 // 2.5x10^5 while a VariantSamples lives), DECALPREP_SAMPLES overriding it.

@@ -140,8 +140,8 @@ TEST(BuildProgress, PackageBytesAreTheSameWithAndWithoutProgressOutput) {
   ASSERT_EQ(quiet.rc, 0) << quiet.err;
   EXPECT_EQ(quiet.err, "") << "-q printed something";
   const ToolRun json_run = run_tool(
-      "build " + scene + " -o '" + (dir.path() / "json.decals").string() + "' --progress json",
-      dir, kSplit);
+      "build " + scene + " -o '" + (dir.path() / "json.decals").string() + "' --progress json", dir,
+      kSplit);
   ASSERT_EQ(json_run.rc, 0) << json_run.err;
   const ToolRun plain = run_tool(
       "build " + scene + " -o '" + (dir.path() / "plain.decals").string() + "' --progress plain",
@@ -151,7 +151,8 @@ TEST(BuildProgress, PackageBytesAreTheSameWithAndWithoutProgressOutput) {
   const std::string a = read_text(dir.path() / "quiet.decals");
   ASSERT_FALSE(a.empty());
   EXPECT_TRUE(a == read_text(dir.path() / "json.decals")) << "--progress json changed the package";
-  EXPECT_TRUE(a == read_text(dir.path() / "plain.decals")) << "--progress plain changed the package";
+  EXPECT_TRUE(a == read_text(dir.path() / "plain.decals"))
+      << "--progress plain changed the package";
 }
 
 TEST(BuildProgress, BatchModeKeepsEachScenesProgressInItsLogAndPrintsJsonObjects) {
@@ -160,10 +161,10 @@ TEST(BuildProgress, BatchModeKeepsEachScenesProgressInItsLogAndPrintsJsonObjects
   TempDir dir("decalprep_progress_batch");
   std::ofstream(dir.path() / "a.toml") << golden_scene_text();
   std::ofstream(dir.path() / "b.toml") << golden_scene_text();
-  const ToolRun r =
-      run_tool("build '" + (dir.path() / "a.toml").string() + "' '" + (dir.path() / "b.toml").string() +
-                   "' -o '" + (dir.path() / "out").string() + "' --jobs 2 --progress json",
-               dir, kSplit);
+  const ToolRun r = run_tool("build '" + (dir.path() / "a.toml").string() + "' '" +
+                                 (dir.path() / "b.toml").string() + "' -o '" +
+                                 (dir.path() / "out").string() + "' --jobs 2 --progress json",
+                             dir, kSplit);
   ASSERT_EQ(r.rc, 0) << r.err;
   const std::vector<json> objects = parse_lines(r.err);
   size_t scenes = 0;

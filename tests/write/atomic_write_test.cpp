@@ -135,7 +135,8 @@ TEST_F(AtomicWrite, FailingWriteThrowsAndLeavesOldTargetAndNoTempFile) {
   int status = 0;
   ::waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 10) << "0: no failure, 11: message lacks the path, 12: wrong exception";
+  EXPECT_EQ(WEXITSTATUS(status), 10)
+      << "0: no failure, 11: message lacks the path, 12: wrong exception";
   expect_old_target_and_no_temp_file();
 }
 

@@ -49,12 +49,12 @@ OwnedBlob make_blob(uint32_t id, ElementType type, uint32_t stride, uint64_t n, 
 // catalogue uses, ids >= 1000 (unknown to the catalogue) for the rest.
 std::vector<OwnedBlob> every_type_blobs() {
   std::vector<OwnedBlob> v;
-  v.push_back(make_blob(1, ElementType::ivec2, 8, 1000, 1));                     // line_vertices
-  v.push_back(make_blob(2, ElementType::u32, 4, 1000, 2));                       // line_vertex_line
+  v.push_back(make_blob(1, ElementType::ivec2, 8, 1000, 1));  // line_vertices
+  v.push_back(make_blob(2, ElementType::u32, 4, 1000, 2));    // line_vertex_line
   v.push_back(make_blob(3, ElementType::record, sizeof(decal::LineProps), 7, 3));  // line_props
-  v.push_back(make_blob(5, ElementType::uvec2, 8, 0, 4));                        // empty
-  v.push_back(make_blob(12, ElementType::ivec4, 16, 33, 5));                     // qt_node_box
-  v.push_back(make_blob(18, ElementType::uvec4, 16, 9, 6));                      // cell_polys
+  v.push_back(make_blob(5, ElementType::uvec2, 8, 0, 4));                          // empty
+  v.push_back(make_blob(12, ElementType::ivec4, 16, 33, 5));                       // qt_node_box
+  v.push_back(make_blob(18, ElementType::uvec4, 16, 9, 6));                        // cell_polys
   v.push_back(make_blob(1000, ElementType::u8, 1, 13, 7));
   v.push_back(make_blob(1001, ElementType::i32, 4, 100, 8));
   v.push_back(make_blob(1002, ElementType::f32, 4, 100, 9));
@@ -120,7 +120,8 @@ class RoundTrip : public ::testing::TestWithParam<Case> {
     EXPECT_EQ(p.metadata_json(), R"({"format":"decals"})");
     EXPECT_EQ(p.major(), decal::kVersionMajor);
     EXPECT_EQ(p.minor(), decal::kVersionMinor);
-    EXPECT_EQ((p.flags() & decal::kFlagAllUncompressed) != 0, GetParam().codec == prep::Codec::none);
+    EXPECT_EQ((p.flags() & decal::kFlagAllUncompressed) != 0,
+              GetParam().codec == prep::Codec::none);
     return p;
   }
 
@@ -153,16 +154,21 @@ TEST_P(RoundTrip, BlobLargerThan64MiBRawComesBackByteForByte) {
   expect_same_blobs(p, blobs);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    CodecsAndReadPaths, RoundTrip,
-    ::testing::Values(Case{prep::Codec::none, ReadPath::mmap}, Case{prep::Codec::none, ReadPath::read},
-                      Case{prep::Codec::none, ReadPath::memory}, Case{prep::Codec::zstd, ReadPath::mmap},
-                      Case{prep::Codec::zstd, ReadPath::read}, Case{prep::Codec::zstd, ReadPath::memory}),
-    [](const auto& param_info) {
-      const char* c = param_info.param.codec == prep::Codec::none ? "none" : "zstd";
-      const char* r = param_info.param.path == ReadPath::mmap ? "mmap" : param_info.param.path == ReadPath::read ? "read" : "memory";
-      return std::string(c) + "_" + r;
-    });
+INSTANTIATE_TEST_SUITE_P(CodecsAndReadPaths, RoundTrip,
+                         ::testing::Values(Case{prep::Codec::none, ReadPath::mmap},
+                                           Case{prep::Codec::none, ReadPath::read},
+                                           Case{prep::Codec::none, ReadPath::memory},
+                                           Case{prep::Codec::zstd, ReadPath::mmap},
+                                           Case{prep::Codec::zstd, ReadPath::read},
+                                           Case{prep::Codec::zstd, ReadPath::memory}),
+                         [](const auto& param_info) {
+                           const char* c =
+                               param_info.param.codec == prep::Codec::none ? "none" : "zstd";
+                           const char* r = param_info.param.path == ReadPath::mmap   ? "mmap"
+                                           : param_info.param.path == ReadPath::read ? "read"
+                                                                                     : "memory";
+                           return std::string(c) + "_" + r;
+                         });
 
 TEST(WritePackage, SameInputGivesIdenticalFileBytes) {
   const std::string dir = make_temp_dir("determinism");
@@ -286,7 +292,8 @@ TEST(WriteModel, EmptyModelStillListsEveryBlob) {
 TEST(WriteModel, MetadataCarriesFrameGridCountsManifestAndExtraKeys) {
   const prep::DecalModel m = decal_test::small_model();
   const auto bytes = decal_test::model_package_bytes(
-      m, {}, R"({"build":{"threads":2},"provenance":{"inputs":[{"path":"a.shp","xxh64":"00ff"}]}})");
+      m, {},
+      R"({"build":{"threads":2},"provenance":{"inputs":[{"path":"a.shp","xxh64":"00ff"}]}})");
   decal::Package p;
   ASSERT_TRUE(decal::Package::from_memory(bytes, p));
   const auto j = nlohmann::json::parse(p.metadata_json());
@@ -311,8 +318,8 @@ TEST(WriteModel, MetadataCarriesFrameGridCountsManifestAndExtraKeys) {
   EXPECT_EQ(j.at("manifest").at("entry_count"), m.manifest.entries.size());
   const decal::BlobView* eb = p.find(decal::BlobId::manifest_entries);
   ASSERT_NE(eb, nullptr);
-  const auto entries =
-      nlohmann::json::parse(std::string(reinterpret_cast<const char*>(eb->bytes.data()), eb->count));
+  const auto entries = nlohmann::json::parse(
+      std::string(reinterpret_cast<const char*>(eb->bytes.data()), eb->count));
   ASSERT_EQ(entries.size(), m.manifest.entries.size());
   EXPECT_EQ(entries.at(0).at("fid"), 17);
   EXPECT_TRUE(entries.at(0).at("area_before").is_null());

@@ -229,7 +229,8 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
       "build", "Build a .decals package from a scene file (SCENE.toml) or one GDAL source");
   cmd->add_option("input", args->inputs,
                   "Scene file (.toml) or any GDAL vector source; several scene files or folders "
-                  "of them: batch mode, -o is then a folder")->required();
+                  "of them: batch mode, -o is then a folder")
+      ->required();
   cmd->add_option("--jobs", args->jobs, "Batch mode: scenes built side by side (default 1)");
   cmd->add_option("-o,--output", args->output, "Package to write (atomically)");
   cmd->add_option("--report", args->report, "Write the JSON report (counts, manifest, timings)");
@@ -243,51 +244,73 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
          "object per line) | none. A feature in GEOS for over 30 s is named. Batch mode: "
          "in each scene's log")
       ->check(CLI::IsMember({"auto", "tty", "plain", "json", "none"}));
-  cmd->add_flag("--skip-failures", args->skip_failures,
-                "Drop a failing feature (recorded in the manifest) and go on; exit code 4 (partial)");
-  cmd->add_option("--max-memory", args->max_memory,
-                  "Stop early (exit 6) when the estimated peak memory exceeds SIZE (e.g. 2G, 512M); "
-                  "batch mode: per scene");
+  cmd->add_flag(
+      "--skip-failures", args->skip_failures,
+      "Drop a failing feature (recorded in the manifest) and go on; exit code 4 (partial)");
+  cmd->add_option(
+      "--max-memory", args->max_memory,
+      "Stop early (exit 6) when the estimated peak memory exceeds SIZE (e.g. 2G, 512M); "
+      "batch mode: per scene");
   auto* g = "File-less form (one layer)";
   cmd->add_option("--layer", args->layer, "Source layer name (default: the first)")->group(g);
   cmd->add_option("--where", args->where, "OGR attribute filter")->group(g);
   cmd->add_option("--sql", args->sql, "OGR SQL (replaces --layer/--where)")->group(g);
   cmd->add_option("--kind", args->kind, "polygon | line | outline")->group(g);
-  cmd->add_option("--width", args->width, "Line width: ground metres, or pixels with --dynamic")->group(g);
+  cmd->add_option("--width", args->width, "Line width: ground metres, or pixels with --dynamic")
+      ->group(g);
   cmd->add_option("--corner", args->corner, "round | miter | bevel")->group(g);
-  cmd->add_option("--outline-mode", args->outline_mode, "normal | inset | offset (needs miter)")->group(g);
+  cmd->add_option("--outline-mode", args->outline_mode, "normal | inset | offset (needs miter)")
+      ->group(g);
   cmd->add_option("--color", args->color, "#rrggbb or #rrggbbaa")->group(g);
-  cmd->add_flag("--dynamic", args->dynamic, "Dynamic lines: width in pixels, terrain-matched")->group(g);
+  cmd->add_flag("--dynamic", args->dynamic, "Dynamic lines: width in pixels, terrain-matched")
+      ->group(g);
   auto* s = "Scene (override the scene file)";
-  cmd->add_option("--crs", args->crs, "Scene frame CRS (PROJ/EPSG/WKT); default local TM")->group(s);
-  cmd->add_option("--assume-crs", args->assume_crs, "CRS for sources and a DEM that have none (otherwise an error)")->group(s);
+  cmd->add_option("--crs", args->crs, "Scene frame CRS (PROJ/EPSG/WKT); default local TM")
+      ->group(s);
+  cmd->add_option("--assume-crs", args->assume_crs,
+                  "CRS for sources and a DEM that have none (otherwise an error)")
+      ->group(s);
   cmd->add_option("--extent", args->extent,
                   "Clip extent xmin,ymin,xmax,ymax, absolute coordinates of the frame CRS (as "
                   "render --extent)")
       ->group(s);
-  cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (default: the frame)")->group(s);
-  cmd->add_option("--resolution", args->resolution, "Simplification tolerance, metres (0: keep all)")->group(s);
-  cmd->add_option("--dem", args->dem, "DEM raster (GDAL path; its CRS, else --assume-crs); clips to its extent")->group(s);
-  cmd->add_option("--repair", args->repair,
-                  "Invalid polygons: linework (GEOS default, even-odd) | structure (every hole subtracted)")
+  cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (default: the frame)")
+      ->group(s);
+  cmd->add_option("--resolution", args->resolution,
+                  "Simplification tolerance, metres (0: keep all)")
+      ->group(s);
+  cmd->add_option("--dem", args->dem,
+                  "DEM raster (GDAL path; its CRS, else --assume-crs); clips to its extent")
+      ->group(s);
+  cmd->add_option(
+         "--repair", args->repair,
+         "Invalid polygons: linework (GEOS default, even-odd) | structure (every hole subtracted)")
       ->group(s);
   auto* t = "Terrain (dynamic lines; override the scene file)";
-  cmd->add_option("--lmax", args->lmax, "Longest terrain-matched segment, metres (0: half the DEM cell)")->group(t);
+  cmd->add_option("--lmax", args->lmax,
+                  "Longest terrain-matched segment, metres (0: half the DEM cell)")
+      ->group(t);
   cmd->add_option("--terrain-tolerance", args->terrain_tolerance,
-                  "Adaptive subdivision tolerance, metres (0: uniform)")->group(t);
+                  "Adaptive subdivision tolerance, metres (0: uniform)")
+      ->group(t);
   cmd->add_option("--z-scale", args->z_scale, "Height exaggeration (default 1)")->group(t);
   cmd->add_option("--nodata-fill", args->nodata_fill,
-                  "Height for DEM no-data cells, raw DEM units (default: the nearest valid cell)")->group(t);
+                  "Height for DEM no-data cells, raw DEM units (default: the nearest valid cell)")
+      ->group(t);
   auto* b = "Build";
   cmd->add_option("--grid", args->grid, "Decal grid NXxNY (500x500 = thesis) or auto")->group(b);
-  cmd->add_option("--leaf-capacity", args->leaf_capacity, "Quad-tree leaf capacity (thesis: 8)")->group(b);
+  cmd->add_option("--leaf-capacity", args->leaf_capacity, "Quad-tree leaf capacity (thesis: 8)")
+      ->group(b);
   cmd->add_option("--max-depth", args->max_depth, "Quad-tree max depth (thesis: 8)")->group(b);
-  cmd->add_option("--threads", args->threads, "Worker threads (0: all); output is identical")->group(b);
+  cmd->add_option("--threads", args->threads, "Worker threads (0: all); output is identical")
+      ->group(b);
   cmd->add_option("--zstd-level", args->zstd_level, "zstd level (default 3)")->group(b);
-  cmd->add_flag("--no-compress", args->no_compress, "Store blobs uncompressed (memory-mappable)")->group(b);
+  cmd->add_flag("--no-compress", args->no_compress, "Store blobs uncompressed (memory-mappable)")
+      ->group(b);
   cmd->callback([args] {
     std::error_code ec;
-    const bool batch = args->inputs.size() > 1 || std::filesystem::is_directory(args->inputs[0], ec);
+    const bool batch =
+        args->inputs.size() > 1 || std::filesystem::is_directory(args->inputs[0], ec);
     if (batch) {
       decalprep::set_exit_code(run_batch(*args));
       return;

@@ -38,7 +38,9 @@ std::string num(float v) {
 }
 
 // A float as JSON; JSON has no NaN or infinity, so those become null.
-json jnum(float v) { return std::isfinite(v) ? json(static_cast<double>(v)) : json(nullptr); }
+json jnum(float v) {
+  return std::isfinite(v) ? json(static_cast<double>(v)) : json(nullptr);
+}
 
 std::string hex32(uint32_t v) {
   char b[16];
@@ -59,12 +61,16 @@ int position_components(uint32_t id) {
   switch (static_cast<BlobId>(id)) {
     case BlobId::line_vertices:
     case BlobId::qt_leaf_vertices:
-    case BlobId::lod_points: return 2;
-    case BlobId::dyn_vertices: return 3;
+    case BlobId::lod_points:
+      return 2;
+    case BlobId::dyn_vertices:
+      return 3;
     case BlobId::qt_node_box:
     case BlobId::line_bvh_box:
-    case BlobId::poly_bvh_box: return 4;
-    default: return 0;
+    case BlobId::poly_bvh_box:
+      return 4;
+    default:
+      return 0;
   }
 }
 
@@ -72,19 +78,24 @@ int position_components(uint32_t id) {
 
 std::string text_line_props(const decal::LineProps& p) {
   return "half_width=" + num(p.half_width) + " rgba=" + hex32(p.rgba) +
-         " order=" + std::to_string(p.order) + " style=" + hex32(p.style) + " value=" + num(p.value) +
-         " layer=" + std::to_string(p.layer) + " feature=" + std::to_string(p.feature) +
-         " clip_node=" + std::to_string(p.clip_node);
+         " order=" + std::to_string(p.order) + " style=" + hex32(p.style) +
+         " value=" + num(p.value) + " layer=" + std::to_string(p.layer) +
+         " feature=" + std::to_string(p.feature) + " clip_node=" + std::to_string(p.clip_node);
 }
 json json_line_props(const decal::LineProps& p) {
-  return {{"half_width", jnum(p.half_width)}, {"rgba", p.rgba},       {"order", p.order},
-          {"style", p.style},                 {"value", jnum(p.value)}, {"layer", p.layer},
-          {"feature", p.feature},             {"clip_node", p.clip_node}};
+  return {{"half_width", jnum(p.half_width)},
+          {"rgba", p.rgba},
+          {"order", p.order},
+          {"style", p.style},
+          {"value", jnum(p.value)},
+          {"layer", p.layer},
+          {"feature", p.feature},
+          {"clip_node", p.clip_node}};
 }
 std::string text_corner(const decal::LineCorner& c) {
   return "miter=(" + num(c.miter[0]) + "," + num(c.miter[1]) + ") bevel_in=(" + num(c.bevel_in[0]) +
-         "," + num(c.bevel_in[1]) + ") bevel_out=(" + num(c.bevel_out[0]) + "," + num(c.bevel_out[1]) +
-         ")";
+         "," + num(c.bevel_in[1]) + ") bevel_out=(" + num(c.bevel_out[0]) + "," +
+         num(c.bevel_out[1]) + ")";
 }
 json json_corner(const decal::LineCorner& c) {
   return {{"miter", {jnum(c.miter[0]), jnum(c.miter[1])}},
@@ -98,8 +109,12 @@ std::string text_poly(const decal::PolyProps& p) {
          " reserved=" + std::to_string(p.reserved[0]) + "," + std::to_string(p.reserved[1]);
 }
 json json_poly(const decal::PolyProps& p) {
-  return {{"rgba", p.rgba},     {"order", p.order},     {"exterior", p.exterior},
-          {"value", jnum(p.value)}, {"layer", p.layer}, {"feature", p.feature},
+  return {{"rgba", p.rgba},
+          {"order", p.order},
+          {"exterior", p.exterior},
+          {"value", jnum(p.value)},
+          {"layer", p.layer},
+          {"feature", p.feature},
           {"reserved", {p.reserved[0], p.reserved[1]}}};
 }
 std::string text_lod_point(const decal::LodPoint& p) {
@@ -154,33 +169,50 @@ void element(const decal::BlobView& b, uint64_t i, std::string* text, json* out)
     if (out) *out = n == 1 ? arr[0] : arr;
   };
   switch (b.type) {
-    case ElementType::u8: return ints(uint8_t{}, 1);
-    case ElementType::u32: return ints(uint32_t{}, 1);
-    case ElementType::i32: return ints(int32_t{}, 1);
-    case ElementType::f32: return floats(1);
-    case ElementType::ivec2: return ints(int32_t{}, 2);
-    case ElementType::uvec2: return ints(uint32_t{}, 2);
-    case ElementType::ivec4: return ints(int32_t{}, 4);
-    case ElementType::uvec4: return ints(uint32_t{}, 4);
-    case ElementType::vec2: return floats(2);
-    case ElementType::vec4: return floats(4);
-    case ElementType::record: break;
+    case ElementType::u8:
+      return ints(uint8_t{}, 1);
+    case ElementType::u32:
+      return ints(uint32_t{}, 1);
+    case ElementType::i32:
+      return ints(int32_t{}, 1);
+    case ElementType::f32:
+      return floats(1);
+    case ElementType::ivec2:
+      return ints(int32_t{}, 2);
+    case ElementType::uvec2:
+      return ints(uint32_t{}, 2);
+    case ElementType::ivec4:
+      return ints(int32_t{}, 4);
+    case ElementType::uvec4:
+      return ints(uint32_t{}, 4);
+    case ElementType::vec2:
+      return floats(2);
+    case ElementType::vec4:
+      return floats(4);
+    case ElementType::record:
+      break;
   }
-#define RECORD(T, txt, js)                    \
-  do {                                        \
-    const T r = load<T>(b, i);                \
-    if (text) *text += txt(r);                \
-    if (out) *out = js(r);                    \
-    return;                                   \
+#define RECORD(T, txt, js)     \
+  do {                         \
+    const T r = load<T>(b, i); \
+    if (text) *text += txt(r); \
+    if (out) *out = js(r);     \
+    return;                    \
   } while (0)
   switch (static_cast<BlobId>(b.id)) {
     case BlobId::line_props:
-    case BlobId::dyn_line_props: RECORD(decal::LineProps, text_line_props, json_line_props);
-    case BlobId::line_corners: RECORD(decal::LineCorner, text_corner, json_corner);
-    case BlobId::poly_props: RECORD(decal::PolyProps, text_poly, json_poly);
-    case BlobId::lod_points: RECORD(decal::LodPoint, text_lod_point, json_lod_point);
-    case BlobId::lod_segments: RECORD(decal::LodSegment, text_lod_segment, json_lod_segment);
-    default: break;
+    case BlobId::dyn_line_props:
+      RECORD(decal::LineProps, text_line_props, json_line_props);
+    case BlobId::line_corners:
+      RECORD(decal::LineCorner, text_corner, json_corner);
+    case BlobId::poly_props:
+      RECORD(decal::PolyProps, text_poly, json_poly);
+    case BlobId::lod_points:
+      RECORD(decal::LodPoint, text_lod_point, json_lod_point);
+    case BlobId::lod_segments:
+      RECORD(decal::LodSegment, text_lod_segment, json_lod_segment);
+    default:
+      break;
   }
 #undef RECORD
   // A record this build does not know: its bytes in hex.
@@ -209,7 +241,9 @@ std::string as_text(const decal::BlobView& b) {
   return {reinterpret_cast<const char*>(b.bytes.data()), static_cast<size_t>(b.count)};
 }
 
-std::string type_name(const decal::BlobView& b) { return std::string(decal::element_type_name(b.type)); }
+std::string type_name(const decal::BlobView& b) {
+  return std::string(decal::element_type_name(b.type));
+}
 
 // ------------------------------------------------------------- summary --
 
@@ -369,10 +403,15 @@ void run_dump(const std::string& path, bool as_json, bool summary, const std::st
         try {
           entries = json::parse(as_text(b));
         } catch (const json::exception& e) {
-          throw prep::format_error("dump: " + path + ": manifest_entries is not valid JSON: " + e.what());
+          throw prep::format_error("dump: " + path +
+                                   ": manifest_entries is not valid JSON: " + e.what());
         }
-        blobs.push_back({{"id", b.id}, {"name", b.name}, {"type", type_name(b)}, {"stride", b.stride},
-                         {"count", b.count}, {"elements", std::move(entries)}});
+        blobs.push_back({{"id", b.id},
+                         {"name", b.name},
+                         {"type", type_name(b)},
+                         {"stride", b.stride},
+                         {"count", b.count},
+                         {"elements", std::move(entries)}});
         continue;
       }
       json elements = json::array();
@@ -396,7 +435,8 @@ void run_dump(const std::string& path, bool as_json, bool summary, const std::st
 
   std::string line;
   std::printf("decals %u.%u\n", p.major(), p.minor());
-  if (only.empty()) std::printf("metadata %.*s\n", int(p.metadata_json().size()), p.metadata_json().data());
+  if (only.empty())
+    std::printf("metadata %.*s\n", int(p.metadata_json().size()), p.metadata_json().data());
   for (const auto& b : p.blobs()) {
     if (!only.empty() && b.name != only) continue;
     std::printf("blob %s id=%u type=%s stride=%u count=%" PRIu64 "\n", b.name.c_str(), b.id,

@@ -11,8 +11,8 @@
 #include <cstdio>
 #include <cstring>
 #include <iostream>
-#include <span>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -29,7 +29,8 @@ class MappedFile {
  public:
   explicit MappedFile(const std::string& path) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) throw prep::input_error("info: cannot open '" + path + "': " + std::strerror(errno));
+    if (fd < 0)
+      throw prep::input_error("info: cannot open '" + path + "': " + std::strerror(errno));
     struct stat st;
     if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
       ::close(fd);

@@ -16,7 +16,8 @@
 namespace {
 
 struct RenderArgs {
-  std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye, target;
+  std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye,
+                                                                         target;
   std::string aa = "none", binding = "ssbo", only, assume_crs;
   double fov = 45.0, pitch = 45.0;
   std::optional<double> z_scale, nodata_fill;  // none: the package's
@@ -34,46 +35,64 @@ struct RenderArgs {
       v.push_back(std::stod(item, &used));
       if (used != item.size()) throw std::invalid_argument(item);
     } catch (const std::exception&) {
-      throw prep::usage_error(std::string("render: ") + what + " '" + s + "' is not " + std::to_string(n) + " numbers");
+      throw prep::usage_error(std::string("render: ") + what + " '" + s + "' is not " +
+                              std::to_string(n) + " numbers");
     }
   }
-  if (v.size() != n) throw prep::usage_error(std::string("render: ") + what + " '" + s + "' needs " + std::to_string(n) + " comma-separated numbers");
+  if (v.size() != n)
+    throw prep::usage_error(std::string("render: ") + what + " '" + s + "' needs " +
+                            std::to_string(n) + " comma-separated numbers");
   return v;
 }
 
 void run(const RenderArgs& a) {
   namespace R = prep::render;
   decal::Package pkg;
-  if (decal::Status s = decal::Package::open(a.package, pkg); !s) throw prep::format_error(s.message);
+  if (decal::Status s = decal::Package::open(a.package, pkg); !s)
+    throw prep::format_error(s.message);
   R::DecalSource src = R::source_of(pkg);
 
   R::RenderOptions opt;
   uint32_t w = 0, h = 0;
-  if (std::sscanf(a.size.c_str(), "%ux%u", &w, &h) != 2 || w == 0 || h == 0 || w > 16384 || h > 16384)
+  if (std::sscanf(a.size.c_str(), "%ux%u", &w, &h) != 2 || w == 0 || h == 0 || w > 16384 ||
+      h > 16384)
     throw prep::usage_error("render: --size '" + a.size + "' must be WxH, 1..16384");
   opt.width = w;
   opt.height = h;
   opt.frames = a.frames;
-  if (a.aa == "none") opt.aa = R::AntiAliasing::none;
-  else if (a.aa == "coverage") opt.aa = R::AntiAliasing::coverage;
-  else if (a.aa == "msaa4") opt.aa = R::AntiAliasing::msaa4;
-  else throw prep::usage_error("render: --aa '" + a.aa + "' must be none, coverage or msaa4");
+  if (a.aa == "none")
+    opt.aa = R::AntiAliasing::none;
+  else if (a.aa == "coverage")
+    opt.aa = R::AntiAliasing::coverage;
+  else if (a.aa == "msaa4")
+    opt.aa = R::AntiAliasing::msaa4;
+  else
+    throw prep::usage_error("render: --aa '" + a.aa + "' must be none, coverage or msaa4");
   // The CPU evaluator answers per point: it draws aliased, so comparisons
   // with the GL path use --aa none.
-  if (a.cpu && opt.aa != R::AntiAliasing::none) throw prep::usage_error("render: --cpu draws without anti-aliasing; use --aa none");
-  if (a.binding == "ssbo") opt.binding = R::Binding::ssbo;
-  else if (a.binding == "texture") opt.binding = R::Binding::texture;
-  else throw prep::usage_error("render: --binding '" + a.binding + "' must be ssbo or texture");
+  if (a.cpu && opt.aa != R::AntiAliasing::none)
+    throw prep::usage_error("render: --cpu draws without anti-aliasing; use --aa none");
+  if (a.binding == "ssbo")
+    opt.binding = R::Binding::ssbo;
+  else if (a.binding == "texture")
+    opt.binding = R::Binding::texture;
+  else
+    throw prep::usage_error("render: --binding '" + a.binding + "' must be ssbo or texture");
 
   if (!a.only.empty()) {
     opt.draw_polygons = opt.draw_lines = opt.draw_dynamic = false;
     std::stringstream ss(a.only);
     std::string kind;
     while (std::getline(ss, kind, ',')) {
-      if (kind == "polygons") opt.draw_polygons = true;
-      else if (kind == "lines") opt.draw_lines = true;
-      else if (kind == "dynamic") opt.draw_dynamic = true;
-      else throw prep::usage_error("render: --only '" + a.only + "': kinds are polygons, lines, dynamic");
+      if (kind == "polygons")
+        opt.draw_polygons = true;
+      else if (kind == "lines")
+        opt.draw_lines = true;
+      else if (kind == "dynamic")
+        opt.draw_dynamic = true;
+      else
+        throw prep::usage_error("render: --only '" + a.only +
+                                "': kinds are polygons, lines, dynamic");
     }
   }
   // --extent is in absolute coordinates of the package's frame CRS (or in
@@ -81,30 +100,37 @@ void run(const RenderArgs& a) {
   // the renderer works relative to the package origin.
   prep::Extent view_extent, abs_view;
   bool topdown = !a.extent.empty();
-  if (!a.extent_crs.empty() && !topdown) throw prep::usage_error("render: --extent-crs needs --extent");
+  if (!a.extent_crs.empty() && !topdown)
+    throw prep::usage_error("render: --extent-crs needs --extent");
   if (topdown) {
     auto v = numbers(a.extent, 4, "--extent");
     prep::Extent given{v[0], v[1], v[2], v[3]};
     if (given.empty())
-      throw prep::usage_error("render: --extent '" + a.extent + "' is empty (xmin,ymin,xmax,ymax with max > min)");
+      throw prep::usage_error("render: --extent '" + a.extent +
+                              "' is empty (xmin,ymin,xmax,ymax with max > min)");
     if (!a.extent_crs.empty() && src.frame.crs_wkt.empty())
-      throw prep::usage_error("render: the package records no frame CRS, so --extent-crs cannot be used; "
-                              "give --extent in the package's frame coordinates");
+      throw prep::usage_error(
+          "render: the package records no frame CRS, so --extent-crs cannot be used; "
+          "give --extent in the package's frame coordinates");
     abs_view = prep::extent_in_frame_crs(given, a.extent_crs, src.frame, "render");
-    const prep::Extent abs_package{src.extent.xmin + src.frame.origin_x, src.extent.ymin + src.frame.origin_y,
-                                   src.extent.xmax + src.frame.origin_x, src.extent.ymax + src.frame.origin_y};
+    const prep::Extent abs_package{
+        src.extent.xmin + src.frame.origin_x, src.extent.ymin + src.frame.origin_y,
+        src.extent.xmax + src.frame.origin_x, src.extent.ymax + src.frame.origin_y};
     view_extent = {abs_view.xmin - src.frame.origin_x, abs_view.ymin - src.frame.origin_y,
                    abs_view.xmax - src.frame.origin_x, abs_view.ymax - src.frame.origin_y};
-    if (view_extent.empty()) throw prep::usage_error("render: --extent '" + a.extent + "' is empty in the frame CRS");
+    if (view_extent.empty())
+      throw prep::usage_error("render: --extent '" + a.extent + "' is empty in the frame CRS");
     const bool misses = abs_view.xmax < abs_package.xmin || abs_view.xmin > abs_package.xmax ||
                         abs_view.ymax < abs_package.ymin || abs_view.ymin > abs_package.ymax;
     if (misses) {
       std::fprintf(stderr,
-                   "render: warning: the view %.3f,%.3f,%.3f,%.3f misses the package extent %.3f,%.3f,%.3f,%.3f "
-                   "(xmin,ymin,xmax,ymax in the frame CRS); --extent takes absolute coordinates of the package's "
+                   "render: warning: the view %.3f,%.3f,%.3f,%.3f misses the package extent "
+                   "%.3f,%.3f,%.3f,%.3f "
+                   "(xmin,ymin,xmax,ymax in the frame CRS); --extent takes absolute coordinates of "
+                   "the package's "
                    "frame CRS unless --extent-crs names another\n",
-                   abs_view.xmin, abs_view.ymin, abs_view.xmax, abs_view.ymax, abs_package.xmin, abs_package.ymin,
-                   abs_package.xmax, abs_package.ymax);
+                   abs_view.xmin, abs_view.ymin, abs_view.xmax, abs_view.ymax, abs_package.xmin,
+                   abs_package.ymin, abs_package.xmax, abs_package.ymax);
     }
   }
   prep::Extent terrain_extent = src.extent;
@@ -119,18 +145,22 @@ void run(const RenderArgs& a) {
   // flat. The surface settings the package was built with (z-scale, no-data
   // fill, assumed CRS) apply unless given here, so the terrain is the
   // surface the dynamic lines were matched to (prep/dem.hpp).
-  if (a.flat && !a.dem.empty()) throw prep::usage_error("render: --flat and --dem exclude each other");
+  if (a.flat && !a.dem.empty())
+    throw prep::usage_error("render: --flat and --dem exclude each other");
   prep::DemSpec dem = R::recorded_dem(std::string(pkg.metadata_json()));
   const bool dem_from_package = !a.flat && a.dem.empty() && !dem.path.empty();
-  if (a.flat) dem.path.clear();
-  else if (!a.dem.empty()) dem.path = a.dem;
+  if (a.flat)
+    dem.path.clear();
+  else if (!a.dem.empty())
+    dem.path = a.dem;
   if (a.z_scale) {
     if (!(*a.z_scale > 0) || !std::isfinite(*a.z_scale))
       throw prep::usage_error("render: --z-scale must be a positive number");
     dem.z_scale = *a.z_scale;
   }
   if (a.nodata_fill) {
-    if (!std::isfinite(*a.nodata_fill)) throw prep::usage_error("render: --nodata-fill must be a finite height");
+    if (!std::isfinite(*a.nodata_fill))
+      throw prep::usage_error("render: --nodata-fill must be a finite height");
     dem.nodata_fill = *a.nodata_fill;
   }
   if (!a.assume_crs.empty()) dem.assume_crs = a.assume_crs;
@@ -142,17 +172,23 @@ void run(const RenderArgs& a) {
   } else {
     try {
       terrain = R::load_heightfield(dem, src.frame, terrain_extent, R::kMeshSamples);
-      std::fprintf(stderr, "render: terrain from the package's build DEM %s (--flat to ignore it)\n", dem.path.c_str());
+      std::fprintf(stderr,
+                   "render: terrain from the package's build DEM %s (--flat to ignore it)\n",
+                   dem.path.c_str());
     } catch (const prep::error& e) {
-      std::fprintf(stderr, "render: warning: the package was built with DEM %s, which cannot be read here (%s); "
-                   "drawing flat terrain (pass --dem PATH)\n", dem.path.c_str(), e.what());
+      std::fprintf(
+          stderr,
+          "render: warning: the package was built with DEM %s, which cannot be read here (%s); "
+          "drawing flat terrain (pass --dem PATH)\n",
+          dem.path.c_str(), e.what());
       terrain = R::flat_heightfield(terrain_extent);
     }
   }
   if (topdown) {
     opt.camera = R::topdown_camera(view_extent, terrain.zmin, terrain.zmax);
   } else if (!a.eye.empty() || !a.target.empty()) {
-    if (a.eye.empty() || a.target.empty()) throw prep::usage_error("render: --eye and --target go together");
+    if (a.eye.empty() || a.target.empty())
+      throw prep::usage_error("render: --eye and --target go together");
     auto e = numbers(a.eye, 3, "--eye"), t = numbers(a.target, 3, "--target");
     opt.camera.eye = {e[0], e[1], e[2]};
     opt.camera.target = {t[0], t[1], t[2]};
@@ -165,42 +201,50 @@ void run(const RenderArgs& a) {
     opt.camera.depth_range = 4 * dist;
   } else {
     // --fit (the default): frame the package extent obliquely.
-    opt.camera = R::fit_camera(src.extent, terrain.zmin, terrain.zmax, w, h,
-                               a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
+    opt.camera =
+        R::fit_camera(src.extent, terrain.zmin, terrain.zmax, w, h,
+                      a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
   }
 
 #ifdef PREP_RENDER_WITH_GL
   R::Image img = a.cpu ? R::render_cpu(src, terrain, opt) : R::render_gl(src, terrain, opt);
 #else
-  if (!a.cpu) throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
+  if (!a.cpu)
+    throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
   R::Image img = R::render_cpu(src, terrain, opt);
 #endif
   prep::write_png_rgba(a.output, img.width, img.height, img.rgba);
   // The world file carries the absolute extent as given (not origin + relative).
   if (topdown) prep::write_world_file(a.output, abs_view, w, h, src.frame.crs_wkt);
-  if (!a.decals_png.empty()) prep::write_png_rgba(a.decals_png, img.width, img.height, prep::to_rgba8(img.decals));
+  if (!a.decals_png.empty())
+    prep::write_png_rgba(a.decals_png, img.width, img.height, prep::to_rgba8(img.decals));
   if (!a.raw.empty()) {
     std::ofstream out(a.raw, std::ios::binary);
-    out.write(reinterpret_cast<const char*>(img.decals.data()), std::streamsize(img.decals.size() * sizeof(float)));
+    out.write(reinterpret_cast<const char*>(img.decals.data()),
+              std::streamsize(img.decals.size() * sizeof(float)));
     if (!out) throw prep::output_error("render: cannot write '" + a.raw + "'");
   }
   if (a.stats) {
-    std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), w, h, a.binding.c_str(), a.aa.c_str());
+    std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), w, h,
+                a.binding.c_str(), a.aa.c_str());
     std::printf("%-48s %12s %12s\n", "pass", "gpu ms", "wall ms");
-    for (const auto& t : img.times) std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
+    for (const auto& t : img.times)
+      std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
     std::printf("terrain: %ux%u vertices, within %s of the DEM surface\n", terrain.nx, terrain.ny,
                 std::isfinite(terrain.surface_error_bound)
                     ? (std::to_string(terrain.surface_error_bound * 1e3) + " mm").c_str()
                     : "an unbounded distance (mesh not on the DEM lattice)");
     if (img.dyn_kept || img.dyn_segments)
-      std::printf("dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
-                  img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
+      std::printf(
+          "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
+          img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
   }
 }
 
 const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
-  CLI::App* cmd = app.add_subcommand("render", "Draw a package over terrain (headless GL, or --cpu) into a PNG");
+  CLI::App* cmd = app.add_subcommand(
+      "render", "Draw a package over terrain (headless GL, or --cpu) into a PNG");
   cmd->footer(
       "Coordinates: --extent is in absolute coordinates of the package's frame CRS (the crs and\n"
       "origin of `decalprep info`), like build --extent; --extent-crs gives it in another CRS.\n"
@@ -208,27 +252,37 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
       "--eye and --target are metres relative to the package origin.\n"
       "Examples:\n"
       "  decalprep render city.decals --dem dem.tif --fit --pitch 50 --size 1280x720 -o city.png\n"
-      "  decalprep render city.decals --extent 372000,4843200,373600,4844100 --size 800x450 -o top.png\n"
-      "  decalprep render city.decals --extent 7.41,43.73,7.43,43.745 --extent-crs EPSG:4326 --cpu -o top.png");
+      "  decalprep render city.decals --extent 372000,4843200,373600,4844100 --size 800x450 -o "
+      "top.png\n"
+      "  decalprep render city.decals --extent 7.41,43.73,7.43,43.745 --extent-crs EPSG:4326 --cpu "
+      "-o top.png");
   cmd->add_option("package", args->package, "Package (.decals)")->required();
   cmd->add_option("-o,--output", args->output, "Output PNG")->required();
   cmd->add_option("--dem", args->dem,
-                  "DEM raster (any GDAL path); default: the DEM the package was built with, if readable, else flat");
+                  "DEM raster (any GDAL path); default: the DEM the package was built with, if "
+                  "readable, else flat");
   cmd->add_flag("--flat", args->flat, "Flat terrain, even if the package was built with a DEM");
-  cmd->add_option("--z-scale", args->z_scale, "Height exaggeration (default: the package's build --z-scale, else 1)");
-  cmd->add_option("--nodata-fill", args->nodata_fill,
-                  "Height for DEM no-data, raw DEM units (default: the package's build --nodata-fill, else the "
-                  "nearest valid cell)");
+  cmd->add_option("--z-scale", args->z_scale,
+                  "Height exaggeration (default: the package's build --z-scale, else 1)");
+  cmd->add_option(
+      "--nodata-fill", args->nodata_fill,
+      "Height for DEM no-data, raw DEM units (default: the package's build --nodata-fill, else the "
+      "nearest valid cell)");
   cmd->add_option("--assume-crs", args->assume_crs,
-                  "CRS of a DEM that has none (default: the package's build --assume-crs; otherwise such a DEM is an "
+                  "CRS of a DEM that has none (default: the package's build --assume-crs; "
+                  "otherwise such a DEM is an "
                   "error)");
   cmd->add_option("--extent", args->extent,
-                  "Top-down orthographic view xmin,ymin,xmax,ymax in absolute coordinates of the package's frame CRS "
+                  "Top-down orthographic view xmin,ymin,xmax,ymax in absolute coordinates of the "
+                  "package's frame CRS "
                   "(as build --extent and the world file)");
-  cmd->add_option("--extent-crs", args->extent_crs, "CRS of --extent (e.g. EPSG:4326, lon/lat order; default: the frame)");
+  cmd->add_option("--extent-crs", args->extent_crs,
+                  "CRS of --extent (e.g. EPSG:4326, lon/lat order; default: the frame)");
   cmd->add_option("--size", args->size, "Image size WxH (default 640x360)");
-  cmd->add_option("--eye", args->eye, "Camera position x,y,z (metres relative to the package origin)");
-  cmd->add_option("--target", args->target, "Camera target x,y,z (metres relative to the package origin)");
+  cmd->add_option("--eye", args->eye,
+                  "Camera position x,y,z (metres relative to the package origin)");
+  cmd->add_option("--target", args->target,
+                  "Camera target x,y,z (metres relative to the package origin)");
   cmd->add_option("--fov", args->fov, "Vertical field of view, degrees");
   cmd->add_option("--pitch", args->pitch, "--fit: camera pitch below the horizon, degrees");
   cmd->add_flag("--ortho", args->ortho, "Orthographic projection");
@@ -237,10 +291,14 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_option("--aa", args->aa, "Anti-aliasing: none|coverage|msaa4");
   cmd->add_option("--binding", args->binding, "Blob binding: ssbo|texture");
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
-  cmd->add_option("--frames", args->frames, "GL: render N frames, report the last one's pass times (warm)")
+  cmd->add_option("--frames", args->frames,
+                  "GL: render N frames, report the last one's pass times (warm)")
       ->check(CLI::Range(1u, 1000u));
-  cmd->add_flag("--stats", args->stats, "Print per-pass times (GL timestamp queries and wall time)");
-  cmd->add_option("--raw", args->raw, "Write the static decal layer as float32 RGBA (straight alpha, row 0 at the top)");
+  cmd->add_flag("--stats", args->stats,
+                "Print per-pass times (GL timestamp queries and wall time)");
+  cmd->add_option(
+      "--raw", args->raw,
+      "Write the static decal layer as float32 RGBA (straight alpha, row 0 at the top)");
   cmd->add_option("--decals", args->decals_png, "Write the decal layer alone as PNG");
   cmd->callback([args] {
     run(*args);

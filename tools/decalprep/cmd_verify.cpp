@@ -33,8 +33,7 @@ decal::Status check_metadata(const decal::Package& p) {
       if (c == counts->end()) continue;
       if (!c->is_number_unsigned() || c->get<uint64_t>() != b.count)
         return decal::Status::failure("metadata counts." + b.name + " = " + c->dump() +
-                                      " but the blob has " + std::to_string(b.count) +
-                                      " elements");
+                                      " but the blob has " + std::to_string(b.count) + " elements");
     }
   return decal::Status::success();
 }
@@ -46,7 +45,8 @@ decal::Status verify_one(const std::string& path, std::string& summary) {
   if (decal::Status s = decal::Package::open(path, p, opt); !s) return s;
   if (decal::Status s = decal::validate_indices(p); !s)
     return decal::Status::failure(path + ": " + s.message);
-  if (decal::Status s = check_metadata(p); !s) return decal::Status::failure(path + ": " + s.message);
+  if (decal::Status s = check_metadata(p); !s)
+    return decal::Status::failure(path + ": " + s.message);
   uint64_t raw = 0;
   for (const auto& b : p.blobs()) raw += b.bytes.size();
   summary = "v" + std::to_string(p.major()) + "." + std::to_string(p.minor()) + ", " +

@@ -31,8 +31,12 @@ inline int& exit_code_slot() {
   static int code = 0;
   return code;
 }
-inline void set_exit_code(prep::ExitCode c) { exit_code_slot() = static_cast<int>(c); }
-inline void set_exit_code(int c) { exit_code_slot() = c; }
+inline void set_exit_code(prep::ExitCode c) {
+  exit_code_slot() = static_cast<int>(c);
+}
+inline void set_exit_code(int c) {
+  exit_code_slot() = c;
+}
 
 struct CommandRegistrar {
   CommandRegistrar(int order, CommandSetup setup) {

@@ -18,7 +18,8 @@ namespace {
 
 std::string egl_error(const char* step) {
   char buf[96];
-  std::snprintf(buf, sizeof buf, "%s failed (EGL error 0x%04x)", step, static_cast<unsigned>(eglGetError()));
+  std::snprintf(buf, sizeof buf, "%s failed (EGL error 0x%04x)", step,
+                static_cast<unsigned>(eglGetError()));
   return buf;
 }
 
@@ -73,7 +74,8 @@ Status Context::create(std::unique_ptr<Context>& out) {
     why = "EGL_MESA_platform_surfaceless not offered";
   }
   if (dpy == EGL_NO_DISPLAY && has_extension(client_ext, "EGL_EXT_platform_device")) {
-    auto query_devices = reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
+    auto query_devices =
+        reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
     EGLDeviceEXT devices[8];
     EGLint n = 0;
     if (query_devices && query_devices(8, devices, &n) == EGL_TRUE) {
@@ -88,7 +90,8 @@ Status Context::create(std::unique_ptr<Context>& out) {
     if (dpy == EGL_NO_DISPLAY) why += "; " + egl_error("EGL_EXT_platform_device display");
   }
   if (dpy == EGL_NO_DISPLAY) {
-    if (!client_ext) why = egl_error("eglQueryString(EGL_EXTENSIONS)") + " (no EGL vendor library?)";
+    if (!client_ext)
+      why = egl_error("eglQueryString(EGL_EXTENSIONS)") + " (no EGL vendor library?)";
     return Status::failure("gl loader: no headless EGL display could be created: " + why);
   }
   ctx->display_ = dpy;
@@ -96,11 +99,18 @@ Status Context::create(std::unique_ptr<Context>& out) {
   const char* dpy_ext = eglQueryString(dpy, EGL_EXTENSIONS);
   if (!has_extension(dpy_ext, "EGL_KHR_surfaceless_context"))
     return Status::failure("gl loader: EGL display lacks EGL_KHR_surfaceless_context");
-  if (eglBindAPI(EGL_OPENGL_API) != EGL_TRUE) return Status::failure("gl loader: " + egl_error("eglBindAPI(OpenGL)"));
-  const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5,
-                            EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+  if (eglBindAPI(EGL_OPENGL_API) != EGL_TRUE)
+    return Status::failure("gl loader: " + egl_error("eglBindAPI(OpenGL)"));
+  const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION,
+                            4,
+                            EGL_CONTEXT_MINOR_VERSION,
+                            5,
+                            EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                            EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                            EGL_NONE};
   EGLContext glc = eglCreateContext(dpy, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attribs);
-  if (glc == EGL_NO_CONTEXT) return Status::failure("gl loader: " + egl_error("eglCreateContext(GL 4.5 core)"));
+  if (glc == EGL_NO_CONTEXT)
+    return Status::failure("gl loader: " + egl_error("eglCreateContext(GL 4.5 core)"));
   ctx->context_ = glc;
   if (eglMakeCurrent(dpy, EGL_NO_SURFACE, EGL_NO_SURFACE, glc) != EGL_TRUE)
     return Status::failure("gl loader: " + egl_error("eglMakeCurrent"));

@@ -5,7 +5,6 @@
 
 #include "decal/gl/gl.hpp"
 
-
 namespace decal::gl {
 
 namespace {
@@ -16,21 +15,28 @@ constexpr uint32_t kSlots = static_cast<uint32_t>(Binding::poly_root_node) + 1;
 // are read as several texels (bindings.hpp).
 GLenum texture_format(BlobId id) {
   const BlobInfo* info = find_blob_info(id);
-  if (id == BlobId::line_props || id == BlobId::dyn_line_props || id == BlobId::poly_props) return GL_RGBA32UI;
+  if (id == BlobId::line_props || id == BlobId::dyn_line_props || id == BlobId::poly_props)
+    return GL_RGBA32UI;
   if (id == BlobId::line_corners) return GL_RG32F;
   switch (info ? info->type : ElementType::u32) {
-    case ElementType::ivec2: return GL_RG32I;
-    case ElementType::uvec2: return GL_RG32UI;
-    case ElementType::ivec4: return GL_RGBA32I;
-    case ElementType::uvec4: return GL_RGBA32UI;
-    case ElementType::i32: return GL_R32I;
-    case ElementType::f32: return GL_R32F;
-    default: return GL_R32UI;
+    case ElementType::ivec2:
+      return GL_RG32I;
+    case ElementType::uvec2:
+      return GL_RG32UI;
+    case ElementType::ivec4:
+      return GL_RGBA32I;
+    case ElementType::uvec4:
+      return GL_RGBA32UI;
+    case ElementType::i32:
+      return GL_R32I;
+    case ElementType::f32:
+      return GL_R32F;
+    default:
+      return GL_R32UI;
   }
 }
 
 }  // namespace
-
 
 GpuPackage::GpuPackage() = default;
 
@@ -41,8 +47,8 @@ GpuPackage::~GpuPackage() {
   }
 }
 
-Status GpuPackage::upload(std::span<const BlobBytes> blobs, const Grid& grid, std::unique_ptr<GpuPackage>& out,
-                          bool validated) {
+Status GpuPackage::upload(std::span<const BlobBytes> blobs, const Grid& grid,
+                          std::unique_ptr<GpuPackage>& out, bool validated) {
   // No GL call before the data passed every structural check.
   if (!validated)
     if (Status s = validate_blobs(blobs, grid); !s) return s;
@@ -80,7 +86,8 @@ Status GpuPackage::upload(std::span<const BlobBytes> blobs, const Grid& grid, st
     }
   }
   if (GLenum e = glGetError(); e != GL_NO_ERROR)
-    return Status::failure("gl loader: GL error 0x" + std::to_string(e) + " while uploading blobs (out of memory?)");
+    return Status::failure("gl loader: GL error 0x" + std::to_string(e) +
+                           " while uploading blobs (out of memory?)");
   out = std::move(pkg);
   return Status::success();
 }

@@ -33,7 +33,8 @@ std::string info_log(GLuint object, GetIv get_iv, GetLog get_log) {
   return log;
 }
 
-Status compile(GLenum stage, const std::vector<std::string>& files, const std::string& defines, GLuint& out) {
+Status compile(GLenum stage, const std::vector<std::string>& files, const std::string& defines,
+               GLuint& out) {
   std::string src = "#version 450 core\n" + defines + "\n";
   for (const auto& f : files) {
     std::string_view text = shader_source(f);
@@ -82,7 +83,8 @@ Status build_program(const ProgramSources& sources, uint32_t& out) {
     GLint ok = 0;
     glGetProgramiv(prog, GL_LINK_STATUS, &ok);
     if (!ok) {
-      s = Status::failure("gl loader: program failed to link: " + info_log(prog, glGetProgramiv, glGetProgramInfoLog));
+      s = Status::failure("gl loader: program failed to link: " +
+                          info_log(prog, glGetProgramiv, glGetProgramInfoLog));
     }
   }
   for (GLuint sh : shaders) glDeleteShader(sh);

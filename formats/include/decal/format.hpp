@@ -29,30 +29,35 @@ enum class ElementType : uint32_t {
   u32 = 2,
   i32 = 3,
   f32 = 4,
-  ivec2 = 5,   // int32[2], std430 stride 8
-  uvec2 = 6,   // uint32[2], stride 8
-  ivec4 = 7,   // int32[4], stride 16
-  uvec4 = 8,   // uint32[4], stride 16
-  vec2 = 9,    // float[2], stride 8
-  vec4 = 10,   // float[4], stride 16
-  record = 11, // a fixed struct described in SPEC.md for that blob id
+  ivec2 = 5,    // int32[2], std430 stride 8
+  uvec2 = 6,    // uint32[2], stride 8
+  ivec4 = 7,    // int32[4], stride 16
+  uvec4 = 8,    // uint32[4], stride 16
+  vec2 = 9,     // float[2], stride 8
+  vec4 = 10,    // float[4], stride 16
+  record = 11,  // a fixed struct described in SPEC.md for that blob id
 };
 
 // std430 stride of plain element types; 0 for `record` (the blob id's
 // struct gives it).
 constexpr uint32_t std430_stride(ElementType t) {
   switch (t) {
-    case ElementType::u8: return 1;
+    case ElementType::u8:
+      return 1;
     case ElementType::u32:
     case ElementType::i32:
-    case ElementType::f32: return 4;
+    case ElementType::f32:
+      return 4;
     case ElementType::ivec2:
     case ElementType::uvec2:
-    case ElementType::vec2: return 8;
+    case ElementType::vec2:
+      return 8;
     case ElementType::ivec4:
     case ElementType::uvec4:
-    case ElementType::vec4: return 16;
-    case ElementType::record: return 0;
+    case ElementType::vec4:
+      return 16;
+    case ElementType::record:
+      return 0;
   }
   return 0;
 }
@@ -67,45 +72,45 @@ constexpr uint32_t std430_stride(ElementType t) {
 // ---------------------------------------------------------------------------
 enum class BlobId : uint32_t {
   // --- static lines (thesis §4.2.1 "Line Segments") ---
-  line_vertices = 1,      // ivec2  per vertex: position, quanta from origin
-  line_vertex_line = 2,   // u32    per vertex: index of its line
-  line_props = 3,         // record LineProps per line
-  line_corners = 4,       // record LineCorner per vertex (miter + 2 bevel vectors)
-  cell_segment_range = 5, // uvec2  per cell: (first, count) into cell_segments
-  cell_segments = 6,      // uvec2  per (cell, segment): (start vertex, end vertex),
-                          //        sorted by the line's drawing order, then segment
+  line_vertices = 1,       // ivec2  per vertex: position, quanta from origin
+  line_vertex_line = 2,    // u32    per vertex: index of its line
+  line_props = 3,          // record LineProps per line
+  line_corners = 4,        // record LineCorner per vertex (miter + 2 bevel vectors)
+  cell_segment_range = 5,  // uvec2  per cell: (first, count) into cell_segments
+  cell_segments = 6,       // uvec2  per (cell, segment): (start vertex, end vertex),
+                           //        sorted by the line's drawing order, then segment
   // --- static polygons (thesis §4.2.1 "Polygon Quad-Trees") ---
-  poly_props = 10,         // record PolyProps per polygon (exterior and interior)
-  poly_root_node = 11,     // u32    per polygon: index of its root quad-tree node
-  qt_node_box = 12,        // ivec4  per node: (xmin, ymin, xmax, ymax) quanta
-  qt_node = 13,            // ivec2  per node: (type 0..3, offset), see QtNodeType
-  qt_leaf_range = 14,      // uvec2  per partial leaf: (first, count) into qt_leaf_segments
-  qt_leaf_segments = 15,   // uvec2  per leaf-polygon segment: (start, end) into qt_leaf_vertices
-  qt_leaf_vertices = 16,   // ivec2  per leaf-polygon vertex, quanta. Leaf polygons are the
-                           //        unclipped ring edges meeting the node box plus closing
-                           //        segments outside it (vertices may lie outside the box);
-                           //        even-odd is exact only for points inside the box.
-  cell_poly_range = 17,    // uvec2  per cell: (first, count) into cell_polys
-  cell_polys = 18,         // uvec4  per (cell, exterior polygon): (polygon, culling node,
-                           //        first hole entry, hole count) — holes index cell_holes
-  cell_holes = 19,         // uvec2  per (cell, interior polygon): (polygon, culling node)
+  poly_props = 10,        // record PolyProps per polygon (exterior and interior)
+  poly_root_node = 11,    // u32    per polygon: index of its root quad-tree node
+  qt_node_box = 12,       // ivec4  per node: (xmin, ymin, xmax, ymax) quanta
+  qt_node = 13,           // ivec2  per node: (type 0..3, offset), see QtNodeType
+  qt_leaf_range = 14,     // uvec2  per partial leaf: (first, count) into qt_leaf_segments
+  qt_leaf_segments = 15,  // uvec2  per leaf-polygon segment: (start, end) into qt_leaf_vertices
+  qt_leaf_vertices = 16,  // ivec2  per leaf-polygon vertex, quanta. Leaf polygons are the
+                          //        unclipped ring edges meeting the node box plus closing
+                          //        segments outside it (vertices may lie outside the box);
+                          //        even-odd is exact only for points inside the box.
+  cell_poly_range = 17,   // uvec2  per cell: (first, count) into cell_polys
+  cell_polys = 18,        // uvec4  per (cell, exterior polygon): (polygon, culling node,
+                          //        first hole entry, hole count) — holes index cell_holes
+  cell_holes = 19,        // uvec2  per (cell, interior polygon): (polygon, culling node)
   // --- per-cell BVHs (thesis §4.2.1 "Bounding Volume Hierarchies") ---
-  line_bvh_range = 20,     // uvec4  per cell: (first node, leaf slots, internal nodes, 0)
-  line_bvh_box = 21,       // ivec4  per node: box in quanta; empty node: xmin > xmax
-  poly_bvh_range = 22,     // uvec4  per cell, as line_bvh_range
-  poly_bvh_box = 23,       // ivec4  per node, as line_bvh_box
+  line_bvh_range = 20,  // uvec4  per cell: (first node, leaf slots, internal nodes, 0)
+  line_bvh_box = 21,    // ivec4  per node: box in quanta; empty node: xmin > xmax
+  poly_bvh_range = 22,  // uvec4  per cell, as line_bvh_range
+  poly_bvh_box = 23,    // ivec4  per node, as line_bvh_box
   // --- dynamic lines (thesis §4.2.2 "Terrain Matching") ---
-  dyn_vertices = 30,       // ivec4  per 3D vertex: (x, y, z quanta, line index)
-  dyn_prev_next = 31,      // ivec2  per vertex: (previous, next) vertex, -1 at open ends
-  dyn_line_start = 32,     // u32    per dynamic line: index of its first vertex
-  dyn_line_props = 33,     // record LineProps per dynamic line (width in pixels)
+  dyn_vertices = 30,    // ivec4  per 3D vertex: (x, y, z quanta, line index)
+  dyn_prev_next = 31,   // ivec2  per vertex: (previous, next) vertex, -1 at open ends
+  dyn_line_start = 32,  // u32    per dynamic line: index of its first vertex
+  dyn_line_props = 33,  // record LineProps per dynamic line (width in pixels)
   // --- LOD segments (LOCALIS, seed 001) ---
-  lod_points = 40,         // record LodPoint per point
-  lod_segments = 41,       // record LodSegment per attributed segment
-  lod_line_range = 42,     // uvec2  per LOD line: (first, count) into lod_segments
+  lod_points = 40,      // record LodPoint per point
+  lod_segments = 41,    // record LodSegment per attributed segment
+  lod_line_range = 42,  // uvec2  per LOD line: (first, count) into lod_segments
   // --- provenance ---
-  manifest_entries = 50,   // u8     UTF-8 JSON array: one object per repaired,
-                           //        dropped or clipped-away feature (SPEC §Metadata)
+  manifest_entries = 50,  // u8     UTF-8 JSON array: one object per repaired,
+                          //        dropped or clipped-away feature (SPEC §Metadata)
 };
 
 struct BlobInfo {
@@ -179,10 +184,10 @@ struct LineCorner {
 static_assert(sizeof(LineCorner) == 24);
 
 struct PolyProps {
-  uint32_t rgba;       // colour (interior polygons: 0)
-  uint32_t order;      // drawing-order rank among exterior polygons, 0 = top
-  int32_t exterior;    // interior polygons: index of their exterior; exterior: -1
-  float value;         // attribute value for colour ramps (NaN when none)
+  uint32_t rgba;     // colour (interior polygons: 0)
+  uint32_t order;    // drawing-order rank among exterior polygons, 0 = top
+  int32_t exterior;  // interior polygons: index of their exterior; exterior: -1
+  float value;       // attribute value for colour ramps (NaN when none)
   uint32_t layer;
   uint32_t feature;
   uint32_t reserved[2];  // must be zero
@@ -342,22 +347,22 @@ enum class CodecId : uint32_t {
 inline constexpr size_t kBlobNameSize = 32;
 
 struct FileHeader {
-  unsigned char magic[8];       // kMagic
-  uint16_t version_major;       // kVersionMajor
-  uint16_t version_minor;       // kVersionMinor
-  uint32_t flags;               // kFlag* bits
-  uint32_t header_size;         // sizeof(FileHeader) = 96 in v1
-  uint32_t blob_entry_size;     // sizeof(BlobTableEntry) = 96 in v1
-  uint32_t blob_count;          // entries in the blob table
-  uint32_t reserved0;           // must be zero
-  uint64_t file_size;           // total bytes in the file
-  uint64_t table_offset;        // = header_size
-  uint64_t table_checksum;      // XXH64(seed 0) of the whole blob table
-  uint64_t metadata_offset;     // = table_offset + blob_count * blob_entry_size
-  uint64_t metadata_size;       // bytes of UTF-8 JSON, no terminator
-  uint64_t metadata_checksum;   // XXH64(seed 0) of the metadata bytes
-  uint64_t reserved1;           // must be zero
-  uint64_t header_checksum;     // XXH64(seed 0) of header bytes [0, header_size - 8)
+  unsigned char magic[8];      // kMagic
+  uint16_t version_major;      // kVersionMajor
+  uint16_t version_minor;      // kVersionMinor
+  uint32_t flags;              // kFlag* bits
+  uint32_t header_size;        // sizeof(FileHeader) = 96 in v1
+  uint32_t blob_entry_size;    // sizeof(BlobTableEntry) = 96 in v1
+  uint32_t blob_count;         // entries in the blob table
+  uint32_t reserved0;          // must be zero
+  uint64_t file_size;          // total bytes in the file
+  uint64_t table_offset;       // = header_size
+  uint64_t table_checksum;     // XXH64(seed 0) of the whole blob table
+  uint64_t metadata_offset;    // = table_offset + blob_count * blob_entry_size
+  uint64_t metadata_size;      // bytes of UTF-8 JSON, no terminator
+  uint64_t metadata_checksum;  // XXH64(seed 0) of the metadata bytes
+  uint64_t reserved1;          // must be zero
+  uint64_t header_checksum;    // XXH64(seed 0) of header bytes [0, header_size - 8)
 };
 static_assert(sizeof(FileHeader) == 96);
 static_assert(offsetof(FileHeader, version_major) == 8);
@@ -365,17 +370,17 @@ static_assert(offsetof(FileHeader, file_size) == 32);
 static_assert(offsetof(FileHeader, header_checksum) == 88);
 
 struct BlobTableEntry {
-  uint32_t id;                  // BlobId value
-  uint32_t element_type;        // ElementType value
-  uint32_t stride;              // std430 bytes per element
-  uint32_t codec;               // CodecId value
-  uint64_t count;               // elements; raw_size = count * stride
-  uint64_t offset;              // from file start; multiple of kBlobAlignment
-  uint64_t stored_size;         // bytes in the file
-  uint64_t raw_size;            // bytes after decoding
-  uint64_t checksum;            // XXH64(seed 0) of the stored bytes
-  char name[kBlobNameSize];     // [a-z0-9_]+, NUL-padded; catalogue name for known ids
-  uint32_t reserved[2];         // must be zero
+  uint32_t id;               // BlobId value
+  uint32_t element_type;     // ElementType value
+  uint32_t stride;           // std430 bytes per element
+  uint32_t codec;            // CodecId value
+  uint64_t count;            // elements; raw_size = count * stride
+  uint64_t offset;           // from file start; multiple of kBlobAlignment
+  uint64_t stored_size;      // bytes in the file
+  uint64_t raw_size;         // bytes after decoding
+  uint64_t checksum;         // XXH64(seed 0) of the stored bytes
+  char name[kBlobNameSize];  // [a-z0-9_]+, NUL-padded; catalogue name for known ids
+  uint32_t reserved[2];      // must be zero
 };
 static_assert(sizeof(BlobTableEntry) == 96);
 static_assert(offsetof(BlobTableEntry, count) == 16);
@@ -386,17 +391,28 @@ static_assert(offsetof(BlobTableEntry, name) == 56);
 // unknown.
 constexpr std::string_view element_type_name(ElementType t) {
   switch (t) {
-    case ElementType::u8: return "u8";
-    case ElementType::u32: return "u32";
-    case ElementType::i32: return "i32";
-    case ElementType::f32: return "f32";
-    case ElementType::ivec2: return "ivec2";
-    case ElementType::uvec2: return "uvec2";
-    case ElementType::ivec4: return "ivec4";
-    case ElementType::uvec4: return "uvec4";
-    case ElementType::vec2: return "vec2";
-    case ElementType::vec4: return "vec4";
-    case ElementType::record: return "record";
+    case ElementType::u8:
+      return "u8";
+    case ElementType::u32:
+      return "u32";
+    case ElementType::i32:
+      return "i32";
+    case ElementType::f32:
+      return "f32";
+    case ElementType::ivec2:
+      return "ivec2";
+    case ElementType::uvec2:
+      return "uvec2";
+    case ElementType::ivec4:
+      return "ivec4";
+    case ElementType::uvec4:
+      return "uvec4";
+    case ElementType::vec2:
+      return "vec2";
+    case ElementType::vec4:
+      return "vec4";
+    case ElementType::record:
+      return "record";
   }
   return "";
 }

@@ -30,7 +30,7 @@ struct Status {
 
 // One blob, decoded (decompressed) and checksum-verified.
 struct BlobView {
-  uint32_t id = 0;            // BlobId value (may be unknown to this build)
+  uint32_t id = 0;  // BlobId value (may be unknown to this build)
   std::string name;
   ElementType type{};
   uint32_t stride = 0;
@@ -40,7 +40,7 @@ struct BlobView {
 };
 
 struct OpenOptions {
-  bool allow_mmap = true;      // map uncompressed packages instead of copying
+  bool allow_mmap = true;  // map uncompressed packages instead of copying
   bool verify_checksums = true;
   uint64_t max_raw_bytes = uint64_t(64) << 30;  // refuse to inflate beyond this
 };

@@ -12,7 +12,9 @@
 #include "decal/format.hpp"
 #include "prep/model.hpp"
 
-namespace decal { class Package; }
+namespace decal {
+class Package;
+}
 
 namespace prep {
 
@@ -74,8 +76,8 @@ struct EvalSample {
   float rgba[4] = {0, 0, 0, 0};  // PREMULTIPLIED, 0..1
   bool polygon_covered = false;  // inside some exterior polygon and no hole of it
   bool line_covered = false;
-  int32_t top_polygon = -1;      // topmost covering polygon index
-  int32_t top_line = -1;         // topmost covering line index
+  int32_t top_polygon = -1;  // topmost covering polygon index
+  int32_t top_line = -1;     // topmost covering line index
 };
 
 // Evaluates the point (x, y), in metres relative to the package origin, with
@@ -97,8 +99,8 @@ bool segment_covers(const StaticView& view, uint32_t start, uint32_t end, double
 // as gdal_rasterize -te xmin ymin xmax ymax -ts W H places them. Returns
 // W*H*4 floats, straight alpha, row 0 at the top.
 // Parallel (oneTBB) over rows. `extent` is in metres relative to the origin.
-std::vector<float> render_topdown(const StaticView& view, const Extent& extent,
-                                  uint32_t width, uint32_t height);
+std::vector<float> render_topdown(const StaticView& view, const Extent& extent, uint32_t width,
+                                  uint32_t height);
 
 // Writes an 8-bit RGBA PNG (libpng), rows top to bottom, straight alpha.
 // Throws output_error naming the path on failure.

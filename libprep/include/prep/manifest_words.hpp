@@ -24,29 +24,38 @@ enum class FailureStage { read, project, clean, build };
 
 inline const char* word(ManifestAction a) {
   switch (a) {
-    case ManifestAction::repaired: return "repaired";
-    case ManifestAction::part_dropped: return "part_dropped";
-    case ManifestAction::dropped: return "dropped";
-    case ManifestAction::clipped_away: return "clipped_away";
-    case ManifestAction::note: return "note";
+    case ManifestAction::repaired:
+      return "repaired";
+    case ManifestAction::part_dropped:
+      return "part_dropped";
+    case ManifestAction::dropped:
+      return "dropped";
+    case ManifestAction::clipped_away:
+      return "clipped_away";
+    case ManifestAction::note:
+      return "note";
   }
   return "?";
 }
 
 inline const char* word(FailureStage s) {
   switch (s) {
-    case FailureStage::read: return "read";
-    case FailureStage::project: return "project";
-    case FailureStage::clean: return "clean";
-    case FailureStage::build: return "build";
+    case FailureStage::read:
+      return "read";
+    case FailureStage::project:
+      return "project";
+    case FailureStage::clean:
+      return "clean";
+    case FailureStage::build:
+      return "build";
   }
   return "?";
 }
 
 inline std::optional<ManifestAction> manifest_action_from_word(std::string_view w) {
-  for (ManifestAction a : {ManifestAction::repaired, ManifestAction::part_dropped,
-                           ManifestAction::dropped, ManifestAction::clipped_away,
-                           ManifestAction::note})
+  for (ManifestAction a :
+       {ManifestAction::repaired, ManifestAction::part_dropped, ManifestAction::dropped,
+        ManifestAction::clipped_away, ManifestAction::note})
     if (w == word(a)) return a;
   return std::nullopt;
 }
@@ -82,8 +91,8 @@ inline ParsedReason parse_reason_text(const std::string& text) {
   if (text.rfind(prefix, 0) == 0) {
     const size_t colon = text.find(": ", prefix.size());
     if (colon != std::string::npos) {
-      const auto stage =
-          failure_stage_from_word(std::string_view(text).substr(prefix.size(), colon - prefix.size()));
+      const auto stage = failure_stage_from_word(
+          std::string_view(text).substr(prefix.size(), colon - prefix.size()));
       if (stage) return {stage, text.substr(colon + 2)};
     }
   }

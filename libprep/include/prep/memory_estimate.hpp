@@ -30,7 +30,7 @@ struct MemoryLimit {
 struct MemoryEstimate {
   const char* point = "";  // "before read", "after read", "after clean"
   double bytes = 0;
-  std::string basis;       // e.g. "1204332 polygon vertices, 98211 line vertices, 5120 parts"
+  std::string basis;  // e.g. "1204332 polygon vertices, 98211 line vertices, 5120 parts"
   // What it was computed from (after read / after clean; source bytes before read).
   double polygon_vertices = 0, line_vertices = 0, polygon_parts = 0, line_parts = 0;
   double source_bytes = 0;
@@ -51,7 +51,8 @@ double current_rss_bytes();
 
 // The estimates. `dry_run`: the build stops after clean (no build/write).
 MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run);
-MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features, bool dry_run);
+MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features,
+                                   bool dry_run);
 MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& scene);
 
 // Throws resource_error when `estimate` exceeds `limit`; the message gives

@@ -32,15 +32,15 @@ struct GridParams {
 
 // What the build stage made, for the manifest, `info` and benchmarks.
 struct BuildStats {
-  uint64_t line_segments = 0;       // static segments (closed rings wrap)
-  uint64_t line_cell_entries = 0;   // (cell, segment) pairs
-  uint64_t quadtrees = 0;           // exterior + interior polygons
+  uint64_t line_segments = 0;      // static segments (closed rings wrap)
+  uint64_t line_cell_entries = 0;  // (cell, segment) pairs
+  uint64_t quadtrees = 0;          // exterior + interior polygons
   uint64_t qt_nodes = 0;
   uint64_t qt_partial_leaves = 0;
-  uint64_t qt_depth_capped = 0;     // leaves stopped by max depth above leaf capacity
+  uint64_t qt_depth_capped = 0;  // leaves stopped by max depth above leaf capacity
   uint32_t qt_max_leaf_segments = 0;
-  uint64_t poly_cell_entries = 0;   // (cell, exterior polygon) pairs
-  uint64_t hole_cell_entries = 0;   // (cell, interior polygon) pairs
+  uint64_t poly_cell_entries = 0;  // (cell, exterior polygon) pairs
+  uint64_t hole_cell_entries = 0;  // (cell, interior polygon) pairs
 };
 
 struct DecalModel {
@@ -86,7 +86,7 @@ struct DecalModel {
   // stored int32 quantum position (<= sqrt(2)/2 mm by construction).
   double max_representation_error = 0;
   BuildStats stats;
-  Manifest manifest;                    // carried from SceneFeatures, plus build notes
+  Manifest manifest;  // carried from SceneFeatures, plus build notes
 };
 
 // Builds every static structure (grid, line segments with corner data,
@@ -100,7 +100,7 @@ DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
 // Fills the dyn_* and lod_* arrays of `model` from scene.dynamic_lines and
 // LOD-enabled layers (libprep/model/terrain, libprep/model/lod). Appends
 // notes and counts to model.manifest.
-void build_dynamic(const SceneFeatures& scene, const ModelOptions& options,
-                   const std::string& dem, DecalModel& model);
+void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, const std::string& dem,
+                   DecalModel& model);
 
 }  // namespace prep

@@ -17,9 +17,9 @@
 namespace prep {
 
 struct BuildRequest {
-  std::string output;       // package path; written atomically
-  std::string report;       // JSON report path; empty: none
-  bool dry_run = false;     // stop after clean: write the report, no package
+  std::string output;    // package path; written atomically
+  std::string report;    // JSON report path; empty: none
+  bool dry_run = false;  // stop after clean: write the report, no package
   bool compress = true;
   int zstd_level = 3;
   // --max-memory in bytes (0: none): the build stops with resource_error

@@ -43,8 +43,8 @@ struct ColorStop {
 // (linear interpolation between stops, clamped at both ends).
 struct LayerColor {
   uint32_t rgba = 0xff3366ccu;
-  std::string attribute;         // empty: constant colour
-  std::vector<ColorStop> ramp;   // sorted by value
+  std::string attribute;        // empty: constant colour
+  std::vector<ColorStop> ramp;  // sorted by value
 };
 
 struct LayerStyle {
@@ -52,20 +52,20 @@ struct LayerStyle {
   double width = 2.0;  // ground metres (static lines/outlines) or pixels (dynamic)
   decal::CornerStyle corner = decal::CornerStyle::round;
   decal::OutlineMode outline = decal::OutlineMode::normal;
-  std::string order_attribute;   // importance; empty: length (lines) / area (polygons)
+  std::string order_attribute;  // importance; empty: length (lines) / area (polygons)
 };
 
 struct LayerSpec {
-  std::string name;     // unique within the scene; defaults to the source layer
-  std::string source;   // any GDAL path, /vsizip/ included
-  std::string layer;    // source layer name; empty: the first layer
-  std::string where;    // OGR attribute filter
-  std::string sql;      // OGR SQL (replaces layer + where)
+  std::string name;    // unique within the scene; defaults to the source layer
+  std::string source;  // any GDAL path, /vsizip/ included
+  std::string layer;   // source layer name; empty: the first layer
+  std::string where;   // OGR attribute filter
+  std::string sql;     // OGR SQL (replaces layer + where)
   DecalKind kind = DecalKind::polygon;
-  bool dynamic = false; // dynamic lines: width in pixels, terrain-matched
-  bool lod = false;     // build LOCALIS LOD segments for this layer's lines
+  bool dynamic = false;  // dynamic lines: width in pixels, terrain-matched
+  bool lod = false;      // build LOCALIS LOD segments for this layer's lines
   LayerStyle style;
-  int scene_line = 0;   // line in the scene file, for messages (0: command line)
+  int scene_line = 0;  // line in the scene file, for messages (0: command line)
 };
 
 struct Extent {
@@ -75,19 +75,19 @@ struct Extent {
 
 // Stage 4 (model) knobs (thesis defaults noted).
 struct ModelOptions {
-  uint32_t grid_nx = 0, grid_ny = 0;   // 0: adaptive (default); 500x500 = thesis
-  uint32_t target_per_cell = 0;        // adaptive grid: stop refining at this proxy (0: off)
-  uint32_t max_cells = 4'000'000;      // grid cell budget
-  uint32_t qt_leaf_capacity = 8;       // thesis default
-  uint32_t qt_max_depth = 8;           // thesis default
-  double miter_limit_deg = 40.0;       // below this angle, miter falls back to round
+  uint32_t grid_nx = 0, grid_ny = 0;  // 0: adaptive (default); 500x500 = thesis
+  uint32_t target_per_cell = 0;       // adaptive grid: stop refining at this proxy (0: off)
+  uint32_t max_cells = 4'000'000;     // grid cell budget
+  uint32_t qt_leaf_capacity = 8;      // thesis default
+  uint32_t qt_max_depth = 8;          // thesis default
+  double miter_limit_deg = 40.0;      // below this angle, miter falls back to round
   // dynamic lines / terrain
-  double lmax = 0.0;                   // 0: half the DEM cell size
-  double terrain_tolerance = 0.0;      // >0: adaptive subdivision, metres
+  double lmax = 0.0;               // 0: half the DEM cell size
+  double terrain_tolerance = 0.0;  // >0: adaptive subdivision, metres
   double z_scale = 1.0;
-  std::optional<double> nodata_fill;   // raw DEM units; none: nearest valid cell (prep/dem.hpp)
-  std::string dem_assume_crs;          // CRS of a DEM that has none (the scene's assume_crs)
-  unsigned threads = 0;                // 0: all hardware threads
+  std::optional<double> nodata_fill;  // raw DEM units; none: nearest valid cell (prep/dem.hpp)
+  std::string dem_assume_crs;         // CRS of a DEM that has none (the scene's assume_crs)
+  unsigned threads = 0;               // 0: all hardware threads
   // Not from the scene file: where the build stage reports its sub-stages
   // (build.lines, build.quadtrees, build.grid, build.cells, build.dynamic;
   // prep/progress.hpp). Null: silent. Output only.
@@ -96,16 +96,16 @@ struct ModelOptions {
 
 struct SceneSpec {
   std::vector<LayerSpec> layers;
-  std::string crs;                     // empty: local Transverse Mercator on the data
-  std::string assume_crs;              // CRS for sources that have none
-  std::optional<Extent> extent;        // in `extent_crs` (default: scene frame)
+  std::string crs;               // empty: local Transverse Mercator on the data
+  std::string assume_crs;        // CRS for sources that have none
+  std::optional<Extent> extent;  // in `extent_crs` (default: scene frame)
   std::string extent_crs;
-  double resolution = 0.0;             // metres; 0 keeps every vertex
+  double resolution = 0.0;                       // metres; 0 keeps every vertex
   RepairMethod repair = RepairMethod::linework;  // invalid polygons (see RepairMethod)
-  std::string dem;                     // GDAL raster path; empty: flat terrain
+  std::string dem;                               // GDAL raster path; empty: flat terrain
   bool skip_failures = false;
-  ModelOptions model;                  // stage 4 knobs (the scene file's [build] table)
-  std::string scene_path;              // for messages and provenance
+  ModelOptions model;      // stage 4 knobs (the scene file's [build] table)
+  std::string scene_path;  // for messages and provenance
 };
 
 // ---------------------------------------------------------------- manifest --
@@ -114,9 +114,9 @@ struct SceneSpec {
 struct ManifestEntry {
   std::string layer;
   int64_t fid = -1;
-  int part = -1;            // -1: the whole feature
+  int part = -1;  // -1: the whole feature
   ManifestAction action = ManifestAction::dropped;
-  std::string reason;       // human-readable: what was wrong / what was done
+  std::string reason;  // human-readable: what was wrong / what was done
   double area_before = std::numeric_limits<double>::quiet_NaN();
   double area_after = std::numeric_limits<double>::quiet_NaN();
   // Set for a feature dropped for a per-feature failure (feature_failure.hpp):
@@ -155,9 +155,9 @@ using Ring = std::vector<Point2>;  // not closed: first point is not repeated
 struct SourceFeature {
   int64_t fid = -1;
   int part = 0;
-  uint64_t feature = 0;     // index of the input feature in its layer (read order)
-  std::string repairs;      // what read/project already fixed ("closed an open ring")
-  std::string drop_reason;  // non-empty: unusable; clean records it as dropped
+  uint64_t feature = 0;                   // index of the input feature in its layer (read order)
+  std::string repairs;                    // what read/project already fixed ("closed an open ring")
+  std::string drop_reason;                // non-empty: unusable; clean records it as dropped
   std::optional<FailureStage> failed_in;  // set: drop_reason is a per-feature failure
   bool is_polygon = false;
   std::vector<Ring> rings;  // polygon: [0] shell, then holes; line: [0]
@@ -180,7 +180,7 @@ struct FeatureSet {
 // expressed in `crs_wkt` (a projected CRS).
 struct SceneFrame {
   std::string crs_wkt;
-  std::string description;  // e.g. "local TM lon0=7.42 lat0=43.73"
+  std::string description;            // e.g. "local TM lon0=7.42 lat0=43.73"
   double origin_x = 0, origin_y = 0;  // in the frame CRS
   // Local TM frames only (else NaN): the central meridian and the latitude of
   // origin, degrees, WGS84 ellipsoid, scale 1 on the central meridian.
@@ -193,10 +193,10 @@ struct SceneFrame {
 struct ScenePolygon {
   Ring shell;
   std::vector<Ring> holes;
-  uint32_t layer = 0;   // index into SceneFeatures::layers
+  uint32_t layer = 0;  // index into SceneFeatures::layers
   int64_t fid = -1;
   int part = 0;
-  double area = 0;      // m², for drawing order
+  double area = 0;  // m², for drawing order
   double order_value = std::numeric_limits<double>::quiet_NaN();
   double color_value = std::numeric_limits<double>::quiet_NaN();
 };
@@ -207,15 +207,15 @@ struct SceneLine {
   uint32_t layer = 0;
   int64_t fid = -1;
   int part = 0;
-  double length = 0;    // ground metres (geodesic), for drawing order
-  double width = 0;     // ground metres (static) corrected by the frame scale; pixels (dynamic)
+  double length = 0;  // ground metres (geodesic), for drawing order
+  double width = 0;   // ground metres (static) corrected by the frame scale; pixels (dynamic)
   double order_value = std::numeric_limits<double>::quiet_NaN();
   double color_value = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct SceneFeatures {
   SceneFrame frame;
-  Extent extent;                  // scene coordinates (relative to origin)
+  Extent extent;  // scene coordinates (relative to origin)
   std::vector<LayerSpec> layers;
   std::vector<ScenePolygon> polygons;
   std::vector<SceneLine> lines;          // static lines and outlines

@@ -34,10 +34,10 @@ double distance_to_segment(double px, double py, double ax, double ay, double bx
 
 // The BLG-tree of one line (§3.1): one node per interior point.
 struct BlgTree {
-  std::vector<uint32_t> parent;   // local index, kNone for the root (and B, E)
-  std::vector<uint32_t> span_l, span_r;  // the baseline the node splits
+  std::vector<uint32_t> parent;            // local index, kNone for the root (and B, E)
+  std::vector<uint32_t> span_l, span_r;    // the baseline the node splits
   std::vector<uint32_t> child_l, child_r;  // kNone when absent
-  std::vector<double> error;      // DP distance to the baseline
+  std::vector<double> error;               // DP distance to the baseline
   uint32_t root = kNone;
 };
 
@@ -109,11 +109,13 @@ class SpanPolygon {
       const int64_t y1 = std::max<int64_t>(pts_[k][1], pts_[k2][1]);
       for (int64_t b = band(y0); b <= band(y1); ++b) f(b);
     };
-    for (uint32_t k = l; k <= r; ++k) each_band(k, [&](int64_t b) { ++start_[static_cast<size_t>(b) + 1]; });
+    for (uint32_t k = l; k <= r; ++k)
+      each_band(k, [&](int64_t b) { ++start_[static_cast<size_t>(b) + 1]; });
     std::partial_sum(start_.begin(), start_.end(), start_.begin());
     edges_.resize(start_.back());
     std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
-    for (uint32_t k = l; k <= r; ++k) each_band(k, [&](int64_t b) { edges_[fill[static_cast<size_t>(b)]++] = k; });
+    for (uint32_t k = l; k <= r; ++k)
+      each_band(k, [&](int64_t b) { edges_[fill[static_cast<size_t>(b)]++] = k; });
   }
 
   bool inside_or_on(Vec q) const {
@@ -125,8 +127,8 @@ class SpanPolygon {
       const uint32_t k2 = k == r_ ? l_ : k + 1;
       const Vec a{pts_[k][0], pts_[k][1]}, c{pts_[k2][0], pts_[k2][1]};
       const int128 cross = int128(c.x - a.x) * (q.y - a.y) - int128(q.x - a.x) * (c.y - a.y);
-      if (cross == 0 && q.x >= std::min(a.x, c.x) && q.x <= std::max(a.x, c.x) && q.y >= std::min(a.y, c.y) &&
-          q.y <= std::max(a.y, c.y))
+      if (cross == 0 && q.x >= std::min(a.x, c.x) && q.x <= std::max(a.x, c.x) &&
+          q.y >= std::min(a.y, c.y) && q.y <= std::max(a.y, c.y))
         return true;
       if ((a.y > q.y) != (c.y > q.y)) {
         if (c.y > a.y ? cross > 0 : cross < 0) inside = !inside;
@@ -137,7 +139,8 @@ class SpanPolygon {
 
  private:
   int64_t band(int64_t y) const {
-    return std::clamp<int64_t>(static_cast<int64_t>((int128(y - ymin_) * bands_) / height_), 0, bands_ - 1);
+    return std::clamp<int64_t>(static_cast<int64_t>((int128(y - ymin_) * bands_) / height_), 0,
+                               bands_ - 1);
   }
   const std::vector<ivec2>& pts_;
   uint32_t l_, r_;
@@ -190,8 +193,8 @@ float round_up(double v) {
 // Iterative Tarjan: component id per node; components are numbered in
 // reverse topological order (a component gets its id after every
 // component it reaches).
-uint32_t strongly_connected(const std::vector<uint32_t>& adj_start, const std::vector<uint32_t>& adj,
-                            std::vector<uint32_t>& comp) {
+uint32_t strongly_connected(const std::vector<uint32_t>& adj_start,
+                            const std::vector<uint32_t>& adj, std::vector<uint32_t>& comp) {
   const auto n = static_cast<uint32_t>(adj_start.size() - 1);
   std::vector<uint32_t> index(n, kNone), low(n, 0), stack;
   std::vector<char> on_stack(n, 0);
@@ -267,7 +270,8 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
   const auto npts = static_cast<uint32_t>(all.size());
   std::vector<uint32_t> point_line(npts);
   for (uint32_t li = 0; li < nlines; ++li)
-    for (uint32_t k = 0; k < out.line_points[li][1]; ++k) point_line[out.line_points[li][0] + k] = li;
+    for (uint32_t k = 0; k < out.line_points[li][1]; ++k)
+      point_line[out.line_points[li][0] + k] = li;
 
   // §3.1 BLG-trees, one per line, in parallel.
   std::vector<BlgTree> trees(nlines);
@@ -315,9 +319,8 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
       if (i - t.span_l[i] == 1) segs.push_back({base + t.span_l[i], base + i, base + i, kNone});
       if (t.span_r[i] - i == 1) segs.push_back({base + i, base + t.span_r[i], base + i, kNone});
     }
-    std::sort(segs.begin(), segs.end(), [](const auto& a, const auto& b) {
-      return a.a != b.a ? a.a < b.a : a.b < b.b;
-    });
+    std::sort(segs.begin(), segs.end(),
+              [](const auto& a, const auto& b) { return a.a != b.a ? a.a < b.a : a.b < b.b; });
     out.line_range[li] = {static_cast<uint32_t>(out.segments.size()),
                           static_cast<uint32_t>(segs.size())};
     out.segments.insert(out.segments.end(), segs.begin(), segs.end());
@@ -363,7 +366,8 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
             if (qv.x < xmin || qv.x > xmax || qv.y < ymin || qv.y > ymax) continue;
             // A point on an end of the baseline is a joint with this line,
             // not something the baseline can cross.
-            if ((qv.x == pts[l][0] && qv.y == pts[l][1]) || (qv.x == pts[r][0] && qv.y == pts[r][1]))
+            if ((qv.x == pts[l][0] && qv.y == pts[l][1]) ||
+                (qv.x == pts[r][0] && qv.y == pts[r][1]))
               continue;
             if (polygon.inside_or_on(qv)) mine.push_back(q);
           }
@@ -406,8 +410,9 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
       ++out.stats.cycles;
       out.stats.points_in_cycles += m.size();
       for (uint32_t p : m)
-        d = std::max(d, std::hypot(double(all[p][0] - eval[c][0]), double(all[p][1] - eval[c][1])) * kQ +
-                            1e-3);
+        d = std::max(
+            d,
+            std::hypot(double(all[p][0] - eval[c][0]), double(all[p][1] - eval[c][1])) * kQ + 1e-3);
     }
     for (uint32_t p : m)
       for (uint32_t k = adj_start[p]; k < adj_start[p + 1]; ++k) {
@@ -447,7 +452,8 @@ double lod_distance(const decal::LodPoint& p, const LodCamera& camera) {
   return std::sqrt(dx * dx + dy * dy + camera.z * camera.z);
 }
 
-bool lod_point_included(const decal::LodPoint& p, const LodCamera& camera, const LodThreshold& eps) {
+bool lod_point_included(const decal::LodPoint& p, const LodCamera& camera,
+                        const LodThreshold& eps) {
   if (p.flags & decal::kLodPointAlways) return true;
   return double(p.e_star) > eps(lod_distance(p, camera) - double(p.d_star));
 }
@@ -456,7 +462,8 @@ std::vector<uint32_t> visible_segments(std::span<const decal::LodPoint> points,
                                        std::span<const decal::LodSegment> segments,
                                        const LodCamera& camera, const LodThreshold& eps) {
   std::vector<char> included(points.size());
-  for (size_t i = 0; i < points.size(); ++i) included[i] = lod_point_included(points[i], camera, eps);
+  for (size_t i = 0; i < points.size(); ++i)
+    included[i] = lod_point_included(points[i], camera, eps);
   std::vector<uint32_t> out;
   for (size_t s = 0; s < segments.size(); ++s) {
     const auto& seg = segments[s];

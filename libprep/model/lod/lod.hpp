@@ -43,12 +43,12 @@ struct LodInputLine {
 
 struct LodStats {
   uint64_t lines = 0;
-  uint64_t original_segments = 0;   // sum of (points - 1), closing segment included
-  uint64_t attributed_segments = 0; // 2n - 1 per line of n segments
-  uint64_t dependee_edges = 0;      // (point, dependee) pairs found
-  uint64_t cycles = 0;              // strongly connected components of > 1 point
+  uint64_t original_segments = 0;    // sum of (points - 1), closing segment included
+  uint64_t attributed_segments = 0;  // 2n - 1 per line of n segments
+  uint64_t dependee_edges = 0;       // (point, dependee) pairs found
+  uint64_t cycles = 0;               // strongly connected components of > 1 point
   uint64_t points_in_cycles = 0;
-  uint64_t always_points = 0;       // points that are always included
+  uint64_t always_points = 0;  // points that are always included
 };
 
 // The package blobs of a LOD set.
@@ -86,8 +86,7 @@ double lod_distance(const decal::LodPoint& p, const LodCamera& camera);
 
 // True iff the point is included for this camera and threshold (format.hpp
 // rule). Thread-safe.
-bool lod_point_included(const decal::LodPoint& p, const LodCamera& camera,
-                        const LodThreshold& eps);
+bool lod_point_included(const decal::LodPoint& p, const LodCamera& camera, const LodThreshold& eps);
 
 // Indices (into `segments`) of the visible segments, in increasing order.
 // Thread-safe (reads only).

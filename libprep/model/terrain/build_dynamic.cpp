@@ -9,15 +9,17 @@
 #include <numeric>
 #include <sstream>
 
-#include "prep/model.hpp"
-#include "prep/error.hpp"
 #include "lod/lod.hpp"
+#include "prep/error.hpp"
+#include "prep/model.hpp"
 #include "terrain/terrain.hpp"
 
 namespace prep {
 namespace {
 
-uint32_t channel(uint32_t rgba, int c) { return (rgba >> (8 * c)) & 0xffu; }
+uint32_t channel(uint32_t rgba, int c) {
+  return (rgba >> (8 * c)) & 0xffu;
+}
 
 // Layer colour: constant, or the attribute value through the ramp (linear
 // per channel between stops, clamped at both ends).
@@ -33,7 +35,8 @@ uint32_t resolve_color(const LayerColor& color, double value) {
   const double t = b.value > a.value ? (value - a.value) / (b.value - a.value) : 0.0;
   uint32_t out = 0;
   for (int c = 0; c < 4; ++c) {
-    const double v = channel(a.rgba, c) + t * (double(channel(b.rgba, c)) - double(channel(a.rgba, c)));
+    const double v =
+        channel(a.rgba, c) + t * (double(channel(b.rgba, c)) - double(channel(a.rgba, c)));
     out |= static_cast<uint32_t>(std::clamp(std::lround(v), 0L, 255L)) << (8 * c);
   }
   return out;
@@ -49,8 +52,8 @@ std::string fmt(double v, int digits = 3) {
 
 }  // namespace
 
-void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, const std::string& dem_path,
-                   DecalModel& model) {
+void build_dynamic(const SceneFeatures& scene, const ModelOptions& options,
+                   const std::string& dem_path, DecalModel& model) {
   std::unique_ptr<tbb::global_control> threads;
   if (options.threads > 0)
     threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -75,7 +78,8 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
   for (const SceneLine& l : scene.dynamic_lines) {
     if (l.points.size() < 2 || (l.closed && l.points.size() < 3)) {
       model.manifest.entries.push_back({layer_name(l.layer), l.fid, l.part, ManifestAction::dropped,
-                                        "build: dynamic line has " + std::to_string(l.points.size()) +
+                                        "build: dynamic line has " +
+                                            std::to_string(l.points.size()) +
                                             " points, too few to draw"});
       continue;
     }
@@ -103,7 +107,8 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
     notes.push_back("terrain: no dynamic lines; DEM " + dem_path + " not read");
   } else {
     dem = std::make_unique<DemSampler>(
-        DemSpec{dem_path, options.dem_assume_crs, options.z_scale, options.nodata_fill}, scene.frame);
+        DemSpec{dem_path, options.dem_assume_crs, options.z_scale, options.nodata_fill},
+        scene.frame);
     double xmin = lines[0].points[0].x, xmax = xmin, ymin = lines[0].points[0].y, ymax = ymin;
     for (const auto& l : lines)
       for (const auto& p : l.points) {
@@ -126,13 +131,13 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
     std::string mode = match_options.tolerance > 0 && dem
                            ? "adaptive, tolerance " + fmt(match_options.tolerance) + " m"
                            : "fixed lmax";
-    notes.push_back("terrain: dynamic lines " + std::to_string(lines.size()) + ", vertices in " +
-                    std::to_string(m.vertices_in) + ", after subdivision to lmax " +
-                    (std::isinf(match_options.lmax) ? std::string("inf (none)") : fmt(match_options.lmax)) +
-                    " m " + std::to_string(m.vertices_fixed) + ", stored " +
-                    std::to_string(m.vertices_out) + " (" + mode + "); longest stored piece " +
-                    fmt(m.max_piece_length, 4) + " m; max deviation from the DEM surface " +
-                    fmt(m.max_deviation, 4) + " m");
+    notes.push_back(
+        "terrain: dynamic lines " + std::to_string(lines.size()) + ", vertices in " +
+        std::to_string(m.vertices_in) + ", after subdivision to lmax " +
+        (std::isinf(match_options.lmax) ? std::string("inf (none)") : fmt(match_options.lmax)) +
+        " m " + std::to_string(m.vertices_fixed) + ", stored " + std::to_string(m.vertices_out) +
+        " (" + mode + "); longest stored piece " + fmt(m.max_piece_length, 4) +
+        " m; max deviation from the DEM surface " + fmt(m.max_deviation, 4) + " m");
     if (m.tolerance_misses > 0)
       notes.push_back("terrain: " + std::to_string(m.tolerance_misses) +
                       " pieces reached 1 cm and still exceed the terrain tolerance");
@@ -140,12 +145,12 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
       const TerrainStats& t = m.terrain;
       model.terrain_min = t.min;
       model.terrain_max = t.max;
-      notes.push_back("terrain: DEM window " + std::to_string(t.window_cells) + " cells, " +
-                      std::to_string(t.nodata_cells) + " no-data cells filled (" + t.fill_policy +
-                      "); " + std::to_string(t.samples_touching_fill) + " of " +
-                      std::to_string(t.samples) + " vertex heights used a filled cell, " +
-                      std::to_string(t.samples_outside) + " lie outside the DEM (edge value); terrain " +
-                      fmt(t.min) + " .. " + fmt(t.max) + " m");
+      notes.push_back(
+          "terrain: DEM window " + std::to_string(t.window_cells) + " cells, " +
+          std::to_string(t.nodata_cells) + " no-data cells filled (" + t.fill_policy + "); " +
+          std::to_string(t.samples_touching_fill) + " of " + std::to_string(t.samples) +
+          " vertex heights used a filled cell, " + std::to_string(t.samples_outside) +
+          " lie outside the DEM (edge value); terrain " + fmt(t.min) + " .. " + fmt(t.max) + " m");
     }
   }
 
@@ -156,7 +161,9 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
   const auto nl = static_cast<uint32_t>(lines.size());
   std::vector<uint32_t> by_rank(nl);
   std::iota(by_rank.begin(), by_rank.end(), 0u);
-  auto key = [&](const SceneLine& l) { return std::isfinite(l.order_value) ? l.order_value : l.length; };
+  auto key = [&](const SceneLine& l) {
+    return std::isfinite(l.order_value) ? l.order_value : l.length;
+  };
   std::stable_sort(by_rank.begin(), by_rank.end(), [&](uint32_t a, uint32_t b) {
     if (lines[a].layer != lines[b].layer) return lines[a].layer > lines[b].layer;
     return key(lines[a]) > key(lines[b]);
@@ -165,7 +172,8 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
   for (uint32_t r = 0; r < nl; ++r) model.dyn_line_props[by_rank[r]].order = r;
   for (uint32_t i = 0; i < nl; ++i) {
     const SceneLine& l = lines[i];
-    const LayerStyle* style = l.layer < scene.layers.size() ? &scene.layers[l.layer].style : nullptr;
+    const LayerStyle* style =
+        l.layer < scene.layers.size() ? &scene.layers[l.layer].style : nullptr;
     auto& p = model.dyn_line_props[i];
     const double width = l.width > 0 ? l.width : (style ? style->width : 2.0);
     p.half_width = static_cast<float>(0.5 * width);  // pixels
@@ -177,7 +185,8 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
               (l.closed ? decal::kStyleClosedBit : 0u);
     p.value = static_cast<float>(l.color_value);
     p.layer = l.layer;
-    p.feature = l.fid >= 0 && l.fid <= int64_t(0xfffffffe) ? static_cast<uint32_t>(l.fid) : 0xffffffffu;
+    p.feature =
+        l.fid >= 0 && l.fid <= int64_t(0xfffffffe) ? static_cast<uint32_t>(l.fid) : 0xffffffffu;
     p.clip_node = 0;  // dynamic lines are never clipped
   }
 
@@ -194,7 +203,8 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
                        static_cast<int32_t>(std::llround(pt.y / decal::kQuantumMetres))};
       if (in.points.empty() || in.points.back() != q) in.points.push_back(q);
     }
-    if (in.closed && in.points.size() > 1 && in.points.front() == in.points.back()) in.points.pop_back();
+    if (in.closed && in.points.size() > 1 && in.points.front() == in.points.back())
+      in.points.pop_back();
     if (in.points.size() < (in.closed ? 3u : 2u)) {
       model.manifest.entries.push_back({layer_name(l.layer), l.fid, l.part, ManifestAction::note,
                                         "lod: line collapses at 1 mm; no LOD segments"});
@@ -208,13 +218,15 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, cons
     model.lod_segments = std::move(lod.segments);
     model.lod_line_range = std::move(lod.line_range);
     const auto& s = lod.stats;
-    notes.push_back("lod: " + std::to_string(s.lines) + " lines, " + std::to_string(s.original_segments) +
-                    " original segments -> " + std::to_string(s.attributed_segments) +
-                    " attributed segments (x" +
-                    fmt(s.original_segments ? double(s.attributed_segments) / double(s.original_segments) : 0, 2) +
-                    "); " + std::to_string(s.dependee_edges) + " dependees, " + std::to_string(s.cycles) +
-                    " cycles merged into proxies (" + std::to_string(s.points_in_cycles) + " points), " +
-                    std::to_string(s.always_points) + " points always drawn");
+    notes.push_back(
+        "lod: " + std::to_string(s.lines) + " lines, " + std::to_string(s.original_segments) +
+        " original segments -> " + std::to_string(s.attributed_segments) +
+        " attributed segments (x" +
+        fmt(s.original_segments ? double(s.attributed_segments) / double(s.original_segments) : 0,
+            2) +
+        "); " + std::to_string(s.dependee_edges) + " dependees, " + std::to_string(s.cycles) +
+        " cycles merged into proxies (" + std::to_string(s.points_in_cycles) + " points), " +
+        std::to_string(s.always_points) + " points always drawn");
   }
 }
 

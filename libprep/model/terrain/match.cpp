@@ -26,7 +26,9 @@ constexpr double kLengthReserve = 1.5e-3;
 constexpr double kToleranceReserve = 5e-3;
 constexpr double kMinAdaptivePiece = 0.01;  // metres
 
-int32_t quantise(double v) { return static_cast<int32_t>(std::llround(v / kQ)); }
+int32_t quantise(double v) {
+  return static_cast<int32_t>(std::llround(v / kQ));
+}
 
 // Exclusive prefix sum with oneTBB (thesis §4.2.2 suggests a parallel
 // prefix sum for the vertex offsets). out has counts.size() + 1 entries.
@@ -66,7 +68,9 @@ double piece_deviation(const DemSampler& dem, std::span<const PixelPathPoint> pa
                        double zb, double* arg) {
   double best = 0, best_s = 0;
   bool any = false;
-  auto f_at = [&](double s, double px, double py) { return za + s * (zb - za) - dem.height(px, py); };
+  auto f_at = [&](double s, double px, double py) {
+    return za + s * (zb - za) - dem.height(px, py);
+  };
   auto consider = [&](double s, double f) {
     if (!any || std::abs(f) > best) {
       best = std::abs(f);
@@ -95,7 +99,8 @@ double piece_deviation(const DemSampler& dem, std::span<const PixelPathPoint> pa
     std::sort(us.begin(), us.end());
     auto at = [&](double u, double* s) {
       *s = p.s + u * (q.s - p.s);
-      return f_at(*s, p.pixel.x + u * (q.pixel.x - p.pixel.x), p.pixel.y + u * (q.pixel.y - p.pixel.y));
+      return f_at(*s, p.pixel.x + u * (q.pixel.x - p.pixel.x),
+                  p.pixel.y + u * (q.pixel.y - p.pixel.y));
     };
     for (size_t i = 0; i + 1 < us.size(); ++i) {
       const double ua = us[i], ub = us[i + 1];
@@ -122,7 +127,9 @@ double piece_deviation(const DemSampler& dem, std::span<const PixelPathPoint> pa
 
 namespace {
 
-Point2 pos(const Segment& s, double t) { return {s.a.x + t * (s.b.x - s.a.x), s.a.y + t * (s.b.y - s.a.y)}; }
+Point2 pos(const Segment& s, double t) {
+  return {s.a.x + t * (s.b.x - s.a.x), s.a.y + t * (s.b.y - s.a.y)};
+}
 
 // The fixed subdivision of every segment of every line (Algorithm 3.1) and
 // what the adaptive mode and the statistics read from it.
@@ -138,7 +145,8 @@ struct Subdivision {
   uint64_t next_node(size_t k) const {
     const Segment& s = segs[k];
     if (s.last_open) return offset[k] + pieces[k];
-    if (k + 1 == line_first_seg[s.line + 1]) return offset[line_first_seg[s.line]];  // closed: wraps
+    if (k + 1 == line_first_seg[s.line + 1])
+      return offset[line_first_seg[s.line]];  // closed: wraps
     return offset[k + 1];
   }
 };
@@ -150,8 +158,8 @@ void flatten_segments(const std::vector<SceneLine>& lines, Subdivision& sub, Mat
     const SceneLine& l = lines[li];
     const size_t n = l.points.size();
     if (n < 2 || (l.closed && n < 3))
-      throw input_error("terrain: dynamic line " + std::to_string(li) + " (fid " + std::to_string(l.fid) +
-                        "): " + std::to_string(n) + " points are too few");
+      throw input_error("terrain: dynamic line " + std::to_string(li) + " (fid " +
+                        std::to_string(l.fid) + "): " + std::to_string(n) + " points are too few");
     out.vertices_in += n;
     sub.line_first_seg[li] = static_cast<uint32_t>(sub.segs.size());
     const size_t nseg = l.closed ? n : n - 1;
@@ -177,23 +185,25 @@ void subdivide_fixed(double l_eff, DemSampler* dem, Subdivision& sub) {
   const uint64_t nfixed = sub.offset[nseg];
   sub.fq.resize(nfixed);
   sub.fpix.resize(dem ? nfixed : 0);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, nseg, 256), [&](const tbb::blocked_range<size_t>& r) {
-    std::vector<Point2> scene;
-    for (size_t k = r.begin(); k < r.end(); ++k) {
-      const Segment& s = sub.segs[k];
-      const uint64_t o = sub.offset[k];
-      for (uint64_t i = 0; i < sub.counts[k]; ++i) {
-        // The end vertex of an open line is the segment's b exactly.
-        const Point2 p = i == sub.pieces[k] ? s.b : pos(s, double(i) / double(sub.pieces[k]));
-        sub.fq[o + i] = {quantise(p.x), quantise(p.y)};
-      }
-      if (dem) {
-        scene.resize(sub.counts[k]);
-        for (uint64_t i = 0; i < sub.counts[k]; ++i) scene[i] = {sub.fq[o + i][0] * kQ, sub.fq[o + i][1] * kQ};
-        dem->to_pixel(scene, std::span<Point2>(sub.fpix.data() + o, sub.counts[k]));
-      }
-    }
-  });
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, nseg, 256), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<Point2> scene;
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+          const Segment& s = sub.segs[k];
+          const uint64_t o = sub.offset[k];
+          for (uint64_t i = 0; i < sub.counts[k]; ++i) {
+            // The end vertex of an open line is the segment's b exactly.
+            const Point2 p = i == sub.pieces[k] ? s.b : pos(s, double(i) / double(sub.pieces[k]));
+            sub.fq[o + i] = {quantise(p.x), quantise(p.y)};
+          }
+          if (dem) {
+            scene.resize(sub.counts[k]);
+            for (uint64_t i = 0; i < sub.counts[k]; ++i)
+              scene[i] = {sub.fq[o + i][0] * kQ, sub.fq[o + i][1] * kQ};
+            dem->to_pixel(scene, std::span<Point2>(sub.fpix.data() + o, sub.counts[k]));
+          }
+        }
+      });
 }
 
 // Loads the DEM window that holds every fixed vertex.
@@ -209,7 +219,9 @@ void load_window(const std::vector<Point2>& fpix, DemSampler& dem) {
   dem.load(x0, y0, x1, y1);
 }
 
-int32_t z_at(const DemSampler* dem, const Point2& pix) { return dem ? quantise(dem->height(pix.x, pix.y)) : 0; }
+int32_t z_at(const DemSampler* dem, const Point2& pix) {
+  return dem ? quantise(dem->height(pix.x, pix.y)) : 0;
+}
 
 // Adaptive mode: per segment, the vertices kept by recursive refinement
 // (explicit stack, left to right): a piece is kept when its exact maximum
@@ -220,7 +232,9 @@ std::vector<Kept> refine_segment(const Subdivision& sub, size_t k, DemSampler& d
   const uint64_t n = sub.pieces[k];
   const uint64_t o = sub.offset[k];
   const double len = std::hypot(s.b.x - s.a.x, s.b.y - s.a.y);
-  auto node_pixel = [&](uint64_t i) { return i == n ? sub.fpix[sub.next_node(k)] : sub.fpix[o + i]; };
+  auto node_pixel = [&](uint64_t i) {
+    return i == n ? sub.fpix[sub.next_node(k)] : sub.fpix[o + i];
+  };
   auto make = [&](double t) {
     Kept v;
     v.s = t;
@@ -342,8 +356,8 @@ void fixed_deviation(const Subdivision& sub, const DemSampler& dem, const Matche
       const uint64_t a = sub.offset[k] + i;
       const uint64_t b = i + 1 == sub.pieces[k] ? sub.next_node(k) : a + 1;
       const PixelPathPoint path[2] = {{0.0, sub.fpix[a]}, {1.0, sub.fpix[b]}};
-      seg_dev[k] = std::max(seg_dev[k], piece_deviation(dem, path, out.vertices[a][2] * kQ,
-                                                        out.vertices[b][2] * kQ));
+      seg_dev[k] = std::max(
+          seg_dev[k], piece_deviation(dem, path, out.vertices[a][2] * kQ, out.vertices[b][2] * kQ));
     }
   });
 }
@@ -381,7 +395,8 @@ MatchedLines match_terrain(const std::vector<SceneLine>& lines, DemSampler* dem,
   }
   const uint64_t nout = out_offset[nseg];
   if (nout > uint64_t(std::numeric_limits<int32_t>::max()))
-    throw resource_error("terrain: " + std::to_string(nout) + " dynamic-line vertices exceed int32 indices");
+    throw resource_error("terrain: " + std::to_string(nout) +
+                         " dynamic-line vertices exceed int32 indices");
   out.vertices_out = nout;
   out.vertices.resize(nout);
   std::vector<uint8_t> touched(nout, 0), outside(nout, 0);
@@ -398,8 +413,10 @@ MatchedLines match_terrain(const std::vector<SceneLine>& lines, DemSampler* dem,
   if (dem) {
     out.terrain = dem->stats();
     out.terrain.samples = nout;
-    out.terrain.samples_touching_fill = static_cast<uint64_t>(std::count(touched.begin(), touched.end(), 1));
-    out.terrain.samples_outside = static_cast<uint64_t>(std::count(outside.begin(), outside.end(), 1));
+    out.terrain.samples_touching_fill =
+        static_cast<uint64_t>(std::count(touched.begin(), touched.end(), 1));
+    out.terrain.samples_outside =
+        static_cast<uint64_t>(std::count(outside.begin(), outside.end(), 1));
   }
   return out;
 }

@@ -64,8 +64,8 @@ struct PassTimer {
 // quanta; everything on the GPU is relative to it (ARCHITECTURE.md
 // "Guarantees" 1).
 struct ViewUniforms {
-  int64_t ax = 0, ay = 0;              // anchor in quanta
-  Vec3 anchor{}, eye_rel{};            // anchor in metres; eye relative to it
+  int64_t ax = 0, ay = 0;    // anchor in quanta
+  Vec3 anchor{}, eye_rel{};  // anchor in metres; eye relative to it
   std::array<float, 16> view_proj{}, inv_view_proj{};
   // Anchor relative to the grid origin (quanta), its cell and the grid.
   int64_t rx = 0, ry = 0, cell_x = 0, cell_y = 0;
@@ -74,7 +74,8 @@ struct ViewUniforms {
   // dynamic lines.
   double mpp_ortho = 0, mpp_per_metre = 0;
 };
-ViewUniforms view_uniforms(const Camera& cam, const GridParams& grid, uint32_t width, uint32_t height);
+ViewUniforms view_uniforms(const Camera& cam, const GridParams& grid, uint32_t width,
+                           uint32_t height);
 
 // G-buffer: terrain colour + float depth (reversed Z); decal layer; final;
 // dynamic-line layer. Each colour texture has its framebuffer.
@@ -105,8 +106,8 @@ class GlRenderer {
  public:
   // Uploads the blobs, the terrain mesh, makes the targets and programs.
   // The GL context must be current and outlive this object.
-  GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal::gl::Grid& grid, const DecalSource& source,
-             const Heightfield& terrain, const RenderOptions& opt);
+  GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal::gl::Grid& grid,
+             const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt);
   // All passes of one frame; dynamic-line counts go to `img`.
   void frame(Image& img);
   // Reads the layers back into `img` (rows top-down, straight alpha) with

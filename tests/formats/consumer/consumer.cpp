@@ -1,7 +1,7 @@
 // Opens and validates (decal::validate_indices, as every consumer does) each
-// package named on the command line with the installed reader and prints "ok <path> <major>.<minor> <blobs>" or "error <path>: <message>".
-// Exit status: 0 when every "valid_*" file opens and every other one is
-// refused, 1 otherwise.
+// package named on the command line with the installed reader and prints "ok <path> <major>.<minor>
+// <blobs>" or "error <path>: <message>". Exit status: 0 when every "valid_*" file opens and every
+// other one is refused, 1 otherwise.
 #include <cstdio>
 #include <string>
 
@@ -17,7 +17,8 @@ int main(int argc, char** argv) {
     decal::Status s = decal::Package::open(path, pkg);
     if (s) s = decal::validate_indices(pkg);
     if (s)
-      std::printf("ok %s %u.%u %zu\n", path.c_str(), unsigned(pkg.major()), unsigned(pkg.minor()), pkg.blobs().size());
+      std::printf("ok %s %u.%u %zu\n", path.c_str(), unsigned(pkg.major()), unsigned(pkg.minor()),
+                  pkg.blobs().size());
     else
       std::printf("error %s\n", s.message.c_str());
     if (bool(s) != expect_ok) {

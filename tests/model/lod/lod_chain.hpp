@@ -44,7 +44,8 @@ inline std::optional<std::vector<uint32_t>> visible_chain(const prep::LodSet& se
     chain.push_back(it->second);
   }
   if (chain.size() - 1 != used) {
-    *why = std::to_string(used) + " visible segments but the chain uses " + std::to_string(chain.size() - 1);
+    *why = std::to_string(used) + " visible segments but the chain uses " +
+           std::to_string(chain.size() - 1);
     return std::nullopt;
   }
   return chain;

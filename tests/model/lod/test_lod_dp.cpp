@@ -7,9 +7,9 @@
 #include <cmath>
 #include <random>
 
+#include "lod/lod.hpp"
 #include "lod_chain.hpp"
 #include "prep/error.hpp"
-#include "lod/lod.hpp"
 
 namespace {
 
@@ -29,8 +29,8 @@ double oracle_distance(const Pt& p, const Pt& a, const Pt& b) {
 
 // Keeps the points DP keeps at tolerance eps; records every split distance
 // it looks at in *seen (so the test can keep eps away from them).
-void oracle_dp(const std::vector<Pt>& p, size_t first, size_t last, double eps, std::vector<bool>& keep,
-               std::vector<double>* seen) {
+void oracle_dp(const std::vector<Pt>& p, size_t first, size_t last, double eps,
+               std::vector<bool>& keep, std::vector<double>* seen) {
   if (last <= first + 1) return;
   size_t best = first + 1;
   double best_d = -1;
@@ -54,7 +54,8 @@ std::vector<ivec2> random_polyline(std::mt19937_64& rng, size_t n) {
   std::vector<ivec2> pts;
   double x = 0, y = 0, dir = u(rng) * 6.28;
   for (size_t i = 0; i < n; ++i) {
-    ivec2 q{static_cast<int32_t>(std::llround(x * 1000)), static_cast<int32_t>(std::llround(y * 1000))};
+    ivec2 q{static_cast<int32_t>(std::llround(x * 1000)),
+            static_cast<int32_t>(std::llround(y * 1000))};
     if (pts.empty() || pts.back() != q) pts.push_back(q);
     dir += turn(rng);
     const double s = u(rng) < 0.2 ? 0.0 : step(rng);  // some collinear runs
@@ -69,7 +70,8 @@ std::vector<ivec2> random_polyline(std::mt19937_64& rng, size_t n) {
 std::vector<ivec2> scattered_polyline(std::mt19937_64& rng, size_t n, double spread) {
   std::uniform_real_distribution<double> u(0, 1);
   std::vector<ivec2> pts = random_polyline(rng, n);
-  const int32_t dx = static_cast<int32_t>(u(rng) * spread), dy = static_cast<int32_t>(u(rng) * spread);
+  const int32_t dx = static_cast<int32_t>(u(rng) * spread),
+                dy = static_cast<int32_t>(u(rng) * spread);
   for (auto& p : pts) p = {p[0] + dx, p[1] + dy};
   return pts;
 }
@@ -124,7 +126,8 @@ TEST(LodSegments, UniformThresholdWithoutDependeesEqualsDouglasPeucker) {
         if (keep[k]) expected.push_back(set.line_points[i][0] + k);
 
       const prep::LodCamera cam{u(rng) * 1000, u(rng) * 1000, u(rng) * 100};
-      const auto vis = prep::visible_segments(set.points, set.segments, cam, prep::LinearThreshold{eps, 0});
+      const auto vis =
+          prep::visible_segments(set.points, set.segments, cam, prep::LinearThreshold{eps, 0});
       std::string why;
       const auto chain = lodtest::visible_chain(set, i, vis, &why);
       ASSERT_TRUE(chain) << "line " << i << " eps " << eps << ": " << why;
@@ -180,15 +183,22 @@ TEST(LodSegments, DistanceDependentThresholdAlwaysGivesConnectedPolyline) {
       const double base = u(rng) * 5, slope = u(rng) * 0.05;
       prep::LodThreshold eps;
       switch (cam_i % 3) {
-        case 0: eps = prep::LinearThreshold{base, slope}; break;
-        case 1: eps = [=](double d) { return base + slope * 0.01 * (d > 0 ? d * d : 0.0); }; break;
-        default: eps = [=](double d) { return base * std::floor(std::max(d, 0.0) / 200.0); }; break;
+        case 0:
+          eps = prep::LinearThreshold{base, slope};
+          break;
+        case 1:
+          eps = [=](double d) { return base + slope * 0.01 * (d > 0 ? d * d : 0.0); };
+          break;
+        default:
+          eps = [=](double d) { return base * std::floor(std::max(d, 0.0) / 200.0); };
+          break;
       }
       const auto vis = prep::visible_segments(set.points, set.segments, cam, eps);
       for (uint32_t i = 0; i < lines.size(); ++i) {
         std::string why;
         const auto chain = lodtest::visible_chain(set, i, vis, &why);
-        ASSERT_TRUE(chain) << "rule " << int(rule) << " camera " << cam_i << " line " << i << ": " << why;
+        ASSERT_TRUE(chain) << "rule " << int(rule) << " camera " << cam_i << " line " << i << ": "
+                           << why;
         total_visible += chain->size() - 1;
         total_original += set.line_points[i][1] - 1;
       }
@@ -232,7 +242,8 @@ TEST(LodSegments, LineEndInsideBaselinePolygonKeepsTheSplitterAlways) {
   lines[1].line = 1;
   const auto set = prep::build_lod(lines, {});
   EXPECT_TRUE(set.points[1].flags & decal::kLodPointAlways);
-  const auto vis = prep::visible_segments(set.points, set.segments, {0, 0, 0}, prep::LinearThreshold{1e6, 0});
+  const auto vis =
+      prep::visible_segments(set.points, set.segments, {0, 0, 0}, prep::LinearThreshold{1e6, 0});
   std::string why;
   const auto chain = lodtest::visible_chain(set, 0, vis, &why);
   ASSERT_TRUE(chain) << why;
@@ -249,8 +260,10 @@ TEST(LodSegments, OutputDoesNotDependOnThreadCount) {
     if (l.points.size() >= 2) lines.push_back(std::move(l));
   }
   auto bytes = [](const prep::LodSet& s) {
-    std::string b(reinterpret_cast<const char*>(s.points.data()), s.points.size() * sizeof(decal::LodPoint));
-    b.append(reinterpret_cast<const char*>(s.segments.data()), s.segments.size() * sizeof(decal::LodSegment));
+    std::string b(reinterpret_cast<const char*>(s.points.data()),
+                  s.points.size() * sizeof(decal::LodPoint));
+    b.append(reinterpret_cast<const char*>(s.segments.data()),
+             s.segments.size() * sizeof(decal::LodSegment));
     return b;
   };
   std::string one, two;

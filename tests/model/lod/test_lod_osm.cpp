@@ -2,18 +2,18 @@
 // and streams read through
 // GDAL (OSM driver), projected with a local GeographicLib Transverse
 // Mercator. Oracle for intersections: GEOS (double precision).
-#include <GeographicLib/TransverseMercator.hpp>
 #include <gdal_priv.h>
 #include <geos_c.h>
 #include <gtest/gtest.h>
 #include <ogrsf_frmts.h>
+#include <GeographicLib/TransverseMercator.hpp>
 
 #include <chrono>
 #include <filesystem>
 #include <random>
 
-#include "lod_chain.hpp"
 #include "lod/lod.hpp"
+#include "lod_chain.hpp"
 #include "ogr_lines.hpp"
 
 namespace {
@@ -79,7 +79,8 @@ struct Box {
 class LiechtensteinLod : public ::testing::Test {
  protected:
   void SetUp() override {
-    const std::string path = std::string(DECALPREP_SHARED_DATA) + "/liechtenstein/liechtenstein-2013-08-03.osm.pbf";
+    const std::string path =
+        std::string(DECALPREP_SHARED_DATA) + "/liechtenstein/liechtenstein-2013-08-03.osm.pbf";
     if (!std::filesystem::exists(path)) GTEST_SKIP() << "missing test data " << path;
     data = read_liechtenstein(path);
     ASSERT_GT(data.lines.size(), 100u);
@@ -170,20 +171,21 @@ TEST_F(LiechtensteinLod, SimplifiedLinesNeverCrossWhereOriginalsDoNot) {
     const prep::LinearThreshold eps{u(rng) * 20, u(rng) * u(rng) * 0.05};
     size_t visible = 0;
     const size_t bad = new_intersections(set, cam, eps, &visible);
-    EXPECT_EQ(bad, 0u) << "camera " << k << " (" << cam.x << ", " << cam.y << ", " << cam.z << ") eps "
-                       << eps.base << " + " << eps.slope << " d";
+    EXPECT_EQ(bad, 0u) << "camera " << k << " (" << cam.x << ", " << cam.y << ", " << cam.z
+                       << ") eps " << eps.base << " + " << eps.slope << " d";
     simplified_cases += visible < original * 8 / 10;
   }
   EXPECT_GT(simplified_cases, 25u) << "cameras/thresholds hardly simplified the lines";
   RecordProperty("lines", static_cast<int>(data.lines.size()));
   RecordProperty("build_ms", static_cast<int>(secs * 1000));
-  std::printf("LOD: %zu lines, %llu original segments -> %llu attributed (x%.3f), %llu dependees, %llu "
-              "cycles, build %.3f s, %zu disjoint pairs checked\n",
-              data.lines.size(), static_cast<unsigned long long>(set.stats.original_segments),
-              static_cast<unsigned long long>(set.stats.attributed_segments),
-              double(set.stats.attributed_segments) / double(set.stats.original_segments),
-              static_cast<unsigned long long>(set.stats.dependee_edges),
-              static_cast<unsigned long long>(set.stats.cycles), secs, disjoint_pairs.size());
+  std::printf(
+      "LOD: %zu lines, %llu original segments -> %llu attributed (x%.3f), %llu dependees, %llu "
+      "cycles, build %.3f s, %zu disjoint pairs checked\n",
+      data.lines.size(), static_cast<unsigned long long>(set.stats.original_segments),
+      static_cast<unsigned long long>(set.stats.attributed_segments),
+      double(set.stats.attributed_segments) / double(set.stats.original_segments),
+      static_cast<unsigned long long>(set.stats.dependee_edges),
+      static_cast<unsigned long long>(set.stats.cycles), secs, disjoint_pairs.size());
 }
 
 // The check above can fail: without dependees the same cameras do create

@@ -2,10 +2,10 @@
 // through GDAL, the GDAL bilinear oracle, and Monaco's roads as SceneLines.
 #pragma once
 
-#include <GeographicLib/TransverseMercator.hpp>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
+#include <GeographicLib/TransverseMercator.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -22,7 +22,8 @@
 namespace terraintest {
 
 inline std::string temp_dir(const std::string& name) {
-  auto dir = std::filesystem::temp_directory_path() / ("decalprep_terrain_" + name + "_" + std::to_string(::getpid()));
+  auto dir = std::filesystem::temp_directory_path() /
+             ("decalprep_terrain_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   return dir.string();
 }
@@ -39,9 +40,9 @@ inline std::string wkt_of(const std::string& def) {
 
 // Writes a single-band Float32 GeoTIFF: cell (i, j) has value f(i, j);
 // geotransform gt; CRS `crs` (any SetFromUserInput string); optional nodata.
-inline std::string write_dem(const std::string& path, int w, int h, const double gt[6], const std::string& crs,
-                             const std::function<double(int, int)>& f, const double* nodata = nullptr,
-                             GDALDataType type = GDT_Float32) {
+inline std::string write_dem(const std::string& path, int w, int h, const double gt[6],
+                             const std::string& crs, const std::function<double(int, int)>& f,
+                             const double* nodata = nullptr, GDALDataType type = GDT_Float32) {
   GDALAllRegister();
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
   GDALDataset* ds = drv->Create(path.c_str(), w, h, 1, type, nullptr);
@@ -84,12 +85,13 @@ class GdalBilinear {
     nodata_ = src->GetRasterBand(1)->GetNoDataValue(&ok);
     has_nodata_ = ok != 0;
     raw_.resize(static_cast<size_t>(w_) * h_);
-    if (src->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w_, h_, raw_.data(), w_, h_, GDT_Float64, 0, 0, nullptr) !=
-        CE_None)
+    if (src->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w_, h_, raw_.data(), w_, h_, GDT_Float64, 0,
+                                        0, nullptr) != CE_None)
       throw std::runtime_error("oracle cannot read " + path);
-    mem_.reset(GetGDALDriverManager()->GetDriverByName("MEM")->Create("", w_, h_, 1, GDT_Float64, nullptr));
-    if (mem_->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, w_, h_, raw_.data(), w_, h_, GDT_Float64, 0, 0,
-                                         nullptr) != CE_None)
+    mem_.reset(GetGDALDriverManager()->GetDriverByName("MEM")->Create("", w_, h_, 1, GDT_Float64,
+                                                                      nullptr));
+    if (mem_->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, w_, h_, raw_.data(), w_, h_, GDT_Float64,
+                                         0, 0, nullptr) != CE_None)
       throw std::runtime_error("oracle cannot copy " + path);
   }
   double at_pixel(double px, double py) const {
@@ -104,7 +106,8 @@ class GdalBilinear {
     double out[4] = {0, 0, 0, 0};
     const int x0 = std::clamp(static_cast<int>(std::floor(ea.dfXOff)), 0, w_ - 1);
     const int y0 = std::clamp(static_cast<int>(std::floor(ea.dfYOff)), 0, h_ - 1);
-    if (mem_->GetRasterBand(1)->RasterIO(GF_Read, x0, y0, 1, 1, out, 2, 2, GDT_Float64, 0, 0, &ea) != CE_None)
+    if (mem_->GetRasterBand(1)->RasterIO(GF_Read, x0, y0, 1, 1, out, 2, 2, GDT_Float64, 0, 0,
+                                         &ea) != CE_None)
       throw std::runtime_error("oracle RasterIO failed");
     return out[0];
   }
@@ -116,9 +119,12 @@ class GdalBilinear {
   int width() const { return w_; }
   int height() const { return h_; }
   double raw(int i, int j) const { return raw_[static_cast<size_t>(j) * w_ + i]; }
-  bool invalid(int i, int j) const { return std::isnan(raw(i, j)) || (has_nodata_ && raw(i, j) == nodata_); }
+  bool invalid(int i, int j) const {
+    return std::isnan(raw(i, j)) || (has_nodata_ && raw(i, j) == nodata_);
+  }
   void patch(int i, int j, double v) {
-    if (mem_->GetRasterBand(1)->RasterIO(GF_Write, i, j, 1, 1, &v, 1, 1, GDT_Float64, 0, 0, nullptr) != CE_None)
+    if (mem_->GetRasterBand(1)->RasterIO(GF_Write, i, j, 1, 1, &v, 1, 1, GDT_Float64, 0, 0,
+                                         nullptr) != CE_None)
       throw std::runtime_error("oracle cannot patch");
   }
   // Cells with non-zero bilinear weight at pixel position (px, py).
@@ -149,8 +155,8 @@ class GdalBilinear {
 // (used by the tests as the independent inverse) and PROJ (the code).
 struct MonacoFrame {
   static constexpr double lon0 = 7.42, lat0 = 43.73;
-  GeographicLib::TransverseMercator tm{GeographicLib::Constants::WGS84_a(), GeographicLib::Constants::WGS84_f(),
-                                       1.0};
+  GeographicLib::TransverseMercator tm{GeographicLib::Constants::WGS84_a(),
+                                       GeographicLib::Constants::WGS84_f(), 1.0};
   double y0 = 0;
   MonacoFrame() {
     double x;
@@ -158,7 +164,8 @@ struct MonacoFrame {
   }
   prep::SceneFrame frame() const {
     prep::SceneFrame f;
-    f.crs_wkt = wkt_of("+proj=tmerc +lat_0=43.73 +lon_0=7.42 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs");
+    f.crs_wkt = wkt_of(
+        "+proj=tmerc +lat_0=43.73 +lon_0=7.42 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs");
     f.description = "local TM lon0=7.42 lat0=43.73";
     return f;
   }
@@ -167,12 +174,18 @@ struct MonacoFrame {
     tm.Forward(lon0, lat, lon, x, y);
     return {x, y - y0};
   }
-  void reverse(double x, double y, double& lon, double& lat) const { tm.Reverse(lon0, x, y + y0, lat, lon); }
+  void reverse(double x, double y, double& lon, double& lat) const {
+    tm.Reverse(lon0, x, y + y0, lat, lon);
+  }
 };
 
 // The shipped Monaco sample (samples/monaco).
-inline std::string monaco_pbf() { return prep::test::monaco_sample("monaco.osm.pbf"); }
-inline std::string monaco_dem() { return "/vsizip/" + prep::test::monaco_sample("N43E007.hgt.zip/N43E007.hgt"); }
+inline std::string monaco_pbf() {
+  return prep::test::monaco_sample("monaco.osm.pbf");
+}
+inline std::string monaco_dem() {
+  return "/vsizip/" + prep::test::monaco_sample("N43E007.hgt.zip/N43E007.hgt");
+}
 inline bool monaco_available() {
   return std::filesystem::exists(monaco_pbf()) &&
          std::filesystem::exists(prep::test::monaco_sample("N43E007.hgt.zip"));
@@ -183,7 +196,8 @@ inline std::vector<prep::SceneLine> monaco_roads(const MonacoFrame& mf) {
   GDALAllRegister();
   CPLPushErrorHandler(CPLQuietErrorHandler);  // the OSM driver warns about unclosed rings
   std::vector<prep::SceneLine> out;
-  GDALDatasetUniquePtr ds(GDALDataset::Open(monaco_pbf().c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
+  GDALDatasetUniquePtr ds(
+      GDALDataset::Open(monaco_pbf().c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
   if (!ds) {
     CPLPopErrorHandler();
     return out;
@@ -194,7 +208,8 @@ inline std::vector<prep::SceneLine> monaco_roads(const MonacoFrame& mf) {
     prep::SceneLine l;
     for (int i = 0; i < ls.getNumPoints(); ++i) {
       const prep::Point2 p = mf.forward(ls.getX(i), ls.getY(i));
-      if (!l.points.empty() && std::hypot(p.x - l.points.back().x, p.y - l.points.back().y) < 0.01) continue;
+      if (!l.points.empty() && std::hypot(p.x - l.points.back().x, p.y - l.points.back().y) < 0.01)
+        continue;
       l.points.push_back(p);
     }
     if (l.points.size() > 3 && std::hypot(l.points.front().x - l.points.back().x,

@@ -4,9 +4,9 @@
 
 #include <cmath>
 
-#include "prep/model.hpp"
-#include "prep/error.hpp"
 #include "lod/lod.hpp"
+#include "prep/error.hpp"
+#include "prep/model.hpp"
 #include "terrain_fixtures.hpp"
 
 namespace {
@@ -25,7 +25,8 @@ prep::SceneFeatures two_layers() {
   rivers.style.color.attribute = "depth";
   rivers.style.color.ramp = {{0.0, 0xff000000u}, {10.0, 0xff0000ffu}};
   s.layers = {roads, rivers};
-  auto line = [](std::vector<prep::Point2> pts, uint32_t layer, double length, double order, double color) {
+  auto line = [](std::vector<prep::Point2> pts, uint32_t layer, double length, double order,
+                 double color) {
     prep::SceneLine l;
     l.points = std::move(pts);
     l.layer = layer;
@@ -37,7 +38,8 @@ prep::SceneFeatures two_layers() {
   };
   s.dynamic_lines.push_back(line({{0, 0}, {100, 0}}, 0, 100, NAN, NAN));
   s.dynamic_lines.push_back(line({{0, 10}, {300, 10}}, 0, 300, NAN, NAN));
-  s.dynamic_lines.push_back(line({{0, 20}, {50, 40}, {100, 20}, {150, 45}, {200, 20}}, 1, 240, NAN, 5.0));
+  s.dynamic_lines.push_back(
+      line({{0, 20}, {50, 40}, {100, 20}, {150, 45}, {200, 20}}, 1, 240, NAN, 5.0));
   s.dynamic_lines.push_back(line({{5, 5}}, 0, 0, NAN, NAN));  // unusable
   return s;
 }
@@ -50,7 +52,8 @@ TEST(BuildDynamic, FlatTerrainWithoutDemIsNotedAndLinesKeepTheirVertices) {
   EXPECT_EQ(m.dyn_vertices.size(), 2u + 2u + 5u);  // no DEM, no lmax: no subdivision
   for (const auto& v : m.dyn_vertices) EXPECT_EQ(v[2], 0);
   bool flat = false;
-  for (const auto& n : m.manifest.notes) flat = flat || n.find("flat terrain z = 0") != std::string::npos;
+  for (const auto& n : m.manifest.notes)
+    flat = flat || n.find("flat terrain z = 0") != std::string::npos;
   EXPECT_TRUE(flat);
   ASSERT_EQ(m.manifest.entries.size(), 1u);
   EXPECT_EQ(m.manifest.entries[0].action, prep::ManifestAction::dropped);
@@ -88,11 +91,13 @@ TEST(BuildDynamic, LodLayerGetsAttributedSegmentsForItsLinesOnly) {
   EXPECT_EQ(m.lod_segments.size(), 2u * 4u - 1u);
   for (const auto& pt : m.lod_points) EXPECT_EQ(pt.line, 2u);
   // Coarse threshold: only the base segment; zero threshold: all 4.
-  const auto coarse = prep::visible_segments(m.lod_points, m.lod_segments, {0, 0, 10}, prep::LinearThreshold{1e3, 0});
+  const auto coarse = prep::visible_segments(m.lod_points, m.lod_segments, {0, 0, 10},
+                                             prep::LinearThreshold{1e3, 0});
   ASSERT_EQ(coarse.size(), 1u);
   EXPECT_EQ(m.lod_segments[coarse[0]].a, 0u);
   EXPECT_EQ(m.lod_segments[coarse[0]].b, 4u);
-  const auto fine = prep::visible_segments(m.lod_points, m.lod_segments, {0, 0, 10}, prep::LinearThreshold{0, 0});
+  const auto fine =
+      prep::visible_segments(m.lod_points, m.lod_segments, {0, 0, 10}, prep::LinearThreshold{0, 0});
   EXPECT_EQ(fine.size(), 4u);
 }
 

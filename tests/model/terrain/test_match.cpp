@@ -16,7 +16,8 @@ namespace {
 using terraintest::GdalBilinear;
 using terraintest::MonacoFrame;
 
-prep::SceneFeatures dynamic_scene(const prep::SceneFrame& frame, std::vector<prep::SceneLine> lines) {
+prep::SceneFeatures dynamic_scene(const prep::SceneFrame& frame,
+                                  std::vector<prep::SceneLine> lines) {
   prep::SceneFeatures s;
   s.frame = frame;
   prep::LayerSpec layer;
@@ -103,7 +104,8 @@ TEST_F(MonacoTerrain, StoredHeightsEqualGdalBilinearOnTenThousandVertices) {
   double px0 = 1e300, py0 = 1e300, px1 = -1e300, py1 = -1e300;
   for (const auto& v : m.dyn_vertices) {
     const prep::Point2 p = pixel_of(v);
-    px0 = std::min(px0, p.x), px1 = std::max(px1, p.x), py0 = std::min(py0, p.y), py1 = std::max(py1, p.y);
+    px0 = std::min(px0, p.x), px1 = std::max(px1, p.x), py0 = std::min(py0, p.y),
+    py1 = std::max(py1, p.y);
     bool t = false;
     for (const auto& c : oracle->stencil(p.x, p.y))
       if (oracle->invalid(c.first, c.second)) {
@@ -112,7 +114,8 @@ TEST_F(MonacoTerrain, StoredHeightsEqualGdalBilinearOnTenThousandVertices) {
       }
     touching += t;
   }
-  EXPECT_TRUE(has_note(m, std::to_string(touching) + " of " + std::to_string(m.dyn_vertices.size()) +
+  EXPECT_TRUE(has_note(m, std::to_string(touching) + " of " +
+                              std::to_string(m.dyn_vertices.size()) +
                               " vertex heights used a filled cell"));
   // (a) the fill values, checked against a brute-force nearest search.
   prep::DemSampler dem(terraintest::monaco_dem(), frame->frame(), 1.0, std::nullopt);
@@ -133,8 +136,8 @@ TEST_F(MonacoTerrain, StoredHeightsEqualGdalBilinearOnTenThousandVertices) {
       for (int dj = -r; dj <= r && !any_valid; ++dj)
         for (int di = -r; di <= r; ++di) {
           const int ci = i + di, cj = j + dj;
-          if (std::max(std::abs(di), std::abs(dj)) == r && ci >= 0 && cj >= 0 && ci < oracle->width() &&
-              cj < oracle->height() && !oracle->invalid(ci, cj))
+          if (std::max(std::abs(di), std::abs(dj)) == r && ci >= 0 && cj >= 0 &&
+              ci < oracle->width() && cj < oracle->height() && !oracle->invalid(ci, cj))
             any_valid = true;
         }
       if (any_valid) break;
@@ -159,9 +162,11 @@ TEST_F(MonacoTerrain, StoredHeightsEqualGdalBilinearOnTenThousandVertices) {
     ASSERT_NEAR(v[2] * 1e-3, expected, 1e-3) << "vertex at (" << v[0] << ", " << v[1] << ")";
   }
   EXPECT_GT(clean, 9000);
-  std::printf("max |stored - GDAL bilinear| over 10000 vertices (%d clean stencils): %.6f m; %zu void cells "
-              "used, %llu of %zu vertices touch one\n",
-              clean, worst, voids.size(), static_cast<unsigned long long>(touching), m.dyn_vertices.size());
+  std::printf(
+      "max |stored - GDAL bilinear| over 10000 vertices (%d clean stencils): %.6f m; %zu void "
+      "cells "
+      "used, %llu of %zu vertices touch one\n",
+      clean, worst, voids.size(), static_cast<unsigned long long>(touching), m.dyn_vertices.size());
   // Terrain range over the window read contains every stored height.
   for (const auto& v : m.dyn_vertices) {
     ASSERT_GE(v[2] * 1e-3, m.terrain_min - 1e-3);
@@ -205,7 +210,8 @@ TEST_F(MonacoTerrain, NoStoredPieceIsLongerThanLmax) {
       for (size_t k = 0; k < nseg; ++k) {
         const auto& p = l.points[k];
         const auto& q = l.points[(k + 1) % n];
-        minimum_needed += static_cast<uint64_t>(std::ceil(std::hypot(q.x - p.x, q.y - p.y) / (used * 1.001)));
+        minimum_needed +=
+            static_cast<uint64_t>(std::ceil(std::hypot(q.x - p.x, q.y - p.y) / (used * 1.001)));
       }
       if (!l.closed) ++minimum_needed;
     }
@@ -226,12 +232,15 @@ TEST_F(MonacoTerrain, OriginalVerticesAreKeptInOrder) {
   ASSERT_EQ(m.dyn_line_start.size(), roads.size());
   for (size_t li = 0; li < roads.size(); ++li) {
     const uint32_t first = m.dyn_line_start[li];
-    const uint32_t end = li + 1 < roads.size() ? m.dyn_line_start[li + 1] : uint32_t(m.dyn_vertices.size());
+    const uint32_t end =
+        li + 1 < roads.size() ? m.dyn_line_start[li + 1] : uint32_t(m.dyn_vertices.size());
     size_t k = 0;
     for (uint32_t v = first; v < end && k < roads[li].points.size(); ++v) {
       ASSERT_EQ(m.dyn_vertices[v][3], int32_t(li));
       const auto& p = roads[li].points[k];
-      if (m.dyn_vertices[v][0] == std::llround(p.x * 1000) && m.dyn_vertices[v][1] == std::llround(p.y * 1000)) ++k;
+      if (m.dyn_vertices[v][0] == std::llround(p.x * 1000) &&
+          m.dyn_vertices[v][1] == std::llround(p.y * 1000))
+        ++k;
     }
     ASSERT_EQ(k, roads[li].points.size()) << "line " << li;
   }
@@ -266,11 +275,13 @@ TEST_F(MonacoTerrain, AdaptiveModeStaysWithinToleranceUnderOneMetreSampling) {
   EXPECT_LE(worst, 0.5);
   EXPECT_LT(m.dyn_vertices.size(), fixed.dyn_vertices.size());
   EXPECT_TRUE(has_note(m, "adaptive, tolerance 0.500 m"));
-  std::printf("adaptive 0.5 m: %zu vertices vs %zu with fixed lmax (%.1f %% saved); max deviation %.4f m over "
-              "%llu samples at <= 1 m spacing\n",
-              m.dyn_vertices.size(), fixed.dyn_vertices.size(),
-              100.0 * (1.0 - double(m.dyn_vertices.size()) / double(fixed.dyn_vertices.size())), worst,
-              static_cast<unsigned long long>(samples));
+  std::printf(
+      "adaptive 0.5 m: %zu vertices vs %zu with fixed lmax (%.1f %% saved); max deviation %.4f m "
+      "over "
+      "%llu samples at <= 1 m spacing\n",
+      m.dyn_vertices.size(), fixed.dyn_vertices.size(),
+      100.0 * (1.0 - double(m.dyn_vertices.size()) / double(fixed.dyn_vertices.size())), worst,
+      static_cast<unsigned long long>(samples));
 }
 
 TEST_F(MonacoTerrain, OutputDoesNotDependOnThreadCount) {
@@ -305,7 +316,7 @@ TEST(TerrainMatch, ClosedOutlineWrapsAndOpenLineEndsAreMarked) {
   }
   EXPECT_EQ(m.vertices[4][0], 100000);  // corner (100, 0) kept
   EXPECT_EQ(m.vertices[4][1], 0);
-  EXPECT_EQ(m.vertices[15][0], 0);      // last piece of the closing side
+  EXPECT_EQ(m.vertices[15][0], 0);  // last piece of the closing side
   EXPECT_EQ(m.vertices[15][1], 25000);
   EXPECT_EQ(m.prev_next[16], (prep::ivec2{-1, 17}));
   EXPECT_EQ(m.prev_next[17], (prep::ivec2{16, 18}));
@@ -317,9 +328,9 @@ TEST(TerrainMatch, ClosedOutlineWrapsAndOpenLineEndsAreMarked) {
 TEST(TerrainMatch, PieceDeviationMatchesDenseSampling) {
   const std::string dir = terraintest::temp_dir("deviation");
   const double gt[6] = {0, 10, 0, 1000, 0, -10};
-  const std::string path = terraintest::write_dem(dir + "/bumps.tif", 100, 100, gt, "EPSG:32632", [](int i, int j) {
-    return 50 * std::sin(i * 0.9) * std::cos(j * 0.7) + i;
-  });
+  const std::string path = terraintest::write_dem(
+      dir + "/bumps.tif", 100, 100, gt, "EPSG:32632",
+      [](int i, int j) { return 50 * std::sin(i * 0.9) * std::cos(j * 0.7) + i; });
   prep::DemSampler dem(path, {}, 1.0, std::nullopt);
   dem.load(0, 0, 100, 100);
   std::mt19937_64 rng(11);
@@ -333,7 +344,8 @@ TEST(TerrainMatch, PieceDeviationMatchesDenseSampling) {
     double dense = 0;
     for (int i = 0; i <= 20000; ++i) {
       const double t = i / 20000.0;
-      dense = std::max(dense, std::abs(za + t * (zb - za) - dem.height(a.x + t * (b.x - a.x), a.y + t * (b.y - a.y))));
+      dense = std::max(dense, std::abs(za + t * (zb - za) -
+                                       dem.height(a.x + t * (b.x - a.x), a.y + t * (b.y - a.y))));
     }
     EXPECT_GE(dev, dense - 1e-9);
     EXPECT_NEAR(dev, dense, 1e-3 * std::max(1.0, dense));

@@ -24,7 +24,9 @@
 #include "prep/model.hpp"
 #include "prep/scene.hpp"
 
-namespace decal { class Package; }
+namespace decal {
+class Package;
+}
 
 namespace prep::render {
 
@@ -36,10 +38,10 @@ enum class Projection { perspective, orthographic };
 struct Camera {
   Projection projection = Projection::perspective;
   Vec3 eye{0, 0, 1000}, target{0, 0, 0}, up{0, 0, 1};
-  double fov_y_deg = 45.0;     // perspective: vertical field of view
+  double fov_y_deg = 45.0;          // perspective: vertical field of view
   double ortho_w = 0, ortho_h = 0;  // orthographic: view size in metres
-  double near = 1.0;           // perspective near plane (far is infinite)
-  double depth_range = 1e5;    // orthographic: metres in front of the eye
+  double near = 1.0;                // perspective near plane (far is infinite)
+  double depth_range = 1e5;         // orthographic: metres in front of the eye
   // Set by topdown_camera(): the imaged extent exactly as given (so the CPU
   // path places pixel centres from the same numbers).
   std::optional<Extent> topdown_extent;
@@ -162,21 +164,23 @@ struct Image {
   std::vector<float> decals;   // static decal layer alone, straight alpha, 0..1
   std::vector<float> dynamic;  // dynamic-line layer alone (GL only), straight alpha
   uint32_t dyn_kept = 0, dyn_segments = 0, dyn_nodes = 0;  // dynamic update counts
-  uint32_t list_grows = 0;     // linked-list buffer regrowths this frame
+  uint32_t list_grows = 0;  // linked-list buffer regrowths this frame
   std::vector<PassTime> times;
-  std::string device;          // GL renderer string, or "cpu"
+  std::string device;  // GL renderer string, or "cpu"
 };
 
 // Renders with OpenGL in a headless EGL context. Validates the blobs before
 // any GL call (decal::gl::validate_blobs). Throws render_error (exit code
 // render) when no EGL display/context can be made, a shader fails or the
 // blobs are invalid. Not thread-safe (one GL context per call).
-Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& options);
+Image render_gl(const DecalSource& source, const Heightfield& terrain,
+                const RenderOptions& options);
 
 // Same view on the CPU: top-down orthographic views call prep::render_topdown;
 // others ray-cast the same heightfield mesh in double precision and call
 // prep::evaluate per pixel. Thread-safe.
-Image render_cpu(const DecalSource& source, const Heightfield& terrain, const RenderOptions& options);
+Image render_cpu(const DecalSource& source, const Heightfield& terrain,
+                 const RenderOptions& options);
 
 // True when `camera` looks straight down with an orthographic projection
 // and axis-aligned image (the render_topdown case); `extent` is then the

@@ -22,7 +22,9 @@
 #include "decal/inspect.hpp"  // BlobBytes, Grid, validate_blobs
 #include "decal/reader.hpp"   // decal::Status
 
-namespace decal { class Package; }
+namespace decal {
+class Package;
+}
 
 namespace decal::gl {
 
@@ -106,7 +108,7 @@ class GpuPackage {
   void bind(BindingMode mode) const;
 
   const Grid& grid() const { return grid_; }
-  uint64_t count(BlobId id) const;     // elements uploaded for this blob (0: absent)
+  uint64_t count(BlobId id) const;  // elements uploaded for this blob (0: absent)
   uint64_t bytes_uploaded() const { return bytes_; }
 
  private:
