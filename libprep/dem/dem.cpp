@@ -17,8 +17,12 @@
 
 #include "gdal_util.hpp"
 #include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kDemStage = "dem";
 namespace {
 
 struct TransformDeleter {
@@ -56,22 +60,23 @@ OpenedDem open_dem(const DemSpec& spec) {
   OpenedDem d;
   CPLErrorReset();
   d.ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  if (!d.ds) throw gdal_error("dem: " + path + ": cannot open DEM: " + CPLGetLastErrorMsg());
-  if (d.ds->GetRasterCount() < 1) throw gdal_error("dem: " + path + ": DEM has no raster band");
+  if (!d.ds) fail<gdal_error>(kDemStage, path + ": cannot open DEM: " + CPLGetLastErrorMsg());
+  if (d.ds->GetRasterCount() < 1) fail<gdal_error>(kDemStage, path + ": DEM has no raster band");
   if (d.ds->GetGeoTransform(d.gt) != CE_None)
-    throw input_error("dem: " + path + ": DEM has no geotransform");
+    fail<input_error>(kDemStage, path + ": DEM has no geotransform");
   if (const OGRSpatialReference* own = d.ds->GetSpatialRef()) {
     d.srs = *own;
   } else if (!spec.assume_crs.empty()) {
     CPLErrorReset();
     if (d.srs.SetFromUserInput(spec.assume_crs.c_str()) != OGRERR_NONE)
-      throw input_error("dem: " + path + ": DEM has no CRS and --assume-crs '" + spec.assume_crs +
-                        "' is not a CRS: " + CPLGetLastErrorMsg());
+      fail<input_error>(kDemStage, path + ": DEM has no CRS and --assume-crs '" + spec.assume_crs +
+                                       "' is not a CRS: " + CPLGetLastErrorMsg());
     d.assumed = true;
   } else {
-    throw input_error("dem: " + path +
-                      ": DEM has no CRS; pass --assume-crs (e.g. EPSG:4326) or set assume_crs in "
-                      "the scene file");
+    fail<input_error>(
+        kDemStage, path +
+                       ": DEM has no CRS; pass --assume-crs (e.g. EPSG:4326) or set assume_crs in "
+                       "the scene file");
   }
   d.srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   return d;
@@ -124,9 +129,9 @@ struct DemSampler::Impl {
                                          ? OGRCreateCoordinateTransformation(&scene_srs, &dem_srs)
                                          : OGRCreateCoordinateTransformation(&dem_srs, &scene_srs);
     if (!t)
-      throw gdal_error(
-          "dem: " + path +
-          ": cannot transform between the scene CRS and the DEM CRS: " + CPLGetLastErrorMsg());
+      fail<gdal_error>(kDemStage, path +
+                                      ": cannot transform between the scene CRS and the DEM CRS: " +
+                                      CPLGetLastErrorMsg());
     return TransformPtr(t);
   }
   OGRCoordinateTransformation* fwd() const {
@@ -169,7 +174,7 @@ DemSampler::DemSampler(const DemSpec& spec, const SceneFrame& frame)
   m.width = m.ds->GetRasterXSize();
   m.height = m.ds->GetRasterYSize();
   if (!GDALInvGeoTransform(m.gt, m.inv_gt))
-    throw gdal_error("dem: " + path + ": DEM geotransform is not invertible");
+    fail<gdal_error>(kDemStage, path + ": DEM geotransform is not invertible");
   int ok = 0;
   m.scale = m.band->GetScale(&ok);
   if (!ok) m.scale = 1;
@@ -182,7 +187,7 @@ DemSampler::DemSampler(const DemSpec& spec, const SceneFrame& frame)
 
   if (!frame.crs_wkt.empty()) {
     if (m.scene_srs.importFromWkt(frame.crs_wkt.c_str()) != OGRERR_NONE)
-      throw gdal_error("dem: " + path + ": the scene CRS WKT cannot be read");
+      fail<gdal_error>(kDemStage, path + ": the scene CRS WKT cannot be read");
     m.scene_srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
     m.same_crs = m.scene_srs.IsSame(&m.dem_srs) != 0;
     (void)m.fwd();  // fail early when PROJ cannot make the transformation
@@ -214,9 +219,9 @@ void DemSampler::to_pixel(std::span<const Point2> scene, std::span<Point2> pixel
     if (!t->Transform(static_cast<int>(scene.size()), xs.data(), ys.data(), nullptr, ok.data()))
       for (size_t i = 0; i < scene.size(); ++i)
         if (!ok[i])
-          throw gdal_error("dem: " + m.path + ": cannot transform scene point (" +
-                           std::to_string(scene[i].x) + ", " + std::to_string(scene[i].y) +
-                           ") to the DEM CRS");
+          fail<gdal_error>(kDemStage, m.path + ": cannot transform scene point (" +
+                                          std::to_string(scene[i].x) + ", " +
+                                          std::to_string(scene[i].y) + ") to the DEM CRS");
   }
   for (size_t i = 0; i < scene.size(); ++i) {
     pixel[i].x = m.inv_gt[0] + m.inv_gt[1] * xs[i] + m.inv_gt[2] * ys[i];
@@ -244,7 +249,7 @@ double DemSampler::cell_size_metres(Point2 p) const {
   if (auto* t = m.inv()) {
     int ok[4] = {0, 0, 0, 0};
     if (!t->Transform(4, xs, ys, nullptr, ok))
-      throw gdal_error("dem: " + m.path + ": cannot transform DEM cell corners to the scene CRS");
+      fail<gdal_error>(kDemStage, m.path + ": cannot transform DEM cell corners to the scene CRS");
   }
   const double w = std::hypot(xs[1] - xs[0], ys[1] - ys[0]);
   const double h = std::hypot(xs[3] - xs[2], ys[3] - ys[2]);
@@ -268,7 +273,7 @@ void DemSampler::Impl::read_window(int x0, int y0, int x1, int y1) {
   filled.assign(n, 0);
   if (band->RasterIO(GF_Read, x0, y0, ww, wh, z.data(), ww, wh, GDT_Float64, 0, 0, nullptr) !=
       CE_None)
-    throw gdal_error("dem: " + path + ": cannot read DEM window: " + CPLGetLastErrorMsg());
+    fail<gdal_error>(kDemStage, path + ": cannot read DEM window: " + CPLGetLastErrorMsg());
 }
 
 // No-data policy of prep/dem.hpp, on raw values of the window read. Returns

@@ -8,16 +8,21 @@
 #include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kEvaluateStage = "evaluate";
 
 namespace {
 
 GridParams grid_from_metadata(std::string_view metadata) {
   const auto meta = nlohmann::json::parse(metadata, nullptr, false);
   if (meta.is_discarded() || !meta.is_object())
-    throw format_error("evaluate: package metadata is not a JSON object");
-  if (!meta.contains("grid")) throw format_error("evaluate: package metadata has no \"grid\" key");
+    fail<format_error>(kEvaluateStage, "package metadata is not a JSON object");
+  if (!meta.contains("grid"))
+    fail<format_error>(kEvaluateStage, "package metadata has no \"grid\" key");
   GridParams g;
   try {
     const auto& j = meta.at("grid");
@@ -28,12 +33,12 @@ GridParams grid_from_metadata(std::string_view metadata) {
     g.nx = j.at("dims").at(0).get<uint32_t>();
     g.ny = j.at("dims").at(1).get<uint32_t>();
   } catch (const nlohmann::json::exception& e) {
-    throw format_error(std::string("evaluate: package metadata \"grid\": ") + e.what());
+    fail<format_error>(kEvaluateStage, std::string("package metadata \"grid\": ") + e.what());
   }
   if (g.cell_w <= 0 || g.cell_h <= 0)
-    throw format_error("evaluate: package metadata \"grid\": cell size " +
-                       std::to_string(g.cell_w) + "x" + std::to_string(g.cell_h) +
-                       " is not positive");
+    fail<format_error>(kEvaluateStage, "package metadata \"grid\": cell size " +
+                                           std::to_string(g.cell_w) + "x" +
+                                           std::to_string(g.cell_h) + " is not positive");
   return g;
 }
 
@@ -48,7 +53,7 @@ StaticView view_of(const decal::Package& p) {
   const decal::Grid grid{v.grid.origin_x, v.grid.origin_y, v.grid.cell_w,
                          v.grid.cell_h,   v.grid.nx,       v.grid.ny};
   if (decal::Status st = decal::validate_indices(p, &grid); !st)
-    throw format_error("evaluate: " + st.message);
+    fail<format_error>(kEvaluateStage, st.message);
   v.line_vertices = p.array<ivec2>(BlobId::line_vertices);
   v.line_vertex_line = p.array<uint32_t>(BlobId::line_vertex_line);
   v.line_props = p.array<decal::LineProps>(BlobId::line_props);

@@ -8,14 +8,19 @@
 
 #include "prep/error.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kRenderStage = "render";
 
 void write_png_rgba(const std::string& path, uint32_t width, uint32_t height,
                     std::span<const uint8_t> rgba8) {
   if (rgba8.size() != size_t(width) * height * 4)
-    throw output_error("render: " + path + ": image buffer has " + std::to_string(rgba8.size()) +
-                       " bytes, expected " + std::to_string(size_t(width) * height * 4));
+    fail<output_error>(kRenderStage, path + ": image buffer has " + std::to_string(rgba8.size()) +
+                                         " bytes, expected " +
+                                         std::to_string(size_t(width) * height * 4));
   png_image image{};
   image.version = PNG_IMAGE_VERSION;
   image.width = width;
@@ -24,7 +29,7 @@ void write_png_rgba(const std::string& path, uint32_t width, uint32_t height,
   if (!png_image_write_to_file(&image, path.c_str(), 0, rgba8.data(), 0, nullptr)) {
     const std::string msg = image.message;
     png_image_free(&image);
-    throw output_error("render: cannot write PNG " + path + ": " + msg);
+    fail<output_error>(kRenderStage, "cannot write PNG " + path + ": " + msg);
   }
 }
 
@@ -68,7 +73,7 @@ void write_world_file(const std::string& png_path, const Extent& ex, uint32_t wi
       << -ph << "\n"
       << ex.xmin + 0.5 * pw << "\n"
       << ex.ymax - 0.5 * ph << "\n";
-    if (!f) throw output_error("render: cannot write world file " + base + ".pgw");
+    if (!f) fail<output_error>(kRenderStage, "cannot write world file " + base + ".pgw");
   }
   {
     std::ofstream f(png_path + ".aux.xml");
@@ -79,7 +84,7 @@ void write_world_file(const std::string& png_path, const Extent& ex, uint32_t wi
     f << "  <GeoTransform>" << ex.xmin << ", " << pw << ", 0, " << ex.ymax << ", 0, " << -ph
       << "</GeoTransform>\n";
     f << "</PAMDataset>\n";
-    if (!f) throw output_error("render: cannot write " + png_path + ".aux.xml");
+    if (!f) fail<output_error>(kRenderStage, "cannot write " + png_path + ".aux.xml");
   }
 }
 

@@ -21,8 +21,12 @@
 #include "prep/error.hpp"
 #include "prep/model.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kBuildStage = "build";
 
 namespace detail {
 
@@ -182,9 +186,10 @@ struct PolygonRings {
 
 void check_options(const ModelOptions& options) {
   if (options.qt_leaf_capacity == 0 || options.qt_max_depth > 24)
-    throw usage_error("build: quad-tree leaf capacity must be >= 1 and max depth <= 24 (got " +
-                      std::to_string(options.qt_leaf_capacity) + ", " +
-                      std::to_string(options.qt_max_depth) + ")");
+    fail<usage_error>(kBuildStage,
+                      "quad-tree leaf capacity must be >= 1 and max depth <= 24 (got " +
+                          std::to_string(options.qt_leaf_capacity) + ", " +
+                          std::to_string(options.qt_max_depth) + ")");
 }
 
 // Quantises every polygon ring (in parallel), drops rings of fewer than 3
@@ -208,9 +213,10 @@ PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m,
     const ScenePolygon& p = scene.polygons[i];
     m.max_representation_error = std::max(m.max_representation_error, qerr[i]);
     if (p.layer >= scene.layers.size())
-      throw input_error("build: polygon fid " + std::to_string(p.fid) + " refers to layer index " +
-                        std::to_string(p.layer) + ", but the scene has " +
-                        std::to_string(scene.layers.size()) + " layers");
+      fail<input_error>(kBuildStage, "polygon fid " + std::to_string(p.fid) +
+                                         " refers to layer index " + std::to_string(p.layer) +
+                                         ", but the scene has " +
+                                         std::to_string(scene.layers.size()) + " layers");
     auto drop = [&](const std::string& why) {
       ManifestEntry e;
       e.layer = scene.layers[p.layer].name;
@@ -564,7 +570,7 @@ DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
   // The decal grid, then segments and polygon parts to cells, and the BVHs.
   m.grid = choose_model_grid(shapes, rings, options, m);
   if (uint64_t(m.grid.nx) * m.grid.ny > 0xffffffffULL)
-    throw resource_error("build: decal grid has too many cells");
+    fail<resource_error>(kBuildStage, "decal grid has too many cells");
   ProgressStage cells_stage(options.progress, "build.cells",
                             m.line_props.size() + rings.rings.size(), "items");
   std::vector<SegEntry> seg_entries = line_cell_entries(m, shapes, cells_stage);

@@ -13,23 +13,27 @@
 #include "detail.hpp"
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep::detail {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kBuildStage = "build";
 
 QPoint quantise(const Point2& p, double& max_err, const std::string& where) {
   if (!std::isfinite(p.x) || !std::isfinite(p.y)) {
     std::ostringstream m;
-    m << "build: " << where << ": non-finite coordinate (" << p.x << ", " << p.y << ")";
-    throw input_error(m.str());
+    m << where << ": non-finite coordinate (" << p.x << ", " << p.y << ")";
+    fail<input_error>(kBuildStage, m.str());
   }
   double qx = p.x / decal::kQuantumMetres, qy = p.y / decal::kQuantumMetres;
   if (std::fabs(qx) > double(kMaxQuanta) || std::fabs(qy) > double(kMaxQuanta)) {
     std::ostringstream m;
     m.precision(12);
-    m << "build: " << where << ": vertex (" << p.x << ", " << p.y
+    m << where << ": vertex (" << p.x << ", " << p.y
       << ") m lies more than 2147 km from the package origin; int32 millimetre positions "
          "cannot hold it (split the scene into tiles)";
-    throw resource_error(m.str());
+    fail<resource_error>(kBuildStage, m.str());
   }
   QPoint q{std::llround(qx), std::llround(qy)};
   double ex = double(q.x) * decal::kQuantumMetres - p.x;
@@ -332,10 +336,11 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     }
   }
   if (!best.feasible) {
-    throw resource_error(
-        "build: decal grid: no cell size keeps the segment/cell entries under " +
-        std::to_string(uint64_t(entry_budget)) +
-        " (primitives overlap too much; raise --resolution to simplify the lines)");
+    fail<resource_error>(
+        kBuildStage,
+        "decal grid: no cell size keeps the segment/cell entries under " +
+            std::to_string(uint64_t(entry_budget)) +
+            " (primitives overlap too much; raise --resolution to simplify the lines)");
   }
   return best.g;
 }

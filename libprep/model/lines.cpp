@@ -23,8 +23,12 @@
 #include "detail.hpp"
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep::detail {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kBuildStage = "build";
 namespace {
 
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
@@ -184,9 +188,10 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
   }
   for (const SceneLine& l : scene.lines)
     if (l.layer >= scene.layers.size())
-      throw input_error("build: line fid " + std::to_string(l.fid) + " refers to layer index " +
-                        std::to_string(l.layer) + ", but the scene has " +
-                        std::to_string(scene.layers.size()) + " layers");
+      fail<input_error>(kBuildStage, "line fid " + std::to_string(l.fid) +
+                                         " refers to layer index " + std::to_string(l.layer) +
+                                         ", but the scene has " +
+                                         std::to_string(scene.layers.size()) + " layers");
 
   // Counted once per line converted, and again per kept line's shapes.
   ProgressStage stage(options.progress, "build.lines", 2 * nl, "lines");

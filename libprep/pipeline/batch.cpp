@@ -21,8 +21,12 @@
 #include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kBuildStage = "build";
 namespace {
 
 namespace fs = std::filesystem;
@@ -76,13 +80,14 @@ std::vector<std::string> list_scene_files(const std::vector<std::string>& inputs
       for (const auto& e : fs::directory_iterator(in))
         if (e.path().extension() == ".toml") found.push_back(e.path().string());
       std::sort(found.begin(), found.end());
-      if (found.empty()) throw usage_error("build: folder " + in + " has no *.toml scene files");
+      if (found.empty())
+        fail<usage_error>(kBuildStage, "folder " + in + " has no *.toml scene files");
       scenes.insert(scenes.end(), found.begin(), found.end());
     } else if (ends_with(in, ".toml")) {
       scenes.push_back(in);
     } else {
-      throw usage_error("build: batch mode takes scene files (.toml) or folders of them; got " +
-                        in);
+      fail<usage_error>(kBuildStage,
+                        "batch mode takes scene files (.toml) or folders of them; got " + in);
     }
   }
   return scenes;
@@ -91,19 +96,19 @@ std::vector<std::string> list_scene_files(const std::vector<std::string>& inputs
 // Plans the batch: the scene files, the output folder (created), and each
 // scene's package, report and log paths, named after the scene file's stem.
 std::vector<BatchScene> plan_scenes(const BatchRequest& request) {
-  if (request.output_dir.empty()) throw usage_error("build: batch mode needs -o OUTDIR");
+  if (request.output_dir.empty()) fail<usage_error>(kBuildStage, "batch mode needs -o OUTDIR");
   const std::vector<std::string> files = list_scene_files(request.inputs);
   std::error_code ec;
   fs::create_directories(request.output_dir, ec);
   if (!fs::is_directory(request.output_dir))
-    throw output_error("build: cannot create output folder " + request.output_dir);
+    fail<output_error>(kBuildStage, "cannot create output folder " + request.output_dir);
   std::vector<BatchScene> scenes(files.size());
   std::set<std::string> stems;
   const fs::path dir(request.output_dir);
   for (size_t i = 0; i < files.size(); ++i) {
     const std::string stem = fs::path(files[i]).stem().string();
     if (!stems.insert(stem).second)
-      throw usage_error("build: two scenes would both write " + stem + ".decals; rename one");
+      fail<usage_error>(kBuildStage, "two scenes would both write " + stem + ".decals; rename one");
     scenes[i].scene = files[i];
     scenes[i].output = (dir / (stem + ".decals")).string();
     scenes[i].report = (dir / (stem + ".report.json")).string();
@@ -246,7 +251,7 @@ void write_summary(const BatchResult& result) {
   summary["jobs"] = result.jobs;
   std::ofstream out(result.summary);
   out << summary.dump(2) << "\n";
-  if (!out) throw output_error("build: cannot write the batch summary " + result.summary);
+  if (!out) fail<output_error>(kBuildStage, "cannot write the batch summary " + result.summary);
 }
 
 }  // namespace

@@ -15,8 +15,12 @@
 #include <thread>
 
 #include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The module this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kMemoryStage = "memory";
 namespace {
 
 // ---- the model ------------------------------------------------------------
@@ -347,12 +351,13 @@ MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& 
 
 void check_memory(const MemoryLimit& limit, const MemoryEstimate& estimate) {
   if (!limit || estimate.bytes <= double(limit.bytes)) return;
-  throw resource_error(
-      std::string("memory: the build needs an estimated ") + format_memory_size(estimate.bytes) +
-      " at its peak (estimate " + estimate.point + ", from " + estimate.basis +
-      "), over --max-memory " + format_memory_size(double(limit.bytes)) +
-      "; stopped before running out. Raise --max-memory, thin the input (--resolution to "
-      "simplify, --extent or --where to keep less), or split the scene into tiles");
+  fail<resource_error>(
+      kMemoryStage,
+      std::string("the build needs an estimated ") + format_memory_size(estimate.bytes) +
+          " at its peak (estimate " + estimate.point + ", from " + estimate.basis +
+          "), over --max-memory " + format_memory_size(double(limit.bytes)) +
+          "; stopped before running out. Raise --max-memory, thin the input (--resolution to "
+          "simplify, --extent or --where to keep less), or split the scene into tiles");
 }
 
 }  // namespace prep

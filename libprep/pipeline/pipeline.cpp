@@ -27,9 +27,14 @@
 #include "prep/model.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
+#include "prep/stage_error.hpp"
 #include "prep/write.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kBuildStage = "build";
+constexpr std::string_view kReportStage = "report";
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -140,13 +145,13 @@ void write_text_file(const std::string& path, const std::string& text) {
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw output_error("report: cannot write " + path);
+    if (!out) fail<output_error>(kReportStage, "cannot write " + path);
     out << text;
-    if (!out.flush()) throw output_error("report: cannot write " + path);
+    if (!out.flush()) fail<output_error>(kReportStage, "cannot write " + path);
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     std::remove(tmp.c_str());
-    throw output_error("report: cannot rename " + tmp + " to " + path);
+    fail<output_error>(kReportStage, "cannot rename " + tmp + " to " + path);
   }
 }
 
@@ -329,7 +334,8 @@ void add_memory_report(nlohmann::json& report,
 BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
-  if (!request.dry_run && request.output.empty()) throw usage_error("build: no output path (-o)");
+  if (!request.dry_run && request.output.empty())
+    fail<usage_error>(kBuildStage, "no output path (-o)");
   // --threads caps every stage's oneTBB work (the output does not depend on it).
   std::unique_ptr<tbb::global_control> threads;
   if (scene.model.threads > 0) {

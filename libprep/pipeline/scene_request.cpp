@@ -7,8 +7,12 @@
 #include "prep/error.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/read.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kBuildStage = "build";
 namespace {
 
 bool ends_with(const std::string& s, const std::string& suffix) {
@@ -125,10 +129,11 @@ SceneSpec scene_spec(const SceneRequest& request) {
   SceneSpec scene;
   if (ends_with(request.input, ".toml")) {
     if (any_given(request.layer)) {
-      throw usage_error(
-          "build: --layer/--where/--sql/--kind/--width/--corner/--outline-mode/--color/--dynamic "
+      fail<usage_error>(
+          kBuildStage,
+          "--layer/--where/--sql/--kind/--width/--corner/--outline-mode/--color/--dynamic "
           "describe the single layer of the file-less form; with a scene file set them in " +
-          request.input);
+              request.input);
     }
     scene = load_scene_file(request.input);
   } else {

@@ -24,8 +24,12 @@
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kProjectStage = "project";
 namespace {
 
 void register_gdal_once() {
@@ -40,8 +44,8 @@ std::unique_ptr<OGRSpatialReference> srs_from(const std::string& text, const std
   CPLErrorReset();
   if (text.empty() || srs->SetFromUserInput(text.c_str()) != OGRERR_NONE) {
     std::string msg = CPLGetLastErrorMsg();
-    throw input_error("project: invalid " + what + " '" + text + "'" +
-                      (msg.empty() ? std::string() : ": " + msg));
+    fail<input_error>(kProjectStage, "invalid " + what + " '" + text + "'" +
+                                         (msg.empty() ? std::string() : ": " + msg));
   }
   srs->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   return srs;
@@ -66,8 +70,8 @@ TransformPtr make_transform(const OGRSpatialReference& from, const OGRSpatialRef
   CPLErrorReset();
   TransformPtr t(OGRCreateCoordinateTransformation(&from, &to));
   if (!t) {
-    throw input_error("project: " + context +
-                      ": no transformation available: " + CPLGetLastErrorMsg());
+    fail<input_error>(kProjectStage,
+                      context + ": no transformation available: " + CPLGetLastErrorMsg());
   }
   return t;
 }
@@ -104,8 +108,8 @@ Extent transform_bounds(OGRCoordinateTransformation& t, const Extent& e, const s
   Extent out;
   if (!t.TransformBounds(e.xmin, e.ymin, e.xmax, e.ymax, &out.xmin, &out.ymin, &out.xmax, &out.ymax,
                          21)) {
-    throw input_error("project: " + what +
-                      ": extent cannot be transformed: " + CPLGetLastErrorMsg());
+    fail<input_error>(kProjectStage,
+                      what + ": extent cannot be transformed: " + CPLGetLastErrorMsg());
   }
   return out;
 }
@@ -439,10 +443,10 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
     for (const SourceLayer& layer : features.layers)
       layers +=
           (layers.empty() ? "" : ", ") + ("'" + layer.spec.name + "' (" + layer.spec.source + ")");
-    throw input_error(
-        "project: no features to centre the scene frame on: every layer is empty "
-        "or has only dropped features: " +
-        layers + "; check the source, --layer and --where");
+    fail<input_error>(kProjectStage,
+                      "no features to centre the scene frame on: every layer is empty "
+                      "or has only dropped features: " +
+                          layers + "; check the source, --layer and --where");
   }
   // More than 180 degrees of longitude away from the poles is, for local
   // data, a line or ring that crosses the antimeridian in a geographic CRS
@@ -483,9 +487,10 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   }
   auto srs = srs_from(crs, "--crs");
   if (!srs->IsProjected()) {
-    throw input_error("project: --crs '" + crs +
-                      "' is not a projected CRS; the scene frame "
-                      "needs metres (try a UTM zone or leave --crs out for a local TM)");
+    fail<input_error>(kProjectStage,
+                      "--crs '" + crs +
+                          "' is not a projected CRS; the scene frame "
+                          "needs metres (try a UTM zone or leave --crs out for a local TM)");
   }
   frame.crs_wkt = crs_wkt2(*srs);
   const char* name = srs->GetName();
@@ -528,7 +533,8 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
     auto t = make_transform(*geo, *srs, "WGS84 to --crs");
     x = lon0, y = lat0;
     if (!t->Transform(1, &x, &y)) {
-      throw input_error("project: the data centre cannot be expressed in --crs '" + crs + "'");
+      fail<input_error>(kProjectStage,
+                        "the data centre cannot be expressed in --crs '" + crs + "'");
     }
   }
   frame.origin_x = std::round(x);

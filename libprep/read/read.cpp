@@ -29,8 +29,12 @@
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kReadStage = "read";
 namespace {
 
 void register_gdal_once() {
@@ -438,10 +442,11 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
 
   VSIStatBufL st;
   if (VSIStatL(spec.source.c_str(), &st) != 0) {
-    throw gdal_error("read: " + spec.source + ": no such file" +
-                     (scene.scene_path.empty()
-                          ? std::string()
-                          : " (scene file " + scene.scene_path + ", layer '" + spec.name + "')"));
+    fail<gdal_error>(kReadStage,
+                     spec.source + ": no such file" +
+                         (scene.scene_path.empty() ? std::string()
+                                                   : " (scene file " + scene.scene_path +
+                                                         ", layer '" + spec.name + "')"));
   }
   // OSM XML: its element order decides the node index GDAL opens it with.
   const detail::OsmXmlOrder osm_order = detail::scan_osm_xml(spec.source);
@@ -453,11 +458,12 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
   DatasetPtr ds(GDALDataset::Open(spec.source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
                                   nullptr, nullptr));
   if (!ds) {
-    throw gdal_error("read: " + spec.source + ": GDAL cannot open it as vector data" +
-                     (errors.failures().empty() ? std::string() : ": " + errors.failures()));
+    fail<gdal_error>(kReadStage,
+                     spec.source + ": GDAL cannot open it as vector data" +
+                         (errors.failures().empty() ? std::string() : ": " + errors.failures()));
   }
   if (ds->GetLayerCount() == 0 && spec.sql.empty()) {
-    throw gdal_error("read: " + spec.source + ": the source has no vector layers");
+    fail<gdal_error>(kReadStage, spec.source + ": the source has no vector layers");
   }
 
   OGRLayer* layer = nullptr;
@@ -466,8 +472,9 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
     errors.clear();
     layer = ds->ExecuteSQL(spec.sql.c_str(), nullptr, nullptr);
     if (!layer) {
-      throw gdal_error("read: " + spec.source + ": invalid SQL \"" + spec.sql + "\"" +
-                       (errors.failures().empty() ? std::string() : ": " + errors.failures()));
+      fail<gdal_error>(kReadStage,
+                       spec.source + ": invalid SQL \"" + spec.sql + "\"" +
+                           (errors.failures().empty() ? std::string() : ": " + errors.failures()));
     }
     from_sql = true;
   } else if (!spec.layer.empty()) {
@@ -476,8 +483,8 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
       std::string names;
       for (int i = 0; i < ds->GetLayerCount(); ++i)
         names += (i ? ", " : "") + std::string(ds->GetLayer(i)->GetName());
-      throw gdal_error("read: " + spec.source + ": unknown layer '" + spec.layer +
-                       "' (layers: " + names + ")");
+      fail<gdal_error>(
+          kReadStage, spec.source + ": unknown layer '" + spec.layer + "' (layers: " + names + ")");
     }
   } else {
     layer = ds->GetLayer(0);
@@ -687,7 +694,7 @@ SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& 
 }
 
 FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
-  if (scene.layers.empty()) throw usage_error("read: the scene has no layers");
+  if (scene.layers.empty()) fail<usage_error>(kReadStage, "the scene has no layers");
   register_gdal_once();
   // Layers are read concurrently, each from its own GDAL dataset (GDAL is
   // thread-safe across datasets; errors are captured per thread). Results

@@ -8,8 +8,12 @@
 #include "detail/gl_render.hpp"
 #include "detail/math.hpp"
 #include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep::render::detail {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kRenderStage = "render";
 
 namespace {
 
@@ -61,7 +65,7 @@ GLuint GlObjects::framebuffer(GLuint color, GLuint depth) {
   if (depth) glNamedFramebufferTexture(f, GL_DEPTH_ATTACHMENT, depth, 0);
   framebuffers.push_back(f);
   if (glCheckNamedFramebufferStatus(f, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-    throw render_error("render: framebuffer incomplete");
+    fail<render_error>(kRenderStage, "framebuffer incomplete");
   return f;
 }
 

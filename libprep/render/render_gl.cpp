@@ -8,8 +8,12 @@
 #include "detail/gl_render.hpp"
 #include "prep/error.hpp"
 #include "prep/render.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep::render {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kRenderStage = "render";
 
 namespace detail {
 
@@ -41,7 +45,7 @@ void GlRenderer::read_back(Image& img) {
   glGetTextureImage(t_.decal, 0, GL_RGBA, GL_FLOAT, GLsizei(dec.size() * sizeof(float)),
                     dec.data());
   if (GLenum e = glGetError(); e != GL_NO_ERROR)
-    throw render_error("render: GL error " + std::to_string(e));
+    fail<render_error>(kRenderStage, "GL error " + std::to_string(e));
   timer_.collect(img.times);
   const double frame =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0_).count();
@@ -61,7 +65,7 @@ void GlRenderer::read_back(Image& img) {
 Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
   const uint32_t W = opt.width, H = opt.height;
   if (W == 0 || H == 0 || W > 16384 || H > 16384)
-    throw usage_error("render: image size must be 1..16384 pixels");
+    fail<usage_error>(kRenderStage, "image size must be 1..16384 pixels");
 
   // Validate before anything touches GL (formats/gl validate_blobs), once:
   // a package's source was checked when it was made.

@@ -3,11 +3,15 @@
 
 #include "prep/error.hpp"
 #include "prep/render.hpp"
+#include "prep/stage_error.hpp"
 
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
 
 namespace prep::render {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kRenderStage = "render";
 
 namespace {
 
@@ -65,7 +69,7 @@ DecalSource source_of(const decal::Package& package) {
   // Frame and extent from the metadata chunk (formats/SPEC.md).
   auto meta = nlohmann::json::parse(package.metadata_json(), nullptr, false);
   if (meta.is_discarded() || !meta.is_object())
-    throw format_error("render: package metadata is not a JSON object");
+    fail<format_error>(kRenderStage, "package metadata is not a JSON object");
   try {
     auto pick = [&](std::initializer_list<const char*> keys) -> const nlohmann::json* {
       for (const char* k : keys)
@@ -97,7 +101,7 @@ DecalSource source_of(const decal::Package& package) {
       }
     }
   } catch (const nlohmann::json::exception& ex) {
-    throw format_error(std::string("render: package metadata: ") + ex.what());
+    fail<format_error>(kRenderStage, std::string("package metadata: ") + ex.what());
   }
   if (s.extent.empty()) {
     // Fall back to the grid's extent.

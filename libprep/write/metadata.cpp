@@ -7,9 +7,13 @@
 
 #include "prep/error.hpp"
 #include "prep/manifest_json.hpp"
+#include "prep/stage_error.hpp"
 #include "prep/write.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kWriteStage = "write";
 namespace {
 
 using json = nlohmann::json;
@@ -39,8 +43,8 @@ void merge(json& base, const json& extra, const std::string& where, const std::s
     } else if (found->is_object() && it.value().is_object()) {
       merge(*found, it.value(), where + it.key() + ".", path);
     } else {
-      throw output_error("write: " + path + ": extra metadata key '" + where + it.key() +
-                         "' conflicts with a key write_model sets");
+      fail<output_error>(kWriteStage, path + ": extra metadata key '" + where + it.key() +
+                                          "' conflicts with a key write_model sets");
     }
   }
 }
@@ -82,10 +86,10 @@ void write_model(const std::string& path, const DecalModel& model,
     try {
       extra = json::parse(extra_metadata_json);
     } catch (const json::exception& e) {
-      throw output_error("write: " + path + ": extra metadata is not valid JSON: " + e.what());
+      fail<output_error>(kWriteStage, path + ": extra metadata is not valid JSON: " + e.what());
     }
     if (!extra.is_object())
-      throw output_error("write: " + path + ": extra metadata must be a JSON object");
+      fail<output_error>(kWriteStage, path + ": extra metadata must be a JSON object");
     merge(meta, extra, "", path);
   }
   // Keys are sorted (nlohmann::json is map-backed), so the text is

@@ -11,8 +11,12 @@
 #include <string>
 
 #include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kLodStage = "lod";
 namespace detail {
 namespace {
 
@@ -258,9 +262,9 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
   for (uint32_t li = 0; li < nlines; ++li) {
     const auto& in = lines[li];
     if (in.points.size() < 2 || (in.closed && in.points.size() < 3))
-      throw input_error("lod: line " + std::to_string(in.line) + ": " +
-                        std::to_string(in.points.size()) + " points are too few for a " +
-                        (in.closed ? "closed ring" : "line"));
+      fail<input_error>(
+          kLodStage, "line " + std::to_string(in.line) + ": " + std::to_string(in.points.size()) +
+                         " points are too few for a " + (in.closed ? "closed ring" : "line"));
     local[li] = in.points;
     if (in.closed) local[li].push_back(in.points.front());
     out.line_points[li] = {static_cast<uint32_t>(all.size()),

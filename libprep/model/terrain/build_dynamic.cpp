@@ -12,9 +12,13 @@
 #include "lod/lod.hpp"
 #include "prep/error.hpp"
 #include "prep/model.hpp"
+#include "prep/stage_error.hpp"
 #include "terrain/terrain.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kBuildStage = "build";
 namespace {
 
 uint32_t channel(uint32_t rgba, int c) {
@@ -97,9 +101,10 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options,
   match_options.tolerance = options.terrain_tolerance;
   if (!(options.lmax >= 0) || !(options.terrain_tolerance >= 0) || !(options.z_scale > 0) ||
       !std::isfinite(options.z_scale))
-    throw usage_error("build: invalid terrain option (lmax " + std::to_string(options.lmax) +
-                      ", terrain tolerance " + std::to_string(options.terrain_tolerance) +
-                      ", z-scale " + std::to_string(options.z_scale) + ")");
+    fail<usage_error>(kBuildStage, "invalid terrain option (lmax " + std::to_string(options.lmax) +
+                                       ", terrain tolerance " +
+                                       std::to_string(options.terrain_tolerance) + ", z-scale " +
+                                       std::to_string(options.z_scale) + ")");
   if (dem_path.empty()) {
     notes.push_back("terrain: no DEM given; dynamic lines lie on flat terrain z = 0");
     match_options.lmax = options.lmax > 0 ? options.lmax : std::numeric_limits<double>::infinity();

@@ -12,9 +12,13 @@
 #include <string>
 
 #include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 #include "terrain/terrain.hpp"
 
 namespace prep {
+
+// The stage this file reports failures as (prep/stage_error.hpp).
+constexpr std::string_view kTerrainStage = "terrain";
 namespace {
 
 constexpr double kQ = decal::kQuantumMetres;
@@ -158,8 +162,9 @@ void flatten_segments(const std::vector<SceneLine>& lines, Subdivision& sub, Mat
     const SceneLine& l = lines[li];
     const size_t n = l.points.size();
     if (n < 2 || (l.closed && n < 3))
-      throw input_error("terrain: dynamic line " + std::to_string(li) + " (fid " +
-                        std::to_string(l.fid) + "): " + std::to_string(n) + " points are too few");
+      fail<input_error>(kTerrainStage, "dynamic line " + std::to_string(li) + " (fid " +
+                                           std::to_string(l.fid) + "): " + std::to_string(n) +
+                                           " points are too few");
     out.vertices_in += n;
     sub.line_first_seg[li] = static_cast<uint32_t>(sub.segs.size());
     const size_t nseg = l.closed ? n : n - 1;
@@ -368,7 +373,7 @@ MatchedLines match_terrain(const std::vector<SceneLine>& lines, DemSampler* dem,
                            const MatchOptions& options) {
   MatchedLines out;
   if (!(options.lmax >= 0.01))
-    throw usage_error("terrain: lmax " + std::to_string(options.lmax) + " m is below 0.01 m");
+    fail<usage_error>(kTerrainStage, "lmax " + std::to_string(options.lmax) + " m is below 0.01 m");
   const bool adaptive = options.tolerance > 0 && dem != nullptr;
   const double l_eff = std::isinf(options.lmax) ? options.lmax : options.lmax - kLengthReserve;
 
@@ -395,8 +400,8 @@ MatchedLines match_terrain(const std::vector<SceneLine>& lines, DemSampler* dem,
   }
   const uint64_t nout = out_offset[nseg];
   if (nout > uint64_t(std::numeric_limits<int32_t>::max()))
-    throw resource_error("terrain: " + std::to_string(nout) +
-                         " dynamic-line vertices exceed int32 indices");
+    fail<resource_error>(kTerrainStage,
+                         std::to_string(nout) + " dynamic-line vertices exceed int32 indices");
   out.vertices_out = nout;
   out.vertices.resize(nout);
   std::vector<uint8_t> touched(nout, 0), outside(nout, 0);
