@@ -607,9 +607,9 @@ struct Cleaner {
 // Why GEOS must not see this part (empty: it may). Read rejects NaN/Inf,
 // but a transform can still yield them; GEOS must never see one (its
 // quad-tree index loops forever on a NaN envelope inside
-// TopologyPreserveSimplify: found by fuzz_build). Nor a coordinate near
+// TopologyPreserveSimplify: found by fuzz_model). Nor a coordinate near
 // DBL_MAX (the quad-tree's 2^level overflows to inf, the same endless loop;
-// found by fuzz_build with a frame equal to the source CRS). Nothing on
+// found by fuzz_model with a frame equal to the source CRS). Nothing on
 // Earth lies kMaxCoordinate from the origin of any frame, so such a vertex
 // is a failure of the feature.
 std::string unsafe_vertex(const SourceFeature& f) {

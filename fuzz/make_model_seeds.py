@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""Writes the seed corpus of fuzz_build (fuzz/corpus/build/) from the hostile
-corpus (tests/hostile/generate.py), in fuzz_build's input layout:
+"""Writes the seed corpus of fuzz_model (fuzz/corpus/model/) from the hostile
+corpus (tests/hostile/generate.py), in fuzz_model's input layout:
   byte 0 style, byte 1 width (dm - 1), byte 2 'W' + WKT lines, or another
   byte + WKB records (uint16 little-endian length + WKB).
 GeoJSON cases become WKT in local metres (as the clean stage sees them after
 project); the NaN / Inf / 1e300 cases become WKB so that the doubles are exact.
 
-Usage: make_build_seeds.py HOSTILE_CORPUS_DIR OUT_DIR
+Usage: make_model_seeds.py HOSTILE_CORPUS_DIR OUT_DIR
 """
 import json
 import math
@@ -108,7 +108,7 @@ def main():
     for name, (st, body) in extra.items():
         open(os.path.join(out, name + ".seed"), "wb").write(bytes([st, 19, ord("B")]) + body)
         n += 1
-    print(f"fuzz_build seeds: wrote {n} files to {out}")
+    print(f"fuzz_model seeds: wrote {n} files to {out}")
 
 
 if __name__ == "__main__":

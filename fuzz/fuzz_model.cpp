@@ -1,4 +1,4 @@
-// fuzz_build — libFuzzer target for the builder: bytes -> WKT or
+// fuzz_model — libFuzzer target for the builder: bytes -> WKT or
 // WKB geometries plus a style -> clean -> build_model. Any input must end in
 // a model or a prep::error (input/resource/...), never a crash, hang,
 // sanitizer report or another exception type.
@@ -14,7 +14,7 @@
 //            preceded by a little-endian uint16 length.
 // Coordinates are taken as frame metres (the clean stage's input after
 // project), so NaN, Inf, 1e300 and degenerate shapes reach clean and build
-// unchanged. The seeds in fuzz/corpus/build/ come from the hostile corpus.
+// unchanged. The seeds in fuzz/corpus/model/ come from the hostile corpus.
 #include <geos_c.h>
 
 #include <cstddef>
