@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <map>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -188,10 +189,13 @@ std::optional<bool> geos_valid(const prep::test::Geos& geos, const Rings& rings)
   prep::ScenePolygon p;
   p.shell = rings[0];
   p.holes.assign(rings.begin() + 1, rings.end());
-  GEOSGeometry* g = geos.polygon(p);
-  if (!g) return std::nullopt;
-  const char v = GEOSisValid_r(geos.h(), g);
-  GEOSGeom_destroy_r(geos.h(), g);
+  prep::test::G g;
+  try {
+    g = prep::test::polygon(geos.h, p);
+  } catch (const std::runtime_error&) {  // GEOS returned null
+    return std::nullopt;
+  }
+  const char v = GEOSisValid_r(geos.h, g.g);
   if (v == 2) return std::nullopt;
   return v == 1;
 }

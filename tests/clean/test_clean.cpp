@@ -151,7 +151,7 @@ TEST(Clean, EveryBrokenPolygonEndsValidWithMakeValidsAreaOrIsDroppedWithAReason)
 
   for (const Case& c : cs) {
     SCOPED_TRACE(c.name);
-    const double oracle = geos.make_valid_area(c.wkt);
+    const double oracle = prep::test::make_valid_area(geos.h, c.wkt);
     if (by_fid.count(c.fid) == 0) {
       ASSERT_TRUE(dropped.count(c.fid)) << "neither kept nor dropped";
       EXPECT_FALSE(dropped[c.fid].empty());
@@ -160,7 +160,7 @@ TEST(Clean, EveryBrokenPolygonEndsValidWithMakeValidsAreaOrIsDroppedWithAReason)
     }
     double area = 0;
     for (const prep::ScenePolygon* p : by_fid[c.fid]) {
-      EXPECT_TRUE(geos.is_valid(*p));
+      EXPECT_TRUE(prep::test::is_valid(geos.h, *p));
       EXPECT_GT(prep::test::ring_area(p->shell), 0) << "shell not counter-clockwise";
       for (const auto& h : p->holes) EXPECT_LT(prep::test::ring_area(h), 0) << "hole not clockwise";
       for (size_t i = 0; i < p->shell.size(); ++i) {
@@ -206,7 +206,7 @@ TEST(Clean, EveryBrokenPolygonEndsValidWithMakeValidsAreaOrIsDroppedWithAReason)
   // before/after are recorded.
   ASSERT_TRUE(repaired.count(7));
   EXPECT_NEAR(repaired[7]->area_before, 10000 - 2500, 1e-6);
-  EXPECT_NEAR(repaired[7]->area_after, geos.make_valid_area(cs[6].wkt), 1e-6);
+  EXPECT_NEAR(repaired[7]->area_after, prep::test::make_valid_area(geos.h, cs[6].wkt), 1e-6);
 }
 
 // repair = "structure": the same cases plus overlapping holes and a hole
@@ -229,12 +229,12 @@ TEST(Clean, StructureRepairMatchesGeosStructureMethodAndSubtractsEveryHole) {
   Geos geos;
   std::map<int64_t, double> area;
   for (const auto& p : sf.polygons) {
-    EXPECT_TRUE(geos.is_valid(p)) << p.fid;
+    EXPECT_TRUE(prep::test::is_valid(geos.h, p)) << p.fid;
     area[p.fid] += prep::test::polygon_area(p);
   }
   for (const Case& c : cs) {
     SCOPED_TRACE(c.name);
-    const double oracle = geos.make_valid_area(c.wkt, /*structure=*/true);
+    const double oracle = prep::test::make_valid_area(geos.h, c.wkt, /*structure=*/true);
     if (oracle == 0) {
       EXPECT_EQ(area.count(c.fid), 0u);
       continue;
@@ -337,18 +337,16 @@ TEST(Clean, SimplificationStaysWithinTheResolutionAndValid) {
   prep::SceneFeatures full = run(dir.file("w.geojson"), prep::DecalKind::polygon, 0);
   prep::SceneFeatures simple = run(dir.file("w.geojson"), prep::DecalKind::polygon, 0.5);
   ASSERT_EQ(simple.polygons.size(), 1u);
-  EXPECT_TRUE(geos.is_valid(simple.polygons[0]));
+  EXPECT_TRUE(prep::test::is_valid(geos.h, simple.polygons[0]));
   EXPECT_LT(simple.polygons[0].shell.size(), full.polygons[0].shell.size());
   EXPECT_EQ(simple.manifest.layers[0].vertices_in, 401u);
   EXPECT_EQ(simple.manifest.layers[0].vertices_out, simple.polygons[0].shell.size() + 1);
-  GEOSGeometry* a = geos.polygon(full.polygons[0]);
-  GEOSGeometry* b = geos.polygon(simple.polygons[0]);
+  const prep::test::G a = prep::test::polygon(geos.h, full.polygons[0]);
+  const prep::test::G b = prep::test::polygon(geos.h, simple.polygons[0]);
   double d = 0;
-  GEOSHausdorffDistanceDensify_r(geos.h(), a, b, 0.01, &d);
+  GEOSHausdorffDistanceDensify_r(geos.h, a.g, b.g, 0.01, &d);
   EXPECT_LE(d, 0.5 + 1e-9);
   EXPECT_GT(d, 0.0);
-  GEOSGeom_destroy_r(geos.h(), a);
-  GEOSGeom_destroy_r(geos.h(), b);
 }
 
 TEST(Clean, OutputDoesNotDependOnTheThreadCount) {
@@ -503,7 +501,7 @@ TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
   const prep::SceneFeatures sf = run(dir.file("random.geojson"), prep::DecalKind::polygon);
 
   Geos geos;
-  GEOSWKTReader* reader = GEOSWKTReader_create_r(geos.h());
+  GEOSWKTReader* reader = GEOSWKTReader_create_r(geos.h);
   std::map<int64_t, std::string> repaired, dropped;
   for (const auto& e : sf.manifest.entries) {
     if (e.action == prep::ManifestAction::repaired ||
@@ -520,12 +518,12 @@ TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
   int valid_count = 0, invalid_count = 0;
   for (const Case& c : cs) {
     SCOPED_TRACE(c.wkt);
-    GEOSGeometry* g = GEOSWKTReader_read_r(geos.h(), reader, c.wkt.c_str());
+    GEOSGeometry* g = GEOSWKTReader_read_r(geos.h, reader, c.wkt.c_str());
     ASSERT_NE(g, nullptr);
-    const bool valid = GEOSisValid_r(geos.h(), g) == 1;
+    const bool valid = GEOSisValid_r(geos.h, g) == 1;
     double a = 0;
-    GEOSArea_r(geos.h(), g, &a);
-    GEOSGeom_destroy_r(geos.h(), g);
+    GEOSArea_r(geos.h, g, &a);
+    GEOSGeom_destroy_r(geos.h, g);
     if (valid) {
       ++valid_count;
       // Snapped rings can repeat a vertex: removing it changes nothing GEOS sees.
@@ -540,7 +538,7 @@ TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
           << "fid " << c.fid << " is invalid for GEOS but was kept untouched";
     }
   }
-  GEOSWKTReader_destroy_r(geos.h(), reader);
+  GEOSWKTReader_destroy_r(geos.h, reader);
   // Both kinds must be well represented for the test to mean anything.
   EXPECT_GT(valid_count, 100);
   EXPECT_GT(invalid_count, 50);

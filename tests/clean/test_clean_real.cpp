@@ -38,15 +38,14 @@ TEST(CleanMonaco, SimplifiedOutputIsValidAndWithinHalfAMetre) {
   double worst = 0;
   for (size_t i = 0; i < simple.polygons.size(); ++i) {
     ASSERT_EQ(full.polygons[i].fid, simple.polygons[i].fid);
-    ASSERT_TRUE(geos.is_valid(simple.polygons[i])) << "fid " << simple.polygons[i].fid;
+    ASSERT_TRUE(prep::test::is_valid(geos.h, simple.polygons[i]))
+        << "fid " << simple.polygons[i].fid;
     if (i % 10 != 0) continue;  // Hausdorff on a sample keeps the test fast
-    GEOSGeometry* a = geos.polygon(full.polygons[i]);
-    GEOSGeometry* b = geos.polygon(simple.polygons[i]);
+    const prep::test::G a = prep::test::polygon(geos.h, full.polygons[i]);
+    const prep::test::G b = prep::test::polygon(geos.h, simple.polygons[i]);
     double d = 0;
-    GEOSHausdorffDistanceDensify_r(geos.h(), a, b, 0.25, &d);
+    GEOSHausdorffDistanceDensify_r(geos.h, a.g, b.g, 0.25, &d);
     worst = std::max(worst, d);
-    GEOSGeom_destroy_r(geos.h(), a);
-    GEOSGeom_destroy_r(geos.h(), b);
   }
   // Densified discrete Hausdorff approximates the true distance from below
   // within the densification step; Douglas-Peucker bounds it by the tolerance.

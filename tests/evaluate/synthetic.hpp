@@ -1,9 +1,8 @@
 // tests/evaluate/synthetic.hpp — synthetic SceneFeatures for the static decal
-// tests (built directly, the way clean hands them to build) and a small RAII
-// layer over the GEOS C API used as the independent oracle.
+// tests (built directly, the way clean hands them to build) and the GEOS
+// regions a static line covers, on the shared GEOS oracle
+// (tests/support/geos_oracle.hpp).
 #pragma once
-
-#include <geos_c.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,77 +13,21 @@
 #include <string>
 #include <vector>
 
+#include "geos_oracle.hpp"
 #include "prep/scene.hpp"
 
 namespace synth {
 
-// ------------------------------------------------------------------ GEOS --
-inline void geos_notice(const char*, void*) {}
-struct Geos {
-  GEOSContextHandle_t h;
-  Geos() : h(GEOS_init_r()) {
-    GEOSContext_setNoticeMessageHandler_r(h, geos_notice, nullptr);
-    GEOSContext_setErrorMessageHandler_r(h, geos_notice, nullptr);
-  }
-  ~Geos() { GEOS_finish_r(h); }
-  Geos(const Geos&) = delete;
-  Geos& operator=(const Geos&) = delete;
-};
-
-// Owning geometry pointer.
-struct G {
-  GEOSContextHandle_t h = nullptr;
-  GEOSGeometry* g = nullptr;
-  G() = default;
-  G(GEOSContextHandle_t hh, GEOSGeometry* gg) : h(hh), g(gg) {
-    if (!g) throw std::runtime_error("GEOS returned null");
-  }
-  G(G&& o) noexcept : h(o.h), g(o.g) { o.g = nullptr; }
-  G& operator=(G&& o) noexcept {
-    std::swap(h, o.h);
-    std::swap(g, o.g);
-    return *this;
-  }
-  ~G() {
-    if (g) GEOSGeom_destroy_r(h, g);
-  }
-  GEOSGeometry* release() {
-    auto* r = g;
-    g = nullptr;
-    return r;
-  }
-};
-
-inline GEOSCoordSequence* seq(GEOSContextHandle_t h, const prep::Ring& r, bool close) {
-  const size_t n = r.size() + (close ? 1 : 0);
-  GEOSCoordSequence* s = GEOSCoordSeq_create_r(h, unsigned(n), 2);
-  for (size_t i = 0; i < n; ++i) {
-    const prep::Point2& p = r[i % r.size()];
-    GEOSCoordSeq_setXY_r(h, s, unsigned(i), p.x, p.y);
-  }
-  return s;
-}
-inline G linestring(GEOSContextHandle_t h, const prep::Ring& r, bool close = false) {
-  return G(h, GEOSGeom_createLineString_r(h, seq(h, r, close)));
-}
-inline G polygon(GEOSContextHandle_t h, const prep::Ring& shell,
-                 const std::vector<prep::Ring>& holes = {}) {
-  GEOSGeometry* s = GEOSGeom_createLinearRing_r(h, seq(h, shell, true));
-  std::vector<GEOSGeometry*> hs;
-  for (const auto& r : holes) hs.push_back(GEOSGeom_createLinearRing_r(h, seq(h, r, true)));
-  return G(h, GEOSGeom_createPolygon_r(h, s, hs.data(), unsigned(hs.size())));
-}
-inline G box(GEOSContextHandle_t h, double x0, double y0, double x1, double y1) {
-  return polygon(h, {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}});
-}
-inline G point(GEOSContextHandle_t h, double x, double y) {
-  return G(h, GEOSGeom_createPointFromXY_r(h, x, y));
-}
-inline G collection(GEOSContextHandle_t h, int type, std::vector<G>& parts) {
-  std::vector<GEOSGeometry*> raw;
-  for (auto& p : parts) raw.push_back(p.release());
-  return G(h, GEOSGeom_createCollection_r(h, type, raw.data(), unsigned(raw.size())));
-}
+// The GEOS oracle layer (tests/support/geos_oracle.hpp), under the names
+// these tests use.
+using prep::test::box;
+using prep::test::collection;
+using prep::test::G;
+using prep::test::Geos;
+using prep::test::linestring;
+using prep::test::point;
+using prep::test::polygon;
+using prep::test::seq;
 
 // ----------------------------------------------------------- generators --
 

@@ -170,9 +170,8 @@ Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m,
           // Which outline, and how thin is its ring? (2 * area / perimeter)
           const prep::SceneLine& l = s.lines[size_t(got.top_line)];
           G ring = synth::polygon(h, l.points);
-          double a = 0, per = 0, dist = 0;
-          GEOSArea_r(h, ring.g, &a);
-          GEOSLength_r(h, ring.g, &per);
+          const double a = prep::test::area(ring), per = prep::test::length(ring);
+          double dist = 0;
           GEOSDistance_r(h, ring.g, pt.g, &dist);
           std::printf(
               "  outline fid %lld: %zu vertices, 2A/P = %.3f m, half width %.2f m, point %.3f m "

@@ -103,9 +103,7 @@ TEST(QuadTree, LeafAreasEqualGeosAreaOfPolygonInLeafAndSolidLeavesMissTheRing) {
       const auto& b = m.qt_node_box[n];
       G boxpoly = synth::box(h, b[0], b[1], b[2], b[3]);
       G clip(h, GEOSIntersection_r(h, poly.g, boxpoly.g));
-      double truth, box_area;
-      GEOSArea_r(h, clip.g, &truth);
-      GEOSArea_r(h, boxpoly.g, &box_area);
+      const double truth = prep::test::area(clip), box_area = prep::test::area(boxpoly);
       double impl = 0;
       if (type == decal::QtNodeType::outside || type == decal::QtNodeType::inside) {
         EXPECT_FALSE(GEOSIntersects_r(h, boxpoly.g, line.g))
