@@ -18,16 +18,9 @@
 
 namespace synth {
 
-// The GEOS oracle layer (tests/support/geos_oracle.hpp), under the names
-// these tests use.
-using prep::test::box;
-using prep::test::collection;
-using prep::test::G;
-using prep::test::Geos;
-using prep::test::linestring;
-using prep::test::point;
-using prep::test::polygon;
-using prep::test::seq;
+// The GEOS oracle (tests/support/geos_oracle.hpp: Geos, G, polygon, ...)
+// under synth:: as well.
+using namespace prep::test;
 
 // ----------------------------------------------------------- generators --
 
