@@ -180,14 +180,10 @@ bool quadtree_covers(const StaticView& v, uint32_t node, const PointQ& p, EvalCo
         if (!found) return false;
         break;
       }
-      case decal::QtNodeType::outside:
-        return false;
-      case decal::QtNodeType::inside:
-        return true;
-      case decal::QtNodeType::partial:
-        return leaf_polygon_covers(v, uint32_t(n[1]), p, k);
-      default:
-        return false;
+      case decal::QtNodeType::outside: return false;
+      case decal::QtNodeType::inside: return true;
+      case decal::QtNodeType::partial: return leaf_polygon_covers(v, uint32_t(n[1]), p, k);
+      default: return false;
     }
   }
 }

@@ -43,18 +43,6 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-const char* kind_name(DecalKind k) {
-  switch (k) {
-    case DecalKind::polygon:
-      return "polygon";
-    case DecalKind::line:
-      return "line";
-    case DecalKind::outline:
-      return "outline";
-  }
-  return "?";
-}
-
 nlohmann::json manifest_json(const Manifest& m, bool with_entries) {
   nlohmann::json layers = nlohmann::json::array();
   for (const LayerCounts& c : m.layers) layers.push_back(layer_counts_json(c));

@@ -197,14 +197,9 @@ struct Progress::Impl {
         emit("\r" + human(s, x, false) + "\x1b[K");
         tty_line = true;
         break;
-      case ProgressMode::plain:
-        emit(human(s, x, false) + "\n");
-        break;
-      case ProgressMode::json:
-        emit(json(s, x, "progress"));
-        break;
-      case ProgressMode::none:
-        break;
+      case ProgressMode::plain: emit(human(s, x, false) + "\n"); break;
+      case ProgressMode::json: emit(json(s, x, "progress")); break;
+      case ProgressMode::none: break;
     }
   }
 
@@ -385,14 +380,9 @@ void ProgressStage::close(bool completed) {
       im.emit("\r" + im.human(*s, x, true) + "\x1b[K\n");
       im.tty_line = false;
       break;
-    case ProgressMode::plain:
-      im.emit(im.human(*s, x, true) + "\n");
-      break;
-    case ProgressMode::json:
-      im.emit(im.json(*s, x, "end"));
-      break;
-    case ProgressMode::none:
-      break;
+    case ProgressMode::plain: im.emit(im.human(*s, x, true) + "\n"); break;
+    case ProgressMode::json: im.emit(im.json(*s, x, "end")); break;
+    case ProgressMode::none: break;
   }
 }
 

@@ -139,18 +139,6 @@ std::string where_of(const LayerSpec& spec, const std::string& layer_name) {
   return w + " layer '" + layer_name + "'";
 }
 
-std::string kind_name(DecalKind k) {
-  switch (k) {
-    case DecalKind::polygon:
-      return "polygon";
-    case DecalKind::line:
-      return "line";
-    case DecalKind::outline:
-      return "outline";
-  }
-  return "?";
-}
-
 // Per-feature state while splitting a geometry into parts.
 struct Splitter {
   const LayerSpec& spec;
@@ -243,13 +231,9 @@ struct Splitter {
     }
     switch (wkbFlatten(g->getGeometryType())) {
       case wkbPolygon:
-      case wkbTriangle:
-        add_polygon(*g->toPolygon());
-        break;
+      case wkbTriangle: add_polygon(*g->toPolygon()); break;
       case wkbLineString:
-      case wkbLinearRing:
-        add_curve(*g->toLineString());
-        break;
+      case wkbLinearRing: add_curve(*g->toLineString()); break;
       case wkbMultiPolygon:
       case wkbMultiLineString:
       case wkbGeometryCollection:

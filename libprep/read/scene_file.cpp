@@ -33,20 +33,13 @@ int line_of(const toml::node& n) {
 
 std::string type_name(const toml::node& n) {
   switch (n.type()) {
-    case toml::node_type::string:
-      return "string";
-    case toml::node_type::integer:
-      return "integer";
-    case toml::node_type::floating_point:
-      return "float";
-    case toml::node_type::boolean:
-      return "boolean";
-    case toml::node_type::array:
-      return "array";
-    case toml::node_type::table:
-      return "table";
-    default:
-      return "date/time";
+    case toml::node_type::string: return "string";
+    case toml::node_type::integer: return "integer";
+    case toml::node_type::floating_point: return "float";
+    case toml::node_type::boolean: return "boolean";
+    case toml::node_type::array: return "array";
+    case toml::node_type::table: return "table";
+    default: return "date/time";
   }
 }
 
@@ -256,6 +249,15 @@ decal::OutlineMode parse_outline_mode(const std::string& t) {
   if (t == "inset") return decal::OutlineMode::inset;
   if (t == "offset") return decal::OutlineMode::offset;
   throw usage_error("expected normal|inset|offset, got \"" + t + "\"");
+}
+
+const char* kind_name(DecalKind k) {
+  switch (k) {
+    case DecalKind::polygon: return "polygon";
+    case DecalKind::line: return "line";
+    case DecalKind::outline: return "outline";
+  }
+  return "?";
 }
 
 DecalKind parse_kind(const std::string& t) {

@@ -55,23 +55,18 @@ enum class Input {
 
 void write_input(Input in, const TempDir& dir) {
   switch (in) {
-    case Input::none:
-      break;
+    case Input::none: break;
     case Input::garbage_shp:
       prep::test::write_text(dir.file("junk.shp"), std::string(300, '\x5a'));
       break;
-    case Input::shapefile:
-      write_shapefile(dir.file("roads.shp"), true);
-      break;
+    case Input::shapefile: write_shapefile(dir.file("roads.shp"), true); break;
     case Input::truncated_shapefile:
       write_shapefile(dir.file("roads.shp"), true);
       // Cut the .shp in the middle of its records; the .shx still points past it.
       std::filesystem::resize_file(dir.file("roads.shp"),
                                    std::filesystem::file_size(dir.file("roads.shp")) / 2);
       break;
-    case Input::shapefile_without_crs:
-      write_shapefile(dir.file("roads.shp"), false);
-      break;
+    case Input::shapefile_without_crs: write_shapefile(dir.file("roads.shp"), false); break;
     case Input::bad_scene:
       write_shapefile(dir.file("roads.shp"), true);
       prep::test::write_text(dir.file("scene.toml"),

@@ -61,16 +61,12 @@ int position_components(uint32_t id) {
   switch (static_cast<BlobId>(id)) {
     case BlobId::line_vertices:
     case BlobId::qt_leaf_vertices:
-    case BlobId::lod_points:
-      return 2;
-    case BlobId::dyn_vertices:
-      return 3;
+    case BlobId::lod_points: return 2;
+    case BlobId::dyn_vertices: return 3;
     case BlobId::qt_node_box:
     case BlobId::line_bvh_box:
-    case BlobId::poly_bvh_box:
-      return 4;
-    default:
-      return 0;
+    case BlobId::poly_bvh_box: return 4;
+    default: return 0;
   }
 }
 
@@ -169,28 +165,17 @@ void element(const decal::BlobView& b, uint64_t i, std::string* text, json* out)
     if (out) *out = n == 1 ? arr[0] : arr;
   };
   switch (b.type) {
-    case ElementType::u8:
-      return ints(uint8_t{}, 1);
-    case ElementType::u32:
-      return ints(uint32_t{}, 1);
-    case ElementType::i32:
-      return ints(int32_t{}, 1);
-    case ElementType::f32:
-      return floats(1);
-    case ElementType::ivec2:
-      return ints(int32_t{}, 2);
-    case ElementType::uvec2:
-      return ints(uint32_t{}, 2);
-    case ElementType::ivec4:
-      return ints(int32_t{}, 4);
-    case ElementType::uvec4:
-      return ints(uint32_t{}, 4);
-    case ElementType::vec2:
-      return floats(2);
-    case ElementType::vec4:
-      return floats(4);
-    case ElementType::record:
-      break;
+    case ElementType::u8: return ints(uint8_t{}, 1);
+    case ElementType::u32: return ints(uint32_t{}, 1);
+    case ElementType::i32: return ints(int32_t{}, 1);
+    case ElementType::f32: return floats(1);
+    case ElementType::ivec2: return ints(int32_t{}, 2);
+    case ElementType::uvec2: return ints(uint32_t{}, 2);
+    case ElementType::ivec4: return ints(int32_t{}, 4);
+    case ElementType::uvec4: return ints(uint32_t{}, 4);
+    case ElementType::vec2: return floats(2);
+    case ElementType::vec4: return floats(4);
+    case ElementType::record: break;
   }
 #define RECORD(T, txt, js)     \
   do {                         \
@@ -201,18 +186,12 @@ void element(const decal::BlobView& b, uint64_t i, std::string* text, json* out)
   } while (0)
   switch (static_cast<BlobId>(b.id)) {
     case BlobId::line_props:
-    case BlobId::dyn_line_props:
-      RECORD(decal::LineProps, text_line_props, json_line_props);
-    case BlobId::line_corners:
-      RECORD(decal::LineCorner, text_corner, json_corner);
-    case BlobId::poly_props:
-      RECORD(decal::PolyProps, text_poly, json_poly);
-    case BlobId::lod_points:
-      RECORD(decal::LodPoint, text_lod_point, json_lod_point);
-    case BlobId::lod_segments:
-      RECORD(decal::LodSegment, text_lod_segment, json_lod_segment);
-    default:
-      break;
+    case BlobId::dyn_line_props: RECORD(decal::LineProps, text_line_props, json_line_props);
+    case BlobId::line_corners: RECORD(decal::LineCorner, text_corner, json_corner);
+    case BlobId::poly_props: RECORD(decal::PolyProps, text_poly, json_poly);
+    case BlobId::lod_points: RECORD(decal::LodPoint, text_lod_point, json_lod_point);
+    case BlobId::lod_segments: RECORD(decal::LodSegment, text_lod_segment, json_lod_segment);
+    default: break;
   }
 #undef RECORD
   // A record this build does not know: its bytes in hex.

@@ -19,20 +19,13 @@ GLenum texture_format(BlobId id) {
     return GL_RGBA32UI;
   if (id == BlobId::line_corners) return GL_RG32F;
   switch (info ? info->type : ElementType::u32) {
-    case ElementType::ivec2:
-      return GL_RG32I;
-    case ElementType::uvec2:
-      return GL_RG32UI;
-    case ElementType::ivec4:
-      return GL_RGBA32I;
-    case ElementType::uvec4:
-      return GL_RGBA32UI;
-    case ElementType::i32:
-      return GL_R32I;
-    case ElementType::f32:
-      return GL_R32F;
-    default:
-      return GL_R32UI;
+    case ElementType::ivec2: return GL_RG32I;
+    case ElementType::uvec2: return GL_RG32UI;
+    case ElementType::ivec4: return GL_RGBA32I;
+    case ElementType::uvec4: return GL_RGBA32UI;
+    case ElementType::i32: return GL_R32I;
+    case ElementType::f32: return GL_R32F;
+    default: return GL_R32UI;
   }
 }
 

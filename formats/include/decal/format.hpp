@@ -42,22 +42,17 @@ enum class ElementType : uint32_t {
 // struct gives it).
 constexpr uint32_t std430_stride(ElementType t) {
   switch (t) {
-    case ElementType::u8:
-      return 1;
+    case ElementType::u8: return 1;
     case ElementType::u32:
     case ElementType::i32:
-    case ElementType::f32:
-      return 4;
+    case ElementType::f32: return 4;
     case ElementType::ivec2:
     case ElementType::uvec2:
-    case ElementType::vec2:
-      return 8;
+    case ElementType::vec2: return 8;
     case ElementType::ivec4:
     case ElementType::uvec4:
-    case ElementType::vec4:
-      return 16;
-    case ElementType::record:
-      return 0;
+    case ElementType::vec4: return 16;
+    case ElementType::record: return 0;
   }
   return 0;
 }
@@ -391,28 +386,17 @@ static_assert(offsetof(BlobTableEntry, name) == 56);
 // unknown.
 constexpr std::string_view element_type_name(ElementType t) {
   switch (t) {
-    case ElementType::u8:
-      return "u8";
-    case ElementType::u32:
-      return "u32";
-    case ElementType::i32:
-      return "i32";
-    case ElementType::f32:
-      return "f32";
-    case ElementType::ivec2:
-      return "ivec2";
-    case ElementType::uvec2:
-      return "uvec2";
-    case ElementType::ivec4:
-      return "ivec4";
-    case ElementType::uvec4:
-      return "uvec4";
-    case ElementType::vec2:
-      return "vec2";
-    case ElementType::vec4:
-      return "vec4";
-    case ElementType::record:
-      return "record";
+    case ElementType::u8: return "u8";
+    case ElementType::u32: return "u32";
+    case ElementType::i32: return "i32";
+    case ElementType::f32: return "f32";
+    case ElementType::ivec2: return "ivec2";
+    case ElementType::uvec2: return "uvec2";
+    case ElementType::ivec4: return "ivec4";
+    case ElementType::uvec4: return "uvec4";
+    case ElementType::vec2: return "vec2";
+    case ElementType::vec4: return "vec4";
+    case ElementType::record: return "record";
   }
   return "";
 }

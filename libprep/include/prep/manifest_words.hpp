@@ -24,30 +24,21 @@ enum class FailureStage { read, project, clean, build };
 
 inline const char* word(ManifestAction a) {
   switch (a) {
-    case ManifestAction::repaired:
-      return "repaired";
-    case ManifestAction::part_dropped:
-      return "part_dropped";
-    case ManifestAction::dropped:
-      return "dropped";
-    case ManifestAction::clipped_away:
-      return "clipped_away";
-    case ManifestAction::note:
-      return "note";
+    case ManifestAction::repaired: return "repaired";
+    case ManifestAction::part_dropped: return "part_dropped";
+    case ManifestAction::dropped: return "dropped";
+    case ManifestAction::clipped_away: return "clipped_away";
+    case ManifestAction::note: return "note";
   }
   return "?";
 }
 
 inline const char* word(FailureStage s) {
   switch (s) {
-    case FailureStage::read:
-      return "read";
-    case FailureStage::project:
-      return "project";
-    case FailureStage::clean:
-      return "clean";
-    case FailureStage::build:
-      return "build";
+    case FailureStage::read: return "read";
+    case FailureStage::project: return "project";
+    case FailureStage::clean: return "clean";
+    case FailureStage::build: return "build";
   }
   return "?";
 }

@@ -76,5 +76,7 @@ decal::OutlineMode parse_outline_mode(const std::string& text);
 // Parses "linework|structure" (SceneSpec::repair).
 RepairMethod parse_repair_method(const std::string& text);
 DecalKind parse_kind(const std::string& text);
+// The scene-file word of a kind (the inverse of parse_kind).
+const char* kind_name(DecalKind kind);
 
 }  // namespace prep

@@ -183,15 +183,9 @@ TEST(LodSegments, DistanceDependentThresholdAlwaysGivesConnectedPolyline) {
       const double base = u(rng) * 5, slope = u(rng) * 0.05;
       prep::LodThreshold eps;
       switch (cam_i % 3) {
-        case 0:
-          eps = prep::LinearThreshold{base, slope};
-          break;
-        case 1:
-          eps = [=](double d) { return base + slope * 0.01 * (d > 0 ? d * d : 0.0); };
-          break;
-        default:
-          eps = [=](double d) { return base * std::floor(std::max(d, 0.0) / 200.0); };
-          break;
+        case 0: eps = prep::LinearThreshold{base, slope}; break;
+        case 1: eps = [=](double d) { return base + slope * 0.01 * (d > 0 ? d * d : 0.0); }; break;
+        default: eps = [=](double d) { return base * std::floor(std::max(d, 0.0) / 200.0); }; break;
       }
       const auto vis = prep::visible_segments(set.points, set.segments, cam, eps);
       for (uint32_t i = 0; i < lines.size(); ++i) {

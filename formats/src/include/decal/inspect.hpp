@@ -69,10 +69,8 @@ Status validate_indices(const Package& package, const Grid* grid = nullptr);
 // "none", "zstd", or "" for an unknown codec id.
 constexpr std::string_view codec_name(uint32_t codec) {
   switch (static_cast<CodecId>(codec)) {
-    case CodecId::none:
-      return "none";
-    case CodecId::zstd:
-      return "zstd";
+    case CodecId::none: return "none";
+    case CodecId::zstd: return "zstd";
   }
   return "";
 }

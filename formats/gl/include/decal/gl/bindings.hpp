@@ -61,56 +61,31 @@ enum class Binding : uint32_t {
 // (LOD blobs, unknown ids).
 constexpr Binding binding_of(BlobId id) {
   switch (id) {
-    case BlobId::poly_props:
-      return Binding::poly_props;
-    case BlobId::qt_node_box:
-      return Binding::qt_node_box;
-    case BlobId::qt_node:
-      return Binding::qt_node;
-    case BlobId::qt_leaf_range:
-      return Binding::qt_leaf_range;
-    case BlobId::qt_leaf_segments:
-      return Binding::qt_leaf_segments;
-    case BlobId::qt_leaf_vertices:
-      return Binding::qt_leaf_vertices;
-    case BlobId::cell_poly_range:
-      return Binding::cell_poly_range;
-    case BlobId::cell_polys:
-      return Binding::cell_polys;
-    case BlobId::cell_holes:
-      return Binding::cell_holes;
-    case BlobId::poly_bvh_range:
-      return Binding::poly_bvh_range;
-    case BlobId::poly_bvh_box:
-      return Binding::poly_bvh_box;
-    case BlobId::line_vertices:
-      return Binding::line_vertices;
-    case BlobId::line_vertex_line:
-      return Binding::line_vertex_line;
-    case BlobId::line_props:
-      return Binding::line_props;
-    case BlobId::line_corners:
-      return Binding::line_corners;
-    case BlobId::cell_segment_range:
-      return Binding::cell_segment_range;
-    case BlobId::cell_segments:
-      return Binding::cell_segments;
-    case BlobId::line_bvh_range:
-      return Binding::line_bvh_range;
-    case BlobId::line_bvh_box:
-      return Binding::line_bvh_box;
-    case BlobId::dyn_vertices:
-      return Binding::dyn_vertices;
-    case BlobId::dyn_prev_next:
-      return Binding::dyn_prev_next;
-    case BlobId::dyn_line_start:
-      return Binding::dyn_line_start;
-    case BlobId::dyn_line_props:
-      return Binding::dyn_line_props;
-    case BlobId::poly_root_node:
-      return Binding::poly_root_node;
-    default:
-      return Binding::none;
+    case BlobId::poly_props: return Binding::poly_props;
+    case BlobId::qt_node_box: return Binding::qt_node_box;
+    case BlobId::qt_node: return Binding::qt_node;
+    case BlobId::qt_leaf_range: return Binding::qt_leaf_range;
+    case BlobId::qt_leaf_segments: return Binding::qt_leaf_segments;
+    case BlobId::qt_leaf_vertices: return Binding::qt_leaf_vertices;
+    case BlobId::cell_poly_range: return Binding::cell_poly_range;
+    case BlobId::cell_polys: return Binding::cell_polys;
+    case BlobId::cell_holes: return Binding::cell_holes;
+    case BlobId::poly_bvh_range: return Binding::poly_bvh_range;
+    case BlobId::poly_bvh_box: return Binding::poly_bvh_box;
+    case BlobId::line_vertices: return Binding::line_vertices;
+    case BlobId::line_vertex_line: return Binding::line_vertex_line;
+    case BlobId::line_props: return Binding::line_props;
+    case BlobId::line_corners: return Binding::line_corners;
+    case BlobId::cell_segment_range: return Binding::cell_segment_range;
+    case BlobId::cell_segments: return Binding::cell_segments;
+    case BlobId::line_bvh_range: return Binding::line_bvh_range;
+    case BlobId::line_bvh_box: return Binding::line_bvh_box;
+    case BlobId::dyn_vertices: return Binding::dyn_vertices;
+    case BlobId::dyn_prev_next: return Binding::dyn_prev_next;
+    case BlobId::dyn_line_start: return Binding::dyn_line_start;
+    case BlobId::dyn_line_props: return Binding::dyn_line_props;
+    case BlobId::poly_root_node: return Binding::poly_root_node;
+    default: return Binding::none;
   }
 }
 
