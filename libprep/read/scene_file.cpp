@@ -139,8 +139,11 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
   layer.source = default_source;
   const std::string prefix = "layer[" + std::to_string(index) + "].";
   bool width_set = false;
-  for (auto&& [k, v] : t) {
-    std::string key(k.str());
+  for (auto&& entry : t) {
+    // Not a structured binding: lambdas below capture the value, which
+    // clang (and so clang-tidy) accepts only for a plain variable.
+    const std::string key(entry.first.str());
+    const toml::node& v = entry.second;
     KeyRef ref{file, prefix + key, line_of(v)};
     if (key == "name") {
       layer.name = get_string(v, ref);
