@@ -111,22 +111,12 @@ void BM_Read(benchmark::State& state) {
       static_cast<double>(d.raw_bytes) / 1e6 * state.iterations(), benchmark::Counter::kIsRate);
 }
 
-BENCHMARK(BM_Write)
-    ->ArgName("level")
-    ->Arg(0)
-    ->Arg(1)
-    ->Arg(3)
-    ->Arg(9)
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
-BENCHMARK(BM_Read)
-    ->ArgName("level")
-    ->Arg(0)
-    ->Arg(1)
-    ->Arg(3)
-    ->Arg(9)
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+// Both directions at the same zstd levels.
+void zstd_levels(benchmark::internal::Benchmark* b) {
+  b->ArgName("level")->Arg(0)->Arg(1)->Arg(3)->Arg(9)->Unit(benchmark::kMillisecond)->UseRealTime();
+}
+BENCHMARK(BM_Write)->Apply(zstd_levels);
+BENCHMARK(BM_Read)->Apply(zstd_levels);
 
 }  // namespace
 

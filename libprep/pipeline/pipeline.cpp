@@ -43,12 +43,17 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+// The manifest's "totals": every count summed over the layers, without "layer".
+nlohmann::json totals_json(const Manifest& m) {
+  nlohmann::json totals = layer_counts_json(manifest_totals(m));
+  totals.erase("layer");
+  return totals;
+}
+
 nlohmann::json manifest_json(const Manifest& m, bool with_entries) {
   nlohmann::json layers = nlohmann::json::array();
   for (const LayerCounts& c : m.layers) layers.push_back(layer_counts_json(c));
-  nlohmann::json totals = layer_counts_json(manifest_totals(m));
-  totals.erase("layer");
-  nlohmann::json j = {{"layers", layers}, {"totals", totals}, {"notes", m.notes}};
+  nlohmann::json j = {{"layers", layers}, {"totals", totals_json(m)}, {"notes", m.notes}};
   if (with_entries) {
     nlohmann::json entries = nlohmann::json::array();
     for (const ManifestEntry& e : m.entries) entries.push_back(manifest_entry_json(e));
@@ -274,7 +279,7 @@ size_t count_skipped_failures(const Manifest& m) {
 // options.
 nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest,
                                 const nlohmann::json& provenance) {
-  nlohmann::json totals = manifest_json(manifest, false)["totals"];
+  nlohmann::json totals = totals_json(manifest);
   nlohmann::json extra;
   extra["manifest"]["totals"] = totals;
   extra["layers"] = layers_json(scene.layers);
