@@ -19,6 +19,7 @@
 #include <set>
 #include <sstream>
 
+#include "pipeline_internal.hpp"
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
@@ -28,6 +29,7 @@
 #include "prep/project.hpp"
 #include "prep/read.hpp"
 #include "prep/stage_error.hpp"
+#include "prep/tileset.hpp"
 #include "prep/write.hpp"
 
 namespace prep {
@@ -87,24 +89,10 @@ nlohmann::json provenance_json(const SceneSpec& scene) {
       auto zip = file.find(".zip");
       if (zip != std::string::npos) file = file.substr(0, zip + 4);
     }
-    std::ifstream in(file, std::ios::binary);
-    if (in) {
-      XXH64_state_t* st = XXH64_createState();
-      XXH64_reset(st, 0);
-      std::vector<char> buf(1 << 16);
-      uint64_t size = 0;
-      while (in) {
-        in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-        auto n = static_cast<size_t>(in.gcount());
-        XXH64_update(st, buf.data(), n);
-        size += n;
-      }
-      char hex[17];
-      std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(XXH64_digest(st)));
-      XXH64_freeState(st);
+    if (const std::optional<FileDigest> d = file_digest(file)) {
       s["file"] = file;
-      s["bytes"] = size;
-      s["xxh64"] = hex;
+      s["bytes"] = d->bytes;
+      s["xxh64"] = hex64(d->xxh64);
     }
     sources.push_back(std::move(s));
   }
@@ -132,22 +120,6 @@ nlohmann::json layers_json(const std::vector<LayerSpec>& layers) {
   return out;
 }
 
-void write_text_file(const std::string& path, const std::string& text) {
-  // The report is small; write it whole, via a temp file, so a reader never
-  // sees half a report.
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) fail<output_error>(kReportStage, "cannot write " + path);
-    out << text;
-    if (!out.flush()) fail<output_error>(kReportStage, "cannot write " + path);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    fail<output_error>(kReportStage, "cannot rename " + tmp + " to " + path);
-  }
-}
-
 nlohmann::json report_object(const SceneFeatures& scene, const std::string& output,
                              const std::vector<std::pair<std::string, double>>& timings,
                              bool package_written) {
@@ -168,6 +140,26 @@ nlohmann::json report_object(const SceneFeatures& scene, const std::string& outp
 }
 
 }  // namespace
+
+namespace pipeline_internal {
+
+void write_text_file(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) fail<output_error>(kReportStage, "cannot write " + path);
+    out << text;
+    if (!out.flush()) fail<output_error>(kReportStage, "cannot write " + path);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    fail<output_error>(kReportStage, "cannot rename " + tmp + " to " + path);
+  }
+}
+
+}  // namespace pipeline_internal
+
+using pipeline_internal::write_text_file;
 
 LayerCounts manifest_totals(const Manifest& manifest) {
   LayerCounts total;
@@ -193,28 +185,66 @@ std::string report_json(const SceneFeatures& scene, const std::string& output,
 namespace {
 
 // The build stage holds positions as int32 millimetres from the origin
-// (decal/format.hpp): a vertex farther than ~2147 km cannot be stored, and
-// build_model would stop the whole build at it. Checked here, per feature,
-// so that it is a per-feature failure like the others (feature_failure.hpp):
-// without skip_failures the first such feature stops the build (input error),
-// with it the feature is dropped and recorded. Polygons, then static lines,
-// then dynamic lines, each in input order.
+// (decal/format.hpp): a vertex farther than ~2147 km cannot be stored in one
+// package (a tileset has no such limit: each tile has its own origin).
+constexpr double kRangeLimit = double(2147483647LL - 2) * decal::kQuantumMetres;
+
+bool out_of_range(const Point2& p) {
+  return !(std::fabs(p.x) <= kRangeLimit && std::fabs(p.y) <= kRangeLimit);
+}
+
+std::string out_of_range_reason(const Point2& p) {
+  std::ostringstream m;
+  m.precision(12);
+  m << "vertex (" << p.x << ", " << p.y
+    << ") m lies more than 2147 km from the package origin; int32 millimetre positions "
+       "cannot hold it (build a tileset with --tile-size, or leave it out with --extent)";
+  return m.str();
+}
+
+// As soon as the frame is known (after project, before a long clean): the
+// first feature, in input order, with a vertex out of range that the clip
+// extent keeps. Without skip_failures it would stop the build after clean;
+// it stops it now, with the same message. (With skip_failures the check
+// after clean drops such features.)
+void check_range_early(const ProjectedFeatures& p) {
+  for (const SourceLayer& layer : p.features.layers)
+    for (const SourceFeature& f : layer.features) {
+      if (!f.drop_reason.empty()) continue;
+      // A vertex no frame can hold (non-finite, or 1e9 m out) fails the
+      // feature in clean, with that message.
+      const auto absurd = [](const Point2& q) {
+        return !(std::fabs(q.x) <= 1e9 && std::fabs(q.y) <= 1e9);
+      };
+      if (std::any_of(f.rings.begin(), f.rings.end(),
+                      [&](const Ring& r) { return std::any_of(r.begin(), r.end(), absurd); }))
+        continue;
+      for (const Ring& r : f.rings)
+        for (const Point2& q : r) {
+          if (!out_of_range(q)) continue;
+          if (p.clip && !(q.x >= p.clip->xmin && q.x <= p.clip->xmax && q.y >= p.clip->ymin &&
+                          q.y <= p.clip->ymax))
+            continue;
+          throw feature_failure_error(FailureStage::build, layer.spec.source, layer.spec.name,
+                                      f.fid, out_of_range_reason(q));
+        }
+    }
+}
+
+// The same check after clean, per feature, so that it is a per-feature
+// failure like the others (feature_failure.hpp): without skip_failures the
+// first such feature stops the build (input error), with it the feature is
+// dropped and recorded. Polygons, then static lines, then dynamic lines,
+// each in input order.
 void check_build_range(SceneFeatures& s, bool skip_failures) {
-  // One quantum below INT32_MAX is kept free by the build (quad-tree frame).
-  const double limit = double(2147483647LL - 2) * decal::kQuantumMetres;
   using Key = std::pair<uint32_t, int64_t>;  // (layer, fid)
   std::map<Key, std::string> failed;
   std::vector<Key> order;
   auto check_ring = [&](const Ring& ring, uint32_t layer, int64_t fid) {
     if (failed.count({layer, fid})) return;
     for (const Point2& p : ring) {
-      if (std::fabs(p.x) <= limit && std::fabs(p.y) <= limit) continue;
-      std::ostringstream m;
-      m.precision(12);
-      m << "vertex (" << p.x << ", " << p.y
-        << ") m lies more than 2147 km from the package origin; int32 millimetre positions "
-           "cannot hold it (split the scene, or leave it out with --extent)";
-      const std::string reason = m.str();
+      if (!out_of_range(p)) continue;
+      const std::string reason = out_of_range_reason(p);
       if (!skip_failures) {
         const LayerSpec& l = s.layers.at(layer);
         throw feature_failure_error(FailureStage::build, l.source, l.name, fid, reason);
@@ -273,10 +303,11 @@ size_t count_skipped_failures(const Manifest& m) {
   return n;
 }
 
-// The package metadata only the pipeline knows (write_model writes frame,
-// grid, counts and the manifest itself; keys must not collide): the manifest
-// totals after the build stage, the layers, provenance, scene file and build
-// options.
+}  // namespace
+
+namespace pipeline_internal {
+
+// Keys must not collide with write_model's.
 nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest,
                                 const nlohmann::json& provenance) {
   nlohmann::json totals = totals_json(manifest);
@@ -306,6 +337,12 @@ nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest
   return extra;
 }
 
+}  // namespace pipeline_internal
+
+using pipeline_internal::package_metadata;
+
+namespace {
+
 // The report's memory part: peak RSS after each stage, every estimate with
 // its basis, and the limit (prep/memory_estimate.hpp).
 void add_memory_report(nlohmann::json& report,
@@ -329,6 +366,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   const auto t_all = Clock::now();
   if (!request.dry_run && request.output.empty())
     fail<usage_error>(kBuildStage, "no output path (-o)");
+  const bool tiled = scene.tile_size > 0;
   // --threads caps every stage's oneTBB work (the output does not depend on it).
   std::unique_ptr<tbb::global_control> threads;
   if (scene.model.threads > 0) {
@@ -375,19 +413,41 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     ProjectedFeatures projected = project(std::move(features), frame, scene, request.progress);
     timings.emplace_back("project", seconds_since(t0));
     peaks.emplace_back("project", peak_rss_mib());
+    if (!tiled && !scene.skip_failures) check_range_early(projected);
 
     t0 = Clock::now();
     CleanOptions co;
     co.threads = scene.model.threads;
     co.progress = request.progress;
     result.scene = clean(std::move(projected), scene, co);
-    check_build_range(result.scene, scene.skip_failures);
+    if (!tiled) check_build_range(result.scene, scene.skip_failures);
     timings.emplace_back("clean", seconds_since(t0));
   }
   peaks.emplace_back("clean", peak_rss_mib());
-  if (!request.dry_run) estimate(estimate_after_clean(scene, result.scene));
+  // (A tileset's peak is one tile's per job: not modelled yet.)
+  if (!request.dry_run && !tiled) estimate(estimate_after_clean(scene, result.scene));
 
-  if (!request.dry_run) {
+  std::optional<pipeline_internal::TilesetOutcome> tileset;
+  if (!request.dry_run && tiled) {
+    t0 = Clock::now();
+    tileset = pipeline_internal::write_tileset(scene, result.scene, request, provenance_of());
+    timings.emplace_back("tiles", seconds_since(t0));
+    peaks.emplace_back("tiles", peak_rss_mib());
+    result.package_written = true;
+    if (request.progress && request.progress->mode() != ProgressMode::none) {
+      // Which tiles this run built: a resumed build says how many it kept.
+      const nlohmann::json j = {{"event", "tileset"},      {"tiles", tileset->tiles},
+                                {"built", tileset->built}, {"reused", tileset->reused},
+                                {"bytes", tileset->bytes}, {"output", request.output}};
+      request.progress->message(
+          request.progress->mode() == ProgressMode::json
+              ? j.dump()
+              : "tileset: " + std::to_string(tileset->tiles) + " tiles (" +
+                    std::to_string(tileset->built) + " built, " + std::to_string(tileset->reused) +
+                    " kept from an earlier run), " + std::to_string(tileset->bytes) + " bytes in " +
+                    request.output);
+    }
+  } else if (!request.dry_run) {
     t0 = Clock::now();
     ModelOptions model_options = scene.model;
     model_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
@@ -416,6 +476,12 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   nlohmann::json report = report_object(result.scene, request.dry_run ? "" : request.output,
                                         timings, result.package_written);
   report["provenance"] = provenance_of();
+  if (tileset) {
+    report["tileset"] = {{"tile_size_m", scene.tile_size}, {"margin_m", tileset->margin},
+                         {"tiles", tileset->tiles},        {"built", tileset->built},
+                         {"reused", tileset->reused},      {"empty", tileset->empty},
+                         {"bytes", tileset->bytes}};
+  }
   report["dry_run"] = request.dry_run;
   add_memory_report(report, peaks, estimates, limit);
   result.skipped_failures = count_skipped_failures(result.scene.manifest);

@@ -8,6 +8,7 @@
 #include "prep/pipeline.hpp"
 #include "prep/read.hpp"
 #include "prep/stage_error.hpp"
+#include "prep/tile.hpp"
 
 namespace prep {
 
@@ -113,6 +114,13 @@ void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
   if (o.resolution) {
     if (!(*o.resolution >= 0)) throw usage_error("--resolution: must be >= 0 metres");
     scene.resolution = *o.resolution;
+  }
+  if (o.tile_size) {
+    if (!(*o.tile_size >= kMinTileSize && *o.tile_size <= kMaxTileSize))
+      throw usage_error(
+          "--tile-size: must be in [1, 4000000] metres of the frame CRS (a tile's "
+          "half must fit int32 millimetres around its centre)");
+    scene.tile_size = *o.tile_size;
   }
   if (!o.repair.empty()) scene.repair = parse_repair_method(o.repair);
   if (!o.grid.empty()) parse_grid(o.grid, scene.model);

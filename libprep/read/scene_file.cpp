@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "prep/error.hpp"
+#include "prep/tile.hpp"
 
 namespace prep {
 namespace {
@@ -342,6 +343,16 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
       const toml::table* t = v.as_table();
       if (!t) fail(ref, "expected a table [build]");
       parse_build_table(*t, path, scene.model);
+    } else if (key == "tiling") {
+      const toml::table* t = v.as_table();
+      if (!t) fail(ref, "expected a table [tiling]");
+      for (auto&& [tk, tv] : *t) {
+        const KeyRef tref{path, "tiling." + std::string(tk.str()), line_of(tv)};
+        if (tk.str() != "tile_size") fail(tref, "unknown key (see samples/README.md)");
+        scene.tile_size = get_non_negative(tv, tref);
+        if (scene.tile_size < kMinTileSize || scene.tile_size > kMaxTileSize)
+          fail(tref, "expected a tile size in [1, 4000000] metres");
+      }
     } else if (key == "layer") {
       layers = v.as_array();
       layers_line = ref.line;

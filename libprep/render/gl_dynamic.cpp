@@ -108,6 +108,7 @@ void DynamicLines::set_uniforms(GLuint p) const {
   const Vec3& eye_rel = view_.eye_rel;
   glUseProgram(p);
   glUniform2i(glGetUniformLocation(p, "u_anchor_q"), GLint(view_.ax), GLint(view_.ay));
+  glUniform4fv(glGetUniformLocation(p, "u_clip"), 1, view_.clip.data());
   glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
   glUniformMatrix4fv(glGetUniformLocation(p, "u_inv_view_proj"), 1, GL_FALSE,
                      view_.inv_view_proj.data());

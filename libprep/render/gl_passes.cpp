@@ -219,6 +219,12 @@ GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal:
   wall0_ = std::chrono::steady_clock::now();
   check(decal::gl::GpuPackage::upload(blobs, grid, gpu_, true));
   view_ = view_uniforms(opt.camera, source.view.grid, W_, H_);
+  if (opt.clip) {
+    const double q = decal::kQuantumMetres;
+    const double ax = double(view_.ax) * q, ay = double(view_.ay) * q;
+    view_.clip = {float(opt.clip->xmin - ax), float(opt.clip->ymin - ay),
+                  float(opt.clip->xmax - ax), float(opt.clip->ymax - ay)};
+  }
   mesh_ = upload_terrain_mesh(gl_, terrain, view_.anchor);
   glCreateVertexArrays(1, &empty_vao_);
   gl_.arrays.push_back(empty_vao_);
@@ -297,6 +303,7 @@ void GlRenderer::set_static_uniforms(GLuint p) const {
   glUniform2f(glGetUniformLocation(p, "u_cell_size"), float(double(gp.cell_w) * q),
               float(double(gp.cell_h) * q));
   glUniform2i(glGetUniformLocation(p, "u_grid_n"), GLint(gp.nx), GLint(gp.ny));
+  glUniform4fv(glGetUniformLocation(p, "u_clip"), 1, view_.clip.data());
   glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]),
               float(eye_rel[2]));
   glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(view_.mpp_ortho));

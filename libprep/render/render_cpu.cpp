@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <span>
 #include <thread>
 #include <vector>
 
@@ -33,6 +34,12 @@ std::array<double, 3> shade(const Heightfield& t, const RenderOptions& opt, doub
 }  // namespace
 
 Image render_cpu(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
+  const TileSource whole{source, Extent{-INFINITY, -INFINITY, INFINITY, INFINITY}, 0, 0};
+  return render_cpu(std::span<const TileSource>(&whole, 1), terrain, opt);
+}
+
+Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
+                 const RenderOptions& opt) {
   const uint32_t W = opt.width, H = opt.height;
   auto wall0 = std::chrono::steady_clock::now();
   Image img;
@@ -42,17 +49,55 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
   img.decals.assign(size_t(W) * H * 4, 0.0f);
   img.rgba.assign(size_t(W) * H * 4, 0);
   const Camera& cam = opt.camera;
-  // Kinds not drawn are left out of the view the evaluator sees.
-  StaticView view = source.view;
-  if (!opt.draw_polygons) view.poly_bvh_range = {};
-  if (!opt.draw_lines) view.line_bvh_range = {};
+  // Kinds not drawn are left out of the views the evaluator sees.
+  std::vector<StaticView> views;
+  for (const TileSource& t : tiles) {
+    StaticView view = t.source.view;
+    if (!opt.draw_polygons) view.poly_bvh_range = {};
+    if (!opt.draw_lines) view.line_bvh_range = {};
+    views.push_back(view);
+  }
+  // A point is answered by the one tile whose half-open square holds it.
+  auto sample = [&](double x, double y) -> EvalSample {
+    for (size_t k = 0; k < tiles.size(); ++k) {
+      const Extent& q = tiles[k].square;
+      if (x >= q.xmin && x < q.xmax && y >= q.ymin && y < q.ymax)
+        return evaluate(views[k], x - tiles[k].dx, y - tiles[k].dy);
+    }
+    return EvalSample{};
+  };
+  const bool single = tiles.size() == 1 && std::isinf(tiles[0].square.xmin);
+  const uint32_t nthreads = std::max(1u, std::min(16u, std::thread::hardware_concurrency()));
+  // Rows in parallel (evaluate() is thread-safe; each pixel is written once).
+  auto parallel_rows = [&](auto&& row) {
+    auto rows = [&](uint32_t j0, uint32_t step) {
+      for (uint32_t j = j0; j < H; j += step) row(j);
+    };
+    std::vector<std::thread> workers;
+    for (uint32_t t = 1; t < nthreads; ++t) workers.emplace_back(rows, t, nthreads);
+    rows(0, nthreads);
+    for (auto& w : workers) w.join();
+  };
+  auto put = [&](size_t k, const EvalSample& s) {
+    const float a = s.rgba[3];
+    for (int c = 0; c < 3; ++c) img.decals[4 * k + c] = a > 0 ? s.rgba[c] / a : 0.0f;
+    img.decals[4 * k + 3] = a;
+  };
   std::vector<double> hit_x(size_t(W) * H, NAN), hit_y(size_t(W) * H, NAN),
       hit_z(size_t(W) * H, 0.0);
 
   Extent td;
   if (is_topdown(cam, W, H, &td)) {
     // Exactly the render_topdown pixel grid; the terrain is under every pixel.
-    img.decals = render_topdown(view, td, W, H);
+    if (single) {
+      img.decals = render_topdown(views[0], td, W, H);
+    } else {
+      parallel_rows([&](uint32_t j) {
+        for (uint32_t i = 0; i < W; ++i)
+          put(i + size_t(W) * j, sample(td.xmin + (i + 0.5) * (td.xmax - td.xmin) / W,
+                                        td.ymax - (j + 0.5) * (td.ymax - td.ymin) / H));
+      });
+    }
     for (uint32_t j = 0; j < H; ++j)
       for (uint32_t i = 0; i < W; ++i) {
         hit_x[i + size_t(W) * j] = td.xmin + (i + 0.5) * (td.xmax - td.xmin) / W;
@@ -70,36 +115,26 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
       return {r[0] / r[3], r[1] / r[3], r[2] / r[3]};
     };
     const Vec3 fwd = detail::camera_basis(cam).forward;
-    // Rows in parallel (evaluate() is thread-safe; each pixel is written once).
-    auto rows = [&](uint32_t j0, uint32_t step) {
-      for (uint32_t j = j0; j < H; j += step)
-        for (uint32_t i = 0; i < W; ++i) {
-          double nx = (i + 0.5) / W * 2 - 1, ny = 1 - (j + 0.5) / H * 2;
-          Vec3 o, d;
-          if (cam.projection == Projection::perspective) {
-            o = cam.eye;
-            d = detail::sub(unproject(nx, ny, 1.0), cam.eye);
-          } else {
-            o = unproject(nx, ny, 1.0);
-            d = fwd;
-          }
-          auto t = terrain.intersect(o, d);
-          if (!t) continue;
-          const size_t k = i + size_t(W) * j;
-          hit_x[k] = o[0] + *t * d[0];
-          hit_y[k] = o[1] + *t * d[1];
-          hit_z[k] = o[2] + *t * d[2];
-          EvalSample s = evaluate(view, hit_x[k], hit_y[k]);
-          float a = s.rgba[3];
-          for (int c = 0; c < 3; ++c) img.decals[4 * k + c] = a > 0 ? s.rgba[c] / a : 0.0f;
-          img.decals[4 * k + 3] = a;
+    parallel_rows([&](uint32_t j) {
+      for (uint32_t i = 0; i < W; ++i) {
+        double nx = (i + 0.5) / W * 2 - 1, ny = 1 - (j + 0.5) / H * 2;
+        Vec3 o, d;
+        if (cam.projection == Projection::perspective) {
+          o = cam.eye;
+          d = detail::sub(unproject(nx, ny, 1.0), cam.eye);
+        } else {
+          o = unproject(nx, ny, 1.0);
+          d = fwd;
         }
-    };
-    const uint32_t n = std::max(1u, std::min(16u, std::thread::hardware_concurrency()));
-    std::vector<std::thread> workers;
-    for (uint32_t t = 1; t < n; ++t) workers.emplace_back(rows, t, n);
-    rows(0, n);
-    for (auto& w : workers) w.join();
+        auto t = terrain.intersect(o, d);
+        if (!t) continue;
+        const size_t k = i + size_t(W) * j;
+        hit_x[k] = o[0] + *t * d[0];
+        hit_y[k] = o[1] + *t * d[1];
+        hit_z[k] = o[2] + *t * d[2];
+        put(k, sample(hit_x[k], hit_y[k]));
+      }
+    });
   }
   // Final image: decal layer over the shaded terrain, sky where no terrain.
   for (size_t k = 0; k < size_t(W) * H; ++k) {

@@ -3,6 +3,7 @@
 // dynamic lines, composite, read back. The passes are in gl_passes.cpp and
 // gl_dynamic.cpp (detail/gl_render.hpp).
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "detail/gl_render.hpp"
@@ -91,6 +92,55 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
     gl.read_back(img);
   }
   return img;
+}
+
+Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
+                const RenderOptions& opt) {
+  if (tiles.size() == 1 && std::isinf(tiles[0].square.xmin))
+    return render_gl(tiles[0].source, terrain, opt);
+  if (tiles.empty()) fail<usage_error>(kRenderStage, "no tile of the tileset meets the view");
+  // One draw per tile in the tile's own frame (camera and terrain moved by
+  // its origin, so GL precision is the single package's), its decals clipped
+  // to its square; each pixel then takes the tile that drew there. Squares
+  // do not overlap, so without anti-aliasing exactly one tile can.
+  Image out;
+  for (const TileSource& t : tiles) {
+    RenderOptions o = opt;
+    for (Vec3* v : {&o.camera.eye, &o.camera.target}) {
+      (*v)[0] -= t.dx;
+      (*v)[1] -= t.dy;
+    }
+    if (o.camera.topdown_extent) {
+      Extent& e = *o.camera.topdown_extent;
+      e = {e.xmin - t.dx, e.ymin - t.dy, e.xmax - t.dx, e.ymax - t.dy};
+    }
+    o.clip = Extent{t.square.xmin - t.dx, t.square.ymin - t.dy, t.square.xmax - t.dx,
+                    t.square.ymax - t.dy};
+    Heightfield h = terrain;
+    h.x0 -= t.dx;
+    h.y0 -= t.dy;
+    Image img = render_gl(t.source, h, o);
+    if (out.rgba.empty()) {
+      out = std::move(img);
+      continue;
+    }
+    for (size_t k = 0; k < size_t(out.width) * out.height; ++k) {
+      const float a = img.decals[4 * k + 3] + img.dynamic[4 * k + 3];
+      const float b = out.decals[4 * k + 3] + out.dynamic[4 * k + 3];
+      if (!(a > b)) continue;
+      for (int c = 0; c < 4; ++c) {
+        out.rgba[4 * k + c] = img.rgba[4 * k + c];
+        out.decals[4 * k + c] = img.decals[4 * k + c];
+        out.dynamic[4 * k + c] = img.dynamic[4 * k + c];
+      }
+    }
+    out.dyn_kept += img.dyn_kept;
+    out.dyn_segments += img.dyn_segments;
+    out.dyn_nodes += img.dyn_nodes;
+    out.list_grows += img.list_grows;
+    for (PassTime& pt : img.times) out.times.push_back(std::move(pt));
+  }
+  return out;
 }
 
 }  // namespace prep::render

@@ -27,7 +27,7 @@ struct BuildArgs {
   bool dynamic = false;
   // scene-wide overrides
   std::string crs, assume_crs, extent, extent_crs, dem, grid;
-  std::optional<double> resolution;
+  std::optional<double> resolution, tile_size;
   std::string repair;
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
   // terrain matching of dynamic lines (override the scene file's [build])
@@ -64,6 +64,7 @@ prep::SceneRequest scene_request(const BuildArgs& a, const std::string& input) {
   o.grid = a.grid;
   o.repair = a.repair;
   o.resolution = a.resolution;
+  o.tile_size = a.tile_size;
   o.leaf_capacity = a.leaf_capacity;
   o.max_depth = a.max_depth;
   o.threads = a.threads;
@@ -83,6 +84,7 @@ prep::BuildRequest build_request(const BuildArgs& a) {
   req.dry_run = a.dry_run;
   req.compress = !a.no_compress;
   req.zstd_level = a.zstd_level;
+  req.jobs = a.jobs;
   return req;
 }
 
@@ -231,8 +233,11 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
                   "Scene file (.toml) or any GDAL vector source; several scene files or folders "
                   "of them: batch mode, -o is then a folder")
       ->required();
-  cmd->add_option("--jobs", args->jobs, "Batch mode: scenes built side by side (default 1)");
-  cmd->add_option("-o,--output", args->output, "Package to write (atomically)");
+  cmd->add_option("--jobs", args->jobs,
+                  "Batch mode: scenes built side by side; tileset: tiles built side by side "
+                  "(default 1; the bytes do not depend on it)");
+  cmd->add_option("-o,--output", args->output,
+                  "Package to write (atomically); with --tile-size, the tileset directory");
   cmd->add_option("--report", args->report, "Write the JSON report (counts, manifest, timings)");
   cmd->add_flag("--dry-run", args->dry_run, "Stop after clean: write the report, no package");
   cmd->add_flag("-q,--quiet", args->quiet,
@@ -285,6 +290,10 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_option(
          "--repair", args->repair,
          "Invalid polygons: linework (GEOS default, even-odd) | structure (every hole subtracted)")
+      ->group(s);
+  cmd->add_option("--tile-size", args->tile_size,
+                  "Write a tileset: square tiles of this many frame metres, one package each "
+                  "with its own origin, no span limit (scene file: [tiling] tile_size)")
       ->group(s);
   auto* t = "Terrain (dynamic lines; override the scene file)";
   cmd->add_option("--lmax", args->lmax,

@@ -18,6 +18,7 @@
 
 #include "command.hpp"
 #include "decal/inspect.hpp"
+#include "prep/tileset.hpp"
 
 namespace {
 
@@ -60,11 +61,7 @@ class MappedFile {
   size_t size_ = 0;
 };
 
-std::string hex64(uint64_t v) {
-  char b[17];
-  std::snprintf(b, sizeof b, "%016" PRIx64, v);
-  return b;
-}
+using prep::hex64;
 
 std::string type_name(uint32_t t) {
   const auto n = decal::element_type_name(static_cast<decal::ElementType>(t));
@@ -86,7 +83,46 @@ json blob_json(size_t index, const decal::BlobTableEntry& e) {
           {"xxh64", hex64(e.checksum)}};
 }
 
+// A tileset: its frame, tiling, the scene's per-layer counts (each feature
+// once) and one line per tile; --json prints tileset.json as read.
+void run_tileset_info(const std::string& dir, bool as_json) {
+  const prep::TilesetIndex ix = prep::read_tileset_index(dir);
+  if (as_json) {
+    std::cout << prep::tileset_index_json(ix);
+    return;
+  }
+  uint64_t bytes = 0;
+  for (const prep::TileEntry& t : ix.tiles) bytes += t.bytes;
+  std::printf("tileset   %s\n", dir.c_str());
+  std::printf("version   %d.%d (%s)\n", ix.major, ix.minor, ix.generator.c_str());
+  std::printf("frame     %s\n", ix.frame.description.c_str());
+  std::printf("tiling    grid of %.10g m tiles, margin %.10g m (dynamic lines %.10g m)\n",
+              ix.tile_size, ix.margin, ix.dynamic_margin);
+  std::printf("extent    %.3f %.3f %.3f %.3f (frame CRS)\n", ix.extent.xmin, ix.extent.ymin,
+              ix.extent.xmax, ix.extent.ymax);
+  std::printf("tiles     %zu packages, %" PRIu64 " bytes\n", ix.tiles.size(), bytes);
+  std::printf("features  (each once, however many tiles it reaches; %" PRIu64
+              " manifest entries in manifest.json)\n",
+              ix.entry_count);
+  std::printf("  %-24s %10s %10s %10s %12s %10s\n", "layer", "read", "kept", "repaired",
+              "clipped_away", "dropped");
+  prep::LayerCounts total;
+  for (const prep::LayerCounts& c : ix.manifest.layers) {
+    std::printf("  %-24s %10" PRIu64 " %10" PRIu64 " %10" PRIu64 " %12" PRIu64 " %10" PRIu64 "\n",
+                c.layer.c_str(), c.read, c.kept, c.repaired, c.clipped_away, c.dropped);
+    total.read += c.read, total.kept += c.kept, total.repaired += c.repaired;
+    total.clipped_away += c.clipped_away, total.dropped += c.dropped;
+  }
+  std::printf("  %-24s %10" PRIu64 " %10" PRIu64 " %10" PRIu64 " %12" PRIu64 " %10" PRIu64 "\n",
+              "(total)", total.read, total.kept, total.repaired, total.clipped_away, total.dropped);
+  std::printf("  %-22s %10s %10s %10s %12s\n", "tile", "polygons", "lines", "dynamic", "bytes");
+  for (const prep::TileEntry& t : ix.tiles)
+    std::printf("  %-22s %10" PRIu64 " %10" PRIu64 " %10" PRIu64 " %12" PRIu64 "\n", t.file.c_str(),
+                t.polygons, t.lines, t.dynamic_lines, t.bytes);
+}
+
 void run_info(const std::string& path, bool as_json) {
+  if (prep::is_tileset(path)) return run_tileset_info(path, as_json);
   const MappedFile file(path);
   const std::span<const std::byte> bytes = file.bytes();
   decal::PackageLayout layout;
@@ -155,10 +191,13 @@ const decalprep::CommandRegistrar kInfo(20, [](CLI::App& app) {
   auto* cmd = app.add_subcommand("info", "Print a package's header, metadata and blob table");
   cmd->footer(
       "Checks the package structure but not blob checksums (use verify).\n"
-      "Examples:\n  decalprep info city.decals\n  decalprep info city.decals --json | jq .blobs");
+      "A tileset directory prints its index: frame, tiling, the scene's per-layer counts and one\n"
+      "line per tile.\n"
+      "Examples:\n  decalprep info city.decals\n  decalprep info city.decals --json | jq .blobs\n"
+      "  decalprep info country/");
   auto path = std::make_shared<std::string>();
   auto as_json = std::make_shared<bool>(false);
-  cmd->add_option("PACKAGE", *path, "the .decals file")->required();
+  cmd->add_option("PACKAGE", *path, "the .decals file, or a tileset directory")->required();
   cmd->add_flag("--json", *as_json, "print JSON (every blob of the table is listed)");
   cmd->callback([path, as_json] {
     run_info(*path, *as_json);

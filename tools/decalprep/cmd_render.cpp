@@ -10,6 +10,7 @@
 #include "command.hpp"
 #include "prep/project.hpp"
 #include "prep/render.hpp"
+#include "prep/tileset.hpp"
 
 #include "decal/reader.hpp"
 
@@ -45,12 +46,77 @@ struct RenderArgs {
   return v;
 }
 
+namespace R = prep::render;
+
+// What is drawn: one package, or the tiles of a tileset that meet the view.
+// Coordinates are metres relative to `frame`'s origin (the package's, or the
+// tileset's scene origin); `extent` is the data's box in them.
+struct Scene {
+  prep::SceneFrame frame;
+  prep::Extent extent;
+  bool tileset = false;
+  prep::TilesetIndex index;
+  std::vector<decal::Package> packages;  // own what `tiles` view
+  std::vector<R::TileSource> tiles;
+  std::string metadata;  // a package's metadata (the recorded DEM)
+};
+
+void open_package(const std::string& path, decal::Package& pkg) {
+  if (decal::Status s = decal::Package::open(path, pkg); !s) throw prep::format_error(s.message);
+}
+
+Scene open_scene(const std::string& path) {
+  Scene sc;
+  if (!prep::is_tileset(path)) {
+    sc.packages.resize(1);
+    open_package(path, sc.packages[0]);
+    R::DecalSource src = R::source_of(sc.packages[0]);
+    sc.frame = src.frame;
+    sc.extent = src.extent;
+    sc.metadata = std::string(sc.packages[0].metadata_json());
+    sc.tiles.push_back({src, prep::Extent{-INFINITY, -INFINITY, INFINITY, INFINITY}, 0, 0});
+    return sc;
+  }
+  sc.tileset = true;
+  sc.index = prep::read_tileset_index(path);
+  sc.frame = sc.index.frame;
+  const prep::Extent& e = sc.index.extent;
+  sc.extent = {e.xmin - sc.frame.origin_x, e.ymin - sc.frame.origin_y, e.xmax - sc.frame.origin_x,
+               e.ymax - sc.frame.origin_y};
+  return sc;
+}
+
+// Loads the tiles of a tileset whose squares meet `view` (absolute frame
+// coordinates), and only those.
+void load_tiles(Scene& sc, const std::string& dir, const prep::Extent& view) {
+  const std::vector<const prep::TileEntry*> hit = prep::tiles_in(sc.index, view);
+  sc.packages.resize(hit.size());
+  for (size_t k = 0; k < hit.size(); ++k) {
+    const prep::TileEntry& t = *hit[k];
+    open_package(dir + "/" + t.file, sc.packages[k]);
+    R::DecalSource src = R::source_of(sc.packages[k]);
+    if (src.frame.origin_x != t.origin_x || src.frame.origin_y != t.origin_y)
+      throw prep::format_error(dir + "/" + t.file + ": origin differs from tileset.json's tile " +
+                               prep::tile_name(t.key));
+    const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
+    sc.tiles.push_back(
+        {src,
+         {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
+         t.origin_x - ox,
+         t.origin_y - oy});
+    if (sc.metadata.empty()) sc.metadata = std::string(sc.packages[k].metadata_json());
+  }
+  std::fprintf(stderr, "render: %zu of %zu tiles meet the view\n", hit.size(),
+               sc.index.tiles.size());
+}
+
 void run(const RenderArgs& a) {
-  namespace R = prep::render;
-  decal::Package pkg;
-  if (decal::Status s = decal::Package::open(a.package, pkg); !s)
-    throw prep::format_error(s.message);
-  R::DecalSource src = R::source_of(pkg);
+  Scene sc = open_scene(a.package);
+  // The frame and the data's box, as one package's (the tileset's scene frame).
+  struct {
+    prep::SceneFrame frame;
+    prep::Extent extent;
+  } src{sc.frame, sc.extent};
 
   R::RenderOptions opt;
   uint32_t w = 0, h = 0;
@@ -133,6 +199,12 @@ void run(const RenderArgs& a) {
                    abs_package.ymin, abs_package.xmax, abs_package.ymax);
     }
   }
+  if (sc.tileset) {
+    // Top-down: the tiles in the view; other views: every tile (the view's
+    // footprint on the terrain is not computed yet).
+    const prep::Extent all{-INFINITY, -INFINITY, INFINITY, INFINITY};
+    load_tiles(sc, a.package, topdown ? abs_view : all);
+  }
   prep::Extent terrain_extent = src.extent;
   if (topdown) {
     terrain_extent.xmin = std::min(terrain_extent.xmin, view_extent.xmin);
@@ -147,7 +219,7 @@ void run(const RenderArgs& a) {
   // surface the dynamic lines were matched to (prep/dem.hpp).
   if (a.flat && !a.dem.empty())
     throw prep::usage_error("render: --flat and --dem exclude each other");
-  prep::DemSpec dem = R::recorded_dem(std::string(pkg.metadata_json()));
+  prep::DemSpec dem = R::recorded_dem(sc.metadata);
   const bool dem_from_package = !a.flat && a.dem.empty() && !dem.path.empty();
   if (a.flat)
     dem.path.clear();
@@ -207,11 +279,12 @@ void run(const RenderArgs& a) {
   }
 
 #ifdef PREP_RENDER_WITH_GL
-  R::Image img = a.cpu ? R::render_cpu(src, terrain, opt) : R::render_gl(src, terrain, opt);
+  R::Image img =
+      a.cpu ? R::render_cpu(sc.tiles, terrain, opt) : R::render_gl(sc.tiles, terrain, opt);
 #else
   if (!a.cpu)
     throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
-  R::Image img = R::render_cpu(src, terrain, opt);
+  R::Image img = R::render_cpu(sc.tiles, terrain, opt);
 #endif
   prep::write_png_rgba(a.output, img.width, img.height, img.rgba);
   // The world file carries the absolute extent as given (not origin + relative).
@@ -256,7 +329,7 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
       "top.png\n"
       "  decalprep render city.decals --extent 7.41,43.73,7.43,43.745 --extent-crs EPSG:4326 --cpu "
       "-o top.png");
-  cmd->add_option("package", args->package, "Package (.decals)")->required();
+  cmd->add_option("package", args->package, "Package (.decals) or tileset directory")->required();
   cmd->add_option("-o,--output", args->output, "Output PNG")->required();
   cmd->add_option("--dem", args->dem,
                   "DEM raster (any GDAL path); default: the DEM the package was built with, if "

@@ -10,6 +10,7 @@
 #include "command.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
+#include "prep/tileset.hpp"
 
 namespace {
 
@@ -54,17 +55,66 @@ decal::Status verify_one(const std::string& path, std::string& summary) {
   return decal::Status::success();
 }
 
+// A tileset: the index, manifest.json's and every tile's bytes and XXH64
+// against the index, then every tile as a package. Returns false when any
+// fails (each failure printed).
+bool verify_tileset(const std::string& dir) {
+  prep::TilesetIndex ix;
+  try {
+    ix = prep::read_tileset_index(dir);
+  } catch (const prep::error& e) {
+    std::fprintf(stderr, "%s: FAILED: %s\n", dir.c_str(), e.what());
+    return false;
+  }
+  bool good = true;
+  auto check_file = [&](const std::string& rel, uint64_t bytes, uint64_t hash) {
+    const std::string path = dir + "/" + rel;
+    const std::optional<prep::FileDigest> d = prep::file_digest(path);
+    std::string why;
+    if (!d)
+      why = "missing";
+    else if (d->bytes != bytes)
+      why = std::to_string(d->bytes) + " bytes, tileset.json says " + std::to_string(bytes);
+    else if (d->xxh64 != hash)
+      why = "xxh64 " + prep::hex64(d->xxh64) + ", tileset.json says " + prep::hex64(hash);
+    if (why.empty()) return true;
+    std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), why.c_str());
+    good = false;
+    return false;
+  };
+  check_file(prep::kTilesetManifestName, ix.manifest_bytes, ix.manifest_xxh64);
+  for (const prep::TileEntry& t : ix.tiles) {
+    if (!check_file(t.file, t.bytes, t.xxh64)) continue;
+    std::string summary;
+    const std::string path = dir + "/" + t.file;
+    if (const decal::Status s = verify_one(path, summary); !s) {
+      std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), s.message.c_str());
+      good = false;
+    }
+  }
+  if (good)
+    std::printf("%s: ok (tileset %d.%d, %zu tiles, index and manifest hashes match)\n", dir.c_str(),
+                ix.major, ix.minor, ix.tiles.size());
+  return good;
+}
+
 const decalprep::CommandRegistrar kVerify(21, [](CLI::App& app) {
   auto* cmd = app.add_subcommand("verify", "Check packages: checksums, structure and indices");
   cmd->footer(
       "Prints '<path>: ok (...)' or '<path>: FAILED: <reason>' per package.\n"
       "Exit code 0 when every package is good, 5 when any is not.\n"
+      "A tileset directory: tileset.json, the bytes and XXH64 of manifest.json and of every tile\n"
+      "against it, then every tile as a package.\n"
       "Example:\n  decalprep verify city.decals roads.decals");
   auto paths = std::make_shared<std::vector<std::string>>();
-  cmd->add_option("PACKAGE", *paths, "the .decals files")->required();
+  cmd->add_option("PACKAGE", *paths, "the .decals files, or tileset directories")->required();
   cmd->callback([paths] {
     bool all_good = true;
     for (const std::string& path : *paths) {
+      if (prep::is_tileset(path)) {
+        all_good = verify_tileset(path) && all_good;
+        continue;
+      }
       std::string summary;
       const decal::Status s = verify_one(path, summary);
       if (s) {

@@ -8,6 +8,7 @@
 flat in uvec4 g_seg;
 layout(binding = 31) uniform sampler2D u_depth;
 uniform mat4 u_inv_view_proj;
+uniform vec4 u_clip;  // decals only in [x, z) x [y, w), anchor-relative metres (a tileset's tile)
 
 float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
 bool in_triangle(vec2 p, vec2 a, vec2 b, vec2 c) {
@@ -78,6 +79,7 @@ void main() {
   if (depth <= 0.0) discard;
   vec4 w = u_inv_view_proj * vec4(gl_FragCoord.xy / u_viewport * 2.0 - 1.0, depth, 1.0);
   vec3 p = w.xyz / w.w;
+  if (p.x < u_clip.x || p.y < u_clip.y || p.x >= u_clip.z || p.y >= u_clip.w) discard;
   uint line = uint(dyn_vertex(g_seg.x).w);
   uvec4 props = dyn_line_props(line);
   float wpix = metres_per_pixel(p);

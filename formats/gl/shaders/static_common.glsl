@@ -18,6 +18,7 @@ uniform ivec2 u_anchor_cell;      // grid cell holding the anchor
 uniform vec2 u_anchor_in_cell;    // anchor minus that cell's lower-left corner, metres
 uniform vec2 u_cell_size;         // metres
 uniform ivec2 u_grid_n;           // nx, ny
+uniform vec4 u_clip;              // decals only in [x, z) x [y, w), anchor-relative metres (a tileset's tile)
 
 // Anti-aliasing: the pixel's footprint in metres at a point (the scale of
 // thesis Eq. 4.1/4.2) for coverage AA; the sample position for MSAA.
@@ -47,6 +48,7 @@ bool pixel_world(out vec3 p) {
 
 // Thesis Eq. 4.3/4.4; -1 outside the grid.
 int cell_of(vec2 p) {
+  if (p.x < u_clip.x || p.y < u_clip.y || p.x >= u_clip.z || p.y >= u_clip.w) return -1;
   ivec2 g = u_anchor_cell + ivec2(floor((u_anchor_in_cell + p) / u_cell_size));
   if (any(lessThan(g, ivec2(0))) || any(greaterThanEqual(g, u_grid_n))) return -1;
   return g.x + u_grid_n.x * g.y;

@@ -17,7 +17,9 @@
 namespace prep {
 
 struct BuildRequest {
-  std::string output;    // package path; written atomically
+  // Package path, written atomically; for a tileset (scene.tile_size > 0)
+  // the directory (created when missing; formats/SPEC.md "Tilesets").
+  std::string output;
   std::string report;    // JSON report path; empty: none
   bool dry_run = false;  // stop after clean: write the report, no package
   bool compress = true;
@@ -26,9 +28,13 @@ struct BuildRequest {
   // (exit 6) as soon as an estimate of its peak RSS exceeds it
   // (prep/memory_estimate.hpp); no package is written.
   uint64_t max_memory = 0;
+  // Tilesets: tiles built side by side (0 counts as 1). The bytes do not
+  // depend on it.
+  unsigned jobs = 1;
   // Progress of every stage, in pipeline order: read, project, clean,
   // build.lines, build.quadtrees, build.grid, build.cells, build.dynamic,
-  // write (prep/progress.hpp). Null: silent. Output only.
+  // write (prep/progress.hpp); for a tileset, "tiles" (counted in tiles)
+  // replaces the build and write stages. Null: silent. Output only.
   Progress* progress = nullptr;
 };
 
@@ -79,7 +85,7 @@ struct FilelessLayer {
 // "linework|structure" as on the command line.
 struct SceneOverrides {
   std::string crs, assume_crs, extent, extent_crs, dem, grid, repair;
-  std::optional<double> resolution;
+  std::optional<double> resolution, tile_size;
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
   std::optional<double> lmax, terrain_tolerance, z_scale, nodata_fill;
   bool skip_failures = false;  // true turns it on; false keeps the file's

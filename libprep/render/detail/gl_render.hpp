@@ -73,6 +73,8 @@ struct ViewUniforms {
   // Metres per pixel (thesis Eq. 4.1/4.2, per pixel): coverage AA and
   // dynamic lines.
   double mpp_ortho = 0, mpp_per_metre = 0;
+  // RenderOptions::clip relative to the anchor, metres (xmin, ymin, xmax, ymax).
+  std::array<float, 4> clip{-3e38f, -3e38f, 3e38f, 3e38f};
 };
 ViewUniforms view_uniforms(const Camera& cam, const GridParams& grid, uint32_t width,
                            uint32_t height);

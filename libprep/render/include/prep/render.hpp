@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -149,6 +150,10 @@ struct RenderOptions {
   bool draw_polygons = true, draw_lines = true, draw_dynamic = true;
   // GL: frames rendered in one context; pass times are the last one's.
   uint32_t frames = 1;
+  // Decals only where the ground point lies in this half-open box, metres
+  // relative to the source's origin (one tile's square in a tileset); none:
+  // everywhere.
+  std::optional<Extent> clip;
 };
 
 struct PassTime {
@@ -180,6 +185,29 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain,
 // others ray-cast the same heightfield mesh in double precision and call
 // prep::evaluate per pixel. Thread-safe.
 Image render_cpu(const DecalSource& source, const Heightfield& terrain,
+                 const RenderOptions& options);
+
+// One tile of a tileset (prep/tileset.hpp) as the renderers take it. The
+// camera and the terrain are in a reference frame (metres relative to a
+// reference origin, e.g. the tileset's frame origin); `square` is the part
+// of that plane this tile answers, half-open [xmin, xmax) x [ymin, ymax),
+// and (dx, dy) its package origin minus the reference origin.
+struct TileSource {
+  DecalSource source;
+  Extent square;
+  double dx = 0, dy = 0;
+};
+
+// The GL view of several tiles: each tile drawn in its own frame, its
+// decals clipped to its square (RenderOptions::clip), then per pixel the
+// tile that drew there. One GL context per tile.
+Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
+                const RenderOptions& options);
+
+// The CPU view of several tiles: each pixel's ground point is evaluated by
+// the one tile whose square holds it (none: no decal). A single source is
+// one tile with an unbounded square.
+Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
                  const RenderOptions& options);
 
 // True when `camera` looks straight down with an orthographic projection

@@ -1,0 +1,73 @@
+// prep/tileset.hpp — a tileset directory: tileset.json (the index,
+// formats/SPEC.md "Tilesets"), manifest.json (the scene's manifest entries)
+// and tiles/<x>_<y>.decals, one package per non-empty tile.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "prep/scene.hpp"
+#include "prep/tile.hpp"
+
+namespace prep {
+
+// The index's format version (major.minor; a reader accepts its own major).
+constexpr int kTilesetMajor = 1;
+constexpr int kTilesetMinor = 0;
+constexpr const char* kTilesetIndexName = "tileset.json";
+constexpr const char* kTilesetManifestName = "manifest.json";
+
+struct TileEntry {
+  TileKey key;
+  Extent square;                      // absolute frame coordinates
+  double origin_x = 0, origin_y = 0;  // the package's origin (the square's centre)
+  std::string file;                   // relative to the tileset: "tiles/x0_y0.decals"
+  uint64_t bytes = 0;
+  uint64_t xxh64 = 0;                                   // of the whole file
+  uint64_t polygons = 0, lines = 0, dynamic_lines = 0;  // parts in the package
+  std::vector<LayerCounts> layers;  // this tile's counts (prep/tile.hpp tile_scene)
+};
+
+struct TilesetIndex {
+  int major = kTilesetMajor, minor = kTilesetMinor;
+  std::string generator;
+  SceneFrame frame;  // origin: the scene's (tiles have their own)
+  double tile_size = 0, margin = 0, dynamic_margin = 0;
+  Extent extent;  // absolute frame coordinates of every tile's data
+  // The scene's manifest: per-layer counts (each feature once, however many
+  // tiles it reaches) and notes; the entries are in manifest.json.
+  Manifest manifest;
+  uint64_t entry_count = 0;
+  uint64_t manifest_bytes = 0, manifest_xxh64 = 0;
+  std::vector<TileEntry> tiles;  // in key order: x, then y
+};
+
+// Bytes and XXH64 (seed 0) of a file, read in 64 KiB pieces; nullopt when it
+// cannot be opened.
+struct FileDigest {
+  uint64_t bytes = 0, xxh64 = 0;
+};
+std::optional<FileDigest> file_digest(const std::string& path);
+
+// "%016llx"
+std::string hex64(uint64_t v);
+
+// The index as JSON text (2-space indent, trailing newline; the same index
+// gives the same bytes).
+std::string tileset_index_json(const TilesetIndex& index);
+
+// True when `path` is a directory holding tileset.json.
+bool is_tileset(const std::string& path);
+
+// Reads and checks `dir`/tileset.json as untrusted input: types, version,
+// every tile's file name (tiles/<name>.decals, no other path), keys unique,
+// squares matching keys and size. Throws format_error naming the file and
+// the field at fault; io_error when it cannot be read.
+TilesetIndex read_tileset_index(const std::string& dir);
+
+// The tiles whose squares meet `view` (absolute frame coordinates), in index order.
+std::vector<const TileEntry*> tiles_in(const TilesetIndex& index, const Extent& view);
+
+}  // namespace prep

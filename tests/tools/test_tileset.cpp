@@ -1,0 +1,316 @@
+// Tilesets end to end with the real tool on the shipped Monaco sample
+// (prep/tile.hpp, formats/SPEC.md "Tilesets"):
+//  - exact: the CPU evaluator's top-down render of the tileset equals the
+//    single package's on all but a few pixels, and every pixel that differs
+//    has its centre within 2 mm of a boundary of the single package's
+//    picture (its colour changes on a 2 mm circle around the centre); the
+//    same for the GL render of the tileset against its CPU render;
+//  - accounting: the tileset's per-layer counts equal the single package's;
+//  - determinism: --jobs 2 and --jobs 1 --threads 1 give the same bytes;
+//  - resume: a second run keeps every tile; a deleted and a corrupted tile
+//    are rebuilt, and only they;
+//  - the tools take the directory (info, verify).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "decal/reader.hpp"
+#include "prep/evaluate.hpp"
+#include "prep/render.hpp"
+#include "prep/tileset.hpp"
+#include "test_support.hpp"
+
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+using prep::test::run_tool;
+using prep::test::shell_quote;
+
+constexpr double kTileSize = 500.0;
+
+std::vector<float> read_raw(const std::string& path, size_t floats) {
+  std::vector<float> v(floats);
+  std::ifstream in(path, std::ios::binary);
+  in.read(reinterpret_cast<char*>(v.data()), std::streamsize(floats * sizeof(float)));
+  EXPECT_EQ(size_t(in.gcount()), floats * sizeof(float)) << path;
+  return v;
+}
+
+std::string file_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+class Tileset : public ::testing::Test {
+ protected:
+  // The three builds are shared by every test (and, through the ctest
+  // fixture tileset_outputs, by every test process): TILESET_WORK_DIR holds
+  // them once tileset_fixture.sh has run; without it they are made here.
+  static void SetUpTestSuite() {
+    dir_ = new prep::test::TempDir("tileset");
+    const char* work = std::getenv("TILESET_WORK_DIR");
+    if (work && fs::exists(fs::path(work) / "done")) {
+      for (const char* name :
+           {"single.decals", "single.decals.json", "tiles", "tiles.json", "tiles1", "tiles1.json"})
+        fs::copy(fs::path(work) / name, dir_->path() / name, fs::copy_options::recursive);
+      return;
+    }
+    const std::string scene = shell_quote(prep::test::monaco_sample("scene.toml"));
+    auto build = [&](const std::string& out, const std::string& extra) {
+      const auto r =
+          run_tool("build " + scene + " -o " + shell_quote(dir_->file(out)) + " --report " +
+                       shell_quote(dir_->file(out + ".json")) + " -q " + extra,
+                   *dir_);
+      ASSERT_EQ(r.rc, 0) << r.output;
+    };
+    build("single.decals", "");
+    build("tiles", "--tile-size 500 --jobs 2");
+    build("tiles1", "--tile-size 500 --jobs 1 --threads 1");
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  static std::string file(const std::string& name) { return dir_->file(name); }
+  static json read_json(const std::string& name) {
+    return json::parse(prep::test::read_text(file(name)));
+  }
+  static prep::test::TempDir* dir_;
+};
+prep::test::TempDir* Tileset::dir_ = nullptr;
+
+// A 1.6 km x 1.5 km window inside Monaco at 2 m pixels, its edges off the
+// tile borders, so that it spans 4 x 4 tiles.
+struct View {
+  prep::Extent abs;
+  uint32_t w = 800, h = 750;
+};
+
+View monaco_view(const prep::TilesetIndex& ix) {
+  const double cx = std::floor(0.5 * (ix.extent.xmin + ix.extent.xmax) / kTileSize) * kTileSize;
+  const double cy = std::floor(0.5 * (ix.extent.ymin + ix.extent.ymax) / kTileSize) * kTileSize;
+  View v;
+  v.abs = {cx - 777.0, cy - 733.0, cx - 777.0 + 2.0 * v.w, cy - 733.0 + 2.0 * v.h};
+  return v;
+}
+
+std::string extent_arg(const prep::Extent& e) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%.3f,%.3f,%.3f,%.3f", e.xmin, e.ymin, e.xmax, e.ymax);
+  return buf;
+}
+
+// Pixels whose RGBA differ by more than 1/512 in any channel.
+std::vector<size_t> differing(const std::vector<float>& a, const std::vector<float>& b) {
+  std::vector<size_t> out;
+  for (size_t k = 0; k * 4 < a.size(); ++k)
+    for (int c = 0; c < 4; ++c)
+      if (std::fabs(a[4 * k + c] - b[4 * k + c]) > 1.0f / 512) {
+        out.push_back(k);
+        break;
+      }
+  return out;
+}
+
+// Whether the single package's picture changes within 2 mm of (x, y)
+// (metres relative to its origin): 16 points on the 2 mm circle.
+bool near_boundary(const prep::StaticView& view, double x, double y) {
+  const prep::EvalSample c = prep::evaluate(view, x, y);
+  for (int k = 0; k < 16; ++k) {
+    const double t = k * M_PI / 8;
+    const prep::EvalSample s =
+        prep::evaluate(view, x + 0.002 * std::cos(t), y + 0.002 * std::sin(t));
+    for (int i = 0; i < 4; ++i)
+      if (std::fabs(s.rgba[i] - c.rgba[i]) > 1e-6f) return true;
+  }
+  return false;
+}
+
+TEST_F(Tileset, CpuRenderOfTheTilesetEqualsTheSinglePackage) {
+  const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
+  const View v = monaco_view(ix);
+  const auto in_view = prep::tiles_in(ix, v.abs);
+  ASSERT_GE(in_view.size(), 9u) << "the view must span at least 9 tiles";
+  const std::string common = " --cpu --flat --extent " + extent_arg(v.abs) + " --size " +
+                             std::to_string(v.w) + "x" + std::to_string(v.h);
+  auto r =
+      run_tool("render " + shell_quote(file("single.decals")) + common + " -o " +
+                   shell_quote(file("single.png")) + " --raw " + shell_quote(file("single.raw")),
+               *dir_);
+  ASSERT_EQ(r.rc, 0) << r.output;
+  r = run_tool("render " + shell_quote(file("tiles")) + common + " -o " +
+                   shell_quote(file("tiles.png")) + " --raw " + shell_quote(file("tiles.raw")),
+               *dir_);
+  ASSERT_EQ(r.rc, 0) << r.output;
+  EXPECT_NE(r.output.find(std::to_string(in_view.size()) + " of " +
+                          std::to_string(ix.tiles.size()) + " tiles meet the view"),
+            std::string::npos)
+      << r.output;
+  const size_t n = size_t(v.w) * v.h;
+  const std::vector<float> a = read_raw(file("single.raw"), 4 * n);
+  const std::vector<float> b = read_raw(file("tiles.raw"), 4 * n);
+  size_t covered = 0;
+  for (size_t k = 0; k < n; ++k) covered += a[4 * k + 3] > 0 ? 1 : 0;
+  ASSERT_GT(covered, n / 4) << "the view must show the city";
+
+  decal::Package pkg;
+  ASSERT_TRUE(decal::Package::open(file("single.decals"), pkg));
+  const prep::render::DecalSource src = prep::render::source_of(pkg);
+  const std::vector<size_t> diff = differing(a, b);
+  size_t far = 0;
+  for (size_t k : diff) {
+    const double x = v.abs.xmin + (double(k % v.w) + 0.5) * 2.0 - src.frame.origin_x;
+    const double y = v.abs.ymax - (double(k / v.w) + 0.5) * 2.0 - src.frame.origin_y;
+    if (!near_boundary(src.view, x, y)) {
+      if (++far <= 5)
+        ADD_FAILURE() << "pixel " << k % v.w << "," << k / v.w << " differs 2 mm from any boundary";
+    }
+  }
+  std::printf(
+      "[ measured ] %zu tiles in view; %zu of %zu pixels differ (%zu covered), %zu of them "
+      "farther than 2 mm from a boundary\n",
+      in_view.size(), diff.size(), n, covered, far);
+  EXPECT_LE(double(diff.size()), 1e-4 * double(n));
+  EXPECT_EQ(far, 0u);
+}
+
+TEST_F(Tileset, GlRenderOfTheTilesetEqualsItsCpuRender) {
+  const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
+  const View v = monaco_view(ix);
+  const std::string common = " --flat --aa none --extent " + extent_arg(v.abs) + " --size " +
+                             std::to_string(v.w) + "x" + std::to_string(v.h) +
+                             " --only polygons,lines";
+  auto r = run_tool("render " + shell_quote(file("tiles")) + common + " --cpu -o " +
+                        shell_quote(file("cpu.png")) + " --raw " + shell_quote(file("cpu.raw")),
+                    *dir_);
+  ASSERT_EQ(r.rc, 0) << r.output;
+  r = run_tool("render " + shell_quote(file("tiles")) + common + " -o " +
+                   shell_quote(file("gl.png")) + " --raw " + shell_quote(file("gl.raw")),
+               *dir_);
+  ASSERT_EQ(r.rc, 0) << r.output;
+  const size_t n = size_t(v.w) * v.h;
+  const std::vector<float> a = read_raw(file("cpu.raw"), 4 * n);
+  const std::vector<float> b = read_raw(file("gl.raw"), 4 * n);
+  decal::Package pkg;
+  ASSERT_TRUE(decal::Package::open(file("single.decals"), pkg));
+  const prep::render::DecalSource src = prep::render::source_of(pkg);
+  const std::vector<size_t> diff = differing(a, b);
+  size_t far = 0;
+  for (size_t k : diff) {
+    const double x = v.abs.xmin + (double(k % v.w) + 0.5) * 2.0 - src.frame.origin_x;
+    const double y = v.abs.ymax - (double(k / v.w) + 0.5) * 2.0 - src.frame.origin_y;
+    if (!near_boundary(src.view, x, y) && ++far <= 5)
+      ADD_FAILURE() << "pixel " << k % v.w << "," << k / v.w << " differs 2 mm from any boundary";
+  }
+  std::printf(
+      "[ measured ] GL vs CPU on the tileset: %zu of %zu pixels differ, %zu farther than "
+      "2 mm from a boundary\n",
+      diff.size(), n, far);
+  EXPECT_LE(double(diff.size()), 1e-4 * double(n));
+  EXPECT_EQ(far, 0u);
+}
+
+TEST_F(Tileset, PerLayerCountsEqualTheSinglePackages) {
+  const json single = read_json("single.decals.json");
+  const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
+  const json& layers = single.at("manifest").at("layers");
+  ASSERT_EQ(layers.size(), ix.manifest.layers.size());
+  for (size_t i = 0; i < layers.size(); ++i) {
+    const prep::LayerCounts& t = ix.manifest.layers[i];
+    SCOPED_TRACE(t.layer);
+    EXPECT_EQ(layers[i].at("layer").get<std::string>(), t.layer);
+    EXPECT_EQ(layers[i].at("read").get<uint64_t>(), t.read);
+    EXPECT_EQ(layers[i].at("kept").get<uint64_t>(), t.kept);
+    EXPECT_EQ(layers[i].at("repaired").get<uint64_t>(), t.repaired);
+    EXPECT_EQ(layers[i].at("clipped_away").get<uint64_t>(), t.clipped_away);
+    EXPECT_EQ(layers[i].at("dropped").get<uint64_t>(), t.dropped);
+    EXPECT_EQ(t.read, t.kept + t.clipped_away + t.dropped);
+    // Each kept feature has a part in at least one tile, and in no more
+    // tiles than there are.
+    uint64_t in_tiles = 0;
+    for (const prep::TileEntry& e : ix.tiles) in_tiles += e.layers.at(i).kept;
+    EXPECT_GE(in_tiles, t.kept);
+  }
+  EXPECT_EQ(single.at("manifest").at("entry_count").get<uint64_t>(), ix.entry_count);
+  // manifest.json holds the entries the index counts, and its hash.
+  const auto d = prep::file_digest(file("tiles") + "/manifest.json");
+  ASSERT_TRUE(d);
+  EXPECT_EQ(d->xxh64, ix.manifest_xxh64);
+  EXPECT_EQ(read_json("tiles/manifest.json").at("entries").size(), ix.entry_count);
+}
+
+TEST_F(Tileset, BytesDoNotDependOnJobsOrThreads) {
+  EXPECT_EQ(file_bytes(file("tiles/tileset.json")), file_bytes(file("tiles1/tileset.json")));
+  const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
+  ASSERT_GT(ix.tiles.size(), 9u);
+  for (const prep::TileEntry& t : ix.tiles) {
+    const std::string a = file_bytes(file("tiles/" + t.file));
+    EXPECT_EQ(a.size(), t.bytes) << t.file;
+    EXPECT_TRUE(a == file_bytes(file("tiles1/" + t.file))) << t.file;
+  }
+}
+
+TEST_F(Tileset, ARunAgainRebuildsOnlyMissingOrDamagedTiles) {
+  // A copy, so the other tests keep theirs.
+  const std::string copy = file("resume");
+  fs::copy(file("tiles1"), copy, fs::copy_options::recursive);
+  const prep::TilesetIndex ix = prep::read_tileset_index(copy);
+  ASSERT_GE(ix.tiles.size(), 3u);
+  const std::string scene = shell_quote(prep::test::monaco_sample("scene.toml"));
+  const std::string cmd = "build " + scene + " -o " + shell_quote(copy) +
+                          " --tile-size 500 --jobs 2 --report " + shell_quote(file("resume.json")) +
+                          " -q";
+  auto r = run_tool(cmd, *dir_);
+  ASSERT_EQ(r.rc, 0) << r.output;
+  json rep = read_json("resume.json");
+  EXPECT_EQ(rep.at("tileset").at("built").get<size_t>(), 0u);
+  EXPECT_EQ(rep.at("tileset").at("reused").get<size_t>(), ix.tiles.size());
+
+  fs::remove(copy + "/" + ix.tiles[0].file);
+  {
+    std::fstream f(copy + "/" + ix.tiles[1].file, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(std::streamoff(ix.tiles[1].bytes / 2));
+    char c = 0;
+    f.read(&c, 1);
+    f.seekp(std::streamoff(ix.tiles[1].bytes / 2));
+    c = char(c ^ 0x5a);
+    f.write(&c, 1);
+  }
+  r = run_tool(cmd, *dir_);
+  ASSERT_EQ(r.rc, 0) << r.output;
+  rep = read_json("resume.json");
+  EXPECT_EQ(rep.at("tileset").at("built").get<size_t>(), 2u);
+  EXPECT_EQ(rep.at("tileset").at("reused").get<size_t>(), ix.tiles.size() - 2);
+  EXPECT_EQ(file_bytes(copy + "/tileset.json"), file_bytes(file("tiles1/tileset.json")));
+  for (const prep::TileEntry& t : ix.tiles)
+    EXPECT_TRUE(file_bytes(copy + "/" + t.file) == file_bytes(file("tiles1/" + t.file))) << t.file;
+}
+
+TEST_F(Tileset, VerifyAndInfoTakeTheDirectory) {
+  auto r = run_tool("verify " + shell_quote(file("tiles")), *dir_);
+  EXPECT_EQ(r.rc, 0) << r.output;
+  r = run_tool("info " + shell_quote(file("tiles")), *dir_);
+  EXPECT_EQ(r.rc, 0) << r.output;
+  EXPECT_NE(r.output.find("tiles"), std::string::npos) << r.output;
+  // One flipped byte in one tile: verify names it and fails.
+  const std::string copy = file("damaged");
+  fs::copy(file("tiles"), copy, fs::copy_options::recursive);
+  const prep::TilesetIndex ix = prep::read_tileset_index(copy);
+  {
+    std::fstream f(copy + "/" + ix.tiles[2].file, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(std::streamoff(ix.tiles[2].bytes - 9));
+    f.put('\x7f');
+  }
+  r = run_tool("verify " + shell_quote(copy), *dir_);
+  EXPECT_EQ(r.rc, 5) << r.output;
+  EXPECT_NE(r.output.find(ix.tiles[2].file), std::string::npos) << r.output;
+}
+
+}  // namespace

@@ -1,0 +1,14 @@
+#!/bin/bash
+# The builds the Tileset tests share (tests/tools/test_tileset.cpp), made once
+# per ctest run: the Monaco sample as one package, and as a 500 m tileset
+# with --jobs 2 and with --jobs 1 --threads 1.
+# Usage: tileset_fixture.sh DECALPREP SCENE WORKDIR
+set -euo pipefail
+tool=$1 scene=$2 work=$3
+rm -rf "$work"
+mkdir -p "$work"
+"$tool" build "$scene" -o "$work/single.decals" --report "$work/single.decals.json" -q
+"$tool" build "$scene" -o "$work/tiles" --report "$work/tiles.json" -q --tile-size 500 --jobs 2
+"$tool" build "$scene" -o "$work/tiles1" --report "$work/tiles1.json" -q --tile-size 500 \
+  --jobs 1 --threads 1
+touch "$work/done"
