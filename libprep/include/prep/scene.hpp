@@ -104,7 +104,7 @@ struct SceneSpec {
   RepairMethod repair = RepairMethod::linework;  // invalid polygons (see RepairMethod)
   std::string dem;                               // GDAL raster path; empty: flat terrain
   bool skip_failures = false;
-  ModelOptions model;      // stage 4 knobs (the scene file's [build] table)
+  ModelOptions model;  // stage 4 knobs (the scene file's [build] table)
   // > 0: the output is a tileset of square tiles this many frame metres on a
   // side (prep/tile.hpp; the scene file's [tiling] tile_size); 0: one package.
   double tile_size = 0;
