@@ -24,6 +24,7 @@
 #include "command.hpp"
 #include "decal/reader.hpp"
 #include "prep/manifest_words.hpp"
+#include "prep/tileset.hpp"
 
 namespace {
 
@@ -354,6 +355,25 @@ void run_summary(const decal::Package& p, const std::string& path, const std::st
   }
 }
 
+// The package to dump: PACKAGE itself, or a tileset's tile --tile X,Y.
+std::string tile_package(const std::string& path, const std::string& tile) {
+  if (!prep::is_tileset(path)) {
+    if (!tile.empty()) throw prep::usage_error("dump: --tile needs a tileset directory");
+    return path;
+  }
+  long long x = 0, y = 0;
+  char end = 0;
+  if (tile.empty() || std::sscanf(tile.c_str(), "%lld,%lld%c", &x, &y, &end) != 2)
+    throw prep::usage_error("dump: " + path + " is a tileset: name one tile with --tile X,Y" +
+                            (tile.empty() ? "" : " ('" + tile + "' is not X,Y)"));
+  const prep::TilesetIndex ix = prep::read_tileset_index(path);
+  for (const prep::TileEntry& t : ix.tiles)
+    if (t.key.x == x && t.key.y == y) return path + "/" + t.file;
+  throw prep::usage_error("dump: " + path + " has no tile " + tile + " (" +
+                          std::to_string(ix.tiles.size()) + " tiles; `decalprep info " + path +
+                          "` lists them)");
+}
+
 void run_dump(const std::string& path, bool as_json, bool summary, const std::string& only) {
   decal::Package p;
   if (decal::Status s = decal::Package::open(path, p); !s)
@@ -453,15 +473,19 @@ const decalprep::CommandRegistrar kDump(22, [](CLI::App& app) {
   auto as_json = std::make_shared<bool>(false);
   auto summary = std::make_shared<bool>(false);
   auto only = std::make_shared<std::string>();
-  cmd->add_option("PACKAGE", *path, "the .decals file")->required();
+  auto tile = std::make_shared<std::string>();
+  cmd->add_option("PACKAGE", *path, "the .decals file, or a tileset directory (with --tile)")
+      ->required();
+  cmd->add_option("--tile", *tile,
+                  "tileset: the tile to dump, X,Y (its key; `decalprep info DIR` lists them)");
   auto* json_flag = cmd->add_flag("--json", *as_json, "print the decoded elements as JSON");
   cmd->add_flag(
          "--summary", *summary,
          "print a short text to review as a diff (golden tests): hashes and counts, see below")
       ->excludes(json_flag);
   cmd->add_option("--blob", *only, "only the blob with this name (e.g. line_vertices)");
-  cmd->callback([path, as_json, summary, only] {
-    run_dump(*path, *as_json, *summary, *only);
+  cmd->callback([path, as_json, summary, only, tile] {
+    run_dump(tile_package(*path, *tile), *as_json, *summary, *only);
     decalprep::set_exit_code(prep::ExitCode::ok);
   });
 });
