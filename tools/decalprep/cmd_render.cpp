@@ -83,6 +83,12 @@ Scene open_scene(const std::string& path) {
   const prep::Extent& e = sc.index.extent;
   sc.extent = {e.xmin - sc.frame.origin_x, e.ymin - sc.frame.origin_y, e.xmax - sc.frame.origin_x,
                e.ymax - sc.frame.origin_y};
+  // The build's DEM and surface settings are the same in every tile.
+  if (!sc.index.tiles.empty()) {
+    decal::Package first;
+    open_package(path + "/" + sc.index.tiles.front().file, first);
+    sc.metadata = std::string(first.metadata_json());
+  }
   return sc;
 }
 
@@ -104,7 +110,6 @@ void load_tiles(Scene& sc, const std::string& dir, const prep::Extent& view) {
          {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
          t.origin_x - ox,
          t.origin_y - oy});
-    if (sc.metadata.empty()) sc.metadata = std::string(sc.packages[k].metadata_json());
   }
   std::fprintf(stderr, "render: %zu of %zu tiles meet the view\n", hit.size(),
                sc.index.tiles.size());
@@ -199,12 +204,6 @@ void run(const RenderArgs& a) {
                    abs_package.ymin, abs_package.xmax, abs_package.ymax);
     }
   }
-  if (sc.tileset) {
-    // Top-down: the tiles in the view; other views: every tile (the view's
-    // footprint on the terrain is not computed yet).
-    const prep::Extent all{-INFINITY, -INFINITY, INFINITY, INFINITY};
-    load_tiles(sc, a.package, topdown ? abs_view : all);
-  }
   prep::Extent terrain_extent = src.extent;
   if (topdown) {
     terrain_extent.xmin = std::min(terrain_extent.xmin, view_extent.xmin);
@@ -278,6 +277,15 @@ void run(const RenderArgs& a) {
                       a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
   }
 
+  if (sc.tileset) {
+    // Only the tiles that meet what the camera can see of the terrain.
+    prep::Extent view{-INFINITY, -INFINITY, INFINITY, INFINITY};
+    if (const std::optional<prep::Extent> f =
+            R::ground_footprint(opt.camera, w, h, terrain.zmin, terrain.zmax))
+      view = {f->xmin + sc.frame.origin_x, f->ymin + sc.frame.origin_y, f->xmax + sc.frame.origin_x,
+              f->ymax + sc.frame.origin_y};
+    load_tiles(sc, a.package, view);
+  }
 #ifdef PREP_RENDER_WITH_GL
   R::Image img =
       a.cpu ? R::render_cpu(sc.tiles, terrain, opt) : R::render_gl(sc.tiles, terrain, opt);

@@ -210,6 +210,13 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
 Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
                  const RenderOptions& options);
 
+// The box of scene points the camera can see on terrain between zmin and
+// zmax (metres relative to the origin): the top-down extent, or the box of
+// the image's corner rays where they cross the planes z = zmin and z = zmax.
+// None when a corner ray does not come down to the terrain (sky, horizon).
+std::optional<Extent> ground_footprint(const Camera& camera, uint32_t width, uint32_t height,
+                                       double zmin, double zmax);
+
 // True when `camera` looks straight down with an orthographic projection
 // and axis-aligned image (the render_topdown case); `extent` is then the
 // imaged area.
