@@ -16,11 +16,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "decal/reader.hpp"
+#include "prep/error.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/render.hpp"
 #include "prep/tileset.hpp"
@@ -311,6 +313,60 @@ TEST_F(Tileset, VerifyAndInfoTakeTheDirectory) {
   r = run_tool("verify " + shell_quote(copy), *dir_);
   EXPECT_EQ(r.rc, 5) << r.output;
   EXPECT_NE(r.output.find(ix.tiles[2].file), std::string::npos) << r.output;
+}
+
+}  // namespace
+
+namespace {
+
+// The index is read as untrusted input: each change a writer never makes
+// is refused with a format_error naming the field.
+TEST_F(Tileset, TheIndexReaderRefusesWhatTheWriterNeverWrites) {
+  const json good = read_json("tiles/tileset.json");
+  struct Case {
+    const char* what;
+    std::function<void(json&)> change;
+    const char* field;
+  };
+  const std::vector<Case> cases = {
+      {"a path out of the directory", [](json& j) { j["tiles"][0]["file"] = "../x.decals"; },
+       "tiles[0].file"},
+      {"another tile's file", [](json& j) { j["tiles"][0]["file"] = j["tiles"][1]["file"]; },
+       "tiles[0].file"},
+      {"a tile listed twice",
+       [](json& j) {
+         j["tiles"][1]["x"] = j["tiles"][0]["x"], j["tiles"][1]["y"] = j["tiles"][0]["y"];
+       },
+       "tiles[1]"},
+      {"a square off its key", [](json& j) { j["tiles"][0]["square"][0] = 1.5; },
+       "tiles[0].square"},
+      {"an origin off the centre", [](json& j) { j["tiles"][0]["origin"][1] = 0.25; },
+       "tiles[0].origin"},
+      {"a hash that is not hex", [](json& j) { j["tiles"][0]["xxh64"] = "zz"; }, "tiles[0].xxh64"},
+      {"a negative count", [](json& j) { j["tiles"][0]["bytes"] = -1; }, "tiles[0].bytes"},
+      {"another major version", [](json& j) { j["tileset_version"] = "2.0"; }, "tileset_version"},
+      {"no tile size", [](json& j) { j["tiling"].erase("tile_size_m"); }, "tiling.tile_size_m"},
+      {"a tile size of 0", [](json& j) { j["tiling"]["tile_size_m"] = 0; }, "tiling.tile_size_m"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    const std::string dir = file(std::string("bad_") + c.what);
+    fs::create_directories(dir);
+    json j = good;
+    c.change(j);
+    prep::test::write_text(dir + "/tileset.json", j.dump());
+    try {
+      prep::read_tileset_index(dir);
+      ADD_FAILURE() << "accepted";
+    } catch (const prep::format_error& e) {
+      EXPECT_NE(std::string(e.what()).find(c.field), std::string::npos) << e.what();
+    }
+  }
+  // The unchanged index reads.
+  const std::string dir = file("good_index");
+  fs::create_directories(dir);
+  prep::test::write_text(dir + "/tileset.json", good.dump());
+  EXPECT_NO_THROW(prep::read_tileset_index(dir));
 }
 
 }  // namespace
