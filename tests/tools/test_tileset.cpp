@@ -370,3 +370,42 @@ TEST_F(Tileset, TheIndexReaderRefusesWhatTheWriterNeverWrites) {
 }
 
 }  // namespace
+
+namespace {
+
+// Two small squares 40 degrees of longitude apart on the equator (about
+// 4,450 km): too wide for one package. The build stops right after project,
+// before clean starts, naming the feature; as a tileset it builds.
+TEST(TilesetSpan, TooWideForOnePackageFailsBeforeCleanAndBuildsAsATileset) {
+  prep::test::TempDir dir("span");
+  const std::string src = dir.file("wide.geojson");
+  prep::test::write_text(src,
+                         R"({"type":"FeatureCollection","features":[
+{"type":"Feature","id":1,"properties":{},"geometry":{"type":"Polygon","coordinates":[[[0,0],[0.01,0],[0.01,0.01],[0,0.01],[0,0]]]}},
+{"type":"Feature","id":2,"properties":{},"geometry":{"type":"Polygon","coordinates":[[[40,0],[40.01,0],[40.01,0.01],[40,0.01],[40,0]]]}}]})");
+  auto r = run_tool("build " + shell_quote(src) + " --kind polygon -o " +
+                        shell_quote(dir.file("one.decals")) + " --progress json",
+                    dir, {.split_stderr = true});
+  EXPECT_EQ(r.rc, 3) << r.err;
+  EXPECT_NE(r.err.find("lies more than 2147 km from the package origin"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("--tile-size"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("\"stage\":\"clean\""), std::string::npos) << "clean ran:\n" << r.err;
+  EXPECT_FALSE(fs::exists(dir.file("one.decals")));
+
+  r = run_tool("build " + shell_quote(src) + " --kind polygon -o " +
+                   shell_quote(dir.file("tiles")) + " --tile-size 100000 -q",
+               dir);
+  ASSERT_EQ(r.rc, 0) << r.output;
+  const prep::TilesetIndex ix = prep::read_tileset_index(dir.file("tiles"));
+  // Each 1.1 km square lies in at most 4 tiles; nothing between them.
+  EXPECT_GE(ix.tiles.size(), 2u);
+  EXPECT_LE(ix.tiles.size(), 8u);
+  ASSERT_EQ(ix.manifest.layers.size(), 1u);
+  EXPECT_EQ(ix.manifest.layers[0].kept, 2u);
+  EXPECT_GT(ix.extent.xmax - ix.extent.xmin, 4.0e6);
+  r = run_tool("verify " + shell_quote(dir.file("tiles")), dir);
+  EXPECT_EQ(r.rc, 0) << r.output;
+}
+
+}  // namespace
