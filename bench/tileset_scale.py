@@ -1,0 +1,128 @@
+#!/usr/bin/env python3
+"""bench/tileset_scale.py — tileset builds against input size.
+
+  bench/tileset_scale.py [--vertices 1e5,1e6,1e7] [--tile-size 2000] [--jobs 2]
+                         [--build-dir build/release] [--out bench/report]
+
+For each size: synthetic polygons and lines (bench/gen_synthetic.py "mix", at
+constant density, so the extent grows with the square root of the size) in
+FlatGeobuf; then, in the same run, `ogr2ogr -f FlatGeobuf` of that file (the
+floor: reading and writing the same features) and `decalprep build
+--tile-size`. Prints and writes tileset_scale.csv (wall, CPU, peak RSS of each
+child from wait4, tiles, bytes per input vertex, the ratio to the floor) and
+tileset_scale.png (gnuplot), and the fitted slope of log(wall) against
+log(vertices) between the smallest and the largest size.
+Standard library only; needs ogr2ogr and gnuplot.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def measured(cmd):
+    t0 = time.perf_counter()
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    err = p.stderr.read()
+    _, status, ru = os.wait4(p.pid, 0)
+    wall = time.perf_counter() - t0
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError("%s failed: %s" % (" ".join(cmd), err.decode()[-2000:]))
+    return wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0
+
+
+def slope(xs, ys):
+    lx = [math.log(x) for x in xs]
+    ly = [math.log(y) for y in ys]
+    mx, my = sum(lx) / len(lx), sum(ly) / len(ly)
+    den = sum((a - mx) ** 2 for a in lx)
+    return sum((a - mx) * (b - my) for a, b in zip(lx, ly)) / den if den > 0 else float("nan")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--vertices", default="1e5,1e6")
+    ap.add_argument("--tile-size", default="2000")
+    ap.add_argument("--jobs", default="2")
+    ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
+    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
+    a = ap.parse_args()
+    tool = os.path.join(a.build_dir, "tools", "decalprep", "decalprep")
+    os.makedirs(a.out, exist_ok=True)
+    work = tempfile.mkdtemp(prefix="tileset_scale_")
+    rows = []
+    try:
+        for v in [int(float(s)) for s in a.vertices.split(",")]:
+            gj = os.path.join(work, "mix%d.geojsonl" % v)
+            fgb = os.path.join(work, "mix%d.fgb" % v)
+            subprocess.run([sys.executable, os.path.join(ROOT, "bench", "gen_synthetic.py"), "mix",
+                            str(v), gj], check=True)
+            subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", fgb, gj, "-a_srs", "EPSG:32632"],
+                           check=True)
+            os.remove(gj)
+            floor = os.path.join(work, "floor%d.fgb" % v)
+            f_wall, f_cpu, f_rss = measured(["ogr2ogr", "-f", "FlatGeobuf", floor, fgb])
+            out = os.path.join(work, "tiles%d" % v)
+            report = os.path.join(work, "tiles%d.json" % v)
+            scene = os.path.join(work, "mix%d.toml" % v)
+            layer = "mix%d" % v
+            with open(scene, "w") as f:
+                f.write('source = "%s"\ncrs = "EPSG:32632"\n' % fgb)
+                f.write('[[layer]]\nname = "polygons"\nkind = "polygon"\nsql = "SELECT * FROM %s '
+                        'WHERE OGR_GEOMETRY = \'POLYGON\'"\n' % layer)
+                f.write('[[layer]]\nname = "lines"\nkind = "line"\nwidth = 3\nsql = "SELECT * FROM %s '
+                        'WHERE OGR_GEOMETRY = \'LINESTRING\'"\n' % layer)
+            wall, cpu, rss = measured([tool, "build", scene, "-o", out, "--tile-size", a.tile_size,
+                                       "--jobs", a.jobs, "--report", report, "-q"])
+            ts = json.load(open(report))["tileset"]
+            row = {"vertices": v, "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
+                   "peak_rss_mib": round(rss, 1), "tiles": ts["tiles"], "bytes": ts["bytes"],
+                   "bytes_per_vertex": round(ts["bytes"] / v, 2),
+                   "ogr2ogr_fgb_wall_s": round(f_wall, 3), "ratio_to_floor": round(wall / f_wall, 2)}
+            rows.append(row)
+            print("%(vertices)d vertices: %(wall_s)s s wall, %(cpu_s)s s CPU, %(peak_rss_mib)s MiB "
+                  "peak, %(tiles)d tiles, %(bytes_per_vertex)s B/vertex; ogr2ogr %(ogr2ogr_fgb_wall_s)s "
+                  "s (x%(ratio_to_floor)s)" % row, flush=True)
+            shutil.rmtree(out, ignore_errors=True)
+            for p in (fgb, floor):
+                os.remove(p)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    csv_path = os.path.join(a.out, "tileset_scale.csv")
+    with open(csv_path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        w.writeheader()
+        w.writerows(rows)
+    if len(rows) > 1:
+        s = slope([r["vertices"] for r in rows], [r["wall_s"] for r in rows])
+        m = rows[-1]["peak_rss_mib"] / rows[-2]["peak_rss_mib"]
+        c = slope([r["vertices"] for r in rows], [r["cpu_s"] for r in rows])
+        print("fitted slope on log(vertices): log(wall) %.3f, log(CPU) %.3f; peak RSS %d / %d "
+              "vertices: x%.2f" % (s, c, rows[-1]["vertices"], rows[-2]["vertices"], m))
+    if shutil.which("gnuplot"):
+        png = os.path.join(a.out, "tileset_scale.png")
+        script = """set terminal pngcairo size 800,500
+set output '%s'
+set datafile separator ','
+set logscale xy
+set key top left
+set xlabel 'input vertices'
+set ylabel 'seconds'
+plot '%s' using 1:2 skip 1 with linespoints title 'decalprep build --tile-size (wall)', \\
+     '%s' using 1:8 skip 1 with linespoints title 'ogr2ogr -f FlatGeobuf (floor)'
+""" % (png, csv_path, csv_path)
+        subprocess.run(["gnuplot"], input=script.encode(), check=False)
+    print("wrote", csv_path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
