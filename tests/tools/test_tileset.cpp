@@ -135,6 +135,24 @@ bool near_boundary(const prep::StaticView& view, double x, double y) {
   return false;
 }
 
+// How many of the pixels `diff` of view `v` have their centre farther than
+// 2 mm from every boundary of the picture of the package at `reference`;
+// the first five are reported as failures.
+size_t far_from_boundaries(const std::vector<size_t>& diff, const View& v,
+                           const std::string& reference) {
+  decal::Package pkg;
+  EXPECT_TRUE(decal::Package::open(reference, pkg));
+  const prep::render::DecalSource src = prep::render::source_of(pkg);
+  size_t far = 0;
+  for (size_t k : diff) {
+    const double x = v.abs.xmin + (double(k % v.w) + 0.5) * 2.0 - src.frame.origin_x;
+    const double y = v.abs.ymax - (double(k / v.w) + 0.5) * 2.0 - src.frame.origin_y;
+    if (!near_boundary(src.view, x, y) && ++far <= 5)
+      ADD_FAILURE() << "pixel " << k % v.w << "," << k / v.w << " differs 2 mm from any boundary";
+  }
+  return far;
+}
+
 TEST_F(Tileset, CpuRenderOfTheTilesetEqualsTheSinglePackage) {
   const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
   const View v = monaco_view(ix);
@@ -162,19 +180,8 @@ TEST_F(Tileset, CpuRenderOfTheTilesetEqualsTheSinglePackage) {
   for (size_t k = 0; k < n; ++k) covered += a[4 * k + 3] > 0 ? 1 : 0;
   ASSERT_GT(covered, n / 4) << "the view must show the city";
 
-  decal::Package pkg;
-  ASSERT_TRUE(decal::Package::open(file("single.decals"), pkg));
-  const prep::render::DecalSource src = prep::render::source_of(pkg);
   const std::vector<size_t> diff = differing(a, b);
-  size_t far = 0;
-  for (size_t k : diff) {
-    const double x = v.abs.xmin + (double(k % v.w) + 0.5) * 2.0 - src.frame.origin_x;
-    const double y = v.abs.ymax - (double(k / v.w) + 0.5) * 2.0 - src.frame.origin_y;
-    if (!near_boundary(src.view, x, y)) {
-      if (++far <= 5)
-        ADD_FAILURE() << "pixel " << k % v.w << "," << k / v.w << " differs 2 mm from any boundary";
-    }
-  }
+  const size_t far = far_from_boundaries(diff, v, file("single.decals"));
   std::printf(
       "[ measured ] %zu tiles in view; %zu of %zu pixels differ (%zu covered), %zu of them "
       "farther than 2 mm from a boundary\n",
@@ -200,17 +207,8 @@ TEST_F(Tileset, GlRenderOfTheTilesetEqualsItsCpuRender) {
   const size_t n = size_t(v.w) * v.h;
   const std::vector<float> a = read_raw(file("cpu.raw"), 4 * n);
   const std::vector<float> b = read_raw(file("gl.raw"), 4 * n);
-  decal::Package pkg;
-  ASSERT_TRUE(decal::Package::open(file("single.decals"), pkg));
-  const prep::render::DecalSource src = prep::render::source_of(pkg);
   const std::vector<size_t> diff = differing(a, b);
-  size_t far = 0;
-  for (size_t k : diff) {
-    const double x = v.abs.xmin + (double(k % v.w) + 0.5) * 2.0 - src.frame.origin_x;
-    const double y = v.abs.ymax - (double(k / v.w) + 0.5) * 2.0 - src.frame.origin_y;
-    if (!near_boundary(src.view, x, y) && ++far <= 5)
-      ADD_FAILURE() << "pixel " << k % v.w << "," << k / v.w << " differs 2 mm from any boundary";
-  }
+  const size_t far = far_from_boundaries(diff, v, file("single.decals"));
   std::printf(
       "[ measured ] GL vs CPU on the tileset: %zu of %zu pixels differ, %zu farther than "
       "2 mm from a boundary\n",
