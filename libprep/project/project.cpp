@@ -528,6 +528,12 @@ double wrap180(double lon) {
   return lon - 360.0 * std::floor((lon + 180.0) / 360.0);
 }
 
+// A geographic CRS in degrees from Greenwich: x is the longitude itself.
+bool is_lon_lat(const OGRSpatialReference& srs) {
+  return srs.IsGeographic() && std::fabs(srs.GetAngularUnits() - M_PI / 180) < 1e-12 &&
+         srs.GetPrimeMeridian() == 0.0;
+}
+
 LonArc data_longitudes(const FeatureSet& features) {
   // Coverage per bin as a difference array: +1 where an interval starts,
   // -1 after it ends (intervals wrap past +180 at most once).
@@ -560,9 +566,7 @@ LonArc data_longitudes(const FeatureSet& features) {
     // A geographic source in degrees from Greenwich is read as it is (a datum
     // shift of a few metres does not move the frame); any other goes through
     // PROJ.
-    const bool lon_lat = src->IsGeographic() &&
-                         std::fabs(src->GetAngularUnits() - M_PI / 180) < 1e-12 &&
-                         src->GetPrimeMeridian() == 0.0;
+    const bool lon_lat = is_lon_lat(*src);
     TransformPtr t;
     if (!lon_lat) t = make_transform(*src, *geo, "layer '" + layer.spec.name + "' to WGS84");
     std::vector<double> xs, ys;
@@ -751,6 +755,16 @@ SceneFrame default_frame(const FeatureSet& features, const Extent& all, bool wra
   return frame;
 }
 
+// The longitude of the frame's centre: the local TM's central meridian, or
+// the frame origin's longitude (0 when it has none).
+double frame_centre_lon(const SceneFrame& frame, const OGRSpatialReference& frame_srs) {
+  if (std::isfinite(frame.tm_lon0)) return frame.tm_lon0;
+  auto t = make_transform(frame_srs, *wgs84(), "frame to WGS84");
+  double x = frame.origin_x, y = frame.origin_y;
+  if (!t->Transform(1, &x, &y) || !std::isfinite(x)) return 0.0;
+  return x;
+}
+
 // What to do when a vertex falls out of the frame projection's domain.
 std::string frame_hint(const SceneFrame& frame) {
   const bool named = !frame.description.empty() && frame.description != "unknown";
@@ -897,15 +911,43 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     // no-op); skip it, and the approximation too, which would move vertices
     // by up to kApproxTolerance and could part vertices that touch exactly.
     const bool identity = src->IsSame(frame_srs.get()) != 0;
+    // Lon/lat data wider than a half circle (across the antimeridian, as
+    // -178.5 beside 179.9) is read within 180 degrees of the frame's centre:
+    // the same points for PROJ, but one compact box for the approximation
+    // instead of the whole globe (which it would split down to slivers,
+    // fitting thousands of cells: 10 s instead of 1 s for a million
+    // vertices). A longitude exactly 180 from the centre stays as it is (+180
+    // and -180 are apart in a world frame); messages give the source's own.
+    Extent box = bounds_of(layer);
+    bool rewrap = false;
+    double centre = 0;
+    if (!identity && is_lon_lat(*src) && box.xmax - box.xmin > 180.0) {
+      rewrap = true;
+      centre = frame_centre_lon(frame, *frame_srs);
+      box = {std::numeric_limits<double>::infinity(), box.ymin,
+             -std::numeric_limits<double>::infinity(), box.ymax};
+    }
+    const auto source_x = [&](double x) {
+      return rewrap && std::fabs(x - centre) > 180.0 ? centre + wrap180(x - centre) : x;
+    };
+    if (rewrap) {
+      for (const SourceFeature& f : layer.features) {
+        if (!f.drop_reason.empty()) continue;
+        for (const Ring& r : f.rings)
+          for (const Point2& p : r) {
+            box.xmin = std::min(box.xmin, source_x(p.x));
+            box.xmax = std::max(box.xmax, source_x(p.x));
+          }
+      }
+    }
     std::optional<ApproxTransform> approx;
-    const Extent box = bounds_of(layer);
     if (!identity && box.xmax >= box.xmin && box.ymax >= box.ymin && std::isfinite(box.xmin) &&
         std::isfinite(box.ymin) && std::isfinite(box.xmax) && std::isfinite(box.ymax)) {
       approx.emplace(*exact, box, [&](auto&& visit) {
         for (const SourceFeature& f : layer.features) {
           if (!f.drop_reason.empty()) continue;
           for (const Ring& r : f.rings)
-            for (const Point2& p : r) visit(p.x, p.y);
+            for (const Point2& p : r) visit(source_x(p.x), p.y);
         }
       });
     }
@@ -924,7 +966,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
             for (Ring& r : f.rings) {
               const size_t n = r.size();
               for (size_t j = 0; j < n; ++j) {
-                double x = r[j].x, y = r[j].y;
+                double x = source_x(r[j].x), y = r[j].y;
                 if (!identity && !(approx && approx->apply(x, y, leaf))) {
                   int ok = 0;
                   if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {

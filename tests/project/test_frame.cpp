@@ -211,6 +211,46 @@ TEST(DefaultFrame, PacificDataAcrossTheAntimeridianIsCentredNear180AndStaysSmall
   EXPECT_NEAR(west_half[1].y, east_half[0].y, 1e-6);
 }
 
+// 50,000 lon/lat vertices across the antimeridian (enough for project() to
+// fit its verified approximation, over longitudes it first brings within
+// 180 degrees of the frame's centre): vertex by vertex where PROJ puts the
+// original coordinates.
+TEST(DefaultFrame, ManyVerticesAcrossTheAntimeridianMatchProjPerVertex) {
+  uint64_t seed = 12345;
+  auto next = [&] {  // xorshift: deterministic, no <random> distribution differences
+    seed ^= seed << 13;
+    seed ^= seed >> 7;
+    seed ^= seed << 17;
+    return double(seed >> 11) / double(uint64_t(1) << 53);
+  };
+  std::vector<prep::Ring> rings;
+  for (int f = 0; f < 2000; ++f) {
+    prep::Ring& r = rings.emplace_back();
+    for (int i = 0; i < 25; ++i) {
+      const double lon = 178.0 + 4.0 * next();
+      r.push_back({lon > 180.0 ? lon - 360.0 : lon, -18.0 + 3.0 * next()});
+    }
+  }
+  prep::FeatureSet fs = layer_of(rings, false);
+  const prep::FeatureSet original = fs;
+  const prep::SceneFrame frame = prep::choose_frame(fs, "");
+  ASSERT_TRUE(std::isfinite(frame.tm_lon0)) << frame.description;
+  EXPECT_NEAR(frame.tm_lon0, 180.0, 0.01) << frame.description;
+  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  const Projected want = ogr_project(original, frame.crs_wkt);
+  size_t k = 0;
+  double worst = 0;
+  for (const auto& f : p.features.layers[0].features)
+    for (const auto& v : f.rings[0]) {
+      worst = std::max({worst, std::fabs(v.x + frame.origin_x - want.x[k]),
+                        std::fabs(v.y + frame.origin_y - want.y[k])});
+      ++k;
+    }
+  EXPECT_EQ(k, want.x.size());
+  EXPECT_LT(worst, 1e-7) << "largest deviation from PROJ per vertex, metres";
+  EXPECT_LT(want.xmax - want.xmin, 450e3);
+}
+
 // A projected source across the antimeridian (GDAL reports its lon/lat box
 // with xmin > xmax): the same frame as the lon/lat data.
 TEST(DefaultFrame, ProjectedSourceAcrossTheAntimeridianIsCentredNear180) {
