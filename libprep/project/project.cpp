@@ -179,11 +179,12 @@ bool is_equal_area(const OGRSpatialReference& frame) {
   const std::string def = ok ? proj4 : "";
   CPLFree(proj4);
   CPLErrorReset();
-  for (const char* method : {"eqearth", "laea", "aea", "cea", "moll", "sinu", "eck4", "eck6",
-                             "hammer", "igh", "igh_o", "goode", "boggs", "mbtfps", "qsc"}) {
-    if (def.find(std::string("+proj=") + method + " ") != std::string::npos) return true;
-  }
-  return false;
+  static constexpr std::array<const char*, 15> kEqualArea = {
+      "eqearth", "laea", "aea",   "cea",   "moll",  "sinu",   "eck4", "eck6",
+      "hammer",  "igh",  "igh_o", "goode", "boggs", "mbtfps", "qsc"};
+  return std::any_of(kEqualArea.begin(), kEqualArea.end(), [&](const char* method) {
+    return def.find(std::string("+proj=") + method + " ") != std::string::npos;
+  });
 }
 
 // ------------------------------------------------ verified approximation --
@@ -553,7 +554,7 @@ LonArc data_longitudes(const FeatureSet& features) {
         std::max(greatest_end[size_t(e % kLonBins)], e < kLonBins ? hi : hi - 360.0);
     ++diff[size_t(s)];
     if (e < kLonBins) {
-      --diff[size_t(e + 1)];
+      --diff[static_cast<size_t>(e) + 1];
     } else {
       --diff[kLonBins];
       ++diff[0];

@@ -474,6 +474,26 @@ TEST(DefaultFrame, EqualEarthWidthFactorIsTheGeometricMeanOfTissotsAxes) {
   }
 }
 
+// The same rule for an equal-area --crs (LAEA Europe, EPSG:3035): 1, where
+// the east-west scale that a conformal --crs gets is 0.5% off (and Tissot's
+// axes 3% apart).
+TEST(DefaultFrame, EqualAreaCrsWidthFactorIsTheGeometricMeanToo) {
+  const prep::SceneFrame frame =
+      prep::choose_frame(layer_of({box(5.0, 45.0, 35.0, 65.0)}), "EPSG:3035");
+  Pj pj("+proj=laea +lat_0=52 +lon_0=10 +x_0=4321000 +y_0=3210000 +ellps=GRS80");
+  ASSERT_TRUE(pj.pj);
+  for (const auto& [lon, lat] :
+       std::vector<std::pair<double, double>>{{10.0, 52.0}, {35.0, 65.0}, {5.0, 45.0}}) {
+    const PJ_FACTORS f = pj.at(lon, lat);
+    const auto [x, y] = in_frame(frame, lon, lat);
+    EXPECT_NEAR(prep::frame_scale_factor(frame, x, y),
+                std::sqrt(f.tissot_semimajor * f.tissot_semiminor), 1e-6)
+        << lon << ", " << lat;
+  }
+  EXPECT_GT(std::fabs(pj.at(35.0, 65.0).parallel_scale - 1.0), 1e-3);
+  EXPECT_GT(pj.at(35.0, 65.0).tissot_semimajor / pj.at(35.0, 65.0).tissot_semiminor, 1.02);
+}
+
 // A longitude that is not one (a broken vertex, or a layer in the wrong CRS)
 // gets the clear error that names the layer and the value.
 TEST(DefaultFrame, LongitudesThatAreNotLongitudesAreRefusedNamingThem) {
