@@ -509,9 +509,8 @@ std::pair<double, double> data_centre_in(const FeatureSet& features,
 // complement of the largest run of longitudes that no vertex and no segment
 // covers (a segment read the short way, as a frame centred on the data
 // draws it, except one from -180 to +180, which goes all the way round), so
-// a Pacific layer across the antimeridian (lon 177..-178)
-// gets a frame centred near 180, and rings split at +-180 (RFC 7946) meet
-// again there.
+// a Pacific layer across the antimeridian (lon 177..-178) gets a frame
+// centred near 180, and rings split at +-180 (RFC 7946) meet again there.
 constexpr double kTmMaxEasting = 3.9e6;   // metres from the central meridian
 constexpr double kStereoMaxAngle = 90.0;  // degrees from the centre
 constexpr int kLonBins = 3600;            // 0.1 degree
@@ -624,13 +623,8 @@ LonArc data_longitudes(const FeatureSet& features) {
     }
   }
   LonArc arc;
-  if (best_len == 0) {
-    arc.full = true;
-    arc.west = -180.0;
-    arc.east = 180.0;
-    return arc;
-  }
-  if (best_len == kLonBins) {  // nothing covered (no vertex transformed): as full
+  // No gap, or nothing covered (no vertex transformed): the whole circle.
+  if (best_len == 0 || best_len == kLonBins) {
     arc.full = true;
     arc.west = -180.0;
     arc.east = 180.0;
