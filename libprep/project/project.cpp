@@ -18,6 +18,9 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "gdal_util.hpp"
 #include "prep/dem.hpp"
@@ -120,12 +123,22 @@ const GeographicLib::TransverseMercator& tm_wgs84() {
   return tm;
 }
 
-// Point scale factor for frames that are not our local TM: the frame
-// distance covered by a 10 m geodesic step east, over 10 m (conformal
-// frames have the same k in every direction).
+// Point scale factor for frames that are not our local TM, from geodesic
+// steps of a few metres (GeographicLib) carried through the frame (PROJ).
+// Conformal frames (the --crs default assumption, and the default frame's
+// oblique stereographic) have the same k in every direction: the frame
+// distance covered by a 10 m geodesic step east, over 10 m. An equal-area
+// frame (Equal Earth, Lambert azimuthal, Albers, ...) stretches one direction
+// and shrinks the other: a line across it is `w det(J) / |J t|` frame metres
+// wide for a ground width w and direction t (J: the frame's Jacobian in ground
+// metres), which ranges over [b, a], the semi-axes of Tissot's indicatrix.
+// One factor per part is their geometric mean sqrt(a b) = sqrt(|det J|) (the
+// square root of the areal scale: 1 on an equal-area frame), so no direction
+// is off by more than sqrt(a / b). It is taken from central differences of
+// +-5 m east and north.
 class NumericScale {
  public:
-  explicit NumericScale(const OGRSpatialReference& frame) {
+  NumericScale(const OGRSpatialReference& frame, bool equal_area) : equal_area_(equal_area) {
     auto geo = wgs84();
     to_geo_ = make_transform(frame, *geo, "frame to WGS84");
     from_geo_ = make_transform(*geo, frame, "WGS84 to frame");
@@ -133,16 +146,46 @@ class NumericScale {
   double at(double x, double y) const {
     double lon = x, lat = y;
     if (!to_geo_->Transform(1, &lon, &lat)) return std::numeric_limits<double>::quiet_NaN();
+    const GeographicLib::Geodesic& g = GeographicLib::Geodesic::WGS84();
+    if (equal_area_) {
+      constexpr double kStep = 5.0;  // metres each way
+      double xs[4] = {}, ys[4] = {};
+      const double azimuths[4] = {90.0, -90.0, 0.0, 180.0};
+      for (int i = 0; i < 4; ++i) g.Direct(lat, lon, azimuths[i], kStep, ys[i], xs[i]);
+      if (!from_geo_->Transform(4, xs, ys)) return std::numeric_limits<double>::quiet_NaN();
+      const double det = (xs[0] - xs[1]) * (ys[2] - ys[3]) - (ys[0] - ys[1]) * (xs[2] - xs[3]);
+      return std::sqrt(std::fabs(det)) / (2 * kStep);
+    }
     double lat2 = 0, lon2 = 0;
-    GeographicLib::Geodesic::WGS84().Direct(lat, lon, 90.0, 10.0, lat2, lon2);
+    g.Direct(lat, lon, 90.0, 10.0, lat2, lon2);
     double xs[2] = {lon, lon2}, ys[2] = {lat, lat2};
     if (!from_geo_->Transform(2, xs, ys)) return std::numeric_limits<double>::quiet_NaN();
     return std::hypot(xs[1] - xs[0], ys[1] - ys[0]) / 10.0;
   }
 
  private:
+  bool equal_area_;
   TransformPtr to_geo_, from_geo_;
 };
+
+// Whether `frame` is one of PROJ's equal-area projections, whose width
+// factor is sqrt(|det J|) (NumericScale). Every other frame is taken as
+// conformal (UTM, national TM and Lambert conformal grids, Mercator,
+// stereographic: the CRSs --crs is meant for).
+bool is_equal_area(const OGRSpatialReference& frame) {
+  char* proj4 = nullptr;
+  CPLErrorReset();
+  const bool ok = frame.exportToProj4(&proj4) == OGRERR_NONE && proj4;
+  const std::string def = ok ? proj4 : "";
+  CPLFree(proj4);
+  CPLErrorReset();
+  static constexpr std::array<const char*, 15> kEqualArea = {
+      "eqearth", "laea", "aea",   "cea",   "moll",  "sinu",   "eck4", "eck6",
+      "hammer",  "igh",  "igh_o", "goode", "boggs", "mbtfps", "qsc"};
+  return std::any_of(kEqualArea.begin(), kEqualArea.end(), [&](const char* method) {
+    return def.find(std::string("+proj=") + method + " ") != std::string::npos;
+  });
+}
 
 // ------------------------------------------------ verified approximation --
 //
@@ -393,6 +436,330 @@ class ApproxTransform {
   std::vector<Node> nodes_;
   std::vector<Fit> fits_;
 };
+// The centre of the box of the data's vertices in `frame` (up to ~4096 per
+// layer, every stride-th), or, when none transforms, of the geographic
+// point (lon0, lat0); `what` names the frame in the error when neither can.
+std::pair<double, double> data_centre_in(const FeatureSet& features,
+                                         const OGRSpatialReference& frame, const std::string& what,
+                                         double lon0, double lat0) {
+  Extent fe{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+            -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  for (const SourceLayer& layer : features.layers) {
+    std::vector<double> xs, ys;
+    size_t total = 0;
+    for (const SourceFeature& f : layer.features)
+      if (f.drop_reason.empty())
+        for (const Ring& r : f.rings) total += r.size();
+    if (total == 0) continue;
+    const size_t stride = std::max<size_t>(1, total / 4096);
+    size_t i = 0;
+    for (const SourceFeature& f : layer.features) {
+      if (!f.drop_reason.empty()) continue;
+      for (const Ring& r : f.rings)
+        for (const Point2& p : r)
+          if (i++ % stride == 0) xs.push_back(p.x), ys.push_back(p.y);
+    }
+    auto src = srs_from(layer.srs_wkt, "source CRS");
+    auto lt = make_transform(*src, frame, "layer '" + layer.spec.name + "' to " + what);
+    std::vector<int> ok(xs.size(), 0);
+    lt->Transform(static_cast<int>(xs.size()), xs.data(), ys.data(), nullptr, ok.data());
+    for (size_t k = 0; k < xs.size(); ++k) {
+      if (!ok[k] || !std::isfinite(xs[k]) || !std::isfinite(ys[k])) continue;
+      fe.xmin = std::min(fe.xmin, xs[k]);
+      fe.ymin = std::min(fe.ymin, ys[k]);
+      fe.xmax = std::max(fe.xmax, xs[k]);
+      fe.ymax = std::max(fe.ymax, ys[k]);
+    }
+  }
+  double x = (fe.xmin + fe.xmax) * 0.5, y = (fe.ymin + fe.ymax) * 0.5;
+  if (!(fe.xmax >= fe.xmin)) {
+    auto t = make_transform(*wgs84(), frame, "WGS84 to " + what);
+    x = lon0, y = lat0;
+    if (!t->Transform(1, &x, &y)) {
+      fail<input_error>(kProjectStage, "the data centre cannot be expressed in " + what);
+    }
+  }
+  return {x, y};
+}
+
+// ------------------------------------------------------- the default frame --
+//
+// With no --crs the frame is the first of three that holds the data
+// (README "The scene frame", ARCHITECTURE.md "2. project"):
+//
+// 1. local TM: a transverse Mercator centred on the data, while the data
+//    lies within kTmMaxEasting of its central meridian. There PROJ's tmerc
+//    and GeographicLib's series (which gives the width factor) both keep
+//    their full accuracy (a few nm; Karney 2011, "Transverse Mercator with
+//    an accuracy of a few nanometers"), and the scale factor stays under
+//    1.19 (k ~ cosh(x / R)). Every scene that fits this frame keeps the
+//    frame it always had (same centre, same definition).
+// 2. local oblique stereographic (EPSG method 9809), centred on the data
+//    or on the nearer pole, while every point of the data's extent lies
+//    within kStereoMaxAngle of the centre: conformal, so widths are exact
+//    with one factor per part, and k = 1 / cos^2(c / 2) reaches 2 on the
+//    hemisphere's rim (the projected area is at most twice the ground's);
+//    beyond, k grows without bound towards the antipode.
+// 3. Equal Earth (EPSG method 1078; EPSG:8857 when centred on Greenwich):
+//    every point of the globe is finite (the poles are lines), so every
+//    layer projects. Not conformal: the width factor is the geometric mean
+//    sqrt(a b) of NumericScale, which is 1 on this equal-area projection.
+//
+// Longitudes are taken on the circle: the data's longitude arc is the
+// complement of the largest run of longitudes that no vertex and no segment
+// covers (a segment read the short way, as a frame centred on the data
+// draws it, except one from -180 to +180, which goes all the way round), so
+// a Pacific layer across the antimeridian (lon 177..-178) gets a frame
+// centred near 180, and rings split at +-180 (RFC 7946) meet again there.
+constexpr double kTmMaxEasting = 3.9e6;   // metres from the central meridian
+constexpr double kStereoMaxAngle = 90.0;  // degrees from the centre
+constexpr int kLonBins = 3600;            // 0.1 degree
+constexpr double kLonBin = 360.0 / kLonBins;
+
+// The data's longitudes as an arc [west, east] (east - west <= 360), or
+// `full` when they cover the whole circle.
+struct LonArc {
+  bool full = false;
+  double west = 0, east = 0;
+};
+
+// Longitude in [-180, 180).
+double wrap180(double lon) {
+  return lon - 360.0 * std::floor((lon + 180.0) / 360.0);
+}
+
+// A geographic CRS in degrees from Greenwich: x is the longitude itself.
+bool is_lon_lat(const OGRSpatialReference& srs) {
+  return srs.IsGeographic() && std::fabs(srs.GetAngularUnits() - M_PI / 180) < 1e-12 &&
+         srs.GetPrimeMeridian() == 0.0;
+}
+
+LonArc data_longitudes(const FeatureSet& features) {
+  // Coverage per bin as a difference array: +1 where an interval starts,
+  // -1 after it ends (intervals wrap past +180 at most once).
+  // The arc's ends are exact: an interval covering the first (last) covered
+  // bin after (before) a gap starts (ends) in it, so each bin keeps the
+  // least start and the greatest end of the intervals there.
+  std::vector<int64_t> diff(kLonBins + 1, 0);
+  std::vector<double> least_start(kLonBins, std::numeric_limits<double>::infinity());
+  std::vector<double> greatest_end(kLonBins, -std::numeric_limits<double>::infinity());
+  const auto bin = [](double lon) {
+    return std::clamp(static_cast<int>(std::floor((lon + 180.0) / kLonBin)), 0, 2 * kLonBins - 1);
+  };
+  const auto cover = [&](double lo, double hi) {  // lo in [-180, 180), lo <= hi < lo + 360
+    const int s = bin(lo), e = bin(hi);
+    least_start[size_t(s % kLonBins)] = std::min(least_start[size_t(s % kLonBins)], lo);
+    greatest_end[size_t(e % kLonBins)] =
+        std::max(greatest_end[size_t(e % kLonBins)], e < kLonBins ? hi : hi - 360.0);
+    ++diff[size_t(s)];
+    if (e < kLonBins) {
+      --diff[static_cast<size_t>(e) + 1];
+    } else {
+      --diff[kLonBins];
+      ++diff[0];
+      --diff[size_t(std::min(e - kLonBins + 1, kLonBins))];
+    }
+  };
+  auto geo = wgs84();
+  for (const SourceLayer& layer : features.layers) {
+    auto src = srs_from(layer.srs_wkt, "source CRS");
+    // A geographic source in degrees from Greenwich is read as it is (a datum
+    // shift of a few metres does not move the frame); any other goes through
+    // PROJ.
+    const bool lon_lat = is_lon_lat(*src);
+    TransformPtr t;
+    if (!lon_lat) t = make_transform(*src, *geo, "layer '" + layer.spec.name + "' to WGS84");
+    std::vector<double> xs, ys;
+    std::vector<int> ok;
+    for (const SourceFeature& f : layer.features) {
+      if (!f.drop_reason.empty()) continue;
+      for (const Ring& r : f.rings) {
+        xs.resize(r.size());
+        ys.resize(r.size());
+        ok.assign(r.size(), 1);
+        for (size_t j = 0; j < r.size(); ++j) xs[j] = r[j].x, ys[j] = r[j].y;
+        if (t && !r.empty())
+          t->Transform(static_cast<int>(xs.size()), xs.data(), ys.data(), nullptr, ok.data());
+        bool have_prev = false;
+        double prev = 0, prev_raw = 0;
+        for (size_t j = 0; j < r.size(); ++j) {
+          if (!ok[j] || !std::isfinite(xs[j]) || !std::isfinite(ys[j])) {
+            have_prev = false;
+            continue;
+          }
+          const double lon = wrap180(xs[j]);
+          if (!have_prev) {
+            cover(lon, lon);
+          } else if (std::fabs(xs[j] - prev_raw) >= 360.0) {
+            // -180 to 180: the edge of a world box or a polar cap (RFC 7946
+            // draws them so), all the way round.
+            cover(-180.0, 180.0 - kLonBin * 0.5);
+          } else {
+            // The segment the short way round (an exact half circle: eastwards).
+            const double d = std::remainder(lon - prev, 360.0);
+            if (d >= 0) {
+              cover(prev, prev + d);
+            } else {
+              cover(lon, lon - d);
+            }
+          }
+          prev = lon;
+          prev_raw = xs[j];
+          have_prev = true;
+        }
+      }
+    }
+  }
+  // The longest circular run of uncovered bins.
+  std::vector<int64_t> covered(kLonBins);
+  int64_t run = 0;
+  for (int i = 0; i < kLonBins; ++i) covered[size_t(i)] = run += diff[size_t(i)];
+  int best_start = -1, best_len = 0;
+  for (int i = 0, len = 0; i < 2 * kLonBins; ++i) {
+    if (covered[size_t(i % kLonBins)] == 0) {
+      if (++len > best_len && len <= kLonBins) best_len = len, best_start = i - len + 1;
+    } else {
+      len = 0;
+    }
+  }
+  LonArc arc;
+  // No gap, or nothing covered (no vertex transformed): the whole circle.
+  if (best_len == 0 || best_len == kLonBins) {
+    arc.full = true;
+    arc.west = -180.0;
+    arc.east = 180.0;
+    return arc;
+  }
+  // The arc runs from the gap's east end to its west end, eastwards.
+  arc.west = least_start[size_t((best_start + best_len) % kLonBins)];
+  arc.east = greatest_end[size_t((best_start + kLonBins - 1) % kLonBins)];
+  if (arc.east < arc.west) arc.east += 360.0;
+  return arc;
+}
+
+// Angular distance in degrees between two points (WGS84 geodesic, on
+// GeographicLib's auxiliary sphere).
+double arc_degrees(double lat1, double lon1, double lat2, double lon2) {
+  double s12 = 0;
+  return GeographicLib::Geodesic::WGS84().Inverse(lat1, lon1, lat2, lon2, s12);
+}
+
+// The largest angular distance from (lat_c, lon_c) to the box of longitudes
+// [west, east] (east - west <= 360) and latitudes [south, north]: on the
+// box's boundary, or 180 when the antipode lies inside it.
+double max_angle_to_box(double lat_c, double lon_c, double west, double east, double south,
+                        double north) {
+  const double anti_lat = -lat_c, anti_lon = wrap180(lon_c + 180.0);
+  const double rel = anti_lon - west - 360.0 * std::floor((anti_lon - west) / 360.0);
+  if (anti_lat >= south && anti_lat <= north && rel <= east - west) return 180.0;
+  constexpr int kSteps = 64;
+  double worst = 0;
+  for (int i = 0; i <= kSteps; ++i) {
+    const double lon = west + (east - west) * i / kSteps;
+    const double lat = south + (north - south) * i / kSteps;
+    worst = std::max({worst, arc_degrees(lat_c, lon_c, south, lon),
+                      arc_degrees(lat_c, lon_c, north, lon), arc_degrees(lat_c, lon_c, lat, west),
+                      arc_degrees(lat_c, lon_c, lat, east)});
+  }
+  return worst;
+}
+
+SceneFrame default_frame(const FeatureSet& features, const Extent& all, bool wrapped, double lat0) {
+  const auto round7 = [](double deg) { return std::round(deg * 1e7) / 1e7; };
+  // The longitude arc: the plain extent while it is at most a half circle
+  // (then no shorter arc covers the data), else the coverage on the circle.
+  LonArc arc;
+  double lon0 = 0;
+  if (!wrapped && all.xmax - all.xmin <= 180.0) {
+    arc.west = all.xmin;
+    arc.east = all.xmax;
+    lon0 = round7((all.xmin + all.xmax) * 0.5);
+  } else {
+    arc = data_longitudes(features);
+    lon0 = arc.full ? 0.0 : round7(wrap180((arc.west + arc.east) * 0.5));
+    if (lon0 == -180.0) lon0 = 180.0;  // the antimeridian, written as +180
+  }
+  const double half = (arc.east - arc.west) * 0.5;
+  SceneFrame frame;
+  char def[256];
+
+  // 1. Local TM: the easting is largest at the data's widest longitude from
+  // the central meridian (at most 90: beyond, the TM folds back over the
+  // pole), on the latitude nearest the equator.
+  const double lat_near = std::clamp(0.0, all.ymin, all.ymax);
+  const double dlon = std::min(half, 90.0);
+  double easting = std::numeric_limits<double>::infinity();
+  if (!(dlon >= 90.0 && lat_near == 0.0)) {
+    double x = 0, y = 0;
+    tm_wgs84().Forward(0.0, lat_near, dlon, x, y);
+    easting = std::fabs(x);
+  }
+  if (easting <= kTmMaxEasting) {
+    std::snprintf(def, sizeof def,
+                  "+proj=tmerc +lat_0=%.7f +lon_0=%.7f +k=1 +x_0=0 +y_0=0 +datum=WGS84 "
+                  "+units=m +no_defs +type=crs",
+                  lat0, lon0);
+    auto srs = srs_from(def, "local TM frame");
+    frame.crs_wkt = crs_wkt2(*srs);
+    std::snprintf(def, sizeof def, "local TM lon0=%.7f lat0=%.7f (WGS84, k0=1)", lon0, lat0);
+    frame.description = def;
+    frame.tm_lon0 = lon0;
+    frame.tm_lat0 = lat0;
+    return frame;
+  }
+
+  // 2. Local oblique stereographic, on the data's centre or a pole,
+  // whichever is nearer to the farthest point of the extent.
+  double s_lat = lat0, s_lon = lon0;
+  double angle = max_angle_to_box(lat0, lon0, arc.west, arc.east, all.ymin, all.ymax);
+  if (90.0 - all.ymin < angle) s_lat = 90.0, angle = 90.0 - all.ymin;
+  if (90.0 + all.ymax < angle) s_lat = -90.0, angle = 90.0 + all.ymax;
+  if (angle <= kStereoMaxAngle) {
+    std::snprintf(def, sizeof def,
+                  "+proj=sterea +lat_0=%.7f +lon_0=%.7f +k=1 +x_0=0 +y_0=0 +datum=WGS84 "
+                  "+units=m +no_defs +type=crs",
+                  s_lat, s_lon);
+    auto srs = srs_from(def, "local stereographic frame");
+    frame.crs_wkt = crs_wkt2(*srs);
+    std::snprintf(def, sizeof def, "local oblique stereographic lon0=%.7f lat0=%.7f (WGS84, k0=1)",
+                  s_lon, s_lat);
+    frame.description = def;
+    return frame;
+  }
+
+  // 3. Equal Earth, its cut (lon0 + 180) in the widest gap of the data's
+  // longitudes; on Greenwich (EPSG:8857, cut at the antimeridian where
+  // RFC 7946 splits rings) when the data covers every longitude.
+  std::unique_ptr<OGRSpatialReference> srs;
+  if (lon0 == 0.0) {
+    srs = srs_from("EPSG:8857", "Equal Earth frame");
+    frame.description = "Equal Earth lon0=0.0000000 (WGS84; EPSG:8857)";
+  } else {
+    std::snprintf(def, sizeof def,
+                  "+proj=eqearth +lon_0=%.7f +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs "
+                  "+type=crs",
+                  lon0);
+    srs = srs_from(def, "Equal Earth frame");
+    std::snprintf(def, sizeof def, "Equal Earth lon0=%.7f (WGS84)", lon0);
+    frame.description = def;
+  }
+  frame.crs_wkt = crs_wkt2(*srs);
+  const auto [x, y] = data_centre_in(features, *srs, "the Equal Earth frame", lon0, lat0);
+  frame.origin_x = std::round(x);
+  frame.origin_y = std::round(y);
+  return frame;
+}
+
+// The longitude of the frame's centre: the local TM's central meridian, or
+// the frame origin's longitude (0 when it has none).
+double frame_centre_lon(const SceneFrame& frame, const OGRSpatialReference& frame_srs) {
+  if (std::isfinite(frame.tm_lon0)) return frame.tm_lon0;
+  auto t = make_transform(frame_srs, *wgs84(), "frame to WGS84");
+  double x = frame.origin_x, y = frame.origin_y;
+  if (!t->Transform(1, &x, &y) || !std::isfinite(x)) return 0.0;
+  return x;
+}
+
 // What to do when a vertex falls out of the frame projection's domain.
 std::string frame_hint(const SceneFrame& frame) {
   const bool named = !frame.description.empty() && frame.description != "unknown";
@@ -416,7 +783,7 @@ double frame_scale_factor(const SceneFrame& frame, double x, double y) {
   }
   register_gdal_once();
   auto srs = srs_from(frame.crs_wkt, "frame CRS");
-  return NumericScale(*srs).at(x + frame.origin_x, y + frame.origin_y);
+  return NumericScale(*srs, is_equal_area(*srs)).at(x + frame.origin_x, y + frame.origin_y);
 }
 
 SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
@@ -425,6 +792,9 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   auto geo = wgs84();
   Extent all{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
              -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  // A layer whose extent GDAL returns with xmin > xmax crosses the
+  // antimeridian (a projected source: TransformBounds says so this way).
+  bool wrapped = false;
   for (const SourceLayer& layer : features.layers) {
     Extent e = bounds_of(layer);
     // A single horizontal or vertical line has a zero-height (or zero-width)
@@ -433,6 +803,23 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
     auto src = srs_from(layer.srs_wkt, "source CRS");
     auto t = make_transform(*src, *geo, "layer '" + layer.spec.name + "' to WGS84");
     Extent g = transform_bounds(*t, e, "layer '" + layer.spec.name + "'");
+    if (g.xmin > g.xmax) {
+      wrapped = true;
+      std::swap(g.xmin, g.xmax);
+    }
+    // The default frame is placed by the data's longitudes: one that is not
+    // a longitude at all (beyond one and a half turns) is a layer in the
+    // wrong CRS or a broken vertex, and no frame can be centred on it.
+    if (crs.empty() && !(g.xmin >= -540.0 && g.xmax <= 540.0)) {
+      char msg[512];
+      std::snprintf(msg, sizeof msg,
+                    ": longitudes %.10g..%.10g degrees are not longitudes (a vertex is broken, "
+                    "or the layer's CRS is wrong); the default frame cannot be centred on them. "
+                    "Fix the source or its CRS, or pass --crs",
+                    g.xmin, g.xmax);
+      fail<input_error>(kProjectStage,
+                        "layer '" + layer.spec.name + "' (" + layer.spec.source + ")" + msg);
+    }
     all.xmin = std::min(all.xmin, g.xmin);
     all.ymin = std::min(all.ymin, g.ymin);
     all.xmax = std::max(all.xmax, g.xmax);
@@ -448,43 +835,11 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
                       "or has only dropped features: " +
                           layers + "; check the source, --layer and --where");
   }
-  // More than 180 degrees of longitude away from the poles is, for local
-  // data, a line or ring that crosses the antimeridian in a geographic CRS
-  // (179.9 -> -179.9 read the long way round): the local TM frame would put
-  // it around the globe. Say what to do instead of failing later on the
-  // int32 range (or worse). Near a pole, a wide longitude range is normal and
-  // the TM frame holds it.
-  const bool polar = all.ymin > 60.0 || all.ymax < -60.0;
-  if (crs.empty() && all.xmax - all.xmin > 180.0 && !polar) {
-    char msg[512];
-    std::snprintf(msg, sizeof msg,
-                  "project: the data spans %.10g..%.10g degrees of longitude (more than 180: "
-                  "it crosses the antimeridian in a geographic CRS, or is not local); the "
-                  "default local TM frame cannot hold it. Pass --crs with a projected CRS "
-                  "for the area (e.g. EPSG:3832 across the Pacific, EPSG:3413 or EPSG:3031 "
-                  "at the poles), or split the scene",
-                  all.xmin, all.xmax);
-    throw input_error(msg);
-  }
   // Rounded to 1e-7 degrees (~1 cm) so the frame definition prints exactly.
-  const double lon0 = std::round((all.xmin + all.xmax) * 0.5 * 1e7) / 1e7;
-  const double lat0 = std::round((all.ymin + all.ymax) * 0.5 * 1e7) / 1e7;
-
-  SceneFrame frame;
-  if (crs.empty()) {
-    char def[256];
-    std::snprintf(def, sizeof def,
-                  "+proj=tmerc +lat_0=%.7f +lon_0=%.7f +k=1 +x_0=0 +y_0=0 +datum=WGS84 "
-                  "+units=m +no_defs +type=crs",
-                  lat0, lon0);
-    auto srs = srs_from(def, "local TM frame");
-    frame.crs_wkt = crs_wkt2(*srs);
-    std::snprintf(def, sizeof def, "local TM lon0=%.7f lat0=%.7f (WGS84, k0=1)", lon0, lat0);
-    frame.description = def;
-    frame.tm_lon0 = lon0;
-    frame.tm_lat0 = lat0;
-    return frame;
-  }
+  const auto round7 = [](double deg) { return std::round(deg * 1e7) / 1e7; };
+  const double lat0 = round7((all.ymin + all.ymax) * 0.5);
+  if (crs.empty()) return default_frame(features, all, wrapped, lat0);
+  const double lon0 = round7((all.xmin + all.xmax) * 0.5);
   auto srs = srs_from(crs, "--crs");
   if (!srs->IsProjected()) {
     fail<input_error>(kProjectStage,
@@ -492,51 +847,15 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
                           "' is not a projected CRS; the scene frame "
                           "needs metres (try a UTM zone or leave --crs out for a local TM)");
   }
+  SceneFrame frame;
   frame.crs_wkt = crs_wkt2(*srs);
   const char* name = srs->GetName();
   frame.description = name ? name : crs;
   // The origin is the centre of the data's vertices transformed into --crs
-  // (up to ~4096 per layer), not the transformed centre of the geographic
-  // box: for data across the antimeridian that box is the whole globe and
-  // its centre (lon 0) lies half a world away from the data.
-  Extent fe{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
-            -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
-  for (const SourceLayer& layer : features.layers) {
-    std::vector<double> xs, ys;
-    size_t total = 0;
-    for (const SourceFeature& f : layer.features)
-      if (f.drop_reason.empty())
-        for (const Ring& r : f.rings) total += r.size();
-    if (total == 0) continue;
-    const size_t stride = std::max<size_t>(1, total / 4096);
-    size_t i = 0;
-    for (const SourceFeature& f : layer.features) {
-      if (!f.drop_reason.empty()) continue;
-      for (const Ring& r : f.rings)
-        for (const Point2& p : r)
-          if (i++ % stride == 0) xs.push_back(p.x), ys.push_back(p.y);
-    }
-    auto src = srs_from(layer.srs_wkt, "source CRS");
-    auto lt = make_transform(*src, *srs, "layer '" + layer.spec.name + "' to --crs");
-    std::vector<int> ok(xs.size(), 0);
-    lt->Transform(static_cast<int>(xs.size()), xs.data(), ys.data(), nullptr, ok.data());
-    for (size_t k = 0; k < xs.size(); ++k) {
-      if (!ok[k] || !std::isfinite(xs[k]) || !std::isfinite(ys[k])) continue;
-      fe.xmin = std::min(fe.xmin, xs[k]);
-      fe.ymin = std::min(fe.ymin, ys[k]);
-      fe.xmax = std::max(fe.xmax, xs[k]);
-      fe.ymax = std::max(fe.ymax, ys[k]);
-    }
-  }
-  double x = (fe.xmin + fe.xmax) * 0.5, y = (fe.ymin + fe.ymax) * 0.5;
-  if (!(fe.xmax >= fe.xmin)) {
-    auto t = make_transform(*geo, *srs, "WGS84 to --crs");
-    x = lon0, y = lat0;
-    if (!t->Transform(1, &x, &y)) {
-      fail<input_error>(kProjectStage,
-                        "the data centre cannot be expressed in --crs '" + crs + "'");
-    }
-  }
+  // (data_centre_in), not the transformed centre of the geographic box: for
+  // data across the antimeridian that box is the whole globe and its centre
+  // (lon 0) lies half a world away from the data.
+  const auto [x, y] = data_centre_in(features, *srs, "--crs '" + crs + "'", lon0, lat0);
   frame.origin_x = std::round(x);
   frame.origin_y = std::round(y);
   return frame;
@@ -552,6 +871,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
   out.frame = frame;
   auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
   const bool local_tm = std::isfinite(frame.tm_lon0);
+  const bool equal_area = !local_tm && is_equal_area(*frame_srs);
   double tm_x0 = 0, tm_y0 = 0;
   if (local_tm) tm_wgs84().Forward(frame.tm_lon0, frame.tm_lat0, frame.tm_lon0, tm_x0, tm_y0);
 
@@ -578,7 +898,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     auto slot_scale = [&](size_t slot) -> NumericScale& {
       if (!scales[slot]) {
         std::lock_guard<std::mutex> lock(clone_mutex);
-        scales[slot] = std::make_unique<NumericScale>(*frame_srs);
+        scales[slot] = std::make_unique<NumericScale>(*frame_srs, equal_area);
       }
       return *scales[slot];
     };
@@ -586,15 +906,43 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     // no-op); skip it, and the approximation too, which would move vertices
     // by up to kApproxTolerance and could part vertices that touch exactly.
     const bool identity = src->IsSame(frame_srs.get()) != 0;
+    // Lon/lat data wider than a half circle (across the antimeridian, as
+    // -178.5 beside 179.9) is read within 180 degrees of the frame's centre:
+    // the same points for PROJ, but one compact box for the approximation
+    // instead of the whole globe (which it would split down to slivers,
+    // fitting thousands of cells: 10 s instead of 1 s for a million
+    // vertices). A longitude exactly 180 from the centre stays as it is (+180
+    // and -180 are apart in a world frame); messages give the source's own.
+    Extent box = bounds_of(layer);
+    bool rewrap = false;
+    double centre = 0;
+    if (!identity && is_lon_lat(*src) && box.xmax - box.xmin > 180.0) {
+      rewrap = true;
+      centre = frame_centre_lon(frame, *frame_srs);
+      box = {std::numeric_limits<double>::infinity(), box.ymin,
+             -std::numeric_limits<double>::infinity(), box.ymax};
+    }
+    const auto source_x = [&](double x) {
+      return rewrap && std::fabs(x - centre) > 180.0 ? centre + wrap180(x - centre) : x;
+    };
+    if (rewrap) {
+      for (const SourceFeature& f : layer.features) {
+        if (!f.drop_reason.empty()) continue;
+        for (const Ring& r : f.rings)
+          for (const Point2& p : r) {
+            box.xmin = std::min(box.xmin, source_x(p.x));
+            box.xmax = std::max(box.xmax, source_x(p.x));
+          }
+      }
+    }
     std::optional<ApproxTransform> approx;
-    const Extent box = bounds_of(layer);
     if (!identity && box.xmax >= box.xmin && box.ymax >= box.ymin && std::isfinite(box.xmin) &&
         std::isfinite(box.ymin) && std::isfinite(box.xmax) && std::isfinite(box.ymax)) {
       approx.emplace(*exact, box, [&](auto&& visit) {
         for (const SourceFeature& f : layer.features) {
           if (!f.drop_reason.empty()) continue;
           for (const Ring& r : f.rings)
-            for (const Point2& p : r) visit(p.x, p.y);
+            for (const Point2& p : r) visit(source_x(p.x), p.y);
         }
       });
     }
@@ -613,7 +961,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
             for (Ring& r : f.rings) {
               const size_t n = r.size();
               for (size_t j = 0; j < n; ++j) {
-                double x = r[j].x, y = r[j].y;
+                double x = source_x(r[j].x), y = r[j].y;
                 if (!identity && !(approx && approx->apply(x, y, leaf))) {
                   int ok = 0;
                   if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {

@@ -78,6 +78,10 @@ std::string shared_data(const std::string& rel) {
   return std::string(DECALPREP_SHARED_DATA) + "/" + rel;
 }
 
+std::string spdata_dir() {
+  return DECALPREP_SPDATA;
+}
+
 namespace {
 std::size_t g_default_samples = 1'000'000;
 }

@@ -63,6 +63,10 @@ std::string monaco_sample(const std::string& name);
 // The shared real data folder beside the checkout (DECALPREP_SHARED_DATA):
 // Liechtenstein lives only there; tests skip, naming the path, when missing.
 std::string shared_data(const std::string& rel);
+// The R package spData unpacked by scripts/fetch-data (CMake cache variable
+// DECALPREP_SPDATA), e.g. spdata_dir() + "/shapes/world.gpkg"; tests skip,
+// naming the path and the script, when it is missing.
+std::string spdata_dir();
 inline bool exists(const std::string& p) {
   return std::filesystem::exists(p);
 }

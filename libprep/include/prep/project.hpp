@@ -1,9 +1,13 @@
 // prep/project.hpp — stage 2: FeatureSet (source CRS) -> FeatureSet in the
 // scene frame (ARCHITECTURE.md "2. project").
 //
-// The default frame is a local Transverse Mercator (scale 1 on the central
-// meridian, WGS84 ellipsoid) centred on the data's geographic extent; the
-// transformation runs through PROJ (GDAL), the frame's point scale factor
+// The default frame is centred on the data's geographic extent (longitudes
+// taken on the circle, so data across the antimeridian is centred near 180):
+// a local Transverse Mercator (scale 1 on the central meridian, WGS84
+// ellipsoid) while the data lies within 3900 km of the central meridian,
+// else an oblique stereographic within 90 degrees of the data's centre (or
+// the nearer pole), else Equal Earth (README "The scene frame"). The
+// transformation runs through PROJ (GDAL); the local TM's point scale factor
 // comes from GeographicLib. `scene.crs` picks any other projected CRS.
 // Every SRS is used with OAMS_TRADITIONAL_GIS_ORDER (x = easting/longitude).
 #pragma once
@@ -29,9 +33,12 @@ struct ProjectedFeatures {
 };
 
 // Chooses the scene frame for `features`: `crs` when given (any PROJ/EPSG/
-// WKT string, origin at the data centre rounded to 1 m), else a local TM
-// centred on the data. Throws input_error for an unknown or geographic `crs`
-// or when there is no data to centre on.
+// WKT string, origin at the data centre rounded to 1 m), else the default
+// frame above (origin at the projection's centre for the local TM and the
+// stereographic, at the data centre rounded to 1 m for Equal Earth). Throws
+// input_error for an unknown or geographic `crs`, when there is no data to
+// centre on, or, without `crs`, for a layer whose longitudes lie beyond
+// +-540 degrees.
 SceneFrame choose_frame(const FeatureSet& features, const std::string& crs);
 
 // Transforms every feature into `frame` (parallel per feature; output order
@@ -55,8 +62,11 @@ Extent extent_in_frame_crs(const Extent& extent, const std::string& crs, const S
                            const std::string& context);
 
 // The point scale factor of `frame` at frame coordinates (x, y) relative to
-// the origin: ratio of frame distance to ground (ellipsoidal) distance. For
-// the local TM frame this is GeographicLib's k.
+// the origin: ratio of frame distance to ground (ellipsoidal) distance, by
+// which widths in ground metres are multiplied. For the local TM frame this
+// is GeographicLib's k; for other conformal frames the scale of a 10 m
+// geodesic step east; for equal-area frames (Equal Earth, Lambert azimuthal,
+// Albers, ...) the geometric mean sqrt(a b) of Tissot's semi-axes (1 there).
 double frame_scale_factor(const SceneFrame& frame, double x, double y);
 
 }  // namespace prep
