@@ -234,7 +234,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     Owned input(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), base_holes));
     if (!input) return nullptr;
     base = Owned(h, make_valid(input.get()));
-    if (!base) return nullptr;
+    if (!base || GEOSisValid_r(h, base.get()) != 1) return nullptr;
   }
   std::vector<const GEOSGeometry*> base_polys, base_other;
   flatten(h, base.get(), base_polys, base_other);
@@ -243,9 +243,12 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   // Each clear group: the rings it cuts out of the base (to place), the
   // islands inside them and any collapsed pieces.
   std::vector<Owned> cut, islands, collapsed;
-  for (const std::vector<uint32_t>& group : clear_groups) {
+  std::vector<uint32_t> cut_group;  // the clear group each cut ring comes from
+  for (uint32_t gi = 0; gi < clear_groups.size(); ++gi) {
+    const std::vector<uint32_t>& group = clear_groups[gi];
     if (group.size() == 1 && ring_valid(h, holes[group[0]], rings[group[0] + 1])) {
       cut.emplace_back(h, GEOSGeom_clone_r(h, holes[group[0]]));
+      cut_group.push_back(gi);
       continue;
     }
     Envelope b{INFINITY, INFINITY, -INFINITY, -INFINITY};
@@ -264,7 +267,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     Owned input(h, polygon_of(h, Owned(h, box_ring(h, b)), group_holes));
     if (!input) return nullptr;
     Owned fixed(h, make_valid(input.get()));
-    if (!fixed) return nullptr;
+    if (!fixed || GEOSisValid_r(h, fixed.get()) != 1) return nullptr;
     std::vector<const GEOSGeometry*> polys, other;
     flatten(h, fixed.get(), polys, other);
     const GEOSGeometry* around = nullptr;  // the polygon whose shell is the box
@@ -280,14 +283,16 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     }
     if (!around) return nullptr;
     const int k = GEOSGetNumInteriorRings_r(h, around);
-    for (int j = 0; j < k; ++j)
+    for (int j = 0; j < k; ++j) {
       cut.emplace_back(h, GEOSGeom_clone_r(h, GEOSGetInteriorRingN_r(h, around, j)));
+      cut_group.push_back(gi);
+    }
     for (const GEOSGeometry* o : other) collapsed.emplace_back(h, GEOSGeom_clone_r(h, o));
   }
 
-  // Each cut ring goes into the base polygon that properly contains its
-  // first vertex (a vertex of a clear group's linework: inside the shell,
-  // outside every envelope of the base's holes).
+  // Each cut ring goes into the base polygon that properly contains it (it
+  // is drawn from a clear group's linework: inside the shell, away from the
+  // base's holes). Cut rings of different groups must not meet.
   const size_t np = base_polys.size();
   std::vector<std::vector<Owned>> added(np);
   {
@@ -298,27 +303,36 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     for (size_t k = 0; k < np; ++k) GEOSSTRtree_insert_r(h, tree.get(), base_polys[k], &ids[k]);
     std::vector<std::unique_ptr<Prepared>> prepared(np);
     Candidates c;
-    for (Owned& ring : cut) {
-      const GEOSCoordSequence* cs = GEOSGeom_getCoordSeq_r(h, ring.get());
-      double x = 0, y = 0;
-      if (!cs || GEOSCoordSeq_getXY_r(h, cs, 0, &x, &y) != 1) return nullptr;
-      Owned point(h, GEOSGeom_createPointFromXY_r(h, x, y));
-      if (!point) return nullptr;
+    std::vector<int64_t> home(cut.size(), -1);
+    for (size_t i = 0; i < cut.size(); ++i) {
       c.found.clear();
-      GEOSSTRtree_query_r(h, tree.get(), point.get(), &on_candidate, &c);
+      GEOSSTRtree_query_r(h, tree.get(), cut[i].get(), &on_candidate, &c);
       std::sort(c.found.begin(), c.found.end());
-      int64_t home = -1;
       for (uint32_t k : c.found) {
         if (!prepared[k]) prepared[k] = std::make_unique<Prepared>(h, base_polys[k]);
         if (!prepared[k]->get()) return nullptr;
-        if (GEOSPreparedContainsProperly_r(h, prepared[k]->get(), point.get()) == 1) {
-          home = k;
+        if (GEOSPreparedContainsProperly_r(h, prepared[k]->get(), cut[i].get()) == 1) {
+          home[i] = k;
           break;
         }
       }
-      if (home < 0) return nullptr;
-      added[size_t(home)].push_back(std::move(ring));
+      if (home[i] < 0) return nullptr;
     }
+    Tree rings_tree(h);
+    if (!rings_tree.get()) return nullptr;
+    std::vector<uint32_t> cut_ids(cut.size());
+    std::iota(cut_ids.begin(), cut_ids.end(), 0u);
+    for (size_t i = 0; i < cut.size(); ++i)
+      GEOSSTRtree_insert_r(h, rings_tree.get(), cut[i].get(), &cut_ids[i]);
+    for (size_t i = 0; i < cut.size(); ++i) {
+      c.found.clear();
+      GEOSSTRtree_query_r(h, rings_tree.get(), cut[i].get(), &on_candidate, &c);
+      for (uint32_t j : c.found)
+        if (j > i && cut_group[j] != cut_group[i] &&
+            GEOSIntersects_r(h, cut[i].get(), cut[j].get()) != 0)
+          return nullptr;
+    }
+    for (size_t i = 0; i < cut.size(); ++i) added[size_t(home[i])].push_back(std::move(cut[i]));
   }
 
   // Assembled: the base polygons with their own and their added holes,

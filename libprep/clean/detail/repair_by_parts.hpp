@@ -27,9 +27,14 @@
 // only, here), with "structure" the shell minus the union of the holes.
 // Either way the result near the group is that face minus the group's
 // regions, which is what the box repair gives. The pieces only come
-// together, no overlay: the holes are placed by point-in-polygon
-// (prepared GEOS geometries) and the caller checks the assembled polygon
-// with GEOS isValid, repairing the whole polygon when it is not valid.
+// together, no overlay, and the result is checked piece by piece instead
+// of by GEOS isValid of the whole (whose hole-in-shell test costs holes x
+// shell vertices: seconds here): every MakeValid result is valid (GEOS
+// isValid), every cut-out ring lies properly inside the base polygon it is
+// put in (prepared GEOS ContainsProperly) and rings of different groups do
+// not meet (GEOS Intersects on envelope candidates). Then the assembly is
+// a valid polygon: rings inside their shell that touch nothing outside
+// their own valid group, islands inside the rings they came with.
 // Tests: tests/clean/test_repair_by_parts.cpp (the result against GEOS
 // MakeValid of the whole polygon).
 #pragma once
@@ -57,7 +62,7 @@ using MakeValidFn = std::function<GEOSGeometry*(const GEOSGeometry*)>;
 // contacts to enumerate) or any step fails: the caller then repairs the
 // whole polygon. The result is a Polygon, a MultiPolygon, or a
 // GeometryCollection of polygons and the collapsed (non-areal) pieces that
-// MakeValid returned; it is not yet checked for validity.
+// MakeValid returned; valid (checked as above).
 GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* polygon,
                                   const std::vector<Ring>& rings, const MakeValidFn& make_valid);
 
