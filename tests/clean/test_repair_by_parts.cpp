@@ -155,6 +155,10 @@ void expect_same(GEOSContextHandle_t h, const G& got, const G& want, const std::
   const G diff(h, GEOSSymDifference_r(h, got.g, want.g));
   EXPECT_LE(prep::test::area(diff), 1e-9 * a_want) << what << ": symmetric difference";
   const Shape s_got = shape_of(h, got.g), s_want = shape_of(h, want.g);
+  std::printf("%s: area %.17g vs %.17g (relative %.2g), symmetric difference %.3g m2, "
+              "%zu/%zu polygons, %zu/%zu rings\n",
+              what.c_str(), a_got, a_want, std::fabs(a_got - a_want) / a_want,
+              prep::test::area(diff), s_got.polygons, s_want.polygons, s_got.rings, s_want.rings);
   EXPECT_EQ(s_got.polygons, s_want.polygons) << what;
   EXPECT_EQ(s_got.rings, s_want.rings) << what;
 }
