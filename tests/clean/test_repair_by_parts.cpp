@@ -44,7 +44,9 @@ constexpr double kX0 = 500000, kY0 = 4800000;
 Ring rect(double x0, double y0, double x1, double y1) {
   return {{kX0 + x0, kY0 + y0}, {kX0 + x1, kY0 + y0}, {kX0 + x1, kY0 + y1}, {kX0 + x0, kY0 + y1}};
 }
-Ring square(double cx, double cy, double r) { return rect(cx - r, cy - r, cx + r, cy + r); }
+Ring square(double cx, double cy, double r) {
+  return rect(cx - r, cy - r, cx + r, cy + r);
+}
 Ring ring(std::initializer_list<std::pair<double, double>> pts) {
   Ring r;
   for (const auto& [x, y] : pts) r.push_back({kX0 + x, kY0 + y});
@@ -79,7 +81,8 @@ Rings hostile_polygon() {
         rings.push_back(ring({{cx - 5, cy - 5}, {cx, cy}, {cx - 5, cy + 5}}));
         rings.push_back(ring({{cx + 5, cy - 5}, {cx + 5, cy + 5}, {cx, cy}}));
       } else if (i == 24 && j % 9 == 4) {  // bow-tie
-        rings.push_back(ring({{cx - 5, cy - 5}, {cx + 5, cy + 5}, {cx + 5, cy - 5}, {cx - 5, cy + 5}}));
+        rings.push_back(
+            ring({{cx - 5, cy - 5}, {cx + 5, cy + 5}, {cx + 5, cy - 5}, {cx - 5, cy + 5}}));
       } else {
         rings.push_back(square(cx, cy, 5));
       }
@@ -93,8 +96,14 @@ Rings hostile_polygon() {
   // the grid holes inside become islands.
   rings.push_back(rect(1372, 1372, 1568, 1568));
   // A U-shaped hole with a grid hole in its bay (envelopes meet, rings not).
-  rings.push_back(ring({{1672, 1672}, {1718, 1672}, {1718, 1718}, {1712, 1718}, {1712, 1678},
-                        {1678, 1678}, {1678, 1718}, {1672, 1718}}));
+  rings.push_back(ring({{1672, 1672},
+                        {1718, 1672},
+                        {1718, 1718},
+                        {1712, 1718},
+                        {1712, 1678},
+                        {1678, 1678},
+                        {1678, 1718},
+                        {1672, 1718}}));
   return rings;
 }
 
@@ -155,10 +164,11 @@ void expect_same(GEOSContextHandle_t h, const G& got, const G& want, const std::
   const G diff(h, GEOSSymDifference_r(h, got.g, want.g));
   EXPECT_LE(prep::test::area(diff), 1e-9 * a_want) << what << ": symmetric difference";
   const Shape s_got = shape_of(h, got.g), s_want = shape_of(h, want.g);
-  std::printf("%s: area %.17g vs %.17g (relative %.2g), symmetric difference %.3g m2, "
-              "%zu/%zu polygons, %zu/%zu rings\n",
-              what.c_str(), a_got, a_want, std::fabs(a_got - a_want) / a_want,
-              prep::test::area(diff), s_got.polygons, s_want.polygons, s_got.rings, s_want.rings);
+  std::printf(
+      "%s: area %.17g vs %.17g (relative %.2g), symmetric difference %.3g m2, "
+      "%zu/%zu polygons, %zu/%zu rings\n",
+      what.c_str(), a_got, a_want, std::fabs(a_got - a_want) / a_want, prep::test::area(diff),
+      s_got.polygons, s_want.polygons, s_got.rings, s_want.rings);
   EXPECT_EQ(s_got.polygons, s_want.polygons) << what;
   EXPECT_EQ(s_got.rings, s_want.rings) << what;
 }
@@ -173,7 +183,9 @@ G by_parts(GEOSContextHandle_t h, const Rings& rings, bool structure) {
   return r ? polygonal(h, r) : G();
 }
 
-const char* method_name(bool structure) { return structure ? "structure" : "linework"; }
+const char* method_name(bool structure) {
+  return structure ? "structure" : "linework";
+}
 
 // ------------------------------------------------------------ the unit --
 
@@ -211,8 +223,14 @@ class Rng {
 // shape (squares, triangles, bow-ties, thin bars), place and size.
 Rings random_polygon(uint64_t seed) {
   Rng rng(seed);
-  Rings rings{ring({{0, 0}, {1000, 0}, {1000, 1000}, {600, 1000}, {600, 300}, {400, 300},
-                    {400, 1000}, {0, 1000}})};
+  Rings rings{ring({{0, 0},
+                    {1000, 0},
+                    {1000, 1000},
+                    {600, 1000},
+                    {600, 300},
+                    {400, 300},
+                    {400, 1000},
+                    {0, 1000}})};
   const int holes = 100 + int(rng.uniform() * 200);
   for (int k = 0; k < holes; ++k) {
     const double cx = rng.in(-50, 1050), cy = rng.in(-50, 1050);
@@ -223,7 +241,8 @@ Rings random_polygon(uint64_t seed) {
     } else if (u < 0.8) {
       rings.push_back(ring({{cx - r, cy - r}, {cx + r, cy - r * 0.3}, {cx, cy + r}}));
     } else if (u < 0.9) {
-      rings.push_back(ring({{cx - r, cy - r}, {cx + r, cy + r}, {cx + r, cy - r}, {cx - r, cy + r}}));
+      rings.push_back(
+          ring({{cx - r, cy - r}, {cx + r, cy + r}, {cx + r, cy - r}, {cx - r, cy + r}}));
     } else {
       rings.push_back(rect(cx - 4 * r, cy - 1, cx + 4 * r, cy + 1));
     }
@@ -257,7 +276,8 @@ TEST(RepairByParts, FewHolesOrAnInvalidShellAreLeftToTheWholeRepair) {
   Rings few{rect(0, 0, 100, 100), square(50, 50, 5), rect(-10, 40, 20, 60)};
   EXPECT_FALSE(by_parts(geos.h, few, false).g);
   Rings bowtie_shell{ring({{0, 0}, {2000, 2000}, {2000, 0}, {0, 2000}})};
-  for (int k = 0; k < 100; ++k) bowtie_shell.push_back(square(1500 + (k % 10) * 30, 700 + (k / 10) * 30, 5));
+  for (int k = 0; k < 100; ++k)
+    bowtie_shell.push_back(square(1500 + (k % 10) * 30, 700 + (k / 10) * 30, 5));
   EXPECT_FALSE(by_parts(geos.h, bowtie_shell, false).g);
 }
 
@@ -288,8 +308,8 @@ TEST(RepairByParts, CleanRepairsTheHostilePolygonAsGeosMakeValidOfTheWhole) {
   const Rings rings = hostile_polygon();
   const G whole = polygon_of(geos.h, rings);
   for (const bool structure : {false, true}) {
-    const prep::SceneFeatures out = clean_one(
-        rings, structure ? prep::RepairMethod::structure : prep::RepairMethod::linework);
+    const prep::SceneFeatures out =
+        clean_one(rings, structure ? prep::RepairMethod::structure : prep::RepairMethod::linework);
     std::vector<G> polys;
     double sum = 0;
     for (const prep::ScenePolygon& p : out.polygons) {
@@ -348,18 +368,20 @@ Rings touching_100k() {
 
 TEST(RepairByParts, Stress100kHolesTouchingTheShellEqualsWholeMakeValid) {
   const char* on = std::getenv("DECALPREP_STRESS_CLEAN");
-  if (!on || std::string(on) != "1") GTEST_SKIP() << "set DECALPREP_STRESS_CLEAN=1 (ctest -L stress)";
+  if (!on || std::string(on) != "1")
+    GTEST_SKIP() << "set DECALPREP_STRESS_CLEAN=1 (ctest -L stress)";
   Geos geos;
   const Rings rings = touching_100k();
   const G whole = polygon_of(geos.h, rings);
   for (const bool structure : {false, true}) {
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
-    const prep::SceneFeatures out = clean_one(
-        rings, structure ? prep::RepairMethod::structure : prep::RepairMethod::linework);
+    const prep::SceneFeatures out =
+        clean_one(rings, structure ? prep::RepairMethod::structure : prep::RepairMethod::linework);
     const auto t1 = clock::now();
     std::vector<G> polys;
-    for (const prep::ScenePolygon& p : out.polygons) polys.push_back(prep::test::polygon(geos.h, p));
+    for (const prep::ScenePolygon& p : out.polygons)
+      polys.push_back(prep::test::polygon(geos.h, p));
     const G got = multipolygon(geos.h, std::move(polys));
     const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
     const auto t2 = clock::now();

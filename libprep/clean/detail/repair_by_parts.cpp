@@ -145,7 +145,18 @@ GEOSGeometry* polygon_of(GEOSContextHandle_t h, Owned shell, std::vector<Owned>&
   raw.reserve(holes.size());
   for (Owned& r : holes) raw.push_back(r.release());
   holes.clear();
-  return GEOSGeom_createPolygon_r(h, shell.release(), raw.data(), static_cast<unsigned>(raw.size()));
+  return GEOSGeom_createPolygon_r(h, shell.release(), raw.data(),
+                                  static_cast<unsigned>(raw.size()));
+}
+
+// A collection of `type` taking over `parts` (left empty).
+Owned collection(GEOSContextHandle_t h, int type, std::vector<Owned>& parts) {
+  std::vector<GEOSGeometry*> raw;
+  raw.reserve(parts.size());
+  for (Owned& p : parts) raw.push_back(p.release());
+  parts.clear();
+  return Owned(h,
+               GEOSGeom_createCollection_r(h, type, raw.data(), static_cast<unsigned>(raw.size())));
 }
 
 // True when the single ring is a valid polygon on its own (then MakeValid
@@ -255,8 +266,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     for (uint32_t i : group) {
       Envelope e;
       if (!envelope_of(h, holes[i], e)) return nullptr;
-      b = {std::min(b.x0, e.x0), std::min(b.y0, e.y0), std::max(b.x1, e.x1),
-           std::max(b.y1, e.y1)};
+      b = {std::min(b.x0, e.x0), std::min(b.y0, e.y0), std::max(b.x1, e.x1), std::max(b.y1, e.y1)};
     }
     // Clear of the group by a margin far above the coordinates' precision
     // (|x| <= 1e9 m in clean: an ulp is below 1e-6 m).
@@ -335,29 +345,32 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     for (size_t i = 0; i < cut.size(); ++i) added[size_t(home[i])].push_back(std::move(cut[i]));
   }
 
-  // Assembled: the base polygons with their own and their added holes,
-  // then the islands, then the collapsed pieces.
-  std::vector<Owned> parts;
+  // Assembled as MakeValid returns it: the area (a Polygon or MultiPolygon:
+  // the base polygons with their own and their added holes, then the
+  // islands), alone or first in a GeometryCollection with the collapsed
+  // pieces.
+  std::vector<Owned> polys;
   for (size_t k = 0; k < np; ++k) {
     const GEOSGeometry* p = base_polys[k];
     std::vector<Owned> hs;
     const int own = GEOSGetNumInteriorRings_r(h, p);
     hs.reserve(size_t(std::max(own, 0)) + added[k].size());
-    for (int j = 0; j < own; ++j) hs.emplace_back(h, GEOSGeom_clone_r(h, GEOSGetInteriorRingN_r(h, p, j)));
+    for (int j = 0; j < own; ++j)
+      hs.emplace_back(h, GEOSGeom_clone_r(h, GEOSGetInteriorRingN_r(h, p, j)));
     for (Owned& r : added[k]) hs.push_back(std::move(r));
-    parts.emplace_back(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, GEOSGetExteriorRing_r(h, p))), hs));
-    if (!parts.back()) return nullptr;
+    polys.emplace_back(
+        h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, GEOSGetExteriorRing_r(h, p))), hs));
+    if (!polys.back()) return nullptr;
   }
-  for (Owned& p : islands) parts.push_back(std::move(p));
-  const size_t polygons = parts.size();
-  for (const GEOSGeometry* o : base_other) parts.emplace_back(h, GEOSGeom_clone_r(h, o));
-  for (Owned& o : collapsed) parts.push_back(std::move(o));
-  if (parts.size() == 1) return parts[0].release();
-  std::vector<GEOSGeometry*> raw;
-  raw.reserve(parts.size());
-  for (Owned& p : parts) raw.push_back(p.release());
-  const int type = polygons == raw.size() ? GEOS_MULTIPOLYGON : GEOS_GEOMETRYCOLLECTION;
-  return GEOSGeom_createCollection_r(h, type, raw.data(), static_cast<unsigned>(raw.size()));
+  for (Owned& p : islands) polys.push_back(std::move(p));
+  Owned area = polys.size() == 1 ? std::move(polys[0]) : collection(h, GEOS_MULTIPOLYGON, polys);
+  if (!area) return nullptr;
+  std::vector<Owned> pieces;
+  for (const GEOSGeometry* o : base_other) pieces.emplace_back(h, GEOSGeom_clone_r(h, o));
+  for (Owned& o : collapsed) pieces.push_back(std::move(o));
+  if (pieces.empty()) return area.release();
+  pieces.insert(pieces.begin(), std::move(area));
+  return collection(h, GEOS_GEOMETRYCOLLECTION, pieces).release();
 }
 
 }  // namespace prep::detail
