@@ -80,6 +80,8 @@ Rings hostile_polygon() {
       } else if (i == 23 && j % 4 == 0) {  // two triangles touching at a vertex
         rings.push_back(ring({{cx - 5, cy - 5}, {cx, cy}, {cx - 5, cy + 5}}));
         rings.push_back(ring({{cx + 5, cy - 5}, {cx + 5, cy + 5}, {cx, cy}}));
+      } else if (i == 25 && j % 10 == 5) {  // collinear: collapses to a line
+        rings.push_back(ring({{cx - 5, cy}, {cx + 5, cy}, {cx, cy}}));
       } else if (i == 24 && j % 9 == 4) {  // bow-tie
         rings.push_back(
             ring({{cx - 5, cy - 5}, {cx + 5, cy + 5}, {cx + 5, cy - 5}, {cx - 5, cy + 5}}));
@@ -139,6 +141,17 @@ G polygonal(GEOSContextHandle_t h, const GEOSGeometry* g) {
   std::vector<G> parts;
   polygons_of(h, g, parts);
   return multipolygon(h, std::move(parts));
+}
+
+// Whether `g` holds a non-empty piece that is not a polygon.
+bool has_non_polygon(GEOSContextHandle_t h, const GEOSGeometry* g) {
+  const int type = GEOSGeomTypeId_r(h, g);
+  if (type == GEOS_MULTIPOLYGON || type == GEOS_GEOMETRYCOLLECTION) {
+    for (int i = 0; i < GEOSGetNumGeometries_r(h, g); ++i)
+      if (has_non_polygon(h, GEOSGetGeometryN_r(h, g, i))) return true;
+    return false;
+  }
+  return type != GEOS_POLYGON && !GEOSisEmpty_r(h, g);
 }
 
 struct Shape {
@@ -322,11 +335,16 @@ TEST(RepairByParts, CleanRepairsTheHostilePolygonAsGeosMakeValidOfTheWhole) {
     const G got = multipolygon(geos.h, std::move(polys));
     const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
     expect_same(geos.h, got, want, std::string("clean, ") + method_name(structure));
-    // The manifest: one repair with GEOS's area of the repair.
+    // The manifest: one repair with GEOS's area of the repair, naming the
+    // collapsed pieces when GEOS's repair of the whole has any.
     ASSERT_EQ(out.manifest.entries.size(), 1u);
     const prep::ManifestEntry& e = out.manifest.entries[0];
     EXPECT_EQ(e.action, prep::ManifestAction::repaired);
     EXPECT_NE(e.reason.find("made valid ("), std::string::npos) << e.reason;
+    const G whole_fixed = make_valid(geos.h, whole.g, structure);
+    const bool collapsed = has_non_polygon(geos.h, whole_fixed.g);
+    std::printf("%s: %s\n", method_name(structure), e.reason.c_str());
+    EXPECT_EQ(e.reason.find("discarded collapsed") != std::string::npos, collapsed) << e.reason;
     EXPECT_NEAR(e.area_after, prep::test::area(want), 1e-9 * prep::test::area(want));
     EXPECT_NEAR(sum, prep::test::area(want), 1e-6 * prep::test::area(want));
   }
