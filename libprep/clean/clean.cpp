@@ -16,6 +16,7 @@
 #include <memory>
 
 #include "detail/certainly_valid.hpp"
+#include "detail/repair_by_parts.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/progress.hpp"
@@ -338,7 +339,7 @@ struct Cleaner {
     Geom g(h, make_polygon(h, rings));
     if (!g) return fail(r, "GEOS cannot build the polygon: " + ctx.last_error);
     ctx.step("GEOS isValid");
-    if (!proven && !make_valid_if_invalid(ctx, g, r)) return;
+    if (!proven && !make_valid_if_invalid(ctx, g, rings, r)) return;
     if (rel == 0) {
       ctx.step("GEOS Intersection with the extent");
       Geom rect(h, clip_rect(h));
@@ -386,31 +387,48 @@ struct Cleaner {
     return true;
   }
 
-  // GEOS isValid, and GEOS MakeValid when it says invalid: `g` becomes the
-  // repair, recorded with the area before and after when they differ. False:
-  // the feature failed (GEOS error, or a repair that is still invalid).
-  bool make_valid_if_invalid(GeosContext& ctx, Geom& g, PartResult& r) const {
+  // GEOS isValid, and GEOS MakeValid when it says invalid: `g` (built from
+  // `rings`) becomes the repair, recorded with the area before and after
+  // when they differ. False: the feature failed (GEOS error, or a repair
+  // that is still invalid). A polygon with many holes is repaired by parts
+  // (detail/repair_by_parts.hpp: the same result as MakeValid of the whole,
+  // without its time quadratic in the holes); when that does not apply or
+  // its result is not valid, the whole polygon is repaired.
+  bool make_valid_if_invalid(GeosContext& ctx, Geom& g, const std::vector<Ring>& rings,
+                             PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
     if (GEOSisValid_r(h, g.get()) == 1) return true;
     char* why = GEOSisValidReason_r(h, g.get());
     std::string reason = why ? why : "invalid";
     GEOSFree_r(h, why);
     const double before = GEOSArea_r(h, g.get(), &r.area_before) ? r.area_before : NAN;
-    ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid (structure)" : "GEOS MakeValid");
-    Geom fixed(h, make_valid(h, g.get()));
-    if (!fixed) {
-      fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
-      return false;
+    Geom fixed;
+    if (rings.size() > detail::kRepairByPartsMinHoles) {
+      ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid by parts (structure)"
+                                                 : "GEOS MakeValid by parts");
+      // Valid when not null (checked piece by piece: GEOS isValid of the
+      // whole repair costs holes x shell vertices).
+      fixed = Geom(h, detail::make_valid_by_parts(
+                          h, g.get(), rings,
+                          [&](const GEOSGeometry* part) { return make_valid(h, part); }));
     }
-    // A repair that is still invalid would break point-in-polygon later.
-    ctx.step("GEOS isValid of the repair");
-    if (GEOSisValid_r(h, fixed.get()) != 1) {
-      char* still = GEOSisValidReason_r(h, fixed.get());
-      const std::string after_reason = still ? still : "invalid";
-      GEOSFree_r(h, still);
-      fail(r, "invalid (" + reason + ") and still invalid after GEOS MakeValid (" + after_reason +
-                  ")");
-      return false;
+    if (!fixed) {
+      ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid (structure)" : "GEOS MakeValid");
+      fixed = Geom(h, make_valid(h, g.get()));
+      if (!fixed) {
+        fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
+        return false;
+      }
+      // A repair that is still invalid would break point-in-polygon later.
+      ctx.step("GEOS isValid of the repair");
+      if (GEOSisValid_r(h, fixed.get()) != 1) {
+        char* still = GEOSisValidReason_r(h, fixed.get());
+        const std::string after_reason = still ? still : "invalid";
+        GEOSFree_r(h, still);
+        fail(r, "invalid (" + reason + ") and still invalid after GEOS MakeValid (" +
+                    after_reason + ")");
+        return false;
+      }
     }
     double after = 0;
     GEOSArea_r(h, fixed.get(), &after);

@@ -170,8 +170,9 @@ def main():
         case("poly_100k_holes", "poly_100k_holes.geojson", "polygon",
              [feature(poly(ring(square(0, 0, 5000)), *holes), 1)], big_case=True)
         # The same, but the first row and column of holes reach the shell and
-        # share an edge with it (invalid): repaired with --repair structure
-        # (GEOS MakeValid's default linework method takes ~3 minutes here).
+        # share an edge with it (invalid): repaired with --repair structure,
+        # and with the default linework method (clean repairs it by parts:
+        # GEOS MakeValid of the whole polygon takes minutes here).
         def touching(k):
             cx, cy = -4960 + 31.4 * (k % 316), -4960 + 31.4 * (k // 316)
             x0, y0 = (-5000 if k % 316 == 0 else cx - 10), (-5000 if k // 316 == 0 else cy - 10)
@@ -179,6 +180,8 @@ def main():
         case("poly_100k_holes_touching_shell", "poly_100k_holes_touching_shell.geojson", "polygon",
              [feature(poly(ring(square(0, 0, 5000)), *[touching(k) for k in range(100_000)]), 1)],
              ["--repair", "structure"], big_case=True)
+        case("poly_100k_holes_touching_shell_linework", "poly_100k_holes_touching_shell.geojson",
+             "polygon", None, big_case=True)
         teeth = [(0, 0)]
         for t in range(10_000):
             teeth += [(t * 2 + 0.5, 0), (t * 2 + 0.5, 100), (t * 2 + 1.5, 100), (t * 2 + 1.5, 0)]

@@ -1,0 +1,376 @@
+// The repair of hole-heavy polygons by parts: detail/repair_by_parts.hpp.
+#include "detail/repair_by_parts.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <numeric>
+
+#include "detail/certainly_valid.hpp"
+
+namespace prep::detail {
+namespace {
+
+// Owning handle for a GEOS geometry (destroyed unless released).
+class Owned {
+ public:
+  Owned() = default;
+  Owned(GEOSContextHandle_t h, GEOSGeometry* g) : h_(h), g_(g) {}
+  Owned(Owned&& o) noexcept : h_(o.h_), g_(o.g_) { o.g_ = nullptr; }
+  Owned& operator=(Owned&& o) noexcept {
+    std::swap(h_, o.h_);
+    std::swap(g_, o.g_);
+    return *this;
+  }
+  Owned(const Owned&) = delete;
+  Owned& operator=(const Owned&) = delete;
+  ~Owned() {
+    if (g_) GEOSGeom_destroy_r(h_, g_);
+  }
+  GEOSGeometry* get() const { return g_; }
+  GEOSGeometry* release() {
+    GEOSGeometry* g = g_;
+    g_ = nullptr;
+    return g;
+  }
+  explicit operator bool() const { return g_ != nullptr; }
+
+ private:
+  GEOSContextHandle_t h_ = nullptr;
+  GEOSGeometry* g_ = nullptr;
+};
+
+class Prepared {
+ public:
+  Prepared(GEOSContextHandle_t h, const GEOSGeometry* g) : h_(h), p_(GEOSPrepare_r(h, g)) {}
+  ~Prepared() {
+    if (p_) GEOSPreparedGeom_destroy_r(h_, p_);
+  }
+  Prepared(const Prepared&) = delete;
+  Prepared& operator=(const Prepared&) = delete;
+  const GEOSPreparedGeometry* get() const { return p_; }
+
+ private:
+  GEOSContextHandle_t h_;
+  const GEOSPreparedGeometry* p_;
+};
+
+class Tree {
+ public:
+  explicit Tree(GEOSContextHandle_t h) : h_(h), t_(GEOSSTRtree_create_r(h, 10)) {}
+  ~Tree() {
+    if (t_) GEOSSTRtree_destroy_r(h_, t_);
+  }
+  Tree(const Tree&) = delete;
+  Tree& operator=(const Tree&) = delete;
+  GEOSSTRtree* get() const { return t_; }
+
+ private:
+  GEOSContextHandle_t h_;
+  GEOSSTRtree* t_;
+};
+
+struct Envelope {
+  double x0, y0, x1, y1;
+};
+
+bool envelope_of(GEOSContextHandle_t h, const GEOSGeometry* g, Envelope& e) {
+  return GEOSGeom_getXMin_r(h, g, &e.x0) == 1 && GEOSGeom_getYMin_r(h, g, &e.y0) == 1 &&
+         GEOSGeom_getXMax_r(h, g, &e.x1) == 1 && GEOSGeom_getYMax_r(h, g, &e.y1) == 1;
+}
+
+// Union-find over the holes (path halving; the smaller index is the root,
+// so the groups do not depend on the order contacts are found in).
+struct Groups {
+  std::vector<uint32_t> parent;
+  explicit Groups(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+  uint32_t find(uint32_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  }
+  void unite(uint32_t a, uint32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a < b) parent[b] = a;
+    if (b < a) parent[a] = b;
+  }
+};
+
+struct ContactQuery {
+  Groups* groups;
+  uint32_t self;
+  size_t contacts;
+};
+
+void on_contact(void* item, void* user) {
+  auto* q = static_cast<ContactQuery*>(user);
+  const uint32_t other = *static_cast<const uint32_t*>(item);
+  if (other == q->self) return;
+  ++q->contacts;
+  q->groups->unite(q->self, other);
+}
+
+struct Candidates {
+  std::vector<uint32_t> found;
+};
+
+void on_candidate(void* item, void* user) {
+  static_cast<Candidates*>(user)->found.push_back(*static_cast<const uint32_t*>(item));
+}
+
+// Every polygon (`polys`) and every other non-empty piece (`other`) of `g`.
+void flatten(GEOSContextHandle_t h, const GEOSGeometry* g, std::vector<const GEOSGeometry*>& polys,
+             std::vector<const GEOSGeometry*>& other) {
+  const int type = GEOSGeomTypeId_r(h, g);
+  if (type == GEOS_MULTIPOLYGON || type == GEOS_MULTILINESTRING || type == GEOS_MULTIPOINT ||
+      type == GEOS_GEOMETRYCOLLECTION) {
+    const int n = GEOSGetNumGeometries_r(h, g);
+    for (int i = 0; i < n; ++i) flatten(h, GEOSGetGeometryN_r(h, g, i), polys, other);
+    return;
+  }
+  if (GEOSisEmpty_r(h, g)) return;
+  (type == GEOS_POLYGON ? polys : other).push_back(g);
+}
+
+// A closed ring of the rectangle, counter-clockwise.
+GEOSGeometry* box_ring(GEOSContextHandle_t h, const Envelope& b) {
+  const double xy[10] = {b.x0, b.y0, b.x1, b.y0, b.x1, b.y1, b.x0, b.y1, b.x0, b.y0};
+  return GEOSGeom_createLinearRing_r(h, GEOSCoordSeq_copyFromBuffer_r(h, xy, 5, 0, 0));
+}
+
+// A polygon from owned rings (taken); null when GEOS refuses.
+GEOSGeometry* polygon_of(GEOSContextHandle_t h, Owned shell, std::vector<Owned>& holes) {
+  std::vector<GEOSGeometry*> raw;
+  raw.reserve(holes.size());
+  for (Owned& r : holes) raw.push_back(r.release());
+  holes.clear();
+  return GEOSGeom_createPolygon_r(h, shell.release(), raw.data(),
+                                  static_cast<unsigned>(raw.size()));
+}
+
+// A collection of `type` taking over `parts` (left empty).
+Owned collection(GEOSContextHandle_t h, int type, std::vector<Owned>& parts) {
+  std::vector<GEOSGeometry*> raw;
+  raw.reserve(parts.size());
+  for (Owned& p : parts) raw.push_back(p.release());
+  parts.clear();
+  return Owned(h,
+               GEOSGeom_createCollection_r(h, type, raw.data(), static_cast<unsigned>(raw.size())));
+}
+
+// True when the single ring is a valid polygon on its own (then MakeValid
+// of it alone would return its area unchanged).
+bool ring_valid(GEOSContextHandle_t h, const GEOSGeometry* ring, const Ring& coords) {
+  if (certainly_valid({coords})) return true;
+  std::vector<Owned> none;
+  Owned poly(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, ring)), none));
+  return poly && GEOSisValid_r(h, poly.get()) == 1;
+}
+
+}  // namespace
+
+GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* polygon,
+                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid) {
+  if (GEOSGeomTypeId_r(h, polygon) != GEOS_POLYGON) return nullptr;
+  const int nh = GEOSGetNumInteriorRings_r(h, polygon);
+  if (nh < 0 || size_t(nh) < kRepairByPartsMinHoles || size_t(nh) + 1 != rings.size())
+    return nullptr;
+  const auto n = static_cast<uint32_t>(nh);
+  const GEOSGeometry* shell_ring = GEOSGetExteriorRing_r(h, polygon);
+
+  // The shell alone must be valid: "properly inside" means nothing otherwise.
+  std::vector<Owned> none;
+  Owned shell(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), none));
+  if (!shell || GEOSisValid_r(h, shell.get()) != 1) return nullptr;
+
+  std::vector<const GEOSGeometry*> holes(n);
+  std::vector<char> clear(n);  // properly inside the shell
+  {
+    Prepared inside(h, shell.get());
+    if (!inside.get()) return nullptr;
+    for (uint32_t i = 0; i < n; ++i) {
+      holes[i] = GEOSGetInteriorRingN_r(h, polygon, static_cast<int>(i));
+      const char c = GEOSPreparedContainsProperly_r(h, inside.get(), holes[i]);
+      if (c == 2) return nullptr;
+      clear[i] = c;
+    }
+  }
+
+  // Groups of holes in envelope contact. The work is bounded: past the
+  // budget of contacts the whole polygon is repaired instead.
+  Groups groups(n);
+  {
+    Tree tree(h);
+    if (!tree.get()) return nullptr;
+    std::vector<uint32_t> ids(n);
+    std::iota(ids.begin(), ids.end(), 0u);
+    for (uint32_t i = 0; i < n; ++i) GEOSSTRtree_insert_r(h, tree.get(), holes[i], &ids[i]);
+    const size_t budget = 64 * size_t(n) + 1'000'000;
+    ContactQuery q{&groups, 0, 0};
+    for (uint32_t i = 0; i < n; ++i) {
+      q.self = i;
+      GEOSSTRtree_query_r(h, tree.get(), holes[i], &on_contact, &q);
+      if (q.contacts > budget) return nullptr;
+    }
+  }
+  std::vector<uint32_t> root(n);
+  std::vector<char> with_shell(n, 0);
+  for (uint32_t i = 0; i < n; ++i) {
+    root[i] = groups.find(i);
+    if (!clear[i]) with_shell[root[i]] = 1;
+  }
+
+  // The base repair: the shell and the holes of groups that reach it.
+  // Clear groups in order of their first hole, holes in input order.
+  std::vector<Owned> base_holes;
+  std::vector<std::vector<uint32_t>> clear_groups;
+  std::vector<int64_t> group_of_root(n, -1);
+  for (uint32_t i = 0; i < n; ++i) {
+    if (with_shell[root[i]]) {
+      base_holes.emplace_back(h, GEOSGeom_clone_r(h, holes[i]));
+      continue;
+    }
+    if (group_of_root[root[i]] < 0) {
+      group_of_root[root[i]] = static_cast<int64_t>(clear_groups.size());
+      clear_groups.emplace_back();
+    }
+    clear_groups[size_t(group_of_root[root[i]])].push_back(i);
+  }
+  if (clear_groups.empty()) return nullptr;
+  Owned base;
+  if (base_holes.empty()) {
+    base = std::move(shell);  // valid: its own repair
+  } else {
+    Owned input(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), base_holes));
+    if (!input) return nullptr;
+    base = Owned(h, make_valid(input.get()));
+    if (!base || GEOSisValid_r(h, base.get()) != 1) return nullptr;
+  }
+  std::vector<const GEOSGeometry*> base_polys, base_other;
+  flatten(h, base.get(), base_polys, base_other);
+  if (base_polys.empty()) return nullptr;
+
+  // Each clear group: the rings it cuts out of the base (to place), the
+  // islands inside them and any collapsed pieces.
+  std::vector<Owned> cut, islands, collapsed;
+  std::vector<uint32_t> cut_group;  // the clear group each cut ring comes from
+  for (uint32_t gi = 0; gi < clear_groups.size(); ++gi) {
+    const std::vector<uint32_t>& group = clear_groups[gi];
+    if (group.size() == 1 && ring_valid(h, holes[group[0]], rings[group[0] + 1])) {
+      cut.emplace_back(h, GEOSGeom_clone_r(h, holes[group[0]]));
+      cut_group.push_back(gi);
+      continue;
+    }
+    Envelope b{INFINITY, INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t i : group) {
+      Envelope e;
+      if (!envelope_of(h, holes[i], e)) return nullptr;
+      b = {std::min(b.x0, e.x0), std::min(b.y0, e.y0), std::max(b.x1, e.x1), std::max(b.y1, e.y1)};
+    }
+    // Clear of the group by a margin far above the coordinates' precision
+    // (|x| <= 1e9 m in clean: an ulp is below 1e-6 m).
+    const double margin = 1.0 + 0.01 * std::max(b.x1 - b.x0, b.y1 - b.y0);
+    b = {b.x0 - margin, b.y0 - margin, b.x1 + margin, b.y1 + margin};
+    std::vector<Owned> group_holes;
+    for (uint32_t i : group) group_holes.emplace_back(h, GEOSGeom_clone_r(h, holes[i]));
+    Owned input(h, polygon_of(h, Owned(h, box_ring(h, b)), group_holes));
+    if (!input) return nullptr;
+    Owned fixed(h, make_valid(input.get()));
+    if (!fixed || GEOSisValid_r(h, fixed.get()) != 1) return nullptr;
+    std::vector<const GEOSGeometry*> polys, other;
+    flatten(h, fixed.get(), polys, other);
+    const GEOSGeometry* around = nullptr;  // the polygon whose shell is the box
+    for (const GEOSGeometry* p : polys) {
+      Envelope e;
+      if (!envelope_of(h, GEOSGetExteriorRing_r(h, p), e)) return nullptr;
+      if (e.x0 == b.x0 && e.y0 == b.y0 && e.x1 == b.x1 && e.y1 == b.y1) {
+        if (around) return nullptr;
+        around = p;
+      } else {
+        islands.emplace_back(h, GEOSGeom_clone_r(h, p));
+      }
+    }
+    if (!around) return nullptr;
+    const int k = GEOSGetNumInteriorRings_r(h, around);
+    for (int j = 0; j < k; ++j) {
+      cut.emplace_back(h, GEOSGeom_clone_r(h, GEOSGetInteriorRingN_r(h, around, j)));
+      cut_group.push_back(gi);
+    }
+    for (const GEOSGeometry* o : other) collapsed.emplace_back(h, GEOSGeom_clone_r(h, o));
+  }
+
+  // Each cut ring goes into the base polygon that properly contains it (it
+  // is drawn from a clear group's linework: inside the shell, away from the
+  // base's holes). Cut rings of different groups must not meet.
+  const size_t np = base_polys.size();
+  std::vector<std::vector<Owned>> added(np);
+  {
+    Tree tree(h);
+    if (!tree.get()) return nullptr;
+    std::vector<uint32_t> ids(np);
+    std::iota(ids.begin(), ids.end(), 0u);
+    for (size_t k = 0; k < np; ++k) GEOSSTRtree_insert_r(h, tree.get(), base_polys[k], &ids[k]);
+    std::vector<std::unique_ptr<Prepared>> prepared(np);
+    Candidates c;
+    std::vector<int64_t> home(cut.size(), -1);
+    for (size_t i = 0; i < cut.size(); ++i) {
+      c.found.clear();
+      GEOSSTRtree_query_r(h, tree.get(), cut[i].get(), &on_candidate, &c);
+      std::sort(c.found.begin(), c.found.end());
+      for (uint32_t k : c.found) {
+        if (!prepared[k]) prepared[k] = std::make_unique<Prepared>(h, base_polys[k]);
+        if (!prepared[k]->get()) return nullptr;
+        if (GEOSPreparedContainsProperly_r(h, prepared[k]->get(), cut[i].get()) == 1) {
+          home[i] = k;
+          break;
+        }
+      }
+      if (home[i] < 0) return nullptr;
+    }
+    Tree rings_tree(h);
+    if (!rings_tree.get()) return nullptr;
+    std::vector<uint32_t> cut_ids(cut.size());
+    std::iota(cut_ids.begin(), cut_ids.end(), 0u);
+    for (size_t i = 0; i < cut.size(); ++i)
+      GEOSSTRtree_insert_r(h, rings_tree.get(), cut[i].get(), &cut_ids[i]);
+    for (size_t i = 0; i < cut.size(); ++i) {
+      c.found.clear();
+      GEOSSTRtree_query_r(h, rings_tree.get(), cut[i].get(), &on_candidate, &c);
+      for (uint32_t j : c.found)
+        if (j > i && cut_group[j] != cut_group[i] &&
+            GEOSIntersects_r(h, cut[i].get(), cut[j].get()) != 0)
+          return nullptr;
+    }
+    for (size_t i = 0; i < cut.size(); ++i) added[size_t(home[i])].push_back(std::move(cut[i]));
+  }
+
+  // Assembled as MakeValid returns it: the area (a Polygon or MultiPolygon:
+  // the base polygons with their own and their added holes, then the
+  // islands), alone or first in a GeometryCollection with the collapsed
+  // pieces.
+  std::vector<Owned> polys;
+  for (size_t k = 0; k < np; ++k) {
+    const GEOSGeometry* p = base_polys[k];
+    std::vector<Owned> hs;
+    const int own = GEOSGetNumInteriorRings_r(h, p);
+    hs.reserve(size_t(std::max(own, 0)) + added[k].size());
+    for (int j = 0; j < own; ++j)
+      hs.emplace_back(h, GEOSGeom_clone_r(h, GEOSGetInteriorRingN_r(h, p, j)));
+    for (Owned& r : added[k]) hs.push_back(std::move(r));
+    polys.emplace_back(
+        h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, GEOSGetExteriorRing_r(h, p))), hs));
+    if (!polys.back()) return nullptr;
+  }
+  for (Owned& p : islands) polys.push_back(std::move(p));
+  Owned area = polys.size() == 1 ? std::move(polys[0]) : collection(h, GEOS_MULTIPOLYGON, polys);
+  if (!area) return nullptr;
+  std::vector<Owned> pieces;
+  for (const GEOSGeometry* o : base_other) pieces.emplace_back(h, GEOSGeom_clone_r(h, o));
+  for (Owned& o : collapsed) pieces.push_back(std::move(o));
+  if (pieces.empty()) return area.release();
+  pieces.insert(pieces.begin(), std::move(area));
+  return collection(h, GEOS_GEOMETRYCOLLECTION, pieces).release();
+}
+
+}  // namespace prep::detail

@@ -1,0 +1,69 @@
+// The repair of hole-heavy polygons in clean (libprep/clean/clean.cpp): GEOS
+// MakeValid on the parts of a polygon that need it, with the same result as
+// MakeValid of the whole polygon.
+//
+// GEOS 3.11's MakeValid spends time quadratic in the number of rings on a
+// polygon with many holes (its area builder looks for each face's parent
+// among all faces): 10^5 holes take minutes. Holes far from every other
+// ring cannot change the repair away from themselves, so only the rings
+// that interact are given to MakeValid:
+//  - holes are grouped by envelope contact (the transitive closure of
+//    "envelopes intersect or touch"), through a GEOS STRtree;
+//  - a group with a hole that is not properly inside the shell (it touches,
+//    crosses or lies outside it) is repaired together with the shell: the
+//    "base" repair R0 = MakeValid(shell + those holes);
+//  - a group properly inside the shell is repaired on its own, inside a
+//    rectangle clear of it: MakeValid(box + the group's holes) is the box
+//    with the group's regions cut out (and any islands inside them). The
+//    box's holes become holes of the R0 polygon that contains them and the
+//    islands become polygons; a single hole that is a valid ring on its own
+//    is kept as it is, without MakeValid.
+// Why this is exact: a group properly inside the shell touches no other
+// ring and no other ring's envelope, so in the noded linework of the whole
+// polygon its edges bound faces that lie in one face of the rest and
+// nothing else ends inside its envelopes. MakeValid (both methods) then
+// treats it like an enclosed component of that face: with the "linework"
+// method the faces get their parity from the rings around them (the shell
+// only, here), with "structure" the shell minus the union of the holes.
+// Either way the result near the group is that face minus the group's
+// regions, which is what the box repair gives. The pieces only come
+// together, no overlay, and the result is checked piece by piece instead
+// of by GEOS isValid of the whole (whose hole-in-shell test costs holes x
+// shell vertices: seconds here): every MakeValid result is valid (GEOS
+// isValid), every cut-out ring lies properly inside the base polygon it is
+// put in (prepared GEOS ContainsProperly) and rings of different groups do
+// not meet (GEOS Intersects on envelope candidates). Then the assembly is
+// a valid polygon: rings inside their shell that touch nothing outside
+// their own valid group, islands inside the rings they came with.
+// Tests: tests/clean/test_repair_by_parts.cpp (the result against GEOS
+// MakeValid of the whole polygon).
+#pragma once
+
+#include <geos_c.h>
+
+#include <functional>
+#include <vector>
+
+#include "prep/scene.hpp"
+
+namespace prep::detail {
+
+// Below this many holes MakeValid of the whole polygon is cheap; those
+// polygons keep their whole repair (and its vertex order) unchanged.
+inline constexpr size_t kRepairByPartsMinHoles = 64;
+
+// MakeValid with the scene's method, on one GEOS polygon (null: GEOS failed).
+using MakeValidFn = std::function<GEOSGeometry*(const GEOSGeometry*)>;
+
+// The repair of `polygon` (a GEOS polygon built from `rings`: [0] shell,
+// then holes, in the same order) by parts, as above. Null when the split
+// does not apply (fewer than kRepairByPartsMinHoles holes, a shell that is
+// not valid on its own, no hole group clear of the shell, too many envelope
+// contacts to enumerate) or any step fails: the caller then repairs the
+// whole polygon. The result is a Polygon, a MultiPolygon, or a
+// GeometryCollection of polygons and the collapsed (non-areal) pieces that
+// MakeValid returned; valid (checked as above).
+GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* polygon,
+                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid);
+
+}  // namespace prep::detail

@@ -1,0 +1,413 @@
+// The repair of hole-heavy polygons by parts (libprep/clean/detail/
+// repair_by_parts.hpp) against GEOS MakeValid of the whole polygon, in
+// double precision, with both repair methods: the same area (1e-9
+// relative), a symmetric difference of (almost) zero area, and the same
+// number of polygons and rings.
+//
+//  - A hostile 4,100-hole polygon at UTM-sized coordinates through clean()
+//    itself: grid holes, and holes sharing an edge with the shell, touching
+//    it at a point, crossing it, outside it, a strip across the whole shell
+//    (it cuts the shell in two: the grid holes must go to the right half),
+//    overlapping pairs, nested holes, identical holes, holes touching at a
+//    point, a self-crossing (bow-tie) hole and a large hole around a block
+//    of grid holes (islands in the repair).
+//  - Random polygons: a non-convex shell with 100-300 holes of random shape
+//    and size, many of them overlapping each other or the shell.
+//  - With DECALPREP_STRESS_CLEAN=1 (ctest -L stress): the 10^5-hole polygon
+//    of tests/hostile/generate.py --big (poly_100k_holes_touching_shell),
+//    against the whole MakeValid (minutes).
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "detail/repair_by_parts.hpp"
+#include "geos_oracle.hpp"
+#include "prep/clean.hpp"
+
+namespace {
+
+using prep::Point2;
+using prep::Ring;
+using prep::test::G;
+using prep::test::Geos;
+using Rings = std::vector<Ring>;
+
+// UTM-sized offset: the coordinates carry metres at 10^6 magnitude.
+constexpr double kX0 = 500000, kY0 = 4800000;
+
+Ring rect(double x0, double y0, double x1, double y1) {
+  return {{kX0 + x0, kY0 + y0}, {kX0 + x1, kY0 + y0}, {kX0 + x1, kY0 + y1}, {kX0 + x0, kY0 + y1}};
+}
+Ring square(double cx, double cy, double r) {
+  return rect(cx - r, cy - r, cx + r, cy + r);
+}
+Ring ring(std::initializer_list<std::pair<double, double>> pts) {
+  Ring r;
+  for (const auto& [x, y] : pts) r.push_back({kX0 + x, kY0 + y});
+  return r;
+}
+
+// The hostile polygon: a 2 km square shell, 64 x 64 grid holes of 10 m
+// (centres 30 m apart) and the special holes of the file comment.
+Rings hostile_polygon() {
+  Rings rings{rect(0, 0, 2000, 2000)};
+  auto centre = [](int i) { return 30.0 * (i + 1); };
+  for (int j = 0; j < 64; ++j)
+    for (int i = 0; i < 64; ++i) {
+      const double cx = centre(i), cy = centre(j);
+      if (i == 0 && j % 7 == 3) {  // shares an edge with the shell (x = 0)
+        rings.push_back(rect(0, cy - 5, cx + 5, cy + 5));
+      } else if (j == 0 && i % 9 == 4) {  // touches the shell at a point (y = 0)
+        rings.push_back(ring({{cx - 5, 20}, {cx, 0}, {cx + 5, 20}}));
+      } else if (j == 63 && i % 11 == 5) {  // crosses the shell (y = 2000)
+        rings.push_back(rect(cx - 5, 1990, cx + 5, 2010));
+      } else if (i == 20 && j % 5 == 1) {  // an overlapping pair
+        rings.push_back(square(cx, cy, 5));
+        rings.push_back(square(cx + 4, cy + 4, 5));
+      } else if (i == 21 && j % 6 == 2) {  // nested: a hole in a hole in a hole
+        rings.push_back(square(cx, cy, 5));
+        rings.push_back(square(cx, cy, 3));
+        rings.push_back(square(cx, cy, 1));
+      } else if (i == 22 && j % 8 == 3) {  // the same hole twice
+        rings.push_back(square(cx, cy, 5));
+        rings.push_back(square(cx, cy, 5));
+      } else if (i == 23 && j % 4 == 0) {  // two triangles touching at a vertex
+        rings.push_back(ring({{cx - 5, cy - 5}, {cx, cy}, {cx - 5, cy + 5}}));
+        rings.push_back(ring({{cx + 5, cy - 5}, {cx + 5, cy + 5}, {cx, cy}}));
+      } else if (i == 25 && j % 10 == 5) {  // collinear: collapses to a line
+        rings.push_back(ring({{cx - 5, cy}, {cx + 5, cy}, {cx, cy}}));
+      } else if (i == 24 && j % 9 == 4) {  // bow-tie
+        rings.push_back(
+            ring({{cx - 5, cy - 5}, {cx + 5, cy + 5}, {cx + 5, cy - 5}, {cx - 5, cy + 5}}));
+      } else {
+        rings.push_back(square(cx, cy, 5));
+      }
+    }
+  // A strip across the shell between two rows of holes (rows at 990 and
+  // 1020: the strip's envelope meets none of them).
+  rings.push_back(rect(-10, 1003, 2010, 1007));
+  // A hole outside the shell.
+  rings.push_back(square(2100, 2100, 20));
+  // A large hole around a block of 6 x 6 grid holes (x, y in 1380..1560):
+  // the grid holes inside become islands.
+  rings.push_back(rect(1372, 1372, 1568, 1568));
+  // A U-shaped hole with a grid hole in its bay (envelopes meet, rings not).
+  rings.push_back(ring({{1672, 1672},
+                        {1718, 1672},
+                        {1718, 1718},
+                        {1712, 1718},
+                        {1712, 1678},
+                        {1678, 1678},
+                        {1678, 1718},
+                        {1672, 1718}}));
+  return rings;
+}
+
+G make_valid(GEOSContextHandle_t h, const GEOSGeometry* g, bool structure) {
+  if (!structure) return G(h, GEOSMakeValid_r(h, g));
+  GEOSMakeValidParams* p = GEOSMakeValidParams_create_r(h);
+  GEOSMakeValidParams_setMethod_r(h, p, GEOS_MAKE_VALID_STRUCTURE);
+  GEOSMakeValidParams_setKeepCollapsed_r(h, p, 0);
+  G v(h, GEOSMakeValidWithParams_r(h, g, p));
+  GEOSMakeValidParams_destroy_r(h, p);
+  return v;
+}
+
+G polygon_of(GEOSContextHandle_t h, const Rings& rings) {
+  return prep::test::polygon(h, rings[0], Rings(rings.begin() + 1, rings.end()));
+}
+
+// The polygons of `g` (any nesting of collections), as a MultiPolygon.
+void polygons_of(GEOSContextHandle_t h, const GEOSGeometry* g, std::vector<G>& out) {
+  const int type = GEOSGeomTypeId_r(h, g);
+  if (type == GEOS_POLYGON) {
+    if (!GEOSisEmpty_r(h, g)) out.emplace_back(h, GEOSGeom_clone_r(h, g));
+    return;
+  }
+  if (type == GEOS_MULTIPOLYGON || type == GEOS_GEOMETRYCOLLECTION)
+    for (int i = 0; i < GEOSGetNumGeometries_r(h, g); ++i)
+      polygons_of(h, GEOSGetGeometryN_r(h, g, i), out);
+}
+G multipolygon(GEOSContextHandle_t h, std::vector<G> parts) {
+  return prep::test::collection(h, GEOS_MULTIPOLYGON, parts);
+}
+G polygonal(GEOSContextHandle_t h, const GEOSGeometry* g) {
+  std::vector<G> parts;
+  polygons_of(h, g, parts);
+  return multipolygon(h, std::move(parts));
+}
+
+// Whether `g` holds a non-empty piece that is not a polygon.
+bool has_non_polygon(GEOSContextHandle_t h, const GEOSGeometry* g) {
+  const int type = GEOSGeomTypeId_r(h, g);
+  if (type == GEOS_MULTIPOLYGON || type == GEOS_GEOMETRYCOLLECTION) {
+    for (int i = 0; i < GEOSGetNumGeometries_r(h, g); ++i)
+      if (has_non_polygon(h, GEOSGetGeometryN_r(h, g, i))) return true;
+    return false;
+  }
+  return type != GEOS_POLYGON && !GEOSisEmpty_r(h, g);
+}
+
+struct Shape {
+  size_t polygons = 0, rings = 0;
+};
+Shape shape_of(GEOSContextHandle_t h, const GEOSGeometry* multi) {
+  Shape s;
+  for (int i = 0; i < GEOSGetNumGeometries_r(h, multi); ++i) {
+    ++s.polygons;
+    s.rings += 1 + size_t(GEOSGetNumInteriorRings_r(h, GEOSGetGeometryN_r(h, multi, i)));
+  }
+  return s;
+}
+
+// `got` (polygonal) against the oracle `want` (polygonal): valid, the same
+// area to 1e-9 relative, a symmetric difference below 1e-9 of the area, the
+// same polygons and rings.
+void expect_same(GEOSContextHandle_t h, const G& got, const G& want, const std::string& what) {
+  EXPECT_EQ(GEOSisValid_r(h, got.g), 1) << what;
+  const double a_got = prep::test::area(got), a_want = prep::test::area(want);
+  ASSERT_GT(a_want, 0) << what;
+  EXPECT_NEAR(a_got, a_want, 1e-9 * a_want) << what;
+  const G diff(h, GEOSSymDifference_r(h, got.g, want.g));
+  EXPECT_LE(prep::test::area(diff), 1e-9 * a_want) << what << ": symmetric difference";
+  const Shape s_got = shape_of(h, got.g), s_want = shape_of(h, want.g);
+  std::printf(
+      "%s: area %.17g vs %.17g (relative %.2g), symmetric difference %.3g m2, "
+      "%zu/%zu polygons, %zu/%zu rings\n",
+      what.c_str(), a_got, a_want, std::fabs(a_got - a_want) / a_want, prep::test::area(diff),
+      s_got.polygons, s_want.polygons, s_got.rings, s_want.rings);
+  EXPECT_EQ(s_got.polygons, s_want.polygons) << what;
+  EXPECT_EQ(s_got.rings, s_want.rings) << what;
+}
+
+// detail::make_valid_by_parts on `rings` with the method; null when the
+// split did not apply.
+G by_parts(GEOSContextHandle_t h, const Rings& rings, bool structure) {
+  const G whole = polygon_of(h, rings);
+  GEOSGeometry* r = prep::detail::make_valid_by_parts(
+      h, whole.g, rings,
+      [&](const GEOSGeometry* part) { return make_valid(h, part, structure).release(); });
+  return r ? polygonal(h, r) : G();
+}
+
+const char* method_name(bool structure) {
+  return structure ? "structure" : "linework";
+}
+
+// ------------------------------------------------------------ the unit --
+
+TEST(RepairByParts, HostilePolygonEqualsWholeMakeValid) {
+  Geos geos;
+  const Rings rings = hostile_polygon();
+  ASSERT_GT(rings.size(), 4000u);
+  const G whole = polygon_of(geos.h, rings);
+  ASSERT_NE(GEOSisValid_r(geos.h, whole.g), 1);
+  for (const bool structure : {false, true}) {
+    const G got = by_parts(geos.h, rings, structure);
+    ASSERT_TRUE(got.g) << method_name(structure) << ": the split did not apply";
+    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+    expect_same(geos.h, got, want, method_name(structure));
+  }
+}
+
+// xorshift64: the same sequence everywhere.
+class Rng {
+ public:
+  explicit Rng(uint64_t seed) : s_(seed) {}
+  double uniform() {
+    s_ ^= s_ << 13;
+    s_ ^= s_ >> 7;
+    s_ ^= s_ << 17;
+    return double(s_ >> 11) / double(uint64_t(1) << 53);
+  }
+  double in(double a, double b) { return a + (b - a) * uniform(); }
+
+ private:
+  uint64_t s_;
+};
+
+// A non-convex shell (a 1 km square with a deep notch) and holes of random
+// shape (squares, triangles, bow-ties, thin bars), place and size.
+Rings random_polygon(uint64_t seed) {
+  Rng rng(seed);
+  Rings rings{ring({{0, 0},
+                    {1000, 0},
+                    {1000, 1000},
+                    {600, 1000},
+                    {600, 300},
+                    {400, 300},
+                    {400, 1000},
+                    {0, 1000}})};
+  const int holes = 100 + int(rng.uniform() * 200);
+  for (int k = 0; k < holes; ++k) {
+    const double cx = rng.in(-50, 1050), cy = rng.in(-50, 1050);
+    const double r = rng.uniform() < 0.8 ? rng.in(2, 15) : rng.in(15, 120);
+    const double u = rng.uniform();
+    if (u < 0.6) {
+      rings.push_back(square(cx, cy, r));
+    } else if (u < 0.8) {
+      rings.push_back(ring({{cx - r, cy - r}, {cx + r, cy - r * 0.3}, {cx, cy + r}}));
+    } else if (u < 0.9) {
+      rings.push_back(
+          ring({{cx - r, cy - r}, {cx + r, cy + r}, {cx + r, cy - r}, {cx - r, cy + r}}));
+    } else {
+      rings.push_back(rect(cx - 4 * r, cy - 1, cx + 4 * r, cy + 1));
+    }
+  }
+  return rings;
+}
+
+TEST(RepairByParts, RandomPolygonsEqualWholeMakeValid) {
+  Geos geos;
+  int split = 0, cases = 0;
+  for (uint64_t seed = 1; seed <= 12; ++seed) {
+    const Rings rings = random_polygon(seed * 0x9E3779B97F4A7C15ull);
+    const G whole = polygon_of(geos.h, rings);
+    for (const bool structure : {false, true}) {
+      ++cases;
+      const G got = by_parts(geos.h, rings, structure);
+      if (!got.g) continue;
+      ++split;
+      const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+      expect_same(geos.h, got, want,
+                  std::string(method_name(structure)) + " seed " + std::to_string(seed));
+    }
+  }
+  // Most random polygons have groups of holes clear of the shell.
+  std::printf("split %d of %d\n", split, cases);
+  EXPECT_GE(split, cases / 2) << split << " of " << cases << " split";
+}
+
+TEST(RepairByParts, FewHolesOrAnInvalidShellAreLeftToTheWholeRepair) {
+  Geos geos;
+  Rings few{rect(0, 0, 100, 100), square(50, 50, 5), rect(-10, 40, 20, 60)};
+  EXPECT_FALSE(by_parts(geos.h, few, false).g);
+  Rings bowtie_shell{ring({{0, 0}, {2000, 2000}, {2000, 0}, {0, 2000}})};
+  for (int k = 0; k < 100; ++k)
+    bowtie_shell.push_back(square(1500 + (k % 10) * 30, 700 + (k / 10) * 30, 5));
+  EXPECT_FALSE(by_parts(geos.h, bowtie_shell, false).g);
+}
+
+// ------------------------------------------------- through clean() --
+
+prep::SceneFeatures clean_one(const Rings& rings, prep::RepairMethod method) {
+  prep::ProjectedFeatures in;
+  prep::SourceLayer layer;
+  layer.spec.name = "holes";
+  layer.spec.kind = prep::DecalKind::polygon;
+  prep::SourceFeature f;
+  f.fid = 1;
+  f.is_polygon = true;
+  f.rings = rings;
+  layer.features.push_back(f);
+  in.features.layers.push_back(layer);
+  in.features.manifest.layers.push_back({});
+  in.features.manifest.layers.back().layer = "holes";
+  in.features.manifest.layers.back().read = 1;
+  in.scale = {{1.0}};
+  prep::SceneSpec scene;
+  scene.repair = method;
+  return prep::clean(std::move(in), scene);
+}
+
+TEST(RepairByParts, CleanRepairsTheHostilePolygonAsGeosMakeValidOfTheWhole) {
+  Geos geos;
+  const Rings rings = hostile_polygon();
+  const G whole = polygon_of(geos.h, rings);
+  for (const bool structure : {false, true}) {
+    const prep::SceneFeatures out =
+        clean_one(rings, structure ? prep::RepairMethod::structure : prep::RepairMethod::linework);
+    std::vector<G> polys;
+    double sum = 0;
+    for (const prep::ScenePolygon& p : out.polygons) {
+      polys.push_back(prep::test::polygon(geos.h, p));
+      sum += prep::test::polygon_area(p);  // independent of GEOS
+      // Orientation: shell counter-clockwise, holes clockwise.
+      EXPECT_GT(prep::test::ring_area(p.shell), 0);
+      for (const Ring& hole : p.holes) EXPECT_LT(prep::test::ring_area(hole), 0);
+    }
+    const G got = multipolygon(geos.h, std::move(polys));
+    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+    expect_same(geos.h, got, want, std::string("clean, ") + method_name(structure));
+    // The manifest: one repair with GEOS's area of the repair, naming the
+    // collapsed pieces when GEOS's repair of the whole has any.
+    ASSERT_EQ(out.manifest.entries.size(), 1u);
+    const prep::ManifestEntry& e = out.manifest.entries[0];
+    EXPECT_EQ(e.action, prep::ManifestAction::repaired);
+    EXPECT_NE(e.reason.find("made valid ("), std::string::npos) << e.reason;
+    const G whole_fixed = make_valid(geos.h, whole.g, structure);
+    const bool collapsed = has_non_polygon(geos.h, whole_fixed.g);
+    std::printf("%s: %s\n", method_name(structure), e.reason.c_str());
+    EXPECT_EQ(e.reason.find("discarded collapsed") != std::string::npos, collapsed) << e.reason;
+    EXPECT_NEAR(e.area_after, prep::test::area(want), 1e-9 * prep::test::area(want));
+    EXPECT_NEAR(sum, prep::test::area(want), 1e-6 * prep::test::area(want));
+  }
+}
+
+// The same output at any thread count (one part: the same bytes).
+TEST(RepairByParts, CleanOutputDoesNotDependOnTheRun) {
+  const Rings rings = hostile_polygon();
+  const prep::SceneFeatures a = clean_one(rings, prep::RepairMethod::linework);
+  const prep::SceneFeatures b = clean_one(rings, prep::RepairMethod::linework);
+  auto same = [](const Ring& p, const Ring& q) {
+    if (p.size() != q.size()) return false;
+    for (size_t i = 0; i < p.size(); ++i)
+      if (p[i].x != q[i].x || p[i].y != q[i].y) return false;
+    return true;
+  };
+  ASSERT_EQ(a.polygons.size(), b.polygons.size());
+  for (size_t i = 0; i < a.polygons.size(); ++i) {
+    EXPECT_TRUE(same(a.polygons[i].shell, b.polygons[i].shell)) << i;
+    ASSERT_EQ(a.polygons[i].holes.size(), b.polygons[i].holes.size()) << i;
+    for (size_t k = 0; k < a.polygons[i].holes.size(); ++k)
+      EXPECT_TRUE(same(a.polygons[i].holes[k], b.polygons[i].holes[k])) << i << " " << k;
+  }
+}
+
+// ------------------------------------------------------------ stress --
+
+// tests/hostile/generate.py --big, poly_100k_holes_touching_shell.
+Rings touching_100k() {
+  auto pt = [](double x, double y) { return Point2{x, y}; };
+  Rings rings{Ring{pt(-5000, -5000), pt(5000, -5000), pt(5000, 5000), pt(-5000, 5000)}};
+  for (int k = 0; k < 100000; ++k) {
+    const double cx = -4960 + 31.4 * (k % 316), cy = -4960 + 31.4 * (k / 316);
+    const double x0 = k % 316 == 0 ? -5000 : cx - 10, y0 = k / 316 == 0 ? -5000 : cy - 10;
+    rings.push_back(Ring{pt(x0, y0), pt(x0, cy + 10), pt(cx + 10, cy + 10), pt(cx + 10, y0)});
+  }
+  return rings;
+}
+
+TEST(RepairByParts, Stress100kHolesTouchingTheShellEqualsWholeMakeValid) {
+  const char* on = std::getenv("DECALPREP_STRESS_CLEAN");
+  if (!on || std::string(on) != "1")
+    GTEST_SKIP() << "set DECALPREP_STRESS_CLEAN=1 (ctest -L stress)";
+  Geos geos;
+  const Rings rings = touching_100k();
+  const G whole = polygon_of(geos.h, rings);
+  for (const bool structure : {false, true}) {
+    using clock = std::chrono::steady_clock;
+    const auto t0 = clock::now();
+    const prep::SceneFeatures out =
+        clean_one(rings, structure ? prep::RepairMethod::structure : prep::RepairMethod::linework);
+    const auto t1 = clock::now();
+    std::vector<G> polys;
+    for (const prep::ScenePolygon& p : out.polygons)
+      polys.push_back(prep::test::polygon(geos.h, p));
+    const G got = multipolygon(geos.h, std::move(polys));
+    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+    const auto t2 = clock::now();
+    std::printf("%s: clean %.1f s, GEOS MakeValid of the whole %.1f s\n", method_name(structure),
+                std::chrono::duration<double>(t1 - t0).count(),
+                std::chrono::duration<double>(t2 - t1).count());
+    expect_same(geos.h, got, want, std::string("100k, ") + method_name(structure));
+  }
+}
+
+}  // namespace
