@@ -16,6 +16,7 @@
 #include <memory>
 
 #include "detail/certainly_valid.hpp"
+#include "detail/geos_handle.hpp"
 #include "detail/repair_by_parts.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
@@ -51,36 +52,7 @@ struct GeosContext {
   static void on_notice(const char*, void*) {}
 };
 
-// Owning handle for a GEOS geometry in one context.
-class Geom {
- public:
-  Geom() = default;
-  Geom(GEOSContextHandle_t h, GEOSGeometry* g) : h_(h), g_(g) {}
-  Geom(Geom&& o) noexcept : h_(o.h_), g_(o.g_) { o.g_ = nullptr; }
-  Geom& operator=(Geom&& o) noexcept {
-    reset();
-    h_ = o.h_;
-    g_ = o.g_;
-    o.g_ = nullptr;
-    return *this;
-  }
-  ~Geom() { reset(); }
-  GEOSGeometry* get() const { return g_; }
-  GEOSGeometry* release() {
-    GEOSGeometry* g = g_;
-    g_ = nullptr;
-    return g;
-  }
-  explicit operator bool() const { return g_ != nullptr; }
-
- private:
-  void reset() {
-    if (g_) GEOSGeom_destroy_r(h_, g_);
-    g_ = nullptr;
-  }
-  GEOSContextHandle_t h_ = nullptr;
-  GEOSGeometry* g_ = nullptr;
-};
+using Geom = detail::GeosGeom;
 
 // ------------------------------------------------------------- ring helpers --
 
@@ -408,9 +380,9 @@ struct Cleaner {
                                                  : "GEOS MakeValid by parts");
       // Valid when not null (checked piece by piece: GEOS isValid of the
       // whole repair costs holes x shell vertices).
-      fixed = Geom(h, detail::make_valid_by_parts(
-                          h, g.get(), rings,
-                          [&](const GEOSGeometry* part) { return make_valid(h, part); }));
+      fixed = Geom(h, detail::make_valid_by_parts(h, g.get(), rings, [&](const GEOSGeometry* part) {
+                     return make_valid(h, part);
+                   }));
     }
     if (!fixed) {
       ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid (structure)" : "GEOS MakeValid");
@@ -425,8 +397,8 @@ struct Cleaner {
         char* still = GEOSisValidReason_r(h, fixed.get());
         const std::string after_reason = still ? still : "invalid";
         GEOSFree_r(h, still);
-        fail(r, "invalid (" + reason + ") and still invalid after GEOS MakeValid (" +
-                    after_reason + ")");
+        fail(r, "invalid (" + reason + ") and still invalid after GEOS MakeValid (" + after_reason +
+                    ")");
         return false;
       }
     }

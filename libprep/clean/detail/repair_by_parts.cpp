@@ -8,38 +8,12 @@
 #include <numeric>
 
 #include "detail/certainly_valid.hpp"
+#include "detail/geos_handle.hpp"
 
 namespace prep::detail {
 namespace {
 
-// Owning handle for a GEOS geometry (destroyed unless released).
-class Owned {
- public:
-  Owned() = default;
-  Owned(GEOSContextHandle_t h, GEOSGeometry* g) : h_(h), g_(g) {}
-  Owned(Owned&& o) noexcept : h_(o.h_), g_(o.g_) { o.g_ = nullptr; }
-  Owned& operator=(Owned&& o) noexcept {
-    std::swap(h_, o.h_);
-    std::swap(g_, o.g_);
-    return *this;
-  }
-  Owned(const Owned&) = delete;
-  Owned& operator=(const Owned&) = delete;
-  ~Owned() {
-    if (g_) GEOSGeom_destroy_r(h_, g_);
-  }
-  GEOSGeometry* get() const { return g_; }
-  GEOSGeometry* release() {
-    GEOSGeometry* g = g_;
-    g_ = nullptr;
-    return g;
-  }
-  explicit operator bool() const { return g_ != nullptr; }
-
- private:
-  GEOSContextHandle_t h_ = nullptr;
-  GEOSGeometry* g_ = nullptr;
-};
+using Owned = GeosGeom;
 
 class Prepared {
  public:
