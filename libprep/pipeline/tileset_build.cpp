@@ -228,7 +228,6 @@ TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
   index.tile_size = plan.size;
   index.margin = plan.margin;
   index.dynamic_margin = plan.dynamic_margin;
-  Extent ext{INFINITY, INFINITY, -INFINITY, -INFINITY};
   std::set<std::string> names;
   for (size_t i = 0; i < keys.size(); ++i) {
     if (!entries[i]) {
@@ -241,13 +240,10 @@ TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
     names.insert(tile_name(entries[i]->key) + ".decals");
     index.tiles.push_back(std::move(*entries[i]));
   }
-  const Extent e = scene.extent;
-  if (e.xmax >= e.xmin)
-    ext = {e.xmin + scene.frame.origin_x, e.ymin + scene.frame.origin_y,
-           e.xmax + scene.frame.origin_x, e.ymax + scene.frame.origin_y};
-  else
-    ext = {};
-  index.extent = ext;
+  const Extent& e = scene.extent;  // {} when empty
+  const double ox = scene.frame.origin_x, oy = scene.frame.origin_y;
+  index.extent =
+      e.xmax >= e.xmin ? Extent{e.xmin + ox, e.ymin + oy, e.xmax + ox, e.ymax + oy} : Extent{};
   index.manifest.layers = scene.manifest.layers;
   index.manifest.notes = scene.manifest.notes;
   index.entry_count = scene.manifest.entries.size();

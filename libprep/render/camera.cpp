@@ -178,28 +178,14 @@ std::optional<Extent> ground_footprint(const Camera& c, uint32_t width, uint32_t
                                        double zmin, double zmax) {
   Extent top;
   if (is_topdown(c, width, height, &top)) return top;
-  const detail::Mat4 inv = detail::mat_inverse(detail::mat_mul(
-      detail::projection_matrix(c, double(width) / height), detail::view_matrix(c, c.eye)));
-  auto unproject = [&](double nx, double ny, double nz) -> Vec3 {
-    double v[4] = {nx, ny, nz, 1}, r[4] = {0, 0, 0, 0};
-    for (int row = 0; row < 4; ++row)
-      for (int k = 0; k < 4; ++k) r[row] += inv[k * 4 + row] * v[k];
-    return {r[0] / r[3], r[1] / r[3], r[2] / r[3]};
-  };
-  const Vec3 fwd = detail::camera_basis(c).forward;
+  const detail::PixelRays rays(c, width, height);
   Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
   // The image's corner rays on the slab zmin..zmax: a plane's view through
   // a rectangle is a convex quadrilateral, so its corners bound it.
   for (double nx : {-1.0, 1.0})
     for (double ny : {-1.0, 1.0}) {
       Vec3 o, d;
-      if (c.projection == Projection::perspective) {
-        o = c.eye;
-        d = detail::sub(unproject(nx, ny, 1.0), c.eye);
-      } else {
-        o = unproject(nx, ny, 1.0);
-        d = fwd;
-      }
+      rays.ray(nx, ny, o, d);
       if (!(d[2] < 0)) return std::nullopt;  // a corner sees the sky: no bound
       if (o[2] < zmax)  // inside the slab: the ray starts on the terrain's heights
         b = {std::min(b.xmin, o[0]), std::min(b.ymin, o[1]), std::max(b.xmax, o[0]),

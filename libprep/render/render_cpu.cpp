@@ -106,26 +106,11 @@ Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
       }
   } else {
     // Ray-cast the heightfield mesh in double precision from the pixel centre.
-    const detail::Mat4 inv = detail::mat_inverse(detail::mat_mul(
-        detail::projection_matrix(cam, double(W) / H), detail::view_matrix(cam, cam.eye)));
-    auto unproject = [&](double nx, double ny, double nz) -> Vec3 {
-      double v[4] = {nx, ny, nz, 1}, r[4] = {0, 0, 0, 0};
-      for (int row = 0; row < 4; ++row)
-        for (int k = 0; k < 4; ++k) r[row] += inv[k * 4 + row] * v[k];
-      return {r[0] / r[3], r[1] / r[3], r[2] / r[3]};
-    };
-    const Vec3 fwd = detail::camera_basis(cam).forward;
+    const detail::PixelRays rays(cam, W, H);
     parallel_rows([&](uint32_t j) {
       for (uint32_t i = 0; i < W; ++i) {
-        double nx = (i + 0.5) / W * 2 - 1, ny = 1 - (j + 0.5) / H * 2;
         Vec3 o, d;
-        if (cam.projection == Projection::perspective) {
-          o = cam.eye;
-          d = detail::sub(unproject(nx, ny, 1.0), cam.eye);
-        } else {
-          o = unproject(nx, ny, 1.0);
-          d = fwd;
-        }
+        rays.ray((i + 0.5) / W * 2 - 1, 1 - (j + 0.5) / H * 2, o, d);
         auto t = terrain.intersect(o, d);
         if (!t) continue;
         const size_t k = i + size_t(W) * j;

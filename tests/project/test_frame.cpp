@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "../read/fixtures.hpp"
+#include "epsg_wkt.hpp"
 #include "prep/error.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
@@ -26,24 +27,13 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-std::string wkt_4326() {
-  OGRSpatialReference srs;
-  srs.importFromEPSG(4326);
-  char* wkt = nullptr;
-  const char* opts[] = {"FORMAT=WKT2_2019", nullptr};
-  srs.exportToWkt(&wkt, opts);
-  std::string s = wkt;
-  CPLFree(wkt);
-  return s;
-}
-
 // One layer of lon/lat rings (EPSG:4326, x = lon).
 prep::FeatureSet layer_of(const std::vector<prep::Ring>& rings, bool polygon = true) {
   prep::FeatureSet fs;
   prep::SourceLayer layer;
   layer.spec.name = "l";
   layer.spec.kind = polygon ? prep::DecalKind::polygon : prep::DecalKind::line;
-  layer.srs_wkt = wkt_4326();
+  layer.srs_wkt = epsg_wkt(4326);
   for (const prep::Ring& r : rings) {
     prep::SourceFeature f;
     f.is_polygon = polygon;

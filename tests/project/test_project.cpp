@@ -13,24 +13,12 @@
 #include <memory>
 
 #include "../read/fixtures.hpp"
+#include "epsg_wkt.hpp"
 #include "prep/error.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/project.hpp"
 
 namespace {
-
-// EPSG:4326 exported as WKT keeps its authority axis order (lat, lon); the
-// data is (lon, lat) as every GIS file stores it.
-std::string epsg_wkt(int code) {
-  OGRSpatialReference srs;
-  srs.importFromEPSG(code);
-  char* wkt = nullptr;
-  const char* opts[] = {"FORMAT=WKT2_2019", nullptr};
-  srs.exportToWkt(&wkt, opts);
-  std::string s = wkt;
-  CPLFree(wkt);
-  return s;
-}
 
 prep::FeatureSet grid_of_points(double lon_c, double lat_c, double span) {
   prep::FeatureSet fs;

@@ -57,4 +57,35 @@ Mat4 view_matrix(const Camera& c, const Vec3& eye_rel);
 // plane, 0 at infinity / the far end of the orthographic range).
 Mat4 projection_matrix(const Camera& c, double aspect);
 
+// The ray through a point of the image (normalised device x, y in [-1, 1],
+// y up) of a W x H view: origin and (unnormalised) direction, in the
+// camera's frame. Perspective rays start at the eye; orthographic ones on
+// the far plane's counterpart, looking forward.
+class PixelRays {
+ public:
+  PixelRays(const Camera& c, uint32_t width, uint32_t height)
+      : cam_(c),
+        inv_(mat_inverse(
+            mat_mul(projection_matrix(c, double(width) / height), view_matrix(c, c.eye)))),
+        forward_(camera_basis(c).forward) {}
+  void ray(double nx, double ny, Vec3& origin, Vec3& direction) const {
+    double v[4] = {nx, ny, 1.0, 1}, r[4] = {0, 0, 0, 0};
+    for (int row = 0; row < 4; ++row)
+      for (int k = 0; k < 4; ++k) r[row] += inv_[k * 4 + row] * v[k];
+    const Vec3 p{r[0] / r[3], r[1] / r[3], r[2] / r[3]};
+    if (cam_.projection == Projection::perspective) {
+      origin = cam_.eye;
+      direction = sub(p, cam_.eye);
+    } else {
+      origin = p;
+      direction = forward_;
+    }
+  }
+
+ private:
+  const Camera& cam_;
+  Mat4 inv_;
+  Vec3 forward_;
+};
+
 }  // namespace prep::render::detail
