@@ -148,8 +148,11 @@ void write_trails(const std::string& path) {
   }
 }
 
+// One folder per test: ctest runs the tests of this file side by side, and
+// two of them write a trails.gpkg of their own.
 fs::path work_dir() {
-  fs::path d = fs::current_path() / "render-out" / "terrain_surface";
+  const char* test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  fs::path d = fs::current_path() / "render-out" / "terrain_surface" / test;
   fs::create_directories(d);
   return d;
 }
