@@ -189,6 +189,30 @@ TEST(RenderMethods, VolumeObliquePerspectiveOnMonacoMatchesCpuEvaluatorOutsideOn
   EXPECT_LT(c.ratio(), 1e-3);
 }
 
+// Close up (0.25 m pixels): building outlines 0.6 m inside their footprint
+// and hedges 0.8 m outside parks (each closed ring clipped by itself, the
+// evaluator's step 6), paths with bevel joints, streets with round ones.
+TEST(RenderMethods, VolumeCloseUpOnMonacoOutlinesAndJointsMatchesCpuEvaluatorOutsideOnePixelBand) {
+  std::string why;
+  const std::string pkg = monaco_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  const fs::path d = out_dir("methods");
+  const std::string view = "--dem " + kDem + " " + topdown_extent(pkg, {-60, -33.75, 60, 33.75}) +
+                           " --size " + std::to_string(kW) + "x" + std::to_string(kH) +
+                           " --only polygons,lines";
+  std::vector<float> vol, cpu;
+  if (!render_layer(pkg + " " + view + " --method volume", d / "monaco_close_volume.rgba", vol,
+                    why))
+    GTEST_SKIP() << why;
+  ASSERT_TRUE(
+      render_layer(pkg + " " + view + " --cpu", d / "monaco_close_volume_cpu.rgba", cpu, why));
+  const BandComparison c = compare_outside_band(vol, cpu, kW, kH);
+  std::printf("volume close-up: %zu of %zu pixels differ outside the band (%zu in it), %zu covered\n",
+              c.mismatched, c.considered, c.band, c.covered);
+  EXPECT_GT(c.covered, size_t(kW) * kH / 10);
+  EXPECT_LT(c.ratio(), 1e-3);
+}
+
 // A generated polygon in UTM 32N: a wavy exterior, a round hole, and an
 // island inside the hole (a polygon of its own), enough vertices that the
 // quad-trees split into many leaves.
