@@ -69,8 +69,8 @@ GLuint upload_positions(GlObjects& gl, const std::vector<float>& xyz) {
 }  // namespace
 
 void GlRenderer::method_setup() {
-  const MethodGeometry g = method_geometry(source_.view, opt_.draw_polygons, opt_.draw_lines,
-                                           opt_.clip);
+  const MethodGeometry g =
+      method_geometry(source_.view, opt_.draw_polygons, opt_.draw_lines, opt_.clip);
   const Vec3& anchor = view_.anchor;
   if (opt_.method == Method::volume) {
     // Schneider & Klein §4.1: every feature extruded to a closed prism from
@@ -151,7 +151,8 @@ void GlRenderer::method_setup() {
         const double y = (c & 2 ? box.ymax : box.ymin) - anchor[1];
         const double z = c & 4 ? zhi : zlo;
         double clip[4];
-        for (int r = 0; r < 4; ++r) clip[r] = vp[r] * x + vp[4 + r] * y + vp[8 + r] * z + vp[12 + r];
+        for (int r = 0; r < 4; ++r)
+          clip[r] = vp[r] * x + vp[4 + r] * y + vp[8 + r] * z + vp[12 + r];
         const double w = clip[3];
         if (perspective ? !(w > opt_.camera.near * 1.001) : !(clip[2] <= w)) {
           near_hit = true;
@@ -180,8 +181,10 @@ void GlRenderer::method_setup() {
     }
     m_.prism_vao = upload_positions(gl_, xyz);
     m_.f_volume = gl_.framebuffer(t_.decal, t_.depth);
-    m_.volume_program = gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
-    m_.cover_program = gl_.program({{"fullscreen.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
+    m_.volume_program =
+        gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
+    m_.cover_program =
+        gl_.program({{"fullscreen.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
     return;
   }
 
@@ -199,12 +202,12 @@ void GlRenderer::method_setup() {
   if (res <= 0) {
     res = std::max(1.0, span / std::min<double>(kTextureAutoTexels, max_size));
   } else if (span / res > max_size) {
-    fail<usage_error>(kRenderStage,
-                      "--texture-resolution " + std::to_string(res) + ": the extent's " +
-                          std::to_string(span) + " m need " + std::to_string(span / res) +
-                          " texels a side, more than GL_MAX_TEXTURE_SIZE " +
-                          std::to_string(max_size) + "; give at least " +
-                          std::to_string(span / max_size) + " m");
+    fail<usage_error>(kRenderStage, "--texture-resolution " + std::to_string(res) +
+                                        ": the extent's " + std::to_string(span) + " m need " +
+                                        std::to_string(span / res) +
+                                        " texels a side, more than GL_MAX_TEXTURE_SIZE " +
+                                        std::to_string(max_size) + "; give at least " +
+                                        std::to_string(span / max_size) + " m");
   }
   m_.texture_resolution = res;
   m_.texture_w = std::max<uint32_t>(1, uint32_t(std::ceil((e.xmax - e.xmin) / res)));
@@ -230,7 +233,8 @@ void GlRenderer::method_setup() {
   m_.texture_triangles = xyz.size() / 9;
   m_.groups = std::move(features);
   m_.prism_vao = upload_positions(gl_, xyz);
-  m_.volume_program = gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
+  m_.volume_program =
+      gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
   m_.terrain_program = gl_.program(
       {{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, "#define DECAL_TEXTURE_METHOD 1\n"});
   m_.f_terrain_decal = gl_.framebuffer(t_.color, t_.depth);
@@ -342,8 +346,7 @@ void GlRenderer::volume_passes() {
   glClearNamedFramebufferiv(m_.f_volume, GL_STENCIL, 0, &zero);
   const GLuint pv = m_.volume_program, pc = m_.cover_program;
   glUseProgram(pv);
-  glUniformMatrix4fv(glGetUniformLocation(pv, "u_view_proj"), 1, GL_FALSE,
-                     view_.view_proj.data());
+  glUniformMatrix4fv(glGetUniformLocation(pv, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
   const GLint loc_rgba = glGetUniformLocation(pc, "u_rgba");
   glEnable(GL_SCISSOR_TEST);
   glEnable(GL_STENCIL_TEST);

@@ -66,8 +66,8 @@ GLuint GlObjects::framebuffer(GLuint color, GLuint depth) {
     GLint format = 0;
     glGetTextureLevelParameteriv(depth, 0, GL_TEXTURE_INTERNAL_FORMAT, &format);
     glNamedFramebufferTexture(
-        f, format == GL_DEPTH32F_STENCIL8 ? GL_DEPTH_STENCIL_ATTACHMENT : GL_DEPTH_ATTACHMENT, depth,
-        0);
+        f, format == GL_DEPTH32F_STENCIL8 ? GL_DEPTH_STENCIL_ATTACHMENT : GL_DEPTH_ATTACHMENT,
+        depth, 0);
   }
   framebuffers.push_back(f);
   if (glCheckNamedFramebufferStatus(f, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)

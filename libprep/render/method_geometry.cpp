@@ -214,13 +214,13 @@ void triangulate(const std::vector<QEdge>& edges, Keep keep, std::vector<std::ar
   auto kept = [&](Cdt::Face_handle f) { return !cdt.is_infinite(f) && keep(f->info().nesting); };
   for (Cdt::Face_handle f : cdt.finite_face_handles()) {
     if (!kept(f)) continue;
-    tris.push_back({pt(f->vertex(0)->point()), pt(f->vertex(1)->point()),
-                    pt(f->vertex(2)->point())});
+    tris.push_back(
+        {pt(f->vertex(0)->point()), pt(f->vertex(1)->point()), pt(f->vertex(2)->point())});
     if (!boundary) continue;
     for (int i = 0; i < 3; ++i)
       if (!kept(f->neighbor(i)))
-        boundary->push_back({pt(f->vertex(Cdt::ccw(i))->point()),
-                             pt(f->vertex(Cdt::cw(i))->point())});
+        boundary->push_back(
+            {pt(f->vertex(Cdt::ccw(i))->point()), pt(f->vertex(Cdt::cw(i))->point())});
   }
 }
 
@@ -234,7 +234,8 @@ class Builder {
     for (uint32_t h : holes) ring_edges(v_, v_.poly_root_node[h], edges);
     std::vector<std::array<P2d, 3>> tris;
     std::vector<std::array<P2d, 2>> boundary;
-    triangulate(edges, [](int n) { return n % 2 == 1; }, tris, clip_ ? nullptr : &boundary);
+    triangulate(
+        edges, [](int n) { return n % 2 == 1; }, tris, clip_ ? nullptr : &boundary);
     MethodFeature f = begin(v_.poly_props[p].rgba, false);
     f.rank = uint32_t(v_.poly_props[p].order + v_.polygon_rank_bias);
     if (clip_) {
@@ -280,8 +281,8 @@ class Builder {
         if (corner_once(en, 0)) seg_pieces.push_back(disc(b, hw));
       } else if (corner == uint32_t(decal::CornerStyle::miter)) {
         P2d ma = vec(ca.miter), mb = vec(cb.miter);
-        if (null_vec(ca.miter)) ma = cross(e, vec(ca.bevel_out)) < 0 ? -1.0 * vec(ca.bevel_out)
-                                                                      : vec(ca.bevel_out);
+        if (null_vec(ca.miter))
+          ma = cross(e, vec(ca.bevel_out)) < 0 ? -1.0 * vec(ca.bevel_out) : vec(ca.bevel_out);
         if (null_vec(cb.miter))
           mb = cross(e, vec(cb.bevel_in)) < 0 ? -1.0 * vec(cb.bevel_in) : vec(cb.bevel_in);
         Piece quad{a - ma, b - mb, b + mb, a + ma};
@@ -348,7 +349,8 @@ class Builder {
   static bool is_convex(const Piece& p) {
     int sign = 0;
     for (size_t i = 0; i < p.size(); ++i) {
-      const double c = cross(p[(i + 1) % p.size()] - p[i], p[(i + 2) % p.size()] - p[(i + 1) % p.size()]);
+      const double c =
+          cross(p[(i + 1) % p.size()] - p[i], p[(i + 2) % p.size()] - p[(i + 1) % p.size()]);
       const int s = (c > 0) - (c < 0);
       if (s == 0) continue;
       if (sign != 0 && s != sign) return false;
@@ -445,7 +447,8 @@ MethodGeometry method_geometry(const StaticView& view, bool polygons, bool lines
   if (polygons) {
     std::map<uint32_t, std::vector<uint32_t>> holes;
     for (uint32_t p = 0; p < view.poly_props.size(); ++p)
-      if (view.poly_props[p].exterior >= 0) holes[uint32_t(view.poly_props[p].exterior)].push_back(p);
+      if (view.poly_props[p].exterior >= 0)
+        holes[uint32_t(view.poly_props[p].exterior)].push_back(p);
     for (uint32_t p = 0; p < view.poly_props.size(); ++p)
       if (view.poly_props[p].exterior < 0) b.polygon(p, holes[p]);
   }

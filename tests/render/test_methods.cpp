@@ -151,8 +151,7 @@ TEST(RenderMethods, VolumeTopDownOnMonacoPolygonsAndLinesMatchesCpuEvaluatorOuts
   if (pkg.empty()) GTEST_SKIP() << why;
   const fs::path d = out_dir("methods");
   const std::string view = "--dem " + kDem + " " + topdown_extent(pkg, kTopDown) + " --size " +
-                           std::to_string(kW) + "x" + std::to_string(kH) +
-                           " --only polygons,lines";
+                           std::to_string(kW) + "x" + std::to_string(kH) + " --only polygons,lines";
   std::vector<float> vol, cpu;
   std::string stats;
   if (!render_layer(pkg + " " + view + " --method volume --stats", d / "monaco_volume.rgba", vol,
@@ -160,8 +159,9 @@ TEST(RenderMethods, VolumeTopDownOnMonacoPolygonsAndLinesMatchesCpuEvaluatorOuts
     GTEST_SKIP() << why;
   ASSERT_TRUE(render_layer(pkg + " " + view + " --cpu", d / "monaco_volume_cpu.rgba", cpu, why));
   const BandComparison c = compare_outside_band(vol, cpu, kW, kH);
-  std::printf("volume top-down: %zu of %zu pixels differ outside the band (%zu in it), %zu covered\n",
-              c.mismatched, c.considered, c.band, c.covered);
+  std::printf(
+      "volume top-down: %zu of %zu pixels differ outside the band (%zu in it), %zu covered\n",
+      c.mismatched, c.considered, c.band, c.covered);
   EXPECT_GT(c.covered, size_t(kW) * kH / 10);  // a good part of the view is covered
   EXPECT_LT(c.ratio(), 1e-3);
   EXPECT_NE(stats.find("prism triangles"), std::string::npos) << stats;
@@ -183,8 +183,9 @@ TEST(RenderMethods, VolumeObliquePerspectiveOnMonacoMatchesCpuEvaluatorOutsideOn
   ASSERT_TRUE(
       render_layer(pkg + " " + view + " --cpu", d / "monaco_oblique_volume_cpu.rgba", cpu, why));
   const BandComparison c = compare_outside_band(vol, cpu, kW, kH);
-  std::printf("volume oblique: %zu of %zu pixels differ outside the band (%zu in it), %zu covered\n",
-              c.mismatched, c.considered, c.band, c.covered);
+  std::printf(
+      "volume oblique: %zu of %zu pixels differ outside the band (%zu in it), %zu covered\n",
+      c.mismatched, c.considered, c.band, c.covered);
   EXPECT_GT(c.covered, size_t(kW) * kH / 10);
   EXPECT_LT(c.ratio(), 1e-3);
 }
@@ -207,8 +208,9 @@ TEST(RenderMethods, VolumeCloseUpOnMonacoOutlinesAndJointsMatchesCpuEvaluatorOut
   ASSERT_TRUE(
       render_layer(pkg + " " + view + " --cpu", d / "monaco_close_volume_cpu.rgba", cpu, why));
   const BandComparison c = compare_outside_band(vol, cpu, kW, kH);
-  std::printf("volume close-up: %zu of %zu pixels differ outside the band (%zu in it), %zu covered\n",
-              c.mismatched, c.considered, c.band, c.covered);
+  std::printf(
+      "volume close-up: %zu of %zu pixels differ outside the band (%zu in it), %zu covered\n",
+      c.mismatched, c.considered, c.band, c.covered);
   EXPECT_GT(c.covered, size_t(kW) * kH / 10);
   EXPECT_LT(c.ratio(), 1e-3);
 }
@@ -388,8 +390,7 @@ TEST(RenderMethods, TextureErrorAgainstCpuEvaluatorFallsAsTextureResolutionRises
   const fs::path d = out_dir("methods");
   // 1600 m over 480 pixels: 3.3 m per pixel; textures coarser than that.
   const std::string view = "--dem " + kDem + " " + topdown_extent(pkg, kTopDown) + " --size " +
-                           std::to_string(kW) + "x" + std::to_string(kH) +
-                           " --only polygons,lines";
+                           std::to_string(kW) + "x" + std::to_string(kH) + " --only polygons,lines";
   std::vector<float> cpu;
   ASSERT_TRUE(render_layer(pkg + " " + view + " --cpu", d / "monaco_texture_cpu.rgba", cpu, why));
   std::vector<double> errors;
@@ -397,9 +398,9 @@ TEST(RenderMethods, TextureErrorAgainstCpuEvaluatorFallsAsTextureResolutionRises
   for (const char* res : {"24", "12", "4"}) {
     std::vector<float> tex;
     std::string stats;
-    if (!render_layer(pkg + " " + view + " --method texture --texture-resolution " + res +
-                          " --stats",
-                      d / (std::string("monaco_texture_") + res + ".rgba"), tex, why, &stats))
+    if (!render_layer(
+            pkg + " " + view + " --method texture --texture-resolution " + res + " --stats",
+            d / (std::string("monaco_texture_") + res + ".rgba"), tex, why, &stats))
       GTEST_SKIP() << why;
     errors.push_back(misclassified(tex, cpu));
     std::smatch m;
