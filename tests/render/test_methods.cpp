@@ -333,6 +333,51 @@ TEST(RenderMethods, VolumeDrawsAGeneratedPolygonWithAHoleAndAnIslandInsideTheHol
   EXPECT_LT(c.ratio(), 1e-3) << c.mismatched << " of " << c.considered;
 }
 
+// The same scene as a tileset of 300 m tiles: each tile's prisms are cut to
+// its square, so the hole and the island, split over several tiles, still
+// come out exactly.
+TEST(RenderMethods, VolumeDrawsTheHoleAndIslandFromATilesetCutAtTheTileSquares) {
+  const HoleScene s;
+  const fs::path d = out_dir("methods");
+  const std::string gpkg = (d / "hole_island_tiles.gpkg").string();
+  fs::remove(gpkg);
+  s.write(gpkg);
+  const std::string dir = (d / "hole_island_tiles").string();
+  fs::remove_all(dir);
+  char ext[200];
+  std::snprintf(ext, sizeof ext, "%.3f,%.3f,%.3f,%.3f", s.cx - 500, s.cy - 500, s.cx + 500,
+                s.cy + 500);
+  auto b = run_tool("build " + gpkg + " --kind polygon --color '#d04020' --crs EPSG:32632 " +
+                    "--extent " + ext + " --resolution 0 --tile-size 300 -o " + dir + " -q");
+  ASSERT_EQ(b.rc, 0) << b.output;
+  constexpr uint32_t n = 240;
+  const double half = 460, px = 2 * half / n;
+  char view[300];
+  std::snprintf(view, sizeof view, "--extent %.3f,%.3f,%.3f,%.3f --size %ux%u", s.cx - half,
+                s.cy - half, s.cx + half, s.cy + half, n, n);
+  std::vector<float> vol;
+  std::string why, out;
+  if (!render_layer(dir + " " + view + " --method volume", d / "hole_island_tiles.rgba", vol, why,
+                    &out))
+    GTEST_SKIP() << why;
+  ASSERT_EQ(vol.size(), size_t(n) * n * 4);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(out, m, std::regex(R"((\d+) of \d+ tiles meet the view)"))) << out;
+  EXPECT_GE(std::stoi(m[1].str()), 9) << out;
+  size_t considered = 0, wrong = 0;
+  for (uint32_t j = 0; j < n; ++j)
+    for (uint32_t i = 0; i < n; ++i) {
+      const double x = s.cx - half + (i + 0.5) * px, y = s.cy + half - (j + 0.5) * px;
+      if (s.distance(x, y) < px) continue;
+      ++considered;
+      wrong += s.inside(x, y) != (vol[(size_t(j) * n + i) * 4 + 3] > 0.5f);
+    }
+  std::printf("tileset hole and island: %zu of %zu pixels wrong against the rings\n", wrong,
+              considered);
+  EXPECT_GT(considered, size_t(n) * n / 2);
+  EXPECT_EQ(wrong, 0u);
+}
+
 // The camera 0.3 m above the ground inside the polygon's prism (flat terrain:
 // prisms from -0.5 to 0.5 m), looking along the ground towards the hole and
 // the island: z-pass would count from inside a volume and invert the
