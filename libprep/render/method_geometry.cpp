@@ -401,7 +401,7 @@ class Builder {
     return out;
   }
 
-  MethodFeature begin(uint32_t rgba, bool line) {
+  MethodFeature begin(uint32_t rgba, bool line) const {
     MethodFeature f;
     f.rgba = rgba;
     f.line = line;

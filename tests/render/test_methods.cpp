@@ -425,7 +425,7 @@ double misclassified(const std::vector<float>& drawn, const std::vector<float>& 
   size_t wrong = 0;
   for (size_t k = 3; k < drawn.size() && k < oracle.size(); k += 4)
     wrong += std::abs(drawn[k] - oracle[k]) > 0.5f;
-  return oracle.empty() ? 1.0 : double(wrong) / double(oracle.size() / 4);
+  return oracle.empty() ? 1.0 : 4.0 * double(wrong) / double(oracle.size());
 }
 
 TEST(RenderMethods, TextureErrorAgainstCpuEvaluatorFallsAsTextureResolutionRises) {
