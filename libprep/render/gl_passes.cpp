@@ -62,7 +62,13 @@ GLuint GlObjects::framebuffer(GLuint color, GLuint depth) {
   GLuint f = 0;
   glCreateFramebuffers(1, &f);
   glNamedFramebufferTexture(f, GL_COLOR_ATTACHMENT0, color, 0);
-  if (depth) glNamedFramebufferTexture(f, GL_DEPTH_ATTACHMENT, depth, 0);
+  if (depth) {
+    GLint format = 0;
+    glGetTextureLevelParameteriv(depth, 0, GL_TEXTURE_INTERNAL_FORMAT, &format);
+    glNamedFramebufferTexture(
+        f, format == GL_DEPTH32F_STENCIL8 ? GL_DEPTH_STENCIL_ATTACHMENT : GL_DEPTH_ATTACHMENT,
+        depth, 0);
+  }
   framebuffers.push_back(f);
   if (glCheckNamedFramebufferStatus(f, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     fail<render_error>(kRenderStage, "framebuffer incomplete");
@@ -137,10 +143,10 @@ ViewUniforms view_uniforms(const Camera& cam, const GridParams& gp, uint32_t W, 
   return v;
 }
 
-Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H) {
+Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H, bool stencil) {
   Targets t;
   t.color = gl.texture(GL_RGBA8, W, H);
-  t.depth = gl.texture(GL_DEPTH_COMPONENT32F, W, H);
+  t.depth = gl.texture(stencil ? GL_DEPTH32F_STENCIL8 : GL_DEPTH_COMPONENT32F, W, H);
   t.decal = gl.texture(GL_RGBA32F, W, H);
   t.final = gl.texture(GL_RGBA8, W, H);
   t.dyn = gl.texture(GL_RGBA32F, W, H);
@@ -228,34 +234,53 @@ GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal:
   mesh_ = upload_terrain_mesh(gl_, terrain, view_.anchor);
   glCreateVertexArrays(1, &empty_vao_);
   gl_.arrays.push_back(empty_vao_);
-  t_ = make_targets(gl_, W_, H_);
+  t_ = make_targets(gl_, W_, H_, opt.method == Method::volume);
   runs_ = draw_runs(source.view);
   p_ = static_programs(gl_, opt);
   glViewport(0, 0, GLsizei(W_), GLsizei(H_));
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+  if (opt.method != Method::decal) method_setup();
 }
 
 void GlRenderer::frame(Image& img) {
   timer_.passes.clear();
+  if (opt_.method == Method::texture && !m_.texture) texture_raster();
   terrain_pass();
-  static_passes();
+  if (opt_.method == Method::decal)
+    static_passes();
+  else if (opt_.method == Method::volume)
+    volume_passes();
   dynamic_pass(img);
   composite_pass();
+  method_stats(img);
 }
 
 // --- passes
 
 void GlRenderer::terrain_pass() {
-  timer_.begin("terrain");
-  glBindFramebuffer(GL_FRAMEBUFFER, t_.f_terrain);
+  // The texture method samples its texture here into a second target, the
+  // decal layer (Taibo et al. §4).
+  const bool sample_texture = opt_.method == Method::texture;
+  const GLuint fb = sample_texture ? m_.f_terrain_decal : t_.f_terrain;
+  timer_.begin(sample_texture ? "terrain + decal texture" : "terrain");
+  glBindFramebuffer(GL_FRAMEBUFFER, fb);
   const float sky[4] = {0.80f, 0.86f, 0.93f, 1.0f};
-  glClearNamedFramebufferfv(t_.f_terrain, GL_COLOR, 0, sky);
+  glClearNamedFramebufferfv(fb, GL_COLOR, 0, sky);
+  if (sample_texture) {
+    const float clear0[4] = {0, 0, 0, 0};
+    glClearNamedFramebufferfv(fb, GL_COLOR, 1, clear0);
+  }
   const float zero = 0.0f;
-  glClearNamedFramebufferfv(t_.f_terrain, GL_DEPTH, 0, &zero);
+  glClearNamedFramebufferfv(fb, GL_DEPTH, 0, &zero);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_GREATER);
-  const GLuint p = p_.terrain;
+  const GLuint p = sample_texture ? m_.terrain_program : p_.terrain;
   glUseProgram(p);
+  if (sample_texture) {
+    glBindTextureUnit(27, m_.texture);
+    glUniform4fv(glGetUniformLocation(p, "u_texture_box"), 1, m_.texture_box.data());
+    glUniform4fv(glGetUniformLocation(p, "u_clip"), 1, view_.clip.data());
+  }
   glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
   Vec3 light = normalize({-0.4, -0.5, 0.75});
   glUniform3f(glGetUniformLocation(p, "u_light_dir"), float(light[0]), float(light[1]),

@@ -48,6 +48,7 @@ void GlRenderer::read_back(Image& img) {
   if (GLenum e = glGetError(); e != GL_NO_ERROR)
     fail<render_error>(kRenderStage, "GL error " + std::to_string(e));
   timer_.collect(img.times);
+  if (!m_.raster_time.pass.empty()) img.times.insert(img.times.begin(), m_.raster_time);
   const double frame =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0_).count();
   img.times.push_back({"total (incl. upload, shader compile, read-back)", frame, frame});
@@ -67,6 +68,12 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
   const uint32_t W = opt.width, H = opt.height;
   if (W == 0 || H == 0 || W > 16384 || H > 16384)
     fail<usage_error>(kRenderStage, "image size must be 1..16384 pixels");
+  if (opt.method != Method::decal && opt.aa != AntiAliasing::none)
+    fail<usage_error>(kRenderStage,
+                      "--method volume and --method texture draw without anti-aliasing; use --aa "
+                      "none");
+  if (!(opt.texture_resolution >= 0) || !std::isfinite(opt.texture_resolution))
+    fail<usage_error>(kRenderStage, "--texture-resolution must be a positive number of metres");
 
   // Validate before anything touches GL (formats/gl validate_blobs), once:
   // a package's source was checked when it was made.
@@ -138,6 +145,11 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
     out.dyn_segments += img.dyn_segments;
     out.dyn_nodes += img.dyn_nodes;
     out.list_grows += img.list_grows;
+    out.prism_triangles += img.prism_triangles;
+    out.volume_groups += img.volume_groups;
+    out.zfail_groups += img.zfail_groups;
+    out.texture_bytes += img.texture_bytes;
+    out.texture_triangles += img.texture_triangles;
     for (PassTime& pt : img.times) out.times.push_back(std::move(pt));
   }
   return out;

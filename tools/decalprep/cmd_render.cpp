@@ -19,7 +19,8 @@ namespace {
 struct RenderArgs {
   std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye,
                                                                          target;
-  std::string aa = "none", binding = "ssbo", only, assume_crs;
+  std::string aa = "none", binding = "ssbo", only, assume_crs, method = "decal";
+  double texture_resolution = 0;  // 0: the renderer's default
   double fov = 45.0, pitch = 45.0;
   std::optional<double> z_scale, nodata_fill;  // none: the package's
   uint32_t frames = 1;
@@ -143,6 +144,25 @@ void run(const RenderArgs& a) {
   // with the GL path use --aa none.
   if (a.cpu && opt.aa != R::AntiAliasing::none)
     throw prep::usage_error("render: --cpu draws without anti-aliasing; use --aa none");
+  if (a.method == "decal")
+    opt.method = R::Method::decal;
+  else if (a.method == "volume")
+    opt.method = R::Method::volume;
+  else if (a.method == "texture")
+    opt.method = R::Method::texture;
+  else
+    throw prep::usage_error("render: --method '" + a.method + "' must be decal, volume or texture");
+  if (a.cpu && opt.method != R::Method::decal)
+    throw prep::usage_error("render: --cpu is the decal evaluator; --method " + a.method +
+                            " is drawn with GL only (leave out --cpu)");
+  if (opt.method != R::Method::decal && opt.aa != R::AntiAliasing::none)
+    throw prep::usage_error("render: --method " + a.method +
+                            " draws without anti-aliasing; use --aa none");
+  if (a.texture_resolution != 0 && opt.method != R::Method::texture)
+    throw prep::usage_error("render: --texture-resolution needs --method texture");
+  if (a.texture_resolution < 0 || !std::isfinite(a.texture_resolution))
+    throw prep::usage_error("render: --texture-resolution must be a positive number of metres");
+  opt.texture_resolution = a.texture_resolution;
   if (a.binding == "ssbo")
     opt.binding = R::Binding::ssbo;
   else if (a.binding == "texture")
@@ -306,8 +326,11 @@ void run(const RenderArgs& a) {
     if (!out) throw prep::output_error("render: cannot write '" + a.raw + "'");
   }
   if (a.stats) {
-    std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), w, h,
-                a.binding.c_str(), a.aa.c_str());
+    if (opt.method == R::Method::decal)
+      std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), w, h,
+                  a.binding.c_str(), a.aa.c_str());
+    else
+      std::printf("device: %s, %ux%u, method %s\n", img.device.c_str(), w, h, a.method.c_str());
     std::printf("%-48s %12s %12s\n", "pass", "gpu ms", "wall ms");
     for (const auto& t : img.times)
       std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
@@ -315,6 +338,16 @@ void run(const RenderArgs& a) {
                 std::isfinite(terrain.surface_error_bound)
                     ? (std::to_string(terrain.surface_error_bound * 1e3) + " mm").c_str()
                     : "an unbounded distance (mesh not on the DEM lattice)");
+    if (opt.method == R::Method::volume)
+      std::printf("volume: %llu prism triangles, %u stencil+cover groups (%u z-fail, %u z-pass)\n",
+                  static_cast<unsigned long long>(img.prism_triangles), img.volume_groups,
+                  img.zfail_groups, img.volume_groups - img.zfail_groups);
+    if (opt.method == R::Method::texture)
+      std::printf(
+          "texture: %ux%u texels at %.3f m, %llu bytes with mipmaps (%.1f MiB), %llu triangles\n",
+          img.texture_width, img.texture_height, img.texture_resolution,
+          static_cast<unsigned long long>(img.texture_bytes), double(img.texture_bytes) / 1048576.0,
+          static_cast<unsigned long long>(img.texture_triangles));
     if (img.dyn_kept || img.dyn_segments)
       std::printf(
           "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
@@ -371,12 +404,20 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_flag("--cpu", args->cpu, "Render with the CPU evaluator instead of GL");
   cmd->add_option("--aa", args->aa, "Anti-aliasing: none|coverage|msaa4");
   cmd->add_option("--binding", args->binding, "Blob binding: ssbo|texture");
+  cmd->add_option("--method", args->method,
+                  "Static decals drawn as: decal (screen-space decals, default), volume (stencil "
+                  "shadow volumes) or texture (features rasterised into a mipmapped texture); GL "
+                  "only, dynamic lines always as decals");
+  cmd->add_option("--texture-resolution", args->texture_resolution,
+                  "--method texture: ground metres per texel (default 1, coarser where the "
+                  "extent needs more than 8192 texels a side)");
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
   cmd->add_option("--frames", args->frames,
                   "GL: render N frames, report the last one's pass times (warm)")
       ->check(CLI::Range(1u, 1000u));
   cmd->add_flag("--stats", args->stats,
-                "Print per-pass times (GL timestamp queries and wall time)");
+                "Print per-pass times (GL timestamp queries and wall time); --method volume: prism "
+                "triangles and groups; --method texture: texture size and bytes");
   cmd->add_option(
       "--raw", args->raw,
       "Write the static decal layer as float32 RGBA (straight alpha, row 0 at the top)");

@@ -7,7 +7,23 @@ uniform vec3 u_light_dir;  // towards the light, normalised
 uniform vec3 u_albedo;
 uniform float u_sea_level;  // metres; below or at it: water (flat terrain: -inf)
 layout(location = 0) out vec4 o_color;
+#ifdef DECAL_TEXTURE_METHOD
+// The texture method (Taibo et al. §4): the decal layer sampled from the
+// mipmapped texture of the rasterised features (trilinear), premultiplied.
+in vec2 v_ground;
+layout(binding = 27) uniform sampler2D u_decal_texture;
+uniform vec4 u_texture_box;  // anchor-relative xmin, ymin and 1 / width, 1 / height (metres)
+uniform vec4 u_clip;         // anchor-relative xmin, ymin, xmax, ymax: decals only inside
+layout(location = 1) out vec4 o_decal;
+#endif
 void main() {
+#ifdef DECAL_TEXTURE_METHOD
+  bool in_clip = v_ground.x >= u_clip.x && v_ground.y >= u_clip.y && v_ground.x < u_clip.z &&
+                 v_ground.y < u_clip.w;
+  // Sampled outside the condition: implicit derivatives need uniform control.
+  vec4 decal = texture(u_decal_texture, (v_ground - u_texture_box.xy) * u_texture_box.zw);
+  o_decal = in_clip ? decal : vec4(0.0);
+#endif
   float l = max(dot(normalize(v_normal), u_light_dir), 0.0);
   vec3 albedo = v_height <= u_sea_level ? vec3(0.45, 0.58, 0.70) : u_albedo;
   o_color = vec4(albedo * (0.35 + 0.65 * l), 1.0);

@@ -80,12 +80,37 @@ ViewUniforms view_uniforms(const Camera& cam, const GridParams& grid, uint32_t w
                            uint32_t height);
 
 // G-buffer: terrain colour + float depth (reversed Z); decal layer; final;
-// dynamic-line layer. Each colour texture has its framebuffer.
+// dynamic-line layer. Each colour texture has its framebuffer. With
+// `stencil` (the volume method) the depth texture carries an 8-bit stencil.
 struct Targets {
   GLuint color = 0, depth = 0, decal = 0, final = 0, dyn = 0;
   GLuint f_terrain = 0, f_decal = 0, f_final = 0, f_dyn = 0;
 };
-Targets make_targets(GlObjects& gl, uint32_t width, uint32_t height);
+Targets make_targets(GlObjects& gl, uint32_t width, uint32_t height, bool stencil = false);
+
+// The GL state of the volume and texture methods (gl_methods.cpp).
+struct MethodState {
+  // Volume (Schneider & Klein §4.2): one vertex range per group of features
+  // drawn with one stencil and one cover pass.
+  struct Group {
+    GLint first = 0;
+    GLsizei count = 0;
+    uint32_t rgba = 0;
+    bool zfail = false;
+    std::array<GLint, 4> scissor{};  // x, y, w, h
+  };
+  std::vector<Group> groups;
+  GLuint prism_vao = 0, f_volume = 0, volume_program = 0, cover_program = 0;
+  uint64_t prism_triangles = 0;
+  // Texture (Taibo et al. §4): the texture, its box relative to the anchor,
+  // the terrain program and framebuffer that sample it.
+  GLuint texture = 0, terrain_program = 0, f_terrain_decal = 0;
+  std::array<float, 4> texture_box{};
+  uint32_t texture_w = 0, texture_h = 0;
+  double texture_resolution = 0;
+  uint64_t texture_bytes = 0, texture_triangles = 0;
+  PassTime raster_time;
+};
 
 // Terrain mesh in anchor-relative metres (position + normal per vertex).
 struct TerrainMesh {
@@ -122,6 +147,12 @@ class GlRenderer {
   void static_passes();
   GLuint static_target();
   void set_static_uniforms(GLuint p) const;
+  // gl_methods.cpp: set-up of the volume and texture methods, the volume
+  // passes and the texture's rasterisation (once, before the first frame).
+  void method_setup();
+  void volume_passes();
+  void texture_raster();
+  void method_stats(Image& img) const;
   // gl_dynamic.cpp (thesis §4.3, §4.4.2).
   void dynamic_pass(Image& img);
   void composite_pass();
@@ -140,6 +171,7 @@ class GlRenderer {
   Targets t_;
   std::vector<DrawRun> runs_;
   StaticPrograms p_;
+  MethodState m_;
 };
 
 }  // namespace prep::render::detail

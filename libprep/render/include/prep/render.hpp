@@ -139,6 +139,17 @@ DecalSource source_of(const decal::Package& package);
 
 enum class AntiAliasing { none, coverage, msaa4 };
 enum class Binding { ssbo, texture };
+// How static decals are drawn (thesis §5.2.2 compares the three): the
+// screen-space decal method of the package (thesis §4.4); the volume method
+// (Schneider & Klein §4: the features extruded to prisms over the terrain's
+// height range, stencil counting z-pass or z-fail, one stencil and cover
+// pass per run of opaque features of one colour, or per translucent
+// feature); the texture method (Taibo et al. §4.2: the same tessellated
+// features rasterised into a mipmapped texture over the package extent,
+// sampled on the terrain in the terrain pass). Volume and texture draw
+// only static polygons and lines; dynamic lines keep the decal method's
+// pass. GL only; neither anti-aliases (AntiAliasing::none).
+enum class Method { decal, volume, texture };
 
 struct RenderOptions {
   uint32_t width = 640, height = 360;
@@ -154,7 +165,12 @@ struct RenderOptions {
   // relative to the source's origin (one tile's square in a tileset); none:
   // everywhere.
   std::optional<Extent> clip;
+  Method method = Method::decal;
+  // Texture method: ground metres per texel of the finest level; 0: 1 m,
+  // coarser where the extent would need more than kTextureAutoTexels a side.
+  double texture_resolution = 0;
 };
+constexpr uint32_t kTextureAutoTexels = 8192;
 
 struct PassTime {
   std::string pass;
@@ -172,6 +188,15 @@ struct Image {
   uint32_t list_grows = 0;  // linked-list buffer regrowths this frame
   std::vector<PassTime> times;
   std::string device;  // GL renderer string, or "cpu"
+  // Volume method: prism triangles drawn, stencil+cover groups, groups
+  // counted with z-fail (the rest z-pass).
+  uint64_t prism_triangles = 0;
+  uint32_t volume_groups = 0, zfail_groups = 0;
+  // Texture method: texture bytes (every mip level), finest level's size
+  // and its ground metres per texel; texture triangles.
+  uint64_t texture_bytes = 0, texture_triangles = 0;
+  uint32_t texture_width = 0, texture_height = 0;
+  double texture_resolution = 0;
 };
 
 // Renders with OpenGL in a headless EGL context. Validates the blobs before
