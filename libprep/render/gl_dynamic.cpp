@@ -199,6 +199,9 @@ void GlRenderer::dynamic_pass(Image& img) {
   const uint64_t n_dyn = gpu_->count(decal::BlobId::dyn_vertices);
   const uint64_t n_dyn_lines = gpu_->count(decal::BlobId::dyn_line_start);
   if (!opt_.draw_dynamic || n_dyn == 0 || n_dyn_lines == 0) return;
+  // The volume and texture methods draw no static decal pass, which is
+  // where the decal method binds these.
+  bind_package();
   const std::string dd =
       p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
       "#define DECAL_DYNAMIC 1\n";

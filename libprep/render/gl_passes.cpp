@@ -335,11 +335,15 @@ void GlRenderer::set_static_uniforms(GLuint p) const {
   glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
 }
 
-// Static decal passes over the back-projected depth.
-void GlRenderer::static_passes() {
+void GlRenderer::bind_package() const {
   gpu_->bind(opt_.binding == Binding::texture ? decal::gl::BindingMode::texture
                                               : decal::gl::BindingMode::ssbo);
   glBindTextureUnit(31, t_.depth);
+}
+
+// Static decal passes over the back-projected depth.
+void GlRenderer::static_passes() {
+  bind_package();
   const GLuint f_static = static_target();
   glBindFramebuffer(GL_FRAMEBUFFER, f_static);
   const float clear0[4] = {0, 0, 0, 0};

@@ -16,6 +16,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <numbers>
 #include <regex>
 
@@ -460,6 +461,36 @@ TEST(RenderMethods, TextureErrorAgainstCpuEvaluatorFallsAsTextureResolutionRises
   EXPECT_LT(errors[2], 0.1);
   EXPECT_LT(bytes[0], bytes[1]);
   EXPECT_LT(bytes[1], bytes[2]);
+}
+
+// Dynamic (pixel-width) lines are drawn by the decal method's dynamic pass
+// whatever --method draws the static decals: the same vertices kept, the
+// same segments and the same per-pixel list nodes as with --method decal.
+TEST(RenderMethods, DynamicLinesAreDrawnTheSameWithEveryMethod) {
+  std::string why;
+  const std::string pkg = monaco_package(&why);
+  if (pkg.empty()) GTEST_SKIP() << why;
+  const fs::path d = out_dir("methods");
+  std::map<std::string, std::string> figures;
+  for (const char* method : {"decal", "volume", "texture"}) {
+    const auto r =
+        run_tool("render " + pkg + " --dem " + kDem + " --size 320x180 --stats --method " + method +
+                 " -o " + (d / (std::string("dynamic_") + method + ".png")).string());
+    if (r.rc == 8) GTEST_SKIP() << "no headless GL: " << r.output;
+    ASSERT_EQ(r.rc, 0) << r.output;
+    std::smatch m;
+    const std::regex dyn_re(
+        R"(dynamic lines: (\d+) vertices kept, (\d+) segments drawn, (\d+) list nodes)");
+    ASSERT_TRUE(std::regex_search(r.output, m, dyn_re)) << method << "\n" << r.output;
+    figures[method] = m[1].str() + " kept, " + m[2].str() + " segments, " + m[3].str() + " nodes";
+    if (std::string(method) == "decal") {
+      EXPECT_GT(std::stoul(m[2].str()), 10u) << r.output;
+    }
+  }
+  std::printf("dynamic lines: decal %s; volume %s; texture %s\n", figures["decal"].c_str(),
+              figures["volume"].c_str(), figures["texture"].c_str());
+  EXPECT_EQ(figures["volume"], figures["decal"]);
+  EXPECT_EQ(figures["texture"], figures["decal"]);
 }
 
 TEST(RenderMethods, CpuWithAnotherMethodIsAUsageError) {

@@ -143,6 +143,9 @@ class GlRenderer {
 
  private:
   void terrain_pass();
+  // The package's blobs and the terrain depth, bound where the decal
+  // passes read them (static passes and dynamic lines, whatever --method).
+  void bind_package() const;
   // gl_passes.cpp: one pass per run of the drawing order.
   void static_passes();
   GLuint static_target();
