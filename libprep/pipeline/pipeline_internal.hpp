@@ -50,7 +50,7 @@ class EntryWriter;
 struct WorkPaths {
   std::string dir;  // the tileset
   std::string work() const { return dir + "/.work"; }
-  std::string parts() const { return work() + "/parts.fgb"; }
+  std::string parts() const { return work() + "/parts.gpkg"; }
   std::string boxes() const { return work() + "/boxes.bin"; }
   std::string entries() const { return work() + "/entries.json"; }
   std::string read_entries() const { return work() + "/read_entries.json"; }

@@ -1,5 +1,5 @@
 // The work folder of a tileset build (tileset_work.hpp): the cleaned parts
-// in a FlatGeobuf with its spatial index, written in scene order and read
+// in a GeoPackage with its R-tree, written in scene order and read
 // back one tile's window at a time.
 #include "tileset_work.hpp"
 
@@ -45,14 +45,15 @@ enum Field : int {
   f_order,
   f_color,
   f_wkb,
+  f_keys,
   f_count
 };
-constexpr const char* kFieldNames[f_count] = {"kind",  "seq",         "layer",       "fid",
-                                              "part",  "closed",      "area",        "length",
-                                              "width", "order_value", "color_value", "wkb"};
-constexpr OGRFieldType kFieldTypes[f_count] = {OFTInteger, OFTInteger64, OFTInteger, OFTInteger64,
-                                               OFTInteger, OFTInteger,   OFTReal,    OFTReal,
-                                               OFTReal,    OFTReal,      OFTReal,    OFTBinary};
+constexpr const char* kFieldNames[f_count] = {
+    "kind",   "seq",   "layer",       "source_fid",  "part", "closed", "area",
+    "length", "width", "order_value", "color_value", "wkb",  "keys"};
+constexpr OGRFieldType kFieldTypes[f_count] = {
+    OFTInteger, OFTInteger64, OFTInteger, OFTInteger64, OFTInteger, OFTInteger, OFTReal,
+    OFTReal,    OFTReal,      OFTReal,    OFTReal,      OFTBinary,  OFTBinary};
 
 // Metres a stored box is grown by; a tile's window is grown by more
 // (PartReader::read_tile), so no part that reaches the tile is left out.
@@ -106,13 +107,17 @@ PartWriter::PartWriter(const WorkPaths& paths) : impl_(std::make_unique<Impl>())
   register_gdal_once();
   impl_->path = paths.parts();
   impl_->boxes_path = paths.boxes();
-  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("FlatGeobuf");
-  if (!drv) fail<output_error>(kWorkStage, "GDAL has no FlatGeobuf driver");
+  // GeoPackage: SQLite keeps the memory bounded while it builds the R-tree
+  // (GDAL 3.6's FlatGeobuf writer holds every feature in memory to sort
+  // them for its index).
+  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");
+  if (!drv) fail<output_error>(kWorkStage, "GDAL has no GPKG driver");
   std::remove(impl_->path.c_str());
   impl_->ds = drv->Create(impl_->path.c_str(), 0, 0, 0, GDT_Unknown, nullptr);
   if (!impl_->ds)
     fail<output_error>(kWorkStage, "cannot create " + impl_->path + ": " + CPLGetLastErrorMsg());
   char** opts = CSLSetNameValue(nullptr, "SPATIAL_INDEX", "YES");
+  opts = CSLSetNameValue(opts, "GEOMETRY_NAME", "box");
   impl_->layer = impl_->ds->CreateLayer("parts", nullptr, wkbPolygon, opts);
   CSLDestroy(opts);
   if (!impl_->layer)
@@ -137,6 +142,8 @@ PartWriter::~PartWriter() {
 
 void PartWriter::add(const SceneFeatures& chunk) {
   OGRFeatureDefn* defn = impl_->layer->GetLayerDefn();
+  if (impl_->ds->StartTransaction() != OGRERR_NONE)
+    fail<output_error>(kWorkStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
   auto write = [&](PartKind kind, OGRGeometry* geometry, const Ring& boxed, uint32_t layer,
                    int64_t fid, int part, bool closed, double area, double length, double width,
                    double order_value, double color_value) {
@@ -177,6 +184,11 @@ void PartWriter::add(const SceneFeatures& chunk) {
     f.SetField(f_width, width);
     f.SetField(f_order, order_value);
     f.SetField(f_color, color_value);
+    // The keys as their bytes: SQLite keeps neither NaN (NULL) nor the sign
+    // of a zero (an integral REAL is stored as an integer); the Real fields
+    // above are for people looking at the file.
+    const double keys[5] = {area, length, width, order_value, color_value};
+    f.SetField(f_keys, static_cast<int>(sizeof keys), static_cast<const void*>(keys));
     if (impl_->layer->CreateFeature(&f) != OGRERR_NONE)
       fail<output_error>(kWorkStage,
                          "cannot write a part to " + impl_->path + ": " + CPLGetLastErrorMsg());
@@ -204,6 +216,8 @@ void PartWriter::add(const SceneFeatures& chunk) {
   for (const SceneLine& l : chunk.dynamic_lines)
     write(PartKind::dynamic_line, line_geometry(l.points), l.points, l.layer, l.fid, l.part,
           l.closed, 0, l.length, l.width, l.order_value, l.color_value);
+  if (impl_->ds->CommitTransaction() != OGRERR_NONE)
+    fail<output_error>(kWorkStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
   half_width_ = std::max(half_width_, stroke_half_width(chunk));
 }
 
@@ -308,6 +322,12 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
       fail<output_error>(kWorkStage, impl_->path + ": a part whose WKB cannot be read");
     const std::unique_ptr<OGRGeometry> owned(parsed);
     const OGRGeometry* g = parsed;
+    int keys_size = 0;
+    const GByte* keys_bytes = f->GetFieldAsBinary(fi[f_keys], &keys_size);
+    double keys[5];
+    if (!keys_bytes || keys_size != static_cast<int>(sizeof keys))
+      fail<output_error>(kWorkStage, impl_->path + ": a part without its keys");
+    std::memcpy(keys, keys_bytes, sizeof keys);
     const auto layer_index = static_cast<uint32_t>(f->GetFieldAsInteger(fi[f_layer]));
     const int64_t fid = f->GetFieldAsInteger64(fi[f_fid]);
     const int part = f->GetFieldAsInteger(fi[f_part]);
@@ -323,9 +343,9 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
       p.layer = layer_index;
       p.fid = fid;
       p.part = part;
-      p.area = f->GetFieldAsDouble(fi[f_area]);
-      p.order_value = f->GetFieldAsDouble(fi[f_order]);
-      p.color_value = f->GetFieldAsDouble(fi[f_color]);
+      p.area = keys[0];
+      p.order_value = keys[3];
+      p.color_value = keys[4];
       polys.emplace_back(seq, std::move(p));
     } else {
       const auto* ls = dynamic_cast<const OGRLineString*>(g);
@@ -341,10 +361,10 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
       l.layer = layer_index;
       l.fid = fid;
       l.part = part;
-      l.length = f->GetFieldAsDouble(fi[f_length]);
-      l.width = f->GetFieldAsDouble(fi[f_width]);
-      l.order_value = f->GetFieldAsDouble(fi[f_order]);
-      l.color_value = f->GetFieldAsDouble(fi[f_color]);
+      l.length = keys[1];
+      l.width = keys[2];
+      l.order_value = keys[3];
+      l.color_value = keys[4];
       (dynamic ? dyn : lines).emplace_back(seq, std::move(l));
     }
   }

@@ -2,8 +2,8 @@
 // prepare step leaves on disk for the tile step and the finalize step
 // (ARCHITECTURE.md "3b. tile", formats/SPEC.md "Tilesets": DIR/.work).
 //
-//   DIR/.work/parts.fgb      every cleaned part (FlatGeobuf through GDAL,
-//                            with its spatial index), coordinates relative
+//   DIR/.work/parts.gpkg     every cleaned part (GeoPackage through GDAL,
+//                            with its R-tree), coordinates relative
 //                            to the scene origin in the frame CRS
 //   DIR/.work/boxes.bin      scratch: each part's kind and box, in order
 //   DIR/.work/entries.json   the manifest entries, already in manifest.json's
@@ -35,7 +35,7 @@ namespace prep::pipeline_internal {
 // vectors: polygons, static lines, dynamic lines).
 enum class PartKind : int { polygon = 0, line = 1, dynamic_line = 2 };
 
-// Writes cleaned parts to parts.fgb in scene order, chunk by chunk (each
+// Writes cleaned parts to parts.gpkg in scene order, chunk by chunk (each
 // part numbered within its kind, so a tile restores the scene's order),
 // their boxes to boxes.bin, and keeps the running extent and the widest
 // static stroke. Throws output_error naming the file.
@@ -49,7 +49,7 @@ class PartWriter {
   // Appends a chunk's polygons, lines and dynamic lines (in that order
   // within each kind; `chunk.layers` gives the outline modes).
   void add(const SceneFeatures& chunk);
-  // Closes the files (FlatGeobuf writes its index now).
+  // Closes the files (GDAL fills the R-tree now).
   void close();
 
   // The box of every kept shell and line so far, kept_extent()'s way
@@ -71,7 +71,7 @@ class PartWriter {
 // margins), in key order.
 std::vector<TileKey> planned_tiles(const WorkPaths& paths, const TilePlan& plan);
 
-// Reads the parts a tile's plan entry holds from parts.fgb: every part whose
+// Reads the parts a tile's plan entry holds from parts.gpkg: every part whose
 // box reaches `key` (tile_range, as tile_plan places it), in scene order.
 // One reader per thread (GDAL datasets are not shared).
 class PartReader {
