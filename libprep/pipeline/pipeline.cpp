@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <future>
 #include <map>
@@ -403,8 +404,16 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   // and clean stream through the work folder chunk by chunk, and each tile
   // reads its window of the intermediate; nothing holds the whole scene.
   std::optional<pipeline_internal::PreparedScene> streamed;
+  // Whether the tileset folder was there before: a build that fails before
+  // its first tile removes only what it made.
+  const bool had_output = tiled && std::filesystem::exists(request.output);
   if (tiled && !request.dry_run) {
-    streamed = pipeline_internal::prepare_tileset_streaming(scene, request, provenance_of);
+    try {
+      streamed = pipeline_internal::prepare_tileset_streaming(scene, request, provenance_of);
+    } catch (...) {
+      pipeline_internal::discard_work(request.output, !had_output);
+      throw;
+    }
     timings.emplace_back("read", streamed->read_s);
     timings.emplace_back("project", streamed->project_s);
     timings.emplace_back("clean", streamed->clean_s);
@@ -444,8 +453,13 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   std::optional<pipeline_internal::TilesetOutcome> tileset;
   if (!request.dry_run && tiled) {
     t0 = Clock::now();
-    pipeline_internal::build_tiles(scene, request, 0, 1);
-    tileset = pipeline_internal::finalize_tileset(scene, request);
+    try {
+      pipeline_internal::build_tiles(scene, request, 0, 1);
+      tileset = pipeline_internal::finalize_tileset(scene, request);
+    } catch (...) {
+      pipeline_internal::discard_work(request.output, !had_output);
+      throw;
+    }
     timings.emplace_back("tiles", seconds_since(t0));
     peaks.emplace_back("tiles", peak_rss_mib());
     result.package_written = true;

@@ -115,6 +115,11 @@ struct PreparedScene {
 PreparedScene prepare_tileset_streaming(const SceneSpec& spec, const BuildRequest& request,
                                         const std::function<const nlohmann::json&()>& provenance);
 
+// After a failed step: removes the work folder and, when `made_dir` (the
+// build created `dir`), `dir`/tiles and `dir` if they are empty; tiles
+// already written stay for the next run to keep.
+void discard_work(const std::string& dir, bool made_dir);
+
 // Step 2: the plan's tiles i with i % parts == part (parts <= 1: all).
 struct TileStepOutcome {
   size_t tiles = 0, built = 0, reused = 0, empty = 0;

@@ -12,6 +12,7 @@
 #include <xxhash.h>
 
 #include <dirent.h>
+#include <unistd.h>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -199,6 +200,13 @@ void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and
                             {"tiles", keys}};
   // Written last: a plan on disk means the intermediate is complete.
   write_text_file(paths_.plan(), j.dump(1) + "\n");
+}
+
+void discard_work(const std::string& dir, bool made_dir) {
+  remove_tree(WorkPaths{dir}.work());
+  if (!made_dir) return;
+  ::rmdir((dir + "/tiles").c_str());  // only when empty
+  ::rmdir(dir.c_str());
 }
 
 Extent TilesetPreparer::extent() const {
