@@ -8,8 +8,10 @@ For each size: synthetic polygons and lines (bench/gen_synthetic.py "mix", at
 constant density, so the extent grows with the square root of the size) in
 FlatGeobuf; then, in the same run, `ogr2ogr -f FlatGeobuf` of that file (the
 floor: reading and writing the same features) and `decalprep build
---tile-size`. Prints and writes tileset_scale.csv (wall, CPU, peak RSS of each
-child from wait4, tiles, bytes per input vertex, the ratio to the floor) and
+--tile-size` (out of core: ARCHITECTURE.md "3b. tile"). Prints and writes
+tileset_scale.csv (wall, CPU, peak RSS of each child from wait4, and per
+input vertex; tiles, package bytes per input vertex, the ratio to the floor,
+the 1-minute load average as the build ended) and
 tileset_scale.png (gnuplot), and the fitted slope of log(wall) against
 log(vertices) between the smallest and the largest size.
 Standard library only; needs ogr2ogr and gnuplot.
@@ -86,11 +88,15 @@ def main():
             row = {"vertices": v, "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
                    "peak_rss_mib": round(rss, 1), "tiles": ts["tiles"], "bytes": ts["bytes"],
                    "bytes_per_vertex": round(ts["bytes"] / v, 2),
-                   "ogr2ogr_fgb_wall_s": round(f_wall, 3), "ratio_to_floor": round(wall / f_wall, 2)}
+                   "ogr2ogr_fgb_wall_s": round(f_wall, 3), "ratio_to_floor": round(wall / f_wall, 2),
+                   "peak_rss_bytes_per_vertex": round(rss * 1048576.0 / v, 1),
+                   "ogr2ogr_peak_rss_mib": round(f_rss, 1),
+                   "loadavg_1min": round(os.getloadavg()[0], 2)}
             rows.append(row)
             print("%(vertices)d vertices: %(wall_s)s s wall, %(cpu_s)s s CPU, %(peak_rss_mib)s MiB "
-                  "peak, %(tiles)d tiles, %(bytes_per_vertex)s B/vertex; ogr2ogr %(ogr2ogr_fgb_wall_s)s "
-                  "s (x%(ratio_to_floor)s)" % row, flush=True)
+                  "peak (%(peak_rss_bytes_per_vertex)s B/vertex), %(tiles)d tiles, "
+                  "%(bytes_per_vertex)s package B/vertex; ogr2ogr %(ogr2ogr_fgb_wall_s)s s "
+                  "(x%(ratio_to_floor)s), load %(loadavg_1min)s" % row, flush=True)
             shutil.rmtree(out, ignore_errors=True)
             for p in (fgb, floor):
                 os.remove(p)

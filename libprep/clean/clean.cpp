@@ -683,14 +683,9 @@ std::vector<PartResult> clean_parts(const Cleaner& cleaner,
 // entries and the layer's counts.
 class LayerGather {
  public:
-  LayerGather(SceneFeatures& out, const SceneSpec& scene, const SourceLayer& layer,
-              uint32_t layer_index, const std::vector<double>& scale, const Manifest& read_manifest)
-      : out_(out),
-        scene_(scene),
-        spec_(layer.spec),
-        features_(layer.features),
-        layer_index_(layer_index),
-        scale_(scale) {
+  LayerGather(const SceneSpec& scene, const LayerSpec& spec, uint32_t layer_index,
+              const Manifest& read_manifest)
+      : scene_(scene), spec_(spec), layer_index_(layer_index) {
     for (const LayerCounts& c : read_manifest.layers)
       if (c.layer == spec_.name) counts_ = c;
     counts_.layer = spec_.name;
@@ -698,12 +693,23 @@ class LayerGather {
     counts_.parts = counts_.vertices_in = counts_.vertices_out = 0;
   }
 
+  // Every feature of `features` (whole features; a layer may come in
+  // several calls, in input order) into `out`.
+  void gather(SceneFeatures& out, const std::vector<SourceFeature>& features,
+              const std::vector<double>& scale, std::vector<PartResult>& results) {
+    out_ = &out;
+    features_ = &features;
+    scale_ = &scale;
+    gather(results);
+  }
+
   // Every feature (a run of parts with the same feature index).
   void gather(std::vector<PartResult>& results) {
+    const std::vector<SourceFeature>& features = *features_;
     size_t i = 0;
-    while (i < features_.size()) {
+    while (i < features.size()) {
       size_t j = i;
-      while (j < features_.size() && features_[j].feature == features_[i].feature) ++j;
+      while (j < features.size() && features[j].feature == features[i].feature) ++j;
       add_feature(i, j, results);
       i = j;
     }
@@ -725,9 +731,11 @@ class LayerGather {
   void add_feature(size_t first, size_t end, std::vector<PartResult>& results) {
     // A failing part fails its whole feature (ogr2ogr -skipfailures drops
     // features, not parts); without skip_failures it stops the build.
+    const std::vector<SourceFeature>& features = *features_;
+    const std::vector<double>& scale = *scale_;
     for (size_t p = first; p < end; ++p)
       if (results[p].outcome == Outcome::dropped && results[p].failed_in)
-        return add_failure(features_[first], results[p]);
+        return add_failure(features[first], results[p]);
     bool any_kept = false, any_dropped = false, any_repaired = false;
     std::string first_drop;
     for (size_t p = first; p < end; ++p) {
@@ -738,17 +746,17 @@ class LayerGather {
       }
     }
     for (size_t p = first; p < end; ++p)
-      add_part(results[p], features_[p], scale_[p], any_kept, any_repaired);
-    const int64_t fid = features_[first].fid;
+      add_part(results[p], features[p], scale[p], any_kept, any_repaired);
+    const int64_t fid = features[first].fid;
     if (any_kept) {
       ++counts_.kept;
       if (any_repaired) ++counts_.repaired;
     } else if (any_dropped) {
       ++counts_.dropped;
-      out_.manifest.entries.push_back({spec_.name, fid, -1, ManifestAction::dropped, first_drop});
+      out_->manifest.entries.push_back({spec_.name, fid, -1, ManifestAction::dropped, first_drop});
     } else {
       ++counts_.clipped_away;
-      out_.manifest.entries.push_back(
+      out_->manifest.entries.push_back(
           {spec_.name, fid, -1, ManifestAction::clipped_away, "outside the scene extent"});
     }
   }
@@ -760,7 +768,7 @@ class LayerGather {
     ++counts_.dropped;
     ManifestEntry e{spec_.name, head.fid, -1, ManifestAction::dropped, failure.drop_reason};
     e.failed_in = failure.failed_in;
-    out_.manifest.entries.push_back(std::move(e));
+    out_->manifest.entries.push_back(std::move(e));
   }
 
   // One part of a feature without failures; `kf` is the frame's point scale
@@ -772,8 +780,8 @@ class LayerGather {
       counts_.vertices_out += r.vertices_out;
       if (!r.repairs.empty()) {
         any_repaired = true;
-        out_.manifest.entries.push_back({spec_.name, f.fid, f.part, ManifestAction::repaired,
-                                         r.repairs, r.area_before, r.area_after});
+        out_->manifest.entries.push_back({spec_.name, f.fid, f.part, ManifestAction::repaired,
+                                          r.repairs, r.area_before, r.area_after});
       }
       for (ScenePolygon& poly : r.polygons) add_polygon(poly, kf);
       for (SceneLine& l : r.lines) {
@@ -783,7 +791,7 @@ class LayerGather {
         add_line(std::move(l), kf);
       }
     } else if (r.outcome == Outcome::dropped && any_kept) {
-      out_.manifest.entries.push_back(
+      out_->manifest.entries.push_back(
           {spec_.name, f.fid, f.part, ManifestAction::part_dropped, r.drop_reason});
     }
   }
@@ -791,7 +799,7 @@ class LayerGather {
   void add_polygon(ScenePolygon& poly, double kf) {
     poly.layer = layer_index_;
     if (spec_.kind != DecalKind::outline) {
-      out_.polygons.push_back(std::move(poly));
+      out_->polygons.push_back(std::move(poly));
       ++counts_.parts;
       return;
     }
@@ -823,16 +831,16 @@ class LayerGather {
   void add_line(SceneLine l, double kf) {
     l.layer = layer_index_;
     l.width = spec_.dynamic ? spec_.style.width : spec_.style.width * kf;
-    (spec_.dynamic ? out_.dynamic_lines : out_.lines).push_back(std::move(l));
+    (spec_.dynamic ? out_->dynamic_lines : out_->lines).push_back(std::move(l));
     ++counts_.parts;
   }
 
-  SceneFeatures& out_;
+  SceneFeatures* out_ = nullptr;
   const SceneSpec& scene_;
-  const LayerSpec& spec_;
-  const std::vector<SourceFeature>& features_;
+  const LayerSpec spec_;
+  const std::vector<SourceFeature>* features_ = nullptr;
   const uint32_t layer_index_;
-  const std::vector<double>& scale_;
+  const std::vector<double>* scale_ = nullptr;
   LayerCounts counts_;
 };
 
@@ -867,9 +875,8 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene,
     SourceLayer& layer = input.features.layers[li];
     out.layers.push_back(layer.spec);
     std::vector<PartResult> results = clean_parts(cleaner, contexts, stage, layer);
-    LayerGather gather(out, scene, layer, static_cast<uint32_t>(li), input.scale[li],
-                       read_manifest);
-    gather.gather(results);
+    LayerGather gather(scene, layer.spec, static_cast<uint32_t>(li), read_manifest);
+    gather.gather(out, layer.features, input.scale[li], results);
     out.manifest.layers.push_back(gather.counts());
   }
   // Read-stage entries (parts of kept features the kind could not draw).
@@ -878,6 +885,53 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene,
   out.extent = kept_extent(out);
   stage.finish();
   return out;
+}
+
+struct ChunkCleaner::Impl {
+  const SceneSpec& scene;
+  std::optional<Extent> clip;
+  Cleaner cleaner;
+  std::unique_ptr<tbb::global_control> limit;
+  tbb::enumerable_thread_specific<GeosContext> contexts;
+  ProgressStage silent;
+  ProgressStage* stage;
+  std::optional<LayerGather> layer;
+
+  Impl(const SceneSpec& s, const std::optional<Extent>& c, const CleanOptions& options,
+       ProgressStage* st)
+      : scene(s),
+        clip(c),
+        cleaner{clip, s.resolution, s.repair, options.test_geos_failure_fid},
+        stage(st ? st : &silent) {
+    if (options.threads > 0) {
+      limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    options.threads);
+    }
+  }
+};
+
+ChunkCleaner::ChunkCleaner(const SceneSpec& scene, const std::optional<Extent>& clip,
+                           const CleanOptions& options, ProgressStage* stage)
+    : impl_(std::make_unique<Impl>(scene, clip, options, stage)) {}
+
+ChunkCleaner::~ChunkCleaner() = default;
+
+void ChunkCleaner::begin_layer(uint32_t layer_index, const LayerSpec& spec,
+                               const Manifest& read_manifest) {
+  impl_->layer.emplace(impl_->scene, spec, layer_index, read_manifest);
+}
+
+void ChunkCleaner::clean_chunk(SourceLayer& chunk, const std::vector<double>& scale,
+                               SceneFeatures& out) {
+  std::vector<PartResult> results =
+      clean_parts(impl_->cleaner, impl_->contexts, *impl_->stage, chunk);
+  impl_->layer->gather(out, chunk.features, scale, results);
+}
+
+LayerCounts ChunkCleaner::end_layer() {
+  LayerCounts c = impl_->layer->counts();
+  impl_->layer.reset();
+  return c;
 }
 
 Extent kept_extent(const SceneFeatures& s) {

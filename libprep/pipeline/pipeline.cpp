@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <future>
 #include <map>
@@ -399,7 +400,29 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
 
   auto t0 = Clock::now();
   BuildResult result;
-  {
+  // A tileset is built out of core (pipeline_internal.hpp): read, project
+  // and clean stream through the work folder chunk by chunk, and each tile
+  // reads its window of the intermediate; nothing holds the whole scene.
+  std::optional<pipeline_internal::PreparedScene> streamed;
+  // Whether the tileset folder was there before: a build that fails before
+  // its first tile removes only what it made.
+  const bool had_output = tiled && std::filesystem::exists(request.output);
+  if (tiled && !request.dry_run) {
+    try {
+      streamed = pipeline_internal::prepare_tileset_streaming(scene, request, provenance_of);
+    } catch (...) {
+      pipeline_internal::discard_work(request.output, !had_output);
+      throw;
+    }
+    timings.emplace_back("read", streamed->read_s);
+    timings.emplace_back("project", streamed->project_s);
+    timings.emplace_back("clean", streamed->clean_s);
+    peaks.emplace_back("clean", peak_rss_mib());
+    result.scene.frame = streamed->frame;
+    result.scene.extent = streamed->extent;
+    result.scene.layers = streamed->layers;
+    result.scene.manifest = streamed->manifest;
+  } else {
     // Scoped: the projected features are freed before the build stage.
     ReadOptions ro;
     ro.progress = request.progress;
@@ -423,14 +446,20 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     if (!tiled) check_build_range(result.scene, scene.skip_failures);
     timings.emplace_back("clean", seconds_since(t0));
   }
-  peaks.emplace_back("clean", peak_rss_mib());
+  if (!streamed) peaks.emplace_back("clean", peak_rss_mib());
   // (A tileset's peak is one tile's per job: not modelled yet.)
   if (!request.dry_run && !tiled) estimate(estimate_after_clean(scene, result.scene));
 
   std::optional<pipeline_internal::TilesetOutcome> tileset;
   if (!request.dry_run && tiled) {
     t0 = Clock::now();
-    tileset = pipeline_internal::write_tileset(scene, result.scene, request, provenance_of());
+    try {
+      pipeline_internal::build_tiles(scene, request, 0, 1);
+      tileset = pipeline_internal::finalize_tileset(scene, request);
+    } catch (...) {
+      pipeline_internal::discard_work(request.output, !had_output);
+      throw;
+    }
     timings.emplace_back("tiles", seconds_since(t0));
     peaks.emplace_back("tiles", peak_rss_mib());
     result.package_written = true;
@@ -484,7 +513,17 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
   }
   report["dry_run"] = request.dry_run;
   add_memory_report(report, peaks, estimates, limit);
-  result.skipped_failures = count_skipped_failures(result.scene.manifest);
+  if (streamed) {
+    // The entries are in manifest.json, not in memory.
+    report["manifest"].erase("entries");
+    report["manifest"]["entry_count"] = streamed->entry_count;
+    report["manifest"]["entries_file"] = kTilesetManifestName;
+    report["output_counts"] = {{"polygons", streamed->polygons},
+                               {"lines", streamed->lines},
+                               {"dynamic_lines", streamed->dynamic_lines}};
+  }
+  result.skipped_failures =
+      streamed ? streamed->skipped_failures : count_skipped_failures(result.scene.manifest);
   report["skipped_failures"] = result.skipped_failures;
   result.report_json = report.dump(2) + "\n";
   if (!request.report.empty()) write_text_file(request.report, result.report_json);

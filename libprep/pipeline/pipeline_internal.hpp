@@ -2,11 +2,14 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "prep/pipeline.hpp"
 #include "prep/scene.hpp"
+#include "prep/tile.hpp"
 
 namespace prep::pipeline_internal {
 
@@ -30,10 +33,103 @@ struct TilesetOutcome {
   double margin = 0;
 };
 
-// Stage 3b and the rest of the pipeline for a tileset (prep/tile.hpp):
-// cuts the cleaned scene into tiles, builds and writes each tile's package
-// (request.jobs side by side), then manifest.json, then tileset.json last.
-TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
-                             const BuildRequest& request, const nlohmann::json& provenance);
+// A tileset build in three steps whose state is on disk only, in the work
+// folder request.output/.work (tileset_work.hpp), so that each may run in a
+// process of its own:
+//  1. prepare: the cleaned parts, chunk by chunk in scene order, into the
+//     intermediate, the manifest entries into their files, then the plan
+//     (which tiles exist, margins, frame, counts, notes, provenance);
+//  2. build_tiles: any subset of the plan's tiles, each from its window of
+//     the intermediate (tile_scene, build_model, write_model; request.jobs
+//     side by side), each with a record of what it made;
+//  3. finalize: manifest.json (streamed), then tileset.json last; removes
+//     the work folder.
+
+class PartWriter;
+class EntryWriter;
+struct WorkPaths {
+  std::string dir;  // the tileset
+  std::string work() const { return dir + "/.work"; }
+  std::string parts() const { return work() + "/parts.gpkg"; }
+  std::string boxes() const { return work() + "/boxes.bin"; }
+  std::string entries() const { return work() + "/entries.json"; }
+  std::string read_entries() const { return work() + "/read_entries.json"; }
+  std::string plan() const { return work() + "/plan.json"; }
+  std::string tile_records() const { return work() + "/tiles"; }
+  std::string tile_record(const TileKey& k) const {
+    return tile_records() + "/" + tile_name(k) + ".json";
+  }
+};
+
+// Step 1, fed by the caller. Creates the tileset folder and a fresh work
+// folder. Parts must come in scene order (layer by layer, each layer's
+// features in input order), clean's entries in layer order; the read
+// stage's entries follow them in manifest.json.
+class TilesetPreparer {
+ public:
+  TilesetPreparer(const SceneSpec& spec, const std::string& dir);
+  ~TilesetPreparer();
+  TilesetPreparer(const TilesetPreparer&) = delete;
+  TilesetPreparer& operator=(const TilesetPreparer&) = delete;
+  void add_parts(const SceneFeatures& chunk);
+  void add_entry(const ManifestEntry& e);
+  void add_read_entry(const ManifestEntry& e);
+  // The stroke margin of the parts so far (stroke_margin of the whole
+  // scene once every part is in).
+  double margin() const;
+  // Closes the intermediate and writes the plan. `counts_and_notes`: the
+  // scene's per-layer counts and notes (its entries are ignored).
+  void finish(const SceneFrame& frame, const Manifest& counts_and_notes,
+              const nlohmann::json& provenance);
+  // After finish(): the box of every kept part (scene coordinates; Extent{}
+  // when none), the parts per kind (polygons, lines, dynamic lines), the
+  // entries written.
+  Extent extent() const;
+  uint64_t parts(int kind) const;
+  uint64_t entries() const;
+
+ private:
+  const SceneSpec& spec_;
+  WorkPaths paths_;
+  std::unique_ptr<PartWriter> parts_;
+  std::unique_ptr<EntryWriter> entries_, read_entries_;
+};
+
+// Step 1 out of core: every source read once, in chunks, its features
+// spilled to the work folder; the frame chosen from the spill; each layer
+// projected (its approximation fitted to the whole layer), cleaned and
+// written to the intermediate chunk by chunk; entries streamed. Memory: a
+// chunk, the tile keys, the per-layer counts and the read stage's entries.
+// The same intermediate, plan and entries as prepare_tileset() of the
+// scene read, projected and cleaned in memory.
+struct PreparedScene {
+  SceneFrame frame;
+  Extent extent;  // scene coordinates, as clean sets it
+  std::vector<LayerSpec> layers;
+  Manifest manifest;  // per-layer counts and notes; no entries
+  uint64_t entry_count = 0;
+  size_t skipped_failures = 0;  // entries for features skip_failures dropped
+  uint64_t polygons = 0, lines = 0, dynamic_lines = 0;
+  double read_s = 0, project_s = 0, clean_s = 0;
+};
+PreparedScene prepare_tileset_streaming(const SceneSpec& spec, const BuildRequest& request,
+                                        const std::function<const nlohmann::json&()>& provenance);
+
+// After a failed step: removes the work folder and, when `made_dir` (the
+// build created `dir`), `dir`/tiles and `dir` if they are empty; tiles
+// already written stay for the next run to keep.
+void discard_work(const std::string& dir, bool made_dir);
+
+// Step 2: the plan's tiles i with i % parts == part (parts <= 1: all).
+struct TileStepOutcome {
+  size_t tiles = 0, built = 0, reused = 0, empty = 0;
+};
+TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
+                            size_t parts);
+
+// Step 3: every tile of the plan must have its record. `manifest` (may be
+// null) receives the scene's counts and notes.
+TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& request,
+                                Manifest* manifest = nullptr);
 
 }  // namespace prep::pipeline_internal

@@ -12,24 +12,33 @@
 #include <xxhash.h>
 
 #include <dirent.h>
+#include <unistd.h>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <exception>
+#include <fstream>
 #include <mutex>
 #include <set>
 #include <thread>
 
 #include "decal/reader.hpp"
 #include "pipeline_internal.hpp"
+#include "prep/clean.hpp"
 #include "prep/error.hpp"
+#include "prep/feature_failure.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/model.hpp"
 #include "prep/progress.hpp"
+#include "prep/project.hpp"
+#include "prep/read.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 #include "prep/tileset.hpp"
 #include "prep/write.hpp"
+#include "source_spill.hpp"
+#include "tileset_work.hpp"
 
 namespace prep::pipeline_internal {
 
@@ -133,19 +142,245 @@ void remove_stale_tiles(const std::string& tiles_dir, const std::set<std::string
 
 }  // namespace
 
-TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
-                             const BuildRequest& request, const nlohmann::json& provenance) {
-  const std::string dir = request.output;
+// ------------------------------------------------------------- prepare --
+
+TilesetPreparer::TilesetPreparer(const SceneSpec& spec, const std::string& dir)
+    : spec_(spec), paths_{dir} {
+  check_tile_size(spec.tile_size);
   make_dir(dir);
   make_dir(dir + "/tiles");
+  remove_tree(paths_.work());
+  make_dir(paths_.work());
+  make_dir(paths_.tile_records());
+  parts_ = std::make_unique<PartWriter>(paths_);
+  entries_ = std::make_unique<EntryWriter>(paths_.entries());
+  read_entries_ = std::make_unique<EntryWriter>(paths_.read_entries());
+}
 
-  const TilePlan plan = tile_plan(scene, spec.model, spec.tile_size);
+TilesetPreparer::~TilesetPreparer() = default;
+
+void TilesetPreparer::add_parts(const SceneFeatures& chunk) {
+  parts_->add(chunk);
+}
+void TilesetPreparer::add_entry(const ManifestEntry& e) {
+  entries_->add(e);
+}
+void TilesetPreparer::add_read_entry(const ManifestEntry& e) {
+  read_entries_->add(e);
+}
+
+double TilesetPreparer::margin() const {
+  return stroke_margin_of(parts_->half_width(), spec_.model);
+}
+
+void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and_notes,
+                             const nlohmann::json& provenance) {
+  parts_->close();
+  entries_->close();
+  read_entries_->close();
+  TilePlan plan;
+  plan.size = spec_.tile_size;
+  plan.frame = frame;
+  plan.margin = margin();
+  plan.dynamic_margin = spec_.tile_size * 0.5;
+  nlohmann::json keys = nlohmann::json::array();
+  for (const TileKey& k : planned_tiles(paths_, plan)) keys.push_back({k.x, k.y});
+  const Extent e = parts_->extent();
+  const nlohmann::json j = {{"frame", frame_to_json(frame)},
+                            {"extent", {e.xmin, e.ymin, e.xmax, e.ymax}},
+                            {"tile_size", plan.size},
+                            {"margin", plan.margin},
+                            {"dynamic_margin", plan.dynamic_margin},
+                            {"layers", counts_to_json(counts_and_notes.layers)},
+                            {"notes", counts_and_notes.notes},
+                            {"provenance", provenance},
+                            {"entries", entries_->count()},
+                            {"read_entries", read_entries_->count()},
+                            {"parts", parts_->parts()},
+                            {"tiles", keys}};
+  // Written last: a plan on disk means the intermediate is complete.
+  write_text_file(paths_.plan(), j.dump(1) + "\n");
+}
+
+void discard_work(const std::string& dir, bool made_dir) {
+  remove_tree(WorkPaths{dir}.work());
+  if (!made_dir) return;
+  ::rmdir((dir + "/tiles").c_str());  // only when empty
+  ::rmdir(dir.c_str());
+}
+
+Extent TilesetPreparer::extent() const {
+  return parts_->extent();
+}
+uint64_t TilesetPreparer::parts(int kind) const {
+  return parts_->parts(static_cast<PartKind>(kind));
+}
+uint64_t TilesetPreparer::entries() const {
+  return entries_->count() + read_entries_->count();
+}
+
+PreparedScene prepare_tileset_streaming(const SceneSpec& spec, const BuildRequest& request,
+                                        const std::function<const nlohmann::json&()>& provenance) {
+  using Clock = std::chrono::steady_clock;
+  auto since = [](Clock::time_point t0) {
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+  };
+  PreparedScene out;
+  TilesetPreparer prep(spec, request.output);
+  const WorkPaths paths{request.output};
+
+  // Pass 1: read every source once; each layer's features to its spill.
+  auto t0 = Clock::now();
+  std::vector<std::string> spill_paths;
+  std::vector<std::unique_ptr<SpillWriter>> spills;
+  for (size_t i = 0; i < spec.layers.size(); ++i) {
+    spill_paths.push_back(paths.work() + "/source_" + std::to_string(i) + ".bin");
+    spills.push_back(std::make_unique<SpillWriter>(spill_paths.back()));
+  }
+  ReadChunks chunks;
+  chunks.take = [&](size_t layer, SourceLayer& chunk) { spills.at(layer)->write(chunk); };
+  chunks.restart = [&](size_t layer) { spills.at(layer)->restart(); };
+  ReadOptions ro;
+  ro.progress = request.progress;
+  ro.chunks = &chunks;
+  FeatureSet read = read_scene(spec, ro);
+  uint64_t parts = 0;
+  for (auto& s : spills) {
+    s->close();
+    parts += s->parts();
+  }
+  out.read_s = since(t0);
+
+  // The frame, from the whole data (as choose_frame sees it in memory).
+  t0 = Clock::now();
+  const SpillSource source(read.layers, spill_paths);
+  const SceneFrame frame = choose_frame(source, spec.crs);
+  const std::optional<Extent> clip = clip_extent(frame, spec);
+  out.project_s = since(t0);
+
+  // Pass 2, layer by layer: project, clean, write, a chunk at a time.
+  ProgressStage stage(request.progress, "prepare", parts, "parts");
+  CleanOptions co;
+  co.threads = spec.model.threads;
+  ChunkCleaner cleaner(spec, clip, co, &stage);
+  SceneFeatures cleaned;
+  cleaned.layers = spec.layers;
+  for (size_t li = 0; li < read.layers.size(); ++li) {
+    t0 = Clock::now();
+    const LayerProjection projection(source, li, frame, spec);
+    out.project_s += since(t0);
+    cleaner.begin_layer(static_cast<uint32_t>(li), read.layers[li].spec, read.manifest);
+    source.chunks(li, chunks.parts, chunks.vertices, [&](SourceLayer& chunk) {
+      auto t1 = Clock::now();
+      const std::vector<double> scale = projection.apply(chunk, nullptr);
+      out.project_s += since(t1);
+      t1 = Clock::now();
+      cleaner.clean_chunk(chunk, scale, cleaned);
+      prep.add_parts(cleaned);
+      for (const ManifestEntry& e : cleaned.manifest.entries) {
+        out.skipped_failures += is_skipped_failure(e) ? 1 : 0;
+        prep.add_entry(e);
+      }
+      cleaned.polygons.clear();
+      cleaned.lines.clear();
+      cleaned.dynamic_lines.clear();
+      cleaned.manifest.entries.clear();
+      out.clean_s += since(t1);
+    });
+    t0 = Clock::now();
+    out.manifest.layers.push_back(cleaner.end_layer());
+    std::remove(spill_paths[li].c_str());
+    out.clean_s += since(t0);
+  }
+  t0 = Clock::now();
+  // Read-stage entries (parts of kept features the kind could not draw)
+  // follow clean's, as clean() puts them.
+  for (const ManifestEntry& e : read.manifest.entries) {
+    out.skipped_failures += is_skipped_failure(e) ? 1 : 0;
+    prep.add_read_entry(e);
+  }
+  out.manifest.notes = read.manifest.notes;
+  prep.finish(frame, out.manifest, provenance());
+  stage.finish();
+  out.frame = frame;
+  out.extent = prep.extent();
+  for (const SourceLayer& l : read.layers) out.layers.push_back(l.spec);
+  out.entry_count = prep.entries();
+  out.polygons = prep.parts(0);
+  out.lines = prep.parts(1);
+  out.dynamic_lines = prep.parts(2);
+  out.clean_s += since(t0);
+  return out;
+}
+
+namespace {
+
+struct PreparedPlan {
+  TilePlan plan;  // tiles: the keys, members empty
   std::vector<TileKey> keys;
-  for (const auto& [key, members] : plan.tiles) keys.push_back(key);
+  Extent extent;      // scene coordinates
+  Manifest manifest;  // counts and notes (no entries)
+  uint64_t entries = 0, read_entries = 0;
+  nlohmann::json provenance;
+};
+
+PreparedPlan read_plan(const WorkPaths& paths) {
+  std::ifstream in(paths.plan(), std::ios::binary);
+  if (!in)
+    fail<output_error>(kTilesetStage,
+                       "cannot read " + paths.plan() + " (the prepare step has not finished)");
+  PreparedPlan p;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(in);
+    p.plan.frame = frame_from_json(j.at("frame"));
+    p.plan.size = j.at("tile_size").get<double>();
+    p.plan.margin = j.at("margin").get<double>();
+    p.plan.dynamic_margin = j.at("dynamic_margin").get<double>();
+    const nlohmann::json& e = j.at("extent");
+    p.extent = {e.at(0).get<double>(), e.at(1).get<double>(), e.at(2).get<double>(),
+                e.at(3).get<double>()};
+    p.manifest.layers = counts_from_json(j.at("layers"));
+    p.manifest.notes = j.at("notes").get<std::vector<std::string>>();
+    p.provenance = j.at("provenance");
+    p.entries = j.at("entries").get<uint64_t>();
+    p.read_entries = j.at("read_entries").get<uint64_t>();
+    for (const nlohmann::json& k : j.at("tiles"))
+      p.keys.push_back({k.at(0).get<int64_t>(), k.at(1).get<int64_t>()});
+  } catch (const nlohmann::json::exception& e) {
+    fail<output_error>(kTilesetStage, paths.plan() + ": " + e.what());
+  }
+  return p;
+}
+
+nlohmann::json tile_record_json(const TileEntry& e, bool reused) {
+  return {{"empty", false},
+          {"reused", reused},
+          {"file", e.file},
+          {"bytes", e.bytes},
+          {"xxh64", hex64(e.xxh64)},
+          {"polygons", e.polygons},
+          {"lines", e.lines},
+          {"dynamic_lines", e.dynamic_lines},
+          {"layers", counts_to_json(e.layers)}};
+}
+
+}  // namespace
+
+// ----------------------------------------------------------------- tiles --
+
+TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
+                            size_t parts) {
+  const WorkPaths paths{request.output};
+  const PreparedPlan prepared = read_plan(paths);
+  const TilePlan& plan = prepared.plan;
+  const std::string& dir = request.output;
+  std::vector<TileKey> keys;
+  for (size_t i = 0; i < prepared.keys.size(); ++i)
+    if (parts <= 1 || i % parts == part) keys.push_back(prepared.keys[i]);
 
   ProgressStage stage(request.progress, "tiles", keys.size(), "tiles");
-  std::vector<std::optional<TileEntry>> entries(keys.size());
-  std::vector<char> reused(keys.size(), 0);
+  TileStepOutcome out;
+  std::atomic<size_t> built{0}, reused{0}, empty{0};
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
   std::exception_ptr first_error;
@@ -153,16 +388,33 @@ TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
   std::mutex error_mutex;
 
   auto work = [&] {
+    std::unique_ptr<PartReader> reader;
+    SceneFeatures window;
+    window.frame = plan.frame;
+    window.layers = spec.layers;
+    window.manifest.notes = prepared.manifest.notes;
     for (;;) {
       const size_t i = next.fetch_add(1);
       if (i >= keys.size() || stop.load()) return;
       try {
         const TileKey key = keys[i];
-        const SceneFeatures tile = tile_scene(scene, plan, key);
+        if (!reader) reader = std::make_unique<PartReader>(paths);
+        // The parts tile_plan would list for this tile, in scene order.
+        reader->read_tile(plan, key, window);
+        TilePlan one = plan;
+        TilePlan::Members& m = one.tiles[key];
+        for (uint32_t k = 0; k < window.polygons.size(); ++k) m.polygons.push_back(k);
+        for (uint32_t k = 0; k < window.lines.size(); ++k) m.lines.push_back(k);
+        for (uint32_t k = 0; k < window.dynamic_lines.size(); ++k) m.dynamic_lines.push_back(k);
+        const SceneFeatures tile = tile_scene(window, one, key);
+        window.polygons.clear();
+        window.lines.clear();
+        window.dynamic_lines.clear();
+        nlohmann::json record;
         if (!tile.polygons.empty() || !tile.lines.empty() || !tile.dynamic_lines.empty()) {
           const std::string file = "tiles/" + tile_name(key) + ".decals";
           const std::string path = dir + "/" + file;
-          nlohmann::json extra = package_metadata(spec, tile.manifest, provenance);
+          nlohmann::json extra = package_metadata(spec, tile.manifest, prepared.provenance);
           const Extent sq = plan.square(key);
           extra["tile"] = {{"x", key.x},
                            {"y", key.y},
@@ -171,9 +423,8 @@ TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
                            {"margin_m", plan.margin}};
           const uint64_t digest = input_digest(tile, extra.dump(), request);
           extra["tile"]["input_xxh64"] = hex64(digest);
-          if (reusable(path, digest)) {
-            reused[i] = 1;
-          } else {
+          const bool kept = reusable(path, digest);
+          if (!kept) {
             ModelOptions mo = spec.model;
             mo.dem_assume_crs = spec.assume_crs;
             DecalModel model = build_model(tile, mo, spec.dem);
@@ -186,9 +437,6 @@ TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
           const std::optional<FileDigest> fd = file_digest(path);
           if (!fd) fail<output_error>(kTilesetStage, "cannot read back " + path);
           TileEntry e;
-          e.key = key;
-          e.square = sq;
-          std::tie(e.origin_x, e.origin_y) = plan.origin(key);
           e.file = file;
           e.bytes = fd->bytes;
           e.xxh64 = fd->xxh64;
@@ -196,8 +444,13 @@ TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
           e.lines = tile.lines.size();
           e.dynamic_lines = tile.dynamic_lines.size();
           e.layers = tile.manifest.layers;
-          entries[i] = std::move(e);
+          record = tile_record_json(e, kept);
+          (kept ? reused : built) += 1;
+        } else {
+          record = {{"empty", true}};
+          empty += 1;
         }
+        write_text_file(paths.tile_record(key), record.dump() + "\n");
         stage.add(1);
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
@@ -218,42 +471,75 @@ TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
   for (std::thread& w : workers) w.join();
   if (first_error) std::rethrow_exception(first_error);
   stage.finish();
+  out.tiles = keys.size();
+  out.built = built;
+  out.reused = reused;
+  out.empty = empty;
+  return out;
+}
+
+// -------------------------------------------------------------- finalize --
+
+TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& request,
+                                Manifest* manifest) {
+  (void)spec;
+  const WorkPaths paths{request.output};
+  const PreparedPlan prepared = read_plan(paths);
+  const TilePlan& plan = prepared.plan;
+  const std::string& dir = request.output;
 
   TilesetOutcome out;
   out.margin = plan.margin;
   TilesetIndex index;
   index.generator = "decalprep (package format " + std::to_string(decal::kVersionMajor) + "." +
                     std::to_string(decal::kVersionMinor) + ")";
-  index.frame = scene.frame;
+  index.frame = plan.frame;
   index.tile_size = plan.size;
   index.margin = plan.margin;
   index.dynamic_margin = plan.dynamic_margin;
   std::set<std::string> names;
-  for (size_t i = 0; i < keys.size(); ++i) {
-    if (!entries[i]) {
-      ++out.empty;
-      continue;
+  for (const TileKey& key : prepared.keys) {
+    std::ifstream in(paths.tile_record(key), std::ios::binary);
+    if (!in)
+      fail<output_error>(kTilesetStage, "tile " + tile_name(key) + " has not been built (no " +
+                                            paths.tile_record(key) + ")");
+    nlohmann::json r;
+    try {
+      r = nlohmann::json::parse(in);
+      if (r.at("empty").get<bool>()) {
+        ++out.empty;
+        continue;
+      }
+      TileEntry e;
+      e.key = key;
+      e.square = plan.square(key);
+      std::tie(e.origin_x, e.origin_y) = plan.origin(key);
+      e.file = r.at("file").get<std::string>();
+      e.bytes = r.at("bytes").get<uint64_t>();
+      e.xxh64 = std::stoull(r.at("xxh64").get<std::string>(), nullptr, 16);
+      e.polygons = r.at("polygons").get<uint64_t>();
+      e.lines = r.at("lines").get<uint64_t>();
+      e.dynamic_lines = r.at("dynamic_lines").get<uint64_t>();
+      e.layers = counts_from_json(r.at("layers"));
+      ++out.tiles;
+      (r.at("reused").get<bool>() ? out.reused : out.built) += 1;
+      out.bytes += e.bytes;
+      names.insert(tile_name(key) + ".decals");
+      index.tiles.push_back(std::move(e));
+    } catch (const nlohmann::json::exception& e) {
+      fail<output_error>(kTilesetStage, paths.tile_record(key) + ": " + e.what());
     }
-    ++out.tiles;
-    (reused[i] ? out.reused : out.built) += 1;
-    out.bytes += entries[i]->bytes;
-    names.insert(tile_name(entries[i]->key) + ".decals");
-    index.tiles.push_back(std::move(*entries[i]));
   }
-  const Extent& e = scene.extent;  // {} when empty
-  const double ox = scene.frame.origin_x, oy = scene.frame.origin_y;
+  const Extent& e = prepared.extent;  // {} when empty
+  const double ox = plan.frame.origin_x, oy = plan.frame.origin_y;
   index.extent =
       e.xmax >= e.xmin ? Extent{e.xmin + ox, e.ymin + oy, e.xmax + ox, e.ymax + oy} : Extent{};
-  index.manifest.layers = scene.manifest.layers;
-  index.manifest.notes = scene.manifest.notes;
-  index.entry_count = scene.manifest.entries.size();
+  index.manifest = prepared.manifest;
+  index.entry_count = prepared.entries + prepared.read_entries;
 
-  // manifest.json: the scene's entries, each feature once.
-  nlohmann::json entries_json = nlohmann::json::array();
-  for (const ManifestEntry& me : scene.manifest.entries)
-    entries_json.push_back(manifest_entry_json(me));
+  // manifest.json: the scene's entries, each feature once (clean's, then read's).
   const std::string manifest_path = dir + "/" + kTilesetManifestName;
-  write_text_file(manifest_path, nlohmann::json{{"entries", entries_json}}.dump(1) + "\n");
+  write_manifest_from({paths.entries(), paths.read_entries()}, index.entry_count, manifest_path);
   const std::optional<FileDigest> md = file_digest(manifest_path);
   if (!md) fail<output_error>(kTilesetStage, "cannot read back " + manifest_path);
   index.manifest_bytes = md->bytes;
@@ -261,6 +547,9 @@ TilesetOutcome write_tileset(const SceneSpec& spec, const SceneFeatures& scene,
 
   remove_stale_tiles(dir + "/tiles", names);
   write_text_file(dir + "/" + kTilesetIndexName, tileset_index_json(index));
+  if (manifest) *manifest = index.manifest;
+  // The work folder is not part of the tileset (formats/SPEC.md "Tilesets").
+  remove_tree(paths.work());
   return out;
 }
 

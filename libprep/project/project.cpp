@@ -5,7 +5,6 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
 #include <GeographicLib/Geodesic.hpp>
 #include <GeographicLib/TransverseMercator.hpp>
@@ -79,32 +78,39 @@ TransformPtr make_transform(const OGRSpatialReference& from, const OGRSpatialRef
   return t;
 }
 
-Extent bounds_of(const SourceLayer& layer) {
+// The box of a layer's vertices (dropped features left out).
+Extent bounds_of(const FeatureSource& features, size_t layer) {
   constexpr double inf = std::numeric_limits<double>::infinity();
-  // Parallel; min and max are exact, so the result does not depend on the
-  // split.
-  return tbb::parallel_reduce(
-      tbb::blocked_range<size_t>(0, layer.features.size(), 1024), Extent{inf, inf, -inf, -inf},
-      [&](const tbb::blocked_range<size_t>& range, Extent e) {
-        for (size_t i = range.begin(); i != range.end(); ++i) {
-          const SourceFeature& f = layer.features[i];
-          if (!f.drop_reason.empty()) continue;
-          for (const Ring& r : f.rings) {
-            for (const Point2& p : r) {
-              e.xmin = std::min(e.xmin, p.x);
-              e.ymin = std::min(e.ymin, p.y);
-              e.xmax = std::max(e.xmax, p.x);
-              e.ymax = std::max(e.ymax, p.y);
-            }
-          }
-        }
-        return e;
-      },
-      [](const Extent& a, const Extent& b) {
-        return Extent{std::min(a.xmin, b.xmin), std::min(a.ymin, b.ymin), std::max(a.xmax, b.xmax),
-                      std::max(a.ymax, b.ymax)};
-      });
+  Extent e{inf, inf, -inf, -inf};
+  features.for_each(layer, [&](const SourceFeature& f) {
+    if (!f.drop_reason.empty()) return;
+    for (const Ring& r : f.rings) {
+      for (const Point2& p : r) {
+        e.xmin = std::min(e.xmin, p.x);
+        e.ymin = std::min(e.ymin, p.y);
+        e.xmax = std::max(e.xmax, p.x);
+        e.ymax = std::max(e.ymax, p.y);
+      }
+    }
+  });
+  return e;
 }
+
+// A FeatureSet as a FeatureSource.
+class SetSource final : public FeatureSource {
+ public:
+  explicit SetSource(const FeatureSet& set) : set_(set) {}
+  size_t layer_count() const override { return set_.layers.size(); }
+  const LayerSpec& spec(size_t layer) const override { return set_.layers[layer].spec; }
+  const std::string& srs_wkt(size_t layer) const override { return set_.layers[layer].srs_wkt; }
+  void for_each(size_t layer,
+                const std::function<void(const SourceFeature&)>& visit) const override {
+    for (const SourceFeature& f : set_.layers[layer].features) visit(f);
+  }
+
+ private:
+  const FeatureSet& set_;
+};
 
 // Transforms an extent with densified edges (GDAL's TransformBounds).
 Extent transform_bounds(OGRCoordinateTransformation& t, const Extent& e, const std::string& what) {
@@ -439,28 +445,29 @@ class ApproxTransform {
 // The centre of the box of the data's vertices in `frame` (up to ~4096 per
 // layer, every stride-th), or, when none transforms, of the geographic
 // point (lon0, lat0); `what` names the frame in the error when neither can.
-std::pair<double, double> data_centre_in(const FeatureSet& features,
+std::pair<double, double> data_centre_in(const FeatureSource& features,
                                          const OGRSpatialReference& frame, const std::string& what,
                                          double lon0, double lat0) {
   Extent fe{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
             -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
-  for (const SourceLayer& layer : features.layers) {
+  for (size_t li = 0; li < features.layer_count(); ++li) {
     std::vector<double> xs, ys;
     size_t total = 0;
-    for (const SourceFeature& f : layer.features)
+    features.for_each(li, [&](const SourceFeature& f) {
       if (f.drop_reason.empty())
         for (const Ring& r : f.rings) total += r.size();
+    });
     if (total == 0) continue;
     const size_t stride = std::max<size_t>(1, total / 4096);
     size_t i = 0;
-    for (const SourceFeature& f : layer.features) {
-      if (!f.drop_reason.empty()) continue;
+    features.for_each(li, [&](const SourceFeature& f) {
+      if (!f.drop_reason.empty()) return;
       for (const Ring& r : f.rings)
         for (const Point2& p : r)
           if (i++ % stride == 0) xs.push_back(p.x), ys.push_back(p.y);
-    }
-    auto src = srs_from(layer.srs_wkt, "source CRS");
-    auto lt = make_transform(*src, frame, "layer '" + layer.spec.name + "' to " + what);
+    });
+    auto src = srs_from(features.srs_wkt(li), "source CRS");
+    auto lt = make_transform(*src, frame, "layer '" + features.spec(li).name + "' to " + what);
     std::vector<int> ok(xs.size(), 0);
     lt->Transform(static_cast<int>(xs.size()), xs.data(), ys.data(), nullptr, ok.data());
     for (size_t k = 0; k < xs.size(); ++k) {
@@ -534,7 +541,7 @@ bool is_lon_lat(const OGRSpatialReference& srs) {
          srs.GetPrimeMeridian() == 0.0;
 }
 
-LonArc data_longitudes(const FeatureSet& features) {
+LonArc data_longitudes(const FeatureSource& features) {
   // Coverage per bin as a difference array: +1 where an interval starts,
   // -1 after it ends (intervals wrap past +180 at most once).
   // The arc's ends are exact: an interval covering the first (last) covered
@@ -561,18 +568,18 @@ LonArc data_longitudes(const FeatureSet& features) {
     }
   };
   auto geo = wgs84();
-  for (const SourceLayer& layer : features.layers) {
-    auto src = srs_from(layer.srs_wkt, "source CRS");
+  for (size_t li = 0; li < features.layer_count(); ++li) {
+    auto src = srs_from(features.srs_wkt(li), "source CRS");
     // A geographic source in degrees from Greenwich is read as it is (a datum
     // shift of a few metres does not move the frame); any other goes through
     // PROJ.
     const bool lon_lat = is_lon_lat(*src);
     TransformPtr t;
-    if (!lon_lat) t = make_transform(*src, *geo, "layer '" + layer.spec.name + "' to WGS84");
+    if (!lon_lat) t = make_transform(*src, *geo, "layer '" + features.spec(li).name + "' to WGS84");
     std::vector<double> xs, ys;
     std::vector<int> ok;
-    for (const SourceFeature& f : layer.features) {
-      if (!f.drop_reason.empty()) continue;
+    features.for_each(li, [&](const SourceFeature& f) {
+      if (!f.drop_reason.empty()) return;
       for (const Ring& r : f.rings) {
         xs.resize(r.size());
         ys.resize(r.size());
@@ -608,7 +615,7 @@ LonArc data_longitudes(const FeatureSet& features) {
           have_prev = true;
         }
       }
-    }
+    });
   }
   // The longest circular run of uncovered bins.
   std::vector<int64_t> covered(kLonBins);
@@ -664,7 +671,8 @@ double max_angle_to_box(double lat_c, double lon_c, double west, double east, do
   return worst;
 }
 
-SceneFrame default_frame(const FeatureSet& features, const Extent& all, bool wrapped, double lat0) {
+SceneFrame default_frame(const FeatureSource& features, const Extent& all, bool wrapped,
+                         double lat0) {
   const auto round7 = [](double deg) { return std::round(deg * 1e7) / 1e7; };
   // The longitude arc: the plain extent while it is at most a half circle
   // (then no shorter arc covers the data), else the coverage on the circle.
@@ -787,6 +795,10 @@ double frame_scale_factor(const SceneFrame& frame, double x, double y) {
 }
 
 SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
+  return choose_frame(SetSource(features), crs);
+}
+
+SceneFrame choose_frame(const FeatureSource& features, const std::string& crs) {
   register_gdal_once();
   // The data's geographic extent, over every layer.
   auto geo = wgs84();
@@ -795,14 +807,15 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   // A layer whose extent GDAL returns with xmin > xmax crosses the
   // antimeridian (a projected source: TransformBounds says so this way).
   bool wrapped = false;
-  for (const SourceLayer& layer : features.layers) {
-    Extent e = bounds_of(layer);
+  for (size_t li = 0; li < features.layer_count(); ++li) {
+    const LayerSpec& spec = features.spec(li);
+    Extent e = bounds_of(features, li);
     // A single horizontal or vertical line has a zero-height (or zero-width)
     // box; only a layer without any vertex is skipped.
     if (!(e.xmax >= e.xmin && e.ymax >= e.ymin)) continue;
-    auto src = srs_from(layer.srs_wkt, "source CRS");
-    auto t = make_transform(*src, *geo, "layer '" + layer.spec.name + "' to WGS84");
-    Extent g = transform_bounds(*t, e, "layer '" + layer.spec.name + "'");
+    auto src = srs_from(features.srs_wkt(li), "source CRS");
+    auto t = make_transform(*src, *geo, "layer '" + spec.name + "' to WGS84");
+    Extent g = transform_bounds(*t, e, "layer '" + spec.name + "'");
     if (g.xmin > g.xmax) {
       wrapped = true;
       std::swap(g.xmin, g.xmax);
@@ -817,8 +830,7 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
                     "or the layer's CRS is wrong); the default frame cannot be centred on them. "
                     "Fix the source or its CRS, or pass --crs",
                     g.xmin, g.xmax);
-      fail<input_error>(kProjectStage,
-                        "layer '" + layer.spec.name + "' (" + layer.spec.source + ")" + msg);
+      fail<input_error>(kProjectStage, "layer '" + spec.name + "' (" + spec.source + ")" + msg);
     }
     all.xmin = std::min(all.xmin, g.xmin);
     all.ymin = std::min(all.ymin, g.ymin);
@@ -827,9 +839,9 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   }
   if (!(all.xmax >= all.xmin)) {
     std::string layers;
-    for (const SourceLayer& layer : features.layers)
-      layers +=
-          (layers.empty() ? "" : ", ") + ("'" + layer.spec.name + "' (" + layer.spec.source + ")");
+    for (size_t li = 0; li < features.layer_count(); ++li)
+      layers += (layers.empty() ? "" : ", ") +
+                ("'" + features.spec(li).name + "' (" + features.spec(li).source + ")");
     fail<input_error>(kProjectStage,
                       "no features to centre the scene frame on: every layer is empty "
                       "or has only dropped features: " +
@@ -861,99 +873,49 @@ SceneFrame choose_frame(const FeatureSet& features, const std::string& crs) {
   return frame;
 }
 
-ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene,
-                          Progress* progress) {
-  register_gdal_once();
-  uint64_t parts = 0;
-  for (const SourceLayer& layer : features.layers) parts += layer.features.size();
-  ProgressStage stage(progress, "project", parts, "parts");
-  ProjectedFeatures out;
-  out.frame = frame;
-  auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
-  const bool local_tm = std::isfinite(frame.tm_lon0);
-  const bool equal_area = !local_tm && is_equal_area(*frame_srs);
-  double tm_x0 = 0, tm_y0 = 0;
-  if (local_tm) tm_wgs84().Forward(frame.tm_lon0, frame.tm_lat0, frame.tm_lon0, tm_x0, tm_y0);
+struct LayerProjection::Impl {
+  SceneFrame frame_;
+  const SceneSpec& scene_;
+  LayerSpec spec_;
+  std::unique_ptr<OGRSpatialReference> frame_srs_, src_;
+  bool local_tm = false, equal_area = false, identity = false, rewrap = false;
+  double tm_x0 = 0, tm_y0 = 0, centre = 0;
+  std::string ctx;
+  TransformPtr exact;
+  std::vector<TransformPtr> transforms;
+  std::vector<std::unique_ptr<NumericScale>> scales;
+  std::mutex clone_mutex;
+  std::optional<ApproxTransform> approx;
 
-  for (SourceLayer& layer : features.layers) {
-    auto src = srs_from(layer.srs_wkt, "source CRS of layer '" + layer.spec.name + "'");
-    const std::string ctx = "layer '" + layer.spec.name + "' to the scene frame";
-    // OGRCoordinateTransformation is not thread-safe: `exact` fits the
-    // approximation here, on one thread; the workers clone it (a clone skips
-    // PROJ's database search) only if some vertex needs the exact path.
-    TransformPtr exact = make_transform(*src, *frame_srs, ctx);
-    const int slots = tbb::this_task_arena::max_concurrency();
-    std::vector<TransformPtr> transforms(static_cast<size_t>(slots));
-    std::vector<std::unique_ptr<NumericScale>> scales(static_cast<size_t>(slots));
-    std::mutex clone_mutex;
-    auto slot_transform = [&](size_t slot) -> OGRCoordinateTransformation& {
-      if (!transforms[slot]) {
-        std::lock_guard<std::mutex> lock(clone_mutex);
-        TransformPtr c(exact->Clone());
-        if (!c) c = make_transform(*src, *frame_srs, ctx);
-        transforms[slot] = std::move(c);
-      }
-      return *transforms[slot];
-    };
-    auto slot_scale = [&](size_t slot) -> NumericScale& {
-      if (!scales[slot]) {
-        std::lock_guard<std::mutex> lock(clone_mutex);
-        scales[slot] = std::make_unique<NumericScale>(*frame_srs, equal_area);
-      }
-      return *scales[slot];
-    };
-    // The same CRS as the frame: PROJ's transformation is the identity (a
-    // no-op); skip it, and the approximation too, which would move vertices
-    // by up to kApproxTolerance and could part vertices that touch exactly.
-    const bool identity = src->IsSame(frame_srs.get()) != 0;
-    // Lon/lat data wider than a half circle (across the antimeridian, as
-    // -178.5 beside 179.9) is read within 180 degrees of the frame's centre:
-    // the same points for PROJ, but one compact box for the approximation
-    // instead of the whole globe (which it would split down to slivers,
-    // fitting thousands of cells: 10 s instead of 1 s for a million
-    // vertices). A longitude exactly 180 from the centre stays as it is (+180
-    // and -180 are apart in a world frame); messages give the source's own.
-    Extent box = bounds_of(layer);
-    bool rewrap = false;
-    double centre = 0;
-    if (!identity && is_lon_lat(*src) && box.xmax - box.xmin > 180.0) {
-      rewrap = true;
-      centre = frame_centre_lon(frame, *frame_srs);
-      box = {std::numeric_limits<double>::infinity(), box.ymin,
-             -std::numeric_limits<double>::infinity(), box.ymax};
-    }
-    const auto source_x = [&](double x) {
-      return rewrap && std::fabs(x - centre) > 180.0 ? centre + wrap180(x - centre) : x;
-    };
-    if (rewrap) {
-      for (const SourceFeature& f : layer.features) {
-        if (!f.drop_reason.empty()) continue;
-        for (const Ring& r : f.rings)
-          for (const Point2& p : r) {
-            box.xmin = std::min(box.xmin, source_x(p.x));
-            box.xmax = std::max(box.xmax, source_x(p.x));
-          }
-      }
-    }
-    std::optional<ApproxTransform> approx;
-    if (!identity && box.xmax >= box.xmin && box.ymax >= box.ymin && std::isfinite(box.xmin) &&
-        std::isfinite(box.ymin) && std::isfinite(box.xmax) && std::isfinite(box.ymax)) {
-      approx.emplace(*exact, box, [&](auto&& visit) {
-        for (const SourceFeature& f : layer.features) {
-          if (!f.drop_reason.empty()) continue;
-          for (const Ring& r : f.rings)
-            for (const Point2& p : r) visit(source_x(p.x), p.y);
-        }
-      });
-    }
-    std::vector<double>& k = out.scale.emplace_back(layer.features.size(), 1.0);
+  Impl(const SceneFrame& frame, const SceneSpec& scene) : frame_(frame), scene_(scene) {}
 
+  double source_x(double x) const {
+    return rewrap && std::fabs(x - centre) > 180.0 ? centre + wrap180(x - centre) : x;
+  }
+  OGRCoordinateTransformation& slot_transform(size_t slot) {
+    if (!transforms[slot]) {
+      std::lock_guard<std::mutex> lock(clone_mutex);
+      TransformPtr c(exact->Clone());
+      if (!c) c = make_transform(*src_, *frame_srs_, ctx);
+      transforms[slot] = std::move(c);
+    }
+    return *transforms[slot];
+  }
+  NumericScale& slot_scale(size_t slot) {
+    if (!scales[slot]) {
+      std::lock_guard<std::mutex> lock(clone_mutex);
+      scales[slot] = std::make_unique<NumericScale>(*frame_srs_, equal_area);
+    }
+    return *scales[slot];
+  }
+  std::vector<double> apply(SourceLayer& chunk, ProgressStage* stage) {
+    std::vector<double> k(chunk.features.size(), 1.0);
     tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, layer.features.size(), 64),
+        tbb::blocked_range<size_t>(0, chunk.features.size(), 64),
         [&](const tbb::blocked_range<size_t>& range) {
           const size_t slot = static_cast<size_t>(tbb::this_task_arena::current_thread_index());
           for (size_t i = range.begin(); i != range.end(); ++i) {
-            SourceFeature& f = layer.features[i];
+            SourceFeature& f = chunk.features[i];
             if (!f.drop_reason.empty()) continue;
             double cx = 0, cy = 0;
             size_t n_all = 0;
@@ -969,18 +931,18 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
                     f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
                                     ", " + std::to_string(r[j].y) +
                                     ") cannot be transformed into the scene frame" +
-                                    frame_hint(frame);
+                                    frame_hint(frame_);
                     f.failed_in = FailureStage::project;
                     break;
                   }
                 }
                 const Point2 source = r[j];
-                r[j].x = x - frame.origin_x;
-                r[j].y = y - frame.origin_y;
+                r[j].x = x - frame_.origin_x;
+                r[j].y = y - frame_.origin_y;
                 if ((!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) && f.drop_reason.empty()) {
                   f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
                                   ", " + std::to_string(source.y) +
-                                  ") is not finite in the scene frame" + frame_hint(frame);
+                                  ") is not finite in the scene frame" + frame_hint(frame_);
                   f.failed_in = FailureStage::project;
                 }
                 cx += r[j].x;
@@ -1001,26 +963,95 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
             if (local_tm) {
               // frame_scale_factor, with the frame's false northing y0 hoisted.
               double lat = 0, lon = 0, gamma = 0;
-              tm_wgs84().Reverse(frame.tm_lon0, cx + frame.origin_x, cy + frame.origin_y + tm_y0,
+              tm_wgs84().Reverse(frame_.tm_lon0, cx + frame_.origin_x, cy + frame_.origin_y + tm_y0,
                                  lat, lon, gamma, k[i]);
             } else {
-              k[i] = slot_scale(slot).at(cx + frame.origin_x, cy + frame.origin_y);
+              k[i] = slot_scale(slot).at(cx + frame_.origin_x, cy + frame_.origin_y);
             }
             if (!std::isfinite(k[i])) k[i] = 1.0;
           }
-          stage.add(range.size());
+          if (stage) stage->add(range.size());
         });
     // Without skip_failures the first failing feature in input order stops
     // the build (the loop above runs in any order).
-    if (!scene.skip_failures) {
-      for (const SourceFeature& f : layer.features)
+    if (!scene_.skip_failures) {
+      for (const SourceFeature& f : chunk.features)
         if (f.failed_in)
-          throw feature_failure_error(*f.failed_in, layer.spec.source, layer.spec.name, f.fid,
-                                      f.drop_reason);
+          throw feature_failure_error(*f.failed_in, spec_.source, spec_.name, f.fid, f.drop_reason);
     }
-    layer.srs_wkt = frame.crs_wkt;
+    chunk.srs_wkt = frame_.crs_wkt;
+    return k;
   }
+};
 
+LayerProjection::LayerProjection(const FeatureSource& features, size_t layer,
+                                 const SceneFrame& frame, const SceneSpec& scene)
+    : impl_(std::make_unique<Impl>(frame, scene)) {
+  register_gdal_once();
+  Impl& m = *impl_;
+  m.spec_ = features.spec(layer);
+  m.frame_srs_ = srs_from(frame.crs_wkt, "frame CRS");
+  m.local_tm = std::isfinite(frame.tm_lon0);
+  m.equal_area = !m.local_tm && is_equal_area(*m.frame_srs_);
+  if (m.local_tm) tm_wgs84().Forward(frame.tm_lon0, frame.tm_lat0, frame.tm_lon0, m.tm_x0, m.tm_y0);
+  m.src_ = srs_from(features.srs_wkt(layer), "source CRS of layer '" + m.spec_.name + "'");
+  m.ctx = "layer '" + m.spec_.name + "' to the scene frame";
+  // OGRCoordinateTransformation is not thread-safe: `exact` fits the
+  // approximation here, on one thread; the workers clone it (a clone skips
+  // PROJ's database search) only if some vertex needs the exact path.
+  m.exact = make_transform(*m.src_, *m.frame_srs_, m.ctx);
+  const int slots = tbb::this_task_arena::max_concurrency();
+  m.transforms.resize(static_cast<size_t>(slots));
+  m.scales.resize(static_cast<size_t>(slots));
+  // The same CRS as the frame: PROJ's transformation is the identity (a
+  // no-op); skip it, and the approximation too, which would move vertices
+  // by up to kApproxTolerance and could part vertices that touch exactly.
+  m.identity = m.src_->IsSame(m.frame_srs_.get()) != 0;
+  // Lon/lat data wider than a half circle (across the antimeridian, as
+  // -178.5 beside 179.9) is read within 180 degrees of the frame's centre:
+  // the same points for PROJ, but one compact box for the approximation
+  // instead of the whole globe (which it would split down to slivers,
+  // fitting thousands of cells: 10 s instead of 1 s for a million
+  // vertices). A longitude exactly 180 from the centre stays as it is (+180
+  // and -180 are apart in a world frame); messages give the source's own.
+  Extent box = bounds_of(features, layer);
+  if (!m.identity && is_lon_lat(*m.src_) && box.xmax - box.xmin > 180.0) {
+    m.rewrap = true;
+    m.centre = frame_centre_lon(frame, *m.frame_srs_);
+    box = {std::numeric_limits<double>::infinity(), box.ymin,
+           -std::numeric_limits<double>::infinity(), box.ymax};
+  }
+  if (m.rewrap) {
+    features.for_each(layer, [&](const SourceFeature& f) {
+      if (!f.drop_reason.empty()) return;
+      for (const Ring& r : f.rings)
+        for (const Point2& p : r) {
+          box.xmin = std::min(box.xmin, m.source_x(p.x));
+          box.xmax = std::max(box.xmax, m.source_x(p.x));
+        }
+    });
+  }
+  if (!m.identity && box.xmax >= box.xmin && box.ymax >= box.ymin && std::isfinite(box.xmin) &&
+      std::isfinite(box.ymin) && std::isfinite(box.xmax) && std::isfinite(box.ymax)) {
+    m.approx.emplace(*m.exact, box, [&](auto&& visit) {
+      features.for_each(layer, [&](const SourceFeature& f) {
+        if (!f.drop_reason.empty()) return;
+        for (const Ring& r : f.rings)
+          for (const Point2& p : r) visit(m.source_x(p.x), p.y);
+      });
+    });
+  }
+}
+
+LayerProjection::~LayerProjection() = default;
+
+std::vector<double> LayerProjection::apply(SourceLayer& chunk, ProgressStage* stage) const {
+  return impl_->apply(chunk, stage);
+}
+
+std::optional<Extent> clip_extent(const SceneFrame& frame, const SceneSpec& scene) {
+  register_gdal_once();
+  auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
   // The clip extent: --extent, else the DEM's extent.
   if (scene.extent) {
     Extent e = extent_in_frame_crs(*scene.extent, scene.extent_crs, frame, "project");
@@ -1028,7 +1059,7 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     e.xmax -= frame.origin_x;
     e.ymin -= frame.origin_y;
     e.ymax -= frame.origin_y;
-    out.clip = e;
+    return e;
   } else if (!scene.dem.empty()) {
     // The DEM module opens it and resolves its CRS (own, or assume_crs).
     const DemFootprint footprint = dem_footprint({scene.dem, scene.assume_crs});
@@ -1039,8 +1070,25 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
     e.xmax -= frame.origin_x;
     e.ymin -= frame.origin_y;
     e.ymax -= frame.origin_y;
-    out.clip = e;
+    return e;
   }
+  return std::nullopt;
+}
+
+ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene,
+                          Progress* progress) {
+  register_gdal_once();
+  uint64_t parts = 0;
+  for (const SourceLayer& layer : features.layers) parts += layer.features.size();
+  ProgressStage stage(progress, "project", parts, "parts");
+  ProjectedFeatures out;
+  out.frame = frame;
+  const SetSource source(features);
+  for (size_t li = 0; li < features.layers.size(); ++li) {
+    const LayerProjection projection(source, li, frame, scene);
+    out.scale.push_back(projection.apply(features.layers[li], &stage));
+  }
+  out.clip = clip_extent(frame, scene);
   out.features = std::move(features);
   stage.finish();
   return out;

@@ -307,6 +307,28 @@ struct ReadAttempt {
   LayerCounts counts;
   std::vector<ManifestEntry> entries;
   std::vector<std::string> notes;
+  // Streaming (ReadOptions::chunks): whole features go to chunks->take.
+  const ReadChunks* chunks = nullptr;
+  size_t scene_layer = 0;
+
+  void start(const ReadChunks* c, size_t index) {
+    chunks = c;
+    scene_layer = index;
+    counted = vertices = 0;
+    if (chunks && chunks->restart) chunks->restart(scene_layer);
+  }
+  size_t counted = 0, vertices = 0;  // of layer.features, since the last chunk
+
+  // After a whole feature: hands a full chunk over (`last`: whatever is left).
+  void flush(bool last = false) {
+    if (!chunks || layer.features.empty()) return;
+    for (; counted < layer.features.size(); ++counted)
+      for (const Ring& ring : layer.features[counted].rings) vertices += ring.size();
+    if (!last && layer.features.size() < chunks->parts && vertices < chunks->vertices) return;
+    chunks->take(scene_layer, layer);
+    layer.features.clear();
+    counted = vertices = 0;
+  }
 };
 
 // The feature loop's body for one scene layer: splits a feature into parts
@@ -419,8 +441,10 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
 }
 
 ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress& progress,
-                      ErrorCapture& errors, bool plain_osm_index) {
+                      ErrorCapture& errors, bool plain_osm_index, const ReadChunks* chunks,
+                      size_t scene_layer) {
   ReadAttempt r;
+  r.start(chunks, scene_layer);
   r.layer.spec = spec;
   r.counts.layer = spec.name;
 
@@ -523,10 +547,12 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
       proto.drop_reason = "OGR cannot decode the feature: " + errors.last();
       proto.failed_in = FailureStage::read;
       r.layer.features.push_back(proto);
+      r.flush();
       continue;
     }
 
     sink.take_geometry(*feature, proto);
+    r.flush();
     if ((index & 1023) == 1023)
       progress.update(index + 1,
                       estimate == JobProgress::kUnknown ? estimate : std::max(estimate, index + 1));
@@ -540,6 +566,7 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
   }
   progress.update(r.counts.read, r.counts.read);
   sink.finish(errors);
+  r.flush(true);
   return r;
 }
 
@@ -563,7 +590,8 @@ bool is_osm(const std::string& path) {
 // feature): the caller then reads the layers one by one, which reports the
 // problem exactly as before.
 bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec& scene,
-                    JobProgress& progress, std::vector<ReadAttempt>& out) {
+                    JobProgress& progress, std::vector<ReadAttempt>& out, const ReadChunks* chunks,
+                    const std::vector<size_t>& scene_layers) {
   try {
     ErrorCapture errors;
     const std::string& source = specs.front()->source;
@@ -583,6 +611,7 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
     for (size_t i = 0; i < specs.size(); ++i) {
       const LayerSpec& spec = *specs[i];
       ReadAttempt& r = attempts[i];
+      r.start(chunks, scene_layers[i]);
       r.layer.spec = spec;
       r.counts.layer = spec.name;
       OGRLayer* layer =
@@ -616,6 +645,7 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
         if (layers[i] != from) continue;
         SourceFeature proto = sinks[i].proto_of(*feature);
         sinks[i].take_geometry(*feature, proto);
+        attempts[i].flush();
       }
       if ((++fetched & 1023) == 0)
         progress.update(fetched, fraction > 0.01
@@ -625,6 +655,7 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
     if (errors.failed()) return false;
     progress.update(fetched, fetched);
     for (LayerSink& sink : sinks) sink.finish(errors);
+    for (ReadAttempt& r : attempts) r.flush(true);
     if (plain_osm_index)
       for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
     out = std::move(attempts);
@@ -635,11 +666,12 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
 }
 
 SourceLayer read_layer_job(const LayerSpec& spec, const SceneSpec& scene, Manifest& manifest,
-                           JobProgress& progress) {
+                           JobProgress& progress, const ReadChunks* chunks = nullptr,
+                           size_t scene_layer = 0) {
   ErrorCapture errors;
   ReadAttempt r;
   try {
-    r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/false);
+    r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/false, chunks, scene_layer);
   } catch (const gdal_error& e) {
     // GDAL's OSM driver stopped at a node id that does not increase in a
     // file the scan could not read (osm_xml_order.hpp): read it again with
@@ -648,7 +680,7 @@ SourceLayer read_layer_job(const LayerSpec& spec, const SceneSpec& scene, Manife
     if (what.find("OSM_USE_CUSTOM_INDEXING") == std::string::npos) throw;
     errors.clear();
     try {
-      r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/true);
+      r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/true, chunks, scene_layer);
     } catch (const gdal_error& again) {
       throw gdal_error(std::string(again.what()) +
                        " (read again with OSM_USE_CUSTOM_INDEXING=NO after: " + what +
@@ -718,7 +750,7 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   auto read_alone = [&](size_t i) {
     try {
       JobProgress progress(&stage, &estimates, i);
-      layers[i] = read_layer_job(scene.layers[i], scene, manifests[i], progress);
+      layers[i] = read_layer_job(scene.layers[i], scene, manifests[i], progress, options.chunks, i);
     } catch (...) {
       failures[i] = std::current_exception();
     }
@@ -732,7 +764,7 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
       // The pass counts under its first layer; the others add nothing.
       for (size_t k = 1; k < job.size(); ++k) estimates[job[k]] = 0;
       JobProgress progress(&stage, &estimates, job.front());
-      if (read_osm_group(specs, scene, progress, got)) {
+      if (read_osm_group(specs, scene, progress, got, options.chunks, job)) {
         for (size_t k = 0; k < job.size(); ++k) {
           ReadAttempt& r = got[k];
           Manifest& m = manifests[job[k]];

@@ -267,23 +267,46 @@ std::pair<double, double> TilePlan::origin(const TileKey& key) const {
   return {(double(key.x) + 0.5) * size, (double(key.y) + 0.5) * size};
 }
 
-double stroke_margin(const SceneFeatures& scene, const ModelOptions& options) {
+double stroke_half_width(const SceneFeatures& scene) {
   double hw = 0;
   for (const SceneLine& l : scene.lines) {
     const LayerSpec& spec = scene.layers.at(l.layer);
     const bool banded = spec.style.outline != decal::OutlineMode::normal;
     if (std::isfinite(l.width)) hw = std::max(hw, l.width * 0.5 * (banded ? 2.0 : 1.0));
   }
+  return hw;
+}
+
+double stroke_margin_of(double hw, const ModelOptions& options) {
   const double limit = std::clamp(options.miter_limit_deg, 1.0, 180.0);
   return std::max(1.0, 1.01 * hw / std::sin(limit * M_PI / 360.0));
 }
 
-TilePlan tile_plan(const SceneFeatures& scene, const ModelOptions& options, double tile_size) {
+double stroke_margin(const SceneFeatures& scene, const ModelOptions& options) {
+  return stroke_margin_of(stroke_half_width(scene), options);
+}
+
+Extent ring_box(const Ring& ring) {
+  return box_of(ring);
+}
+
+TileRange tile_range(const Extent& local, double by, double ox, double oy, double tile_size) {
+  const Extent b{local.xmin + ox - by, local.ymin + oy - by, local.xmax + ox + by,
+                 local.ymax + oy + by};
+  return {{int64_t(std::floor(b.xmin / tile_size)), int64_t(std::floor(b.ymin / tile_size))},
+          {int64_t(std::floor(b.xmax / tile_size)), int64_t(std::floor(b.ymax / tile_size))}};
+}
+
+void check_tile_size(double tile_size) {
   if (!(tile_size >= kMinTileSize && tile_size <= kMaxTileSize)) {
     fail<usage_error>(kTileStage, "--tile-size " + std::to_string(tile_size) +
                                       " m is outside [1, 4000000] m (a tile's half must fit "
                                       "int32 millimetres around its centre)");
   }
+}
+
+TilePlan tile_plan(const SceneFeatures& scene, const ModelOptions& options, double tile_size) {
+  check_tile_size(tile_size);
   TilePlan plan;
   plan.size = tile_size;
   plan.frame = scene.frame;
@@ -292,14 +315,9 @@ TilePlan tile_plan(const SceneFeatures& scene, const ModelOptions& options, doub
   const double ox = scene.frame.origin_x, oy = scene.frame.origin_y;
   // Tiles whose square grown by `by` meets the part's box (absolute).
   auto each_tile = [&](const Extent& local, double by, auto&& visit) {
-    const Extent b{local.xmin + ox - by, local.ymin + oy - by, local.xmax + ox + by,
-                   local.ymax + oy + by};
-    const auto x0 = int64_t(std::floor(b.xmin / tile_size)),
-               x1 = int64_t(std::floor(b.xmax / tile_size));
-    const auto y0 = int64_t(std::floor(b.ymin / tile_size)),
-               y1 = int64_t(std::floor(b.ymax / tile_size));
-    for (int64_t y = y0; y <= y1; ++y)
-      for (int64_t x = x0; x <= x1; ++x) visit(TileKey{x, y});
+    const TileRange r = tile_range(local, by, ox, oy, tile_size);
+    for (int64_t y = r.lo.y; y <= r.hi.y; ++y)
+      for (int64_t x = r.lo.x; x <= r.hi.x; ++x) visit(TileKey{x, y});
   };
   for (uint32_t i = 0; i < scene.polygons.size(); ++i)
     each_tile(box_of(scene.polygons[i].shell), plan.margin,

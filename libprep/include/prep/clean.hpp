@@ -11,14 +11,17 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
+#include <vector>
 
 #include "prep/project.hpp"
 #include "prep/scene.hpp"
 
 namespace prep {
 
-class Progress;  // prep/progress.hpp
+class Progress;       // prep/progress.hpp
+class ProgressStage;  // prep/progress.hpp
 
 struct CleanOptions {
   unsigned threads = 0;  // 0: all hardware threads; the output does not depend on it
@@ -48,6 +51,35 @@ SceneFeatures clean(const ProjectedFeatures& input, const SceneSpec& scene,
 // them (the pipeline's call: `input` is not used afterwards).
 SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene,
                     const CleanOptions& options = {});
+
+// clean() for a scene that comes chunk by chunk (a tileset's prepare step):
+// the same parts, entries and counts as clean() of the whole scene, in the
+// same order, when the layers come in scene order and each layer's chunks
+// in input order. Throws what clean() throws, at the same feature.
+class ChunkCleaner {
+ public:
+  // `clip`: ProjectedFeatures::clip; `stage` (may be null): counts parts and
+  // watches them (prep/progress.hpp).
+  ChunkCleaner(const SceneSpec& scene, const std::optional<Extent>& clip,
+               const CleanOptions& options, ProgressStage* stage);
+  ~ChunkCleaner();
+  ChunkCleaner(const ChunkCleaner&) = delete;
+  ChunkCleaner& operator=(const ChunkCleaner&) = delete;
+  // Starts scene layer `layer_index` (`read_manifest`: the read stage's,
+  // for the layer's read count).
+  void begin_layer(uint32_t layer_index, const LayerSpec& spec, const Manifest& read_manifest);
+  // Cleans a chunk of the layer (whole features; `scale` from the
+  // projection, one per feature), taking its coordinates: kept parts are
+  // appended to out.polygons, out.lines, out.dynamic_lines, the layer's
+  // entries to out.manifest.entries.
+  void clean_chunk(SourceLayer& chunk, const std::vector<double>& scale, SceneFeatures& out);
+  // The layer's counts; read == kept + clipped_away + dropped, or an error.
+  LayerCounts end_layer();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 // The bounding box of every kept polygon shell and line (empty when nothing
 // is kept): SceneFeatures::extent as clean sets it.

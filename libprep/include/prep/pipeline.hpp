@@ -33,8 +33,9 @@ struct BuildRequest {
   unsigned jobs = 1;
   // Progress of every stage, in pipeline order: read, project, clean,
   // build.lines, build.quadtrees, build.grid, build.cells, build.dynamic,
-  // write (prep/progress.hpp); for a tileset, "tiles" (counted in tiles)
-  // replaces the build and write stages. Null: silent. Output only.
+  // write (prep/progress.hpp); for a tileset: read, "prepare" (parts
+  // projected, cleaned and written to the work folder), then "tiles"
+  // (counted in tiles). Null: silent. Output only.
   Progress* progress = nullptr;
 };
 

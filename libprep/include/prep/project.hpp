@@ -12,6 +12,9 @@
 // Every SRS is used with OAMS_TRADITIONAL_GIS_ORDER (x = easting/longitude).
 #pragma once
 
+#include <cstddef>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -20,7 +23,8 @@
 
 namespace prep {
 
-class Progress;  // prep/progress.hpp
+class Progress;       // prep/progress.hpp
+class ProgressStage;  // prep/progress.hpp
 
 // Features in frame coordinates (metres relative to frame.origin), plus the
 // point scale factor of the frame at each part (frame metres per ground
@@ -40,6 +44,49 @@ struct ProjectedFeatures {
 // centre on, or, without `crs`, for a layer whose longitudes lie beyond
 // +-540 degrees.
 SceneFrame choose_frame(const FeatureSet& features, const std::string& crs);
+
+// Read features, layer by layer, whether held in memory (a FeatureSet) or
+// not (a tileset's prepare step reads them back from a spill file): what
+// choose_frame and a LayerProjection visit.
+class FeatureSource {
+ public:
+  virtual ~FeatureSource() = default;
+  virtual size_t layer_count() const = 0;
+  virtual const LayerSpec& spec(size_t layer) const = 0;
+  virtual const std::string& srs_wkt(size_t layer) const = 0;
+  // Every feature (part) of `layer` in input order.
+  virtual void for_each(size_t layer,
+                        const std::function<void(const SourceFeature&)>& visit) const = 0;
+};
+
+// The same frame as choose_frame(FeatureSet) for the same features.
+SceneFrame choose_frame(const FeatureSource& features, const std::string& crs);
+
+// The transformation of one layer into the frame, as project() applies it,
+// for a layer projected chunk by chunk: the verified approximation is fitted
+// to the whole layer (`features.for_each(layer)`), so every chunk's vertices
+// land exactly where project() puts them.
+class LayerProjection {
+ public:
+  LayerProjection(const FeatureSource& features, size_t layer, const SceneFrame& frame,
+                  const SceneSpec& scene);
+  ~LayerProjection();
+  LayerProjection(const LayerProjection&) = delete;
+  LayerProjection& operator=(const LayerProjection&) = delete;
+  // Projects `chunk` (features of the layer, in input order) in place and
+  // returns each feature's point scale factor. Without scene.skip_failures
+  // the chunk's first failing feature throws (as project() does for the
+  // layer); `stage` (may be null) counts the parts.
+  std::vector<double> apply(SourceLayer& chunk, ProgressStage* stage) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The clip extent project() sets (ProjectedFeatures::clip): scene.extent in
+// scene.extent_crs, else the DEM's footprint, in scene coordinates.
+std::optional<Extent> clip_extent(const SceneFrame& frame, const SceneSpec& scene);
 
 // Transforms every feature into `frame` (parallel per feature; output order
 // is the input order). A feature whose transform fails is dropped with a

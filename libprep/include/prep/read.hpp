@@ -12,6 +12,8 @@
 // read stage's specification.
 #pragma once
 
+#include <cstddef>
+#include <functional>
 #include <string>
 
 #include "prep/scene.hpp"
@@ -20,10 +22,32 @@ namespace prep {
 
 class Progress;  // prep/progress.hpp
 
+// The streaming form of the read (a tileset's prepare step): features are
+// handed over in chunks instead of being kept in the FeatureSet.
+struct ReadChunks {
+  // A chunk ends after the input feature (every part of it) that brings it
+  // to this many parts or this many vertices.
+  size_t parts = 4096;
+  size_t vertices = 65536;
+  // Takes a chunk of scene layer `layer`'s features (in input order,
+  // continuing its previous chunk; the caller may move them out). Layers
+  // are read concurrently: calls for different layers may come from
+  // different threads at once, never two for the same layer.
+  std::function<void(size_t layer, SourceLayer& chunk)> take;
+  // Layer `layer` is read again from its start (GDAL's OSM driver needed
+  // another node index, or a shared OSM pass fell back to one read per
+  // layer): forget every chunk of it taken so far.
+  std::function<void(size_t layer)> restart;
+};
+
 struct ReadOptions {
   // Stage "read" (features; the total is an estimate for sources that do not
   // know their feature count, such as OSM). Null: silent.
   Progress* progress = nullptr;
+  // Set (read_scene only): the features go to chunks->take, and the
+  // FeatureSet's layers come back without features (spec, CRS; the
+  // manifest as always).
+  const ReadChunks* chunks = nullptr;
 };
 
 // Reads every layer of `scene` (in scene order). Throws:

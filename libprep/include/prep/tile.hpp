@@ -77,6 +77,33 @@ struct TilePlan {
 // least 1 m.
 double stroke_margin(const SceneFeatures& scene, const ModelOptions& options);
 
+// The margin stroke_margin() gives for a widest half band `half_width`
+// (the same arithmetic): the maximum over chunks of a scene equals the
+// whole scene's margin, so a streaming pass can compute it chunk by chunk.
+double stroke_margin_of(double half_width, const ModelOptions& options);
+// The widest half band of `scene`'s static lines (the argument of
+// stroke_margin_of; 0 when there is none).
+double stroke_half_width(const SceneFeatures& scene);
+
+// The bounding box of a ring (a polygon part's shell, a line's points):
+// what the plan places a part by. Empty rings give an inverted box.
+Extent ring_box(const Ring& ring);
+
+// The tiles a part with box `local` (scene coordinates, relative to the
+// frame origin `origin_x, origin_y`) reaches when grown by `by`: x in
+// [lo.x, hi.x], y in [lo.y, hi.y]. tile_plan places every part with it.
+struct TileRange {
+  TileKey lo, hi;
+  bool holds(const TileKey& k) const {
+    return k.x >= lo.x && k.x <= hi.x && k.y >= lo.y && k.y <= hi.y;
+  }
+};
+TileRange tile_range(const Extent& local, double by, double origin_x, double origin_y,
+                     double tile_size);
+
+// Throws usage_error when `tile_size` is outside [kMinTileSize, kMaxTileSize].
+void check_tile_size(double tile_size);
+
 // Which tiles each part reaches. Throws usage_error when `tile_size` is
 // outside [kMinTileSize, kMaxTileSize].
 TilePlan tile_plan(const SceneFeatures& scene, const ModelOptions& options, double tile_size);
