@@ -362,7 +362,99 @@ void add_memory_report(nlohmann::json& report,
   if (limit) report["max_memory_mib"] = double(limit.bytes) / (1024.0 * 1024.0);
 }
 
+// One step of a tileset build (BuildRequest::step), in a process of its own.
+// The report says which step ran and what it did; the state for the next
+// step is in the work folder only (pipeline_internal.hpp).
+BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request) {
+  using Step = BuildRequest::Step;
+  if (request.output.empty()) fail<usage_error>(kBuildStage, "no output path (-o)");
+  if (scene.tile_size <= 0)
+    fail<usage_error>(kBuildStage, "--step is a step of a tileset build: give --tile-size");
+  if (request.dry_run) fail<usage_error>(kBuildStage, "--step and --dry-run exclude each other");
+  if (request.step == Step::tiles &&
+      (request.step_parts == 0 || request.step_part >= request.step_parts))
+    fail<usage_error>(kBuildStage, "--step tiles K/N needs 0 <= K < N, not " +
+                                       std::to_string(request.step_part) + "/" +
+                                       std::to_string(request.step_parts));
+  std::unique_ptr<tbb::global_control> threads;
+  if (scene.model.threads > 0) {
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    scene.model.threads);
+  }
+  const auto t0 = Clock::now();
+  BuildResult result;
+  nlohmann::json report = {{"report_version", 1}, {"output", request.output}};
+  auto say = [&](const std::string& line) {
+    if (request.progress && request.progress->mode() != ProgressMode::none)
+      request.progress->message(request.progress->mode() == ProgressMode::json
+                                    ? nlohmann::json{{"event", "step"}, {"text", line}}.dump()
+                                    : line);
+  };
+  switch (request.step) {
+    case Step::prepare: {
+      const nlohmann::json provenance = provenance_json(scene);
+      const pipeline_internal::PreparedScene p = pipeline_internal::prepare_tileset_streaming(
+          scene, request, [&]() -> const nlohmann::json& { return provenance; });
+      report["step"] = "prepare";
+      report["timings_s"] = {{"read", p.read_s}, {"project", p.project_s}, {"clean", p.clean_s}};
+      report["output_counts"] = {
+          {"polygons", p.polygons}, {"lines", p.lines}, {"dynamic_lines", p.dynamic_lines}};
+      report["entry_count"] = p.entry_count;
+      result.skipped_failures = p.skipped_failures;
+      say("step prepare: " + std::to_string(p.polygons + p.lines + p.dynamic_lines) + " parts in " +
+          request.output + "/.work");
+      break;
+    }
+    case Step::tiles: {
+      const pipeline_internal::TileStepOutcome t =
+          pipeline_internal::build_tiles(scene, request, request.step_part, request.step_parts);
+      report["step"] = "tiles";
+      report["part"] = request.step_part;
+      report["parts"] = request.step_parts;
+      report["tiles"] = {
+          {"tiles", t.tiles}, {"built", t.built}, {"reused", t.reused}, {"empty", t.empty}};
+      say("step tiles " + std::to_string(request.step_part) + "/" +
+          std::to_string(request.step_parts) + ": " + std::to_string(t.tiles) + " tiles (" +
+          std::to_string(t.built) + " built, " + std::to_string(t.reused) + " kept)");
+      break;
+    }
+    case Step::finalize: {
+      report["step"] = "finalize";
+      const bool work = std::filesystem::exists(request.output + "/.work");
+      const bool index = std::filesystem::exists(request.output + "/" + kTilesetIndexName);
+      if (!work && index) {
+        // Finalized by an earlier run: nothing to do (the step is idempotent).
+        report["already_finalized"] = true;
+        say("step finalize: " + request.output + " was finalized already");
+        result.package_written = true;
+        break;
+      }
+      const pipeline_internal::TilesetOutcome t =
+          pipeline_internal::finalize_tileset(scene, request);
+      report["tileset"] = {{"tile_size_m", scene.tile_size},
+                           {"margin_m", t.margin},
+                           {"tiles", t.tiles},
+                           {"built", t.built},
+                           {"reused", t.reused},
+                           {"empty", t.empty},
+                           {"bytes", t.bytes}};
+      result.package_written = true;
+      say("step finalize: " + std::to_string(t.tiles) + " tiles, " + std::to_string(t.bytes) +
+          " bytes in " + request.output);
+      break;
+    }
+    case Step::all: break;
+  }
+  report["package_written"] = result.package_written;
+  report["skipped_failures"] = result.skipped_failures;
+  report["total_s"] = seconds_since(t0);
+  result.report_json = report.dump(2) + "\n";
+  if (!request.report.empty()) write_text_file(request.report, result.report_json);
+  return result;
+}
+
 BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
+  if (request.step != BuildRequest::Step::all) return run_tileset_step(scene, request);
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
   if (!request.dry_run && request.output.empty())

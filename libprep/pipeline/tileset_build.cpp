@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cstring>
 #include <exception>
+#include <filesystem>
 #include <fstream>
 #include <mutex>
 #include <set>
@@ -498,11 +499,22 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
   index.margin = plan.margin;
   index.dynamic_margin = plan.dynamic_margin;
   std::set<std::string> names;
+  // Every tile of the plan must have been built: name the missing ones.
+  std::vector<std::string> missing;
+  for (const TileKey& key : prepared.keys)
+    if (!std::filesystem::exists(paths.tile_record(key))) missing.push_back(tile_name(key));
+  if (!missing.empty()) {
+    std::string list;
+    for (size_t i = 0; i < missing.size() && i < 20; ++i) list += (i ? ", " : "") + missing[i];
+    if (missing.size() > 20) list += ", ... (" + std::to_string(missing.size() - 20) + " more)";
+    fail<output_error>(kTilesetStage, std::to_string(missing.size()) + " of " +
+                                          std::to_string(prepared.keys.size()) +
+                                          " tiles have not been built: " + list +
+                                          "; run their tiles steps, then finalize again");
+  }
   for (const TileKey& key : prepared.keys) {
     std::ifstream in(paths.tile_record(key), std::ios::binary);
-    if (!in)
-      fail<output_error>(kTilesetStage, "tile " + tile_name(key) + " has not been built (no " +
-                                            paths.tile_record(key) + ")");
+    if (!in) fail<output_error>(kTilesetStage, "cannot read " + paths.tile_record(key));
     nlohmann::json r;
     try {
       r = nlohmann::json::parse(in);

@@ -7,6 +7,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 
@@ -36,6 +37,10 @@ struct BuildArgs {
   std::string max_memory;  // --max-memory SIZE
   bool no_compress = false, dry_run = false, quiet = false, skip_failures = false;
   std::string progress;  // --progress MODE; empty: auto, or none with --quiet
+  // Tilesets as separate steps: --step prepare | tiles K/N | finalize, and
+  // --plan N (write DIR/plan.json with the steps' command lines, N tile jobs).
+  std::vector<std::string> step;
+  std::optional<unsigned> plan;
 };
 
 // --progress as given, else auto (none with --quiet).
@@ -88,6 +93,86 @@ prep::BuildRequest build_request(const BuildArgs& a) {
   return req;
 }
 
+// --step prepare | tiles K/N | finalize into the request.
+void parse_step(const std::vector<std::string>& step, prep::BuildRequest& req) {
+  using Step = prep::BuildRequest::Step;
+  if (step.empty()) return;
+  const std::string& name = step[0];
+  if (name == "prepare" || name == "finalize") {
+    if (step.size() != 1)
+      throw prep::usage_error("build: --step " + name + " takes no part (" + step[1] + ")");
+    req.step = name == "prepare" ? Step::prepare : Step::finalize;
+    return;
+  }
+  unsigned k = 0, n = 0;
+  char tail = 0;
+  if (name != "tiles" || step.size() != 2 ||
+      std::sscanf(step[1].c_str(), "%u/%u%c", &k, &n, &tail) != 2 || n == 0 || k >= n)
+    throw prep::usage_error("build: --step is prepare, tiles K/N (0 <= K < N) or finalize, not '" +
+                            name + (step.size() > 1 ? " " + step[1] : std::string()) + "'");
+  req.step = Step::tiles;
+  req.step_part = k;
+  req.step_parts = n;
+}
+
+// --plan N: DIR/plan.json, the three steps of the tileset build with the
+// exact command line of each (this command line without --plan, plus
+// --step); the tile step's "{K}" is the job index 0..N-1. Runs nothing.
+int write_plan(const BuildArgs& a, const prep::SceneSpec& scene) {
+  if (scene.tile_size <= 0)
+    throw prep::usage_error("build: --plan is for tilesets: give --tile-size");
+  if (a.output.empty()) throw prep::usage_error("build: --plan needs -o DIR");
+  if (*a.plan == 0) throw prep::usage_error("build: --plan N needs N >= 1 tile jobs");
+  std::vector<std::string> base;
+  const std::vector<std::string>& argv = decalprep::command_line();
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  base.push_back(ec ? argv.at(0) : self.string());
+  for (size_t i = 1; i < argv.size(); ++i) {
+    if (argv[i] == "--plan") {
+      ++i;  // and its value
+      continue;
+    }
+    if (argv[i].rfind("--plan=", 0) == 0) continue;
+    base.push_back(argv[i]);
+  }
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> c = base;
+    c.insert(c.end(), extra.begin(), extra.end());
+    return c;
+  };
+  const unsigned n = *a.plan;
+  const nlohmann::json plan = {
+      {"plan_version", 1},
+      {"tileset", a.output},
+      {"cwd", std::filesystem::current_path().string()},
+      {"note",
+       "Run in cwd on machines that see the tileset folder at the same path (a shared "
+       "filesystem): prepare, then the N tiles jobs (in any order, side by side), then "
+       "finalize. Each step may be run again."},
+      {"steps",
+       {{{"step", "prepare"}, {"command", with({"--step", "prepare"})}},
+        {{"step", "tiles"},
+         {"jobs", n},
+         {"job_placeholder", "{K}"},
+         {"command", with({"--step", "tiles", "{K}/" + std::to_string(n)})}},
+        {{"step", "finalize"}, {"command", with({"--step", "finalize"})}}}}};
+  std::filesystem::create_directories(a.output, ec);
+  if (ec) throw prep::output_error("build: cannot create " + a.output + ": " + ec.message());
+  const std::string path = a.output + "/plan.json";
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << plan.dump(2) << "\n";
+    if (!out) throw prep::output_error("build: cannot write " + tmp);
+  }
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw prep::output_error("build: cannot write " + path + ": " + ec.message());
+  if (!a.quiet)
+    std::fprintf(stderr, "wrote %s (prepare, %u tiles jobs, finalize)\n", path.c_str(), n);
+  return 0;
+}
+
 // --progress json: stderr carries JSON objects only; the summary is one.
 void print_json_summary(const BuildArgs& a, const prep::BuildResult& result,
                         prep::Progress& progress) {
@@ -131,7 +216,9 @@ int run(const BuildArgs& a) {
   const prep::SceneSpec scene = prep::scene_spec(scene_request(a, a.input));
   if (!a.dry_run && a.output.empty())
     throw prep::usage_error("build: -o OUT.decals is required (or --dry-run)");
+  if (a.plan) return write_plan(a, scene);
   prep::BuildRequest req = build_request(a);
+  parse_step(a.step, req);
   if (!a.max_memory.empty()) req.max_memory = prep::parse_memory_size(a.max_memory);
   prep::ProgressOptions po;
   po.mode = prep::parse_progress_mode(progress_text(a), isatty(STDERR_FILENO) != 0);
@@ -140,7 +227,12 @@ int run(const BuildArgs& a) {
   req.progress = &progress;
   const prep::BuildResult result = prep::run_build(scene, req);
 
-  if (json && !a.quiet) {
+  if (req.step != prep::BuildRequest::Step::all) {
+    // A step says what it did in its progress line; the counts are the
+    // whole build's, in the tileset after finalize.
+    if (!a.quiet && !json && !a.report.empty())
+      std::fprintf(stderr, "report %s\n", a.report.c_str());
+  } else if (json && !a.quiet) {
     print_json_summary(a, result, progress);
   } else if (!a.quiet) {
     print_summary(a, result);
@@ -256,6 +348,13 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
       "--max-memory", args->max_memory,
       "Stop early (exit 6) when the estimated peak memory exceeds SIZE (e.g. 2G, 512M); "
       "batch mode: per scene");
+  cmd->add_option("--step", args->step,
+                  "Tileset in steps (a cluster's jobs on a shared filesystem): prepare | tiles "
+                  "K/N (the tiles i with i % N == K) | finalize; each may run again")
+      ->expected(1, 2);
+  cmd->add_option("--plan", args->plan,
+                  "Tileset: write DIR/plan.json with the command lines of prepare, N tiles jobs "
+                  "and finalize; build nothing");
   auto* g = "File-less form (one layer)";
   cmd->add_option("--layer", args->layer, "Source layer name (default: the first)")->group(g);
   cmd->add_option("--where", args->where, "OGR attribute filter")->group(g);
@@ -323,6 +422,8 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
     const bool batch =
         args->inputs.size() > 1 || std::filesystem::is_directory(args->inputs[0], ec);
     if (batch) {
+      if (!args->step.empty() || args->plan)
+        throw prep::usage_error("build: --step and --plan take one scene, not a batch");
       decalprep::set_exit_code(run_batch(*args));
       return;
     }

@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "prep/error.hpp"
@@ -36,6 +37,13 @@ inline void set_exit_code(prep::ExitCode c) {
 }
 inline void set_exit_code(int c) {
   exit_code_slot() = c;
+}
+
+// The command line as given (main() fills it before parsing), for commands
+// that write command lines of their own (build --plan).
+inline std::vector<std::string>& command_line() {
+  static std::vector<std::string> args;
+  return args;
 }
 
 struct CommandRegistrar {

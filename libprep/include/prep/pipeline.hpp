@@ -37,6 +37,17 @@ struct BuildRequest {
   // projected, cleaned and written to the work folder), then "tiles"
   // (counted in tiles). Null: silent. Output only.
   Progress* progress = nullptr;
+  // Tilesets: run one step of the build only (`--step`), each in a process
+  // of its own, possibly on another machine that sees the same output
+  // folder (a shared filesystem); the state between steps is the work
+  // folder DIR/.work only. prepare: read, project and clean into the work
+  // folder, and the plan. tiles: the plan's tiles i with
+  // i % step_parts == step_part. finalize: manifest.json, then tileset.json;
+  // refuses, naming them, while tiles are missing. Each step run again gives
+  // the same bytes; all: the three in one process.
+  enum class Step { all, prepare, tiles, finalize };
+  Step step = Step::all;
+  unsigned step_part = 0, step_parts = 1;
 };
 
 struct BuildResult {
