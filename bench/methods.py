@@ -260,9 +260,9 @@ def charts(rows, args, work):
                 f.write("%s %f %f %d %g\n" % (s["dataset"], s["frame"].get("640x360", 0),
                                               s["frame"].get("1920x1080", 0), s["memory_bytes"], max(err, 1e-6)))
             f.write("\n\n")
-    common = """set terminal pngcairo size 900,560 noenhanced
+    common = """set terminal pngcairo size 1000,600 noenhanced
 set logscale xy
-set ylabel 'misclassified share vs CPU evaluator (mean of 4 views, 640x360; 0 at 1e-6)'
+set ylabel "misclassified share vs CPU evaluator\\n(mean of 4 views at 640x360; 0 drawn at 1e-6)"
 set key outside right top
 set grid
 set offsets graph 0.05, graph 0.2, graph 0.1, graph 0.1
@@ -271,7 +271,7 @@ set format y '%g'
     plots = []
     for i, method in enumerate(METHODS):
         plots.append(("'%s' index %d using {X}:5 with points pt %d ps 1.5 title '%s', "
-                      "'' index %d using {X}:5:1 with labels offset 0,0.8 font ',8' notitle")
+                      "'' index %d using {X}:5:1 with labels left rotate by 35 offset 0.6,0.6 font ',8' notitle")
                      % (dat, i, [7, 5, 9][i], method, i))
     out = []
     for name, x, xlabel in (("methods_time.png", "2", "frame time at 640x360, ms (llvmpipe: CPU time of software GL)"),
@@ -304,7 +304,18 @@ def report_block(rows, load0, load1, took, args):
          "",
          "| dataset | method | preprocessing | GPU memory | frame 640x360 | frame 1920x1080 | misclassified 3200 m | 800 m | 200 m |",
          "|---|---|---|---|---|---|---|---|---|"]
+    done = {s["key"] for s in sums}
+    for d in dict.fromkeys(s["dataset"] for s in sums):  # a method none of whose renders succeeded
+        for m in METHODS:
+            if (d, m) not in done:
+                sums.append({"key": (d, m), "dataset": d, "method": m, "failed": True})
+    order = {d: i for i, d in enumerate(dict.fromkeys(s["dataset"] for s in sums))}
+    sums.sort(key=lambda s: (order[s["dataset"]], METHODS.index(s["method"])))
     for s in sums:
+        if s.get("failed"):
+            L.append("| %s | %s | every render failed (the run's stderr names the command and exit status) |||||||"
+                     % (s["dataset"], s["method"]))
+            continue
         pre = "build %.2f s" % s["build_s"] if s["build_s"] != "" else "—"
         if s["method"] == "texture":
             pre += " + raster %.0f ms" % s["raster_once_ms"]
