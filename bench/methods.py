@@ -11,8 +11,8 @@
 packages, static polygons and lines only. Datasets (built into --work, the
 build timed):
 - monaco: the sample scene (samples/monaco/scene.toml);
-- liechtenstein: bench/scenes/liechtenstein.toml (the OSM extract in
-  <checkout>/../shared/data; skipped, saying so, where it is missing);
+- liechtenstein: bench/scenes/liechtenstein.toml (skipped, saying so, where
+  the OSM extract its `source` names is missing);
 - syn1e5: synthetic polygons with holes + street-like lines (bench/gen_synthetic.py,
   seed 1), about 10^5 vertices, UTM 32N, built twice: lines 2 m and 8 m wide
   (syn1e5_w2, syn1e5_w8: the line-width factor of thesis Table 5.4);
@@ -176,7 +176,9 @@ def datasets(tool, work, args):
             out.append((name, p, timed_build(tool, [os.path.join(ROOT, "samples", "monaco", "scene.toml")], p), ""))
         elif name == "liechtenstein":
             scene = os.path.join(ROOT, "bench", "scenes", "liechtenstein.toml")
-            data = os.path.join(ROOT, "..", "shared", "data", "liechtenstein", "liechtenstein-2013-08-03.osm.pbf")
+            with open(scene) as f:
+                m = re.search(r'^source\s*=\s*"([^"]+)"', f.read(), re.M)
+            data = os.path.join(os.path.dirname(scene), m.group(1)) if m else ""
             if not os.path.exists(data):
                 print("liechtenstein: %s missing, skipped" % os.path.normpath(data), flush=True)
                 continue
