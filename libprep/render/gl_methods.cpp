@@ -5,6 +5,7 @@
 // decal method's.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "detail/gl_render.hpp"
@@ -51,12 +52,30 @@ std::array<float, 16> to_float(const Mat4& m) {
   return f;
 }
 
-GLuint upload_positions(GlObjects& gl, const std::vector<float>& xyz) {
+// One vertex buffer of positions. GL implementations cap one buffer (Mesa's
+// llvmpipe at 2 GiB; past it the upload fails or the draw crashes), so a
+// larger one is refused with what it would have held.
+GLuint upload_positions(GlObjects& gl, const std::vector<float>& xyz, const char* method) {
+  const uint64_t bytes = uint64_t(std::max<size_t>(xyz.size(), 3)) * sizeof(float);
+  constexpr uint64_t kMaxBuffer = (uint64_t(1) << 31) - 1;
+  auto too_big = [&] {
+    char b[400];
+    std::snprintf(b, sizeof b,
+                  "--method %s: %llu triangles (%.2f GB of vertices) do not fit one GL vertex "
+                  "buffer (at most %.2f GB here); draw fewer layers (--only) or use --method "
+                  "decal",
+                  method, static_cast<unsigned long long>(xyz.size() / 9), double(bytes) / 1e9,
+                  double(kMaxBuffer) / 1e9);
+    fail<resource_error>(kRenderStage, b);
+  };
+  if (bytes > kMaxBuffer) too_big();
   GLuint vbo = 0, vao = 0;
   glCreateBuffers(1, &vbo);
   gl.buffers.push_back(vbo);
-  glNamedBufferStorage(vbo, GLsizeiptr(std::max<size_t>(xyz.size(), 3) * sizeof(float)),
-                       xyz.empty() ? nullptr : xyz.data(), 0);
+  while (glGetError() != GL_NO_ERROR) {
+  }
+  glNamedBufferStorage(vbo, GLsizeiptr(bytes), xyz.empty() ? nullptr : xyz.data(), 0);
+  if (glGetError() == GL_OUT_OF_MEMORY) too_big();
   glCreateVertexArrays(1, &vao);
   gl.arrays.push_back(vao);
   glVertexArrayVertexBuffer(vao, 0, vbo, 0, 3 * sizeof(float));
@@ -179,7 +198,7 @@ void GlRenderer::method_setup() {
       m_.prism_triangles += uint64_t(grp.count) / 3;
       k = end;
     }
-    m_.prism_vao = upload_positions(gl_, xyz);
+    m_.prism_vao = upload_positions(gl_, xyz, "volume");
     m_.f_volume = gl_.framebuffer(t_.decal, t_.depth);
     m_.volume_program =
         gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
@@ -232,7 +251,7 @@ void GlRenderer::method_setup() {
   }
   m_.texture_triangles = xyz.size() / 9;
   m_.groups = std::move(features);
-  m_.prism_vao = upload_positions(gl_, xyz);
+  m_.prism_vao = upload_positions(gl_, xyz, "texture");
   m_.volume_program =
       gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
   m_.terrain_program = gl_.program(
