@@ -1,8 +1,10 @@
 // Helpers of the render smoke tests (running the tool is in tests/support):
-// reading raw decal layers and world files, and the pixel agreement of two
-// layers.
+// the Monaco sample package they share, reading raw decal layers and world
+// files, and the pixel agreement of two layers.
 #pragma once
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -18,6 +20,53 @@
 #include "test_support.hpp"
 
 namespace render_test {
+
+// ctest runs every test in its own process, two at a time: the first one
+// builds a package under an exclusive lock, later ones reuse it when it is
+// newer than the tool binary that would build it.
+struct BuildLock {
+  int fd;
+  explicit BuildLock(const std::filesystem::path& p)
+      : fd(::open(p.c_str(), O_CREAT | O_RDWR, 0644)) {
+    if (fd >= 0) ::flock(fd, LOCK_EX);
+  }
+  ~BuildLock() {
+    if (fd >= 0) ::close(fd);
+  }
+  BuildLock(const BuildLock&) = delete;
+  BuildLock& operator=(const BuildLock&) = delete;
+};
+
+inline bool fresh(const std::filesystem::path& pkg) {
+  std::error_code ec;
+  return std::filesystem::exists(pkg) && std::filesystem::last_write_time(pkg, ec) >
+                                             std::filesystem::last_write_time(DECALPREP_TOOL, ec);
+}
+
+// The Monaco sample scene's package, render-out/smoke/monaco.decals, built
+// once (under render-out/smoke/monaco.lock) by whichever render test needs
+// it first; "" with the reason in `why` when it cannot be built.
+inline std::string monaco_package(std::string* why) {
+  namespace fs = std::filesystem;
+  const std::string pbf = prep::test::monaco_sample("monaco.osm.pbf");
+  if (!fs::exists(pbf)) {
+    if (why) *why = "Monaco sample missing: " + pbf;
+    return "";
+  }
+  const fs::path dir = fs::current_path() / "render-out" / "smoke";
+  fs::create_directories(dir);
+  const fs::path pkg = dir / "monaco.decals";
+  BuildLock lock(dir / "monaco.lock");
+  if (!fresh(pkg)) {
+    const auto r = prep::test::run_tool("build " + std::string(DECALPREP_SOURCE_DIR) +
+                                        "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
+    if (r.rc != 0) {
+      if (why) *why = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
+      return "";
+    }
+  }
+  return pkg.string();
+}
 
 inline std::vector<float> read_raw(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -44,36 +44,7 @@ fs::path out_dir(const std::string& sub) {
   return p;
 }
 
-// The smoke test's Monaco package (test_smoke.cpp monaco_package: same
-// path, same lock), built once by whichever test comes first and reused while
-// newer than the tool.
-struct BuildLock {
-  int fd;
-  explicit BuildLock(const fs::path& p) : fd(::open(p.c_str(), O_CREAT | O_RDWR, 0644)) {
-    if (fd >= 0) ::flock(fd, LOCK_EX);
-  }
-  ~BuildLock() {
-    if (fd >= 0) ::close(fd);
-  }
-};
-std::string monaco_package(std::string* why) {
-  if (!fs::exists(prep::test::monaco_sample("monaco.osm.pbf"))) {
-    *why = "Monaco sample missing: " + prep::test::monaco_sample("monaco.osm.pbf");
-    return "";
-  }
-  const fs::path pkg = out_dir("smoke") / "monaco.decals";
-  BuildLock lock(out_dir("smoke") / "monaco.lock");
-  std::error_code ec;
-  if (!(fs::exists(pkg) &&
-        fs::last_write_time(pkg, ec) > fs::last_write_time(DECALPREP_TOOL, ec))) {
-    auto r = run_tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
-    if (r.rc != 0) {
-      *why = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
-      return "";
-    }
-  }
-  return pkg.string();
-}
+using render_test::monaco_package;  // the smoke tests' package (smoke_util.hpp)
 
 // `--extent` for `relative` (metres from the package origin), absolute.
 std::string topdown_extent(const std::string& pkg, const prep::Extent& r) {

@@ -45,43 +45,13 @@ fs::path out_dir() {
   return p;
 }
 
-// ctest runs every test in its own process, two at a time: the first one
-// builds a package under an exclusive lock, later ones reuse it when it is
-// newer than the tool binary that would build it.
-struct BuildLock {
-  int fd;
-  explicit BuildLock(const fs::path& p) : fd(::open(p.c_str(), O_CREAT | O_RDWR, 0644)) {
-    if (fd >= 0) ::flock(fd, LOCK_EX);
-  }
-  ~BuildLock() {
-    if (fd >= 0) ::close(fd);
-  }
-};
-bool fresh(const fs::path& pkg) {
-  std::error_code ec;
-  return fs::exists(pkg) && fs::last_write_time(pkg, ec) > fs::last_write_time(DECALPREP_TOOL, ec);
-}
+using render_test::BuildLock;
+using render_test::fresh;
 
-// The Monaco package; "" with a reason when it cannot be built.
+// The Monaco package (smoke_util.hpp), looked up once per process.
 const std::string& monaco_package(std::string* why) {
-  static std::string path, reason;
-  static bool tried = false;
-  if (!tried) {
-    tried = true;
-    if (!fs::exists(prep::test::monaco_sample("monaco.osm.pbf"))) {
-      reason = "Monaco sample missing: " + prep::test::monaco_sample("monaco.osm.pbf");
-    } else {
-      const fs::path pkg = out_dir() / "monaco.decals";
-      BuildLock lock(out_dir() / "monaco.lock");
-      if (!fresh(pkg)) {
-        auto r =
-            run_tool("build " + kSource + "/samples/monaco/scene.toml -o " + pkg.string() + " -q");
-        if (r.rc != 0)
-          reason = "decalprep build failed (rc " + std::to_string(r.rc) + "): " + r.output;
-      }
-      if (reason.empty()) path = pkg.string();
-    }
-  }
+  static std::string reason;
+  static const std::string path = render_test::monaco_package(&reason);
   if (why) *why = reason;
   return path;
 }
