@@ -255,20 +255,26 @@ struct HoleScene {
       ASSERT_EQ(layer->CreateFeature(&f), OGRERR_NONE);
     }
   }
+  // Writes the scene to DIR/NAME.gpkg and builds it (one red polygon layer,
+  // a 1 km extent around the centre, no simplification, plus `options`) into
+  // `out`; the tool's result.
+  prep::test::ToolRun build(const fs::path& dir, const std::string& name, const std::string& out,
+                            const std::string& options) const {
+    const std::string gpkg = (dir / (name + ".gpkg")).string();
+    fs::remove(gpkg);
+    write(gpkg);
+    char ext[200];
+    std::snprintf(ext, sizeof ext, "%.3f,%.3f,%.3f,%.3f", cx - 500, cy - 500, cx + 500, cy + 500);
+    return run_tool("build " + gpkg + " --kind polygon --color '#d04020' --crs EPSG:32632 " +
+                    "--extent " + ext + " --resolution 0 " + options + " -o " + out + " -q");
+  }
 };
 
 TEST(RenderMethods, VolumeDrawsAGeneratedPolygonWithAHoleAndAnIslandInsideTheHole) {
   const HoleScene s;
   const fs::path d = out_dir("methods");
-  const std::string gpkg = (d / "hole_island.gpkg").string();
-  fs::remove(gpkg);
-  s.write(gpkg);
   const std::string pkg = (d / "hole_island.decals").string();
-  char ext[200];
-  std::snprintf(ext, sizeof ext, "%.3f,%.3f,%.3f,%.3f", s.cx - 500, s.cy - 500, s.cx + 500,
-                s.cy + 500);
-  auto b = run_tool("build " + gpkg + " --kind polygon --color '#d04020' --crs EPSG:32632 " +
-                    "--extent " + ext + " --resolution 0 --leaf-capacity 8 -o " + pkg + " -q");
+  auto b = s.build(d, "hole_island", pkg, "--leaf-capacity 8");
   ASSERT_EQ(b.rc, 0) << b.output;
   // Top-down over [-460, 460]² around the centre, absolute coordinates.
   constexpr uint32_t n = 320;
@@ -311,16 +317,9 @@ TEST(RenderMethods, VolumeDrawsAGeneratedPolygonWithAHoleAndAnIslandInsideTheHol
 TEST(RenderMethods, VolumeDrawsTheHoleAndIslandFromATilesetCutAtTheTileSquares) {
   const HoleScene s;
   const fs::path d = out_dir("methods");
-  const std::string gpkg = (d / "hole_island_tiles.gpkg").string();
-  fs::remove(gpkg);
-  s.write(gpkg);
   const std::string dir = (d / "hole_island_tiles").string();
   fs::remove_all(dir);
-  char ext[200];
-  std::snprintf(ext, sizeof ext, "%.3f,%.3f,%.3f,%.3f", s.cx - 500, s.cy - 500, s.cx + 500,
-                s.cy + 500);
-  auto b = run_tool("build " + gpkg + " --kind polygon --color '#d04020' --crs EPSG:32632 " +
-                    "--extent " + ext + " --resolution 0 --tile-size 300 -o " + dir + " -q");
+  auto b = s.build(d, "hole_island_tiles", dir, "--tile-size 300");
   ASSERT_EQ(b.rc, 0) << b.output;
   constexpr uint32_t n = 240;
   const double half = 460, px = 2 * half / n;
@@ -357,15 +356,8 @@ TEST(RenderMethods, VolumeDrawsTheHoleAndIslandFromATilesetCutAtTheTileSquares) 
 TEST(RenderMethods, VolumeWithTheCameraInsideAPrismCountsZFailAndMatchesCpuEvaluator) {
   const HoleScene s;
   const fs::path d = out_dir("methods");
-  const std::string gpkg = (d / "hole_island_zfail.gpkg").string();
-  fs::remove(gpkg);
-  s.write(gpkg);
   const std::string pkg = (d / "hole_island_zfail.decals").string();
-  char ext[200];
-  std::snprintf(ext, sizeof ext, "%.3f,%.3f,%.3f,%.3f", s.cx - 500, s.cy - 500, s.cx + 500,
-                s.cy + 500);
-  auto b = run_tool("build " + gpkg + " --kind polygon --color '#d04020' --crs EPSG:32632 " +
-                    "--extent " + ext + " --resolution 0 -o " + pkg + " -q");
+  auto b = s.build(d, "hole_island_zfail", pkg, "");
   ASSERT_EQ(b.rc, 0) << b.output;
   decal::Package package;
   ASSERT_TRUE(decal::Package::open(pkg, package));
