@@ -30,6 +30,22 @@ struct TileEntry {
   std::vector<LayerCounts> layers;  // this tile's counts (prep/tile.hpp tile_scene)
 };
 
+// One overview level of a tileset (formats/SPEC.md "Overview levels"):
+// level L >= 1 has square tiles of tile_size = TilesetIndex::tile_size * 2^L
+// on the same grid anchored at the frame CRS's zero, so tile (X, Y) of level
+// L covers tiles (2X..2X+1, 2Y..2Y+1) of level L-1. Its parts are simplified
+// to `resolution` ground metres, and polygons below `min_area` and lines
+// below `min_length` are dropped and counted in `layers`, never silently.
+struct TileLevel {
+  int level = 0;          // 1, 2, ...; level 0 (full detail) is TilesetIndex::tiles
+  double tile_size = 0;   // metres
+  double resolution = 0;  // ground metres per pixel this level is made for
+  double min_area = 0;    // m^2: polygons smaller than this are dropped here
+  double min_length = 0;  // m: lines shorter than this are dropped here
+  std::vector<LayerCounts> layers;  // the level's per-layer counts, drops included
+  std::vector<TileEntry> tiles;     // in key order; file "tiles/L<level>/x<X>_y<Y>.decals"
+};
+
 struct TilesetIndex {
   int major = kTilesetMajor, minor = kTilesetMinor;
   std::string generator;
@@ -41,7 +57,9 @@ struct TilesetIndex {
   Manifest manifest;
   uint64_t entry_count = 0;
   uint64_t manifest_bytes = 0, manifest_xxh64 = 0;
-  std::vector<TileEntry> tiles;  // in key order: x, then y
+  std::vector<TileEntry> tiles;  // in key order: x, then y (level 0, full detail)
+  double resolution = 0;         // level 0's ground resolution (the build's; 0: exact)
+  std::vector<TileLevel> levels;  // overview levels 1, 2, ... in order; empty: none
 };
 
 // Bytes and XXH64 (seed 0) of a file, read in 64 KiB pieces; nullopt when it
