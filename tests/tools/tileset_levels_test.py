@@ -404,6 +404,47 @@ def main():
         failures.append("--levels without --tile-size: exit %d, %s" % (r.returncode,
                                                                        r.stderr.strip()))
 
+    # --- the scene file's [tiling] levels: as --levels; without a tile size, named.
+    with open(scene) as f:
+        text = f.read()
+    tiled = os.path.join(work, "tiled.toml")
+    with open(tiled, "w") as f:
+        f.write(text.replace('crs = "EPSG:32632"\n',
+                             'crs = "EPSG:32632"\n\n[tiling]\ntile_size = 500\nlevels = "auto"\n'))
+    r = subprocess.run([tool, "build", tiled, "-o", os.path.join(work, "auto_file"), "--step",
+                        "prepare", "-q"], capture_output=True, text=True)
+    if r.returncode != 0:
+        failures.append("[tiling] levels = \"auto\": " + r.stderr.strip())
+    elif os.path.exists(os.path.join(auto, ".work", "plan.json")):
+        a = json.load(open(os.path.join(auto, ".work", "plan.json")))["levels"]
+        b = json.load(open(os.path.join(work, "auto_file", ".work", "plan.json")))["levels"]
+        if a != b:
+            failures.append("[tiling] levels = \"auto\" planned other levels than --levels auto")
+    untiled = os.path.join(work, "untiled.toml")
+    with open(untiled, "w") as f:
+        f.write(text.replace('crs = "EPSG:32632"\n',
+                             'crs = "EPSG:32632"\n\n[tiling]\nlevels = 2\n'))
+    r = subprocess.run([tool, "build", untiled, "-o", os.path.join(work, "y.decals"), "-q"],
+                       capture_output=True, text=True)
+    if r.returncode != 2 or "[tiling] levels" not in r.stderr:
+        failures.append("[tiling] levels without a tile size: exit %d, %s" % (r.returncode,
+                                                                              r.stderr.strip()))
+
+    # --- fewer levels over the same folder: the stale level files go.
+    fewer = os.path.join(work, "fewer")
+    shutil.copytree(ref, fewer)
+    r = subprocess.run([tool, "build", scene, "--tile-size", str(int(TILE)), "--levels", "1",
+                        "--jobs", "2", "-o", fewer, "-q"], capture_output=True, text=True)
+    left = sorted(d for d in os.listdir(os.path.join(fewer, "tiles")) if d.startswith("L"))
+    if r.returncode != 0 or left != ["L1"]:
+        failures.append("--levels 1 over a 3-level tileset: exit %d, level folders %s" % (
+            r.returncode, left))
+    elif tree(fewer) != {k: v for k, v in want.items() if not k.startswith(("tiles/L2/",
+                                                                              "tiles/L3/",
+                                                                              "tileset.json"))} | \
+            {"tileset.json": tree(fewer)["tileset.json"]}:
+        failures.append("--levels 1 over a 3-level tileset changed level 0 or level 1's tiles")
+
     for f in failures:
         print("FAIL:", f)
     if not failures:

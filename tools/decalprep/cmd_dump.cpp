@@ -369,7 +369,8 @@ std::string tile_package(const std::string& path, const std::string& tile, int l
                             (tile.empty() ? "" : " ('" + tile + "' is not X,Y)"));
   const prep::TilesetIndex ix = prep::read_tileset_index(path);
   if (level < 0 || size_t(level) > ix.levels.size())
-    throw prep::usage_error("dump: --level " + std::to_string(level) + ": " + path + " has levels 0" +
+    throw prep::usage_error("dump: --level " + std::to_string(level) + ": " + path +
+                            " has levels 0" +
                             (ix.levels.empty() ? "" : " to " + std::to_string(ix.levels.size())));
   const std::vector<prep::TileEntry>& tiles =
       level == 0 ? ix.tiles : ix.levels[size_t(level - 1)].tiles;

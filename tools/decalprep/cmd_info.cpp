@@ -131,11 +131,12 @@ void run_tileset_info(const std::string& dir, bool as_json) {
       sum.read += c.read, sum.parts += c.parts, sum.dropped_small += c.dropped_small;
       sum.vertices_in += c.vertices_in, sum.vertices_out += c.vertices_out;
     }
-    std::printf("  level %d: %.10g m tiles, resolution %.10g m, min area %.10g m2, min length "
-                "%.10g m; %zu packages, %" PRIu64 " bytes; parts %" PRIu64 " of %" PRIu64
-                " (%" PRIu64 " dropped small), vertices %" PRIu64 " of %" PRIu64 "\n",
-                l.level, l.tile_size, l.resolution, l.min_area, l.min_length, l.tiles.size(), lbytes,
-                sum.parts, sum.read, sum.dropped_small, sum.vertices_out, sum.vertices_in);
+    std::printf(
+        "  level %d: %.10g m tiles, resolution %.10g m, min area %.10g m2, min length "
+        "%.10g m; %zu packages, %" PRIu64 " bytes; parts %" PRIu64 " of %" PRIu64 " (%" PRIu64
+        " dropped small), vertices %" PRIu64 " of %" PRIu64 "\n",
+        l.level, l.tile_size, l.resolution, l.min_area, l.min_length, l.tiles.size(), lbytes,
+        sum.parts, sum.read, sum.dropped_small, sum.vertices_out, sum.vertices_in);
     std::printf("    %-24s %10s %10s %13s %12s %12s\n", "layer", "parts_in", "parts",
                 "dropped_small", "vertices_in", "vertices_out");
     for (const prep::LayerCounts& c : l.layers)

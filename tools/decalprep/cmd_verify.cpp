@@ -105,9 +105,10 @@ bool verify_tileset(const std::string& dir) {
     std::printf("%s: ok (tileset %d.%d, %zu tiles, index and manifest hashes match)\n", dir.c_str(),
                 ix.major, ix.minor, ix.tiles.size());
   else if (good)
-    std::printf("%s: ok (tileset %d.%d, %zu tiles and %zu on %zu overview levels, index and "
-                "manifest hashes match)\n",
-                dir.c_str(), ix.major, ix.minor, ix.tiles.size(), level_tiles, ix.levels.size());
+    std::printf(
+        "%s: ok (tileset %d.%d, %zu tiles and %zu on %zu overview levels, index and "
+        "manifest hashes match)\n",
+        dir.c_str(), ix.major, ix.minor, ix.tiles.size(), level_tiles, ix.levels.size());
   return good;
 }
 
