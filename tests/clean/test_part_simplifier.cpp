@@ -61,8 +61,8 @@ TEST(PartSimplifier, APolygonWithAHoleStaysWithinTheToleranceValidAndOriented) {
   EXPECT_LT(signed_area(p.holes[0]), 0);
   EXPECT_EQ(p.area, 123.0);
   EXPECT_TRUE(prep::test::is_valid(geos.h, p));
-  const double d = hausdorff(geos.h, prep::test::polygon(geos.h, before),
-                             prep::test::polygon(geos.h, p));
+  const double d =
+      hausdorff(geos.h, prep::test::polygon(geos.h, before), prep::test::polygon(geos.h, p));
   EXPECT_LE(d, tol + 1e-9);
   EXPECT_GT(d, 0.1);  // it did simplify
 }
