@@ -475,7 +475,7 @@ class LevelFilter : public PartFilter {
     if (own) count(p.layer, keep, in, out);
     return keep;
   }
-  bool line(SceneLine& l, bool) override {
+  bool line(SceneLine& l, bool /*dynamic*/) override {
     const bool own = owns(l.points);
     const uint64_t in = l.points.size() + (l.closed ? 1 : 0);
     const bool keep = part_length(l) >= level_.min_length && simplifier_.line(l, what(l));
@@ -819,7 +819,7 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
                   l.level, static_cast<unsigned long long>(dropped),
                   static_cast<unsigned long long>(parts_in), l.min_area, l.min_length,
                   level_tolerance(l));
-    index.manifest.notes.push_back(note);
+    index.manifest.notes.emplace_back(note);
   }
   index.entry_count = prepared.entries + prepared.read_entries;
 

@@ -43,6 +43,7 @@ X0, Y0 = 370_000.0, 4_840_000.0
 CRS = {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}}
 AREAS = [0.5, 2.0, 8.0, 30.0, 500.0, 5000.0]   # m², away from r_L² for L = 1..3
 LENGTHS = [0.5, 1.5, 3.0, 10.0, 100.0, 400.0]  # m, away from r_L
+GRID = 14  # GRID x GRID polygons and as many lines, 145 m apart
 
 
 def ngon(cx, cy, area, n):
@@ -64,8 +65,8 @@ def zigzag(x, y, length, amp, steps):
 def write_inputs(work):
     polys, lines = [], []
     k = 0
-    for gy in range(20):
-        for gx in range(20):
+    for gy in range(GRID):
+        for gx in range(GRID):
             cx, cy = X0 + 60 + gx * 145.0, Y0 + 60 + gy * 145.0
             a = AREAS[k % len(AREAS)]
             n = 6 + (k * 7) % 35
@@ -252,7 +253,7 @@ def main():
                                "ST_Length(geometry) < %.17g" % lv["min_length_m"])
         for layer, n in (("polys", want_polys), ("lines", want_lines)):
             c = counts[layer]
-            if c["dropped_small"] != n or c["parts_in"] != 400 or c["parts"] != 400 - n:
+            if c["dropped_small"] != n or c["parts_in"] != GRID * GRID or c["parts"] != GRID * GRID - n:
                 failures.append("level %d layer %s: dropped_small %d, parts %d of %d; ogrinfo: "
                                 "%d below the threshold" % (lv["level"], layer, c["dropped_small"],
                                                             c["parts"], c["parts_in"], n))
