@@ -44,11 +44,11 @@ struct TileEntry {
 // to `resolution` ground metres, and polygons below `min_area` and lines
 // below `min_length` are dropped and counted in `layers`, never silently.
 struct TileLevel {
-  int level = 0;          // 1, 2, ...; level 0 (full detail) is TilesetIndex::tiles
-  double tile_size = 0;   // metres
-  double resolution = 0;  // ground metres per pixel this level is made for
-  double min_area = 0;    // m^2: polygons smaller than this are dropped here
-  double min_length = 0;  // m: lines shorter than this are dropped here
+  int level = 0;                    // 1, 2, ...; level 0 (full detail) is TilesetIndex::tiles
+  double tile_size = 0;             // metres
+  double resolution = 0;            // ground metres per pixel this level is made for
+  double min_area = 0;              // m^2: polygons smaller than this are dropped here
+  double min_length = 0;            // m: lines shorter than this are dropped here
   std::vector<LayerCounts> layers;  // the level's per-layer counts, drops included
   std::vector<TileEntry> tiles;     // in key order; file "tiles/L<level>/x<X>_y<Y>.decals"
 };
@@ -64,8 +64,8 @@ struct TilesetIndex {
   Manifest manifest;
   uint64_t entry_count = 0;
   uint64_t manifest_bytes = 0, manifest_xxh64 = 0;
-  std::vector<TileEntry> tiles;  // in key order: x, then y (level 0, full detail)
-  double resolution = 0;         // level 0's ground resolution (the build's; 0: exact)
+  std::vector<TileEntry> tiles;   // in key order: x, then y (level 0, full detail)
+  double resolution = 0;          // level 0's ground resolution (the build's; 0: exact)
   std::vector<TileLevel> levels;  // overview levels 1, 2, ... in order; empty: none
 };
 
