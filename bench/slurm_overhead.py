@@ -173,22 +173,47 @@ def slurm_build(a, env, wrapper, stats, scene, out, n):
     return row, steps
 
 
+def num(x):
+    for t in (int, float):
+        try:
+            return t(x)
+        except ValueError:
+            pass
+    return x
+
+
+def load_csv(path):
+    if not os.path.exists(path):
+        return []
+    with open(path, newline="") as f:
+        return [{k: num(v) for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+def save(out, rows, jobs):
+    """Writes both CSVs whole (after every pair, so that a run cut short keeps
+    what it measured)."""
+    paths = []
+    for name, rs in (("slurm_overhead.csv", rows), ("slurm_overhead_jobs.csv", jobs)):
+        fields = []
+        for r in rs:
+            fields += [k for k in r if k not in fields]
+        path = os.path.join(out, name)
+        with open(path + ".tmp", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields, restval="")
+            w.writeheader()
+            w.writerows(rs)
+        os.replace(path + ".tmp", path)
+        paths.append(path)
+    return paths
+
+
 def fmt_s(x):
     return "" if x == "" else ("%.2f" % x)
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--vertices", default="1e6")
-    ap.add_argument("--tasks", default="2,4,8", help="the N tile jobs of each Slurm build")
-    ap.add_argument("--tile-size", default="2000")
-    ap.add_argument("--jobs", default="2", help="--jobs of the local build")
-    ap.add_argument("--repeat", type=int, default=1, help="local/Slurm pairs per N")
-    ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
-    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
-    ap.add_argument("--slurm-dir", default="/tmp/slurmbench-slurm")
-    ap.add_argument("--slurm-port", default="16917")
-    a = ap.parse_args()
+def measure(a, rows, jobs):
+    """The builds, local and Slurm, alternately; appends to rows and jobs.
+    Returns 1 when a Slurm tileset differs from the local one."""
     tool = os.path.abspath(os.path.join(a.build_dir, "tools", "decalprep", "decalprep"))
     if not os.path.exists(tool):
         sys.exit("slurm_overhead: %s is missing (build the release preset)" % tool)
@@ -205,7 +230,6 @@ def main():
     wrapper = os.path.join(work, "decalprep-timed")
     stats = os.path.join(work, "steps")
     write_wrapper(wrapper, tool, stats)
-    rows, jobs = [], []
     started = False
     try:
         subprocess.run([CLUSTER, "start"], env=env, check=True, stdout=subprocess.DEVNULL)
@@ -240,7 +264,7 @@ def main():
                     want = tree(local)
                     ntiles = sum(1 for p in want if p.endswith(".decals"))
                     lrow = {"vertices": v, "mode": "local", "n": n, "rep": rep, "tiles": ntiles,
-                            "wall_s": round(wall, 3), "cpu_s": round(cpu, 3), "peak_rss_mib": round(rss, 1),
+                            "local_jobs": a.jobs, "wall_s": round(wall, 3), "cpu_s": round(cpu, 3), "peak_rss_mib": round(rss, 1),
                             "loadavg_1min_before": l0, "loadavg_1min_after": load1()}
                     rows.append(lrow)
                     print("%d vertices, local --jobs %s (before N=%d): %.2f s wall, %.2f s CPU, %.1f MiB, "
@@ -282,6 +306,7 @@ def main():
                            srow["loadavg_1min_after"]), flush=True)
                     shutil.rmtree(out, ignore_errors=True)
                     shutil.rmtree(out + ".slurm-logs", ignore_errors=True)
+                    save(a.out, rows, jobs)
             for p in (fgb, scene):
                 os.remove(p)
             shutil.rmtree(os.path.join(work, "local%d" % v), ignore_errors=True)
@@ -289,19 +314,38 @@ def main():
         if started or os.path.exists(os.path.join(a.slurm_dir, "slurmctld.pid")):
             subprocess.run([CLUSTER, "stop"], env=env, check=False)
         shutil.rmtree(work, ignore_errors=True)
-    fields = []
-    for r in rows:
-        fields += [k for k in r if k not in fields]
-    csv_path = os.path.join(a.out, "slurm_overhead.csv")
-    with open(csv_path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
-        w.writeheader()
-        w.writerows(rows)
-    jobs_path = os.path.join(a.out, "slurm_overhead_jobs.csv")
-    with open(jobs_path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(jobs[0].keys()))
-        w.writeheader()
-        w.writerows(jobs)
+    return 0
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--vertices", default="1e6")
+    ap.add_argument("--tasks", default="2,4,8", help="the N tile jobs of each Slurm build")
+    ap.add_argument("--tile-size", default="2000")
+    ap.add_argument("--jobs", default="2", help="--jobs of the local build")
+    ap.add_argument("--repeat", type=int, default=1, help="local/Slurm pairs per N")
+    ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
+    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
+    ap.add_argument("--slurm-dir", default="/tmp/slurmbench-slurm")
+    ap.add_argument("--slurm-port", default="16917")
+    ap.add_argument("--append", action="store_true",
+                    help="keep the rows of an earlier run's CSVs in --out and add this run's")
+    ap.add_argument("--from-csv", action="store_true",
+                    help="build nothing: print the table and redraw the chart from --out's CSVs")
+    a = ap.parse_args()
+    rows, jobs = [], []
+    if a.append or a.from_csv:
+        rows = load_csv(os.path.join(a.out, "slurm_overhead.csv"))
+        jobs = load_csv(os.path.join(a.out, "slurm_overhead_jobs.csv"))
+    if not a.from_csv and measure(a, rows, jobs):
+        return 1
+    if not rows:
+        return 1
+    if a.from_csv:
+        csv_path, jobs_path = (os.path.join(a.out, n) for n in ("slurm_overhead.csv", "slurm_overhead_jobs.csv"))
+    else:
+        csv_path, jobs_path = save(a.out, rows, jobs)
+    a.jobs = next((r["local_jobs"] for r in rows if r.get("local_jobs") not in ("", None)), a.jobs)
     srows = [r for r in rows if r["mode"] == "slurm"]
     print()
     print("| vertices | N | local wall | Slurm wall | overhead | ratio | prepare | tile job wall | "
@@ -318,12 +362,29 @@ def main():
                "%.2f s" % r["gap_refill_mean_s"], r["gap_tiles_to_finalize_s"], r["tile_cpu_s_per_tile"],
                r["tile_cpu_us_per_vertex"], min(r["loadavg_1min_before"], r["loadavg_1min_after"]),
                max(r["loadavg_1min_before"], r["loadavg_1min_after"])))
+    print()
+    for v in sorted({r["vertices"] for r in srows}):
+        rs = [r for r in srows if r["vertices"] == v]
+
+        def mean(k):
+            xs = [r[k] for r in rs if r[k] != ""]
+            return sum(xs) / len(xs) if xs else float("nan")
+        print("%d vertices, %d Slurm builds: tile jobs %.3f s CPU a tile (%d tiles), %.1f µs CPU an input "
+              "vertex, peak RSS of a tile job at most %.0f MiB; prepare %.2f µs CPU a vertex, at most %.0f MiB; "
+              "scheduler gaps (mean): submit→prepare %.2f s, prepare→tiles %.2f s, CPU refill %.2f s, "
+              "tiles→finalize %.2f s; overhead %+.2f s (mean ratio %.2f×)" %
+              (v, len(rs), mean("tile_cpu_s_per_tile"), rs[0]["tiles"], mean("tile_cpu_us_per_vertex"),
+               max(r["tile_rss_max_mib"] for r in rs), mean("prepare_cpu_us_per_vertex"),
+               max(r["prepare_rss_mib"] for r in rs), mean("gap_submit_to_prepare_s"),
+               mean("gap_prepare_to_tiles_s"), mean("gap_refill_mean_s"), mean("gap_tiles_to_finalize_s"),
+               mean("overhead_s"), mean("ratio")))
     if shutil.which("gnuplot"):
         # One data block per size: N, local wall, Slurm wall (mean over --repeat).
         blocks, plots = [], []
+        ns = sorted({r["n"] for r in srows})
         for i, v in enumerate(sorted({r["vertices"] for r in srows})):
             lines = []
-            for n in tasks:
+            for n in ns:
                 rs = [r for r in srows if r["vertices"] == v and r["n"] == n]
                 if rs:
                     lines.append("%d %.3f %.3f" % (n, sum(r["local_wall_s"] for r in rs) / len(rs),
@@ -342,8 +403,8 @@ def main():
                   "set xlabel 'N tile jobs (Slurm array; the node has 2 CPUs)'\n"
                   "set ylabel 'wall time to the finished tileset (s)'\n"
                   "set title 'Tileset build, %s m tiles: Slurm (one node) against local'\n"
-                  "plot %s\n" % (png, "\n".join(blocks), ", ".join(str(n) for n in tasks),
-                                 min(tasks) / 1.3, max(tasks) * 1.3, a.tile_size, ", \\\n  ".join(plots)))
+                  "plot %s\n" % (png, "\n".join(blocks), ", ".join(str(n) for n in ns),
+                                 min(ns) / 1.3, max(ns) * 1.3, a.tile_size, ", \\\n  ".join(plots)))
         subprocess.run(["gnuplot"], input=script.encode(), check=False)
         print("wrote", png)
     print("wrote", csv_path, "and", jobs_path)
