@@ -348,20 +348,24 @@ def main():
     a.jobs = next((r["local_jobs"] for r in rows if r.get("local_jobs") not in ("", None)), a.jobs)
     srows = [r for r in rows if r["mode"] == "slurm"]
     print()
-    print("| vertices | N | local wall | Slurm wall | overhead | ratio | prepare | tile job wall | "
-          "tile job CPU | tile job peak RSS | finalize | gap prepare→tiles | gap refill | gap tiles→finalize | "
-          "CPU per tile | tile CPU per vertex | load (1 min) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    # Each Slurm row's local build is the row just before it.
+    pair = {id(r): rows[i - 1] for i, r in enumerate(rows) if r["mode"] == "slurm" and i > 0}
+    print("| vertices | N | local wall | Slurm wall | Slurm − local | ratio | CPU local / Slurm | prepare | "
+          "tile job wall | tile job CPU | tile job peak RSS | finalize | gaps: submit→prepare, prepare→tiles, "
+          "refill, tiles→finalize | CPU per tile | tile CPU per vertex | load (1 min) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in srows:
-        print("| %d | %d | %.2f s | %.2f s | %+.2f s | %.2f× | %.2f s | %.2f–%.2f s | %.2f–%.2f s | "
-              "%.0f–%.0f MiB | %.2f s | %.2f s | %s | %.2f s | %.3f s | %.1f µs | %.2f–%.2f |" %
-              (r["vertices"], r["n"], r["local_wall_s"], r["wall_s"], r["overhead_s"], r["ratio"],
-               r["prepare_wall_s"], r["tile_wall_min_s"], r["tile_wall_max_s"], r["tile_cpu_min_s"],
+        lr = pair[id(r)]
+        loads = [lr["loadavg_1min_before"], lr["loadavg_1min_after"], r["loadavg_1min_after"]]
+        print("| %d | %d | %.1f s | %.1f s | %+.1f s | %.2f× | %.1f / %.1f s | %.2f s | %.1f–%.1f s | "
+              "%.1f–%.1f s | %.0f–%.0f MiB | %.2f s | %.2f, %.2f, %s, %.2f s | %.3f s | %.1f µs | %.1f–%.1f |" %
+              (r["vertices"], r["n"], r["local_wall_s"], r["wall_s"], r["overhead_s"], r["ratio"], lr["cpu_s"],
+               r["cpu_s"], r["prepare_wall_s"], r["tile_wall_min_s"], r["tile_wall_max_s"], r["tile_cpu_min_s"],
                r["tile_cpu_max_s"], r["tile_rss_min_mib"], r["tile_rss_max_mib"], r["finalize_wall_s"],
-               r["gap_prepare_to_tiles_s"], "—" if r["gap_refill_mean_s"] == "" else
-               "%.2f s" % r["gap_refill_mean_s"], r["gap_tiles_to_finalize_s"], r["tile_cpu_s_per_tile"],
-               r["tile_cpu_us_per_vertex"], min(r["loadavg_1min_before"], r["loadavg_1min_after"]),
-               max(r["loadavg_1min_before"], r["loadavg_1min_after"])))
+               r["gap_submit_to_prepare_s"], r["gap_prepare_to_tiles_s"],
+               "—" if r["gap_refill_mean_s"] == "" else "%.2f" % r["gap_refill_mean_s"],
+               r["gap_tiles_to_finalize_s"], r["tile_cpu_s_per_tile"], r["tile_cpu_us_per_vertex"],
+               min(loads), max(loads)))
     print()
     for v in sorted({r["vertices"] for r in srows}):
         rs = [r for r in srows if r["vertices"] == v]
