@@ -4,7 +4,8 @@
   bench/slurm_overhead.py [--vertices 1e6[,1e7]] [--tasks 2,4,8] [--tile-size 2000]
                           [--jobs 2] [--repeat 1] [--build-dir build/release]
                           [--out bench/report] [--slurm-dir /tmp/slurmbench-slurm]
-                          [--slurm-port 16917]
+                          [--slurm-port 16917] [--append]
+  bench/slurm_overhead.py --from-csv [--out bench/report]
 
 For each size: synthetic polygons and lines (bench/gen_synthetic.py "mix", as
 bench/tileset_scale.py makes them) in FlatGeobuf, then, alternately in the
@@ -34,8 +35,15 @@ finalize's start; each includes the job's launch by slurmd).
 Writes slurm_overhead.csv (one row per build; the 1-minute load average
 before and after each), slurm_overhead_jobs.csv (one row per Slurm step) and
 slurm_overhead.png (gnuplot: wall time by N, local against Slurm), and prints
-a table. Standard library only; needs root, the Slurm and munge packages
-(scripts/deps --cluster), ogr2ogr, /usr/bin/time and gnuplot.
+a table with a per-size summary (CPU a tile and an input vertex, peak RSS
+of a tile job, the mean gaps). --append keeps the rows already in --out's
+CSVs (a second size measured later); --from-csv builds nothing and prints
+the table and redraws the chart from them. On a shared machine with Linux's
+autogroup scheduling each Slurm job is a session of its own and gets its
+own CPU share against other users, the local build one share: compare the
+CPU columns, or measure on an idle machine. Standard library only; needs
+root, the Slurm and munge packages (scripts/deps --cluster), ogr2ogr,
+/usr/bin/time and gnuplot.
 """
 import argparse
 import csv
@@ -401,12 +409,12 @@ def main():
             plots.append("$d%d using 1:3 with linespoints pt 5 lc %d title '%s vertices, Slurm, N tile jobs'" %
                          (i, i + 1, exp))
         png = os.path.join(a.out, "slurm_overhead.png")
-        script = ("set terminal pngcairo size 800,500 noenhanced\nset output '%s'\n%s\n"
-                  "set logscale x 2\nset logscale y\nset grid\nset key bottom right\n"
+        script = ("set terminal pngcairo size 800,560 noenhanced\nset output '%s'\n%s\n"
+                  "set logscale x 2\nset logscale y\nset grid\nset key below\n"
                   "set xtics (%s)\nset xrange [%g:%g]\n"
                   "set xlabel 'N tile jobs (Slurm array; the node has 2 CPUs)'\n"
                   "set ylabel 'wall time to the finished tileset (s)'\n"
-                  "set title 'Tileset build, %s m tiles: Slurm (one node) against local'\n"
+                  "set title 'Tileset build, %s m tiles: Slurm (one node) against local (mean of the runs)'\n"
                   "plot %s\n" % (png, "\n".join(blocks), ", ".join(str(n) for n in ns),
                                  min(ns) / 1.3, max(ns) * 1.3, a.tile_size, ", \\\n  ".join(plots)))
         subprocess.run(["gnuplot"], input=script.encode(), check=False)
