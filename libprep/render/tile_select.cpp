@@ -18,16 +18,18 @@ namespace {
 struct Node {
   int level = 0;
   TileKey key;
-  Extent square;                    // absolute
+  Extent square;                     // absolute
   const TileEntry* entry = nullptr;  // none: no data at this level here
-  double pixel = 0;                 // ground metres per pixel at its nearest visible point
-  double sse = 0;                   // r_L / pixel: its error in pixels if drawn
+  double pixel = 0;                  // ground metres per pixel at its nearest visible point
+  double sse = 0;                    // r_L / pixel: its error in pixels if drawn
   int parent = -1;
   std::vector<int> children;
   bool drawn = false;
 };
 
-int64_t floor_half(int64_t v) { return v >= 0 ? v / 2 : -((-v + 1) / 2); }
+int64_t floor_half(int64_t v) {
+  return v >= 0 ? v / 2 : -((-v + 1) / 2);
+}
 
 bool meets(const Extent& square, const std::optional<Extent>& view) {
   if (!view) return true;
@@ -191,8 +193,9 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
     // Coarsen: a tile all of whose visited children are drawn may replace
     // them; the one with the smallest error in pixels first.
     auto all_children_drawn = [&](const Node& n) {
-      return !n.drawn && !n.children.empty() && std::all_of(n.children.begin(), n.children.end(),
-                                     [&](int c) { return nodes[size_t(c)].drawn; });
+      return !n.drawn && !n.children.empty() &&
+             std::all_of(n.children.begin(), n.children.end(),
+                         [&](int c) { return nodes[size_t(c)].drawn; });
     };
     using Item = std::pair<double, int>;
     std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;

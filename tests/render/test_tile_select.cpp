@@ -22,7 +22,9 @@ constexpr int kGrid = 8;  // level-0 tiles a side
 // Package bytes per tile of each level: a parent is smaller than its four children.
 constexpr uint64_t kBytes[kLevels + 1] = {1000, 1200, 1500, 2000};
 
-double resolution(int l) { return kTile * std::ldexp(1.0, l) / 1024; }
+double resolution(int l) {
+  return kTile * std::ldexp(1.0, l) / 1024;
+}
 
 prep::TileEntry entry(int l, int64_t x, int64_t y) {
   const double s = kTile * std::ldexp(1.0, l);
@@ -88,11 +90,10 @@ TEST(TileSelect, TopDownOrthographicViewDrawsTheLevelWhoseResolutionFitsThePixel
   const prep::TilesetIndex ix = pyramid();
   // The whole 800 m at H pixels: a pixel of 800/H m; the expected level is
   // the coarsest L with 100 2^L / 1024 <= 800 / H, i.e. 2^L <= 8192 / H.
-  const std::map<uint32_t, int> expected = {
-      {300, 3}, {1024, 3}, {1100, 2}, {2048, 2}, {3000, 1}, {4096, 1}, {5000, 0}, {9000, 0}};
+  const std::map<uint32_t, int> expected = {{300, 3},  {1024, 3}, {1100, 2}, {2048, 2},
+                                            {3000, 1}, {4096, 1}, {5000, 0}, {9000, 0}};
   for (auto [h, level] : expected) {
-    const R::TileSelection s =
-        R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), h, h, 0, 10);
+    const R::TileSelection s = R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), h, h, 0, 10);
     ASSERT_FALSE(s.tiles.empty());
     for (const R::SelectedTile& t : s.tiles) {
       EXPECT_EQ(t.level, level) << h << " pixels";
@@ -277,8 +278,9 @@ TEST(TileSelect, AbsentTilesAreEmptyAndLeaveNoGapAtOtherLevels) {
   // Level-1 tile (1, 1) absent (its content below a pixel there), and
   // level-0 tile (0, 0) absent (no data at all).
   auto& l1 = ix.levels[0].tiles;
-  l1.erase(std::find_if(l1.begin(), l1.end(),
-                        [](const prep::TileEntry& t) { return t.key == prep::TileKey{1, 1}; }));
+  l1.erase(std::find_if(l1.begin(), l1.end(), [](const prep::TileEntry& t) {
+    return t.key == prep::TileKey{1, 1};
+  }));
   ix.tiles.erase(ix.tiles.begin());
   // 4096 pixels over 800 m: level 1 everywhere.
   const R::TileSelection s = R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), 4096, 4096, 0, 10);
@@ -305,7 +307,8 @@ TEST(TileSelect, ATilesetWithoutLevelsDrawsTheLevel0TilesThatMeetTheView) {
   EXPECT_EQ(got, want);
   EXPECT_EQ(s.bytes, s.full_detail_bytes);
   // In index order (x, then y).
-  for (size_t i = 1; i < s.tiles.size(); ++i) EXPECT_LT(s.tiles[i - 1].entry->key, s.tiles[i].entry->key);
+  for (size_t i = 1; i < s.tiles.size(); ++i)
+    EXPECT_LT(s.tiles[i - 1].entry->key, s.tiles[i].entry->key);
 }
 
 TEST(TileSelect, ForcedLevelDrawsThatLevelEverywhere) {

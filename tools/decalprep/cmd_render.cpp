@@ -132,8 +132,7 @@ void load_tiles(Scene& sc, const std::string& dir, const R::Camera& camera, uint
     if (sc.selection.per_level[l])
       levels += (levels.empty() ? "" : ", ") + std::to_string(sc.selection.per_level[l]) +
                 " of level " + std::to_string(l);
-  std::fprintf(stderr,
-               "render: %zu of %zu level-0 tiles meet the view; drawing %zu tiles (%s)%s\n",
+  std::fprintf(stderr, "render: %zu of %zu level-0 tiles meet the view; drawing %zu tiles (%s)%s\n",
                sc.selection.full_detail_tiles, sc.index.tiles.size(), hit.size(),
                levels.empty() ? "none" : levels.c_str(),
                sc.selection.coarsened ? ", coarsened to fit --gpu-budget" : "");
@@ -148,7 +147,8 @@ std::optional<int> level_option(const std::string& s) {
     if (used == s.size() && l >= 0) return l;
   } catch (const std::exception&) {
   }
-  throw prep::usage_error("render: --level '" + s + "' must be auto or a level number (0: full detail)");
+  throw prep::usage_error("render: --level '" + s +
+                          "' must be auto or a level number (0: full detail)");
 }
 
 void run(const RenderArgs& a) {
@@ -158,8 +158,10 @@ void run(const RenderArgs& a) {
     try {
       select.gpu_budget = prep::parse_memory_size(a.gpu_budget);
     } catch (const prep::usage_error&) {
-      throw prep::usage_error("render: --gpu-budget: expected a size such as 512M, 2G or "
-                              "1073741824 (bytes), got \"" + a.gpu_budget + "\"");
+      throw prep::usage_error(
+          "render: --gpu-budget: expected a size such as 512M, 2G or "
+          "1073741824 (bytes), got \"" +
+          a.gpu_budget + "\"");
     }
   }
   Scene sc = open_scene(a.package);
@@ -420,8 +422,8 @@ void run(const RenderArgs& a) {
         std::printf("gpu budget: %llu bytes, %zu tile groups coarsened to fit\n",
                     static_cast<unsigned long long>(select.gpu_budget), s.coarsened);
     }
-    std::printf("frame: %.3f ms (the %s render call, %u frame%s; tile loading not included)\n", frame_ms,
-                a.cpu ? "cpu" : "gl", a.frames, a.frames == 1 ? "" : "s");
+    std::printf("frame: %.3f ms (the %s render call, %u frame%s; tile loading not included)\n",
+                frame_ms, a.cpu ? "cpu" : "gl", a.frames, a.frames == 1 ? "" : "s");
     if (img.dyn_kept || img.dyn_segments)
       std::printf(
           "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",

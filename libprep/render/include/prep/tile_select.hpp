@@ -34,20 +34,20 @@ struct TileSelectOptions {
 };
 
 struct SelectedTile {
-  int level = 0;                       // 0: full detail
-  const TileEntry* entry = nullptr;    // into the index
-  double pixel_size = 0;               // ground metres per pixel at its nearest visible point
+  int level = 0;                     // 0: full detail
+  const TileEntry* entry = nullptr;  // into the index
+  double pixel_size = 0;             // ground metres per pixel at its nearest visible point
 };
 
 struct TileSelection {
   // Disjoint squares that together cover every tile with data that meets the
   // footprint; by level, then key.
   std::vector<SelectedTile> tiles;
-  uint64_t bytes = 0;               // the drawn tiles' package bytes
-  uint64_t full_detail_bytes = 0;   // the level-0 tiles' that meet the footprint
-  size_t full_detail_tiles = 0;     // how many level-0 tiles meet the footprint
-  std::vector<size_t> per_level;    // tiles drawn per level, index = level
-  size_t coarsened = 0;             // groups of children the budget replaced by their parent
+  uint64_t bytes = 0;              // the drawn tiles' package bytes
+  uint64_t full_detail_bytes = 0;  // the level-0 tiles' that meet the footprint
+  size_t full_detail_tiles = 0;    // how many level-0 tiles meet the footprint
+  std::vector<size_t> per_level;   // tiles drawn per level, index = level
+  size_t coarsened = 0;            // groups of children the budget replaced by their parent
   // The ground footprint (absolute frame coordinates); none: the camera
   // sees the sky, every tile counts as met.
   std::optional<Extent> footprint;
