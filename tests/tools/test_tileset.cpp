@@ -210,8 +210,8 @@ TEST_F(Tileset, RenderBudgetAndLevelOptionsOnATilesetWithoutLevels) {
   for (const char* level : {"auto", "0"}) {
     const auto r = run_tool(common + " --stats --level " + level, *dir_);
     ASSERT_EQ(r.rc, 0) << r.output;
-    EXPECT_NE(r.output.find("tiles: " + std::to_string(tiles) + " drawn (level 0: " +
-                            std::to_string(tiles) + ")"),
+    EXPECT_NE(r.output.find("tiles: " + std::to_string(tiles) +
+                            " drawn (level 0: " + std::to_string(tiles) + ")"),
               std::string::npos)
         << r.output;
     EXPECT_NE(r.output.find("bytes: " + std::to_string(bytes) +
