@@ -950,4 +950,99 @@ Extent kept_extent(const SceneFeatures& s) {
   return b.xmax >= b.xmin ? b : Extent{};
 }
 
+// ------------------------------------------------------- overview levels --
+
+struct PartSimplifier::Impl {
+  GeosContext ctx;
+  double tolerance;
+  explicit Impl(double t) : tolerance(t) {}
+};
+
+PartSimplifier::PartSimplifier(double tolerance) : impl_(std::make_unique<Impl>(tolerance)) {}
+PartSimplifier::~PartSimplifier() = default;
+
+bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
+  GEOSContextHandle_t h = impl_->ctx.h;
+  if (p.shell.size() < 3) return false;
+  std::vector<Ring> rings;
+  rings.reserve(1 + p.holes.size());
+  rings.push_back(p.shell);
+  for (const Ring& r : p.holes)
+    if (r.size() >= 3) rings.push_back(r);
+  Geom g(h, make_polygon(h, rings));
+  if (!g) throw input_error("overview level: " + what + ": GEOS cannot build the polygon: " +
+                            impl_->ctx.last_error);
+  Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), impl_->tolerance));
+  if (!simple)
+    throw input_error("overview level: " + what +
+                      ": GEOS simplification failed: " + impl_->ctx.last_error);
+  // Topology-preserving; keep the part as it is if GEOS ever disagrees (as clean() does).
+  if (GEOSisValid_r(h, simple.get()) != 1) return true;
+  std::vector<const GEOSGeometry*> polys;
+  bool ignored = false;
+  collect(h, simple.get(), GEOS_POLYGON, polys, ignored);
+  if (polys.empty()) return false;
+  // One polygon in, one polygon out (TopologyPreserveSimplify never splits one).
+  const GEOSGeometry* poly = polys[0];
+  Ring shell = read_coords(h, GEOSGetExteriorRing_r(h, poly), true);
+  if (shell.size() < 3 || signed_area(shell) == 0) return false;
+  if (signed_area(shell) < 0) std::reverse(shell.begin(), shell.end());
+  std::vector<Ring> holes;
+  const int nh = GEOSGetNumInteriorRings_r(h, poly);
+  for (int i = 0; i < nh; ++i) {
+    Ring hole = read_coords(h, GEOSGetInteriorRingN_r(h, poly, i), true);
+    if (hole.size() < 3) continue;
+    if (signed_area(hole) > 0) std::reverse(hole.begin(), hole.end());
+    holes.push_back(std::move(hole));
+  }
+  p.shell = std::move(shell);
+  p.holes = std::move(holes);
+  return true;
+}
+
+bool PartSimplifier::line(SceneLine& l, const std::string& what) {
+  GEOSContextHandle_t h = impl_->ctx.h;
+  if (l.points.size() < 2) return false;
+  Ring pts = l.points;
+  if (l.closed) pts.push_back(pts.front());
+  Geom g(h, make_line(h, pts));
+  if (!g)
+    throw input_error("overview level: " + what + ": GEOS cannot build the line: " +
+                      impl_->ctx.last_error);
+  Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), impl_->tolerance));
+  if (!simple)
+    throw input_error("overview level: " + what +
+                      ": GEOS simplification failed: " + impl_->ctx.last_error);
+  std::vector<const GEOSGeometry*> lines;
+  bool ignored = false;
+  collect(h, simple.get(), GEOS_LINESTRING, lines, ignored);
+  if (lines.empty()) return false;
+  Ring out = read_coords(h, lines[0], false);
+  if (l.closed) {
+    // A closed line keeps its closing point in GEOS; three distinct corners at least.
+    if (out.size() < 4) return false;
+    out.pop_back();
+  } else if (out.size() < 2) {
+    return false;
+  }
+  l.points = std::move(out);
+  return true;
+}
+
+double part_area(const ScenePolygon& p) {
+  double a = geos_ring_area(p.shell);
+  for (const Ring& h : p.holes) a -= geos_ring_area(h);
+  return a;
+}
+
+double part_length(const SceneLine& l) {
+  double len = geos_line_length(l.points);
+  if (l.closed && l.points.size() >= 2) {
+    const double dx = l.points.front().x - l.points.back().x;
+    const double dy = l.points.front().y - l.points.back().y;
+    len += std::sqrt(dx * dx + dy * dy);
+  }
+  return len;
+}
+
 }  // namespace prep

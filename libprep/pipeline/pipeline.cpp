@@ -362,6 +362,13 @@ void add_memory_report(nlohmann::json& report,
   if (limit) report["max_memory_mib"] = double(limit.bytes) / (1024.0 * 1024.0);
 }
 
+// The overview levels of a tileset build, for the report (all levels
+// together; tileset.json has them level by level).
+nlohmann::json levels_report(const pipeline_internal::TilesetOutcome& t) {
+  return {{"levels", t.levels},     {"tiles", t.level_tiles}, {"built", t.level_built},
+          {"reused", t.level_reused}, {"empty", t.level_empty}, {"bytes", t.level_bytes}};
+}
+
 // One step of a tileset build (BuildRequest::step), in a process of its own.
 // The report says which step ran and what it did; the state for the next
 // step is in the work folder only (pipeline_internal.hpp).
@@ -438,6 +445,7 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
                            {"reused", t.reused},
                            {"empty", t.empty},
                            {"bytes", t.bytes}};
+      if (t.levels > 0) report["tileset"]["levels"] = levels_report(t);
       result.package_written = true;
       say("step finalize: " + std::to_string(t.tiles) + " tiles, " + std::to_string(t.bytes) +
           " bytes in " + request.output);
@@ -602,6 +610,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
                          {"tiles", tileset->tiles},        {"built", tileset->built},
                          {"reused", tileset->reused},      {"empty", tileset->empty},
                          {"bytes", tileset->bytes}};
+    if (tileset->levels > 0) report["tileset"]["levels"] = levels_report(*tileset);
   }
   report["dry_run"] = request.dry_run;
   add_memory_report(report, peaks, estimates, limit);

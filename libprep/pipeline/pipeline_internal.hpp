@@ -31,6 +31,11 @@ struct TilesetOutcome {
   size_t empty = 0;   // tiles reached by a part's box but left with no part
   uint64_t bytes = 0;
   double margin = 0;
+  // Overview levels (formats/SPEC.md "Overview levels"), all together; the
+  // fields above are level 0's.
+  int levels = 0;
+  size_t level_tiles = 0, level_built = 0, level_reused = 0, level_empty = 0;
+  uint64_t level_bytes = 0;
 };
 
 // A tileset build in three steps whose state is on disk only, in the work
@@ -58,6 +63,11 @@ struct WorkPaths {
   std::string tile_records() const { return work() + "/tiles"; }
   std::string tile_record(const TileKey& k) const {
     return tile_records() + "/" + tile_name(k) + ".json";
+  }
+  // Overview level `level` (0: the tile_record above).
+  std::string tile_record(const TileKey& k, int level) const {
+    if (level == 0) return tile_record(k);
+    return tile_records() + "/L" + std::to_string(level) + "_" + tile_name(k) + ".json";
   }
 };
 

@@ -2,6 +2,7 @@
 // command line's overrides, or the file-less form's single layer
 // (prep/pipeline.hpp "one scene, as asked"). Messages name the option.
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include "prep/error.hpp"
@@ -122,6 +123,18 @@ void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
           "half must fit int32 millimetres around its centre)");
     scene.tile_size = *o.tile_size;
   }
+  if (!o.levels.empty()) {
+    if (o.levels == "auto") {
+      scene.levels = kLevelsAuto;
+    } else {
+      int n = -1;
+      char tail = 0;
+      if (std::sscanf(o.levels.c_str(), "%d%c", &n, &tail) != 1 || n < 0 || n > kMaxLevels)
+        throw usage_error("--levels: expected a number of overview levels (0 to 16) or auto, "
+                          "not \"" + o.levels + "\"");
+      scene.levels = n;
+    }
+  }
   if (!o.repair.empty()) scene.repair = parse_repair_method(o.repair);
   if (!o.grid.empty()) parse_grid(o.grid, scene.model);
   if (o.leaf_capacity) scene.model.qt_leaf_capacity = *o.leaf_capacity;
@@ -148,6 +161,17 @@ SceneSpec scene_spec(const SceneRequest& request) {
     scene.layers.push_back(fileless_layer(request.input, request.layer));
   }
   apply_overrides(request.overrides, scene);
+  // Overview levels are tiles of a tileset (formats/SPEC.md "Overview levels").
+  const std::string levels_from =
+      !request.overrides.levels.empty() ? "--levels" : "[tiling] levels in " + request.input;
+  if (scene.levels != 0 && scene.tile_size <= 0)
+    throw usage_error(levels_from +
+                      ": overview levels are levels of a tileset: give --tile-size (or [tiling] "
+                      "tile_size)");
+  if (scene.levels > 0 && std::ldexp(scene.tile_size, scene.levels) > kMaxTileSize)
+    throw usage_error(levels_from + ": level " + std::to_string(scene.levels) +
+                      " would have tiles of " + std::to_string(std::ldexp(scene.tile_size, scene.levels)) +
+                      " m, above the largest tile size (4000000 m)");
   return scene;
 }
 

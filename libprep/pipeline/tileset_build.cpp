@@ -141,6 +141,43 @@ void remove_stale_tiles(const std::string& tiles_dir, const std::set<std::string
   closedir(d);
 }
 
+// How many overview levels a build makes: SceneSpec::levels, or for
+// kLevelsAuto the first level whose grid covers the data's box (scene
+// coordinates) with at most kAutoLevelTiles tiles
+// (none when level 0 does), at most kMaxLevels and no tile above
+// kMaxTileSize.
+int level_count(const SceneSpec& spec, const Extent& data, const SceneFrame& frame) {
+  if (spec.levels != kLevelsAuto) return spec.levels;
+  for (int l = 0; l <= kMaxLevels; ++l) {
+    const double size = std::ldexp(spec.tile_size, l);
+    if (size > kMaxTileSize) return l - 1;
+    const TileRange r = tile_range(data, 0, frame.origin_x, frame.origin_y, size);
+    const double tiles = double(r.hi.x - r.lo.x + 1) * double(r.hi.y - r.lo.y + 1);
+    if (tiles <= kAutoLevelTiles) return l;
+  }
+  return kMaxLevels;
+}
+
+// Level folders an earlier build left that this index no longer has
+// (tiles/L<n> with n > `levels`), removed with their packages.
+void remove_stale_levels(const std::string& tiles_dir, int levels) {
+  DIR* d = opendir(tiles_dir.c_str());
+  if (!d) return;
+  std::vector<std::string> stale;
+  while (const dirent* e = readdir(d)) {
+    const std::string name = e->d_name;
+    if (name.size() < 2 || name[0] != 'L' ||
+        name.find_first_not_of("0123456789", 1) != std::string::npos || name.size() > 4)
+      continue;
+    if (std::stoi(name.substr(1)) > levels) stale.push_back(tiles_dir + "/" + name);
+  }
+  closedir(d);
+  for (const std::string& s : stale) {
+    remove_stale_tiles(s, {});
+    ::rmdir(s.c_str());  // only when nothing else is in it
+  }
+}
+
 }  // namespace
 
 // ------------------------------------------------------------- prepare --
@@ -187,6 +224,20 @@ void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and
   nlohmann::json keys = nlohmann::json::array();
   for (const TileKey& k : planned_tiles(paths_, plan)) keys.push_back({k.x, k.y});
   const Extent e = parts_->extent();
+  // Overview levels (formats/SPEC.md "Overview levels"): each level's tiles
+  // from the same boxes, on its own grid.
+  const int nlevels = parts_->parts() == 0 && spec_.levels == kLevelsAuto
+                          ? 0
+                          : level_count(spec_, e, frame);
+  nlohmann::json levels = nlohmann::json::array();
+  for (int l = 1; l <= nlevels; ++l) {
+    TilePlan lp = plan;
+    lp.size = level_parameters(plan.size, l).tile_size;
+    lp.dynamic_margin = lp.size * 0.5;
+    nlohmann::json lk = nlohmann::json::array();
+    for (const TileKey& k : planned_tiles(paths_, lp)) lk.push_back({k.x, k.y});
+    levels.push_back({{"level", l}, {"tiles", std::move(lk)}});
+  }
   const nlohmann::json j = {{"frame", frame_to_json(frame)},
                             {"extent", {e.xmin, e.ymin, e.xmax, e.ymax}},
                             {"tile_size", plan.size},
@@ -198,6 +249,8 @@ void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and
                             {"entries", entries_->count()},
                             {"read_entries", read_entries_->count()},
                             {"parts", parts_->parts()},
+                            {"resolution", spec_.resolution},
+                            {"levels", std::move(levels)},
                             {"tiles", keys}};
   // Written last: a plan on disk means the intermediate is complete.
   write_text_file(paths_.plan(), j.dump(1) + "\n");
@@ -319,6 +372,15 @@ namespace {
 struct PreparedPlan {
   TilePlan plan;  // tiles: the keys, members empty
   std::vector<TileKey> keys;
+  double resolution = 0;  // level 0's (the build's --resolution)
+  // Overview levels 1, 2, ...: the level's rule, its grid (plan.size the
+  // level's tile size, the same margin) and its tile keys.
+  struct Level {
+    TileLevel params;
+    TilePlan plan;
+    std::vector<TileKey> keys;
+  };
+  std::vector<Level> levels;
   Extent extent;      // scene coordinates
   Manifest manifest;  // counts and notes (no entries)
   uint64_t entries = 0, read_entries = 0;
@@ -347,6 +409,17 @@ PreparedPlan read_plan(const WorkPaths& paths) {
     p.read_entries = j.at("read_entries").get<uint64_t>();
     for (const nlohmann::json& k : j.at("tiles"))
       p.keys.push_back({k.at(0).get<int64_t>(), k.at(1).get<int64_t>()});
+    p.resolution = j.at("resolution").get<double>();
+    for (const nlohmann::json& l : j.at("levels")) {
+      PreparedPlan::Level lv;
+      lv.params = level_parameters(p.plan.size, l.at("level").get<int>());
+      lv.plan = p.plan;
+      lv.plan.size = lv.params.tile_size;
+      lv.plan.dynamic_margin = lv.plan.size * 0.5;
+      for (const nlohmann::json& k : l.at("tiles"))
+        lv.keys.push_back({k.at(0).get<int64_t>(), k.at(1).get<int64_t>()});
+      p.levels.push_back(std::move(lv));
+    }
   } catch (const nlohmann::json::exception& e) {
     fail<output_error>(kTilesetStage, paths.plan() + ": " + e.what());
   }
@@ -369,39 +442,157 @@ nlohmann::json tile_record_json(const TileEntry& e, bool reused) {
 
 // ----------------------------------------------------------------- tiles --
 
+namespace {
+
+// An overview level's treatment of each part of a tile's window
+// (formats/SPEC.md "Overview levels"): parts below the level's min_area /
+// min_length are dropped, the rest simplified to its tolerance. Each part
+// is counted by one tile of the level only, the one whose square holds its
+// box's lower-left corner (its owner, always one of the tiles it reaches),
+// so that the tiles' counts add up to the level's.
+class LevelFilter : public PartFilter {
+ public:
+  LevelFilter(const TileLevel& level, const TilePlan& plan, const TileKey& key,
+              const std::vector<LayerSpec>& layers)
+      : level_(level), plan_(plan), key_(key), layers_(layers),
+        simplifier_(level_tolerance(level)), counts_(layers.size()) {
+    for (size_t i = 0; i < layers.size(); ++i) counts_[i].layer = layers[i].name;
+  }
+  bool polygon(ScenePolygon& p) override {
+    const bool own = owns(p.shell);
+    uint64_t in = p.shell.size() + 1;
+    for (const Ring& h : p.holes) in += h.size() + 1;
+    const bool keep = part_area(p) >= level_.min_area && simplifier_.polygon(p, what(p));
+    uint64_t out = 0;
+    if (keep) {
+      out = p.shell.size() + 1;
+      for (const Ring& h : p.holes) out += h.size() + 1;
+    }
+    if (own) count(p.layer, keep, in, out);
+    return keep;
+  }
+  bool line(SceneLine& l, bool) override {
+    const bool own = owns(l.points);
+    const uint64_t in = l.points.size() + (l.closed ? 1 : 0);
+    const bool keep = part_length(l) >= level_.min_length && simplifier_.line(l, what(l));
+    const uint64_t out = keep ? l.points.size() + (l.closed ? 1 : 0) : 0;
+    if (own) count(l.layer, keep, in, out);
+    return keep;
+  }
+  // This tile's share of the level's per-layer counts.
+  const std::vector<LayerCounts>& counts() const { return counts_; }
+
+ private:
+  bool owns(const Ring& r) const {
+    return tile_range(ring_box(r), 0, plan_.frame.origin_x, plan_.frame.origin_y, plan_.size)
+               .lo == key_;
+  }
+  template <class Part>
+  std::string what(const Part& p) const {
+    return "level " + std::to_string(level_.level) + " layer '" +
+           (p.layer < layers_.size() ? layers_[p.layer].name : std::string("?")) + "' fid " +
+           std::to_string(p.fid) + " part " + std::to_string(p.part);
+  }
+  void count(uint32_t layer, bool keep, uint64_t in, uint64_t out) {
+    if (layer >= counts_.size()) return;
+    LayerCounts& c = counts_[layer];
+    ++c.read;
+    c.vertices_in += in;
+    if (keep) {
+      ++c.kept;
+      ++c.parts;
+      c.vertices_out += out;
+    } else {
+      ++c.dropped_small;
+    }
+  }
+
+  const TileLevel& level_;
+  const TilePlan& plan_;
+  TileKey key_;
+  const std::vector<LayerSpec>& layers_;
+  PartSimplifier simplifier_;
+  std::vector<LayerCounts> counts_;
+};
+
+// A level's counts in a tile record: [parts_in, parts, dropped_small,
+// vertices_in, vertices_out] per layer.
+nlohmann::json level_counts_record(const std::vector<LayerCounts>& counts) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const LayerCounts& c : counts)
+    a.push_back({c.read, c.parts, c.dropped_small, c.vertices_in, c.vertices_out});
+  return a;
+}
+
+// One tile of the plan: level 0 (full detail) or an overview level.
+struct TileItem {
+  int level = 0;
+  TileKey key;
+};
+
+std::string item_name(const TileItem& t) {
+  if (t.level == 0) return tile_name(t.key);
+  // (Written without operator+: GCC 12 -O3 warns on it here, wrongly.)
+  char prefix[16];
+  std::snprintf(prefix, sizeof prefix, "L%d/", t.level);
+  std::string name(prefix);
+  name.append(tile_name(t.key));
+  return name;
+}
+
+// Every tile of the plan, level 0's first, then each level's, in key order.
+std::vector<TileItem> plan_items(const PreparedPlan& p) {
+  std::vector<TileItem> items;
+  for (const TileKey& k : p.keys) items.push_back({0, k});
+  for (const PreparedPlan::Level& l : p.levels)
+    for (const TileKey& k : l.keys) items.push_back({l.params.level, k});
+  return items;
+}
+
+}  // namespace
+
 TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
                             size_t parts) {
   const WorkPaths paths{request.output};
   const PreparedPlan prepared = read_plan(paths);
-  const TilePlan& plan = prepared.plan;
   const std::string& dir = request.output;
-  std::vector<TileKey> keys;
-  for (size_t i = 0; i < prepared.keys.size(); ++i)
-    if (parts <= 1 || i % parts == part) keys.push_back(prepared.keys[i]);
+  // The plan's tiles of all levels, dealt round-robin to the steps.
+  const std::vector<TileItem> all = plan_items(prepared);
+  std::vector<TileItem> items;
+  for (size_t i = 0; i < all.size(); ++i)
+    if (parts <= 1 || i % parts == part) items.push_back(all[i]);
+  for (const PreparedPlan::Level& l : prepared.levels)
+    make_dir(dir + "/tiles/L" + std::to_string(l.params.level));
 
-  ProgressStage stage(request.progress, "tiles", keys.size(), "tiles");
+  ProgressStage stage(request.progress, "tiles", items.size(), "tiles");
   TileStepOutcome out;
   std::atomic<size_t> built{0}, reused{0}, empty{0};
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
   std::exception_ptr first_error;
-  size_t first_error_at = keys.size();
+  size_t first_error_at = items.size();
   std::mutex error_mutex;
 
   auto work = [&] {
     std::unique_ptr<PartReader> reader;
     SceneFeatures window;
-    window.frame = plan.frame;
+    window.frame = prepared.plan.frame;
     window.layers = spec.layers;
     window.manifest.notes = prepared.manifest.notes;
     for (;;) {
       const size_t i = next.fetch_add(1);
-      if (i >= keys.size() || stop.load()) return;
+      if (i >= items.size() || stop.load()) return;
       try {
-        const TileKey key = keys[i];
+        const TileKey key = items[i].key;
+        const int level = items[i].level;
+        const PreparedPlan::Level* lv = level == 0 ? nullptr : &prepared.levels.at(size_t(level - 1));
+        const TilePlan& plan = lv ? lv->plan : prepared.plan;
         if (!reader) reader = std::make_unique<PartReader>(paths);
-        // The parts tile_plan would list for this tile, in scene order.
-        reader->read_tile(plan, key, window);
+        // The parts tile_plan would list for this tile, in scene order; on
+        // an overview level, simplified and thinned as they are read.
+        std::optional<LevelFilter> filter;
+        if (lv) filter.emplace(lv->params, plan, key, spec.layers);
+        reader->read_tile(plan, key, window, filter ? &*filter : nullptr);
         TilePlan one = plan;
         TilePlan::Members& m = one.tiles[key];
         for (uint32_t k = 0; k < window.polygons.size(); ++k) m.polygons.push_back(k);
@@ -413,7 +604,7 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
         window.dynamic_lines.clear();
         nlohmann::json record;
         if (!tile.polygons.empty() || !tile.lines.empty() || !tile.dynamic_lines.empty()) {
-          const std::string file = "tiles/" + tile_name(key) + ".decals";
+          const std::string file = tile_file(level, key);
           const std::string path = dir + "/" + file;
           nlohmann::json extra = package_metadata(spec, tile.manifest, prepared.provenance);
           const Extent sq = plan.square(key);
@@ -422,6 +613,12 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
                            {"square", {sq.xmin, sq.ymin, sq.xmax, sq.ymax}},
                            {"tile_size_m", plan.size},
                            {"margin_m", plan.margin}};
+          if (lv) {
+            extra["tile"]["level"] = level;
+            extra["tile"]["resolution_m"] = lv->params.resolution;
+            extra["tile"]["min_area_m2"] = lv->params.min_area;
+            extra["tile"]["min_length_m"] = lv->params.min_length;
+          }
           const uint64_t digest = input_digest(tile, extra.dump(), request);
           extra["tile"]["input_xxh64"] = hex64(digest);
           const bool kept = reusable(path, digest);
@@ -451,11 +648,12 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
           record = {{"empty", true}};
           empty += 1;
         }
-        write_text_file(paths.tile_record(key), record.dump() + "\n");
+        if (filter) record["level_counts"] = level_counts_record(filter->counts());
+        write_text_file(paths.tile_record(key, level), record.dump() + "\n");
         stage.add(1);
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
-        // The first failing tile in key order, whatever the scheduling.
+        // The first failing tile in plan order, whatever the scheduling.
         if (i < first_error_at) {
           first_error_at = i;
           first_error = std::current_exception();
@@ -472,7 +670,7 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
   for (std::thread& w : workers) w.join();
   if (first_error) std::rethrow_exception(first_error);
   stage.finish();
-  out.tiles = keys.size();
+  out.tiles = items.size();
   out.built = built;
   out.reused = reused;
   out.empty = empty;
@@ -498,50 +696,108 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
   index.tile_size = plan.size;
   index.margin = plan.margin;
   index.dynamic_margin = plan.dynamic_margin;
-  std::set<std::string> names;
-  // Every tile of the plan must have been built: name the missing ones.
+  // Every tile of the plan, of every level, must have been built: name the
+  // missing ones.
+  const std::vector<TileItem> items = plan_items(prepared);
   std::vector<std::string> missing;
-  for (const TileKey& key : prepared.keys)
-    if (!std::filesystem::exists(paths.tile_record(key))) missing.push_back(tile_name(key));
+  for (const TileItem& t : items)
+    if (!std::filesystem::exists(paths.tile_record(t.key, t.level)))
+      missing.push_back(item_name(t));
   if (!missing.empty()) {
     std::string list;
     for (size_t i = 0; i < missing.size() && i < 20; ++i) list += (i ? ", " : "") + missing[i];
     if (missing.size() > 20) list += ", ... (" + std::to_string(missing.size() - 20) + " more)";
     fail<output_error>(kTilesetStage, std::to_string(missing.size()) + " of " +
-                                          std::to_string(prepared.keys.size()) +
+                                          std::to_string(items.size()) +
                                           " tiles have not been built: " + list +
                                           "; run their tiles steps, then finalize again");
   }
-  for (const TileKey& key : prepared.keys) {
-    std::ifstream in(paths.tile_record(key), std::ios::binary);
-    if (!in) fail<output_error>(kTilesetStage, "cannot read " + paths.tile_record(key));
-    nlohmann::json r;
-    try {
-      r = nlohmann::json::parse(in);
-      if (r.at("empty").get<bool>()) {
-        ++out.empty;
-        continue;
+  // One level's records into its entries (and, for an overview level, its
+  // per-layer counts summed over its tiles).
+  struct LevelTally {
+    size_t tiles = 0, built = 0, reused = 0, empty = 0;
+    uint64_t bytes = 0;
+  };
+  auto read_records = [&](int level, const TilePlan& lplan, const std::vector<TileKey>& keys,
+                          std::vector<TileEntry>& entries, std::vector<LayerCounts>* counts,
+                          std::set<std::string>& names, LevelTally& tally) {
+    for (const TileKey& key : keys) {
+      const std::string rpath = paths.tile_record(key, level);
+      std::ifstream in(rpath, std::ios::binary);
+      if (!in) fail<output_error>(kTilesetStage, "cannot read " + rpath);
+      try {
+        const nlohmann::json r = nlohmann::json::parse(in);
+        if (counts) {
+          const nlohmann::json& lc = r.at("level_counts");
+          if (lc.size() != counts->size())
+            fail<output_error>(kTilesetStage, rpath + ": level_counts has " +
+                                                  std::to_string(lc.size()) + " layers, not " +
+                                                  std::to_string(counts->size()));
+          for (size_t k = 0; k < counts->size(); ++k) {
+            LayerCounts& c = (*counts)[k];
+            const nlohmann::json& v = lc.at(k);
+            c.read += v.at(0).get<uint64_t>();
+            c.parts += v.at(1).get<uint64_t>();
+            c.kept += v.at(1).get<uint64_t>();
+            c.dropped_small += v.at(2).get<uint64_t>();
+            c.vertices_in += v.at(3).get<uint64_t>();
+            c.vertices_out += v.at(4).get<uint64_t>();
+          }
+        }
+        if (r.at("empty").get<bool>()) {
+          ++tally.empty;
+          continue;
+        }
+        TileEntry e;
+        e.key = key;
+        e.square = lplan.square(key);
+        std::tie(e.origin_x, e.origin_y) = lplan.origin(key);
+        e.file = r.at("file").get<std::string>();
+        e.bytes = r.at("bytes").get<uint64_t>();
+        e.xxh64 = std::stoull(r.at("xxh64").get<std::string>(), nullptr, 16);
+        e.polygons = r.at("polygons").get<uint64_t>();
+        e.lines = r.at("lines").get<uint64_t>();
+        e.dynamic_lines = r.at("dynamic_lines").get<uint64_t>();
+        e.layers = counts_from_json(r.at("layers"));
+        ++tally.tiles;
+        (r.at("reused").get<bool>() ? tally.reused : tally.built) += 1;
+        tally.bytes += e.bytes;
+        names.insert(tile_name(key) + ".decals");
+        entries.push_back(std::move(e));
+      } catch (const nlohmann::json::exception& e) {
+        fail<output_error>(kTilesetStage, rpath + ": " + e.what());
       }
-      TileEntry e;
-      e.key = key;
-      e.square = plan.square(key);
-      std::tie(e.origin_x, e.origin_y) = plan.origin(key);
-      e.file = r.at("file").get<std::string>();
-      e.bytes = r.at("bytes").get<uint64_t>();
-      e.xxh64 = std::stoull(r.at("xxh64").get<std::string>(), nullptr, 16);
-      e.polygons = r.at("polygons").get<uint64_t>();
-      e.lines = r.at("lines").get<uint64_t>();
-      e.dynamic_lines = r.at("dynamic_lines").get<uint64_t>();
-      e.layers = counts_from_json(r.at("layers"));
-      ++out.tiles;
-      (r.at("reused").get<bool>() ? out.reused : out.built) += 1;
-      out.bytes += e.bytes;
-      names.insert(tile_name(key) + ".decals");
-      index.tiles.push_back(std::move(e));
-    } catch (const nlohmann::json::exception& e) {
-      fail<output_error>(kTilesetStage, paths.tile_record(key) + ": " + e.what());
     }
+  };
+  std::set<std::string> names;
+  LevelTally tally0;
+  read_records(0, plan, prepared.keys, index.tiles, nullptr, names, tally0);
+  out.tiles = tally0.tiles;
+  out.built = tally0.built;
+  out.reused = tally0.reused;
+  out.empty = tally0.empty;
+  out.bytes = tally0.bytes;
+  // Overview levels (formats/SPEC.md "Overview levels").
+  index.resolution = prepared.resolution;
+  std::vector<std::set<std::string>> level_names;
+  for (const PreparedPlan::Level& l : prepared.levels) {
+    TileLevel level = l.params;
+    level.layers.resize(prepared.manifest.layers.size());
+    for (size_t k = 0; k < level.layers.size(); ++k)
+      level.layers[k].layer = prepared.manifest.layers[k].layer;
+    LevelTally t;
+    level_names.emplace_back();
+    read_records(l.params.level, l.plan, l.keys, level.tiles, &level.layers, level_names.back(),
+                 t);
+    out.level_tiles += t.tiles;
+    out.level_built += t.built;
+    out.level_reused += t.reused;
+    out.level_empty += t.empty;
+    out.level_bytes += t.bytes;
+    index.levels.push_back(std::move(level));
   }
+  out.levels = static_cast<int>(index.levels.size());
+  if (!index.levels.empty()) index.minor = kTilesetMinorLevels;
   const Extent& e = prepared.extent;  // {} when empty
   const double ox = plan.frame.origin_x, oy = plan.frame.origin_y;
   index.extent =
@@ -558,6 +814,9 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
   index.manifest_xxh64 = md->xxh64;
 
   remove_stale_tiles(dir + "/tiles", names);
+  for (size_t l = 0; l < level_names.size(); ++l)
+    remove_stale_tiles(dir + "/tiles/L" + std::to_string(l + 1), level_names[l]);
+  remove_stale_levels(dir + "/tiles", static_cast<int>(level_names.size()));
   write_text_file(dir + "/" + kTilesetIndexName, tileset_index_json(index));
   if (manifest) *manifest = index.manifest;
   // The work folder is not part of the tileset (formats/SPEC.md "Tilesets").

@@ -293,7 +293,8 @@ PartReader::~PartReader() {
   if (impl_->ds) GDALClose(impl_->ds);
 }
 
-void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatures& scene) {
+void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatures& scene,
+                           PartFilter* filter) {
   scene.polygons.clear();
   scene.lines.clear();
   scene.dynamic_lines.clear();
@@ -346,6 +347,7 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
       p.area = keys[0];
       p.order_value = keys[3];
       p.color_value = keys[4];
+      if (filter && !filter->polygon(p)) continue;
       polys.emplace_back(seq, std::move(p));
     } else {
       const auto* ls = dynamic_cast<const OGRLineString*>(g);
@@ -365,6 +367,7 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
       l.width = keys[2];
       l.order_value = keys[3];
       l.color_value = keys[4];
+      if (filter && !filter->line(l, dynamic)) continue;
       (dynamic ? dyn : lines).emplace_back(seq, std::move(l));
     }
   }

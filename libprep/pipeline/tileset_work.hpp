@@ -12,6 +12,7 @@
 //   DIR/.work/plan.json      frame, extent, margins, per-layer counts,
 //                            notes, provenance, entry count, tile keys
 //   DIR/.work/tiles/<x>_<y>.json  what the tile step made of each tile
+//   DIR/.work/tiles/L<L>_<x>_<y>.json  the same for overview level L
 //
 // GDAL stays in tileset_work.cpp.
 #pragma once
@@ -71,6 +72,17 @@ class PartWriter {
 // margins), in key order.
 std::vector<TileKey> planned_tiles(const WorkPaths& paths, const TilePlan& plan);
 
+// What an overview level does to each part a tile's window holds, as the
+// part is read (tileset_build.cpp), so that a tile holds only what it
+// keeps: a level tile near the top has the whole scene in its window.
+// False drops the part. Called once for each part that reaches the tile.
+class PartFilter {
+ public:
+  virtual ~PartFilter() = default;
+  virtual bool polygon(ScenePolygon& p) = 0;
+  virtual bool line(SceneLine& l, bool dynamic) = 0;
+};
+
 // Reads the parts a tile's plan entry holds from parts.gpkg: every part whose
 // box reaches `key` (tile_range, as tile_plan places it), in scene order.
 // One reader per thread (GDAL datasets are not shared).
@@ -80,8 +92,10 @@ class PartReader {
   ~PartReader();
   PartReader(const PartReader&) = delete;
   PartReader& operator=(const PartReader&) = delete;
-  // Fills `scene`'s polygons, lines and dynamic lines (cleared first).
-  void read_tile(const TilePlan& plan, const TileKey& key, SceneFeatures& scene);
+  // Fills `scene`'s polygons, lines and dynamic lines (cleared first); with
+  // a `filter`, only the parts it keeps, as it leaves them.
+  void read_tile(const TilePlan& plan, const TileKey& key, SceneFeatures& scene,
+                 PartFilter* filter = nullptr);
 
  private:
   struct Impl;

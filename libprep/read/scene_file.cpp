@@ -348,6 +348,17 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
       if (!t) fail(ref, "expected a table [tiling]");
       for (auto&& [tk, tv] : *t) {
         const KeyRef tref{path, "tiling." + std::string(tk.str()), line_of(tv)};
+        if (tk.str() == "levels") {
+          // Overview levels (formats/SPEC.md "Overview levels"): N or "auto".
+          if (tv.is_string() && get_string(tv, tref) == "auto") {
+            scene.levels = kLevelsAuto;
+          } else if (tv.is_integer()) {
+            scene.levels = static_cast<int>(get_count(tv, tref, 0, kMaxLevels));
+          } else {
+            fail(tref, "expected a number of levels (0 to 16) or \"auto\"");
+          }
+          continue;
+        }
         if (tk.str() != "tile_size") fail(tref, "unknown key (see samples/README.md)");
         scene.tile_size = get_non_negative(tv, tref);
         if (scene.tile_size < kMinTileSize || scene.tile_size > kMaxTileSize)

@@ -92,12 +92,129 @@ class Fields {
     c.vertices_out = count(j, "vertices_out", where);
     return c;
   }
+  // An overview level's per-layer counts (level_counts_json).
+  LayerCounts level_counts(const json& j, const std::string& where) const {
+    LayerCounts c;
+    c.layer = text(j, "layer", where);
+    c.read = count(j, "parts_in", where);
+    c.kept = c.parts = count(j, "parts", where);
+    c.dropped_small = count(j, "dropped_small", where);
+    c.vertices_in = count(j, "vertices_in", where);
+    c.vertices_out = count(j, "vertices_out", where);
+    if (c.read != c.parts + c.dropped_small)
+      bad(where, "parts_in is not parts + dropped_small");
+    return c;
+  }
 
  private:
   std::string file_;
 };
 
+// A level's layer record: its counts are of parts (TileLevel::layers).
+json level_counts_json(const LayerCounts& c) {
+  return {{"layer", c.layer},
+          {"parts_in", c.read},
+          {"parts", c.parts},
+          {"dropped_small", c.dropped_small},
+          {"vertices_in", c.vertices_in},
+          {"vertices_out", c.vertices_out}};
+}
+
+json tiles_json(const std::vector<TileEntry>& entries) {
+  json tiles = json::array();
+  for (const TileEntry& t : entries) {
+    json tl = json::array();
+    for (const LayerCounts& c : t.layers) tl.push_back(layer_counts_json(c));
+    tiles.push_back(
+        {{"x", t.key.x},
+         {"y", t.key.y},
+         {"square", extent_json(t.square)},
+         {"origin", {t.origin_x, t.origin_y}},
+         {"file", t.file},
+         {"bytes", t.bytes},
+         {"xxh64", hex64(t.xxh64)},
+         {"counts",
+          {{"polygons", t.polygons}, {"lines", t.lines}, {"dynamic_lines", t.dynamic_lines}}},
+         {"layers", tl}});
+  }
+  return tiles;
+}
+
+// The tiles of level `level` (0: the index's own), `where` "tiles" or
+// "levels[i].tiles".
+std::vector<TileEntry> read_tiles(const Fields& f, const json& tiles, const std::string& where,
+                                  double tile_size, int level) {
+  if (!tiles.is_array()) f.bad(where, "is not an array");
+  std::vector<TileEntry> out;
+  std::set<TileKey> seen;
+  for (size_t i = 0; i < tiles.size(); ++i) {
+    const std::string w = where + "[" + std::to_string(i) + "]";
+    const json& t = tiles[i];
+    TileEntry e;
+    e.key = {f.integer(t, "x", w), f.integer(t, "y", w)};
+    // |x| * size must stay a finite, exact coordinate.
+    if (std::fabs(double(e.key.x)) > 1e12 || std::fabs(double(e.key.y)) > 1e12)
+      f.bad(w, "tile key out of range");
+    if (!seen.insert(e.key).second) f.bad(w, "tile " + tile_name(e.key) + " is listed twice");
+    e.square = f.extent(t, "square", w);
+    TilePlan plan;
+    plan.size = tile_size;
+    const Extent want = plan.square(e.key);
+    if (e.square.xmin != want.xmin || e.square.ymin != want.ymin || e.square.xmax != want.xmax ||
+        e.square.ymax != want.ymax)
+      f.bad(w + ".square", "does not match the tile's key and the tile size");
+    const json& o = f.at(t, "origin", w);
+    if (!o.is_array() || o.size() != 2 || !o[0].is_number() || !o[1].is_number())
+      f.bad(w + ".origin", "is not [x, y]");
+    e.origin_x = o[0].get<double>();
+    e.origin_y = o[1].get<double>();
+    if (std::make_pair(e.origin_x, e.origin_y) != plan.origin(e.key))
+      f.bad(w + ".origin", "is not the centre of the tile's square");
+    e.file = f.text(t, "file", w);
+    // Only the name the writer gives: nothing that could leave the directory.
+    const std::string want_file = tile_file(level, e.key);
+    if (e.file != want_file) f.bad(w + ".file", "'" + e.file + "' is not " + want_file);
+    e.bytes = f.count(t, "bytes", w);
+    e.xxh64 = f.hash(t, "xxh64", w);
+    const json& counts = f.at(t, "counts", w);
+    e.polygons = f.count(counts, "polygons", w + ".counts");
+    e.lines = f.count(counts, "lines", w + ".counts");
+    e.dynamic_lines = f.count(counts, "dynamic_lines", w + ".counts");
+    const json& tl = f.at(t, "layers", w);
+    if (!tl.is_array()) f.bad(w + ".layers", "is not an array");
+    for (size_t k = 0; k < tl.size(); ++k)
+      e.layers.push_back(f.layer_counts(tl[k], w + ".layers[" + std::to_string(k) + "]"));
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
+std::vector<const TileEntry*> meeting(const std::vector<TileEntry>& tiles, const Extent& view) {
+  std::vector<const TileEntry*> out;
+  for (const TileEntry& t : tiles) {
+    if (t.square.xmin < view.xmax && view.xmin < t.square.xmax && t.square.ymin < view.ymax &&
+        view.ymin < t.square.ymax)
+      out.push_back(&t);
+  }
+  return out;
+}
+
 }  // namespace
+
+TileLevel level_parameters(double tile_size, int level) {
+  TileLevel l;
+  l.level = level;
+  l.tile_size = std::ldexp(tile_size, level);
+  l.resolution = l.tile_size / kLevelTilePixels;
+  l.min_area = l.resolution * l.resolution;
+  l.min_length = l.resolution;
+  return l;
+}
+
+std::string tile_file(int level, const TileKey& key) {
+  if (level == 0) return "tiles/" + tile_name(key) + ".decals";
+  return "tiles/L" + std::to_string(level) + "/" + tile_name(key) + ".decals";
+}
 
 std::optional<FileDigest> file_digest(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -143,23 +260,24 @@ std::string tileset_index_json(const TilesetIndex& index) {
                    {"file", kTilesetManifestName},
                    {"bytes", index.manifest_bytes},
                    {"xxh64", hex64(index.manifest_xxh64)}};
-  json tiles = json::array();
-  for (const TileEntry& t : index.tiles) {
-    json tl = json::array();
-    for (const LayerCounts& c : t.layers) tl.push_back(layer_counts_json(c));
-    tiles.push_back(
-        {{"x", t.key.x},
-         {"y", t.key.y},
-         {"square", extent_json(t.square)},
-         {"origin", {t.origin_x, t.origin_y}},
-         {"file", t.file},
-         {"bytes", t.bytes},
-         {"xxh64", hex64(t.xxh64)},
-         {"counts",
-          {{"polygons", t.polygons}, {"lines", t.lines}, {"dynamic_lines", t.dynamic_lines}}},
-         {"layers", tl}});
+  j["tiles"] = tiles_json(index.tiles);
+  // 1.1 (formats/SPEC.md "Overview levels"); a 1.0 index has neither key.
+  if (index.minor >= kTilesetMinorLevels || !index.levels.empty()) {
+    j["resolution_m"] = index.resolution;
+    json levels = json::array();
+    for (const TileLevel& l : index.levels) {
+      json ll = json::array();
+      for (const LayerCounts& c : l.layers) ll.push_back(level_counts_json(c));
+      levels.push_back({{"level", l.level},
+                        {"tile_size_m", l.tile_size},
+                        {"resolution_m", l.resolution},
+                        {"min_area_m2", l.min_area},
+                        {"min_length_m", l.min_length},
+                        {"layers", ll},
+                        {"tiles", tiles_json(l.tiles)}});
+    }
+    j["levels"] = std::move(levels);
   }
-  j["tiles"] = std::move(tiles);
   return j.dump(2) + "\n";
 }
 
@@ -225,59 +343,58 @@ TilesetIndex read_tileset_index(const std::string& dir) {
   ix.manifest_bytes = f.count(manifest, "bytes", "manifest");
   ix.manifest_xxh64 = f.hash(manifest, "xxh64", "manifest");
 
-  const json& tiles = f.at(j, "tiles", "");
-  if (!tiles.is_array()) f.bad("tiles", "is not an array");
-  std::set<TileKey> seen;
-  for (size_t i = 0; i < tiles.size(); ++i) {
-    const std::string w = "tiles[" + std::to_string(i) + "]";
-    const json& t = tiles[i];
-    TileEntry e;
-    e.key = {f.integer(t, "x", w), f.integer(t, "y", w)};
-    // |x| * size must stay a finite, exact coordinate.
-    if (std::fabs(double(e.key.x)) > 1e12 || std::fabs(double(e.key.y)) > 1e12)
-      f.bad(w, "tile key out of range");
-    if (!seen.insert(e.key).second) f.bad(w, "tile " + tile_name(e.key) + " is listed twice");
-    e.square = f.extent(t, "square", w);
-    TilePlan plan;
-    plan.size = ix.tile_size;
-    const Extent want = plan.square(e.key);
-    if (e.square.xmin != want.xmin || e.square.ymin != want.ymin || e.square.xmax != want.xmax ||
-        e.square.ymax != want.ymax)
-      f.bad(w + ".square", "does not match the tile's key and the tile size");
-    const json& o = f.at(t, "origin", w);
-    if (!o.is_array() || o.size() != 2 || !o[0].is_number() || !o[1].is_number())
-      f.bad(w + ".origin", "is not [x, y]");
-    e.origin_x = o[0].get<double>();
-    e.origin_y = o[1].get<double>();
-    if (std::make_pair(e.origin_x, e.origin_y) != plan.origin(e.key))
-      f.bad(w + ".origin", "is not the centre of the tile's square");
-    e.file = f.text(t, "file", w);
-    // Only the name the writer gives: nothing that could leave the directory.
-    if (e.file != "tiles/" + tile_name(e.key) + ".decals")
-      f.bad(w + ".file", "'" + e.file + "' is not tiles/" + tile_name(e.key) + ".decals");
-    e.bytes = f.count(t, "bytes", w);
-    e.xxh64 = f.hash(t, "xxh64", w);
-    const json& counts = f.at(t, "counts", w);
-    e.polygons = f.count(counts, "polygons", w + ".counts");
-    e.lines = f.count(counts, "lines", w + ".counts");
-    e.dynamic_lines = f.count(counts, "dynamic_lines", w + ".counts");
-    const json& tl = f.at(t, "layers", w);
-    if (!tl.is_array()) f.bad(w + ".layers", "is not an array");
-    for (size_t k = 0; k < tl.size(); ++k)
-      e.layers.push_back(f.layer_counts(tl[k], w + ".layers[" + std::to_string(k) + "]"));
-    ix.tiles.push_back(std::move(e));
+  ix.tiles = read_tiles(f, f.at(j, "tiles", ""), "tiles", ix.tile_size, 0);
+
+  // Overview levels (1.1; formats/SPEC.md "Overview levels").
+  const bool has_levels = j.is_object() && j.contains("levels");
+  if (ix.minor >= kTilesetMinorLevels && !has_levels) f.bad("levels", "missing");
+  if (j.is_object() && (j.contains("resolution_m") || ix.minor >= kTilesetMinorLevels)) {
+    ix.resolution = f.number(j, "resolution_m", "");
+    if (ix.resolution < 0) f.bad("resolution_m", "is negative");
+  }
+  if (has_levels) {
+    const json& levels = j.at("levels");
+    if (!levels.is_array()) f.bad("levels", "is not an array");
+    if (levels.size() > size_t(kMaxLevels))
+      f.bad("levels", "has " + std::to_string(levels.size()) + " levels, more than " +
+                          std::to_string(kMaxLevels));
+    for (size_t i = 0; i < levels.size(); ++i) {
+      const std::string w = "levels[" + std::to_string(i) + "]";
+      const json& l = levels[i];
+      TileLevel lv;
+      const int64_t n = f.integer(l, "level", w);
+      if (n != int64_t(i) + 1)
+        f.bad(w + ".level", "is " + std::to_string(n) + ", not " + std::to_string(i + 1) +
+                                " (levels are consecutive from 1)");
+      lv.level = static_cast<int>(n);
+      lv.tile_size = f.number(l, "tile_size_m", w);
+      const TileLevel rule = level_parameters(ix.tile_size, lv.level);
+      if (lv.tile_size != rule.tile_size)
+        f.bad(w + ".tile_size_m", "is not tiling.tile_size_m * 2^" + std::to_string(lv.level));
+      if (lv.tile_size > kMaxTileSize) f.bad(w + ".tile_size_m", "is above 4000000");
+      lv.resolution = f.number(l, "resolution_m", w);
+      lv.min_area = f.number(l, "min_area_m2", w);
+      lv.min_length = f.number(l, "min_length_m", w);
+      if (!(lv.resolution > 0)) f.bad(w + ".resolution_m", "is not positive");
+      if (lv.min_area < 0) f.bad(w + ".min_area_m2", "is negative");
+      if (lv.min_length < 0) f.bad(w + ".min_length_m", "is negative");
+      const json& ll = f.at(l, "layers", w);
+      if (!ll.is_array()) f.bad(w + ".layers", "is not an array");
+      for (size_t k = 0; k < ll.size(); ++k)
+        lv.layers.push_back(f.level_counts(ll[k], w + ".layers[" + std::to_string(k) + "]"));
+      lv.tiles = read_tiles(f, f.at(l, "tiles", w), w + ".tiles", lv.tile_size, lv.level);
+      ix.levels.push_back(std::move(lv));
+    }
   }
   return ix;
 }
 
 std::vector<const TileEntry*> tiles_in(const TilesetIndex& index, const Extent& view) {
-  std::vector<const TileEntry*> out;
-  for (const TileEntry& t : index.tiles) {
-    if (t.square.xmin < view.xmax && view.xmin < t.square.xmax && t.square.ymin < view.ymax &&
-        view.ymin < t.square.ymax)
-      out.push_back(&t);
-  }
-  return out;
+  return meeting(index.tiles, view);
+}
+
+std::vector<const TileEntry*> tiles_in(const TileLevel& level, const Extent& view) {
+  return meeting(level.tiles, view);
 }
 
 }  // namespace prep

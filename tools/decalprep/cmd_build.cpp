@@ -29,6 +29,7 @@ struct BuildArgs {
   // scene-wide overrides
   std::string crs, assume_crs, extent, extent_crs, dem, grid;
   std::optional<double> resolution, tile_size;
+  std::string levels;
   std::string repair;
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
   // terrain matching of dynamic lines (override the scene file's [build])
@@ -70,6 +71,7 @@ prep::SceneRequest scene_request(const BuildArgs& a, const std::string& input) {
   o.repair = a.repair;
   o.resolution = a.resolution;
   o.tile_size = a.tile_size;
+  o.levels = a.levels;
   o.leaf_capacity = a.leaf_capacity;
   o.max_depth = a.max_depth;
   o.threads = a.threads;
@@ -395,6 +397,11 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_option("--tile-size", args->tile_size,
                   "Write a tileset: square tiles of this many frame metres, one package each "
                   "with its own origin, no span limit (scene file: [tiling] tile_size)")
+      ->group(s);
+  cmd->add_option("--levels", args->levels,
+                  "Tileset overview levels: N (0-16) or auto (until one level covers the data "
+                  "with <= 4 tiles); level L: tiles of tile-size*2^L simplified to "
+                  "tile-size*2^L/1024 m (scene file: [tiling] levels; default 0)")
       ->group(s);
   auto* t = "Terrain (dynamic lines; override the scene file)";
   cmd->add_option("--lmax", args->lmax,

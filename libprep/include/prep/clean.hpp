@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "prep/project.hpp"
@@ -80,6 +81,37 @@ class ChunkCleaner {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// A cleaned part simplified again for a tileset's overview level
+// (formats/SPEC.md "Overview levels"), by the machinery clean() uses for
+// `scene.resolution`: GEOS TopologyPreserveSimplify of the one part with
+// `tolerance`, the unsimplified part kept when GEOS calls the result
+// invalid; shells stay CCW, holes CW. Every vertex of the result lies on
+// the part and the part lies within `tolerance` of the result (Douglas-
+// Peucker's bound). Drawing-order keys (area, length) are left as they are:
+// they are the whole feature's. One per thread (it owns a GEOS context).
+class PartSimplifier {
+ public:
+  explicit PartSimplifier(double tolerance);
+  ~PartSimplifier();
+  PartSimplifier(const PartSimplifier&) = delete;
+  PartSimplifier& operator=(const PartSimplifier&) = delete;
+  // Simplify in place; false when nothing is left (a ring collapsed to zero
+  // area, a line to one point, a closed line to fewer than three). A GEOS
+  // error throws input_error naming `what` (layer, fid and part).
+  bool polygon(ScenePolygon& p, const std::string& what);
+  bool line(SceneLine& l, const std::string& what);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The area of a polygon part (shell minus holes, GEOS's shoelace) and the
+// length of a line part (with its closing segment when closed): what an
+// overview level's min_area / min_length are compared with.
+double part_area(const ScenePolygon& p);
+double part_length(const SceneLine& l);
 
 // The bounding box of every kept polygon shell and line (empty when nothing
 // is kept): SceneFeatures::extent as clean sets it.

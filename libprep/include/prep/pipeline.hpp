@@ -98,6 +98,7 @@ struct FilelessLayer {
 struct SceneOverrides {
   std::string crs, assume_crs, extent, extent_crs, dem, grid, repair;
   std::optional<double> resolution, tile_size;
+  std::string levels;  // --levels N|auto (formats/SPEC.md "Overview levels")
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
   std::optional<double> lmax, terrain_tolerance, z_scale, nodata_fill;
   bool skip_failures = false;  // true turns it on; false keeps the file's

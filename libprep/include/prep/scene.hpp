@@ -96,6 +96,11 @@ struct ModelOptions {
   Progress* progress = nullptr;
 };
 
+// SceneSpec::levels: "auto", the most levels and when auto stops.
+constexpr int kLevelsAuto = -1;
+constexpr int kMaxLevels = 16;
+constexpr int kAutoLevelTiles = 4;
+
 struct SceneSpec {
   std::vector<LayerSpec> layers;
   std::string crs;               // empty: local Transverse Mercator on the data
@@ -110,6 +115,11 @@ struct SceneSpec {
   // > 0: the output is a tileset of square tiles this many frame metres on a
   // side (prep/tile.hpp; the scene file's [tiling] tile_size); 0: one package.
   double tile_size = 0;
+  // Overview levels of a tileset (formats/SPEC.md "Overview levels";
+  // --levels, the scene file's [tiling] levels): 0 none, 1..kMaxLevels that
+  // many, kLevelsAuto as many as it takes for one level to cover the data
+  // with at most kAutoLevelTiles tiles.
+  int levels = 0;
   std::string scene_path;  // for messages and provenance
 };
 
@@ -141,6 +151,10 @@ struct LayerCounts {
   uint64_t parts = 0;         // parts after splitting multi-geometries
   uint64_t vertices_in = 0;   // before simplification
   uint64_t vertices_out = 0;  // after simplification
+  // Overview levels only (prep/tileset.hpp TileLevel::layers): parts left
+  // out of the level for being below its min_area / min_length (or
+  // collapsing under its simplification). Never written elsewhere.
+  uint64_t dropped_small = 0;
 };
 
 struct Manifest {

@@ -1,6 +1,7 @@
 // prep/tileset.hpp — a tileset directory: tileset.json (the index,
 // formats/SPEC.md "Tilesets"), manifest.json (the scene's manifest entries)
-// and tiles/<x>_<y>.decals, one package per non-empty tile.
+// and tiles/<x>_<y>.decals, one package per non-empty tile; with overview
+// levels also tiles/L<L>/x<X>_y<Y>.decals.
 #pragma once
 
 #include <cstdint>
@@ -16,6 +17,12 @@ namespace prep {
 // The index's format version (major.minor; a reader accepts its own major).
 constexpr int kTilesetMajor = 1;
 constexpr int kTilesetMinor = 0;
+// The minor version of an index with overview levels ("1.1"); an index
+// without levels is written as 1.0, byte for byte as before them.
+constexpr int kTilesetMinorLevels = 1;
+// A level is made to be drawn at no more than this many pixels across a
+// tile: its resolution is tile_size / kLevelTilePixels.
+constexpr double kLevelTilePixels = 1024;
 constexpr const char* kTilesetIndexName = "tileset.json";
 constexpr const char* kTilesetManifestName = "manifest.json";
 
@@ -87,5 +94,23 @@ TilesetIndex read_tileset_index(const std::string& dir);
 
 // The tiles whose squares meet `view` (absolute frame coordinates), in index order.
 std::vector<const TileEntry*> tiles_in(const TilesetIndex& index, const Extent& view);
+// The same for one overview level's tiles.
+std::vector<const TileEntry*> tiles_in(const TileLevel& level, const Extent& view);
+
+// Level `level` (>= 1) of a tileset whose level-0 tiles are `tile_size`
+// metres, its rule (formats/SPEC.md "Overview levels"): tile_size * 2^level,
+// resolution = that / kLevelTilePixels, min_area = resolution^2,
+// min_length = resolution; no tiles, no counts.
+TileLevel level_parameters(double tile_size, int level);
+
+// The simplification tolerance of a level: half its resolution, so that
+// every point of a simplified part lies within half a pixel of the part
+// (TopologyPreserveSimplify keeps the Douglas-Peucker bound).
+inline double level_tolerance(const TileLevel& level) {
+  return level.resolution * 0.5;
+}
+
+// "tiles/L<level>/x<X>_y<Y>.decals" (level >= 1), "tiles/x<X>_y<Y>.decals" (0).
+std::string tile_file(int level, const TileKey& key);
 
 }  // namespace prep
