@@ -10,8 +10,11 @@ level L: the package bytes of the level (tileset.json), and at the view that
 level is chosen for (a top-down view centred on the data whose pixel is
 r_L * sqrt(2) ground metres, between r_L and r_(L+1) = 2 r_L, where `render
 --level auto` picks L; level 0 at r_1 / sqrt(2)) the CPU render with
-`--level L` against the CPU render with `--level 0` (pixels whose decal
-layer differs by more than 1/255 in a channel, --raw float32), the bytes
+`--level L` against the CPU render with `--level 0`: pixels whose decal
+layer differs by more than 1/255 in a channel (point-sampled, --raw
+float32), and pixels that differ by more than 1/8 after a 4x4 box filter
+(both rendered at 4x4 samples a pixel; tests/tools/raw_compare.cpp, the
+metric of tests/tools/tileset_overview_test.py), the bytes
 that view loads against full detail, and the frame time of the render call
 (`--stats`: CPU, and GL unless --no-gl). Prints, writes
 bench/report/overview.csv and overview.png (gnuplot: bytes per level against
@@ -19,7 +22,6 @@ visual error) and the section "## Overview levels" of bench/REPORT.md
 (bench/run keeps it).
 """
 import argparse
-import array
 import csv
 import json
 import math
@@ -38,7 +40,8 @@ END = "<!-- end bench/overview.py -->"
 HEAD = "## Overview levels"
 FIELDS = ["level", "tile_size_m", "resolution_m", "tiles", "package_bytes", "view_pixel_m",
           "view_width_m", "auto_levels", "view_tiles", "view_bytes", "full_view_bytes",
-          "bytes_share", "pixels_differing", "pixels", "differing_share", "cpu_frame_ms",
+          "bytes_share", "pixels_differing", "pixels", "differing_share", "filtered_differing",
+          "filtered_share", "cpu_frame_ms",
           "gl_frame_ms", "full_cpu_frame_ms", "full_gl_frame_ms"]
 
 
@@ -59,15 +62,10 @@ def stats(out):
             "bytes": int(b.group(1)), "full_bytes": int(b.group(2)), "frame_ms": float(f.group(1))}
 
 
-def differing(a, b):
-    n = len(a) // 4
-    d = 0
-    for k in range(n):
-        i = 4 * k
-        if (abs(a[i] - b[i]) > 1 / 255 or abs(a[i + 1] - b[i + 1]) > 1 / 255 or
-                abs(a[i + 2] - b[i + 2]) > 1 / 255 or abs(a[i + 3] - b[i + 3]) > 1 / 255):
-            d += 1
-    return d, n
+def compare(tool, a, b, w, h, s):
+    out, _ = run([tool, a, b, str(w), str(h), str(s), str(1 / 8)])
+    m = re.match(r"point (\d+) filtered (\d+) pixels (\d+)", out)
+    return [int(g) for g in m.groups()]
 
 
 def splice(path, block):
@@ -98,6 +96,7 @@ def main():
     ap.add_argument("--report-md", default=os.path.join(ROOT, "bench", "REPORT.md"))
     a = ap.parse_args()
     tool = os.path.join(a.build_dir, "tools", "decalprep", "decalprep")
+    raw_compare = os.path.join(a.build_dir, "tests", "tools", "raw_compare")
     w, h = (int(v) for v in a.size.split("x"))
     v = int(float(a.vertices))
     os.makedirs(a.out, exist_ok=True)
@@ -143,21 +142,23 @@ def main():
             common = [tool, "render", ts, "--extent", ext, "--size", a.size, "--flat", "--stats"]
             out, _ = run(common + ["--level", "auto", "--cpu", "-o", os.path.join(work, "a.png")])
             chosen = stats(out)
-            raws = {}
             st = {}
+            big = ["--size", "%dx%d" % (4 * w, 4 * h)]
             for name, level in (("lv", str(lv["level"])), ("full", "0")):
-                raw = os.path.join(work, name + ".raw")
-                out, _ = run(common + ["--level", level, "--cpu", "--raw", raw, "-o",
+                out, _ = run(common + ["--level", level, "--cpu", "--raw",
+                                       os.path.join(work, name + ".raw"), "-o",
                                        os.path.join(work, name + ".png")])
                 st[name] = stats(out)
-                arr = array.array("f")
-                with open(raw, "rb") as f:
-                    arr.frombytes(f.read())
-                raws[name] = arr
+                run(common + big + ["--level", level, "--cpu", "--raw",
+                                    os.path.join(work, name + "4.raw"), "-o",
+                                    os.path.join(work, name + "4.png")])
                 if not a.no_gl:
                     out, _ = run(common + ["--level", level, "-o", os.path.join(work, "g.png")])
                     st[name]["gl_ms"] = stats(out)["frame_ms"]
-            d, n = differing(raws["lv"], raws["full"])
+            d, _, n = compare(raw_compare, os.path.join(work, "lv.raw"),
+                              os.path.join(work, "full.raw"), w, h, 1)
+            _, fd, _ = compare(raw_compare, os.path.join(work, "lv4.raw"),
+                               os.path.join(work, "full4.raw"), w, h, 4)
             row = {"level": lv["level"], "tile_size_m": lv["tile_size_m"],
                    "resolution_m": round(lv["resolution_m"], 4), "tiles": len(lv["tiles"]),
                    "package_bytes": sum(t["bytes"] for t in lv["tiles"]),
@@ -167,6 +168,7 @@ def main():
                    "full_view_bytes": st["full"]["bytes"],
                    "bytes_share": round(st["lv"]["bytes"] / max(1, st["full"]["bytes"]), 5),
                    "pixels_differing": d, "pixels": n, "differing_share": round(d / n, 6),
+                   "filtered_differing": fd, "filtered_share": round(fd / n, 6),
                    "cpu_frame_ms": round(st["lv"]["frame_ms"], 1),
                    "gl_frame_ms": round(st["lv"].get("gl_ms", float("nan")), 1),
                    "full_cpu_frame_ms": round(st["full"]["frame_ms"], 1),
@@ -175,7 +177,8 @@ def main():
             print("level %(level)d: %(tiles)d tiles, %(package_bytes)d package bytes, r %(resolution_m)s m;"
                   " view %(view_width_m)s m wide (%(view_pixel_m)s m pixels, auto draws "
                   "%(auto_levels)s): %(view_bytes)d of %(full_view_bytes)d bytes, "
-                  "%(pixels_differing)d pixels differ (%(differing_share)s), CPU %(cpu_frame_ms)s ms "
+                  "%(pixels_differing)d pixels differ (%(differing_share)s; box-filtered "
+                  "%(filtered_differing)d, %(filtered_share)s), CPU %(cpu_frame_ms)s ms "
                   "(full %(full_cpu_frame_ms)s), GL %(gl_frame_ms)s ms (full %(full_gl_frame_ms)s)"
                   % row, flush=True)
     finally:
@@ -195,7 +198,8 @@ set key top right
 set xlabel 'package bytes of the level'
 set ylabel 'pixels differing from full detail at its view (%%)'
 plot '%s' using 5:($15*100):(sprintf('L%%d', $1)) skip 1 with labels offset 1,1 notitle, \\
-     '' using 5:($15*100) skip 1 with linespoints title 'level L at the view it is chosen for'
+     '' using 5:($15*100) skip 1 with linespoints title 'point-sampled (> 1/255)', \\
+     '' using 5:($17*100) skip 1 with linespoints title 'box-filtered 4x4 (> 1/8)'
 """ % (png, csv_path)
         subprocess.run(["gnuplot"], input=script.encode(), check=False)
     load1 = os.getloadavg()
@@ -209,19 +213,24 @@ plot '%s' using 5:($15*100):(sprintf('L%%d', $1)) skip 1 with labels offset 1,1 
             took, build_s, platform.platform(), "GL: " + gl_dev, *load0, *load1), "",
          "Each level at the view `render --level auto` chooses it for: a top-down view of the data's "
          "centre whose pixel is r_L·√2 (level 0: r_1/√2), drawn with `--level L` against "
-         "`--level 0` (CPU evaluator, pixels whose decal layer differs by more than 1/255). Bytes "
+         "`--level 0` (CPU evaluator): pixels whose decal layer differs by more than 1/255 "
+         "(point-sampled), and by more than 1/8 after a 4×4 box filter (both rendered at 4×4 "
+         "samples a pixel: what an anti-aliased render shows; 3 m lines at pixels of metres hit "
+         "pixel centres by chance, so the point-sampled count follows every move of a line). Bytes "
          "are package bytes (tileset.json); frame times are the render call's (`--stats`), tiles "
          "loaded before it.", "",
          "| level | tile | r_L | tiles | package bytes | view width | auto draws | view bytes "
-         "| of full detail | pixels differing | CPU frame | GL frame | full-detail CPU / GL |",
-         "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+         "| of full detail | pixels differing | box-filtered | CPU frame | GL frame "
+         "| full-detail CPU / GL |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        L.append("| %d | %g m | %.3f m | %d | %s | %.0f m | %s | %s | %.2f%% | %d (%.3f%%) | %.1f ms "
-                 "| %.1f ms | %.1f / %.1f ms |"
+        L.append("| %d | %g m | %.3f m | %d | %s | %.0f m | %s | %s | %.2f%% | %d (%.3f%%) "
+                 "| %d (%.3f%%) | %.1f ms | %.1f ms | %.1f / %.1f ms |"
                  % (r["level"], r["tile_size_m"], r["resolution_m"], r["tiles"],
                     format(r["package_bytes"], ","), r["view_width_m"], r["auto_levels"],
                     format(r["view_bytes"], ","), 100 * r["bytes_share"], r["pixels_differing"],
-                    100 * r["differing_share"], r["cpu_frame_ms"], r["gl_frame_ms"],
+                    100 * r["differing_share"], r["filtered_differing"],
+                    100 * r["filtered_share"], r["cpu_frame_ms"], r["gl_frame_ms"],
                     r["full_cpu_frame_ms"], r["full_gl_frame_ms"]))
     L += ["", "![Package bytes per level against the pixels differing from full detail at its view]"
           "(report/overview.png)", "", END]
