@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
 """A whole-extent view of a big tileset draws from its overview levels.
 
-  tileset_overview_test.py DECALPREP RAW_COMPARE ROOT WORK_DIR VERTICES TILE_SIZE WxH [gl]
+  tileset_overview_test.py DECALPREP RAW_COMPARE ROOT WORK_DIR VERTICES TILE_SIZE WxH
+                           [gl] [--extent M]
 
 Generates VERTICES synthetic vertices (bench/gen_synthetic.py "mix", as
 bench/tileset_scale.py: star polygons with holes and 3 m lines in
-EPSG:32632, converted to FlatGeobuf by ogr2ogr), builds them as a tileset
+EPSG:32632, converted to FlatGeobuf by ogr2ogr; --extent M: over a square
+of M metres instead of gen_synthetic's constant density), builds them as a tileset
 with `--tile-size TILE_SIZE --levels auto`, and renders the whole extent
 top-down at WxH (square pixels: the extent widened to the image's aspect)
 with the CPU evaluator: `--level auto` (the default) and `--level 0` (full
@@ -76,7 +78,9 @@ def main():
     tool, compare, root, work = sys.argv[1:5]
     vertices, tile = int(float(sys.argv[5])), sys.argv[6]
     W, H = (int(v) for v in sys.argv[7].split("x"))
-    gl = len(sys.argv) > 8 and sys.argv[8] == "gl"
+    gl = "gl" in sys.argv[8:]
+    spread = (["--extent", sys.argv[sys.argv.index("--extent") + 1]]
+              if "--extent" in sys.argv[8:] else [])
     if not shutil.which("ogr2ogr"):
         print("SKIP: no ogr2ogr")
         return 77
@@ -84,7 +88,7 @@ def main():
     os.makedirs(work)
     gj, fgb = os.path.join(work, "mix.geojsonl"), os.path.join(work, "mix.fgb")
     subprocess.run([sys.executable, os.path.join(root, "bench", "gen_synthetic.py"), "mix",
-                    str(vertices), gj], check=True)
+                    str(vertices), gj] + spread, check=True)
     subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", fgb, gj, "-a_srs", "EPSG:32632", "-nln", "mix"],
                    check=True)
     os.remove(gj)
