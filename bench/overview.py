@@ -139,13 +139,15 @@ def main():
                 pixel = lv["resolution_m"] * math.sqrt(2)
             vw, vh = pixel * w, pixel * h
             ext = "%.3f,%.3f,%.3f,%.3f" % (cx - vw / 2, cy - vh / 2, cx + vw / 2, cy + vh / 2)
-            common = [tool, "render", ts, "--extent", ext, "--size", a.size, "--flat", "--stats"]
-            out, _ = run(common + ["--level", "auto", "--cpu", "-o", os.path.join(work, "a.png")])
+            common = [tool, "render", ts, "--extent", ext, "--flat", "--stats"]
+            small = ["--size", a.size]
+            out, _ = run(common + small + ["--level", "auto", "--cpu", "-o",
+                                           os.path.join(work, "a.png")])
             chosen = stats(out)
             st = {}
             big = ["--size", "%dx%d" % (4 * w, 4 * h)]
             for name, level in (("lv", str(lv["level"])), ("full", "0")):
-                out, _ = run(common + ["--level", level, "--cpu", "--raw",
+                out, _ = run(common + small + ["--level", level, "--cpu", "--raw",
                                        os.path.join(work, name + ".raw"), "-o",
                                        os.path.join(work, name + ".png")])
                 st[name] = stats(out)
@@ -153,7 +155,8 @@ def main():
                                     os.path.join(work, name + "4.raw"), "-o",
                                     os.path.join(work, name + "4.png")])
                 if not a.no_gl:
-                    out, _ = run(common + ["--level", level, "-o", os.path.join(work, "g.png")])
+                    out, _ = run(common + small + ["--level", level, "-o",
+                                                   os.path.join(work, "g.png")])
                     st[name]["gl_ms"] = stats(out)["frame_ms"]
             d, _, n = compare(raw_compare, os.path.join(work, "lv.raw"),
                               os.path.join(work, "full.raw"), w, h, 1)
