@@ -970,8 +970,9 @@ bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
   for (const Ring& r : p.holes)
     if (r.size() >= 3) rings.push_back(r);
   Geom g(h, make_polygon(h, rings));
-  if (!g) throw input_error("overview level: " + what + ": GEOS cannot build the polygon: " +
-                            impl_->ctx.last_error);
+  if (!g)
+    throw input_error("overview level: " + what +
+                      ": GEOS cannot build the polygon: " + impl_->ctx.last_error);
   Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), impl_->tolerance));
   if (!simple)
     throw input_error("overview level: " + what +
@@ -1007,8 +1008,8 @@ bool PartSimplifier::line(SceneLine& l, const std::string& what) {
   if (l.closed) pts.push_back(pts.front());
   Geom g(h, make_line(h, pts));
   if (!g)
-    throw input_error("overview level: " + what + ": GEOS cannot build the line: " +
-                      impl_->ctx.last_error);
+    throw input_error("overview level: " + what +
+                      ": GEOS cannot build the line: " + impl_->ctx.last_error);
   Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), impl_->tolerance));
   if (!simple)
     throw input_error("overview level: " + what +

@@ -365,7 +365,7 @@ void add_memory_report(nlohmann::json& report,
 // The overview levels of a tileset build, for the report (all levels
 // together; tileset.json has them level by level).
 nlohmann::json levels_report(const pipeline_internal::TilesetOutcome& t) {
-  return {{"levels", t.levels},     {"tiles", t.level_tiles}, {"built", t.level_built},
+  return {{"levels", t.levels},       {"tiles", t.level_tiles}, {"built", t.level_built},
           {"reused", t.level_reused}, {"empty", t.level_empty}, {"bytes", t.level_bytes}};
 }
 

@@ -130,8 +130,9 @@ void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
       int n = -1;
       char tail = 0;
       if (std::sscanf(o.levels.c_str(), "%d%c", &n, &tail) != 1 || n < 0 || n > kMaxLevels)
-        throw usage_error("--levels: expected a number of overview levels (0 to 16) or auto, "
-                          "not \"" + o.levels + "\"");
+        throw usage_error(
+            "--levels: expected a number of overview levels (0 to 16) or auto, not '" + o.levels +
+            "'");
       scene.levels = n;
     }
   }
@@ -170,7 +171,8 @@ SceneSpec scene_spec(const SceneRequest& request) {
                       "tile_size)");
   if (scene.levels > 0 && std::ldexp(scene.tile_size, scene.levels) > kMaxTileSize)
     throw usage_error(levels_from + ": level " + std::to_string(scene.levels) +
-                      " would have tiles of " + std::to_string(std::ldexp(scene.tile_size, scene.levels)) +
+                      " would have tiles of " +
+                      std::to_string(std::ldexp(scene.tile_size, scene.levels)) +
                       " m, above the largest tile size (4000000 m)");
   return scene;
 }

@@ -16,6 +16,7 @@
 #include <atomic>
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <filesystem>
@@ -226,9 +227,8 @@ void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and
   const Extent e = parts_->extent();
   // Overview levels (formats/SPEC.md "Overview levels"): each level's tiles
   // from the same boxes, on its own grid.
-  const int nlevels = parts_->parts() == 0 && spec_.levels == kLevelsAuto
-                          ? 0
-                          : level_count(spec_, e, frame);
+  const int nlevels =
+      parts_->parts() == 0 && spec_.levels == kLevelsAuto ? 0 : level_count(spec_, e, frame);
   nlohmann::json levels = nlohmann::json::array();
   for (int l = 1; l <= nlevels; ++l) {
     TilePlan lp = plan;
@@ -454,8 +454,12 @@ class LevelFilter : public PartFilter {
  public:
   LevelFilter(const TileLevel& level, const TilePlan& plan, const TileKey& key,
               const std::vector<LayerSpec>& layers)
-      : level_(level), plan_(plan), key_(key), layers_(layers),
-        simplifier_(level_tolerance(level)), counts_(layers.size()) {
+      : level_(level),
+        plan_(plan),
+        key_(key),
+        layers_(layers),
+        simplifier_(level_tolerance(level)),
+        counts_(layers.size()) {
     for (size_t i = 0; i < layers.size(); ++i) counts_[i].layer = layers[i].name;
   }
   bool polygon(ScenePolygon& p) override {
@@ -471,7 +475,7 @@ class LevelFilter : public PartFilter {
     if (own) count(p.layer, keep, in, out);
     return keep;
   }
-  bool line(SceneLine& l, bool) override {
+  bool line(SceneLine& l, bool /*dynamic*/) override {
     const bool own = owns(l.points);
     const uint64_t in = l.points.size() + (l.closed ? 1 : 0);
     const bool keep = part_length(l) >= level_.min_length && simplifier_.line(l, what(l));
@@ -484,8 +488,8 @@ class LevelFilter : public PartFilter {
 
  private:
   bool owns(const Ring& r) const {
-    return tile_range(ring_box(r), 0, plan_.frame.origin_x, plan_.frame.origin_y, plan_.size)
-               .lo == key_;
+    return tile_range(ring_box(r), 0, plan_.frame.origin_x, plan_.frame.origin_y, plan_.size).lo ==
+           key_;
   }
   template <class Part>
   std::string what(const Part& p) const {
@@ -585,7 +589,8 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
       try {
         const TileKey key = items[i].key;
         const int level = items[i].level;
-        const PreparedPlan::Level* lv = level == 0 ? nullptr : &prepared.levels.at(size_t(level - 1));
+        const PreparedPlan::Level* lv =
+            level == 0 ? nullptr : &prepared.levels.at(size_t(level - 1));
         const TilePlan& plan = lv ? lv->plan : prepared.plan;
         if (!reader) reader = std::make_unique<PartReader>(paths);
         // The parts tile_plan would list for this tile, in scene order; on
@@ -787,8 +792,7 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
       level.layers[k].layer = prepared.manifest.layers[k].layer;
     LevelTally t;
     level_names.emplace_back();
-    read_records(l.params.level, l.plan, l.keys, level.tiles, &level.layers, level_names.back(),
-                 t);
+    read_records(l.params.level, l.plan, l.keys, level.tiles, &level.layers, level_names.back(), t);
     out.level_tiles += t.tiles;
     out.level_built += t.built;
     out.level_reused += t.reused;
@@ -803,6 +807,20 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
   index.extent =
       e.xmax >= e.xmin ? Extent{e.xmin + ox, e.ymin + oy, e.xmax + ox, e.ymax + oy} : Extent{};
   index.manifest = prepared.manifest;
+  // Each level's drops as a note too, so that no reader of the manifest
+  // misses them (the per-layer counts are the level's `layers`).
+  for (const TileLevel& l : index.levels) {
+    uint64_t dropped = 0, parts_in = 0;
+    for (const LayerCounts& c : l.layers) dropped += c.dropped_small, parts_in += c.read;
+    char note[200];
+    std::snprintf(note, sizeof note,
+                  "overview level %d: %llu of %llu parts dropped_small (below %.10g m2 or %.10g m, "
+                  "or collapsed at %.10g m)",
+                  l.level, static_cast<unsigned long long>(dropped),
+                  static_cast<unsigned long long>(parts_in), l.min_area, l.min_length,
+                  level_tolerance(l));
+    index.manifest.notes.emplace_back(note);
+  }
   index.entry_count = prepared.entries + prepared.read_entries;
 
   // manifest.json: the scene's entries, each feature once (clean's, then read's).

@@ -101,8 +101,7 @@ class Fields {
     c.dropped_small = count(j, "dropped_small", where);
     c.vertices_in = count(j, "vertices_in", where);
     c.vertices_out = count(j, "vertices_out", where);
-    if (c.read != c.parts + c.dropped_small)
-      bad(where, "parts_in is not parts + dropped_small");
+    if (c.read != c.parts + c.dropped_small) bad(where, "parts_in is not parts + dropped_small");
     return c;
   }
 

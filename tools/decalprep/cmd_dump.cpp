@@ -356,9 +356,10 @@ void run_summary(const decal::Package& p, const std::string& path, const std::st
 }
 
 // The package to dump: PACKAGE itself, or a tileset's tile --tile X,Y.
-std::string tile_package(const std::string& path, const std::string& tile) {
+std::string tile_package(const std::string& path, const std::string& tile, int level) {
   if (!prep::is_tileset(path)) {
     if (!tile.empty()) throw prep::usage_error("dump: --tile needs a tileset directory");
+    if (level != 0) throw prep::usage_error("dump: --level needs a tileset directory");
     return path;
   }
   long long x = 0, y = 0;
@@ -367,10 +368,17 @@ std::string tile_package(const std::string& path, const std::string& tile) {
     throw prep::usage_error("dump: " + path + " is a tileset: name one tile with --tile X,Y" +
                             (tile.empty() ? "" : " ('" + tile + "' is not X,Y)"));
   const prep::TilesetIndex ix = prep::read_tileset_index(path);
-  for (const prep::TileEntry& t : ix.tiles)
+  if (level < 0 || size_t(level) > ix.levels.size())
+    throw prep::usage_error("dump: --level " + std::to_string(level) + ": " + path +
+                            " has levels 0" +
+                            (ix.levels.empty() ? "" : " to " + std::to_string(ix.levels.size())));
+  const std::vector<prep::TileEntry>& tiles =
+      level == 0 ? ix.tiles : ix.levels[size_t(level - 1)].tiles;
+  for (const prep::TileEntry& t : tiles)
     if (t.key.x == x && t.key.y == y) return path + "/" + t.file;
-  throw prep::usage_error("dump: " + path + " has no tile " + tile + " (" +
-                          std::to_string(ix.tiles.size()) + " tiles; `decalprep info " + path +
+  throw prep::usage_error("dump: " + path + " has no tile " + tile +
+                          (level ? " on level " + std::to_string(level) : std::string()) + " (" +
+                          std::to_string(tiles.size()) + " tiles; `decalprep info " + path +
                           "` lists them)");
 }
 
@@ -474,18 +482,21 @@ const decalprep::CommandRegistrar kDump(22, [](CLI::App& app) {
   auto summary = std::make_shared<bool>(false);
   auto only = std::make_shared<std::string>();
   auto tile = std::make_shared<std::string>();
+  auto level = std::make_shared<int>(0);
   cmd->add_option("PACKAGE", *path, "the .decals file, or a tileset directory (with --tile)")
       ->required();
   cmd->add_option("--tile", *tile,
                   "tileset: the tile to dump, X,Y (its key; `decalprep info DIR` lists them)");
+  cmd->add_option("--level", *level,
+                  "tileset: the overview level of --tile (default 0, full detail)");
   auto* json_flag = cmd->add_flag("--json", *as_json, "print the decoded elements as JSON");
   cmd->add_flag(
          "--summary", *summary,
          "print a short text to review as a diff (golden tests): hashes and counts, see below")
       ->excludes(json_flag);
   cmd->add_option("--blob", *only, "only the blob with this name (e.g. line_vertices)");
-  cmd->callback([path, as_json, summary, only, tile] {
-    run_dump(tile_package(*path, *tile), *as_json, *summary, *only);
+  cmd->callback([path, as_json, summary, only, tile, level] {
+    run_dump(tile_package(*path, *tile, *level), *as_json, *summary, *only);
     decalprep::set_exit_code(prep::ExitCode::ok);
   });
 });

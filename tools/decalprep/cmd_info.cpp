@@ -119,6 +119,31 @@ void run_tileset_info(const std::string& dir, bool as_json) {
   for (const prep::TileEntry& t : ix.tiles)
     std::printf("  %-22s %10" PRIu64 " %10" PRIu64 " %10" PRIu64 " %12" PRIu64 "\n", t.file.c_str(),
                 t.polygons, t.lines, t.dynamic_lines, t.bytes);
+  if (ix.levels.empty()) return;
+  // Overview levels (formats/SPEC.md "Overview levels"): counts of parts.
+  std::printf("levels    %zu overview levels (level 0: the tiles above, resolution %.10g m%s)\n",
+              ix.levels.size(), ix.resolution, ix.resolution > 0 ? "" : ", exact");
+  for (const prep::TileLevel& l : ix.levels) {
+    uint64_t lbytes = 0;
+    for (const prep::TileEntry& t : l.tiles) lbytes += t.bytes;
+    prep::LayerCounts sum;
+    for (const prep::LayerCounts& c : l.layers) {
+      sum.read += c.read, sum.parts += c.parts, sum.dropped_small += c.dropped_small;
+      sum.vertices_in += c.vertices_in, sum.vertices_out += c.vertices_out;
+    }
+    std::printf(
+        "  level %d: %.10g m tiles, resolution %.10g m, min area %.10g m2, min length "
+        "%.10g m; %zu packages, %" PRIu64 " bytes; parts %" PRIu64 " of %" PRIu64 " (%" PRIu64
+        " dropped small), vertices %" PRIu64 " of %" PRIu64 "\n",
+        l.level, l.tile_size, l.resolution, l.min_area, l.min_length, l.tiles.size(), lbytes,
+        sum.parts, sum.read, sum.dropped_small, sum.vertices_out, sum.vertices_in);
+    std::printf("    %-24s %10s %10s %13s %12s %12s\n", "layer", "parts_in", "parts",
+                "dropped_small", "vertices_in", "vertices_out");
+    for (const prep::LayerCounts& c : l.layers)
+      std::printf("    %-24s %10" PRIu64 " %10" PRIu64 " %13" PRIu64 " %12" PRIu64 " %12" PRIu64
+                  "\n",
+                  c.layer.c_str(), c.read, c.parts, c.dropped_small, c.vertices_in, c.vertices_out);
+  }
 }
 
 void run_info(const std::string& path, bool as_json) {
@@ -192,7 +217,8 @@ const decalprep::CommandRegistrar kInfo(20, [](CLI::App& app) {
   cmd->footer(
       "Checks the package structure but not blob checksums (use verify).\n"
       "A tileset directory prints its index: frame, tiling, the scene's per-layer counts and one\n"
-      "line per tile.\n"
+      "line per tile, then each overview level: its tiles, bytes, resolution and per-layer\n"
+      "parts, drops and vertices.\n"
       "Examples:\n  decalprep info city.decals\n  decalprep info city.decals --json | jq .blobs\n"
       "  decalprep info country/");
   auto path = std::make_shared<std::string>();

@@ -83,18 +83,32 @@ bool verify_tileset(const std::string& dir) {
     return false;
   };
   check_file(prep::kTilesetManifestName, ix.manifest_bytes, ix.manifest_xxh64);
-  for (const prep::TileEntry& t : ix.tiles) {
-    if (!check_file(t.file, t.bytes, t.xxh64)) continue;
-    std::string summary;
-    const std::string path = dir + "/" + t.file;
-    if (const decal::Status s = verify_one(path, summary); !s) {
-      std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), s.message.c_str());
-      good = false;
+  auto check_tiles = [&](const std::vector<prep::TileEntry>& tiles) {
+    for (const prep::TileEntry& t : tiles) {
+      if (!check_file(t.file, t.bytes, t.xxh64)) continue;
+      std::string summary;
+      const std::string path = dir + "/" + t.file;
+      if (const decal::Status s = verify_one(path, summary); !s) {
+        std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), s.message.c_str());
+        good = false;
+      }
     }
+  };
+  check_tiles(ix.tiles);
+  // Overview levels: every level's tiles the same way.
+  size_t level_tiles = 0;
+  for (const prep::TileLevel& l : ix.levels) {
+    check_tiles(l.tiles);
+    level_tiles += l.tiles.size();
   }
-  if (good)
+  if (good && ix.levels.empty())
     std::printf("%s: ok (tileset %d.%d, %zu tiles, index and manifest hashes match)\n", dir.c_str(),
                 ix.major, ix.minor, ix.tiles.size());
+  else if (good)
+    std::printf(
+        "%s: ok (tileset %d.%d, %zu tiles and %zu on %zu overview levels, index and "
+        "manifest hashes match)\n",
+        dir.c_str(), ix.major, ix.minor, ix.tiles.size(), level_tiles, ix.levels.size());
   return good;
 }
 
@@ -104,7 +118,7 @@ const decalprep::CommandRegistrar kVerify(21, [](CLI::App& app) {
       "Prints '<path>: ok (...)' or '<path>: FAILED: <reason>' per package.\n"
       "Exit code 0 when every package is good, 5 when any is not.\n"
       "A tileset directory: tileset.json, the bytes and XXH64 of manifest.json and of every tile\n"
-      "against it, then every tile as a package.\n"
+      "against it, then every tile as a package; the same for every overview level's tiles.\n"
       "Example:\n  decalprep verify city.decals roads.decals");
   auto paths = std::make_shared<std::vector<std::string>>();
   cmd->add_option("PACKAGE", *paths, "the .decals files, or tileset directories")->required();
