@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Generates synthetic benchmark inputs of a given vertex count.
 
-  gen_synthetic.py KIND VERTICES OUT.geojsonl [--seed S]
+  gen_synthetic.py KIND VERTICES OUT.geojsonl [--seed S] [--extent M]
 
 KIND: polygons  - star-shaped polygons with 0-3 holes each (~200 vertices each)
       lines     - a jittered street-like network of polylines (~50 vertices each)
@@ -9,7 +9,9 @@ KIND: polygons  - star-shaped polygons with 0-3 holes each (~200 vertices each)
 Output is GeoJSON sequence (one feature per line) in EPSG:32632 (UTM 32N, around
 Monaco), so that no reprojection distortion hides in the timings; convert with
 `ogr2ogr -f FlatGeobuf out.fgb OUT.geojsonl -a_srs EPSG:32632` for fast reads.
-Deterministic for a given seed. Standard library only.
+The features lie in a square of side 2 km * sqrt(VERTICES / 10^4) (constant
+density), or of side M metres with --extent (the same features, sparser or
+denser). Deterministic for a given seed. Standard library only.
 """
 import json
 import math
@@ -77,6 +79,8 @@ def main():
     rng = random.Random(seed)
     # Keep density roughly constant: extent grows with sqrt(vertices).
     extent = 2_000.0 * math.sqrt(max(vertices, 10_000) / 10_000)
+    if "--extent" in sys.argv:
+        extent = float(sys.argv[sys.argv.index("--extent") + 1])
     with open(path, "w") as out:
         if kind == "polygons":
             polygons(rng, vertices, out, 1, extent)

@@ -190,6 +190,51 @@ TEST_F(Tileset, CpuRenderOfTheTilesetEqualsTheSinglePackage) {
   EXPECT_EQ(far, 0u);
 }
 
+// A tileset without overview levels: --level auto and --level 0 draw the
+// level-0 tiles in view, and --stats counts their bytes as tileset.json
+// lists them; a --gpu-budget below them exits 6 naming both figures.
+TEST_F(Tileset, RenderBudgetAndLevelOptionsOnATilesetWithoutLevels) {
+  const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
+  const View v = monaco_view(ix);
+  uint64_t bytes = 0;
+  size_t tiles = 0;
+  for (const prep::TileEntry& t : ix.tiles)
+    if (t.square.xmin < v.abs.xmax && v.abs.xmin < t.square.xmax && t.square.ymin < v.abs.ymax &&
+        v.abs.ymin < t.square.ymax) {
+      bytes += t.bytes;
+      ++tiles;
+    }
+  const std::string common = "render " + shell_quote(file("tiles")) +
+                             " --cpu --flat --size 80x75 --extent " + extent_arg(v.abs) + " -o " +
+                             shell_quote(file("budget.png"));
+  for (const char* level : {"auto", "0"}) {
+    const auto r = run_tool(common + " --stats --level " + level, *dir_);
+    ASSERT_EQ(r.rc, 0) << r.output;
+    EXPECT_NE(r.output.find("tiles: " + std::to_string(tiles) +
+                            " drawn (level 0: " + std::to_string(tiles) + ")"),
+              std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("bytes: " + std::to_string(bytes) +
+                            " package bytes loaded, 100.00% of the full-detail " +
+                            std::to_string(bytes) + " of this view"),
+              std::string::npos)
+        << r.output;
+  }
+  auto r = run_tool(common + " --gpu-budget " + std::to_string(bytes), *dir_);
+  EXPECT_EQ(r.rc, 0) << r.output;
+  r = run_tool(common + " --gpu-budget " + std::to_string(bytes - 1), *dir_);
+  EXPECT_EQ(r.rc, int(prep::ExitCode::resource)) << r.output;
+  EXPECT_NE(r.output.find("--gpu-budget " + std::to_string(bytes - 1) + " bytes"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("need " + std::to_string(bytes) + " bytes"), std::string::npos)
+      << r.output;
+  r = run_tool(common + " --level 1", *dir_);
+  EXPECT_EQ(r.rc, int(prep::ExitCode::usage)) << r.output;
+  r = run_tool(common + " --gpu-budget 2X", *dir_);
+  EXPECT_EQ(r.rc, int(prep::ExitCode::usage)) << r.output;
+}
+
 TEST_F(Tileset, GlRenderOfTheTilesetEqualsItsCpuRender) {
   const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
   const View v = monaco_view(ix);

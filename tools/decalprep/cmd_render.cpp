@@ -1,6 +1,7 @@
 // decalprep render — draws a package over terrain headless (GL via EGL, or
 // the CPU evaluator with --cpu) and writes a PNG. Thin: parsing and calls
 // into prep_render (prep/render.hpp).
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -8,8 +9,10 @@
 #include <sstream>
 
 #include "command.hpp"
+#include "prep/memory_estimate.hpp"
 #include "prep/project.hpp"
 #include "prep/render.hpp"
+#include "prep/tile_select.hpp"
 #include "prep/tileset.hpp"
 
 #include "decal/reader.hpp"
@@ -20,6 +23,7 @@ struct RenderArgs {
   std::string package, dem, output, raw, decals_png, extent, extent_crs, size = "640x360", eye,
                                                                          target;
   std::string aa = "none", binding = "ssbo", only, assume_crs, method = "decal";
+  std::string gpu_budget, level = "auto";  // tilesets: --gpu-budget SIZE, --level auto|L
   double texture_resolution = 0;  // 0: the renderer's default
   double fov = 45.0, pitch = 45.0;
   std::optional<double> z_scale, nodata_fill;  // none: the package's
@@ -60,6 +64,8 @@ struct Scene {
   std::vector<decal::Package> packages;  // own what `tiles` view
   std::vector<R::TileSource> tiles;
   std::string metadata;  // a package's metadata (the recorded DEM)
+  R::TileSelection selection;  // a tileset: the tiles drawn (prep/tile_select.hpp)
+  uint64_t blob_bytes = 0;     // the drawn packages' blob bytes (what GL uploads)
 };
 
 void open_package(const std::string& path, decal::Package& pkg) {
@@ -93,13 +99,16 @@ Scene open_scene(const std::string& path) {
   return sc;
 }
 
-// Loads the tiles of a tileset whose squares meet `view` (absolute frame
-// coordinates), and only those.
-void load_tiles(Scene& sc, const std::string& dir, const prep::Extent& view) {
-  const std::vector<const prep::TileEntry*> hit = prep::tiles_in(sc.index, view);
+// Loads the tiles of a tileset that the view draws (prep/tile_select.hpp:
+// the level-0 tiles that meet the camera's ground footprint, or overview
+// tiles where their resolution is below a pixel), and only those.
+void load_tiles(Scene& sc, const std::string& dir, const R::Camera& camera, uint32_t w, uint32_t h,
+                double zmin, double zmax, const R::TileSelectOptions& select) {
+  sc.selection = R::select_tiles(sc.index, camera, w, h, zmin, zmax, select);
+  const std::vector<R::SelectedTile>& hit = sc.selection.tiles;
   sc.packages.resize(hit.size());
   for (size_t k = 0; k < hit.size(); ++k) {
-    const prep::TileEntry& t = *hit[k];
+    const prep::TileEntry& t = *hit[k].entry;
     open_package(dir + "/" + t.file, sc.packages[k]);
     R::DecalSource src = R::source_of(sc.packages[k]);
     if (src.frame.origin_x != t.origin_x || src.frame.origin_y != t.origin_y)
@@ -111,13 +120,54 @@ void load_tiles(Scene& sc, const std::string& dir, const prep::Extent& view) {
          {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
          t.origin_x - ox,
          t.origin_y - oy});
+    for (const R::DecalSource::Blob& b : src.blobs) sc.blob_bytes += b.bytes;
   }
-  std::fprintf(stderr, "render: %zu of %zu tiles meet the view\n", hit.size(),
-               sc.index.tiles.size());
+  if (sc.index.levels.empty()) {
+    std::fprintf(stderr, "render: %zu of %zu tiles meet the view\n", hit.size(),
+                 sc.index.tiles.size());
+    return;
+  }
+  std::string levels;
+  for (size_t l = 0; l < sc.selection.per_level.size(); ++l)
+    if (sc.selection.per_level[l])
+      levels += (levels.empty() ? "" : ", ") + std::to_string(sc.selection.per_level[l]) +
+                " of level " + std::to_string(l);
+  std::fprintf(stderr, "render: %zu of %zu level-0 tiles meet the view; drawing %zu tiles (%s)%s\n",
+               sc.selection.full_detail_tiles, sc.index.tiles.size(), hit.size(),
+               levels.empty() ? "none" : levels.c_str(),
+               sc.selection.coarsened ? ", coarsened to fit --gpu-budget" : "");
+}
+
+// --level auto|L
+std::optional<int> level_option(const std::string& s) {
+  if (s == "auto") return std::nullopt;
+  try {
+    size_t used = 0;
+    const int l = std::stoi(s, &used);
+    if (used == s.size() && l >= 0) return l;
+  } catch (const std::exception&) {
+  }
+  throw prep::usage_error("render: --level '" + s +
+                          "' must be auto or a level number (0: full detail)");
 }
 
 void run(const RenderArgs& a) {
+  R::TileSelectOptions select;
+  select.level = level_option(a.level);
+  if (!a.gpu_budget.empty()) {
+    try {
+      select.gpu_budget = prep::parse_memory_size(a.gpu_budget);
+    } catch (const prep::usage_error&) {
+      throw prep::usage_error(
+          "render: --gpu-budget: expected a size such as 512M, 2G or "
+          "1073741824 (bytes), got \"" +
+          a.gpu_budget + "\"");
+    }
+  }
   Scene sc = open_scene(a.package);
+  if (!sc.tileset && (select.level || select.gpu_budget))
+    throw prep::usage_error("render: --level and --gpu-budget choose among a tileset's tiles; '" +
+                            a.package + "' is one package");
   // The frame and the data's box, as one package's (the tileset's scene frame).
   struct {
     prep::SceneFrame frame;
@@ -304,8 +354,11 @@ void run(const RenderArgs& a) {
             R::ground_footprint(opt.camera, w, h, terrain.zmin, terrain.zmax))
       view = {f->xmin + sc.frame.origin_x, f->ymin + sc.frame.origin_y, f->xmax + sc.frame.origin_x,
               f->ymax + sc.frame.origin_y};
-    load_tiles(sc, a.package, view);
+    load_tiles(sc, a.package, opt.camera, w, h, terrain.zmin, terrain.zmax, select);
+  } else {
+    for (const R::DecalSource::Blob& b : sc.tiles[0].source.blobs) sc.blob_bytes += b.bytes;
   }
+  const auto frame_start = std::chrono::steady_clock::now();
 #ifdef PREP_RENDER_WITH_GL
   R::Image img =
       a.cpu ? R::render_cpu(sc.tiles, terrain, opt) : R::render_gl(sc.tiles, terrain, opt);
@@ -314,6 +367,9 @@ void run(const RenderArgs& a) {
     throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
   R::Image img = R::render_cpu(sc.tiles, terrain, opt);
 #endif
+  const double frame_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_start)
+          .count();
   prep::write_png_rgba(a.output, img.width, img.height, img.rgba);
   // The world file carries the absolute extent as given (not origin + relative).
   if (topdown) prep::write_world_file(a.output, abs_view, w, h, src.frame.crs_wkt);
@@ -348,6 +404,26 @@ void run(const RenderArgs& a) {
           img.texture_width, img.texture_height, img.texture_resolution,
           static_cast<unsigned long long>(img.texture_bytes), double(img.texture_bytes) / 1048576.0,
           static_cast<unsigned long long>(img.texture_triangles));
+    if (sc.tileset) {
+      const R::TileSelection& s = sc.selection;
+      std::printf("tiles: %zu drawn (", s.tiles.size());
+      for (size_t l = 0; l < s.per_level.size(); ++l)
+        std::printf("%slevel %zu: %zu", l ? ", " : "", l, s.per_level[l]);
+      std::printf("), %zu of %zu level-0 tiles meet the view\n", s.full_detail_tiles,
+                  sc.index.tiles.size());
+      std::printf(
+          "bytes: %llu package bytes loaded, %.2f%% of the full-detail %llu of this view; %llu "
+          "blob bytes uploaded\n",
+          static_cast<unsigned long long>(s.bytes),
+          s.full_detail_bytes ? 100.0 * double(s.bytes) / double(s.full_detail_bytes) : 0.0,
+          static_cast<unsigned long long>(s.full_detail_bytes),
+          static_cast<unsigned long long>(sc.blob_bytes));
+      if (select.gpu_budget)
+        std::printf("gpu budget: %llu bytes, %zu tile groups coarsened to fit\n",
+                    static_cast<unsigned long long>(select.gpu_budget), s.coarsened);
+    }
+    std::printf("frame: %.3f ms (the %s render call, %u frame%s; tile loading not included)\n",
+                frame_ms, a.cpu ? "cpu" : "gl", a.frames, a.frames == 1 ? "" : "s");
     if (img.dyn_kept || img.dyn_segments)
       std::printf(
           "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
@@ -411,13 +487,21 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_option("--texture-resolution", args->texture_resolution,
                   "--method texture: ground metres per texel (default 1, coarser where the "
                   "extent needs more than 8192 texels a side)");
+  cmd->add_option("--level", args->level,
+                  "Tileset: auto (default: per tile, the coarsest overview level whose "
+                  "resolution is within a pixel) or L (that level everywhere; 0: full detail)");
+  cmd->add_option("--gpu-budget", args->gpu_budget,
+                  "Tileset: package bytes the drawn tiles may hold (e.g. 512M, 2G); coarser "
+                  "levels where the view needs more, exit 6 when even the coarsest do "
+                  "(default: no limit)");
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
   cmd->add_option("--frames", args->frames,
                   "GL: render N frames, report the last one's pass times (warm)")
       ->check(CLI::Range(1u, 1000u));
   cmd->add_flag("--stats", args->stats,
-                "Print per-pass times (GL timestamp queries and wall time); --method volume: prism "
-                "triangles and groups; --method texture: texture size and bytes");
+                "Print per-pass times (GL timestamp queries and wall time), the frame time; a "
+                "tileset: tiles drawn per level, bytes loaded against full detail; --method "
+                "volume: prism triangles and groups; --method texture: texture size and bytes");
   cmd->add_option(
       "--raw", args->raw,
       "Write the static decal layer as float32 RGBA (straight alpha, row 0 at the top)");
