@@ -24,7 +24,7 @@ struct RenderArgs {
                                                                          target;
   std::string aa = "none", binding = "ssbo", only, assume_crs, method = "decal";
   std::string gpu_budget, level = "auto";  // tilesets: --gpu-budget SIZE, --level auto|L
-  double texture_resolution = 0;  // 0: the renderer's default
+  double texture_resolution = 0;           // 0: the renderer's default
   double fov = 45.0, pitch = 45.0;
   std::optional<double> z_scale, nodata_fill;  // none: the package's
   uint32_t frames = 1;
@@ -63,7 +63,7 @@ struct Scene {
   prep::TilesetIndex index;
   std::vector<decal::Package> packages;  // own what `tiles` view
   std::vector<R::TileSource> tiles;
-  std::string metadata;  // a package's metadata (the recorded DEM)
+  std::string metadata;        // a package's metadata (the recorded DEM)
   R::TileSelection selection;  // a tileset: the tiles drawn (prep/tile_select.hpp)
   uint64_t blob_bytes = 0;     // the drawn packages' blob bytes (what GL uploads)
 };
