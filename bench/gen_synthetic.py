@@ -12,10 +12,15 @@ Monaco), so that no reprojection distortion hides in the timings; convert with
 The features lie in a square of side 2 km * sqrt(VERTICES / 10^4) (constant
 density), or of side M metres with --extent (the same features, sparser or
 denser). Deterministic for a given seed. Standard library only.
+
+The benches and tests import mix_scene(): "mix" as FlatGeobuf (ogr2ogr)
+beside a scene file of two layers over it, polygons and 3 m lines.
 """
 import json
 import math
+import os
 import random
+import subprocess
 import sys
 
 X0, Y0 = 370_000.0, 4_840_000.0  # UTM 32N near Monaco
@@ -73,14 +78,12 @@ def lines(rng, budget, out, fid, extent):
     return fid
 
 
-def main():
-    kind, vertices, path = sys.argv[1], int(float(sys.argv[2])), sys.argv[3]
-    seed = int(sys.argv[sys.argv.index("--seed") + 1]) if "--seed" in sys.argv else 1
+def write(kind, vertices, path, seed=1, extent=None):
+    """Writes KIND with about VERTICES vertices to PATH (GeoJSON sequence)."""
     rng = random.Random(seed)
     # Keep density roughly constant: extent grows with sqrt(vertices).
-    extent = 2_000.0 * math.sqrt(max(vertices, 10_000) / 10_000)
-    if "--extent" in sys.argv:
-        extent = float(sys.argv[sys.argv.index("--extent") + 1])
+    if extent is None:
+        extent = 2_000.0 * math.sqrt(max(vertices, 10_000) / 10_000)
     with open(path, "w") as out:
         if kind == "polygons":
             polygons(rng, vertices, out, 1, extent)
@@ -91,6 +94,33 @@ def main():
             lines(rng, vertices - vertices // 2, out, fid, extent)
         else:
             sys.exit(f"gen_synthetic: unknown kind '{kind}' (polygons|lines|mix)")
+
+
+def mix_scene(work, vertices, name="mix", extent=None, seed=1):
+    """Writes WORK/NAME.fgb ("mix", layer NAME, EPSG:32632) and WORK/NAME.toml,
+    a scene of two layers over it: "polygons" and "lines" (3 m wide).
+    Returns (scene path, FlatGeobuf path). Needs ogr2ogr."""
+    gj = os.path.join(work, name + ".geojsonl")
+    fgb = os.path.join(work, name + ".fgb")
+    write("mix", vertices, gj, seed, extent)
+    subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", fgb, gj, "-a_srs", "EPSG:32632", "-nln", name],
+                   check=True)
+    os.remove(gj)
+    scene = os.path.join(work, name + ".toml")
+    with open(scene, "w") as f:
+        f.write('source = "%s"\ncrs = "EPSG:32632"\n' % fgb)
+        for layer, kind, extra, geom in (("polygons", "polygon", "", "POLYGON"),
+                                         ("lines", "line", "width = 3\n", "LINESTRING")):
+            f.write('[[layer]]\nname = "%s"\nkind = "%s"\n%ssql = "SELECT * FROM %s '
+                    'WHERE OGR_GEOMETRY = \'%s\'"\n' % (layer, kind, extra, name, geom))
+    return scene, fgb
+
+
+def main():
+    kind, vertices, path = sys.argv[1], int(float(sys.argv[2])), sys.argv[3]
+    seed = int(sys.argv[sys.argv.index("--seed") + 1]) if "--seed" in sys.argv else 1
+    extent = float(sys.argv[sys.argv.index("--extent") + 1]) if "--extent" in sys.argv else None
+    write(kind, vertices, path, seed, extent)
 
 
 if __name__ == "__main__":

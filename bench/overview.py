@@ -34,6 +34,8 @@ import sys
 import tempfile
 import time
 
+import gen_synthetic  # beside this script
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BEGIN = "<!-- begin bench/overview.py -->"
 END = "<!-- end bench/overview.py -->"
@@ -105,19 +107,7 @@ def main():
     load0 = os.getloadavg()
     rows = []
     try:
-        gj, fgb = os.path.join(work, "mix.geojsonl"), os.path.join(work, "mix.fgb")
-        subprocess.run([sys.executable, os.path.join(ROOT, "bench", "gen_synthetic.py"), "mix",
-                        str(v), gj], check=True)
-        subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", fgb, gj, "-a_srs", "EPSG:32632", "-nln",
-                        "mix"], check=True)
-        os.remove(gj)
-        scene = os.path.join(work, "mix.toml")
-        with open(scene, "w") as f:
-            f.write('source = "%s"\ncrs = "EPSG:32632"\n' % fgb)
-            f.write('[[layer]]\nname = "polygons"\nkind = "polygon"\n'
-                    'sql = "SELECT * FROM mix WHERE OGR_GEOMETRY = \'POLYGON\'"\n')
-            f.write('[[layer]]\nname = "lines"\nkind = "line"\nwidth = 3\n'
-                    'sql = "SELECT * FROM mix WHERE OGR_GEOMETRY = \'LINESTRING\'"\n')
+        scene, _ = gen_synthetic.mix_scene(work, v)
         ts = os.path.join(work, "tiles")
         t0 = time.monotonic()
         run([tool, "build", scene, "-o", ts, "--tile-size", a.tile_size, "--levels", "auto",

@@ -56,6 +56,8 @@ import sys
 import tempfile
 import time
 
+import gen_synthetic  # beside this script
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CLUSTER = os.path.join(ROOT, "scripts", "slurm", "cluster")
 SUBMIT = os.path.join(ROOT, "scripts", "slurm", "submit")
@@ -247,20 +249,7 @@ def measure(a, rows, jobs):
         print("private Slurm cluster: one node, %s CPUs, state in %s, port %s" %
               (cpus[0] if cpus else "?", a.slurm_dir, a.slurm_port), flush=True)
         for v in [int(float(s)) for s in a.vertices.split(",")]:
-            gj = os.path.join(work, "mix%d.geojsonl" % v)
-            fgb = os.path.join(work, "mix%d.fgb" % v)
-            subprocess.run([sys.executable, os.path.join(ROOT, "bench", "gen_synthetic.py"), "mix",
-                            str(v), gj], check=True)
-            subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", fgb, gj, "-a_srs", "EPSG:32632"], check=True)
-            os.remove(gj)
-            scene = os.path.join(work, "mix%d.toml" % v)
-            layer = "mix%d" % v
-            with open(scene, "w") as f:
-                f.write('source = "%s"\ncrs = "EPSG:32632"\n' % fgb)
-                f.write('[[layer]]\nname = "polygons"\nkind = "polygon"\nsql = "SELECT * FROM %s '
-                        'WHERE OGR_GEOMETRY = \'POLYGON\'"\n' % layer)
-                f.write('[[layer]]\nname = "lines"\nkind = "line"\nwidth = 3\nsql = "SELECT * FROM %s '
-                        'WHERE OGR_GEOMETRY = \'LINESTRING\'"\n' % layer)
+            scene, fgb = gen_synthetic.mix_scene(work, v, "mix%d" % v)
             for rep in range(a.repeat):
                 for n in tasks:
                     # Local, then Slurm, right after each other: the pair shares the load.

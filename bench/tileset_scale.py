@@ -27,6 +27,8 @@ import sys
 import tempfile
 import time
 
+import gen_synthetic  # beside this script
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -63,25 +65,11 @@ def main():
     rows = []
     try:
         for v in [int(float(s)) for s in a.vertices.split(",")]:
-            gj = os.path.join(work, "mix%d.geojsonl" % v)
-            fgb = os.path.join(work, "mix%d.fgb" % v)
-            subprocess.run([sys.executable, os.path.join(ROOT, "bench", "gen_synthetic.py"), "mix",
-                            str(v), gj], check=True)
-            subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", fgb, gj, "-a_srs", "EPSG:32632"],
-                           check=True)
-            os.remove(gj)
+            scene, fgb = gen_synthetic.mix_scene(work, v, "mix%d" % v)
             floor = os.path.join(work, "floor%d.fgb" % v)
             f_wall, f_cpu, f_rss = measured(["ogr2ogr", "-f", "FlatGeobuf", floor, fgb])
             out = os.path.join(work, "tiles%d" % v)
             report = os.path.join(work, "tiles%d.json" % v)
-            scene = os.path.join(work, "mix%d.toml" % v)
-            layer = "mix%d" % v
-            with open(scene, "w") as f:
-                f.write('source = "%s"\ncrs = "EPSG:32632"\n' % fgb)
-                f.write('[[layer]]\nname = "polygons"\nkind = "polygon"\nsql = "SELECT * FROM %s '
-                        'WHERE OGR_GEOMETRY = \'POLYGON\'"\n' % layer)
-                f.write('[[layer]]\nname = "lines"\nkind = "line"\nwidth = 3\nsql = "SELECT * FROM %s '
-                        'WHERE OGR_GEOMETRY = \'LINESTRING\'"\n' % layer)
             wall, cpu, rss = measured([tool, "build", scene, "-o", out, "--tile-size", a.tile_size,
                                        "--jobs", a.jobs, "--report", report, "-q"])
             ts = json.load(open(report))["tileset"]

@@ -17,22 +17,14 @@ packages are missing (scripts/deps --cluster installs them).
 
 Usage: slurm_array_test.py DECALPREP SOURCE_DIR WORK_DIR [N]
 """
-import hashlib
 import os
 import shutil
 import subprocess
 import sys
 import time
 
-
-def tree(root):
-    out = {}
-    for d, _, files in os.walk(root):
-        for f in files:
-            p = os.path.join(d, f)
-            with open(p, "rb") as fh:
-                out[os.path.relpath(p, root)] = hashlib.sha256(fh.read()).hexdigest()
-    return out
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tools"))
+from tileset_util import tree  # noqa: E402
 
 
 def main():

@@ -27,7 +27,6 @@ Checks:
 
 Usage: tileset_levels_test.py DECALPREP WORK_DIR
 """
-import hashlib
 import json
 import math
 import os
@@ -35,6 +34,9 @@ import re
 import shutil
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tileset_util import StepRunner, tree  # noqa: E402
 
 N = 3
 TILE = 500.0
@@ -89,22 +91,6 @@ def write_inputs(work):
                 'color = "#336699"\n\n'
                 '[[layer]]\nname = "lines"\nsource = "lines.geojson"\nkind = "line"\n'
                 'width = 2.0\ncolor = "#aa3311"\n')
-
-
-def tree(root, work=True):
-    out = {}
-    for d, _, files in os.walk(root):
-        for f in files:
-            p = os.path.join(d, f)
-            rel = os.path.relpath(p, root)
-            if rel == "plan.json":
-                continue
-            if not work and (rel.endswith("parts.gpkg") or
-                             ("/tiles/" in "/" + rel and rel.endswith(".json"))):
-                continue
-            with open(p, "rb") as fh:
-                out[rel] = hashlib.sha256(fh.read()).hexdigest()
-    return out
 
 
 def ogr_count(path, layer, expr):
@@ -189,7 +175,7 @@ def main():
     if r.returncode != 0:
         print("FAIL: the one-process build failed:", r.stderr)
         return 1
-    want = tree(ref)
+    want = tree(ref, skip=("plan.json",))
     ix = json.load(open(os.path.join(ref, "tileset.json")))
     if ix["tileset_version"] != "1.1" or len(ix["levels"]) != LEVELS:
         failures.append("tileset.json: version %s, %d levels" % (ix["tileset_version"],
@@ -205,21 +191,8 @@ def main():
     plan = json.load(open(os.path.join(out, "plan.json")))
     steps = {s["step"]: s for s in plan["steps"]}
 
-    def step(name, k=None):
-        cmd = [c.replace("{K}", str(k)) for c in steps[name]["command"]] + ["-q"]
-        return subprocess.run(cmd, capture_output=True, text=True, cwd=plan["cwd"])
-
-    def run_twice(name, k=None, part_of=None):
-        first = step(name, k)
-        if first.returncode != 0:
-            failures.append("%s %s failed: %s" % (name, k, first.stderr.strip()))
-            return
-        after_first = tree(part_of or out, work=False)
-        second = step(name, k)
-        if second.returncode != 0:
-            failures.append("%s %s run again failed: %s" % (name, k, second.stderr.strip()))
-        elif tree(part_of or out, work=False) != after_first:
-            failures.append("%s %s run again changed the bytes" % (name, k))
+    runner = StepRunner(plan, out, failures)
+    step, run_twice = runner.step, runner.run_twice
 
     run_twice("prepare", part_of=os.path.join(out, ".work"))
     for k in range(N - 1):
@@ -238,7 +211,7 @@ def main():
             failures.append("finalize named %s, which was built" % n)
     run_twice("tiles", N - 1)
     run_twice("finalize")
-    got = tree(out)
+    got = tree(out, skip=("plan.json",))
     if got != want:
         failures.append("stepped tileset differs: missing %s, extra %s, different %s" % (
             sorted(set(want) - set(got))[:5], sorted(set(got) - set(want))[:5],
@@ -440,10 +413,10 @@ def main():
     if r.returncode != 0 or left != ["L1"]:
         failures.append("--levels 1 over a 3-level tileset: exit %d, level folders %s" % (
             r.returncode, left))
-    elif tree(fewer) != {k: v for k, v in want.items() if not k.startswith(("tiles/L2/",
+    elif tree(fewer, skip=("plan.json",)) != {k: v for k, v in want.items() if not k.startswith(("tiles/L2/",
                                                                               "tiles/L3/",
                                                                               "tileset.json"))} | \
-            {"tileset.json": tree(fewer)["tileset.json"]}:
+            {"tileset.json": tree(fewer, skip=("plan.json",))["tileset.json"]}:
         failures.append("--levels 1 over a 3-level tileset changed level 0 or level 1's tiles")
 
     for f in failures:

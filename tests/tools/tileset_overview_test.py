@@ -80,26 +80,16 @@ def main():
     vertices, tile = int(float(sys.argv[5])), sys.argv[6]
     W, H = (int(v) for v in sys.argv[7].split("x"))
     gl = "gl" in sys.argv[8:]
-    spread = (["--extent", sys.argv[sys.argv.index("--extent") + 1]]
-              if "--extent" in sys.argv[8:] else [])
+    spread = (float(sys.argv[sys.argv.index("--extent") + 1])
+              if "--extent" in sys.argv[8:] else None)
     if not shutil.which("ogr2ogr"):
         print("SKIP: no ogr2ogr")
         return 77
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
-    gj, fgb = os.path.join(work, "mix.geojsonl"), os.path.join(work, "mix.fgb")
-    subprocess.run([sys.executable, os.path.join(root, "bench", "gen_synthetic.py"), "mix",
-                    str(vertices), gj] + spread, check=True)
-    subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", fgb, gj, "-a_srs", "EPSG:32632", "-nln", "mix"],
-                   check=True)
-    os.remove(gj)
-    scene = os.path.join(work, "mix.toml")
-    with open(scene, "w") as f:
-        f.write('source = "%s"\ncrs = "EPSG:32632"\n' % fgb)
-        f.write('[[layer]]\nname = "polygons"\nkind = "polygon"\n'
-                'sql = "SELECT * FROM mix WHERE OGR_GEOMETRY = \'POLYGON\'"\n')
-        f.write('[[layer]]\nname = "lines"\nkind = "line"\nwidth = 3\n'
-                'sql = "SELECT * FROM mix WHERE OGR_GEOMETRY = \'LINESTRING\'"\n')
+    sys.path.insert(0, os.path.join(root, "bench"))
+    import gen_synthetic
+    scene, _ = gen_synthetic.mix_scene(work, vertices, extent=spread)
     ts = os.path.join(work, "tiles")
     _, _, build_s = run([tool, "build", scene, "-o", ts, "--tile-size", tile, "--levels", "auto",
                          "--jobs", "2", "-q"], "build")

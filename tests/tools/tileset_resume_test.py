@@ -16,7 +16,6 @@ Usage: tileset_resume_test.py DECALPREP SOURCE_DIR WORK_DIR [RUNS] [SHARED]
 SHARED: the folder of tileset_fixture.sh, whose tiles/ and tiles.json are
 the uninterrupted build (made here when it is missing).
 """
-import hashlib
 import json
 import os
 import random
@@ -24,15 +23,8 @@ import shutil
 import subprocess
 import sys
 
-
-def tree(root):
-    out = {}
-    for d, _, files in os.walk(root):
-        for f in files:
-            p = os.path.join(d, f)
-            with open(p, "rb") as fh:
-                out[os.path.relpath(p, root)] = hashlib.sha256(fh.read()).hexdigest()
-    return out
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tileset_util import tree  # noqa: E402
 
 
 def main():

@@ -11,7 +11,6 @@ Usage: tileset_steps_test.py DECALPREP SOURCE_DIR WORK_DIR [SHARED]
 SHARED: the folder of tileset_fixture.sh, whose tiles/ is the one-process
 build (made here when it is missing).
 """
-import hashlib
 import json
 import os
 import re
@@ -19,27 +18,10 @@ import shutil
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tileset_util import StepRunner, tree  # noqa: E402
+
 N = 3
-
-
-def tree(root, skip=("plan.json",), work=True):
-    """sha256 of every file under root. work=False leaves out what may differ
-    in the work folder between two runs of a step without changing the
-    tileset: the intermediate GeoPackage (its tables carry a timestamp) and
-    the tile records (they say whether a tile was built or kept)."""
-    out = {}
-    for d, _, files in os.walk(root):
-        for f in files:
-            p = os.path.join(d, f)
-            rel = os.path.relpath(p, root)
-            if rel in skip:
-                continue
-            if not work and (rel.endswith("parts.gpkg") or "/tiles/" in "/" + rel and
-                             rel.endswith(".json")):
-                continue
-            with open(p, "rb") as fh:
-                out[rel] = hashlib.sha256(fh.read()).hexdigest()
-    return out
 
 
 def main():
@@ -59,7 +41,7 @@ def main():
         if r.returncode != 0:
             print("FAIL: the one-process build failed:", r.stderr)
             return 1
-    want = tree(ref)
+    want = tree(ref, skip=("plan.json",))
 
     out = os.path.join(work, "stepped")
     r = subprocess.run([tool, "build", scene, "--tile-size", "500", "-o", out, "--plan", str(N),
@@ -74,21 +56,8 @@ def main():
     if steps["tiles"]["jobs"] != N:
         failures.append("plan.json says %s tile jobs, not %d" % (steps["tiles"]["jobs"], N))
 
-    def step(name, k=None):
-        cmd = [c.replace("{K}", str(k)) for c in steps[name]["command"]] + ["-q"]
-        return subprocess.run(cmd, capture_output=True, text=True, cwd=plan["cwd"])
-
-    def run_twice(name, k=None, part_of=None):
-        first = step(name, k)
-        if first.returncode != 0:
-            failures.append("%s %s failed: %s" % (name, k, first.stderr.strip()))
-            return
-        after_first = tree(part_of or out, work=False)
-        second = step(name, k)
-        if second.returncode != 0:
-            failures.append("%s %s run again failed: %s" % (name, k, second.stderr.strip()))
-        elif tree(part_of or out, work=False) != after_first:
-            failures.append("%s %s run again changed the bytes" % (name, k))
+    runner = StepRunner(plan, out, failures)
+    step, run_twice = runner.step, runner.run_twice
 
     run_twice("prepare", part_of=os.path.join(out, ".work"))
     for k in range(N - 1):
@@ -117,7 +86,7 @@ def main():
                            for m in missing):
         failures.append("the last tile job built none of the tiles finalize named")
     run_twice("finalize")
-    got = tree(out)
+    got = tree(out, skip=("plan.json",))
     if got != want:
         only_ref = sorted(set(want) - set(got))[:5]
         only_got = sorted(set(got) - set(want))[:5]
