@@ -116,7 +116,12 @@ Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
         const size_t k = i + size_t(W) * j;
         hit_x[k] = o[0] + *t * d[0];
         hit_y[k] = o[1] + *t * d[1];
-        hit_z[k] = o[2] + *t * d[2];
+        // The surface's own height there, not the ray's (o + t·d carries
+        // rounding: on a sea at exactly 0 m it strays above 0 by a few ulps in
+        // some rows, which shade() would tint as land); GL interpolates the
+        // vertex heights the same way.
+        const double h = terrain.height_at(hit_x[k], hit_y[k]);
+        hit_z[k] = std::isnan(h) ? o[2] + *t * d[2] : h;
         put(k, sample(hit_x[k], hit_y[k]));
       }
     });

@@ -179,6 +179,61 @@ TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) 
   RecordProperty("agreement", std::to_string(agree) + "/" + std::to_string(considered));
 }
 
+TEST(RenderCpu, ASeaAtExactlyZeroIsTintedAsSeaOnEveryRowOfAnObliqueView) {
+  // Terrain: a sea at exactly 0 m for x < 50, rising to 30 m beyond. Every
+  // pixel whose ray (cast here in double precision) meets the sea well inside
+  // it (x < 40: cells whose normals are all vertical) and that has no decal
+  // shows the sea albedo lit from straight above, as terrain.frag.glsl
+  // shades it: albedo * (0.35 + 0.65 * n.l), n = (0, 0, 1), l = normalized
+  // (-0.4, -0.5, 0.75).
+  prep::DecalModel model = render_test::hand_model();
+  R::DecalSource src = R::source_of(model);
+  R::Heightfield coast;
+  coast.nx = coast.ny = 71;
+  coast.x0 = coast.y0 = -20;
+  coast.dx = coast.dy = 2;
+  coast.zmin = 0;
+  coast.zmax = 30;
+  for (uint32_t j = 0; j < coast.ny; ++j)
+    for (uint32_t i = 0; i < coast.nx; ++i) {
+      double x = coast.x0 + i * coast.dx;
+      coast.z.push_back(x < 50 ? 0.0 : std::min(30.0, (x - 50) * 0.5));
+    }
+  R::RenderOptions opt;
+  opt.width = 320;
+  opt.height = 180;
+  opt.camera = R::fit_camera(model.extent, coast.zmin, coast.zmax, opt.width, opt.height,
+                             R::Projection::perspective, 35);
+  R::Image img = R::render_cpu(src, coast, opt);
+  prep::write_png_rgba((out_dir() / "cpu_coast.png").string(), img.width, img.height, img.rgba);
+  const double l = 0.75 / std::sqrt(0.4 * 0.4 + 0.5 * 0.5 + 0.75 * 0.75);
+  const double sea[3] = {0.45, 0.58, 0.70};
+  const double aspect = double(opt.width) / opt.height;
+  const auto& c = opt.camera;
+  Vec3Basis b = basis(c);
+  const double t = std::tan(c.fov_y_deg * 3.14159265358979323846 / 360);
+  size_t considered = 0, wrong = 0;
+  for (uint32_t j = 0; j < opt.height; ++j)
+    for (uint32_t i = 0; i < opt.width; ++i) {
+      double nx = (i + 0.5) / opt.width * 2 - 1, ny = 1 - (j + 0.5) / opt.height * 2;
+      R::Vec3 d;
+      for (int k = 0; k < 3; ++k) d[k] = b.f[k] + nx * t * aspect * b.r[k] + ny * t * b.u[k];
+      auto hit = coast.intersect(c.eye, d);
+      if (!hit) continue;
+      const double x = c.eye[0] + *hit * d[0], y = c.eye[1] + *hit * d[1];
+      const size_t k = i + size_t(opt.width) * j;
+      if (!(x < 40 && x > -18 && y > -18 && y < 118) || img.decals[4 * k + 3] != 0) continue;
+      ++considered;
+      for (int ch = 0; ch < 3; ++ch)
+        if (std::abs(img.rgba[4 * k + ch] - 255 * sea[ch] * (0.35 + 0.65 * l)) > 1.0) {
+          ++wrong;
+          break;
+        }
+    }
+  ASSERT_GT(considered, 1000u);
+  EXPECT_EQ(wrong, 0u) << "of " << considered << " sea pixels";
+}
+
 INSTANTIATE_TEST_SUITE_P(Bindings, RenderGlBinding,
                          ::testing::Values(R::Binding::ssbo, R::Binding::texture),
                          [](const auto& p) {
