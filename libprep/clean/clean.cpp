@@ -131,6 +131,21 @@ Ring read_coords(GEOSContextHandle_t h, const GEOSGeometry* g, bool drop_closing
   return r;
 }
 
+// The rings of a GEOS polygon, oriented as ARCHITECTURE.md "3. clean" says:
+// shell counter-clockwise, holes clockwise.
+void read_oriented_rings(GEOSContextHandle_t h, const GEOSGeometry* poly, Ring& shell,
+                         std::vector<Ring>& holes) {
+  shell = read_coords(h, GEOSGetExteriorRing_r(h, poly), true);
+  if (signed_area(shell) < 0) std::reverse(shell.begin(), shell.end());
+  const int nh = GEOSGetNumInteriorRings_r(h, poly);
+  holes.clear();
+  for (int i = 0; i < nh; ++i) {
+    Ring hole = read_coords(h, GEOSGetInteriorRingN_r(h, poly, i), true);
+    if (signed_area(hole) > 0) std::reverse(hole.begin(), hole.end());
+    holes.push_back(std::move(hole));
+  }
+}
+
 // Collects the polygons (or line strings) of any geometry, recursively.
 void collect(GEOSContextHandle_t h, const GEOSGeometry* g, int want_type,
              std::vector<const GEOSGeometry*>& out, bool& had_other) {
@@ -472,15 +487,7 @@ struct Cleaner {
     out.part = f.part;
     out.order_value = f.order_value;
     out.color_value = f.color_value;
-    out.shell = read_coords(h, GEOSGetExteriorRing_r(h, poly), true);
-    // Orientation (ARCHITECTURE.md "3. clean"): shell counter-clockwise, holes clockwise.
-    if (signed_area(out.shell) < 0) std::reverse(out.shell.begin(), out.shell.end());
-    int nh = GEOSGetNumInteriorRings_r(h, poly);
-    for (int i = 0; i < nh; ++i) {
-      Ring hole = read_coords(h, GEOSGetInteriorRingN_r(h, poly, i), true);
-      if (signed_area(hole) > 0) std::reverse(hole.begin(), hole.end());
-      out.holes.push_back(std::move(hole));
-    }
+    read_oriented_rings(h, poly, out.shell, out.holes);
     GEOSArea_r(h, poly, &out.area);
     r.vertices_out += out.shell.size() + 1;
     for (const Ring& hole : out.holes) r.vertices_out += hole.size() + 1;
@@ -984,18 +991,11 @@ bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
   collect(h, simple.get(), GEOS_POLYGON, polys, ignored);
   if (polys.empty()) return false;
   // One polygon in, one polygon out (TopologyPreserveSimplify never splits one).
-  const GEOSGeometry* poly = polys[0];
-  Ring shell = read_coords(h, GEOSGetExteriorRing_r(h, poly), true);
-  if (shell.size() < 3 || signed_area(shell) == 0) return false;
-  if (signed_area(shell) < 0) std::reverse(shell.begin(), shell.end());
+  Ring shell;
   std::vector<Ring> holes;
-  const int nh = GEOSGetNumInteriorRings_r(h, poly);
-  for (int i = 0; i < nh; ++i) {
-    Ring hole = read_coords(h, GEOSGetInteriorRingN_r(h, poly, i), true);
-    if (hole.size() < 3) continue;
-    if (signed_area(hole) > 0) std::reverse(hole.begin(), hole.end());
-    holes.push_back(std::move(hole));
-  }
+  read_oriented_rings(h, polys[0], shell, holes);
+  if (shell.size() < 3 || signed_area(shell) == 0) return false;
+  std::erase_if(holes, [](const Ring& hole) { return hole.size() < 3; });
   p.shell = std::move(shell);
   p.holes = std::move(holes);
   return true;

@@ -137,13 +137,17 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
       for (const TileKey& k : occupied[size_t(l - 1)])
         occupied[size_t(l)].insert({floor_half(k.x), floor_half(k.y)});
   }
+  // The square key k has on level l's grid (formats/SPEC.md "Tiling scheme").
+  auto square_of = [&](int l, const TileKey& k) {
+    const double s = size_of(l);
+    return Extent{double(k.x) * s, double(k.y) * s, double(k.x + 1) * s, double(k.y + 1) * s};
+  };
   std::vector<Node> nodes;
   auto make = [&](int l, const TileKey& k, int parent) {
     Node n;
     n.level = l;
     n.key = k;
-    const double s = size_of(l);
-    n.square = {double(k.x) * s, double(k.y) * s, double(k.x + 1) * s, double(k.y + 1) * s};
+    n.square = square_of(l, k);
     const auto it = entries[size_t(l)].find(k);
     if (it != entries[size_t(l)].end()) {
       n.entry = it->second;
@@ -156,12 +160,8 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
     return int(nodes.size() - 1);
   };
   std::vector<int> stack;
-  for (const TileKey& k : occupied[size_t(top)]) {
-    const double s = size_of(top);
-    if (meets({double(k.x) * s, double(k.y) * s, double(k.x + 1) * s, double(k.y + 1) * s},
-              out.footprint))
-      stack.push_back(make(top, k, -1));
-  }
+  for (const TileKey& k : occupied[size_t(top)])
+    if (meets(square_of(top, k), out.footprint)) stack.push_back(make(top, k, -1));
   std::vector<int> roots = stack;
   while (!stack.empty()) {
     const int i = stack.back();
@@ -172,13 +172,10 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
       continue;
     }
     const TileKey k = nodes[size_t(i)].key;
-    const double s = size_of(l - 1);
     for (int64_t cy = 2 * k.y; cy <= 2 * k.y + 1; ++cy)
       for (int64_t cx = 2 * k.x; cx <= 2 * k.x + 1; ++cx) {
         const TileKey c{cx, cy};
-        if (!occupied[size_t(l - 1)].count(c)) continue;
-        if (!meets({double(cx) * s, double(cy) * s, double(cx + 1) * s, double(cy + 1) * s},
-                   out.footprint))
+        if (!occupied[size_t(l - 1)].count(c) || !meets(square_of(l - 1, c), out.footprint))
           continue;
         const int j = make(l - 1, c, i);
         nodes[size_t(i)].children.push_back(j);

@@ -35,6 +35,17 @@ Vec3Basis basis(const R::Camera& c) {
   return {r, cross(r, f), f};
 }
 
+// The ray of pixel (i, j), exactly as render_cpu builds it.
+R::Vec3 pixel_ray(const R::RenderOptions& opt, uint32_t i, uint32_t j) {
+  const double aspect = double(opt.width) / opt.height;
+  const Vec3Basis b = basis(opt.camera);
+  const double t = std::tan(opt.camera.fov_y_deg * 3.14159265358979323846 / 360);
+  const double nx = (i + 0.5) / opt.width * 2 - 1, ny = 1 - (j + 0.5) / opt.height * 2;
+  R::Vec3 d;
+  for (int k = 0; k < 3; ++k) d[k] = b.f[k] + nx * t * aspect * b.r[k] + ny * t * b.u[k];
+  return d;
+}
+
 // Expected straight-alpha colour: line (alpha 0x80) over the polygon layer.
 std::array<double, 4> expected(double x, double y) {
   auto unpack = [](uint32_t c) {
@@ -153,17 +164,11 @@ TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) 
   }
   prep::write_png_rgba((out_dir() / "hand_perspective.png").string(), img.width, img.height,
                        img.rgba);
-  // Rays exactly as render_cpu builds them.
-  const double aspect = double(opt.width) / opt.height;
   const auto& c = opt.camera;
-  Vec3Basis b = basis(c);
-  const double t = std::tan(c.fov_y_deg * 3.14159265358979323846 / 360);
   size_t considered = 0, agree = 0;
   for (uint32_t j = 0; j < opt.height; ++j)
     for (uint32_t i = 0; i < opt.width; ++i) {
-      double nx = (i + 0.5) / opt.width * 2 - 1, ny = 1 - (j + 0.5) / opt.height * 2;
-      R::Vec3 d;
-      for (int k = 0; k < 3; ++k) d[k] = b.f[k] + nx * t * aspect * b.r[k] + ny * t * b.u[k];
+      const R::Vec3 d = pixel_ray(opt, i, j);
       auto hit = hills.intersect(c.eye, d);
       std::array<double, 4> e{0, 0, 0, 0};
       if (hit) e = expected(c.eye[0] + *hit * d[0], c.eye[1] + *hit * d[1]);
@@ -208,16 +213,11 @@ TEST(RenderCpu, ASeaAtExactlyZeroIsTintedAsSeaOnEveryRowOfAnObliqueView) {
   prep::write_png_rgba((out_dir() / "cpu_coast.png").string(), img.width, img.height, img.rgba);
   const double l = 0.75 / std::sqrt(0.4 * 0.4 + 0.5 * 0.5 + 0.75 * 0.75);
   const double sea[3] = {0.45, 0.58, 0.70};
-  const double aspect = double(opt.width) / opt.height;
   const auto& c = opt.camera;
-  Vec3Basis b = basis(c);
-  const double t = std::tan(c.fov_y_deg * 3.14159265358979323846 / 360);
   size_t considered = 0, wrong = 0;
   for (uint32_t j = 0; j < opt.height; ++j)
     for (uint32_t i = 0; i < opt.width; ++i) {
-      double nx = (i + 0.5) / opt.width * 2 - 1, ny = 1 - (j + 0.5) / opt.height * 2;
-      R::Vec3 d;
-      for (int k = 0; k < 3; ++k) d[k] = b.f[k] + nx * t * aspect * b.r[k] + ny * t * b.u[k];
+      const R::Vec3 d = pixel_ray(opt, i, j);
       auto hit = coast.intersect(c.eye, d);
       if (!hit) continue;
       const double x = c.eye[0] + *hit * d[0], y = c.eye[1] + *hit * d[1];

@@ -65,7 +65,6 @@ struct Scene {
   std::vector<R::TileSource> tiles;
   std::string metadata;        // a package's metadata (the recorded DEM)
   R::TileSelection selection;  // a tileset: the tiles drawn (prep/tile_select.hpp)
-  uint64_t blob_bytes = 0;     // the drawn packages' blob bytes (what GL uploads)
 };
 
 void open_package(const std::string& path, decal::Package& pkg) {
@@ -120,7 +119,6 @@ void load_tiles(Scene& sc, const std::string& dir, const R::Camera& camera, uint
          {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
          t.origin_x - ox,
          t.origin_y - oy});
-    for (const R::DecalSource::Blob& b : src.blobs) sc.blob_bytes += b.bytes;
   }
   if (sc.index.levels.empty()) {
     std::fprintf(stderr, "render: %zu of %zu tiles meet the view\n", hit.size(),
@@ -347,17 +345,12 @@ void run(const RenderArgs& a) {
                       a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
   }
 
-  if (sc.tileset) {
-    // Only the tiles that meet what the camera can see of the terrain.
-    prep::Extent view{-INFINITY, -INFINITY, INFINITY, INFINITY};
-    if (const std::optional<prep::Extent> f =
-            R::ground_footprint(opt.camera, w, h, terrain.zmin, terrain.zmax))
-      view = {f->xmin + sc.frame.origin_x, f->ymin + sc.frame.origin_y, f->xmax + sc.frame.origin_x,
-              f->ymax + sc.frame.origin_y};
-    load_tiles(sc, a.package, opt.camera, w, h, terrain.zmin, terrain.zmax, select);
-  } else {
-    for (const R::DecalSource::Blob& b : sc.tiles[0].source.blobs) sc.blob_bytes += b.bytes;
-  }
+  // A tileset: only the tiles the view draws (select_tiles meets them with
+  // what the camera can see of the terrain).
+  if (sc.tileset) load_tiles(sc, a.package, opt.camera, w, h, terrain.zmin, terrain.zmax, select);
+  uint64_t blob_bytes = 0;  // what GL uploads
+  for (const R::TileSource& t : sc.tiles)
+    for (const R::DecalSource::Blob& b : t.source.blobs) blob_bytes += b.bytes;
   const auto frame_start = std::chrono::steady_clock::now();
 #ifdef PREP_RENDER_WITH_GL
   R::Image img =
@@ -417,7 +410,7 @@ void run(const RenderArgs& a) {
           static_cast<unsigned long long>(s.bytes),
           s.full_detail_bytes ? 100.0 * double(s.bytes) / double(s.full_detail_bytes) : 0.0,
           static_cast<unsigned long long>(s.full_detail_bytes),
-          static_cast<unsigned long long>(sc.blob_bytes));
+          static_cast<unsigned long long>(blob_bytes));
       if (select.gpu_budget)
         std::printf("gpu budget: %llu bytes, %zu tile groups coarsened to fit\n",
                     static_cast<unsigned long long>(select.gpu_budget), s.coarsened);
