@@ -242,7 +242,11 @@ double grid_bytes(const GridParams& g, const GridInput& in) {
 // bisected four times to land just under the budget.
 // options.target_per_cell, when set (> 0; default off), stops refining at
 // the first (coarsest) candidate whose proxy reaches it: a smaller package
-// for a chosen query cost.
+// for a chosen query cost. options.min_cell_m, when set, refuses every
+// candidate with a finer cell side (but a one-cell grid): an overview level
+// of a tileset is drawn at pixels no finer than its resolution, so cells
+// finer than that buy no pixel a shorter list and cost their ranges and
+// duplicated entries.
 GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
   // Candidates measured; how many the search takes is known at its end.
   ProgressStage stage(o.progress, "build.grid", 0, "candidates", ProgressTotal::estimate);
@@ -265,6 +269,9 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
   // shrinking cells only multiplies the entries (each box then covers
   // (box/side)^2 cells: ~10^9 entries, tens of GB). Such grids are refused.
   const double entry_budget = std::max(64.0 * n, double(1u << 22));
+  // The cell floor (quanta): a candidate finer than it is refused like one
+  // over the budgets, so the coarser walk goes on past it.
+  const double min_side = o.min_cell_m > 0 ? std::ceil(o.min_cell_m / decal::kQuantumMetres) : 0;
 
   // Size budget from the thesis grid on the same data.
   const GridParams thesis =
@@ -278,7 +285,9 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     Candidate c;
     const int64_t side = std::max<int64_t>(1, int64_t(std::ceil(side0 * std::pow(2.0, -k / 4.0))));
     c.g = grid_with_cell(e, side, side);
-    if (double(c.g.nx) * double(c.g.ny) > max_cells || entry_count(c.g, prims) > entry_budget)
+    if (double(c.g.nx) * double(c.g.ny) > max_cells ||
+        (double(side) < min_side && (c.g.nx > 1 || c.g.ny > 1)) ||
+        entry_count(c.g, prims) > entry_budget)
       return c;
     c.bytes = double(in.geometry_bytes) + grid_bytes(c.g, in);
     c.proxy = weighted_mean_per_cell(c.g, prims, weights);

@@ -630,6 +630,8 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
           if (!kept) {
             ModelOptions mo = spec.model;
             mo.dem_assume_crs = spec.assume_crs;
+            // An overview level's cells: at least two of its pixels wide.
+            if (lv) mo.min_cell_m = kLevelMinCellPixels * lv->params.resolution;
             DecalModel model = build_model(tile, mo, spec.dem);
             if (model.manifest.layers.empty()) model.manifest = tile.manifest;
             WriteOptions wo;

@@ -18,7 +18,7 @@ Checks:
 - every vertex of a line of a level tile lies within 1 mm of the input
   (the simplified line keeps input vertices), and every input vertex of a
   line kept on the level and inside the tile's square lies within
-  r_L / 2 + 1 mm of the tile's lines (the half-pixel bound);
+  r_L / 8 + 1 mm of the tile's lines (the eighth-of-a-pixel bound);
 - info lists the levels, verify checks their tiles, dump --level opens one;
 - read_tileset_index refuses a bad level file path, a wrong level tile
   size and non-consecutive levels, naming the field; a 1.0 index reads;
@@ -246,7 +246,7 @@ def main():
                                 (lv["level"], c["layer"], c["vertices_out"], below[c["layer"]]))
         below = {c["layer"]: c["vertices_out"] for c in lv["layers"]}
 
-    # --- the half-pixel bound on a few tiles of each level (lines layer).
+    # --- the tolerance bound (r_L / 8) on a few tiles of each level (lines layer).
     src = json.load(open(os.path.join(work, "lines.geojson")))["features"]
     originals = [[tuple(p) for p in f["geometry"]["coordinates"]] for f in src]
     original_segments = Segments(originals)
@@ -269,14 +269,15 @@ def main():
                     if x0 <= p[0] < x1 and y0 <= p[1] < y1:
                         worst_out = max(worst_out, got_segments.distance(p, r_l))
                         checked += 1
-            if worst_in > 0.001 or worst_out > r_l / 2 + 0.001:
+            bound = r_l / 8  # the level's tolerance (formats/SPEC.md "Overview levels")
+            if worst_in > 0.001 or worst_out > bound + 0.001:
                 failures.append("level %d tile %d,%d: a tile vertex %.4f m from the input, an "
                                 "input vertex %.4f m from the tile (bound %.4f)" % (
-                                    lv["level"], t["x"], t["y"], worst_in, worst_out, r_l / 2))
-            print("level %d tile %d,%d: input within %.4f m of the tile (bound r/2 = %.4f)" % (
-                lv["level"], t["x"], t["y"], worst_out, r_l / 2))
+                                    lv["level"], t["x"], t["y"], worst_in, worst_out, bound))
+            print("level %d tile %d,%d: input within %.4f m of the tile (bound r/8 = %.4f)" % (
+                lv["level"], t["x"], t["y"], worst_out, bound))
     if checked == 0:
-        failures.append("the half-pixel check saw no input vertex")
+        failures.append("the tolerance check saw no input vertex")
 
     # --- tools.
     info = subprocess.run([tool, "info", ref], capture_output=True, text=True)

@@ -3,9 +3,12 @@
 tree(root, ...): sha256 of every file under a folder, for byte-identity checks.
 StepRunner: the steps of a plan.json (`decalprep build --plan N`), each run
 as its command line says, and run twice to show that a step is idempotent.
+blob_bytes(path): the decoded bytes of a package's blobs, read from its
+header and blob table as formats/SPEC.md lays them out (not by decalprep).
 """
 import hashlib
 import os
+import struct
 import subprocess
 
 
@@ -28,6 +31,22 @@ def tree(root, skip=(), work=True):
             with open(p, "rb") as fh:
                 out[rel] = hashlib.sha256(fh.read()).hexdigest()
     return out
+
+
+def blob_bytes(path):
+    """Sum of the blob table's raw_size (formats/SPEC.md "File header",
+    "Blob table": the bytes a renderer uploads), read here in Python."""
+    with open(path, "rb") as f:
+        head = f.read(96)
+        if len(head) != 96 or head[:8] != b"\x89DCL\r\n\x1a\n":
+            raise ValueError("%s: not a .decals package" % path)
+        header_size, entry_size, count = struct.unpack_from("<III", head, 16)
+        table_offset = struct.unpack_from("<Q", head, 40)[0]
+        f.seek(table_offset)
+        table = f.read(entry_size * count)
+    if len(table) != entry_size * count:
+        raise ValueError("%s: blob table cut short" % path)
+    return sum(struct.unpack_from("<Q", table, i * entry_size + 40)[0] for i in range(count))
 
 
 class StepRunner:

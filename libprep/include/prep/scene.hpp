@@ -80,9 +80,13 @@ struct ModelOptions {
   uint32_t grid_nx = 0, grid_ny = 0;  // 0: adaptive (default); 500x500 = thesis
   uint32_t target_per_cell = 0;       // adaptive grid: stop refining at this proxy (0: off)
   uint32_t max_cells = 4'000'000;     // grid cell budget
-  uint32_t qt_leaf_capacity = 8;      // thesis default
-  uint32_t qt_max_depth = 8;          // thesis default
-  double miter_limit_deg = 40.0;      // below this angle, miter falls back to round
+  // Adaptive grid: no cell side below this many metres (0: no floor). A
+  // tileset's overview level sets twice its resolution (formats/SPEC.md
+  // "Overview levels"); not from the scene file.
+  double min_cell_m = 0.0;
+  uint32_t qt_leaf_capacity = 8;  // thesis default
+  uint32_t qt_max_depth = 8;      // thesis default
+  double miter_limit_deg = 40.0;  // below this angle, miter falls back to round
   // dynamic lines / terrain
   double lmax = 0.0;               // 0: half the DEM cell size
   double terrain_tolerance = 0.0;  // >0: adaptive subdivision, metres
