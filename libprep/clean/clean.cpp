@@ -1002,6 +1002,10 @@ bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
 }
 
 bool PartSimplifier::line(SceneLine& l, const std::string& what) {
+  return line(l, what, impl_->tolerance);
+}
+
+bool PartSimplifier::line(SceneLine& l, const std::string& what, double tolerance) {
   GEOSContextHandle_t h = impl_->ctx.h;
   if (l.points.size() < 2) return false;
   Ring pts = l.points;
@@ -1010,7 +1014,7 @@ bool PartSimplifier::line(SceneLine& l, const std::string& what) {
   if (!g)
     throw input_error("overview level: " + what +
                       ": GEOS cannot build the line: " + impl_->ctx.last_error);
-  Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), impl_->tolerance));
+  Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), tolerance));
   if (!simple)
     throw input_error("overview level: " + what +
                       ": GEOS simplification failed: " + impl_->ctx.last_error);

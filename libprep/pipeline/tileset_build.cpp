@@ -475,10 +475,12 @@ class LevelFilter : public PartFilter {
     if (own) count(p.layer, keep, in, out);
     return keep;
   }
-  bool line(SceneLine& l, bool /*dynamic*/) override {
+  bool line(SceneLine& l, bool dynamic) override {
     const bool own = owns(l.points);
     const uint64_t in = l.points.size() + (l.closed ? 1 : 0);
-    const bool keep = part_length(l) >= level_.min_length && simplifier_.line(l, what(l));
+    const double tolerance = level_line_tolerance(level_, dynamic ? 0.0 : l.width);
+    const bool keep =
+        part_length(l) >= level_.min_length && simplifier_.line(l, what(l), tolerance);
     const uint64_t out = keep ? l.points.size() + (l.closed ? 1 : 0) : 0;
     if (own) count(l.layer, keep, in, out);
     return keep;
@@ -814,10 +816,10 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
   for (const TileLevel& l : index.levels) {
     uint64_t dropped = 0, parts_in = 0;
     for (const LayerCounts& c : l.layers) dropped += c.dropped_small, parts_in += c.read;
-    char note[200];
+    char note[256];
     std::snprintf(note, sizeof note,
                   "overview level %d: %llu of %llu parts dropped_small (below %.10g m2 or %.10g m, "
-                  "or collapsed at %.10g m)",
+                  "or collapsed at %.10g m or an eighth of a line's width)",
                   l.level, static_cast<unsigned long long>(dropped),
                   static_cast<unsigned long long>(parts_in), l.min_area, l.min_length,
                   level_tolerance(l));

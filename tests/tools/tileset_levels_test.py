@@ -18,7 +18,8 @@ Checks:
 - every vertex of a line of a level tile lies within 1 mm of the input
   (the simplified line keeps input vertices), and every input vertex of a
   line kept on the level and inside the tile's square lies within
-  r_L / 8 + 1 mm of the tile's lines (the eighth-of-a-pixel bound);
+  min(r_L, 2 m width) / 8 + 1 mm of the tile's lines (the level's line
+  tolerance);
 - info lists the levels, verify checks their tiles, dump --level opens one;
 - read_tileset_index refuses a bad level file path, a wrong level tile
   size and non-consecutive levels, naming the field; a 1.0 index reads;
@@ -45,6 +46,7 @@ X0, Y0 = 370_000.0, 4_840_000.0
 CRS = {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}}
 AREAS = [0.5, 2.0, 8.0, 30.0, 500.0, 5000.0]   # m², away from r_L² for L = 1..3
 LENGTHS = [0.5, 1.5, 3.0, 10.0, 100.0, 400.0]  # m, away from r_L
+LINE_WIDTH = 2.0  # m, the lines layer's width
 GRID = 14  # GRID x GRID polygons and as many lines, 145 m apart
 
 
@@ -90,7 +92,7 @@ def write_inputs(work):
                 '[[layer]]\nname = "polys"\nsource = "polys.geojson"\nkind = "polygon"\n'
                 'color = "#336699"\n\n'
                 '[[layer]]\nname = "lines"\nsource = "lines.geojson"\nkind = "line"\n'
-                'width = 2.0\ncolor = "#aa3311"\n')
+                'width = %g\ncolor = "#aa3311"\n' % LINE_WIDTH)
 
 
 def ogr_count(path, layer, expr):
@@ -246,7 +248,7 @@ def main():
                                 (lv["level"], c["layer"], c["vertices_out"], below[c["layer"]]))
         below = {c["layer"]: c["vertices_out"] for c in lv["layers"]}
 
-    # --- the tolerance bound (r_L / 8) on a few tiles of each level (lines layer).
+    # --- the tolerance bound (min(r_L, width) / 8) on a few tiles of each level (lines layer).
     src = json.load(open(os.path.join(work, "lines.geojson")))["features"]
     originals = [[tuple(p) for p in f["geometry"]["coordinates"]] for f in src]
     original_segments = Segments(originals)
@@ -269,12 +271,13 @@ def main():
                     if x0 <= p[0] < x1 and y0 <= p[1] < y1:
                         worst_out = max(worst_out, got_segments.distance(p, r_l))
                         checked += 1
-            bound = r_l / 8  # the level's tolerance (formats/SPEC.md "Overview levels")
+            # The level's line tolerance (formats/SPEC.md "Overview levels").
+            bound = min(r_l, LINE_WIDTH) / 8
             if worst_in > 0.001 or worst_out > bound + 0.001:
                 failures.append("level %d tile %d,%d: a tile vertex %.4f m from the input, an "
                                 "input vertex %.4f m from the tile (bound %.4f)" % (
                                     lv["level"], t["x"], t["y"], worst_in, worst_out, bound))
-            print("level %d tile %d,%d: input within %.4f m of the tile (bound r/8 = %.4f)" % (
+            print("level %d tile %d,%d: input within %.4f m of the tile (bound min(r, w)/8 = %.4f)" % (
                 lv["level"], t["x"], t["y"], worst_out, bound))
     if checked == 0:
         failures.append("the tolerance check saw no input vertex")

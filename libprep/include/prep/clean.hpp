@@ -101,6 +101,8 @@ class PartSimplifier {
   // error throws input_error naming `what` (layer, fid and part).
   bool polygon(ScenePolygon& p, const std::string& what);
   bool line(SceneLine& l, const std::string& what);
+  // The same with another tolerance for this line.
+  bool line(SceneLine& l, const std::string& what, double tolerance);
 
  private:
   struct Impl;
