@@ -119,17 +119,20 @@ bool plausible_zstd_raw_size(uint64_t stored, uint64_t raw) {
 
 namespace {
 
-// The checks of read_layout over the first `avail` bytes of a file of
-// `size` bytes (avail <= size). Everything it reads lies in the header, the
-// blob table and the metadata, and it fails (never reads past `avail`) when
-// those do not lie within the first `avail` bytes. The padding between
-// blobs is checked only when the whole file is at hand (avail == size).
-Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, PackageLayout& out) {
+// The checks of read_layout. With `whole`, `base` holds the whole file
+// (avail == size) and everything is checked. Without, it holds the first
+// `avail` bytes of a file of `size` bytes (read_package_sizes): the header
+// and the blob table are read and checked as with `whole`, the metadata
+// and the blobs are placed by their offsets and sizes only (their bytes,
+// the metadata's checksum and the padding between them are not read), and
+// it fails, never reading past `avail`, when the header and the table do
+// not lie within the first `avail` bytes.
+Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool whole,
+                    PackageLayout& out) {
   out = {};
-  const bool whole = avail == size;
-  // A region that lies within the file but past the bytes read: the caller
-  // (read_package_sizes) reads up to the end of the metadata, so this stops
-  // only a header that changed between the two reads.
+  if (whole && avail != size) return Status::failure("check_layout: not the whole file");
+  // The header or the table past the bytes read (a guard: read_package_sizes
+  // reads as far as the header places the table's end).
   auto beyond = [&](uint64_t end, const char* what) {
     return Status::failure(fmt("%s ends at byte %llu, past the %llu bytes read of the file", what,
                                ull(end), ull(avail)));
@@ -227,22 +230,20 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, Packag
         fmt("metadata (%llu bytes at byte %llu) runs past the end of the "
             "%llu-byte file",
             ull(h.metadata_size), ull(h.metadata_offset), ull(size)));
-  if (h.metadata_size > avail - h.metadata_offset)
-    return beyond(h.metadata_offset + h.metadata_size, "the metadata");
-  const uint64_t meta_sum = xxh64(base + h.metadata_offset, h.metadata_size);
-  if (meta_sum != h.metadata_checksum)
-    return Status::failure(fmt("metadata checksum mismatch: stored %016llx, computed %016llx",
-                               ull(h.metadata_checksum), ull(meta_sum)));
-  {
-    const char* m = reinterpret_cast<const char*>(base + h.metadata_offset);
-    if (h.metadata_size < 2 || m[0] != '{' || m[h.metadata_size - 1] != '}')
-      return Status::failure(
-          fmt("metadata at byte %llu is not a JSON object (must start with '{' "
-              "and end with '}')",
-              ull(h.metadata_offset)));
-    if (std::memchr(m, 0, h.metadata_size) != nullptr)
-      return Status::failure("metadata contains a NUL byte");
+  const char* m = whole ? reinterpret_cast<const char*>(base + h.metadata_offset) : nullptr;
+  if (whole) {
+    const uint64_t meta_sum = xxh64(base + h.metadata_offset, h.metadata_size);
+    if (meta_sum != h.metadata_checksum)
+      return Status::failure(fmt("metadata checksum mismatch: stored %016llx, computed %016llx",
+                                 ull(h.metadata_checksum), ull(meta_sum)));
   }
+  if (h.metadata_size < 2 || (m && (m[0] != '{' || m[h.metadata_size - 1] != '}')))
+    return Status::failure(
+        fmt("metadata at byte %llu is not a JSON object (must start with '{' "
+            "and end with '}')",
+            ull(h.metadata_offset)));
+  if (m && std::memchr(m, 0, h.metadata_size) != nullptr)
+    return Status::failure("metadata contains a NUL byte");
 
   std::vector<BlobTableEntry> entries(h.blob_count);
   uint64_t prev_end = h.metadata_offset + h.metadata_size;
@@ -326,7 +327,7 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, Packag
           fmt("%s: offset %llu leaves a gap; the next aligned offset after "
               "byte %llu is %llu",
               label.c_str(), ull(e.offset), ull(prev_end), ull(align_up(prev_end))));
-    // The padding lies past the metadata: checked when the file is at hand.
+    // The padding lies past the table: checked when the file is at hand.
     if (whole) {
       const size_t pad = first_nonzero(base + prev_end, e.offset - prev_end);
       if (pad != e.offset - prev_end)
@@ -347,7 +348,7 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, Packag
 }  // namespace
 
 Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
-  return check_layout(file.data(), file.size(), file.size(), out);
+  return check_layout(file.data(), file.size(), file.size(), true, out);
 }
 
 struct Package::Impl {
@@ -571,10 +572,10 @@ const BlobView* Package::find(BlobId id) const {
 
 namespace {
 
-// The bytes at the start of a file of `size` bytes that hold its header,
-// blob table and metadata where the header `head` (the file's first
-// `head_n` bytes) places them; at most `size`. check_layout then checks that
-// placement: read_package_sizes reads no more than this.
+// The bytes at the start of a file of `size` bytes that hold its header and
+// blob table where the header `head` (the file's first `head_n` bytes)
+// places them; at most `size`. check_layout then checks that placement:
+// read_package_sizes reads no more than this.
 uint64_t directory_bytes(const std::byte* head, uint64_t head_n, uint64_t size) {
   if (head_n < sizeof(FileHeader)) return std::min(head_n, size);
   FileHeader h;
@@ -586,7 +587,6 @@ uint64_t directory_bytes(const std::byte* head, uint64_t head_n, uint64_t size) 
     need = std::max(need, end);
   };
   reach(h.table_offset, uint64_t(h.blob_count) * h.blob_entry_size);
-  reach(h.metadata_offset, h.metadata_size);
   return std::min(need, size);
 }
 
@@ -594,7 +594,7 @@ uint64_t directory_bytes(const std::byte* head, uint64_t head_n, uint64_t size) 
 Status sizes_of(const std::byte* base, uint64_t avail, uint64_t size, PackageSizes& out) {
   out = {};
   PackageLayout layout;
-  if (Status s = check_layout(base, avail, size, layout); !s) return s;
+  if (Status s = check_layout(base, avail, size, false, layout); !s) return s;
   PackageSizes r;
   r.major = layout.header.version_major;
   r.minor = layout.header.version_minor;
@@ -654,7 +654,7 @@ Status read_package_sizes(const std::string& path, PackageSizes& out) {
     }
     return Status::success();
   };
-  // The header first, then as far as it says the metadata reaches; the
+  // The header first, then as far as it says the blob table reaches; the
   // checks see those bytes only, as package_sizes_from_memory's do.
   Status s = read_to(std::min<uint64_t>(size, 4096));
   uint64_t need = 0;

@@ -103,22 +103,21 @@ struct PackageSizes {
   uint64_t raw_bytes = 0;       // the sum of the blobs' raw_bytes: what open() decodes
 };
 
-// Reads the header, the blob table and the metadata of the package at
-// `path` (its bytes up to the end of the metadata, a few KiB for the
-// packages decalprep writes) and decodes no blob. They are checked as
-// Package::open checks them (formats/SPEC.md "Reading sizes without
-// decoding"): magic, version, flags, reserved fields, the header, table and
-// metadata checksums, every entry's name, type, stride, codec, count x
-// stride (overflow-safe) = raw_size, and the placement of every blob
-// within the file's size; not what lies in the blobs' bytes (their
-// checksums, zstd frames, the padding between them). So a package open()
-// accepts is accepted here with the same ids, counts, strides and decoded
-// sizes; one accepted here may still fail open(). On failure `out` is left
-// empty and the message starts with the path. Never throws (std::bad_alloc
-// aside).
+// Reads the header and the blob table of the package at `path` (its first
+// header_size + blob_count x blob_entry_size bytes: 2784 for the 28 blobs
+// decalprep writes) and neither the metadata nor any blob. What it reads is
+// checked as Package::open checks it (formats/SPEC.md "Blob sizes without
+// decoding"): magic, version, flags, reserved fields, the header and table
+// checksums, every entry's name, type, stride, codec and count x stride
+// (overflow-safe) = raw_size, and the placement of the metadata and of
+// every blob within the file's size. So a package open() accepts is
+// accepted here with the same ids, counts, strides and decoded sizes; one
+// accepted here may still fail open() on bytes not read (the metadata's
+// checksum and content, the blobs' checksums and zstd frames, the padding).
+// On failure `out` is left empty and the message names the path. Never
+// throws (std::bad_alloc aside).
 Status read_package_sizes(const std::string& path, PackageSizes& out);
-// The same over a file's bytes in memory: the same checks, on the same
-// bytes (the padding is not checked here either).
+// The same over a whole file in memory: the same checks on the same bytes.
 Status package_sizes_from_memory(std::span<const std::byte> bytes, PackageSizes& out);
 
 }  // namespace decal
