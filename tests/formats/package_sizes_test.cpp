@@ -107,11 +107,10 @@ TEST(PackageSizes, EqualWhatOpenDecodesOnTheGoldenPackage) {
 TEST(PackageSizes, EqualWhatOpenDecodesOnABuiltMonacoPackage) {
   prep::test::TempDir dir("sizes_monaco");
   const std::string out = dir.file("monaco.decals");
-  const auto r = prep::test::run_tool("build " +
-                                          prep::test::shell_quote(
-                                              prep::test::monaco_sample("scene.toml")) +
-                                          " -q -o " + prep::test::shell_quote(out),
-                                      dir);
+  const auto r = prep::test::run_tool(
+      "build " + prep::test::shell_quote(prep::test::monaco_sample("scene.toml")) + " -q -o " +
+          prep::test::shell_quote(out),
+      dir);
   ASSERT_EQ(r.rc, 0) << r.output;
   const uint64_t total = expect_same_on_file(out);
   std::printf("[ measured ] Monaco: %llu package bytes, %llu decoded blob bytes (x%.1f)\n",
@@ -212,19 +211,16 @@ TEST(PackageSizes, HostileHeadersAndTablesAreRejectedWithTheirReason) {
                    "major version 7"});
   cases.push_back({"trailing bytes", edited([](auto& b) { b.push_back(std::byte{0}); }, false),
                    "trailing bytes"});
-  cases.push_back(
-      {"table past the end of the file",
-       edited([](auto& b) { put<uint32_t>(b, offsetof(H, blob_count), 100000); }),
-       "blob table (100000 entries x 96 bytes at byte 96) runs past the end"});
+  cases.push_back({"table past the end of the file",
+                   edited([](auto& b) { put<uint32_t>(b, offsetof(H, blob_count), 100000); }),
+                   "blob table (100000 entries x 96 bytes at byte 96) runs past the end"});
   cases.push_back({"metadata past the end of the file",
                    edited([&](auto& b) { put<uint64_t>(b, offsetof(H, metadata_size), size); }),
                    "runs past the end"});
-  cases.push_back(
-      {"blob past the end of the file",
-       edited([&](auto& b) {
-         put<uint64_t>(b, entry_at(1) + offsetof(E, offset), (size / 256 + 1) * 256);
-       }),
-       "run past the end"});
+  cases.push_back({"blob past the end of the file", edited([&](auto& b) {
+                     put<uint64_t>(b, entry_at(1) + offsetof(E, offset), (size / 256 + 1) * 256);
+                   }),
+                   "run past the end"});
   cases.push_back({"blob overlapping the metadata",
                    edited([](auto& b) { put<uint64_t>(b, entry_at(0) + offsetof(E, offset), 0); }),
                    "overlaps the metadata"});
@@ -246,8 +242,8 @@ TEST(PackageSizes, HostileHeadersAndTablesAreRejectedWithTheirReason) {
                      put<uint64_t>(b, entry_at(1) + offsetof(E, raw_size), 12345);
                    }),
                    "raw_size 12345 != count"});
-  cases.push_back({"table checksum", edited([](auto& b) { b[entry_at(0) + 16] ^= std::byte{1}; },
-                                            false),
+  cases.push_back({"table checksum",
+                   edited([](auto& b) { b[entry_at(0) + 16] ^= std::byte{1}; }, false),
                    "checksum mismatch"});
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
