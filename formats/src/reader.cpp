@@ -612,9 +612,8 @@ Status sizes_of(const std::byte* base, uint64_t avail, uint64_t size, PackageSiz
     b.raw_bytes = e.raw_size;
     b.stored_bytes = e.stored_size;
     if (__builtin_add_overflow(r.raw_bytes, e.raw_size, &r.raw_bytes))
-      return Status::failure(
-          fmt("%s: the decoded sizes of the blobs add up past 2^64 bytes",
-              entry_label(i, e).c_str()));
+      return Status::failure(fmt("%s: the decoded sizes of the blobs add up past 2^64 bytes",
+                                 entry_label(i, e).c_str()));
     r.blobs.push_back(std::move(b));
   }
   out = std::move(r);
