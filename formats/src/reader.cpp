@@ -117,11 +117,29 @@ bool plausible_zstd_raw_size(uint64_t stored, uint64_t raw) {
 
 }  // namespace
 
-Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
+namespace {
+
+// The checks of read_layout. With `whole`, `base` holds the whole file
+// (avail == size) and everything is checked. Without, it holds the first
+// `avail` bytes of a file of `size` bytes (read_package_sizes): the header
+// and the blob table are read and checked as with `whole`, the metadata
+// and the blobs are placed by their offsets and sizes only (their bytes,
+// the metadata's checksum and the padding between them are not read), and
+// it fails, never reading past `avail`, when the header and the table do
+// not lie within the first `avail` bytes.
+Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool whole,
+                    PackageLayout& out) {
   out = {};
-  const uint64_t size = file.size();
-  const std::byte* base = file.data();
+  if (whole && avail != size) return Status::failure("check_layout: not the whole file");
+  // The header or the table past the bytes read (a guard: read_package_sizes
+  // reads as far as the header places the table's end).
+  auto beyond = [&](uint64_t end, const char* what) {
+    return Status::failure(fmt("%s ends at byte %llu, past the %llu bytes read of the file", what,
+                               ull(end), ull(avail)));
+  };
   if (size == 0) return Status::failure("empty file (0 bytes): not a .decals package");
+  if (avail < std::min<uint64_t>(size, sizeof(FileHeader)))
+    return beyond(sizeof(FileHeader), "the header");
   const size_t magic_n = std::min<size_t>(size, sizeof kMagic);
   if (std::memcmp(base, kMagic, magic_n) != 0)
     return Status::failure("not a .decals package: magic bytes do not match at byte 0");
@@ -143,6 +161,7 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
         fmt("header_size %u at byte 16 is invalid (must be >= %zu, a multiple "
             "of 8 and within the %llu-byte file)",
             h.header_size, sizeof(FileHeader), ull(size)));
+  if (h.header_size > avail) return beyond(h.header_size, "the header");
   uint64_t stored_header_sum;
   std::memcpy(&stored_header_sum, base + h.header_size - 8, 8);
   const uint64_t header_sum = xxh64(base, h.header_size - 8);
@@ -194,6 +213,8 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
         fmt("blob table (%u entries x %u bytes at byte %llu) runs past the end "
             "of the %llu-byte file",
             h.blob_count, h.blob_entry_size, ull(h.table_offset), ull(size)));
+  if (table_bytes > avail - h.table_offset)
+    return beyond(h.table_offset + table_bytes, "the blob table");
   const uint64_t table_sum = xxh64(base + h.table_offset, table_bytes);
   if (table_sum != h.table_checksum)
     return Status::failure(fmt("blob table checksum mismatch: stored %016llx, computed %016llx",
@@ -209,20 +230,20 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
         fmt("metadata (%llu bytes at byte %llu) runs past the end of the "
             "%llu-byte file",
             ull(h.metadata_size), ull(h.metadata_offset), ull(size)));
-  const uint64_t meta_sum = xxh64(base + h.metadata_offset, h.metadata_size);
-  if (meta_sum != h.metadata_checksum)
-    return Status::failure(fmt("metadata checksum mismatch: stored %016llx, computed %016llx",
-                               ull(h.metadata_checksum), ull(meta_sum)));
-  {
-    const char* m = reinterpret_cast<const char*>(base + h.metadata_offset);
-    if (h.metadata_size < 2 || m[0] != '{' || m[h.metadata_size - 1] != '}')
-      return Status::failure(
-          fmt("metadata at byte %llu is not a JSON object (must start with '{' "
-              "and end with '}')",
-              ull(h.metadata_offset)));
-    if (std::memchr(m, 0, h.metadata_size) != nullptr)
-      return Status::failure("metadata contains a NUL byte");
+  const char* m = whole ? reinterpret_cast<const char*>(base + h.metadata_offset) : nullptr;
+  if (whole) {
+    const uint64_t meta_sum = xxh64(base + h.metadata_offset, h.metadata_size);
+    if (meta_sum != h.metadata_checksum)
+      return Status::failure(fmt("metadata checksum mismatch: stored %016llx, computed %016llx",
+                                 ull(h.metadata_checksum), ull(meta_sum)));
   }
+  if (h.metadata_size < 2 || (m && (m[0] != '{' || m[h.metadata_size - 1] != '}')))
+    return Status::failure(
+        fmt("metadata at byte %llu is not a JSON object (must start with '{' "
+            "and end with '}')",
+            ull(h.metadata_offset)));
+  if (m && std::memchr(m, 0, h.metadata_size) != nullptr)
+    return Status::failure("metadata contains a NUL byte");
 
   std::vector<BlobTableEntry> entries(h.blob_count);
   uint64_t prev_end = h.metadata_offset + h.metadata_size;
@@ -306,10 +327,13 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
           fmt("%s: offset %llu leaves a gap; the next aligned offset after "
               "byte %llu is %llu",
               label.c_str(), ull(e.offset), ull(prev_end), ull(align_up(prev_end))));
-    const size_t pad = first_nonzero(base + prev_end, e.offset - prev_end);
-    if (pad != e.offset - prev_end)
-      return Status::failure(
-          fmt("padding byte %llu before %s is not zero", ull(prev_end + pad), label.c_str()));
+    // The padding lies past the table: checked when the file is at hand.
+    if (whole) {
+      const size_t pad = first_nonzero(base + prev_end, e.offset - prev_end);
+      if (pad != e.offset - prev_end)
+        return Status::failure(
+            fmt("padding byte %llu before %s is not zero", ull(prev_end + pad), label.c_str()));
+    }
     prev_end = e.offset + e.stored_size;
     prev_label = label;
   }
@@ -319,6 +343,12 @@ Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
   out.header = h;
   out.entries = std::move(entries);
   return Status::success();
+}
+
+}  // namespace
+
+Status read_layout(std::span<const std::byte> file, PackageLayout& out) {
+  return check_layout(file.data(), file.size(), file.size(), true, out);
 }
 
 struct Package::Impl {
@@ -538,6 +568,104 @@ const BlobView* Package::find(BlobId id) const {
   for (const BlobView& b : impl_->blobs)
     if (b.id == static_cast<uint32_t>(id)) return &b;
   return nullptr;
+}
+
+namespace {
+
+// The bytes at the start of a file of `size` bytes that hold its header and
+// blob table where the header `head` (the file's first `head_n` bytes)
+// places them; at most `size`. check_layout then checks that placement:
+// read_package_sizes reads no more than this.
+uint64_t directory_bytes(const std::byte* head, uint64_t head_n, uint64_t size) {
+  if (head_n < sizeof(FileHeader)) return std::min(head_n, size);
+  FileHeader h;
+  std::memcpy(&h, head, sizeof h);
+  uint64_t need = std::max<uint64_t>(h.header_size, sizeof(FileHeader));
+  auto reach = [&](uint64_t offset, uint64_t n) {
+    uint64_t end = 0;
+    if (__builtin_add_overflow(offset, n, &end)) end = UINT64_MAX;
+    need = std::max(need, end);
+  };
+  reach(h.table_offset, uint64_t(h.blob_count) * h.blob_entry_size);
+  return std::min(need, size);
+}
+
+// PackageSizes from the first `avail` bytes of a file of `size` bytes.
+Status sizes_of(const std::byte* base, uint64_t avail, uint64_t size, PackageSizes& out) {
+  out = {};
+  PackageLayout layout;
+  if (Status s = check_layout(base, avail, size, false, layout); !s) return s;
+  PackageSizes r;
+  r.major = layout.header.version_major;
+  r.minor = layout.header.version_minor;
+  r.flags = layout.header.flags;
+  r.file_bytes = size;
+  r.blobs.reserve(layout.entries.size());
+  for (size_t i = 0; i < layout.entries.size(); ++i) {
+    const BlobTableEntry& e = layout.entries[i];
+    BlobSize b;
+    b.id = e.id;
+    b.name = std::string(e.name, strnlen(e.name, kBlobNameSize));
+    b.type = static_cast<ElementType>(e.element_type);
+    b.stride = e.stride;
+    b.count = e.count;
+    b.raw_bytes = e.raw_size;
+    b.stored_bytes = e.stored_size;
+    if (__builtin_add_overflow(r.raw_bytes, e.raw_size, &r.raw_bytes))
+      return Status::failure(fmt("%s: the decoded sizes of the blobs add up past 2^64 bytes",
+                                 entry_label(i, e).c_str()));
+    r.blobs.push_back(std::move(b));
+  }
+  out = std::move(r);
+  return Status::success();
+}
+
+}  // namespace
+
+Status package_sizes_from_memory(std::span<const std::byte> bytes, PackageSizes& out) {
+  return sizes_of(bytes.data(), directory_bytes(bytes.data(), bytes.size(), bytes.size()),
+                  bytes.size(), out);
+}
+
+Status read_package_sizes(const std::string& path, PackageSizes& out) {
+  out = {};
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0)
+    return Status::failure(fmt("cannot open '%s': %s", path.c_str(), std::strerror(errno)));
+  struct stat st;
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return Status::failure(fmt("'%s' is not a regular file", path.c_str()));
+  }
+  const uint64_t size = static_cast<uint64_t>(st.st_size);
+  std::vector<std::byte> buf;
+  // Reads the file's first n bytes into buf (n <= size: it fits off_t).
+  auto read_to = [&](uint64_t n) -> Status {
+    uint64_t done = buf.size();
+    buf.resize(static_cast<size_t>(n));
+    while (done < n) {
+      const ssize_t got = ::pread(fd, buf.data() + done, n - done, static_cast<off_t>(done));
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0)
+        return Status::failure(fmt("cannot read '%s' at byte %llu: %s", path.c_str(), ull(done),
+                                   got == 0 ? "unexpected end of file" : std::strerror(errno)));
+      done += static_cast<uint64_t>(got);
+    }
+    return Status::success();
+  };
+  // The header first, then as far as it says the blob table reaches; the
+  // checks see those bytes only, as package_sizes_from_memory's do.
+  Status s = read_to(std::min<uint64_t>(size, 4096));
+  uint64_t need = 0;
+  if (s) {
+    need = directory_bytes(buf.data(), buf.size(), size);
+    if (need > buf.size()) s = read_to(need);
+  }
+  ::close(fd);
+  if (!s) return s;
+  s = sizes_of(buf.data(), need, size, out);
+  if (!s) return Status::failure(path + ": " + s.message);
+  return s;
 }
 
 }  // namespace decal

@@ -22,6 +22,7 @@ struct Node {
   const TileEntry* entry = nullptr;  // none: no data at this level here
   double pixel = 0;                  // ground metres per pixel at its nearest visible point
   double sse = 0;                    // r_L / pixel: its error in pixels if drawn
+  std::optional<uint64_t> blob;      // its blobs decoded, once asked (TileBlobBytes)
   int parent = -1;
   std::vector<int> children;
   bool drawn = false;
@@ -65,6 +66,15 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
   if (options.level && (*options.level < 0 || *options.level > top))
     throw usage_error("render: --level " + std::to_string(*options.level) +
                       ": the tileset has levels 0.." + std::to_string(top));
+  if (options.gpu_budget && !options.blob_bytes)
+    throw usage_error("render: --gpu-budget needs the tiles' decoded blob bytes (blob_bytes)");
+  auto blob_bytes_of = [&](int l, const TileEntry& t) -> uint64_t {
+    return options.blob_bytes ? options.blob_bytes(l, t) : 0;
+  };
+  // "N bytes (x MiB) of decoded blobs (P package bytes)"
+  auto need_text = [](uint64_t blob, uint64_t package) {
+    return bytes_text(blob) + " of decoded blobs (" + std::to_string(package) + " package bytes)";
+  };
 
   const double ox = index.frame.origin_x, oy = index.frame.origin_y;
   TileSelection out;
@@ -112,15 +122,16 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
     const int l = *options.level;
     for (const TileEntry& t : tiles_of(l))
       if (meets(t.square, out.footprint)) {
-        out.tiles.push_back({l, &t, pixel_of(t.square)});
-        out.bytes += t.bytes;
+        out.tiles.push_back({l, &t, pixel_of(t.square), blob_bytes_of(l, t)});
+        out.blob_bytes += out.tiles.back().blob_bytes;
+        out.package_bytes += t.bytes;
         ++out.per_level[size_t(l)];
       }
-    if (options.gpu_budget && out.bytes > options.gpu_budget)
+    if (options.gpu_budget && out.blob_bytes > options.gpu_budget)
       throw resource_error("render: --gpu-budget " + bytes_text(options.gpu_budget) +
                            " is exceeded: level " + std::to_string(l) + " of this view needs " +
-                           bytes_text(out.bytes) + " in " + std::to_string(out.tiles.size()) +
-                           " tiles");
+                           need_text(out.blob_bytes, out.package_bytes) + " in " +
+                           std::to_string(out.tiles.size()) + " tiles");
     return out;
   }
 
@@ -183,10 +194,20 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
       }
   }
 
-  auto drawn_bytes = [&](const Node& n) { return n.drawn && n.entry ? n.entry->bytes : 0; };
-  for (const Node& n : nodes) out.bytes += drawn_bytes(n);
+  // A node's decoded blob bytes, asked once and only for tiles with data.
+  auto blob_of = [&](Node& n) -> uint64_t {
+    if (!n.entry) return 0;
+    if (!n.blob) n.blob = blob_bytes_of(n.level, *n.entry);
+    return *n.blob;
+  };
+  auto drawn_blob = [&](Node& n) { return n.drawn ? blob_of(n) : 0; };
+  auto drawn_package = [&](const Node& n) { return n.drawn && n.entry ? n.entry->bytes : 0; };
+  for (Node& n : nodes) {
+    out.blob_bytes += drawn_blob(n);
+    out.package_bytes += drawn_package(n);
+  }
 
-  if (options.gpu_budget && out.bytes > options.gpu_budget) {
+  if (options.gpu_budget && out.blob_bytes > options.gpu_budget) {
     // Coarsen: a tile all of whose visited children are drawn may replace
     // them; the one with the smallest error in pixels first.
     auto all_children_drawn = [&](const Node& n) {
@@ -198,30 +219,32 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
     std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
     for (size_t i = 0; i < nodes.size(); ++i)
       if (all_children_drawn(nodes[i])) queue.push({nodes[i].sse, int(i)});
-    while (out.bytes > options.gpu_budget && !queue.empty()) {
+    while (out.blob_bytes > options.gpu_budget && !queue.empty()) {
       const int i = queue.top().second;
       queue.pop();
       Node& n = nodes[size_t(i)];
       for (int c : n.children) {
-        out.bytes -= drawn_bytes(nodes[size_t(c)]);
+        out.blob_bytes -= drawn_blob(nodes[size_t(c)]);
+        out.package_bytes -= drawn_package(nodes[size_t(c)]);
         nodes[size_t(c)].drawn = false;
       }
       n.drawn = true;
-      out.bytes += drawn_bytes(n);
+      out.blob_bytes += drawn_blob(n);
+      out.package_bytes += drawn_package(n);
       ++out.coarsened;
       if (n.parent >= 0 && all_children_drawn(nodes[size_t(n.parent)]))
         queue.push({nodes[size_t(n.parent)].sse, n.parent});
     }
-    if (out.bytes > options.gpu_budget)
+    if (out.blob_bytes > options.gpu_budget)
       throw resource_error("render: --gpu-budget " + bytes_text(options.gpu_budget) +
                            " is exceeded: the coarsest tiles of this view (level " +
                            std::to_string(top) + ", " + std::to_string(roots.size()) +
-                           " tiles) need " + bytes_text(out.bytes));
+                           " tiles) need " + need_text(out.blob_bytes, out.package_bytes));
   }
 
   for (const Node& n : nodes)
     if (n.drawn && n.entry) {
-      out.tiles.push_back({n.level, n.entry, n.pixel});
+      out.tiles.push_back({n.level, n.entry, n.pixel, n.blob.value_or(0)});
       ++out.per_level[size_t(n.level)];
     }
   std::sort(out.tiles.begin(), out.tiles.end(), [](const SelectedTile& a, const SelectedTile& b) {

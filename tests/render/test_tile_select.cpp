@@ -1,6 +1,7 @@
 // Which tiles of a tileset a view draws (prep/tile_select.hpp), on an index
 // in memory: an 8 x 8 grid of 100 m tiles with overview levels 1..3 (200,
-// 400, 800 m; resolution S 2^L / 1024), against analytic pixel sizes.
+// 400, 800 m; resolution S 2^L / 1024), against analytic pixel sizes and
+// budgets counted by hand in decoded blob bytes.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,6 +9,9 @@
 #include <numbers>
 #include <random>
 #include <set>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "prep/error.hpp"
 #include "prep/tile_select.hpp"
@@ -21,6 +25,9 @@ constexpr int kLevels = 3;
 constexpr int kGrid = 8;  // level-0 tiles a side
 // Package bytes per tile of each level: a parent is smaller than its four children.
 constexpr uint64_t kBytes[kLevels + 1] = {1000, 1200, 1500, 2000};
+// Decoded blob bytes per tile of each level (what --gpu-budget counts):
+// 11 to 12 times the package bytes, as zstd packs real tiles.
+constexpr uint64_t kBlobBytes[kLevels + 1] = {11500, 13000, 17000, 23000};
 
 double resolution(int l) {
   return kTile * std::ldexp(1.0, l) / 1024;
@@ -58,6 +65,29 @@ prep::TilesetIndex pyramid(int levels = kLevels) {
   return ix;
 }
 
+// Options whose blob_bytes gives kBlobBytes[level] and records each tile
+// asked, as "level/x/y", in `asked` (when given).
+R::TileSelectOptions with_blobs(std::vector<std::string>* asked = nullptr) {
+  R::TileSelectOptions o;
+  o.blob_bytes = [asked](int l, const prep::TileEntry& t) {
+    if (asked)
+      asked->push_back(std::to_string(l) + "/" + std::to_string(t.key.x) + "/" +
+                       std::to_string(t.key.y));
+    return kBlobBytes[l];
+  };
+  return o;
+}
+
+// The drawn tiles' blob and package bytes, summed from the levels drawn.
+std::pair<uint64_t, uint64_t> drawn_bytes(const R::TileSelection& s) {
+  uint64_t blob = 0, package = 0;
+  for (const R::SelectedTile& t : s.tiles) {
+    blob += kBlobBytes[t.level];
+    package += kBytes[t.level];
+  }
+  return {blob, package};
+}
+
 // A top-down view of `abs` (absolute coordinates) for the index's origin.
 R::Camera topdown(const prep::TilesetIndex& ix, prep::Extent abs) {
   const double ox = ix.frame.origin_x, oy = ix.frame.origin_y;
@@ -93,16 +123,19 @@ TEST(TileSelect, TopDownOrthographicViewDrawsTheLevelWhoseResolutionFitsThePixel
   const std::map<uint32_t, int> expected = {{300, 3},  {1024, 3}, {1100, 2}, {2048, 2},
                                             {3000, 1}, {4096, 1}, {5000, 0}, {9000, 0}};
   for (auto [h, level] : expected) {
-    const R::TileSelection s = R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), h, h, 0, 10);
+    const R::TileSelection s =
+        R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), h, h, 0, 10, with_blobs());
     ASSERT_FALSE(s.tiles.empty());
     for (const R::SelectedTile& t : s.tiles) {
       EXPECT_EQ(t.level, level) << h << " pixels";
       EXPECT_DOUBLE_EQ(t.pixel_size, 800.0 / h);
+      EXPECT_EQ(t.blob_bytes, kBlobBytes[level]);
     }
     const size_t n = size_t(kGrid >> level) * size_t(kGrid >> level);
     EXPECT_EQ(s.tiles.size(), n) << h << " pixels";
     EXPECT_EQ(s.per_level[size_t(level)], n);
-    EXPECT_EQ(s.bytes, n * kBytes[level]);
+    EXPECT_EQ(s.package_bytes, n * kBytes[level]);
+    EXPECT_EQ(s.blob_bytes, n * kBlobBytes[level]);
     EXPECT_EQ(s.full_detail_bytes, 64 * kBytes[0]);
     EXPECT_EQ(s.full_detail_tiles, 64u);
     expect_cover(ix, s, std::nullopt);
@@ -166,7 +199,7 @@ TEST(TileSelect, PerspectiveViewIsFinerNearTheEyeAndCoarserFar) {
   // (r_2 = 0.39 m); level 3's one tile reaches the eye, so it is never drawn.
   EXPECT_EQ(farthest_level, 2);
   EXPECT_GT(s.per_level[0], 0u);
-  EXPECT_LT(s.bytes, s.full_detail_bytes);
+  EXPECT_LT(s.package_bytes, s.full_detail_bytes);
   expect_cover(ix, s, s.footprint);
 }
 
@@ -184,16 +217,19 @@ TEST(TileSelect, RandomViewsNeverLeaveGapsOrOverlaps) {
     c.ortho_h = 20 + 800 * u(rng);
     c.ortho_w = c.ortho_h * 16 / 9;
     c.depth_range = 1e4;
-    R::TileSelectOptions o;
-    if (i % 4 == 0) o.gpu_budget = 20000 + uint64_t(40000 * u(rng));
+    R::TileSelectOptions o = with_blobs();
+    if (i % 4 == 0) o.gpu_budget = 230000 + uint64_t(460000 * u(rng));
     R::TileSelection s;
     try {
       s = R::select_tiles(ix, c, 640, 360, 0, 10, o);
     } catch (const prep::resource_error&) {
       continue;  // over a budget even at level 3 (checked below)
     }
+    const auto [blob, package] = drawn_bytes(s);
+    EXPECT_EQ(s.blob_bytes, blob);
+    EXPECT_EQ(s.package_bytes, package);
     if (o.gpu_budget) {
-      EXPECT_LE(s.bytes, o.gpu_budget);
+      EXPECT_LE(blob, o.gpu_budget);
     }
     expect_cover(ix, s, s.footprint);
   }
@@ -202,35 +238,85 @@ TEST(TileSelect, RandomViewsNeverLeaveGapsOrOverlaps) {
 TEST(TileSelect, BudgetReplacesChildrenByTheirParentUntilTheViewFits) {
   const prep::TilesetIndex ix = pyramid();
   const R::Camera c = topdown(ix, {0, 0, 800, 800});
-  // 8192 pixels: 0.098 m, every tile at level 0: 64 000 bytes.
-  R::TileSelection s = R::select_tiles(ix, c, 8192, 8192, 0, 10);
-  ASSERT_EQ(s.bytes, 64000u);
-  // 30 000: each level-1 parent saves 4 x 1000 - 1200 = 2800 bytes, so 13
-  // merges (64000 - 13 x 2800 = 27600 <= 30000 < 30400).
-  R::TileSelectOptions o;
-  o.gpu_budget = 30000;
+  // 8192 pixels: 0.098 m, every tile at level 0: 64 x 11 500 = 736 000 blob
+  // bytes (64 000 package bytes).
+  R::TileSelectOptions o = with_blobs();
+  R::TileSelection s = R::select_tiles(ix, c, 8192, 8192, 0, 10, o);
+  ASSERT_EQ(s.blob_bytes, 736000u);
+  ASSERT_EQ(s.package_bytes, 64000u);
+  // 345 000: each level-1 parent saves 4 x 11 500 - 13 000 = 33 000 blob
+  // bytes, so 12 merges (736000 - 12 x 33000 = 340000 <= 345000 < 373000).
+  o.gpu_budget = 345000;
   s = R::select_tiles(ix, c, 8192, 8192, 0, 10, o);
-  EXPECT_EQ(s.bytes, 27600u);
-  EXPECT_EQ(s.coarsened, 13u);
-  EXPECT_EQ(s.per_level[1], 13u);
-  EXPECT_EQ(s.per_level[0], 64u - 52u);
+  EXPECT_EQ(s.blob_bytes, 340000u);
+  EXPECT_EQ(s.package_bytes, 16u * 1000u + 12u * 1200u);
+  EXPECT_EQ(s.coarsened, 12u);
+  EXPECT_EQ(s.per_level[1], 12u);
+  EXPECT_EQ(s.per_level[0], 64u - 48u);
   expect_cover(ix, s, std::nullopt);
-  // 2000 bytes: the one level-3 tile.
-  o.gpu_budget = 2000;
+  // 23 000 bytes: the one level-3 tile.
+  o.gpu_budget = 23000;
   s = R::select_tiles(ix, c, 8192, 8192, 0, 10, o);
-  EXPECT_EQ(s.bytes, 2000u);
+  EXPECT_EQ(s.blob_bytes, 23000u);
   ASSERT_EQ(s.tiles.size(), 1u);
   EXPECT_EQ(s.tiles[0].level, 3);
-  // Below the coarsest level's 2000 bytes: a resource error naming both.
-  o.gpu_budget = 1999;
+  // Below the coarsest level's 23 000 bytes: a resource error naming both.
+  o.gpu_budget = 22999;
   try {
     R::select_tiles(ix, c, 8192, 8192, 0, 10, o);
     FAIL() << "expected resource_error";
   } catch (const prep::resource_error& e) {
     EXPECT_EQ(e.code(), prep::ExitCode::resource);
-    EXPECT_NE(std::string(e.what()).find("1999 bytes"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("need 2000 bytes"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("22999 bytes"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("need 23000 bytes"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("(2000 package bytes)"), std::string::npos) << e.what();
   }
+}
+
+// The budget is GPU memory: a budget that holds the view's package bytes
+// but not its decoded blobs coarsens the view until the blobs fit. (Counted
+// in package bytes, as before, 100 000 would hold all 64 level-0 tiles.)
+TEST(TileSelect, BudgetCountsDecodedBlobBytesNotPackageBytes) {
+  const prep::TilesetIndex ix = pyramid();
+  const R::Camera c = topdown(ix, {0, 0, 800, 800});
+  std::vector<std::string> asked;
+  R::TileSelectOptions o = with_blobs(&asked);
+  const R::TileSelection free = R::select_tiles(ix, c, 8192, 8192, 0, 10, o);
+  ASSERT_EQ(free.package_bytes, 64000u);
+  ASSERT_EQ(free.blob_bytes, 736000u);
+  // Without a budget only the drawn tiles are asked, each once.
+  EXPECT_EQ(asked.size(), 64u);
+  asked.clear();
+  o.gpu_budget = 100000;  // > 64 000 package bytes, < 736 000 blob bytes
+  const R::TileSelection s = R::select_tiles(ix, c, 8192, 8192, 0, 10, o);
+  // The 16 level-1 merges (33 000 each) leave 208 000; level-2 parents save
+  // 4 x 13 000 - 17 000 = 35 000 each: all 4 (68 000 <= 100 000 < 103 000).
+  EXPECT_GT(s.coarsened, 0u);
+  EXPECT_EQ(s.coarsened, 20u);
+  EXPECT_EQ(s.per_level[2], 4u);
+  EXPECT_EQ(s.tiles.size(), 4u);
+  EXPECT_EQ(s.blob_bytes, 4u * 17000u);
+  EXPECT_EQ(s.package_bytes, 4u * 1500u);
+  EXPECT_LE(drawn_bytes(s).first, o.gpu_budget);
+  for (const R::SelectedTile& t : s.tiles) EXPECT_EQ(t.blob_bytes, kBlobBytes[t.level]);
+  expect_cover(ix, s, std::nullopt);
+  // Asked: the 64 drawn level-0 tiles, then each parent the budget drew in
+  // their place (16 of level 1, 4 of level 2), each once; never level 3.
+  EXPECT_EQ(asked.size(), 64u + 16u + 4u);
+  EXPECT_EQ(std::set<std::string>(asked.begin(), asked.end()).size(), asked.size());
+  for (const std::string& a : asked) EXPECT_NE(a[0], '3') << a;
+}
+
+TEST(TileSelect, ABudgetNeedsTheBlobBytesAndTheirFailuresPassThrough) {
+  const prep::TilesetIndex ix = pyramid();
+  const R::Camera c = topdown(ix, {0, 0, 800, 800});
+  R::TileSelectOptions o;
+  o.gpu_budget = 1u << 30;
+  EXPECT_THROW(R::select_tiles(ix, c, 64, 64, 0, 10, o), prep::usage_error);
+  o.blob_bytes = [](int, const prep::TileEntry& t) -> uint64_t {
+    throw prep::format_error("render: " + t.file + ": not a .decals package");
+  };
+  EXPECT_THROW(R::select_tiles(ix, c, 64, 64, 0, 10, o), prep::format_error);
 }
 
 TEST(TileSelect, BudgetMergesTheGroupWhoseParentHasTheSmallestErrorInPixelsFirst) {
@@ -246,7 +332,8 @@ TEST(TileSelect, BudgetMergesTheGroupWhoseParentHasTheSmallestErrorInPixelsFirst
     const double dy = std::max({double(key.y) * s - ey, 0.0, ey - double(key.y + 1) * s});
     return resolution(l) / (std::hypot(dx, dy) * k);
   };
-  const R::TileSelection free = R::select_tiles(ix, c, 1280, 720, 0, 10);
+  R::TileSelectOptions o = with_blobs();
+  const R::TileSelection free = R::select_tiles(ix, c, 1280, 720, 0, 10, o);
   // The groups that can merge: four drawn children of one parent.
   std::map<std::pair<int, prep::TileKey>, int> children;
   for (const R::SelectedTile& t : free.tiles)
@@ -255,10 +342,10 @@ TEST(TileSelect, BudgetMergesTheGroupWhoseParentHasTheSmallestErrorInPixelsFirst
   for (const auto& [parent, n] : children)
     if (n == 4) least = std::min(least, sse(parent.first, parent.second));
   ASSERT_TRUE(std::isfinite(least));
-  R::TileSelectOptions o;
-  o.gpu_budget = free.bytes - 1;
+  o.gpu_budget = free.blob_bytes - 1;
   const R::TileSelection tight = R::select_tiles(ix, c, 1280, 720, 0, 10, o);
-  EXPECT_LE(tight.bytes, o.gpu_budget);
+  EXPECT_LE(tight.blob_bytes, o.gpu_budget);
+  EXPECT_LE(drawn_bytes(tight).first, o.gpu_budget);
   EXPECT_EQ(tight.coarsened, 1u);
   EXPECT_EQ(tight.tiles.size(), free.tiles.size() - 3);
   // The new tile is a parent of least error among the groups.
@@ -305,7 +392,7 @@ TEST(TileSelect, ATilesetWithoutLevelsDrawsTheLevel0TilesThatMeetTheView) {
   for (int64_t x = 1; x <= 3; ++x)
     for (int64_t y = 4; y <= 7; ++y) want.insert({x, y});
   EXPECT_EQ(got, want);
-  EXPECT_EQ(s.bytes, s.full_detail_bytes);
+  EXPECT_EQ(s.package_bytes, s.full_detail_bytes);
   // In index order (x, then y).
   for (size_t i = 1; i < s.tiles.size(); ++i)
     EXPECT_LT(s.tiles[i - 1].entry->key, s.tiles[i].entry->key);
@@ -313,7 +400,7 @@ TEST(TileSelect, ATilesetWithoutLevelsDrawsTheLevel0TilesThatMeetTheView) {
 
 TEST(TileSelect, ForcedLevelDrawsThatLevelEverywhere) {
   const prep::TilesetIndex ix = pyramid();
-  R::TileSelectOptions o;
+  R::TileSelectOptions o = with_blobs();
   o.level = 2;
   const R::TileSelection s = R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), 64, 64, 0, 10, o);
   EXPECT_EQ(s.tiles.size(), 4u);
@@ -322,7 +409,13 @@ TEST(TileSelect, ForcedLevelDrawsThatLevelEverywhere) {
   EXPECT_THROW(R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), 64, 64, 0, 10, o),
                prep::usage_error);
   o.level = 0;
-  o.gpu_budget = 63999;
+  o.gpu_budget = 736000;  // level 0's 64 x 11 500 blob bytes
+  EXPECT_EQ(R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), 64, 64, 0, 10, o).blob_bytes,
+            736000u);
+  o.gpu_budget = 735999;
+  EXPECT_THROW(R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), 64, 64, 0, 10, o),
+               prep::resource_error);
+  o.gpu_budget = 100000;  // above its 64 000 package bytes
   EXPECT_THROW(R::select_tiles(ix, topdown(ix, {0, 0, 800, 800}), 64, 64, 0, 10, o),
                prep::resource_error);
 }

@@ -9,7 +9,9 @@
 //  - determinism: --jobs 2 and --jobs 1 --threads 1 give the same bytes;
 //  - resume: a second run keeps every tile; a deleted and a corrupted tile
 //    are rebuilt, and only they;
-//  - the tools take the directory (info, verify).
+//  - the tools take the directory (info, verify);
+//  - render --gpu-budget counts the drawn tiles' blobs decoded, summed here
+//    by decal::Package::open, and coarsens a tileset with levels to fit.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -43,6 +45,16 @@ std::vector<float> read_raw(const std::string& path, size_t floats) {
   in.read(reinterpret_cast<char*>(v.data()), std::streamsize(floats * sizeof(float)));
   EXPECT_EQ(size_t(in.gcount()), floats * sizeof(float)) << path;
   return v;
+}
+
+// The bytes decal::Package::open decodes from a tile: every blob's.
+uint64_t decoded_bytes(const std::string& dir, const prep::TileEntry& t) {
+  decal::Package p;
+  const decal::Status s = decal::Package::open(dir + "/" + t.file, p);
+  EXPECT_TRUE(s) << s.message;
+  uint64_t n = 0;
+  for (const decal::BlobView& b : p.blobs()) n += b.bytes.size();
+  return n;
 }
 
 std::string file_bytes(const std::string& path) {
@@ -81,6 +93,20 @@ class Tileset : public ::testing::Test {
     dir_ = nullptr;
   }
   static std::string file(const std::string& name) { return dir_->file(name); }
+  // The sample as a 500 m tileset with overview levels 1 and 2, read only:
+  // the fixture's (not copied: 70 MB), else built here once.
+  static std::string levels() {
+    const char* work = std::getenv("TILESET_WORK_DIR");
+    if (work && fs::exists(fs::path(work) / "done")) return (fs::path(work) / "levels").string();
+    if (!fs::exists(dir_->path() / "levels")) {
+      const auto r =
+          run_tool("build " + shell_quote(prep::test::monaco_sample("scene.toml")) + " -o " +
+                       shell_quote(file("levels")) + " -q --tile-size 500 --levels 2 --jobs 2",
+                   *dir_);
+      EXPECT_EQ(r.rc, 0) << r.output;
+    }
+    return file("levels");
+  }
   static json read_json(const std::string& name) {
     return json::parse(prep::test::read_text(file(name)));
   }
@@ -191,19 +217,23 @@ TEST_F(Tileset, CpuRenderOfTheTilesetEqualsTheSinglePackage) {
 }
 
 // A tileset without overview levels: --level auto and --level 0 draw the
-// level-0 tiles in view, and --stats counts their bytes as tileset.json
-// lists them; a --gpu-budget below them exits 6 naming both figures.
+// level-0 tiles in view, and --stats counts their package bytes as
+// tileset.json lists them and their blobs decoded as Package::open decodes
+// them; --gpu-budget counts the latter: a budget below them exits 6
+// naming both figures, even one that holds the package bytes.
 TEST_F(Tileset, RenderBudgetAndLevelOptionsOnATilesetWithoutLevels) {
   const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
   const View v = monaco_view(ix);
-  uint64_t bytes = 0;
+  uint64_t bytes = 0, blob = 0;
   size_t tiles = 0;
   for (const prep::TileEntry& t : ix.tiles)
     if (t.square.xmin < v.abs.xmax && v.abs.xmin < t.square.xmax && t.square.ymin < v.abs.ymax &&
         v.abs.ymin < t.square.ymax) {
       bytes += t.bytes;
+      blob += decoded_bytes(file("tiles"), t);
       ++tiles;
     }
+  ASSERT_GT(blob, 4 * bytes);
   const std::string common = "render " + shell_quote(file("tiles")) +
                              " --cpu --flat --size 80x75 --extent " + extent_arg(v.abs) + " -o " +
                              shell_quote(file("budget.png"));
@@ -214,25 +244,150 @@ TEST_F(Tileset, RenderBudgetAndLevelOptionsOnATilesetWithoutLevels) {
                             " drawn (level 0: " + std::to_string(tiles) + ")"),
               std::string::npos)
         << r.output;
-    EXPECT_NE(r.output.find("bytes: " + std::to_string(bytes) +
-                            " package bytes loaded, 100.00% of the full-detail " +
-                            std::to_string(bytes) + " of this view"),
-              std::string::npos)
+    EXPECT_NE(
+        r.output.find("bytes: " + std::to_string(bytes) +
+                      " package bytes loaded, 100.00% of the full-detail " + std::to_string(bytes) +
+                      " of this view; " + std::to_string(blob) + " blob bytes uploaded"),
+        std::string::npos)
         << r.output;
   }
-  auto r = run_tool(common + " --gpu-budget " + std::to_string(bytes), *dir_);
+  auto r = run_tool(common + " --stats --gpu-budget " + std::to_string(blob), *dir_);
   EXPECT_EQ(r.rc, 0) << r.output;
-  r = run_tool(common + " --gpu-budget " + std::to_string(bytes - 1), *dir_);
-  EXPECT_EQ(r.rc, int(prep::ExitCode::resource)) << r.output;
-  EXPECT_NE(r.output.find("--gpu-budget " + std::to_string(bytes - 1) + " bytes"),
+  EXPECT_NE(r.output.find("gpu budget: " + std::to_string(blob) +
+                          " bytes of decoded blobs (GPU memory, not package bytes), " +
+                          std::to_string(blob) + " used, 0 tile groups coarsened to fit"),
             std::string::npos)
       << r.output;
-  EXPECT_NE(r.output.find("need " + std::to_string(bytes) + " bytes"), std::string::npos)
-      << r.output;
+  for (uint64_t budget : {blob - 1, bytes}) {
+    r = run_tool(common + " --gpu-budget " + std::to_string(budget), *dir_);
+    EXPECT_EQ(r.rc, int(prep::ExitCode::resource)) << r.output;
+    EXPECT_NE(r.output.find("--gpu-budget " + std::to_string(budget) + " bytes"), std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("need " + std::to_string(blob) + " bytes"), std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("(" + std::to_string(bytes) + " package bytes)"), std::string::npos)
+        << r.output;
+  }
   r = run_tool(common + " --level 1", *dir_);
   EXPECT_EQ(r.rc, int(prep::ExitCode::usage)) << r.output;
   r = run_tool(common + " --gpu-budget 2X", *dir_);
   EXPECT_EQ(r.rc, int(prep::ExitCode::usage)) << r.output;
+}
+
+// A tile the budget reads that is not a package: render fails naming it.
+TEST_F(Tileset, RenderWithABudgetNamesATileThatIsNotAPackage) {
+  const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
+  const View v = monaco_view(ix);
+  const std::string copy = file("budget_hostile");
+  fs::copy(file("tiles"), copy, fs::copy_options::recursive);
+  const prep::TileEntry* hit = nullptr;
+  for (const prep::TileEntry& t : ix.tiles)
+    if (!hit && t.square.xmin < v.abs.xmax && v.abs.xmin < t.square.xmax &&
+        t.square.ymin < v.abs.ymax && v.abs.ymin < t.square.ymax)
+      hit = &t;
+  ASSERT_NE(hit, nullptr);
+  fs::resize_file(copy + "/" + hit->file, 50);  // a truncated header
+  const auto r = run_tool("render " + shell_quote(copy) + " --cpu --flat --size 80x75 --extent " +
+                              extent_arg(v.abs) + " -o " + shell_quote(file("hostile.png")) +
+                              " --gpu-budget 1G",
+                          *dir_);
+  EXPECT_EQ(r.rc, int(prep::ExitCode::verify_failed)) << r.output;
+  EXPECT_NE(r.output.find(copy + "/" + hit->file), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("truncated package"), std::string::npos) << r.output;
+  fs::remove_all(copy);
+}
+
+// --gpu-budget is GPU memory: the drawn tiles' blobs decoded, not their
+// (about ten times smaller) package bytes. A top-down view of one level-2
+// tile's square at pixels between the resolutions of levels 1 and 2 draws
+// its level-1 children; a budget that holds their package bytes but not
+// their blobs draws the level-2 tile instead (one group coarsened), where
+// the budget on package bytes drew the children. The blob bytes --stats
+// reports are the sums decal::Package::open decodes from the tiles this
+// test picks from tileset.json.
+TEST_F(Tileset, GpuBudgetCountsDecodedBlobBytesAndCoarsensTheView) {
+  const std::string ts = levels();
+  const prep::TilesetIndex ix = prep::read_tileset_index(ts);
+  ASSERT_EQ(ix.levels.size(), 2u);
+  auto meets = [](const prep::Extent& a, const prep::Extent& b) {
+    return a.xmin < b.xmax && b.xmin < a.xmax && a.ymin < b.ymax && b.ymin < a.ymax;
+  };
+  // The level-2 tile with the most level-1 blob bytes under it.
+  struct Pick {
+    const prep::TileEntry* parent = nullptr;
+    prep::Extent view;
+    size_t children = 0;
+    uint64_t package = 0, blob = 0;  // the children's
+  } pick;
+  for (const prep::TileEntry& p : ix.levels[1].tiles) {
+    Pick c;
+    c.parent = &p;
+    c.view = {p.square.xmin + 1, p.square.ymin + 1, p.square.xmax - 1, p.square.ymax - 1};
+    for (const prep::TileEntry& t : ix.levels[0].tiles)
+      if (meets(t.square, c.view)) {
+        ++c.children;
+        c.package += t.bytes;
+        c.blob += decoded_bytes(ts, t);
+      }
+    if (c.blob > pick.blob) pick = c;
+  }
+  ASSERT_NE(pick.parent, nullptr);
+  const uint64_t parent_blob = decoded_bytes(ts, *pick.parent);
+  const uint64_t parent_package = pick.parent->bytes;
+  std::printf(
+      "[ measured ] level-2 tile %s: %llu package bytes, %llu blob bytes; its %zu level-1 "
+      "children: %llu package bytes, %llu blob bytes\n",
+      prep::tile_name(pick.parent->key).c_str(), static_cast<unsigned long long>(parent_package),
+      static_cast<unsigned long long>(parent_blob), pick.children,
+      static_cast<unsigned long long>(pick.package), static_cast<unsigned long long>(pick.blob));
+  ASSERT_GE(pick.children, 2u);
+  ASSERT_LT(pick.package, parent_blob) << "the case needs the children's package bytes to fit";
+  ASSERT_LT(parent_blob, pick.blob) << "the case needs the parent's blobs to be the smaller";
+
+  // Pixels halfway between r_1 and r_2: level 1 where there is data.
+  const double pixel = 0.5 * (ix.levels[0].resolution + ix.levels[1].resolution);
+  const auto side = uint32_t(std::ceil((pick.view.xmax - pick.view.xmin) / pixel));
+  const std::string common = "render " + shell_quote(ts) + " --cpu --flat --only dynamic --size " +
+                             std::to_string(side) + "x" + std::to_string(side) + " --extent " +
+                             extent_arg(pick.view) + " --stats -o " +
+                             shell_quote(file("levels.png"));
+  const std::string children = "tiles: " + std::to_string(pick.children) +
+                               " drawn (level 0: 0, level 1: " + std::to_string(pick.children) +
+                               ", level 2: 0)";
+  const std::string parent = "tiles: 1 drawn (level 0: 0, level 1: 0, level 2: 1)";
+  auto bytes_line = [](uint64_t package) {
+    return "bytes: " + std::to_string(package) + " package bytes loaded, ";
+  };
+  auto blob_line = [](uint64_t blob) {
+    return "; " + std::to_string(blob) + " blob bytes uploaded";
+  };
+  // No budget, and a budget that holds the children's blobs exactly.
+  for (const std::string& budget : {std::string(), " --gpu-budget " + std::to_string(pick.blob)}) {
+    const auto r = run_tool(common + budget, *dir_);
+    ASSERT_EQ(r.rc, 0) << r.output;
+    EXPECT_NE(r.output.find(children), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(bytes_line(pick.package)), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(blob_line(pick.blob)), std::string::npos) << r.output;
+  }
+  // Budgets above the children's package bytes but below their blobs.
+  for (uint64_t budget : {pick.blob - 1, parent_blob}) {
+    const auto r = run_tool(common + " --gpu-budget " + std::to_string(budget), *dir_);
+    ASSERT_EQ(r.rc, 0) << r.output;
+    EXPECT_NE(r.output.find(parent), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(bytes_line(parent_package)), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(blob_line(parent_blob)), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("gpu budget: " + std::to_string(budget) +
+                            " bytes of decoded blobs (GPU memory, not package bytes), " +
+                            std::to_string(parent_blob) + " used, 1 tile groups coarsened to fit"),
+              std::string::npos)
+        << r.output;
+    EXPECT_LE(parent_blob, budget);
+  }
+  // Below the level-2 tile's blobs: nothing coarser to draw.
+  const auto r = run_tool(common + " --gpu-budget " + std::to_string(parent_blob - 1), *dir_);
+  EXPECT_EQ(r.rc, int(prep::ExitCode::resource)) << r.output;
+  EXPECT_NE(r.output.find("need " + std::to_string(parent_blob) + " bytes"), std::string::npos)
+      << r.output;
 }
 
 TEST_F(Tileset, GlRenderOfTheTilesetEqualsItsCpuRender) {

@@ -98,17 +98,38 @@ Scene open_scene(const std::string& path) {
   return sc;
 }
 
+// The bytes a package holds decoded: all its blobs, the unknown ids' too.
+uint64_t decoded_bytes(const decal::Package& pkg) {
+  uint64_t n = 0;
+  for (const decal::BlobView& b : pkg.blobs()) n += b.bytes.size();
+  return n;
+}
+
 // Loads the tiles of a tileset that the view draws (prep/tile_select.hpp:
 // the level-0 tiles that meet the camera's ground footprint, or overview
-// tiles where their resolution is below a pixel), and only those.
+// tiles where their resolution is below a pixel, within --gpu-budget), and
+// only those. The budget counts each tile's blobs decoded, as its header
+// and blob table give them (decal::read_package_sizes, no blob decoded);
+// a loaded tile that holds another figure is refused.
 void load_tiles(Scene& sc, const std::string& dir, const R::Camera& camera, uint32_t w, uint32_t h,
-                double zmin, double zmax, const R::TileSelectOptions& select) {
+                double zmin, double zmax, R::TileSelectOptions select) {
+  select.blob_bytes = [&dir](int, const prep::TileEntry& t) {
+    decal::PackageSizes sizes;
+    if (decal::Status s = decal::read_package_sizes(dir + "/" + t.file, sizes); !s)
+      throw prep::format_error("render: " + s.message);
+    return sizes.raw_bytes;
+  };
   sc.selection = R::select_tiles(sc.index, camera, w, h, zmin, zmax, select);
   const std::vector<R::SelectedTile>& hit = sc.selection.tiles;
   sc.packages.resize(hit.size());
   for (size_t k = 0; k < hit.size(); ++k) {
     const prep::TileEntry& t = *hit[k].entry;
     open_package(dir + "/" + t.file, sc.packages[k]);
+    if (const uint64_t got = decoded_bytes(sc.packages[k]); got != hit[k].blob_bytes)
+      throw prep::format_error("render: " + dir + "/" + t.file + ": holds " + std::to_string(got) +
+                               " bytes of decoded blobs; its blob table said " +
+                               std::to_string(hit[k].blob_bytes) +
+                               " when the tiles were chosen (the file changed?)");
     R::DecalSource src = R::source_of(sc.packages[k]);
     if (src.frame.origin_x != t.origin_x || src.frame.origin_y != t.origin_y)
       throw prep::format_error(dir + "/" + t.file + ": origin differs from tileset.json's tile " +
@@ -348,9 +369,8 @@ void run(const RenderArgs& a) {
   // A tileset: only the tiles the view draws (select_tiles meets them with
   // what the camera can see of the terrain).
   if (sc.tileset) load_tiles(sc, a.package, opt.camera, w, h, terrain.zmin, terrain.zmax, select);
-  uint64_t blob_bytes = 0;  // what GL uploads
-  for (const R::TileSource& t : sc.tiles)
-    for (const R::DecalSource::Blob& b : t.source.blobs) blob_bytes += b.bytes;
+  uint64_t blob_bytes = 0;  // the loaded packages' blobs decoded (--gpu-budget's measure)
+  for (const decal::Package& p : sc.packages) blob_bytes += decoded_bytes(p);
   const auto frame_start = std::chrono::steady_clock::now();
 #ifdef PREP_RENDER_WITH_GL
   R::Image img =
@@ -407,13 +427,16 @@ void run(const RenderArgs& a) {
       std::printf(
           "bytes: %llu package bytes loaded, %.2f%% of the full-detail %llu of this view; %llu "
           "blob bytes uploaded\n",
-          static_cast<unsigned long long>(s.bytes),
-          s.full_detail_bytes ? 100.0 * double(s.bytes) / double(s.full_detail_bytes) : 0.0,
+          static_cast<unsigned long long>(s.package_bytes),
+          s.full_detail_bytes ? 100.0 * double(s.package_bytes) / double(s.full_detail_bytes) : 0.0,
           static_cast<unsigned long long>(s.full_detail_bytes),
           static_cast<unsigned long long>(blob_bytes));
       if (select.gpu_budget)
-        std::printf("gpu budget: %llu bytes, %zu tile groups coarsened to fit\n",
-                    static_cast<unsigned long long>(select.gpu_budget), s.coarsened);
+        std::printf(
+            "gpu budget: %llu bytes of decoded blobs (GPU memory, not package bytes), %llu "
+            "used, %zu tile groups coarsened to fit\n",
+            static_cast<unsigned long long>(select.gpu_budget),
+            static_cast<unsigned long long>(s.blob_bytes), s.coarsened);
     }
     std::printf("frame: %.3f ms (the %s render call, %u frame%s; tile loading not included)\n",
                 frame_ms, a.cpu ? "cpu" : "gl", a.frames, a.frames == 1 ? "" : "s");
@@ -484,16 +507,17 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
                   "Tileset: auto (default: per tile, the coarsest overview level whose "
                   "resolution is within a pixel) or L (that level everywhere; 0: full detail)");
   cmd->add_option("--gpu-budget", args->gpu_budget,
-                  "Tileset: package bytes the drawn tiles may hold (e.g. 512M, 2G); coarser "
-                  "levels where the view needs more, exit 6 when even the coarsest do "
-                  "(default: no limit)");
+                  "Tileset: GPU memory the drawn tiles may take, as their blobs' decoded bytes "
+                  "(not the smaller package bytes; e.g. 512M, 2G); coarser levels where the view "
+                  "needs more, exit 6 when even the coarsest do (default: no limit)");
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
   cmd->add_option("--frames", args->frames,
                   "GL: render N frames, report the last one's pass times (warm)")
       ->check(CLI::Range(1u, 1000u));
   cmd->add_flag("--stats", args->stats,
                 "Print per-pass times (GL timestamp queries and wall time), the frame time; a "
-                "tileset: tiles drawn per level, bytes loaded against full detail; --method "
+                "tileset: tiles drawn per level, package bytes loaded against full detail, "
+                "decoded blob bytes, --gpu-budget; --method "
                 "volume: prism triangles and groups; --method texture: texture size and bytes");
   cmd->add_option(
       "--raw", args->raw,

@@ -82,4 +82,42 @@ class Package {
   std::unique_ptr<Impl> impl_;
 };
 
+// One blob as the package's blob table describes it.
+struct BlobSize {
+  uint32_t id = 0;  // BlobId value (may be unknown to this build)
+  std::string name;
+  ElementType type{};
+  uint32_t stride = 0;
+  uint64_t count = 0;
+  uint64_t raw_bytes = 0;     // count * stride: its size decoded
+  uint64_t stored_bytes = 0;  // its size in the file
+  bool known() const { return find_blob_info(static_cast<BlobId>(id)) != nullptr; }
+};
+
+// What a package holds decoded, from its header and blob table alone.
+struct PackageSizes {
+  uint16_t major = 0, minor = 0;
+  uint32_t flags = 0;
+  uint64_t file_bytes = 0;
+  std::vector<BlobSize> blobs;  // in file order, unknown ids included
+  uint64_t raw_bytes = 0;       // the sum of the blobs' raw_bytes: what open() decodes
+};
+
+// Reads the header and the blob table of the package at `path` (its first
+// header_size + blob_count x blob_entry_size bytes: 2784 for the 28 blobs
+// decalprep writes) and neither the metadata nor any blob. What it reads is
+// checked as Package::open checks it (formats/SPEC.md "Blob sizes without
+// decoding"): magic, version, flags, reserved fields, the header and table
+// checksums, every entry's name, type, stride, codec and count x stride
+// (overflow-safe) = raw_size, and the placement of the metadata and of
+// every blob within the file's size. So a package open() accepts is
+// accepted here with the same ids, counts, strides and decoded sizes; one
+// accepted here may still fail open() on bytes not read (the metadata's
+// checksum and content, the blobs' checksums and zstd frames, the padding).
+// On failure `out` is left empty and the message names the path. Never
+// throws (std::bad_alloc aside).
+Status read_package_sizes(const std::string& path, PackageSizes& out);
+// The same over a whole file in memory: the same checks on the same bytes.
+Status package_sizes_from_memory(std::span<const std::byte> bytes, PackageSizes& out);
+
 }  // namespace decal
