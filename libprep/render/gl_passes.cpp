@@ -329,11 +329,8 @@ std::optional<std::array<int64_t, 2>> tile_shift(const TileSource& t) {
 void GlRenderer::load_tile(size_t k) {
   const TileSource& t = tiles_[k];
   timer_.tile = int(k);
-  timer_.begin("tile upload (blobs)");
   source_ = &t.source;
   gpu_.reset();
-  check(decal::gl::GpuPackage::upload(gl_blobs(t.source), gl_grid(t.source), gpu_, true));
-  timer_.end();
   const GridParams& gp = t.source.view.grid;
   const std::optional<std::array<int64_t, 2>> shift = tile_shift(t);
   if (!shift) fail<render_error>(kRenderStage, "tile origin not on the quantum grid");
@@ -350,6 +347,38 @@ void GlRenderer::load_tile(size_t k) {
             std::min(clip.xmax, opt_.clip->xmax - t.dx), std::min(clip.ymax, opt_.clip->ymax - t.dy)};
   set_clip(view_, clip);
   runs_ = draw_runs(t.source.view);
+  scissor_ = tile_scissor();
+  if (scissor_[2] == 0 || scissor_[3] == 0) return;  // not in the image: nothing to upload
+  timer_.begin("tile upload (blobs)");
+  check(decal::gl::GpuPackage::upload(gl_blobs(t.source), gl_grid(t.source), gpu_, true));
+  timer_.end();
+}
+
+// The pixels a tile can draw: the box of the image points of its square's
+// corners at the terrain's lowest and highest height (the projection of a
+// box in front of the camera lies in the hull of its corners' images),
+// grown by 2 pixels; the whole image when a corner is not in front. Every
+// pass of the tile is scissored to it, so hundreds of tiles cost about one
+// image's worth of fragments rather than one image each.
+std::array<GLint, 4> GlRenderer::tile_scissor() const {
+  const std::array<GLint, 4> all{0, 0, GLint(W_), GLint(H_)};
+  const std::array<float, 16>& m = view0_.view_proj;
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (int k = 0; k < 8; ++k) {
+    const double p[3] = {view_.clip[(k & 1) ? 2 : 0], view_.clip[(k & 2) ? 3 : 1],
+                         (k & 4) ? terrain_.zmax : terrain_.zmin};
+    double c[4];
+    for (int r = 0; r < 4; ++r) c[r] = m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r];
+    if (!(c[3] > 1e-6) || !std::isfinite(c[0] / c[3]) || !std::isfinite(c[1] / c[3])) return all;
+    const double px = (0.5 * c[0] / c[3] + 0.5) * W_, py = (0.5 * c[1] / c[3] + 0.5) * H_;
+    x0 = std::min(x0, px), x1 = std::max(x1, px), y0 = std::min(y0, py), y1 = std::max(y1, py);
+  }
+  const auto clamp = [](double v, uint32_t hi) {
+    return GLint(std::clamp(v, 0.0, double(hi)));
+  };
+  const GLint ix0 = clamp(std::floor(x0) - 2, W_), iy0 = clamp(std::floor(y0) - 2, H_);
+  const GLint ix1 = clamp(std::ceil(x1) + 2, W_), iy1 = clamp(std::ceil(y1) + 2, H_);
+  return {ix0, iy0, std::max(ix1 - ix0, 0), std::max(iy1 - iy0, 0)};
 }
 
 void GlRenderer::frame(Image& img) {
@@ -362,7 +391,12 @@ void GlRenderer::frame(Image& img) {
   glClearNamedFramebufferfv(t_.f_dyn, GL_COLOR, 0, clear0);
   img.dyn_kept = img.dyn_segments = img.dyn_nodes = 0;
   for (size_t k = 0; k < std::max<size_t>(tiles_.size(), 1); ++k) {
-    if (!tiles_.empty()) load_tile(k);
+    if (!tiles_.empty()) {
+      load_tile(k);
+      if (!gpu_) continue;
+      glEnable(GL_SCISSOR_TEST);
+      glScissor(scissor_[0], scissor_[1], scissor_[2], scissor_[3]);
+    }
     if (opt_.method == Method::decal)
       static_passes(f_static);
     else if (opt_.method == Method::volume)
@@ -371,7 +405,10 @@ void GlRenderer::frame(Image& img) {
       GlObjects work;  // the dynamic pass's buffers, freed with the tile
       dynamic_pass(img, work);
     }
-    if (!tiles_.empty()) gpu_.reset();
+    if (!tiles_.empty()) {
+      glDisable(GL_SCISSOR_TEST);
+      gpu_.reset();
+    }
   }
   timer_.tile = -1;
   if (opt_.method == Method::decal) end_static(f_static);

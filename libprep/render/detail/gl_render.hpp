@@ -171,8 +171,11 @@ class GlRenderer {
  private:
   void setup();
   void terrain_pass();
-  // Tileset: uploads tile k's blobs, puts view_ in its frame, its runs.
+  // Tileset: puts view_ in tile k's frame, its runs and scissor_
+  // (tile_scissor); uploads its blobs when the scissor box is not empty
+  // (else gpu_ stays empty and the tile is skipped).
   void load_tile(size_t k);
+  std::array<GLint, 4> tile_scissor() const;
   // The package's blobs and the terrain depth, bound where the decal
   // passes read them (static passes and dynamic lines, whatever --method).
   void bind_package() const;
@@ -211,6 +214,7 @@ class GlRenderer {
   GLuint empty_vao_ = 0;
   Targets t_;
   std::vector<DrawRun> runs_;
+  std::array<GLint, 4> scissor_{};  // the current tile's pixels: x, y, w, h
   StaticPrograms p_;
   MethodState m_;
 };
