@@ -5,6 +5,9 @@
 //    has its centre within 2 mm of a boundary of the single package's
 //    picture (its colour changes on a 2 mm circle around the centre); the
 //    same for the GL render of the tileset against its CPU render;
+//  - one frame: the GL render of the tileset (all tiles in one GL frame)
+//    equals the single package's GL render, and with coverage AA the
+//    per-tile renders merged, on every pixel within 1/255;
 //  - accounting: the tileset's per-layer counts equal the single package's;
 //  - determinism: --jobs 2 and --jobs 1 --threads 1 give the same bytes;
 //  - resume: a second run keeps every tile; a deleted and a corrupted tile
