@@ -343,8 +343,9 @@ void GlRenderer::load_tile(size_t k) {
   Extent clip{t.square.xmin - t.dx, t.square.ymin - t.dy, t.square.xmax - t.dx,
               t.square.ymax - t.dy};
   if (opt_.clip)
-    clip = {std::max(clip.xmin, opt_.clip->xmin - t.dx), std::max(clip.ymin, opt_.clip->ymin - t.dy),
-            std::min(clip.xmax, opt_.clip->xmax - t.dx), std::min(clip.ymax, opt_.clip->ymax - t.dy)};
+    clip = {
+        std::max(clip.xmin, opt_.clip->xmin - t.dx), std::max(clip.ymin, opt_.clip->ymin - t.dy),
+        std::min(clip.xmax, opt_.clip->xmax - t.dx), std::min(clip.ymax, opt_.clip->ymax - t.dy)};
   set_clip(view_, clip);
   runs_ = draw_runs(t.source.view);
   scissor_ = tile_scissor();
@@ -373,9 +374,7 @@ std::array<GLint, 4> GlRenderer::tile_scissor() const {
     const double px = (0.5 * c[0] / c[3] + 0.5) * W_, py = (0.5 * c[1] / c[3] + 0.5) * H_;
     x0 = std::min(x0, px), x1 = std::max(x1, px), y0 = std::min(y0, py), y1 = std::max(y1, py);
   }
-  const auto clamp = [](double v, uint32_t hi) {
-    return GLint(std::clamp(v, 0.0, double(hi)));
-  };
+  const auto clamp = [](double v, uint32_t hi) { return GLint(std::clamp(v, 0.0, double(hi))); };
   const GLint ix0 = clamp(std::floor(x0) - 2, W_), iy0 = clamp(std::floor(y0) - 2, H_);
   const GLint ix1 = clamp(std::ceil(x1) + 2, W_), iy1 = clamp(std::ceil(y1) + 2, H_);
   return {ix0, iy0, std::max(ix1 - ix0, 0), std::max(iy1 - iy0, 0)};

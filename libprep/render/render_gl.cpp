@@ -97,7 +97,8 @@ Image render_gl_one_frame(std::span<const TileSource> tiles, const Heightfield& 
   // Validate before anything touches GL, as for one package.
   for (const TileSource& t : tiles)
     if (!t.source.validated)
-      detail::check(decal::gl::validate_blobs(detail::gl_blobs(t.source), detail::gl_grid(t.source)));
+      detail::check(
+          decal::gl::validate_blobs(detail::gl_blobs(t.source), detail::gl_grid(t.source)));
   std::unique_ptr<decal::gl::Context> context;
   detail::check(decal::gl::Context::create(context));
   Image img;
@@ -166,9 +167,10 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
   // the passes blend under what the shared layers hold.
   if (one_frame(tiles, opt)) return render_gl_one_frame(tiles, terrain, opt);
   // The volume and texture methods (and tile origins off the quantum
-  // grid) keep one draw per tile: their set-up (prisms, the decal texture)
-  // is per package and made before the frame. One draw per tile in the tile's own frame (camera and terrain moved by
-  // its origin, so GL precision is the single package's), its decals clipped
+  // grid) keep one draw per tile, each with its own context: their set-up
+  // (prisms, the decal texture) is per package and made before the frame.
+  // Each tile is drawn in its own frame (camera and terrain moved by its
+  // origin, so GL precision is the single package's), its decals clipped
   // to its square; each pixel then takes the tile that drew there. Squares
   // do not overlap, so without anti-aliasing exactly one tile can.
   Image out;

@@ -309,11 +309,11 @@ TEST_F(Tileset, GlRenderOfTheTilesetEqualsTheSinglePackagesGlRender) {
   for (size_t k = 0; k < ix.tiles.size(); ++k) {
     const prep::TileEntry& t = ix.tiles[k];
     ASSERT_TRUE(decal::Package::open(file("tiles/" + t.file), packages[k]));
-    tiles.push_back({R::source_of(packages[k]),
-                     {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox,
-                      t.square.ymax - oy},
-                     t.origin_x - ox,
-                     t.origin_y - oy});
+    tiles.push_back(
+        {R::source_of(packages[k]),
+         {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
+         t.origin_x - ox,
+         t.origin_y - oy});
   }
   const View v = monaco_view(ix);
   const auto in_view = prep::tiles_in(ix, v.abs);
@@ -331,8 +331,8 @@ TEST_F(Tileset, GlRenderOfTheTilesetEqualsTheSinglePackagesGlRender) {
   };
   // The build's DEM (dynamic lines lie on it), in the tileset's frame and
   // moved into the package's.
-  const prep::Extent ground{ix.extent.xmin - 3000, ix.extent.ymin - 3000,
-                            ix.extent.xmax + 3000, ix.extent.ymax + 3000};
+  const prep::Extent ground{ix.extent.xmin - 3000, ix.extent.ymin - 3000, ix.extent.xmax + 3000,
+                            ix.extent.ymax + 3000};
   const R::Heightfield terrain =
       R::load_heightfield(R::recorded_dem(std::string(single.metadata_json())), ix.frame,
                           shift(ground, ox, oy), R::kMeshSamples);
@@ -408,17 +408,17 @@ TEST_F(Tileset, GlRenderOfTheTilesetEqualsTheSinglePackagesGlRender) {
               merged.dynamic[4 * k + ch] = img.dynamic[4 * k + ch];
             }
       }
-      std::printf("[ measured ] %s: the tileset differs from the single package's on %zu "
-                  "of %zu pixels (static layer)\n",
-                  c.name, single_off, n);
+      std::printf(
+          "[ measured ] %s: the tileset differs from the single package's on %zu "
+          "of %zu pixels (static layer)\n",
+          c.name, single_off, n);
       a = std::move(merged);
     }
     const size_t off_rgba = pixels_off(a.rgba, b.rgba), off_decals = pixels_off(a.decals, b.decals),
                  off_dyn = pixels_off(a.dynamic, b.dynamic);
     // The one-frame path: one pass-table row per pass, naming its tiles.
     bool per_pass = false;
-    for (const R::PassTime& t : b.times)
-      per_pass |= t.pass.find(" tiles]") != std::string::npos;
+    for (const R::PassTime& t : b.times) per_pass |= t.pass.find(" tiles]") != std::string::npos;
     EXPECT_TRUE(per_pass) << "the tileset was not drawn in one frame";
     std::printf(
         "[ measured ] %s, %zu tiles: %zu of %zu pixels differ by more than 1/255 (image), %zu "

@@ -199,7 +199,7 @@ class GlRenderer {
   void dynamic_pass(Image& img, GlObjects& work);
   void composite_pass();
 
-  std::span<const TileSource> tiles_;  // a tileset (empty: one package)
+  std::span<const TileSource> tiles_;    // a tileset (empty: one package)
   const DecalSource* source_ = nullptr;  // the package (the current tile)
   const Heightfield& terrain_;
   const RenderOptions& opt_;
