@@ -173,10 +173,16 @@ uint32_t DynamicLines::lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao) {
   return grows;
 }
 
+// Blended under what the layer holds (another tile's lines: squares do not
+// overlap, so at most one tile's lines reach a pixel centre; the layer is
+// cleared once per frame, so a single package's lines land as drawn).
 void DynamicLines::composite(GLuint p_composite) {
   timer_.begin("dynamic composite (sort + blend)");
   set_uniforms(p_composite);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_ONE_MINUS_DST_ALPHA, GL_ONE);
   glDrawArrays(GL_TRIANGLES, 0, 3);
+  glDisable(GL_BLEND);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   timer_.end();
 }
@@ -184,18 +190,16 @@ void DynamicLines::composite(GLuint p_composite) {
 void DynamicLines::read_counters(Image& img) const {
   uint32_t stats[8] = {};
   glGetNamedBufferSubData(counters_, 0, sizeof stats, stats);
-  img.dyn_segments = stats[0];
-  img.dyn_kept = stats[4];
-  img.dyn_nodes = stats[5];
+  img.dyn_segments += stats[0];
+  img.dyn_kept += stats[4];
+  img.dyn_nodes += stats[5];
 }
 
 }  // namespace
 
-// Clears the dynamic layer, then draws into it when there are dynamic lines
-// to draw.
-void GlRenderer::dynamic_pass(Image& img) {
-  const float clear_dyn[4] = {0, 0, 0, 0};
-  glClearNamedFramebufferfv(t_.f_dyn, GL_COLOR, 0, clear_dyn);
+// Draws into the dynamic layer (cleared by frame()) when there are dynamic
+// lines to draw; the work buffers go into `work`, the programs into gl_.
+void GlRenderer::dynamic_pass(Image& img, GlObjects& work) {
   const uint64_t n_dyn = gpu_->count(decal::BlobId::dyn_vertices);
   const uint64_t n_dyn_lines = gpu_->count(decal::BlobId::dyn_line_start);
   if (!opt_.draw_dynamic || n_dyn == 0 || n_dyn_lines == 0) return;
@@ -206,7 +210,7 @@ void GlRenderer::dynamic_pass(Image& img) {
       p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
       "#define DECAL_DYNAMIC 1\n";
   const DynPrograms p = dyn_programs(gl_, dd);
-  DynamicLines dyn(gl_, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines);
+  DynamicLines dyn(work, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines);
   dyn.make_buffers();
   dyn.update(p);
   img.list_grows += dyn.lists(p.lists, t_.f_dyn, empty_vao_);

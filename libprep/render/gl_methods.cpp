@@ -89,7 +89,7 @@ GLuint upload_positions(GlObjects& gl, const std::vector<float>& xyz, const char
 
 void GlRenderer::method_setup() {
   const MethodGeometry g =
-      method_geometry(source_.view, opt_.draw_polygons, opt_.draw_lines, opt_.clip);
+      method_geometry(source_->view, opt_.draw_polygons, opt_.draw_lines, opt_.clip);
   const Vec3& anchor = view_.anchor;
   if (opt_.method == Method::volume) {
     // Schneider & Klein §4.1: every feature extruded to a closed prism from
@@ -209,7 +209,7 @@ void GlRenderer::method_setup() {
 
   // Texture method (Taibo et al. §4): the package extent (a tile's square
   // where clipped) at `texture_resolution` metres per texel.
-  Extent e = source_.extent;
+  Extent e = source_->extent;
   if (opt_.clip)
     e = {std::max(e.xmin, opt_.clip->xmin), std::max(e.ymin, opt_.clip->ymin),
          std::min(e.xmax, opt_.clip->xmax), std::min(e.ymax, opt_.clip->ymax)};

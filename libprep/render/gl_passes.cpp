@@ -99,7 +99,7 @@ GLuint PassTimer::stamp() {
 
 void PassTimer::begin(const std::string& name) {
   glFinish();
-  passes.push_back({name, 0, 0, std::chrono::steady_clock::now(), {}});
+  passes.push_back({name, 0, 0, std::chrono::steady_clock::now(), {}, tile});
   passes.back().begin = stamp();
 }
 
@@ -119,6 +119,40 @@ void PassTimer::collect(std::vector<PassTime>& out) {
   }
 }
 
+void PassTimer::collect_per_pass(std::vector<PassTime>& out) {
+  std::vector<PassTime> each;
+  collect(each);
+  struct Row {
+    PassTime sum;
+    size_t draws = 0, tiles = 0;
+    int last_tile = -1;
+    bool per_tile = false;
+  };
+  std::vector<Row> rows;
+  for (size_t k = 0; k < each.size(); ++k) {
+    const int tile = passes[k].tile;
+    std::string name = each[k].pass;
+    if (tile >= 0) name = name.substr(0, name.find(" ["));
+    auto it = std::find_if(rows.begin(), rows.end(), [&](const Row& r) {
+      return r.sum.pass == name && r.per_tile == (tile >= 0);
+    });
+    if (it == rows.end()) {
+      rows.push_back({{name, 0, 0}, 0, 0, -1, tile >= 0});
+      it = rows.end() - 1;
+    }
+    it->sum.ms += each[k].ms;
+    it->sum.wall_ms += each[k].wall_ms;
+    it->draws++;
+    if (tile != it->last_tile) it->tiles++, it->last_tile = tile;
+  }
+  for (Row& r : rows) {
+    if (r.per_tile)
+      r.sum.pass += " [" + (r.draws != r.tiles ? std::to_string(r.draws) + " draws, " : "") +
+                    std::to_string(r.tiles) + (r.tiles == 1 ? " tile]" : " tiles]");
+    out.push_back(std::move(r.sum));
+  }
+}
+
 // --- setup
 
 ViewUniforms view_uniforms(const Camera& cam, const GridParams& gp, uint32_t W, uint32_t H) {
@@ -131,16 +165,27 @@ ViewUniforms view_uniforms(const Camera& cam, const GridParams& gp, uint32_t W, 
   const Mat4 vp = mat_mul(projection_matrix(cam, double(W) / H), view_matrix(cam, v.eye_rel));
   v.view_proj = to_float(vp);
   v.inv_view_proj = to_float(mat_inverse(vp));
-  v.rx = v.ax - gp.origin_x;
-  v.ry = v.ay - gp.origin_y;
-  v.cell_x = floor_div(v.rx, gp.cell_w);
-  v.cell_y = floor_div(v.ry, gp.cell_h);
-  v.grid = gp;
+  set_grid(v, gp);
   v.mpp_ortho = cam.projection == Projection::orthographic ? cam.ortho_h / H : 0.0;
   v.mpp_per_metre = cam.projection == Projection::perspective
                         ? 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H
                         : 0.0;
   return v;
+}
+
+void set_grid(ViewUniforms& v, const GridParams& gp) {
+  v.rx = v.ax - gp.origin_x;
+  v.ry = v.ay - gp.origin_y;
+  v.cell_x = floor_div(v.rx, gp.cell_w);
+  v.cell_y = floor_div(v.ry, gp.cell_h);
+  v.grid = gp;
+}
+
+void set_clip(ViewUniforms& v, const Extent& clip) {
+  const double q = decal::kQuantumMetres;
+  const double ax = double(v.ax) * q, ay = double(v.ay) * q;
+  v.clip = {float(clip.xmin - ax), float(clip.ymin - ay), float(clip.xmax - ax),
+            float(clip.ymax - ay)};
 }
 
 Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H, bool stencil) {
@@ -221,42 +266,158 @@ StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt) {
 GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal::gl::Grid& grid,
                        const DecalSource& source, const Heightfield& terrain,
                        const RenderOptions& opt)
-    : source_(source), terrain_(terrain), opt_(opt), W_(opt.width), H_(opt.height) {
+    : source_(&source), terrain_(terrain), opt_(opt), W_(opt.width), H_(opt.height) {
   wall0_ = std::chrono::steady_clock::now();
   check(decal::gl::GpuPackage::upload(blobs, grid, gpu_, true));
-  view_ = view_uniforms(opt.camera, source.view.grid, W_, H_);
-  if (opt.clip) {
-    const double q = decal::kQuantumMetres;
-    const double ax = double(view_.ax) * q, ay = double(view_.ay) * q;
-    view_.clip = {float(opt.clip->xmin - ax), float(opt.clip->ymin - ay),
-                  float(opt.clip->xmax - ax), float(opt.clip->ymax - ay)};
-  }
-  mesh_ = upload_terrain_mesh(gl_, terrain, view_.anchor);
+  view0_ = view_uniforms(opt.camera, source.view.grid, W_, H_);
+  if (opt.clip) set_clip(view0_, *opt.clip);
+  view_ = view0_;
+  runs_ = draw_runs(source.view);
+  setup();
+  if (opt.method != Method::decal) method_setup();
+}
+
+GlRenderer::GlRenderer(std::span<const TileSource> tiles, const Heightfield& terrain,
+                       const RenderOptions& opt)
+    : tiles_(tiles), terrain_(terrain), opt_(opt), W_(opt.width), H_(opt.height) {
+  wall0_ = std::chrono::steady_clock::now();
+  if (opt.method != Method::decal || tiles.empty())
+    fail<render_error>(kRenderStage, "a tileset in one frame takes the decal method");
+  // The grid only sets view0_'s cell, which no pass reads: each tile's
+  // view_ takes its own (load_tile).
+  view0_ = view_uniforms(opt.camera, tiles.front().source.view.grid, W_, H_);
+  view_ = view0_;
+  setup();
+}
+
+// What every package of the frame shares: terrain mesh, targets, programs.
+void GlRenderer::setup() {
+  mesh_ = upload_terrain_mesh(gl_, terrain_, view0_.anchor);
   glCreateVertexArrays(1, &empty_vao_);
   gl_.arrays.push_back(empty_vao_);
-  t_ = make_targets(gl_, W_, H_, opt.method == Method::volume);
-  runs_ = draw_runs(source.view);
-  p_ = static_programs(gl_, opt);
+  t_ = make_targets(gl_, W_, H_, opt_.method == Method::volume);
+  p_ = static_programs(gl_, opt_);
   glViewport(0, 0, GLsizei(W_), GLsizei(H_));
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
-  if (opt.method != Method::decal) method_setup();
+}
+
+std::vector<decal::gl::BlobBytes> gl_blobs(const DecalSource& source) {
+  std::vector<decal::gl::BlobBytes> blobs;
+  for (const auto& b : source.blobs)
+    blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
+  return blobs;
+}
+
+decal::gl::Grid gl_grid(const DecalSource& source) {
+  const GridParams& gp = source.view.grid;
+  return {gp.origin_x, gp.origin_y, gp.cell_w, gp.cell_h, gp.nx, gp.ny};
+}
+
+std::optional<std::array<int64_t, 2>> tile_shift(const TileSource& t) {
+  const double q = decal::kQuantumMetres;
+  const std::array<int64_t, 2> k{std::llround(t.dx / q), std::llround(t.dy / q)};
+  if (!(std::fabs(t.dx - double(k[0]) * q) <= 1e-6 && std::fabs(t.dy - double(k[1]) * q) <= 1e-6))
+    return std::nullopt;
+  return k;
+}
+
+// The tile's frame is the index frame moved by (dx, dy), a whole number of
+// quanta k: the anchor there is view0_'s anchor minus k, exactly, and every
+// anchor-relative float the GPU holds (eye, matrices, terrain depth, clip)
+// stays view0_'s. Only integer uniforms (u_anchor_q, u_anchor_cell) and the
+// anchor's offset in its cell change, computed in double on the CPU.
+void GlRenderer::load_tile(size_t k) {
+  const TileSource& t = tiles_[k];
+  timer_.tile = int(k);
+  source_ = &t.source;
+  gpu_.reset();
+  const GridParams& gp = t.source.view.grid;
+  const std::optional<std::array<int64_t, 2>> shift = tile_shift(t);
+  if (!shift) fail<render_error>(kRenderStage, "tile origin not on the quantum grid");
+  view_ = view0_;
+  view_.ax -= (*shift)[0];
+  view_.ay -= (*shift)[1];
+  const double q = decal::kQuantumMetres;
+  view_.anchor = {double(view_.ax) * q, double(view_.ay) * q, 0.0};
+  set_grid(view_, gp);
+  Extent clip{t.square.xmin - t.dx, t.square.ymin - t.dy, t.square.xmax - t.dx,
+              t.square.ymax - t.dy};
+  if (opt_.clip)
+    clip = {
+        std::max(clip.xmin, opt_.clip->xmin - t.dx), std::max(clip.ymin, opt_.clip->ymin - t.dy),
+        std::min(clip.xmax, opt_.clip->xmax - t.dx), std::min(clip.ymax, opt_.clip->ymax - t.dy)};
+  set_clip(view_, clip);
+  runs_ = draw_runs(t.source.view);
+  scissor_ = tile_scissor();
+  if (scissor_[2] == 0 || scissor_[3] == 0) return;  // not in the image: nothing to upload
+  timer_.begin("tile upload (blobs)");
+  check(decal::gl::GpuPackage::upload(gl_blobs(t.source), gl_grid(t.source), gpu_, true));
+  timer_.end();
+}
+
+// The pixels a tile can draw: the box of the image points of its square's
+// corners at the terrain's lowest and highest height (the projection of a
+// box in front of the camera lies in the hull of its corners' images),
+// grown by 2 pixels; the whole image when a corner is not in front. Every
+// pass of the tile is scissored to it, so hundreds of tiles cost about one
+// image's worth of fragments rather than one image each.
+std::array<GLint, 4> GlRenderer::tile_scissor() const {
+  const std::array<GLint, 4> all{0, 0, GLint(W_), GLint(H_)};
+  const std::array<float, 16>& m = view0_.view_proj;
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (int k = 0; k < 8; ++k) {
+    const double p[3] = {view_.clip[(k & 1) ? 2 : 0], view_.clip[(k & 2) ? 3 : 1],
+                         (k & 4) ? terrain_.zmax : terrain_.zmin};
+    double c[4];
+    for (int r = 0; r < 4; ++r) c[r] = m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r];
+    if (!(c[3] > 1e-6) || !std::isfinite(c[0] / c[3]) || !std::isfinite(c[1] / c[3])) return all;
+    const double px = (0.5 * c[0] / c[3] + 0.5) * W_, py = (0.5 * c[1] / c[3] + 0.5) * H_;
+    x0 = std::min(x0, px), x1 = std::max(x1, px), y0 = std::min(y0, py), y1 = std::max(y1, py);
+  }
+  const auto clamp = [](double v, uint32_t hi) { return GLint(std::clamp(v, 0.0, double(hi))); };
+  const GLint ix0 = clamp(std::floor(x0) - 2, W_), iy0 = clamp(std::floor(y0) - 2, H_);
+  const GLint ix1 = clamp(std::ceil(x1) + 2, W_), iy1 = clamp(std::ceil(y1) + 2, H_);
+  return {ix0, iy0, std::max(ix1 - ix0, 0), std::max(iy1 - iy0, 0)};
 }
 
 void GlRenderer::frame(Image& img) {
   timer_.passes.clear();
+  timer_.tile = -1;
   if (opt_.method == Method::texture && !m_.texture) texture_raster();
   terrain_pass();
-  if (opt_.method == Method::decal)
-    static_passes();
-  else if (opt_.method == Method::volume)
-    volume_passes();
-  dynamic_pass(img);
+  const GLuint f_static = opt_.method == Method::decal ? begin_static() : 0;
+  const float clear0[4] = {0, 0, 0, 0};
+  glClearNamedFramebufferfv(t_.f_dyn, GL_COLOR, 0, clear0);
+  img.dyn_kept = img.dyn_segments = img.dyn_nodes = 0;
+  for (size_t k = 0; k < std::max<size_t>(tiles_.size(), 1); ++k) {
+    if (!tiles_.empty()) {
+      load_tile(k);
+      if (!gpu_) continue;
+      glEnable(GL_SCISSOR_TEST);
+      glScissor(scissor_[0], scissor_[1], scissor_[2], scissor_[3]);
+    }
+    if (opt_.method == Method::decal)
+      static_passes(f_static);
+    else if (opt_.method == Method::volume)
+      volume_passes();
+    {
+      GlObjects work;  // the dynamic pass's buffers, freed with the tile
+      dynamic_pass(img, work);
+    }
+    if (!tiles_.empty()) {
+      glDisable(GL_SCISSOR_TEST);
+      gpu_.reset();
+    }
+  }
+  timer_.tile = -1;
+  if (opt_.method == Method::decal) end_static(f_static);
   composite_pass();
   method_stats(img);
 }
 
 // --- passes
 
+// In the frame's camera (view0_), whatever package is current.
 void GlRenderer::terrain_pass() {
   // The texture method samples its texture here into a second target, the
   // decal layer (Taibo et al. §4).
@@ -279,9 +440,9 @@ void GlRenderer::terrain_pass() {
   if (sample_texture) {
     glBindTextureUnit(27, m_.texture);
     glUniform4fv(glGetUniformLocation(p, "u_texture_box"), 1, m_.texture_box.data());
-    glUniform4fv(glGetUniformLocation(p, "u_clip"), 1, view_.clip.data());
+    glUniform4fv(glGetUniformLocation(p, "u_clip"), 1, view0_.clip.data());
   }
-  glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
+  glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view0_.view_proj.data());
   Vec3 light = normalize({-0.4, -0.5, 0.75});
   glUniform3f(glGetUniformLocation(p, "u_light_dir"), float(light[0]), float(light[1]),
               float(light[2]));
@@ -305,10 +466,7 @@ GLuint GlRenderer::static_target() {
   glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &t_ms);
   gl_.textures.push_back(t_ms);
   glTextureStorage2DMultisample(t_ms, 4, GL_RGBA32F, GLsizei(W_), GLsizei(H_), GL_TRUE);
-  const GLuint f = gl_.framebuffer(t_ms, 0);
-  glEnable(GL_SAMPLE_SHADING);
-  glMinSampleShading(1.0f);
-  return f;
+  return gl_.framebuffer(t_ms, 0);
 }
 
 void GlRenderer::set_static_uniforms(GLuint p) const {
@@ -341,15 +499,23 @@ void GlRenderer::bind_package() const {
   glBindTextureUnit(31, t_.depth);
 }
 
-// Static decal passes over the back-projected depth.
-void GlRenderer::static_passes() {
-  bind_package();
+GLuint GlRenderer::begin_static() {
   const GLuint f_static = static_target();
-  glBindFramebuffer(GL_FRAMEBUFFER, f_static);
   const float clear0[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(f_static, GL_COLOR, 0, clear0);
   glClearNamedFramebufferfv(t_.f_decal, GL_COLOR, 0, clear0);
+  return f_static;
+}
+
+// Static decal passes over the back-projected depth.
+void GlRenderer::static_passes(GLuint f_static) {
+  bind_package();
+  glBindFramebuffer(GL_FRAMEBUFFER, f_static);
   glBindVertexArray(empty_vao_);
+  if (f_static != t_.f_decal) {
+    glEnable(GL_SAMPLE_SHADING);
+    glMinSampleShading(1.0f);
+  }
   // A kind with no per-cell ranges is absent: its pass would index the
   // 16-byte placeholder buffer, so it is skipped.
   const uint64_t cells = uint64_t(view_.grid.nx) * view_.grid.ny;
@@ -376,9 +542,12 @@ void GlRenderer::static_passes() {
     timer_.end();
   }
   glDisable(GL_BLEND);
+  glDisable(GL_SAMPLE_SHADING);
+}
+
+void GlRenderer::end_static(GLuint f_static) {
   if (f_static != t_.f_decal) {
     timer_.begin("msaa resolve");
-    glDisable(GL_SAMPLE_SHADING);
     glBlitNamedFramebuffer(f_static, t_.f_decal, 0, 0, GLint(W_), GLint(H_), 0, 0, GLint(W_),
                            GLint(H_), GL_COLOR_BUFFER_BIT, GL_NEAREST);
     timer_.end();

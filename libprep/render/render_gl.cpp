@@ -47,7 +47,10 @@ void GlRenderer::read_back(Image& img) {
                     dec.data());
   if (GLenum e = glGetError(); e != GL_NO_ERROR)
     fail<render_error>(kRenderStage, "GL error " + std::to_string(e));
-  timer_.collect(img.times);
+  if (tiles_.empty())
+    timer_.collect(img.times);
+  else
+    timer_.collect_per_pass(img.times);
   if (!m_.raster_time.pass.empty()) img.times.insert(img.times.begin(), m_.raster_time);
   const double frame =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0_).count();
@@ -64,7 +67,9 @@ void GlRenderer::read_back(Image& img) {
 
 }  // namespace detail
 
-Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
+namespace {
+
+void check_options(const RenderOptions& opt) {
   const uint32_t W = opt.width, H = opt.height;
   if (W == 0 || H == 0 || W > 16384 || H > 16384)
     fail<usage_error>(kRenderStage, "image size must be 1..16384 pixels");
@@ -74,6 +79,44 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
                       "none");
   if (!(opt.texture_resolution >= 0) || !std::isfinite(opt.texture_resolution))
     fail<usage_error>(kRenderStage, "--texture-resolution must be a positive number of metres");
+}
+
+// Whether a tileset is drawn in one frame (render_gl of tiles below).
+bool one_frame(std::span<const TileSource> tiles, const RenderOptions& opt) {
+  if (opt.method != Method::decal) return false;
+  for (const TileSource& t : tiles)
+    if (!detail::tile_shift(t)) return false;
+  return true;
+}
+
+// A tileset in one frame: one context, the terrain once, each tile's
+// blobs resident only while its passes draw (detail::GlRenderer).
+Image render_gl_one_frame(std::span<const TileSource> tiles, const Heightfield& terrain,
+                          const RenderOptions& opt) {
+  check_options(opt);
+  // Validate before anything touches GL, as for one package.
+  for (const TileSource& t : tiles)
+    if (!t.source.validated)
+      detail::check(
+          decal::gl::validate_blobs(detail::gl_blobs(t.source), detail::gl_grid(t.source)));
+  std::unique_ptr<decal::gl::Context> context;
+  detail::check(decal::gl::Context::create(context));
+  Image img;
+  img.width = opt.width;
+  img.height = opt.height;
+  img.device = context->info().renderer;
+  {
+    detail::GlRenderer gl(tiles, terrain, opt);
+    for (uint32_t frame = 0; frame < std::max<uint32_t>(opt.frames, 1); ++frame) gl.frame(img);
+    gl.read_back(img);
+  }
+  return img;
+}
+
+}  // namespace
+
+Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
+  check_options(opt);
 
   // Validate before anything touches GL (formats/gl validate_blobs), once:
   // a package's source was checked when it was made.
@@ -87,8 +130,8 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
   std::unique_ptr<decal::gl::Context> context;
   detail::check(decal::gl::Context::create(context));
   Image img;
-  img.width = W;
-  img.height = H;
+  img.width = opt.width;
+  img.height = opt.height;
   img.device = context->info().renderer;
   {
     // GL objects go before the context.
@@ -106,8 +149,28 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
   if (tiles.size() == 1 && std::isinf(tiles[0].square.xmin))
     return render_gl(tiles[0].source, terrain, opt);
   if (tiles.empty()) fail<usage_error>(kRenderStage, "no tile of the tileset meets the view");
-  // One draw per tile in the tile's own frame (camera and terrain moved by
-  // its origin, so GL precision is the single package's), its decals clipped
+  // The decal method draws every tile in one frame, in one context: the
+  // terrain G-buffer once in the index frame, then per tile its static and
+  // dynamic passes clipped to its square into the shared layers, its blobs
+  // on the GPU only while they draw; composite and read back once.
+  // Precision: a tile's frame is the index frame moved by its (dx, dy), a
+  // whole number of quanta (tileset origins are quantised), so the anchor
+  // in the tile's frame is the index anchor minus that integer, and every
+  // float the GPU holds relative to the anchor (eye, matrices, terrain
+  // depth, clip) is the same as in the tile's own render below; only the
+  // integer anchor uniforms and the anchor's offset in its grid cell
+  // (double on the CPU) differ per tile (GlRenderer::load_tile). The
+  // result is the per-tile render's up to the rounding of the terrain
+  // vertices (x0 - dx + i*dx - anchor there, x0 + i*dx - anchor here).
+  // Pixels are not merged: squares are half-open and do not overlap, so
+  // each pixel centre (each sample with MSAA) is drawn by one tile at most;
+  // the passes blend under what the shared layers hold.
+  if (one_frame(tiles, opt)) return render_gl_one_frame(tiles, terrain, opt);
+  // The volume and texture methods (and tile origins off the quantum
+  // grid) keep one draw per tile, each with its own context: their set-up
+  // (prisms, the decal texture) is per package and made before the frame.
+  // Each tile is drawn in its own frame (camera and terrain moved by its
+  // origin, so GL precision is the single package's), its decals clipped
   // to its square; each pixel then takes the tile that drew there. Squares
   // do not overlap, so without anti-aliasing exactly one tile can.
   Image out;

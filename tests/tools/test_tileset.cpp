@@ -5,6 +5,9 @@
 //    has its centre within 2 mm of a boundary of the single package's
 //    picture (its colour changes on a 2 mm circle around the centre); the
 //    same for the GL render of the tileset against its CPU render;
+//  - one frame: the GL render of the tileset (all tiles in one GL frame)
+//    equals the single package's GL render, and with coverage AA the
+//    per-tile renders merged, on every pixel within 1/255;
 //  - accounting: the tileset's per-layer counts equal the single package's;
 //  - determinism: --jobs 2 and --jobs 1 --threads 1 give the same bytes;
 //  - resume: a second run keeps every tile; a deleted and a corrupted tile
@@ -416,6 +419,172 @@ TEST_F(Tileset, GlRenderOfTheTilesetEqualsItsCpuRender) {
   EXPECT_LE(double(diff.size()), 1e-4 * double(n));
   EXPECT_EQ(far, 0u);
 }
+
+#ifdef PREP_RENDER_WITH_GL
+// Channels (of 4 per pixel) that differ by more than 1/255: 8-bit images
+// by more than 1, float layers by more than 1/255.
+size_t pixels_off(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
+  size_t n = 0;
+  for (size_t k = 0; 4 * k < a.size(); ++k)
+    for (int c = 0; c < 4; ++c)
+      if (std::abs(int(a[4 * k + c]) - int(b[4 * k + c])) > 1) {
+        ++n;
+        break;
+      }
+  return n;
+}
+size_t pixels_off(const std::vector<float>& a, const std::vector<float>& b) {
+  size_t n = 0;
+  for (size_t k = 0; 4 * k < a.size(); ++k)
+    for (int c = 0; c < 4; ++c)
+      if (std::fabs(a[4 * k + c] - b[4 * k + c]) > 1.0f / 255) {
+        ++n;
+        break;
+      }
+  return n;
+}
+
+// The GL render of the tileset (every tile in one frame and one context:
+// render_gl.cpp) against the GL render of the single package built from
+// the same scene, static polygons and lines and dynamic lines: a top-down
+// view over 4 x 4 tiles and an oblique perspective view of every tile (the
+// dynamic lines, motorways, are in the north), with and without coverage
+// AA (and MSAA top-down), over the build's DEM. A tile drawn at a wrong offset, or a
+// tile's layer overwriting another's, moves its decals by metres and shows
+// as whole features off.
+TEST_F(Tileset, GlRenderOfTheTilesetEqualsTheSinglePackagesGlRender) {
+  namespace R = prep::render;
+  const prep::TilesetIndex ix = prep::read_tileset_index(file("tiles"));
+  decal::Package single;
+  ASSERT_TRUE(decal::Package::open(file("single.decals"), single));
+  const R::DecalSource one = R::source_of(single);
+  std::vector<decal::Package> packages(ix.tiles.size());
+  std::vector<R::TileSource> tiles;
+  const double ox = ix.frame.origin_x, oy = ix.frame.origin_y;
+  for (size_t k = 0; k < ix.tiles.size(); ++k) {
+    const prep::TileEntry& t = ix.tiles[k];
+    ASSERT_TRUE(decal::Package::open(file("tiles/" + t.file), packages[k]));
+    tiles.push_back(
+        {R::source_of(packages[k]),
+         {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
+         t.origin_x - ox,
+         t.origin_y - oy});
+  }
+  const View v = monaco_view(ix);
+  const auto in_view = prep::tiles_in(ix, v.abs);
+  ASSERT_GE(in_view.size(), 4u);
+  std::vector<R::TileSource> shown;
+  for (const R::TileSource& t : tiles)
+    for (const prep::TileEntry* e : in_view)
+      if (t.square.xmin == e->square.xmin - ox && t.square.ymin == e->square.ymin - oy)
+        shown.push_back(t);
+  ASSERT_EQ(shown.size(), in_view.size());
+
+  // Camera and terrain in a frame: the tileset's (index) or the package's.
+  auto shift = [](const prep::Extent& e, double x, double y) {
+    return prep::Extent{e.xmin - x, e.ymin - y, e.xmax - x, e.ymax - y};
+  };
+  // The build's DEM (dynamic lines lie on it), in the tileset's frame and
+  // moved into the package's.
+  const prep::Extent ground{ix.extent.xmin - 3000, ix.extent.ymin - 3000, ix.extent.xmax + 3000,
+                            ix.extent.ymax + 3000};
+  const R::Heightfield terrain =
+      R::load_heightfield(R::recorded_dem(std::string(single.metadata_json())), ix.frame,
+                          shift(ground, ox, oy), R::kMeshSamples);
+  R::Heightfield one_terrain = terrain;
+  one_terrain.x0 += ox - one.frame.origin_x;
+  one_terrain.y0 += oy - one.frame.origin_y;
+  struct Case {
+    const char* name;
+    bool oblique;
+    R::AntiAliasing aa;
+  };
+  for (const Case& c : {Case{"top-down, aa none", false, R::AntiAliasing::none},
+                        Case{"top-down, aa coverage", false, R::AntiAliasing::coverage},
+                        Case{"top-down, aa msaa4", false, R::AntiAliasing::msaa4},
+                        Case{"oblique, aa none", true, R::AntiAliasing::none},
+                        Case{"oblique, aa coverage", true, R::AntiAliasing::coverage}}) {
+    SCOPED_TRACE(c.name);
+    auto options = [&](double x, double y) {
+      R::RenderOptions o;
+      o.width = c.oblique ? 640 : v.w;
+      o.height = c.oblique ? 400 : v.h;
+      o.aa = c.aa;
+      const prep::Extent e = shift(c.oblique ? ix.extent : v.abs, x, y);
+      o.camera = c.oblique ? R::fit_camera(e, terrain.zmin, terrain.zmax, o.width, o.height,
+                                           R::Projection::perspective, 35)
+                           : R::topdown_camera(e, terrain.zmin, terrain.zmax);
+      return o;
+    };
+    const std::vector<R::TileSource>& drawn = c.oblique ? tiles : shown;
+    R::Image a, b;
+    try {
+      a = R::render_gl(one, one_terrain, options(one.frame.origin_x, one.frame.origin_y));
+    } catch (const prep::render_error& e) {
+      GTEST_SKIP() << "no headless GL here: " << e.what();
+    }
+    const size_t n = size_t(a.width) * a.height;
+    size_t decals = 0, lines = 0;
+    for (size_t k = 0; k < n; ++k) {
+      decals += a.decals[4 * k + 3] > 0 ? 1 : 0;
+      lines += a.dynamic[4 * k + 3] > 0 ? 1 : 0;
+    }
+    ASSERT_GT(decals, n / 10) << "the view must show the city";
+    if (c.oblique) {
+      ASSERT_GT(lines, 0u) << "the view must show dynamic lines";
+    }
+    b = R::render_gl(drawn, terrain, options(ox, oy));
+    ASSERT_EQ(b.rgba.size(), a.rgba.size());
+    // With coverage AA a tileset's edge pixels differ from the single
+    // package's already per tile (the tiles' data is cut at the squares),
+    // so the oracle is each tile rendered on its own as one package, in
+    // its frame and clipped to its square, each pixel from the tile with
+    // the most alpha there.
+    if (c.aa == R::AntiAliasing::coverage) {
+      const size_t single_off = pixels_off(a.decals, b.decals);
+      R::Image merged;
+      for (const R::TileSource& t : drawn) {
+        R::RenderOptions o = options(ox + t.dx, oy + t.dy);
+        o.clip = shift(t.square, t.dx, t.dy);
+        R::Heightfield h = terrain;
+        h.x0 -= t.dx;
+        h.y0 -= t.dy;
+        R::Image img = R::render_gl(t.source, h, o);
+        if (merged.rgba.empty()) {
+          merged = std::move(img);
+          continue;
+        }
+        for (size_t k = 0; k < n; ++k)
+          if (img.decals[4 * k + 3] + img.dynamic[4 * k + 3] >
+              merged.decals[4 * k + 3] + merged.dynamic[4 * k + 3])
+            for (int ch = 0; ch < 4; ++ch) {
+              merged.rgba[4 * k + ch] = img.rgba[4 * k + ch];
+              merged.decals[4 * k + ch] = img.decals[4 * k + ch];
+              merged.dynamic[4 * k + ch] = img.dynamic[4 * k + ch];
+            }
+      }
+      std::printf(
+          "[ measured ] %s: the tileset differs from the single package's on %zu "
+          "of %zu pixels (static layer)\n",
+          c.name, single_off, n);
+      a = std::move(merged);
+    }
+    const size_t off_rgba = pixels_off(a.rgba, b.rgba), off_decals = pixels_off(a.decals, b.decals),
+                 off_dyn = pixels_off(a.dynamic, b.dynamic);
+    // The one-frame path: one pass-table row per pass, naming its tiles.
+    bool per_pass = false;
+    for (const R::PassTime& t : b.times) per_pass |= t.pass.find(" tiles]") != std::string::npos;
+    EXPECT_TRUE(per_pass) << "the tileset was not drawn in one frame";
+    std::printf(
+        "[ measured ] %s, %zu tiles: %zu of %zu pixels differ by more than 1/255 (image), %zu "
+        "(static layer, %zu covered), %zu (dynamic layer, %zu covered)\n",
+        c.name, drawn.size(), off_rgba, n, off_decals, decals, off_dyn, lines);
+    EXPECT_LE(double(off_rgba), 1e-4 * double(n));
+    EXPECT_LE(double(off_decals), 1e-4 * double(n));
+    EXPECT_LE(double(off_dyn), 1e-4 * double(n));
+  }
+}
+#endif  // PREP_RENDER_WITH_GL
 
 TEST_F(Tileset, PerLayerCountsEqualTheSinglePackages) {
   const json single = read_json("single.decals.json");

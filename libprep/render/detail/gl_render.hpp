@@ -13,6 +13,7 @@
 #include <chrono>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -50,14 +51,20 @@ struct PassTimer {
     std::string name;
     GLuint begin = 0, end = 0;
     std::chrono::steady_clock::time_point wall0, wall1;
+    int tile = -1;  // a tileset's tile (GlRenderer::tile_), -1: the frame's
   };
   std::vector<Pass> passes;
+  int tile = -1;  // recorded with the passes begun from now on
   GLuint stamp();
   // glFinish around each pass: software GL (llvmpipe) defers work to the
   // next flush, so without it a pass's time lands in a later pass.
   void begin(const std::string& name);
   void end();
   void collect(std::vector<PassTime>& out);
+  // A tileset's table: one row per pass (a static pass's order range
+  // dropped), its times summed over the tiles, named with the tiles (and
+  // draws) it counts; passes of the whole frame keep their row.
+  void collect_per_pass(std::vector<PassTime>& out);
 };
 
 // The camera as the shaders take it. The anchor is the eye rounded to whole
@@ -78,6 +85,16 @@ struct ViewUniforms {
 };
 ViewUniforms view_uniforms(const Camera& cam, const GridParams& grid, uint32_t width,
                            uint32_t height);
+// The views formats/gl takes of a source's blobs and grid.
+std::vector<decal::gl::BlobBytes> gl_blobs(const DecalSource& source);
+decal::gl::Grid gl_grid(const DecalSource& source);
+// A tile's (dx, dy) in whole quanta; none when it is not on the quantum
+// grid (1 µm).
+std::optional<std::array<int64_t, 2>> tile_shift(const TileSource& t);
+// The anchor's cell in `grid` (rx, ry, cell_x, cell_y, grid).
+void set_grid(ViewUniforms& v, const GridParams& grid);
+// `clip` (metres relative to the package origin) relative to the anchor.
+void set_clip(ViewUniforms& v, const Extent& clip);
 
 // G-buffer: terrain colour + float depth (reversed Z); decal layer; final;
 // dynamic-line layer. Each colour texture has its framebuffer. With
@@ -135,6 +152,16 @@ class GlRenderer {
   // The GL context must be current and outlive this object.
   GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal::gl::Grid& grid,
              const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt);
+  // A tileset's tiles in one frame (the decal method; render_gl.cpp says
+  // why the result is the per-tile render's): the terrain mesh, targets and
+  // programs once; each frame draws the terrain once, then per tile uploads
+  // its blobs, draws its static and dynamic passes clipped to its square
+  // into the shared layers and frees its buffers before the next tile;
+  // composite once. The caller validates the tiles' blobs (formats/gl
+  // validate_blobs). Every tile's (dx, dy) must be a whole number of
+  // quanta (tile_shift).
+  GlRenderer(std::span<const TileSource> tiles, const Heightfield& terrain,
+             const RenderOptions& opt);
   // All passes of one frame; dynamic-line counts go to `img`.
   void frame(Image& img);
   // Reads the layers back into `img` (rows top-down, straight alpha) with
@@ -142,12 +169,22 @@ class GlRenderer {
   void read_back(Image& img);
 
  private:
+  void setup();
   void terrain_pass();
+  // Tileset: puts view_ in tile k's frame, its runs and scissor_
+  // (tile_scissor); uploads its blobs when the scissor box is not empty
+  // (else gpu_ stays empty and the tile is skipped).
+  void load_tile(size_t k);
+  std::array<GLint, 4> tile_scissor() const;
   // The package's blobs and the terrain depth, bound where the decal
   // passes read them (static passes and dynamic lines, whatever --method).
   void bind_package() const;
-  // gl_passes.cpp: one pass per run of the drawing order.
-  void static_passes();
+  // gl_passes.cpp: one pass per run of the drawing order, blended under
+  // what `f_static` holds (cleared by begin_static, resolved into the decal
+  // layer by end_static with MSAA).
+  GLuint begin_static();
+  void static_passes(GLuint f_static);
+  void end_static(GLuint f_static);
   GLuint static_target();
   void set_static_uniforms(GLuint p) const;
   // gl_methods.cpp: set-up of the volume and texture methods, the volume
@@ -156,11 +193,14 @@ class GlRenderer {
   void volume_passes();
   void texture_raster();
   void method_stats(Image& img) const;
-  // gl_dynamic.cpp (thesis §4.3, §4.4.2).
-  void dynamic_pass(Image& img);
+  // gl_dynamic.cpp (thesis §4.3, §4.4.2): draws the current package's
+  // dynamic lines under what the (cleared) dynamic layer holds; its work
+  // buffers live in `work`.
+  void dynamic_pass(Image& img, GlObjects& work);
   void composite_pass();
 
-  const DecalSource& source_;
+  std::span<const TileSource> tiles_;    // a tileset (empty: one package)
+  const DecalSource* source_ = nullptr;  // the package (the current tile)
   const Heightfield& terrain_;
   const RenderOptions& opt_;
   const uint32_t W_, H_;
@@ -168,11 +208,13 @@ class GlRenderer {
   PassTimer timer_{gl_, {}};
   std::chrono::steady_clock::time_point wall0_;
   std::unique_ptr<decal::gl::GpuPackage> gpu_;
-  ViewUniforms view_;
+  ViewUniforms view0_;  // the frame's camera, terrain and targets (a tileset's index frame)
+  ViewUniforms view_;   // view0_ in the current package's frame
   TerrainMesh mesh_;
   GLuint empty_vao_ = 0;
   Targets t_;
   std::vector<DrawRun> runs_;
+  std::array<GLint, 4> scissor_{};  // the current tile's pixels: x, y, w, h
   StaticPrograms p_;
   MethodState m_;
 };

@@ -223,9 +223,13 @@ struct TileSource {
   double dx = 0, dy = 0;
 };
 
-// The GL view of several tiles: each tile drawn in its own frame, its
-// decals clipped to its square (RenderOptions::clip), then per pixel the
-// tile that drew there. One GL context per tile.
+// The GL view of several tiles, each tile's decals clipped to its square
+// (RenderOptions::clip). The decal method draws them in one frame and one
+// GL context: the terrain once, then each tile's blobs uploaded, its passes
+// drawn into the shared layers and its buffers freed in turn (render_gl.cpp
+// says why that equals each tile drawn in its own frame). The volume and
+// texture methods draw each tile in its own frame and context, then take
+// per pixel the tile that drew there.
 Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
                 const RenderOptions& options);
 
