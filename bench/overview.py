@@ -42,9 +42,9 @@ END = "<!-- end bench/overview.py -->"
 HEAD = "## Overview levels"
 FIELDS = ["level", "tile_size_m", "resolution_m", "tiles", "package_bytes", "view_pixel_m",
           "view_width_m", "auto_levels", "view_tiles", "view_bytes", "full_view_bytes",
-          "bytes_share", "pixels_differing", "pixels", "differing_share", "filtered_differing",
-          "filtered_share", "cpu_frame_ms",
-          "gl_frame_ms", "full_cpu_frame_ms", "full_gl_frame_ms"]
+          "bytes_share", "view_blob_bytes", "full_view_blob_bytes", "blob_share",
+          "pixels_differing", "pixels", "differing_share", "filtered_differing",
+          "filtered_share", "cpu_frame_ms", "gl_frame_ms", "full_cpu_frame_ms", "full_gl_frame_ms"]
 
 
 def run(cmd):
@@ -56,12 +56,13 @@ def run(cmd):
 
 def stats(out):
     m = re.search(r"^tiles: (\d+) drawn \(([^)]*)\)", out, re.M)
-    b = re.search(r"^bytes: (\d+) package bytes loaded, [0-9.]+% of the full-detail (\d+)", out,
-                  re.M)
+    b = re.search(r"^bytes: (\d+) package bytes loaded, [0-9.]+% of the full-detail (\d+) of this "
+                  r"view; (\d+) blob bytes uploaded", out, re.M)
     f = re.search(r"^frame: ([0-9.]+) ms", out, re.M)
     levels = {int(l): int(n) for l, n in re.findall(r"level (\d+): (\d+)", m.group(2))}
     return {"tiles": int(m.group(1)), "levels": {l: n for l, n in levels.items() if n},
-            "bytes": int(b.group(1)), "full_bytes": int(b.group(2)), "frame_ms": float(f.group(1))}
+            "bytes": int(b.group(1)), "full_bytes": int(b.group(2)),
+            "blob_bytes": int(b.group(3)), "frame_ms": float(f.group(1))}
 
 
 def compare(tool, a, b, w, h, s):
@@ -160,6 +161,10 @@ def main():
                    "view_tiles": st["lv"]["tiles"], "view_bytes": st["lv"]["bytes"],
                    "full_view_bytes": st["full"]["bytes"],
                    "bytes_share": round(st["lv"]["bytes"] / max(1, st["full"]["bytes"]), 5),
+                   "view_blob_bytes": st["lv"]["blob_bytes"],
+                   "full_view_blob_bytes": st["full"]["blob_bytes"],
+                   "blob_share": round(st["lv"]["blob_bytes"] / max(1, st["full"]["blob_bytes"]),
+                                       5),
                    "pixels_differing": d, "pixels": n, "differing_share": round(d / n, 6),
                    "filtered_differing": fd, "filtered_share": round(fd / n, 6),
                    "cpu_frame_ms": round(st["lv"]["frame_ms"], 1),
@@ -169,7 +174,8 @@ def main():
             rows.append(row)
             print("level %(level)d: %(tiles)d tiles, %(package_bytes)d package bytes, r %(resolution_m)s m;"
                   " view %(view_width_m)s m wide (%(view_pixel_m)s m pixels, auto draws "
-                  "%(auto_levels)s): %(view_bytes)d of %(full_view_bytes)d bytes, "
+                  "%(auto_levels)s): %(view_bytes)d of %(full_view_bytes)d package bytes, "
+                  "%(view_blob_bytes)d of %(full_view_blob_bytes)d blob bytes, "
                   "%(pixels_differing)d pixels differ (%(differing_share)s; box-filtered "
                   "%(filtered_differing)d, %(filtered_share)s), CPU %(cpu_frame_ms)s ms "
                   "(full %(full_cpu_frame_ms)s), GL %(gl_frame_ms)s ms (full %(full_gl_frame_ms)s)"
@@ -190,9 +196,9 @@ set logscale x
 set key top right
 set xlabel 'package bytes of the level'
 set ylabel 'pixels differing from full detail at its view (%%)'
-plot '%s' using 5:($15*100):(sprintf('L%%d', $1)) skip 1 with labels offset 1,1 notitle, \\
-     '' using 5:($15*100) skip 1 with linespoints title 'point-sampled (> 1/255)', \\
-     '' using 5:($17*100) skip 1 with linespoints title 'box-filtered 4x4 (> 1/8)'
+plot '%s' using 5:($18*100):(sprintf('L%%d', $1)) skip 1 with labels offset 1,1 notitle, \\
+     '' using 5:($18*100) skip 1 with linespoints title 'point-sampled (> 1/255)', \\
+     '' using 5:($20*100) skip 1 with linespoints title 'box-filtered 4x4 (> 1/8)'
 """ % (png, csv_path)
         subprocess.run(["gnuplot"], input=script.encode(), check=False)
     load1 = os.getloadavg()
@@ -209,19 +215,22 @@ plot '%s' using 5:($15*100):(sprintf('L%%d', $1)) skip 1 with labels offset 1,1 
          "`--level 0` (CPU evaluator): pixels whose decal layer differs by more than 1/255 "
          "(point-sampled), and by more than 1/8 after a 4×4 box filter (both rendered at 4×4 "
          "samples a pixel: what an anti-aliased render shows; 3 m lines at pixels of metres hit "
-         "pixel centres by chance, so the point-sampled count follows every move of a line). Bytes "
-         "are package bytes (tileset.json); frame times are the render call's (`--stats`), tiles "
+         "pixel centres by chance, so the point-sampled count follows every move of a line). "
+         "Package bytes are the files' (tileset.json); blob bytes are the drawn tiles' blobs "
+         "decoded, what a render uploads and `--gpu-budget` counts (`--stats`); frame times are the render call's (`--stats`), tiles "
          "loaded before it.", "",
          "| level | tile | r_L | tiles | package bytes | view width | auto draws | view bytes "
-         "| of full detail | pixels differing | box-filtered | CPU frame | GL frame "
-         "| full-detail CPU / GL |",
-         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+         "| of full detail | view blob bytes | of full detail | pixels differing | box-filtered "
+         "| CPU frame | GL frame | full-detail CPU / GL |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        L.append("| %d | %g m | %.3f m | %d | %s | %.0f m | %s | %s | %.2f%% | %d (%.3f%%) "
+        L.append("| %d | %g m | %.3f m | %d | %s | %.0f m | %s | %s | %.2f%% | %s | %.2f%% "
+                 "| %d (%.3f%%) "
                  "| %d (%.3f%%) | %.1f ms | %.1f ms | %.1f / %.1f ms |"
                  % (r["level"], r["tile_size_m"], r["resolution_m"], r["tiles"],
                     format(r["package_bytes"], ","), r["view_width_m"], r["auto_levels"],
-                    format(r["view_bytes"], ","), 100 * r["bytes_share"], r["pixels_differing"],
+                    format(r["view_bytes"], ","), 100 * r["bytes_share"],
+                    format(r["view_blob_bytes"], ","), 100 * r["blob_share"], r["pixels_differing"],
                     100 * r["differing_share"], r["filtered_differing"],
                     100 * r["filtered_share"], r["cpu_frame_ms"], r["gl_frame_ms"],
                     r["full_cpu_frame_ms"], r["full_gl_frame_ms"]))
