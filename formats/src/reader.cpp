@@ -19,6 +19,7 @@
 
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
+#include "message.hpp"
 
 static_assert(std::endian::native == std::endian::little,
               "the package format is little-endian and read by memcpy");
@@ -26,11 +27,7 @@ static_assert(std::endian::native == std::endian::little,
 namespace decal {
 namespace {
 
-std::string fmt(const char* f, auto... args) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf, f, args...);
-  return buf;
-}
+using detail::fmt;
 
 using ull = unsigned long long;
 

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "decal/inspect.hpp"
+#include "message.hpp"
 
 namespace decal {
 namespace {
@@ -23,11 +24,7 @@ using i2 = std::array<int32_t, 2>;
 using i4 = std::array<int32_t, 4>;
 using ull = unsigned long long;
 
-std::string fmt(const char* f, auto... args) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf, f, args...);
-  return buf;
-}
+using detail::fmt;
 
 // Elements of one blob, read with memcpy (blob bytes need not be aligned
 // for T when they come from a caller's buffer).

@@ -21,8 +21,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kDemStage = "dem";
 namespace {
 
 struct TransformDeleter {

@@ -12,9 +12,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kEvaluateStage = "evaluate";
-
 namespace {
 
 GridParams grid_from_metadata(std::string_view metadata) {

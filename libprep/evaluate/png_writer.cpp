@@ -12,9 +12,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kRenderStage = "render";
-
 void write_png_rgba(const std::string& path, uint32_t width, uint32_t height,
                     std::span<const uint8_t> rgba8) {
   if (rgba8.size() != size_t(width) * height * 4)

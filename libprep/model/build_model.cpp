@@ -25,9 +25,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kBuildStage = "build";
-
 namespace detail {
 
 std::vector<uint32_t> draw_ranks(const std::vector<DrawKey>& keys) {

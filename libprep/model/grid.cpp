@@ -17,9 +17,6 @@
 
 namespace prep::detail {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kBuildStage = "build";
-
 QPoint quantise(const Point2& p, double& max_err, const std::string& where) {
   if (!std::isfinite(p.x) || !std::isfinite(p.y)) {
     std::ostringstream m;

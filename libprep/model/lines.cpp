@@ -27,8 +27,6 @@
 
 namespace prep::detail {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kBuildStage = "build";
 namespace {
 
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;

@@ -25,8 +25,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kBuildStage = "build";
 namespace {
 
 namespace fs = std::filesystem;
@@ -65,11 +63,6 @@ std::string error_line(const std::string& log_path) {
   return error.empty() ? last : error;
 }
 
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
 // The scene files, in input order; a folder gives its *.toml sorted by name.
 std::vector<std::string> list_scene_files(const std::vector<std::string>& inputs) {
   std::vector<std::string> scenes;
@@ -83,7 +76,7 @@ std::vector<std::string> list_scene_files(const std::vector<std::string>& inputs
       if (found.empty())
         fail<usage_error>(kBuildStage, "folder " + in + " has no *.toml scene files");
       scenes.insert(scenes.end(), found.begin(), found.end());
-    } else if (ends_with(in, ".toml")) {
+    } else if (in.ends_with(".toml")) {
       scenes.push_back(in);
     } else {
       fail<usage_error>(kBuildStage,

@@ -19,8 +19,6 @@
 
 namespace prep {
 
-// The module this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kMemoryStage = "memory";
 namespace {
 
 // ---- the model ------------------------------------------------------------

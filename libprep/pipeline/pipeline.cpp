@@ -35,9 +35,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kBuildStage = "build";
-constexpr std::string_view kReportStage = "report";
 namespace {
 
 using Clock = std::chrono::steady_clock;

@@ -13,14 +13,7 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kBuildStage = "build";
 namespace {
-
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 bool any_given(const FilelessLayer& l) {
   return !l.layer.empty() || !l.where.empty() || !l.sql.empty() || !l.kind.empty() || l.width ||
@@ -149,7 +142,7 @@ void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
 
 SceneSpec scene_spec(const SceneRequest& request) {
   SceneSpec scene;
-  if (ends_with(request.input, ".toml")) {
+  if (request.input.ends_with(".toml")) {
     if (any_given(request.layer)) {
       fail<usage_error>(
           kBuildStage,

@@ -10,9 +10,6 @@
 
 namespace prep::pipeline_internal {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kSpillStage = "tileset";
-
 namespace {
 
 // Appends raw bytes (resize and memcpy: GCC 12 warns falsely on
@@ -38,7 +35,7 @@ void put_string(std::vector<char>& b, const std::string& s) {
 class Reader {
  public:
   explicit Reader(const std::string& path) : path_(path), f_(std::fopen(path.c_str(), "rb")) {
-    if (!f_) fail<output_error>(kSpillStage, "cannot read " + path + ": " + std::strerror(errno));
+    if (!f_) fail<output_error>(kTilesetStage, "cannot read " + path + ": " + std::strerror(errno));
     std::setvbuf(f_, nullptr, _IOFBF, 1 << 20);
   }
   ~Reader() { std::fclose(f_); }
@@ -85,7 +82,7 @@ class Reader {
     s.resize(n);
     if (n > 0 && std::fread(s.data(), 1, n, f_) != n) truncated();
   }
-  [[noreturn]] void truncated() { fail<output_error>(kSpillStage, path_ + " is truncated"); }
+  [[noreturn]] void truncated() { fail<output_error>(kTilesetStage, path_ + " is truncated"); }
 
   std::string path_;
   std::FILE* f_;
@@ -103,7 +100,8 @@ SpillWriter::~SpillWriter() {
 
 void SpillWriter::open() {
   f_ = std::fopen(path_.c_str(), "wb");
-  if (!f_) fail<output_error>(kSpillStage, "cannot create " + path_ + ": " + std::strerror(errno));
+  if (!f_)
+    fail<output_error>(kTilesetStage, "cannot create " + path_ + ": " + std::strerror(errno));
   std::setvbuf(f_, nullptr, _IOFBF, 1 << 20);
 }
 
@@ -127,7 +125,8 @@ void SpillWriter::write(const SourceLayer& chunk) {
       ok = ok && std::fwrite(&n, sizeof n, 1, f_) == 1;
       ok = ok && (n == 0 || std::fwrite(r.data(), sizeof(Point2), n, f_) == n);
     }
-    if (!ok) fail<output_error>(kSpillStage, "cannot write " + path_ + ": " + std::strerror(errno));
+    if (!ok)
+      fail<output_error>(kTilesetStage, "cannot write " + path_ + ": " + std::strerror(errno));
     ++parts_;
   }
 }
@@ -143,7 +142,7 @@ void SpillWriter::close() {
   if (!f_) return;
   const bool ok = std::fclose(f_) == 0;
   f_ = nullptr;
-  if (!ok) fail<output_error>(kSpillStage, "cannot write " + path_);
+  if (!ok) fail<output_error>(kTilesetStage, "cannot write " + path_);
 }
 
 SpillSource::SpillSource(const std::vector<SourceLayer>& layers, std::vector<std::string> paths)

@@ -44,9 +44,6 @@
 
 namespace prep::pipeline_internal {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kTilesetStage = "tileset";
-
 namespace {
 
 void make_dir(const std::string& path) {

@@ -21,9 +21,6 @@
 
 namespace prep::pipeline_internal {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kWorkStage = "tileset";
-
 namespace {
 
 void register_gdal_once() {
@@ -111,27 +108,27 @@ PartWriter::PartWriter(const WorkPaths& paths) : impl_(std::make_unique<Impl>())
   // (GDAL 3.6's FlatGeobuf writer holds every feature in memory to sort
   // them for its index).
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");
-  if (!drv) fail<output_error>(kWorkStage, "GDAL has no GPKG driver");
+  if (!drv) fail<output_error>(kTilesetStage, "GDAL has no GPKG driver");
   std::remove(impl_->path.c_str());
   impl_->ds = drv->Create(impl_->path.c_str(), 0, 0, 0, GDT_Unknown, nullptr);
   if (!impl_->ds)
-    fail<output_error>(kWorkStage, "cannot create " + impl_->path + ": " + CPLGetLastErrorMsg());
+    fail<output_error>(kTilesetStage, "cannot create " + impl_->path + ": " + CPLGetLastErrorMsg());
   char** opts = CSLSetNameValue(nullptr, "SPATIAL_INDEX", "YES");
   opts = CSLSetNameValue(opts, "GEOMETRY_NAME", "box");
   impl_->layer = impl_->ds->CreateLayer("parts", nullptr, wkbPolygon, opts);
   CSLDestroy(opts);
   if (!impl_->layer)
-    fail<output_error>(kWorkStage,
+    fail<output_error>(kTilesetStage,
                        "cannot create a layer in " + impl_->path + ": " + CPLGetLastErrorMsg());
   for (int i = 0; i < f_count; ++i) {
     OGRFieldDefn def(kFieldNames[i], kFieldTypes[i]);
     if (impl_->layer->CreateField(&def) != OGRERR_NONE)
-      fail<output_error>(
-          kWorkStage, "cannot create field " + std::string(kFieldNames[i]) + " in " + impl_->path);
+      fail<output_error>(kTilesetStage, "cannot create field " + std::string(kFieldNames[i]) +
+                                            " in " + impl_->path);
   }
   impl_->boxes = std::fopen(impl_->boxes_path.c_str(), "wb");
   if (!impl_->boxes)
-    fail<output_error>(kWorkStage,
+    fail<output_error>(kTilesetStage,
                        "cannot create " + impl_->boxes_path + ": " + std::strerror(errno));
 }
 
@@ -143,7 +140,7 @@ PartWriter::~PartWriter() {
 void PartWriter::add(const SceneFeatures& chunk) {
   OGRFeatureDefn* defn = impl_->layer->GetLayerDefn();
   if (impl_->ds->StartTransaction() != OGRERR_NONE)
-    fail<output_error>(kWorkStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
+    fail<output_error>(kTilesetStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
   auto write = [&](PartKind kind, OGRGeometry* geometry, const Ring& boxed, uint32_t layer,
                    int64_t fid, int part, bool closed, double area, double length, double width,
                    double order_value, double color_value) {
@@ -190,11 +187,11 @@ void PartWriter::add(const SceneFeatures& chunk) {
     const double keys[5] = {area, length, width, order_value, color_value};
     f.SetField(f_keys, static_cast<int>(sizeof keys), static_cast<const void*>(keys));
     if (impl_->layer->CreateFeature(&f) != OGRERR_NONE)
-      fail<output_error>(kWorkStage,
+      fail<output_error>(kTilesetStage,
                          "cannot write a part to " + impl_->path + ": " + CPLGetLastErrorMsg());
     const BoxRecord rec{k, 0, b.xmin, b.ymin, b.xmax, b.ymax};
     if (std::fwrite(&rec, sizeof rec, 1, impl_->boxes) != 1)
-      fail<output_error>(kWorkStage, "cannot write " + impl_->boxes_path);
+      fail<output_error>(kTilesetStage, "cannot write " + impl_->boxes_path);
     grow(box_, boxed);
   };
   for (const ScenePolygon& p : chunk.polygons) {
@@ -217,7 +214,7 @@ void PartWriter::add(const SceneFeatures& chunk) {
     write(PartKind::dynamic_line, line_geometry(l.points), l.points, l.layer, l.fid, l.part,
           l.closed, 0, l.length, l.width, l.order_value, l.color_value);
   if (impl_->ds->CommitTransaction() != OGRERR_NONE)
-    fail<output_error>(kWorkStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
+    fail<output_error>(kTilesetStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
   half_width_ = std::max(half_width_, stroke_half_width(chunk));
 }
 
@@ -225,7 +222,7 @@ void PartWriter::close() {
   if (impl_->boxes) {
     const bool ok = std::fclose(impl_->boxes) == 0;
     impl_->boxes = nullptr;
-    if (!ok) fail<output_error>(kWorkStage, "cannot write " + impl_->boxes_path);
+    if (!ok) fail<output_error>(kTilesetStage, "cannot write " + impl_->boxes_path);
   }
   if (impl_->ds) {
     // The spatial index is built and written now; GDALClose reports through
@@ -234,7 +231,8 @@ void PartWriter::close() {
     GDALClose(impl_->ds);
     impl_->ds = nullptr;
     if (CPLGetLastErrorType() == CE_Failure || CPLGetLastErrorType() == CE_Fatal)
-      fail<output_error>(kWorkStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
+      fail<output_error>(kTilesetStage,
+                         "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
   }
 }
 
@@ -244,7 +242,7 @@ Extent PartWriter::extent() const {
 
 std::vector<TileKey> planned_tiles(const WorkPaths& paths, const TilePlan& plan) {
   std::FILE* f = std::fopen(paths.boxes().c_str(), "rb");
-  if (!f) fail<output_error>(kWorkStage, "cannot read " + paths.boxes());
+  if (!f) fail<output_error>(kTilesetStage, "cannot read " + paths.boxes());
   std::set<TileKey> keys;
   const double ox = plan.frame.origin_x, oy = plan.frame.origin_y;
   std::vector<BoxRecord> buf(4096);
@@ -279,13 +277,13 @@ PartReader::PartReader(const WorkPaths& paths) : impl_(std::make_unique<Impl>())
   impl_->ds = GDALDataset::Open(impl_->path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
                                 nullptr, nullptr);
   if (!impl_->ds || impl_->ds->GetLayerCount() != 1)
-    fail<output_error>(kWorkStage, "cannot open " + impl_->path + ": " + CPLGetLastErrorMsg());
+    fail<output_error>(kTilesetStage, "cannot open " + impl_->path + ": " + CPLGetLastErrorMsg());
   impl_->layer = impl_->ds->GetLayer(0);
   OGRFeatureDefn* defn = impl_->layer->GetLayerDefn();
   for (int i = 0; i < f_count; ++i) {
     impl_->field[i] = defn->GetFieldIndex(kFieldNames[i]);
     if (impl_->field[i] < 0)
-      fail<output_error>(kWorkStage, impl_->path + ": no field " + std::string(kFieldNames[i]));
+      fail<output_error>(kTilesetStage, impl_->path + ": no field " + std::string(kFieldNames[i]));
   }
 }
 
@@ -320,14 +318,14 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
     if (!wkb ||
         OGRGeometryFactory::createFromWkb(wkb, nullptr, &parsed, static_cast<size_t>(wkb_size),
                                           wkbVariantIso) != OGRERR_NONE)
-      fail<output_error>(kWorkStage, impl_->path + ": a part whose WKB cannot be read");
+      fail<output_error>(kTilesetStage, impl_->path + ": a part whose WKB cannot be read");
     const std::unique_ptr<OGRGeometry> owned(parsed);
     const OGRGeometry* g = parsed;
     int keys_size = 0;
     const GByte* keys_bytes = f->GetFieldAsBinary(fi[f_keys], &keys_size);
     double keys[5];
     if (!keys_bytes || keys_size != static_cast<int>(sizeof keys))
-      fail<output_error>(kWorkStage, impl_->path + ": a part without its keys");
+      fail<output_error>(kTilesetStage, impl_->path + ": a part without its keys");
     std::memcpy(keys, keys_bytes, sizeof keys);
     const auto layer_index = static_cast<uint32_t>(f->GetFieldAsInteger(fi[f_layer]));
     const int64_t fid = f->GetFieldAsInteger64(fi[f_fid]);
@@ -335,7 +333,7 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
     if (kind == static_cast<int>(PartKind::polygon)) {
       const auto* poly = dynamic_cast<const OGRPolygon*>(g);
       if (!poly || !poly->getExteriorRing())
-        fail<output_error>(kWorkStage, impl_->path + ": a polygon part that is not a polygon");
+        fail<output_error>(kTilesetStage, impl_->path + ": a polygon part that is not a polygon");
       ScenePolygon p;
       p.shell = open_points(*poly->getExteriorRing(), true);
       if (!tile_range(ring_box(p.shell), plan.margin, ox, oy, plan.size).holds(key)) continue;
@@ -351,7 +349,7 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
       polys.emplace_back(seq, std::move(p));
     } else {
       const auto* ls = dynamic_cast<const OGRLineString*>(g);
-      if (!ls) fail<output_error>(kWorkStage, impl_->path + ": a line part that is not a line");
+      if (!ls) fail<output_error>(kTilesetStage, impl_->path + ": a line part that is not a line");
       const bool dynamic = kind == static_cast<int>(PartKind::dynamic_line);
       SceneLine l;
       l.points = open_points(*ls, false);
@@ -384,7 +382,7 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
 
 EntryWriter::EntryWriter(const std::string& path) : path_(path) {
   f_ = std::fopen(path.c_str(), "wb");
-  if (!f_) fail<output_error>(kWorkStage, "cannot create " + path + ": " + std::strerror(errno));
+  if (!f_) fail<output_error>(kTilesetStage, "cannot create " + path + ": " + std::strerror(errno));
 }
 
 EntryWriter::~EntryWriter() {
@@ -405,7 +403,7 @@ void EntryWriter::add(const ManifestEntry& e) {
     if (c == '\n') out += "  ";
   }
   if (std::fwrite(out.data(), 1, out.size(), f_) != out.size())
-    fail<output_error>(kWorkStage, "cannot write " + path_);
+    fail<output_error>(kTilesetStage, "cannot write " + path_);
   ++count_;
 }
 
@@ -413,14 +411,14 @@ void EntryWriter::close() {
   if (!f_) return;
   const bool ok = std::fclose(f_) == 0;
   f_ = nullptr;
-  if (!ok) fail<output_error>(kWorkStage, "cannot write " + path_);
+  if (!ok) fail<output_error>(kTilesetStage, "cannot write " + path_);
 }
 
 void write_manifest_from(const std::vector<std::string>& entry_files, uint64_t entries,
                          const std::string& path) {
   const std::string tmp = path + ".tmp";
   std::FILE* out = std::fopen(tmp.c_str(), "wb");
-  if (!out) fail<output_error>(kWorkStage, "cannot write " + path + ": " + std::strerror(errno));
+  if (!out) fail<output_error>(kTilesetStage, "cannot write " + path + ": " + std::strerror(errno));
   bool ok = true;
   auto put = [&](const char* s, size_t n) { ok = ok && std::fwrite(s, 1, n, out) == n; };
   if (entries == 0) {
@@ -436,7 +434,7 @@ void write_manifest_from(const std::vector<std::string>& entry_files, uint64_t e
       if (!in) {
         std::fclose(out);
         std::remove(tmp.c_str());
-        fail<output_error>(kWorkStage, "cannot read " + file);
+        fail<output_error>(kTilesetStage, "cannot read " + file);
       }
       // Each file's entries are joined with ",\n"; files are joined the same way.
       bool any = false;
@@ -456,7 +454,7 @@ void write_manifest_from(const std::vector<std::string>& entry_files, uint64_t e
   ok = std::fclose(out) == 0 && ok;
   if (!ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
     std::remove(tmp.c_str());
-    fail<output_error>(kWorkStage, "cannot write " + path);
+    fail<output_error>(kTilesetStage, "cannot write " + path);
   }
 }
 

@@ -30,8 +30,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kProjectStage = "project";
 namespace {
 
 void register_gdal_once() {

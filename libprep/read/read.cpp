@@ -33,8 +33,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kReadStage = "read";
 namespace {
 
 void register_gdal_once() {

@@ -16,9 +16,6 @@
 
 namespace prep::render::detail {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kRenderStage = "render";
-
 namespace {
 
 // The terrain's height range under a box: the mesh vertices of the cells

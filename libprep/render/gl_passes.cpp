@@ -12,9 +12,6 @@
 
 namespace prep::render::detail {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kRenderStage = "render";
-
 namespace {
 
 std::array<float, 16> to_float(const Mat4& m) {

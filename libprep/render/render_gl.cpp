@@ -13,9 +13,6 @@
 
 namespace prep::render {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kRenderStage = "render";
-
 namespace detail {
 
 namespace {

@@ -10,9 +10,6 @@
 
 namespace prep::render {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kRenderStage = "render";
-
 namespace {
 
 template <class T>

@@ -15,9 +15,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kTileStage = "tile";
-
 namespace {
 
 Extent grown(const Extent& e, double by) {

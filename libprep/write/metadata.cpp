@@ -12,8 +12,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kWriteStage = "write";
 namespace {
 
 using json = nlohmann::json;

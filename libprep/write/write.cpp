@@ -26,6 +26,7 @@
 
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 #include "prep/write.hpp"
 
 static_assert(std::endian::native == std::endian::little,
@@ -38,10 +39,10 @@ uint64_t align_up(uint64_t v) {
   return (v + decal::kBlobAlignment - 1) / decal::kBlobAlignment * decal::kBlobAlignment;
 }
 
-[[noreturn]] void fail(const std::string& path, const std::string& what, int err = 0) {
-  std::string m = "write: " + path + ": " + what;
+[[noreturn]] void fail_io(const std::string& path, const std::string& what, int err = 0) {
+  std::string m = path + ": " + what;
   if (err) m += std::string(": ") + std::strerror(err);
-  throw output_error(m);
+  fail<output_error>(kWriteStage, m);
 }
 
 // ------------------------------------------------ temp-file signal cleanup --
@@ -120,13 +121,13 @@ class SignalGuard {
 class AtomicFile {
  public:
   explicit AtomicFile(const std::string& path) : path_(path) {
-    if (path.empty() || path.back() == '/') fail(path, "not a file path");
+    if (path.empty() || path.back() == '/') fail_io(path, "not a file path");
     const size_t slash = path.rfind('/');
     dir_ = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
     base_ = slash == std::string::npos ? path : path.substr(slash + 1);
-    if (base_ == "." || base_ == "..") fail(path, "not a file path");
+    if (base_ == "." || base_ == "..") fail_io(path, "not a file path");
     dirfd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dirfd_ < 0) fail(path, "cannot open directory '" + dir_ + "'", errno);
+    if (dirfd_ < 0) fail_io(path, "cannot open directory '" + dir_ + "'", errno);
     static std::atomic<unsigned> counter{0};
     tmp_name_ = "." + base_ + ".tmp-" + std::to_string(::getpid()) + "-" +
                 std::to_string(counter.fetch_add(1));
@@ -138,7 +139,7 @@ class AtomicFile {
       if (fd_ < 0) {
         const int err = errno;
         cleanup();
-        fail(path, "cannot create a temporary file in '" + dir_ + "'", err);
+        fail_io(path, "cannot create a temporary file in '" + dir_ + "'", err);
       }
       named_ = true;
     }
@@ -152,7 +153,7 @@ class AtomicFile {
     while (n > 0) {
       const ssize_t w = ::write(fd_, p, n);
       if (w < 0 && errno == EINTR) continue;
-      if (w < 0) fail(path_, "write failed", errno);
+      if (w < 0) fail_io(path_, "write failed", errno);
       p += w;
       n -= static_cast<size_t>(w);
     }
@@ -169,26 +170,26 @@ class AtomicFile {
   // fsync, give the file its temporary name (if it has none), rename it
   // over the target and fsync the directory.
   void commit() {
-    if (::fsync(fd_) != 0) fail(path_, "fsync failed", errno);
+    if (::fsync(fd_) != 0) fail_io(path_, "fsync failed", errno);
     if (!named_) {
       slot_ = SignalGuard::track(dir_ + "/" + tmp_name_);
       const std::string proc = "/proc/self/fd/" + std::to_string(fd_);
       if (::linkat(AT_FDCWD, proc.c_str(), dirfd_, tmp_name_.c_str(), AT_SYMLINK_FOLLOW) != 0 &&
           ::linkat(fd_, "", dirfd_, tmp_name_.c_str(), AT_EMPTY_PATH) != 0)
-        fail(path_, "cannot link the temporary file into '" + dir_ + "'", errno);
+        fail_io(path_, "cannot link the temporary file into '" + dir_ + "'", errno);
       named_ = true;
     }
     if (::close(fd_) != 0) {
       fd_ = -1;
-      fail(path_, "close failed", errno);
+      fail_io(path_, "close failed", errno);
     }
     fd_ = -1;
     if (::renameat(dirfd_, tmp_name_.c_str(), dirfd_, base_.c_str()) != 0)
-      fail(path_, "cannot rename the temporary file over the target", errno);
+      fail_io(path_, "cannot rename the temporary file over the target", errno);
     named_ = false;  // the name now belongs to the target
     SignalGuard::untrack(slot_);
     slot_ = nullptr;
-    if (::fsync(dirfd_) != 0) fail(path_, "fsync of directory '" + dir_ + "' failed", errno);
+    if (::fsync(dirfd_) != 0) fail_io(path_, "fsync of directory '" + dir_ + "' failed", errno);
   }
 
  private:
@@ -222,22 +223,22 @@ void check_blob(const std::string& path, const BlobInput& b, std::span<const Blo
   const auto id = static_cast<uint32_t>(b.id);
   const std::string label = "blob id " + std::to_string(id);
   const auto t = static_cast<uint32_t>(b.type);
-  if (t < 1 || t > 11) fail(path, label + ": unknown element type " + std::to_string(t));
+  if (t < 1 || t > 11) fail_io(path, label + ": unknown element type " + std::to_string(t));
   if (b.type == decal::ElementType::record ? (b.stride == 0 || b.stride % 4 != 0)
                                            : b.stride != decal::std430_stride(b.type))
-    fail(path, label + ": stride " + std::to_string(b.stride) + " does not fit element type " +
-                   std::string(decal::element_type_name(b.type)));
+    fail_io(path, label + ": stride " + std::to_string(b.stride) + " does not fit element type " +
+                      std::string(decal::element_type_name(b.type)));
   if (const decal::BlobInfo* info = decal::find_blob_info(b.id))
     if (info->type != b.type || info->stride != b.stride)
-      fail(path, label + " (" + std::string(info->name) +
-                     "): type/stride differ from the "
-                     "catalogue");
+      fail_io(path, label + " (" + std::string(info->name) +
+                        "): type/stride differ from the "
+                        "catalogue");
   uint64_t raw = 0;
   if (__builtin_mul_overflow(b.count, uint64_t(b.stride), &raw) || raw != b.bytes.size())
-    fail(path, label + ": " + std::to_string(b.bytes.size()) + " bytes given for " +
-                   std::to_string(b.count) + " elements of " + std::to_string(b.stride));
+    fail_io(path, label + ": " + std::to_string(b.bytes.size()) + " bytes given for " +
+                      std::to_string(b.count) + " elements of " + std::to_string(b.stride));
   for (size_t j = 0; j < index; ++j)
-    if (all[j].id == b.id) fail(path, label + ": given twice");
+    if (all[j].id == b.id) fail_io(path, label + ": given twice");
 }
 
 }  // namespace
@@ -246,13 +247,13 @@ void write_package(const std::string& path, const std::string& metadata_json,
                    std::span<const BlobInput> blobs, const WriteOptions& options) {
   if (metadata_json.size() < 2 || metadata_json.front() != '{' || metadata_json.back() != '}' ||
       metadata_json.find('\0') != std::string::npos)
-    fail(path, "metadata must be a JSON object text ('{' ... '}', no NUL bytes)");
+    fail_io(path, "metadata must be a JSON object text ('{' ... '}', no NUL bytes)");
   if (options.codec == Codec::zstd &&
       (options.zstd_level < ZSTD_minCLevel() || options.zstd_level > ZSTD_maxCLevel()))
-    fail(path, "zstd level " + std::to_string(options.zstd_level) + " is outside [" +
-                   std::to_string(ZSTD_minCLevel()) + ", " + std::to_string(ZSTD_maxCLevel()) +
-                   "]");
-  if (blobs.size() > UINT32_MAX) fail(path, "too many blobs");
+    fail_io(path, "zstd level " + std::to_string(options.zstd_level) + " is outside [" +
+                      std::to_string(ZSTD_minCLevel()) + ", " + std::to_string(ZSTD_maxCLevel()) +
+                      "]");
+  if (blobs.size() > UINT32_MAX) fail_io(path, "too many blobs");
 
   uint64_t raw_bytes = 0;
   for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
@@ -280,7 +281,7 @@ void write_package(const std::string& path, const std::string& metadata_json,
     if (options.codec == Codec::zstd && !b.bytes.empty()) {
       if (!cctx) {
         cctx = ZSTD_createCCtx();
-        if (!cctx) fail(path, "cannot create a zstd context");
+        if (!cctx) fail_io(path, "cannot create a zstd context");
       }
       ZSTD_CCtx_reset(cctx, ZSTD_reset_session_and_parameters);
       ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, options.zstd_level);
@@ -291,7 +292,7 @@ void write_package(const std::string& path, const std::string& metadata_json,
       const size_t n = ZSTD_compress2(cctx, enc[i].compressed.data(), enc[i].compressed.size(),
                                       b.bytes.data(), b.bytes.size());
       if (ZSTD_isError(n))
-        fail(path, "zstd compression of '" + name + "' failed: " + ZSTD_getErrorName(n));
+        fail_io(path, "zstd compression of '" + name + "' failed: " + ZSTD_getErrorName(n));
       enc[i].compressed.resize(n);
       enc[i].stored = enc[i].compressed;
       e.codec = static_cast<uint32_t>(decal::CodecId::zstd);

@@ -14,15 +14,13 @@
 
 namespace {
 
-using json = nlohmann::json;
-
 // The metadata must be a JSON object; where it states a format or blob
 // counts (SPEC.md §"Metadata"), they must agree with the package.
 decal::Status check_metadata(const decal::Package& p) {
-  json meta;
+  nlohmann::json meta;
   try {
-    meta = json::parse(p.metadata_json());
-  } catch (const json::exception& e) {
+    meta = nlohmann::json::parse(p.metadata_json());
+  } catch (const nlohmann::json::exception& e) {
     return decal::Status::failure(std::string("metadata is not valid JSON: ") + e.what());
   }
   if (!meta.is_object()) return decal::Status::failure("metadata is not a JSON object");

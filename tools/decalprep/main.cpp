@@ -31,8 +31,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
 
   auto& registry = decalprep::command_registry();
-  std::sort(registry.begin(), registry.end(),
-            [](const auto& a, const auto& b) { return a.order < b.order; });
+  std::ranges::stable_sort(registry, {}, &decalprep::CommandEntry::order);
   for (auto& entry : registry) entry.setup(app);
 
   decalprep::command_line().assign(argv, argv + argc);

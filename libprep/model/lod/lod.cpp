@@ -15,8 +15,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kLodStage = "lod";
 namespace detail {
 namespace {
 

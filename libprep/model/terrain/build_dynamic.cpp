@@ -17,8 +17,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kBuildStage = "build";
 namespace {
 
 uint32_t channel(uint32_t rgba, int c) {

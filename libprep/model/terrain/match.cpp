@@ -17,8 +17,6 @@
 
 namespace prep {
 
-// The stage this file reports failures as (prep/stage_error.hpp).
-constexpr std::string_view kTerrainStage = "terrain";
 namespace {
 
 constexpr double kQ = decal::kQuantumMetres;
