@@ -99,12 +99,12 @@ def band_centre(k):
 def walk(rng, k):
     """Walk k as vertices in whole millimetres (ints), x strictly increasing."""
     x = (X0 + 20 + 37 * k) * 1000
-    length = (900 + 45 * k) * 1000
+    end = x + (900 + 45 * k) * 1000
     yc = band_centre(k) * 1000
     y = 0.0
     pts = []
     i = 0
-    while x <= X0 * 1000 + 20_000 + 37_000 * k + length:
+    while x <= end:
         y = max(-WANDER, min(WANDER, y + rng.gauss(0.0, 0.4)))
         zig = ZIG if i % 2 else -ZIG
         pts.append((x, yc + int(round((y + zig) * 1000))))
@@ -228,9 +228,9 @@ def visible_chain(points, segs, first, last, eps_of_d, cam):
 
 # ------------------------------------------------------------------- checks --
 
-def check_tile(path, level, walks, stats, failures):
-    where = "level %d %s" % (level, os.path.relpath(path, os.path.dirname(os.path.dirname(path))))
-    p = sr.read_file(path)
+def check_tile(out, file, level, walks, stats, failures):
+    where = "level %d %s" % (level, file)
+    p = sr.read_file(os.path.join(out, file))
     bad = sr.check_indices(p)
     if bad:
         failures.append("%s: index constraints: %s" % (where, bad[:3]))
@@ -420,7 +420,7 @@ def main():
         failures.append("tileset.json has %d levels, not %d" % (len(levels) - 1, LEVELS))
     for level, tiles in levels:
         for t in tiles:
-            check_tile(os.path.join(out, t["file"]), level, walks, stats, failures)
+            check_tile(out, t["file"], level, walks, stats, failures)
     for level in range(LEVELS + 1):
         print("level %d: %d tiles with walks, %d LOD lines, %d runs (%d simplified, input at most "
               "%.3f r/8 away), %d vertices, %d kept by Douglas-Peucker at 0.6 m" % (
