@@ -487,17 +487,31 @@ Status Package::from_memory(std::span<const std::byte> bytes, Package& out,
   return s;
 }
 
-Status Package::open(const std::string& path, Package& out, const OpenOptions& opt) {
-  out = Package();
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+namespace {
+
+// Opens path for reading; it must be a regular file. On success fd is open
+// (the caller closes it) and size is the file's size.
+Status open_regular_file(const std::string& path, int& fd, uint64_t& size) {
+  fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0)
     return Status::failure(fmt("cannot open '%s': %s", path.c_str(), std::strerror(errno)));
   struct stat st;
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
+    fd = -1;
     return Status::failure(fmt("'%s' is not a regular file", path.c_str()));
   }
-  const uint64_t size = static_cast<uint64_t>(st.st_size);
+  size = static_cast<uint64_t>(st.st_size);
+  return Status::success();
+}
+
+}  // namespace
+
+Status Package::open(const std::string& path, Package& out, const OpenOptions& opt) {
+  out = Package();
+  int fd = -1;
+  uint64_t size = 0;
+  if (Status s = open_regular_file(path, fd, size); !s) return s;
   auto impl = std::make_unique<Impl>();
   std::span<const std::byte> file;
   if (opt.allow_mmap && size > 0) {
@@ -626,15 +640,9 @@ Status package_sizes_from_memory(std::span<const std::byte> bytes, PackageSizes&
 
 Status read_package_sizes(const std::string& path, PackageSizes& out) {
   out = {};
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0)
-    return Status::failure(fmt("cannot open '%s': %s", path.c_str(), std::strerror(errno)));
-  struct stat st;
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    ::close(fd);
-    return Status::failure(fmt("'%s' is not a regular file", path.c_str()));
-  }
-  const uint64_t size = static_cast<uint64_t>(st.st_size);
+  int fd = -1;
+  uint64_t size = 0;
+  if (Status s = open_regular_file(path, fd, size); !s) return s;
   std::vector<std::byte> buf;
   // Reads the file's first n bytes into buf (n <= size: it fits off_t).
   auto read_to = [&](uint64_t n) -> Status {
