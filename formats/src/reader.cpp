@@ -84,6 +84,17 @@ std::string entry_label(size_t index, const BlobTableEntry& e) {
   return fmt("blob #%zu '%s' (id %u)", index, name.c_str(), e.id);
 }
 
+// A validated table entry's description (check_layout has run on it).
+BlobEntry blob_entry(const BlobTableEntry& e) {
+  BlobEntry b;
+  b.id = e.id;
+  b.name = std::string(e.name, strnlen(e.name, kBlobNameSize));
+  b.type = static_cast<ElementType>(e.element_type);
+  b.stride = e.stride;
+  b.count = e.count;
+  return b;
+}
+
 bool valid_element_type(uint32_t t) {
   return t >= 1 && t <= 11;
 }
@@ -415,11 +426,7 @@ Status load(std::span<const std::byte> file, const OpenOptions& opt, PackageImpl
   for (size_t i = 0; i < layout.entries.size() && status; ++i) {
     const BlobTableEntry& e = layout.entries[i];
     BlobView v;
-    v.id = e.id;
-    v.name = std::string(e.name, strnlen(e.name, kBlobNameSize));
-    v.type = static_cast<ElementType>(e.element_type);
-    v.stride = e.stride;
-    v.count = e.count;
+    static_cast<BlobEntry&>(v) = blob_entry(e);
     if (!any_compressed) {
       if (e.raw_size) v.bytes = {base + e.offset, static_cast<size_t>(e.raw_size)};
     } else {
@@ -615,11 +622,7 @@ Status sizes_of(const std::byte* base, uint64_t avail, uint64_t size, PackageSiz
   for (size_t i = 0; i < layout.entries.size(); ++i) {
     const BlobTableEntry& e = layout.entries[i];
     BlobSize b;
-    b.id = e.id;
-    b.name = std::string(e.name, strnlen(e.name, kBlobNameSize));
-    b.type = static_cast<ElementType>(e.element_type);
-    b.stride = e.stride;
-    b.count = e.count;
+    static_cast<BlobEntry&>(b) = blob_entry(e);
     b.raw_bytes = e.raw_size;
     b.stored_bytes = e.stored_size;
     if (__builtin_add_overflow(r.raw_bytes, e.raw_size, &r.raw_bytes))

@@ -28,15 +28,19 @@ struct Status {
   static Status failure(std::string m) { return {false, std::move(m)}; }
 };
 
-// One blob, decoded (decompressed) and checksum-verified.
-struct BlobView {
+// One blob as its blob-table entry names it.
+struct BlobEntry {
   uint32_t id = 0;  // BlobId value (may be unknown to this build)
   std::string name;
   ElementType type{};
   uint32_t stride = 0;
   uint64_t count = 0;
-  std::span<const std::byte> bytes;  // count * stride bytes, 4-byte aligned
   bool known() const { return find_blob_info(static_cast<BlobId>(id)) != nullptr; }
+};
+
+// One blob, decoded (decompressed) and checksum-verified.
+struct BlobView : BlobEntry {
+  std::span<const std::byte> bytes;  // count * stride bytes, 4-byte aligned
 };
 
 struct OpenOptions {
@@ -83,15 +87,9 @@ class Package {
 };
 
 // One blob as the package's blob table describes it.
-struct BlobSize {
-  uint32_t id = 0;  // BlobId value (may be unknown to this build)
-  std::string name;
-  ElementType type{};
-  uint32_t stride = 0;
-  uint64_t count = 0;
+struct BlobSize : BlobEntry {
   uint64_t raw_bytes = 0;     // count * stride: its size decoded
   uint64_t stored_bytes = 0;  // its size in the file
-  bool known() const { return find_blob_info(static_cast<BlobId>(id)) != nullptr; }
 };
 
 // What a package holds decoded, from its header and blob table alone.
