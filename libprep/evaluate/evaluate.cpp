@@ -351,26 +351,9 @@ bool cell_of(const GridParams& g, const PointQ& p, uint32_t& cell) {
 StaticView view_of(const DecalModel& m) {
   StaticView v;
   v.grid = m.grid;
-  v.line_vertices = m.line_vertices;
-  v.line_vertex_line = m.line_vertex_line;
-  v.line_props = m.line_props;
-  v.line_corners = m.line_corners;
-  v.cell_segment_range = m.cell_segment_range;
-  v.cell_segments = m.cell_segments;
-  v.poly_props = m.poly_props;
-  v.poly_root_node = m.poly_root_node;
-  v.qt_node_box = m.qt_node_box;
-  v.qt_node = m.qt_node;
-  v.qt_leaf_range = m.qt_leaf_range;
-  v.qt_leaf_segments = m.qt_leaf_segments;
-  v.qt_leaf_vertices = m.qt_leaf_vertices;
-  v.cell_poly_range = m.cell_poly_range;
-  v.cell_polys = m.cell_polys;
-  v.cell_holes = m.cell_holes;
-  v.line_bvh_range = m.line_bvh_range;
-  v.poly_bvh_range = m.poly_bvh_range;
-  v.line_bvh_box = m.line_bvh_box;
-  v.poly_bvh_box = m.poly_bvh_box;
+#define PREP_FROM_MODEL(T, name) v.name = m.name;
+  PREP_STATIC_VIEW_BLOBS(PREP_FROM_MODEL)
+#undef PREP_FROM_MODEL
   return v;
 }
 

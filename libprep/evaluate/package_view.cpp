@@ -51,26 +51,9 @@ StaticView view_of(const decal::Package& p) {
                          v.grid.cell_h,   v.grid.nx,       v.grid.ny};
   if (decal::Status st = decal::validate_indices(p, &grid); !st)
     fail<format_error>(kEvaluateStage, st.message);
-  v.line_vertices = p.array<ivec2>(BlobId::line_vertices);
-  v.line_vertex_line = p.array<uint32_t>(BlobId::line_vertex_line);
-  v.line_props = p.array<decal::LineProps>(BlobId::line_props);
-  v.line_corners = p.array<decal::LineCorner>(BlobId::line_corners);
-  v.cell_segment_range = p.array<uvec2>(BlobId::cell_segment_range);
-  v.cell_segments = p.array<uvec2>(BlobId::cell_segments);
-  v.poly_props = p.array<decal::PolyProps>(BlobId::poly_props);
-  v.poly_root_node = p.array<uint32_t>(BlobId::poly_root_node);
-  v.qt_node_box = p.array<ivec4>(BlobId::qt_node_box);
-  v.qt_node = p.array<ivec2>(BlobId::qt_node);
-  v.qt_leaf_range = p.array<uvec2>(BlobId::qt_leaf_range);
-  v.qt_leaf_segments = p.array<uvec2>(BlobId::qt_leaf_segments);
-  v.qt_leaf_vertices = p.array<ivec2>(BlobId::qt_leaf_vertices);
-  v.cell_poly_range = p.array<uvec2>(BlobId::cell_poly_range);
-  v.cell_polys = p.array<uvec4>(BlobId::cell_polys);
-  v.cell_holes = p.array<uvec2>(BlobId::cell_holes);
-  v.line_bvh_range = p.array<uvec4>(BlobId::line_bvh_range);
-  v.line_bvh_box = p.array<ivec4>(BlobId::line_bvh_box);
-  v.poly_bvh_range = p.array<uvec4>(BlobId::poly_bvh_range);
-  v.poly_bvh_box = p.array<ivec4>(BlobId::poly_bvh_box);
+#define PREP_FROM_PACKAGE(T, name) v.name = p.array<T>(BlobId::name);
+  PREP_STATIC_VIEW_BLOBS(PREP_FROM_PACKAGE)
+#undef PREP_FROM_PACKAGE
   if (p.minor() < 2) v.polygon_rank_bias = v.line_props.size();
   return v;
 }
