@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 
 #include "detail/gl_render.hpp"
 #include "prep/error.hpp"
@@ -86,6 +87,26 @@ bool one_frame(std::span<const TileSource> tiles, const RenderOptions& opt) {
   return true;
 }
 
+// One context; the renderer make() returns (its GL objects go before the
+// context) draws opt.frames frames and reads the last back. Frames after
+// the first show warm times (software GL compiles shader variants at
+// their first draw); pass times are the last frame's.
+template <class Make>
+Image draw_frames(const RenderOptions& opt, Make&& make) {
+  std::unique_ptr<decal::gl::Context> context;
+  detail::check(decal::gl::Context::create(context));
+  Image img;
+  img.width = opt.width;
+  img.height = opt.height;
+  img.device = context->info().renderer;
+  {
+    std::unique_ptr<detail::GlRenderer> gl = make();
+    for (uint32_t frame = 0; frame < std::max<uint32_t>(opt.frames, 1); ++frame) gl->frame(img);
+    gl->read_back(img);
+  }
+  return img;
+}
+
 // A tileset in one frame: one context, the terrain once, each tile's
 // blobs resident only while its passes draw (detail::GlRenderer).
 Image render_gl_one_frame(std::span<const TileSource> tiles, const Heightfield& terrain,
@@ -96,49 +117,21 @@ Image render_gl_one_frame(std::span<const TileSource> tiles, const Heightfield& 
     if (!t.source.validated)
       detail::check(
           decal::gl::validate_blobs(detail::gl_blobs(t.source), detail::gl_grid(t.source)));
-  std::unique_ptr<decal::gl::Context> context;
-  detail::check(decal::gl::Context::create(context));
-  Image img;
-  img.width = opt.width;
-  img.height = opt.height;
-  img.device = context->info().renderer;
-  {
-    detail::GlRenderer gl(tiles, terrain, opt);
-    for (uint32_t frame = 0; frame < std::max<uint32_t>(opt.frames, 1); ++frame) gl.frame(img);
-    gl.read_back(img);
-  }
-  return img;
+  return draw_frames(opt,
+                     [&] { return std::make_unique<detail::GlRenderer>(tiles, terrain, opt); });
 }
 
 }  // namespace
 
 Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
   check_options(opt);
-
   // Validate before anything touches GL (formats/gl validate_blobs), once:
   // a package's source was checked when it was made.
-  std::vector<decal::gl::BlobBytes> blobs;
-  for (const auto& b : source.blobs)
-    blobs.push_back({b.id, b.count, {static_cast<const std::byte*>(b.data), size_t(b.bytes)}});
-  const GridParams& gp = source.view.grid;
-  decal::gl::Grid grid{gp.origin_x, gp.origin_y, gp.cell_w, gp.cell_h, gp.nx, gp.ny};
+  const std::vector<decal::gl::BlobBytes> blobs = detail::gl_blobs(source);
+  const decal::gl::Grid grid = detail::gl_grid(source);
   if (!source.validated) detail::check(decal::gl::validate_blobs(blobs, grid));
-
-  std::unique_ptr<decal::gl::Context> context;
-  detail::check(decal::gl::Context::create(context));
-  Image img;
-  img.width = opt.width;
-  img.height = opt.height;
-  img.device = context->info().renderer;
-  {
-    // GL objects go before the context.
-    detail::GlRenderer gl(blobs, grid, source, terrain, opt);
-    // Frames after the first show warm times (software GL compiles shader
-    // variants at their first draw); pass times are the last frame's.
-    for (uint32_t frame = 0; frame < std::max<uint32_t>(opt.frames, 1); ++frame) gl.frame(img);
-    gl.read_back(img);
-  }
-  return img;
+  return draw_frames(
+      opt, [&] { return std::make_unique<detail::GlRenderer>(blobs, grid, source, terrain, opt); });
 }
 
 Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
@@ -201,15 +194,12 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
         out.dynamic[4 * k + c] = img.dynamic[4 * k + c];
       }
     }
-    out.dyn_kept += img.dyn_kept;
-    out.dyn_segments += img.dyn_segments;
-    out.dyn_nodes += img.dyn_nodes;
-    out.list_grows += img.list_grows;
-    out.prism_triangles += img.prism_triangles;
-    out.volume_groups += img.volume_groups;
-    out.zfail_groups += img.zfail_groups;
-    out.texture_bytes += img.texture_bytes;
-    out.texture_triangles += img.texture_triangles;
+    for (uint32_t Image::*m : {&Image::dyn_kept, &Image::dyn_segments, &Image::dyn_nodes,
+                               &Image::list_grows, &Image::volume_groups, &Image::zfail_groups})
+      out.*m += img.*m;
+    for (uint64_t Image::*m :
+         {&Image::prism_triangles, &Image::texture_bytes, &Image::texture_triangles})
+      out.*m += img.*m;
     for (PassTime& pt : img.times) out.times.push_back(std::move(pt));
   }
   return out;
