@@ -288,14 +288,8 @@ struct Cleaner {
   // -1 fully outside, 1 fully inside (or no clip), 0 crosses the border.
   int clip_relation(const std::vector<Ring>& rings) const {
     if (!clip) return 1;
-    Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
-    for (const Ring& r : rings)
-      for (const Point2& p : r) {
-        b.xmin = std::min(b.xmin, p.x);
-        b.ymin = std::min(b.ymin, p.y);
-        b.xmax = std::max(b.xmax, p.x);
-        b.ymax = std::max(b.ymax, p.y);
-      }
+    Extent b = no_points();
+    for (const Ring& r : rings) extend(b, r);
     const Extent& c = *clip;
     if (b.xmin >= c.xmin && b.xmax <= c.xmax && b.ymin >= c.ymin && b.ymax <= c.ymax) return 1;
     if (b.xmax < c.xmin || b.xmin > c.xmax || b.ymax < c.ymin || b.ymin > c.ymax) return -1;
@@ -431,25 +425,39 @@ struct Cleaner {
     return true;
   }
 
-  // Simplifies each valid, clipped polygon piece and emits what is left.
-  void simplify_and_emit_polygons(GeosContext& ctx, const SourceFeature& f,
-                                  const std::vector<const GEOSGeometry*>& parts,
-                                  PartResult& r) const {
+  // Simplifies each clipped piece (counting its vertices in) and hands
+  // emit() the pieces of `type` (GEOS_POLYGON or GEOS_LINESTRING) of the
+  // result; false when a simplification failed (recorded in r).
+  template <class Emit>
+  bool simplify_pieces(GeosContext& ctx, const SourceFeature& f,
+                       const std::vector<const GEOSGeometry*>& parts, int type, PartResult& r,
+                       Emit&& emit) const {
     GEOSContextHandle_t h = ctx.h;
     for (const GEOSGeometry* p : parts) {
       r.vertices_in += vertex_count(h, p);
       Geom simple;
-      if (!simplify(ctx, f, p, simple, r)) return;
-      // Simplification is topology-preserving; keep the unsimplified part if
-      // GEOS ever disagrees.
-      ctx.step("GEOS isValid of the simplified part");
-      if (simple && GEOSisValid_r(h, simple.get()) != 1) simple = Geom();
-      const GEOSGeometry* use = simple ? simple.get() : p;
-      std::vector<const GEOSGeometry*> polys;
+      if (!simplify(ctx, f, p, simple, r)) return false;
+      if (type == GEOS_POLYGON) {
+        // Simplification is topology-preserving; keep the unsimplified part
+        // if GEOS ever disagrees.
+        ctx.step("GEOS isValid of the simplified part");
+        if (simple && GEOSisValid_r(h, simple.get()) != 1) simple = Geom();
+      }
+      std::vector<const GEOSGeometry*> pieces;
       bool ignored = false;
-      collect(h, use, GEOS_POLYGON, polys, ignored);
-      for (const GEOSGeometry* poly : polys) emit_polygon(h, f, poly, r);
+      collect(h, simple ? simple.get() : p, type, pieces, ignored);
+      for (const GEOSGeometry* piece : pieces) emit(piece);
     }
+    return true;
+  }
+
+  // Simplifies each valid, clipped polygon piece and emits what is left.
+  void simplify_and_emit_polygons(GeosContext& ctx, const SourceFeature& f,
+                                  const std::vector<const GEOSGeometry*>& parts,
+                                  PartResult& r) const {
+    if (!simplify_pieces(ctx, f, parts, GEOS_POLYGON, r,
+                         [&](const GEOSGeometry* poly) { emit_polygon(ctx.h, f, poly, r); }))
+      return;
     if (r.polygons.empty()) {
       r.outcome = Outcome::dropped;
       r.drop_reason = "collapsed to zero area under simplification";
@@ -459,10 +467,7 @@ struct Cleaner {
   // same rings, counts and (GEOS's) area.
   static void emit_rings(const SourceFeature& f, std::vector<Ring> rings, PartResult& r) {
     ScenePolygon out;
-    out.fid = f.fid;
-    out.part = f.part;
-    out.order_value = f.order_value;
-    out.color_value = f.color_value;
+    static_cast<FeatureKeys&>(out) = f;
     double area = geos_ring_area(rings[0]);
     for (size_t i = 1; i < rings.size(); ++i) area -= geos_ring_area(rings[i]);
     out.area = area;
@@ -483,10 +488,7 @@ struct Cleaner {
   void emit_polygon(GEOSContextHandle_t h, const SourceFeature& f, const GEOSGeometry* poly,
                     PartResult& r) const {
     ScenePolygon out;
-    out.fid = f.fid;
-    out.part = f.part;
-    out.order_value = f.order_value;
-    out.color_value = f.color_value;
+    static_cast<FeatureKeys&>(out) = f;
     read_oriented_rings(h, poly, out.shell, out.holes);
     GEOSArea_r(h, poly, &out.area);
     r.vertices_out += out.shell.size() + 1;
@@ -548,15 +550,18 @@ struct Cleaner {
     r.vertices_out += pts.size();
     out.length = geos_line_length(pts);
     out.points = std::move(pts);
-    out.closed = was_closed && out.points.size() >= 4 &&
+    close_if_ends_meet(out, was_closed);
+    static_cast<FeatureKeys&>(out) = f;
+    r.lines.push_back(std::move(out));
+  }
+
+  // A line whose first and last points are equal (and that may close) is
+  // a closed line of the points without the repeated last one.
+  static void close_if_ends_meet(SceneLine& out, bool may_close) {
+    out.closed = may_close && out.points.size() >= 4 &&
                  out.points.front().x == out.points.back().x &&
                  out.points.front().y == out.points.back().y;
     if (out.closed) out.points.pop_back();
-    out.fid = f.fid;
-    out.part = f.part;
-    out.order_value = f.order_value;
-    out.color_value = f.color_value;
-    r.lines.push_back(std::move(out));
   }
 
   // Simplifies each (clipped) line piece and emits what is left; a piece
@@ -565,33 +570,19 @@ struct Cleaner {
                                const std::vector<const GEOSGeometry*>& parts, bool may_close,
                                PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
-    for (const GEOSGeometry* p : parts) {
-      r.vertices_in += vertex_count(h, p);
-      Geom simple;
-      if (!simplify(ctx, f, p, simple, r)) return;
-      const GEOSGeometry* use = simple ? simple.get() : p;
-      std::vector<const GEOSGeometry*> lines;
-      bool ignored = false;
-      collect(h, use, GEOS_LINESTRING, lines, ignored);
-      for (const GEOSGeometry* l : lines) {
-        SceneLine out;
-        out.points = read_coords(h, l, false);
-        r.vertices_out += out.points.size();
-        out.closed = may_close && out.points.size() >= 4 &&
-                     out.points.front().x == out.points.back().x &&
-                     out.points.front().y == out.points.back().y;
-        if (out.closed) out.points.pop_back();
-        if (out.points.size() < 2) continue;
-        out.fid = f.fid;
-        out.part = f.part;
-        out.order_value = f.order_value;
-        out.color_value = f.color_value;
-        double len = 0;
-        GEOSLength_r(h, l, &len);
-        out.length = len;
-        r.lines.push_back(std::move(out));
-      }
-    }
+    if (!simplify_pieces(ctx, f, parts, GEOS_LINESTRING, r, [&](const GEOSGeometry* l) {
+          SceneLine out;
+          out.points = read_coords(h, l, false);
+          r.vertices_out += out.points.size();
+          close_if_ends_meet(out, may_close);
+          if (out.points.size() < 2) return;
+          static_cast<FeatureKeys&>(out) = f;
+          double len = 0;
+          GEOSLength_r(h, l, &len);
+          out.length = len;
+          r.lines.push_back(std::move(out));
+        }))
+      return;
     if (r.lines.empty()) {
       r.outcome = Outcome::dropped;
       r.drop_reason = "collapsed under simplification";
@@ -820,10 +811,7 @@ class LayerGather {
     SceneLine l;
     l.points = ring;
     l.closed = true;
-    l.fid = poly.fid;
-    l.part = poly.part;
-    l.order_value = poly.order_value;
-    l.color_value = poly.color_value;
+    static_cast<FeatureKeys&>(l) = poly;
     double len = 0;
     for (size_t q = 0; q < ring.size(); ++q) {
       const Point2& a = ring[q];
@@ -942,18 +930,10 @@ LayerCounts ChunkCleaner::end_layer() {
 }
 
 Extent kept_extent(const SceneFeatures& s) {
-  Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
-  auto grow = [&](const Ring& r) {
-    for (const Point2& p : r) {
-      b.xmin = std::min(b.xmin, p.x);
-      b.ymin = std::min(b.ymin, p.y);
-      b.xmax = std::max(b.xmax, p.x);
-      b.ymax = std::max(b.ymax, p.y);
-    }
-  };
-  for (const ScenePolygon& p : s.polygons) grow(p.shell);
-  for (const SceneLine& l : s.lines) grow(l.points);
-  for (const SceneLine& l : s.dynamic_lines) grow(l.points);
+  Extent b = no_points();
+  for (const ScenePolygon& p : s.polygons) extend(b, p.shell);
+  for (const SceneLine& l : s.lines) extend(b, l.points);
+  for (const SceneLine& l : s.dynamic_lines) extend(b, l.points);
   return b.xmax >= b.xmin ? b : Extent{};
 }
 

@@ -161,16 +161,7 @@ using pipeline_internal::write_text_file;
 
 LayerCounts manifest_totals(const Manifest& manifest) {
   LayerCounts total;
-  for (const LayerCounts& c : manifest.layers) {
-    total.read += c.read;
-    total.kept += c.kept;
-    total.repaired += c.repaired;
-    total.clipped_away += c.clipped_away;
-    total.dropped += c.dropped;
-    total.parts += c.parts;
-    total.vertices_in += c.vertices_in;
-    total.vertices_out += c.vertices_out;
-  }
+  for (const LayerCounts& c : manifest.layers) total += c;
   return total;
 }
 

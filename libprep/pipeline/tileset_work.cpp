@@ -63,15 +63,6 @@ struct BoxRecord {
   double xmin, ymin, xmax, ymax;
 };
 
-void grow(Extent& b, const Ring& r) {
-  for (const Point2& p : r) {
-    b.xmin = std::min(b.xmin, p.x);
-    b.ymin = std::min(b.ymin, p.y);
-    b.xmax = std::max(b.xmax, p.x);
-    b.ymax = std::max(b.ymax, p.y);
-  }
-}
-
 OGRLinearRing* closed_ring(const Ring& r) {
   auto* ring = new OGRLinearRing;
   ring->setNumPoints(static_cast<int>(r.size() + (r.empty() ? 0 : 1)), FALSE);
@@ -142,8 +133,7 @@ void PartWriter::add(const SceneFeatures& chunk) {
   if (impl_->ds->StartTransaction() != OGRERR_NONE)
     fail<output_error>(kTilesetStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
   auto write = [&](PartKind kind, OGRGeometry* geometry, const Ring& boxed, uint32_t layer,
-                   int64_t fid, int part, bool closed, double area, double length, double width,
-                   double order_value, double color_value) {
+                   const FeatureKeys& id, bool closed, double area, double length, double width) {
     OGRFeature f(defn);
     // The part itself as WKB (doubles exact); the feature's geometry is its
     // box grown by kBoxPad (never degenerate), so that GDAL's spatial
@@ -173,18 +163,18 @@ void PartWriter::add(const SceneFeatures& chunk) {
     f.SetField(f_kind, k);
     f.SetField(f_seq, static_cast<GIntBig>(seq_[k]++));
     f.SetField(f_layer, static_cast<int>(layer));
-    f.SetField(f_fid, static_cast<GIntBig>(fid));
-    f.SetField(f_part, part);
+    f.SetField(f_fid, static_cast<GIntBig>(id.fid));
+    f.SetField(f_part, id.part);
     f.SetField(f_closed, closed ? 1 : 0);
     f.SetField(f_area, area);
     f.SetField(f_length, length);
     f.SetField(f_width, width);
-    f.SetField(f_order, order_value);
-    f.SetField(f_color, color_value);
+    f.SetField(f_order, id.order_value);
+    f.SetField(f_color, id.color_value);
     // The keys as their bytes: SQLite keeps neither NaN (NULL) nor the sign
     // of a zero (an integral REAL is stored as an integer); the Real fields
     // above are for people looking at the file.
-    const double keys[5] = {area, length, width, order_value, color_value};
+    const double keys[5] = {area, length, width, id.order_value, id.color_value};
     f.SetField(f_keys, static_cast<int>(sizeof keys), static_cast<const void*>(keys));
     if (impl_->layer->CreateFeature(&f) != OGRERR_NONE)
       fail<output_error>(kTilesetStage,
@@ -192,14 +182,13 @@ void PartWriter::add(const SceneFeatures& chunk) {
     const BoxRecord rec{k, 0, b.xmin, b.ymin, b.xmax, b.ymax};
     if (std::fwrite(&rec, sizeof rec, 1, impl_->boxes) != 1)
       fail<output_error>(kTilesetStage, "cannot write " + impl_->boxes_path);
-    grow(box_, boxed);
+    extend(box_, boxed);
   };
   for (const ScenePolygon& p : chunk.polygons) {
     auto* poly = new OGRPolygon;
     poly->addRingDirectly(closed_ring(p.shell));
     for (const Ring& h : p.holes) poly->addRingDirectly(closed_ring(h));
-    write(PartKind::polygon, poly, p.shell, p.layer, p.fid, p.part, false, p.area, 0, 0,
-          p.order_value, p.color_value);
+    write(PartKind::polygon, poly, p.shell, p.layer, p, false, p.area, 0, 0);
   }
   auto line_geometry = [](const Ring& pts) {
     auto* ls = new OGRLineString;
@@ -208,11 +197,11 @@ void PartWriter::add(const SceneFeatures& chunk) {
     return ls;
   };
   for (const SceneLine& l : chunk.lines)
-    write(PartKind::line, line_geometry(l.points), l.points, l.layer, l.fid, l.part, l.closed, 0,
-          l.length, l.width, l.order_value, l.color_value);
+    write(PartKind::line, line_geometry(l.points), l.points, l.layer, l, l.closed, 0, l.length,
+          l.width);
   for (const SceneLine& l : chunk.dynamic_lines)
-    write(PartKind::dynamic_line, line_geometry(l.points), l.points, l.layer, l.fid, l.part,
-          l.closed, 0, l.length, l.width, l.order_value, l.color_value);
+    write(PartKind::dynamic_line, line_geometry(l.points), l.points, l.layer, l, l.closed, 0,
+          l.length, l.width);
   if (impl_->ds->CommitTransaction() != OGRERR_NONE)
     fail<output_error>(kTilesetStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
   half_width_ = std::max(half_width_, stroke_half_width(chunk));
@@ -328,8 +317,11 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
       fail<output_error>(kTilesetStage, impl_->path + ": a part without its keys");
     std::memcpy(keys, keys_bytes, sizeof keys);
     const auto layer_index = static_cast<uint32_t>(f->GetFieldAsInteger(fi[f_layer]));
-    const int64_t fid = f->GetFieldAsInteger64(fi[f_fid]);
-    const int part = f->GetFieldAsInteger(fi[f_part]);
+    FeatureKeys feature_keys;
+    feature_keys.fid = f->GetFieldAsInteger64(fi[f_fid]);
+    feature_keys.part = f->GetFieldAsInteger(fi[f_part]);
+    feature_keys.order_value = keys[3];
+    feature_keys.color_value = keys[4];
     if (kind == static_cast<int>(PartKind::polygon)) {
       const auto* poly = dynamic_cast<const OGRPolygon*>(g);
       if (!poly || !poly->getExteriorRing())
@@ -339,12 +331,9 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
       if (!tile_range(ring_box(p.shell), plan.margin, ox, oy, plan.size).holds(key)) continue;
       for (int h = 0; h < poly->getNumInteriorRings(); ++h)
         p.holes.push_back(open_points(*poly->getInteriorRing(h), true));
+      static_cast<FeatureKeys&>(p) = feature_keys;
       p.layer = layer_index;
-      p.fid = fid;
-      p.part = part;
       p.area = keys[0];
-      p.order_value = keys[3];
-      p.color_value = keys[4];
       if (filter && !filter->polygon(p)) continue;
       polys.emplace_back(seq, std::move(p));
     } else {
@@ -358,13 +347,10 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
                .holds(key))
         continue;
       l.closed = f->GetFieldAsInteger(fi[f_closed]) != 0;
+      static_cast<FeatureKeys&>(l) = feature_keys;
       l.layer = layer_index;
-      l.fid = fid;
-      l.part = part;
       l.length = keys[1];
       l.width = keys[2];
-      l.order_value = keys[3];
-      l.color_value = keys[4];
       if (filter && !filter->line(l, dynamic)) continue;
       (dynamic ? dyn : lines).emplace_back(seq, std::move(l));
     }

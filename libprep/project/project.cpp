@@ -78,18 +78,10 @@ TransformPtr make_transform(const OGRSpatialReference& from, const OGRSpatialRef
 
 // The box of a layer's vertices (dropped features left out).
 Extent bounds_of(const FeatureSource& features, size_t layer) {
-  constexpr double inf = std::numeric_limits<double>::infinity();
-  Extent e{inf, inf, -inf, -inf};
+  Extent e = no_points();
   features.for_each(layer, [&](const SourceFeature& f) {
     if (!f.drop_reason.empty()) return;
-    for (const Ring& r : f.rings) {
-      for (const Point2& p : r) {
-        e.xmin = std::min(e.xmin, p.x);
-        e.ymin = std::min(e.ymin, p.y);
-        e.xmax = std::max(e.xmax, p.x);
-        e.ymax = std::max(e.ymax, p.y);
-      }
-    }
+    for (const Ring& r : f.rings) extend(e, r);
   });
   return e;
 }

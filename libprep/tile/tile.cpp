@@ -26,13 +26,8 @@ bool boxes_meet(const Extent& a, const Extent& b) {
 }
 
 Extent box_of(const Ring& r) {
-  Extent b{INFINITY, INFINITY, -INFINITY, -INFINITY};
-  for (const Point2& p : r) {
-    b.xmin = std::min(b.xmin, p.x);
-    b.ymin = std::min(b.ymin, p.y);
-    b.xmax = std::max(b.xmax, p.x);
-    b.ymax = std::max(b.ymax, p.y);
-  }
+  Extent b = no_points();
+  extend(b, r);
   return b;
 }
 

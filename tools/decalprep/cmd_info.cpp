@@ -110,8 +110,7 @@ void run_tileset_info(const std::string& dir, bool as_json) {
   for (const prep::LayerCounts& c : ix.manifest.layers) {
     std::printf("  %-24s %10" PRIu64 " %10" PRIu64 " %10" PRIu64 " %12" PRIu64 " %10" PRIu64 "\n",
                 c.layer.c_str(), c.read, c.kept, c.repaired, c.clipped_away, c.dropped);
-    total.read += c.read, total.kept += c.kept, total.repaired += c.repaired;
-    total.clipped_away += c.clipped_away, total.dropped += c.dropped;
+    total += c;
   }
   std::printf("  %-24s %10" PRIu64 " %10" PRIu64 " %10" PRIu64 " %12" PRIu64 " %10" PRIu64 "\n",
               "(total)", total.read, total.kept, total.repaired, total.clipped_away, total.dropped);
@@ -127,10 +126,7 @@ void run_tileset_info(const std::string& dir, bool as_json) {
     uint64_t lbytes = 0;
     for (const prep::TileEntry& t : l.tiles) lbytes += t.bytes;
     prep::LayerCounts sum;
-    for (const prep::LayerCounts& c : l.layers) {
-      sum.read += c.read, sum.parts += c.parts, sum.dropped_small += c.dropped_small;
-      sum.vertices_in += c.vertices_in, sum.vertices_out += c.vertices_out;
-    }
+    for (const prep::LayerCounts& c : l.layers) sum += c;
     std::printf(
         "  level %d: %.10g m tiles, resolution %.10g m, min area %.10g m2, min length "
         "%.10g m; %zu packages, %" PRIu64 " bytes; parts %" PRIu64 " of %" PRIu64 " (%" PRIu64

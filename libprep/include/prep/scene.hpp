@@ -7,6 +7,7 @@
 // files. Coordinates are double precision throughout these stages.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -159,6 +160,16 @@ struct LayerCounts {
   // out of the level for being below its min_area / min_length (or
   // collapsing under its simplification). Never written elsewhere.
   uint64_t dropped_small = 0;
+
+  // Adds every count of `o` (not the layer name).
+  LayerCounts& operator+=(const LayerCounts& o) {
+    for (uint64_t LayerCounts::*m :
+         {&LayerCounts::read, &LayerCounts::kept, &LayerCounts::repaired,
+          &LayerCounts::clipped_away, &LayerCounts::dropped, &LayerCounts::parts,
+          &LayerCounts::vertices_in, &LayerCounts::vertices_out, &LayerCounts::dropped_small})
+      this->*m += o.*m;
+    return *this;
+  }
 };
 
 struct Manifest {
@@ -174,18 +185,40 @@ struct Point2 {
 };
 using Ring = std::vector<Point2>;  // not closed: first point is not repeated
 
-// Output of `read`: geometry in the source CRS, multi-geometries split.
-struct SourceFeature {
+// A box that holds no point yet (minima +inf, maxima -inf); extend() grows
+// a box to take in points.
+inline Extent no_points() {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  return {inf, inf, -inf, -inf};
+}
+inline void extend(Extent& b, const Point2& p) {
+  b.xmin = std::min(b.xmin, p.x);
+  b.ymin = std::min(b.ymin, p.y);
+  b.xmax = std::max(b.xmax, p.x);
+  b.ymax = std::max(b.ymax, p.y);
+}
+inline void extend(Extent& b, const Ring& r) {
+  for (const Point2& p : r) extend(b, p);
+}
+
+// What a part carries from its source feature into the package: the
+// feature id, the part index after splitting multi-geometries, and the
+// attribute values for the drawing order and the colour (NaN when none).
+struct FeatureKeys {
   int64_t fid = -1;
   int part = 0;
+  double order_value = std::numeric_limits<double>::quiet_NaN();
+  double color_value = std::numeric_limits<double>::quiet_NaN();
+};
+
+// Output of `read`: geometry in the source CRS, multi-geometries split.
+struct SourceFeature : FeatureKeys {
   uint64_t feature = 0;                   // index of the input feature in its layer (read order)
   std::string repairs;                    // what read/project already fixed ("closed an open ring")
   std::string drop_reason;                // non-empty: unusable; clean records it as dropped
   std::optional<FailureStage> failed_in;  // set: drop_reason is a per-feature failure
   bool is_polygon = false;
   std::vector<Ring> rings;  // polygon: [0] shell, then holes; line: [0]
-  double order_value = std::numeric_limits<double>::quiet_NaN();
-  double color_value = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct SourceLayer {
@@ -213,27 +246,19 @@ struct SceneFrame {
 
 // Output of `clean`: valid, oriented (shell CCW, holes CW), clipped and
 // simplified; coordinates in metres relative to frame.origin.
-struct ScenePolygon {
+struct ScenePolygon : FeatureKeys {
   Ring shell;
   std::vector<Ring> holes;
   uint32_t layer = 0;  // index into SceneFeatures::layers
-  int64_t fid = -1;
-  int part = 0;
-  double area = 0;  // m², for drawing order
-  double order_value = std::numeric_limits<double>::quiet_NaN();
-  double color_value = std::numeric_limits<double>::quiet_NaN();
+  double area = 0;     // m², for drawing order
 };
 
-struct SceneLine {
+struct SceneLine : FeatureKeys {
   Ring points;
   bool closed = false;  // polygon ring used as an outline
   uint32_t layer = 0;
-  int64_t fid = -1;
-  int part = 0;
   double length = 0;  // ground metres (geodesic), for drawing order
   double width = 0;   // ground metres (static) corrected by the frame scale; pixels (dynamic)
-  double order_value = std::numeric_limits<double>::quiet_NaN();
-  double color_value = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct SceneFeatures {

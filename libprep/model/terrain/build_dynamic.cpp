@@ -112,15 +112,9 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options,
     dem = std::make_unique<DemSampler>(
         DemSpec{dem_path, options.dem_assume_crs, options.z_scale, options.nodata_fill},
         scene.frame);
-    double xmin = lines[0].points[0].x, xmax = xmin, ymin = lines[0].points[0].y, ymax = ymin;
-    for (const auto& l : lines)
-      for (const auto& p : l.points) {
-        xmin = std::min(xmin, p.x);
-        xmax = std::max(xmax, p.x);
-        ymin = std::min(ymin, p.y);
-        ymax = std::max(ymax, p.y);
-      }
-    const double cell = dem->cell_size_metres({0.5 * (xmin + xmax), 0.5 * (ymin + ymax)});
+    Extent b = no_points();
+    for (const auto& l : lines) extend(b, l.points);
+    const double cell = dem->cell_size_metres({0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax)});
     match_options.lmax = options.lmax > 0 ? options.lmax : 0.5 * cell;
     notes.push_back("terrain: " + dem->stats().description + "; DEM cell " + fmt(cell) +
                     " m near the data centre");
