@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "byte_damage.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
 #include "fixtures.hpp"
@@ -70,30 +71,26 @@ TEST_P(Hostile, EveryTruncatedPrefixIsRejectedWithAMessage) {
 TEST_P(Hostile, EverySingleBitFlipIsRejected) {
   const auto good = tiny_package(GetParam());
   ASSERT_TRUE(open_bytes(good));
-  auto bytes = good;
-  for (size_t i = 0; i < bytes.size(); ++i)
-    for (int bit = 0; bit < 8; ++bit) {
-      bytes[i] ^= std::byte(1u << bit);
-      const decal::Status s = open_bytes(bytes);
-      ASSERT_FALSE(s) << "flip of bit " << bit << " of byte " << i << " was accepted";
-      ASSERT_FALSE(s.message.empty());
-      bytes[i] ^= std::byte(1u << bit);
-    }
+  EXPECT_TRUE(prep::test::every_bit_flip_rejected(good, good.size(), [](const auto& bytes) {
+    const decal::Status s = open_bytes(bytes);
+    if (s) return ::testing::AssertionFailure() << "opened";
+    if (s.message.empty()) return ::testing::AssertionFailure() << "with no message";
+    return ::testing::AssertionSuccess();
+  }));
 }
 
 TEST_P(Hostile, EverySingleBitFlipOfAFullModelPackageIsRejected) {
   // Every blob of the catalogue, a real metadata chunk: ~11 KB, ~86k flips.
   const auto good = decal_test::model_package_bytes(decal_test::small_model(), {GetParam(), 3});
   ASSERT_TRUE(open_bytes(good));
-  auto bytes = good;
   size_t flips = 0;
-  for (size_t i = 0; i < bytes.size(); ++i)
-    for (int bit = 0; bit < 8; ++bit, ++flips) {
-      bytes[i] ^= std::byte(1u << bit);
-      ASSERT_FALSE(open_bytes(bytes))
-          << "flip of bit " << bit << " of byte " << i << " was accepted";
-      bytes[i] ^= std::byte(1u << bit);
-    }
+  EXPECT_TRUE(prep::test::every_bit_flip_rejected(
+      good, good.size(),
+      [](const auto& bytes) {
+        return open_bytes(bytes) ? ::testing::AssertionFailure() << "opened"
+                                 : ::testing::AssertionSuccess();
+      },
+      &flips));
   EXPECT_EQ(flips, good.size() * 8);
 }
 
