@@ -25,6 +25,7 @@
 
 #include "detail/certainly_valid.hpp"
 #include "geos_oracle.hpp"
+#include "test_support.hpp"
 
 namespace {
 
@@ -32,21 +33,7 @@ using prep::Point2;
 using prep::Ring;
 using Rings = std::vector<Ring>;
 
-// xorshift64: the same sequence on every platform and standard library.
-class Rng {
- public:
-  explicit Rng(uint64_t seed) : s_(seed) {}
-  double uniform() {  // [0, 1)
-    s_ ^= s_ << 13;
-    s_ ^= s_ >> 7;
-    s_ ^= s_ << 17;
-    return double(s_ >> 11) / double(uint64_t(1) << 53);
-  }
-  int below(int n) { return static_cast<int>(uniform() * n); }
-
- private:
-  uint64_t s_;
-};
+using prep::test::Rng;
 
 // n vertices around c at increasing angles (jitter < 1 keeps them in order:
 // a simple star-shaped ring; jitter > 1 lets neighbours swap: crossings),

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "../read/fixtures.hpp"
+#include "../read/scene_fixtures.hpp"
 #include "geos_oracle.hpp"
 #include "prep/error.hpp"
 #include "prep/pipeline.hpp"
@@ -120,20 +121,13 @@ std::string collection(const std::vector<Case>& cs) {
 prep::SceneFeatures run(const std::string& source, prep::DecalKind kind, double resolution = 0,
                         std::optional<prep::Extent> extent = std::nullopt, unsigned threads = 0,
                         prep::RepairMethod repair = prep::RepairMethod::linework) {
-  prep::SceneSpec s;
-  prep::LayerSpec l;
-  l.name = "cases";
-  l.source = source;
-  l.kind = kind;
-  s.layers.push_back(l);
+  prep::SceneSpec s = prep::test::one_layer("cases", source, kind);
   s.crs = "EPSG:32632";
   s.resolution = resolution;
   s.extent = extent;
   s.model.threads = threads;
   s.repair = repair;
-  prep::BuildRequest req;
-  req.dry_run = true;
-  return prep::run_build(s, req).scene;
+  return prep::test::dry_run(s);
 }
 
 TEST(Clean, EveryBrokenPolygonEndsValidWithMakeValidsAreaOrIsDroppedWithAReason) {
@@ -271,10 +265,7 @@ TEST(Clean, ClipKeepsTheInsideAndRecordsFeaturesEntirelyOutside) {
   const prep::LayerCounts& n = sf.manifest.layers[0];
   EXPECT_EQ(n.kept, 2u);
   EXPECT_EQ(n.clipped_away, 1u);
-  bool entry = false;
-  for (const auto& m : sf.manifest.entries)
-    entry |= m.fid == 2 && m.action == prep::ManifestAction::clipped_away;
-  EXPECT_TRUE(entry);
+  EXPECT_TRUE(prep::test::has_entry(sf.manifest, 2, prep::ManifestAction::clipped_away));
 }
 
 TEST(Clean, LinesLoseDuplicatesAreClippedIntoPiecesAndDegenerateOnesAreDropped) {
@@ -406,23 +397,17 @@ TEST(Clean, WithADemTheSceneIsClippedToTheDemExtent) {
       polygon_case(2, "beyond the DEM",
                    {{{1000, 0}, {1100, 0}, {1100, 100}, {1000, 100}, {1000, 0}}})};
   prep::test::write_text(dir.file("d.geojson"), collection(cs));
-  prep::SceneSpec s;
-  prep::LayerSpec l;
-  l.name = "d";
-  l.source = dir.file("d.geojson");
-  s.layers.push_back(l);
+  prep::SceneSpec s = prep::test::one_layer("d", dir.file("d.geojson"));
   s.crs = "EPSG:32632";
   s.dem = write_dem(dir);
-  prep::BuildRequest req;
-  req.dry_run = true;
-  prep::SceneFeatures sf = prep::run_build(s, req).scene;
+  prep::SceneFeatures sf = prep::test::dry_run(s);
   ASSERT_EQ(sf.polygons.size(), 1u);
   EXPECT_NEAR(prep::test::polygon_area(sf.polygons[0]), 50.0 * 100.0, 1e-6);
   EXPECT_EQ(sf.manifest.layers[0].clipped_away, 1u);
 
   s.dem = dir.file("missing.tif");
   try {
-    prep::run_build(s, req);
+    prep::test::dry_run(s);
     FAIL() << "missing DEM accepted";
   } catch (const prep::error& e) {
     EXPECT_NE(std::string(e.what()).find("missing.tif"), std::string::npos) << e.what();
@@ -437,17 +422,11 @@ TEST(Clean, ExtentGivenInLonLatIsTransformedIntoTheFrame) {
                    {{{50000, 0}, {50100, 0}, {50100, 100}, {50000, 100}, {50000, 0}}})};
   prep::test::write_text(dir.file("e.geojson"), collection(cs));
   // Zone 32's central meridian is 9°E; (500000, 4800000) is near 43.35°N.
-  prep::SceneSpec s;
-  prep::LayerSpec l;
-  l.name = "e";
-  l.source = dir.file("e.geojson");
-  s.layers.push_back(l);
+  prep::SceneSpec s = prep::test::one_layer("e", dir.file("e.geojson"));
   s.crs = "EPSG:32632";
   s.extent = prep::Extent{8.9, 43.0, 9.1, 43.7};
   s.extent_crs = "EPSG:4326";
-  prep::BuildRequest req;
-  req.dry_run = true;
-  prep::SceneFeatures sf = prep::run_build(s, req).scene;
+  prep::SceneFeatures sf = prep::test::dry_run(s);
   ASSERT_EQ(sf.polygons.size(), 1u);
   EXPECT_EQ(sf.polygons[0].fid, 1);
   EXPECT_EQ(sf.manifest.layers[0].clipped_away, 1u);
@@ -461,13 +440,8 @@ TEST(Clean, ExtentGivenInLonLatIsTransformedIntoTheFrame) {
 // every valid one must come through untouched with GEOS's area.
 TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
   TempDir dir;
-  uint64_t seed = 7;
-  auto next = [&] {
-    seed ^= seed << 13;
-    seed ^= seed >> 7;
-    seed ^= seed << 17;
-    return double(seed >> 11) / double(uint64_t(1) << 53);
-  };
+  prep::test::Rng rng(7);
+  auto next = [&] { return rng.uniform(); };
   std::vector<Case> cs;
   for (int k = 0; k < 400; ++k) {
     const bool snap = k % 2 == 0;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "../read/fixtures.hpp"
+#include "../read/scene_fixtures.hpp"
 #include "geos_oracle.hpp"
 #include "prep/pipeline.hpp"
 
@@ -14,18 +15,13 @@ prep::SceneFeatures monaco(double resolution) {
   for (auto [name, layer, where, kind] :
        {std::tuple{"buildings", "multipolygons", "building IS NOT NULL", prep::DecalKind::polygon},
         std::tuple{"roads", "lines", "highway IS NOT NULL", prep::DecalKind::line}}) {
-    prep::LayerSpec l;
-    l.name = name;
-    l.source = prep::test::monaco_sample("monaco.osm.pbf");
+    prep::LayerSpec& l = s.layers.emplace_back(
+        prep::test::layer_of(name, prep::test::monaco_sample("monaco.osm.pbf"), kind));
     l.layer = layer;
     l.where = where;
-    l.kind = kind;
-    s.layers.push_back(l);
   }
   s.resolution = resolution;
-  prep::BuildRequest req;
-  req.dry_run = true;
-  return prep::run_build(s, req).scene;
+  return prep::test::dry_run(s);
 }
 
 TEST(CleanMonaco, SimplifiedOutputIsValidAndWithinHalfAMetre) {

@@ -29,6 +29,7 @@
 #include "detail/repair_by_parts.hpp"
 #include "geos_oracle.hpp"
 #include "prep/clean.hpp"
+#include "test_support.hpp"
 
 namespace {
 
@@ -216,21 +217,7 @@ TEST(RepairByParts, HostilePolygonEqualsWholeMakeValid) {
   }
 }
 
-// xorshift64: the same sequence everywhere.
-class Rng {
- public:
-  explicit Rng(uint64_t seed) : s_(seed) {}
-  double uniform() {
-    s_ ^= s_ << 13;
-    s_ ^= s_ >> 7;
-    s_ ^= s_ << 17;
-    return double(s_ >> 11) / double(uint64_t(1) << 53);
-  }
-  double in(double a, double b) { return a + (b - a) * uniform(); }
-
- private:
-  uint64_t s_;
-};
+using prep::test::Rng;
 
 // A non-convex shell (a 1 km square with a deep notch) and holes of random
 // shape (squares, triangles, bow-ties, thin bars), place and size.

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "../read/fixtures.hpp"
+#include "../read/scene_fixtures.hpp"
 #include "epsg_wkt.hpp"
 #include "prep/error.hpp"
 #include "prep/project.hpp"
@@ -206,13 +207,8 @@ TEST(DefaultFrame, PacificDataAcrossTheAntimeridianIsCentredNear180AndStaysSmall
 // 180 degrees of the frame's centre): vertex by vertex where PROJ puts the
 // original coordinates.
 TEST(DefaultFrame, ManyVerticesAcrossTheAntimeridianMatchProjPerVertex) {
-  uint64_t seed = 12345;
-  auto next = [&] {  // xorshift: deterministic, no <random> distribution differences
-    seed ^= seed << 13;
-    seed ^= seed >> 7;
-    seed ^= seed << 17;
-    return double(seed >> 11) / double(uint64_t(1) << 53);
-  };
+  prep::test::Rng rng(12345);
+  auto next = [&] { return rng.uniform(); };
   std::vector<prep::Ring> rings;
   for (int f = 0; f < 2000; ++f) {
     prep::Ring& r = rings.emplace_back();
@@ -307,13 +303,7 @@ TEST(DefaultFrame, WorldLayerGetsEqualEarthAndEveryVertexProjectsFinite) {
   const std::string path = prep::test::spdata_dir() + "/shapes/world.gpkg";
   if (!prep::test::exists(path))
     GTEST_SKIP() << path << " is missing: run scripts/fetch-data (it unpacks r-cran-spdata)";
-  prep::SceneSpec scene;
-  prep::LayerSpec l;
-  l.name = "world";
-  l.source = path;
-  l.kind = prep::DecalKind::polygon;
-  scene.layers.push_back(l);
-  prep::FeatureSet fs = prep::read_scene(scene);
+  prep::FeatureSet fs = prep::read_scene(prep::test::one_layer("world", path));
   ASSERT_EQ(fs.layers.size(), 1u);
   // 177 countries in 289 polygons (ogrinfo's count of features; parts from
   // SpatiaLite's NumGeometries).
@@ -370,12 +360,8 @@ TEST(DefaultFrame, FijiFromTheWorldLayerGetsASmallFrameNear180) {
   const std::string path = prep::test::spdata_dir() + "/shapes/world.gpkg";
   if (!prep::test::exists(path))
     GTEST_SKIP() << path << " is missing: run scripts/fetch-data (it unpacks r-cran-spdata)";
-  prep::SceneSpec scene;
-  prep::LayerSpec l;
-  l.name = "fiji";
-  l.source = path;
-  l.where = "name_long = 'Fiji'";
-  scene.layers.push_back(l);
+  prep::SceneSpec scene = prep::test::one_layer("fiji", path);
+  scene.layers[0].where = "name_long = 'Fiji'";
   prep::FeatureSet fs = prep::read_scene(scene);
   const prep::SceneFrame frame = prep::choose_frame(fs, "");
   ASSERT_TRUE(std::isfinite(frame.tm_lon0)) << frame.description;

@@ -13,6 +13,7 @@
 #include <memory>
 
 #include "../read/fixtures.hpp"
+#include "../read/scene_fixtures.hpp"
 #include "epsg_wkt.hpp"
 #include "prep/error.hpp"
 #include "prep/pipeline.hpp"
@@ -126,17 +127,10 @@ std::string write_3857_line(const prep::test::TempDir& dir) {
 }
 
 prep::SceneFeatures build_line(const std::string& path, const std::string& crs) {
-  prep::SceneSpec s;
-  prep::LayerSpec l;
-  l.name = "l";
-  l.source = path;
-  l.kind = prep::DecalKind::line;
-  l.style.width = 10.0;
-  s.layers.push_back(l);
+  prep::SceneSpec s = prep::test::one_layer("l", path, prep::DecalKind::line);
+  s.layers[0].style.width = 10.0;
   s.crs = crs;
-  prep::BuildRequest req;
-  req.dry_run = true;
-  return prep::run_build(s, req).scene;
+  return prep::test::dry_run(s);
 }
 
 TEST(Project, TenMetreLineInWebMercatorAt60NorthStaysTenGroundMetres) {
@@ -186,13 +180,8 @@ void expect_matches_proj_per_vertex(const std::string& src_wkt, double x0, doubl
   layer.spec.name = "pts";
   layer.spec.kind = prep::DecalKind::line;
   layer.srs_wkt = src_wkt;
-  uint64_t seed = 12345;
-  auto next = [&] {  // xorshift: deterministic, no <random> distribution differences
-    seed ^= seed << 13;
-    seed ^= seed >> 7;
-    seed ^= seed << 17;
-    return double(seed >> 11) / double(uint64_t(1) << 53);
-  };
+  prep::test::Rng rng(12345);
+  auto next = [&] { return rng.uniform(); };
   // 50,000 vertices: enough for the approximation to fit cells (it keeps
   // the exact path for sparse data).
   for (int f = 0; f < 2000; ++f) {

@@ -10,6 +10,7 @@
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
 #include "prep/read.hpp"
+#include "scene_fixtures.hpp"
 
 namespace {
 
@@ -17,13 +18,7 @@ using prep::test::TempDir;
 using prep::test::write_text;
 
 prep::SceneSpec one_layer(const std::string& source, prep::DecalKind kind) {
-  prep::SceneSpec s;
-  prep::LayerSpec l;
-  l.name = "l";
-  l.source = source;
-  l.kind = kind;
-  s.layers.push_back(l);
-  return s;
+  return prep::test::one_layer("l", source, kind);
 }
 
 const char* kMixed = R"({"type":"FeatureCollection","features":[
@@ -63,10 +58,7 @@ TEST(Read, MultiGeometriesAndCollectionsAreSplitIntoParts) {
   EXPECT_EQ(f[5].drop_reason, "no geometry");
   EXPECT_EQ(f[6].fid, 5);
   EXPECT_EQ(fs.manifest.layers[0].read, 5u);
-  bool part_note = false;
-  for (const auto& e : fs.manifest.entries)
-    part_note |= e.fid == 2 && e.action == prep::ManifestAction::part_dropped;
-  EXPECT_TRUE(part_note);
+  EXPECT_TRUE(prep::test::has_entry(fs.manifest, 2, prep::ManifestAction::part_dropped));
 }
 
 TEST(Read, ZValuesAreDroppedAndTheManifestSaysSo) {
@@ -74,10 +66,7 @@ TEST(Read, ZValuesAreDroppedAndTheManifestSaysSo) {
   write_text(dir.file("mixed.geojson"), kMixed);
   prep::FeatureSet fs =
       prep::read_scene(one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon));
-  bool note = false;
-  for (const auto& n : fs.manifest.notes)
-    note |= n.find("Z/M values dropped from 1 features") != std::string::npos;
-  EXPECT_TRUE(note);
+  EXPECT_TRUE(prep::test::has_note(fs.manifest, "Z/M values dropped from 1 features"));
 }
 
 TEST(Read, PolygonsInALineLayerBecomeClosedLines) {
@@ -134,10 +123,7 @@ TEST(Read, OverpassOsmWithNonIncreasingIdsIsReadWithPlainIndexing) {
   ASSERT_EQ(fs.layers[0].features.size(), 1u);
   EXPECT_EQ(fs.layers[0].features[0].rings[0].size(), 4u);
   EXPECT_EQ(fs.layers[0].features[0].fid, 100);
-  bool note = false;
-  for (const auto& n : fs.manifest.notes)
-    note |= n.find("OSM_USE_CUSTOM_INDEXING=NO") != std::string::npos;
-  EXPECT_TRUE(note);
+  EXPECT_TRUE(prep::test::has_note(fs.manifest, "OSM_USE_CUSTOM_INDEXING=NO"));
 }
 
 TEST(Read, OrderAndColourAttributesAreReadAsNumbers) {

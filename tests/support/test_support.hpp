@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -70,6 +71,24 @@ std::string spdata_dir();
 inline bool exists(const std::string& p) {
   return std::filesystem::exists(p);
 }
+
+// xorshift64: the same sequence of doubles on every platform and standard
+// library (<random>'s distributions differ between them).
+class Rng {
+ public:
+  explicit Rng(uint64_t seed) : s_(seed) {}
+  double uniform() {  // [0, 1)
+    s_ ^= s_ << 13;
+    s_ ^= s_ >> 7;
+    s_ ^= s_ << 17;
+    return double(s_ >> 11) / double(uint64_t(1) << 53);
+  }
+  double in(double a, double b) { return a + (b - a) * uniform(); }
+  int below(int n) { return static_cast<int>(uniform() * n); }
+
+ private:
+  uint64_t s_;
+};
 
 // Samples of the statistical evaluator tests: the current default (10^6, or
 // 2.5x10^5 while a VariantSamples lives), DECALPREP_SAMPLES overriding it.
