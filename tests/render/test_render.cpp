@@ -1,6 +1,7 @@
 // GL renderer against analytic coverage of a hand-written model.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -132,30 +133,46 @@ TEST_P(RenderGlBinding, TopDownDecalLayerMatchesAnalyticCoverageOfHandModel) {
               2.0 / 255);
 }
 
+// A square heightfield of n x n posts `d` metres apart from (x0, x0), z(x, y)
+// at each, with its z range.
+template <class Z>
+R::Heightfield square_terrain(uint32_t n, double x0, double d, Z z_of) {
+  R::Heightfield h;
+  h.nx = h.ny = n;
+  h.x0 = h.y0 = x0;
+  h.dx = h.dy = d;
+  h.zmin = 1e9;
+  h.zmax = -1e9;
+  for (uint32_t j = 0; j < n; ++j)
+    for (uint32_t i = 0; i < n; ++i) {
+      const double z = z_of(x0 + i * d, x0 + j * d);
+      h.z.push_back(z);
+      h.zmin = std::min(h.zmin, z);
+      h.zmax = std::max(h.zmax, z);
+    }
+  return h;
+}
+
+// A 320x180 perspective view of the whole model over `terrain`.
+R::RenderOptions perspective_view(const prep::DecalModel& model, const R::Heightfield& terrain,
+                                  double fov_deg) {
+  R::RenderOptions opt;
+  opt.width = 320;
+  opt.height = 180;
+  opt.camera = R::fit_camera(model.extent, terrain.zmin, terrain.zmax, opt.width, opt.height,
+                             R::Projection::perspective, fov_deg);
+  return opt;
+}
+
 TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) {
   // Independent reference: each pixel's ray cast in double precision against
   // the same mesh, then the analytic coverage of the hand shapes there.
   prep::DecalModel model = render_test::hand_model();
   R::DecalSource src = R::source_of(model);
-  R::Heightfield hills;
-  hills.nx = hills.ny = 61;
-  hills.x0 = hills.y0 = -20;
-  hills.dx = hills.dy = 140.0 / 60;
-  hills.zmin = 1e9;
-  hills.zmax = -1e9;
-  for (uint32_t j = 0; j < hills.ny; ++j)
-    for (uint32_t i = 0; i < hills.nx; ++i) {
-      double x = hills.x0 + i * hills.dx, y = hills.y0 + j * hills.dy;
-      double z = 12 * std::sin(x / 13.0) * std::cos(y / 17.0);
-      hills.z.push_back(z);
-      hills.zmin = std::min(hills.zmin, z);
-      hills.zmax = std::max(hills.zmax, z);
-    }
-  R::RenderOptions opt;
-  opt.width = 320;
-  opt.height = 180;
-  opt.camera = R::fit_camera(model.extent, hills.zmin, hills.zmax, opt.width, opt.height,
-                             R::Projection::perspective, 40);
+  const R::Heightfield hills = square_terrain(61, -20, 140.0 / 60, [](double x, double y) {
+    return 12 * std::sin(x / 13.0) * std::cos(y / 17.0);
+  });
+  const R::RenderOptions opt = perspective_view(model, hills, 40);
   R::Image img;
   try {
     img = R::render_gl(src, hills, opt);
@@ -193,22 +210,9 @@ TEST(RenderCpu, ASeaAtExactlyZeroIsTintedAsSeaOnEveryRowOfAnObliqueView) {
   // (-0.4, -0.5, 0.75).
   prep::DecalModel model = render_test::hand_model();
   R::DecalSource src = R::source_of(model);
-  R::Heightfield coast;
-  coast.nx = coast.ny = 71;
-  coast.x0 = coast.y0 = -20;
-  coast.dx = coast.dy = 2;
-  coast.zmin = 0;
-  coast.zmax = 30;
-  for (uint32_t j = 0; j < coast.ny; ++j)
-    for (uint32_t i = 0; i < coast.nx; ++i) {
-      double x = coast.x0 + i * coast.dx;
-      coast.z.push_back(x < 50 ? 0.0 : std::min(30.0, (x - 50) * 0.5));
-    }
-  R::RenderOptions opt;
-  opt.width = 320;
-  opt.height = 180;
-  opt.camera = R::fit_camera(model.extent, coast.zmin, coast.zmax, opt.width, opt.height,
-                             R::Projection::perspective, 35);
+  const R::Heightfield coast = square_terrain(
+      71, -20, 2, [](double x, double) { return x < 50 ? 0.0 : std::min(30.0, (x - 50) * 0.5); });
+  const R::RenderOptions opt = perspective_view(model, coast, 35);
   R::Image img = R::render_cpu(src, coast, opt);
   prep::write_png_rgba((out_dir() / "cpu_coast.png").string(), img.width, img.height, img.rgba);
   const double l = 0.75 / std::sqrt(0.4 * 0.4 + 0.5 * 0.5 + 0.75 * 0.75);
