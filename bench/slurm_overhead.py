@@ -57,6 +57,7 @@ import tempfile
 import time
 
 import gen_synthetic  # beside this script
+from measure import measured  # beside this script
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CLUSTER = os.path.join(ROOT, "scripts", "slurm", "cluster")
@@ -65,17 +66,6 @@ SUBMIT = os.path.join(ROOT, "scripts", "slurm", "submit")
 
 def load1():
     return round(os.getloadavg()[0], 2)
-
-
-def measured(cmd, env=None):
-    t0 = time.perf_counter()
-    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
-    err = p.stderr.read()
-    _, status, ru = os.wait4(p.pid, 0)
-    wall = time.perf_counter() - t0
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise RuntimeError("%s failed: %s" % (" ".join(cmd), err.decode()[-2000:]))
-    return wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0
 
 
 def tree(root):

@@ -73,6 +73,8 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "formats"))
+sys.path.insert(0, HERE)
+from tileset_util import write_scene  # noqa: E402
 try:
     import spec_reader as sr  # noqa: E402
 except ImportError as e:
@@ -82,7 +84,6 @@ except ImportError as e:
 TILE = 500
 LEVELS = 3
 X0, Y0 = 372_000, 4_840_000  # on the grid of every level (4000 m at level 3)
-CRS = {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}}
 WALKS = 8
 BAND = 60  # m between walk centres; a walk stays within +-WANDER + ZIG of it
 WANDER = 15.0
@@ -127,15 +128,9 @@ def write_inputs(work):
                       "geometry": {"type": "LineString",
                                    "coordinates": [[X0 + 30.0 + 10 * j, y + (j % 2)]
                                                    for j in range(60)]}})
-    for name, fs in (("walks", feats), ("plain", plain)):
-        with open(os.path.join(work, name + ".geojson"), "w") as f:
-            json.dump({"type": "FeatureCollection", "crs": CRS, "features": fs}, f)
-    with open(os.path.join(work, "scene.toml"), "w") as f:
-        f.write('crs = "EPSG:32632"\n\n'
-                '[[layer]]\nname = "walks"\nsource = "walks.geojson"\nkind = "line"\n'
-                'dynamic = true\nlod = true\nwidth = 3\ncolor = "#e4572e"\n\n'
-                '[[layer]]\nname = "plain"\nsource = "plain.geojson"\nkind = "line"\n'
-                'dynamic = true\nwidth = 2\ncolor = "#3366aa"\n')
+    write_scene(work, [("walks", "line", feats,
+                        'dynamic = true\nlod = true\nwidth = 3\ncolor = "#e4572e"\n'),
+                       ("plain", "line", plain, 'dynamic = true\nwidth = 2\ncolor = "#3366aa"\n')])
     return walks
 
 

@@ -37,13 +37,12 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from tileset_util import StepRunner, tree  # noqa: E402
+from tileset_util import StepRunner, plan_steps, tree, write_scene  # noqa: E402
 
 N = 3
 TILE = 500.0
 LEVELS = 3
 X0, Y0 = 370_000.0, 4_840_000.0
-CRS = {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}}
 AREAS = [0.5, 2.0, 8.0, 30.0, 500.0, 5000.0]   # m², away from r_L² for L = 1..3
 LENGTHS = [0.5, 1.5, 3.0, 10.0, 100.0, 400.0]  # m, away from r_L
 LINE_WIDTH = 2.0  # m, the lines layer's width
@@ -84,15 +83,8 @@ def write_inputs(work):
                                        "coordinates": zigzag(cx - 70, cy + 50, length, amp,
                                                              steps)}})
             k += 1
-    for name, feats in (("polys", polys), ("lines", lines)):
-        with open(os.path.join(work, name + ".geojson"), "w") as f:
-            json.dump({"type": "FeatureCollection", "crs": CRS, "features": feats}, f)
-    with open(os.path.join(work, "scene.toml"), "w") as f:
-        f.write('crs = "EPSG:32632"\n\n'
-                '[[layer]]\nname = "polys"\nsource = "polys.geojson"\nkind = "polygon"\n'
-                'color = "#336699"\n\n'
-                '[[layer]]\nname = "lines"\nsource = "lines.geojson"\nkind = "line"\n'
-                'width = %g\ncolor = "#aa3311"\n' % LINE_WIDTH)
+    write_scene(work, [("polys", "polygon", polys, 'color = "#336699"\n'),
+                       ("lines", "line", lines, 'width = %g\ncolor = "#aa3311"\n' % LINE_WIDTH)])
 
 
 def ogr_count(path, layer, expr):
@@ -185,21 +177,10 @@ def main():
 
     # --- steps: the same bytes; each step twice; finalize names a missing level tile.
     out = os.path.join(work, "stepped")
-    r = subprocess.run(base + ["-o", out, "--plan", str(N), "-q"], capture_output=True, text=True,
-                       cwd=work)
-    if r.returncode != 0:
-        print("FAIL: --plan failed:", r.stderr)
-        return 1
-    plan = json.load(open(os.path.join(out, "plan.json")))
-    steps = {s["step"]: s for s in plan["steps"]}
-
+    plan = plan_steps(base, out, N, work)
     runner = StepRunner(plan, out, failures)
-    step, run_twice = runner.step, runner.run_twice
-
-    run_twice("prepare", part_of=os.path.join(out, ".work"))
-    for k in range(N - 1):
-        run_twice("tiles", k)
-    early = step("finalize")
+    run_twice = runner.run_twice
+    early = runner.run_all_but_last_tile_job(N)
     named = re.findall(r"(?:L\d+/)?x-?\d+_y-?\d+", early.stderr)
     if early.returncode == 0:
         failures.append("finalize with a tile job missing exited 0")

@@ -3,9 +3,8 @@
 
   tileset_memory_test.py DECALPREP WORK_DIR [SMALL_VERTICES [FACTOR [MAX_RATIO]]]
 
-Builds two synthetic inputs of the same density (star polygons and jittered
-lines in EPSG:32632, written as GeoJSON sequences here and converted to
-FlatGeobuf by ogr2ogr), SMALL_VERTICES and FACTOR times as many, each as a
+Builds two synthetic inputs of the same density (bench/gen_synthetic.py's
+"mix": star polygons and jittered lines in EPSG:32632, as FlatGeobuf), SMALL_VERTICES and FACTOR times as many, each as a
 tileset with 1 km tiles, and measures each build's peak resident set
 from the kernel (wait4's ru_maxrss of the child). Passes when the larger
 build's peak is less than MAX_RATIO times the smaller's: the input grows by
@@ -19,70 +18,22 @@ Exit 77 (skipped) without ogr2ogr.
 import json
 import math
 import os
-import random
 import shutil
 import subprocess
 import sys
 
-X0, Y0 = 370_000.0, 4_840_000.0  # UTM 32N near Monaco
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "bench"))
+import gen_synthetic  # noqa: E402
+
 TILE = 1000  # tile size, metres
 
 
-def write_input(path, vertices, seed):
-    """Star polygons (~120 vertices) and lines (~40 vertices), half the
-    vertices each, over a square whose side grows with sqrt(vertices)."""
-    rng = random.Random(seed)
-    side = 4_000.0 * math.sqrt(vertices / 100_000)
-    fid = 1
-    with open(path, "w") as out:
-        left = vertices // 2
-        while left > 0:
-            n = max(8, min(left, rng.randint(80, 160)))
-            cx, cy = X0 + rng.random() * side, Y0 + rng.random() * side
-            r = 10 + rng.random() * 60
-            ring = []
-            for i in range(n):
-                a = 2 * math.pi * i / n
-                rr = r * (0.75 + 0.25 * rng.random())
-                ring.append([round(cx + rr * math.cos(a), 3), round(cy + rr * math.sin(a), 3)])
-            ring.append(ring[0])
-            out.write(json.dumps({"type": "Feature", "properties": {"id": fid},
-                                  "geometry": {"type": "Polygon", "coordinates": [ring]}}) + "\n")
-            fid += 1
-            left -= n
-        left = vertices - vertices // 2
-        while left > 0:
-            n = max(2, min(left, rng.randint(20, 60)))
-            x, y = X0 + rng.random() * side, Y0 + rng.random() * side
-            heading = rng.random() * 2 * math.pi
-            pts = []
-            for _ in range(n):
-                pts.append([round(x, 3), round(y, 3)])
-                heading += rng.gauss(0, 0.3)
-                step = 5 + rng.random() * 20
-                x += step * math.cos(heading)
-                y += step * math.sin(heading)
-            out.write(json.dumps({"type": "Feature", "properties": {"id": fid},
-                                  "geometry": {"type": "LineString", "coordinates": pts}}) + "\n")
-            fid += 1
-            left -= n
-    return side
-
-
 def build(tool, work, name, vertices, seed):
-    gj = os.path.join(work, name + ".geojsonl")
-    fgb = os.path.join(work, name + ".fgb")
-    side = write_input(gj, vertices, seed)
-    subprocess.run(["ogr2ogr", "-f", "FlatGeobuf", fgb, gj, "-a_srs", "EPSG:32632",
-                    "-nln", "mix"], check=True)
-    os.remove(gj)
-    scene = os.path.join(work, name + ".toml")
-    with open(scene, "w") as f:
-        f.write('source = "%s"\ncrs = "EPSG:32632"\n' % fgb)
-        f.write('[[layer]]\nname = "polygons"\nkind = "polygon"\n'
-                'sql = "SELECT * FROM mix WHERE OGR_GEOMETRY = \'POLYGON\'"\n')
-        f.write('[[layer]]\nname = "lines"\nkind = "line"\nwidth = 3\n'
-                'sql = "SELECT * FROM mix WHERE OGR_GEOMETRY = \'LINESTRING\'"\n')
+    # bench/gen_synthetic.py's "mix" (star polygons with holes and jittered
+    # lines, half the vertices each) over a square whose side grows with
+    # sqrt(vertices).
+    side = 4_000.0 * math.sqrt(vertices / 100_000)
+    scene, fgb = gen_synthetic.mix_scene(work, vertices, name=name, extent=side, seed=seed)
     out = os.path.join(work, name)
     report = os.path.join(work, name + ".json")
     # A fixed grid: the adaptive grid's search would take most of the time.
@@ -96,7 +47,7 @@ def build(tool, work, name, vertices, seed):
     tiles = rep["tileset"]["tiles"]
     kept = sum(layer["kept"] for layer in rep["manifest"]["layers"])
     read = sum(layer["read"] for layer in rep["manifest"]["layers"])
-    # Tiles of 500 m over a square of `side` metres: at least its area's worth.
+    # Tiles of TILE metres over a square of `side` metres: at least its area's worth.
     least = int((side // TILE) ** 2)
     if tiles < least or kept != read:
         raise SystemExit("FAIL: %s: %d tiles (at least %d expected), %d of %d features kept"

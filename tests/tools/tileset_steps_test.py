@@ -19,7 +19,7 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from tileset_util import StepRunner, tree  # noqa: E402
+from tileset_util import StepRunner, plan_steps, tree  # noqa: E402
 
 N = 3
 
@@ -44,12 +44,7 @@ def main():
     want = tree(ref, skip=("plan.json",))
 
     out = os.path.join(work, "stepped")
-    r = subprocess.run([tool, "build", scene, "--tile-size", "500", "-o", out, "--plan", str(N),
-                        "-q"], capture_output=True, text=True, cwd=work)
-    if r.returncode != 0:
-        print("FAIL: --plan failed:", r.stderr)
-        return 1
-    plan = json.load(open(os.path.join(out, "plan.json")))
+    plan = plan_steps([tool, "build", scene, "--tile-size", "500"], out, N, work)
     steps = {s["step"]: s for s in plan["steps"]}
     if [s["step"] for s in plan["steps"]] != ["prepare", "tiles", "finalize"]:
         failures.append("plan.json steps are %s" % [s["step"] for s in plan["steps"]])
@@ -59,12 +54,8 @@ def main():
     runner = StepRunner(plan, out, failures)
     step, run_twice = runner.step, runner.run_twice
 
-    run_twice("prepare", part_of=os.path.join(out, ".work"))
-    for k in range(N - 1):
-        run_twice("tiles", k)
-
     # Finalize with tile job N-1 not run: refused, naming the missing tiles.
-    early = step("finalize")
+    early = runner.run_all_but_last_tile_job(N)
     missing = re.findall(r"x-?\d+_y-?\d+", early.stderr)
     count = re.search(r"(\d+) of (\d+) tiles have not been built", early.stderr)
     print("finalize before the last tile job: exit %d, %s" % (early.returncode,

@@ -5,8 +5,11 @@ StepRunner: the steps of a plan.json (`decalprep build --plan N`), each run
 as its command line says, and run twice to show that a step is idempotent.
 blob_bytes(path): the decoded bytes of a package's blobs, read from its
 header and blob table as formats/SPEC.md lays them out (not by decalprep).
+write_scene(work, layers): GeoJSON inputs in UTM 32N and a scene file over them.
+plan_steps(cmd, out, n, cwd): `--plan n` for a build command line, plan.json read.
 """
 import hashlib
+import json
 import os
 import struct
 import subprocess
@@ -49,6 +52,33 @@ def blob_bytes(path):
     return sum(struct.unpack_from("<Q", table, i * entry_size + 40)[0] for i in range(count))
 
 
+UTM32N = {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}}
+
+
+def write_scene(work, layers):
+    """Writes WORK/NAME.geojson for each (name, kind, features, toml) in
+    `layers` (a FeatureCollection in EPSG:32632) and WORK/scene.toml listing
+    the layers in that order, each with its extra TOML lines `toml`."""
+    with open(os.path.join(work, "scene.toml"), "w") as scene:
+        scene.write('crs = "EPSG:32632"\n')
+        for name, kind, features, toml in layers:
+            with open(os.path.join(work, name + ".geojson"), "w") as f:
+                json.dump({"type": "FeatureCollection", "crs": UTM32N, "features": features}, f)
+            scene.write('\n[[layer]]\nname = "%s"\nsource = "%s.geojson"\nkind = "%s"\n%s'
+                        % (name, name, kind, toml))
+
+
+def plan_steps(cmd, out, n, cwd):
+    """Runs the build command line `cmd` with `-o out --plan n -q` in `cwd`
+    and returns plan.json, read; exits the test when the plan fails."""
+    r = subprocess.run(cmd + ["-o", out, "--plan", str(n), "-q"], capture_output=True, text=True,
+                       cwd=cwd)
+    if r.returncode != 0:
+        raise SystemExit("FAIL: --plan failed: " + r.stderr)
+    with open(os.path.join(out, "plan.json")) as f:
+        return json.load(f)
+
+
 class StepRunner:
     """Runs the steps of `plan` (plan.json, read) for the tileset `out`,
     appending what went wrong to `failures`."""
@@ -77,3 +107,11 @@ class StepRunner:
             self.failures.append("%s %s run again failed: %s" % (name, k, second.stderr.strip()))
         elif tree(where, skip=("plan.json",), work=False) != after_first:
             self.failures.append("%s %s run again changed the bytes" % (name, k))
+
+    def run_all_but_last_tile_job(self, n):
+        """Runs prepare and tile jobs 0 to n-2, each twice (run_twice), then
+        finalize with job n-1 not run, and returns finalize's result."""
+        self.run_twice("prepare", part_of=os.path.join(self.out, ".work"))
+        for k in range(n - 1):
+            self.run_twice("tiles", k)
+        return self.step("finalize")
