@@ -4,10 +4,14 @@
 // Define DECAL_POLYGONS and/or DECAL_LINES to declare only what a pass reads
 // (a fragment shader may use at most 16 storage blocks).
 
+// DECAL_FETCH(T, fn, name, swizzle) defines `T fn(uint i)`, element i of
+// blob `name`: the texel's `swizzle` components, or the buffer's element.
 #ifdef DECAL_TEXTURE
 #define DECAL_BLOB(bp, stex, name, stype) layout(binding = bp) uniform stex t_##name;
+#define DECAL_FETCH(T, fn, name, swz) T fn(uint i) { return texelFetch(t_##name, int(i))swz; }
 #else
 #define DECAL_BLOB(bp, stex, name, stype) layout(std430, binding = bp) readonly buffer B_##name { stype d_##name[]; };
+#define DECAL_FETCH(T, fn, name, swz) T fn(uint i) { return d_##name[i]; }
 #endif
 
 // Quad-tree blobs: the polygon pass reads them for polygons, the line pass
@@ -19,19 +23,11 @@ DECAL_BLOB(2, isamplerBuffer, qt_node, ivec2)
 DECAL_BLOB(3, usamplerBuffer, qt_leaf_range, uvec2)
 DECAL_BLOB(4, usamplerBuffer, qt_leaf_segments, uvec2)
 DECAL_BLOB(5, isamplerBuffer, qt_leaf_vertices, ivec2)
-#ifdef DECAL_TEXTURE
-ivec4 qt_node_box(uint i)       { return texelFetch(t_qt_node_box, int(i)); }
-ivec2 qt_node(uint i)           { return texelFetch(t_qt_node, int(i)).xy; }
-uvec2 qt_leaf_range(uint i)     { return texelFetch(t_qt_leaf_range, int(i)).xy; }
-uvec2 qt_leaf_segment(uint i)   { return texelFetch(t_qt_leaf_segments, int(i)).xy; }
-ivec2 qt_leaf_vertex(uint i)    { return texelFetch(t_qt_leaf_vertices, int(i)).xy; }
-#else
-ivec4 qt_node_box(uint i)       { return d_qt_node_box[i]; }
-ivec2 qt_node(uint i)           { return d_qt_node[i]; }
-uvec2 qt_leaf_range(uint i)     { return d_qt_leaf_range[i]; }
-uvec2 qt_leaf_segment(uint i)   { return d_qt_leaf_segments[i]; }
-ivec2 qt_leaf_vertex(uint i)    { return d_qt_leaf_vertices[i]; }
-#endif
+DECAL_FETCH(ivec4, qt_node_box, qt_node_box, .xyzw)
+DECAL_FETCH(ivec2, qt_node, qt_node, .xy)
+DECAL_FETCH(uvec2, qt_leaf_range, qt_leaf_range, .xy)
+DECAL_FETCH(uvec2, qt_leaf_segment, qt_leaf_segments, .xy)
+DECAL_FETCH(ivec2, qt_leaf_vertex, qt_leaf_vertices, .xy)
 #endif  // DECAL_POLYGONS || DECAL_LINES
 
 #ifdef DECAL_POLYGONS
@@ -43,24 +39,18 @@ DECAL_BLOB(8, usamplerBuffer, cell_holes, uvec2)
 DECAL_BLOB(9, usamplerBuffer, poly_bvh_range, uvec4)
 DECAL_BLOB(10, isamplerBuffer, poly_bvh_box, ivec4)
 DECAL_BLOB(23, usamplerBuffer, poly_root_node, uint)
+DECAL_FETCH(uvec2, cell_poly_range, cell_poly_range, .xy)
+DECAL_FETCH(uvec4, cell_poly, cell_polys, .xyzw)
+DECAL_FETCH(uvec2, cell_hole, cell_holes, .xy)
+DECAL_FETCH(uvec4, poly_bvh_range, poly_bvh_range, .xyzw)
+DECAL_FETCH(ivec4, poly_bvh_box, poly_bvh_box, .xyzw)
+DECAL_FETCH(uint, poly_root, poly_root_node, .x)
 #ifdef DECAL_TEXTURE
 uint  poly_rgba(uint i)         { return texelFetch(t_poly_props, int(2u * i)).x; }
 uint  poly_order(uint i)        { return texelFetch(t_poly_props, int(2u * i)).y; }
-uvec2 cell_poly_range(uint c)   { return texelFetch(t_cell_poly_range, int(c)).xy; }
-uvec4 cell_poly(uint i)         { return texelFetch(t_cell_polys, int(i)); }
-uvec2 cell_hole(uint i)         { return texelFetch(t_cell_holes, int(i)).xy; }
-uvec4 poly_bvh_range(uint c)    { return texelFetch(t_poly_bvh_range, int(c)); }
-ivec4 poly_bvh_box(uint i)      { return texelFetch(t_poly_bvh_box, int(i)); }
-uint  poly_root(uint i)         { return texelFetch(t_poly_root_node, int(i)).x; }
 #else
 uint  poly_rgba(uint i)         { return d_poly_props[i].rgba; }
 uint  poly_order(uint i)        { return d_poly_props[i].order; }
-uvec2 cell_poly_range(uint c)   { return d_cell_poly_range[c]; }
-uvec4 cell_poly(uint i)         { return d_cell_polys[i]; }
-uvec2 cell_hole(uint i)         { return d_cell_holes[i]; }
-uvec4 poly_bvh_range(uint c)    { return d_poly_bvh_range[c]; }
-ivec4 poly_bvh_box(uint i)      { return d_poly_bvh_box[i]; }
-uint  poly_root(uint i)         { return d_poly_root_node[i]; }
 #endif
 #endif  // DECAL_POLYGONS
 
@@ -75,31 +65,25 @@ DECAL_BLOB(15, usamplerBuffer, cell_segment_range, uvec2)
 DECAL_BLOB(16, usamplerBuffer, cell_segments, uvec2)
 DECAL_BLOB(17, usamplerBuffer, line_bvh_range, uvec4)
 DECAL_BLOB(18, isamplerBuffer, line_bvh_box, ivec4)
+DECAL_FETCH(ivec2, line_vertex, line_vertices, .xy)
+DECAL_FETCH(uint, line_of_vertex, line_vertex_line, .x)
+DECAL_FETCH(uvec2, cell_segment_range, cell_segment_range, .xy)
+DECAL_FETCH(uvec2, cell_segment, cell_segments, .xy)
+DECAL_FETCH(uvec4, line_bvh_range, line_bvh_range, .xyzw)
+DECAL_FETCH(ivec4, line_bvh_box, line_bvh_box, .xyzw)
 #ifdef DECAL_TEXTURE
-ivec2 line_vertex(uint i)        { return texelFetch(t_line_vertices, int(i)).xy; }
-uint  line_of_vertex(uint i)     { return texelFetch(t_line_vertex_line, int(i)).x; }
 // (half_width, rgba, order, style) of a line
 uvec4 line_props(uint l)         { return texelFetch(t_line_props, int(2u * l)); }
 uint  line_clip_node(uint l)     { return texelFetch(t_line_props, int(2u * l + 1u)).w; }
 vec2  corner_miter(uint v)       { return texelFetch(t_line_corners, int(3u * v)).xy; }
 vec2  corner_bevel_in(uint v)    { return texelFetch(t_line_corners, int(3u * v + 1u)).xy; }
 vec2  corner_bevel_out(uint v)   { return texelFetch(t_line_corners, int(3u * v + 2u)).xy; }
-uvec2 cell_segment_range(uint c) { return texelFetch(t_cell_segment_range, int(c)).xy; }
-uvec2 cell_segment(uint i)       { return texelFetch(t_cell_segments, int(i)).xy; }
-uvec4 line_bvh_range(uint c)     { return texelFetch(t_line_bvh_range, int(c)); }
-ivec4 line_bvh_box(uint i)       { return texelFetch(t_line_bvh_box, int(i)); }
 #else
-ivec2 line_vertex(uint i)        { return d_line_vertices[i]; }
-uint  line_of_vertex(uint i)     { return d_line_vertex_line[i]; }
 uvec4 line_props(uint l)         { LineProps p = d_line_props[l]; return uvec4(floatBitsToUint(p.half_width), p.rgba, p.order, p.style); }
 uint  line_clip_node(uint l)     { return d_line_props[l].clip_node; }
 vec2  corner_miter(uint v)       { return d_line_corners[v].miter; }
 vec2  corner_bevel_in(uint v)    { return d_line_corners[v].bevel_in; }
 vec2  corner_bevel_out(uint v)   { return d_line_corners[v].bevel_out; }
-uvec2 cell_segment_range(uint c) { return d_cell_segment_range[c]; }
-uvec2 cell_segment(uint i)       { return d_cell_segments[i]; }
-uvec4 line_bvh_range(uint c)     { return d_line_bvh_range[c]; }
-ivec4 line_bvh_box(uint i)       { return d_line_bvh_box[i]; }
 #endif
 #endif  // DECAL_LINES
 
@@ -111,15 +95,12 @@ DECAL_BLOB(21, usamplerBuffer, dyn_line_start, uint)
 struct LineProps { float half_width; uint rgba; uint order; uint style; float value; uint layer; uint feature; uint clip_node; };
 #endif
 DECAL_BLOB(22, usamplerBuffer, dyn_line_props, LineProps)
+DECAL_FETCH(ivec4, dyn_vertex, dyn_vertices, .xyzw)
+DECAL_FETCH(ivec2, dyn_prev_next, dyn_prev_next, .xy)
+DECAL_FETCH(uint, dyn_line_start, dyn_line_start, .x)
 #ifdef DECAL_TEXTURE
-ivec4 dyn_vertex(uint i)       { return texelFetch(t_dyn_vertices, int(i)); }
-ivec2 dyn_prev_next(uint i)    { return texelFetch(t_dyn_prev_next, int(i)).xy; }
-uint  dyn_line_start(uint l)   { return texelFetch(t_dyn_line_start, int(l)).x; }
 uvec4 dyn_line_props(uint l)   { return texelFetch(t_dyn_line_props, int(2u * l)); }
 #else
-ivec4 dyn_vertex(uint i)       { return d_dyn_vertices[i]; }
-ivec2 dyn_prev_next(uint i)    { return d_dyn_prev_next[i]; }
-uint  dyn_line_start(uint l)   { return d_dyn_line_start[l]; }
 uvec4 dyn_line_props(uint l)   { LineProps p = d_dyn_line_props[l]; return uvec4(floatBitsToUint(p.half_width), p.rgba, p.order, p.style); }
 #endif
 #endif  // DECAL_DYNAMIC
