@@ -21,7 +21,8 @@ vec2 left_normal(vec2 from, vec2 to) {
   return l > 0.0 ? vec2(-d.y, d.x) / l : vec2(0.0);
 }
 // Corner at vertex v between segment (u -> v) and (v -> w): the miter vector
-// (to the left), or zero for a round fallback below 40 degrees (DESIGN §2).
+// (to the left), or zero for a round fallback below 40 degrees (thesis
+// §4.2.1; formats/SPEC.md, blob line_corners).
 vec2 miter_at(vec2 u, vec2 v, vec2 w, float hw) {
   vec2 e1 = normalize(u - v), e2 = normalize(w - v);
   if (dot(e1, e2) > cos(radians(40.0))) return vec2(0.0);
