@@ -12,8 +12,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <map>
 #include <memory>
 
@@ -533,34 +535,41 @@ std::string collection(const std::vector<std::string>& features) {
   for (size_t i = 0; i < features.size(); ++i) s += (i ? "," : "") + features[i];
   return s + "]}";
 }
+// GeoJSON coordinates "[[x,y],...]" of `pts`, six decimals.
+std::string coords(std::initializer_list<std::array<double, 2>> pts) {
+  std::string s = "[";
+  char b[64];
+  for (const auto& [x, y] : pts) {
+    std::snprintf(b, sizeof b, "%s[%.6f,%.6f]", s.size() > 1 ? "," : "", x, y);
+    s += b;
+  }
+  return s + "]";
+}
 std::string ring(double x0, double y0, double x1, double y1, bool ccw = true) {
-  char b[256];
-  if (ccw)
-    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0,
-                  y0, x1, y0, x1, y1, x0, y1, x0, y0);
-  else
-    std::snprintf(b, sizeof b, "[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]", x0,
-                  y0, x0, y1, x1, y1, x1, y0, x0, y0);
-  return b;
+  return ccw ? coords({{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}, {x0, y0}})
+             : coords({{x0, y0}, {x0, y1}, {x1, y1}, {x1, y0}, {x0, y0}});
 }
 // An L-shaped polygon with its lower-left corner at (x, y), about 120 m.
 std::string l_shape(double x, double y) {
-  char b[512];
-  std::snprintf(
-      b, sizeof b,
-      R"({"type":"Polygon","coordinates":[[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]]})",
-      x, y, x + 0.0015, y, x + 0.0015, y + 0.0005, x + 0.0006, y + 0.0005, x + 0.0006, y + 0.0011,
-      x, y + 0.0011, x, y);
-  return b;
+  return R"({"type":"Polygon","coordinates":[)" +
+         coords({{x, y},
+                 {x + 0.0015, y},
+                 {x + 0.0015, y + 0.0005},
+                 {x + 0.0006, y + 0.0005},
+                 {x + 0.0006, y + 0.0011},
+                 {x, y + 0.0011},
+                 {x, y}}) +
+         "]}";
 }
 // A zigzag with a sharp (< 40 degrees, round fallback) and obtuse turns.
 std::string zigzag(double x, double y) {
-  char b[512];
-  std::snprintf(
-      b, sizeof b,
-      R"({"type":"LineString","coordinates":[[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f],[%.6f,%.6f]]})",
-      x, y, x + 0.0005, y + 0.0008, x + 0.0007, y, x + 0.0012, y + 0.0004, x + 0.0018, y + 0.0002);
-  return b;
+  return R"({"type":"LineString","coordinates":)" +
+         coords({{x, y},
+                 {x + 0.0005, y + 0.0008},
+                 {x + 0.0007, y},
+                 {x + 0.0012, y + 0.0004},
+                 {x + 0.0018, y + 0.0002}}) +
+         "}";
 }
 
 const std::string& styles_package(std::string* why) {
