@@ -137,6 +137,34 @@ DecalSource source_of(const DecalModel& model);
 // metadata. Throws format_error when they are missing or inconsistent.
 DecalSource source_of(const decal::Package& package);
 
+// Colour ramps applied when drawing (`render --ramp`): thesis §4.2.1 stores
+// a value per feature (LineProps/PolyProps.value) and maps it through a
+// transfer function, so a value-coloured layer is restyled without a
+// rebuild. One entry per layer of the package's layer table (the metadata's
+// "layers", which LineProps::layer and PolyProps::layer index); no stops:
+// the layer keeps its stored colours.
+using LayerRamps = std::vector<std::vector<ColorStop>>;
+
+// The names of a package's layer table, in index order (metadata "layers"[i]
+// "name"); empty when the metadata has no layer table.
+std::vector<std::string> layer_names(const std::string& metadata_json);
+
+// The recoloured props of one source; they must outlive it.
+struct RestyledProps {
+  std::vector<decal::PolyProps> poly;
+  std::vector<decal::LineProps> line, dyn;
+  uint64_t recoloured = 0;  // features whose colour the ramps set
+};
+
+// Recolours `source` for every renderer (decal, volume and texture methods,
+// GL and CPU alike): each exterior polygon, static line and dynamic line of a
+// layer with stops gets prep::ramp_rgba(stops, its stored value, its stored
+// colour) (prep/color_ramp.hpp, the build's own formula); a feature with no
+// value (NaN) keeps its stored colour. The props are copied into `held`
+// and the source's view and blobs point at the copies; the package is not
+// touched. Throws format_error when a feature names a layer past `ramps`.
+void restyle(DecalSource& source, const LayerRamps& ramps, RestyledProps& held);
+
 enum class AntiAliasing { none, coverage, msaa4 };
 enum class Binding { ssbo, texture };
 // How static decals are drawn (thesis §5.2.2 compares the three): the
