@@ -103,6 +103,18 @@ DecalSource source_of(const decal::Package& package) {
                     e->value("ymax", 0.0)};
       }
     }
+    // The miter limit the build used: the dynamic-line pass builds its
+    // corners per frame and falls back to round below the same angle.
+    if (const auto* bo = pick({"build_options"}); bo && bo->is_object()) {
+      const auto it = bo->find("miter_limit_deg");
+      if (it != bo->end() && it->is_number()) {
+        const double deg = it->get<double>();
+        if (!(deg > 0 && deg <= 180))
+          fail<format_error>(kRenderStage, "package metadata: build_options.miter_limit_deg " +
+                                               std::to_string(deg) + " is not in (0, 180]");
+        s.miter_limit_deg = deg;
+      }
+    }
   } catch (const nlohmann::json::exception& ex) {
     fail<format_error>(kRenderStage, std::string("package metadata: ") + ex.what());
   }

@@ -134,8 +134,11 @@ std::vector<char> bytes_of(const std::string& path) {
 
 class RenderRamp : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = fs::current_path() / "render-out" / "ramp";
+  // Each test builds its own package in its own folder (ctest runs the
+  // tests of this file in parallel processes).
+  void SetUp() override {
+    dir_ = fs::current_path() / "render-out" / "ramp" /
+           ::testing::UnitTest::GetInstance()->current_test_info()->name();
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     pkg_ = (dir_ / "ramp.decals").string();
@@ -146,8 +149,8 @@ class RenderRamp : public ::testing::Test {
   // Renders the package top-down (1 m pixels over both rows) with `extra`
   // and returns the decal layer (straight alpha); nullopt with `why` when
   // there is no headless GL.
-  static std::optional<std::vector<float>> render(const std::string& name, const std::string& extra,
-                                                  std::string& why) {
+  std::optional<std::vector<float>> render(const std::string& name, const std::string& extra,
+                                           std::string& why) {
     const fs::path raw = dir_ / (name + ".rgba");
     char extent[200];
     std::snprintf(extent, sizeof extent, "--extent %.0f,%.0f,%.0f,%.0f --size %dx%d", kX0 - 20,
@@ -188,8 +191,8 @@ class RenderRamp : public ::testing::Test {
             "line " + std::to_string(k));
   }
 
-  static inline fs::path dir_;
-  static inline std::string pkg_;
+  fs::path dir_;
+  std::string pkg_;
 };
 
 const Ramp kBuildSquares = {{0, {0, 0, 0, 255}}, {5, {255, 255, 255, 255}}};

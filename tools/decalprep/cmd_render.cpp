@@ -527,8 +527,9 @@ void run(const RenderArgs& a) {
                 frame_ms, a.cpu ? "cpu" : "gl", a.frames, a.frames == 1 ? "" : "s");
     if (img.dyn_kept || img.dyn_segments)
       std::printf(
-          "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
-          img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
+          "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths, "
+          "%u pixels composited short of their list (step bound)\n",
+          img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows, img.dyn_truncated);
   }
 }
 

@@ -129,6 +129,10 @@ struct DecalSource {
   // (decal::validate_blobs; source_of(Package) runs it), so render_gl does
   // not run it again. False for models in memory: render_gl checks them.
   bool validated = false;
+  // Miter corners of dynamic lines fall back to round below this angle
+  // between segments: the package's build_options.miter_limit_deg (the
+  // static corners were built with it), else the build default.
+  double miter_limit_deg = 40.0;
 };
 
 // Views of a model in memory (for tests and `build --render`).
@@ -214,6 +218,10 @@ struct Image {
   std::vector<float> dynamic;  // dynamic-line layer alone (GL only), straight alpha
   uint32_t dyn_kept = 0, dyn_segments = 0, dyn_nodes = 0;  // dynamic update counts
   uint32_t list_grows = 0;  // linked-list buffer regrowths this frame
+  // Pixels whose dynamic-line composite stopped at its bound of list entries
+  // read (dyn_composite.frag.glsl) before compositing every line: 0 unless a
+  // pixel holds about a thousand lines.
+  uint32_t dyn_truncated = 0;
   std::vector<PassTime> times;
   std::string device;  // GL renderer string, or "cpu"
   // Volume method: prism triangles drawn, stencil+cover groups, groups
