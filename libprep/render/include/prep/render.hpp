@@ -215,7 +215,7 @@ struct Image {
   uint32_t width = 0, height = 0;
   std::vector<uint8_t> rgba;   // final image: decals over shaded terrain, 8-bit
   std::vector<float> decals;   // static decal layer alone, straight alpha, 0..1
-  std::vector<float> dynamic;  // dynamic-line layer alone (GL only), straight alpha
+  std::vector<float> dynamic;  // dynamic-line layer alone, straight alpha
   uint32_t dyn_kept = 0, dyn_segments = 0, dyn_nodes = 0;  // dynamic update counts
   uint32_t list_grows = 0;  // linked-list buffer regrowths this frame
   // Pixels whose dynamic-line composite stopped at its bound of list entries
@@ -244,7 +244,11 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain,
 
 // Same view on the CPU: top-down orthographic views call prep::render_topdown;
 // others ray-cast the same heightfield mesh in double precision and call
-// prep::evaluate per pixel. Thread-safe.
+// prep::evaluate per pixel. Dynamic lines are drawn at each pixel's ground
+// point by the rules of the GL pass (detail/dynamic_cpu.hpp: vertices kept,
+// segments, corners at the pixel's scale, every covering line composited in
+// drawing order) into Image::dynamic, and composited over the decals.
+// Thread-safe.
 Image render_cpu(const DecalSource& source, const Heightfield& terrain,
                  const RenderOptions& options);
 
