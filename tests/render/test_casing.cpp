@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <optional>
 #include <string>
 
@@ -123,40 +124,47 @@ TEST(Casing, CrossingRoadsOfACasedLayerMergeWithTheirFillsOverBothCasings) {
   EXPECT_EQ(meta["layers"][2]["name"], "dyn.casing");
   EXPECT_EQ(meta["layers"][2]["width"], 9.0);
   const R::DecalSource src = R::source_of(pkg);
-  const double cx = kX0 + 100, cy = kY0;
-  for (bool cpu : {true, false}) {
-    const auto s = shoot(src, {cx - 20, cy - 20, cx + 20, cy + 20}, cpu);
-    if (!s) GTEST_SKIP() << "no headless GL";
-    SCOPED_TRACE(cpu ? "cpu" : "gl");
-    const auto& d = s->img.decals;
-    // Pixel centres sit at quarter-metre offsets + 0.125 m; the probes stay
-    // 0.5 m or more from every band edge (fill |d| < 3 m, casing 3..5 m).
-    EXPECT_EQ(at(*s, d, cx + 0.1, cy + 0.1), kWhite) << "crossing centre";
-    EXPECT_EQ(at(*s, d, cx - 12, cy + 1.1), kWhite) << "horizontal fill";
-    EXPECT_EQ(at(*s, d, cx - 12, cy + 4.1), kBlack) << "horizontal casing";
-    EXPECT_EQ(at(*s, d, cx - 12, cy + 6.1), kNone) << "beside the casing";
-    // In one road's casing band and the other's fill: the fill, on both sides.
-    EXPECT_EQ(at(*s, d, cx + 4.1, cy + 1.1), kWhite) << "vertical casing under horizontal fill";
-    EXPECT_EQ(at(*s, d, cx - 1.1, cy - 4.1), kWhite) << "horizontal casing under vertical fill";
-    // In both casings, in neither fill: the casing.
-    EXPECT_EQ(at(*s, d, cx + 4.1, cy - 4.1), kBlack) << "both casings";
-  }
+  struct Probe {
+    double x, y;  // from the crossing centre, metres
+    std::array<int, 4> want;
+    const char* what;
+  };
+  // Probes `layer` of a 40 m (static) or 10 m (dynamic) view around the
+  // crossing at (cx, cy), on the CPU and in GL.
+  auto probe = [&](double cx, double cy, double half, bool dynamic,
+                   std::initializer_list<Probe> probes) {
+    for (bool cpu : {true, false}) {
+      const auto s = shoot(src, {cx - half, cy - half, cx + half, cy + half}, cpu);
+      if (!s) return false;
+      SCOPED_TRACE(std::string(cpu ? "cpu" : "gl") + (dynamic ? " dynamic" : " static"));
+      for (const Probe& p : probes)
+        EXPECT_EQ(at(*s, dynamic ? s->img.dynamic : s->img.decals, cx + p.x, cy + p.y), p.want)
+            << p.what;
+    }
+    return true;
+  };
+  // Static: pixel centres at quarter-metre offsets + 0.125 m; the probes stay
+  // 0.5 m or more from every band edge (fill |d| < 3 m, casing 3..5 m).
+  const bool gl = probe(kX0 + 100, kY0, 20, false,
+                        {{0.1, 0.1, kWhite, "crossing centre"},
+                         {-12, 1.1, kWhite, "horizontal fill"},
+                         {-12, 4.1, kBlack, "horizontal casing"},
+                         {-12, 6.1, kNone, "beside the casing"},
+                         // one road's casing band in the other's fill: the fill, both ways
+                         {4.1, 1.1, kWhite, "vertical casing under horizontal fill"},
+                         {-1.1, -4.1, kWhite, "horizontal casing under vertical fill"},
+                         {4.1, -4.1, kBlack, "both casings, neither fill"}});
+  if (!gl) GTEST_SKIP() << "no headless GL";
   // Dynamic: 5 px fill, 2 px casing each side (0.25 m pixels: 0.625 m and
   // 1.125 m half widths), default casing colour: 60% of #ffcc00.
   const std::array<int, 4> yellow{255, 204, 0, 255}, dark{153, 122, 0, 255};
-  const double dx = kX0 + 300, dy = kY0;
-  for (bool cpu : {true, false}) {
-    const auto s = shoot(src, {dx - 5, dy - 5, dx + 5, dy + 5}, cpu);
-    if (!s) GTEST_SKIP() << "no headless GL";
-    SCOPED_TRACE(cpu ? "cpu dynamic" : "gl dynamic");
-    const auto& l = s->img.dynamic;
-    EXPECT_EQ(at(*s, l, dx + 0.01, dy + 0.01), yellow) << "crossing centre";
-    EXPECT_EQ(at(*s, l, dx - 3, dy + 0.2), yellow) << "fill";
-    EXPECT_EQ(at(*s, l, dx - 3, dy + 0.9), dark) << "casing";
-    EXPECT_EQ(at(*s, l, dx - 3, dy + 1.6), kNone) << "beside";
-    EXPECT_EQ(at(*s, l, dx + 0.9, dy + 0.2), yellow) << "vertical casing under horizontal fill";
-    EXPECT_EQ(at(*s, l, dx + 0.9, dy + 0.9), dark) << "both casings";
-  }
+  probe(kX0 + 300, kY0, 5, true,
+        {{0.01, 0.01, yellow, "crossing centre"},
+         {-3, 0.2, yellow, "fill"},
+         {-3, 0.9, dark, "casing"},
+         {-3, 1.6, kNone, "beside"},
+         {0.9, 0.2, yellow, "vertical casing under horizontal fill"},
+         {0.9, 0.9, dark, "both casings"}});
 }
 
 TEST(Casing, ScenesThatCannotBeCasedAreRefusedNamingTheKey) {
