@@ -18,6 +18,7 @@
 #include <sstream>
 
 #include "detail.hpp"
+#include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
 #include "prep/model.hpp"
 #include "prep/progress.hpp"

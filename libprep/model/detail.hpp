@@ -98,9 +98,6 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
 // Rank per key (0 = drawn on top) under the drawing order above.
 std::vector<uint32_t> draw_ranks(const std::vector<DrawKey>& keys);
 
-// Resolves a layer colour for one feature value (ramp or constant).
-uint32_t resolve_color(const LayerColor& color, double value);
-
 // ------------------------------------------------------------------ grid --
 
 // What choose_grid() looks at. Pointers are borrowed for the call.

@@ -21,6 +21,7 @@
 #include <sstream>
 
 #include "detail.hpp"
+#include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
 #include "prep/stage_error.hpp"
@@ -142,26 +143,6 @@ LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const Mo
 }
 
 }  // namespace
-
-uint32_t resolve_color(const LayerColor& color, double value) {
-  if (color.attribute.empty() || color.ramp.empty() || std::isnan(value)) return color.rgba;
-  const auto& r = color.ramp;
-  if (value <= r.front().value) return r.front().rgba;
-  if (value >= r.back().value) return r.back().rgba;
-  for (size_t i = 1; i < r.size(); ++i) {
-    if (value > r[i].value) continue;
-    const double span = r[i].value - r[i - 1].value;
-    const double t = span > 0 ? (value - r[i - 1].value) / span : 1.0;
-    uint32_t out = 0;
-    for (int ch = 0; ch < 4; ++ch) {
-      double a = double((r[i - 1].rgba >> (8 * ch)) & 0xffu),
-             b = double((r[i].rgba >> (8 * ch)) & 0xffu);
-      out |= uint32_t(std::lround(a + t * (b - a))) << (8 * ch);
-    }
-    return out;
-  }
-  return r.back().rgba;
-}
 
 void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalModel& model,
                  std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys) {

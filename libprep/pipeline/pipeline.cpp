@@ -114,6 +114,14 @@ nlohmann::json layers_json(const std::vector<LayerSpec>& layers) {
                    {"corner", static_cast<uint32_t>(l.style.corner)},
                    {"outline_mode", static_cast<uint32_t>(l.style.outline)},
                    {"order_attribute", l.style.order_attribute}});
+    if (!l.casing_of.empty()) out.back()["casing_of"] = l.casing_of;
+    // The stops an attribute-coloured layer's values went through (the
+    // colours baked into the props); `render --ramp` maps them anew.
+    if (!l.style.color.attribute.empty()) {
+      nlohmann::json stops = nlohmann::json::array();
+      for (const ColorStop& c : l.style.color.ramp) stops.push_back({c.value, c.rgba});
+      out.back()["color_ramp"] = stops;
+    }
   }
   return out;
 }

@@ -133,6 +133,29 @@ void parse_build_table(const toml::table& t, const std::string& file, ModelOptio
   }
 }
 
+// The casing layer of `layer` (LayerSpec::casing_width): the same features,
+// casing_width wider on each side, in the casing colour (default: the layer
+// colour at 60% brightness), drawn just below the layer.
+LayerSpec casing_of(const LayerSpec& layer) {
+  LayerSpec c = layer;
+  c.name = layer.name + ".casing";
+  c.style.width = layer.style.width + 2 * layer.casing_width;
+  uint32_t rgba = layer.style.color.rgba;
+  if (layer.casing_rgba) {
+    rgba = *layer.casing_rgba;
+  } else {
+    uint32_t darker = rgba & 0xff000000u;
+    for (int ch = 0; ch < 3; ++ch)
+      darker |= uint32_t(std::lround(0.6 * double((rgba >> (8 * ch)) & 0xffu))) << (8 * ch);
+    rgba = darker;
+  }
+  c.style.color = LayerColor{rgba, {}, {}};
+  c.casing_width = 0;
+  c.casing_rgba.reset();
+  c.casing_of = layer.name;
+  return c;
+}
+
 LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t index,
                       const std::string& default_source, const std::string& base_dir) {
   LayerSpec layer;
@@ -180,6 +203,12 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
           fail(sref, "ramp values must increase");
         layer.style.color.ramp.push_back(cs);
       }
+    } else if (key == "casing_width") {
+      layer.casing_width = get_number(v, ref);
+      if (!(layer.casing_width > 0) || !std::isfinite(layer.casing_width))
+        fail(ref, "expected a casing width > 0, got " + std::to_string(layer.casing_width));
+    } else if (key == "casing_color") {
+      layer.casing_rgba = with_key(ref, [&] { return parse_color(get_string(v, ref)); });
     } else if (key == "width") {
       layer.style.width = get_number(v, ref);
       if (!(layer.style.width > 0) || !std::isfinite(layer.style.width))
@@ -208,6 +237,10 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     fail(here,
          "outline_mode inset/offset needs corner = \"miter\" (the kept half is cut at the miter "
          "corners)");
+  if (layer.casing_rgba && layer.casing_width == 0) fail(here, "casing_color needs a casing_width");
+  if (layer.casing_width > 0 &&
+      (layer.kind == DecalKind::polygon || layer.style.outline != decal::OutlineMode::normal))
+    fail(here, "casing_width needs kind = \"line\" or \"outline\" with outline_mode \"normal\"");
   if (layer.dynamic && !width_set) layer.style.width = 3.0;  // pixels
   if (layer.name.empty())
     layer.name = layer.layer.empty() ? "layer" + std::to_string(index) : layer.layer;
@@ -381,14 +414,27 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
     if (!t)
       fail({path, "layer[" + std::to_string(i) + "]", line_of(*layers->get(i))},
            "expected a table");
-    scene.layers.push_back(parse_layer(*t, path, i, default_source, base));
+    LayerSpec layer = parse_layer(*t, path, i, default_source, base);
+    if (layer.casing_width > 0) scene.layers.push_back(casing_of(layer));
+    scene.layers.push_back(std::move(layer));
   }
+  // The [[layer]] index of scene.layers[i] (a casing layer: its layer's).
+  auto file_index = [&](size_t i) {
+    size_t n = 0;
+    for (size_t k = 0; k < i; ++k) n += scene.layers[k].casing_of.empty();
+    return n;
+  };
   for (size_t i = 0; i < scene.layers.size(); ++i) {
     for (size_t j = 0; j < i; ++j) {
       if (scene.layers[i].name == scene.layers[j].name) {
-        fail({path, "layer[" + std::to_string(i) + "].name", scene.layers[i].scene_line},
-             "duplicate layer name \"" + scene.layers[i].name + "\" (also layer[" +
-                 std::to_string(j) + "]); set name = \"...\"");
+        const bool casing =
+            !scene.layers[i].casing_of.empty() || !scene.layers[j].casing_of.empty();
+        fail(
+            {path, "layer[" + std::to_string(file_index(i)) + "].name", scene.layers[i].scene_line},
+            "duplicate layer name \"" + scene.layers[i].name + "\" (also layer[" +
+                std::to_string(file_index(j)) + "]" +
+                (casing ? ", a casing layer takes its layer's name + \".casing\"" : "") +
+                "); set name = \"...\"");
       }
     }
   }

@@ -3,6 +3,7 @@
 // shaders, segment boxes into per-pixel linked lists, then sort and blend
 // them into the dynamic layer.
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 #include "detail/gl_render.hpp"
@@ -47,8 +48,9 @@ class DynamicLines {
  public:
   DynamicLines(GlObjects& gl, PassTimer& timer, const ViewUniforms& view,
                const Heightfield& terrain, uint32_t W, uint32_t H, uint64_t n_vertices,
-               uint64_t n_lines)
-      : gl_(gl),
+               uint64_t n_lines, double miter_limit_deg)
+      : miter_limit_deg_(miter_limit_deg),
+        gl_(gl),
         timer_(timer),
         view_(view),
         terrain_(terrain),
@@ -63,13 +65,15 @@ class DynamicLines {
   // Returns how often the node buffer grew.
   uint32_t lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao);
   void composite(GLuint p_composite);
-  // Counters 0 (segments drawn), 4 (vertices kept) and 5 (list nodes).
+  // Counters 0 (segments drawn), 4 (vertices kept), 5 (list nodes) and 8
+  // (pixels whose composite reached its step bound).
   void read_counters(Image& img) const;
 
  private:
   GLuint buffer(uint64_t bytes, uint32_t binding);
   void set_uniforms(GLuint p) const;
 
+  const double miter_limit_deg_;  // the package's: below it a miter corner falls back to round
   GlObjects& gl_;
   PassTimer& timer_;
   const ViewUniforms& view_;
@@ -96,11 +100,11 @@ void DynamicLines::make_buffers() {
   buffer(uint64_t(blocks_) * 4, 26);
   buffer(n_dyn_ * 4, 27);
   buffer(n_dyn_ * 16, 28);
-  counters_ = buffer(32, 29);
+  counters_ = buffer(48, 29);
   heads_ = buffer(uint64_t(W_) * H_ * 4, 31);
   capacity_ = W_ * H_ * 2;
   nodes_ = buffer(uint64_t(capacity_) * 16, 32);
-  const uint32_t init[8] = {0, 1, 0, 0, 0, 0, capacity_, uint32_t(n_dyn_)};
+  const uint32_t init[12] = {0, 1, 0, 0, 0, 0, capacity_, uint32_t(n_dyn_), 0, 0, 0, 0};
   glNamedBufferSubData(counters_, 0, sizeof init, init);
 }
 
@@ -121,6 +125,8 @@ void DynamicLines::set_uniforms(GLuint p) const {
   glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
   glUniform1f(glGetUniformLocation(p, "u_zmin"), float(terrain_.zmin));
   glUniform1f(glGetUniformLocation(p, "u_zmax"), float(terrain_.zmax));
+  glUniform1f(glGetUniformLocation(p, "u_miter_limit_cos"),
+              float(std::cos(miter_limit_deg_ * 3.14159265358979323846 / 180.0)));
 }
 
 // Update indices: cull + same-pixel removal, own stream compaction, segments.
@@ -188,11 +194,12 @@ void DynamicLines::composite(GLuint p_composite) {
 }
 
 void DynamicLines::read_counters(Image& img) const {
-  uint32_t stats[8] = {};
+  uint32_t stats[9] = {};
   glGetNamedBufferSubData(counters_, 0, sizeof stats, stats);
   img.dyn_segments += stats[0];
   img.dyn_kept += stats[4];
   img.dyn_nodes += stats[5];
+  img.dyn_truncated += stats[8];
 }
 
 }  // namespace
@@ -210,7 +217,8 @@ void GlRenderer::dynamic_pass(Image& img, GlObjects& work) {
       p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
       "#define DECAL_DYNAMIC 1\n";
   const DynPrograms p = dyn_programs(gl_, dd);
-  DynamicLines dyn(work, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines);
+  DynamicLines dyn(work, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines,
+                   source_->miter_limit_deg);
   dyn.make_buffers();
   dyn.update(p);
   img.list_grows += dyn.lists(p.lists, t_.f_dyn, empty_vao_);

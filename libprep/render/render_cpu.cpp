@@ -6,6 +6,7 @@
 #include <thread>
 #include <vector>
 
+#include "detail/dynamic_cpu.hpp"
 #include "detail/math.hpp"
 #include "prep/error.hpp"
 #include "prep/render.hpp"
@@ -126,13 +127,47 @@ Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
       }
     });
   }
-  // Final image: decal layer over the shaded terrain, sky where no terrain.
+  // Dynamic lines, as the GL pass draws them (detail/dynamic_cpu.hpp): each
+  // tile's in its own frame, at the ground point of every pixel with
+  // terrain, drawn by the tile whose square holds the point.
+  img.dynamic.assign(size_t(W) * H * 4, 0.0f);
+  if (opt.draw_dynamic) {
+    std::vector<detail::DynamicLinesCpu> dyn;
+    bool any = false;
+    for (const TileSource& t : tiles) {
+      Camera c = cam;
+      c.eye = {cam.eye[0] - t.dx, cam.eye[1] - t.dy, cam.eye[2]};
+      c.target = {cam.target[0] - t.dx, cam.target[1] - t.dy, cam.target[2]};
+      dyn.emplace_back(t.source, c, W, H);
+      any = any || !dyn.back().empty();
+    }
+    if (any)
+      parallel_rows([&](uint32_t j) {
+        for (uint32_t i = 0; i < W; ++i) {
+          const size_t k = i + size_t(W) * j;
+          if (std::isnan(hit_x[k])) continue;
+          for (size_t t = 0; t < tiles.size(); ++t) {
+            const Extent& q = tiles[t].square;
+            if (!(hit_x[k] >= q.xmin && hit_x[k] < q.xmax && hit_y[k] >= q.ymin &&
+                  hit_y[k] < q.ymax))
+              continue;
+            const std::array<float, 4> c =
+                dyn[t].at({hit_x[k] - tiles[t].dx, hit_y[k] - tiles[t].dy, hit_z[k]});
+            std::copy(c.begin(), c.end(), img.dynamic.begin() + std::ptrdiff_t(4 * k));
+            break;
+          }
+        }
+      });
+  }
+  // Final image: dynamic lines over the decal layer over the shaded
+  // terrain, sky where no terrain (composite.frag.glsl).
   for (size_t k = 0; k < size_t(W) * H; ++k) {
     std::array<double, 3> base{0.80, 0.86, 0.93};
     if (!std::isnan(hit_x[k])) base = shade(terrain, opt, hit_x[k], hit_y[k], hit_z[k]);
-    double a = img.decals[4 * k + 3];
+    const double a = img.decals[4 * k + 3], l = img.dynamic[4 * k + 3];
     for (int c = 0; c < 3; ++c) {
-      double v = img.decals[4 * k + c] * a + (1 - a) * base[c];
+      const double under = img.decals[4 * k + c] * a + (1 - a) * base[c];
+      const double v = img.dynamic[4 * k + c] * l + (1 - l) * under;
       img.rgba[4 * k + c] = uint8_t(std::lround(std::clamp(v, 0.0, 1.0) * 255.0));
     }
     img.rgba[4 * k + 3] = 255;

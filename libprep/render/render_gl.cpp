@@ -194,8 +194,9 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
         out.dynamic[4 * k + c] = img.dynamic[4 * k + c];
       }
     }
-    for (uint32_t Image::*m : {&Image::dyn_kept, &Image::dyn_segments, &Image::dyn_nodes,
-                               &Image::list_grows, &Image::volume_groups, &Image::zfail_groups})
+    for (uint32_t Image::*m :
+         {&Image::dyn_kept, &Image::dyn_segments, &Image::dyn_nodes, &Image::dyn_truncated,
+          &Image::list_grows, &Image::volume_groups, &Image::zfail_groups})
       out.*m += img.*m;
     for (uint64_t Image::*m :
          {&Image::prism_triangles, &Image::texture_bytes, &Image::texture_triangles})

@@ -1,6 +1,12 @@
 // DecalSource: the renderer's view of a model in memory or an opened package.
+#include <cstring>
+#include <span>
+#include <string>
+#include <vector>
+
 #include <nlohmann/json.hpp>
 
+#include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
 #include "prep/render.hpp"
 #include "prep/stage_error.hpp"
@@ -97,6 +103,18 @@ DecalSource source_of(const decal::Package& package) {
                     e->value("ymax", 0.0)};
       }
     }
+    // The miter limit the build used: the dynamic-line pass builds its
+    // corners per frame and falls back to round below the same angle.
+    if (const auto* bo = pick({"build_options"}); bo && bo->is_object()) {
+      const auto it = bo->find("miter_limit_deg");
+      if (it != bo->end() && it->is_number()) {
+        const double deg = it->get<double>();
+        if (!(deg > 0 && deg <= 180))
+          fail<format_error>(kRenderStage, "package metadata: build_options.miter_limit_deg " +
+                                               std::to_string(deg) + " is not in (0, 180]");
+        s.miter_limit_deg = deg;
+      }
+    }
   } catch (const nlohmann::json::exception& ex) {
     fail<format_error>(kRenderStage, std::string("package metadata: ") + ex.what());
   }
@@ -108,6 +126,60 @@ DecalSource source_of(const decal::Package& package) {
                 (g.origin_y + g.cell_h * int64_t(g.ny)) * decal::kQuantumMetres};
   }
   return s;
+}
+
+std::vector<std::string> layer_names(const std::string& metadata_json) {
+  std::vector<std::string> names;
+  const auto meta = nlohmann::json::parse(metadata_json, nullptr, false);
+  if (!meta.is_object() || !meta.contains("layers") || !meta["layers"].is_array()) return names;
+  for (const auto& l : meta["layers"])
+    names.push_back(l.is_object() && l.contains("name") && l["name"].is_string()
+                        ? l["name"].get<std::string>()
+                        : std::string());
+  return names;
+}
+
+namespace {
+
+// Copies the props blob `id` of `s` into `held`, recolours each element
+// `recolour` accepts, and points the blob (and `view`, when given) at the copy.
+template <class Props, class Recolour>
+void restyle_blob(DecalSource& s, decal::BlobId id, std::vector<Props>& held,
+                  std::span<const Props>* view, Recolour recolour) {
+  for (DecalSource::Blob& b : s.blobs) {
+    if (b.id != id) continue;
+    held.resize(b.bytes / sizeof(Props));
+    std::memcpy(held.data(), b.data, held.size() * sizeof(Props));
+    for (Props& p : held) recolour(p);
+    b.data = held.data();
+    if (view) *view = held;
+    return;
+  }
+}
+
+}  // namespace
+
+void restyle(DecalSource& source, const LayerRamps& ramps, RestyledProps& held) {
+  auto stops_of = [&](uint32_t layer) -> const std::vector<ColorStop>& {
+    if (layer >= ramps.size())
+      fail<format_error>(kRenderStage, "a feature names layer " + std::to_string(layer) +
+                                           " of a layer table of " + std::to_string(ramps.size()));
+    return ramps[layer];
+  };
+  auto line = [&](decal::LineProps& p) {
+    const std::vector<ColorStop>& stops = stops_of(p.layer);
+    held.recoloured += !stops.empty();
+    p.rgba = ramp_rgba(stops, p.value, p.rgba);
+  };
+  restyle_blob(source, decal::BlobId::line_props, held.line, &source.view.line_props, line);
+  restyle_blob<decal::LineProps>(source, decal::BlobId::dyn_line_props, held.dyn, nullptr, line);
+  restyle_blob(source, decal::BlobId::poly_props, held.poly, &source.view.poly_props,
+               [&](decal::PolyProps& p) {
+                 if (p.exterior >= 0) return;  // interior polygons are drawn by their exterior
+                 const std::vector<ColorStop>& stops = stops_of(p.layer);
+                 held.recoloured += !stops.empty();
+                 p.rgba = ramp_rgba(stops, p.value, p.rgba);
+               });
 }
 
 }  // namespace prep::render

@@ -2,8 +2,11 @@
 // same-pixel vertex removal, drawing order at transparent crossings.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 
 #include "prep/error.hpp"
 #include "prep/render.hpp"
@@ -174,10 +177,111 @@ TEST(DynamicLines, GrowTheListBufferWhenItOverflows) {
   if (!s.ok) GTEST_SKIP() << "no headless GL";
   EXPECT_GE(s.img.list_grows, 1u);
   EXPECT_GT(s.img.dyn_nodes, 64u * 32u * 2u);
-  // The composite keeps the 8 topmost distinct lines of a list
-  // (dyn_composite.frag.glsl K): 1 - (1 - 16/255)^8, not ^60.
+  // Every line of the list is composited (dyn_composite.frag.glsl has no
+  // cap): 1 - (1 - 16/255)^60.
   const float* c = &s.img.dynamic[4 * (32 + size_t(64) * 15)];
-  EXPECT_NEAR(c[3], 1 - std::pow(1 - 16 / 255.0, 8), 2.0 / 255);
+  EXPECT_NEAR(c[3], 1 - std::pow(1 - 16 / 255.0, 60), 2.0 / 255);
+}
+
+// Twelve translucent lines of twelve colours through one pixel, their
+// drawing order a permutation of their index: the pixel is all twelve
+// composited front to back in that order (straight alpha), analytically.
+TEST(DynamicLines, TwelveTransparentLinesThroughOnePixelCompositeAllInDrawingOrder) {
+  prep::DecalModel m = dynamic_model();
+  m.dyn_vertices.clear();
+  m.dyn_prev_next.clear();
+  m.dyn_line_start.clear();
+  m.dyn_line_props.clear();
+  constexpr int kLines = 12;
+  std::array<uint32_t, kLines> rgba{}, order{};
+  for (int k = 0; k < kLines; ++k) {
+    const double a = k * 3.14159265358979 / kLines;  // 15 degrees apart
+    const double x0 = 100.5 - 40 * std::cos(a), y0 = 50.5 - 40 * std::sin(a);
+    const double x1 = 100.5 + 40 * std::cos(a), y1 = 50.5 + 40 * std::sin(a);
+    const uint32_t first = uint32_t(m.dyn_vertices.size());
+    m.dyn_line_start.push_back(first);
+    m.dyn_vertices.push_back(
+        {int32_t(std::lround(x0 * 1000)), int32_t(std::lround(y0 * 1000)), 0, k});
+    m.dyn_vertices.push_back(
+        {int32_t(std::lround(x1 * 1000)), int32_t(std::lround(y1 * 1000)), 0, k});
+    m.dyn_prev_next.push_back({-1, int32_t(first + 1)});
+    m.dyn_prev_next.push_back({int32_t(first), -1});
+    rgba[k] = uint32_t(20 * k) | uint32_t(255 - 20 * k) << 8 | uint32_t((37 * k) % 256) << 16 |
+              0x59u << 24;
+    order[k] = uint32_t((5 * k) % kLines);  // 5 and 12 are coprime: a permutation
+    m.dyn_line_props.push_back({2.0f, rgba[k], order[k], 0u, 0.f, 0, uint32_t(k), 0});
+  }
+  Shot s = shoot(m, {0, 0, 200, 100}, 200, 100);
+  if (!s.ok) GTEST_SKIP() << "no headless GL";
+  // Front to back: the line of order 0 first.
+  std::array<int, kLines> by_order{};
+  for (int k = 0; k < kLines; ++k) by_order[order[k]] = k;
+  double acc[4] = {0, 0, 0, 0};
+  for (int r = 0; r < kLines; ++r) {
+    const uint32_t c = rgba[by_order[r]];
+    const double a = double(c >> 24) / 255.0, w = (1 - acc[3]) * a;
+    for (int ch = 0; ch < 3; ++ch) acc[ch] += w * double((c >> (8 * ch)) & 0xffu) / 255.0;
+    acc[3] += w;
+  }
+  // Pixel (100, 49): centre (100.5, 50.5), where every line passes.
+  const float* c = &s.img.dynamic[4 * (100 + size_t(200) * 49)];
+  EXPECT_NEAR(c[3], acc[3], 2.0 / 255);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(c[ch], acc[ch] / acc[3], 2.0 / 255) << ch;
+  // The same lines composited in index order instead give another colour:
+  // the test tells the orders apart.
+  double wrong[4] = {0, 0, 0, 0};
+  for (int k = 0; k < kLines; ++k) {
+    const double a = double(rgba[k] >> 24) / 255.0, w = (1 - wrong[3]) * a;
+    for (int ch = 0; ch < 3; ++ch) wrong[ch] += w * double((rgba[k] >> (8 * ch)) & 0xffu) / 255.0;
+    wrong[3] += w;
+  }
+  double differ = 0;
+  for (int ch = 0; ch < 3; ++ch) differ = std::max(differ, std::abs(wrong[ch] - acc[ch]) / acc[3]);
+  EXPECT_GT(differ, 10.0 / 255);
+}
+
+// A miter corner of 30 degrees between its segments: round below the
+// package's miter limit (40 by default), a miter tip at a limit of 20. A
+// point 2.5 half widths from the corner on the outer side lies in the tip
+// (the miter reaches 1 / sin(15 deg) = 3.9 half widths) but off the round cap.
+TEST(DynamicLines, MiterCornersFollowThePackagesMiterLimit) {
+  prep::DecalModel m = dynamic_model(/*corner=*/1);
+  m.dyn_vertices.clear();
+  m.dyn_prev_next.clear();
+  m.dyn_line_start.clear();
+  m.dyn_line_props.clear();
+  const double th = 30 * 3.14159265358979 / 180;
+  const double vx = 120, vy = 50;
+  const double pts[3][2] = {{40, 50}, {vx, vy}, {vx - 70 * std::cos(th), vy + 70 * std::sin(th)}};
+  for (int k = 0; k < 3; ++k)
+    m.dyn_vertices.push_back(
+        {int32_t(std::lround(pts[k][0] * 1000)), int32_t(std::lround(pts[k][1] * 1000)), 0, 0});
+  m.dyn_prev_next = {{-1, 1}, {0, 2}, {1, -1}};
+  m.dyn_line_start = {0};
+  m.dyn_line_props.push_back({3.0f, 0xff0000ffu, 0, 1u, 0.f, 0, 0, 0});
+  // Outer side of the corner: away from both segments.
+  const double ox = 1 + std::cos(th), oy = -std::sin(th), on = std::hypot(ox, oy);
+  const double px = vx + 2.5 * 3 * ox / on, py = vy + 2.5 * 3 * oy / on;
+  const uint32_t i = uint32_t(px), j = uint32_t(100 - py);
+  auto tip_alpha = [&](double limit) -> std::optional<float> {
+    R::DecalSource src = R::source_of(m);
+    src.miter_limit_deg = limit;
+    R::RenderOptions opt;
+    opt.width = 200;
+    opt.height = 100;
+    opt.camera = R::topdown_camera({0, 0, 200, 100}, 0, 0);
+    try {
+      const R::Image img = R::render_gl(src, R::flat_heightfield({0, 0, 200, 100}), opt);
+      return img.dynamic[4 * (i + size_t(200) * j) + 3];
+    } catch (const prep::render_error& e) {
+      return std::nullopt;
+    }
+  };
+  const auto round_fallback = tip_alpha(40), miter = tip_alpha(20);
+  if (!round_fallback) GTEST_SKIP() << "no headless GL";
+  EXPECT_EQ(*round_fallback, 0.0f) << "limit 40: the 30-degree corner is round";
+  ASSERT_TRUE(miter);
+  EXPECT_GT(*miter, 0.9f) << "limit 20: the 30-degree corner has its miter tip";
 }
 
 }  // namespace

@@ -1,16 +1,19 @@
 // decalprep render — draws a package over terrain headless (GL via EGL, or
 // the CPU evaluator with --cpu) and writes a PNG. Thin: parsing and calls
 // into prep_render (prep/render.hpp).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <optional>
+#include <span>
 #include <sstream>
 
 #include "command.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/project.hpp"
+#include "prep/read.hpp"
 #include "prep/render.hpp"
 #include "prep/tile_select.hpp"
 #include "prep/tileset.hpp"
@@ -27,6 +30,7 @@ struct RenderArgs {
   double texture_resolution = 0;           // 0: the renderer's default
   double fov = 45.0, pitch = 45.0;
   std::optional<double> z_scale, nodata_fill;  // none: the package's
+  std::vector<std::string> ramps;              // --ramp LAYER=value:#rrggbb,...
   uint32_t frames = 1;
   bool cpu = false, stats = false, ortho = false, fit = false, flat = false;
 };
@@ -96,6 +100,77 @@ Scene open_scene(const std::string& path) {
     sc.metadata = std::string(first.metadata_json());
   }
   return sc;
+}
+
+// One --ramp: a layer of the package's layer table and the stops its
+// features' stored values go through when drawing.
+struct RampArg {
+  std::string text, layer;
+  std::vector<prep::ColorStop> stops;
+};
+
+// "LAYER=value:#rrggbb[aa],value:#rrggbb[aa],..." with values increasing.
+RampArg parse_ramp(const std::string& text) {
+  auto bad = [&](const std::string& why) {
+    return prep::usage_error("render: --ramp '" + text + "': " + why +
+                             " (expected LAYER=value:#rrggbb,value:#rrggbb,...)");
+  };
+  RampArg r;
+  r.text = text;
+  const size_t eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) throw bad("no layer name before '='");
+  r.layer = text.substr(0, eq);
+  std::stringstream ss(text.substr(eq + 1));
+  std::string stop;
+  while (std::getline(ss, stop, ',')) {
+    const size_t colon = stop.find(':');
+    if (colon == std::string::npos) throw bad("stop '" + stop + "' has no ':'");
+    prep::ColorStop cs{};
+    try {
+      size_t used = 0;
+      cs.value = std::stod(stop.substr(0, colon), &used);
+      if (used != colon || !std::isfinite(cs.value)) throw std::invalid_argument(stop);
+    } catch (const std::exception&) {
+      throw bad("stop '" + stop + "' does not start with a finite number");
+    }
+    try {
+      cs.rgba = prep::parse_color(stop.substr(colon + 1));
+    } catch (const prep::error& e) {
+      throw bad(e.what());
+    }
+    if (!r.stops.empty() && !(cs.value > r.stops.back().value))
+      throw bad("stop values must increase");
+    r.stops.push_back(cs);
+  }
+  if (r.stops.empty()) throw bad("no stops");
+  return r;
+}
+
+// Restyles every loaded tile with the --ramp stops, by the layer names of
+// its package's layer table; the recoloured props live in `held`.
+uint64_t apply_ramps(const std::vector<RampArg>& ramps, std::span<const decal::Package> packages,
+                     std::span<R::TileSource> tiles, std::vector<R::RestyledProps>& held) {
+  held.resize(tiles.size());
+  uint64_t recoloured = 0;
+  for (size_t k = 0; k < tiles.size(); ++k) {
+    const std::string metadata(packages[k].metadata_json());
+    const std::vector<std::string> names = R::layer_names(metadata);
+    R::LayerRamps by_layer(names.size());
+    for (const RampArg& r : ramps) {
+      const auto it = std::find(names.begin(), names.end(), r.layer);
+      if (it == names.end()) {
+        std::string known;
+        for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+        throw prep::usage_error("render: --ramp '" + r.text + "': the package has no layer '" +
+                                r.layer + "' (its layers: " + (known.empty() ? "none" : known) +
+                                ")");
+      }
+      by_layer[size_t(it - names.begin())] = r.stops;
+    }
+    R::restyle(tiles[k].source, by_layer, held[k]);
+    recoloured += held[k].recoloured;
+  }
+  return recoloured;
 }
 
 // The bytes a package holds decoded: all its blobs, the unknown ids' too.
@@ -369,6 +444,13 @@ void run(const RenderArgs& a) {
   // A tileset: only the tiles the view draws (select_tiles meets them with
   // what the camera can see of the terrain).
   if (sc.tileset) load_tiles(sc, a.package, opt.camera, w, h, terrain.zmin, terrain.zmax, select);
+  // --ramp: value-coloured layers restyled when drawing, from the values the
+  // package stores; the package itself is not changed.
+  std::vector<RampArg> ramps;
+  for (const std::string& text : a.ramps) ramps.push_back(parse_ramp(text));
+  std::vector<R::RestyledProps> restyled;
+  const uint64_t recoloured =
+      ramps.empty() ? 0 : apply_ramps(ramps, sc.packages, sc.tiles, restyled);
   uint64_t blob_bytes = 0;  // the loaded packages' blobs decoded (--gpu-budget's measure)
   for (const decal::Package& p : sc.packages) blob_bytes += decoded_bytes(p);
   const auto frame_start = std::chrono::steady_clock::now();
@@ -407,6 +489,9 @@ void run(const RenderArgs& a) {
                 std::isfinite(terrain.surface_error_bound)
                     ? (std::to_string(terrain.surface_error_bound * 1e3) + " mm").c_str()
                     : "an unbounded distance (mesh not on the DEM lattice)");
+    if (!ramps.empty())
+      std::printf("ramps: %llu features recoloured (%zu --ramp)\n",
+                  static_cast<unsigned long long>(recoloured), ramps.size());
     if (opt.method == R::Method::volume)
       std::printf("volume: %llu prism triangles, %u stencil+cover groups (%u z-fail, %u z-pass)\n",
                   static_cast<unsigned long long>(img.prism_triangles), img.volume_groups,
@@ -442,8 +527,9 @@ void run(const RenderArgs& a) {
                 frame_ms, a.cpu ? "cpu" : "gl", a.frames, a.frames == 1 ? "" : "s");
     if (img.dyn_kept || img.dyn_segments)
       std::printf(
-          "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths\n",
-          img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows);
+          "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths, "
+          "%u pixels composited short of their list (step bound)\n",
+          img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows, img.dyn_truncated);
   }
 }
 
@@ -511,6 +597,12 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
                   "(not the smaller package bytes; e.g. 512M, 2G); coarser levels where the view "
                   "needs more, exit 6 when even the coarsest do (default: no limit)");
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
+  cmd->add_option("--ramp", args->ramps,
+                  "Colour ramp for a value-coloured layer, applied when drawing (no rebuild): "
+                  "LAYER=value:#rrggbb[aa],value:#rrggbb[aa],... (values increasing; linear per "
+                  "channel between stops, clamped outside). Repeat for more layers")
+      ->expected(1)
+      ->take_all();
   cmd->add_option("--frames", args->frames,
                   "GL: render N frames, report the last one's pass times (warm)")
       ->check(CLI::Range(1u, 1000u));

@@ -19,6 +19,7 @@ layout(std430, binding = 28) buffer DynSegments { uvec4 dyn_segment[]; };
 layout(std430, binding = 29) buffer DynCounters {
   uint draw_count; uint draw_instances; uint draw_first; uint draw_base;
   uint kept; uint list_nodes; uint list_capacity; uint n_vertices;
+  uint composite_truncated;  // pixels whose composite reached its step bound
 };
 // per pixel: head of its linked list; per node: (order, line, next, 0)
 layout(std430, binding = 31) buffer DynHeads { uint dyn_head[]; };

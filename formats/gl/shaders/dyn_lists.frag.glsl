@@ -9,6 +9,7 @@ flat in uvec4 g_seg;
 layout(binding = 31) uniform sampler2D u_depth;
 uniform mat4 u_inv_view_proj;
 uniform vec4 u_clip;  // decals only in [x, z) x [y, w), anchor-relative metres (a tileset's tile)
+uniform float u_miter_limit_cos;  // cos of the package's miter limit (build_options.miter_limit_deg)
 
 float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
 bool in_triangle(vec2 p, vec2 a, vec2 b, vec2 c) {
@@ -21,11 +22,11 @@ vec2 left_normal(vec2 from, vec2 to) {
   return l > 0.0 ? vec2(-d.y, d.x) / l : vec2(0.0);
 }
 // Corner at vertex v between segment (u -> v) and (v -> w): the miter vector
-// (to the left), or zero for a round fallback below 40 degrees (thesis
-// §4.2.1; formats/SPEC.md, blob line_corners).
+// (to the left), or zero for a round fallback below the package's miter
+// limit (thesis §4.2.1; formats/SPEC.md, blob line_corners).
 vec2 miter_at(vec2 u, vec2 v, vec2 w, float hw) {
   vec2 e1 = normalize(u - v), e2 = normalize(w - v);
-  if (dot(e1, e2) > cos(radians(40.0))) return vec2(0.0);
+  if (dot(e1, e2) > u_miter_limit_cos) return vec2(0.0);
   vec2 n1 = left_normal(u, v), n2 = left_normal(v, w);
   vec2 m = n1 + n2;
   if (dot(m, m) < 1e-12) return n2 * hw;

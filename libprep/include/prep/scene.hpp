@@ -69,6 +69,14 @@ struct LayerSpec {
   bool lod = false;      // build LOCALIS LOD segments for this layer's lines
   LayerStyle style;
   int scene_line = 0;  // line in the scene file, for messages (0: command line)
+  // Casing (scene file casing_width, casing_color): the scene file's loader
+  // puts a copy of the layer just below it, casing_width wider on each side
+  // in the casing colour, so that every line of the layer lies on the
+  // casings of all of them and crossings of one road class merge cleanly.
+  // The copy's casing_of names the layer it lies under.
+  double casing_width = 0;  // metres (static) or pixels (dynamic); 0: none
+  std::optional<uint32_t> casing_rgba;
+  std::string casing_of;
 };
 
 struct Extent {

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "lod/lod.hpp"
+#include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
 #include "prep/model.hpp"
 #include "prep/stage_error.hpp"
@@ -18,31 +19,6 @@
 namespace prep {
 
 namespace {
-
-uint32_t channel(uint32_t rgba, int c) {
-  return (rgba >> (8 * c)) & 0xffu;
-}
-
-// Layer colour: constant, or the attribute value through the ramp (linear
-// per channel between stops, clamped at both ends).
-uint32_t resolve_color(const LayerColor& color, double value) {
-  if (color.attribute.empty() || color.ramp.empty() || !std::isfinite(value)) return color.rgba;
-  const auto& ramp = color.ramp;
-  if (value <= ramp.front().value) return ramp.front().rgba;
-  if (value >= ramp.back().value) return ramp.back().rgba;
-  size_t k = 1;
-  while (k < ramp.size() && ramp[k].value < value) ++k;
-  const ColorStop& a = ramp[k - 1];
-  const ColorStop& b = ramp[k];
-  const double t = b.value > a.value ? (value - a.value) / (b.value - a.value) : 0.0;
-  uint32_t out = 0;
-  for (int c = 0; c < 4; ++c) {
-    const double v =
-        channel(a.rgba, c) + t * (double(channel(b.rgba, c)) - double(channel(a.rgba, c)));
-    out |= static_cast<uint32_t>(std::clamp(std::lround(v), 0L, 255L)) << (8 * c);
-  }
-  return out;
-}
 
 std::string fmt(double v, int digits = 3) {
   std::ostringstream s;

@@ -129,6 +129,10 @@ struct DecalSource {
   // (decal::validate_blobs; source_of(Package) runs it), so render_gl does
   // not run it again. False for models in memory: render_gl checks them.
   bool validated = false;
+  // Miter corners of dynamic lines fall back to round below this angle
+  // between segments: the package's build_options.miter_limit_deg (the
+  // static corners were built with it), else the build default.
+  double miter_limit_deg = 40.0;
 };
 
 // Views of a model in memory (for tests and `build --render`).
@@ -136,6 +140,34 @@ DecalSource source_of(const DecalModel& model);
 // Views of an opened package; reads frame, extent and grid from its
 // metadata. Throws format_error when they are missing or inconsistent.
 DecalSource source_of(const decal::Package& package);
+
+// Colour ramps applied when drawing (`render --ramp`): thesis §4.2.1 stores
+// a value per feature (LineProps/PolyProps.value) and maps it through a
+// transfer function, so a value-coloured layer is restyled without a
+// rebuild. One entry per layer of the package's layer table (the metadata's
+// "layers", which LineProps::layer and PolyProps::layer index); no stops:
+// the layer keeps its stored colours.
+using LayerRamps = std::vector<std::vector<ColorStop>>;
+
+// The names of a package's layer table, in index order (metadata "layers"[i]
+// "name"); empty when the metadata has no layer table.
+std::vector<std::string> layer_names(const std::string& metadata_json);
+
+// The recoloured props of one source; they must outlive it.
+struct RestyledProps {
+  std::vector<decal::PolyProps> poly;
+  std::vector<decal::LineProps> line, dyn;
+  uint64_t recoloured = 0;  // features whose colour the ramps set
+};
+
+// Recolours `source` for every renderer (decal, volume and texture methods,
+// GL and CPU alike): each exterior polygon, static line and dynamic line of a
+// layer with stops gets prep::ramp_rgba(stops, its stored value, its stored
+// colour) (prep/color_ramp.hpp, the build's own formula); a feature with no
+// value (NaN) keeps its stored colour. The props are copied into `held`
+// and the source's view and blobs point at the copies; the package is not
+// touched. Throws format_error when a feature names a layer past `ramps`.
+void restyle(DecalSource& source, const LayerRamps& ramps, RestyledProps& held);
 
 enum class AntiAliasing { none, coverage, msaa4 };
 enum class Binding { ssbo, texture };
@@ -183,9 +215,13 @@ struct Image {
   uint32_t width = 0, height = 0;
   std::vector<uint8_t> rgba;   // final image: decals over shaded terrain, 8-bit
   std::vector<float> decals;   // static decal layer alone, straight alpha, 0..1
-  std::vector<float> dynamic;  // dynamic-line layer alone (GL only), straight alpha
+  std::vector<float> dynamic;  // dynamic-line layer alone, straight alpha
   uint32_t dyn_kept = 0, dyn_segments = 0, dyn_nodes = 0;  // dynamic update counts
   uint32_t list_grows = 0;  // linked-list buffer regrowths this frame
+  // Pixels whose dynamic-line composite stopped at its bound of list entries
+  // read (dyn_composite.frag.glsl) before compositing every line: 0 unless a
+  // pixel holds about a thousand lines.
+  uint32_t dyn_truncated = 0;
   std::vector<PassTime> times;
   std::string device;  // GL renderer string, or "cpu"
   // Volume method: prism triangles drawn, stencil+cover groups, groups
@@ -208,7 +244,11 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain,
 
 // Same view on the CPU: top-down orthographic views call prep::render_topdown;
 // others ray-cast the same heightfield mesh in double precision and call
-// prep::evaluate per pixel. Thread-safe.
+// prep::evaluate per pixel. Dynamic lines are drawn at each pixel's ground
+// point by the rules of the GL pass (detail/dynamic_cpu.hpp: vertices kept,
+// segments, corners at the pixel's scale, every covering line composited in
+// drawing order) into Image::dynamic, and composited over the decals.
+// Thread-safe.
 Image render_cpu(const DecalSource& source, const Heightfield& terrain,
                  const RenderOptions& options);
 

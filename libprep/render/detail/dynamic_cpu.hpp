@@ -1,0 +1,50 @@
+// The dynamic lines of one source as the GL pass draws them for one view
+// (thesis §4.3, §4.4.2), computed on the CPU in double precision from the
+// same rules as its shaders: the vertices kept (dyn_cull.comp.glsl: a vertex
+// that lands on its predecessor's pixel is dropped, line starts and ends
+// never), the segments between kept vertices with their kept neighbours and
+// frustum culling (dyn_segments.comp.glsl), the per-pixel test at the
+// pixel's ground point and scale per corner style (dyn_lists.frag.glsl,
+// dyn_scale.glsl), and every covering line composited front to back in
+// drawing order (dyn_composite.frag.glsl). Internal to prep_render.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "detail/math.hpp"
+#include "prep/render.hpp"
+
+namespace prep::render::detail {
+
+class DynamicLinesCpu {
+ public:
+  // `camera` in the source's frame (metres relative to its origin).
+  DynamicLinesCpu(const DecalSource& source, const Camera& camera, uint32_t width, uint32_t height);
+
+  bool empty() const { return segments_.empty(); }
+  // Straight-alpha colour of the dynamic layer where a pixel's ray meets the
+  // terrain at `p` (metres relative to the source's origin).
+  std::array<float, 4> at(const Vec3& p) const;
+
+ private:
+  struct Segment {
+    std::array<double, 2> a, b, prev, next;  // plan positions, metres
+    bool has_prev = false, has_next = false;
+    uint32_t line = 0;
+  };
+  bool covers(const Segment& s, const std::array<double, 2>& p, double hw, uint32_t corner) const;
+  double metres_per_pixel(const Vec3& p) const;
+
+  std::vector<Segment> segments_;
+  std::vector<decal::LineProps> props_;
+  Vec3 eye_{};
+  double mpp_ortho_ = 0, mpp_per_metre_ = 0, cos_limit_ = 0, reach_ = 1, max_hw_px_ = 0;
+  // A uniform grid over the segments' plan boxes.
+  double gx0_ = 0, gy0_ = 0, cell_ = 1;
+  int64_t gnx_ = 0, gny_ = 0;
+  std::vector<uint32_t> cell_start_, cell_items_;
+};
+
+}  // namespace prep::render::detail
