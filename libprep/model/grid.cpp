@@ -466,13 +466,13 @@ int64_t sample_stride(const GridParams& g) {
 // is counted exactly, one pass over the primitives each (exact_grid_bytes).
 // Above, the inputs are binned by y once (YBins) and a candidate is counted
 // row by row in parallel (grid_row) on every stride-th row (at least 64
-// rows, sample_stride) and scaled, about 1/stride of the work; a sampled count must keep
-// kSampleMargin (99%) of the budget, and the choice is then confirmed on exact bytes (falling back
-// to the next candidate by score, else to the thesis grid). So the budget
-// holds on exact counts, and the choice costs the thesis grid's exact count,
-// the confirmation and about a twentieth of the other candidates' counts
-// (at 10^7 vertices the search takes 13 candidates; on exact counts each
-// cost as much as the thesis grid's).
+// rows, sample_stride) and scaled; a sampled count must keep kSampleMargin
+// (99%) of the budget, and the choice is then confirmed on exact bytes
+// (falling back to the next candidate by score, else to the thesis grid).
+// So the budget holds on exact counts, and the search costs the thesis
+// grid's exact count, the confirmation and the sampled counts (at 10^7
+// vertices of bench/gen_synthetic.py mix: 13 candidates at about a sixth of
+// an exact count each).
 // options.target_per_cell, when set (> 0; default off), stops refining at
 // the first (coarsest) candidate whose proxy reaches it: a smaller package
 // for a chosen query cost. options.min_cell_m, when set, refuses every
