@@ -91,29 +91,54 @@ struct CellPoly {
   ivec4 box;
 };
 
-// Appends quad-tree `t` (local indices) to the model's node arrays and
-// returns the index of its root node.
-uint32_t append_quadtree(PolyQuadTree& t, DecalModel& m) {
-  const uint32_t node_base = uint32_t(m.qt_node.size());
-  const uint32_t range_base = uint32_t(m.qt_leaf_range.size());
-  const uint32_t seg_base = uint32_t(m.qt_leaf_segments.size());
-  const uint32_t vert_base = uint32_t(m.qt_leaf_vertices.size());
-  for (ivec2 n : t.node) {
-    if (n[0] == int32_t(decal::QtNodeType::internal)) n[1] += int32_t(node_base);
-    if (n[0] == int32_t(decal::QtNodeType::partial)) n[1] += int32_t(range_base);
-    m.qt_node.push_back(n);
+// Appends quad-trees `trees` (local indices), in order, to the model's node
+// arrays and returns the index of each root node. The arrays grow once, to
+// sizes from prefix sums, and the trees are copied and rebased in parallel
+// (each to its own range), so the bytes do not depend on the thread count;
+// the trees are freed as they are copied.
+std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalModel& m) {
+  struct Base {
+    size_t node, range, seg, vert;
+  };
+  std::vector<Base> base(trees.size() + 1);
+  base[0] = {m.qt_node.size(), m.qt_leaf_range.size(), m.qt_leaf_segments.size(),
+             m.qt_leaf_vertices.size()};
+  for (size_t i = 0; i < trees.size(); ++i) {
+    const PolyQuadTree& t = trees[i];
+    base[i + 1] = {base[i].node + t.node.size(), base[i].range + t.leaf_range.size(),
+                   base[i].seg + t.leaf_segments.size(), base[i].vert + t.leaf_vertices.size()};
+    m.stats.qt_depth_capped += t.depth_capped;
+    m.stats.qt_max_leaf_segments = std::max(m.stats.qt_max_leaf_segments, t.max_leaf_segments);
+    m.stats.qt_partial_leaves += t.leaf_range.size();
   }
-  m.qt_node_box.insert(m.qt_node_box.end(), t.box.begin(), t.box.end());
-  for (uvec2 lr : t.leaf_range) m.qt_leaf_range.push_back({lr[0] + seg_base, lr[1]});
-  for (uvec2 s : t.leaf_segments)
-    m.qt_leaf_segments.push_back({s[0] + vert_base, s[1] + vert_base});
-  m.qt_leaf_vertices.insert(m.qt_leaf_vertices.end(), t.leaf_vertices.begin(),
-                            t.leaf_vertices.end());
-  m.stats.qt_depth_capped += t.depth_capped;
-  m.stats.qt_max_leaf_segments = std::max(m.stats.qt_max_leaf_segments, t.max_leaf_segments);
-  m.stats.qt_partial_leaves += t.leaf_range.size();
-  t = PolyQuadTree();  // free early
-  return node_base;
+  const Base& end = base.back();
+  m.qt_node.resize(end.node);
+  m.qt_node_box.resize(end.node);
+  m.qt_leaf_range.resize(end.range);
+  m.qt_leaf_segments.resize(end.seg);
+  m.qt_leaf_vertices.resize(end.vert);
+  tbb::parallel_for(size_t(0), trees.size(), [&](size_t i) {
+    PolyQuadTree& t = trees[i];
+    const Base& b = base[i];
+    for (size_t k = 0; k < t.node.size(); ++k) {
+      ivec2 n = t.node[k];
+      if (n[0] == int32_t(decal::QtNodeType::internal)) n[1] += int32_t(b.node);
+      if (n[0] == int32_t(decal::QtNodeType::partial)) n[1] += int32_t(b.range);
+      m.qt_node[b.node + k] = n;
+    }
+    std::copy(t.box.begin(), t.box.end(), m.qt_node_box.begin() + ptrdiff_t(b.node));
+    for (size_t k = 0; k < t.leaf_range.size(); ++k)
+      m.qt_leaf_range[b.range + k] = {t.leaf_range[k][0] + uint32_t(b.seg), t.leaf_range[k][1]};
+    for (size_t k = 0; k < t.leaf_segments.size(); ++k)
+      m.qt_leaf_segments[b.seg + k] = {t.leaf_segments[k][0] + uint32_t(b.vert),
+                                       t.leaf_segments[k][1] + uint32_t(b.vert)};
+    std::copy(t.leaf_vertices.begin(), t.leaf_vertices.end(),
+              m.qt_leaf_vertices.begin() + ptrdiff_t(b.vert));
+    t = PolyQuadTree();  // free early
+  });
+  std::vector<uint32_t> roots(trees.size());
+  for (size_t i = 0; i < trees.size(); ++i) roots[i] = uint32_t(base[i].node);
+  return roots;
 }
 
 // Exact outlines (thesis §3.6 made exact). An inset/offset outline keeps one
@@ -160,6 +185,7 @@ void add_outline_clip_trees(const ModelOptions& options, DecalModel& m) {
     if (orientation[i] != 0)
       trees[i] = build_quadtree(ring, options.qt_leaf_capacity, options.qt_max_depth);
   });
+  const std::vector<uint32_t> roots = append_quadtrees(trees, m);
   for (size_t i = 0; i < clips.size(); ++i) {
     if (orientation[i] == 0) continue;  // zero area: nothing is inside; one-sided test
     decal::LineProps& pr = m.line_props[clips[i].line];
@@ -167,7 +193,7 @@ void add_outline_clip_trees(const ModelOptions& options, DecalModel& m) {
                        uint32_t(decal::OutlineMode::inset);
     // Inset keeps the left side: the inside of a CCW ring, the outside of a CW one.
     const bool keep_inside = inset == (orientation[i] > 0);
-    pr.clip_node = append_quadtree(trees[i], m);
+    pr.clip_node = roots[i];
     pr.style |= decal::kStyleClipBit | (keep_inside ? decal::kStyleClipInsideBit : 0u);
   }
 }
@@ -269,7 +295,7 @@ void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options
     quadtree_stage.add();
   });
   m.poly_props.resize(rings.size());
-  m.poly_root_node.resize(rings.size());
+  m.poly_root_node = append_quadtrees(trees, m);
   for (size_t r = 0; r < rings.size(); ++r) {
     const ScenePolygon& sp = scene.polygons[rings[r].scene_index];
     decal::PolyProps& pp = m.poly_props[r];
@@ -282,7 +308,6 @@ void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options
     pp.layer = sp.layer;
     pp.feature = uint32_t(sp.fid);
     pp.reserved[0] = pp.reserved[1] = 0;
-    m.poly_root_node[r] = append_quadtree(trees[r], m);
   }
   m.stats.quadtrees = rings.size();
   add_outline_clip_trees(options, m);
@@ -374,41 +399,62 @@ struct SegEntry {
 };
 
 // Segments -> cells by their exact shapes (thesis §4.2.1), sorted by cell,
-// drawing rank and segment.
+// drawing rank and segment. Row by row in parallel: the shapes are listed
+// once per cell row their boxes reach (in shape order), each row makes and
+// sorts its own entries, and the rows are concatenated in row order, so the
+// result is the one sort of all entries whatever the thread count, at
+// O(entries log(entries per row)).
 std::vector<SegEntry> line_cell_entries(const DecalModel& m,
                                         const std::vector<SegmentShape>& shapes,
                                         ProgressStage& cells_stage) {
   const GridParams& g = m.grid;
-  std::vector<std::vector<SegEntry>> per_line(m.line_props.size());
-  std::vector<uint32_t> first_shape(m.line_props.size() + 1, 0);
-  for (const SegmentShape& s : shapes) ++first_shape[s.line + 1];
-  for (size_t i = 0; i < m.line_props.size(); ++i) first_shape[i + 1] += first_shape[i];
-  tbb::parallel_for(size_t(0), m.line_props.size(), [&](size_t li) {
-    for (uint32_t k = first_shape[li]; k < first_shape[li + 1]; ++k) {
-      const SegmentShape& s = shapes[k];
-      for_each_cell(g, s, [&](uint32_t cell) {
-        const int64_t ix = cell % g.nx, iy = cell / g.nx;
-        QBox cb = cell_box(g, ix, iy);
+  const size_t ny = g.ny;
+  std::vector<std::array<uint32_t, 2>> rows(shapes.size(), {1, 0});  // first, last row
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, shapes.size(), 4096),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i) {
+                        int64_t x0, y0, x1, y1;
+                        if (cell_range(g, shapes[i].box, x0, y0, x1, y1))
+                          rows[i] = {uint32_t(y0), uint32_t(y1)};
+                      }
+                    });
+  std::vector<uint64_t> first(ny + 1, 0);
+  for (const auto& r : rows)
+    for (uint32_t iy = r[0]; iy <= r[1]; ++iy) ++first[iy + 1];
+  for (size_t iy = 0; iy < ny; ++iy) first[iy + 1] += first[iy];
+  std::vector<uint32_t> listed(first[ny]);
+  {
+    std::vector<uint64_t> fill(first.begin(), first.end() - 1);
+    for (size_t i = 0; i < shapes.size(); ++i)
+      for (uint32_t iy = rows[i][0]; iy <= rows[i][1]; ++iy) listed[fill[iy]++] = uint32_t(i);
+  }
+  std::vector<std::vector<SegEntry>> per_row(ny);
+  tbb::parallel_for(size_t(0), ny, [&](size_t iy) {
+    std::vector<SegEntry>& out = per_row[iy];
+    for (uint64_t j = first[iy]; j < first[iy + 1]; ++j) {
+      const SegmentShape& s = shapes[listed[j]];
+      const uint32_t order = m.line_props[s.line].order;
+      for_each_cell_in_rows(g, s, int64_t(iy), int64_t(iy), [&](uint32_t cell) {
+        const int64_t ix = cell % g.nx;
+        QBox cb = cell_box(g, ix, int64_t(iy));
         cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
-        per_line[li].push_back(
-            {cell, m.line_props[li].order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
+        out.push_back({cell, order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
       });
     }
-    cells_stage.add();
+    std::sort(out.begin(), out.end(), [](const SegEntry& a, const SegEntry& b) {
+      if (a.cell != b.cell) return a.cell < b.cell;
+      if (a.order != b.order) return a.order < b.order;
+      return a.start < b.start;
+    });
   });
-  std::vector<SegEntry> entries;
-  size_t total = 0;
-  for (auto& v : per_line) total += v.size();
-  entries.reserve(total);
-  for (auto& v : per_line) {
-    entries.insert(entries.end(), v.begin(), v.end());
-    std::vector<SegEntry>().swap(v);
-  }
-  tbb::parallel_sort(entries.begin(), entries.end(), [](const SegEntry& a, const SegEntry& b) {
-    if (a.cell != b.cell) return a.cell < b.cell;
-    if (a.order != b.order) return a.order < b.order;
-    return a.start < b.start;
+  std::vector<size_t> at(ny + 1, 0);
+  for (size_t iy = 0; iy < ny; ++iy) at[iy + 1] = at[iy] + per_row[iy].size();
+  std::vector<SegEntry> entries(at[ny]);
+  tbb::parallel_for(size_t(0), ny, [&](size_t iy) {
+    std::copy(per_row[iy].begin(), per_row[iy].end(), entries.begin() + ptrdiff_t(at[iy]));
+    std::vector<SegEntry>().swap(per_row[iy]);
   });
+  cells_stage.add(m.line_props.size());
   return entries;
 }
 

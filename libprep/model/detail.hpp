@@ -116,11 +116,12 @@ struct GridInput {
 // are non-zero (500x500 = thesis §4.2.1), else adaptive and size-aware (rule
 // documented at choose_grid in grid.cpp): square cells chosen by an explicit
 // cost, log(1 + query-cost proxy) + 0.1 log(package bytes), where the bytes
-// of each candidate's cell lists and per-cell BVHs are counted exactly from
-// the cells the segments and quad-tree leaves will be assigned to; packages
-// over kGridSizeBudget times the thesis 500x500 grid's on the same data are
-// refused, as are grids over options.max_cells. Deterministic (integer
-// counts). bench/bench_build compares it with 500x500. Throws resource_error
+// of each candidate's cell lists and per-cell BVHs are counted from the
+// cells the segments and quad-tree leaves will be assigned to (exactly, or
+// on a row sample for large inputs with the choice confirmed exactly);
+// packages over kGridSizeBudget times the thesis 500x500 grid's on the same
+// data are refused, as are grids over options.max_cells. Deterministic
+// (integer counts). bench/bench_build compares it with 500x500. Throws resource_error
 // when no grid fits.
 GridParams choose_grid(const GridInput& input, const ModelOptions& options);
 
@@ -134,10 +135,16 @@ inline constexpr double kGridSizeBudget = 1.2;
 template <class Fn>
 void for_each_cell(const GridParams& g, const SegmentShape& shape, Fn&& fn);
 
+// for_each_cell() restricted to the rows row0 <= iy <= row1 (choose_grid()
+// counts a grid row by row).
+template <class Fn>
+void for_each_cell_in_rows(const GridParams& g, const SegmentShape& shape, int64_t row0,
+                           int64_t row1, Fn&& fn);
+
 // The inclusive cell index range overlapped by box `b` expanded by one
 // quantum, clamped to the grid; returns false when outside the grid.
-bool cell_range(const GridParams& g, const QBox& b, int64_t& ix0, int64_t& iy0, int64_t& ix1,
-                int64_t& iy1);
+inline bool cell_range(const GridParams& g, const QBox& b, int64_t& ix0, int64_t& iy0, int64_t& ix1,
+                       int64_t& iy1);
 
 // Closed box of cell (ix, iy).
 inline QBox cell_box(const GridParams& g, int64_t ix, int64_t iy) {

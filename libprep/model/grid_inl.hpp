@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace prep::detail {
 namespace grid_detail {
@@ -70,12 +71,42 @@ inline void capsule_band_extent(double ax, double ay, double bx, double by, doub
   xmax = std::max(xmax, std::max(xs, xe) + hw);
 }
 
+// floor(a / b) for b > 0 and |a| < 2^52: one double division, corrected
+// to the exact integer quotient (cell_range runs per primitive and per
+// candidate grid; a 64-bit integer division or a libm floor call costs
+// several times more).
+inline int64_t floor_div(int64_t a, int64_t b) {
+  int64_t q = int64_t(double(a) / double(b));  // truncated: floor, or one above it
+  while (q * b > a) --q;
+  while ((q + 1) * b <= a) ++q;
+  return q;
+}
+
 }  // namespace grid_detail
 
+inline bool cell_range(const GridParams& g, const QBox& b, int64_t& ix0, int64_t& iy0, int64_t& ix1,
+                       int64_t& iy1) {
+  using grid_detail::floor_div;
+  if (g.nx == 0 || g.ny == 0 || b.empty()) return false;
+  ix0 = floor_div(b.x0 - 1 - g.origin_x, g.cell_w);
+  ix1 = floor_div(b.x1 + 1 - g.origin_x, g.cell_w);
+  iy0 = floor_div(b.y0 - 1 - g.origin_y, g.cell_h);
+  iy1 = floor_div(b.y1 + 1 - g.origin_y, g.cell_h);
+  if (ix1 < 0 || iy1 < 0 || ix0 >= int64_t(g.nx) || iy0 >= int64_t(g.ny)) return false;
+  ix0 = std::max<int64_t>(ix0, 0);
+  iy0 = std::max<int64_t>(iy0, 0);
+  ix1 = std::min<int64_t>(ix1, g.nx - 1);
+  iy1 = std::min<int64_t>(iy1, g.ny - 1);
+  return true;
+}
+
 template <class Fn>
-void for_each_cell(const GridParams& g, const SegmentShape& s, Fn&& fn) {
+void for_each_cell_in_rows(const GridParams& g, const SegmentShape& s, int64_t row0, int64_t row1,
+                           Fn&& fn) {
   int64_t ix0, iy0, ix1, iy1;
   if (!cell_range(g, s.box, ix0, iy0, ix1, iy1)) return;
+  iy0 = std::max(iy0, row0);
+  iy1 = std::min(iy1, row1);
   for (int64_t iy = iy0; iy <= iy1; ++iy) {
     // Cell rows are closed boxes expanded by one quantum (the margin that
     // absorbs the evaluator's rounding when it locates a point).
@@ -93,6 +124,11 @@ void for_each_cell(const GridParams& g, const SegmentShape& s, Fn&& fn) {
     b = std::min(b, ix1);
     for (int64_t ix = a; ix <= b; ++ix) fn(uint32_t(ix + int64_t(g.nx) * iy));
   }
+}
+
+template <class Fn>
+void for_each_cell(const GridParams& g, const SegmentShape& s, Fn&& fn) {
+  for_each_cell_in_rows(g, s, 0, int64_t(g.ny) - 1, std::forward<Fn>(fn));
 }
 
 }  // namespace prep::detail

@@ -123,3 +123,78 @@ TEST(BuildDrawingOrder, LinesAndPolygonsShareOneLayerMajorRankSpace) {
                 m.line_props[m.line_vertex_line[m.cell_segments[k][0]]].order);
   }
 }
+
+// choose_grid() counts the candidate grids of a large input (2^17
+// primitives or more, libprep/model/grid.cpp sample_stride) on a row
+// sample, in parallel over the rows, and confirms its choice on exact
+// counts: the grid and every array must still be the same at any thread
+// count, and the package within the size budget of the thesis grid.
+TEST(BuildDeterminism, SampledGridChoiceIsTheSameAtOneAndTwoThreads) {
+  std::mt19937_64 rng(17);
+  std::normal_distribution<double> N(0, 1);
+  std::uniform_real_distribution<double> U(0, 1);
+  prep::SceneFeatures s;
+  s.layers.push_back(synth::layer("parcels", prep::DecalKind::polygon, 0xc0406080u));
+  s.layers.push_back(synth::layer("roads", prep::DecalKind::line, 0xffffffffu,
+                                  decal::CornerStyle::miter, decal::OutlineMode::normal, 3.0));
+  for (int i = 0; i < 4000; ++i) {
+    const double cx = 2000 * N(rng), cy = 1500 * N(rng), size = 6 + 20 * std::abs(N(rng));
+    prep::ScenePolygon p;
+    p.shell = synth::star(rng, cx, cy, 0.6 * size, size, 24, false);
+    if (i % 3 == 0) p.holes.push_back(synth::star(rng, cx, cy, 0.15 * size, 0.3 * size, 8, true));
+    p.fid = i;
+    p.area = size * size;
+    s.polygons.push_back(std::move(p));
+  }
+  for (int i = 0; i < 6000; ++i) {
+    prep::SceneLine l;
+    double x = 2000 * N(rng), y = 1500 * N(rng), a = 2 * M_PI * U(rng);
+    for (int k = 0; k < 30; ++k) {
+      l.points.push_back({x, y});
+      x += 15 * std::cos(a);
+      y += 15 * std::sin(a);
+      a += 0.4 * N(rng);
+    }
+    l.layer = 1;
+    l.width = 3;
+    l.length = double(i % 13);
+    l.fid = i;
+    s.lines.push_back(std::move(l));
+  }
+  prep::ModelOptions o1, o2, thesis;
+  o1.threads = 1;
+  o2.threads = 2;
+  thesis.grid_nx = thesis.grid_ny = 500;
+  const prep::DecalModel a = prep::build_model(s, o1), b = prep::build_model(s, o2);
+  ASSERT_GE(a.stats.line_segments, uint64_t(1) << 17);  // the sampled path
+  EXPECT_EQ(a.grid.nx, b.grid.nx);
+  EXPECT_EQ(a.grid.ny, b.grid.ny);
+  EXPECT_EQ(a.grid.cell_w, b.grid.cell_w);
+  EXPECT_TRUE(same(a.cell_segment_range, b.cell_segment_range));
+  EXPECT_TRUE(same(a.cell_segments, b.cell_segments));
+  EXPECT_TRUE(same(a.cell_poly_range, b.cell_poly_range));
+  EXPECT_TRUE(same(a.cell_polys, b.cell_polys));
+  EXPECT_TRUE(same(a.cell_holes, b.cell_holes));
+  EXPECT_TRUE(same(a.line_bvh_range, b.line_bvh_range));
+  EXPECT_TRUE(same(a.line_bvh_box, b.line_bvh_box));
+  EXPECT_TRUE(same(a.poly_bvh_range, b.poly_bvh_range));
+  EXPECT_TRUE(same(a.poly_bvh_box, b.poly_bvh_box));
+  // The size contract (kGridSizeBudget) holds on the sampled choice.
+  const prep::DecalModel t = prep::build_model(s, thesis);
+  auto grid_dependent = [](const prep::DecalModel& m) {
+    auto bytes = [](const auto& v) { return double(v.size() * sizeof(v[0])); };
+    return bytes(m.cell_segment_range) + bytes(m.cell_segments) + bytes(m.cell_poly_range) +
+           bytes(m.cell_polys) + bytes(m.cell_holes) + bytes(m.line_bvh_range) +
+           bytes(m.line_bvh_box) + bytes(m.poly_bvh_range) + bytes(m.poly_bvh_box);
+  };
+  auto geometry = [](const prep::DecalModel& m) {
+    auto bytes = [](const auto& v) { return double(v.size() * sizeof(v[0])); };
+    return bytes(m.line_vertices) + bytes(m.line_vertex_line) + bytes(m.line_props) +
+           bytes(m.line_corners) + bytes(m.poly_props) + bytes(m.poly_root_node) +
+           bytes(m.qt_node_box) + bytes(m.qt_node) + bytes(m.qt_leaf_range) +
+           bytes(m.qt_leaf_segments) + bytes(m.qt_leaf_vertices);
+  };
+  EXPECT_LE(geometry(a) + grid_dependent(a), 1.2 * (geometry(t) + grid_dependent(t)))
+      << a.grid.nx << "x" << a.grid.ny;
+  EXPECT_GT(uint64_t(a.grid.nx) * a.grid.ny, 250000u);  // refined past the thesis grid
+}
