@@ -25,15 +25,19 @@
 // and the metadata, which the package holds as well), raw / package, and
 // what the (shared) machine gave at the time: `capacity`, the throughput of
 // N independent single-threaded zstd jobs at once against one (the ceiling
-// of the 1-thread / N-thread ratio; median of R, each beside a run pair)
-// and the 1-minute load average before the level's runs.
+// of the 1-thread / N-thread ratio; median of R, each beside a run pair),
+// the 1-minute load average before the level's runs, and `predicted`, the
+// ratio N idle cores would give (predicted_speedup; median of R; nan for
+// codec none and runs over 10 s).
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
+#include <xxhash.h>
 #include <zstd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -194,6 +198,41 @@ double parallel_capacity(std::span<const std::byte> sample, int n) {
   return n * one / all;
 }
 
+// The 1-thread / N-thread ratio that N idle cores would give write_model,
+// from serial times alone (so that it holds on a loaded machine): each
+// blob's own job in the writer (one single-threaded ZSTD_compress2, XXH64)
+// timed alone; those jobs scheduled as the writer does (largest first, each
+// to the first free thread); the rest of the 1-thread time `serial_s`
+// (layout, metadata, the file write and fsync) added unchanged.
+double predicted_speedup(const std::vector<prep::BlobInput>& blobs, int level, int n,
+                         double serial_s) {
+  std::vector<std::span<const std::byte>> order;
+  for (const prep::BlobInput& b : blobs)
+    if (!b.bytes.empty()) order.push_back(b.bytes);
+  std::stable_sort(order.begin(), order.end(),
+                   [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  ZSTD_CCtx* c = ZSTD_createCCtx();
+  std::vector<std::byte> dst;
+  std::vector<double> free_at(size_t(std::max(1, n)), 0.0);
+  double jobs = 0;
+  for (const std::span<const std::byte> raw : order) {
+    const double t = seconds_of([&] {
+      dst.resize(ZSTD_compressBound(raw.size()));
+      ZSTD_CCtx_reset(c, ZSTD_reset_session_and_parameters);
+      ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, level);
+      ZSTD_CCtx_setParameter(c, ZSTD_c_checksumFlag, 1);
+      ZSTD_CCtx_setParameter(c, ZSTD_c_contentSizeFlag, 1);
+      const size_t k = ZSTD_compress2(c, dst.data(), dst.size(), raw.data(), raw.size());
+      benchmark::DoNotOptimize(XXH64(dst.data(), ZSTD_isError(k) ? 0 : k, 0));
+    });
+    jobs += t;
+    *std::min_element(free_at.begin(), free_at.end()) += t;
+  }
+  ZSTD_freeCCtx(c);
+  const double makespan = *std::max_element(free_at.begin(), free_at.end());
+  return serial_s / (std::max(0.0, serial_s - jobs) + makespan);
+}
+
 double load_average() {
   double load = 0;
   if (FILE* f = std::fopen("/proc/loadavg", "r")) {
@@ -234,7 +273,9 @@ int run_levels(int argc, char** argv) {
     std::perror(csv.c_str());
     return 1;
   }
-  std::fprintf(out, "scene,vertices,level,threads,seconds,bytes,raw_bytes,ratio,capacity,load1\n");
+  std::fprintf(out,
+               "scene,vertices,level,threads,seconds,bytes,raw_bytes,ratio,capacity,load1,"
+               "predicted\n");
   for (const std::string& path : scenes) {
     using Clock = std::chrono::steady_clock;
     const prep::SceneSpec spec = prep::load_scene_file(path);
@@ -246,7 +287,8 @@ int run_levels(int argc, char** argv) {
     const prep::DecalModel model = prep::build_model(scene, mo, spec.dem);
     uint64_t raw = 0;
     std::span<const std::byte> sample;  // up to 8 MiB of the largest blob
-    for (const prep::BlobInput& b : prep::model_blobs(model)) {
+    const std::vector<prep::BlobInput> blobs = prep::model_blobs(model);
+    for (const prep::BlobInput& b : blobs) {
       raw += b.bytes.size();
       if (b.bytes.size() > sample.size())
         sample = b.bytes.first(std::min<size_t>(b.bytes.size(), 8 << 20));
@@ -255,11 +297,11 @@ int run_levels(int argc, char** argv) {
     std::printf("\n%s: %llu vertices, %llu raw blob bytes (%.1f per vertex)\n", path.c_str(),
                 (unsigned long long)vertices, (unsigned long long)raw,
                 double(raw) / double(std::max<uint64_t>(vertices, 1)));
-    std::printf("%6s %12s %12s %8s %10s %10s %8s %8s %6s\n", "level", "bytes", "raw", "ratio",
-                "1 thread s", "N thread s", "speedup", "capacity", "load");
+    std::printf("%6s %12s %12s %8s %10s %10s %8s %8s %6s %9s\n", "level", "bytes", "raw", "ratio",
+                "1 thread s", "N thread s", "speedup", "capacity", "load", "predicted");
     const std::string pkg = bench_dir() + "/levels.decals";
     for (const int level : levels) {
-      std::vector<double> t1, tn, capacity;
+      std::vector<double> t1, tn, capacity, predicted;
       uint64_t bytes = 0;
       const double load = load_average();
       for (int r = 0; r < repeat; ++r) {
@@ -274,17 +316,20 @@ int run_levels(int argc, char** argv) {
           bytes = std::filesystem::file_size(pkg);
           if (secs > 10) r = repeat;  // level 19 on 10^6 vertices: one run is enough
         }
+        if (level > 0 && t1.back() < 10)
+          predicted.push_back(predicted_speedup(blobs, level, threads, t1.back()));
       }
       const double s1 = median(t1), sn = median(tn), cap = median(capacity);
+      const double pred = predicted.empty() ? std::nan("") : median(predicted);
       const double ratio = double(raw) / double(bytes);
-      std::printf("%6s %12llu %12llu %8.2f %10.3f %10.3f %8.2f %8.2f %6.2f\n",
+      std::printf("%6s %12llu %12llu %8.2f %10.3f %10.3f %8.2f %8.2f %6.2f %9.2f\n",
                   level ? std::to_string(level).c_str() : "none", (unsigned long long)bytes,
-                  (unsigned long long)raw, ratio, s1, sn, s1 / sn, cap, load);
+                  (unsigned long long)raw, ratio, s1, sn, s1 / sn, cap, load, pred);
       std::fflush(stdout);
       for (const auto& [n, secs] : {std::pair{1, s1}, std::pair{threads, sn}})
-        std::fprintf(out, "%s,%llu,%d,%d,%.4f,%llu,%llu,%.4f,%.3f,%.2f\n", path.c_str(),
+        std::fprintf(out, "%s,%llu,%d,%d,%.4f,%llu,%llu,%.4f,%.3f,%.2f,%.3f\n", path.c_str(),
                      (unsigned long long)vertices, level, n, secs, (unsigned long long)bytes,
-                     (unsigned long long)raw, ratio, cap, load);
+                     (unsigned long long)raw, ratio, cap, load, pred);
       std::fflush(out);
     }
   }

@@ -15,8 +15,9 @@ then times write_model on each at codec none and every level, serial (one
 thread) and with --threads (default: all), alternating, median of --repeat
 (`bench_io --levels`, bench/bench_io.cpp). Writes OUT/zstd_levels.csv (one
 row per scene, level and thread count: seconds, package bytes, raw model blob
-bytes, raw / package, the machine's parallel capacity at the time and the
-load average; see bench_io.cpp) and OUT/zstd_levels.png (gnuplot: compression ratio
+bytes, raw / package, the machine's parallel capacity at the time, the load
+average, and the 1-thread / N-thread ratio predicted for N idle cores; see
+bench_io.cpp) and OUT/zstd_levels.png (gnuplot: compression ratio
 against write seconds, one curve per scene and thread count, points labelled
 by level), and prints the table. Standard library only; needs ogr2ogr and
 gnuplot.

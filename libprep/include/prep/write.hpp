@@ -20,9 +20,9 @@ struct WriteOptions {
   // Level 3 is the knee of the size/time curve (bench/zstd_levels.py,
   // bench/report/zstd_levels.csv: 10^6 synthetic polygon vertices, Monaco;
   // sizes exact, times of one run on a shared 2-core machine): against
-  // level 1 it makes packages 9-12% smaller for 1.1-1.8x the write time;
-  // level 6 makes them only 4% smaller again for another 1.2-2.3x, levels 9
-  // and 12 at most 2% more, and 19 23-25% smaller at 60-90x.
+  // level 1 it makes packages 9-12% smaller for at most 1.5x the write
+  // time; level 6 makes them only 4% smaller again for another 1.9-2.3x,
+  // levels 9 and 12 at most 2% more, and 19 23-25% smaller at 40-60x.
   int zstd_level = 3;
   // Stage "write", counted in blob bytes compressed and checksummed. Null:
   // silent. Output only: the package bytes do not depend on it.
