@@ -11,15 +11,49 @@
 // Run (prints a table, writes CSV):
 //   build/release/bench/bench_io --benchmark_out=bench/out/io.csv --benchmark_out_format=csv
 // (create bench/out first). The `level` argument 0 means codec none.
+//
+// The level curve of whole models (bench/zstd_levels.py drives it):
+//   bench_io --levels OUT.csv --scene FILE.toml [--scene ...] [--zstd 1,3,6,9,12,19]
+//            [--threads N] [--repeat R]
+// reads, cleans and builds each scene once (the real pipeline), then times
+// write_model (stage 5 as the pipeline runs it: metadata, compression,
+// checksums, the atomic write with fsync) at codec none and each zstd level,
+// serial (tbb::global_control of 1 thread) and with N threads (default: all),
+// the two alternating, median of R runs (default 3; 1 for runs over 10 s).
+// One CSV row per scene, level and thread count: seconds, package bytes,
+// raw bytes of the model's blobs (model_blobs: without the manifest entries
+// and the metadata, which the package holds as well), raw / package, and
+// what the (shared) machine gave at the time: `capacity`, the throughput of
+// N independent single-threaded zstd jobs at once against one (the ceiling
+// of the 1-thread / N-thread ratio; median of R, each beside a run pair),
+// the 1-minute load average before the level's runs, and `predicted`, the
+// ratio N idle cores would give (predicted_speedup; median of R; nan for
+// codec none and runs over 10 s).
 #include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+#include <xxhash.h>
+#include <zstd.h>
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include "bench_scene.hpp"
 #include "decal/reader.hpp"
+#include "prep/model.hpp"
+#include "prep/pipeline.hpp"
+#include "prep/read.hpp"
 #include "prep/write.hpp"
 
 namespace {
@@ -118,9 +152,200 @@ void zstd_levels(benchmark::internal::Benchmark* b) {
 BENCHMARK(BM_Write)->Apply(zstd_levels);
 BENCHMARK(BM_Read)->Apply(zstd_levels);
 
+// ------------------------------------------------------------ --levels --
+
+std::vector<int> int_list(const char* text) {
+  std::vector<int> v;
+  for (const char* p = text; *p;) {
+    char* end = nullptr;
+    v.push_back(int(std::strtol(p, &end, 10)));
+    p = *end == ',' ? end + 1 : end;
+    if (end == p && *p) break;
+  }
+  return v;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+double seconds_of(const std::function<void()>& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// What the machine gives `n` independent single-threaded jobs at this
+// moment, against one (the ceiling of the serial/parallel ratio on a shared
+// machine): `n` copies of one zstd job (level 3 over `sample`) on `n`
+// threads at once, throughput against one copy alone.
+double parallel_capacity(std::span<const std::byte> sample, int n) {
+  const auto job = [&] {
+    std::vector<std::byte> dst(ZSTD_compressBound(sample.size()));
+    ZSTD_CCtx* c = ZSTD_createCCtx();
+    ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, 3);
+    benchmark::DoNotOptimize(
+        ZSTD_compress2(c, dst.data(), dst.size(), sample.data(), sample.size()));
+    ZSTD_freeCCtx(c);
+  };
+  const double one = seconds_of(job);
+  const double all = seconds_of([&] {
+    std::vector<std::thread> t;
+    for (int i = 0; i < n; ++i) t.emplace_back(job);
+    for (std::thread& x : t) x.join();
+  });
+  return n * one / all;
+}
+
+// The 1-thread / N-thread ratio that N idle cores would give write_model,
+// from serial times alone (so that it holds on a loaded machine): each
+// blob's own job in the writer (one single-threaded ZSTD_compress2, XXH64)
+// timed alone; those jobs scheduled as the writer does (largest first, each
+// to the first free thread); the rest of the 1-thread time `serial_s`
+// (layout, metadata, the file write and fsync) added unchanged.
+double predicted_speedup(const std::vector<prep::BlobInput>& blobs, int level, int n,
+                         double serial_s) {
+  std::vector<std::span<const std::byte>> order;
+  for (const prep::BlobInput& b : blobs)
+    if (!b.bytes.empty()) order.push_back(b.bytes);
+  std::stable_sort(order.begin(), order.end(),
+                   [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  ZSTD_CCtx* c = ZSTD_createCCtx();
+  std::vector<std::byte> dst;
+  std::vector<double> free_at(size_t(std::max(1, n)), 0.0);
+  double jobs = 0;
+  for (const std::span<const std::byte> raw : order) {
+    const double t = seconds_of([&] {
+      dst.resize(ZSTD_compressBound(raw.size()));
+      ZSTD_CCtx_reset(c, ZSTD_reset_session_and_parameters);
+      ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, level);
+      ZSTD_CCtx_setParameter(c, ZSTD_c_checksumFlag, 1);
+      ZSTD_CCtx_setParameter(c, ZSTD_c_contentSizeFlag, 1);
+      const size_t k = ZSTD_compress2(c, dst.data(), dst.size(), raw.data(), raw.size());
+      benchmark::DoNotOptimize(XXH64(dst.data(), ZSTD_isError(k) ? 0 : k, 0));
+    });
+    jobs += t;
+    *std::min_element(free_at.begin(), free_at.end()) += t;
+  }
+  ZSTD_freeCCtx(c);
+  const double makespan = *std::max_element(free_at.begin(), free_at.end());
+  return serial_s / (std::max(0.0, serial_s - jobs) + makespan);
+}
+
+double load_average() {
+  double load = 0;
+  if (FILE* f = std::fopen("/proc/loadavg", "r")) {
+    if (std::fscanf(f, "%lf", &load) != 1) load = 0;
+    std::fclose(f);
+  }
+  return load;
+}
+
+int run_levels(int argc, char** argv) {
+  std::string csv;
+  std::vector<std::string> scenes;
+  std::vector<int> levels{1, 3, 6, 9, 12, 19};
+  int threads = int(tbb::info::default_concurrency()), repeat = 3;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--levels"))
+      csv = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--scene"))
+      scenes.push_back(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--zstd"))
+      levels = int_list(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--threads"))
+      threads = std::max(1, std::atoi(argv[i + 1]));
+    else if (!std::strcmp(argv[i], "--repeat"))
+      repeat = std::max(1, std::atoi(argv[i + 1]));
+    else {
+      std::fprintf(stderr, "bench_io: unknown option %s\n", argv[i]);
+      return 2;
+    }
+  }
+  if (csv.empty() || scenes.empty()) {
+    std::fprintf(stderr, "bench_io --levels OUT.csv needs at least one --scene FILE.toml\n");
+    return 2;
+  }
+  levels.insert(levels.begin(), 0);  // codec none first: the raw write floor
+  FILE* out = std::fopen(csv.c_str(), "w");
+  if (!out) {
+    std::perror(csv.c_str());
+    return 1;
+  }
+  std::fprintf(out,
+               "scene,vertices,level,threads,seconds,bytes,raw_bytes,ratio,capacity,load1,"
+               "predicted\n");
+  for (const std::string& path : scenes) {
+    using Clock = std::chrono::steady_clock;
+    const prep::SceneSpec spec = prep::load_scene_file(path);
+    prep::BuildRequest req;
+    req.dry_run = true;
+    const prep::SceneFeatures scene = prep::run_build(spec, req).scene;
+    prep::ModelOptions mo = spec.model;
+    mo.dem_assume_crs = spec.assume_crs;
+    const prep::DecalModel model = prep::build_model(scene, mo, spec.dem);
+    uint64_t raw = 0;
+    std::span<const std::byte> sample;  // up to 8 MiB of the largest blob
+    const std::vector<prep::BlobInput> blobs = prep::model_blobs(model);
+    for (const prep::BlobInput& b : blobs) {
+      raw += b.bytes.size();
+      if (b.bytes.size() > sample.size())
+        sample = b.bytes.first(std::min<size_t>(b.bytes.size(), 8 << 20));
+    }
+    const uint64_t vertices = bench::scene_vertices(scene);
+    std::printf("\n%s: %llu vertices, %llu raw blob bytes (%.1f per vertex)\n", path.c_str(),
+                (unsigned long long)vertices, (unsigned long long)raw,
+                double(raw) / double(std::max<uint64_t>(vertices, 1)));
+    std::printf("%6s %12s %12s %8s %10s %10s %8s %8s %6s %9s\n", "level", "bytes", "raw", "ratio",
+                "1 thread s", "N thread s", "speedup", "capacity", "load", "predicted");
+    const std::string pkg = bench_dir() + "/levels.decals";
+    for (const int level : levels) {
+      std::vector<double> t1, tn, capacity, predicted;
+      uint64_t bytes = 0;
+      const double load = load_average();
+      for (int r = 0; r < repeat; ++r) {
+        capacity.push_back(parallel_capacity(sample, threads));
+        for (std::vector<double>* times : {&t1, &tn}) {
+          const tbb::global_control cap(tbb::global_control::max_allowed_parallelism,
+                                        size_t(times == &t1 ? 1 : threads));
+          const auto t0 = Clock::now();
+          prep::write_model(pkg, model, "", options(level));
+          const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
+          times->push_back(secs);
+          bytes = std::filesystem::file_size(pkg);
+          if (secs > 10) r = repeat;  // level 19 on 10^6 vertices: one run is enough
+        }
+        if (level > 0 && t1.back() < 10)
+          predicted.push_back(predicted_speedup(blobs, level, threads, t1.back()));
+      }
+      const double s1 = median(t1), sn = median(tn), cap = median(capacity);
+      const double pred = predicted.empty() ? std::nan("") : median(predicted);
+      const double ratio = double(raw) / double(bytes);
+      std::printf("%6s %12llu %12llu %8.2f %10.3f %10.3f %8.2f %8.2f %6.2f %9.2f\n",
+                  level ? std::to_string(level).c_str() : "none", (unsigned long long)bytes,
+                  (unsigned long long)raw, ratio, s1, sn, s1 / sn, cap, load, pred);
+      std::fflush(stdout);
+      for (const auto& [n, secs] : {std::pair{1, s1}, std::pair{threads, sn}})
+        std::fprintf(out, "%s,%llu,%d,%d,%.4f,%llu,%llu,%.4f,%.3f,%.2f,%.3f\n", path.c_str(),
+                     (unsigned long long)vertices, level, n, secs, (unsigned long long)bytes,
+                     (unsigned long long)raw, ratio, cap, load, pred);
+      std::fflush(out);
+    }
+  }
+  std::fclose(out);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i)
+    if (!std::strcmp(argv[i], "--levels")) {
+      const int rc = run_levels(argc, argv);
+      std::filesystem::remove_all(bench_dir());
+      return rc;
+    }
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -14,15 +14,21 @@
 #include <xxhash.h>
 #include <zstd.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <bit>
 #include <cerrno>
 #include <climits>
 #include <cstring>
+#include <memory>
 #include <mutex>
+#include <numeric>
 #include <string>
 #include <vector>
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
@@ -214,7 +220,9 @@ class AtomicFile {
 
 struct EncodedBlob {
   decal::BlobTableEntry entry{};
-  std::vector<std::byte> compressed;  // empty when stored as is
+  // The zstd frame (its first stored.size() bytes), allocated at
+  // ZSTD_compressBound and not zero-filled; null when stored as is.
+  std::unique_ptr<std::byte[]> compressed;
   std::span<const std::byte> stored;
 };
 
@@ -259,11 +267,7 @@ void write_package(const std::string& path, const std::string& metadata_json,
   for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
   ProgressStage stage(options.progress, "write", raw_bytes, "bytes");
   std::vector<EncodedBlob> enc(blobs.size());
-  ZSTD_CCtx* cctx = nullptr;
-  struct CctxFree {
-    ZSTD_CCtx*& c;
-    ~CctxFree() { ZSTD_freeCCtx(c); }
-  } cctx_free{cctx};
+  std::vector<std::string> names(blobs.size());
   bool all_uncompressed = true;
   for (size_t i = 0; i < blobs.size(); ++i) {
     const BlobInput& b = blobs[i];
@@ -275,10 +279,29 @@ void write_package(const std::string& path, const std::string& metadata_json,
     e.count = b.count;
     e.raw_size = b.bytes.size();
     const decal::BlobInfo* info = decal::find_blob_info(b.id);
-    const std::string name = info ? std::string(info->name) : "blob_" + std::to_string(e.id);
-    std::memcpy(e.name, name.data(), name.size());
+    names[i] = info ? std::string(info->name) : "blob_" + std::to_string(e.id);
+    std::memcpy(e.name, names[i].data(), names[i].size());
     // Empty blobs are stored as no bytes at all, whatever the codec.
-    if (options.codec == Codec::zstd && !b.bytes.empty()) {
+    const bool zstd = options.codec == Codec::zstd && !b.bytes.empty();
+    e.codec = static_cast<uint32_t>(zstd ? decal::CodecId::zstd : decal::CodecId::none);
+    if (zstd) all_uncompressed = false;
+  }
+
+  // Compression and checksums, one blob per task, largest first (the
+  // longest task starts first, so the last one to finish is short). Each
+  // blob is one single-threaded zstd frame (no ZSTD_c_nbWorkers, whose
+  // frames differ from single-threaded ones), so the bytes do not depend on
+  // the thread count, which the caller caps with tbb::global_control
+  // (`--threads`, libprep/pipeline/pipeline.cpp).
+  std::vector<size_t> order(blobs.size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return blobs[a].bytes.size() > blobs[b].bytes.size();
+  });
+  const auto encode = [&](size_t i, ZSTD_CCtx*& cctx) {
+    const BlobInput& b = blobs[i];
+    decal::BlobTableEntry& e = enc[i].entry;
+    if (e.codec == static_cast<uint32_t>(decal::CodecId::zstd)) {
       if (!cctx) {
         cctx = ZSTD_createCCtx();
         if (!cctx) fail_io(path, "cannot create a zstd context");
@@ -288,23 +311,40 @@ void write_package(const std::string& path, const std::string& metadata_json,
       // The frame's own checksum guards the decoded bytes end to end.
       ZSTD_CCtx_setParameter(cctx, ZSTD_c_checksumFlag, 1);
       ZSTD_CCtx_setParameter(cctx, ZSTD_c_contentSizeFlag, 1);
-      enc[i].compressed.resize(ZSTD_compressBound(b.bytes.size()));
-      const size_t n = ZSTD_compress2(cctx, enc[i].compressed.data(), enc[i].compressed.size(),
-                                      b.bytes.data(), b.bytes.size());
+      const size_t bound = ZSTD_compressBound(b.bytes.size());
+      enc[i].compressed = std::make_unique_for_overwrite<std::byte[]>(bound);
+      const size_t n =
+          ZSTD_compress2(cctx, enc[i].compressed.get(), bound, b.bytes.data(), b.bytes.size());
       if (ZSTD_isError(n))
-        fail_io(path, "zstd compression of '" + name + "' failed: " + ZSTD_getErrorName(n));
-      enc[i].compressed.resize(n);
-      enc[i].stored = enc[i].compressed;
-      e.codec = static_cast<uint32_t>(decal::CodecId::zstd);
-      all_uncompressed = false;
+        fail_io(path, "zstd compression of '" + names[i] + "' failed: " + ZSTD_getErrorName(n));
+      enc[i].stored = {enc[i].compressed.get(), n};
     } else {
       enc[i].stored = b.bytes;
-      e.codec = static_cast<uint32_t>(decal::CodecId::none);
     }
     e.stored_size = enc[i].stored.size();
     e.checksum = XXH64(enc[i].stored.data(), enc[i].stored.size(), 0);
     stage.add(b.bytes.size());
-  }
+  };
+  // Each slot takes the next blob of `order` until none is left; a slot no
+  // worker thread picks up finds the queue empty.
+  std::atomic<size_t> next{0};
+  const size_t slots =
+      std::min(blobs.size(), size_t(std::max(1, tbb::this_task_arena::max_concurrency())));
+  tbb::parallel_for(size_t(0), slots, [&](size_t) {
+    ZSTD_CCtx* cctx = nullptr;
+    struct CctxFree {
+      ZSTD_CCtx*& c;
+      ~CctxFree() { ZSTD_freeCCtx(c); }
+    } cctx_free{cctx};
+    for (size_t k; (k = next.fetch_add(1, std::memory_order_relaxed)) < order.size();) {
+      try {
+        encode(order[k], cctx);
+      } catch (...) {
+        next.store(order.size());  // the other slots stop after their blob
+        throw;
+      }
+    }
+  });
 
   decal::FileHeader h{};
   std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
