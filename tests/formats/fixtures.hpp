@@ -58,4 +58,21 @@ std::vector<Hostile> hostile_variants(const std::vector<std::byte>& good);
 // valid packages plus every hostile variant.
 std::vector<std::pair<std::string, std::vector<std::byte>>> seed_corpus();
 
+// A blob the writer tests own: its table fields and its element bytes.
+struct OwnedBlob {
+  decal::BlobId id;
+  decal::ElementType type;
+  uint32_t stride;
+  std::vector<std::byte> bytes;
+  uint64_t count() const { return bytes.size() / stride; }
+  prep::BlobInput input() const { return {id, type, stride, count(), bytes}; }
+};
+
+// The writer's inputs viewing `blobs`.
+inline std::vector<prep::BlobInput> inputs(const std::vector<OwnedBlob>& blobs) {
+  std::vector<prep::BlobInput> v;
+  for (const auto& b : blobs) v.push_back(b.input());
+  return v;
+}
+
 }  // namespace decal_test

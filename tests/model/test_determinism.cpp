@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "../evaluate/synthetic.hpp"
+#include "prep/evaluate.hpp"
 #include "prep/model.hpp"
 
 namespace {
@@ -13,6 +14,17 @@ template <class T>
 bool same(const std::vector<T>& a, const std::vector<T>& b) {
   return a.size() == b.size() &&
          (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+// Every static blob of the two models (the list a PackageView reads,
+// prep/evaluate.hpp) byte for byte, and the grid.
+void expect_same_static_blobs(const prep::DecalModel& a, const prep::DecalModel& b) {
+  EXPECT_EQ(a.grid.nx, b.grid.nx);
+  EXPECT_EQ(a.grid.ny, b.grid.ny);
+  EXPECT_EQ(a.grid.cell_w, b.grid.cell_w);
+#define PREP_EXPECT_SAME(type, name) EXPECT_TRUE(same(a.name, b.name)) << #name;
+  PREP_STATIC_VIEW_BLOBS(PREP_EXPECT_SAME)
+#undef PREP_EXPECT_SAME
 }
 
 prep::SceneFeatures mixed_scene() {
@@ -56,28 +68,7 @@ TEST(BuildDeterminism, OneThreadAndTwoThreadsGiveIdenticalBytes) {
   const prep::DecalModel a = prep::build_model(scene, o1), b = prep::build_model(scene, o2);
   ASSERT_GT(a.cell_segments.size(), 1000u);
   ASSERT_GT(a.cell_polys.size(), 100u);
-  EXPECT_EQ(a.grid.nx, b.grid.nx);
-  EXPECT_EQ(a.grid.ny, b.grid.ny);
-  EXPECT_TRUE(same(a.line_vertices, b.line_vertices));
-  EXPECT_TRUE(same(a.line_vertex_line, b.line_vertex_line));
-  EXPECT_TRUE(same(a.line_props, b.line_props));
-  EXPECT_TRUE(same(a.line_corners, b.line_corners));
-  EXPECT_TRUE(same(a.cell_segment_range, b.cell_segment_range));
-  EXPECT_TRUE(same(a.cell_segments, b.cell_segments));
-  EXPECT_TRUE(same(a.poly_props, b.poly_props));
-  EXPECT_TRUE(same(a.poly_root_node, b.poly_root_node));
-  EXPECT_TRUE(same(a.qt_node_box, b.qt_node_box));
-  EXPECT_TRUE(same(a.qt_node, b.qt_node));
-  EXPECT_TRUE(same(a.qt_leaf_range, b.qt_leaf_range));
-  EXPECT_TRUE(same(a.qt_leaf_segments, b.qt_leaf_segments));
-  EXPECT_TRUE(same(a.qt_leaf_vertices, b.qt_leaf_vertices));
-  EXPECT_TRUE(same(a.cell_poly_range, b.cell_poly_range));
-  EXPECT_TRUE(same(a.cell_polys, b.cell_polys));
-  EXPECT_TRUE(same(a.cell_holes, b.cell_holes));
-  EXPECT_TRUE(same(a.line_bvh_range, b.line_bvh_range));
-  EXPECT_TRUE(same(a.line_bvh_box, b.line_bvh_box));
-  EXPECT_TRUE(same(a.poly_bvh_range, b.poly_bvh_range));
-  EXPECT_TRUE(same(a.poly_bvh_box, b.poly_bvh_box));
+  expect_same_static_blobs(a, b);
   EXPECT_EQ(a.manifest.notes, b.manifest.notes);
 }
 
@@ -167,18 +158,7 @@ TEST(BuildDeterminism, SampledGridChoiceIsTheSameAtOneAndTwoThreads) {
   thesis.grid_nx = thesis.grid_ny = 500;
   const prep::DecalModel a = prep::build_model(s, o1), b = prep::build_model(s, o2);
   ASSERT_GE(a.stats.line_segments, uint64_t(1) << 17);  // the sampled path
-  EXPECT_EQ(a.grid.nx, b.grid.nx);
-  EXPECT_EQ(a.grid.ny, b.grid.ny);
-  EXPECT_EQ(a.grid.cell_w, b.grid.cell_w);
-  EXPECT_TRUE(same(a.cell_segment_range, b.cell_segment_range));
-  EXPECT_TRUE(same(a.cell_segments, b.cell_segments));
-  EXPECT_TRUE(same(a.cell_poly_range, b.cell_poly_range));
-  EXPECT_TRUE(same(a.cell_polys, b.cell_polys));
-  EXPECT_TRUE(same(a.cell_holes, b.cell_holes));
-  EXPECT_TRUE(same(a.line_bvh_range, b.line_bvh_range));
-  EXPECT_TRUE(same(a.line_bvh_box, b.line_bvh_box));
-  EXPECT_TRUE(same(a.poly_bvh_range, b.poly_bvh_range));
-  EXPECT_TRUE(same(a.poly_bvh_box, b.poly_bvh_box));
+  expect_same_static_blobs(a, b);
   // The size contract (kGridSizeBudget) holds on the sampled choice.
   const prep::DecalModel t = prep::build_model(s, thesis);
   auto grid_dependent = [](const prep::DecalModel& m) {

@@ -22,14 +22,7 @@ using decal::ElementType;
 using decal_test::make_temp_dir;
 using decal_test::read_file;
 
-struct OwnedBlob {
-  BlobId id;
-  ElementType type;
-  uint32_t stride;
-  std::vector<std::byte> bytes;
-  uint64_t count() const { return bytes.size() / stride; }
-  prep::BlobInput input() const { return {id, type, stride, count(), bytes}; }
-};
+using decal_test::OwnedBlob;
 
 // Random but reproducible contents of `n` elements.
 OwnedBlob make_blob(uint32_t id, ElementType type, uint32_t stride, uint64_t n, uint64_t seed) {
@@ -65,11 +58,7 @@ std::vector<OwnedBlob> every_type_blobs() {
   return v;
 }
 
-std::vector<prep::BlobInput> inputs(const std::vector<OwnedBlob>& blobs) {
-  std::vector<prep::BlobInput> v;
-  for (const auto& b : blobs) v.push_back(b.input());
-  return v;
-}
+using decal_test::inputs;
 
 void expect_same_blobs(const decal::Package& p, const std::vector<OwnedBlob>& blobs) {
   ASSERT_EQ(p.blobs().size(), blobs.size());

@@ -28,13 +28,7 @@ using decal::ElementType;
 using decal_test::make_temp_dir;
 using decal_test::read_file;
 
-struct OwnedBlob {
-  BlobId id;
-  ElementType type;
-  uint32_t stride;
-  std::vector<std::byte> bytes;
-  prep::BlobInput input() const { return {id, type, stride, bytes.size() / stride, bytes}; }
-};
+using decal_test::OwnedBlob;
 
 // A random walk of 32-bit words (compressible like coordinates), `n`
 // elements of `stride` bytes.
@@ -67,11 +61,7 @@ std::vector<OwnedBlob> blobs() {
   return v;
 }
 
-std::vector<prep::BlobInput> inputs(const std::vector<OwnedBlob>& blobs) {
-  std::vector<prep::BlobInput> v;
-  for (const auto& b : blobs) v.push_back(b.input());
-  return v;
-}
+using decal_test::inputs;
 
 // Writes with at most `threads` threads, as the pipeline caps `--threads`.
 std::vector<std::byte> write_with(const std::string& path, const std::vector<OwnedBlob>& blobs,
