@@ -153,15 +153,30 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   const auto n = static_cast<uint32_t>(nh);
   const GEOSGeometry* shell_ring = GEOSGetExteriorRing_r(h, polygon);
 
-  // The shell alone must be valid: "properly inside" means nothing otherwise.
+  // The shell's own area: the shell when it is valid, else its repair
+  // (a self-crossing coastline far away from most holes is common in real
+  // land and sea layers). "Properly inside the shell" means properly inside
+  // that area: the faces of the shell's linework that the repair keeps.
   std::vector<Owned> none;
   Owned shell(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), none));
-  if (!shell || GEOSisValid_r(h, shell.get()) != 1) return nullptr;
+  if (!shell) return nullptr;
+  if (GEOSisValid_r(h, shell.get()) != 1) {
+    Owned fixed(h, make_valid(shell.get()));
+    if (!fixed || GEOSisValid_r(h, fixed.get()) != 1) return nullptr;
+    shell = std::move(fixed);
+  }
+  std::vector<const GEOSGeometry*> shell_polys, shell_other;
+  flatten(h, shell.get(), shell_polys, shell_other);
+  if (shell_polys.empty()) return nullptr;
+  std::vector<Owned> shell_parts;
+  for (const GEOSGeometry* p : shell_polys) shell_parts.emplace_back(h, GEOSGeom_clone_r(h, p));
+  Owned shell_area = collection(h, GEOS_MULTIPOLYGON, shell_parts);
+  if (!shell_area) return nullptr;
 
   std::vector<const GEOSGeometry*> holes(n);
-  std::vector<char> clear(n);  // properly inside the shell
+  std::vector<char> clear(n);  // properly inside the shell's area
   {
-    Prepared inside(h, shell.get());
+    Prepared inside(h, shell_area.get());
     if (!inside.get()) return nullptr;
     for (uint32_t i = 0; i < n; ++i) {
       holes[i] = GEOSGetInteriorRingN_r(h, polygon, static_cast<int>(i));
@@ -214,7 +229,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   if (clear_groups.empty()) return nullptr;
   Owned base;
   if (base_holes.empty()) {
-    base = std::move(shell);  // valid: its own repair
+    base = std::move(shell);  // valid: the shell or its repair
   } else {
     Owned input(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), base_holes));
     if (!input) return nullptr;

@@ -9,6 +9,9 @@
 // that interact are given to MakeValid:
 //  - holes are grouped by envelope contact (the transitive closure of
 //    "envelopes intersect or touch"), through a GEOS STRtree;
+//  - "the shell" below is the shell's area: the shell when it is valid on
+//    its own, else MakeValid(shell alone) (the faces of its linework that
+//    the repair keeps; a real coastline may cross itself somewhere);
 //  - a group with a hole that is not properly inside the shell (it touches,
 //    crosses or lies outside it) is repaired together with the shell: the
 //    "base" repair R0 = MakeValid(shell + those holes);
@@ -57,9 +60,9 @@ using MakeValidFn = std::function<GEOSGeometry*(const GEOSGeometry*)>;
 
 // The repair of `polygon` (a GEOS polygon built from `rings`: [0] shell,
 // then holes, in the same order) by parts, as above. Null when the split
-// does not apply (fewer than kRepairByPartsMinHoles holes, a shell that is
-// not valid on its own, no hole group clear of the shell, too many envelope
-// contacts to enumerate) or any step fails: the caller then repairs the
+// does not apply (fewer than kRepairByPartsMinHoles holes, a shell whose
+// own repair has no area, no hole group clear of the shell, too many
+// envelope contacts to enumerate) or any step fails: the caller then repairs the
 // whole polygon. The result is a Polygon, a MultiPolygon, or a
 // GeometryCollection of polygons and the collapsed (non-areal) pieces that
 // MakeValid returned; valid (checked as above).
