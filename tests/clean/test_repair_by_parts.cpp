@@ -271,6 +271,42 @@ TEST(RepairByParts, RandomPolygonsEqualWholeMakeValid) {
   EXPECT_GE(split, cases / 2) << split << " of " << cases << " split";
 }
 
+// A continent: one large C-shaped hole whose envelope holds most of the
+// other holes, which lie in its bay (touching nothing), inside it (lakes'
+// islands: holes in a hole, the repair's islands), across its coast, or
+// are bow-ties; one hole crosses both the shell and the coast. Grouped by
+// envelope contact this is one group touching the
+// shell, the whole repair; by ring contact the bay's holes stay apart.
+TEST(RepairByParts, ContinentSizedHoleEqualsWholeMakeValid) {
+  Geos geos;
+  Rings rings{rect(0, 0, 2000, 2000)};
+  rings.push_back(ring({{100, 100},
+                        {1900, 100},
+                        {1900, 600},
+                        {600, 600},
+                        {600, 1400},
+                        {1900, 1400},
+                        {1900, 1900},
+                        {100, 1900}}));
+  Rng rng(0x5EA5);
+  for (int k = 0; k < 300; ++k) {
+    const double cx = rng.in(120, 1880), cy = rng.in(120, 1880), r = rng.in(2, 12);
+    if (rng.uniform() < 0.1)
+      rings.push_back(
+          ring({{cx - r, cy - r}, {cx + r, cy + r}, {cx + r, cy - r}, {cx - r, cy + r}}));
+    else
+      rings.push_back(square(cx, cy, r));
+  }
+  rings.push_back(square(50, 1000, 60));  // across the shell and the coast
+  for (const bool structure : {false, true}) {
+    const G got = by_parts(geos.h, rings, structure);
+    ASSERT_TRUE(got.g) << method_name(structure) << ": the split did not apply";
+    const G whole = polygon_of(geos.h, rings);
+    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+    expect_same(geos.h, got, want, std::string("continent, ") + method_name(structure));
+  }
+}
+
 TEST(RepairByParts, FewHolesAreLeftToTheWholeRepair) {
   Geos geos;
   Rings few{rect(0, 0, 100, 100), square(50, 50, 5), rect(-10, 40, 20, 60)};
