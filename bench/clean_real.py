@@ -8,9 +8,10 @@ The input (default: the optional earth-seas set of scripts/fetch-data,
 @geo-maps/earth-seas-10m: the world ocean as one polygon of 239372 shell
 vertices and 60798 holes, 1.77e6 vertices in all) is built as a new user
 would after the tool's own advice for a world layer (a package holds
-+-2147 km): a frame (--crs, Lambert azimuthal equal-area on 52N 10E) and
-an --extent of 4000 km around the frame's origin, the data's centre
-(1351942, -133051) in it. In one run, alternating, --runs times each:
++-2147 km from its origin): the default frame (Equal Earth for world data,
+its origin the data's centre) and an --extent of 4000 km around that
+origin, which a first dry run with an extent beyond the data reports
+(frame.origin; nothing reaches GEOS). In one run, alternating, --runs times each:
   ogr2ogr   `ogr2ogr -f FlatGeobuf` of the same file (the floor);
   dry-run   `decalprep build --dry-run --report`: read, project and clean
             timings from the report;
@@ -35,9 +36,16 @@ from measure import measured  # beside this script
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CACHE = os.environ.get("DECALPREP_DATA_CACHE", "/var/cache/decalprep")
 SEAS = os.path.join(CACHE, "earth-seas", "package", "map.geo.json")
-FRAME = "+proj=laea +lat_0=52 +lon_0=10 +datum=WGS84"
-ORIGIN = (1351942.0, -133051.0)  # the data's centre in FRAME (report "frame.origin")
 HALF = 2000000.0  # metres each side of the origin: inside a package's +-2147 km
+
+
+def frame_origin(tool, path, work):
+    """The default frame's origin for `path`: a dry run whose extent lies
+    far beyond the data (every part is clipped away before GEOS)."""
+    report = os.path.join(work, "origin.json")
+    measured([tool, "build", path, "--kind", "polygon", "--dry-run", "--report", report,
+              "--extent=9e8,9e8,9.00000001e8,9.00000001e8", "--progress", "none"])
+    return json.load(open(report))["frame"]["origin"]
 
 
 def main():
@@ -51,14 +59,15 @@ def main():
     if not os.path.exists(a.input):
         sys.exit("clean_real: %s is missing: run scripts/fetch-data earth-seas" % a.input)
     tool = os.path.join(a.build_dir, "tools", "decalprep", "decalprep")
-    extent = "%.0f,%.0f,%.0f,%.0f" % (ORIGIN[0] - HALF, ORIGIN[1] - HALF, ORIGIN[0] + HALF,
-                                      ORIGIN[1] + HALF)
-    scene = [a.input, "--kind", "polygon", "--crs", FRAME, "--extent=" + extent, "--progress",
-             "none", "--threads", str(a.threads)]
     os.makedirs(a.out, exist_ok=True)
     work = tempfile.mkdtemp(prefix="clean_real_")
     rows = []
     try:
+        ox, oy = frame_origin(tool, a.input, work)
+        extent = "%.0f,%.0f,%.0f,%.0f" % (ox - HALF, oy - HALF, ox + HALF, oy + HALF)
+        print("frame origin (%.0f, %.0f), --extent=%s" % (ox, oy, extent), flush=True)
+        scene = [a.input, "--kind", "polygon", "--extent=" + extent, "--progress", "none",
+                 "--threads", str(a.threads)]
         for run in range(a.runs):
             for what in ("ogr2ogr", "dry-run", "build"):
                 report = os.path.join(work, "%s.json" % what)
