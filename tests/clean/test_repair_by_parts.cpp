@@ -271,14 +271,106 @@ TEST(RepairByParts, RandomPolygonsEqualWholeMakeValid) {
   EXPECT_GE(split, cases / 2) << split << " of " << cases << " split";
 }
 
-TEST(RepairByParts, FewHolesOrAnInvalidShellAreLeftToTheWholeRepair) {
+// A continent: one large C-shaped hole whose envelope holds most of the
+// other holes, which lie in its bay (touching nothing), inside it (lakes'
+// islands: holes in a hole, the repair's islands), across its coast, or
+// are bow-ties; one hole crosses both the shell and the coast. Grouped by
+// envelope contact this is one group touching the
+// shell, the whole repair; by ring contact the bay's holes stay apart.
+TEST(RepairByParts, ContinentSizedHoleEqualsWholeMakeValid) {
+  Geos geos;
+  Rings rings{rect(0, 0, 2000, 2000)};
+  rings.push_back(ring({{100, 100},
+                        {1900, 100},
+                        {1900, 600},
+                        {600, 600},
+                        {600, 1400},
+                        {1900, 1400},
+                        {1900, 1900},
+                        {100, 1900}}));
+  Rng rng(0x5EA5);
+  for (int k = 0; k < 300; ++k) {
+    const double cx = rng.in(120, 1880), cy = rng.in(120, 1880), r = rng.in(2, 12);
+    if (rng.uniform() < 0.1)
+      rings.push_back(
+          ring({{cx - r, cy - r}, {cx + r, cy + r}, {cx + r, cy - r}, {cx - r, cy + r}}));
+    else
+      rings.push_back(square(cx, cy, r));
+  }
+  rings.push_back(square(50, 1000, 60));  // across the shell and the coast
+  for (const bool structure : {false, true}) {
+    const G got = by_parts(geos.h, rings, structure);
+    ASSERT_TRUE(got.g) << method_name(structure) << ": the split did not apply";
+    const G whole = polygon_of(geos.h, rings);
+    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+    expect_same(geos.h, got, want, std::string("continent, ") + method_name(structure));
+  }
+}
+
+TEST(RepairByParts, FewHolesAreLeftToTheWholeRepair) {
   Geos geos;
   Rings few{rect(0, 0, 100, 100), square(50, 50, 5), rect(-10, 40, 20, 60)};
   EXPECT_FALSE(by_parts(geos.h, few, false).g);
+}
+
+// A self-crossing shell: its own repair is the shell's area the holes are
+// placed in. A bow-tie shell (two triangles meeting at (1000, 1000)) with
+// grid holes in the right triangle, one of them crossing its edge, and a
+// grid hole over the crossing point.
+TEST(RepairByParts, SelfCrossingShellEqualsWholeMakeValid) {
+  Geos geos;
   Rings bowtie_shell{ring({{0, 0}, {2000, 2000}, {2000, 0}, {0, 2000}})};
   for (int k = 0; k < 100; ++k)
     bowtie_shell.push_back(square(1500 + (k % 10) * 30, 700 + (k / 10) * 30, 5));
-  EXPECT_FALSE(by_parts(geos.h, bowtie_shell, false).g);
+  bowtie_shell.push_back(square(1300, 1300, 5));  // crosses the triangle's edge
+  bowtie_shell.push_back(square(1000, 1000, 5));  // around the crossing point
+  for (const bool structure : {false, true}) {
+    const G got = by_parts(geos.h, bowtie_shell, structure);
+    ASSERT_TRUE(got.g) << method_name(structure) << ": the split did not apply";
+    const G whole = polygon_of(geos.h, bowtie_shell);
+    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+    expect_same(geos.h, got, want, std::string("bow-tie shell, ") + method_name(structure));
+  }
+}
+
+// random_polygon with a bow-tie ear in the shell's top right corner (its
+// edges cross at (1050, 950)) and a second one on the left edge, as a
+// coastline that crosses itself.
+TEST(RepairByParts, RandomPolygonsWithASelfCrossingShellEqualWholeMakeValid) {
+  Geos geos;
+  int split = 0, cases = 0;
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    Rings rings = random_polygon(seed * 0xD1B54A32D192ED03ull);
+    rings[0] = ring({{0, 0},
+                     {1000, 0},
+                     {1000, 900},
+                     {1100, 1000},
+                     {1100, 900},
+                     {1000, 1000},
+                     {600, 1000},
+                     {600, 300},
+                     {400, 300},
+                     {400, 1000},
+                     {0, 1000},
+                     {0, 600},
+                     {-80, 520},
+                     {-80, 600},
+                     {0, 520}});
+    const G whole = polygon_of(geos.h, rings);
+    ASSERT_NE(GEOSisValid_r(geos.h, whole.g), 1);
+    for (const bool structure : {false, true}) {
+      ++cases;
+      const G got = by_parts(geos.h, rings, structure);
+      if (!got.g) continue;
+      ++split;
+      const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+      expect_same(geos.h, got, want,
+                  std::string("self-crossing shell, ") + method_name(structure) + " seed " +
+                      std::to_string(seed));
+    }
+  }
+  std::printf("split %d of %d\n", split, cases);
+  EXPECT_GE(split, cases / 2) << split << " of " << cases << " split";
 }
 
 // ------------------------------------------------- through clean() --

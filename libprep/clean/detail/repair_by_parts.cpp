@@ -71,20 +71,6 @@ struct Groups {
   }
 };
 
-struct ContactQuery {
-  Groups* groups;
-  uint32_t self;
-  size_t contacts;
-};
-
-void on_contact(void* item, void* user) {
-  auto* q = static_cast<ContactQuery*>(user);
-  const uint32_t other = *static_cast<const uint32_t*>(item);
-  if (other == q->self) return;
-  ++q->contacts;
-  q->groups->unite(q->self, other);
-}
-
 struct Candidates {
   std::vector<uint32_t> found;
 };
@@ -142,6 +128,45 @@ bool ring_valid(GEOSContextHandle_t h, const GEOSGeometry* ring, const Ring& coo
   return poly && GEOSisValid_r(h, poly.get()) == 1;
 }
 
+// Whether two holes are in contact: their rings meet, or one lies inside
+// the other; that is, their own areas (the polygon of each ring alone)
+// intersect (GEOS Intersects: the point-in-area test by crossing parity,
+// which also answers for a self-crossing ring). The areas are built on
+// demand; the larger of the two (in vertices) is prepared when it is large.
+class RingAreas {
+ public:
+  RingAreas(GEOSContextHandle_t h, const std::vector<const GEOSGeometry*>& rings)
+      : h_(h), rings_(rings), areas_(rings.size()), prepared_(rings.size()) {}
+
+  // 1 in contact, 0 apart, 2 GEOS failed.
+  char in_contact(uint32_t i, uint32_t j) {
+    if (GEOSGetNumCoordinates_r(h_, rings_[i]) < GEOSGetNumCoordinates_r(h_, rings_[j]))
+      std::swap(i, j);
+    if (!area(i) || !area(j)) return 2;
+    if (GEOSGetNumCoordinates_r(h_, rings_[i]) < kPrepareFrom)
+      return GEOSIntersects_r(h_, areas_[i].get(), areas_[j].get());
+    if (!prepared_[i]) prepared_[i] = std::make_unique<Prepared>(h_, areas_[i].get());
+    if (!prepared_[i]->get()) return 2;
+    return GEOSPreparedIntersects_r(h_, prepared_[i]->get(), areas_[j].get());
+  }
+
+ private:
+  static constexpr int kPrepareFrom = 64;  // vertices
+
+  const GEOSGeometry* area(uint32_t k) {
+    if (!areas_[k]) {
+      std::vector<Owned> none;
+      areas_[k] = Owned(h_, polygon_of(h_, Owned(h_, GEOSGeom_clone_r(h_, rings_[k])), none));
+    }
+    return areas_[k].get();
+  }
+
+  GEOSContextHandle_t h_;
+  const std::vector<const GEOSGeometry*>& rings_;
+  std::vector<Owned> areas_;
+  std::vector<std::unique_ptr<Prepared>> prepared_;
+};
+
 }  // namespace
 
 GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* polygon,
@@ -153,15 +178,30 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   const auto n = static_cast<uint32_t>(nh);
   const GEOSGeometry* shell_ring = GEOSGetExteriorRing_r(h, polygon);
 
-  // The shell alone must be valid: "properly inside" means nothing otherwise.
+  // The shell's own area: the shell when it is valid, else its repair
+  // (a self-crossing coastline far away from most holes is common in real
+  // land and sea layers). "Properly inside the shell" means properly inside
+  // that area: the faces of the shell's linework that the repair keeps.
   std::vector<Owned> none;
   Owned shell(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), none));
-  if (!shell || GEOSisValid_r(h, shell.get()) != 1) return nullptr;
+  if (!shell) return nullptr;
+  if (GEOSisValid_r(h, shell.get()) != 1) {
+    Owned fixed(h, make_valid(shell.get()));
+    if (!fixed || GEOSisValid_r(h, fixed.get()) != 1) return nullptr;
+    shell = std::move(fixed);
+  }
+  std::vector<const GEOSGeometry*> shell_polys, shell_other;
+  flatten(h, shell.get(), shell_polys, shell_other);
+  if (shell_polys.empty()) return nullptr;
+  std::vector<Owned> shell_parts;
+  for (const GEOSGeometry* p : shell_polys) shell_parts.emplace_back(h, GEOSGeom_clone_r(h, p));
+  Owned shell_area = collection(h, GEOS_MULTIPOLYGON, shell_parts);
+  if (!shell_area) return nullptr;
 
   std::vector<const GEOSGeometry*> holes(n);
-  std::vector<char> clear(n);  // properly inside the shell
+  std::vector<char> clear(n);  // properly inside the shell's area
   {
-    Prepared inside(h, shell.get());
+    Prepared inside(h, shell_area.get());
     if (!inside.get()) return nullptr;
     for (uint32_t i = 0; i < n; ++i) {
       holes[i] = GEOSGetInteriorRingN_r(h, polygon, static_cast<int>(i));
@@ -171,8 +211,10 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     }
   }
 
-  // Groups of holes in envelope contact. The work is bounded: past the
-  // budget of contacts the whole polygon is repaired instead.
+  // Groups of holes in contact: rings that meet, or one inside the other
+  // (candidates from envelope contact; a continent-sized hole's envelope
+  // holds thousands of islands that touch nothing). The work is bounded:
+  // past the budget of envelope contacts the whole polygon is repaired.
   Groups groups(n);
   {
     Tree tree(h);
@@ -181,11 +223,21 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     std::iota(ids.begin(), ids.end(), 0u);
     for (uint32_t i = 0; i < n; ++i) GEOSSTRtree_insert_r(h, tree.get(), holes[i], &ids[i]);
     const size_t budget = 64 * size_t(n) + 1'000'000;
-    ContactQuery q{&groups, 0, 0};
+    size_t contacts = 0;
+    RingAreas areas(h, holes);
+    Candidates c;
     for (uint32_t i = 0; i < n; ++i) {
-      q.self = i;
-      GEOSSTRtree_query_r(h, tree.get(), holes[i], &on_contact, &q);
-      if (q.contacts > budget) return nullptr;
+      c.found.clear();
+      GEOSSTRtree_query_r(h, tree.get(), holes[i], &on_candidate, &c);
+      contacts += c.found.size();
+      if (contacts > budget) return nullptr;
+      std::sort(c.found.begin(), c.found.end());
+      for (uint32_t j : c.found) {
+        if (j <= i || groups.find(i) == groups.find(j)) continue;
+        const char meet = areas.in_contact(i, j);
+        if (meet == 2) return nullptr;
+        if (meet) groups.unite(i, j);
+      }
     }
   }
   std::vector<uint32_t> root(n);
@@ -214,7 +266,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   if (clear_groups.empty()) return nullptr;
   Owned base;
   if (base_holes.empty()) {
-    base = std::move(shell);  // valid: its own repair
+    base = std::move(shell);  // valid: the shell or its repair
   } else {
     Owned input(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), base_holes));
     if (!input) return nullptr;
@@ -308,13 +360,23 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     std::iota(cut_ids.begin(), cut_ids.end(), 0u);
     for (size_t i = 0; i < cut.size(); ++i)
       GEOSSTRtree_insert_r(h, rings_tree.get(), cut[i].get(), &cut_ids[i]);
+    // A large ring is prepared (a continent among thousands of islands).
+    std::vector<std::unique_ptr<Prepared>> cut_prepared(cut.size());
+    auto meet = [&](size_t a, size_t b) -> char {
+      if (GEOSGetNumCoordinates_r(h, cut[a].get()) < GEOSGetNumCoordinates_r(h, cut[b].get()))
+        std::swap(a, b);
+      if (GEOSGetNumCoordinates_r(h, cut[a].get()) < 64)
+        return GEOSIntersects_r(h, cut[a].get(), cut[b].get());
+      if (!cut_prepared[a]) cut_prepared[a] = std::make_unique<Prepared>(h, cut[a].get());
+      if (!cut_prepared[a]->get()) return 2;
+      return GEOSPreparedIntersects_r(h, cut_prepared[a]->get(), cut[b].get());
+    };
     for (size_t i = 0; i < cut.size(); ++i) {
       c.found.clear();
       GEOSSTRtree_query_r(h, rings_tree.get(), cut[i].get(), &on_candidate, &c);
+      std::sort(c.found.begin(), c.found.end());
       for (uint32_t j : c.found)
-        if (j > i && cut_group[j] != cut_group[i] &&
-            GEOSIntersects_r(h, cut[i].get(), cut[j].get()) != 0)
-          return nullptr;
+        if (j > i && cut_group[j] != cut_group[i] && meet(i, j) != 0) return nullptr;
     }
     for (size_t i = 0; i < cut.size(); ++i) added[size_t(home[i])].push_back(std::move(cut[i]));
   }

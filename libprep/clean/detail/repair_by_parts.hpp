@@ -7,8 +7,14 @@
 // among all faces): 10^5 holes take minutes. Holes far from every other
 // ring cannot change the repair away from themselves, so only the rings
 // that interact are given to MakeValid:
-//  - holes are grouped by envelope contact (the transitive closure of
-//    "envelopes intersect or touch"), through a GEOS STRtree;
+//  - holes are grouped by contact (the transitive closure of "the rings
+//    meet, or one lies inside the other", that is, the polygons of the
+//    rings alone intersect), candidates from envelope contact through a GEOS
+//    STRtree (a continent-sized hole's envelope holds thousands of islands
+//    that touch nothing);
+//  - "the shell" below is the shell's area: the shell when it is valid on
+//    its own, else MakeValid(shell alone) (the faces of its linework that
+//    the repair keeps; a real coastline may cross itself somewhere);
 //  - a group with a hole that is not properly inside the shell (it touches,
 //    crosses or lies outside it) is repaired together with the shell: the
 //    "base" repair R0 = MakeValid(shell + those holes);
@@ -19,9 +25,9 @@
 //    islands become polygons; a single hole that is a valid ring on its own
 //    is kept as it is, without MakeValid.
 // Why this is exact: a group properly inside the shell touches no other
-// ring and no other ring's envelope, so in the noded linework of the whole
-// polygon its edges bound faces that lie in one face of the rest and
-// nothing else ends inside its envelopes. MakeValid (both methods) then
+// ring and neither holds nor lies inside another group, so in the noded
+// linework of the whole polygon its (connected) edges lie in one face of
+// the rest and bound faces that hold nothing of the rest. MakeValid (both methods) then
 // treats it like an enclosed component of that face: with the "linework"
 // method the faces get their parity from the rings around them (the shell
 // only, here), with "structure" the shell minus the union of the holes.
@@ -57,9 +63,9 @@ using MakeValidFn = std::function<GEOSGeometry*(const GEOSGeometry*)>;
 
 // The repair of `polygon` (a GEOS polygon built from `rings`: [0] shell,
 // then holes, in the same order) by parts, as above. Null when the split
-// does not apply (fewer than kRepairByPartsMinHoles holes, a shell that is
-// not valid on its own, no hole group clear of the shell, too many envelope
-// contacts to enumerate) or any step fails: the caller then repairs the
+// does not apply (fewer than kRepairByPartsMinHoles holes, a shell whose
+// own repair has no area, no hole group clear of the shell, too many
+// envelope contacts to enumerate) or any step fails: the caller then repairs the
 // whole polygon. The result is a Polygon, a MultiPolygon, or a
 // GeometryCollection of polygons and the collapsed (non-areal) pieces that
 // MakeValid returned; valid (checked as above).
