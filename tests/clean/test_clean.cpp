@@ -344,7 +344,8 @@ TEST(Clean, OutputDoesNotDependOnTheThreadCount) {
   TempDir dir;
   std::vector<Case> cs;
   for (int i = 0; i < 300; ++i) {
-    const double x = 200.0 * (i % 20), y = 200.0 * (i / 20);
+    const int row = i / 20;
+    const double x = 200.0 * (i % 20), y = 200.0 * row;
     cs.push_back(polygon_case(i + 1, "sq",
                               {{{x, y}, {x + 100, y + 100}, {x + 100, y}, {x, y + 100}, {x, y}}}));
   }
@@ -445,7 +446,8 @@ TEST(Clean, ValidityShortcutAgreesWithGeosOnRandomPolygons) {
   std::vector<Case> cs;
   for (int k = 0; k < 400; ++k) {
     const bool snap = k % 2 == 0;
-    const double cx = 300.0 * (k % 20), cy = 300.0 * (k / 20), radius = 20 + 80 * next();
+    const int row = k / 20;
+    const double cx = 300.0 * (k % 20), cy = 300.0 * row, radius = 20 + 80 * next();
     auto make_ring = [&](double x0, double y0, double r, int n, bool reverse, double jitter) {
       Pts pts;
       for (int i = 0; i < n; ++i) {

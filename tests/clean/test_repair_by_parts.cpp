@@ -320,8 +320,10 @@ TEST(RepairByParts, FewHolesAreLeftToTheWholeRepair) {
 TEST(RepairByParts, SelfCrossingShellEqualsWholeMakeValid) {
   Geos geos;
   Rings bowtie_shell{ring({{0, 0}, {2000, 2000}, {2000, 0}, {0, 2000}})};
-  for (int k = 0; k < 100; ++k)
-    bowtie_shell.push_back(square(1500 + (k % 10) * 30, 700 + (k / 10) * 30, 5));
+  for (int k = 0; k < 100; ++k) {
+    const int row = k / 10;
+    bowtie_shell.push_back(square(1500 + (k % 10) * 30, 700 + row * 30, 5));
+  }
   bowtie_shell.push_back(square(1300, 1300, 5));  // crosses the triangle's edge
   bowtie_shell.push_back(square(1000, 1000, 5));  // around the crossing point
   for (const bool structure : {false, true}) {
@@ -456,7 +458,8 @@ Rings touching_100k() {
   auto pt = [](double x, double y) { return Point2{x, y}; };
   Rings rings{Ring{pt(-5000, -5000), pt(5000, -5000), pt(5000, 5000), pt(-5000, 5000)}};
   for (int k = 0; k < 100000; ++k) {
-    const double cx = -4960 + 31.4 * (k % 316), cy = -4960 + 31.4 * (k / 316);
+    const int row = k / 316;
+    const double cx = -4960 + 31.4 * (k % 316), cy = -4960 + 31.4 * row;
     const double x0 = k % 316 == 0 ? -5000 : cx - 10, y0 = k / 316 == 0 ? -5000 : cy - 10;
     rings.push_back(Ring{pt(x0, y0), pt(x0, cy + 10), pt(cx + 10, cy + 10), pt(cx + 10, y0)});
   }
