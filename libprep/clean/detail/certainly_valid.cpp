@@ -4,8 +4,11 @@
 #include "detail/certainly_valid.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <span>
+#include <vector>
 
 namespace prep::detail {
 namespace {
@@ -216,8 +219,9 @@ class ChainSweep {
 
 // No two rings meet, so each hole lies wholly inside or outside the shell
 // (and any other hole): one vertex decides. True when every hole is
-// certainly inside the shell and outside the other holes.
-bool holes_placed(const std::vector<Ring>& rings) {
+// certainly inside the shell and outside the other holes. A few holes are
+// tested against every ring; many are indexed (`holes_placed_indexed`).
+bool holes_placed_pairwise(const std::vector<Ring>& rings) {
   for (size_t h = 1; h < rings.size(); ++h) {
     bool sure = true;
     if (!inside_ring(rings[h][0], rings[0], sure) || !sure) return false;
@@ -229,11 +233,130 @@ bool holes_placed(const std::vector<Ring>& rings) {
   return true;
 }
 
+struct Box {
+  double xmin = INFINITY, ymin = INFINITY, xmax = -INFINITY, ymax = -INFINITY;
+};
+Box box_of(const Ring& r) {
+  Box b;
+  for (const Point2& p : r) {
+    b.xmin = std::min(b.xmin, p.x);
+    b.ymin = std::min(b.ymin, p.y);
+    b.xmax = std::max(b.xmax, p.x);
+    b.ymax = std::max(b.ymax, p.y);
+  }
+  return b;
+}
+
+// Items (edges or rings) registered in the rows (y) or cells (x, y) of a
+// uniform grid that their boxes meet; false when that would take more than
+// `cap` registrations (the proof then gives up).
+struct BucketIndex {
+  Box extent;
+  uint32_t nx = 1, ny = 1;
+  std::vector<uint32_t> start, items;
+
+  bool build(const std::vector<Box>& boxes, const Box& e, uint32_t cols, uint32_t rows,
+             size_t cap) {
+    extent = e;
+    nx = cols;
+    ny = rows;
+    std::vector<uint32_t> count(size_t(nx) * ny + 1, 0);
+    size_t total = 0;
+    for (const Box& b : boxes) {
+      const auto [i0, i1, j0, j1] = span(b);
+      total += size_t(i1 - i0 + 1) * (j1 - j0 + 1);
+      if (total > cap) return false;
+      for (uint32_t j = j0; j <= j1; ++j)
+        for (uint32_t i = i0; i <= i1; ++i) ++count[size_t(j) * nx + i + 1];
+    }
+    for (size_t c = 1; c < count.size(); ++c) count[c] += count[c - 1];
+    start = count;
+    items.resize(total);
+    for (uint32_t k = 0; k < boxes.size(); ++k) {
+      const auto [i0, i1, j0, j1] = span(boxes[k]);
+      for (uint32_t j = j0; j <= j1; ++j)
+        for (uint32_t i = i0; i <= i1; ++i) items[count[size_t(j) * nx + i]++] = k;
+    }
+    return true;
+  }
+  uint32_t col(double x) const {
+    const double w = (extent.xmax - extent.xmin) / nx;
+    const double c = w > 0 ? std::floor((x - extent.xmin) / w) : 0.0;
+    return uint32_t(std::clamp(c, 0.0, double(nx - 1)));
+  }
+  uint32_t row(double y) const {
+    const double h = (extent.ymax - extent.ymin) / ny;
+    const double r = h > 0 ? std::floor((y - extent.ymin) / h) : 0.0;
+    return uint32_t(std::clamp(r, 0.0, double(ny - 1)));
+  }
+  std::array<uint32_t, 4> span(const Box& b) const {
+    return {col(b.xmin), col(b.xmax), row(b.ymin), row(b.ymax)};
+  }
+  // The items whose boxes may hold (x, y).
+  std::span<const uint32_t> at(double x, double y) const {
+    const size_t c = size_t(row(y)) * nx + col(x);
+    return {items.data() + start[c], items.data() + start[c + 1]};
+  }
+};
+
+// holes_placed for many holes. Each hole's first vertex against the shell:
+// the crossing number over the shell edges of that vertex's row of a y
+// grid (every edge the ray from the vertex can cross spans its y); against
+// the other holes: only those whose boxes hold the vertex (a cell grid of
+// the hole boxes). The same certain-orientation rule as inside_ring.
+bool holes_placed_indexed(const std::vector<Ring>& rings) {
+  const Ring& shell = rings[0];
+  const size_t n = shell.size(), holes = rings.size() - 1;
+  const Box shell_box = box_of(shell);
+  std::vector<Box> edge_boxes(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Point2 &a = shell[i], &b = shell[(i + 1) % n];
+    edge_boxes[i] = {std::min(a.x, b.x), std::min(a.y, b.y), std::max(a.x, b.x),
+                     std::max(a.y, b.y)};
+  }
+  BucketIndex rows_index;
+  const uint32_t rows = uint32_t(std::clamp<size_t>(n / 4, 1, 1u << 16));
+  if (!rows_index.build(edge_boxes, shell_box, 1, rows, 16 * n + 1024)) return false;
+  std::vector<Box> hole_boxes(holes);
+  for (size_t h = 0; h < holes; ++h) hole_boxes[h] = box_of(rings[h + 1]);
+  BucketIndex cells;
+  const uint32_t side = uint32_t(std::clamp(std::sqrt(double(holes)), 1.0, 1024.0));
+  if (!cells.build(hole_boxes, shell_box, side, side, 16 * holes + 1024)) return false;
+  for (size_t h = 0; h < holes; ++h) {
+    const Point2& p = rings[h + 1][0];
+    if (p.x <= shell_box.xmin || p.x >= shell_box.xmax || p.y <= shell_box.ymin ||
+        p.y >= shell_box.ymax)
+      return false;
+    bool in = false;
+    for (uint32_t e : rows_index.at(p.x, p.y)) {
+      const Point2 &a = shell[e], &b = shell[(e + 1) % n];
+      const bool up = a.y <= p.y && b.y > p.y, down = b.y <= p.y && a.y > p.y;
+      if (!up && !down) continue;
+      const int o = orientation(a, b, p);
+      if (o == 0) return false;
+      if ((up && o > 0) || (down && o < 0)) in = !in;
+    }
+    if (!in) return false;
+    for (uint32_t o : cells.at(p.x, p.y)) {
+      if (o == h) continue;
+      const Box& b = hole_boxes[o];
+      if (p.x < b.xmin || p.x > b.xmax || p.y < b.ymin || p.y > b.ymax) continue;
+      bool sure = true;
+      if (inside_ring(p, rings[o + 1], sure) || !sure) return false;
+    }
+  }
+  return true;
+}
+
+bool holes_placed(const std::vector<Ring>& rings) {
+  constexpr size_t kPairwiseHoles = 8;
+  return rings.size() <= 1 + kPairwiseHoles ? holes_placed_pairwise(rings)
+                                            : holes_placed_indexed(rings);
+}
+
 }  // namespace
 
 bool certainly_valid(const std::vector<Ring>& rings) {
-  constexpr size_t kMaxHoles = 8;  // hole-in-hole checks are quadratic
-  if (rings.size() > 1 + kMaxHoles) return false;
   thread_local ValidityScratch scratch;
   scratch.chains.clear();
   size_t total = 0;
