@@ -116,21 +116,8 @@ TEST(CleanRealHoles, AegeanIslandsRepairedAsGeosMakeValidOfTheWhole) {
     GTEST_SKIP() << "missing " << seas << ": run scripts/fetch-data earth-seas";
   const std::vector<prep::Ring> rings = aegean_islands(seas);
   ASSERT_GT(rings.size(), 300u);  // 357 islands
-  prep::ProjectedFeatures in;
-  prep::SourceLayer layer;
-  layer.spec.name = "aegean";
-  layer.spec.kind = prep::DecalKind::polygon;
-  prep::SourceFeature f;
-  f.fid = 1;
-  f.is_polygon = true;
-  f.rings = rings;
-  layer.features.push_back(f);
-  in.features.layers.push_back(layer);
-  in.features.manifest.layers.push_back({});
-  in.features.manifest.layers.back().layer = "aegean";
-  in.features.manifest.layers.back().read = 1;
-  in.scale = {{1.0}};
-  const prep::SceneFeatures out = prep::clean(std::move(in), prep::SceneSpec{});
+  const prep::SceneFeatures out =
+      prep::clean(prep::test::one_polygon_input("aegean", rings), prep::SceneSpec{});
   ASSERT_EQ(out.manifest.entries.size(), 1u);
   EXPECT_EQ(out.manifest.entries[0].action, prep::ManifestAction::repaired);
 

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "../read/scene_fixtures.hpp"
 #include "detail/repair_by_parts.hpp"
 #include "geos_oracle.hpp"
 #include "prep/clean.hpp"
@@ -203,18 +204,27 @@ const char* method_name(bool structure) {
 
 // ------------------------------------------------------------ the unit --
 
+// The repair by parts of `rings` (`structure`: the structure method, else
+// linework) against GEOS MakeValid of the whole polygon, reported under
+// `what`; false, comparing nothing, when the split did not apply.
+bool split_equals_whole(const Geos& geos, const Rings& rings, bool structure,
+                        const std::string& what) {
+  const G got = by_parts(geos.h, rings, structure);
+  if (!got.g) return false;
+  const G whole = polygon_of(geos.h, rings);
+  const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
+  expect_same(geos.h, got, want, what + method_name(structure));
+  return true;
+}
+
 TEST(RepairByParts, HostilePolygonEqualsWholeMakeValid) {
   Geos geos;
   const Rings rings = hostile_polygon();
   ASSERT_GT(rings.size(), 4000u);
   const G whole = polygon_of(geos.h, rings);
   ASSERT_NE(GEOSisValid_r(geos.h, whole.g), 1);
-  for (const bool structure : {false, true}) {
-    const G got = by_parts(geos.h, rings, structure);
-    ASSERT_TRUE(got.g) << method_name(structure) << ": the split did not apply";
-    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
-    expect_same(geos.h, got, want, method_name(structure));
-  }
+  for (const bool structure : {false, true})
+    EXPECT_TRUE(split_equals_whole(geos, rings, structure, "")) << "the split did not apply";
 }
 
 using prep::test::Rng;
@@ -255,15 +265,9 @@ TEST(RepairByParts, RandomPolygonsEqualWholeMakeValid) {
   int split = 0, cases = 0;
   for (uint64_t seed = 1; seed <= 12; ++seed) {
     const Rings rings = random_polygon(seed * 0x9E3779B97F4A7C15ull);
-    const G whole = polygon_of(geos.h, rings);
     for (const bool structure : {false, true}) {
       ++cases;
-      const G got = by_parts(geos.h, rings, structure);
-      if (!got.g) continue;
-      ++split;
-      const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
-      expect_same(geos.h, got, want,
-                  std::string(method_name(structure)) + " seed " + std::to_string(seed));
+      split += split_equals_whole(geos, rings, structure, "seed " + std::to_string(seed) + ", ");
     }
   }
   // Most random polygons have groups of holes clear of the shell.
@@ -298,13 +302,9 @@ TEST(RepairByParts, ContinentSizedHoleEqualsWholeMakeValid) {
       rings.push_back(square(cx, cy, r));
   }
   rings.push_back(square(50, 1000, 60));  // across the shell and the coast
-  for (const bool structure : {false, true}) {
-    const G got = by_parts(geos.h, rings, structure);
-    ASSERT_TRUE(got.g) << method_name(structure) << ": the split did not apply";
-    const G whole = polygon_of(geos.h, rings);
-    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
-    expect_same(geos.h, got, want, std::string("continent, ") + method_name(structure));
-  }
+  for (const bool structure : {false, true})
+    EXPECT_TRUE(split_equals_whole(geos, rings, structure, "continent, "))
+        << "the split did not apply";
 }
 
 TEST(RepairByParts, FewHolesAreLeftToTheWholeRepair) {
@@ -326,13 +326,9 @@ TEST(RepairByParts, SelfCrossingShellEqualsWholeMakeValid) {
   }
   bowtie_shell.push_back(square(1300, 1300, 5));  // crosses the triangle's edge
   bowtie_shell.push_back(square(1000, 1000, 5));  // around the crossing point
-  for (const bool structure : {false, true}) {
-    const G got = by_parts(geos.h, bowtie_shell, structure);
-    ASSERT_TRUE(got.g) << method_name(structure) << ": the split did not apply";
-    const G whole = polygon_of(geos.h, bowtie_shell);
-    const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
-    expect_same(geos.h, got, want, std::string("bow-tie shell, ") + method_name(structure));
-  }
+  for (const bool structure : {false, true})
+    EXPECT_TRUE(split_equals_whole(geos, bowtie_shell, structure, "bow-tie shell, "))
+        << "the split did not apply";
 }
 
 // random_polygon with a bow-tie ear in the shell's top right corner (its
@@ -362,13 +358,8 @@ TEST(RepairByParts, RandomPolygonsWithASelfCrossingShellEqualWholeMakeValid) {
     ASSERT_NE(GEOSisValid_r(geos.h, whole.g), 1);
     for (const bool structure : {false, true}) {
       ++cases;
-      const G got = by_parts(geos.h, rings, structure);
-      if (!got.g) continue;
-      ++split;
-      const G want = polygonal(geos.h, make_valid(geos.h, whole.g, structure).g);
-      expect_same(geos.h, got, want,
-                  std::string("self-crossing shell, ") + method_name(structure) + " seed " +
-                      std::to_string(seed));
+      split += split_equals_whole(geos, rings, structure,
+                                  "self-crossing shell, seed " + std::to_string(seed) + ", ");
     }
   }
   std::printf("split %d of %d\n", split, cases);
@@ -378,20 +369,7 @@ TEST(RepairByParts, RandomPolygonsWithASelfCrossingShellEqualWholeMakeValid) {
 // ------------------------------------------------- through clean() --
 
 prep::SceneFeatures clean_one(const Rings& rings, prep::RepairMethod method) {
-  prep::ProjectedFeatures in;
-  prep::SourceLayer layer;
-  layer.spec.name = "holes";
-  layer.spec.kind = prep::DecalKind::polygon;
-  prep::SourceFeature f;
-  f.fid = 1;
-  f.is_polygon = true;
-  f.rings = rings;
-  layer.features.push_back(f);
-  in.features.layers.push_back(layer);
-  in.features.manifest.layers.push_back({});
-  in.features.manifest.layers.back().layer = "holes";
-  in.features.manifest.layers.back().read = 1;
-  in.scale = {{1.0}};
+  prep::ProjectedFeatures in = prep::test::one_polygon_input("holes", rings);
   prep::SceneSpec scene;
   scene.repair = method;
   return prep::clean(std::move(in), scene);

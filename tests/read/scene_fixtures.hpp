@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include "prep/pipeline.hpp"
+#include "prep/project.hpp"
 #include "prep/scene.hpp"
 
 namespace prep::test {
@@ -34,6 +35,27 @@ inline SceneFeatures dry_run(const SceneSpec& s) {
   BuildRequest req;
   req.dry_run = true;
   return run_build(s, req).scene;
+}
+
+// clean's input of one polygon feature (fid 1, `rings`: shell then holes)
+// of layer `name`, read once, in a frame of point scale 1.
+inline ProjectedFeatures one_polygon_input(const std::string& name,
+                                           const std::vector<Ring>& rings) {
+  ProjectedFeatures in;
+  SourceLayer layer;
+  layer.spec.name = name;
+  layer.spec.kind = DecalKind::polygon;
+  SourceFeature f;
+  f.fid = 1;
+  f.is_polygon = true;
+  f.rings = rings;
+  layer.features.push_back(f);
+  in.features.layers.push_back(layer);
+  in.features.manifest.layers.push_back({});
+  in.features.manifest.layers.back().layer = name;
+  in.features.manifest.layers.back().read = 1;
+  in.scale = {{1.0}};
+  return in;
 }
 
 // Whether the manifest has an entry for `fid` with `action`.
