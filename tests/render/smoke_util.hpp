@@ -8,11 +8,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <iterator>
 #include <string>
 #include <vector>
@@ -66,6 +68,16 @@ inline std::string monaco_package(std::string* why) {
     }
   }
   return pkg.string();
+}
+
+// A scene file in UTM 32N (no simplification) of layers NAME reading
+// NAME.geojson beside it: (name, kind, further keys, one per line).
+inline std::string utm_scene_toml(std::initializer_list<std::array<const char*, 3>> layers) {
+  std::string s = "crs = \"EPSG:32632\"\nresolution = 0\n";
+  for (const auto& [name, kind, keys] : layers)
+    s += std::string("[[layer]]\nname = \"") + name + "\"\nsource = \"" + name +
+         ".geojson\"\nkind = \"" + kind + "\"\n" + keys;
+  return s;
 }
 
 inline std::vector<float> read_raw(const std::string& path) {

@@ -48,25 +48,10 @@ std::string build(const fs::path& dir, std::string& why) {
       line(kX0, kY0, kX0 + 200, kY0), line(kX0 + 100, kY0 - 100, kX0 + 100, kY0 + 100));
   std::ofstream(dir / "dyn.geojson") << collection(line(kX0 + 220, kY0, kX0 + 380, kY0),
                                                    line(kX0 + 300, kY0 - 80, kX0 + 300, kY0 + 80));
-  std::ofstream(dir / "scene.toml") << R"(crs = "EPSG:32632"
-resolution = 0
-[[layer]]
-name = "roads"
-source = "roads.geojson"
-kind = "line"
-width = 6
-color = "#ffffff"
-casing_width = 2
-casing_color = "#000000"
-[[layer]]
-name = "dyn"
-source = "dyn.geojson"
-kind = "line"
-dynamic = true
-width = 5
-color = "#ffcc00"
-casing_width = 2
-)";
+  std::ofstream(dir / "scene.toml") << render_test::utm_scene_toml(
+      {{"roads", "line",
+        "width = 6\ncolor = \"#ffffff\"\ncasing_width = 2\ncasing_color = \"#000000\"\n"},
+       {"dyn", "line", "dynamic = true\nwidth = 5\ncolor = \"#ffcc00\"\ncasing_width = 2\n"}});
   const std::string pkg = (dir / "casing.decals").string();
   const auto r = run_tool("build " + (dir / "scene.toml").string() + " -o " + pkg + " -q");
   if (r.rc != 0) why = r.output;

@@ -98,32 +98,16 @@ std::string write_scene(const fs::path& dir) {
   std::ofstream(dir / "sq.geojson") << feature_collection(squares);
   std::ofstream(dir / "ln.geojson") << feature_collection(lines);
   std::ofstream(dir / "dyn.geojson") << feature_collection(dyn);
-  std::ofstream(dir / "scene.toml") << R"(crs = "EPSG:32632"
-resolution = 0
-[[layer]]
-name = "sq"
-source = "sq.geojson"
-kind = "polygon"
-color = "#808080"
-color_attribute = "v"
-color_ramp = [[0, "#000000"], [5, "#ffffff"]]
-[[layer]]
-name = "ln"
-source = "ln.geojson"
-kind = "line"
-width = 8
-color = "#a0a0a0"
-color_attribute = "v"
-color_ramp = [[0, "#ff0000"], [10, "#00ff00"]]
-[[layer]]
-name = "dyn"
-source = "dyn.geojson"
-kind = "line"
-dynamic = true
-width = 4
-color_attribute = "v"
-color_ramp = [[0, "#0000ff"], [1, "#ffff00"]]
-)";
+  std::ofstream(dir / "scene.toml")
+      << render_test::utm_scene_toml({{"sq", "polygon",
+                                       "color = \"#808080\"\ncolor_attribute = \"v\"\n"
+                                       "color_ramp = [[0, \"#000000\"], [5, \"#ffffff\"]]\n"},
+                                      {"ln", "line",
+                                       "width = 8\ncolor = \"#a0a0a0\"\ncolor_attribute = \"v\"\n"
+                                       "color_ramp = [[0, \"#ff0000\"], [10, \"#00ff00\"]]\n"},
+                                      {"dyn", "line",
+                                       "dynamic = true\nwidth = 4\ncolor_attribute = \"v\"\n"
+                                       "color_ramp = [[0, \"#0000ff\"], [1, \"#ffff00\"]]\n"}});
   return (dir / "scene.toml").string();
 }
 
