@@ -5,7 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <map>
+#include <utility>
 
 #include "decal/format.hpp"
 
@@ -244,19 +244,28 @@ std::array<float, 4> DynamicLinesCpu::at(const Vec3& p3) const {
                 i1 = std::min<int64_t>(gnx_ - 1, int64_t(std::floor((p[0] + r - gx0_) / cell_))),
                 j0 = std::max<int64_t>(0, int64_t(std::floor((p[1] - r - gy0_) / cell_))),
                 j1 = std::min<int64_t>(gny_ - 1, int64_t(std::floor((p[1] + r - gy0_) / cell_)));
-  std::map<uint32_t, uint32_t> hits;  // order -> line of the lines covering p
+  // (order, line) of the lines covering p; per thread, reused across pixels.
+  thread_local std::vector<std::pair<uint32_t, uint32_t>> hits;
+  hits.clear();
+  auto hit = [&](uint32_t order) {
+    for (const auto& h : hits)
+      if (h.first == order) return true;
+    return false;
+  };
   for (int64_t j = j0; j <= j1; ++j)
     for (int64_t i = i0; i <= i1; ++i) {
       const size_t c = size_t(j * gnx_ + i);
       for (uint32_t k = cell_start_[c]; k < cell_start_[c + 1]; ++k) {
         const Segment& s = segments_[cell_items_[k]];
         const decal::LineProps& lp = props_[s.line];
-        if (hits.count(lp.order)) continue;
-        if (covers(s, p, double(lp.half_width) * wpix, lp.style & 3u)) hits[lp.order] = s.line;
+        if (hit(lp.order)) continue;
+        if (covers(s, p, double(lp.half_width) * wpix, lp.style & 3u))
+          hits.emplace_back(lp.order, s.line);
       }
     }
   // Front to back in drawing order (order 0 on top), straight alpha.
   double acc[4] = {0, 0, 0, 0};
+  std::sort(hits.begin(), hits.end());
   for (const auto& [order, line] : hits) {
     const uint32_t rgba = props_[line].rgba;
     const double a = double(rgba >> 24) / 255.0, w = (1 - acc[3]) * a;

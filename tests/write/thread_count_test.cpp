@@ -91,14 +91,19 @@ class ThreadCount : public ::testing::TestWithParam<prep::Codec> {
  protected:
   void SetUp() override { dir_ = make_temp_dir("threads"); }
   void TearDown() override { std::filesystem::remove_all(dir_); }
+  // The parameter's codec at zstd level 1.
+  prep::WriteOptions options() const {
+    prep::WriteOptions wo;
+    wo.codec = GetParam();
+    wo.zstd_level = 1;
+    return wo;
+  }
   std::string dir_;
 };
 
 TEST_P(ThreadCount, PackageBytesAreTheSameForOneAndManyThreads) {
   const auto b = blobs();
-  prep::WriteOptions wo;
-  wo.codec = GetParam();
-  wo.zstd_level = 1;
+  const prep::WriteOptions wo = options();
   const std::vector<std::byte> serial = write_with(dir_ + "/t1.decals", b, wo, 1);
   ASSERT_GT(serial.size(), sizeof(decal::FileHeader));
   for (size_t threads : {2, 4, 8}) {
@@ -114,9 +119,7 @@ TEST_P(ThreadCount, PackageBytesAreTheSameForOneAndManyThreads) {
 
 TEST_P(ThreadCount, EveryBlobIsStoredAsItsOwnSingleThreadedFrame) {
   const auto b = blobs();
-  prep::WriteOptions wo;
-  wo.codec = GetParam();
-  wo.zstd_level = 1;
+  const prep::WriteOptions wo = options();
   const std::vector<std::byte> file = write_with(dir_ + "/p.decals", b, wo, 8);
   decal::FileHeader h;
   ASSERT_GE(file.size(), sizeof h);
