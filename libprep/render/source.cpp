@@ -166,19 +166,18 @@ void restyle(DecalSource& source, const LayerRamps& ramps, RestyledProps& held) 
                                            " of a layer table of " + std::to_string(ramps.size()));
     return ramps[layer];
   };
-  auto line = [&](decal::LineProps& p) {
-    const std::vector<ColorStop>& stops = stops_of(p.layer);
+  auto recolour = [&](uint32_t& rgba, uint32_t layer, float value) {
+    const std::vector<ColorStop>& stops = stops_of(layer);
     held.recoloured += !stops.empty();
-    p.rgba = ramp_rgba(stops, p.value, p.rgba);
+    rgba = ramp_rgba(stops, value, rgba);
   };
+  auto line = [&](decal::LineProps& p) { recolour(p.rgba, p.layer, p.value); };
   restyle_blob(source, decal::BlobId::line_props, held.line, &source.view.line_props, line);
   restyle_blob<decal::LineProps>(source, decal::BlobId::dyn_line_props, held.dyn, nullptr, line);
   restyle_blob(source, decal::BlobId::poly_props, held.poly, &source.view.poly_props,
                [&](decal::PolyProps& p) {
-                 if (p.exterior >= 0) return;  // interior polygons are drawn by their exterior
-                 const std::vector<ColorStop>& stops = stops_of(p.layer);
-                 held.recoloured += !stops.empty();
-                 p.rgba = ramp_rgba(stops, p.value, p.rgba);
+                 // interior polygons are drawn by their exterior
+                 if (p.exterior < 0) recolour(p.rgba, p.layer, p.value);
                });
 }
 
