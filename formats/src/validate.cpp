@@ -11,8 +11,10 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include "decal/inspect.hpp"
+#include "decal/layout.hpp"
 #include "message.hpp"
 
 namespace decal {
@@ -179,6 +181,15 @@ Status check_polygons(const Checker& c) {
   const auto roots = c.get<uint32_t>(BlobId::poly_root_node);
   for (uint64_t i = 0; i < roots.size(); ++i)
     CHECK(c.index(BlobId::poly_root_node, i, "node", roots[i], BlobId::qt_node));
+  // Partial leaves index the v1.3 loop ranges when the package has leaf
+  // loops, else the v1.0-1.2 leaf ranges; never both layouts at once.
+  const bool loop_layout =
+      c.count(BlobId::qt_leaf_loop_range) > 0 || c.count(BlobId::qt_leaf_loops) > 0;
+  if (loop_layout && (c.count(BlobId::qt_leaf_range) > 0 || c.count(BlobId::qt_leaf_segments) > 0))
+    return Status::failure(
+        "qt_leaf_range/qt_leaf_segments (v1.2 layout) and qt_leaf_loop_range/qt_leaf_loops (v1.3) "
+        "are both present");
+  const BlobId leaf_blob = loop_layout ? BlobId::qt_leaf_loop_range : BlobId::qt_leaf_range;
   const auto nodes = c.get<i2>(BlobId::qt_node);
   for (uint64_t i = 0; i < nodes.size(); ++i) {
     const int32_t type = nodes[i][0], off = nodes[i][1];
@@ -192,8 +203,25 @@ Status check_polygons(const Checker& c) {
             fmt("qt_node[%llu].offset = %d: children must come after their parent", ull(i), off));
       CHECK(c.range(BlobId::qt_node, i, uint64_t(off), 4, BlobId::qt_node));
     } else if (type == int32_t(QtNodeType::partial)) {
-      CHECK(c.index(BlobId::qt_node, i, "offset", uint64_t(off), BlobId::qt_leaf_range));
+      CHECK(c.index(BlobId::qt_node, i, "offset", uint64_t(off), leaf_blob));
     }
+  }
+  // v1.3 leaf loops: loop l holds vertices [end[l-1], end[l]) (end[-1] = 0).
+  const auto loop_ranges = c.get<u2>(BlobId::qt_leaf_loop_range);
+  for (uint64_t i = 0; i < loop_ranges.size(); ++i)
+    CHECK(c.range(BlobId::qt_leaf_loop_range, i, loop_ranges[i][0], loop_ranges[i][1],
+                  BlobId::qt_leaf_loops));
+  const auto loops = c.get<uint32_t>(BlobId::qt_leaf_loops);
+  for (uint64_t i = 0, prev = 0; i < loops.size(); prev = loops[i], ++i) {
+    if (loops[i] < prev)
+      return Status::failure(
+          fmt("qt_leaf_loops[%llu] = %u is less than the previous loop's end %llu", ull(i),
+              loops[i], ull(prev)));
+    if (loops[i] > c.count(BlobId::qt_leaf_vertices))
+      return Status::failure(
+          fmt("qt_leaf_loops[%llu] = %u runs past the end of qt_leaf_vertices "
+              "(%llu elements)",
+              ull(i), loops[i], ull(c.count(BlobId::qt_leaf_vertices))));
   }
   const auto leaves = c.get<u2>(BlobId::qt_leaf_range);
   for (uint64_t i = 0; i < leaves.size(); ++i)
@@ -203,6 +231,19 @@ Status check_polygons(const Checker& c) {
     CHECK(c.index(BlobId::qt_leaf_segments, i, "start", lsegs[i][0], BlobId::qt_leaf_vertices));
     CHECK(c.index(BlobId::qt_leaf_segments, i, "end", lsegs[i][1], BlobId::qt_leaf_vertices));
   }
+  // v1.2 leaf segments must be closed runs of consecutive vertices (every
+  // writer wrote them so): the GL loader encodes them as v1.3 leaf loops.
+  if (leaves.size() > 0) {
+    std::vector<layout::u2> r(leaves.size()), sg(lsegs.size());
+    for (uint64_t i = 0; i < leaves.size(); ++i) r[i] = leaves[i];
+    for (uint64_t i = 0; i < lsegs.size(); ++i) sg[i] = lsegs[i];
+    std::vector<layout::u2> loop_range;
+    std::vector<uint32_t> loop_end;
+    if (!layout::encode_leaves(r, sg, c.count(BlobId::qt_leaf_vertices), loop_range, loop_end))
+      return Status::failure(
+          "qt_leaf_segments: the segments of a leaf are not closed runs of consecutive vertices "
+          "(SPEC.md \"Compact layout (v1.3)\")");
+  }
   const auto cranges = c.get<u2>(BlobId::cell_poly_range);
   for (uint64_t i = 0; i < cranges.size(); ++i)
     CHECK(c.range(BlobId::cell_poly_range, i, cranges[i][0], cranges[i][1], BlobId::cell_polys));
@@ -211,6 +252,33 @@ Status check_polygons(const Checker& c) {
     CHECK(c.index(BlobId::cell_polys, i, "polygon", cpolys[i][0], BlobId::poly_props));
     CHECK(c.index(BlobId::cell_polys, i, "node", cpolys[i][1], BlobId::qt_node));
     CHECK(c.range(BlobId::cell_polys, i, cpolys[i][2], cpolys[i][3], BlobId::cell_holes));
+  }
+  // v1.3 entries (polygon, node) with hole firsts: one per entry plus one,
+  // from 0 to #cell_holes, never decreasing.
+  const auto entries = c.get<u2>(BlobId::cell_poly_entries);
+  const auto hole_first = c.get<uint32_t>(BlobId::cell_poly_holes);
+  if (entries.size() > 0 || hole_first.size() > 0) {
+    if (cpolys.size() > 0)
+      return Status::failure(
+          "cell_polys (v1.2 layout) and cell_poly_entries (v1.3) are both present");
+    if (hole_first.size() != entries.size() + 1)
+      return Status::failure(
+          fmt("cell_poly_holes has %llu elements for %llu cell_poly_entries "
+              "(must be entries + 1)",
+              ull(hole_first.size()), ull(entries.size())));
+    if (hole_first[0] != 0 || hole_first[hole_first.size() - 1] != c.count(BlobId::cell_holes))
+      return Status::failure(
+          fmt("cell_poly_holes runs from %u to %u; it must run from 0 to %llu "
+              "(#cell_holes)",
+              hole_first[0], hole_first[hole_first.size() - 1], ull(c.count(BlobId::cell_holes))));
+    for (uint64_t i = 0; i < entries.size(); ++i) {
+      CHECK(c.index(BlobId::cell_poly_entries, i, "polygon", entries[i][0], BlobId::poly_props));
+      CHECK(c.index(BlobId::cell_poly_entries, i, "node", entries[i][1], BlobId::qt_node));
+      if (hole_first[i + 1] < hole_first[i])
+        return Status::failure(
+            fmt("cell_poly_holes[%llu] = %u is less than cell_poly_holes[%llu] = %u", ull(i + 1),
+                hole_first[i + 1], ull(i), hole_first[i]));
+    }
   }
   const auto holes = c.get<u2>(BlobId::cell_holes);
   for (uint64_t i = 0; i < holes.size(); ++i) {
@@ -224,11 +292,13 @@ Status check_polygons(const Checker& c) {
 // nodes) is a full binary tree inside the box blob whose leaf k is the cell's
 // k-th list entry (thesis §4.2.1, Eq. 4.5–4.7). With a grid, one of each per
 // cell; a kind that is absent has neither.
-Status check_cells(const Checker& c, BlobId range_id, BlobId list_id, BlobId bvh_id,
-                   BlobId box_id) {
+Status check_cells(const Checker& c, BlobId range_id, BlobId list_id, BlobId bvh_id, BlobId box_id,
+                   BlobId first_id) {
   const auto ranges = c.get<u2>(range_id);
   const auto bvh = c.get<u4>(bvh_id);
-  if (ranges.size() == 0 && c.count(list_id) == 0 && bvh.size() == 0) return Status::success();
+  // The kind is absent, or in the v1.3 layout (check_cells_first).
+  if (ranges.size() == 0 && bvh.size() == 0 && (c.count(list_id) == 0 || c.count(first_id) > 0))
+    return Status::success();
   CHECK(c.same_count(bvh_id, range_id));
   if (const Grid* g = c.grid(); g && ranges.size() != uint64_t(g->nx) * g->ny)
     return Status::failure(fmt("%s has %llu elements for the %llu grid cells",
@@ -246,6 +316,52 @@ Status check_cells(const Checker& c, BlobId range_id, BlobId list_id, BlobId bvh
               "the cell's %u entries inside %s (%llu boxes)",
               Checker::name(bvh_id), ull(i), ull(first), ull(slots), ull(internal), ranges[i][1],
               Checker::name(box_id), ull(boxes)));
+  }
+  return Status::success();
+}
+
+// v1.3 per-cell firsts: one element per cell plus one, (first entry, first
+// node), from (0, 0) to (#list, #boxes); each cell's entries n = x[c+1] -
+// x[c] and nodes d = y[c+1] - y[c] form a full binary tree: d = 0 when n =
+// 0, else d = 2P - 1 for a power of two P >= n. A kind is in one layout
+// only.
+Status check_cells_first(const Checker& c, BlobId first_id, BlobId list_id, BlobId box_id,
+                         BlobId old_range_id, BlobId old_bvh_id, BlobId old_box_id) {
+  const auto first = c.get<u2>(first_id);
+  if (first.size() == 0) {
+    if (c.count(box_id) > 0)
+      return Status::failure(fmt("%s has %llu elements but %s is absent", Checker::name(box_id),
+                                 ull(c.count(box_id)), Checker::name(first_id)));
+    return Status::success();
+  }
+  if (c.count(old_range_id) > 0 || c.count(old_bvh_id) > 0 || c.count(old_box_id) > 0)
+    return Status::failure(fmt("%s (v1.3) and %s/%s/%s (v1.2 layout) are both present",
+                               Checker::name(first_id), Checker::name(old_range_id),
+                               Checker::name(old_bvh_id), Checker::name(old_box_id)));
+  if (const Grid* g = c.grid(); g && first.size() != uint64_t(g->nx) * g->ny + 1)
+    return Status::failure(fmt("%s has %llu elements for the %llu grid cells (must be cells + 1)",
+                               Checker::name(first_id), ull(first.size()),
+                               ull(uint64_t(g->nx) * g->ny)));
+  const u2 f0 = first[0], fn = first[first.size() - 1];
+  if (f0[0] != 0 || f0[1] != 0 || fn[0] != c.count(list_id) || fn[1] != c.count(box_id))
+    return Status::failure(
+        fmt("%s runs from (%u, %u) to (%u, %u); it must run from (0, 0) to "
+            "(%llu, %llu), the element counts of %s and %s",
+            Checker::name(first_id), f0[0], f0[1], fn[0], fn[1], ull(c.count(list_id)),
+            ull(c.count(box_id)), Checker::name(list_id), Checker::name(box_id)));
+  for (uint64_t i = 0; i + 1 < first.size(); ++i) {
+    const u2 a = first[i], b = first[i + 1];
+    if (b[0] < a[0] || b[1] < a[1])
+      return Status::failure(fmt("%s[%llu] = (%u, %u) is less than %s[%llu] = (%u, %u)",
+                                 Checker::name(first_id), ull(i + 1), b[0], b[1],
+                                 Checker::name(first_id), ull(i), a[0], a[1]));
+    const uint64_t n = b[0] - a[0], d = b[1] - a[1], p = (d + 1) / 2;
+    const bool full = n == 0 ? d == 0 : (d % 2 == 1 && (p & (p - 1)) == 0 && p >= n);
+    if (!full)
+      return Status::failure(
+          fmt("%s[%llu]: %llu nodes are not a full binary tree over the cell's "
+              "%llu entries",
+              Checker::name(first_id), ull(i), ull(d), ull(n)));
   }
   return Status::success();
 }
@@ -332,11 +448,21 @@ Status validate_blobs(std::span<const BlobBytes> blobs, const ValidateOptions& o
   if (Status s = check_lines(c); !s) return s;
   if (Status s = check_polygons(c); !s) return s;
   if (Status s = check_cells(c, BlobId::cell_segment_range, BlobId::cell_segments,
-                             BlobId::line_bvh_range, BlobId::line_bvh_box);
+                             BlobId::line_bvh_range, BlobId::line_bvh_box, BlobId::cell_line_first);
       !s)
     return s;
   if (Status s = check_cells(c, BlobId::cell_poly_range, BlobId::cell_polys, BlobId::poly_bvh_range,
-                             BlobId::poly_bvh_box);
+                             BlobId::poly_bvh_box, BlobId::cell_poly_first);
+      !s)
+    return s;
+  if (Status s = check_cells_first(c, BlobId::cell_line_first, BlobId::cell_segments,
+                                   BlobId::line_bvh_box16, BlobId::cell_segment_range,
+                                   BlobId::line_bvh_range, BlobId::line_bvh_box);
+      !s)
+    return s;
+  if (Status s = check_cells_first(c, BlobId::cell_poly_first, BlobId::cell_poly_entries,
+                                   BlobId::poly_bvh_box16, BlobId::cell_poly_range,
+                                   BlobId::poly_bvh_range, BlobId::poly_bvh_box);
       !s)
     return s;
   if (Status s = check_dynamic(c); !s) return s;

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "decal/inspect.hpp"
+#include "decal/layout.hpp"
 #include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/evaluate.hpp"
@@ -55,6 +56,50 @@ StaticView view_of(const decal::Package& p) {
   PREP_STATIC_VIEW_BLOBS(PREP_FROM_PACKAGE)
 #undef PREP_FROM_PACKAGE
   if (p.minor() < 2) v.polygon_rank_bias = v.line_props.size();
+  // v1.3 compact blobs (formats/SPEC.md "Compact layout (v1.3)"): decoded
+  // into the v1.2 ranges and leaf segments the evaluator walks, the same
+  // arrays the model held before it was written.
+  namespace L = decal::layout;
+  struct Decoded {
+    std::vector<L::u2> seg_range, poly_range, leaf_range, leaf_segments;
+    std::vector<L::u4> line_bvh, poly_bvh;
+    std::vector<ivec4> line_boxes, poly_boxes;
+    std::vector<L::u4> cell_polys;
+  };
+  const L::CellGrid cg{v.grid.origin_x, v.grid.origin_y, v.grid.cell_w, v.grid.cell_h, v.grid.nx};
+  auto d = std::make_shared<Decoded>();
+  const auto line_first = p.array<L::u2>(BlobId::cell_line_first);
+  const auto poly_first = p.array<L::u2>(BlobId::cell_poly_first);
+  const auto loop_range = p.array<L::u2>(BlobId::qt_leaf_loop_range);
+  const auto loops = p.array<uint32_t>(BlobId::qt_leaf_loops);
+  static_assert(std::is_same_v<L::u2, uvec2> && std::is_same_v<L::u4, uvec4>);
+  auto as_u2 = [](const std::vector<L::u2>& a) { return std::span<const uvec2>(a); };
+  auto as_u4 = [](const std::vector<L::u4>& a) { return std::span<const uvec4>(a); };
+  if (!line_first.empty()) {
+    L::decode_cells(line_first, d->seg_range, d->line_bvh);
+    v.cell_segment_range = as_u2(d->seg_range);
+    v.line_bvh_range = as_u4(d->line_bvh);
+    d->line_boxes = L::decode_boxes16(line_first, p.array<L::u2>(BlobId::line_bvh_box16), cg);
+    v.line_bvh_box = d->line_boxes;
+  }
+  if (!poly_first.empty()) {
+    L::decode_cells(poly_first, d->poly_range, d->poly_bvh);
+    v.cell_poly_range = as_u2(d->poly_range);
+    v.poly_bvh_range = as_u4(d->poly_bvh);
+    d->poly_boxes = L::decode_boxes16(poly_first, p.array<L::u2>(BlobId::poly_bvh_box16), cg);
+    v.poly_bvh_box = d->poly_boxes;
+  }
+  if (!loop_range.empty() || !loops.empty()) {
+    L::decode_leaves(loop_range, loops, d->leaf_range, d->leaf_segments);
+    v.qt_leaf_range = as_u2(d->leaf_range);
+    v.qt_leaf_segments = as_u2(d->leaf_segments);
+  }
+  const auto entries = p.array<L::u2>(BlobId::cell_poly_entries);
+  if (!entries.empty()) {
+    L::decode_poly_entries(entries, p.array<uint32_t>(BlobId::cell_poly_holes), d->cell_polys);
+    v.cell_polys = as_u4(d->cell_polys);
+  }
+  v.storage = std::move(d);
   return v;
 }
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <string>
 
+#include "decal/layout.hpp"
 #include "detail/gl_render.hpp"
 #include "detail/math.hpp"
 #include "prep/error.hpp"
@@ -483,6 +484,11 @@ void GlRenderer::set_static_uniforms(GLuint p) const {
   glUniform2f(glGetUniformLocation(p, "u_cell_size"), float(double(gp.cell_w) * q),
               float(double(gp.cell_h) * q));
   glUniform2i(glGetUniformLocation(p, "u_grid_n"), GLint(gp.nx), GLint(gp.ny));
+  // The u16 BVH boxes of v1.3 are relative to their cell (decal/layout.hpp).
+  glUniform2i(glGetUniformLocation(p, "u_grid_origin_q"), GLint(gp.origin_x), GLint(gp.origin_y));
+  glUniform2i(glGetUniformLocation(p, "u_cell_q"), GLint(gp.cell_w), GLint(gp.cell_h));
+  glUniform1i(glGetUniformLocation(p, "u_box16_shift"),
+              GLint(decal::layout::box16_shift(gp.cell_w, gp.cell_h)));
   glUniform4fv(glGetUniformLocation(p, "u_clip"), 1, view_.clip.data());
   glUniform3f(glGetUniformLocation(p, "u_eye_rel"), float(eye_rel[0]), float(eye_rel[1]),
               float(eye_rel[2]));
@@ -516,11 +522,11 @@ void GlRenderer::static_passes(GLuint f_static) {
   // A kind with no per-cell ranges is absent: its pass would index the
   // 16-byte placeholder buffer, so it is skipped.
   const uint64_t cells = uint64_t(view_.grid.nx) * view_.grid.ny;
-  const bool have_polygons = opt_.draw_polygons &&
-                             gpu_->count(decal::BlobId::poly_bvh_range) == cells &&
-                             gpu_->count(decal::BlobId::cell_poly_range) == cells;
-  const bool have_lines = opt_.draw_lines && gpu_->count(decal::BlobId::line_bvh_range) == cells &&
-                          gpu_->count(decal::BlobId::cell_segment_range) == cells;
+  // (The loader holds the v1.3 layout: one cell_*_first per cell plus one.)
+  const bool have_polygons =
+      opt_.draw_polygons && gpu_->count(decal::BlobId::cell_poly_first) == cells + 1;
+  const bool have_lines =
+      opt_.draw_lines && gpu_->count(decal::BlobId::cell_line_first) == cells + 1;
   // The drawing order as runs of one kind, top first (formats/SPEC.md
   // "Drawing order"), each pass blended under the earlier ones: front to
   // back, as the evaluator composites.

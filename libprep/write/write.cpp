@@ -30,6 +30,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "decal/layout.hpp"
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
 #include "prep/stage_error.hpp"
@@ -393,31 +394,93 @@ BlobInput blob_of(decal::BlobId id, const std::vector<T>& v) {
   return {id, info->type, info->stride, v.size(), std::as_bytes(std::span<const T>(v))};
 }
 
+// An encoded blob: owns its elements.
+template <class T>
+BlobInput owned_blob(decal::BlobId id, std::vector<T> v) {
+  auto p = std::make_shared<std::vector<T>>(std::move(v));
+  BlobInput b = blob_of(id, *p);
+  b.owner = p;
+  return b;
+}
+
+// A list or box blob: the model's own array, or the copy encode_cells made
+// when the model's cells were not in order.
+template <class T>
+BlobInput list_blob(decal::BlobId id, const std::vector<T>& v, std::vector<std::byte>& copy) {
+  if (copy.empty()) return blob_of(id, v);
+  auto p = std::make_shared<std::vector<std::byte>>(std::move(copy));
+  const decal::BlobInfo* info = decal::find_blob_info(id);
+  return {id, info->type, info->stride, p->size() / info->stride, *p, p};
+}
+
 }  // namespace
 
 std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
   using decal::BlobId;
+  namespace L = decal::layout;
+  auto cells = [](const std::vector<uvec2>& range, const std::vector<uvec4>& bvh, const auto& list,
+                  const std::vector<ivec4>& boxes) {
+    return L::encode_cells(std::span<const L::u2>(range.data(), range.size()),
+                           std::span<const L::u4>(bvh.data(), bvh.size()),
+                           std::as_bytes(std::span(list)), sizeof(list[0]),
+                           std::as_bytes(std::span(boxes)), sizeof(ivec4));
+  };
+  L::CellEncoding lines =
+      cells(m.cell_segment_range, m.line_bvh_range, m.cell_segments, m.line_bvh_box);
+  L::CellEncoding polys = cells(m.cell_poly_range, m.poly_bvh_range, m.cell_polys, m.poly_bvh_box);
+  if (!lines.ok || !polys.ok)
+    fail<format_error>(kWriteStage, std::string("per-cell ranges of the ") +
+                                        (lines.ok ? "polygons" : "lines") +
+                                        " break the index constraints (formats/SPEC.md)");
+  // BVH boxes as cell-relative u16 boxes (decal/layout.hpp), from the
+  // model's boxes or the copy encode_cells made in cell order.
+  const L::CellGrid grid{m.grid.origin_x, m.grid.origin_y, m.grid.cell_w, m.grid.cell_h, m.grid.nx};
+  auto boxes16 = [&](const L::CellEncoding& e, const std::vector<ivec4>& model_boxes) {
+    if (e.first.empty()) return std::vector<L::u2>{};
+    std::span<const ivec4> src(model_boxes);
+    if (!e.boxes.empty())
+      src = {reinterpret_cast<const ivec4*>(e.boxes.data()), e.boxes.size() / sizeof(ivec4)};
+    return L::encode_boxes16(e.first, src, grid);
+  };
+  // Exterior entries as (polygon, node) plus hole firsts (decal/layout.hpp).
+  std::span<const uvec4> poly_list(m.cell_polys);
+  if (!polys.list.empty())
+    poly_list = {reinterpret_cast<const uvec4*>(polys.list.data()),
+                 polys.list.size() / sizeof(uvec4)};
+  L::PolyEntryEncoding entries = L::encode_poly_entries(poly_list, m.cell_holes);
+  if (!entries.ok)
+    fail<format_error>(kWriteStage, "cell_polys hole ranges break the index constraints");
+  std::vector<uvec2> holes_copy = std::move(entries.holes);
+  std::vector<L::u2> line_boxes = boxes16(lines, m.line_bvh_box);
+  std::vector<L::u2> poly_boxes = boxes16(polys, m.poly_bvh_box);
+  std::vector<L::u2> loop_range;
+  std::vector<uint32_t> loop_end;
+  if (!L::encode_leaves(
+          std::span<const L::u2>(m.qt_leaf_range.data(), m.qt_leaf_range.size()),
+          std::span<const L::u2>(m.qt_leaf_segments.data(), m.qt_leaf_segments.size()),
+          m.qt_leaf_vertices.size(), loop_range, loop_end))
+    fail<format_error>(kWriteStage, "quad-tree leaf segments are not closed vertex runs");
   std::vector<BlobInput> all = {
       blob_of(BlobId::line_vertices, m.line_vertices),
       blob_of(BlobId::line_vertex_line, m.line_vertex_line),
       blob_of(BlobId::line_props, m.line_props),
       blob_of(BlobId::line_corners, m.line_corners),
-      blob_of(BlobId::cell_segment_range, m.cell_segment_range),
-      blob_of(BlobId::cell_segments, m.cell_segments),
+      list_blob(BlobId::cell_segments, m.cell_segments, lines.list),
+      owned_blob(BlobId::cell_line_first, std::move(lines.first)),
       blob_of(BlobId::poly_props, m.poly_props),
       blob_of(BlobId::poly_root_node, m.poly_root_node),
       blob_of(BlobId::qt_node_box, m.qt_node_box),
       blob_of(BlobId::qt_node, m.qt_node),
-      blob_of(BlobId::qt_leaf_range, m.qt_leaf_range),
-      blob_of(BlobId::qt_leaf_segments, m.qt_leaf_segments),
       blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices),
-      blob_of(BlobId::cell_poly_range, m.cell_poly_range),
-      blob_of(BlobId::cell_polys, m.cell_polys),
-      blob_of(BlobId::cell_holes, m.cell_holes),
-      blob_of(BlobId::line_bvh_range, m.line_bvh_range),
-      blob_of(BlobId::line_bvh_box, m.line_bvh_box),
-      blob_of(BlobId::poly_bvh_range, m.poly_bvh_range),
-      blob_of(BlobId::poly_bvh_box, m.poly_bvh_box),
+      holes_copy.empty() ? blob_of(BlobId::cell_holes, m.cell_holes)
+                         : owned_blob(BlobId::cell_holes, std::move(holes_copy)),
+      owned_blob(BlobId::qt_leaf_loop_range, std::move(loop_range)),
+      owned_blob(BlobId::qt_leaf_loops, std::move(loop_end)),
+      owned_blob(BlobId::cell_poly_first, std::move(polys.first)),
+      owned_blob(BlobId::line_bvh_box16, std::move(line_boxes)),
+      owned_blob(BlobId::poly_bvh_box16, std::move(poly_boxes)),
+      owned_blob(BlobId::cell_poly_entries, std::move(entries.entries)),
+      owned_blob(BlobId::cell_poly_holes, std::move(entries.hole_first)),
       blob_of(BlobId::dyn_vertices, m.dyn_vertices),
       blob_of(BlobId::dyn_prev_next, m.dyn_prev_next),
       blob_of(BlobId::dyn_line_start, m.dyn_line_start),
@@ -426,8 +489,10 @@ std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
       blob_of(BlobId::lod_segments, m.lod_segments),
       blob_of(BlobId::lod_line_range, m.lod_line_range),
   };
-  // Every catalogue blob but manifest_entries, which write_model adds.
-  static_assert(std::size(decal::kBlobCatalogue) == 28, "model_blobs must list every model blob");
+  // Every catalogue blob but manifest_entries, which write_model adds, and
+  // the superseded ids.
+  static_assert(std::size(decal::kBlobCatalogue) == 36 && std::size(decal::kSupersededBlobs) == 9,
+                "model_blobs must list every model blob");
   std::vector<BlobInput> out;
   for (const BlobInput& b : all)
     if (include_empty || b.count > 0) out.push_back(b);

@@ -5,11 +5,13 @@
 
 #include <cstring>
 #include <filesystem>
+#include <functional>
 
 #include "byte_damage.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
 #include "fixtures.hpp"
+#include "prep/write.hpp"
 
 namespace {
 
@@ -288,10 +290,6 @@ TEST(ValidateIndices, EachKindOfDanglingIndexIsNamed) {
   };
   const Case cases[] = {
       {"line_vertex_line[4].line = 2", [](prep::DecalModel& m) { m.line_vertex_line[4] = 2; }},
-      {"cell_segment_range[1]",
-       [](prep::DecalModel& m) {
-         m.cell_segment_range[1] = {3, 2};
-       }},
       {"poly_root_node[1].node = 6", [](prep::DecalModel& m) { m.poly_root_node[1] = 6; }},
       {"qt_node[3].type = 4",
        [](prep::DecalModel& m) {
@@ -307,21 +305,9 @@ TEST(ValidateIndices, EachKindOfDanglingIndexIsNamed) {
        [](prep::DecalModel& m) {
          m.qt_node[0] = {0, 0};
        }},
-      {"qt_leaf_segments[2].end = 6",
-       [](prep::DecalModel& m) {
-         m.qt_leaf_segments[2] = {2, 6};
-       }},
-      {"cell_polys[0]",
-       [](prep::DecalModel& m) {
-         m.cell_polys[0] = {0, 0, 1, 1};
-       }},
       {"cell_holes[0].polygon = 2",
        [](prep::DecalModel& m) {
          m.cell_holes[0] = {2, 5};
-       }},
-      {"line_bvh_range[1]",
-       [](prep::DecalModel& m) {
-         m.line_bvh_range[1] = {3, 1, 1, 0};
        }},
       {"dyn_prev_next[1].next = 4",
        [](prep::DecalModel& m) {
@@ -348,6 +334,85 @@ TEST(ValidateIndices, EachKindOfDanglingIndexIsNamed) {
     decal::Package p;
     ASSERT_TRUE(decal::Package::from_memory(b, p));
     const decal::Status s = decal::validate_indices(p);
+    EXPECT_FALSE(s) << c.expect;
+    EXPECT_NE(s.message.find(c.expect), std::string::npos)
+        << "expected '" << c.expect << "' in: " << s.message;
+  }
+}
+
+// The v1.3 compact blobs (formats/SPEC.md "Compact layout (v1.3)") of
+// small_model(), each broken in one way, with the grid: the check names the
+// blob and the value.
+TEST(ValidateIndices, EachBrokenCompactBlobIsNamed) {
+  using decal::BlobId;
+  const prep::DecalModel m = decal_test::small_model();
+  const decal::Grid grid{m.grid.origin_x, m.grid.origin_y, m.grid.cell_w,
+                         m.grid.cell_h,   m.grid.nx,       m.grid.ny};
+  struct Blob {
+    BlobId id;
+    uint64_t count;
+    std::vector<std::byte> bytes;
+  };
+  std::vector<Blob> good;
+  for (const prep::BlobInput& b : prep::model_blobs(m, false))
+    good.push_back({b.id, b.count, {b.bytes.begin(), b.bytes.end()}});
+  auto validate = [&](const std::vector<Blob>& blobs) {
+    std::vector<decal::BlobBytes> v;
+    for (const Blob& b : blobs) v.push_back({b.id, b.count, b.bytes});
+    return decal::validate_blobs(v, {&grid, false});
+  };
+  ASSERT_TRUE(validate(good)) << validate(good).message;
+  auto u32_at = [](std::vector<Blob>& blobs, BlobId id, size_t k) -> uint32_t& {
+    for (Blob& b : blobs)
+      if (b.id == id) return reinterpret_cast<uint32_t*>(b.bytes.data())[k];
+    throw std::runtime_error("no such blob");
+  };
+  auto drop = [](std::vector<Blob>& blobs, BlobId id) {
+    std::erase_if(blobs, [&](const Blob& b) { return b.id == id; });
+  };
+  struct Case {
+    const char* expect;
+    std::function<void(std::vector<Blob>&)> edit;
+  };
+  const Case cases[] = {
+      // cell 1 starts at (2, 7): cell 0 is a tree of 4 slots, cell 1 ends before it starts
+      {"cell_line_first[2] = (4, 6) is less than cell_line_first[1] = (2, 7)",
+       [&](std::vector<Blob>& b) { u32_at(b, BlobId::cell_line_first, 3) = 7; }},
+      {"cell_line_first runs from (0, 0) to",
+       [&](std::vector<Blob>& b) { u32_at(b, BlobId::cell_line_first, 4) += 1; }},
+      {"nodes are not a full binary tree",
+       [&](std::vector<Blob>& b) { u32_at(b, BlobId::cell_poly_first, 3) += 1; }},
+      {"qt_leaf_loops[0] = 99 runs past the end of qt_leaf_vertices",
+       [&](std::vector<Blob>& b) { u32_at(b, BlobId::qt_leaf_loops, 0) = 99; }},
+      {"qt_leaf_loop_range[0] = (first 5",
+       [&](std::vector<Blob>& b) { u32_at(b, BlobId::qt_leaf_loop_range, 0) = 5; }},
+      {"line_bvh_box16 has 6 elements but cell_line_first is absent",
+       [&](std::vector<Blob>& b) {
+         drop(b, BlobId::cell_line_first);
+         drop(b, BlobId::cell_segments);
+       }},
+      {"cell_poly_first has 2 elements for the 2 grid cells",
+       [&](std::vector<Blob>& b) {
+         for (Blob& x : b)
+           if (x.id == BlobId::cell_poly_first) {
+             x.bytes.resize(x.bytes.size() - 8);
+             x.count -= 1;
+           }
+       }},
+      {"cell_poly_holes runs from 0 to 5",
+       [&](std::vector<Blob>& b) { u32_at(b, BlobId::cell_poly_holes, 1) = 5; }},
+      {"cell_poly_entries[0].node = 6 is out of range",
+       [&](std::vector<Blob>& b) { u32_at(b, BlobId::cell_poly_entries, 1) = 6; }},
+      {"are both present",
+       [&](std::vector<Blob>& b) {
+         b.push_back({BlobId::cell_segment_range, 2, std::vector<std::byte>(16)});
+         b.push_back({BlobId::line_bvh_range, 2, std::vector<std::byte>(32)});
+       }},
+  };
+  for (const Case& c : cases) {
+    std::vector<Blob> blobs = good;
+    c.edit(blobs);
+    const decal::Status s = validate(blobs);
     EXPECT_FALSE(s) << c.expect;
     EXPECT_NE(s.message.find(c.expect), std::string::npos)
         << "expected '" << c.expect << "' in: " << s.message;

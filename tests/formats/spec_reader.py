@@ -41,8 +41,9 @@ MAGIC = bytes([0x89, 0x44, 0x43, 0x4C, 0x0D, 0x0A, 0x1A, 0x0A])  # SPEC "Magic n
 READER_MAJOR = 1
 # The newest minor version this reader knows. 1.1 gave LineProps::reserved a
 # meaning (clip_node); 1.2 changed only the meaning of the `order` fields, so
-# the layout a 1.2 reader checks is that of 1.1.
-READER_MINOR = 2
+# the layout a 1.2 reader checks is that of 1.1. 1.3 added the compact
+# blobs (SPEC "Compact layout (v1.3)").
+READER_MINOR = 3
 HEADER_SIZE_V1 = 96
 ENTRY_SIZE_V1 = 96
 ALIGN = 256
@@ -79,6 +80,7 @@ CATALOGUE = {
     4: ("line_corners", "record", 24, "LineCorner"),
     5: ("cell_segment_range", "uvec2", 8, None),
     6: ("cell_segments", "uvec2", 8, None),
+    7: ("cell_line_first", "uvec2", 8, None),
     10: ("poly_props", "record", 32, "PolyProps"),
     11: ("poly_root_node", "u32", 4, None),
     12: ("qt_node_box", "ivec4", 16, None),
@@ -93,6 +95,13 @@ CATALOGUE = {
     21: ("line_bvh_box", "ivec4", 16, None),
     22: ("poly_bvh_range", "uvec4", 16, None),
     23: ("poly_bvh_box", "ivec4", 16, None),
+    24: ("qt_leaf_loop_range", "uvec2", 8, None),
+    25: ("qt_leaf_loops", "u32", 4, None),
+    26: ("cell_poly_first", "uvec2", 8, None),
+    27: ("line_bvh_box16", "uvec2", 8, None),
+    28: ("poly_bvh_box16", "uvec2", 8, None),
+    29: ("cell_poly_entries", "uvec2", 8, None),
+    9: ("cell_poly_holes", "u32", 4, None),
     30: ("dyn_vertices", "ivec4", 16, None),
     31: ("dyn_prev_next", "ivec2", 8, None),
     32: ("dyn_line_start", "u32", 4, None),
@@ -103,6 +112,9 @@ CATALOGUE = {
     50: ("manifest_entries", "u8", 1, None),
 }
 ID_BY_NAME = {v[0]: k for k, v in CATALOGUE.items()}
+# SPEC "Blob catalogue": the ids the v1.3 layout replaced; a v1.3 writer
+# does not write them.
+SUPERSEDED = {5, 14, 15, 17, 18, 20, 21, 22, 23}
 
 # SPEC "Records": (field, struct format, components). A field of one
 # component decodes to a scalar, of more to a list.
@@ -504,7 +516,8 @@ def check_indices(p):
             errs.append("line_props[%d].half_width = %r: not in [0, 1e7)" % (i, hw))
             break
     for rng, target in (("cell_segment_range", "cell_segments"), ("qt_leaf_range", "qt_leaf_segments"),
-                        ("cell_poly_range", "cell_polys"), ("lod_line_range", "lod_segments")):
+                        ("cell_poly_range", "cell_polys"), ("lod_line_range", "lod_segments"),
+                        ("qt_leaf_loop_range", "qt_leaf_loops")):
         sums_within(rng, 2, (0, 1), cnt(target), "first + count > #%s = %d" % (target, cnt(target)))
     nh = cnt("cell_holes")
     sums_within("cell_polys", 4, (2, 3), nh, "first hole + hole count > #cell_holes = %d" % nh)
@@ -512,7 +525,16 @@ def check_indices(p):
         all_below("cell_segments", 2, k, nv, "vertex >= #line_vertices = %d" % nv)
         all_below("qt_leaf_segments", 2, k, cnt("qt_leaf_vertices"),
                   "vertex >= #qt_leaf_vertices = %d" % cnt("qt_leaf_vertices"))
-    nq, npp, nlr = cnt("qt_node"), cnt("poly_props"), cnt("qt_leaf_range")
+    # SPEC "Compact layout (v1.3)": leaf loops, their ends non-decreasing and
+    # within the leaf vertices; partial leaves then index the loop ranges.
+    loops = _flat(p, "qt_leaf_loops")
+    loop_layout = cnt("qt_leaf_loop_range") > 0 or cnt("qt_leaf_loops") > 0
+    if loop_layout and (cnt("qt_leaf_range") > 0 or cnt("qt_leaf_segments") > 0):
+        errs.append("qt_leaf_range/qt_leaf_segments and qt_leaf_loop_range/qt_leaf_loops are both present")
+    if any(b < a for a, b in zip([0] + list(loops), loops)) or (loops and max(loops) > cnt("qt_leaf_vertices")):
+        errs.append("qt_leaf_loops: ends decrease or exceed #qt_leaf_vertices = %d" % cnt("qt_leaf_vertices"))
+    nq, npp = cnt("qt_node"), cnt("poly_props")
+    nlr = cnt("qt_leaf_loop_range") if loop_layout else cnt("qt_leaf_range")
     same_count("poly_root_node", "poly_props")
     all_below("poly_root_node", 1, 0, nq, ">= #qt_node = %d" % nq)
     same_count("qt_node_box", "qt_node")
@@ -527,7 +549,14 @@ def check_indices(p):
             errs.append("qt_node[%d] = [%d, %d]: bad type, or offset out of range (#qt_node %d, #qt_leaf_range %d)"
                         % (i, t, o, nq, nlr))
             break
-    for name, n in (("cell_polys", 4), ("cell_holes", 2)):
+    entries, hf = cnt("cell_poly_entries"), list(_flat(p, "cell_poly_holes"))
+    if entries or hf:
+        if cnt("cell_polys"):
+            errs.append("cell_polys and cell_poly_entries are both present")
+        if len(hf) != entries + 1 or hf[0] != 0 or hf[-1] != nh or any(b < a for a, b in zip(hf, hf[1:])):
+            errs.append("cell_poly_holes: not %d + 1 hole firsts from 0 to #cell_holes = %d, never decreasing"
+                        % (entries, nh))
+    for name, n in (("cell_polys", 4), ("cell_holes", 2), ("cell_poly_entries", 2)):
         all_below(name, n, 0, npp, "polygon >= #poly_props = %d" % npp)
         all_below(name, n, 1, nq, "culling node >= #qt_node = %d" % nq)
     grid = p.metadata.get("grid") if isinstance(p.metadata, dict) else None
@@ -543,9 +572,32 @@ def check_indices(p):
             errs.append("grid exceeds the int32 quantum range")
     except (TypeError, KeyError, ValueError):
         pass  # no grid: the per-cell counts are checked without it
-    for rng, lst, bvh, box in (("cell_segment_range", "cell_segments", "line_bvh_range", "line_bvh_box"),
-                               ("cell_poly_range", "cell_polys", "poly_bvh_range", "poly_bvh_box")):
-        if cnt(rng) == 0 and cnt(lst) == 0 and cnt(bvh) == 0:
+    for first_name, lst, box16, old in (("cell_line_first", "cell_segments", "line_bvh_box16",
+                                         ("cell_segment_range", "line_bvh_range", "line_bvh_box")),
+                                        ("cell_poly_first", "cell_poly_entries", "poly_bvh_box16",
+                                         ("cell_poly_range", "poly_bvh_range", "poly_bvh_box"))):
+        if cnt(first_name) == 0:
+            if cnt(box16):
+                errs.append("%s present without %s" % (box16, first_name))
+            continue
+        if any(cnt(o) for o in old):
+            errs.append("%s and the v1.2 blobs %s are both present" % (first_name, "/".join(old)))
+        if cells is not None and cnt(first_name) != cells + 1:
+            errs.append("%s has %d elements for the %d grid cells" % (first_name, cnt(first_name), cells))
+        f = _flat(p, first_name)
+        xs, ys = f[0::2], f[1::2]
+        if xs[0] != 0 or ys[0] != 0 or xs[-1] != cnt(lst) or ys[-1] != cnt(box16):
+            errs.append("%s does not run from (0, 0) to (#%s, #%s)" % (first_name, lst, box16))
+        for i in range(len(xs) - 1):
+            n, d = xs[i + 1] - xs[i], ys[i + 1] - ys[i]
+            leaves = (d + 1) // 2
+            if n < 0 or d < 0 or (d != 0 if n == 0 else (d % 2 != 1 or leaves & (leaves - 1) or leaves < n)):
+                errs.append("%s[%d]: %d nodes are not a full binary tree over %d entries" % (first_name, i, d, n))
+                break
+    for rng, lst, bvh, box, first_name in (
+            ("cell_segment_range", "cell_segments", "line_bvh_range", "line_bvh_box", "cell_line_first"),
+            ("cell_poly_range", "cell_polys", "poly_bvh_range", "poly_bvh_box", "cell_poly_first")):
+        if cnt(rng) == 0 and cnt(bvh) == 0 and (cnt(lst) == 0 or cnt(first_name) > 0):
             continue
         same_count(bvh, rng)
         if cells is not None and cnt(rng) != cells:

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "decal/inspect.hpp"
+#include "decal/layout.hpp"
 #include "decal/reader.hpp"
 #include "fixtures.hpp"
 #include "prep/error.hpp"
@@ -230,29 +231,62 @@ TEST(WriteModel, EveryModelArrayBecomesItsCatalogueBlobInCatalogueOrder) {
   const auto bytes = decal_test::model_package_bytes(m, {});
   decal::Package p;
   ASSERT_TRUE(decal::Package::from_memory(bytes, p));
-  ASSERT_EQ(p.blobs().size(), std::size(decal::kBlobCatalogue));
-  for (size_t i = 0; i < p.blobs().size(); ++i)
-    EXPECT_EQ(p.blobs()[i].id, static_cast<uint32_t>(decal::kBlobCatalogue[i].id));
+  // Every catalogue blob but the v1.2 layout that v1.3 replaced.
+  std::vector<uint32_t> written;
+  for (const auto& b : decal::kBlobCatalogue)
+    if (!decal::is_superseded(b.id)) written.push_back(static_cast<uint32_t>(b.id));
+  ASSERT_EQ(p.blobs().size(), written.size());
+  for (size_t i = 0; i < p.blobs().size(); ++i) EXPECT_EQ(p.blobs()[i].id, written[i]);
   expect_blob_equals(p, BlobId::line_vertices, m.line_vertices);
   expect_blob_equals(p, BlobId::line_vertex_line, m.line_vertex_line);
   expect_blob_equals(p, BlobId::line_props, m.line_props);
   expect_blob_equals(p, BlobId::line_corners, m.line_corners);
-  expect_blob_equals(p, BlobId::cell_segment_range, m.cell_segment_range);
   expect_blob_equals(p, BlobId::cell_segments, m.cell_segments);
   expect_blob_equals(p, BlobId::poly_props, m.poly_props);
   expect_blob_equals(p, BlobId::poly_root_node, m.poly_root_node);
   expect_blob_equals(p, BlobId::qt_node_box, m.qt_node_box);
   expect_blob_equals(p, BlobId::qt_node, m.qt_node);
-  expect_blob_equals(p, BlobId::qt_leaf_range, m.qt_leaf_range);
-  expect_blob_equals(p, BlobId::qt_leaf_segments, m.qt_leaf_segments);
   expect_blob_equals(p, BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
-  expect_blob_equals(p, BlobId::cell_poly_range, m.cell_poly_range);
-  expect_blob_equals(p, BlobId::cell_polys, m.cell_polys);
   expect_blob_equals(p, BlobId::cell_holes, m.cell_holes);
-  expect_blob_equals(p, BlobId::line_bvh_range, m.line_bvh_range);
-  expect_blob_equals(p, BlobId::line_bvh_box, m.line_bvh_box);
-  expect_blob_equals(p, BlobId::poly_bvh_range, m.poly_bvh_range);
-  expect_blob_equals(p, BlobId::poly_bvh_box, m.poly_bvh_box);
+  // The v1.3 blobs decode to the model's v1.2 arrays (decal/layout.hpp).
+  namespace L = decal::layout;
+  std::vector<L::u2> range, leaf_range, leaf_segments;
+  std::vector<L::u4> bvh;
+  L::decode_cells(p.array<L::u2>(BlobId::cell_line_first), range, bvh);
+  EXPECT_EQ(range, m.cell_segment_range);
+  EXPECT_EQ(bvh, m.line_bvh_range);
+  L::decode_cells(p.array<L::u2>(BlobId::cell_poly_first), range, bvh);
+  EXPECT_EQ(range, m.cell_poly_range);
+  EXPECT_EQ(bvh, m.poly_bvh_range);
+  std::vector<L::u4> cell_polys;
+  L::decode_poly_entries(p.array<L::u2>(BlobId::cell_poly_entries),
+                         p.array<uint32_t>(BlobId::cell_poly_holes), cell_polys);
+  EXPECT_EQ(cell_polys, m.cell_polys);
+  L::decode_leaves(p.array<L::u2>(BlobId::qt_leaf_loop_range),
+                   p.array<uint32_t>(BlobId::qt_leaf_loops), leaf_range, leaf_segments);
+  EXPECT_EQ(leaf_range, m.qt_leaf_range);
+  EXPECT_EQ(leaf_segments, m.qt_leaf_segments);
+  const L::CellGrid cg{m.grid.origin_x, m.grid.origin_y, m.grid.cell_w, m.grid.cell_h, m.grid.nx};
+  ASSERT_EQ(L::box16_shift(m.grid.cell_w, m.grid.cell_h), 0u);
+  const auto first = p.array<L::u2>(BlobId::cell_line_first);
+  const auto boxes = L::decode_boxes16(first, p.array<L::u2>(BlobId::line_bvh_box16), cg);
+  ASSERT_EQ(boxes.size(), m.line_bvh_box.size());
+  for (size_t c = 0; c + 1 < first.size(); ++c)
+    for (uint32_t i = first[c][1]; i < first[c + 1][1]; ++i) {
+      // The model's box clipped to the cell grown by one quantum.
+      const int64_t cx = m.grid.origin_x + int64_t(c % m.grid.nx) * m.grid.cell_w - 1,
+                    cy = m.grid.origin_y + int64_t(c / m.grid.nx) * m.grid.cell_h - 1;
+      const auto& b = m.line_bvh_box[i];
+      if (b[0] > b[2]) {
+        EXPECT_GT(boxes[i][0], boxes[i][2]);
+        continue;
+      }
+      const std::array<int32_t, 4> want{int32_t(std::max<int64_t>(b[0], cx)),
+                                        int32_t(std::max<int64_t>(b[1], cy)),
+                                        int32_t(std::min<int64_t>(b[2], cx + m.grid.cell_w + 2)),
+                                        int32_t(std::min<int64_t>(b[3], cy + m.grid.cell_h + 2))};
+      EXPECT_EQ(boxes[i], want) << "node " << i << " of cell " << c;
+    }
   expect_blob_equals(p, BlobId::dyn_vertices, m.dyn_vertices);
   expect_blob_equals(p, BlobId::dyn_prev_next, m.dyn_prev_next);
   expect_blob_equals(p, BlobId::dyn_line_start, m.dyn_line_start);
@@ -267,7 +301,8 @@ TEST(WriteModel, EmptyModelStillListsEveryBlob) {
   const auto bytes = decal_test::model_package_bytes(prep::DecalModel{}, {});
   decal::Package p;
   ASSERT_TRUE(decal::Package::from_memory(bytes, p));
-  ASSERT_EQ(p.blobs().size(), std::size(decal::kBlobCatalogue));
+  ASSERT_EQ(p.blobs().size(),
+            std::size(decal::kBlobCatalogue) - std::size(decal::kSupersededBlobs));
   for (const auto& b : p.blobs()) {
     if (b.id == static_cast<uint32_t>(decal::BlobId::manifest_entries)) {
       // An empty manifest is still a JSON array.

@@ -20,31 +20,59 @@
 #define DECAL_QUADTREE 1
 DECAL_BLOB(1, isamplerBuffer, qt_node_box, ivec4)
 DECAL_BLOB(2, isamplerBuffer, qt_node, ivec2)
-DECAL_BLOB(3, usamplerBuffer, qt_leaf_range, uvec2)
-DECAL_BLOB(4, usamplerBuffer, qt_leaf_segments, uvec2)
+DECAL_BLOB(3, usamplerBuffer, qt_leaf_loop_range, uvec2)
+DECAL_BLOB(4, usamplerBuffer, qt_leaf_loops, uint)
 DECAL_BLOB(5, isamplerBuffer, qt_leaf_vertices, ivec2)
 DECAL_FETCH(ivec4, qt_node_box, qt_node_box, .xyzw)
 DECAL_FETCH(ivec2, qt_node, qt_node, .xy)
-DECAL_FETCH(uvec2, qt_leaf_range, qt_leaf_range, .xy)
-DECAL_FETCH(uvec2, qt_leaf_segment, qt_leaf_segments, .xy)
+DECAL_FETCH(uvec2, qt_leaf_loop_range, qt_leaf_loop_range, .xy)
+DECAL_FETCH(uint, qt_leaf_loop_end, qt_leaf_loops, .x)
 DECAL_FETCH(ivec2, qt_leaf_vertex, qt_leaf_vertices, .xy)
+// v1.3 leaf loops (SPEC.md "Compact layout (v1.3)"): loop l holds vertices
+// [qt_leaf_loop_start(l), qt_leaf_loop_end(l)), edges v -> v + 1 and the
+// last back to the first.
+uint qt_leaf_loop_start(uint l) { return l == 0u ? 0u : qt_leaf_loop_end(l - 1u); }
+// v1.3 cell-relative u16 BVH boxes (SPEC.md "Compact layout (v1.3)",
+// decal/layout.hpp): base.xy is the cell's base corner in quanta (its
+// lower-left corner minus one step), base.z the step shift. Returns the box
+// in quanta; an empty node gives xmin > xmax.
+ivec4 bvh_box16(uvec2 b, ivec3 base) {
+  uvec4 u = uvec4(b.x & 0xffffu, b.x >> 16, b.y & 0xffffu, b.y >> 16);
+  if (u.x > u.z || u.y > u.w) return ivec4(1, 1, 0, 0);
+  return base.xyxy + (ivec4(u) << base.z);
+}
 #endif  // DECAL_POLYGONS || DECAL_LINES
 
 #ifdef DECAL_POLYGONS
 struct PolyProps { uint rgba; uint order; int exterior; float value; uint layer; uint feature; uint r0; uint r1; };
 DECAL_BLOB(0, usamplerBuffer, poly_props, PolyProps)
-DECAL_BLOB(6, usamplerBuffer, cell_poly_range, uvec2)
-DECAL_BLOB(7, usamplerBuffer, cell_polys, uvec4)
+DECAL_BLOB(6, usamplerBuffer, cell_poly_first, uvec2)
+DECAL_BLOB(7, usamplerBuffer, cell_poly_entries, uvec2)
+DECAL_BLOB(9, usamplerBuffer, cell_poly_holes, uint)
 DECAL_BLOB(8, usamplerBuffer, cell_holes, uvec2)
-DECAL_BLOB(9, usamplerBuffer, poly_bvh_range, uvec4)
-DECAL_BLOB(10, isamplerBuffer, poly_bvh_box, ivec4)
+DECAL_BLOB(10, usamplerBuffer, poly_bvh_box16, uvec2)
 DECAL_BLOB(23, usamplerBuffer, poly_root_node, uint)
-DECAL_FETCH(uvec2, cell_poly_range, cell_poly_range, .xy)
-DECAL_FETCH(uvec4, cell_poly, cell_polys, .xyzw)
+DECAL_FETCH(uvec2, cell_poly_first, cell_poly_first, .xy)
+DECAL_FETCH(uvec2, cell_poly_entry, cell_poly_entries, .xy)
+DECAL_FETCH(uint, cell_poly_hole_first, cell_poly_holes, .x)
+// (polygon, culling node, first hole, hole count) of entry i (v1.3:
+// SPEC.md "Compact layout (v1.3)")
+uvec4 cell_poly(uint i) {
+  uint h = cell_poly_hole_first(i);
+  return uvec4(cell_poly_entry(i), h, cell_poly_hole_first(i + 1u) - h);
+}
 DECAL_FETCH(uvec2, cell_hole, cell_holes, .xy)
-DECAL_FETCH(uvec4, poly_bvh_range, poly_bvh_range, .xyzw)
-DECAL_FETCH(ivec4, poly_bvh_box, poly_bvh_box, .xyzw)
+DECAL_FETCH(uvec2, poly_bvh_box16, poly_bvh_box16, .xy)
+ivec4 poly_bvh_box(uint i, ivec3 base) { return bvh_box16(poly_bvh_box16(i), base); }
 DECAL_FETCH(uint, poly_root, poly_root_node, .x)
+// v1.3 per-cell firsts (SPEC.md "Compact layout (v1.3)"): the cell's
+// (first, count) into cell_polys and (first node, leaf slots, internal
+// nodes, 0) of its BVH in poly_bvh_box.
+uvec2 cell_poly_range(uint c) { return uvec2(cell_poly_first(c).x, cell_poly_first(c + 1u).x - cell_poly_first(c).x); }
+uvec4 poly_bvh_range(uint c) {
+  uint f = cell_poly_first(c).y, p = (cell_poly_first(c + 1u).y - f + 1u) >> 1;
+  return uvec4(f, p, p > 0u ? p - 1u : 0u, 0u);
+}
 #ifdef DECAL_TEXTURE
 uint  poly_rgba(uint i)         { return texelFetch(t_poly_props, int(2u * i)).x; }
 uint  poly_order(uint i)        { return texelFetch(t_poly_props, int(2u * i)).y; }
@@ -61,16 +89,21 @@ DECAL_BLOB(11, isamplerBuffer, line_vertices, ivec2)
 DECAL_BLOB(12, usamplerBuffer, line_vertex_line, uint)
 DECAL_BLOB(13, usamplerBuffer, line_props, LineProps)
 DECAL_BLOB(14, samplerBuffer, line_corners, LineCorner)
-DECAL_BLOB(15, usamplerBuffer, cell_segment_range, uvec2)
+DECAL_BLOB(15, usamplerBuffer, cell_line_first, uvec2)
 DECAL_BLOB(16, usamplerBuffer, cell_segments, uvec2)
-DECAL_BLOB(17, usamplerBuffer, line_bvh_range, uvec4)
-DECAL_BLOB(18, isamplerBuffer, line_bvh_box, ivec4)
+DECAL_BLOB(18, usamplerBuffer, line_bvh_box16, uvec2)
 DECAL_FETCH(ivec2, line_vertex, line_vertices, .xy)
 DECAL_FETCH(uint, line_of_vertex, line_vertex_line, .x)
-DECAL_FETCH(uvec2, cell_segment_range, cell_segment_range, .xy)
+DECAL_FETCH(uvec2, cell_line_first, cell_line_first, .xy)
 DECAL_FETCH(uvec2, cell_segment, cell_segments, .xy)
-DECAL_FETCH(uvec4, line_bvh_range, line_bvh_range, .xyzw)
-DECAL_FETCH(ivec4, line_bvh_box, line_bvh_box, .xyzw)
+DECAL_FETCH(uvec2, line_bvh_box16, line_bvh_box16, .xy)
+ivec4 line_bvh_box(uint i, ivec3 base) { return bvh_box16(line_bvh_box16(i), base); }
+// v1.3 per-cell firsts, as for polygons.
+uvec2 cell_segment_range(uint c) { return uvec2(cell_line_first(c).x, cell_line_first(c + 1u).x - cell_line_first(c).x); }
+uvec4 line_bvh_range(uint c) {
+  uint f = cell_line_first(c).y, p = (cell_line_first(c + 1u).y - f + 1u) >> 1;
+  return uvec4(f, p, p > 0u ? p - 1u : 0u, 0u);
+}
 #ifdef DECAL_TEXTURE
 // (half_width, rgba, order, style) of a line
 uvec4 line_props(uint l)         { return texelFetch(t_line_props, int(2u * l)); }

@@ -18,6 +18,9 @@ uniform ivec2 u_anchor_cell;      // grid cell holding the anchor
 uniform vec2 u_anchor_in_cell;    // anchor minus that cell's lower-left corner, metres
 uniform vec2 u_cell_size;         // metres
 uniform ivec2 u_grid_n;           // nx, ny
+uniform ivec2 u_grid_origin_q;    // grid lower-left corner, quanta from the package origin
+uniform ivec2 u_cell_q;           // cell size, quanta
+uniform int u_box16_shift;        // step shift of the u16 BVH boxes (decal::layout::box16_shift)
 uniform vec4 u_clip;              // decals only in [x, z) x [y, w), anchor-relative metres (a tileset's tile)
 
 // Anti-aliasing: the pixel's footprint in metres at a point (the scale of
@@ -54,6 +57,13 @@ int cell_of(vec2 p) {
   return g.x + u_grid_n.x * g.y;
 }
 
+// Base corner of a cell's u16 BVH boxes (decal/layout.hpp): its lower-left
+// corner minus one step, in quanta; z: the step shift.
+ivec3 cell_box_base(int cell) {
+  ivec2 g = ivec2(cell % u_grid_n.x, cell / u_grid_n.x);
+  return ivec3(u_grid_origin_q + g * u_cell_q - (1 << u_box16_shift), u_box16_shift);
+}
+
 bool box_contains(ivec4 b, vec2 p) {
   if (b.x > b.z) return false;  // empty BVH node
   vec2 lo = rel(b.xy), hi = rel(b.zw);
@@ -81,16 +91,19 @@ bool qt_contains(uint node, vec2 p) {
     if (n.x == 1) return false;  // fully outside
     if (n.x == 2) return true;   // fully inside
     // partial leaf: even-odd rule over the leaf polygon (closing segments included)
-    uvec2 r = qt_leaf_range(uint(n.y));
+    uvec2 r = qt_leaf_loop_range(uint(n.y));
     bool inside = false;
-    for (uint s = r.x; s < r.x + r.y; ++s) {
-      uvec2 e = qt_leaf_segment(s);
-      // Step 8 of the query block: A, B relative to the point; the sign of
-      // cross(H - L, -L) decides the crossing exactly as the evaluator does.
-      vec2 A = rel(qt_leaf_vertex(e.x)) - p, B = rel(qt_leaf_vertex(e.y)) - p;
-      if ((A.y > 0.0) == (B.y > 0.0)) continue;
-      vec2 L = A.y > 0.0 ? B : A, H = A.y > 0.0 ? A : B;
-      if ((H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0.0) inside = !inside;
+    for (uint l = r.x; l < r.x + r.y; ++l) {
+      uint s0 = qt_leaf_loop_start(l), s1 = qt_leaf_loop_end(l);
+      for (uint s = s0; s < s1; ++s) {
+        uvec2 e = uvec2(s, s + 1u < s1 ? s + 1u : s0);
+        // Step 8 of the query block: A, B relative to the point; the sign of
+        // cross(H - L, -L) decides the crossing exactly as the evaluator does.
+        vec2 A = rel(qt_leaf_vertex(e.x)) - p, B = rel(qt_leaf_vertex(e.y)) - p;
+        if ((A.y > 0.0) == (B.y > 0.0)) continue;
+        vec2 L = A.y > 0.0 ? B : A, H = A.y > 0.0 ? A : B;
+        if ((H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0.0) inside = !inside;
+      }
     }
     return inside;
   }

@@ -134,6 +134,7 @@ void main() {
   if (cell < 0) discard;
   uvec2 range = cell_segment_range(uint(cell));
   uvec4 bvh = line_bvh_range(uint(cell));
+  ivec3 box_base = cell_box_base(cell);
   vec4 acc = vec4(0.0);
   uint last_line = 0xffffffffu;
 #ifdef DECAL_AA_COVERAGE
@@ -150,7 +151,7 @@ void main() {
     uint internal = bvh.z;
     uint i = 0u;
     do {
-      if (box_near(line_bvh_box(bvh.x + i), p.xy, margin)) {
+      if (box_near(line_bvh_box(bvh.x + i, box_base), p.xy, margin)) {
         if (i < internal) { i = 2u * i + 1u; continue; }
         uint k = i - internal;  // leaf k = the cell's k-th segment in drawing order
         if (k < range.y) {

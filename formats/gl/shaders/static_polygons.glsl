@@ -66,11 +66,13 @@ float qt_coverage(uint poly, uint node, vec2 p, float wpix) {
     if (n.x == 1) return 0.0;
     if (n.x == 2) return clamp(0.5 + sd_box / wpix, 0.0, 1.0);
     ivec4 lb = qt_node_box(node);
-    uvec2 r = qt_leaf_range(uint(n.y));
+    uvec2 r = qt_leaf_loop_range(uint(n.y));
     bool inside = false;
     float dist = 1e30;
-    for (uint s = r.x; s < r.x + r.y; ++s) {
-      uvec2 e = qt_leaf_segment(s);
+    for (uint l = r.x; l < r.x + r.y; ++l) {
+     uint s0 = qt_leaf_loop_start(l), s1 = qt_leaf_loop_end(l);
+     for (uint s = s0; s < s1; ++s) {
+      uvec2 e = uvec2(s, s + 1u < s1 ? s + 1u : s0);
       ivec2 ua = qt_leaf_vertex(e.x), ub = qt_leaf_vertex(e.y);
       vec2 A = rel(ua) - p, B = rel(ub) - p;
       if ((A.y > 0.0) != (B.y > 0.0)) {
@@ -83,6 +85,7 @@ float qt_coverage(uint poly, uint node, vec2 p, float wpix) {
       vec2 ab = B - A;
       float t = clamp(dot(-A, ab) / max(dot(ab, ab), 1e-20), 0.0, 1.0);
       dist = min(dist, length(A + t * ab));
+     }
     }
     float sd = min(inside ? dist : -dist, sd_box);
     return clamp(0.5 + sd / wpix, 0.0, 1.0);
@@ -108,6 +111,7 @@ void main() {
   if (cell < 0) discard;
   uvec2 range = cell_poly_range(uint(cell));
   uvec4 bvh = poly_bvh_range(uint(cell));
+  ivec3 box_base = cell_box_base(cell);
   vec4 acc = vec4(0.0);
 #ifdef DECAL_AA_COVERAGE
   float wpix = pixel_metres(p);
@@ -119,7 +123,7 @@ void main() {
     uint internal = bvh.z;
     uint i = 0u;
     do {
-      if (box_near(poly_bvh_box(bvh.x + i), p.xy, margin)) {
+      if (box_near(poly_bvh_box(bvh.x + i, box_base), p.xy, margin)) {
         if (i < internal) { i = 2u * i + 1u; continue; }
         uint k = i - internal;  // leaf k = the cell's k-th polygon in drawing order
         if (k < range.y) {

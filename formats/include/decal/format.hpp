@@ -74,6 +74,8 @@ enum class BlobId : uint32_t {
   cell_segment_range = 5,  // uvec2  per cell: (first, count) into cell_segments
   cell_segments = 6,       // uvec2  per (cell, segment): (start vertex, end vertex),
                            //        sorted by the line's drawing order, then segment
+  cell_line_first = 7,     // uvec2  v1.3, per cell plus one: (first entry in cell_segments,
+                           //        first node in line_bvh_box16); replaces ids 5 and 20
   // --- static polygons (thesis §4.2.1 "Polygon Quad-Trees") ---
   poly_props = 10,        // record PolyProps per polygon (exterior and interior)
   poly_root_node = 11,    // u32    per polygon: index of its root quad-tree node
@@ -89,6 +91,17 @@ enum class BlobId : uint32_t {
   cell_polys = 18,        // uvec4  per (cell, exterior polygon): (polygon, culling node,
                           //        first hole entry, hole count) — holes index cell_holes
   cell_holes = 19,        // uvec2  per (cell, interior polygon): (polygon, culling node)
+  // --- v1.3 compact layout (SPEC.md "Compact layout (v1.3)"; decal/layout.hpp) ---
+  qt_leaf_loop_range = 24,  // uvec2  per partial leaf: (first, count) into qt_leaf_loops
+  qt_leaf_loops = 25,       // u32    per leaf loop: one past its last vertex in qt_leaf_vertices;
+                            //        it starts where the previous loop ends (replaces 14, 15)
+  cell_poly_first = 26,  // uvec2  per cell plus one: (first entry in cell_poly_entries, first node
+                         //        in poly_bvh_box16); replaces ids 17 and 22
+  line_bvh_box16 = 27,   // uvec2  per line-BVH node: cell-relative u16 box (replaces 21)
+  poly_bvh_box16 = 28,   // uvec2  per polygon-BVH node: as line_bvh_box16 (replaces 23)
+  cell_poly_entries = 29,  // uvec2  per (cell, exterior polygon): (polygon, culling node)
+  cell_poly_holes = 9,     // u32    per cell_poly_entries entry plus one: first entry in
+                           //        cell_holes (29 and 9 replace 18)
   // --- per-cell BVHs (thesis §4.2.1 "Bounding Volume Hierarchies") ---
   line_bvh_range = 20,  // uvec4  per cell: (first node, leaf slots, internal nodes, 0)
   line_bvh_box = 21,    // ivec4  per node: box in quanta; empty node: xmin > xmax
@@ -268,6 +281,7 @@ inline constexpr BlobInfo kBlobCatalogue[] = {
     {BlobId::line_corners, "line_corners", ElementType::record, sizeof(LineCorner)},
     {BlobId::cell_segment_range, "cell_segment_range", ElementType::uvec2, 8},
     {BlobId::cell_segments, "cell_segments", ElementType::uvec2, 8},
+    {BlobId::cell_line_first, "cell_line_first", ElementType::uvec2, 8},
     {BlobId::poly_props, "poly_props", ElementType::record, sizeof(PolyProps)},
     {BlobId::poly_root_node, "poly_root_node", ElementType::u32, 4},
     {BlobId::qt_node_box, "qt_node_box", ElementType::ivec4, 16},
@@ -282,6 +296,13 @@ inline constexpr BlobInfo kBlobCatalogue[] = {
     {BlobId::line_bvh_box, "line_bvh_box", ElementType::ivec4, 16},
     {BlobId::poly_bvh_range, "poly_bvh_range", ElementType::uvec4, 16},
     {BlobId::poly_bvh_box, "poly_bvh_box", ElementType::ivec4, 16},
+    {BlobId::qt_leaf_loop_range, "qt_leaf_loop_range", ElementType::uvec2, 8},
+    {BlobId::qt_leaf_loops, "qt_leaf_loops", ElementType::u32, 4},
+    {BlobId::cell_poly_first, "cell_poly_first", ElementType::uvec2, 8},
+    {BlobId::line_bvh_box16, "line_bvh_box16", ElementType::uvec2, 8},
+    {BlobId::poly_bvh_box16, "poly_bvh_box16", ElementType::uvec2, 8},
+    {BlobId::cell_poly_entries, "cell_poly_entries", ElementType::uvec2, 8},
+    {BlobId::cell_poly_holes, "cell_poly_holes", ElementType::u32, 4},
     {BlobId::dyn_vertices, "dyn_vertices", ElementType::ivec4, 16},
     {BlobId::dyn_prev_next, "dyn_prev_next", ElementType::ivec2, 8},
     {BlobId::dyn_line_start, "dyn_line_start", ElementType::u32, 4},
@@ -291,6 +312,19 @@ inline constexpr BlobInfo kBlobCatalogue[] = {
     {BlobId::lod_line_range, "lod_line_range", ElementType::uvec2, 8},
     {BlobId::manifest_entries, "manifest_entries", ElementType::u8, 1},
 };
+
+// Blobs of the v1.0–1.2 layout that v1.3 replaced (SPEC.md "Compact layout
+// (v1.3)"): readers still read them in older files; writers of v1.3 do not
+// write them.
+inline constexpr BlobId kSupersededBlobs[] = {
+    BlobId::cell_segment_range, BlobId::qt_leaf_range,  BlobId::qt_leaf_segments,
+    BlobId::cell_poly_range,    BlobId::line_bvh_range, BlobId::line_bvh_box,
+    BlobId::poly_bvh_range,     BlobId::poly_bvh_box,   BlobId::cell_polys};
+constexpr bool is_superseded(BlobId id) {
+  for (BlobId s : kSupersededBlobs)
+    if (s == id) return true;
+  return false;
+}
 
 // Returns the catalogue row of `id`, or nullptr for an id this build does not
 // know (readers must skip such blobs).
@@ -319,7 +353,7 @@ inline constexpr unsigned char kMagic[8] = {0x89, 'D', 'C', 'L', '\r', '\n', 0x1
 // version other than its own, naming the version; it reads any minor
 // version of its major (newer minors only add optional things).
 inline constexpr uint16_t kVersionMajor = 1;
-inline constexpr uint16_t kVersionMinor = 2;
+inline constexpr uint16_t kVersionMinor = 3;
 
 // Flags. Bits 0-15 are "required": a reader rejects a file with a required
 // bit it does not know. Bits 16-31 are "optional": unknown ones are ignored.

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -42,6 +43,9 @@ struct StaticView {
   // for format 1.2 and later (one rank space), the number of lines for older
   // packages (every line over every polygon).
   uint64_t polygon_rank_bias = 0;
+  // Arrays the view owns: a v1.3 package's compact blobs decoded into the
+  // ranges and leaf segments above (package_view.cpp).
+  std::shared_ptr<const void> storage;
 };
 
 // StaticView's blobs as X(element type, name). Each name is a StaticView

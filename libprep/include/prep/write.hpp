@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 
@@ -35,7 +36,8 @@ struct BlobInput {
   decal::ElementType type;
   uint32_t stride;
   uint64_t count;
-  std::span<const std::byte> bytes;  // count * stride
+  std::span<const std::byte> bytes;   // count * stride
+  std::shared_ptr<const void> owner;  // keeps `bytes` alive when the blob owns them
 };
 
 // Writes a package atomically: temp file in the target directory, fsync,
@@ -47,8 +49,11 @@ struct BlobInput {
 void write_package(const std::string& path, const std::string& metadata_json,
                    std::span<const BlobInput> blobs, const WriteOptions& options = {});
 
-// The blob list of a model, in catalogue order; empty arrays are included
-// as empty blobs only when `include_empty`.
+// The blob list of a model, in catalogue order, in the layout of the current
+// format version: the model's per-cell ranges and leaf segments (the v1.2
+// layout the model and the evaluator work in) encoded as the v1.3 blobs
+// (decal/layout.hpp), which own their bytes; superseded ids are not listed.
+// Empty arrays are included as empty blobs only when `include_empty`.
 std::vector<BlobInput> model_blobs(const DecalModel& model, bool include_empty = false);
 
 // Writes a model with its metadata chunk. `extra_metadata_json` is an object
