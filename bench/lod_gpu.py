@@ -13,8 +13,8 @@ perspective at three zooms (near: Vaduz from 560 m; middle: Vaduz from
 and `--lod on` (0.5 px), alternating off and on --repeats times, each a
 render of --frames frames (the last one's pass times count: warm).
 
-Per render (one CSV row): segments drawn (`dynamic lines: ... segments
-drawn`), the LOD counts (selected, drawn, full detail), the GL timestamp
+Per render (one CSV row): segments drawn and linked-list nodes (fragments
+pushed: `dynamic lines: ...`), the LOD counts (selected, drawn, full detail), the GL timestamp
 time of each dynamic-line pass of the last frame (update, LOD selection,
 lists, composite) and their sum (dyn_ms), and the frame's pass sum
 (frame_ms: terrain, the dynamic passes, composite). Writes lod_gpu.csv (the
@@ -65,16 +65,17 @@ def parse(out):
             for prefix, key in PASSES.items():
                 if m.group(1).startswith(prefix):
                     row[key] = float(m.group(2))
-        m = re.search(r"dynamic lines: (\d+) vertices kept, (\d+) segments drawn", line)
+        m = re.search(r"dynamic lines: (\d+) vertices kept, (\d+) segments drawn, (\d+) list nodes",
+                      line)
         if m:
-            row["segments_drawn"] = int(m.group(2))
+            row["segments_drawn"], row["list_nodes"] = int(m.group(2)), int(m.group(3))
         m = re.search(
             r"lod: on, .*?: (\d+) LOD segments drawn of (\d+) full-detail .*?; (\d+) selected", line
         )
         if m:
             row["lod_drawn"], row["lod_full"], row["lod_selected"] = map(int, m.groups())
-    row["dyn_ms"] = sum(row[v] for v in PASSES.values())
-    row["frame_ms"] = frame
+    row["dyn_ms"] = round(sum(row[v] for v in PASSES.values()), 3)
+    row["frame_ms"] = round(frame, 3)
     return row
 
 
@@ -124,8 +125,8 @@ def main():
                       f"dynamic {row['dyn_ms']:.1f} ms, frame {row['frame_ms']:.1f} ms",
                       flush=True)
     load1 = os.getloadavg()
-    fields = ["view", "lod", "repeat", "size", "segments_drawn", "lod_selected", "lod_drawn",
-              "lod_full", "update_ms", "lod_ms", "lists_ms", "composite_ms", "dyn_ms", "frame_ms"]
+    fields = ["view", "lod", "repeat", "size", "segments_drawn", "list_nodes", "lod_selected",
+              "lod_drawn", "lod_full", "update_ms", "lod_ms", "lists_ms", "composite_ms", "dyn_ms", "frame_ms"]
     path = os.path.join(a.out, "lod_gpu.csv")
     with open(path, "w", newline="") as f:
         f.write(f"# load average before {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}\n")
@@ -135,9 +136,9 @@ def main():
             w.writerow(r)
         f.write(f"# load average after {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}\n")
     print(f"wrote {path}\n")
-    print("| view | segments drawn, off | on (selected) | on/off | dynamic ms, off | on "
-          "(of which LOD) | on/off | frame ms, off | on | on/off |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| view | segments drawn, off | on (selected) | on/off | list nodes, off | on | "
+          "dynamic ms, off | on (of which LOD) | on/off | frame ms, off | on | on/off |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 
     def med(view, lod, key):
         return statistics.median(r.get(key, 0) for r in rows if r["view"] == view and r["lod"] == lod)
@@ -147,7 +148,9 @@ def main():
         sel = med(name, "on", "lod_selected")
         d0, d1, dl = med(name, "off", "dyn_ms"), med(name, "on", "dyn_ms"), med(name, "on", "lod_ms")
         f0, f1 = med(name, "off", "frame_ms"), med(name, "on", "frame_ms")
-        print(f"| {name} | {s0:.0f} | {s1:.0f} ({sel:.0f}) | {s1 / s0:.2f} | {d0:.1f} | "
+        n0, n1 = med(name, "off", "list_nodes"), med(name, "on", "list_nodes")
+        print(f"| {name} | {s0:.0f} | {s1:.0f} ({sel:.0f}) | {s1 / s0:.2f} | {n0:.0f} | {n1:.0f} | "
+              f"{d0:.1f} | "
               f"{d1:.1f} ({dl:.1f}) | {d1 / d0:.2f} | {f0:.1f} | {f1:.1f} | {f1 / f0:.2f} |")
     return 0
 

@@ -279,7 +279,9 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain,
 // prep::evaluate per pixel. Dynamic lines are drawn at each pixel's ground
 // point by the rules of the GL pass (detail/dynamic_cpu.hpp: vertices kept,
 // segments, corners at the pixel's scale, every covering line composited in
-// drawing order) into Image::dynamic, and composited over the decals.
+// drawing order; with RenderOptions::lod, the LOD lines from the segments
+// prep::visible_segments selects for lod_view, the GL pass's selection)
+// into Image::dynamic, and composited over the decals.
 // Thread-safe.
 Image render_cpu(const DecalSource& source, const Heightfield& terrain,
                  const RenderOptions& options);
