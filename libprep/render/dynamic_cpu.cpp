@@ -8,6 +8,24 @@
 #include <utility>
 
 #include "decal/format.hpp"
+#include "lod/lod.hpp"
+
+namespace prep::render {
+
+LodView lod_view(const Camera& cam, uint32_t H, double zmin, double zmax, double tolerance_px) {
+  LodView v;
+  if (cam.projection == Projection::orthographic) {
+    v.base = tolerance_px * cam.ortho_h / H;
+    return v;
+  }
+  v.cx = cam.eye[0];
+  v.cy = cam.eye[1];
+  v.cz = cam.eye[2] > zmax ? cam.eye[2] - zmax : (cam.eye[2] < zmin ? zmin - cam.eye[2] : 0.0);
+  v.slope = tolerance_px * 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H;
+  return v;
+}
+
+}  // namespace prep::render
 
 namespace prep::render::detail {
 
@@ -69,8 +87,64 @@ uint32_t outcode(const std::array<double, 4>& c) {
 
 }  // namespace
 
+// The lod_*.comp.glsl passes in double precision: the LOD lines' vertices
+// leave the vertex chains (lod_mask), the visible segments
+// (prep::visible_segments, lod_select) link their neighbours, and each one
+// not outside a frustum plane becomes a segment between its points'
+// dynamic vertices (lod_segments).
+void DynamicLinesCpu::add_lod_segments(const DecalSource& source, const DynamicLod& lod,
+                                       const Camera& cam, uint32_t H,
+                                       const std::vector<std::array<int32_t, 4>>& verts,
+                                       const std::vector<uint32_t>& codes,
+                                       std::vector<char>& keep) {
+  const auto points = blob<decal::LodPoint>(source, decal::BlobId::lod_points);
+  const auto segs = blob<decal::LodSegment>(source, decal::BlobId::lod_segments);
+  if (!lod.on || points.empty() || segs.empty()) return;
+  const LodDrawMap map =
+      lod_draw_map(points, segs, blob<uvec2>(source, decal::BlobId::lod_line_range), verts,
+                   blob<uint32_t>(source, decal::BlobId::dyn_line_start),
+                   blob<std::array<int32_t, 2>>(source, decal::BlobId::dyn_prev_next));
+  for (size_t v = 0; v < verts.size(); ++v) {
+    const auto line = size_t(verts[v][3]);
+    if (line < map.line_drawn.size() && map.line_drawn[line]) keep[v] = 0;
+  }
+  const LodView lv = lod_view(cam, H, lod.zmin, lod.zmax, lod.tolerance_px);
+  const std::vector<uint32_t> visible = visible_segments(
+      points, segs, LodCamera{lv.cx, lv.cy, lv.cz}, LinearThreshold{lv.base, lv.slope});
+  constexpr uint32_t kNone = decal::kLodNone;
+  std::vector<uint32_t> prev_of(points.size(), kNone), next_of(points.size(), kNone);
+  for (uint32_t s : visible) {
+    next_of[segs[s].a] = segs[s].b;
+    prev_of[segs[s].b] = segs[s].a;
+  }
+  auto plan = [&](uint32_t v) {
+    return P2{verts[v][0] * decal::kQuantumMetres, verts[v][1] * decal::kQuantumMetres};
+  };
+  uint64_t drawn = 0;
+  for (uint32_t s : visible) {
+    const uint32_t a = segs[s].a, b = segs[s].b;
+    const uint32_t va = map.vertex[a], vb = map.vertex[b];
+    if (va == kNone || vb == kNone) continue;
+    if ((codes[va] & codes[vb] & 31u) != 0) continue;  // both outside one plane
+    const uint32_t ea = map.end[a], eb = map.end[b];
+    const uint32_t pa = ea == kNone ? prev_of[a] : (ea == a ? kNone : prev_of[ea]);
+    const uint32_t nb = eb == kNone ? next_of[b] : (eb == b ? kNone : next_of[eb]);
+    Segment seg;
+    seg.a = plan(va);
+    seg.b = plan(vb);
+    seg.has_prev = va != vb && pa != kNone && map.vertex[pa] != kNone;
+    seg.has_next = va != vb && nb != kNone && map.vertex[nb] != kNone;
+    seg.prev = seg.has_prev ? plan(map.vertex[pa]) : seg.a;
+    seg.next = seg.has_next ? plan(map.vertex[nb]) : seg.b;
+    seg.line = uint32_t(verts[va][3]);
+    segments_.push_back(seg);
+    ++drawn;
+  }
+  lod_counts_ = {map.lines, visible.size(), drawn, map.original_segments};
+}
+
 DynamicLinesCpu::DynamicLinesCpu(const DecalSource& source, const Camera& cam, uint32_t W,
-                                 uint32_t H) {
+                                 uint32_t H, const DynamicLod& lod) {
   const auto verts = blob<std::array<int32_t, 4>>(source, decal::BlobId::dyn_vertices);
   const auto pn = blob<std::array<int32_t, 2>>(source, decal::BlobId::dyn_prev_next);
   const auto starts = blob<uint32_t>(source, decal::BlobId::dyn_line_start);
@@ -118,6 +192,7 @@ DynamicLinesCpu::DynamicLinesCpu(const DecalSource& source, const Camera& cam, u
     }
     keep[v] = k;
   }
+  add_lod_segments(source, lod, cam, H, verts, codes, keep);
   // dyn_segments: per line, consecutive kept vertices (closed lines wrap).
   for (size_t line = 0; line < starts.size() && line < props_.size(); ++line) {
     const size_t first = starts[line],

@@ -7,15 +7,78 @@
 #include <string>
 
 #include "detail/gl_render.hpp"
+#include "lod/lod.hpp"
 
 namespace prep::render::detail {
 
+// A package's LOD data on the GPU (lod_common.glsl): its lod_points and
+// lod_segments, the map of prep::lod_draw_map and the lines it draws.
+struct LodBuffers {
+  const DecalSource* source = nullptr;
+  GLuint points = 0, segments = 0, map = 0, line_drawn = 0;
+  uint64_t n_points = 0, n_segments = 0, lines = 0, full = 0;
+};
+
 namespace {
+
+template <class T>
+std::span<const T> blob_span(const DecalSource& s, decal::BlobId id) {
+  for (const DecalSource::Blob& b : s.blobs)
+    if (b.id == id) return {static_cast<const T*>(b.data), size_t(b.bytes / sizeof(T))};
+  return {};
+}
+
+// Made when a package's dynamic pass first runs; `gl` owns the buffers.
+std::shared_ptr<LodBuffers> lod_buffers(GlObjects& gl, const DecalSource& src) {
+  auto l = std::make_shared<LodBuffers>();
+  l->source = &src;
+  const auto points = blob_span<decal::LodPoint>(src, decal::BlobId::lod_points);
+  const auto segments = blob_span<decal::LodSegment>(src, decal::BlobId::lod_segments);
+  const auto starts = blob_span<uint32_t>(src, decal::BlobId::dyn_line_start);
+  const LodDrawMap map =
+      lod_draw_map(points, segments, blob_span<uvec2>(src, decal::BlobId::lod_line_range),
+                   blob_span<std::array<int32_t, 4>>(src, decal::BlobId::dyn_vertices), starts,
+                   blob_span<std::array<int32_t, 2>>(src, decal::BlobId::dyn_prev_next));
+  std::vector<uint32_t> pairs(2 * points.size());
+  for (size_t p = 0; p < points.size(); ++p) {
+    pairs[2 * p] = map.vertex[p];
+    pairs[2 * p + 1] = map.end[p];
+  }
+  const std::vector<uint32_t> drawn(map.line_drawn.begin(), map.line_drawn.end());
+  auto upload = [&](const void* data, uint64_t bytes) {
+    GLuint b = 0;
+    glCreateBuffers(1, &b);
+    gl.buffers.push_back(b);
+    const uint32_t pad[4] = {};
+    glNamedBufferData(b, GLsizeiptr(std::max<uint64_t>(bytes, 16)), bytes ? data : pad,
+                      GL_STATIC_DRAW);
+    return b;
+  };
+  l->points = upload(points.data(), points.size_bytes());
+  l->segments = upload(segments.data(), segments.size_bytes());
+  l->map = upload(pairs.data(), pairs.size() * 4);
+  l->line_drawn = upload(drawn.data(), drawn.size() * 4);
+  l->n_points = points.size();
+  l->n_segments = segments.size();
+  l->lines = map.lines;
+  l->full = map.original_segments;
+  return l;
+}
 
 struct DynPrograms {
   GLuint cull = 0, scan_local = 0, scan_blocks = 0, scatter = 0, segments = 0, lists = 0,
          composite = 0;
+  GLuint lod_mask = 0, lod_select = 0, lod_segments = 0;  // with LOD data (lod_programs)
 };
+
+void lod_programs(GlObjects& gl, const std::string& dd, DynPrograms& p) {
+  auto comp = [&](const char* file) {
+    return gl.program({{}, {}, {}, {"decal_blobs.glsl", "lod_common.glsl", file}, dd});
+  };
+  p.lod_mask = comp("lod_mask.comp.glsl");
+  p.lod_select = comp("lod_select.comp.glsl");
+  p.lod_segments = comp("lod_segments.comp.glsl");
+}
 
 // `dd`: the binding, coverage-AA and dynamic defines.
 DynPrograms dyn_programs(GlObjects& gl, const std::string& dd) {
@@ -61,15 +124,22 @@ class DynamicLines {
         blocks_(uint32_t((n_vertices + 255) / 256)) {}
 
   void make_buffers();
-  void update(const DynPrograms& p);
+  // With `lod` (its buffers bound): the LOD passes too (lod_*.comp.glsl).
+  void update(const DynPrograms& p, const LodBuffers* lod = nullptr);
   // Returns how often the node buffer grew.
   uint32_t lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao);
   void composite(GLuint p_composite);
   // Counters 0 (segments drawn), 4 (vertices kept), 5 (list nodes) and 8
   // (pixels whose composite reached its step bound).
   void read_counters(Image& img) const;
+  // The frame's LOD work buffers (links, selection) and uniforms; the LOD
+  // counts (and with `indices` the selected segments) into `img`.
+  void make_lod_buffers(const LodBuffers& lod, double zmin, double zmax, double tolerance_px,
+                        const Camera& camera);
+  void read_lod(const LodBuffers& lod, Image& img, bool indices) const;
 
  private:
+  void set_lod_uniforms(GLuint p) const;
   GLuint buffer(uint64_t bytes, uint32_t binding);
   void set_uniforms(GLuint p) const;
 
@@ -83,6 +153,8 @@ class DynamicLines {
   const uint32_t blocks_;
   GLuint counters_ = 0, heads_ = 0, nodes_ = 0;
   uint32_t capacity_ = 0;
+  GLuint lod_selection_ = 0;
+  LodView lod_view_{};
 };
 
 GLuint DynamicLines::buffer(uint64_t bytes, uint32_t binding) {
@@ -129,12 +201,54 @@ void DynamicLines::set_uniforms(GLuint p) const {
               float(std::cos(miter_limit_deg_ * 3.14159265358979323846 / 180.0)));
 }
 
-// Update indices: cull + same-pixel removal, own stream compaction, segments.
-void DynamicLines::update(const DynPrograms& p) {
+void DynamicLines::make_lod_buffers(const LodBuffers& lod, double zmin, double zmax,
+                                    double tolerance_px, const Camera& camera) {
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 33, lod.points);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 34, lod.segments);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 35, lod.map);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 37, lod.line_drawn);
+  const GLuint links = buffer(lod.n_points * 8, 36);
+  const uint32_t none = 0xffffffffu;
+  glClearNamedBufferData(links, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
+  lod_selection_ = buffer(16 + lod.n_segments * 4, 30);
+  const uint32_t zero[4] = {};
+  glNamedBufferSubData(lod_selection_, 0, sizeof zero, zero);
+  lod_view_ = lod_view(camera, H_, zmin, zmax, tolerance_px);
+}
+
+void DynamicLines::set_lod_uniforms(GLuint p) const {
+  set_uniforms(p);
+  glUniform3d(glGetUniformLocation(p, "u_lod_camera"), lod_view_.cx, lod_view_.cy, lod_view_.cz);
+  glUniform2d(glGetUniformLocation(p, "u_lod_eps"), lod_view_.base, lod_view_.slope);
+}
+
+void DynamicLines::read_lod(const LodBuffers& lod, Image& img, bool indices) const {
+  uint32_t n[2] = {};
+  glGetNamedBufferSubData(lod_selection_, 0, sizeof n, n);
+  img.lod_lines += lod.lines;
+  img.lod_selected += n[0];
+  img.lod_drawn += n[1];
+  img.lod_full += lod.full;
+  if (!indices || n[0] == 0) return;
+  const size_t at = img.lod_selection.size();
+  img.lod_selection.resize(at + n[0]);
+  glGetNamedBufferSubData(lod_selection_, 16, GLsizeiptr(uint64_t(n[0]) * 4),
+                          img.lod_selection.data() + at);
+}
+
+// Update indices: cull + same-pixel removal, own stream compaction, segments;
+// with LOD data, the LOD lines leave the chains after the cull and their
+// visible segments are chosen and appended after the segments pass.
+void DynamicLines::update(const DynPrograms& p, const LodBuffers* lod) {
   timer_.begin("dynamic update (cull, compact, segments)");
   set_uniforms(p.cull);
   glDispatchCompute(blocks_, 1, 1);
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  if (lod) {
+    set_uniforms(p.lod_mask);
+    glDispatchCompute(blocks_, 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
   set_uniforms(p.scan_local);
   glDispatchCompute(blocks_, 1, 1);
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
@@ -146,6 +260,17 @@ void DynamicLines::update(const DynPrograms& p) {
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   set_uniforms(p.segments);
   glDispatchCompute(blocks_, 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+  timer_.end();
+  if (!lod) return;
+  timer_.begin("dynamic LOD (select, compact, segments)");
+  const auto groups = GLuint((lod->n_segments + 255) / 256);
+  set_lod_uniforms(p.lod_select);
+  glUniform1ui(glGetUniformLocation(p.lod_select, "u_lod_segment_count"), GLuint(lod->n_segments));
+  glDispatchCompute(groups, 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  set_lod_uniforms(p.lod_segments);
+  glDispatchCompute(groups, 1, 1);
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
   timer_.end();
 }
@@ -216,14 +341,43 @@ void GlRenderer::dynamic_pass(Image& img, GlObjects& work) {
   const std::string dd =
       p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
       "#define DECAL_DYNAMIC 1\n";
-  const DynPrograms p = dyn_programs(gl_, dd);
+  DynPrograms p = dyn_programs(gl_, dd);
   DynamicLines dyn(work, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines,
                    source_->miter_limit_deg);
   dyn.make_buffers();
-  dyn.update(p);
+  const LodBuffers* lod = lod_data(work);
+  if (lod) {
+    lod_programs(gl_, dd, p);
+    dyn.make_lod_buffers(*lod, terrain_.zmin, terrain_.zmax, opt_.lod_tolerance_px, lod_camera());
+  }
+  dyn.update(p, lod);
   img.list_grows += dyn.lists(p.lists, t_.f_dyn, empty_vao_);
   dyn.composite(p.composite);
   dyn.read_counters(img);
+  if (lod) dyn.read_lod(*lod, img, opt_.lod_read_selection);
+}
+
+// The current package's LOD buffers when RenderOptions::lod and it has LOD
+// segments (made once for a package; per tile for a tileset, whose tiles'
+// buffers go with `work`); else null.
+const LodBuffers* GlRenderer::lod_data(GlObjects& work) {
+  if (!opt_.lod || blob_span<decal::LodSegment>(*source_, decal::BlobId::lod_segments).empty())
+    return nullptr;
+  if (!tiles_.empty() || !lod_ || lod_->source != source_)
+    lod_ = lod_buffers(tiles_.empty() ? gl_ : work, *source_);
+  return lod_.get();
+}
+
+// The camera in the current package's frame: the anchor (whole quanta, the
+// package's) plus the eye relative to it, which is the eye exactly for one
+// package (Sterbenz: eye - anchor is exact) and the eye moved by the tile's
+// origin for a tileset's tile.
+Camera GlRenderer::lod_camera() const {
+  Camera c = opt_.camera;
+  const double q = decal::kQuantumMetres;
+  c.eye = {double(view_.ax) * q + view_.eye_rel[0], double(view_.ay) * q + view_.eye_rel[1],
+           c.eye[2]};
+  return c;
 }
 
 }  // namespace prep::render::detail

@@ -387,6 +387,8 @@ void GlRenderer::frame(Image& img) {
   const float clear0[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(t_.f_dyn, GL_COLOR, 0, clear0);
   img.dyn_kept = img.dyn_segments = img.dyn_nodes = 0;
+  img.lod_lines = img.lod_selected = img.lod_drawn = img.lod_full = 0;
+  img.lod_selection.clear();
   for (size_t k = 0; k < std::max<size_t>(tiles_.size(), 1); ++k) {
     if (!tiles_.empty()) {
       load_tile(k);

@@ -138,8 +138,15 @@ Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
       Camera c = cam;
       c.eye = {cam.eye[0] - t.dx, cam.eye[1] - t.dy, cam.eye[2]};
       c.target = {cam.target[0] - t.dx, cam.target[1] - t.dy, cam.target[2]};
-      dyn.emplace_back(t.source, c, W, H);
+      dyn.emplace_back(
+          t.source, c, W, H,
+          detail::DynamicLod{opt.lod, opt.lod_tolerance_px, terrain.zmin, terrain.zmax});
       any = any || !dyn.back().empty();
+      const std::array<uint64_t, 4> n = dyn.back().lod_counts();
+      img.lod_lines += n[0];
+      img.lod_selected += n[1];
+      img.lod_drawn += n[2];
+      img.lod_full += n[3];
     }
     if (any)
       parallel_rows([&](uint32_t j) {

@@ -199,9 +199,12 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
           &Image::list_grows, &Image::volume_groups, &Image::zfail_groups})
       out.*m += img.*m;
     for (uint64_t Image::*m :
-         {&Image::prism_triangles, &Image::texture_bytes, &Image::texture_triangles})
+         {&Image::prism_triangles, &Image::texture_bytes, &Image::texture_triangles,
+          &Image::lod_lines, &Image::lod_selected, &Image::lod_drawn, &Image::lod_full})
       out.*m += img.*m;
     for (PassTime& pt : img.times) out.times.push_back(std::move(pt));
+    out.lod_selection.insert(out.lod_selection.end(), img.lod_selection.begin(),
+                             img.lod_selection.end());
   }
   return out;
 }

@@ -27,6 +27,8 @@ struct RenderArgs {
                                                                          target;
   std::string aa = "none", binding = "ssbo", only, assume_crs, method = "decal";
   std::string gpu_budget, level = "auto";  // tilesets: --gpu-budget SIZE, --level auto|L
+  std::string lod = "on";                  // --lod on|off (LOCALIS LOD of dynamic lines)
+  double lod_tolerance = 0.5;              // --lod-tolerance PX
   double texture_resolution = 0;           // 0: the renderer's default
   double fov = 45.0, pitch = 45.0;
   std::optional<double> z_scale, nodata_fill;  // none: the package's
@@ -70,6 +72,14 @@ struct Scene {
   std::string metadata;        // a package's metadata (the recorded DEM)
   R::TileSelection selection;  // a tileset: the tiles drawn (prep/tile_select.hpp)
 };
+
+// Whether a tile of the view has LOD segments (render --stats).
+bool has_lod(const std::vector<R::TileSource>& tiles) {
+  for (const R::TileSource& t : tiles)
+    for (const auto& b : t.source.blobs)
+      if (b.id == decal::BlobId::lod_segments && b.count > 0) return true;
+  return false;
+}
 
 void open_package(const std::string& path, decal::Package& pkg) {
   if (decal::Status s = decal::Package::open(path, pkg); !s) throw prep::format_error(s.message);
@@ -330,6 +340,15 @@ void run(const RenderArgs& a) {
                                 "': kinds are polygons, lines, dynamic");
     }
   }
+  // --lod: dynamic lines of LOD layers from the LOD segments this view
+  // selects (prep/render.hpp RenderOptions::lod); a package without LOD
+  // data draws the same either way.
+  if (a.lod != "on" && a.lod != "off")
+    throw prep::usage_error("render: --lod '" + a.lod + "' must be on or off");
+  if (!(a.lod_tolerance > 0) || !std::isfinite(a.lod_tolerance))
+    throw prep::usage_error("render: --lod-tolerance must be a positive number of pixels");
+  opt.lod = a.lod == "on";
+  opt.lod_tolerance_px = a.lod_tolerance;
   // --extent is in absolute coordinates of the package's frame CRS (or in
   // --extent-crs), as `build --extent` and the world file written below;
   // the renderer works relative to the package origin.
@@ -530,6 +549,18 @@ void run(const RenderArgs& a) {
           "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths, "
           "%u pixels composited short of their list (step bound)\n",
           img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows, img.dyn_truncated);
+    if (img.lod_lines)
+      std::printf(
+          "lod: on, %.3g px: %llu LOD segments drawn of %llu full-detail segments (%.2f%%) on "
+          "%llu LOD lines; %llu selected, %llu outside the frustum\n",
+          opt.lod_tolerance_px, static_cast<unsigned long long>(img.lod_drawn),
+          static_cast<unsigned long long>(img.lod_full),
+          img.lod_full ? 100.0 * double(img.lod_drawn) / double(img.lod_full) : 0.0,
+          static_cast<unsigned long long>(img.lod_lines),
+          static_cast<unsigned long long>(img.lod_selected),
+          static_cast<unsigned long long>(img.lod_selected - img.lod_drawn));
+    else if (!opt.lod && has_lod(sc.tiles))
+      std::printf("lod: off (the package has LOD segments; dynamic lines drawn in full)\n");
   }
 }
 
@@ -597,6 +628,13 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
                   "(not the smaller package bytes; e.g. 512M, 2G); coarser levels where the view "
                   "needs more, exit 6 when even the coarsest do (default: no limit)");
   cmd->add_option("--only", args->only, "Draw only these decal kinds: polygons,lines,dynamic");
+  cmd->add_option("--lod", args->lod,
+                  "LOCALIS LOD of dynamic lines built with lod = true: on (default; the segments "
+                  "this view selects, chosen on the GPU, or on the CPU with --cpu) or off (every "
+                  "vertex)");
+  cmd->add_option("--lod-tolerance", args->lod_tolerance,
+                  "--lod on: screen-space error in pixels a simplified line may have (default "
+                  "0.5)");
   cmd->add_option("--ramp", args->ramps,
                   "Colour ramp for a value-coloured layer, applied when drawing (no rebuild): "
                   "LAYER=value:#rrggbb[aa],value:#rrggbb[aa],... (values increasing; linear per "
@@ -607,7 +645,8 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
                   "GL: render N frames, report the last one's pass times (warm)")
       ->check(CLI::Range(1u, 1000u));
   cmd->add_flag("--stats", args->stats,
-                "Print per-pass times (GL timestamp queries and wall time), the frame time; a "
+                "Print per-pass times (GL timestamp queries and wall time), the frame time, "
+                "LOD segments drawn against full detail; a "
                 "tileset: tiles drawn per level, package bytes loaded against full detail, "
                 "decoded blob bytes, --gpu-budget; --method "
                 "volume: prism triangles and groups; --method texture: texture size and bytes");

@@ -7,6 +7,7 @@
 // decal::LodPoint / decal::LodSegment in decal/format.hpp.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -93,5 +94,35 @@ bool lod_point_included(const decal::LodPoint& p, const LodCamera& camera, const
 std::vector<uint32_t> visible_segments(std::span<const decal::LodPoint> points,
                                        std::span<const decal::LodSegment> segments,
                                        const LodCamera& camera, const LodThreshold& eps);
+
+// How the renderers draw the visible segments of a package's LOD set on its
+// terrain-matched dynamic lines (formats/SPEC.md "Choosing the threshold"):
+// a LodPoint has no height, so each point is drawn at the vertex of its
+// dynamic line (dyn_vertices) at its position, found once when a package is
+// loaded: the line's vertices are walked in order and each point takes the
+// first vertex at or after the previous point's with its x and y (terrain
+// matching keeps every input vertex and only inserts pieces between them;
+// a closed ring's repeated last point takes the line's first vertex). A LOD
+// line whose points do not all map, or whose dynamic line another LOD line
+// also names, is drawn from its full vertex chain instead.
+struct LodDrawMap {
+  // Per LOD point: its dyn_vertices index; kLodNone when its line is not
+  // drawn from LOD segments.
+  std::vector<uint32_t> vertex;
+  // Per LOD point: kLodNone for an interior point; the point itself at an
+  // open line's first or last point (no neighbour); the other end at a
+  // closed ring's first or last point (the ring wraps there).
+  std::vector<uint32_t> end;
+  std::vector<uint8_t> line_drawn;  // per dynamic line: 1 when drawn from its LOD segments
+  uint64_t lines = 0;               // LOD lines drawn from their segments
+  uint64_t original_segments = 0;   // their full-detail segments (points - 1 each)
+};
+
+LodDrawMap lod_draw_map(std::span<const decal::LodPoint> points,
+                        std::span<const decal::LodSegment> segments,
+                        std::span<const uvec2> line_range,
+                        std::span<const std::array<int32_t, 4>> dyn_vertices,
+                        std::span<const uint32_t> dyn_line_start,
+                        std::span<const std::array<int32_t, 2>> dyn_prev_next);
 
 }  // namespace prep

@@ -18,12 +18,25 @@
 
 namespace prep::render::detail {
 
+// LOD of the dynamic lines (RenderOptions::lod, lod_view): on, the
+// tolerance, and the terrain's height range.
+struct DynamicLod {
+  bool on = false;
+  double tolerance_px = 0.5, zmin = 0, zmax = 0;
+};
+
 class DynamicLinesCpu {
  public:
-  // `camera` in the source's frame (metres relative to its origin).
-  DynamicLinesCpu(const DecalSource& source, const Camera& camera, uint32_t width, uint32_t height);
+  // `camera` in the source's frame (metres relative to its origin). With
+  // `lod.on`, the lines that have LOD segments are drawn from those
+  // prep::visible_segments selects for lod_view (the GL pass's lod_*.comp.glsl),
+  // with the same neighbours and frustum test as the other segments.
+  DynamicLinesCpu(const DecalSource& source, const Camera& camera, uint32_t width, uint32_t height,
+                  const DynamicLod& lod = {});
 
   bool empty() const { return segments_.empty(); }
+  // LOD counts as in Image (lod_lines, lod_selected, lod_drawn, lod_full).
+  std::array<uint64_t, 4> lod_counts() const { return lod_counts_; }
   // Straight-alpha colour of the dynamic layer where a pixel's ray meets the
   // terrain at `p` (metres relative to the source's origin).
   std::array<float, 4> at(const Vec3& p) const;
@@ -37,7 +50,13 @@ class DynamicLinesCpu {
   bool covers(const Segment& s, const std::array<double, 2>& p, double hw, uint32_t corner) const;
   double metres_per_pixel(const Vec3& p) const;
 
+  // LOD lines' segments (DynamicLod::on): appended to segments_.
+  void add_lod_segments(const DecalSource& source, const DynamicLod& lod, const Camera& camera,
+                        uint32_t height, const std::vector<std::array<int32_t, 4>>& verts,
+                        const std::vector<uint32_t>& codes, std::vector<char>& keep);
+
   std::vector<Segment> segments_;
+  std::array<uint64_t, 4> lod_counts_{};
   std::vector<decal::LineProps> props_;
   Vec3 eye_{};
   double mpp_ortho_ = 0, mpp_per_metre_ = 0, cos_limit_ = 0, reach_ = 1, max_hw_px_ = 0;

@@ -144,6 +144,9 @@ struct StaticPrograms {
 };
 StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt);
 
+// gl_dynamic.cpp: a package's LOD data on the GPU (kept across frames).
+struct LodBuffers;
+
 // One render_gl call: the state set up once (constructor) and the passes of
 // a frame, in order.
 class GlRenderer {
@@ -197,6 +200,10 @@ class GlRenderer {
   // dynamic lines under what the (cleared) dynamic layer holds; its work
   // buffers live in `work`.
   void dynamic_pass(Image& img, GlObjects& work);
+  // gl_dynamic.cpp: the current package's LOD buffers (lod_), or null
+  // without RenderOptions::lod or LOD data; the camera in its frame.
+  const LodBuffers* lod_data(GlObjects& work);
+  Camera lod_camera() const;
   void composite_pass();
 
   std::span<const TileSource> tiles_;    // a tileset (empty: one package)
@@ -217,6 +224,7 @@ class GlRenderer {
   std::array<GLint, 4> scissor_{};  // the current tile's pixels: x, y, w, h
   StaticPrograms p_;
   MethodState m_;
+  std::shared_ptr<LodBuffers> lod_;  // gl_dynamic.cpp: the current package's LOD buffers
 };
 
 }  // namespace prep::render::detail

@@ -201,6 +201,17 @@ struct RenderOptions {
   // Texture method: ground metres per texel of the finest level; 0: 1 m,
   // coarser where the extent would need more than kTextureAutoTexels a side.
   double texture_resolution = 0;
+  // LOCALIS LOD (formats/SPEC.md "Choosing the threshold"): the dynamic
+  // lines of layers built with `lod = true` are drawn from the LOD segments
+  // visible for this view at a screen-space tolerance of lod_tolerance_px
+  // pixels (lod_view; GL: chosen per segment in a compute shader, CPU:
+  // prep::visible_segments); off: from their full vertex chains. Other
+  // lines, and packages without LOD data, draw the same either way.
+  bool lod = true;
+  double lod_tolerance_px = 0.5;
+  // GL: copy the indices (into lod_segments) of the selected LOD segments
+  // to Image::lod_selection (tests).
+  bool lod_read_selection = false;
 };
 constexpr uint32_t kTextureAutoTexels = 8192;
 
@@ -233,7 +244,28 @@ struct Image {
   uint64_t texture_bytes = 0, texture_triangles = 0;
   uint32_t texture_width = 0, texture_height = 0;
   double texture_resolution = 0;
+  // LOD (RenderOptions::lod): the LOD lines drawn from their segments, the
+  // segments the visibility rule selects, those drawn (selected and not
+  // outside one frustum plane), and the full-detail segments of those
+  // lines; with lod_read_selection the selected indices (any order).
+  uint64_t lod_lines = 0, lod_selected = 0, lod_drawn = 0, lod_full = 0;
+  std::vector<uint32_t> lod_selection;
 };
+
+// The LOD selection of a view (formats/SPEC.md "Choosing the threshold"):
+// the camera C of the visibility rule, metres relative to the source's
+// origin, and ε(d) = base + slope · max(d, 0). Perspective: slope =
+// tolerance_px · 2 tan(fov_y / 2) / height (tolerance_px times a pixel's
+// size per metre of distance), base 0, and C = (eye x, eye y, the eye's
+// height above or below the terrain range [zmin, zmax], 0 within it), so
+// that d never exceeds the distance from the eye to a point on the terrain.
+// Orthographic: base = tolerance_px · ortho_h / height, slope 0.
+struct LodView {
+  double cx = 0, cy = 0, cz = 0;
+  double base = 0, slope = 0;
+};
+LodView lod_view(const Camera& camera, uint32_t height, double zmin, double zmax,
+                 double tolerance_px);
 
 // Renders with OpenGL in a headless EGL context. Validates the blobs before
 // any GL call (decal::gl::validate_blobs). Throws render_error (exit code
@@ -247,7 +279,9 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain,
 // prep::evaluate per pixel. Dynamic lines are drawn at each pixel's ground
 // point by the rules of the GL pass (detail/dynamic_cpu.hpp: vertices kept,
 // segments, corners at the pixel's scale, every covering line composited in
-// drawing order) into Image::dynamic, and composited over the decals.
+// drawing order; with RenderOptions::lod, the LOD lines from the segments
+// prep::visible_segments selects for lod_view, the GL pass's selection)
+// into Image::dynamic, and composited over the decals.
 // Thread-safe.
 Image render_cpu(const DecalSource& source, const Heightfield& terrain,
                  const RenderOptions& options);
