@@ -16,6 +16,7 @@
 #include <memory>
 
 #include "detail/certainly_valid.hpp"
+#include "detail/clip_many_holes.hpp"
 #include "detail/geos_handle.hpp"
 #include "detail/repair_by_parts.hpp"
 #include "prep/error.hpp"
@@ -322,9 +323,16 @@ struct Cleaner {
     ctx.step("GEOS isValid");
     if (!proven && !make_valid_if_invalid(ctx, g, rings, r)) return;
     if (rel == 0) {
-      ctx.step("GEOS Intersection with the extent");
-      Geom rect(h, clip_rect(h));
-      Geom cut(h, GEOSIntersection_r(h, g.get(), rect.get()));
+      // Many holes: the holes outside or inside the extent stay out of the
+      // overlay (detail/clip_many_holes.hpp: the same area).
+      ctx.step("GEOS Intersection with the extent by holes");
+      const Extent& c = *clip;
+      Geom cut(h, detail::clip_many_holes(h, g.get(), c.xmin, c.ymin, c.xmax, c.ymax));
+      if (!cut) {
+        ctx.step("GEOS Intersection with the extent");
+        Geom rect(h, clip_rect(h));
+        cut = Geom(h, GEOSIntersection_r(h, g.get(), rect.get()));
+      }
       if (!cut) return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error);
       g = std::move(cut);
     }

@@ -748,10 +748,23 @@ SceneFrame default_frame(const FeatureSource& features, const Extent& all, bool 
   return frame;
 }
 
-// The longitude of the frame's centre: the local TM's central meridian, or
-// the frame origin's longitude (0 when it has none).
+// The longitude of the frame's centre: the projection's central meridian
+// (the local TM's, Equal Earth's lon0, a --crs's), or the frame origin's
+// longitude when the projection names none (0 when it has no origin).
+// The central meridian, not the origin: a world projection cuts the globe
+// at central meridian + 180, where it puts -180 and +180 on opposite edges.
+// Longitudes brought within 180 degrees of the origin instead (an origin at
+// lon 0.13 in an Equal Earth frame on Greenwich) would move a ring's
+// vertices at -180 to the +180 edge, across the whole map.
 double frame_centre_lon(const SceneFrame& frame, const OGRSpatialReference& frame_srs) {
   if (std::isfinite(frame.tm_lon0)) return frame.tm_lon0;
+  if (frame_srs.IsProjected()) {
+    OGRErr err = OGRERR_NONE;
+    const double cm = frame_srs.GetNormProjParm(SRS_PP_CENTRAL_MERIDIAN, NAN, &err);
+    if (err == OGRERR_NONE && std::isfinite(cm)) return cm;
+    const double lc = frame_srs.GetNormProjParm(SRS_PP_LONGITUDE_OF_CENTER, NAN, &err);
+    if (err == OGRERR_NONE && std::isfinite(lc)) return lc;
+  }
   auto t = make_transform(frame_srs, *wgs84(), "frame to WGS84");
   double x = frame.origin_x, y = frame.origin_y;
   if (!t->Transform(1, &x, &y) || !std::isfinite(x)) return 0.0;

@@ -13,6 +13,10 @@
 //    of grid holes (islands in the repair).
 //  - Random polygons: a non-convex shell with 100-300 holes of random shape
 //    and size, many of them overlapping each other or the shell.
+//  - The clip of such repairs to a rectangle by holes (libprep/clean/detail/
+//    clip_many_holes.hpp) against GEOS Intersection of the whole repair, for
+//    rectangles through the grid, along hole edges, around islands and
+//    around everything.
 //  - With DECALPREP_STRESS_CLEAN=1 (ctest -L stress): the 10^5-hole polygon
 //    of tests/hostile/generate.py --big (poly_100k_holes_touching_shell),
 //    against the whole MakeValid (minutes).
@@ -27,6 +31,7 @@
 #include <vector>
 
 #include "../read/scene_fixtures.hpp"
+#include "detail/clip_many_holes.hpp"
 #include "detail/repair_by_parts.hpp"
 #include "geos_oracle.hpp"
 #include "prep/clean.hpp"
@@ -442,6 +447,85 @@ Rings touching_100k() {
     rings.push_back(Ring{pt(x0, y0), pt(x0, cy + 10), pt(cx + 10, cy + 10), pt(cx + 10, y0)});
   }
   return rings;
+}
+
+// detail::clip_many_holes of the valid `repair` against GEOS Intersection of
+// the whole with the rectangle (offsets from kX0, kY0). False when the split
+// did not apply.
+bool clip_equals_whole(const Geos& geos, const G& repair, double x0, double y0, double x1,
+                       double y1, const std::string& what) {
+  GEOSContextHandle_t h = geos.h;
+  GEOSGeometry* got =
+      prep::detail::clip_many_holes(h, repair.g, kX0 + x0, kY0 + y0, kX0 + x1, kY0 + y1);
+  if (!got) return false;
+  const G got_area = polygonal(h, got);
+  GEOSGeom_destroy_r(h, got);
+  const G rect(h, GEOSGeom_createRectangle_r(h, kX0 + x0, kY0 + y0, kX0 + x1, kY0 + y1));
+  const G whole(h, GEOSIntersection_r(h, repair.g, rect.g));
+  expect_same(h, got_area, polygonal(h, whole.g), what);
+  return true;
+}
+
+// Rectangles through the hostile polygon's hole grid (cutting holes), along
+// grid hole edges (x = 1025: the edge of the holes centred at 1020), around
+// the island block, across the strip, past the shell, and around it all.
+constexpr double kClipRects[][4] = {{-100, 500, 1015, 1300},  {300, 300, 700, 700},
+                                    {1025, 995, 1385, 1555},  {1360, 1360, 1600, 1600},
+                                    {-50, 1000, 2050, 1010},  {1500, -100, 2300, 2300},
+                                    {-500, -500, 2500, 2500}, {13, 17, 1987, 1993}};
+
+TEST(ClipManyHoles, RepairsOfTheHostilePolygonEqualWholeIntersection) {
+  Geos geos;
+  const Rings rings = hostile_polygon();
+  const G whole = polygon_of(geos.h, rings);
+  for (const bool structure : {false, true}) {
+    const G repair = make_valid(geos.h, whole.g, structure);
+    ASSERT_TRUE(repair.g);
+    ASSERT_EQ(GEOSisValid_r(geos.h, repair.g), 1);
+    int k = 0;
+    for (const auto& r : kClipRects) {
+      const std::string what = "rect " + std::to_string(k++) + method_name(structure);
+      EXPECT_TRUE(clip_equals_whole(geos, repair, r[0], r[1], r[2], r[3], what))
+          << what << ": the split did not apply";
+    }
+  }
+}
+
+TEST(ClipManyHoles, RepairsOfRandomPolygonsEqualWholeIntersection) {
+  Geos geos;
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    const Rings rings = random_polygon(seed * 0x9E3779B97F4A7C15ull);
+    const G whole = polygon_of(geos.h, rings);
+    const G repair = make_valid(geos.h, whole.g, false);
+    ASSERT_TRUE(repair.g);
+    Rng rng(seed);
+    for (int k = 0; k < 4; ++k) {
+      const double x0 = rng.in(-100, 600), y0 = rng.in(-100, 600);
+      const double x1 = x0 + rng.in(100, 700), y1 = y0 + rng.in(100, 700);
+      const std::string what = "seed " + std::to_string(seed) + ", rect " + std::to_string(k);
+      const GEOSGeometry* g = repair.g;
+      size_t holes = 0;
+      for (int i = 0; i < GEOSGetNumGeometries_r(geos.h, g); ++i) {
+        const GEOSGeometry* p = GEOSGetGeometryN_r(geos.h, g, i);
+        if (GEOSGeomTypeId_r(geos.h, p) == GEOS_POLYGON)
+          holes += size_t(GEOSGetNumInteriorRings_r(geos.h, p));
+      }
+      const bool applies = clip_equals_whole(geos, repair, x0, y0, x1, y1, what);
+      EXPECT_EQ(applies, holes >= prep::detail::kClipByHolesMinHoles) << what;
+    }
+  }
+}
+
+TEST(ClipManyHoles, FewHolesOrOtherGeometriesAreLeftToTheWholeIntersection) {
+  Geos geos;
+  Rings rings{rect(0, 0, 1000, 1000)};
+  for (int i = 0; i < 10; ++i) rings.push_back(square(50 + 90.0 * i, 500, 20));
+  const G few = polygon_of(geos.h, rings);
+  EXPECT_EQ(prep::detail::clip_many_holes(geos.h, few.g, kX0, kY0, kX0 + 500, kY0 + 500), nullptr);
+  const double xy[4] = {kX0, kY0, kX0 + 900, kY0 + 900};
+  const G line(geos.h, GEOSGeom_createLineString_r(
+                           geos.h, GEOSCoordSeq_copyFromBuffer_r(geos.h, xy, 2, 0, 0)));
+  EXPECT_EQ(prep::detail::clip_many_holes(geos.h, line.g, kX0, kY0, kX0 + 500, kY0 + 500), nullptr);
 }
 
 TEST(RepairByParts, Stress100kHolesTouchingTheShellEqualsWholeMakeValid) {

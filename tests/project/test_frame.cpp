@@ -356,6 +356,34 @@ TEST(DefaultFrame, WorldLayerGetsEqualEarthAndEveryVertexProjectsFinite) {
   for (double s : p.scale[0]) EXPECT_NEAR(s, 1.0, 1e-8);
 }
 
+// A world ring with vertices at exactly -180 and +180 (an ocean or a world
+// box as RFC 7946 writes them), lopsided so that the Equal Earth frame's
+// origin (the centre of the data's box) lies far west of its central
+// meridian: every vertex still lands where PROJ puts it. Longitudes were
+// once brought within 180 degrees of the origin instead of the central
+// meridian, which moved the +180 vertices to the -180 edge, across the map.
+TEST(DefaultFrame, WorldRingAtBothEdgesKeepsItsSidesWhenTheOriginIsOffTheCentralMeridian) {
+  prep::FeatureSet fs = layer_of({{{-180.0, 0.0}, {180.0, -60.0}, {180.0, 70.0}, {-180.0, 70.0}}});
+  const prep::FeatureSet original = fs;
+  const prep::SceneFrame frame = prep::choose_frame(fs, "");
+  EXPECT_EQ(frame.description, "Equal Earth lon0=0.0000000 (WGS84; EPSG:8857)");
+  EXPECT_LT(frame.origin_x, -1e6) << "the origin should lie west of the central meridian";
+  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  const Projected want = ogr_project(original, frame.crs_wkt);
+  size_t k = 0;
+  double worst = 0;
+  for (const auto& f : p.features.layers[0].features)
+    for (const auto& r : f.rings)
+      for (const auto& v : r) {
+        ASSERT_LT(k, want.x.size());
+        worst = std::max({worst, std::fabs(v.x + frame.origin_x - want.x[k]),
+                          std::fabs(v.y + frame.origin_y - want.y[k])});
+        ++k;
+      }
+  EXPECT_EQ(k, want.x.size());
+  EXPECT_LT(worst, 1e-6) << "largest deviation from PROJ per vertex, metres";
+}
+
 TEST(DefaultFrame, FijiFromTheWorldLayerGetsASmallFrameNear180) {
   const std::string path = prep::test::spdata_dir() + "/shapes/world.gpkg";
   if (!prep::test::exists(path))

@@ -1,10 +1,13 @@
 // One owning handle for a GEOS geometry of one context (destroyed unless
-// released), for the clean stage's files.
+// released), and the small GEOS helpers the clean stage's files share
+// (prepared geometries, STR trees, envelopes, building and taking apart
+// collections).
 #pragma once
 
 #include <geos_c.h>
 
 #include <utility>
+#include <vector>
 
 namespace prep::detail {
 
@@ -31,5 +34,80 @@ class GeosGeom {
   GEOSContextHandle_t h_ = nullptr;
   GEOSGeometry* g_ = nullptr;
 };
+
+class Prepared {
+ public:
+  Prepared(GEOSContextHandle_t h, const GEOSGeometry* g) : h_(h), p_(GEOSPrepare_r(h, g)) {}
+  ~Prepared() {
+    if (p_) GEOSPreparedGeom_destroy_r(h_, p_);
+  }
+  Prepared(const Prepared&) = delete;
+  Prepared& operator=(const Prepared&) = delete;
+  const GEOSPreparedGeometry* get() const { return p_; }
+
+ private:
+  GEOSContextHandle_t h_;
+  const GEOSPreparedGeometry* p_;
+};
+
+class Tree {
+ public:
+  explicit Tree(GEOSContextHandle_t h) : h_(h), t_(GEOSSTRtree_create_r(h, 10)) {}
+  ~Tree() {
+    if (t_) GEOSSTRtree_destroy_r(h_, t_);
+  }
+  Tree(const Tree&) = delete;
+  Tree& operator=(const Tree&) = delete;
+  GEOSSTRtree* get() const { return t_; }
+
+ private:
+  GEOSContextHandle_t h_;
+  GEOSSTRtree* t_;
+};
+
+struct Envelope {
+  double x0, y0, x1, y1;
+};
+
+inline bool envelope_of(GEOSContextHandle_t h, const GEOSGeometry* g, Envelope& e) {
+  return GEOSGeom_getXMin_r(h, g, &e.x0) == 1 && GEOSGeom_getYMin_r(h, g, &e.y0) == 1 &&
+         GEOSGeom_getXMax_r(h, g, &e.x1) == 1 && GEOSGeom_getYMax_r(h, g, &e.y1) == 1;
+}
+
+// Every polygon (`polys`) and every other non-empty piece (`other`) of `g`.
+inline void flatten(GEOSContextHandle_t h, const GEOSGeometry* g,
+                    std::vector<const GEOSGeometry*>& polys,
+                    std::vector<const GEOSGeometry*>& other) {
+  const int type = GEOSGeomTypeId_r(h, g);
+  if (type == GEOS_MULTIPOLYGON || type == GEOS_MULTILINESTRING || type == GEOS_MULTIPOINT ||
+      type == GEOS_GEOMETRYCOLLECTION) {
+    const int n = GEOSGetNumGeometries_r(h, g);
+    for (int i = 0; i < n; ++i) flatten(h, GEOSGetGeometryN_r(h, g, i), polys, other);
+    return;
+  }
+  if (GEOSisEmpty_r(h, g)) return;
+  (type == GEOS_POLYGON ? polys : other).push_back(g);
+}
+
+// A polygon from owned rings (taken); null when GEOS refuses.
+inline GEOSGeometry* polygon_of(GEOSContextHandle_t h, GeosGeom shell,
+                                std::vector<GeosGeom>& holes) {
+  std::vector<GEOSGeometry*> raw;
+  raw.reserve(holes.size());
+  for (GeosGeom& r : holes) raw.push_back(r.release());
+  holes.clear();
+  return GEOSGeom_createPolygon_r(h, shell.release(), raw.data(),
+                                  static_cast<unsigned>(raw.size()));
+}
+
+// A collection of `type` taking over `parts` (left empty).
+inline GeosGeom collection(GEOSContextHandle_t h, int type, std::vector<GeosGeom>& parts) {
+  std::vector<GEOSGeometry*> raw;
+  raw.reserve(parts.size());
+  for (GeosGeom& p : parts) raw.push_back(p.release());
+  parts.clear();
+  return GeosGeom(
+      h, GEOSGeom_createCollection_r(h, type, raw.data(), static_cast<unsigned>(raw.size())));
+}
 
 }  // namespace prep::detail

@@ -15,45 +15,6 @@ namespace {
 
 using Owned = GeosGeom;
 
-class Prepared {
- public:
-  Prepared(GEOSContextHandle_t h, const GEOSGeometry* g) : h_(h), p_(GEOSPrepare_r(h, g)) {}
-  ~Prepared() {
-    if (p_) GEOSPreparedGeom_destroy_r(h_, p_);
-  }
-  Prepared(const Prepared&) = delete;
-  Prepared& operator=(const Prepared&) = delete;
-  const GEOSPreparedGeometry* get() const { return p_; }
-
- private:
-  GEOSContextHandle_t h_;
-  const GEOSPreparedGeometry* p_;
-};
-
-class Tree {
- public:
-  explicit Tree(GEOSContextHandle_t h) : h_(h), t_(GEOSSTRtree_create_r(h, 10)) {}
-  ~Tree() {
-    if (t_) GEOSSTRtree_destroy_r(h_, t_);
-  }
-  Tree(const Tree&) = delete;
-  Tree& operator=(const Tree&) = delete;
-  GEOSSTRtree* get() const { return t_; }
-
- private:
-  GEOSContextHandle_t h_;
-  GEOSSTRtree* t_;
-};
-
-struct Envelope {
-  double x0, y0, x1, y1;
-};
-
-bool envelope_of(GEOSContextHandle_t h, const GEOSGeometry* g, Envelope& e) {
-  return GEOSGeom_getXMin_r(h, g, &e.x0) == 1 && GEOSGeom_getYMin_r(h, g, &e.y0) == 1 &&
-         GEOSGeom_getXMax_r(h, g, &e.x1) == 1 && GEOSGeom_getYMax_r(h, g, &e.y1) == 1;
-}
-
 // Union-find over the holes (path halving; the smaller index is the root,
 // so the groups do not depend on the order contacts are found in).
 struct Groups {
@@ -79,44 +40,10 @@ void on_candidate(void* item, void* user) {
   static_cast<Candidates*>(user)->found.push_back(*static_cast<const uint32_t*>(item));
 }
 
-// Every polygon (`polys`) and every other non-empty piece (`other`) of `g`.
-void flatten(GEOSContextHandle_t h, const GEOSGeometry* g, std::vector<const GEOSGeometry*>& polys,
-             std::vector<const GEOSGeometry*>& other) {
-  const int type = GEOSGeomTypeId_r(h, g);
-  if (type == GEOS_MULTIPOLYGON || type == GEOS_MULTILINESTRING || type == GEOS_MULTIPOINT ||
-      type == GEOS_GEOMETRYCOLLECTION) {
-    const int n = GEOSGetNumGeometries_r(h, g);
-    for (int i = 0; i < n; ++i) flatten(h, GEOSGetGeometryN_r(h, g, i), polys, other);
-    return;
-  }
-  if (GEOSisEmpty_r(h, g)) return;
-  (type == GEOS_POLYGON ? polys : other).push_back(g);
-}
-
 // A closed ring of the rectangle, counter-clockwise.
 GEOSGeometry* box_ring(GEOSContextHandle_t h, const Envelope& b) {
   const double xy[10] = {b.x0, b.y0, b.x1, b.y0, b.x1, b.y1, b.x0, b.y1, b.x0, b.y0};
   return GEOSGeom_createLinearRing_r(h, GEOSCoordSeq_copyFromBuffer_r(h, xy, 5, 0, 0));
-}
-
-// A polygon from owned rings (taken); null when GEOS refuses.
-GEOSGeometry* polygon_of(GEOSContextHandle_t h, Owned shell, std::vector<Owned>& holes) {
-  std::vector<GEOSGeometry*> raw;
-  raw.reserve(holes.size());
-  for (Owned& r : holes) raw.push_back(r.release());
-  holes.clear();
-  return GEOSGeom_createPolygon_r(h, shell.release(), raw.data(),
-                                  static_cast<unsigned>(raw.size()));
-}
-
-// A collection of `type` taking over `parts` (left empty).
-Owned collection(GEOSContextHandle_t h, int type, std::vector<Owned>& parts) {
-  std::vector<GEOSGeometry*> raw;
-  raw.reserve(parts.size());
-  for (Owned& p : parts) raw.push_back(p.release());
-  parts.clear();
-  return Owned(h,
-               GEOSGeom_createCollection_r(h, type, raw.data(), static_cast<unsigned>(raw.size())));
 }
 
 // True when the single ring is a valid polygon on its own (then MakeValid
