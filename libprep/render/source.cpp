@@ -1,4 +1,5 @@
 // DecalSource: the renderer's view of a model in memory or an opened package.
+#include <algorithm>
 #include <cstring>
 #include <span>
 #include <string>
@@ -115,6 +116,16 @@ DecalSource source_of(const decal::Package& package) {
         s.miter_limit_deg = deg;
       }
     }
+    // Layers whose static lines are measured along the terrain.
+    if (const auto* layers = pick({"layers"}); layers && layers->is_array()) {
+      for (size_t i = 0; i < layers->size(); ++i) {
+        const auto& l = (*layers)[i];
+        if (l.is_object() && l.contains("slope_widths") && l["slope_widths"] == true) {
+          s.slope_layers.resize(i + 1, 0);
+          s.slope_layers[i] = 1;
+        }
+      }
+    }
   } catch (const nlohmann::json::exception& ex) {
     fail<format_error>(kRenderStage, std::string("package metadata: ") + ex.what());
   }
@@ -126,6 +137,14 @@ DecalSource source_of(const decal::Package& package) {
                 (g.origin_y + g.cell_h * int64_t(g.ny)) * decal::kQuantumMetres};
   }
   return s;
+}
+
+std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode) {
+  if (mode == SlopeWidths::off) return {};
+  if (mode == SlopeWidths::package) return source.slope_layers;
+  uint32_t n = 0;
+  for (const decal::LineProps& p : source.view.line_props) n = std::max(n, p.layer + 1);
+  return std::vector<uint8_t>(n, 1);
 }
 
 std::vector<std::string> layer_names(const std::string& metadata_json) {

@@ -64,6 +64,10 @@ int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
     if (!covered)
       covered = is_null(b_out) ? dot(d - e, d - e) <= hw2 : in_triangle(e, e + corner_bevel_in(eidx), e + b_out, d);
   }
+#ifdef DECAL_SLOPE_WIDTHS
+  // Step 6b (slope_widths.glsl): the band measured along the terrain.
+  if (slope_applies(line)) covered = surface_band_covers(e, d, hw, corner, s, eidx);
+#endif
   if (!covered) return HIT_NONE;
   if (outline == 0u) return HIT_COVERED;
   // Clipped outline (style bit 5): the two-sided band cut by the line's own
@@ -107,6 +111,9 @@ float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float 
   ivec2 ai = line_vertex(s);
   vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
   vec2 d = p - rel(ai);
+#ifdef DECAL_SLOPE_WIDTHS
+  if (slope_applies(line)) hw *= slope_side_scale(e);  // the band's sides on the ground
+#endif
   float ee = max(dot(e, e), 1e-20);
   float t = dot(d, e) / ee;
   float c;
@@ -130,6 +137,9 @@ float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float 
 void main() {
   vec3 p;
   if (!pixel_world(p)) discard;
+#ifdef DECAL_SLOPE_WIDTHS
+  slope_begin();
+#endif
   int cell = cell_of(p.xy);
   if (cell < 0) discard;
   uvec2 range = cell_segment_range(uint(cell));
