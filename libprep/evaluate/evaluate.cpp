@@ -117,13 +117,16 @@
 //           segment's plan quad: the neighbour's ground piece reaching past
 //           the plan miter line onto this segment's side is this
 //           segment's to cover. At a (not null(Ca.miter)), with w = sa
-//           Ca.bevel_in / |Ca.bevel_in| (the previous segment's left
-//           normal) and t = left(w) (its direction away from a), d is also
-//           covered when  cross(t, d)^2 gam <= hw^2 (1 + (g.t)^2)  (in the
-//           previous segment's ground strip) and cross(ma, d) cross(ma, t)
-//           >= 0 and cross(Ca.miter, d) cross(Ca.miter, t) <= 0 (between
-//           the two miter lines); at b likewise with d - e, mb, Cb.miter,
-//           w = sb Cb.bevel_out / |.| and t = -left(w) (the next segment).
+//           Ca.bevel_in (along the previous segment's left normal) and
+//           t = left(w) (along its direction away from a), d is also
+//           covered when cross(ma, d) cross(ma, t) >= 0 and
+//           cross(Ca.miter, d) cross(Ca.miter, t) <= 0 (between the two
+//           miter lines) and cross(t, d)^2 gam <= hw^2 (t.t + (g.t)^2) (in
+//           the previous segment's ground strip); at b likewise with d - e,
+//           mb, Cb.miter, w = sb Cb.bevel_out and t = -left(w) (the next
+//           segment). No piece reaches farther from the segment in plan
+//           than hw (round, bevel) or the longer of |Ca.miter|, |Cb.miter|
+//           (miter): a cheap test rejects the rest first.
 //    bevel: the bevel test of step 6 with n = N(Ca.bevel_out), the corner
 //           triangles T(0, N(Ca.bevel_in), N(Ca.bevel_out), d) and
 //           T(e, e + N(Cb.bevel_in), e + N(Cb.bevel_out), d), the discs in G.
@@ -265,11 +268,10 @@ struct SurfaceMetric {
   // normal, t its unit direction away from the vertex (`ahead`: w is the
   // next segment's, t = -left(w); else the previous one's, t = left(w)).
   bool overhang(V x, V m, V mg, V w, double hw, bool ahead) const {
-    const V n = (1 / std::sqrt(dot(w, w))) * w;
-    const V t = ahead ? V{n.y, -n.x} : V{-n.y, n.x};
+    const V t = ahead ? V{w.y, -w.x} : V{-w.y, w.x};  // |t| = |w|
+    if (cross(mg, x) * cross(mg, t) < 0 || cross(m, x) * cross(m, t) > 0) return false;
     const double gt = dot(g, t), c = cross(t, x);
-    return c * c * gam <= hw * hw * (1 + gt * gt) && cross(mg, x) * cross(mg, t) >= 0 &&
-           cross(m, x) * cross(m, t) <= 0;
+    return c * c * gam <= hw * hw * (dot(t, t) + gt * gt);
   }
 };
 
@@ -278,6 +280,18 @@ struct SurfaceMetric {
 bool surface_band_covers(const SurfaceMetric& G, V e, V d, double hw, decal::CornerStyle style,
                          const decal::LineCorner& ca, const decal::LineCorner& cb) {
   const double hw2 = hw * hw;
+  if (style != decal::CornerStyle::round) {
+    // Every piece lies within hw (bevel) or the longer plan miter (miter)
+    // of the segment in plan (|u|_G >= |u|; ground miter corners and the
+    // overhangs lie in the plan corner's rhombus).
+    const double ee = dot(e, e);
+    const V r = d - (ee > 0 ? std::clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0) * e;
+    const double reach2 =
+        style == decal::CornerStyle::miter
+            ? std::max({hw2, dot(vec(ca.miter), vec(ca.miter)), dot(vec(cb.miter), vec(cb.miter))})
+            : hw2;
+    if (dot(r, r) > reach2) return false;
+  }
   switch (style) {
     case decal::CornerStyle::round: {
       const double ee = G.gdot(e, e);

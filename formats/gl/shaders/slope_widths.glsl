@@ -36,11 +36,10 @@ vec2 slope_miter(vec2 a, vec2 b, float hw) { return hw * hw / (hw * hw + gdot(a,
 // segment's ground piece past the plan miter line m, onto this segment's
 // side; w the neighbour's left normal, `ahead` for the next segment.
 bool slope_overhang(vec2 x, vec2 m, vec2 mg, vec2 w, float hw, bool ahead) {
-  vec2 n = normalize(w);
-  vec2 t = ahead ? vec2(n.y, -n.x) : vec2(-n.y, n.x);
+  vec2 t = ahead ? vec2(w.y, -w.x) : vec2(-w.y, w.x);  // |t| = |w|
+  if (cross2(mg, x) * cross2(mg, t) < 0.0 || cross2(m, x) * cross2(m, t) > 0.0) return false;
   float gt = dot(g_slope, t), c = cross2(t, x);
-  return c * c * (1.0 + dot(g_slope, g_slope)) <= hw * hw * (1.0 + gt * gt) &&
-         cross2(mg, x) * cross2(mg, t) >= 0.0 && cross2(m, x) * cross2(m, t) <= 0.0;
+  return c * c * (1.0 + dot(g_slope, g_slope)) <= hw * hw * (dot(t, t) + gt * gt);
 }
 // Plan offset of the band's sides over hw: sqrt((1 + (g.t)^2) / gam) (coverage AA).
 float slope_side_scale(vec2 e) {
@@ -51,16 +50,21 @@ float slope_side_scale(vec2 e) {
 // The band of segment (s, eidx) measured in G; d and e as in segment_test.
 bool surface_band_covers(vec2 e, vec2 d, float hw, uint corner, uint s, uint eidx) {
   float hw2 = hw * hw;
+  float ee = dot(e, e);
+  vec2 r = d - (ee > 0.0 ? clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0) * e;
   if (corner == 0u) {  // round
-    float ee = gdot(e, e);
-    float t = ee > 0.0 ? clamp(gdot(d, e) / ee, 0.0, 1.0) : 0.0;
-    vec2 r = d - t * e;
-    return gdot(r, r) <= hw2;
+    float eg = gdot(e, e);
+    float t = eg > 0.0 ? clamp(gdot(d, e) / eg, 0.0, 1.0) : 0.0;
+    vec2 rg = d - t * e;
+    return gdot(rg, rg) <= hw2;
   }
+  // Within hw (bevel) or the longer plan miter of the segment in plan.
+  vec2 pa = corner_miter(s), pb = corner_miter(eidx);
+  float reach2 = corner == 1u ? max(hw2, max(dot(pa, pa), dot(pb, pb))) : hw2;
+  if (dot(r, r) > reach2) return false;
   vec2 a_in = corner_bevel_in(s), a_out = corner_bevel_out(s);
   vec2 b_in = corner_bevel_in(eidx), b_out = corner_bevel_out(eidx);
   if (corner == 1u) {  // miter; sa, sb make the stored (outer) bevels left
-    vec2 pa = corner_miter(s), pb = corner_miter(eidx);
     bool na = is_null(pa), nb = is_null(pb);
     float sa = cross2(e, a_out) >= 0.0 ? 1.0 : -1.0;
     float sb = cross2(e, b_in) >= 0.0 ? 1.0 : -1.0;

@@ -39,6 +39,11 @@ int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
   vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
   vec2 d = p - rel(ai);
   bool covered = false;
+#ifdef DECAL_SLOPE_WIDTHS
+  // Step 6b (slope_widths.glsl): the band measured along the terrain
+  // replaces the plan band below.
+  if (slope_applies(line)) covered = surface_band_covers(e, d, hw, corner, s, eidx); else
+#endif
   if (corner == 0u) {  // round
     float ee = dot(e, e);
     float t = ee > 0.0 ? clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0;
@@ -64,10 +69,6 @@ int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
     if (!covered)
       covered = is_null(b_out) ? dot(d - e, d - e) <= hw2 : in_triangle(e, e + corner_bevel_in(eidx), e + b_out, d);
   }
-#ifdef DECAL_SLOPE_WIDTHS
-  // Step 6b (slope_widths.glsl): the band measured along the terrain.
-  if (slope_applies(line)) covered = surface_band_covers(e, d, hw, corner, s, eidx);
-#endif
   if (!covered) return HIT_NONE;
   if (outline == 0u) return HIT_COVERED;
   // Clipped outline (style bit 5): the two-sided band cut by the line's own
