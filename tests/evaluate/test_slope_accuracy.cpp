@@ -83,8 +83,8 @@ void run(const char* name, double slope_deg, double dir_deg, uint64_t seed) {
   std::vector<prep::SceneLine> ground;  // each line mapped by L
   for (uint32_t style = 0; style < 3; ++style)
     for (int k = 0; k < 36;) {
-      const int t = int(scene.lines.size());
-      const prep::Point2 c{(t % cols + 0.5) * tile, (t / cols + 0.5) * tile};
+      const int t = int(scene.lines.size()), col = t % cols, row = t / cols;
+      const prep::Point2 c{(col + 0.5) * tile, (row + 0.5) * tile};
       prep::SceneLine l;
       double a = 2 * M_PI * U(rng);
       prep::Point2 p = c;
