@@ -553,7 +553,8 @@ EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope&
           : std::nullopt;
   auto surface_of = [&](uint32_t line) -> const SurfaceMetric* {
     const uint32_t layer = v.line_props[line].layer;
-    return surface && layer < slope.layers.size() && slope.layers[layer] ? &*surface : nullptr;
+    return surface && slope.layers[std::min<size_t>(layer, slope.layers.size() - 1)] ? &*surface
+                                                                                     : nullptr;
   };
   const PointQ p{x / kQ, y / kQ};
   uint32_t cell;

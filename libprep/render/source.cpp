@@ -117,11 +117,12 @@ DecalSource source_of(const decal::Package& package) {
       }
     }
     // Layers whose static lines are measured along the terrain.
+    // One flag per layer and a last 0 for line layers past the table.
     if (const auto* layers = pick({"layers"}); layers && layers->is_array()) {
       for (size_t i = 0; i < layers->size(); ++i) {
         const auto& l = (*layers)[i];
         if (l.is_object() && l.contains("slope_widths") && l["slope_widths"] == true) {
-          s.slope_layers.resize(i + 1, 0);
+          s.slope_layers.resize(layers->size() + 1, 0);
           s.slope_layers[i] = 1;
         }
       }
@@ -142,9 +143,7 @@ DecalSource source_of(const decal::Package& package) {
 std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode) {
   if (mode == SlopeWidths::off) return {};
   if (mode == SlopeWidths::package) return source.slope_layers;
-  uint32_t n = 0;
-  for (const decal::LineProps& p : source.view.line_props) n = std::max(n, p.layer + 1);
-  return std::vector<uint8_t>(n, 1);
+  return source.view.line_props.empty() ? std::vector<uint8_t>{} : std::vector<uint8_t>{1};
 }
 
 std::vector<std::string> layer_names(const std::string& metadata_json) {

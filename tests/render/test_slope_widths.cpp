@@ -260,9 +260,9 @@ TEST_F(SlopeWidths, TheLayerTableRecordsTheKey) {
   ASSERT_EQ(meta.at("layers").size(), 4u);
   EXPECT_EQ(meta["layers"][0]["slope_widths"], true);
   EXPECT_FALSE(meta["layers"][1].contains("slope_widths"));
-  EXPECT_EQ(src_.slope_layers, (std::vector<uint8_t>{1, 0, 1, 1}));
+  EXPECT_EQ(src_.slope_layers, (std::vector<uint8_t>{1, 0, 1, 1, 0}));
   EXPECT_EQ(R::slope_layers(src_, R::SlopeWidths::off), std::vector<uint8_t>{});
-  EXPECT_EQ(R::slope_layers(src_, R::SlopeWidths::on), (std::vector<uint8_t>{1, 1, 1, 1}));
+  EXPECT_EQ(R::slope_layers(src_, R::SlopeWidths::on), std::vector<uint8_t>{1});
 }
 
 // A line along the contours: the plan band is 8 cos(slope) wide, 8 m on the

@@ -7,7 +7,8 @@
 // The terrain pass's G-buffer target: (dh/dx, dh/dy) of the terrain
 // triangle at the pixel (Heightfield::triangle_gradient, per primitive).
 layout(binding = 26) uniform sampler2D u_terrain_gradient;
-// Per layer-table index: nonzero when the layer's lines take slope widths.
+// Per layer-table index: nonzero when the layer's lines take slope widths;
+// an index past the end takes the last flag (prep::SurfaceSlope).
 layout(binding = 24) uniform usamplerBuffer u_slope_layers;
 
 // Defined in static_lines.glsl.
@@ -20,8 +21,8 @@ void slope_begin() { g_slope = texelFetch(u_terrain_gradient, ivec2(gl_FragCoord
 // Step 6b applies: a flagged layer where the ground is not level.
 bool slope_applies(uint line) {
   if (g_slope == vec2(0.0)) return false;
-  int layer = int(line_layer(line));
-  return layer < textureSize(u_slope_layers) && texelFetch(u_slope_layers, layer).x != 0u;
+  int last = textureSize(u_slope_layers) - 1;
+  return texelFetch(u_slope_layers, int(min(line_layer(line), uint(last)))).x != 0u;
 }
 // <u, v>_G = u.v + (g.u)(g.v)
 float gdot(vec2 u, vec2 v) { return dot(u, v) + dot(g_slope, u) * dot(g_slope, v); }

@@ -102,8 +102,9 @@ EvalSample evaluate(const StaticView& view, double x, double y, EvalCounters* co
 // Slope widths (formats/SPEC.md "Slope widths"): the terrain gradient
 // (dh/dx, dh/dy) under the point and the layers whose static lines are
 // measured along it, one flag per layer-table index (LineProps::layer;
-// nonzero: along the surface). Lines of other layers, and every line where
-// the gradient is zero, are measured in plan as above.
+// nonzero: along the surface), an index past the end taking the last flag
+// ({1}: every layer). Lines of other layers, and every line where the
+// gradient is zero, are measured in plan as above.
 struct SurfaceSlope {
   double gx = 0, gy = 0;
   std::span<const uint8_t> layers;

@@ -142,7 +142,9 @@ struct DecalSource {
   double miter_limit_deg = 40.0;
   // Per layer-table index: the layer's static line widths are measured
   // along the terrain (the metadata layer table's slope_widths; formats/
-  // SPEC.md "Slope widths"). Empty for a model in memory.
+  // SPEC.md "Slope widths"), then a 0 that a line layer past the table
+  // takes (prep::SurfaceSlope). Empty when no layer asks, or for a model in
+  // memory.
   std::vector<uint8_t> slope_layers;
 };
 
@@ -221,9 +223,8 @@ struct RenderOptions {
   SlopeWidths slope_widths = SlopeWidths::package;
 };
 
-// The layers whose static lines `mode` measures along the terrain, one
-// flag per layer index (LineProps::layer) covering every static line of
-// `source`; empty when none is.
+// The layers whose static lines `mode` measures along the terrain, as
+// prep::SurfaceSlope::layers takes them (on: {1}); empty when none is.
 std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode);
 constexpr uint32_t kTextureAutoTexels = 8192;
 
