@@ -79,6 +79,65 @@
 //        K * o < 0 also require K * dot(d, o * Ca.bevel_in) >= 0.
 //    (The kept side of a corner turning towards it is the intersection of
 //    the two half-planes; this also clips round fallback discs correctly.)
+// 6b. Slope widths (formats/SPEC.md "Slope widths"; Thöny et al. §3.3
+//    corrects the same stretch). Step 6 measures the band in plan, so on a
+//    slope a line is wider on the ground than its width. With the terrain
+//    under P taken as the plane of gradient g = (dh/dx, dh/dy) (the
+//    renderer's terrain triangle at the pixel), the ground distance of two
+//    plan points u, v is |u - v|_G, the length of the plane's metric
+//      <u, v>_G = u.v + (g.u)(g.v)     (G = I + g g^T, the first
+//                                        fundamental form of z = h(x, y)).
+//    A line's band on the ground is step 6 with every length in G. The
+//    distance of d from the line through 0 along e is then
+//      |cross(e, d)| / |e| * sqrt((1 + g.g) / (1 + (g.t)^2))
+//      = |v| sqrt(1 + (g.n)^2 / (1 + (g.t)^2)),
+//    v the plan offset, t = e / |e|, n the unit plan normal: |v| sqrt(1 +
+//    (g.n)^2) (the plan perpendicular lifted onto the surface) only where
+//    the line follows a contour (g.t = 0); elsewhere the lifted plan
+//    perpendicular is not perpendicular to the lifted line on the surface.
+//    Every piece of step 6 in G, with gam = 1 + g.g:
+//      N(w) = hw (w - g (g.w) / gam) / sqrt(w.w - (g.w)^2 / gam), for a plan
+//        edge normal w (a stored bevel vector): the G-unit normal of the
+//        edge (G^-1 w normalised in G) times hw, on w's side. Its plan
+//        offset from the edge is hw sqrt((1 + (g.t)^2) / gam) <= hw.
+//      M(a, b) = hw^2 (a + b) / (hw^2 + <a, b>_G): the miter corner of two
+//        G-normals a, b (both at G-distance hw from their edges).
+//    round: t = clamp(<d,e>_G / <e,e>_G, 0, 1); covered <=> |d - t e|_G^2 <= hw^2.
+//    miter: sa = sign(cross(e, Ca.bevel_out)) (+1: the stored bevels at a
+//           are its left normals), sb = sign(cross(e, Cb.bevel_in));
+//           ma = null(Ca.miter) ? N(sa Ca.bevel_out)
+//                               : M(N(sa Ca.bevel_in), N(sa Ca.bevel_out)),
+//           mb = null(Cb.miter) ? N(sb Cb.bevel_in)
+//                               : M(N(sb Cb.bevel_in), N(sb Cb.bevel_out));
+//           then the miter test of step 6 with these ma, mb and the discs
+//           |d|_G^2 <= hw^2, |d - e|_G^2 <= hw^2 (line ends and round
+//           fallbacks: ellipses in plan, circles on the ground). The ground
+//           miter line (through ma) is not the plan one (through
+//           Ca.miter), and the package's cells and boxes hold each
+//           segment's plan quad: the neighbour's ground piece reaching past
+//           the plan miter line onto this segment's side is this
+//           segment's to cover. At a (not null(Ca.miter)), with w = sa
+//           Ca.bevel_in (along the previous segment's left normal) and
+//           t = left(w) (along its direction away from a), d is also
+//           covered when cross(ma, d) cross(ma, t) >= 0 and
+//           cross(Ca.miter, d) cross(Ca.miter, t) <= 0 (between the two
+//           miter lines) and cross(t, d)^2 gam <= hw^2 (t.t + (g.t)^2) (in
+//           the previous segment's ground strip); at b likewise with d - e,
+//           mb, Cb.miter, w = sb Cb.bevel_out and t = -left(w) (the next
+//           segment). No piece reaches farther from the segment in plan
+//           than hw (round, bevel) or the longer of |Ca.miter|, |Cb.miter|
+//           (miter): a cheap test rejects the rest first.
+//    bevel: the bevel test of step 6 with n = N(Ca.bevel_out), the corner
+//           triangles T(0, N(Ca.bevel_in), N(Ca.bevel_out), d) and
+//           T(e, e + N(Cb.bevel_in), e + N(Cb.bevel_out), d), the discs in G.
+//    Which corners are miters stays the package's (plan angles). The
+//    outline side tests are half-planes bounded by the segments' own lines,
+//    the same in any metric, and the clip ring is a plan ring: both stay.
+//    |u|_G >= |u|: a round or bevel piece lies in the plan capsule of its
+//    segment, which the package's cells and boxes of round and bevel
+//    segments hold, and a miter piece in its plan quad but for the part the
+//    neighbour covers: the culling of steps 1-3 stays exact. g = 0 (flat
+//    ground) skips step 6b: step 6 exactly.
 // 7. Polygon leaf k: (poly, node, h0, hn) = cell_polys[cell_poly_range[cell].x + k].
 //    inside = Q(node); if inside, for j in [h0, h0 + hn): (hp, hnode) =
 //    cell_holes[j]; if Q(hnode): inside = false, stop. If inside, composite
@@ -100,6 +159,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace prep {
 
@@ -188,13 +248,97 @@ bool quadtree_covers(const StaticView& v, uint32_t node, const PointQ& p, EvalCo
   }
 }
 
+// Step 6b: the plane of terrain gradient g, its metric and the corner
+// pieces of the band measured in it.
+struct SurfaceMetric {
+  V g;
+  double gam;  // 1 + g.g
+  explicit SurfaceMetric(V grad) : g(grad), gam(1 + dot(grad, grad)) {}
+  double gdot(V u, V v) const { return dot(u, v) + dot(g, u) * dot(g, v); }
+  V normal(V w, double hw) const {  // N(w)
+    const double gw = dot(g, w);
+    return (hw / std::sqrt(dot(w, w) - gw * gw / gam)) * (w - (gw / gam) * g);
+  }
+  V miter(V a, V b, double hw) const {  // M(a, b)
+    return (hw * hw / (hw * hw + gdot(a, b))) * (a + b);
+  }
+  // O(x, m, mg, w): x (from a miter vertex) lies in the neighbouring
+  // segment's ground piece where it reaches past the plan miter line m onto
+  // this segment's side; mg is the ground miter, w the neighbour's left
+  // normal, t its unit direction away from the vertex (`ahead`: w is the
+  // next segment's, t = -left(w); else the previous one's, t = left(w)).
+  bool overhang(V x, V m, V mg, V w, double hw, bool ahead) const {
+    const V t = ahead ? V{w.y, -w.x} : V{-w.y, w.x};  // |t| = |w|
+    if (cross(mg, x) * cross(mg, t) < 0 || cross(m, x) * cross(m, t) > 0) return false;
+    const double gt = dot(g, t), c = cross(t, x);
+    return c * c * gam <= hw * hw * (dot(t, t) + gt * gt);
+  }
+};
+
+// Step 6b: whether the segment's band, measured along the surface, covers
+// d (metres from vertex a; e = b - a).
+bool surface_band_covers(const SurfaceMetric& G, V e, V d, double hw, decal::CornerStyle style,
+                         const decal::LineCorner& ca, const decal::LineCorner& cb) {
+  const double hw2 = hw * hw;
+  if (style != decal::CornerStyle::round) {
+    // Every piece lies within hw (bevel) or the longer plan miter (miter)
+    // of the segment in plan (|u|_G >= |u|; ground miter corners and the
+    // overhangs lie in the plan corner's rhombus).
+    const double ee = dot(e, e);
+    const V r = d - (ee > 0 ? std::clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0) * e;
+    const double reach2 =
+        style == decal::CornerStyle::miter
+            ? std::max({hw2, dot(vec(ca.miter), vec(ca.miter)), dot(vec(cb.miter), vec(cb.miter))})
+            : hw2;
+    if (dot(r, r) > reach2) return false;
+  }
+  switch (style) {
+    case decal::CornerStyle::round: {
+      const double ee = G.gdot(e, e);
+      const double t = ee > 0 ? std::clamp(G.gdot(d, e) / ee, 0.0, 1.0) : 0.0;
+      const V r = d - t * e;
+      return G.gdot(r, r) <= hw2;
+    }
+    case decal::CornerStyle::miter: {
+      const bool na = null_vec(ca.miter), nb = null_vec(cb.miter);
+      const double sa = cross(e, vec(ca.bevel_out)) >= 0 ? 1.0 : -1.0;
+      const double sb = cross(e, vec(cb.bevel_in)) >= 0 ? 1.0 : -1.0;
+      const V ma = na ? G.normal(sa * vec(ca.bevel_out), hw)
+                      : G.miter(G.normal(sa * vec(ca.bevel_in), hw),
+                                G.normal(sa * vec(ca.bevel_out), hw), hw);
+      const V mb = nb ? G.normal(sb * vec(cb.bevel_in), hw)
+                      : G.miter(G.normal(sb * vec(cb.bevel_in), hw),
+                                G.normal(sb * vec(cb.bevel_out), hw), hw);
+      return in_triangle(-1.0 * ma, e - mb, e + mb, d) || in_triangle(-1.0 * ma, e + mb, ma, d) ||
+             (na && G.gdot(d, d) <= hw2) || (nb && G.gdot(d - e, d - e) <= hw2) ||
+             (!na && G.overhang(d, vec(ca.miter), ma, sa * vec(ca.bevel_in), hw, false)) ||
+             (!nb && G.overhang(d - e, vec(cb.miter), mb, sb * vec(cb.bevel_out), hw, true));
+    }
+    case decal::CornerStyle::bevel: {
+      const V n = G.normal(vec(ca.bevel_out), hw);
+      const double c = cross(e, n);
+      if (c != 0) {
+        const double sv = cross(e, d) / c, tv = cross(d, n) / c;
+        if (tv >= 0 && tv <= 1 && std::fabs(sv) <= 1) return true;
+      }
+      if (null_vec(ca.bevel_in) ? G.gdot(d, d) <= hw2
+                                : in_triangle({0, 0}, G.normal(vec(ca.bevel_in), hw), n, d))
+        return true;
+      return null_vec(cb.bevel_out) ? G.gdot(d - e, d - e) <= hw2
+                                    : in_triangle(e, e + G.normal(vec(cb.bevel_in), hw),
+                                                  e + G.normal(vec(cb.bevel_out), hw), d);
+    }
+  }
+  return false;
+}
+
 // Outcome of the segment test (step 6): outside the band; in the band of a
 // clipped outline but on the dropped side of its ring (no segment of that
 // line can cover the point then); covered.
 enum class SegmentHit { none, clipped, covered };
 
 SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const PointQ& p,
-                        EvalCounters* k) {
+                        EvalCounters* k, const SurfaceMetric* surface = nullptr) {
   const ivec2& ai = v.line_vertices[s];
   const ivec2& bi = v.line_vertices[e_idx];
   const decal::LineProps& pr = v.line_props[v.line_vertex_line[s]];
@@ -249,6 +393,8 @@ SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const P
       break;
     }
   }
+  // Step 6b replaces the plan band for a line measured along the terrain.
+  if (surface) covered = surface_band_covers(*surface, e, d, hw, style, ca, cb);
   if (!covered) return SegmentHit::none;
   if (mode == decal::OutlineMode::normal) return SegmentHit::covered;
   if (pr.style & decal::kStyleClipBit) {
@@ -393,7 +539,23 @@ bool segment_covers(const StaticView& v, uint32_t start, uint32_t end, double x,
 }
 
 EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
+  return evaluate(v, x, y, SurfaceSlope{}, k);
+}
+
+EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope& slope,
+                    EvalCounters* k) {
   EvalSample out;
+  // Step 6b applies to the lines of the flagged layers where the ground is
+  // not level.
+  const std::optional<SurfaceMetric> surface =
+      (slope.gx != 0 || slope.gy != 0) && !slope.layers.empty()
+          ? std::optional<SurfaceMetric>(SurfaceMetric({slope.gx, slope.gy}))
+          : std::nullopt;
+  auto surface_of = [&](uint32_t line) -> const SurfaceMetric* {
+    const uint32_t layer = v.line_props[line].layer;
+    return surface && slope.layers[std::min<size_t>(layer, slope.layers.size() - 1)] ? &*surface
+                                                                                     : nullptr;
+  };
   const PointQ p{x / kQ, y / kQ};
   uint32_t cell;
   if (!cell_of(v.grid, p, cell)) return out;
@@ -420,7 +582,7 @@ EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
     const uint32_t line = v.line_vertex_line[seg[0]];
     if (int64_t(line) == last_line) return false;
     if (k) ++k->segment_tests;
-    const SegmentHit hit = segment_test(v, seg[0], seg[1], p, k);
+    const SegmentHit hit = segment_test(v, seg[0], seg[1], p, k, surface_of(line));
     if (hit == SegmentHit::none) return false;
     last_line = line;  // decided: covered, or clipped away for every segment
     if (hit == SegmentHit::clipped) return false;

@@ -209,6 +209,8 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
         fail(ref, "expected a casing width > 0, got " + std::to_string(layer.casing_width));
     } else if (key == "casing_color") {
       layer.casing_rgba = with_key(ref, [&] { return parse_color(get_string(v, ref)); });
+    } else if (key == "slope_widths") {
+      layer.slope_widths = get_bool(v, ref);
     } else if (key == "width") {
       layer.style.width = get_number(v, ref);
       if (!(layer.style.width > 0) || !std::isfinite(layer.style.width))
@@ -241,6 +243,10 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
   if (layer.casing_width > 0 &&
       (layer.kind == DecalKind::polygon || layer.style.outline != decal::OutlineMode::normal))
     fail(here, "casing_width needs kind = \"line\" or \"outline\" with outline_mode \"normal\"");
+  if (layer.slope_widths && (layer.kind == DecalKind::polygon || layer.dynamic))
+    fail(here,
+         "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
+         "dynamic widths are pixels, polygons have no width)");
   if (layer.dynamic && !width_set) layer.style.width = 3.0;  // pixels
   if (layer.name.empty())
     layer.name = layer.layer.empty() ? "layer" + std::to_string(index) : layer.layer;

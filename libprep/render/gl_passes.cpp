@@ -186,7 +186,7 @@ void set_clip(ViewUniforms& v, const Extent& clip) {
             float(clip.ymax - ay)};
 }
 
-Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H, bool stencil) {
+Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H, bool stencil, bool slope) {
   Targets t;
   t.color = gl.texture(GL_RGBA8, W, H);
   t.depth = gl.texture(stencil ? GL_DEPTH32F_STENCIL8 : GL_DEPTH_COMPONENT32F, W, H);
@@ -194,13 +194,22 @@ Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H, bool stencil) {
   t.final = gl.texture(GL_RGBA8, W, H);
   t.dyn = gl.texture(GL_RGBA32F, W, H);
   t.f_terrain = gl.framebuffer(t.color, t.depth);
+  if (slope) {
+    t.gradient = gl.texture(GL_RG32F, W, H);
+    glNamedFramebufferTexture(t.f_terrain, GL_COLOR_ATTACHMENT1, t.gradient, 0);
+    const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    glNamedFramebufferDrawBuffers(t.f_terrain, 2, both);
+    if (glCheckNamedFramebufferStatus(t.f_terrain, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      fail<render_error>(kRenderStage, "framebuffer incomplete (terrain gradient)");
+  }
   t.f_decal = gl.framebuffer(t.decal, 0);
   t.f_final = gl.framebuffer(t.final, 0);
   t.f_dyn = gl.framebuffer(t.dyn, 0);
   return t;
 }
 
-TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const Vec3& anchor) {
+TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const Vec3& anchor,
+                                bool slope) {
   std::vector<float> verts;
   verts.reserve(size_t(terrain.nx) * terrain.ny * 6);
   for (uint32_t j = 0; j < terrain.ny; ++j)
@@ -237,26 +246,44 @@ TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const
   glVertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float));
   glVertexArrayAttribBinding(vao, 0, 0);
   glVertexArrayAttribBinding(vao, 1, 0);
-  return {vao, GLsizei(idx.size())};
+  GLuint gradients = 0;
+  if (slope) {
+    // Primitive 2 k + upper of cell k = i + (nx - 1) j, as drawn above.
+    std::vector<float> g;
+    g.reserve(size_t(terrain.nx - 1) * (terrain.ny - 1) * 4);
+    for (uint32_t j = 0; j + 1 < terrain.ny; ++j)
+      for (uint32_t i = 0; i + 1 < terrain.nx; ++i)
+        for (bool upper : {false, true}) {
+          const std::array<double, 2> t = terrain.triangle_gradient(i, j, upper);
+          g.push_back(float(t[0]));
+          g.push_back(float(t[1]));
+        }
+    glCreateBuffers(1, &gradients);
+    gl.buffers.push_back(gradients);
+    glNamedBufferStorage(gradients, GLsizeiptr(g.size() * sizeof(float)), g.data(), 0);
+  }
+  return {vao, GLsizei(idx.size()), gradients};
 }
 
-StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt) {
+StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope) {
   StaticPrograms p;
   p.defines = opt.binding == Binding::texture ? "#define DECAL_TEXTURE 1\n" : "";
   const std::string aa_defines = opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n"
                                  : opt.aa == AntiAliasing::msaa4  ? "#define DECAL_MSAA 1\n"
                                                                   : "";
-  p.terrain = gl.program({{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, ""});
+  const std::string slope_define = slope ? "#define DECAL_SLOPE_WIDTHS 1\n" : "";
+  p.terrain = gl.program({{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, slope_define});
   p.polygons = gl.program({{"fullscreen.vert.glsl"},
                            {},
                            {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
                            {},
                            p.defines + aa_defines + "#define DECAL_POLYGONS 1\n"});
-  p.lines = gl.program({{"fullscreen.vert.glsl"},
-                        {},
-                        {"decal_blobs.glsl", "static_common.glsl", "static_lines.glsl"},
-                        {},
-                        p.defines + aa_defines + "#define DECAL_LINES 1\n"});
+  p.lines = gl.program(
+      {{"fullscreen.vert.glsl"},
+       {},
+       {"decal_blobs.glsl", "static_common.glsl", "slope_widths.glsl", "static_lines.glsl"},
+       {},
+       p.defines + aa_defines + slope_define + "#define DECAL_LINES 1\n"});
   p.composite = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
   return p;
 }
@@ -271,7 +298,10 @@ GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal:
   if (opt.clip) set_clip(view0_, *opt.clip);
   view_ = view0_;
   runs_ = draw_runs(source.view);
+  slope_ = opt.method == Method::decal && opt.draw_lines &&
+           !slope_layers(source, opt.slope_widths).empty();
   setup();
+  if (slope_) upload_slope_layers(source);
   if (opt.method != Method::decal) method_setup();
 }
 
@@ -285,16 +315,18 @@ GlRenderer::GlRenderer(std::span<const TileSource> tiles, const Heightfield& ter
   // view_ takes its own (load_tile).
   view0_ = view_uniforms(opt.camera, tiles.front().source.view.grid, W_, H_);
   view_ = view0_;
+  for (const TileSource& t : tiles)
+    slope_ = slope_ || (opt.draw_lines && !slope_layers(t.source, opt.slope_widths).empty());
   setup();
 }
 
 // What every package of the frame shares: terrain mesh, targets, programs.
 void GlRenderer::setup() {
-  mesh_ = upload_terrain_mesh(gl_, terrain_, view0_.anchor);
+  mesh_ = upload_terrain_mesh(gl_, terrain_, view0_.anchor, slope_);
   glCreateVertexArrays(1, &empty_vao_);
   gl_.arrays.push_back(empty_vao_);
-  t_ = make_targets(gl_, W_, H_, opt_.method == Method::volume);
-  p_ = static_programs(gl_, opt_);
+  t_ = make_targets(gl_, W_, H_, opt_.method == Method::volume, slope_);
+  p_ = static_programs(gl_, opt_, slope_);
   glViewport(0, 0, GLsizei(W_), GLsizei(H_));
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
 }
@@ -348,6 +380,7 @@ void GlRenderer::load_tile(size_t k) {
   runs_ = draw_runs(t.source.view);
   scissor_ = tile_scissor();
   if (scissor_[2] == 0 || scissor_[3] == 0) return;  // not in the image: nothing to upload
+  if (slope_) upload_slope_layers(t.source);
   timer_.begin("tile upload (blobs)");
   check(decal::gl::GpuPackage::upload(gl_blobs(t.source), gl_grid(t.source), gpu_, true));
   timer_.end();
@@ -433,6 +466,11 @@ void GlRenderer::terrain_pass() {
   }
   const float zero = 0.0f;
   glClearNamedFramebufferfv(fb, GL_DEPTH, 0, &zero);
+  if (slope_) {
+    const float level[4] = {0, 0, 0, 0};
+    glClearNamedFramebufferfv(fb, GL_COLOR, 1, level);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 24, mesh_.gradients);
+  }
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_GREATER);
   const GLuint p = sample_texture ? m_.terrain_program : p_.terrain;
@@ -502,6 +540,22 @@ void GlRenderer::bind_package() const {
   gpu_->bind(opt_.binding == Binding::texture ? decal::gl::BindingMode::texture
                                               : decal::gl::BindingMode::ssbo);
   glBindTextureUnit(31, t_.depth);
+  if (slope_) {
+    glBindTextureUnit(26, t_.gradient);
+    glBindTextureUnit(24, slope_layers_);
+  }
+}
+
+void GlRenderer::upload_slope_layers(const DecalSource& source) {
+  std::vector<uint8_t> flags = slope_layers(source, opt_.slope_widths);
+  if (flags.empty()) flags.push_back(0);  // this package: none
+  GLuint buf = 0;
+  glCreateBuffers(1, &buf);
+  gl_.buffers.push_back(buf);
+  glNamedBufferStorage(buf, GLsizeiptr(flags.size()), flags.data(), 0);
+  glCreateTextures(GL_TEXTURE_BUFFER, 1, &slope_layers_);
+  gl_.textures.push_back(slope_layers_);
+  glTextureBuffer(slope_layers_, GL_R8UI, buf);
 }
 
 GLuint GlRenderer::begin_static() {

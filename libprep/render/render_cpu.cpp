@@ -58,16 +58,27 @@ Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
     if (!opt.draw_lines) view.line_bvh_range = {};
     views.push_back(view);
   }
+  // Slope widths (formats/SPEC.md "Slope widths"): each tile's flagged
+  // layers, measured along the gradient of the terrain triangle under the
+  // point (the ray's hit triangle; the one under the pixel centre top-down).
+  std::vector<std::vector<uint8_t>> slope(tiles.size());
+  bool any_slope = false;
+  for (size_t k = 0; k < tiles.size(); ++k) {
+    if (opt.draw_lines) slope[k] = slope_layers(tiles[k].source, opt.slope_widths);
+    any_slope = any_slope || !slope[k].empty();
+  }
   // A point is answered by the one tile whose half-open square holds it.
   auto sample = [&](double x, double y) -> EvalSample {
     for (size_t k = 0; k < tiles.size(); ++k) {
       const Extent& q = tiles[k].square;
-      if (x >= q.xmin && x < q.xmax && y >= q.ymin && y < q.ymax)
-        return evaluate(views[k], x - tiles[k].dx, y - tiles[k].dy);
+      if (!(x >= q.xmin && x < q.xmax && y >= q.ymin && y < q.ymax)) continue;
+      if (slope[k].empty()) return evaluate(views[k], x - tiles[k].dx, y - tiles[k].dy);
+      const std::array<double, 2> g = terrain.gradient_at(x, y);
+      return evaluate(views[k], x - tiles[k].dx, y - tiles[k].dy, {g[0], g[1], slope[k]});
     }
     return EvalSample{};
   };
-  const bool single = tiles.size() == 1 && std::isinf(tiles[0].square.xmin);
+  const bool single = tiles.size() == 1 && std::isinf(tiles[0].square.xmin) && !any_slope;
   const uint32_t nthreads = std::max(1u, std::min(16u, std::thread::hardware_concurrency()));
   // Rows in parallel (evaluate() is thread-safe; each pixel is written once).
   auto parallel_rows = [&](auto&& row) {

@@ -75,6 +75,10 @@ void check_options(const RenderOptions& opt) {
     fail<usage_error>(kRenderStage,
                       "--method volume and --method texture draw without anti-aliasing; use --aa "
                       "none");
+  if (opt.method != Method::decal && opt.slope_widths == SlopeWidths::on)
+    fail<usage_error>(kRenderStage,
+                      "--slope-widths on needs --method decal (the volume and texture methods draw "
+                      "the features' plan geometry)");
   if (!(opt.texture_resolution >= 0) || !std::isfinite(opt.texture_resolution))
     fail<usage_error>(kRenderStage, "--texture-resolution must be a positive number of metres");
 }

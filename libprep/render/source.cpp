@@ -1,4 +1,5 @@
 // DecalSource: the renderer's view of a model in memory or an opened package.
+#include <algorithm>
 #include <cstring>
 #include <span>
 #include <string>
@@ -115,6 +116,17 @@ DecalSource source_of(const decal::Package& package) {
         s.miter_limit_deg = deg;
       }
     }
+    // Layers whose static lines are measured along the terrain.
+    // One flag per layer and a last 0 for line layers past the table.
+    if (const auto* layers = pick({"layers"}); layers && layers->is_array()) {
+      for (size_t i = 0; i < layers->size(); ++i) {
+        const auto& l = (*layers)[i];
+        if (l.is_object() && l.contains("slope_widths") && l["slope_widths"] == true) {
+          s.slope_layers.resize(layers->size() + 1, 0);
+          s.slope_layers[i] = 1;
+        }
+      }
+    }
   } catch (const nlohmann::json::exception& ex) {
     fail<format_error>(kRenderStage, std::string("package metadata: ") + ex.what());
   }
@@ -126,6 +138,12 @@ DecalSource source_of(const decal::Package& package) {
                 (g.origin_y + g.cell_h * int64_t(g.ny)) * decal::kQuantumMetres};
   }
   return s;
+}
+
+std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode) {
+  if (mode == SlopeWidths::off) return {};
+  if (mode == SlopeWidths::package) return source.slope_layers;
+  return source.view.line_props.empty() ? std::vector<uint8_t>{} : std::vector<uint8_t>{1};
 }
 
 std::vector<std::string> layer_names(const std::string& metadata_json) {

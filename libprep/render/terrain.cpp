@@ -187,6 +187,22 @@ double Heightfield::height_at(double x, double y) const {
   return z00 + v * (z01 - z00) + u * (z11 - z01);
 }
 
+std::array<double, 2> Heightfield::triangle_gradient(uint32_t i, uint32_t j, bool upper) const {
+  auto at = [&](uint32_t a, uint32_t b) { return z[a + size_t(nx) * b]; };
+  const double z00 = at(i, j), z10 = at(i + 1, j), z01 = at(i, j + 1), z11 = at(i + 1, j + 1);
+  // As height_at: z00 + u (z10 - z00) + v (z11 - z10) below the diagonal,
+  // z00 + v (z01 - z00) + u (z11 - z01) above it.
+  if (!upper) return {(z10 - z00) / dx, (z11 - z10) / dy};
+  return {(z11 - z01) / dx, (z01 - z00) / dy};
+}
+
+std::array<double, 2> Heightfield::gradient_at(double x, double y) const {
+  const double fx = (x - x0) / dx, fy = (y - y0) / dy;
+  if (!(fx >= 0 && fy >= 0 && fx <= nx - 1 && fy <= ny - 1)) return {0, 0};
+  const uint32_t i = std::min(uint32_t(fx), nx - 2), j = std::min(uint32_t(fy), ny - 2);
+  return triangle_gradient(i, j, fx - i < fy - j);
+}
+
 Vec3 Heightfield::normal_at(uint32_t i, uint32_t j) const {
   auto zat = [&](int a, int b) {
     a = std::clamp(a, 0, int(nx) - 1);

@@ -29,6 +29,7 @@ struct RenderArgs {
   std::string gpu_budget, level = "auto";  // tilesets: --gpu-budget SIZE, --level auto|L
   std::string lod = "on";                  // --lod on|off (LOCALIS LOD of dynamic lines)
   double lod_tolerance = 0.5;              // --lod-tolerance PX
+  std::string slope_widths = "auto";       // --slope-widths auto|on|off
   double texture_resolution = 0;           // 0: the renderer's default
   double fov = 45.0, pitch = 45.0;
   std::optional<double> z_scale, nodata_fill;  // none: the package's
@@ -317,6 +318,18 @@ void run(const RenderArgs& a) {
   if (a.texture_resolution < 0 || !std::isfinite(a.texture_resolution))
     throw prep::usage_error("render: --texture-resolution must be a positive number of metres");
   opt.texture_resolution = a.texture_resolution;
+  if (a.slope_widths == "auto")
+    opt.slope_widths = R::SlopeWidths::package;
+  else if (a.slope_widths == "on")
+    opt.slope_widths = R::SlopeWidths::on;
+  else if (a.slope_widths == "off")
+    opt.slope_widths = R::SlopeWidths::off;
+  else
+    throw prep::usage_error("render: --slope-widths '" + a.slope_widths +
+                            "' must be auto, on or off");
+  if (opt.slope_widths == R::SlopeWidths::on && opt.method != R::Method::decal)
+    throw prep::usage_error("render: --slope-widths on needs --method decal (--method " + a.method +
+                            " draws the features' plan geometry)");
   if (a.binding == "ssbo")
     opt.binding = R::Binding::ssbo;
   else if (a.binding == "texture")
@@ -470,6 +483,15 @@ void run(const RenderArgs& a) {
   std::vector<R::RestyledProps> restyled;
   const uint64_t recoloured =
       ramps.empty() ? 0 : apply_ramps(ramps, sc.packages, sc.tiles, restyled);
+  if (opt.method != R::Method::decal && opt.slope_widths == R::SlopeWidths::package)
+    for (const R::TileSource& t : sc.tiles)
+      if (!R::slope_layers(t.source, opt.slope_widths).empty()) {
+        std::fprintf(stderr,
+                     "render: warning: the package's slope_widths layers are drawn with their "
+                     "plan widths by --method %s (slope widths need --method decal)\n",
+                     a.method.c_str());
+        break;
+      }
   uint64_t blob_bytes = 0;  // the loaded packages' blobs decoded (--gpu-budget's measure)
   for (const decal::Package& p : sc.packages) blob_bytes += decoded_bytes(p);
   const auto frame_start = std::chrono::steady_clock::now();
@@ -617,6 +639,10 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
                   "Static decals drawn as: decal (screen-space decals, default), volume (stencil "
                   "shadow volumes) or texture (features rasterised into a mipmapped texture); GL "
                   "only, dynamic lines always as decals");
+  cmd->add_option("--slope-widths", args->slope_widths,
+                  "Static line widths along the terrain instead of in plan: auto (default: the "
+                  "layers whose scene set slope_widths), on (every static line) or off; decal "
+                  "method and --cpu");
   cmd->add_option("--texture-resolution", args->texture_resolution,
                   "--method texture: ground metres per texel (default 1, coarser where the "
                   "extent needs more than 8192 texels a side)");

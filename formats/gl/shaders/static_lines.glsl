@@ -39,6 +39,11 @@ int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
   vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
   vec2 d = p - rel(ai);
   bool covered = false;
+#ifdef DECAL_SLOPE_WIDTHS
+  // Step 6b (slope_widths.glsl): the band measured along the terrain
+  // replaces the plan band below.
+  if (slope_applies(line)) covered = surface_band_covers(e, d, hw, corner, s, eidx); else
+#endif
   if (corner == 0u) {  // round
     float ee = dot(e, e);
     float t = ee > 0.0 ? clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0;
@@ -107,6 +112,9 @@ float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float 
   ivec2 ai = line_vertex(s);
   vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
   vec2 d = p - rel(ai);
+#ifdef DECAL_SLOPE_WIDTHS
+  if (slope_applies(line)) hw *= slope_side_scale(e);  // the band's sides on the ground
+#endif
   float ee = max(dot(e, e), 1e-20);
   float t = dot(d, e) / ee;
   float c;
@@ -130,6 +138,9 @@ float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float 
 void main() {
   vec3 p;
   if (!pixel_world(p)) discard;
+#ifdef DECAL_SLOPE_WIDTHS
+  slope_begin();
+#endif
   int cell = cell_of(p.xy);
   if (cell < 0) discard;
   uvec2 range = cell_segment_range(uint(cell));

@@ -1,5 +1,6 @@
 // terrain.frag.glsl — simple Lambert shading into the G-buffer colour; the
-// depth attachment is the G-buffer depth the decal passes back-project.
+// depth attachment is the G-buffer depth the decal passes back-project
+// (and, for slope widths, the triangle's gradient into a second target).
 // Heights at or below 0 m (the sea in SRTM tiles) get a water tint.
 in vec3 v_normal;
 in float v_height;
@@ -16,7 +17,21 @@ uniform vec4 u_texture_box;  // anchor-relative xmin, ymin and 1 / width, 1 / he
 uniform vec4 u_clip;         // anchor-relative xmin, ymin, xmax, ymax: decals only inside
 layout(location = 1) out vec4 o_decal;
 #endif
+#ifdef DECAL_SLOPE_WIDTHS
+// Slope widths (formats/SPEC.md "Slope widths"): the gradient (dh/dx, dh/dy)
+// of the terrain triangle, computed per triangle in double on the CPU
+// (Heightfield::triangle_gradient) and indexed by primitive, into a
+// G-buffer target that the static line pass reads (slope_widths.glsl).
+#ifdef DECAL_TEXTURE_METHOD
+#error "slope widths are drawn by the decal method only"
+#endif
+layout(std430, binding = 24) readonly buffer B_terrain_gradient { vec2 d_terrain_gradient[]; };
+layout(location = 1) out vec2 o_gradient;
+#endif
 void main() {
+#ifdef DECAL_SLOPE_WIDTHS
+  o_gradient = d_terrain_gradient[gl_PrimitiveID];
+#endif
 #ifdef DECAL_TEXTURE_METHOD
   bool in_clip = v_ground.x >= u_clip.x && v_ground.y >= u_clip.y && v_ground.x < u_clip.z &&
                  v_ground.y < u_clip.w;

@@ -103,6 +103,21 @@ struct EvalSample {
 // (the GLSL mirrors it). Thread-safe (reads only).
 EvalSample evaluate(const StaticView& view, double x, double y, EvalCounters* counters = nullptr);
 
+// Slope widths (formats/SPEC.md "Slope widths"): the terrain gradient
+// (dh/dx, dh/dy) under the point and the layers whose static lines are
+// measured along it, one flag per layer-table index (LineProps::layer;
+// nonzero: along the surface), an index past the end taking the last flag
+// ({1}: every layer). Lines of other layers, and every line where the
+// gradient is zero, are measured in plan as above.
+struct SurfaceSlope {
+  double gx = 0, gy = 0;
+  std::span<const uint8_t> layers;
+};
+// evaluate() with the static line widths of the flagged layers measured
+// along the plane of gradient `slope` (step 6b of the query block).
+EvalSample evaluate(const StaticView& view, double x, double y, const SurfaceSlope& slope,
+                    EvalCounters* counters = nullptr);
+
 // Coverage queries of single primitives, as evaluate() applies them (for
 // tests and tools). `x, y` in metres relative to the origin.
 // True when the point is inside polygon `poly` alone (its own quad-tree from

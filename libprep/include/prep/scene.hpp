@@ -77,6 +77,11 @@ struct LayerSpec {
   double casing_width = 0;  // metres (static) or pixels (dynamic); 0: none
   std::optional<uint32_t> casing_rgba;
   std::string casing_of;
+  // Scene file slope_widths: the layer's static line widths are ground
+  // widths along the terrain surface, not in plan (formats/SPEC.md "Slope
+  // widths"). Recorded in the package's layer table; the package itself
+  // stays in plan, and `decalprep render` applies it with its DEM.
+  bool slope_widths = false;
 };
 
 struct Extent {

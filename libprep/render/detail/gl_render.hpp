@@ -99,11 +99,14 @@ void set_clip(ViewUniforms& v, const Extent& clip);
 // G-buffer: terrain colour + float depth (reversed Z); decal layer; final;
 // dynamic-line layer. Each colour texture has its framebuffer. With
 // `stencil` (the volume method) the depth texture carries an 8-bit stencil.
+// With `slope` the terrain framebuffer has a second target, the terrain
+// gradient (RG32F) the line pass reads for slope widths.
 struct Targets {
-  GLuint color = 0, depth = 0, decal = 0, final = 0, dyn = 0;
+  GLuint color = 0, depth = 0, decal = 0, final = 0, dyn = 0, gradient = 0;
   GLuint f_terrain = 0, f_decal = 0, f_final = 0, f_dyn = 0;
 };
-Targets make_targets(GlObjects& gl, uint32_t width, uint32_t height, bool stencil = false);
+Targets make_targets(GlObjects& gl, uint32_t width, uint32_t height, bool stencil = false,
+                     bool slope = false);
 
 // The GL state of the volume and texture methods (gl_methods.cpp).
 struct MethodState {
@@ -129,12 +132,16 @@ struct MethodState {
   PassTime raster_time;
 };
 
-// Terrain mesh in anchor-relative metres (position + normal per vertex).
+// Terrain mesh in anchor-relative metres (position + normal per vertex);
+// with `slope`, a buffer of each triangle's gradient in draw order
+// (Heightfield::triangle_gradient) for the terrain pass's gradient target.
 struct TerrainMesh {
   GLuint vao = 0;
   GLsizei index_count = 0;
+  GLuint gradients = 0;
 };
-TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const Vec3& anchor);
+TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const Vec3& anchor,
+                                bool slope = false);
 
 // The programs of the terrain, static and composite passes; `defines` is
 // the binding's define, shared with the dynamic programs.
@@ -142,7 +149,7 @@ struct StaticPrograms {
   std::string defines;
   GLuint terrain = 0, polygons = 0, lines = 0, composite = 0;
 };
-StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt);
+StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope = false);
 
 // gl_dynamic.cpp: a package's LOD data on the GPU (kept across frames).
 struct LodBuffers;
@@ -190,6 +197,9 @@ class GlRenderer {
   void end_static(GLuint f_static);
   GLuint static_target();
   void set_static_uniforms(GLuint p) const;
+  // Slope widths: the current package's layer flags (slope_layers) as the
+  // buffer texture the line pass reads.
+  void upload_slope_layers(const DecalSource& source);
   // gl_methods.cpp: set-up of the volume and texture methods, the volume
   // passes and the texture's rasterisation (once, before the first frame).
   void method_setup();
@@ -225,6 +235,8 @@ class GlRenderer {
   StaticPrograms p_;
   MethodState m_;
   std::shared_ptr<LodBuffers> lod_;  // gl_dynamic.cpp: the current package's LOD buffers
+  bool slope_ = false;       // some package's lines take slope widths
+  GLuint slope_layers_ = 0;  // buffer texture of the current package's flags
 };
 
 }  // namespace prep::render::detail

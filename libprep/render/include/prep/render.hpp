@@ -80,6 +80,13 @@ struct Heightfield {
   // Height of the mesh (the triangles drawn) at scene point (x, y); NaN
   // outside the grid.
   double height_at(double x, double y) const;
+  // Gradient (dh/dx, dh/dy) of triangle `upper` (false: (00, 10, 11), true:
+  // (00, 11, 01)) of cell (i, j); the GL terrain pass draws it as primitive
+  // 2 (i + (nx - 1) j) + upper.
+  std::array<double, 2> triangle_gradient(uint32_t i, uint32_t j, bool upper) const;
+  // Gradient of the triangle holding scene point (x, y), the one height_at
+  // interpolates in; (0, 0) outside the grid.
+  std::array<double, 2> gradient_at(double x, double y) const;
 };
 
 // Flat terrain at height 0 covering `extent`.
@@ -133,6 +140,12 @@ struct DecalSource {
   // between segments: the package's build_options.miter_limit_deg (the
   // static corners were built with it), else the build default.
   double miter_limit_deg = 40.0;
+  // Per layer-table index: the layer's static line widths are measured
+  // along the terrain (the metadata layer table's slope_widths; formats/
+  // SPEC.md "Slope widths"), then a 0 that a line layer past the table
+  // takes (prep::SurfaceSlope). Empty when no layer asks, or for a model in
+  // memory.
+  std::vector<uint8_t> slope_layers;
 };
 
 // Views of a model in memory (for tests and `build --render`).
@@ -182,6 +195,12 @@ enum class Binding { ssbo, texture };
 // only static polygons and lines; dynamic lines keep the decal method's
 // pass. GL only; neither anti-aliases (AntiAliasing::none).
 enum class Method { decal, volume, texture };
+// Static line widths along the terrain (formats/SPEC.md "Slope widths";
+// `render --slope-widths auto|on|off`): as each layer of the package asks
+// (DecalSource::slope_layers), or for every static line, or for none. The
+// decal method (GL) and the CPU evaluator apply it; dynamic lines (pixels)
+// and polygons never change.
+enum class SlopeWidths { package, on, off };
 
 struct RenderOptions {
   uint32_t width = 640, height = 360;
@@ -212,7 +231,12 @@ struct RenderOptions {
   // GL: copy the indices (into lod_segments) of the selected LOD segments
   // to Image::lod_selection (tests).
   bool lod_read_selection = false;
+  SlopeWidths slope_widths = SlopeWidths::package;
 };
+
+// The layers whose static lines `mode` measures along the terrain, as
+// prep::SurfaceSlope::layers takes them (on: {1}); empty when none is.
+std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode);
 constexpr uint32_t kTextureAutoTexels = 8192;
 
 struct PassTime {
