@@ -75,12 +75,14 @@ DECAL_FETCH(ivec4, line_bvh_box, line_bvh_box, .xyzw)
 // (half_width, rgba, order, style) of a line
 uvec4 line_props(uint l)         { return texelFetch(t_line_props, int(2u * l)); }
 uint  line_clip_node(uint l)     { return texelFetch(t_line_props, int(2u * l + 1u)).w; }
+uint  line_layer(uint l)         { return texelFetch(t_line_props, int(2u * l + 1u)).y; }
 vec2  corner_miter(uint v)       { return texelFetch(t_line_corners, int(3u * v)).xy; }
 vec2  corner_bevel_in(uint v)    { return texelFetch(t_line_corners, int(3u * v + 1u)).xy; }
 vec2  corner_bevel_out(uint v)   { return texelFetch(t_line_corners, int(3u * v + 2u)).xy; }
 #else
 uvec4 line_props(uint l)         { LineProps p = d_line_props[l]; return uvec4(floatBitsToUint(p.half_width), p.rgba, p.order, p.style); }
 uint  line_clip_node(uint l)     { return d_line_props[l].clip_node; }
+uint  line_layer(uint l)         { return d_line_props[l].layer; }
 vec2  corner_miter(uint v)       { return d_line_corners[v].miter; }
 vec2  corner_bevel_in(uint v)    { return d_line_corners[v].bevel_in; }
 vec2  corner_bevel_out(uint v)   { return d_line_corners[v].bevel_out; }
@@ -100,7 +102,9 @@ DECAL_FETCH(ivec2, dyn_prev_next, dyn_prev_next, .xy)
 DECAL_FETCH(uint, dyn_line_start, dyn_line_start, .x)
 #ifdef DECAL_TEXTURE
 uvec4 dyn_line_props(uint l)   { return texelFetch(t_dyn_line_props, int(2u * l)); }
+uint  dyn_line_layer(uint l)   { return texelFetch(t_dyn_line_props, int(2u * l + 1u)).y; }
 #else
 uvec4 dyn_line_props(uint l)   { LineProps p = d_dyn_line_props[l]; return uvec4(floatBitsToUint(p.half_width), p.rgba, p.order, p.style); }
+uint  dyn_line_layer(uint l)   { return d_dyn_line_props[l].layer; }
 #endif
 #endif  // DECAL_DYNAMIC

@@ -5,11 +5,13 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "decal/format.hpp"
+#include "prep/dash.hpp"
 #include "prep/model.hpp"
 
 namespace decal {
@@ -42,6 +44,10 @@ struct StaticView {
   // for format 1.2 and later (one rank space), the number of lines for older
   // packages (every line over every polygon).
   uint64_t polygon_rank_bias = 0;
+  // Dashed lines (prep/dash.hpp): the layer table's patterns and the
+  // static-line vertices' along-line distances, computed when the package
+  // is loaded; null or no dashed layer: every line solid.
+  std::shared_ptr<const LineDashes> dashes;
 };
 
 // StaticView's blobs as X(element type, name). Each name is a StaticView

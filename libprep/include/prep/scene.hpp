@@ -77,6 +77,10 @@ struct LayerSpec {
   double casing_width = 0;  // metres (static) or pixels (dynamic); 0: none
   std::optional<uint32_t> casing_rgba;
   std::string casing_of;
+  // Dash pattern (scene file `dash`): [on, off, on, off, ...], lengths > 0
+  // along the line from its start, ground metres (static) or pixels
+  // (dynamic); empty: solid. A casing copy is solid.
+  std::vector<double> dash;
 };
 
 struct Extent {
