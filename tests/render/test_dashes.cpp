@@ -138,22 +138,38 @@ TEST(Dashes, CpuAndGlAgreeOnCasedDashedLinesAtEveryCornerStyle) {
              "casing_width = 2\ndash = [24, 12]\ncorner = \"" +
              kCorners[c] + "\"\n";
   }
+  // A wave of 1200 vertices, static and dynamic, dashed: the dynamic
+  // pass's scan of screen lengths runs over several blocks of 256 kept
+  // vertices, with lines starting inside a block.
+  std::vector<std::array<double, 2>> wave;
+  for (int k = 0; k < 1200; ++k)
+    wave.push_back({2 + 0.15 * k, 178 + 3 * std::sin(0.05 * k) + 0.013});
+  std::ofstream(dir / "wave.geojson") << collection({linestring(wave)});
+  scene +=
+      "[[layer]]\nname = \"wave\"\nsource = \"wave.geojson\"\nkind = \"line\"\nwidth = 1.5\n"
+      "color = \"#80ffff\"\ndash = [3, 1, 0.5, 1]\n";
+  scene +=
+      "[[layer]]\nname = \"dwave\"\nsource = \"wave.geojson\"\nkind = \"line\"\n"
+      "dynamic = true\nwidth = 3\ncolor = \"#ff80ff\"\ndash = [10, 6]\n";
   std::string why;
   const std::string path = build(dir, scene, why);
   ASSERT_FALSE(path.empty()) << why;
   decal::Package pkg;
   ASSERT_TRUE(decal::Package::open(path, pkg));
   const R::DecalSource src = R::source_of(pkg);
-  const prep::Extent abs{kX0 - 5, kY0 - 5, kX0 + 185, kY0 + 175};
+  const prep::Extent abs{kX0 - 5, kY0 - 5, kX0 + 185, kY0 + 185};
   const prep::Extent rel{abs.xmin - src.frame.origin_x, abs.ymin - src.frame.origin_y,
                          abs.xmax - src.frame.origin_x, abs.ymax - src.frame.origin_y};
   // Top-down at 4 px/m, then an oblique perspective view of the same.
   std::vector<std::pair<std::string, R::RenderOptions>> views;
   R::RenderOptions top;
   top.width = 760;
-  top.height = 720;
+  top.height = 760;
   top.camera = R::topdown_camera(rel, 0, 0);
   views.emplace_back("top-down", top);
+  R::RenderOptions tex = top;  // the blobs as buffer textures
+  tex.binding = R::Binding::texture;
+  views.emplace_back("top-down, buffer textures", tex);
   R::RenderOptions persp;
   persp.width = 800;
   persp.height = 600;
