@@ -4,6 +4,7 @@
 // them into the dynamic layer.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "detail/gl_render.hpp"
@@ -225,6 +226,21 @@ void DynamicLines::read_counters(Image& img) const {
   img.dyn_truncated += stats[8];
 }
 
+// Whether some dynamic line's layer has a dash pattern (then the pass runs
+// dyn_dash.comp.glsl).
+bool dynamic_dashes(const DecalSource& source) {
+  if (!source.view.dashes || !source.view.dashes->table.any()) return false;
+  for (const DecalSource::Blob& b : source.blobs) {
+    if (b.id != decal::BlobId::dyn_line_props) continue;
+    for (uint64_t k = 0; k < b.bytes / sizeof(decal::LineProps); ++k) {
+      decal::LineProps p;
+      std::memcpy(&p, static_cast<const std::byte*>(b.data) + k * sizeof p, sizeof p);
+      if (!source.view.dashes->table.of(p.layer).empty()) return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 // Draws into the dynamic layer (cleared by frame()) when there are dynamic
@@ -242,8 +258,7 @@ void GlRenderer::dynamic_pass(Image& img, GlObjects& work) {
       "#define DECAL_DYNAMIC 1\n";
   const DynPrograms p = dyn_programs(gl_, dd);
   DynamicLines dyn(work, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines,
-                   source_->miter_limit_deg,
-                   source_->view.dashes && source_->view.dashes->table.any());
+                   source_->miter_limit_deg, dynamic_dashes(*source_));
   dyn.make_buffers();
   dyn.update(p);
   img.list_grows += dyn.lists(p.lists, t_.f_dyn, empty_vao_);
