@@ -24,6 +24,23 @@ std::span<const double> DashTable::of(uint32_t layer) const {
   return layers[layer];
 }
 
+std::vector<double> line_dash_start(std::string_view metadata_json, size_t lines) {
+  std::vector<double> out;
+  const auto meta = nlohmann::json::parse(metadata_json, nullptr, false);
+  if (!meta.is_object() || !meta.contains("line_dash_start")) return out;
+  const auto& a = meta["line_dash_start"];
+  if (!a.is_array() || a.size() != lines)
+    fail<format_error>(kEvaluateStage, "package metadata: line_dash_start is not an array of " +
+                                           std::to_string(lines) + " numbers (one per line)");
+  for (const auto& x : a) {
+    if (!x.is_number() || !std::isfinite(x.get<double>()) || x.get<double>() < 0)
+      fail<format_error>(kEvaluateStage,
+                         "package metadata: line_dash_start holds " + x.dump() + ", not a length");
+    out.push_back(x.get<double>());
+  }
+  return out;
+}
+
 DashTable dash_table(std::string_view metadata_json) {
   DashTable t;
   const auto meta = nlohmann::json::parse(metadata_json, nullptr, false);
@@ -47,10 +64,15 @@ DashTable dash_table(std::string_view metadata_json) {
 }
 
 std::vector<double> line_vertex_distances(std::span<const ivec2> line_vertices,
-                                          std::span<const uint32_t> line_vertex_line) {
+                                          std::span<const uint32_t> line_vertex_line,
+                                          std::span<const double> line_start) {
   std::vector<double> dist(line_vertices.size(), 0.0);
-  for (size_t k = 1; k < line_vertices.size(); ++k) {
-    if (line_vertex_line[k] != line_vertex_line[k - 1]) continue;  // a line's first vertex
+  for (size_t k = 0; k < line_vertices.size(); ++k) {
+    if (k == 0 || line_vertex_line[k] != line_vertex_line[k - 1]) {  // a line's first vertex
+      const uint32_t l = line_vertex_line[k];
+      dist[k] = l < line_start.size() ? line_start[l] : 0.0;
+      continue;
+    }
     const double dx = double(line_vertices[k][0] - line_vertices[k - 1][0]) * decal::kQuantumMetres;
     const double dy = double(line_vertices[k][1] - line_vertices[k - 1][1]) * decal::kQuantumMetres;
     dist[k] = dist[k - 1] + std::hypot(dx, dy);

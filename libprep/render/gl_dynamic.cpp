@@ -82,7 +82,7 @@ class DynamicLines {
   void set_uniforms(GLuint p) const;
 
   const double miter_limit_deg_;  // the package's: below it a miter corner falls back to round
-  const bool dashes_;             // some layer is dashed: run dyn_dash.comp.glsl
+  const bool dashes_;             // a dynamic line is dashed: run dyn_dash.comp.glsl
   GlObjects& gl_;
   PassTimer& timer_;
   const ViewUniforms& view_;

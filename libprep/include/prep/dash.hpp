@@ -29,11 +29,19 @@ struct DashTable {
 // an even count >= 2 of finite numbers > 0.
 DashTable dash_table(std::string_view metadata_json);
 
+// The metadata's "line_dash_start" (a tile's cut dashed lines: each line's
+// length before its first stored vertex), empty when absent. Throws
+// format_error unless it holds `lines` finite numbers >= 0.
+std::vector<double> line_dash_start(std::string_view metadata_json, size_t lines);
+
 // Along-line distance of every static-line vertex: the line's length from
 // its first vertex (the first entry of its run in line_vertices, whose
 // vertices are consecutive per line) to it, metres, summed in double.
+// `line_start` (metadata "line_dash_start", one per line, or empty): the
+// whole line's length before a tile's cut, added to its vertices.
 std::vector<double> line_vertex_distances(std::span<const ivec2> line_vertices,
-                                          std::span<const uint32_t> line_vertex_line);
+                                          std::span<const uint32_t> line_vertex_line,
+                                          std::span<const double> line_start = {});
 
 // True when `s` falls in an "on" interval [a, a + on) of the pattern
 // repeated from s = 0 (r = s - P floor(s / P), P the period). Empty

@@ -271,6 +271,10 @@ struct SceneLine : FeatureKeys {
   uint32_t layer = 0;
   double length = 0;  // ground metres (geodesic), for drawing order
   double width = 0;   // ground metres (static) corrected by the frame scale; pixels (dynamic)
+  // A dashed static line cut by a tile: the whole line's length up to
+  // points[0], summed over its vertices quantised as a package quantises
+  // them (formats/SPEC.md "Dashed lines"); 0 otherwise.
+  double dash_start = 0;
 };
 
 struct SceneFeatures {
