@@ -49,7 +49,7 @@ DynPrograms dyn_programs(GlObjects& gl, const std::string& dd) {
 }
 
 // One frame of the pass: its work buffers, bound at their SSBO bindings
-// (24..32), and the uniforms every stage takes.
+// (24..32, 40), and the uniforms every stage takes.
 class DynamicLines {
  public:
   DynamicLines(GlObjects& gl, PassTimer& timer, const ViewUniforms& view,
@@ -113,7 +113,7 @@ void DynamicLines::make_buffers() {
   heads_ = buffer(uint64_t(W_) * H_ * 4, 31);
   capacity_ = W_ * H_ * 2;
   nodes_ = buffer(uint64_t(capacity_) * 16, 32);
-  buffer(dashes_ ? (4 * n_dyn_ + 3 * uint64_t(blocks_)) * 4 : 16, 30);  // dyn_common.glsl DynDash
+  buffer(dashes_ ? (4 * n_dyn_ + 3 * uint64_t(blocks_)) * 4 : 16, 40);  // dyn_common.glsl DynDash
   const uint32_t init[12] = {0, 1, 0, 0, 0, 0, capacity_, uint32_t(n_dyn_), 0, 0, 0, 0};
   glNamedBufferSubData(counters_, 0, sizeof init, init);
 }

@@ -5,10 +5,10 @@
 // solid), [3 + 3L] = the period (f32 bits); the patterns as f32 bits. Bound
 // as an SSBO in both binding modes (bindings.hpp kBindingDashTable), like
 // the static lines' per-vertex along-line distances.
-layout(std430, binding = 33) readonly buffer DashTable { uint d_dash[]; };
+layout(std430, binding = 38) readonly buffer DashTable { uint d_dash[]; };
 #ifdef DECAL_LINES
 // per static-line vertex: the line's length from its first vertex, metres
-layout(std430, binding = 34) readonly buffer DashVertex { float d_dash_vertex[]; };
+layout(std430, binding = 39) readonly buffer DashVertex { float d_dash_vertex[]; };
 #endif
 
 bool dash_solid(uint layer) { return layer >= d_dash[0] || d_dash[2u + 3u * layer] == 0u; }

@@ -31,7 +31,7 @@ layout(std430, binding = 32) buffer DynNodes { uvec4 dyn_node[]; };
 // [2n, 3n) 1 where a line starts at or before k in its block; per vertex v:
 // [3n, 4n) the line's screen length from its start to v (kept vertices);
 // per block: [4n, 4n + 2B) (sum, line start seen), [4n + 2B, 4n + 3B) carry.
-layout(std430, binding = 30) buffer DynDash { float dyn_dash[]; };
+layout(std430, binding = 40) buffer DynDash { float dyn_dash[]; };
 
 uniform ivec2 u_anchor_q;      // quanta
 uniform mat4 u_view_proj;      // anchor-relative world -> clip
