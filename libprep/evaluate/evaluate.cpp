@@ -138,6 +138,16 @@
 //    segments hold, and a miter piece in its plan quad but for the part the
 //    neighbour covers: the culling of steps 1-3 stays exact. g = 0 (flat
 //    ground) skips step 6b: step 6 exactly.
+// 6c. Dashes (formats/SPEC.md "Dashed lines"; a layer with a `dash`
+//    pattern in the metadata layer table, props.layer indexes it): a
+//    "covered" segment covers P only if its along-line distance
+//      s = D[s_vertex] + |e| * clamp(dot(d, e) / dot(e, e), 0, 1)
+//    (D: the line's length from its first vertex to each vertex, computed
+//    at load from line_vertices; in a corner's join region the clamp gives
+//    the vertex's own D, so the phase is continuous across corners) lies in
+//    an "on" interval [a, a + on) of r = s - P floor(s / P), P the period;
+//    otherwise the result is "none" and the line's later segments are still
+//    tested (the line covers the union of its segments' dashes).
 // 7. Polygon leaf k: (poly, node, h0, hn) = cell_polys[cell_poly_range[cell].x + k].
 //    inside = Q(node); if inside, for j in [h0, h0 + hn): (hp, hnode) =
 //    cell_holes[j]; if Q(hnode): inside = false, stop. If inside, composite
@@ -416,6 +426,21 @@ SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const P
   return SegmentHit::covered;
 }
 
+// Step 6c: whether the dash pattern of segment (s, e)'s layer is "on" at
+// the point (true for a solid layer).
+bool dash_covers(const StaticView& v, uint32_t s, uint32_t e_idx, uint32_t line, const PointQ& p) {
+  if (!v.dashes) return true;
+  const std::span<const double> pattern = v.dashes->table.of(v.line_props[line].layer);
+  if (pattern.empty()) return true;
+  const ivec2& ai = v.line_vertices[s];
+  const ivec2& bi = v.line_vertices[e_idx];
+  const V e{double(bi[0] - ai[0]) * kQ, double(bi[1] - ai[1]) * kQ};
+  const V d{(p.x - double(ai[0])) * kQ, (p.y - double(ai[1])) * kQ};
+  const double ee = dot(e, e);
+  const double t = ee > 0 ? std::clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0;
+  return dash_on(pattern, v.dashes->vertex_distance[s] + t * std::sqrt(ee));
+}
+
 struct Compositor {
   EvalSample& out;
   // Returns true once opaque.
@@ -584,6 +609,7 @@ EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope&
     if (k) ++k->segment_tests;
     const SegmentHit hit = segment_test(v, seg[0], seg[1], p, k, surface_of(line));
     if (hit == SegmentHit::none) return false;
+    if (hit == SegmentHit::covered && !dash_covers(v, seg[0], seg[1], line, p)) return false;
     last_line = line;  // decided: covered, or clipped away for every segment
     if (hit == SegmentHit::clipped) return false;
     if (!out.line_covered) out.top_line = int32_t(line);

@@ -100,6 +100,18 @@ StaticView view_of(const decal::Package& p) {
     v.cell_polys = as_u4(d->cell_polys);
   }
   v.storage = std::move(d);
+  // Dash patterns from the layer table; the along-line distances of the
+  // static-line vertices are computed here rather than stored, from each
+  // line's start (a tile's cut line: from its "line_dash_start"; formats/SPEC.md
+  // "Dashed lines").
+  auto dashes = std::make_shared<LineDashes>();
+  dashes->table = dash_table(p.metadata_json());
+  if (dashes->table.any()) {
+    dashes->vertex_distance =
+        line_vertex_distances(v.line_vertices, v.line_vertex_line,
+                              line_dash_start(p.metadata_json(), v.line_props.size()));
+    v.dashes = std::move(dashes);
+  }
   return v;
 }
 

@@ -212,6 +212,7 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
     }
     model.line_corners.insert(model.line_corners.end(), o.corners.begin(), o.corners.end());
     model.line_props.push_back(o.props);
+    model.line_dash_start.push_back(l.dash_start);
     const bool closed = o.props.style & decal::kStyleClosedBit;
     nseg += uint32_t(closed ? o.q.size() : o.q.size() - 1);
     keys.push_back({std::isnan(l.order_value) ? l.length : l.order_value, l.layer, DrawKind::line,

@@ -105,6 +105,7 @@ uint64_t input_digest(const SceneFeatures& t, const std::string& metadata,
       d.add(l.layer), d.add(l.fid), d.add(l.part), d.add(l.closed), d.add(l.length), d.add(l.width),
           d.add(l.order_value), d.add(l.color_value);
       d.add(l.points);
+      if (l.dash_start != 0) d.add(l.dash_start);
     }
   }
   return d.value();
@@ -636,6 +637,10 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
             WriteOptions wo;
             wo.codec = request.compress ? Codec::zstd : Codec::none;
             wo.zstd_level = request.zstd_level;
+            // Dashed lines cut by the tile keep the whole line's phase.
+            if (std::any_of(model.line_dash_start.begin(), model.line_dash_start.end(),
+                            [](double s) { return s != 0; }))
+              extra["line_dash_start"] = model.line_dash_start;
             write_model(path, model, extra.dump(), wo);
           }
           const std::optional<FileDigest> fd = file_digest(path);

@@ -153,7 +153,28 @@ LayerSpec casing_of(const LayerSpec& layer) {
   c.casing_width = 0;
   c.casing_rgba.reset();
   c.casing_of = layer.name;
+  c.dash.clear();  // the casing stays solid under a dashed line
   return c;
+}
+
+// `dash = [on, off, ...]`: an even count >= 2 of finite lengths > 0.
+std::vector<double> parse_dash(const toml::node& v, const KeyRef& ref) {
+  const toml::array* a = v.as_array();
+  if (!a) fail(ref, "expected an array [on, off, ...] of lengths > 0, got " + type_name(v));
+  std::vector<double> dash;
+  std::string text = "[";
+  for (size_t i = 0; i < a->size(); ++i) {
+    const toml::node& x = *a->get(i);
+    KeyRef xref{ref.file, ref.key + "[" + std::to_string(i) + "]", line_of(x)};
+    dash.push_back(get_number(x, xref));
+    if (!(dash.back() > 0) || !std::isfinite(dash.back()))
+      fail(xref, "expected a dash length > 0, got " + std::to_string(dash.back()));
+    text += (i ? ", " : "") + std::to_string(dash.back());
+  }
+  if (dash.size() < 2 || dash.size() % 2 != 0)
+    fail(ref, "expected an even count >= 2 of lengths [on, off, ...], got " + text + "] (" +
+                  std::to_string(dash.size()) + " values)");
+  return dash;
 }
 
 LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t index,
@@ -211,6 +232,8 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
       layer.casing_rgba = with_key(ref, [&] { return parse_color(get_string(v, ref)); });
     } else if (key == "slope_widths") {
       layer.slope_widths = get_bool(v, ref);
+    } else if (key == "dash") {
+      layer.dash = parse_dash(v, ref);
     } else if (key == "width") {
       layer.style.width = get_number(v, ref);
       if (!(layer.style.width > 0) || !std::isfinite(layer.style.width))
@@ -247,6 +270,15 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     fail(here,
          "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
          "dynamic widths are pixels, polygons have no width)");
+  if (!layer.dash.empty() && layer.kind == DecalKind::polygon)
+    fail(here, "dash needs kind = \"line\" or \"outline\"");
+  // The dynamic dash scan measures the kept vertex chains, which the LOD
+  // segments replace for the lines of a lod layer (formats/SPEC.md "Dashed
+  // lines").
+  if (!layer.dash.empty() && layer.lod)
+    fail(here,
+         "dash and lod = true cannot be combined yet: the LOD segments replace the "
+         "vertex chains the dash is measured along");
   if (layer.dynamic && !width_set) layer.style.width = 3.0;  // pixels
   if (layer.name.empty())
     layer.name = layer.layer.empty() ? "layer" + std::to_string(index) : layer.layer;

@@ -163,6 +163,11 @@ DynamicLinesCpu::DynamicLinesCpu(const DecalSource& source, const Camera& cam, u
   for (const decal::LineProps& p : props_) max_hw_px_ = std::max<double>(max_hw_px_, p.half_width);
 
   const Mat4 vp = mat_mul(projection_matrix(cam, double(W) / H), view_matrix(cam, cam.eye));
+  vp_ = vp;
+  near_w_ = cam.projection == Projection::perspective ? cam.near : 0.0;
+  width_ = W;
+  height_ = H;
+  if (source.view.dashes && source.view.dashes->table.any()) dashes_ = source.view.dashes;
   auto clip = [&](size_t v) {
     const double x = verts[v][0] * decal::kQuantumMetres, y = verts[v][1] * decal::kQuantumMetres,
                  z = verts[v][2] * decal::kQuantumMetres;
@@ -202,6 +207,16 @@ DynamicLinesCpu::DynamicLinesCpu(const DecalSource& source, const Camera& cam, u
       if (keep[v]) kept.push_back(v);
     const bool closed = pn[first][0] >= 0;
     const size_t n = kept.size();
+    // Dashes: the prefix sum of the kept segments' screen lengths.
+    auto at3 = [&](size_t v) {
+      return std::array<double, 3>{verts[v][0] * decal::kQuantumMetres,
+                                   verts[v][1] * decal::kQuantumMetres,
+                                   verts[v][2] * decal::kQuantumMetres};
+    };
+    std::vector<double> cum(n, 0.0);
+    if (dashes_)
+      for (size_t k = 0; k + 1 < n; ++k)
+        cum[k + 1] = cum[k] + screen_length(clip(kept[k]), clip(kept[k + 1]));
     for (size_t k = 0; k < n; ++k) {
       const size_t next = k + 1 < n ? k + 1 : (closed ? 0 : n);
       if (next == n || next == k) continue;
@@ -217,6 +232,9 @@ DynamicLinesCpu::DynamicLinesCpu(const DecalSource& source, const Camera& cam, u
       s.prev = s.has_prev ? plan(kept[prev]) : s.a;
       s.next = s.has_next ? plan(kept[next2]) : s.b;
       s.line = uint32_t(line);
+      s.a3 = at3(va);
+      s.b3 = at3(vb);
+      s.s0 = cum[k];
       segments_.push_back(s);
     }
   }
@@ -249,6 +267,55 @@ DynamicLinesCpu::DynamicLinesCpu(const DecalSource& source, const Camera& cam, u
     cell_start_[c + 1] = cell_start_[c] + uint32_t(cells[c].size());
     cell_items_.insert(cell_items_.end(), cells[c].begin(), cells[c].end());
   }
+}
+
+std::array<double, 4> DynamicLinesCpu::clip_of(const std::array<double, 3>& x) const {
+  std::array<double, 4> c{};
+  for (int r = 0; r < 4; ++r)
+    c[r] = vp_[r] * x[0] + vp_[4 + r] * x[1] + vp_[8 + r] * x[2] + vp_[12 + r];
+  return c;
+}
+
+// dyn_common.glsl screen_length: the part in front of the near plane.
+double DynamicLinesCpu::screen_length(std::array<double, 4> ca, std::array<double, 4> cb) const {
+  if (ca[3] < near_w_ && cb[3] < near_w_) return 0.0;
+  auto mix = [](const std::array<double, 4>& x, const std::array<double, 4>& y, double t) {
+    std::array<double, 4> m{};
+    for (int r = 0; r < 4; ++r) m[r] = x[r] + (y[r] - x[r]) * t;
+    return m;
+  };
+  if (ca[3] < near_w_)
+    ca = mix(ca, cb, (near_w_ - ca[3]) / (cb[3] - ca[3]));
+  else if (cb[3] < near_w_)
+    cb = mix(cb, ca, (near_w_ - cb[3]) / (ca[3] - cb[3]));
+  const double dx = (cb[0] / cb[3] - ca[0] / ca[3]) * 0.5 * width_,
+               dy = (cb[1] / cb[3] - ca[1] / ca[3]) * 0.5 * height_;
+  return std::sqrt(dx * dx + dy * dy);
+}
+
+// dyn_lists.frag.glsl dash_own_side: p lies on the segment's side of the
+// bisector at each corner it has.
+bool DynamicLinesCpu::dash_own_side(const Segment& s, const P2& p) const {
+  P2 d = minus(s.b, s.a);
+  d = dot2(d, d) > 0 ? unit(d) : P2{1, 0};
+  auto side = [&](const P2& dother) {
+    P2 t = dot2(dother, dother) > 0 ? plus(unit(dother), d) : d;
+    if (dot2(t, t) < 1e-12) t = d;
+    return t;
+  };
+  if (s.has_prev && dot2(minus(p, s.a), side(minus(s.a, s.prev))) < 0) return false;
+  if (s.has_next && dot2(minus(p, s.b), side(minus(s.next, s.b))) > 0) return false;
+  return true;
+}
+
+double DynamicLinesCpu::dash_s(const Segment& s, const P2& p) const {
+  const P2 ab = minus(s.b, s.a);
+  const double len2 = dot2(ab, ab);
+  const double t = len2 > 0 ? std::clamp(dot2(minus(p, s.a), ab) / len2, 0.0, 1.0) : 0.0;
+  const std::array<double, 3> q{s.a3[0] + t * (s.b3[0] - s.a3[0]),
+                                s.a3[1] + t * (s.b3[1] - s.a3[1]),
+                                s.a3[2] + t * (s.b3[2] - s.a3[2])};
+  return s.s0 + screen_length(clip_of(s.a3), clip_of(q));
 }
 
 double DynamicLinesCpu::metres_per_pixel(const Vec3& p) const {
@@ -334,8 +401,13 @@ std::array<float, 4> DynamicLinesCpu::at(const Vec3& p3) const {
         const Segment& s = segments_[cell_items_[k]];
         const decal::LineProps& lp = props_[s.line];
         if (hit(lp.order)) continue;
-        if (covers(s, p, double(lp.half_width) * wpix, lp.style & 3u))
-          hits.emplace_back(lp.order, s.line);
+        if (!covers(s, p, double(lp.half_width) * wpix, lp.style & 3u)) continue;
+        if (dashes_) {
+          const std::span<const double> pattern = dashes_->table.of(lp.layer);
+          if (!pattern.empty() && !(dash_own_side(s, p) && dash_on(pattern, dash_s(s, p))))
+            continue;
+        }
+        hits.emplace_back(lp.order, s.line);
       }
     }
   // Front to back in drawing order (order 0 on top), straight alpha.

@@ -4,6 +4,7 @@
 // them into the dynamic layer.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "detail/gl_render.hpp"
@@ -68,7 +69,8 @@ std::shared_ptr<LodBuffers> lod_buffers(GlObjects& gl, const DecalSource& src) {
 struct DynPrograms {
   GLuint cull = 0, scan_local = 0, scan_blocks = 0, scatter = 0, segments = 0, lists = 0,
          composite = 0;
-  GLuint lod_mask = 0, lod_select = 0, lod_segments = 0;  // with LOD data (lod_programs)
+  GLuint lod_mask = 0, lod_select = 0, lod_segments = 0;   // with LOD data (lod_programs)
+  GLuint dash_local = 0, dash_blocks = 0, dash_apply = 0;  // dyn_dash.comp.glsl
 };
 
 void lod_programs(GlObjects& gl, const std::string& dd, DynPrograms& p) {
@@ -91,10 +93,14 @@ DynPrograms dyn_programs(GlObjects& gl, const std::string& dd) {
   p.scan_blocks = comp("dyn_scan.comp.glsl", "#define SCAN_BLOCKS 1\n");
   p.scatter = comp("dyn_scan.comp.glsl", "#define SCATTER 1\n");
   p.segments = comp("dyn_segments.comp.glsl", "");
+  p.dash_local = comp("dyn_dash.comp.glsl", "#define DASH_LOCAL 1\n");
+  p.dash_blocks = comp("dyn_dash.comp.glsl", "#define DASH_BLOCKS 1\n");
+  p.dash_apply = comp("dyn_dash.comp.glsl", "#define DASH_APPLY 1\n");
   p.lists =
       gl.program({{"dyn_box.vert.glsl"},
                   {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_box.geom.glsl"},
-                  {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_lists.frag.glsl"},
+                  {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dash.glsl",
+                   "dyn_lists.frag.glsl"},
                   {},
                   dd});
   p.composite = gl.program({{"fullscreen.vert.glsl"},
@@ -106,13 +112,14 @@ DynPrograms dyn_programs(GlObjects& gl, const std::string& dd) {
 }
 
 // One frame of the pass: its work buffers, bound at their SSBO bindings
-// (24..29, 31, 32), and the uniforms every stage takes.
+// (24..32, 40), and the uniforms every stage takes.
 class DynamicLines {
  public:
   DynamicLines(GlObjects& gl, PassTimer& timer, const ViewUniforms& view,
                const Heightfield& terrain, uint32_t W, uint32_t H, uint64_t n_vertices,
-               uint64_t n_lines, double miter_limit_deg)
+               uint64_t n_lines, double miter_limit_deg, bool dashes)
       : miter_limit_deg_(miter_limit_deg),
+        dashes_(dashes),
         gl_(gl),
         timer_(timer),
         view_(view),
@@ -126,6 +133,7 @@ class DynamicLines {
   void make_buffers();
   // With `lod` (its buffers bound): the LOD passes too (lod_*.comp.glsl).
   void update(const DynPrograms& p, const LodBuffers* lod = nullptr);
+  void dash(const DynPrograms& p);
   // Returns how often the node buffer grew.
   uint32_t lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao);
   void composite(GLuint p_composite);
@@ -144,6 +152,7 @@ class DynamicLines {
   void set_uniforms(GLuint p) const;
 
   const double miter_limit_deg_;  // the package's: below it a miter corner falls back to round
+  const bool dashes_;             // a dynamic line is dashed: run dyn_dash.comp.glsl
   GlObjects& gl_;
   PassTimer& timer_;
   const ViewUniforms& view_;
@@ -176,6 +185,7 @@ void DynamicLines::make_buffers() {
   heads_ = buffer(uint64_t(W_) * H_ * 4, 31);
   capacity_ = W_ * H_ * 2;
   nodes_ = buffer(uint64_t(capacity_) * 16, 32);
+  buffer(dashes_ ? (4 * n_dyn_ + 3 * uint64_t(blocks_)) * 4 : 16, 40);  // dyn_common.glsl DynDash
   const uint32_t init[12] = {0, 1, 0, 0, 0, 0, capacity_, uint32_t(n_dyn_), 0, 0, 0, 0};
   glNamedBufferSubData(counters_, 0, sizeof init, init);
 }
@@ -197,6 +207,7 @@ void DynamicLines::set_uniforms(GLuint p) const {
   glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
   glUniform1f(glGetUniformLocation(p, "u_zmin"), float(terrain_.zmin));
   glUniform1f(glGetUniformLocation(p, "u_zmax"), float(terrain_.zmax));
+  glUniform1f(glGetUniformLocation(p, "u_near"), float(view_.near_w));
   glUniform1f(glGetUniformLocation(p, "u_miter_limit_cos"),
               float(std::cos(miter_limit_deg_ * 3.14159265358979323846 / 180.0)));
 }
@@ -262,16 +273,31 @@ void DynamicLines::update(const DynPrograms& p, const LodBuffers* lod) {
   glDispatchCompute(blocks_, 1, 1);
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
   timer_.end();
-  if (!lod) return;
-  timer_.begin("dynamic LOD (select, compact, segments)");
-  const auto groups = GLuint((lod->n_segments + 255) / 256);
-  set_lod_uniforms(p.lod_select);
-  glUniform1ui(glGetUniformLocation(p.lod_select, "u_lod_segment_count"), GLuint(lod->n_segments));
-  glDispatchCompute(groups, 1, 1);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  set_lod_uniforms(p.lod_segments);
-  glDispatchCompute(groups, 1, 1);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+  if (lod) {
+    timer_.begin("dynamic LOD (select, compact, segments)");
+    const auto groups = GLuint((lod->n_segments + 255) / 256);
+    set_lod_uniforms(p.lod_select);
+    glUniform1ui(glGetUniformLocation(p.lod_select, "u_lod_segment_count"),
+                 GLuint(lod->n_segments));
+    glDispatchCompute(groups, 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    set_lod_uniforms(p.lod_segments);
+    glDispatchCompute(groups, 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+    timer_.end();
+  }
+  if (dashes_) dash(p);
+}
+
+// Dashes: each kept vertex's screen distance from its line's start, a
+// segmented scan of the kept segments' projected lengths.
+void DynamicLines::dash(const DynPrograms& p) {
+  timer_.begin("dynamic dash (screen length prefix)");
+  for (GLuint prog : {p.dash_local, p.dash_blocks, p.dash_apply}) {
+    set_uniforms(prog);
+    glDispatchCompute(prog == p.dash_blocks ? 1 : blocks_, 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
   timer_.end();
 }
 
@@ -327,6 +353,21 @@ void DynamicLines::read_counters(Image& img) const {
   img.dyn_truncated += stats[8];
 }
 
+// Whether some dynamic line's layer has a dash pattern (then the pass runs
+// dyn_dash.comp.glsl).
+bool dynamic_dashes(const DecalSource& source) {
+  if (!source.view.dashes || !source.view.dashes->table.any()) return false;
+  for (const DecalSource::Blob& b : source.blobs) {
+    if (b.id != decal::BlobId::dyn_line_props) continue;
+    for (uint64_t k = 0; k < b.bytes / sizeof(decal::LineProps); ++k) {
+      decal::LineProps p;
+      std::memcpy(&p, static_cast<const std::byte*>(b.data) + k * sizeof p, sizeof p);
+      if (!source.view.dashes->table.of(p.layer).empty()) return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 // Draws into the dynamic layer (cleared by frame()) when there are dynamic
@@ -338,12 +379,13 @@ void GlRenderer::dynamic_pass(Image& img, GlObjects& work) {
   // The volume and texture methods draw no static decal pass, which is
   // where the decal method binds these.
   bind_package();
+  bind_dashes();
   const std::string dd =
       p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
       "#define DECAL_DYNAMIC 1\n";
   DynPrograms p = dyn_programs(gl_, dd);
   DynamicLines dyn(work, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines,
-                   source_->miter_limit_deg);
+                   source_->miter_limit_deg, dynamic_dashes(*source_));
   dyn.make_buffers();
   const LodBuffers* lod = lod_data(work);
   if (lod) {

@@ -3,6 +3,7 @@
 // passes over the back-projected depth, composite.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "decal/layout.hpp"
@@ -168,6 +169,7 @@ ViewUniforms view_uniforms(const Camera& cam, const GridParams& gp, uint32_t W, 
   v.mpp_per_metre = cam.projection == Projection::perspective
                         ? 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H
                         : 0.0;
+  v.near_w = cam.projection == Projection::perspective ? cam.near : 0.0;
   return v;
 }
 
@@ -278,12 +280,12 @@ StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slo
                            {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
                            {},
                            p.defines + aa_defines + "#define DECAL_POLYGONS 1\n"});
-  p.lines = gl.program(
-      {{"fullscreen.vert.glsl"},
-       {},
-       {"decal_blobs.glsl", "static_common.glsl", "slope_widths.glsl", "static_lines.glsl"},
-       {},
-       p.defines + aa_defines + slope_define + "#define DECAL_LINES 1\n"});
+  p.lines = gl.program({{"fullscreen.vert.glsl"},
+                        {},
+                        {"decal_blobs.glsl", "static_common.glsl", "slope_widths.glsl", "dash.glsl",
+                         "static_lines.glsl"},
+                        {},
+                        p.defines + aa_defines + slope_define + "#define DECAL_LINES 1\n"});
   p.composite = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
   return p;
 }
@@ -558,6 +560,29 @@ void GlRenderer::upload_slope_layers(const DecalSource& source) {
   glTextureBuffer(slope_layers_, GL_R8UI, buf);
 }
 
+void GlRenderer::bind_dashes() {
+  if (!dash_gl_ || dash_for_ != source_) {
+    dash_gl_ = std::make_unique<GlObjects>();  // frees the previous package's
+    dash_for_ = source_;
+    const LineDashes* d = source_->view.dashes.get();
+    const std::vector<uint32_t> words = d ? dash_gpu_words(d->table) : std::vector<uint32_t>{0u};
+    std::vector<float> dist(d ? d->vertex_distance.size() : 0);
+    for (size_t k = 0; k < dist.size(); ++k) dist[k] = float(d->vertex_distance[k]);
+    auto upload = [&](const void* data, size_t bytes) {
+      GLuint b = 0;
+      glCreateBuffers(1, &b);
+      dash_gl_->buffers.push_back(b);
+      std::vector<std::byte> padded(std::max<size_t>(bytes, 16));
+      if (bytes) std::memcpy(padded.data(), data, bytes);
+      glNamedBufferStorage(b, GLsizeiptr(padded.size()), padded.data(), 0);
+    };
+    upload(words.data(), words.size() * 4);
+    upload(dist.data(), dist.size() * 4);
+  }
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kBindingDashTable, dash_gl_->buffers[0]);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kBindingDashVertex, dash_gl_->buffers[1]);
+}
+
 GLuint GlRenderer::begin_static() {
   const GLuint f_static = static_target();
   const float clear0[4] = {0, 0, 0, 0};
@@ -569,6 +594,7 @@ GLuint GlRenderer::begin_static() {
 // Static decal passes over the back-projected depth.
 void GlRenderer::static_passes(GLuint f_static) {
   bind_package();
+  bind_dashes();
   glBindFramebuffer(GL_FRAMEBUFFER, f_static);
   glBindVertexArray(empty_vao_);
   if (f_static != t_.f_decal) {

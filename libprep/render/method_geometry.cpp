@@ -15,6 +15,7 @@
 #include <map>
 #include <numbers>
 #include <set>
+#include <span>
 #include <utility>
 
 namespace prep::render::detail {
@@ -255,8 +256,10 @@ class Builder {
     const uint32_t mode = (props.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift;
     const bool clipped = (props.style & decal::kStyleClipBit) != 0;
     // Corner pieces are shared by the segments that meet there unless each
-    // segment cuts its own with half-planes.
-    const bool share = mode == 0 || clipped;
+    // segment cuts its own with half-planes (or with its dashes).
+    const std::span<const double> dash =
+        v_.dashes ? v_.dashes->table.of(props.layer) : std::span<const double>{};
+    const bool share = (mode == 0 || clipped) && dash.empty();
     std::set<uint64_t> corners;
     std::vector<Piece> pieces;
     auto corner_once = [&](uint32_t vertex, uint32_t kind) {
@@ -331,6 +334,9 @@ class Builder {
           }
         }
       }
+      if (!dash.empty())
+        seg_pieces =
+            dash_pieces(std::move(seg_pieces), a, e, len, v_.dashes->vertex_distance[s], dash);
       for (Piece& p : seg_pieces) pieces.push_back(std::move(p));
     }
     if (clipped) pieces = clip_to_ring(props, hw, std::move(pieces));
@@ -346,6 +352,43 @@ class Builder {
   MethodGeometry take() { return std::move(out_); }
 
  private:
+  // Dashes (evaluator step 6b, formats/SPEC.md "Dashed lines"): the parts
+  // of segment (a, a + e)'s pieces where its along-line distance is on:
+  // d0 + the projection on the segment, clamped (before a: d0, past b:
+  // d0 + len), so the slabs of the "on" intervals between a and b and the
+  // pieces' parts beyond either end when that end's distance is on.
+  static std::vector<Piece> dash_pieces(std::vector<Piece> pieces, const P2d& a, const P2d& e,
+                                        double len, double d0, std::span<const double> dash) {
+    std::vector<Piece> out;
+    if (!(len > 0)) {
+      if (dash_on(dash, d0)) return pieces;
+      return out;
+    }
+    const P2d u = (1 / len) * e;
+    const double ua = dot(u, a);
+    // Keeps the part of p whose projection from a lies in [lo, hi].
+    auto keep = [&](const Piece& p, double lo, double hi) {
+      Piece q = p;
+      if (std::isfinite(lo)) q = clip_halfplane(q, u, ua + lo);
+      if (std::isfinite(hi)) q = clip_halfplane(q, -1.0 * u, -(ua + hi));
+      if (q.size() >= 3) out.push_back(std::move(q));
+    };
+    double period = 0;
+    for (double x : dash) period += x;
+    for (Piece& p : pieces) {
+      p = ccw(std::move(p));
+      if (dash_on(dash, d0)) keep(p, -INFINITY, 0);
+      if (dash_on(dash, d0 + len)) keep(p, len, INFINITY);
+      double start = period * std::floor(d0 / period);
+      for (size_t i = 0; start < d0 + len; i = (i + 1) % dash.size()) {
+        const double lo = std::max(start, d0), hi = std::min(start + dash[i], d0 + len);
+        if (i % 2 == 0 && lo < hi) keep(p, lo - d0, hi - d0);
+        start += dash[i];
+      }
+    }
+    return out;
+  }
+
   static bool is_convex(const Piece& p) {
     int sign = 0;
     for (size_t i = 0; i < p.size(); ++i) {

@@ -5,6 +5,7 @@
 #include <geos_c.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <set>
 #include <string>
@@ -166,7 +167,8 @@ bool clip_segment(Point2& a, Point2& b, const Extent& box) {
 // one neighbour segment at both ends (prep/tile.hpp). A closed line every
 // segment of which is kept stays closed. Vertices beyond `safe` are pulled
 // onto it along their segment.
-std::vector<SceneLine> line_runs(const SceneLine& line, const Extent& reach, const Extent& safe) {
+std::vector<SceneLine> line_runs(const SceneLine& line, const Extent& reach, const Extent& safe,
+                                 bool dashed = false) {
   const Ring& p = line.points;
   const size_t n = p.size();
   if (n < 2) return {};
@@ -217,6 +219,23 @@ std::vector<SceneLine> line_runs(const SceneLine& line, const Extent& reach, con
       s += count;
     }
   }
+  // A dashed line's length from its start to each vertex, over the
+  // positions a package quantises (llround of millimetres, as
+  // libprep/model/grid.cpp quantise; a tile's origin is a whole number of
+  // them from the scene's), so that a cut keeps the whole line's phase.
+  std::vector<double> dist;
+  if (dashed) {
+    dist.assign(n, 0.0);
+    auto qv = [&](size_t i) {
+      return std::array<int64_t, 2>{std::llround(p[i].x / decal::kQuantumMetres),
+                                    std::llround(p[i].y / decal::kQuantumMetres)};
+    };
+    for (size_t i = 1; i < n; ++i) {
+      const auto a = qv(i - 1), b = qv(i);
+      dist[i] = dist[i - 1] + std::hypot(double(b[0] - a[0]) * decal::kQuantumMetres,
+                                         double(b[1] - a[1]) * decal::kQuantumMetres);
+    }
+  }
   std::vector<SceneLine> out;
   for (const auto& [first, count] : runs) {
     SceneLine piece = line;
@@ -225,6 +244,11 @@ std::vector<SceneLine> line_runs(const SceneLine& line, const Extent& reach, con
     for (size_t i = 0; i < count; ++i) {
       Point2 a = p[(first + i) % n], b = p[(first + i + 1) % n];
       if (!(fits(a) && fits(b)) && !clip_segment(a, b, safe)) continue;
+      if (dashed && piece.points.empty()) {  // a pulled-in start: its distance along
+        const Point2& v = p[(first + i) % n];
+        piece.dash_start =
+            line.dash_start + dist[(first + i) % n] + std::hypot(a.x - v.x, a.y - v.y);
+      }
       if (piece.points.empty() || piece.points.back().x != a.x || piece.points.back().y != a.y)
         piece.points.push_back(a);
       piece.points.push_back(b);
@@ -387,7 +411,7 @@ SceneFeatures tile_scene(const SceneFeatures& scene, const TilePlan& plan, const
       }
       continue;
     }
-    for (SceneLine& q : line_runs(l, reach, safe)) {
+    for (SceneLine& q : line_runs(l, reach, safe, !scene.layers.at(l.layer).dash.empty())) {
       shift(q.points, dx, dy);
       out.lines.push_back(std::move(q));
     }

@@ -135,7 +135,9 @@ DECAL_FETCH(ivec2, dyn_prev_next, dyn_prev_next, .xy)
 DECAL_FETCH(uint, dyn_line_start, dyn_line_start, .x)
 #ifdef DECAL_TEXTURE
 uvec4 dyn_line_props(uint l)   { return texelFetch(t_dyn_line_props, int(2u * l)); }
+uint  dyn_line_layer(uint l)   { return texelFetch(t_dyn_line_props, int(2u * l + 1u)).y; }
 #else
 uvec4 dyn_line_props(uint l)   { LineProps p = d_dyn_line_props[l]; return uvec4(floatBitsToUint(p.half_width), p.rgba, p.order, p.style); }
+uint  dyn_line_layer(uint l)   { return d_dyn_line_props[l].layer; }
 #endif
 #endif  // DECAL_DYNAMIC

@@ -25,11 +25,34 @@ layout(std430, binding = 29) buffer DynCounters {
 layout(std430, binding = 31) buffer DynHeads { uint dyn_head[]; };
 layout(std430, binding = 32) buffer DynNodes { uvec4 dyn_node[]; };
 
+// Dashes (dyn_dash.comp.glsl), n = u_vertex_count, B = its blocks of 256:
+// per kept position k: [0, n) the screen length of the segment to the next
+// kept vertex of its line, [n, 2n) the segmented prefix within its block,
+// [2n, 3n) 1 where a line starts at or before k in its block; per vertex v:
+// [3n, 4n) the line's screen length from its start to v (kept vertices);
+// per block: [4n, 4n + 2B) (sum, line start seen), [4n + 2B, 4n + 3B) carry.
+layout(std430, binding = 40) buffer DynDash { float dyn_dash[]; };
+
 uniform ivec2 u_anchor_q;      // quanta
 uniform mat4 u_view_proj;      // anchor-relative world -> clip
 uniform vec2 u_viewport;
 uniform uint u_vertex_count;
 uniform uint u_line_count;
+
+uint dash_vertex_at(uint v) { return 3u * u_vertex_count + v; }
+uniform float u_near;  // clip w of the near plane (perspective); 0: orthographic
+
+// Pixel position of clip coordinates.
+vec2 screen_of(vec4 c) { return (c.xy / c.w * 0.5 + 0.5) * u_viewport; }
+// Screen length, pixels, of the part of the segment between clip points ca
+// and cb that lies in front of the near plane (clip coordinates are linear
+// along the segment).
+float screen_length(vec4 ca, vec4 cb) {
+  if (ca.w < u_near && cb.w < u_near) return 0.0;
+  if (ca.w < u_near) ca = mix(ca, cb, (u_near - ca.w) / (cb.w - ca.w));
+  else if (cb.w < u_near) cb = mix(cb, ca, (u_near - cb.w) / (ca.w - cb.w));
+  return length(screen_of(cb) - screen_of(ca));
+}
 
 vec3 dyn_position(uint v) {
   ivec4 q = dyn_vertex(v);

@@ -3,7 +3,8 @@
 // against the line segment at the pixel's own scale (Eq. 4.1/4.2) per corner
 // style, and push (order, line) onto the pixel's list with an atomic counter
 // and an atomic head exchange, with the pixel's coverage of the line (1
-// when aliased). Nodes beyond the capacity are only counted;
+// when aliased; a dashed line's pixels in an "off" interval are left out).
+// Nodes beyond the capacity are only counted;
 // the host grows the buffer and repeats the pass.
 flat in uvec4 g_seg;
 layout(binding = 31) uniform sampler2D u_depth;
@@ -75,6 +76,41 @@ bool covers(vec2 p, float hw, uint corner) {
   return false;
 }
 
+// Dashes (formats/SPEC.md "Dashed lines"): the pixel's along-line screen
+// distance on this segment, the start vertex's (dyn_dash.comp.glsl) plus
+// the screen length from it to the point of the segment nearest p in plan
+// (clamped: a corner's join region takes the vertex's own distance).
+float dash_s(vec2 p) {
+  vec3 a = dyn_position(g_seg.x), b = dyn_position(g_seg.y);
+  vec2 ab = b.xy - a.xy;
+  float len2 = dot(ab, ab);
+  float t = len2 > 0.0 ? clamp(dot(p - a.xy, ab) / len2, 0.0, 1.0) : 0.0;
+  vec4 ca = u_view_proj * vec4(a, 1.0), cq = u_view_proj * vec4(mix(a, b, t), 1.0);
+  return dyn_dash[dash_vertex_at(g_seg.x)] + screen_length(ca, cq);
+}
+
+// A dashed line's pixel takes its distance from the segment on whose side
+// of each corner's bisector it lies (where the segment boxes meet), so the
+// neighbouring segments' dashes do not overlap inside a corner.
+bool dash_own_side(vec2 p) {
+  vec2 a = dyn_position(g_seg.x).xy, b = dyn_position(g_seg.y).xy;
+  vec2 d = b - a;
+  d = dot(d, d) > 0.0 ? normalize(d) : vec2(1.0, 0.0);
+  if (g_seg.z != NONE) {
+    vec2 dp = a - dyn_position(g_seg.z).xy;
+    vec2 t = dot(dp, dp) > 0.0 ? normalize(dp) + d : d;
+    if (dot(t, t) < 1e-12) t = d;
+    if (dot(p - a, t) < 0.0) return false;
+  }
+  if (g_seg.w != NONE) {
+    vec2 dn = dyn_position(g_seg.w).xy - b;
+    vec2 t = dot(dn, dn) > 0.0 ? normalize(dn) + d : d;
+    if (dot(t, t) < 1e-12) t = d;
+    if (dot(p - b, t) > 0.0) return false;
+  }
+  return true;
+}
+
 void main() {
   ivec2 px = ivec2(gl_FragCoord.xy);
   float depth = texelFetch(u_depth, px, 0).r;
@@ -96,9 +132,22 @@ void main() {
   float wl = max(2.0 * hw, wpix);
   float cov = clamp((min(0.5 * wpix - dist, 0.5 * wl) + min(0.5 * wpix + dist, 0.5 * wl)) / wpix, 0.0, 1.0);
   if (inside) cov = max(cov, 0.5);
+  uint layer = dyn_line_layer(line);
+  if (!dash_solid(layer)) {  // the pixel's share of the dash along the line
+    if (!dash_own_side(p.xy)) discard;
+    bool on;
+    cov *= clamp(0.5 + dash_signed(layer, dash_s(p.xy), on), 0.0, 1.0);
+  }
   if (cov <= 0.0) discard;
 #else
   if (!covers(p.xy, hw, props.w & 3u)) discard;
+  uint layer = dyn_line_layer(line);
+  if (!dash_solid(layer)) {
+    if (!dash_own_side(p.xy)) discard;
+    bool on;
+    dash_signed(layer, dash_s(p.xy), on);
+    if (!on) discard;
+  }
   float cov = 1.0;
 #endif
   uint node = atomicAdd(list_nodes, 1u);

@@ -3,7 +3,8 @@
 // Lines"), with decal_blobs.glsl (DECAL_LINES) and static_common.glsl.
 // Mirrors prep::evaluate(): grid cell -> stack-less BVH over the cell's
 // segments in drawing order -> point-in-line test per corner style ->
-// outline side test (clipped outlines: their ring's quad-tree) ->
+// outline side test (clipped outlines: their ring's quad-tree) -> dash
+// test (dash.glsl) ->
 // front-to-back compositing, skipping further segments of a line that
 // already covered the pixel (or was clipped away); early exit when opaque.
 // One pass draws the lines of ranks [u_order_lo, u_order_hi), one run of the
@@ -95,6 +96,25 @@ int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
   return HIT_COVERED;
 }
 
+// Step 6c of the query block (dashes, dash.glsl): the along-line distance
+// of p on segment (s, eidx): the start vertex's distance plus the clamped
+// projection, so a corner's join region takes the vertex's own distance.
+float dash_s(uint s, uint eidx, vec2 p) {
+  ivec2 ai = line_vertex(s);
+  vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
+  vec2 d = p - rel(ai);
+  float ee = dot(e, e);
+  float t = ee > 0.0 ? clamp(dot(d, e) / ee, 0.0, 1.0) : 0.0;
+  return d_dash_vertex[s] + t * sqrt(ee);
+}
+bool dash_covers(uint s, uint eidx, vec2 p, uint line) {
+  uint layer = line_layer(line);
+  if (dash_solid(layer)) return true;
+  bool on;
+  dash_signed(layer, dash_s(s, eidx, p), on);
+  return on;
+}
+
 #ifdef DECAL_AA_COVERAGE
 // Coverage AA (Thöny et al. §3.5): the band formula over the distance to
 // the segment's centre line, with the width raised to at least one pixel.
@@ -131,7 +151,16 @@ float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float 
     float w = max(hw, wpix);
     c = band_coverage(abs(sd - 0.5 * hw), w, wpix);
   }
-  return inside ? max(c, 0.5) : c;
+  c = inside ? max(c, 0.5) : c;
+  // Dashes: the pixel's share of the dash along the line (a box of one
+  // pixel across the nearest on/off boundary).
+  uint layer = line_layer(line);
+  if (!dash_solid(layer)) {
+    bool on;
+    float sd = dash_signed(layer, dash_s(s, eidx, p), on);
+    c *= clamp(0.5 + sd / wpix, 0.0, 1.0);
+  }
+  return c;
 }
 #endif
 
@@ -189,6 +218,7 @@ void main() {
           // (thesis Fig. 4.7); a clipped-away line is decided as well.
           if (line != last_line) {
             int hit = segment_test(seg.x, seg.y, p.xy, line, props);
+            if (hit == HIT_COVERED && !dash_covers(seg.x, seg.y, p.xy, line)) hit = HIT_NONE;
             if (hit != HIT_NONE) last_line = line;
             if (hit == HIT_COVERED) {
               composite_under(acc, props.y);

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "decal/format.hpp"
+#include "prep/dash.hpp"
 #include "prep/model.hpp"
 
 namespace decal {
@@ -46,6 +47,10 @@ struct StaticView {
   // Arrays the view owns: a v1.3 package's compact blobs decoded into the
   // ranges and leaf segments above (package_view.cpp).
   std::shared_ptr<const void> storage;
+  // Dashed lines (prep/dash.hpp): the layer table's patterns and the
+  // static-line vertices' along-line distances, computed when the package
+  // is loaded; null or no dashed layer: every line solid.
+  std::shared_ptr<const LineDashes> dashes;
 };
 
 // StaticView's blobs as X(element type, name). Each name is a StaticView

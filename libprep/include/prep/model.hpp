@@ -52,6 +52,9 @@ struct DecalModel {
   std::vector<ivec2> line_vertices;
   std::vector<uint32_t> line_vertex_line;
   std::vector<decal::LineProps> line_props;
+  // Per line: SceneLine::dash_start (metadata "line_dash_start" of a tile
+  // whose dashed lines are cut; formats/SPEC.md "Dashed lines").
+  std::vector<double> line_dash_start;
   std::vector<decal::LineCorner> line_corners;
   std::vector<uvec2> cell_segment_range;
   std::vector<uvec2> cell_segments;

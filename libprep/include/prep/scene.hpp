@@ -82,6 +82,10 @@ struct LayerSpec {
   // widths"). Recorded in the package's layer table; the package itself
   // stays in plan, and `decalprep render` applies it with its DEM.
   bool slope_widths = false;
+  // Dash pattern (scene file `dash`): [on, off, on, off, ...], lengths > 0
+  // along the line from its start, ground metres (static) or pixels
+  // (dynamic); empty: solid. A casing copy is solid.
+  std::vector<double> dash;
 };
 
 struct Extent {
@@ -272,6 +276,10 @@ struct SceneLine : FeatureKeys {
   uint32_t layer = 0;
   double length = 0;  // ground metres (geodesic), for drawing order
   double width = 0;   // ground metres (static) corrected by the frame scale; pixels (dynamic)
+  // A dashed static line cut by a tile: the whole line's length up to
+  // points[0], summed over its vertices quantised as a package quantises
+  // them (formats/SPEC.md "Dashed lines"); 0 otherwise.
+  double dash_start = 0;
 };
 
 struct SceneFeatures {

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "detail/math.hpp"
@@ -46,7 +47,17 @@ class DynamicLinesCpu {
     std::array<double, 2> a, b, prev, next;  // plan positions, metres
     bool has_prev = false, has_next = false;
     uint32_t line = 0;
+    // Dashes: the ends in 3D (metres) and the line's screen length from its
+    // start to a, pixels (dyn_dash.comp.glsl).
+    std::array<double, 3> a3{}, b3{};
+    double s0 = 0;
   };
+  // Along-line screen distance of plan point p on segment s, pixels
+  // (dyn_lists.frag.glsl dash_s).
+  double dash_s(const Segment& s, const std::array<double, 2>& p) const;
+  bool dash_own_side(const Segment& s, const std::array<double, 2>& p) const;
+  std::array<double, 4> clip_of(const std::array<double, 3>& x) const;
+  double screen_length(std::array<double, 4> ca, std::array<double, 4> cb) const;
   bool covers(const Segment& s, const std::array<double, 2>& p, double hw, uint32_t corner) const;
   double metres_per_pixel(const Vec3& p) const;
 
@@ -58,6 +69,9 @@ class DynamicLinesCpu {
   std::vector<Segment> segments_;
   std::array<uint64_t, 4> lod_counts_{};
   std::vector<decal::LineProps> props_;
+  std::shared_ptr<const LineDashes> dashes_;  // null: every line solid
+  Mat4 vp_{};
+  double near_w_ = 0, width_ = 0, height_ = 0;
   Vec3 eye_{};
   double mpp_ortho_ = 0, mpp_per_metre_ = 0, cos_limit_ = 0, reach_ = 1, max_hw_px_ = 0;
   // A uniform grid over the segments' plan boxes.

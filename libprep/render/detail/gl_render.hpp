@@ -80,6 +80,9 @@ struct ViewUniforms {
   // Metres per pixel (thesis Eq. 4.1/4.2, per pixel): coverage AA and
   // dynamic lines.
   double mpp_ortho = 0, mpp_per_metre = 0;
+  // Clip w of the near plane (perspective; 0: orthographic): dashes of
+  // dynamic lines measure the projected line in front of it.
+  double near_w = 0;
   // RenderOptions::clip relative to the anchor, metres (xmin, ymin, xmax, ymax).
   std::array<float, 4> clip{-3e38f, -3e38f, 3e38f, 3e38f};
 };
@@ -189,6 +192,9 @@ class GlRenderer {
   // The package's blobs and the terrain depth, bound where the decal
   // passes read them (static passes and dynamic lines, whatever --method).
   void bind_package() const;
+  // Dashed lines: the source's dash table and static-line vertex distances
+  // (uploaded once per package into dash_gl_), bound at their bindings.
+  void bind_dashes();
   // gl_passes.cpp: one pass per run of the drawing order, blended under
   // what `f_static` holds (cleared by begin_static, resolved into the decal
   // layer by end_static with MSAA).
@@ -234,9 +240,11 @@ class GlRenderer {
   std::array<GLint, 4> scissor_{};  // the current tile's pixels: x, y, w, h
   StaticPrograms p_;
   MethodState m_;
-  std::shared_ptr<LodBuffers> lod_;  // gl_dynamic.cpp: the current package's LOD buffers
-  bool slope_ = false;       // some package's lines take slope widths
-  GLuint slope_layers_ = 0;  // buffer texture of the current package's flags
+  std::shared_ptr<LodBuffers> lod_;     // gl_dynamic.cpp: the current package's LOD buffers
+  bool slope_ = false;                  // some package's lines take slope widths
+  GLuint slope_layers_ = 0;             // buffer texture of the current package's flags
+  std::unique_ptr<GlObjects> dash_gl_;  // bind_dashes' buffers, for dash_for_
+  const DecalSource* dash_for_ = nullptr;
 };
 
 }  // namespace prep::render::detail

@@ -14,7 +14,8 @@
 //   ends and the 40° round fallback of a null miter, thesis §3.6; bevel
 //   triangles), widths in ground metres (LineProps::half_width); open
 //   inset/offset lines cut by the evaluator's half-planes, clipped outlines
-//   intersected with the triangles on their side of their own ring.
+//   intersected with the triangles on their side of their own ring, dashed
+//   lines cut per segment to their "on" parts (step 6b).
 // Dynamic lines (pixel widths) are not here: the decal method's dynamic pass
 // draws them for every method.
 #pragma once

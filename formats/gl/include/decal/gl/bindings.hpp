@@ -94,6 +94,13 @@ constexpr Binding binding_of(BlobId id) {
 // Renderer-owned bindings (per-frame buffers), above the blob bindings.
 inline constexpr uint32_t kBindingFrameFirst = 24;
 
+// Dashed lines (formats/SPEC.md "Dashed lines"): the renderer's dash table
+// and the static-line vertices' along-line distances, computed at load, not
+// blobs; SSBOs in both binding modes (formats/gl/shaders/dash.glsl). The
+// dynamic pass's per-frame dash buffer is binding 40 (dyn_common.glsl).
+inline constexpr uint32_t kBindingDashTable = 38;
+inline constexpr uint32_t kBindingDashVertex = 39;
+
 // How blobs are exposed to shaders.
 enum class BindingMode { ssbo, texture };
 
