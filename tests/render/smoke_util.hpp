@@ -80,6 +80,18 @@ inline std::string utm_scene_toml(std::initializer_list<std::array<const char*, 
   return s;
 }
 
+// Builds DIR/s.toml, one layer "a" reading DIR/a.geojson in UTM 32N with
+// the further keys `extra` (one per line), into DIR/s.decals: the refusal
+// tests of the scene keys.
+inline prep::test::ToolRun build_layer_a(const std::filesystem::path& dir,
+                                         const std::string& extra) {
+  std::ofstream(dir / "s.toml") << "crs = \"EPSG:32632\"\n[[layer]]\nname = \"a\"\nsource = "
+                                   "\"a.geojson\"\n" +
+                                       extra;
+  return prep::test::run_tool("build " + (dir / "s.toml").string() + " -o " +
+                              (dir / "s.decals").string() + " -q");
+}
+
 inline std::vector<float> read_raw(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::vector<char> bytes((std::istreambuf_iterator<char>(in)), {});

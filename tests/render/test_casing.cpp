@@ -157,13 +157,7 @@ TEST(Casing, ScenesThatCannotBeCasedAreRefusedNamingTheKey) {
   fs::create_directories(dir);
   std::ofstream(dir / "a.geojson")
       << collection(line(kX0, kY0, kX0 + 10, kY0), line(kX0, kY0 + 5, kX0 + 10, kY0 + 5));
-  auto scene = [&](const std::string& extra) {
-    std::ofstream(dir / "s.toml") << "crs = \"EPSG:32632\"\n[[layer]]\nname = \"a\"\nsource = "
-                                     "\"a.geojson\"\n" +
-                                         extra;
-    return run_tool("build " + (dir / "s.toml").string() + " -o " + (dir / "s.decals").string() +
-                    " -q");
-  };
+  auto scene = [&](const std::string& extra) { return render_test::build_layer_a(dir, extra); };
   auto r = scene("kind = \"polygon\"\ncasing_width = 1\n");
   EXPECT_EQ(r.rc, 3) << r.output;
   EXPECT_NE(r.output.find("casing_width needs kind"), std::string::npos) << r.output;

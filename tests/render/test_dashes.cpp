@@ -344,13 +344,7 @@ TEST(Dashes, BadPatternsAreRefusedNamingTheKeyAndValue) {
   const fs::path dir = fs::current_path() / "render-out" / "dashes_bad";
   fs::create_directories(dir);
   std::ofstream(dir / "a.geojson") << collection({linestring({{0, 0}, {10, 0}})});
-  auto scene = [&](const std::string& extra) {
-    std::ofstream(dir / "s.toml") << "crs = \"EPSG:32632\"\n[[layer]]\nname = \"a\"\nsource = "
-                                     "\"a.geojson\"\n" +
-                                         extra;
-    return run_tool("build " + (dir / "s.toml").string() + " -o " + (dir / "s.decals").string() +
-                    " -q");
-  };
+  auto scene = [&](const std::string& extra) { return render_test::build_layer_a(dir, extra); };
   auto r = scene("kind = \"line\"\ndash = [2]\n");
   EXPECT_EQ(r.rc, 3) << r.output;
   EXPECT_NE(r.output.find("s.toml:6: layer[0].dash: expected an even count"), std::string::npos)

@@ -365,11 +365,7 @@ TEST(SlopeWidthsScene, LayersWithoutAStaticWidthAreRefusedNamingTheKey) {
   fs::create_directories(dir);
   std::ofstream(dir / "a.geojson") << collection({feature({{kX0, kY0}, {kX0 + 10, kY0}})});
   auto scene = [&](const std::string& extra) {
-    std::ofstream(dir / "s.toml") << "crs = \"EPSG:32632\"\n[[layer]]\nname = \"a\"\nsource = "
-                                     "\"a.geojson\"\nslope_widths = true\n" +
-                                         extra;
-    return run_tool("build " + (dir / "s.toml").string() + " -o " + (dir / "s.decals").string() +
-                    " -q");
+    return render_test::build_layer_a(dir, "slope_widths = true\n" + extra);
   };
   for (const char* extra : {"kind = \"polygon\"\n", "kind = \"line\"\ndynamic = true\n"}) {
     const auto r = scene(extra);
