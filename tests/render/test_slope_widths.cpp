@@ -27,6 +27,7 @@
 #include <nlohmann/json.hpp>
 
 #include "decal/reader.hpp"
+#include "epsg_wkt.hpp"
 #include "prep/error.hpp"
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
@@ -54,16 +55,6 @@ double cone(double x, double y) {
   return 100 - std::hypot(x - kConeX, y - kConeY);
 }
 
-std::string utm_wkt() {
-  OGRSpatialReference srs;
-  srs.importFromEPSG(32632);
-  char* w = nullptr;
-  srs.exportToWkt(&w);
-  std::string s = w;
-  CPLFree(w);
-  return s;
-}
-
 // A north-up GeoTIFF of `h` at its cell centres, cells of `cell` metres,
 // its upper-left corner at (x0, y0).
 void write_dem(const std::string& path, const Height& h, double x0, double y0, int w, int ht,
@@ -75,7 +66,7 @@ void write_dem(const std::string& path, const Height& h, double x0, double y0, i
   ASSERT_TRUE(ds);
   double gt[6] = {x0, cell, 0, y0, 0, -cell};
   ds->SetGeoTransform(gt);
-  ds->SetProjection(utm_wkt().c_str());
+  ds->SetProjection(epsg_wkt(32632).c_str());
   std::vector<double> z(size_t(w) * ht);
   for (int j = 0; j < ht; ++j)
     for (int i = 0; i < w; ++i)

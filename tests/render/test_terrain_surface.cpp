@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "decal/reader.hpp"
+#include "epsg_wkt.hpp"
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
 
@@ -86,16 +87,6 @@ double surface(double x, double y, bool* near_strip = nullptr) {
          ty * ((1 - tx) * cell_metres(i, j + 1) + tx * cell_metres(i + 1, j + 1));
 }
 
-std::string utm_wkt() {
-  OGRSpatialReference srs;
-  srs.importFromEPSG(32632);
-  char* w = nullptr;
-  srs.exportToWkt(&w);
-  std::string s = w;
-  CPLFree(w);
-  return s;
-}
-
 // The DEM through GDAL's GTiff driver; without a CRS when `with_crs` is false.
 void write_dem(const std::string& path, bool with_crs) {
   GDALAllRegister();
@@ -105,7 +96,7 @@ void write_dem(const std::string& path, bool with_crs) {
   ASSERT_TRUE(ds);
   double gt[6] = {kX0, kCell, 0, kY0, 0, -kCell};
   ds->SetGeoTransform(gt);
-  if (with_crs) ds->SetProjection(utm_wkt().c_str());
+  if (with_crs) ds->SetProjection(epsg_wkt(32632).c_str());
   GDALRasterBand* b = ds->GetRasterBand(1);
   b->SetNoDataValue(kNoData);
   b->SetScale(kScale);
@@ -297,7 +288,7 @@ TEST(TerrainSurface, MeshVerticesAreSurfaceHeightsAndTheMeshKeepsItsBound) {
   const std::string dem = (d / "mesh.tif").string();
   write_dem(dem, true);
   prep::SceneFrame frame;
-  frame.crs_wkt = utm_wkt();
+  frame.crs_wkt = epsg_wkt(32632);
   frame.origin_x = 600070;
   frame.origin_y = 5000940;
   const prep::Extent e{-60, -50, 60, 50};

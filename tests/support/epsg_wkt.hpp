@@ -1,4 +1,5 @@
-// The WKT2 of an EPSG CRS, as a source layer's srs_wkt (tests/project).
+// The WKT2 of an EPSG CRS: a source layer's srs_wkt (tests/project), a test
+// GeoTIFF's projection (tests/render).
 // EPSG:4326 keeps its authority axis order (lat, lon) in the WKT; the data
 // is (lon, lat) as every GIS file stores it.
 #pragma once
