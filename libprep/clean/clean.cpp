@@ -397,9 +397,10 @@ struct Cleaner {
                                                  : "GEOS MakeValid by parts");
       // Valid when not null (checked piece by piece: GEOS isValid of the
       // whole repair costs holes x shell vertices).
-      fixed = Geom(h, detail::make_valid_by_parts(h, g.get(), rings, [&](const GEOSGeometry* part) {
-                     return make_valid(h, part);
-                   }));
+      fixed = Geom(h, detail::make_valid_by_parts(
+                          h, g.get(), rings, [&](GEOSContextHandle_t th, const GEOSGeometry* part) {
+                            return make_valid(th, part);
+                          }));
     }
     if (!fixed) {
       ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid (structure)" : "GEOS MakeValid");

@@ -1,6 +1,11 @@
 // The repair of hole-heavy polygons by parts: detail/repair_by_parts.hpp.
 #include "detail/repair_by_parts.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -113,7 +118,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   Owned shell(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), none));
   if (!shell) return nullptr;
   if (GEOSisValid_r(h, shell.get()) != 1) {
-    Owned fixed(h, make_valid(shell.get()));
+    Owned fixed(h, make_valid(h, shell.get()));
     if (!fixed || GEOSisValid_r(h, fixed.get()) != 1) return nullptr;
     shell = std::move(fixed);
   }
@@ -191,28 +196,29 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     clear_groups[size_t(group_of_root[root[i]])].push_back(i);
   }
   if (clear_groups.empty()) return nullptr;
-  Owned base;
-  if (base_holes.empty()) {
-    base = std::move(shell);  // valid: the shell or its repair
-  } else {
-    Owned input(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), base_holes));
-    if (!input) return nullptr;
-    base = Owned(h, make_valid(input.get()));
-    if (!base || GEOSisValid_r(h, base.get()) != 1) return nullptr;
-  }
-  std::vector<const GEOSGeometry*> base_polys, base_other;
-  flatten(h, base.get(), base_polys, base_other);
-  if (base_polys.empty()) return nullptr;
 
-  // Each clear group: the rings it cuts out of the base (to place), the
-  // islands inside them and any collapsed pieces.
-  std::vector<Owned> cut, islands, collapsed;
-  std::vector<uint32_t> cut_group;  // the clear group each cut ring comes from
+  // The MakeValid calls are independent: the base repair (the shell and the
+  // groups that reach it) and each clear group's repair inside a rectangle
+  // clear of it run in parallel (oneTBB, largest first), each thread with a
+  // GEOS context of its own, on inputs built here; the results are put
+  // together below in group order, so they do not depend on the threads.
+  struct Job {
+    Owned input, fixed;
+    Envelope box{};
+    bool alone = false;  // a single hole that is a valid ring: no repair
+    bool valid = false;  // `fixed` is valid (GEOS isValid)
+  };
+  std::vector<Job> jobs(clear_groups.size() + 1);  // [0]: the base
+  const bool base_repair = !base_holes.empty();    // (polygon_of takes base_holes)
+  if (base_repair) {
+    jobs[0].input = Owned(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), base_holes));
+    if (!jobs[0].input) return nullptr;
+  }
   for (uint32_t gi = 0; gi < clear_groups.size(); ++gi) {
     const std::vector<uint32_t>& group = clear_groups[gi];
+    Job& job = jobs[gi + 1];
     if (group.size() == 1 && ring_valid(h, holes[group[0]], rings[group[0] + 1])) {
-      cut.emplace_back(h, GEOSGeom_clone_r(h, holes[group[0]]));
-      cut_group.push_back(gi);
+      job.alone = true;
       continue;
     }
     Envelope b{INFINITY, INFINITY, -INFINITY, -INFINITY};
@@ -224,15 +230,67 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     // Clear of the group by a margin far above the coordinates' precision
     // (|x| <= 1e9 m in clean: an ulp is below 1e-6 m).
     const double margin = 1.0 + 0.01 * std::max(b.x1 - b.x0, b.y1 - b.y0);
-    b = {b.x0 - margin, b.y0 - margin, b.x1 + margin, b.y1 + margin};
+    job.box = {b.x0 - margin, b.y0 - margin, b.x1 + margin, b.y1 + margin};
     std::vector<Owned> group_holes;
     for (uint32_t i : group) group_holes.emplace_back(h, GEOSGeom_clone_r(h, holes[i]));
-    Owned input(h, polygon_of(h, Owned(h, box_ring(h, b)), group_holes));
-    if (!input) return nullptr;
-    Owned fixed(h, make_valid(input.get()));
-    if (!fixed || GEOSisValid_r(h, fixed.get()) != 1) return nullptr;
+    job.input = Owned(h, polygon_of(h, Owned(h, box_ring(h, job.box)), group_holes));
+    if (!job.input) return nullptr;
+  }
+  std::vector<uint32_t> order;  // the jobs with a repair, most vertices first
+  std::vector<int> vertices(jobs.size(), 0);
+  for (uint32_t k = 0; k < jobs.size(); ++k) {
+    if (!jobs[k].input) continue;
+    vertices[k] = GEOSGetNumCoordinates_r(h, jobs[k].input.get());
+    order.push_back(k);
+  }
+  std::stable_sort(order.begin(), order.end(),
+                   [&](uint32_t a, uint32_t b) { return vertices[a] > vertices[b]; });
+  std::vector<GEOSContextHandle_t> contexts(
+      static_cast<size_t>(std::max(tbb::this_task_arena::max_concurrency(), 1)), nullptr);
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, order.size(), 1),
+      [&](const tbb::blocked_range<size_t>& range) {
+        const auto slot = static_cast<size_t>(tbb::this_task_arena::current_thread_index());
+        if (slot >= contexts.size()) return;  // not expected; the job stays unrepaired
+        if (!contexts[slot]) contexts[slot] = GEOS_init_r();
+        GEOSContextHandle_t th = contexts[slot];
+        for (size_t r = range.begin(); r != range.end(); ++r) {
+          Job& job = jobs[order[r]];
+          job.fixed = Owned(h, make_valid(th, job.input.get()));
+          job.valid = job.fixed && GEOSisValid_r(th, job.fixed.get()) == 1;
+        }
+      },
+      tbb::simple_partitioner());
+  for (GEOSContextHandle_t c : contexts)
+    if (c) GEOS_finish_r(c);
+
+  Owned base;
+  if (!base_repair) {
+    base = std::move(shell);  // valid: the shell or its repair
+  } else {
+    if (!jobs[0].valid) return nullptr;
+    base = std::move(jobs[0].fixed);
+  }
+  std::vector<const GEOSGeometry*> base_polys, base_other;
+  flatten(h, base.get(), base_polys, base_other);
+  if (base_polys.empty()) return nullptr;
+
+  // Each clear group: the rings it cuts out of the base (to place), the
+  // islands inside them and any collapsed pieces.
+  std::vector<Owned> cut, islands, collapsed;
+  std::vector<uint32_t> cut_group;  // the clear group each cut ring comes from
+  for (uint32_t gi = 0; gi < clear_groups.size(); ++gi) {
+    const std::vector<uint32_t>& group = clear_groups[gi];
+    const Job& job = jobs[gi + 1];
+    if (job.alone) {
+      cut.emplace_back(h, GEOSGeom_clone_r(h, holes[group[0]]));
+      cut_group.push_back(gi);
+      continue;
+    }
+    if (!job.valid) return nullptr;
+    const Envelope& b = job.box;
     std::vector<const GEOSGeometry*> polys, other;
-    flatten(h, fixed.get(), polys, other);
+    flatten(h, job.fixed.get(), polys, other);
     const GEOSGeometry* around = nullptr;  // the polygon whose shell is the box
     for (const GEOSGeometry* p : polys) {
       Envelope e;

@@ -41,6 +41,8 @@
 // not meet (GEOS Intersects on envelope candidates). Then the assembly is
 // a valid polygon: rings inside their shell that touch nothing outside
 // their own valid group, islands inside the rings they came with.
+// The base repair and the groups' repairs are independent: they run in
+// parallel, largest first, and are put together in group order.
 // Tests: tests/clean/test_repair_by_parts.cpp (the result against GEOS
 // MakeValid of the whole polygon).
 #pragma once
@@ -58,8 +60,10 @@ namespace prep::detail {
 // polygons keep their whole repair (and its vertex order) unchanged.
 inline constexpr size_t kRepairByPartsMinHoles = 64;
 
-// MakeValid with the scene's method, on one GEOS polygon (null: GEOS failed).
-using MakeValidFn = std::function<GEOSGeometry*(const GEOSGeometry*)>;
+// MakeValid with the scene's method, on one GEOS polygon, with the given
+// GEOS context (null: GEOS failed). Called from several threads at once,
+// each with a context of its own.
+using MakeValidFn = std::function<GEOSGeometry*(GEOSContextHandle_t, const GEOSGeometry*)>;
 
 // The repair of `polygon` (a GEOS polygon built from `rings`: [0] shell,
 // then holes, in the same order) by parts, as above. Null when the split
