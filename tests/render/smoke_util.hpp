@@ -39,6 +39,20 @@ struct BuildLock {
   BuildLock& operator=(const BuildLock&) = delete;
 };
 
+// render-out/NAME/pPID: a directory of this test process's own, for a test
+// file whose tests build and rewrite the same files (ctest runs them two at
+// a time, each in its own process). Removed by remove_process_dir.
+inline std::filesystem::path process_dir(const std::string& name) {
+  const auto d = std::filesystem::current_path() / "render-out" / name /
+                 ("p" + std::to_string(static_cast<long>(::getpid())));
+  std::filesystem::create_directories(d);
+  return d;
+}
+inline void remove_process_dir(const std::filesystem::path& d) {
+  std::error_code ec;
+  std::filesystem::remove_all(d, ec);
+}
+
 inline bool fresh(const std::filesystem::path& pkg) {
   std::error_code ec;
   return std::filesystem::exists(pkg) && std::filesystem::last_write_time(pkg, ec) >

@@ -123,8 +123,7 @@ std::string roads_package(std::string& why) {
     why = "Liechtenstein data missing: " + data;
     return "";
   }
-  const fs::path dir = fs::current_path() / "render-out" / "lod_gpu";
-  fs::create_directories(dir);
+  const fs::path dir = render_test::process_dir("lod_gpu");
   const fs::path toml = dir / "roads.toml";
   std::FILE* f = std::fopen(toml.c_str(), "w");
   if (!f) {
@@ -190,6 +189,9 @@ class LodGpu : public ::testing::Test {
   }
   void TearDown() override {
     if (ctx_) GEOS_finish_r(ctx_);
+  }
+  static void TearDownTestSuite() {
+    render_test::remove_process_dir(render_test::process_dir("lod_gpu"));
   }
 
   // The GPU's selection (sorted), or nullopt without headless GL.
@@ -400,7 +402,7 @@ TEST_F(LodGpu, PerspectiveSelectionIsTheCpuSelectionConnectedAndNeverCrosses) {
 // With LOD on, the GL image (dynamic layer) agrees with render --cpu's,
 // which draws prep::visible_segments' selection, and the counts match.
 TEST_F(LodGpu, LodOnImageAgreesWithTheCpuPath) {
-  const fs::path out = fs::current_path() / "render-out" / "lod_gpu";
+  const fs::path out = render_test::process_dir("lod_gpu");
   R::RenderOptions opt;
   opt.width = W;
   opt.height = H;

@@ -191,8 +191,7 @@ double worst(const std::vector<double>& w, double nominal) {
 class SlopeWidths : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = fs::current_path() / "render-out" / "slope_widths";
-    fs::create_directories(dir_);
+    dir_ = render_test::process_dir("slope_widths");
     std::string why;
     path_ = build(dir_, why);
     why_ = why;
@@ -201,6 +200,7 @@ class SlopeWidths : public ::testing::Test {
                 kX0 - 20, kY0 + 80, 440, 160, 1.0);
     write_dem((dir_ / "cone.tif").string(), cone, kConeX - 60, kConeY + 60, 240, 240, 0.5);
   }
+  static void TearDownTestSuite() { render_test::remove_process_dir(dir_); }
   void SetUp() override {
     ASSERT_FALSE(path_.empty()) << why_;
     ASSERT_TRUE(decal::Package::open(path_, pkg_));
