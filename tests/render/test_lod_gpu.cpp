@@ -307,8 +307,10 @@ TEST_F(LodGpu, TopDownSelectionIsTheCpuSelectionAndExactlyDouglasPeucker) {
   for (const View& v : views) {
     const R::Camera cam = topdown(0, 0, v.height_m, W, H);
     double tolerance = 0.5;
-    for (int k = 1; !clear(tolerance * v.height_m / H) && k < 1000; ++k)
-      tolerance = 0.5 * (1 + (k % 2 ? 1 : -1) * 1e-4 * ((k + 1) / 2));
+    for (int k = 1; !clear(tolerance * v.height_m / H) && k < 1000; ++k) {
+      const int step = (k + 1) / 2;  // 1, 1, 2, 2, ...: alternately above and below 0.5
+      tolerance = 0.5 * (1 + (k % 2 ? 1 : -1) * 1e-4 * step);
+    }
     const double eps = tolerance * v.height_m / H;
     ASSERT_TRUE(clear(eps)) << v.name;
     const auto gpu = gpu_selection(src, cam, tolerance);
