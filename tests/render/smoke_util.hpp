@@ -106,6 +106,19 @@ inline prep::test::ToolRun build_layer_a(const std::filesystem::path& dir,
                               (dir / "s.decals").string() + " -q");
 }
 
+// Writes DIR/scene.toml (utm_scene_toml of `layers`) and builds it into
+// DIR/NAME: the package's path, or "" with the tool's output in `why`.
+inline std::string build_utm_scene(const std::filesystem::path& dir, const std::string& name,
+                                   std::initializer_list<std::array<const char*, 3>> layers,
+                                   std::string& why) {
+  std::ofstream(dir / "scene.toml") << utm_scene_toml(layers);
+  const std::string pkg = (dir / name).string();
+  const auto r =
+      prep::test::run_tool("build " + (dir / "scene.toml").string() + " -o " + pkg + " -q");
+  if (r.rc != 0) why = r.output;
+  return r.rc == 0 ? pkg : "";
+}
+
 inline std::vector<float> read_raw(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::vector<char> bytes((std::istreambuf_iterator<char>(in)), {});

@@ -48,14 +48,12 @@ std::string build(const fs::path& dir, std::string& why) {
       line(kX0, kY0, kX0 + 200, kY0), line(kX0 + 100, kY0 - 100, kX0 + 100, kY0 + 100));
   std::ofstream(dir / "dyn.geojson") << collection(line(kX0 + 220, kY0, kX0 + 380, kY0),
                                                    line(kX0 + 300, kY0 - 80, kX0 + 300, kY0 + 80));
-  std::ofstream(dir / "scene.toml") << render_test::utm_scene_toml(
+  return render_test::build_utm_scene(
+      dir, "casing.decals",
       {{"roads", "line",
         "width = 6\ncolor = \"#ffffff\"\ncasing_width = 2\ncasing_color = \"#000000\"\n"},
-       {"dyn", "line", "dynamic = true\nwidth = 5\ncolor = \"#ffcc00\"\ncasing_width = 2\n"}});
-  const std::string pkg = (dir / "casing.decals").string();
-  const auto r = run_tool("build " + (dir / "scene.toml").string() + " -o " + pkg + " -q");
-  if (r.rc != 0) why = r.output;
-  return r.rc == 0 ? pkg : "";
+       {"dyn", "line", "dynamic = true\nwidth = 5\ncolor = \"#ffcc00\"\ncasing_width = 2\n"}},
+      why);
 }
 
 struct Shot {

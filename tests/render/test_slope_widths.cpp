@@ -110,16 +110,14 @@ std::string build(const fs::path& dir, std::string& why) {
                                                              {kConeX - 15, kConeY + 25},
                                                              {kConeX + 5, kConeY + 8},
                                                              {kConeX + 30, kConeY + 22}})});
-  std::ofstream(dir / "scene.toml") << render_test::utm_scene_toml(
+  return render_test::build_utm_scene(
+      dir, "slope.decals",
       {{"roads", "line", "width = 8\ncolor = \"#ffffff\"\nslope_widths = true\n"},
        {"plan", "line", "width = 8\ncolor = \"#ff0000\"\n"},
        {"zig", "line", "width = 5\ncolor = \"#00ff00\"\ncorner = \"miter\"\nslope_widths = true\n"},
        {"bev", "line",
-        "width = 5\ncolor = \"#0000ff\"\ncorner = \"bevel\"\nslope_widths = true\n"}});
-  const std::string pkg = (dir / "slope.decals").string();
-  const auto r = run_tool("build " + (dir / "scene.toml").string() + " -o " + pkg + " -q");
-  if (r.rc != 0) why = r.output;
-  return r.rc == 0 ? pkg : "";
+        "width = 5\ncolor = \"#0000ff\"\ncorner = \"bevel\"\nslope_widths = true\n"}},
+      why);
 }
 
 struct Terrain {
