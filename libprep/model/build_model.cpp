@@ -7,6 +7,7 @@
 // Determinism: every parallel loop writes to its own slot; results are
 // concatenated in input order and sorted with total keys, so the arrays are
 // byte-identical at any thread count.
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
@@ -91,12 +92,22 @@ struct CellPoly {
   ivec4 box;
 };
 
+// Grows `v` to `n` elements; when that needs a new buffer, reserves `scale`
+// times `n`, so that arrays filled block by block reach their final size
+// with few copies and little slack.
+template <class T>
+void grow_to(std::vector<T>& v, size_t n, double scale) {
+  if (n > v.capacity()) v.reserve(std::max(n, size_t(double(n) * scale)));
+  v.resize(n);
+}
+
 // Appends quad-trees `trees` (local indices), in order, to the model's node
-// arrays and returns the index of each root node. The arrays grow once, to
-// sizes from prefix sums, and the trees are copied and rebased in parallel
-// (each to its own range), so the bytes do not depend on the thread count;
-// the trees are freed as they are copied.
-std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalModel& m) {
+// arrays and returns the index of each root node. The arrays grow once per
+// call, to sizes from prefix sums (`scale`: see grow_to), and the trees are
+// copied and rebased in parallel (each to its own range), so the bytes do not
+// depend on the thread count; the trees are freed as they are copied.
+std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalModel& m,
+                                       double scale = 1.0) {
   struct Base {
     size_t node, range, seg, vert;
   };
@@ -112,11 +123,11 @@ std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalMo
     m.stats.qt_partial_leaves += t.leaf_range.size();
   }
   const Base& end = base.back();
-  m.qt_node.resize(end.node);
-  m.qt_node_box.resize(end.node);
-  m.qt_leaf_range.resize(end.range);
-  m.qt_leaf_segments.resize(end.seg);
-  m.qt_leaf_vertices.resize(end.vert);
+  grow_to(m.qt_node, end.node, scale);
+  grow_to(m.qt_node_box, end.node, scale);
+  grow_to(m.qt_leaf_range, end.range, scale);
+  grow_to(m.qt_leaf_segments, end.seg, scale);
+  grow_to(m.qt_leaf_vertices, end.vert, scale);
   tbb::parallel_for(size_t(0), trees.size(), [&](size_t i) {
     PolyQuadTree& t = trees[i];
     const Base& b = base[i];
@@ -284,18 +295,51 @@ void assign_ranks(const std::vector<DrawKey>& draw_keys, size_t n_lines, Polygon
 }
 
 // One quad-tree per ring (in parallel), concatenated into the model's node
-// arrays with the polygon properties, then the outline clip trees.
+// arrays with the polygon properties, then the outline clip trees. Rings go
+// in blocks of about a sixteenth of the vertices: a block's trees are built
+// (each thread reusing its working arrays, each tree copied out at its exact
+// size), appended and freed before the next block, and each ring is freed
+// once its tree is built, so the trees never exist twice in full.
 void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options,
-                         const PolygonRings& pr, DecalModel& m) {
-  const std::vector<PolyRing>& rings = pr.rings;
-  std::vector<PolyQuadTree> trees(rings.size());
+                         PolygonRings& pr, DecalModel& m) {
+  std::vector<PolyRing>& rings = pr.rings;
   ProgressStage quadtree_stage(options.progress, "build.quadtrees", rings.size(), "rings");
-  tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
-    trees[r] = build_quadtree(rings[r].ring, options.qt_leaf_capacity, options.qt_max_depth);
-    quadtree_stage.add();
-  });
+  size_t total_vertices = 0;
+  for (const PolyRing& r : rings) total_vertices += r.ring.size();
+  const size_t block_vertices = std::max<size_t>(size_t(1) << 16, total_vertices / 16);
+  struct Local {
+    QuadTreeScratch scratch;
+    PolyQuadTree tree;
+  };
+  tbb::enumerable_thread_specific<Local> local;
+  std::vector<PolyQuadTree> trees;
+  m.poly_root_node.reserve(rings.size());
+  size_t done_vertices = 0;
+  for (size_t b0 = 0; b0 < rings.size();) {
+    size_t b1 = b0, v = 0;
+    while (b1 < rings.size() && (b1 == b0 || v < block_vertices)) v += rings[b1++].ring.size();
+    trees.clear();
+    trees.resize(b1 - b0);
+    tbb::parallel_for(b0, b1, [&](size_t r) {
+      Local& l = local.local();
+      build_quadtree(rings[r].ring, options.qt_leaf_capacity, options.qt_max_depth, l.tree,
+                     l.scratch);
+      trees[r - b0] = l.tree;  // a copy holds no spare capacity
+      std::vector<QPoint>().swap(rings[r].ring);
+      quadtree_stage.add();
+    });
+    done_vertices += v;
+    // The arrays' final sizes, projected from the share of vertices done
+    // (at least a quarter more, so that a misjudged projection costs a few
+    // copies, not one per block).
+    const double scale = std::max(
+        1.25, 1.05 * double(total_vertices) / double(std::max<size_t>(done_vertices, 1)));
+    const std::vector<uint32_t> roots = append_quadtrees(trees, m, scale);
+    m.poly_root_node.insert(m.poly_root_node.end(), roots.begin(), roots.end());
+    b0 = b1;
+  }
+  trees = {};
   m.poly_props.resize(rings.size());
-  m.poly_root_node = append_quadtrees(trees, m);
   for (size_t r = 0; r < rings.size(); ++r) {
     const ScenePolygon& sp = scene.polygons[rings[r].scene_index];
     decal::PolyProps& pp = m.poly_props[r];
