@@ -300,8 +300,8 @@ void assign_ranks(const std::vector<DrawKey>& draw_keys, size_t n_lines, Polygon
 // (each thread reusing its working arrays, each tree copied out at its exact
 // size), appended and freed before the next block, and each ring is freed
 // once its tree is built, so the trees never exist twice in full.
-void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options,
-                         PolygonRings& pr, DecalModel& m) {
+void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options, PolygonRings& pr,
+                         DecalModel& m) {
   std::vector<PolyRing>& rings = pr.rings;
   ProgressStage quadtree_stage(options.progress, "build.quadtrees", rings.size(), "rings");
   size_t total_vertices = 0;
@@ -332,8 +332,8 @@ void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options
     // The arrays' final sizes, projected from the share of vertices done
     // (at least a quarter more, so that a misjudged projection costs a few
     // copies, not one per block).
-    const double scale = std::max(
-        1.25, 1.05 * double(total_vertices) / double(std::max<size_t>(done_vertices, 1)));
+    const double scale =
+        std::max(1.25, 1.05 * double(total_vertices) / double(std::max<size_t>(done_vertices, 1)));
     const std::vector<uint32_t> roots = append_quadtrees(trees, m, scale);
     m.poly_root_node.insert(m.poly_root_node.end(), roots.begin(), roots.end());
     b0 = b1;

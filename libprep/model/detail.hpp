@@ -60,9 +60,10 @@ struct QtPoint2 {  // doubled integer coordinates (|v| < 2^33): box centres are 
 };
 struct QtWork {  // a node to split or close
   QBox box;
-  uint32_t first = 0, count = 0;  // its ring edges (i, i+1): [first, first+count) of the level's list
-  uint32_t id = 0;                // node index
-  bool parity = false;            // inside at the box centre (evaluator rule, exact)
+  uint32_t first = 0,
+           count = 0;   // its ring edges (i, i+1): [first, first+count) of the level's list
+  uint32_t id = 0;      // node index
+  bool parity = false;  // inside at the box centre (evaluator rule, exact)
 };
 struct QuadTreeScratch {
   std::vector<QtPoint2> doubled;

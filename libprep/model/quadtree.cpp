@@ -209,7 +209,7 @@ class LeafPolygonBuilder {
 }  // namespace
 
 void build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capacity, uint32_t max_depth,
-                   PolyQuadTree& t, QuadTreeScratch& scratch) {
+                    PolyQuadTree& t, QuadTreeScratch& scratch) {
   t.box.clear();
   t.node.clear();
   t.leaf_range.clear();
