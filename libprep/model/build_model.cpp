@@ -72,12 +72,21 @@ bool contains(const ivec4& outer, const QBox& in) {
   return outer[0] <= in.x0 && outer[1] <= in.y0 && in.x1 <= outer[2] && in.y1 <= outer[3];
 }
 
-// Quantised ring without repeated consecutive or closing vertices.
-std::vector<QPoint> quantise_ring(const Ring& r, double& err, const std::string& where) {
+// Quantised ring without repeated consecutive or closing vertices. `where`
+// names the ring in an error; it is called only when a vertex cannot be
+// quantised (not finite, or beyond kMaxQuanta), so a ring that can costs no
+// message.
+template <class Where>
+std::vector<QPoint> quantise_ring(const Ring& r, double& err, const Where& where) {
+  const bool fits = std::all_of(r.begin(), r.end(), [](const Point2& p) {
+    return std::fabs(p.x / decal::kQuantumMetres) <= double(kMaxQuanta) &&
+           std::fabs(p.y / decal::kQuantumMetres) <= double(kMaxQuanta);  // false for NaN
+  });
+  const std::string name = fits ? std::string() : where();
   std::vector<QPoint> q;
   q.reserve(r.size());
   for (const Point2& p : r) {
-    QPoint v = quantise(p, err, where);
+    QPoint v = quantise(p, err, name);
     if (q.empty() || !(q.back() == v)) q.push_back(v);
   }
   while (q.size() > 1 && q.back() == q.front()) q.pop_back();
@@ -109,15 +118,15 @@ void grow_to(std::vector<T>& v, size_t n, double scale) {
 std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalModel& m,
                                        double scale = 1.0) {
   struct Base {
-    size_t node, range, seg, vert;
+    size_t node, range, loop, vert;
   };
   std::vector<Base> base(trees.size() + 1);
-  base[0] = {m.qt_node.size(), m.qt_leaf_range.size(), m.qt_leaf_segments.size(),
+  base[0] = {m.qt_node.size(), m.qt_leaf_loop_range.size(), m.qt_leaf_loops.size(),
              m.qt_leaf_vertices.size()};
   for (size_t i = 0; i < trees.size(); ++i) {
     const PolyQuadTree& t = trees[i];
     base[i + 1] = {base[i].node + t.node.size(), base[i].range + t.leaf_range.size(),
-                   base[i].seg + t.leaf_segments.size(), base[i].vert + t.leaf_vertices.size()};
+                   base[i].loop + t.leaf_loops.size(), base[i].vert + t.leaf_vertices.size()};
     m.stats.qt_depth_capped += t.depth_capped;
     m.stats.qt_max_leaf_segments = std::max(m.stats.qt_max_leaf_segments, t.max_leaf_segments);
     m.stats.qt_partial_leaves += t.leaf_range.size();
@@ -125,8 +134,8 @@ std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalMo
   const Base& end = base.back();
   grow_to(m.qt_node, end.node, scale);
   grow_to(m.qt_node_box, end.node, scale);
-  grow_to(m.qt_leaf_range, end.range, scale);
-  grow_to(m.qt_leaf_segments, end.seg, scale);
+  grow_to(m.qt_leaf_loop_range, end.range, scale);
+  grow_to(m.qt_leaf_loops, end.loop, scale);
   grow_to(m.qt_leaf_vertices, end.vert, scale);
   tbb::parallel_for(size_t(0), trees.size(), [&](size_t i) {
     PolyQuadTree& t = trees[i];
@@ -139,10 +148,10 @@ std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalMo
     }
     std::copy(t.box.begin(), t.box.end(), m.qt_node_box.begin() + ptrdiff_t(b.node));
     for (size_t k = 0; k < t.leaf_range.size(); ++k)
-      m.qt_leaf_range[b.range + k] = {t.leaf_range[k][0] + uint32_t(b.seg), t.leaf_range[k][1]};
-    for (size_t k = 0; k < t.leaf_segments.size(); ++k)
-      m.qt_leaf_segments[b.seg + k] = {t.leaf_segments[k][0] + uint32_t(b.vert),
-                                       t.leaf_segments[k][1] + uint32_t(b.vert)};
+      m.qt_leaf_loop_range[b.range + k] = {t.leaf_range[k][0] + uint32_t(b.loop),
+                                           t.leaf_range[k][1]};
+    for (size_t k = 0; k < t.leaf_loops.size(); ++k)
+      m.qt_leaf_loops[b.loop + k] = t.leaf_loops[k] + uint32_t(b.vert);
     std::copy(t.leaf_vertices.begin(), t.leaf_vertices.end(),
               m.qt_leaf_vertices.begin() + ptrdiff_t(b.vert));
     t = PolyQuadTree();  // free early
@@ -237,11 +246,15 @@ PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m,
   std::vector<double> qerr(np, 0.0);
   tbb::parallel_for(size_t(0), np, [&](size_t i) {
     const ScenePolygon& p = scene.polygons[i];
-    std::ostringstream w;
-    w << "layer '" << (p.layer < scene.layers.size() ? scene.layers[p.layer].name : "?") << "' fid "
-      << p.fid << " part " << p.part;
-    qrings[i].push_back(quantise_ring(p.shell, qerr[i], w.str()));
-    for (const Ring& h : p.holes) qrings[i].push_back(quantise_ring(h, qerr[i], w.str() + " hole"));
+    auto where = [&] {
+      std::ostringstream w;
+      w << "layer '" << (p.layer < scene.layers.size() ? scene.layers[p.layer].name : "?")
+        << "' fid " << p.fid << " part " << p.part;
+      return w.str();
+    };
+    qrings[i].push_back(quantise_ring(p.shell, qerr[i], where));
+    for (const Ring& h : p.holes)
+      qrings[i].push_back(quantise_ring(h, qerr[i], [&] { return where() + " hole"; }));
   });
   PolygonRings out;
   for (size_t i = 0; i < np; ++i) {
@@ -431,7 +444,8 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
   gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) +
                        bytes_of(m.line_props) + bytes_of(m.line_corners) + bytes_of(m.poly_props) +
                        bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) + bytes_of(m.qt_node) +
-                       bytes_of(m.qt_leaf_range) + bytes_of(m.qt_leaf_segments) +
+                       bytes_of(m.qt_leaf_loop_range) + bytes_of(m.qt_leaf_vertices) +
+                       // the v1.2 leaf segments the grid's byte model counts: one per vertex
                        bytes_of(m.qt_leaf_vertices);
   return choose_grid(gin, options);
 }

@@ -42,10 +42,10 @@ QPoint quantise(const Point2& p, double& max_err, const std::string& where);
 // local to this tree: node children, leaf ranges and leaf segments index the
 // vectors of this struct; build_model() rebases them when concatenating.
 struct PolyQuadTree {
-  std::vector<ivec4> box;         // per node
-  std::vector<ivec2> node;        // per node: (QtNodeType, offset)
-  std::vector<uvec2> leaf_range;  // per partial leaf: (first, count) into leaf_segments
-  std::vector<uvec2> leaf_segments;
+  std::vector<ivec4> box;            // per node
+  std::vector<ivec2> node;           // per node: (QtNodeType, offset)
+  std::vector<uvec2> leaf_range;     // per partial leaf: (first, count) into leaf_loops
+  std::vector<uint32_t> leaf_loops;  // per loop: one past its last vertex (DecalModel)
   std::vector<ivec2> leaf_vertices;
   uint32_t depth_capped = 0;       // leaves that stopped at max depth with > capacity segments
   uint32_t max_leaf_segments = 0;  // ring segments in the fullest leaf

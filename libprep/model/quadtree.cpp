@@ -110,7 +110,7 @@ class LeafPolygonBuilder {
   // edges) to `t`.
   void build(const Work& w, std::span<const uint32_t> edges, PolyQuadTree& t) {
     const size_t n = ring_.size();
-    const uint32_t first_seg = uint32_t(t.leaf_segments.size());
+    const uint32_t first_loop = uint32_t(t.leaf_loops.size());
     auto member = [&](uint32_t e) { return std::binary_search(edges.begin(), edges.end(), e); };
     if (edges.size() == n) {
       loop_begin(t);
@@ -138,10 +138,13 @@ class LeafPolygonBuilder {
     // Parity fix at the leaf centre (exact).
     const P2 c{w.box.x0 + w.box.x1, w.box.y0 + w.box.y1};
     bool leaf_parity = false;
-    for (size_t s = first_seg; s < t.leaf_segments.size(); ++s) {
-      const ivec2& a = t.leaf_vertices[t.leaf_segments[s][0]];
-      const ivec2& b = t.leaf_vertices[t.leaf_segments[s][1]];
-      leaf_parity ^= ray_crosses(dbl({a[0], a[1]}), dbl({b[0], b[1]}), c);
+    for (size_t l = first_loop; l < t.leaf_loops.size(); ++l) {
+      const uint32_t begin = l > 0 ? t.leaf_loops[l - 1] : 0, end = t.leaf_loops[l];
+      for (uint32_t v = begin; v < end; ++v) {
+        const ivec2& a = t.leaf_vertices[v];
+        const ivec2& b = t.leaf_vertices[v + 1 < end ? v + 1 : begin];
+        leaf_parity ^= ray_crosses(dbl({a[0], a[1]}), dbl({b[0], b[1]}), c);
+      }
     }
     if (leaf_parity != w.parity) {
       loop_begin(t);
@@ -151,7 +154,7 @@ class LeafPolygonBuilder {
       loop_add(t, {fx0_, fy1_});
       loop_end(t);
     }
-    t.leaf_range.push_back({first_seg, uint32_t(t.leaf_segments.size()) - first_seg});
+    t.leaf_range.push_back({first_loop, uint32_t(t.leaf_loops.size()) - first_loop});
   }
 
  private:
@@ -196,9 +199,11 @@ class LeafPolygonBuilder {
       t.leaf_vertices.pop_back();
       --last;
     }
-    if (last - loop_first_ < 2) return;  // degenerate; cannot happen for a real chain
-    for (uint32_t i = loop_first_; i < last; ++i)
-      t.leaf_segments.push_back({i, i + 1 < last ? i + 1 : loop_first_});
+    if (last - loop_first_ < 2) {  // degenerate; cannot happen for a real chain
+      t.leaf_vertices.resize(loop_first_);
+      return;
+    }
+    t.leaf_loops.push_back(last);
   }
 
   const std::vector<QPoint>& ring_;
@@ -213,7 +218,7 @@ void build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capacity, uin
   t.box.clear();
   t.node.clear();
   t.leaf_range.clear();
-  t.leaf_segments.clear();
+  t.leaf_loops.clear();
   t.leaf_vertices.clear();
   t.depth_capped = 0;
   t.max_leaf_segments = 0;

@@ -453,13 +453,6 @@ std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
   std::vector<uvec2> holes_copy = std::move(entries.holes);
   std::vector<L::u2> line_boxes = boxes16(lines, m.line_bvh_box);
   std::vector<L::u2> poly_boxes = boxes16(polys, m.poly_bvh_box);
-  std::vector<L::u2> loop_range;
-  std::vector<uint32_t> loop_end;
-  if (!L::encode_leaves(
-          std::span<const L::u2>(m.qt_leaf_range.data(), m.qt_leaf_range.size()),
-          std::span<const L::u2>(m.qt_leaf_segments.data(), m.qt_leaf_segments.size()),
-          m.qt_leaf_vertices.size(), loop_range, loop_end))
-    fail<format_error>(kWriteStage, "quad-tree leaf segments are not closed vertex runs");
   std::vector<BlobInput> all = {
       blob_of(BlobId::line_vertices, m.line_vertices),
       blob_of(BlobId::line_vertex_line, m.line_vertex_line),
@@ -474,8 +467,8 @@ std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
       blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices),
       holes_copy.empty() ? blob_of(BlobId::cell_holes, m.cell_holes)
                          : owned_blob(BlobId::cell_holes, std::move(holes_copy)),
-      owned_blob(BlobId::qt_leaf_loop_range, std::move(loop_range)),
-      owned_blob(BlobId::qt_leaf_loops, std::move(loop_end)),
+      blob_of(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range),
+      blob_of(BlobId::qt_leaf_loops, m.qt_leaf_loops),
       owned_blob(BlobId::cell_poly_first, std::move(polys.first)),
       owned_blob(BlobId::line_bvh_box16, std::move(line_boxes)),
       owned_blob(BlobId::poly_bvh_box16, std::move(poly_boxes)),
