@@ -338,6 +338,41 @@ TEST(RepairByParts, SelfCrossingShellEqualsWholeMakeValid) {
         << "the split did not apply";
 }
 
+// A shell that winds twice around an inner square: its ring goes around the
+// 2 km square, then around [500, 1500]^2 once more, crossing itself at
+// (500, 500). The inner square has crossing parity 0 (the linework method
+// leaves it out), the band x > 1500 parity 1. Which holes are clear of the
+// shell is decided by crossing parity against the shell ring, without the
+// shell's own repair: holes in the band are clear, holes in the inner
+// square are not (they go into the base repair with the shell), and with
+// only band holes the base repair is the shell's own repair.
+TEST(RepairByParts, DoublyWoundShellEqualsWholeMakeValid) {
+  Geos geos;
+  const prep::Ring shell = ring({{0, 0},
+                                 {2000, 0},
+                                 {2000, 2000},
+                                 {0, 2000},
+                                 {0, 500},
+                                 {1500, 500},
+                                 {1500, 1500},
+                                 {500, 1500},
+                                 {500, 100}});
+  Rings band{shell};
+  for (int k = 0; k < 100; ++k)
+    band.push_back(square(1620 + (k % 10) * 35, 200 + (k / 10) * 160, 5));
+  Rings both = band;
+  for (int k = 0; k < 64; ++k) both.push_back(square(600 + (k % 8) * 110, 600 + (k / 8) * 110, 5));
+  both.push_back(square(1500, 1000, 5));  // across the inner loop's edge
+  for (const Rings* rings : {&band, &both}) {
+    const G whole = polygon_of(geos.h, *rings);
+    ASSERT_NE(GEOSisValid_r(geos.h, whole.g), 1);
+    for (const bool structure : {false, true})
+      EXPECT_TRUE(split_equals_whole(geos, *rings, structure,
+                                     rings == &band ? "band holes, " : "band and inner holes, "))
+          << "the split did not apply";
+  }
+}
+
 // random_polygon with a bow-tie ear in the shell's top right corner (its
 // edges cross at (1050, 950)) and a second one on the left edge, as a
 // coastline that crosses itself.

@@ -12,12 +12,19 @@
 //    rings alone intersect), candidates from envelope contact through a GEOS
 //    STRtree (a continent-sized hole's envelope holds thousands of islands
 //    that touch nothing);
-//  - "the shell" below is the shell's area: the shell when it is valid on
-//    its own, else MakeValid(shell alone) (the faces of its linework that
-//    the repair keeps; a real coastline may cross itself somewhere);
+//  - "properly inside the shell" below means inside the shell's area (a
+//    real coastline may cross itself somewhere) without meeting the shell
+//    ring: the hole ring meets no shell segment and a vertex of it has odd
+//    crossing parity against the shell ring (GEOS prepared ContainsProperly
+//    of the polygon of the shell alone, valid or not: its point-in-area
+//    test counts crossings). The hole then lies in one face of the shell's
+//    noded linework, of odd parity, which both methods keep (linework: the
+//    faces of odd parity; structure: every face the ring winds around). So
+//    the shell's own repair is not needed before the split;
 //  - a group with a hole that is not properly inside the shell (it touches,
 //    crosses or lies outside it) is repaired together with the shell: the
-//    "base" repair R0 = MakeValid(shell + those holes);
+//    "base" repair R0 = MakeValid(shell + those holes) (with no such group,
+//    MakeValid(shell alone), or the shell itself when it is valid);
 //  - a group properly inside the shell is repaired on its own, inside a
 //    rectangle clear of it: MakeValid(box + the group's holes) is the box
 //    with the group's regions cut out (and any islands inside them). The
@@ -42,7 +49,9 @@
 // a valid polygon: rings inside their shell that touch nothing outside
 // their own valid group, islands inside the rings they came with.
 // The base repair and the groups' repairs are independent: they run in
-// parallel, largest first, and are put together in group order.
+// parallel, largest first, and are put together in group order. A hole
+// wrongly taken for clear of the shell could not pass unnoticed: its cut
+// rings must lie properly inside a polygon of R0 (the check above).
 // Tests: tests/clean/test_repair_by_parts.cpp (the result against GEOS
 // MakeValid of the whole polygon).
 #pragma once
