@@ -102,7 +102,9 @@ class RingAreas {
 }  // namespace
 
 GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* polygon,
-                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid) {
+                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid,
+                                  const Envelope* window, LeftOut* left_out) {
+  if (left_out) *left_out = LeftOut{};
   if (GEOSGeomTypeId_r(h, polygon) != GEOS_POLYGON) return nullptr;
   const int nh = GEOSGetNumInteriorRings_r(h, polygon);
   if (nh < 0 || size_t(nh) < kRepairByPartsMinHoles || size_t(nh) + 1 != rings.size())
@@ -200,6 +202,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
     Owned input, fixed;
     Envelope box{};
     bool alone = false;          // a single hole that is a valid ring: no repair
+    bool outside = false;        // misses the window: left out
     bool keep_if_valid = false;  // the shell alone: kept as it is when valid
     bool valid = false;          // `fixed` is valid (GEOS isValid)
   };
@@ -210,15 +213,35 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   for (uint32_t gi = 0; gi < clear_groups.size(); ++gi) {
     const std::vector<uint32_t>& group = clear_groups[gi];
     Job& job = jobs[gi + 1];
-    if (group.size() == 1 && ring_valid(h, holes[group[0]], rings[group[0] + 1])) {
-      job.alone = true;
-      continue;
-    }
     Envelope b{INFINITY, INFINITY, -INFINITY, -INFINITY};
     for (uint32_t i : group) {
       Envelope e;
       if (!envelope_of(h, holes[i], e)) return nullptr;
       b = {std::min(b.x0, e.x0), std::min(b.y0, e.y0), std::max(b.x1, e.x1), std::max(b.y1, e.y1)};
+    }
+    const bool alone = group.size() == 1 && ring_valid(h, holes[group[0]], rings[group[0] + 1]);
+    // Everything the group's repair cuts out or adds lies in its envelope:
+    // when that misses the window, the repair inside the window is the same
+    // without it.
+    if (window &&
+        (b.x1 < window->x0 || b.x0 > window->x1 || b.y1 < window->y0 || b.y0 > window->y1)) {
+      job.outside = true;
+      if (!left_out) continue;
+      if (!alone) {
+        ++left_out->groups;
+        continue;
+      }
+      ++left_out->lone_holes;
+      std::vector<Owned> no_holes;
+      Owned area(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, holes[group[0]])), no_holes));
+      double a = 0;
+      if (!area || GEOSArea_r(h, area.get(), &a) != 1) return nullptr;
+      left_out->lone_hole_area += a;
+      continue;
+    }
+    if (alone) {
+      job.alone = true;
+      continue;
     }
     // Clear of the group by a margin far above the coordinates' precision
     // (|x| <= 1e9 m in clean: an ulp is below 1e-6 m).
@@ -276,6 +299,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   for (uint32_t gi = 0; gi < clear_groups.size(); ++gi) {
     const std::vector<uint32_t>& group = clear_groups[gi];
     const Job& job = jobs[gi + 1];
+    if (job.outside) continue;
     if (job.alone) {
       cut.emplace_back(h, GEOSGeom_clone_r(h, holes[group[0]]));
       cut_group.push_back(gi);

@@ -61,6 +61,7 @@
 #include <functional>
 #include <vector>
 
+#include "detail/geos_handle.hpp"
 #include "prep/scene.hpp"
 
 namespace prep::detail {
@@ -74,8 +75,22 @@ inline constexpr size_t kRepairByPartsMinHoles = 64;
 // each with a context of its own.
 using MakeValidFn = std::function<GEOSGeometry*(GEOSContextHandle_t, const GEOSGeometry*)>;
 
+// What a repair with a window left out (below): the clear groups that
+// needed a repair of their own, and the lone valid holes with the sum of
+// their GEOS areas (the area the whole repair would have less by them).
+struct LeftOut {
+  size_t groups = 0;
+  size_t lone_holes = 0;
+  double lone_hole_area = 0;
+};
+
 // The repair of `polygon` (a GEOS polygon built from `rings`: [0] shell,
-// then holes, in the same order) by parts, as above. Null when the split
+// then holes, in the same order) by parts, as above. With a `window` (clean
+// clips the repair to the scene extent next), a clear group whose envelope
+// misses the window is left out, unrepaired: everything its repair would
+// cut out of the base or add lies in that envelope, so the result inside
+// the window is the same (groups not clear of the shell are always
+// repaired, with it); `left_out` (when given) says what was left out. Null when the split
 // does not apply (fewer than kRepairByPartsMinHoles holes, a shell whose
 // own repair has no area, no hole group clear of the shell, too many
 // envelope contacts to enumerate) or any step fails: the caller then repairs the
@@ -83,6 +98,7 @@ using MakeValidFn = std::function<GEOSGeometry*(GEOSContextHandle_t, const GEOSG
 // GeometryCollection of polygons and the collapsed (non-areal) pieces that
 // MakeValid returned; valid (checked as above).
 GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* polygon,
-                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid);
+                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid,
+                                  const Envelope* window = nullptr, LeftOut* left_out = nullptr);
 
 }  // namespace prep::detail
