@@ -385,7 +385,9 @@ struct Cleaner {
   // that is still invalid). A polygon with many holes is repaired by parts
   // (detail/repair_by_parts.hpp: the same result as MakeValid of the whole,
   // without its time quadratic in the holes); when that does not apply or
-  // its result is not valid, the whole polygon is repaired.
+  // its result is not valid, the whole polygon is repaired. `window`: the
+  // extent the part is clipped to next (null: none); the repair by parts
+  // is then the whole repair inside it only.
   bool make_valid_if_invalid(GeosContext& ctx, Geom& g, const std::vector<Ring>& rings,
                              const Extent* window, PartResult& r) const {
     GEOSContextHandle_t h = ctx.h;
