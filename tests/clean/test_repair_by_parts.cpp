@@ -373,10 +373,15 @@ TEST(RepairByParts, DoublyWoundShellEqualsWholeMakeValid) {
                                  {500, 1500},
                                  {500, 100}});
   Rings band{shell};
-  for (int k = 0; k < 100; ++k)
-    band.push_back(square(1620 + (k % 10) * 35, 200 + (k / 10) * 160, 5));
+  for (int k = 0; k < 100; ++k) {
+    const int row = k / 10;
+    band.push_back(square(1620 + (k % 10) * 35, 200 + row * 160, 5));
+  }
   Rings both = band;
-  for (int k = 0; k < 64; ++k) both.push_back(square(600 + (k % 8) * 110, 600 + (k / 8) * 110, 5));
+  for (int k = 0; k < 64; ++k) {
+    const int row = k / 8;
+    both.push_back(square(600 + (k % 8) * 110, 600 + row * 110, 5));
+  }
   both.push_back(square(1500, 1000, 5));  // across the inner loop's edge
   for (const Rings* rings : {&band, &both}) {
     const G whole = polygon_of(geos.h, *rings);
