@@ -10,10 +10,10 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <optional>
 #include <sstream>
@@ -404,12 +404,6 @@ std::vector<std::vector<uint32_t>> solid_leaves(const DecalModel& m, size_t n_ri
 GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const PolygonRings& pr,
                              const ModelOptions& options, const DecalModel& m) {
   QBox extent;
-  std::vector<QBox> prims;
-  std::vector<float> weights;
-  prims.reserve(shapes.size());
-  // A line entry costs more per query than a polygon entry (segment test and
-  // a deeper, less coherent BVH), measured with bench_build.
-  constexpr float kLineWeight = 1.0f, kPolygonWeight = 2.0f / 3.0f;
   auto grow = [&](const QBox& b) {
     if (extent.empty())
       extent = b;
@@ -417,23 +411,10 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
       extent = {std::min(extent.x0, b.x0), std::min(extent.y0, b.y0), std::max(extent.x1, b.x1),
                 std::max(extent.y1, b.y1)};
   };
-  for (const SegmentShape& s : shapes) {
-    grow(s.box);
-    prims.push_back(s.box);
-    weights.push_back(kLineWeight);
-  }
-  for (size_t r = 0; r < pr.rings.size(); ++r) {
-    grow(box_of(m.qt_node_box[m.poly_root_node[r]]));
-    if (!pr.is_hole(r))
-      for (uint32_t n : pr.solid_leaves[r]) {
-        prims.push_back(box_of(m.qt_node_box[n]));
-        weights.push_back(kPolygonWeight);
-      }
-  }
+  for (const SegmentShape& s : shapes) grow(s.box);
+  for (size_t r = 0; r < pr.rings.size(); ++r) grow(box_of(m.qt_node_box[m.poly_root_node[r]]));
   GridInput gin;
   gin.extent = extent;
-  gin.primitives = &prims;
-  gin.weights = &weights;
   gin.shapes = &shapes;
   gin.ring_leaves = &pr.solid_leaves;
   gin.node_box = &m.qt_node_box;
@@ -516,38 +497,36 @@ std::vector<SegEntry> line_cell_entries(const DecalModel& m,
   return entries;
 }
 
-// The (cell, ring) pairs of one ring: its solid leaves clipped to each cell
-// they touch, merged per cell, with the culling node: the deepest node whose
-// box holds every part of the polygon that can matter in that cell.
-std::vector<CellPoly> ring_cell_entries(const DecalModel& m, uint32_t r,
-                                        const std::vector<uint32_t>& leaves) {
+// Reused buffers of ring_cell_entries (one per thread).
+struct RingCellScratch {
+  std::vector<QBox> dense;                      // union per cell of the ring's cell rectangle
+  std::vector<std::pair<uint32_t, QBox>> hits;  // (cell, part) where the rectangle is sparse
+};
+
+// The (cell, ring) pairs of one ring, appended to `out` in cell order: its
+// solid leaves clipped to each cell they touch, merged per cell, with the
+// culling node: the deepest node whose box holds every part of the polygon
+// that can matter in that cell. The parts of a cell are merged by a box
+// union, which does not depend on their order: in a dense array over the
+// cell rectangle the leaves reach (row-major, so in cell order) when that
+// rectangle holds at most 4 times the cells the leaves touch, else sorted by
+// cell.
+void ring_cell_entries(const DecalModel& m, uint32_t r, const std::vector<uint32_t>& leaves,
+                       RingCellScratch& scratch, std::vector<CellPoly>& out) {
   const GridParams& g = m.grid;
-  std::vector<std::pair<uint32_t, QBox>> hits;
+  int64_t rx0 = std::numeric_limits<int64_t>::max(), ry0 = rx0, rx1 = -1, ry1 = -1;
+  uint64_t touched = 0;
   for (uint32_t n : leaves) {
-    const QBox lb = box_of(m.qt_node_box[n]);
     int64_t x0, y0, x1, y1;
-    if (!cell_range(g, lb, x0, y0, x1, y1)) continue;
-    for (int64_t iy = y0; iy <= y1; ++iy)
-      for (int64_t ix = x0; ix <= x1; ++ix) {
-        QBox cb = cell_box(g, ix, iy);
-        cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
-        const QBox part = intersect(lb, cb);
-        if (part.empty()) continue;
-        hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
-      }
+    if (!cell_range(g, box_of(m.qt_node_box[n]), x0, y0, x1, y1)) continue;
+    rx0 = std::min(rx0, x0);
+    ry0 = std::min(ry0, y0);
+    rx1 = std::max(rx1, x1);
+    ry1 = std::max(ry1, y1);
+    touched += uint64_t(x1 - x0 + 1) * uint64_t(y1 - y0 + 1);
   }
-  std::sort(hits.begin(), hits.end(), [](const auto& a, const auto& b) {
-    if (a.first != b.first) return a.first < b.first;
-    return std::tie(a.second.x0, a.second.y0, a.second.x1, a.second.y1) <
-           std::tie(b.second.x0, b.second.y0, b.second.x1, b.second.y1);
-  });
-  std::vector<CellPoly> out;
-  for (size_t i = 0; i < hits.size();) {
-    size_t j = i;
-    QBox u = hits[i].second;
-    for (; j < hits.size() && hits[j].first == hits[i].first; ++j)
-      u = {std::min(u.x0, hits[j].second.x0), std::min(u.y0, hits[j].second.y0),
-           std::max(u.x1, hits[j].second.x1), std::max(u.y1, hits[j].second.y1)};
+  if (touched == 0) return;
+  auto emit = [&](uint32_t cell, const QBox& u) {
     uint32_t node = m.poly_root_node[r];
     for (;;) {
       if (m.qt_node[node][0] != int32_t(decal::QtNodeType::internal)) break;
@@ -562,37 +541,117 @@ std::vector<CellPoly> ring_cell_entries(const DecalModel& m, uint32_t r,
       if (next == node) break;
       node = next;
     }
-    out.push_back({hits[i].first, r, node, to_ivec4(u)});
+    out.push_back({cell, r, node, to_ivec4(u)});
+  };
+  auto unite = [](QBox& u, const QBox& b) {
+    if (u.empty()) {
+      u = b;
+      return;
+    }
+    u = {std::min(u.x0, b.x0), std::min(u.y0, b.y0), std::max(u.x1, b.x1), std::max(u.y1, b.y1)};
+  };
+  // Leaf `lb`'s part in cell (ix, iy): clipped to the cell expanded by one quantum.
+  auto part_of = [&](const QBox& lb, int64_t ix, int64_t iy) {
+    QBox cb = cell_box(g, ix, iy);
+    return intersect(lb, {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1});
+  };
+  const uint64_t w = uint64_t(rx1 - rx0 + 1), area = w * uint64_t(ry1 - ry0 + 1);
+  if (area <= std::max<uint64_t>(4 * touched, 16)) {
+    std::vector<QBox>& dense = scratch.dense;
+    dense.assign(area, QBox{});
+    for (uint32_t n : leaves) {
+      const QBox lb = box_of(m.qt_node_box[n]);
+      int64_t x0, y0, x1, y1;
+      if (!cell_range(g, lb, x0, y0, x1, y1)) continue;
+      for (int64_t iy = y0; iy <= y1; ++iy)
+        for (int64_t ix = x0; ix <= x1; ++ix) {
+          const QBox part = part_of(lb, ix, iy);
+          if (!part.empty()) unite(dense[uint64_t(iy - ry0) * w + uint64_t(ix - rx0)], part);
+        }
+    }
+    for (int64_t iy = ry0; iy <= ry1; ++iy)
+      for (int64_t ix = rx0; ix <= rx1; ++ix) {
+        const QBox& u = dense[uint64_t(iy - ry0) * w + uint64_t(ix - rx0)];
+        if (!u.empty()) emit(uint32_t(ix + int64_t(g.nx) * iy), u);
+      }
+    return;
+  }
+  std::vector<std::pair<uint32_t, QBox>>& hits = scratch.hits;
+  hits.clear();
+  for (uint32_t n : leaves) {
+    const QBox lb = box_of(m.qt_node_box[n]);
+    int64_t x0, y0, x1, y1;
+    if (!cell_range(g, lb, x0, y0, x1, y1)) continue;
+    for (int64_t iy = y0; iy <= y1; ++iy)
+      for (int64_t ix = x0; ix <= x1; ++ix) {
+        const QBox part = part_of(lb, ix, iy);
+        if (!part.empty()) hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
+      }
+  }
+  std::sort(hits.begin(), hits.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (size_t i = 0; i < hits.size();) {
+    QBox u;
+    size_t j = i;
+    for (; j < hits.size() && hits[j].first == hits[i].first; ++j) unite(u, hits[j].second);
+    emit(hits[i].first, u);
     i = j;
   }
-  return out;
 }
 
 // Polygons -> cells with culling nodes (thesis §4.2.1): exteriors and holes
-// apart, each sorted by cell, drawing rank, exterior and ring.
+// apart, each sorted by cell, drawing rank, exterior and ring. The rings'
+// entries (in parallel, each ring's in cell order) are bucketed by cell in
+// ring order, then each cell's few entries are sorted by the rest of the
+// key, in parallel: a total order (a ring has one entry per cell), so the
+// result does not depend on the thread count.
 void polygon_cell_entries(const DecalModel& m, const PolygonRings& pr, ProgressStage& cells_stage,
                           std::vector<CellPoly>& ext_entries, std::vector<CellPoly>& hole_entries) {
-  std::vector<std::vector<CellPoly>> per_ring(pr.rings.size());
-  tbb::parallel_for(size_t(0), pr.rings.size(), [&](size_t r) {
-    per_ring[r] = ring_cell_entries(m, uint32_t(r), pr.solid_leaves[r]);
-    cells_stage.add();
-  });
-  for (size_t r = 0; r < pr.rings.size(); ++r) {
-    auto& dst = pr.is_hole(r) ? hole_entries : ext_entries;
-    dst.insert(dst.end(), per_ring[r].begin(), per_ring[r].end());
-    std::vector<CellPoly>().swap(per_ring[r]);
-  }
+  const size_t nr = pr.rings.size();
+  std::vector<std::vector<CellPoly>> per_ring(nr);
+  tbb::enumerable_thread_specific<RingCellScratch> scratch;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, nr, 16),
+                    [&](const tbb::blocked_range<size_t>& range) {
+                      RingCellScratch& s = scratch.local();
+                      for (size_t r = range.begin(); r != range.end(); ++r) {
+                        ring_cell_entries(m, uint32_t(r), pr.solid_leaves[r], s, per_ring[r]);
+                        cells_stage.add();
+                      }
+                    });
+  scratch.clear();
+  const size_t ncells = size_t(m.grid.nx) * m.grid.ny;
   auto ext_of = [&](uint32_t poly) {
     return pr.rings[poly].exterior < 0 ? poly : uint32_t(pr.rings[poly].exterior);
   };
   auto poly_less = [&](const CellPoly& a, const CellPoly& b) {
-    if (a.cell != b.cell) return a.cell < b.cell;
     if (pr.order[a.poly] != pr.order[b.poly]) return pr.order[a.poly] < pr.order[b.poly];
     if (ext_of(a.poly) != ext_of(b.poly)) return ext_of(a.poly) < ext_of(b.poly);
     return a.poly < b.poly;
   };
-  tbb::parallel_sort(ext_entries.begin(), ext_entries.end(), poly_less);
-  tbb::parallel_sort(hole_entries.begin(), hole_entries.end(), poly_less);
+  for (const bool holes : {false, true}) {
+    std::vector<CellPoly>& dst = holes ? hole_entries : ext_entries;
+    std::vector<uint64_t> first(ncells + 1, 0);
+    for (size_t r = 0; r < nr; ++r)
+      if (pr.is_hole(r) == holes)
+        for (const CellPoly& e : per_ring[r]) ++first[e.cell + 1];
+    for (size_t c = 0; c < ncells; ++c) first[c + 1] += first[c];
+    dst.resize(first[ncells]);
+    {
+      std::vector<uint64_t> fill(first.begin(), first.end() - 1);
+      for (size_t r = 0; r < nr; ++r) {
+        if (pr.is_hole(r) != holes) continue;
+        for (const CellPoly& e : per_ring[r]) dst[fill[e.cell]++] = e;
+        std::vector<CellPoly>().swap(per_ring[r]);
+      }
+    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, ncells, 4096),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t c = range.begin(); c != range.end(); ++c)
+                          if (first[c + 1] - first[c] > 1)
+                            std::sort(dst.begin() + ptrdiff_t(first[c]),
+                                      dst.begin() + ptrdiff_t(first[c + 1]), poly_less);
+                      });
+  }
 }
 
 // The per-cell lists (segments, exteriors with their holes) and the per-cell

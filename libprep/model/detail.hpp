@@ -127,8 +127,6 @@ std::vector<uint32_t> draw_ranks(const std::vector<DrawKey>& keys);
 // What choose_grid() looks at. Pointers are borrowed for the call.
 struct GridInput {
   QBox extent;                                        // of every static primitive, quanta
-  const std::vector<QBox>* primitives = nullptr;      // segment boxes and exterior solid-leaf boxes
-  const std::vector<float>* weights = nullptr;        // query-cost weight per primitive
   const std::vector<SegmentShape>* shapes = nullptr;  // every static segment
   const std::vector<std::vector<uint32_t>>* ring_leaves = nullptr;  // solid leaf nodes per ring
   const std::vector<ivec4>* node_box = nullptr;                     // quad-tree node boxes

@@ -1,6 +1,7 @@
 // libprep/model/grid.cpp — quantisation and the decal grid (thesis §4.2.1
 // "Decal Grid", Eq. 4.3/4.4).
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
@@ -55,6 +56,11 @@ GridParams grid_with_cell(const QBox& e, int64_t cw, int64_t ch) {
   g.ny = uint32_t((h + g.cell_h - 1) / g.cell_h);
   return g;
 }
+
+// Query-cost weights of the primitives: a line entry costs more per query
+// than a polygon entry (segment test and a deeper, less coherent BVH),
+// measured with bench_build. grid_row() counts them in thirds (3 and 2).
+constexpr float kLineWeight = 1.0f, kPolygonWeight = 2.0f / 3.0f;
 
 // Entry-weighted mean number of primitives per cell of grid `g` for the
 // primitive boxes, counted with a 2D difference array (O(primitives + cells)).
@@ -122,116 +128,158 @@ struct Candidate {
   int64_t stride = 1;     // row sample counted (sample_stride); 1: bytes exact
 };
 
-// Items (segment boxes, primitive boxes or solid leaves) binned once by
-// y, in buckets of height `height`: each item, with a copy of its box, in
-// the bucket of its lowest y (its box expanded by one quantum, as
-// cell_range expands it), items in item order within a bucket; and each
-// bucket's list of the items from lower buckets that reach into it; items
-// taller than kMaxSpan buckets apart, offered to every row. A cell row of
-// any grid with origin y0 then reads the items that can meet it nearly in
-// sequence, each once. O(items) to build.
+// floor(a / b) for a fixed b > 0 (|a| < 2^52): a product with 1/b, corrected
+// to the exact integer quotient (grid_detail::floor_div, without its
+// division: the row counts below take it four times per item and row).
+struct FloorDiv {
+  int64_t b = 1;
+  double inv = 1.0;
+  explicit FloorDiv(int64_t divisor) : b(divisor), inv(1.0 / double(divisor)) {}
+  int64_t operator()(int64_t a) const {
+    int64_t q = int64_t(double(a) * inv);
+    while (q * b > a) --q;
+    while ((q + 1) * b <= a) ++q;
+    return q;
+  }
+};
+
+// A box of quanta in 32 bits (every stored position fits, kMaxQuanta).
+struct Box32 {
+  int32_t x0, y0, x1, y1;
+};
+
+// Items (segment shapes or solid quad-tree leaves) binned once by y, in
+// buckets of height `height`: each item, with a copy of its box and a tag
+// (its shape, or its leaf's ring), in the bucket of its lowest y (its box
+// expanded by one quantum, as cell_range expands it), in item order within a
+// bucket; and each bucket's list of the items from lower buckets that reach
+// into it; items taller than kMaxSpan buckets apart, offered to every row. A
+// cell row of any grid with origin y0 then reads the items that can meet it
+// nearly in sequence, each once. O(items) to build; `items(fn)` calls
+// fn(tag, box) for every item, in item order (twice).
 class YBins {
  public:
+  struct Item {
+    Box32 box;
+    uint32_t tag;
+  };
   // Items that reach more than kMaxSpan buckets are kept apart, in tall().
   static constexpr size_t kMaxSpan = 4;
-  template <class BoxOf>
-  YBins(size_t n, const BoxOf& box_of, int64_t y0, int64_t y1, int64_t height)
-      : y0_(y0), height_(std::max<int64_t>(height, 1)) {
-    count_ = size_t(grid_detail::floor_div(y1 + 1 - y0_, height_)) + 1;
+  template <class Items>
+  YBins(const Items& items, int64_t y0, int64_t y1, int64_t height)
+      : y0_(y0), div_(std::max<int64_t>(height, 1)) {
+    count_ = size_t(div_(y1 + 1 - y0_)) + 1;
     first_.assign(count_ + 1, 0);
     span_first_.assign(count_ + 1, 0);
-    for (size_t i = 0; i < n; ++i) {
-      const QBox b = box_of(i);
-      if (b.empty()) continue;
+    items([&](uint32_t tag, const QBox& b) {
+      if (b.empty()) return;
       const size_t b0 = bucket(b.y0 - 1), b1 = bucket(b.y1 + 1);
       if (b1 - b0 >= kMaxSpan) {
-        tall_.push_back(uint32_t(i));
-        tall_box_.push_back(b);
-        continue;
+        tall_.push_back({box32(b), tag});
+        return;
       }
       ++first_[b0 + 1];
       for (size_t k = b0 + 1; k <= b1; ++k) ++span_first_[k + 1];
-    }
+    });
     for (size_t k = 0; k < count_; ++k) {
       first_[k + 1] += first_[k];
       span_first_[k + 1] += span_first_[k];
     }
     item_.resize(first_[count_]);
-    box_.resize(first_[count_]);
     span_.resize(span_first_[count_]);
     std::vector<uint64_t> fill(first_.begin(), first_.end() - 1);
     std::vector<uint64_t> span_fill(span_first_.begin(), span_first_.end() - 1);
-    for (size_t i = 0; i < n; ++i) {
-      const QBox b = box_of(i);
-      if (b.empty()) continue;
+    items([&](uint32_t tag, const QBox& b) {
+      if (b.empty()) return;
       const size_t b0 = bucket(b.y0 - 1), b1 = bucket(b.y1 + 1);
-      if (b1 - b0 >= kMaxSpan) continue;
+      if (b1 - b0 >= kMaxSpan) return;
       const uint64_t at = fill[b0]++;
-      item_[at] = uint32_t(i);
-      box_[at] = b;
+      item_[at] = {box32(b), tag};
       for (size_t k = b0 + 1; k <= b1; ++k) span_[span_fill[k]++] = at;
-    }
+    });
+  }
+  static Box32 box32(const QBox& b) {
+    return {int32_t(b.x0), int32_t(b.y0), int32_t(b.x1), int32_t(b.y1)};
   }
   size_t bucket(int64_t y) const {
-    const int64_t k = grid_detail::floor_div(y - y0_, height_);
+    const int64_t k = div_(y - y0_);
     return size_t(std::clamp<int64_t>(k, 0, int64_t(count_) - 1));
   }
-  // Calls fn(item, box) once for every item whose expanded box meets the
-  // y-range [ylo, yhi] (by buckets: the caller tests the box exactly).
+  // Calls fn(item) once for every item whose expanded box meets the y-range
+  // [ylo, yhi] (by buckets: the caller tests the box exactly).
   template <class Fn>
   void for_each(int64_t ylo, int64_t yhi, Fn&& fn) const {
     const size_t bl = bucket(ylo), bh = bucket(yhi);
-    for (uint64_t j = span_first_[bl]; j < span_first_[bl + 1]; ++j)
-      fn(size_t(item_[span_[j]]), box_[span_[j]]);
-    for (uint64_t j = first_[bl]; j < first_[bh + 1]; ++j) fn(size_t(item_[j]), box_[j]);
-    for (size_t j = 0; j < tall_.size(); ++j) fn(size_t(tall_[j]), tall_box_[j]);
+    for (uint64_t j = span_first_[bl]; j < span_first_[bl + 1]; ++j) fn(item_[span_[j]]);
+    for (uint64_t j = first_[bl]; j < first_[bh + 1]; ++j) fn(item_[j]);
+    for (const Item& t : tall_) fn(t);
   }
   size_t tall() const { return tall_.size(); }
 
  private:
-  int64_t y0_, height_;
+  int64_t y0_;
+  FloorDiv div_;
   size_t count_ = 0;
   std::vector<uint64_t> first_, span_first_;
-  std::vector<uint32_t> item_;
-  std::vector<QBox> box_;
-  std::vector<uint64_t> span_;  // positions in item_ / box_
-  std::vector<uint32_t> tall_;  // items over kMaxSpan buckets, met by every row
-  std::vector<QBox> tall_box_;
+  std::vector<Item> item_;
+  std::vector<uint64_t> span_;  // positions in item_
+  std::vector<Item> tall_;      // items over kMaxSpan buckets, met by every row
 };
 
-// What choose_grid() counts grids on: the inputs binned by y once.
+// What choose_grid() counts grids on: the segment shapes and the solid
+// leaves (tagged with their ring) binned by y once. The primitives of the
+// query-cost proxy are the shapes' boxes and the exterior rings' leaves.
 struct GridBins {
   const GridInput* in = nullptr;
-  std::vector<uint32_t> leaf_ring, leaf_node;  // every solid leaf: its ring, its node
-  std::optional<YBins> shapes, prims, leaves;
-  // Few tall items: a sampled row then reads about its share of the items.
+  std::optional<YBins> shapes, leaves;
+  size_t n_leaves = 0, n_exterior_leaves = 0, tall_exterior_leaves = 0;
+  // Few tall items (shapes, primitives and leaves counted apart, as the
+  // proxy's primitives repeat the shapes and the exterior leaves): a
+  // sampled row then reads about its share of the items.
   bool sampling() const {
-    const size_t n = in->shapes->size() + in->primitives->size() + leaf_node.size();
-    return 16 * (shapes->tall() + prims->tall() + leaves->tall()) <= n;
-  }
-  QBox shape_box(size_t i) const { return (*in->shapes)[i].box; }
-  QBox prim_box(size_t i) const { return (*in->primitives)[i]; }
-  QBox leaf_box(size_t i) const {
-    const ivec4& b = (*in->node_box)[leaf_node[i]];
-    return {b[0], b[1], b[2], b[3]};
+    const size_t ns = in->shapes->size();
+    const size_t n = ns + (ns + n_exterior_leaves) + n_leaves;
+    const size_t tall = shapes->tall() + (shapes->tall() + tall_exterior_leaves) + leaves->tall();
+    return 16 * tall <= n;
   }
 };
 
 GridBins bin_inputs(const GridInput& in, int64_t height) {
   GridBins b;
   b.in = &in;
-  for (size_t r = 0; r < in.ring_leaves->size(); ++r)
-    for (uint32_t n : (*in.ring_leaves)[r]) {
-      b.leaf_ring.push_back(uint32_t(r));
-      b.leaf_node.push_back(n);
-    }
   const int64_t y0 = in.extent.y0, y1 = in.extent.y1;
+  const std::vector<SegmentShape>& shapes = *in.shapes;
   b.shapes.emplace(
-      in.shapes->size(), [&](size_t i) { return b.shape_box(i); }, y0, y1, height);
-  b.prims.emplace(
-      in.primitives->size(), [&](size_t i) { return b.prim_box(i); }, y0, y1, height);
+      [&](auto&& fn) {
+        for (size_t i = 0; i < shapes.size(); ++i) fn(uint32_t(i), shapes[i].box);
+      },
+      y0, y1, height);
+  const std::vector<ivec4>& node_box = *in.node_box;
   b.leaves.emplace(
-      b.leaf_node.size(), [&](size_t i) { return b.leaf_box(i); }, y0, y1, height);
+      [&](auto&& fn) {
+        for (size_t r = 0; r < in.ring_leaves->size(); ++r)
+          for (uint32_t n : (*in.ring_leaves)[r]) {
+            const ivec4& nb = node_box[n];
+            fn(uint32_t(r), QBox{nb[0], nb[1], nb[2], nb[3]});
+          }
+      },
+      y0, y1, height);
+  for (size_t r = 0; r < in.ring_leaves->size(); ++r) {
+    const size_t k = (*in.ring_leaves)[r].size();
+    b.n_leaves += k;
+    if (!(*in.ring_is_hole)[r]) b.n_exterior_leaves += k;
+  }
+  // The exterior leaves among the tall ones (the same test as YBins').
+  for (size_t r = 0; r < in.ring_leaves->size(); ++r) {
+    if ((*in.ring_is_hole)[r]) continue;
+    for (uint32_t n : (*in.ring_leaves)[r]) {
+      const ivec4& nb = node_box[n];
+      if (nb[0] > nb[2] || nb[1] > nb[3]) continue;
+      if (b.leaves->bucket(int64_t(nb[3]) + 1) - b.leaves->bucket(int64_t(nb[1]) - 1) >=
+          YBins::kMaxSpan)
+        ++b.tall_exterior_leaves;
+    }
+  }
   return b;
 }
 
@@ -242,93 +290,174 @@ struct RowCounts {
   __extension__ unsigned __int128 weighted_squares = 0;
 };
 
+// A grid with its divisions prepared: the cell range of a box as
+// cell_range() gives it.
+struct GridMap {
+  const GridParams& g;
+  FloorDiv dx, dy;
+  explicit GridMap(const GridParams& grid) : g(grid), dx(grid.cell_w), dy(grid.cell_h) {}
+  // Rows [iy0, iy1] of the expanded box b, unclamped.
+  void rows(const Box32& b, int64_t& iy0, int64_t& iy1) const {
+    iy0 = dy(int64_t(b.y0) - 1 - g.origin_y);
+    iy1 = dy(int64_t(b.y1) + 1 - g.origin_y);
+  }
+  // Columns [ix0, ix1] of the expanded box b, clamped; false when outside.
+  bool columns(const Box32& b, int64_t& ix0, int64_t& ix1) const {
+    ix0 = dx(int64_t(b.x0) - 1 - g.origin_x);
+    ix1 = dx(int64_t(b.x1) + 1 - g.origin_x);
+    if (ix1 < 0 || ix0 >= int64_t(g.nx)) return false;
+    ix0 = std::max<int64_t>(ix0, 0);
+    ix1 = std::min<int64_t>(ix1, int64_t(g.nx) - 1);
+    return true;
+  }
+};
+
+// Per-thread buffers of grid_row(): per-column counts and a set of the
+// (ring, column) pairs a row has counted (open addressing; a slot is free
+// unless its stamp is the row's).
+struct RowScratch {
+  std::vector<uint32_t> seg, poly, weight;
+  std::vector<uint64_t> key;
+  std::vector<uint32_t> stamp;
+  uint32_t now = 0;
+  size_t used = 0;
+  void start_row(size_t nx) {
+    seg.assign(nx, 0);
+    poly.assign(nx, 0);
+    weight.assign(nx, 0);
+    if (key.empty()) {
+      key.assign(1024, 0);
+      stamp.assign(1024, 0);
+    }
+    if (++now == 0) {  // stamps wrapped: clear them
+      std::fill(stamp.begin(), stamp.end(), 0u);
+      now = 1;
+    }
+    used = 0;
+  }
+  static size_t slot_of(uint64_t k, size_t mask) {
+    return size_t((k * 0x9E3779B97F4A7C15ULL) >> 20) & mask;
+  }
+  // True when `k` was not yet in the set (and adds it).
+  bool insert(uint64_t k) {
+    if (2 * (used + 1) > key.size()) grow();
+    const size_t mask = key.size() - 1;
+    for (size_t s = slot_of(k, mask);; s = (s + 1) & mask) {
+      if (stamp[s] != now) {
+        stamp[s] = now;
+        key[s] = k;
+        ++used;
+        return true;
+      }
+      if (key[s] == k) return false;
+    }
+  }
+  void grow() {
+    std::vector<uint64_t> old_key(2 * key.size(), 0);
+    std::vector<uint32_t> old_stamp(2 * key.size(), 0);
+    old_key.swap(key);
+    old_stamp.swap(stamp);
+    const size_t mask = key.size() - 1;
+    for (size_t i = 0; i < old_key.size(); ++i) {
+      if (old_stamp[i] != now) continue;
+      size_t s = slot_of(old_key[i], mask);
+      while (stamp[s] == now) s = (s + 1) & mask;
+      stamp[s] = now;
+      key[s] = old_key[i];
+    }
+  }
+};
+
 // Counts row iy of grid `g` exactly, the way build_model() assigns
 // primitives: segments by their exact shapes (for_each_cell), each ring's
-// solid leaves to the distinct cells they touch; and, when `proxy`, the
-// primitive boxes per cell weighted in thirds (a line box 3, a polygon leaf
-// 2; GridInput::weights are 1 and 2/3: integer sums, the same at any thread
-// count).
-RowCounts grid_row(const GridParams& g, const GridBins& bins, int64_t iy, bool proxy) {
+// solid leaves to the distinct cells they touch; and the primitive boxes per
+// cell weighted in thirds (a line box 3, an exterior polygon leaf 2; the
+// query-cost weights 1 and 2/3 of choose_model_grid: integer sums, the same
+// at any thread count).
+RowCounts grid_row(const GridMap& map, const GridBins& bins, int64_t iy, RowScratch& s) {
   const GridInput& in = *bins.in;
+  const GridParams& g = map.g;
   const size_t nx = g.nx;
   // Rows are closed and expanded by one quantum: a box meets row iy when
   // its y-range meets [ylo, yhi].
   const int64_t ylo = g.origin_y + iy * g.cell_h, yhi = ylo + g.cell_h - 1;
-  std::vector<uint32_t> seg(nx, 0), poly(nx, 0);
+  s.start_row(nx);
   RowCounts rc;
-  int64_t y0, y1;  // the row range of the box last tested
-  auto meets = [&](const QBox& b, int64_t& x0, int64_t& x1) {
-    return cell_range(g, b, x0, y0, x1, y1) && y0 <= iy && iy <= y1;
-  };
-  bins.shapes->for_each(ylo, yhi, [&](size_t i, const QBox& b) {
-    int64_t x0, x1;
-    if (!meets(b, x0, x1)) return;
+  bins.shapes->for_each(ylo, yhi, [&](const YBins::Item& it) {
+    int64_t y0, y1, x0, x1;
+    map.rows(it.box, y0, y1);
+    if (iy < y0 || iy > y1 || !map.columns(it.box, x0, x1)) return;
+    rc.prim_entries += uint64_t(x1 - x0 + 1);
+    for (int64_t ix = x0; ix <= x1; ++ix) s.weight[size_t(ix)] += 3;
+    y0 = std::max<int64_t>(y0, 0);
+    y1 = std::min<int64_t>(y1, int64_t(g.ny) - 1);
     // A shape whose box lies in one cell meets exactly that cell (the shape
     // is inside its box): no band clipping.
     if (x0 == x1 && y0 == iy && y1 == iy) {
-      ++seg[size_t(x0)];
+      ++s.seg[size_t(x0)];
       return;
     }
-    for_each_cell_in_rows(g, (*in.shapes)[i], iy, iy,
-                          [&](uint32_t c) { ++seg[c - size_t(iy) * nx]; });
+    for_each_cell_in_rows(g, (*in.shapes)[it.tag], iy, iy,
+                          [&](uint32_t c) { ++s.seg[c - size_t(iy) * nx]; });
   });
-  std::vector<std::pair<uint32_t, uint32_t>> hits;  // (ring, column)
-  bins.leaves->for_each(ylo, yhi, [&](size_t i, const QBox& b) {
-    int64_t x0, x1;
-    if (!meets(b, x0, x1)) return;
-    for (int64_t ix = x0; ix <= x1; ++ix) hits.push_back({bins.leaf_ring[i], uint32_t(ix)});
-  });
-  std::sort(hits.begin(), hits.end());
-  hits.erase(std::unique(hits.begin(), hits.end()), hits.end());
-  for (const auto& [ring, ix] : hits) {
-    if ((*in.ring_is_hole)[ring])
-      ++rc.holes;
-    else
-      ++poly[ix];
-  }
-  for (size_t x = 0; x < nx; ++x) {
-    rc.seg_entries += seg[x];
-    rc.poly_entries += poly[x];
-    rc.boxes += bvh_nodes(seg[x]) + bvh_nodes(poly[x]);
-  }
-  if (proxy) {
-    std::fill(seg.begin(), seg.end(), 0u);
-    const std::vector<float>& weights = *in.weights;
-    bins.prims->for_each(ylo, yhi, [&](size_t i, const QBox& b) {
-      int64_t x0, x1;
-      if (!meets(b, x0, x1)) return;
-      const uint32_t w = uint32_t(std::lround(3.0f * weights[i]));
+  const std::vector<uint8_t>& is_hole = *in.ring_is_hole;
+  bins.leaves->for_each(ylo, yhi, [&](const YBins::Item& it) {
+    int64_t y0, y1, x0, x1;
+    map.rows(it.box, y0, y1);
+    if (iy < y0 || iy > y1 || !map.columns(it.box, x0, x1)) return;
+    const bool hole = is_hole[it.tag];
+    if (!hole) {
       rc.prim_entries += uint64_t(x1 - x0 + 1);
-      for (int64_t ix = x0; ix <= x1; ++ix) seg[size_t(ix)] += w;
-    });
-    for (size_t x = 0; x < nx; ++x) {
-      rc.weighted += seg[x];
-      rc.weighted_squares += uint64_t(seg[x]) * seg[x];
+      for (int64_t ix = x0; ix <= x1; ++ix) s.weight[size_t(ix)] += 2;
     }
+    for (int64_t ix = x0; ix <= x1; ++ix) {
+      if (!s.insert(uint64_t(it.tag) << 32 | uint64_t(ix))) continue;
+      if (hole)
+        ++rc.holes;
+      else
+        ++s.poly[size_t(ix)];
+    }
+  });
+  for (size_t x = 0; x < nx; ++x) {
+    rc.seg_entries += s.seg[x];
+    rc.poly_entries += s.poly[x];
+    rc.boxes += bvh_nodes(s.seg[x]) + bvh_nodes(s.poly[x]);
+    rc.weighted += s.weight[x];
+    rc.weighted_squares += uint64_t(s.weight[x]) * s.weight[x];
   }
   return rc;
 }
+
+// A grid's counts from its rows (grid_bytes()).
+struct GridCount {
+  double bytes = 0;    // static bytes of the grid-dependent blobs (scaled when sampled)
+  double proxy = 0;    // entry-weighted mean of weighted primitive boxes per cell
+  double entries = 0;  // primitive-box cell entries (scaled when sampled)
+};
 
 // Static bytes the grid-dependent blobs take on grid `g`: per cell,
 // cell_segment_range + cell_poly_range (uvec2 each) and line/poly BVH ranges
 // (uvec4 each); per entry: cell_segments (uvec2), cell_polys (uvec4),
 // cell_holes (uvec2, counted for every (cell, hole) pair: an upper bound);
 // per cell and kind: the implicit BVH's 2P - 1 boxes (ivec4). Rows counted
-// by grid_row(), in parallel, summed in row order.
+// by grid_row(), in parallel, summed in row order; with stride 1 the exact
+// count of exact_grid_bytes.
 //
 // With stride > 1 only the rows iy % stride == 0 are counted (those cells'
 // lists and BVHs exactly) and the entries and boxes are scaled by rows /
-// sampled rows: an estimate at about 1/stride of the work. `proxy`, when not
-// null, receives on the same rows the entry-weighted mean of weighted
-// primitive boxes per cell (the sampled counterpart of
-// weighted_mean_per_cell) and `entry_estimate` the scaled count of
-// primitive-box cell entries (the sampled counterpart of entry_count).
-double grid_bytes(const GridParams& g, const GridBins& bins, int64_t stride,
-                  double* proxy = nullptr, double* entry_estimate = nullptr) {
+// sampled rows: an estimate at about 1/stride of the work. On the same rows:
+// the entry-weighted mean of weighted primitive boxes per cell (the
+// counterpart of weighted_mean_per_cell) and the scaled count of
+// primitive-box cell entries (the counterpart of entry_count).
+GridCount grid_bytes(const GridParams& g, const GridBins& bins, int64_t stride) {
   const size_t rows = (size_t(g.ny) + size_t(stride) - 1) / size_t(stride);
   std::vector<RowCounts> per_row(rows);
-  tbb::parallel_for(size_t(0), rows, [&](size_t k) {
-    per_row[k] = grid_row(g, bins, int64_t(k) * stride, proxy != nullptr);
+  const GridMap map(g);
+  tbb::enumerable_thread_specific<RowScratch> scratch;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, rows), [&](const tbb::blocked_range<size_t>& r) {
+    RowScratch& s = scratch.local();
+    for (size_t k = r.begin(); k != r.end(); ++k)
+      per_row[k] = grid_row(map, bins, int64_t(k) * stride, s);
   });
   RowCounts t;
   for (const RowCounts& r : per_row) {
@@ -341,11 +470,13 @@ double grid_bytes(const GridParams& g, const GridBins& bins, int64_t stride,
     t.weighted_squares += r.weighted_squares;
   }
   const double scale = double(g.ny) / double(rows);
-  if (proxy) *proxy = t.weighted > 0 ? double(t.weighted_squares) / double(t.weighted) / 3.0 : 0.0;
-  if (entry_estimate) *entry_estimate = double(t.prim_entries) * scale;
-  return double(g.nx) * g.ny * (8 + 8 + 16 + 16) +
-         scale * (double(t.seg_entries) * 8 + double(t.poly_entries) * 16 + double(t.holes) * 8 +
-                  double(t.boxes) * 16);
+  GridCount c;
+  c.proxy = t.weighted > 0 ? double(t.weighted_squares) / double(t.weighted) / 3.0 : 0.0;
+  c.entries = double(t.prim_entries) * scale;
+  c.bytes = double(g.nx) * g.ny * (8 + 8 + 16 + 16) +
+            scale * (double(t.seg_entries) * 8 + double(t.poly_entries) * 16 + double(t.holes) * 8 +
+                     double(t.boxes) * 16);
+  return c;
 }
 
 // Static bytes the grid-dependent blobs take on grid `g`, counted the way
@@ -491,9 +622,11 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     // Thesis §4.2.1: a fixed number of cells over the data's AABB (500x500).
     return grid_with_cell(e, int64_t(std::ceil(w / o.grid_nx)), int64_t(std::ceil(h / o.grid_ny)));
   }
-  const std::vector<QBox>& prims = *in.primitives;
-  const std::vector<float>& weights = *in.weights;
-  const double n = std::max<double>(double(prims.size()), 1.0);
+  // The query-cost primitives: segment boxes and exterior solid-leaf boxes.
+  size_t n_prims = in.shapes->size();
+  for (size_t r = 0; r < in.ring_leaves->size(); ++r)
+    if (!(*in.ring_is_hole)[r]) n_prims += (*in.ring_leaves)[r].size();
+  const double n = std::max<double>(double(n_prims), 1.0);
   const double max_cells = std::max<uint32_t>(o.max_cells, 1);
   constexpr double kBytesWeight = 0.1;
   constexpr uint32_t kThesisCells = 500;
@@ -512,13 +645,48 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
   // Large inputs binned by y in buckets of half the thesis cell: a
   // sampled row of any candidate finds its items without a pass over all.
   std::optional<GridBins> bins;
-  if (prims.size() >= kSampleMinPrimitives) {
+  if (n_prims >= kSampleMinPrimitives) {
     bins.emplace(bin_inputs(in, std::max<int64_t>(1, thesis.cell_h / 2)));
     if (!bins->sampling()) bins.reset();
   }
+  // The primitive boxes and weights, listed where a grid is counted without
+  // the bins.
+  std::vector<QBox> prims;
+  std::vector<float> weights;
+  auto list_prims = [&] {
+    if (!prims.empty() || n_prims == 0) return;
+    prims.reserve(n_prims);
+    weights.reserve(n_prims);
+    for (const SegmentShape& sh : *in.shapes) {
+      prims.push_back(sh.box);
+      weights.push_back(kLineWeight);
+    }
+    for (size_t r = 0; r < in.ring_leaves->size(); ++r) {
+      if ((*in.ring_is_hole)[r]) continue;
+      for (uint32_t nd : (*in.ring_leaves)[r]) {
+        const ivec4& b = (*in.node_box)[nd];
+        prims.push_back({b[0], b[1], b[2], b[3]});
+        weights.push_back(kPolygonWeight);
+      }
+    }
+  };
+  // Exact counts on the bins, row by row, where the tall items (read by
+  // every row) do not make that dearer than a pass over the items.
+  auto rows_exact = [&](const GridParams& g) {
+    if (!bins) return false;
+    const double items = double(in.shapes->size() + bins->n_leaves);
+    return double(bins->shapes->tall() + bins->leaves->tall()) * double(g.ny) <= 4.0 * items;
+  };
   double byte_budget = std::numeric_limits<double>::infinity();
-  if (entry_count(thesis, prims) <= entry_budget)
-    byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + exact_grid_bytes(thesis, in));
+  if (rows_exact(thesis)) {
+    const GridCount tc = grid_bytes(thesis, *bins, 1);
+    if (tc.entries <= entry_budget)
+      byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + tc.bytes);
+  } else {
+    list_prims();
+    if (entry_count(thesis, prims) <= entry_budget)
+      byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + exact_grid_bytes(thesis, in));
+  }
 
   const double side0 = std::sqrt(double(thesis.cell_w) * double(thesis.cell_h));
   std::vector<Candidate> measured;  // every candidate counted, in search order
@@ -533,13 +701,15 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     // choice confirmed on exact bytes at the end.
     c.stride = bins ? sample_stride(c.g) : 1;
     if (c.stride == 1) {
+      list_prims();
       if (entry_count(c.g, prims) > entry_budget) return Candidate{c.g};
       c.bytes = double(in.geometry_bytes) + exact_grid_bytes(c.g, in);
       c.proxy = weighted_mean_per_cell(c.g, prims, weights);
     } else {
-      double entries = 0;
-      c.bytes = double(in.geometry_bytes) + grid_bytes(c.g, *bins, c.stride, &c.proxy, &entries);
-      if (entries > entry_budget) return Candidate{c.g};
+      const GridCount gc = grid_bytes(c.g, *bins, c.stride);
+      if (gc.entries > entry_budget) return Candidate{c.g};
+      c.bytes = double(in.geometry_bytes) + gc.bytes;
+      c.proxy = gc.proxy;
     }
     c.score = std::log(1.0 + c.proxy) + kBytesWeight * std::log(std::max(c.bytes, 1.0));
     // A sampled count must stay 1% under the budget (its error on the sets
@@ -612,7 +782,8 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     best.feasible = false;
     for (Candidate c : order) {
       if (c.stride > 1) {
-        c.bytes = double(in.geometry_bytes) + exact_grid_bytes(c.g, in);
+        c.bytes = double(in.geometry_bytes) +
+                  (rows_exact(c.g) ? grid_bytes(c.g, *bins, 1).bytes : exact_grid_bytes(c.g, in));
         c.stride = 1;
         stage.add();
       }
