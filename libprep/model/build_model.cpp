@@ -499,33 +499,42 @@ std::vector<SegEntry> line_cell_entries(const DecalModel& m,
 
 // Reused buffers of ring_cell_entries (one per thread).
 struct RingCellScratch {
+  std::vector<std::array<int64_t, 4>> range;    // per leaf: its cells x0, y0, x1, y1
   std::vector<QBox> dense;                      // union per cell of the ring's cell rectangle
   std::vector<std::pair<uint32_t, QBox>> hits;  // (cell, part) where the rectangle is sparse
+  std::vector<CellPoly> out;
 };
 
-// The (cell, ring) pairs of one ring, appended to `out` in cell order: its
-// solid leaves clipped to each cell they touch, merged per cell, with the
-// culling node: the deepest node whose box holds every part of the polygon
-// that can matter in that cell. The parts of a cell are merged by a box
-// union, which does not depend on their order: in a dense array over the
-// cell rectangle the leaves reach (row-major, so in cell order) when that
-// rectangle holds at most 4 times the cells the leaves touch, else sorted by
-// cell.
-void ring_cell_entries(const DecalModel& m, uint32_t r, const std::vector<uint32_t>& leaves,
-                       RingCellScratch& scratch, std::vector<CellPoly>& out) {
+// The (cell, ring) pairs of one ring, in cell order: its solid leaves
+// clipped to each cell they touch, merged per cell, with the culling node:
+// the deepest node whose box holds every part of the polygon that can
+// matter in that cell. The parts of a cell are merged by a box union, which
+// does not depend on their order: in a dense array over the cell rectangle
+// the leaves reach (row-major, so in cell order) when that rectangle holds
+// at most 4 times the cells the leaves touch, else sorted by cell.
+std::vector<CellPoly> ring_cell_entries(const DecalModel& m, const GridMap& map, uint32_t r,
+                                        const std::vector<uint32_t>& leaves,
+                                        RingCellScratch& scratch) {
   const GridParams& g = m.grid;
+  std::vector<std::array<int64_t, 4>>& range = scratch.range;
+  range.clear();
   int64_t rx0 = std::numeric_limits<int64_t>::max(), ry0 = rx0, rx1 = -1, ry1 = -1;
   uint64_t touched = 0;
   for (uint32_t n : leaves) {
-    int64_t x0, y0, x1, y1;
-    if (!cell_range(g, box_of(m.qt_node_box[n]), x0, y0, x1, y1)) continue;
-    rx0 = std::min(rx0, x0);
-    ry0 = std::min(ry0, y0);
-    rx1 = std::max(rx1, x1);
-    ry1 = std::max(ry1, y1);
-    touched += uint64_t(x1 - x0 + 1) * uint64_t(y1 - y0 + 1);
+    std::array<int64_t, 4> c;
+    const ivec4& nb = m.qt_node_box[n];
+    if (!map.range({nb[0], nb[1], nb[2], nb[3]}, c[0], c[1], c[2], c[3])) c = {1, 1, 0, 0};
+    range.push_back(c);
+    if (c[0] > c[2]) continue;
+    rx0 = std::min(rx0, c[0]);
+    ry0 = std::min(ry0, c[1]);
+    rx1 = std::max(rx1, c[2]);
+    ry1 = std::max(ry1, c[3]);
+    touched += uint64_t(c[2] - c[0] + 1) * uint64_t(c[3] - c[1] + 1);
   }
-  if (touched == 0) return;
+  if (touched == 0) return {};
+  std::vector<CellPoly>& out = scratch.out;
+  out.clear();
   auto emit = [&](uint32_t cell, const QBox& u) {
     uint32_t node = m.poly_root_node[r];
     for (;;) {
@@ -559,12 +568,11 @@ void ring_cell_entries(const DecalModel& m, uint32_t r, const std::vector<uint32
   if (area <= std::max<uint64_t>(4 * touched, 16)) {
     std::vector<QBox>& dense = scratch.dense;
     dense.assign(area, QBox{});
-    for (uint32_t n : leaves) {
-      const QBox lb = box_of(m.qt_node_box[n]);
-      int64_t x0, y0, x1, y1;
-      if (!cell_range(g, lb, x0, y0, x1, y1)) continue;
-      for (int64_t iy = y0; iy <= y1; ++iy)
-        for (int64_t ix = x0; ix <= x1; ++ix) {
+    for (size_t k = 0; k < leaves.size(); ++k) {
+      const auto& c = range[k];
+      const QBox lb = box_of(m.qt_node_box[leaves[k]]);
+      for (int64_t iy = c[1]; iy <= c[3]; ++iy)
+        for (int64_t ix = c[0]; ix <= c[2]; ++ix) {
           const QBox part = part_of(lb, ix, iy);
           if (!part.empty()) unite(dense[uint64_t(iy - ry0) * w + uint64_t(ix - rx0)], part);
         }
@@ -574,29 +582,29 @@ void ring_cell_entries(const DecalModel& m, uint32_t r, const std::vector<uint32
         const QBox& u = dense[uint64_t(iy - ry0) * w + uint64_t(ix - rx0)];
         if (!u.empty()) emit(uint32_t(ix + int64_t(g.nx) * iy), u);
       }
-    return;
+  } else {
+    std::vector<std::pair<uint32_t, QBox>>& hits = scratch.hits;
+    hits.clear();
+    for (size_t k = 0; k < leaves.size(); ++k) {
+      const auto& c = range[k];
+      const QBox lb = box_of(m.qt_node_box[leaves[k]]);
+      for (int64_t iy = c[1]; iy <= c[3]; ++iy)
+        for (int64_t ix = c[0]; ix <= c[2]; ++ix) {
+          const QBox part = part_of(lb, ix, iy);
+          if (!part.empty()) hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
+        }
+    }
+    std::sort(hits.begin(), hits.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (size_t i = 0; i < hits.size();) {
+      QBox u;
+      size_t j = i;
+      for (; j < hits.size() && hits[j].first == hits[i].first; ++j) unite(u, hits[j].second);
+      emit(hits[i].first, u);
+      i = j;
+    }
   }
-  std::vector<std::pair<uint32_t, QBox>>& hits = scratch.hits;
-  hits.clear();
-  for (uint32_t n : leaves) {
-    const QBox lb = box_of(m.qt_node_box[n]);
-    int64_t x0, y0, x1, y1;
-    if (!cell_range(g, lb, x0, y0, x1, y1)) continue;
-    for (int64_t iy = y0; iy <= y1; ++iy)
-      for (int64_t ix = x0; ix <= x1; ++ix) {
-        const QBox part = part_of(lb, ix, iy);
-        if (!part.empty()) hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
-      }
-  }
-  std::sort(hits.begin(), hits.end(),
-            [](const auto& a, const auto& b) { return a.first < b.first; });
-  for (size_t i = 0; i < hits.size();) {
-    QBox u;
-    size_t j = i;
-    for (; j < hits.size() && hits[j].first == hits[i].first; ++j) unite(u, hits[j].second);
-    emit(hits[i].first, u);
-    i = j;
-  }
+  return std::vector<CellPoly>(out.begin(), out.end());
 }
 
 // Polygons -> cells with culling nodes (thesis §4.2.1): exteriors and holes
@@ -610,11 +618,12 @@ void polygon_cell_entries(const DecalModel& m, const PolygonRings& pr, ProgressS
   const size_t nr = pr.rings.size();
   std::vector<std::vector<CellPoly>> per_ring(nr);
   tbb::enumerable_thread_specific<RingCellScratch> scratch;
+  const GridMap map(m.grid);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, nr, 16),
                     [&](const tbb::blocked_range<size_t>& range) {
                       RingCellScratch& s = scratch.local();
                       for (size_t r = range.begin(); r != range.end(); ++r) {
-                        ring_cell_entries(m, uint32_t(r), pr.solid_leaves[r], s, per_ring[r]);
+                        per_ring[r] = ring_cell_entries(m, map, uint32_t(r), pr.solid_leaves[r], s);
                         cells_stage.add();
                       }
                     });
@@ -670,6 +679,9 @@ void fill_cells(std::vector<SegEntry>&& seg_entries, const std::vector<CellPoly>
     seg_boxes[i] = seg_entries[i].box;
   }
   std::vector<SegEntry>().swap(seg_entries);
+  m.cell_polys.reserve(ext_entries.size());
+  m.cell_holes.reserve(hole_entries.size());
+  poly_boxes.reserve(ext_entries.size());
   size_t h = 0;
   for (const CellPoly& e : ext_entries) {
     ++poly_first[e.cell + 1];

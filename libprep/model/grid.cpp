@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -112,10 +113,7 @@ double entry_count(const GridParams& g, const std::vector<QBox>& prims) {
 // Nodes of one cell's implicit BVH with n leaves (bvh.cpp: 2P - 1 for
 // P = next power of two >= n).
 uint64_t bvh_nodes(uint32_t n) {
-  if (n == 0) return 0;
-  uint64_t p = 1;
-  while (p < n) p <<= 1;
-  return 2 * p - 1;
+  return n == 0 ? 0 : 2 * uint64_t(std::bit_ceil(n)) - 1;
 }
 
 // One candidate grid, measured.
@@ -126,26 +124,6 @@ struct Candidate {
   double bytes = 0;       // static package bytes (geometry + grid), exact but for holes
   double score = 0;       // the cost minimised (lower is better)
   int64_t stride = 1;     // row sample counted (sample_stride); 1: bytes exact
-};
-
-// floor(a / b) for a fixed b > 0 (|a| < 2^52): a product with 1/b, corrected
-// to the exact integer quotient (grid_detail::floor_div, without its
-// division: the row counts below take it four times per item and row).
-struct FloorDiv {
-  int64_t b = 1;
-  double inv = 1.0;
-  explicit FloorDiv(int64_t divisor) : b(divisor), inv(1.0 / double(divisor)) {}
-  int64_t operator()(int64_t a) const {
-    int64_t q = int64_t(double(a) * inv);
-    while (q * b > a) --q;
-    while ((q + 1) * b <= a) ++q;
-    return q;
-  }
-};
-
-// A box of quanta in 32 bits (every stored position fits, kMaxQuanta).
-struct Box32 {
-  int32_t x0, y0, x1, y1;
 };
 
 // Items (segment shapes or solid quad-tree leaves) binned once by y, in
@@ -198,9 +176,6 @@ class YBins {
       for (size_t k = b0 + 1; k <= b1; ++k) span_[span_fill[k]++] = at;
     });
   }
-  static Box32 box32(const QBox& b) {
-    return {int32_t(b.x0), int32_t(b.y0), int32_t(b.x1), int32_t(b.y1)};
-  }
   size_t bucket(int64_t y) const {
     const int64_t k = div_(y - y0_);
     return size_t(std::clamp<int64_t>(k, 0, int64_t(count_) - 1));
@@ -215,6 +190,10 @@ class YBins {
     for (const Item& t : tall_) fn(t);
   }
   size_t tall() const { return tall_.size(); }
+  template <class Fn>
+  void for_each_tall(Fn&& fn) const {
+    for (const Item& t : tall_) fn(t);
+  }
 
  private:
   int64_t y0_;
@@ -269,17 +248,10 @@ GridBins bin_inputs(const GridInput& in, int64_t height) {
     b.n_leaves += k;
     if (!(*in.ring_is_hole)[r]) b.n_exterior_leaves += k;
   }
-  // The exterior leaves among the tall ones (the same test as YBins').
-  for (size_t r = 0; r < in.ring_leaves->size(); ++r) {
-    if ((*in.ring_is_hole)[r]) continue;
-    for (uint32_t n : (*in.ring_leaves)[r]) {
-      const ivec4& nb = node_box[n];
-      if (nb[0] > nb[2] || nb[1] > nb[3]) continue;
-      if (b.leaves->bucket(int64_t(nb[3]) + 1) - b.leaves->bucket(int64_t(nb[1]) - 1) >=
-          YBins::kMaxSpan)
-        ++b.tall_exterior_leaves;
-    }
-  }
+  // The exterior leaves among the tall ones.
+  b.leaves->for_each_tall([&](const YBins::Item& it) {
+    if (!(*in.ring_is_hole)[it.tag]) ++b.tall_exterior_leaves;
+  });
   return b;
 }
 
@@ -288,28 +260,6 @@ struct RowCounts {
   uint64_t seg_entries = 0, poly_entries = 0, holes = 0, boxes = 0;
   uint64_t prim_entries = 0, weighted = 0;  // primitive-box entries; their weights in thirds
   __extension__ unsigned __int128 weighted_squares = 0;
-};
-
-// A grid with its divisions prepared: the cell range of a box as
-// cell_range() gives it.
-struct GridMap {
-  const GridParams& g;
-  FloorDiv dx, dy;
-  explicit GridMap(const GridParams& grid) : g(grid), dx(grid.cell_w), dy(grid.cell_h) {}
-  // Rows [iy0, iy1] of the expanded box b, unclamped.
-  void rows(const Box32& b, int64_t& iy0, int64_t& iy1) const {
-    iy0 = dy(int64_t(b.y0) - 1 - g.origin_y);
-    iy1 = dy(int64_t(b.y1) + 1 - g.origin_y);
-  }
-  // Columns [ix0, ix1] of the expanded box b, clamped; false when outside.
-  bool columns(const Box32& b, int64_t& ix0, int64_t& ix1) const {
-    ix0 = dx(int64_t(b.x0) - 1 - g.origin_x);
-    ix1 = dx(int64_t(b.x1) + 1 - g.origin_x);
-    if (ix1 < 0 || ix0 >= int64_t(g.nx)) return false;
-    ix0 = std::max<int64_t>(ix0, 0);
-    ix1 = std::min<int64_t>(ix1, int64_t(g.nx) - 1);
-    return true;
-  }
 };
 
 // Per-thread buffers of grid_row(): per-column counts and a set of the
@@ -486,62 +436,123 @@ GridCount grid_bytes(const GridParams& g, const GridBins& bins, int64_t stride) 
 // (uvec4 each); per entry: cell_segments (uvec2), cell_polys (uvec4),
 // cell_holes (uvec2, counted for every (cell, hole) pair: an upper bound);
 // per cell and kind: the implicit BVH's 2P - 1 boxes (ivec4). One pass over
-// every primitive and every cell.
-double exact_grid_bytes(const GridParams& g, const GridInput& in) {
+// every primitive and every cell. A ring's cells are told apart in a bitmap
+// of the cell rectangle its leaves reach (as ring_cell_entries in
+// build_model.cpp), else by a sort. `prim_entries`, when not null, receives
+// the cell entries of the primitive boxes (entry_count()).
+double exact_grid_bytes(const GridParams& g, const GridInput& in,
+                        uint64_t* prim_entries = nullptr) {
   const size_t cells = size_t(g.nx) * g.ny;
-  std::unique_ptr<std::atomic<uint32_t>[]> seg(new std::atomic<uint32_t>[cells]());
-  std::unique_ptr<std::atomic<uint32_t>[]> poly(new std::atomic<uint32_t>[cells]());
-  std::atomic<uint64_t> holes{0};
+  std::vector<uint32_t> seg(cells, 0), poly(cells, 0);
+  const GridMap map(g);
   const std::vector<SegmentShape>& shapes = *in.shapes;
-  tbb::parallel_for(
-      tbb::blocked_range<size_t>(0, shapes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+  const uint64_t shape_entries = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, shapes.size(), 1024), uint64_t(0),
+      [&](const tbb::blocked_range<size_t>& r, uint64_t acc) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
           // A shape whose box lies in one cell meets exactly that cell (the
           // shape is inside its box): skip the band clipping of for_each_cell.
+          const Box32 b = box32(shapes[i].box);
           int64_t x0, y0, x1, y1;
-          if (!cell_range(g, shapes[i].box, x0, y0, x1, y1)) continue;
+          if (shapes[i].box.empty() || !map.range(b, x0, y0, x1, y1)) continue;
+          acc += uint64_t(x1 - x0 + 1) * uint64_t(y1 - y0 + 1);
           if (x0 == x1 && y0 == y1) {
-            seg[size_t(x0 + int64_t(g.nx) * y0)].fetch_add(1, std::memory_order_relaxed);
+            std::atomic_ref<uint32_t>(seg[size_t(x0 + int64_t(g.nx) * y0)])
+                .fetch_add(1, std::memory_order_relaxed);
             continue;
           }
-          for_each_cell(g, shapes[i],
-                        [&](uint32_t c) { seg[c].fetch_add(1, std::memory_order_relaxed); });
+          for_each_cell(g, shapes[i], [&](uint32_t c) {
+            std::atomic_ref<uint32_t>(seg[c]).fetch_add(1, std::memory_order_relaxed);
+          });
         }
-      });
+        return acc;
+      },
+      std::plus<uint64_t>());
+  struct Scratch {
+    std::vector<std::array<int64_t, 4>> range;  // per leaf: x0, y0, x1, y1
+    std::vector<uint8_t> seen;
+    std::vector<uint32_t> hit;
+  };
+  tbb::enumerable_thread_specific<Scratch> scratch;
   const auto& leaves = *in.ring_leaves;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), 64),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                      std::vector<uint32_t> hit;
-                      for (size_t ring = r.begin(); ring != r.end(); ++ring) {
-                        hit.clear();
-                        for (uint32_t n : leaves[ring]) {
-                          const ivec4& b = (*in.node_box)[n];
-                          int64_t x0, y0, x1, y1;
-                          if (!cell_range(g, QBox{b[0], b[1], b[2], b[3]}, x0, y0, x1, y1))
-                            continue;
-                          for (int64_t iy = y0; iy <= y1; ++iy)
-                            for (int64_t ix = x0; ix <= x1; ++ix)
-                              hit.push_back(uint32_t(ix + int64_t(g.nx) * iy));
-                        }
-                        std::sort(hit.begin(), hit.end());
-                        hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
-                        if ((*in.ring_is_hole)[ring]) {
-                          holes.fetch_add(hit.size(), std::memory_order_relaxed);
-                        } else {
-                          for (uint32_t c : hit) poly[c].fetch_add(1, std::memory_order_relaxed);
-                        }
-                      }
-                    });
-  uint64_t seg_entries = 0, poly_entries = 0, boxes = 0;
-  for (size_t c = 0; c < cells; ++c) {
-    const uint32_t ns = seg[c].load(std::memory_order_relaxed),
-                   np = poly[c].load(std::memory_order_relaxed);
-    seg_entries += ns;
-    poly_entries += np;
-    boxes += bvh_nodes(ns) + bvh_nodes(np);
-  }
-  return double(cells) * (8 + 8 + 16 + 16) + double(seg_entries) * 8 + double(poly_entries) * 16 +
-         double(holes.load()) * 8 + double(boxes) * 16;
+  const auto [holes, leaf_entries] = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, leaves.size(), 64), std::pair<uint64_t, uint64_t>(0, 0),
+      [&](const tbb::blocked_range<size_t>& r, std::pair<uint64_t, uint64_t> acc) {
+        Scratch& s = scratch.local();
+        for (size_t ring = r.begin(); ring != r.end(); ++ring) {
+          const bool hole = (*in.ring_is_hole)[ring];
+          s.range.clear();
+          int64_t rx0 = std::numeric_limits<int64_t>::max(), ry0 = rx0, rx1 = -1, ry1 = -1;
+          uint64_t touched = 0;
+          for (uint32_t n : leaves[ring]) {
+            const ivec4& nb = (*in.node_box)[n];
+            if (nb[0] > nb[2] || nb[1] > nb[3]) continue;
+            std::array<int64_t, 4> c;
+            if (!map.range({nb[0], nb[1], nb[2], nb[3]}, c[0], c[1], c[2], c[3])) continue;
+            s.range.push_back(c);
+            rx0 = std::min(rx0, c[0]);
+            ry0 = std::min(ry0, c[1]);
+            rx1 = std::max(rx1, c[2]);
+            ry1 = std::max(ry1, c[3]);
+            touched += uint64_t(c[2] - c[0] + 1) * uint64_t(c[3] - c[1] + 1);
+          }
+          if (touched == 0) continue;
+          if (!hole) acc.second += touched;
+          auto count = [&](uint32_t cell) {
+            if (hole)
+              ++acc.first;
+            else
+              std::atomic_ref<uint32_t>(poly[cell]).fetch_add(1, std::memory_order_relaxed);
+          };
+          const uint64_t w = uint64_t(rx1 - rx0 + 1), area = w * uint64_t(ry1 - ry0 + 1);
+          if (area <= std::max<uint64_t>(4 * touched, 64)) {
+            s.seen.assign(area, 0);
+            for (const auto& c : s.range)
+              for (int64_t iy = c[1]; iy <= c[3]; ++iy)
+                for (int64_t ix = c[0]; ix <= c[2]; ++ix) {
+                  uint8_t& seen = s.seen[uint64_t(iy - ry0) * w + uint64_t(ix - rx0)];
+                  if (seen) continue;
+                  seen = 1;
+                  count(uint32_t(ix + int64_t(g.nx) * iy));
+                }
+            continue;
+          }
+          s.hit.clear();
+          for (const auto& c : s.range)
+            for (int64_t iy = c[1]; iy <= c[3]; ++iy)
+              for (int64_t ix = c[0]; ix <= c[2]; ++ix)
+                s.hit.push_back(uint32_t(ix + int64_t(g.nx) * iy));
+          std::sort(s.hit.begin(), s.hit.end());
+          s.hit.erase(std::unique(s.hit.begin(), s.hit.end()), s.hit.end());
+          for (uint32_t cell : s.hit) count(cell);
+        }
+        return acc;
+      },
+      [](std::pair<uint64_t, uint64_t> a, std::pair<uint64_t, uint64_t> b) {
+        return std::pair<uint64_t, uint64_t>(a.first + b.first, a.second + b.second);
+      });
+  if (prim_entries) *prim_entries = shape_entries + leaf_entries;
+  struct Sums {
+    uint64_t seg = 0, poly = 0, boxes = 0;
+  };
+  const Sums t = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, cells, 1 << 14), Sums{},
+      [&](const tbb::blocked_range<size_t>& r, Sums acc) {
+        for (size_t c = r.begin(); c != r.end(); ++c) {
+          acc.seg += seg[c];
+          acc.poly += poly[c];
+          acc.boxes += bvh_nodes(seg[c]) + bvh_nodes(poly[c]);
+        }
+        return acc;
+      },
+      [](Sums a, const Sums& b) {
+        a.seg += b.seg;
+        a.poly += b.poly;
+        a.boxes += b.boxes;
+        return a;
+      });
+  return double(cells) * (8 + 8 + 16 + 16) + double(t.seg) * 8 + double(t.poly) * 16 +
+         double(holes) * 8 + double(t.boxes) * 16;
 }
 
 // Row stride of the sample choose_grid() counts a candidate on, from 2^17
@@ -670,22 +681,12 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
       }
     }
   };
-  // Exact counts on the bins, row by row, where the tall items (read by
-  // every row) do not make that dearer than a pass over the items.
-  auto rows_exact = [&](const GridParams& g) {
-    if (!bins) return false;
-    const double items = double(in.shapes->size() + bins->n_leaves);
-    return double(bins->shapes->tall() + bins->leaves->tall()) * double(g.ny) <= 4.0 * items;
-  };
   double byte_budget = std::numeric_limits<double>::infinity();
-  if (rows_exact(thesis)) {
-    const GridCount tc = grid_bytes(thesis, *bins, 1);
-    if (tc.entries <= entry_budget)
-      byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + tc.bytes);
-  } else {
-    list_prims();
-    if (entry_count(thesis, prims) <= entry_budget)
-      byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + exact_grid_bytes(thesis, in));
+  {
+    uint64_t entries = 0;
+    const double bytes = exact_grid_bytes(thesis, in, &entries);
+    if (double(entries) <= entry_budget)
+      byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + bytes);
   }
 
   const double side0 = std::sqrt(double(thesis.cell_w) * double(thesis.cell_h));
@@ -782,8 +783,7 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     best.feasible = false;
     for (Candidate c : order) {
       if (c.stride > 1) {
-        c.bytes = double(in.geometry_bytes) +
-                  (rows_exact(c.g) ? grid_bytes(c.g, *bins, 1).bytes : exact_grid_bytes(c.g, in));
+        c.bytes = double(in.geometry_bytes) + exact_grid_bytes(c.g, in);
         c.stride = 1;
         stage.add();
       }

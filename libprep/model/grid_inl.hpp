@@ -100,6 +100,62 @@ inline bool cell_range(const GridParams& g, const QBox& b, int64_t& ix0, int64_t
   return true;
 }
 
+// floor(a / b) for a fixed b > 0 (|a| < 2^52): a product with 1/b, corrected
+// to the exact integer quotient (grid_detail::floor_div, without its
+// division: the grid counts take it four times per item and grid).
+struct FloorDiv {
+  int64_t b = 1;
+  double inv = 1.0;
+  explicit FloorDiv(int64_t divisor) : b(divisor), inv(1.0 / double(divisor)) {}
+  int64_t operator()(int64_t a) const {
+    int64_t q = int64_t(double(a) * inv);
+    while (q * b > a) --q;
+    while ((q + 1) * b <= a) ++q;
+    return q;
+  }
+};
+
+// A box of quanta in 32 bits (every stored position fits, kMaxQuanta).
+struct Box32 {
+  int32_t x0, y0, x1, y1;
+};
+
+// A grid with its divisions prepared: the cell range of a box as
+// cell_range() gives it.
+struct GridMap {
+  const GridParams& g;
+  FloorDiv dx, dy;
+  explicit GridMap(const GridParams& grid) : g(grid), dx(grid.cell_w), dy(grid.cell_h) {}
+  // Rows [iy0, iy1] of the expanded box b, unclamped.
+  void rows(const Box32& b, int64_t& iy0, int64_t& iy1) const {
+    iy0 = dy(int64_t(b.y0) - 1 - g.origin_y);
+    iy1 = dy(int64_t(b.y1) + 1 - g.origin_y);
+  }
+  // cell_range(): the clamped cells of the expanded box b; false when outside.
+  bool range(const Box32& b, int64_t& ix0, int64_t& iy0, int64_t& ix1, int64_t& iy1) const {
+    if (g.nx == 0 || g.ny == 0 || b.x0 > b.x1 || b.y0 > b.y1) return false;
+    rows(b, iy0, iy1);
+    if (iy1 < 0 || iy0 >= int64_t(g.ny) || !columns(b, ix0, ix1)) return false;
+    iy0 = std::max<int64_t>(iy0, 0);
+    iy1 = std::min<int64_t>(iy1, int64_t(g.ny) - 1);
+    return true;
+  }
+  // Columns [ix0, ix1] of the expanded box b, clamped; false when outside.
+  bool columns(const Box32& b, int64_t& ix0, int64_t& ix1) const {
+    ix0 = dx(int64_t(b.x0) - 1 - g.origin_x);
+    ix1 = dx(int64_t(b.x1) + 1 - g.origin_x);
+    if (ix1 < 0 || ix0 >= int64_t(g.nx)) return false;
+    ix0 = std::max<int64_t>(ix0, 0);
+    ix1 = std::min<int64_t>(ix1, int64_t(g.nx) - 1);
+    return true;
+  }
+};
+
+// A QBox in 32 bits (boxes of stored positions, |coordinate| <= kMaxQuanta).
+inline Box32 box32(const QBox& b) {
+  return {int32_t(b.x0), int32_t(b.y0), int32_t(b.x1), int32_t(b.y1)};
+}
+
 template <class Fn>
 void for_each_cell_in_rows(const GridParams& g, const SegmentShape& s, int64_t row0, int64_t row1,
                            Fn&& fn) {
