@@ -6,7 +6,9 @@
 
 #include <cstdio>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "../evaluate/synthetic.hpp"
@@ -175,4 +177,77 @@ TEST(DecalGrid, MinCellKeepsEveryCellAtLeastThatWideAndTheModelSmaller) {
   wide.min_cell_m = 1e5;
   const prep::DecalModel o = prep::build_model(one, wide);
   EXPECT_EQ(uint64_t(o.grid.nx) * o.grid.ny, 1u);
+}
+
+// A thin square frame (1.5 m wide, 1 km across, one ring with a slit) on
+// the thesis grid: its cells fill a small share of the cell rectangle they
+// span, so build_model merges its parts per cell by a sort
+// (ring_cell_entries in libprep/model/build_model.cpp), while the star inside
+// it takes the dense array. Every point clear of the outlines agrees with an
+// even-odd crossing test on the input rings (the oracle), so every cell the
+// polygons reach lists them, each with a culling node that holds its part.
+TEST(DecalGrid, ThinFrameIsFoundInEveryCellItCrosses) {
+  std::mt19937_64 rng(5);
+  prep::SceneFeatures s;
+  s.layers.push_back(synth::layer("parcels", prep::DecalKind::polygon, 0xc0406080u));
+  // Corners of the frame; its sides split into 1 m edges, so that its
+  // quad-tree leaves are small (the thesis leaf holds 8 edges).
+  const std::vector<prep::Point2> corners = {{0, 0},       {1000, 0},  {1000, 1000}, {0, 1000},
+                                             {0, 501},     {1.5, 501}, {1.5, 998.5}, {998.5, 998.5},
+                                             {998.5, 1.5}, {1.5, 1.5}, {1.5, 499},   {0, 499}};
+  prep::ScenePolygon frame;
+  for (size_t i = 0; i < corners.size(); ++i) {
+    const prep::Point2 a = corners[i], b = corners[(i + 1) % corners.size()];
+    const int n = std::max(1, int(std::ceil(std::hypot(b.x - a.x, b.y - a.y))));
+    for (int k = 0; k < n; ++k)
+      frame.shell.push_back({a.x + (b.x - a.x) * k / n, a.y + (b.y - a.y) * k / n});
+  }
+  frame.area = 1;
+  prep::ScenePolygon blob;
+  blob.shell = synth::star(rng, 500, 500, 60, 150, 40, false);
+  blob.area = 2;
+  blob.fid = 1;
+  s.polygons = {frame, blob};
+  prep::ModelOptions thesis;
+  thesis.grid_nx = thesis.grid_ny = 500;
+  const prep::DecalModel m = prep::build_model(s, thesis);
+  // The frame's entries: a sixth of the grid at most (its rectangle is all of it).
+  uint64_t frame_cells = 0;
+  for (const auto& e : m.cell_polys) frame_cells += e[0] == 0;
+  EXPECT_LT(frame_cells * 6, uint64_t(m.grid.nx) * m.grid.ny);
+  const prep::StaticView v = prep::view_of(m);
+  auto inside = [](const prep::Ring& r, double x, double y, double& clearance) {
+    bool in = false;
+    clearance = std::numeric_limits<double>::infinity();
+    for (size_t i = 0, j = r.size() - 1; i < r.size(); j = i++) {
+      const prep::Point2 a = r[j], b = r[i];
+      if ((a.y > y) != (b.y > y) && x < a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y)) in = !in;
+      const double dx = b.x - a.x, dy = b.y - a.y;
+      const double t =
+          std::clamp(((x - a.x) * dx + (y - a.y) * dy) / (dx * dx + dy * dy), 0.0, 1.0);
+      clearance = std::min(clearance, std::hypot(x - a.x - t * dx, y - a.y - t * dy));
+    }
+    return in;
+  };
+  std::uniform_real_distribution<double> U(0, 1000), D(-2, 4), B(-200, 200);
+  int in_frame = 0, in_blob = 0, checked = 0;
+  for (int i = 0; i < 40000; ++i) {
+    double x = 500 + B(rng), y = 500 + B(rng);
+    if (i % 2 == 0) {  // near a side of the frame
+      const double t = U(rng), d = D(rng);
+      const int side = (i / 2) % 4;
+      x = side == 0 ? t : side == 1 ? 1000 - d : side == 2 ? t : d;
+      y = side == 0 ? d : side == 1 ? t : side == 2 ? 1000 - d : t;
+    }
+    double c0, c1;
+    const bool a = inside(frame.shell, x, y, c0), b = inside(blob.shell, x, y, c1);
+    if (std::min(c0, c1) < 0.01) continue;  // within quantisation reach of an outline
+    ++checked;
+    in_frame += a;
+    in_blob += b;
+    ASSERT_EQ(prep::evaluate(v, x, y).polygon_covered, a || b) << x << "," << y;
+  }
+  EXPECT_GT(checked, 35000);
+  EXPECT_GT(in_frame, 3000);
+  EXPECT_GT(in_blob, 2000);
 }
