@@ -421,14 +421,12 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
   std::vector<uint8_t> ring_is_hole(pr.rings.size());
   for (size_t r = 0; r < pr.rings.size(); ++r) ring_is_hole[r] = pr.is_hole(r);
   gin.ring_is_hole = &ring_is_hole;
-  // The grid-independent blobs as a format 1.3 package stores them
-  // (formats/SPEC.md "Compact layout (v1.3)"; the model holds the leaf
-  // polygons as loops already).
   auto bytes_of = [](const auto& v) { return uint64_t(v.size()) * sizeof(v[0]); };
   gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) +
                        bytes_of(m.line_props) + bytes_of(m.line_corners) + bytes_of(m.poly_props) +
                        bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) + bytes_of(m.qt_node) +
-                       bytes_of(m.qt_leaf_loop_range) + bytes_of(m.qt_leaf_loops) +
+                       bytes_of(m.qt_leaf_loop_range) + bytes_of(m.qt_leaf_vertices) +
+                       // the v1.2 leaf segments the grid's byte model counts: one per vertex
                        bytes_of(m.qt_leaf_vertices);
   return choose_grid(gin, options);
 }

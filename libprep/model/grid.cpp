@@ -116,19 +116,6 @@ uint64_t bvh_nodes(uint32_t n) {
   return n == 0 ? 0 : 2 * uint64_t(std::bit_ceil(n)) - 1;
 }
 
-// Bytes of the grid-dependent blobs of a format 1.3 package (formats/SPEC.md
-// "Compact layout (v1.3)"; libprep/write/write.cpp model_blobs) with these
-// counts on grid `g`: per cell plus one, cell_line_first and cell_poly_first
-// (uvec2 each; a kind without entries has none); per entry, cell_segments
-// (uvec2), cell_poly_entries (uvec2) with its cell_poly_holes (u32), and
-// cell_holes (uvec2); per BVH node, a u16 box (uvec2).
-double cell_blob_bytes(const GridParams& g, double seg_entries, double poly_entries, double holes,
-                       double boxes) {
-  const double firsts = double(g.nx) * double(g.ny) + 1;
-  return (seg_entries > 0 ? firsts * 8 : 0) + (poly_entries > 0 ? firsts * 8 : 0) +
-         seg_entries * 8 + poly_entries * (8 + 4) + holes * 8 + boxes * 8;
-}
-
 // One candidate grid, measured.
 struct Candidate {
   GridParams g;
@@ -399,11 +386,13 @@ struct GridCount {
   double entries = 0;  // primitive-box cell entries (scaled when sampled)
 };
 
-// Static bytes the grid-dependent blobs take on grid `g` (cell_blob_bytes:
-// cell_holes counted for every (cell, hole) pair, an upper bound; per cell
-// and kind the implicit BVH's 2P - 1 nodes). Rows counted by grid_row(), in
-// parallel, summed in row order; with stride 1 the exact count of
-// exact_grid_bytes.
+// Static bytes the grid-dependent blobs take on grid `g`: per cell,
+// cell_segment_range + cell_poly_range (uvec2 each) and line/poly BVH ranges
+// (uvec4 each); per entry: cell_segments (uvec2), cell_polys (uvec4),
+// cell_holes (uvec2, counted for every (cell, hole) pair: an upper bound);
+// per cell and kind: the implicit BVH's 2P - 1 boxes (ivec4). Rows counted
+// by grid_row(), in parallel, summed in row order; with stride 1 the exact
+// count of exact_grid_bytes.
 //
 // With stride > 1 only the rows iy % stride == 0 are counted (those cells'
 // lists and BVHs exactly) and the entries and boxes are scaled by rows /
@@ -435,16 +424,19 @@ GridCount grid_bytes(const GridParams& g, const GridBins& bins, int64_t stride) 
   GridCount c;
   c.proxy = t.weighted > 0 ? double(t.weighted_squares) / double(t.weighted) / 3.0 : 0.0;
   c.entries = double(t.prim_entries) * scale;
-  c.bytes = cell_blob_bytes(g, scale * double(t.seg_entries), scale * double(t.poly_entries),
-                            scale * double(t.holes), scale * double(t.boxes));
+  c.bytes = double(g.nx) * g.ny * (8 + 8 + 16 + 16) +
+            scale * (double(t.seg_entries) * 8 + double(t.poly_entries) * 16 + double(t.holes) * 8 +
+                     double(t.boxes) * 16);
   return c;
 }
 
 // Static bytes the grid-dependent blobs take on grid `g`, counted the way
 // build_model() assigns primitives: exact segment shapes (for_each_cell) and
-// the distinct cells of each ring's solid quad-tree leaves (cell_blob_bytes:
-// cell_holes counted for every (cell, hole) pair, an upper bound; per cell
-// and kind the implicit BVH's 2P - 1 nodes). One pass over
+// the distinct cells of each ring's solid quad-tree leaves. Per cell:
+// cell_segment_range + cell_poly_range (uvec2 each) and line/poly BVH ranges
+// (uvec4 each); per entry: cell_segments (uvec2), cell_polys (uvec4),
+// cell_holes (uvec2, counted for every (cell, hole) pair: an upper bound);
+// per cell and kind: the implicit BVH's 2P - 1 boxes (ivec4). One pass over
 // every primitive and every cell. A ring's cells are told apart in a bitmap
 // of the cell rectangle its leaves reach (as ring_cell_entries in
 // build_model.cpp), else by a sort. `prim_entries`, when not null, receives
@@ -560,7 +552,8 @@ double exact_grid_bytes(const GridParams& g, const GridInput& in,
         a.boxes += b.boxes;
         return a;
       });
-  return cell_blob_bytes(g, double(t.seg), double(t.poly), double(holes), double(t.boxes));
+  return double(cells) * (8 + 8 + 16 + 16) + double(t.seg) * 8 + double(t.poly) * 16 +
+         double(holes) * 8 + double(t.boxes) * 16;
 }
 
 // Row stride of the sample choose_grid() counts a candidate on, from 2^17
@@ -588,7 +581,7 @@ int64_t sample_stride(const GridParams& g) {
 // The package bytes are the grid-independent blobs plus the cell lists and
 // per-cell BVHs counted exactly for that grid (grid_bytes). Finer cells
 // lower the proxy until the overlap of the data sets a floor, while the
-// bytes grow with the cells (16 B of firsts each, even where empty) and with
+// bytes grow with the cells (48 B of ranges each, even where empty) and with
 // the primitives duplicated across cells (an entry plus its BVH boxes each).
 // With kBytesWeight = 0.1 a refinement is taken while it cuts (1 + proxy) by
 // more than a tenth of the relative size it adds: sparse data (one polygon)
