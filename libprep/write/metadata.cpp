@@ -9,6 +9,7 @@
 #include "prep/manifest_json.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/write.hpp"
+#include "write_internal.hpp"
 
 namespace prep {
 
@@ -92,7 +93,7 @@ void write_model(const std::string& path, const DecalModel& model,
   }
   // Keys are sorted (nlohmann::json is map-backed), so the text is
   // deterministic; non-finite numbers are written as null.
-  write_package(path, meta.dump(), blobs, options);
+  write_package_consuming(path, meta.dump(), blobs, options);
 }
 
 }  // namespace prep

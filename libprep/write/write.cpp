@@ -20,6 +20,7 @@
 #include <bit>
 #include <cerrno>
 #include <climits>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <mutex>
@@ -35,6 +36,7 @@
 #include "prep/progress.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/write.hpp"
+#include "write_internal.hpp"
 
 static_assert(std::endian::native == std::endian::little,
               "the package format is little-endian and written by memcpy");
@@ -165,6 +167,18 @@ class AtomicFile {
       n -= static_cast<size_t>(w);
     }
   }
+  // Writes at `offset` without moving the file position.
+  void pwrite(const void* data, size_t n, uint64_t offset) {
+    const char* p = static_cast<const char*>(data);
+    while (n > 0) {
+      const ssize_t w = ::pwrite(fd_, p, n, static_cast<off_t>(offset));
+      if (w < 0 && errno == EINTR) continue;
+      if (w < 0) fail_io(path_, "write failed", errno);
+      p += w;
+      n -= static_cast<size_t>(w);
+      offset += static_cast<uint64_t>(w);
+    }
+  }
   void zeros(size_t n) {
     static const std::array<char, 4096> kZero{};
     while (n > 0) {
@@ -219,12 +233,17 @@ class AtomicFile {
   TempSlot* slot_ = nullptr;
 };
 
+// A compressed blob's zstd frame: allocated at ZSTD_compressBound (pages
+// never written are never resident), then shrunk to the frame's size.
+struct FreeBytes {
+  void operator()(std::byte* p) const noexcept { std::free(p); }
+};
+using Frame = std::unique_ptr<std::byte, FreeBytes>;
+
 struct EncodedBlob {
   decal::BlobTableEntry entry{};
-  // The zstd frame (its first stored.size() bytes), allocated at
-  // ZSTD_compressBound and not zero-filled; null when stored as is.
-  std::unique_ptr<std::byte[]> compressed;
-  std::span<const std::byte> stored;
+  Frame compressed;                   // null when stored as is
+  std::span<const std::byte> stored;  // the bytes to write
 };
 
 void check_blob(const std::string& path, const BlobInput& b, std::span<const BlobInput> all,
@@ -252,8 +271,8 @@ void check_blob(const std::string& path, const BlobInput& b, std::span<const Blo
 
 }  // namespace
 
-void write_package(const std::string& path, const std::string& metadata_json,
-                   std::span<const BlobInput> blobs, const WriteOptions& options) {
+void write_package_consuming(const std::string& path, const std::string& metadata_json,
+                             std::vector<BlobInput>& blobs, const WriteOptions& options) {
   if (metadata_json.size() < 2 || metadata_json.front() != '{' || metadata_json.back() != '}' ||
       metadata_json.find('\0') != std::string::npos)
     fail_io(path, "metadata must be a JSON object text ('{' ... '}', no NUL bytes)");
@@ -288,6 +307,61 @@ void write_package(const std::string& path, const std::string& metadata_json,
     if (zstd) all_uncompressed = false;
   }
 
+  decal::FileHeader h{};
+  std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
+  h.version_major = decal::kVersionMajor;
+  h.version_minor = decal::kVersionMinor;
+  h.flags = all_uncompressed ? decal::kFlagAllUncompressed : 0;
+  h.header_size = sizeof(decal::FileHeader);
+  h.blob_entry_size = sizeof(decal::BlobTableEntry);
+  h.blob_count = static_cast<uint32_t>(blobs.size());
+  h.table_offset = h.header_size;
+  h.metadata_offset = h.table_offset + uint64_t(h.blob_count) * h.blob_entry_size;
+  h.metadata_size = metadata_json.size();
+  h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
+
+  // The file is written front to back as the blobs are compressed: first
+  // zeros where the header and the blob table go (their offsets, stored
+  // sizes and checksums are known only at the end, and then written over
+  // the zeros), the metadata, then each blob as soon as it and every blob
+  // before it in table order are done. A compressed frame is freed once
+  // written, and a blob's own bytes (`owner`) once compressed or written, so
+  // the writer holds the frames of the blobs done out of order, not the
+  // whole package.
+  AtomicFile out(path);
+  out.zeros(h.metadata_offset);
+  out.write(metadata_json.data(), metadata_json.size());
+  uint64_t end = h.metadata_offset + h.metadata_size;  // file position
+
+  std::mutex write_mutex;
+  std::vector<char> ready(blobs.size(), 0);
+  size_t next_to_write = 0;
+  bool writing = false;
+  // Marks blob `i` done and, unless another thread is writing, writes every
+  // done blob from `next_to_write` on (the writer re-checks under the lock
+  // after each blob, so a blob marked meanwhile is not left behind).
+  const auto publish = [&](size_t i) {
+    std::unique_lock lock(write_mutex);
+    ready[i] = 1;
+    if (writing) return;
+    writing = true;
+    while (next_to_write < blobs.size() && ready[next_to_write]) {
+      const size_t j = next_to_write;
+      lock.unlock();
+      EncodedBlob& b = enc[j];
+      b.entry.offset = align_up(end);
+      out.zeros(b.entry.offset - end);
+      out.write(b.stored.data(), b.stored.size());
+      end = b.entry.offset + b.stored.size();
+      b.compressed.reset();
+      b.stored = {};
+      blobs[j].owner.reset();
+      lock.lock();
+      ++next_to_write;
+    }
+    writing = false;
+  };
+
   // Compression and checksums, one blob per task, largest first (the
   // longest task starts first, so the last one to finish is short). Each
   // blob is one single-threaded zstd frame (no ZSTD_c_nbWorkers, whose
@@ -300,7 +374,7 @@ void write_package(const std::string& path, const std::string& metadata_json,
     return blobs[a].bytes.size() > blobs[b].bytes.size();
   });
   const auto encode = [&](size_t i, ZSTD_CCtx*& cctx) {
-    const BlobInput& b = blobs[i];
+    BlobInput& b = blobs[i];
     decal::BlobTableEntry& e = enc[i].entry;
     if (e.codec == static_cast<uint32_t>(decal::CodecId::zstd)) {
       if (!cctx) {
@@ -313,18 +387,25 @@ void write_package(const std::string& path, const std::string& metadata_json,
       ZSTD_CCtx_setParameter(cctx, ZSTD_c_checksumFlag, 1);
       ZSTD_CCtx_setParameter(cctx, ZSTD_c_contentSizeFlag, 1);
       const size_t bound = ZSTD_compressBound(b.bytes.size());
-      enc[i].compressed = std::make_unique_for_overwrite<std::byte[]>(bound);
-      const size_t n =
-          ZSTD_compress2(cctx, enc[i].compressed.get(), bound, b.bytes.data(), b.bytes.size());
+      Frame frame(static_cast<std::byte*>(std::malloc(bound)));
+      if (!frame) fail_io(path, "out of memory compressing '" + names[i] + "'");
+      const size_t n = ZSTD_compress2(cctx, frame.get(), bound, b.bytes.data(), b.bytes.size());
       if (ZSTD_isError(n))
         fail_io(path, "zstd compression of '" + names[i] + "' failed: " + ZSTD_getErrorName(n));
+      // Shrinking keeps the address (glibc: in place, or mremap for large
+      // blocks), so no copy is made.
+      if (auto* shrunk = static_cast<std::byte*>(std::realloc(frame.get(), std::max<size_t>(n, 1))))
+        (void)frame.release(), frame.reset(shrunk);
+      enc[i].compressed = std::move(frame);
       enc[i].stored = {enc[i].compressed.get(), n};
+      b.owner.reset();
     } else {
       enc[i].stored = b.bytes;
     }
     e.stored_size = enc[i].stored.size();
     e.checksum = XXH64(enc[i].stored.data(), enc[i].stored.size(), 0);
-    stage.add(b.bytes.size());
+    stage.add(e.raw_size);
+    publish(i);
   };
   // Each slot takes the next blob of `order` until none is left; a slot no
   // worker thread picks up finds the queue empty.
@@ -346,43 +427,24 @@ void write_package(const std::string& path, const std::string& metadata_json,
       }
     }
   });
+  if (next_to_write != blobs.size()) fail_io(path, "internal error: a blob was not written");
 
-  decal::FileHeader h{};
-  std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
-  h.version_major = decal::kVersionMajor;
-  h.version_minor = decal::kVersionMinor;
-  h.flags = all_uncompressed ? decal::kFlagAllUncompressed : 0;
-  h.header_size = sizeof(decal::FileHeader);
-  h.blob_entry_size = sizeof(decal::BlobTableEntry);
-  h.blob_count = static_cast<uint32_t>(blobs.size());
-  h.table_offset = h.header_size;
-  h.metadata_offset = h.table_offset + uint64_t(h.blob_count) * h.blob_entry_size;
-  h.metadata_size = metadata_json.size();
-  h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
-  uint64_t end = h.metadata_offset + h.metadata_size;
-  for (EncodedBlob& b : enc) {
-    b.entry.offset = align_up(end);
-    end = b.entry.offset + b.entry.stored_size;
-  }
   h.file_size = end;
   std::vector<decal::BlobTableEntry> table;
   table.reserve(enc.size());
   for (const EncodedBlob& b : enc) table.push_back(b.entry);
   h.table_checksum = XXH64(table.data(), table.size() * sizeof(decal::BlobTableEntry), 0);
   h.header_checksum = XXH64(&h, offsetof(decal::FileHeader, header_checksum), 0);
-
-  AtomicFile out(path);
-  out.write(&h, sizeof h);
-  out.write(table.data(), table.size() * sizeof(decal::BlobTableEntry));
-  out.write(metadata_json.data(), metadata_json.size());
-  uint64_t at = h.metadata_offset + h.metadata_size;
-  for (const EncodedBlob& b : enc) {
-    out.zeros(b.entry.offset - at);
-    out.write(b.stored.data(), b.stored.size());
-    at = b.entry.offset + b.stored.size();
-  }
+  out.pwrite(&h, sizeof h, 0);
+  out.pwrite(table.data(), table.size() * sizeof(decal::BlobTableEntry), h.table_offset);
   out.commit();
   stage.finish();
+}
+
+void write_package(const std::string& path, const std::string& metadata_json,
+                   std::span<const BlobInput> blobs, const WriteOptions& options) {
+  std::vector<BlobInput> copy(blobs.begin(), blobs.end());
+  write_package_consuming(path, metadata_json, copy, options);
 }
 
 namespace {
