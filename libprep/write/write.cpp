@@ -20,6 +20,7 @@
 #include <bit>
 #include <cerrno>
 #include <climits>
+#include <condition_variable>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -167,6 +168,13 @@ class AtomicFile {
       n -= static_cast<size_t>(w);
     }
   }
+  // Starts the write-back of bytes already written (Linux
+  // sync_file_range, asynchronous), so that commit()'s fsync finds less to
+  // do. Advisory: an error here is left to fsync to report.
+  void start_writeback(uint64_t offset, uint64_t n) {
+    (void)::sync_file_range(fd_, static_cast<off_t>(offset), static_cast<off_t>(n),
+                            SYNC_FILE_RANGE_WRITE);
+  }
   // Writes at `offset` without moving the file position.
   void pwrite(const void* data, size_t n, uint64_t offset) {
     const char* p = static_cast<const char*>(data);
@@ -271,25 +279,36 @@ void check_blob(const std::string& path, const BlobInput& b, std::span<const Blo
 
 }  // namespace
 
-void write_package_consuming(const std::string& path, const std::string& metadata_json,
-                             std::vector<BlobInput>& blobs, const WriteOptions& options) {
+namespace {
+
+void check_metadata(const std::string& path, const std::string& metadata_json) {
   if (metadata_json.size() < 2 || metadata_json.front() != '{' || metadata_json.back() != '}' ||
       metadata_json.find('\0') != std::string::npos)
     fail_io(path, "metadata must be a JSON object text ('{' ... '}', no NUL bytes)");
+}
+
+}  // namespace
+
+void write_package_consuming(const std::string& path, PackageSource& source,
+                             const WriteOptions& options) {
+  std::vector<BlobInput>& blobs = source.blobs;
   if (options.codec == Codec::zstd &&
       (options.zstd_level < ZSTD_minCLevel() || options.zstd_level > ZSTD_maxCLevel()))
     fail_io(path, "zstd level " + std::to_string(options.zstd_level) + " is outside [" +
                       std::to_string(ZSTD_minCLevel()) + ", " + std::to_string(ZSTD_maxCLevel()) +
                       "]");
   if (blobs.size() > UINT32_MAX) fail_io(path, "too many blobs");
+  std::vector<char> deferred(blobs.size(), 0);
+  for (const size_t i : source.deferred) deferred.at(i) = 1;
 
   uint64_t raw_bytes = 0;
   for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
-  ProgressStage stage(options.progress, "write", raw_bytes, "bytes");
+  ProgressStage stage(options.progress, "write", raw_bytes, "bytes",
+                      source.deferred.empty() ? ProgressTotal::exact : ProgressTotal::estimate);
   std::vector<EncodedBlob> enc(blobs.size());
   std::vector<std::string> names(blobs.size());
-  bool all_uncompressed = true;
-  for (size_t i = 0; i < blobs.size(); ++i) {
+  // The table entry of blob `i` but for its place in the file.
+  const auto describe = [&](size_t i) {
     const BlobInput& b = blobs[i];
     check_blob(path, b, blobs, i);
     decal::BlobTableEntry& e = enc[i].entry;
@@ -304,54 +323,69 @@ void write_package_consuming(const std::string& path, const std::string& metadat
     // Empty blobs are stored as no bytes at all, whatever the codec.
     const bool zstd = options.codec == Codec::zstd && !b.bytes.empty();
     e.codec = static_cast<uint32_t>(zstd ? decal::CodecId::zstd : decal::CodecId::none);
-    if (zstd) all_uncompressed = false;
-  }
+  };
+  for (size_t i = 0; i < blobs.size(); ++i)
+    if (!deferred[i]) describe(i);
 
   decal::FileHeader h{};
   std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
   h.version_major = decal::kVersionMajor;
   h.version_minor = decal::kVersionMinor;
-  h.flags = all_uncompressed ? decal::kFlagAllUncompressed : 0;
   h.header_size = sizeof(decal::FileHeader);
   h.blob_entry_size = sizeof(decal::BlobTableEntry);
   h.blob_count = static_cast<uint32_t>(blobs.size());
   h.table_offset = h.header_size;
   h.metadata_offset = h.table_offset + uint64_t(h.blob_count) * h.blob_entry_size;
-  h.metadata_size = metadata_json.size();
-  h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
+  std::string metadata_json;  // from source.complete()
 
   // The file is written front to back as the blobs are compressed: first
   // zeros where the header and the blob table go (their offsets, stored
   // sizes and checksums are known only at the end, and then written over
-  // the zeros), the metadata, then each blob as soon as it and every blob
-  // before it in table order are done. A compressed frame is freed once
-  // written, and a blob's own bytes (`owner`) once compressed or written, so
-  // the writer holds the frames of the blobs done out of order, not the
-  // whole package.
+  // the zeros), the metadata once source.complete() has made it, then each
+  // blob as soon as it and every blob before it in table order are done. A
+  // compressed frame is freed once written, and a blob's own bytes (`owner`)
+  // once compressed or written, so the writer holds the frames of the blobs
+  // done out of order, not the whole package; and it starts the write-back
+  // of each blob, so that the final fsync has little left to do.
   AtomicFile out(path);
-  out.zeros(h.metadata_offset);
-  out.write(metadata_json.data(), metadata_json.size());
-  uint64_t end = h.metadata_offset + h.metadata_size;  // file position
+  uint64_t end = 0;  // file position
 
-  std::mutex write_mutex;
+  std::mutex mutex;
+  std::condition_variable queue_changed;
+  // Blobs ready to compress, taken largest first; the deferred ones join
+  // when source.complete() has made them.
+  std::vector<size_t> queue;
+  bool completing = false, completed = false, failed = false;
   std::vector<char> ready(blobs.size(), 0);
+  bool metadata_ready = false, metadata_written = false;
   size_t next_to_write = 0;
   bool writing = false;
-  // Marks blob `i` done and, unless another thread is writing, writes every
-  // done blob from `next_to_write` on (the writer re-checks under the lock
-  // after each blob, so a blob marked meanwhile is not left behind).
-  const auto publish = [&](size_t i) {
-    std::unique_lock lock(write_mutex);
-    ready[i] = 1;
+  // With the lock held by `lock`: writes the metadata and every done blob
+  // from `next_to_write` on, unless another thread is writing (the writer
+  // re-checks under the lock after each write, so a blob marked done
+  // meanwhile is not left behind).
+  const auto write_ready = [&](std::unique_lock<std::mutex>& lock) {
     if (writing) return;
     writing = true;
-    while (next_to_write < blobs.size() && ready[next_to_write]) {
+    for (;;) {
+      if (!metadata_written) {
+        if (!metadata_ready) break;
+        lock.unlock();
+        out.zeros(h.metadata_offset);
+        out.write(metadata_json.data(), metadata_json.size());
+        end = h.metadata_offset + metadata_json.size();
+        lock.lock();
+        metadata_written = true;
+        continue;
+      }
+      if (next_to_write == blobs.size() || !ready[next_to_write]) break;
       const size_t j = next_to_write;
       lock.unlock();
       EncodedBlob& b = enc[j];
       b.entry.offset = align_up(end);
       out.zeros(b.entry.offset - end);
       out.write(b.stored.data(), b.stored.size());
+      out.start_writeback(b.entry.offset, b.stored.size());
       end = b.entry.offset + b.stored.size();
       b.compressed.reset();
       b.stored = {};
@@ -361,18 +395,46 @@ void write_package_consuming(const std::string& path, const std::string& metadat
     }
     writing = false;
   };
+  const auto by_size = [&](size_t a, size_t b) {
+    // Largest first, then table order: a max-heap on size, ties to the
+    // lower index.
+    const size_t sa = blobs[a].bytes.size(), sb = blobs[b].bytes.size();
+    return sa != sb ? sa < sb : a > b;
+  };
+  for (size_t i = 0; i < blobs.size(); ++i)
+    if (!deferred[i]) queue.push_back(i);
+  std::make_heap(queue.begin(), queue.end(), by_size);
 
-  // Compression and checksums, one blob per task, largest first (the
-  // longest task starts first, so the last one to finish is short). Each
-  // blob is one single-threaded zstd frame (no ZSTD_c_nbWorkers, whose
-  // frames differ from single-threaded ones), so the bytes do not depend on
-  // the thread count, which the caller caps with tbb::global_control
-  // (`--threads`, libprep/pipeline/pipeline.cpp).
-  std::vector<size_t> order(blobs.size());
-  std::iota(order.begin(), order.end(), size_t(0));
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-    return blobs[a].bytes.size() > blobs[b].bytes.size();
-  });
+  // source.complete(): the deferred blobs and the metadata, on the first
+  // slot that starts (the others meanwhile compress the blobs at hand).
+  const auto complete = [&] {
+    std::string json = source.complete ? source.complete() : std::string();
+    check_metadata(path, json);
+    uint64_t added = 0;
+    for (const size_t i : source.deferred) {
+      describe(i);
+      added += blobs[i].bytes.size();
+    }
+    if (added) stage.set_total(raw_bytes + added);
+    std::unique_lock lock(mutex);
+    metadata_json = std::move(json);
+    h.metadata_size = metadata_json.size();
+    h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
+    metadata_ready = true;
+    for (const size_t i : source.deferred) {
+      queue.push_back(i);
+      std::push_heap(queue.begin(), queue.end(), by_size);
+    }
+    completed = true;
+    queue_changed.notify_all();
+    write_ready(lock);
+  };
+
+  // Compression and checksums, one blob per task. Each blob is one
+  // single-threaded zstd frame (no ZSTD_c_nbWorkers, whose frames differ
+  // from single-threaded ones), so the bytes do not depend on the thread
+  // count, which the caller caps with tbb::global_control (`--threads`,
+  // libprep/pipeline/pipeline.cpp).
   const auto encode = [&](size_t i, ZSTD_CCtx*& cctx) {
     BlobInput& b = blobs[i];
     decal::BlobTableEntry& e = enc[i].entry;
@@ -405,30 +467,56 @@ void write_package_consuming(const std::string& path, const std::string& metadat
     e.stored_size = enc[i].stored.size();
     e.checksum = XXH64(enc[i].stored.data(), enc[i].stored.size(), 0);
     stage.add(e.raw_size);
-    publish(i);
+    std::unique_lock lock(mutex);
+    ready[i] = 1;
+    write_ready(lock);
   };
-  // Each slot takes the next blob of `order` until none is left; a slot no
-  // worker thread picks up finds the queue empty.
-  std::atomic<size_t> next{0};
-  const size_t slots =
-      std::min(blobs.size(), size_t(std::max(1, tbb::this_task_arena::max_concurrency())));
+  // Each slot completes the source (the first one) or takes the largest
+  // blob ready, until none is left; a slot finding none while the source is
+  // being completed waits for it. A slot no worker thread picks up finds
+  // the work done.
+  const size_t slots = std::max<size_t>(
+      1, std::min(blobs.size(), size_t(std::max(1, tbb::this_task_arena::max_concurrency()))));
   tbb::parallel_for(size_t(0), slots, [&](size_t) {
     ZSTD_CCtx* cctx = nullptr;
     struct CctxFree {
       ZSTD_CCtx*& c;
       ~CctxFree() { ZSTD_freeCCtx(c); }
     } cctx_free{cctx};
-    for (size_t k; (k = next.fetch_add(1, std::memory_order_relaxed)) < order.size();) {
-      try {
-        encode(order[k], cctx);
-      } catch (...) {
-        next.store(order.size());  // the other slots stop after their blob
-        throw;
+    try {
+      for (;;) {
+        std::unique_lock lock(mutex);
+        if (!completing) {
+          completing = true;
+          lock.unlock();
+          // Isolated: should it wait on oneTBB work of its own, this thread
+          // must not pick up a slot that would wait for it.
+          tbb::this_task_arena::isolate(complete);
+          continue;
+        }
+        queue_changed.wait(lock, [&] { return failed || completed || !queue.empty(); });
+        if (failed || queue.empty()) return;
+        std::pop_heap(queue.begin(), queue.end(), by_size);
+        const size_t i = queue.back();
+        queue.pop_back();
+        lock.unlock();
+        encode(i, cctx);
       }
+    } catch (...) {
+      // The other slots stop after their blob.
+      const std::lock_guard lock(mutex);
+      failed = true;
+      queue_changed.notify_all();
+      throw;
     }
   });
-  if (next_to_write != blobs.size()) fail_io(path, "internal error: a blob was not written");
+  if (!metadata_written || next_to_write != blobs.size())
+    fail_io(path, "internal error: a blob was not written");
 
+  bool all_uncompressed = true;
+  for (const EncodedBlob& b : enc)
+    if (b.entry.codec == static_cast<uint32_t>(decal::CodecId::zstd)) all_uncompressed = false;
+  h.flags = all_uncompressed ? decal::kFlagAllUncompressed : 0;
   h.file_size = end;
   std::vector<decal::BlobTableEntry> table;
   table.reserve(enc.size());
@@ -443,8 +531,11 @@ void write_package_consuming(const std::string& path, const std::string& metadat
 
 void write_package(const std::string& path, const std::string& metadata_json,
                    std::span<const BlobInput> blobs, const WriteOptions& options) {
-  std::vector<BlobInput> copy(blobs.begin(), blobs.end());
-  write_package_consuming(path, metadata_json, copy, options);
+  check_metadata(path, metadata_json);
+  PackageSource source;
+  source.blobs.assign(blobs.begin(), blobs.end());
+  source.complete = [&] { return metadata_json; };
+  write_package_consuming(path, source, options);
 }
 
 namespace {
@@ -477,7 +568,12 @@ BlobInput list_blob(decal::BlobId id, const std::vector<T>& v, std::vector<std::
 
 }  // namespace
 
-std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
+namespace {
+
+// The blobs of the v1.3 layout encoded from the model's v1.2 arrays
+// (decal/layout.hpp), in table order: the model's own list or box arrays
+// where encode_cells made no copy, the copies otherwise.
+std::vector<BlobInput> encoded_blobs(const DecalModel& m) {
   using decal::BlobId;
   namespace L = decal::layout;
   auto cells = [](const std::vector<uvec2>& range, const std::vector<uvec4>& bvh, const auto& list,
@@ -522,18 +618,9 @@ std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
           std::span<const L::u2>(m.qt_leaf_segments.data(), m.qt_leaf_segments.size()),
           m.qt_leaf_vertices.size(), loop_range, loop_end))
     fail<format_error>(kWriteStage, "quad-tree leaf segments are not closed vertex runs");
-  std::vector<BlobInput> all = {
-      blob_of(BlobId::line_vertices, m.line_vertices),
-      blob_of(BlobId::line_vertex_line, m.line_vertex_line),
-      blob_of(BlobId::line_props, m.line_props),
-      blob_of(BlobId::line_corners, m.line_corners),
+  return {
       list_blob(BlobId::cell_segments, m.cell_segments, lines.list),
       owned_blob(BlobId::cell_line_first, std::move(lines.first)),
-      blob_of(BlobId::poly_props, m.poly_props),
-      blob_of(BlobId::poly_root_node, m.poly_root_node),
-      blob_of(BlobId::qt_node_box, m.qt_node_box),
-      blob_of(BlobId::qt_node, m.qt_node),
-      blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices),
       holes_copy.empty() ? blob_of(BlobId::cell_holes, m.cell_holes)
                          : owned_blob(BlobId::cell_holes, std::move(holes_copy)),
       owned_blob(BlobId::qt_leaf_loop_range, std::move(loop_range)),
@@ -543,14 +630,63 @@ std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
       owned_blob(BlobId::poly_bvh_box16, std::move(poly_boxes)),
       owned_blob(BlobId::cell_poly_entries, std::move(entries.entries)),
       owned_blob(BlobId::cell_poly_holes, std::move(entries.hole_first)),
-      blob_of(BlobId::dyn_vertices, m.dyn_vertices),
-      blob_of(BlobId::dyn_prev_next, m.dyn_prev_next),
-      blob_of(BlobId::dyn_line_start, m.dyn_line_start),
-      blob_of(BlobId::dyn_line_props, m.dyn_line_props),
-      blob_of(BlobId::lod_points, m.lod_points),
-      blob_of(BlobId::lod_segments, m.lod_segments),
-      blob_of(BlobId::lod_line_range, m.lod_line_range),
   };
+}
+
+// A deferred blob before encoded_blobs made it: id, type and stride.
+BlobInput placeholder(decal::BlobId id) {
+  const decal::BlobInfo* info = decal::find_blob_info(id);
+  return {id, info->type, info->stride, 0, {}};
+}
+
+}  // namespace
+
+ModelBlobPlan model_blob_plan(const DecalModel& m) {
+  using decal::BlobId;
+  ModelBlobPlan plan;
+  std::vector<BlobInput>& blobs = plan.source.blobs;
+  const auto defer = [&](BlobId id) {
+    plan.source.deferred.push_back(blobs.size());
+    blobs.push_back(placeholder(id));
+  };
+  blobs.push_back(blob_of(BlobId::line_vertices, m.line_vertices));
+  blobs.push_back(blob_of(BlobId::line_vertex_line, m.line_vertex_line));
+  blobs.push_back(blob_of(BlobId::line_props, m.line_props));
+  blobs.push_back(blob_of(BlobId::line_corners, m.line_corners));
+  defer(BlobId::cell_segments);
+  defer(BlobId::cell_line_first);
+  blobs.push_back(blob_of(BlobId::poly_props, m.poly_props));
+  blobs.push_back(blob_of(BlobId::poly_root_node, m.poly_root_node));
+  blobs.push_back(blob_of(BlobId::qt_node_box, m.qt_node_box));
+  blobs.push_back(blob_of(BlobId::qt_node, m.qt_node));
+  blobs.push_back(blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices));
+  for (BlobId id : {BlobId::cell_holes, BlobId::qt_leaf_loop_range, BlobId::qt_leaf_loops,
+                    BlobId::cell_poly_first, BlobId::line_bvh_box16, BlobId::poly_bvh_box16,
+                    BlobId::cell_poly_entries, BlobId::cell_poly_holes})
+    defer(id);
+  blobs.push_back(blob_of(BlobId::dyn_vertices, m.dyn_vertices));
+  blobs.push_back(blob_of(BlobId::dyn_prev_next, m.dyn_prev_next));
+  blobs.push_back(blob_of(BlobId::dyn_line_start, m.dyn_line_start));
+  blobs.push_back(blob_of(BlobId::dyn_line_props, m.dyn_line_props));
+  blobs.push_back(blob_of(BlobId::lod_points, m.lod_points));
+  blobs.push_back(blob_of(BlobId::lod_segments, m.lod_segments));
+  blobs.push_back(blob_of(BlobId::lod_line_range, m.lod_line_range));
+  // encoded_blobs makes the deferred blobs, in the same order.
+  plan.encode = [&m, deferred = plan.source.deferred](std::vector<BlobInput>& out) {
+    std::vector<BlobInput> made = encoded_blobs(m);
+    if (made.size() != deferred.size()) fail<format_error>(kWriteStage, "internal error");
+    for (size_t k = 0; k < made.size(); ++k) {
+      if (out[deferred[k]].id != made[k].id) fail<format_error>(kWriteStage, "internal error");
+      out[deferred[k]] = std::move(made[k]);
+    }
+  };
+  return plan;
+}
+
+std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
+  ModelBlobPlan plan = model_blob_plan(m);
+  plan.encode(plan.source.blobs);
+  std::vector<BlobInput> all = std::move(plan.source.blobs);
   // Every catalogue blob but manifest_entries, which write_model adds, and
   // the superseded ids.
   static_assert(std::size(decal::kBlobCatalogue) == 36 && std::size(decal::kSupersededBlobs) == 9,

@@ -7,6 +7,7 @@
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -138,6 +139,22 @@ TEST_F(AtomicWrite, FailingWriteThrowsAndLeavesOldTargetAndNoTempFile) {
   EXPECT_EQ(WEXITSTATUS(status), 10)
       << "0: no failure, 11: message lacks the path, 12: wrong exception";
   expect_old_target_and_no_temp_file();
+}
+
+TEST_F(AtomicWrite, ModelTheEncoderRefusesThrowsAndLeavesOldTargetAndNoTempFile) {
+  // write_model encodes the v1.3 blobs on one of the writer's threads once
+  // the temporary file exists (libprep/write/write.cpp), so a refusal there
+  // must clean up like any failing write. A quad-tree leaf whose segments
+  // are not a closed run of vertices cannot be a loop (decal/layout.hpp).
+  prep::DecalModel m = decal_test::small_model();
+  ASSERT_FALSE(m.qt_leaf_segments.empty());
+  m.qt_leaf_segments[0][1] = m.qt_leaf_segments[0][0];
+  for (size_t threads : {1, 4}) {
+    SCOPED_TRACE(std::to_string(threads) + " threads");
+    const tbb::global_control cap(tbb::global_control::max_allowed_parallelism, threads);
+    EXPECT_THROW(prep::write_model(target_, m, "{}"), prep::format_error);
+    expect_old_target_and_no_temp_file();
+  }
 }
 
 TEST_F(AtomicWrite, RenameOntoADirectoryFailsAndLeavesNoTempFile) {
