@@ -3,6 +3,7 @@
 
   bench/clean_real.py [--input PATH] [--runs 3] [--threads 0]
                       [--build-dir build/release] [--out bench/report]
+                      [--baseline-build-dir DIR]
 
 The input (default: the optional earth-seas set of scripts/fetch-data,
 @geo-maps/earth-seas-10m: the world ocean as one polygon of 239372 shell
@@ -16,6 +17,9 @@ origin, which a first dry run with an extent beyond the data reports
   dry-run   `decalprep build --dry-run --report`: read, project and clean
             timings from the report;
   build     the whole `decalprep build -o`.
+With --baseline-build-dir (another build, e.g. of the previous commit), its
+dry-run and build (`dry-run@base`, `build@base`) alternate with the others in
+the same runs, so that before and after are compared under the same load.
 Prints a table of the best (lowest wall) run of each and the ratios the
 target needs: clean / (read + project), and build / ogr2ogr; writes
 clean_real.csv (every run, then the best). Wall, CPU and peak RSS of each
@@ -55,10 +59,15 @@ def main():
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
+    ap.add_argument("--baseline-build-dir", default=None)
     a = ap.parse_args()
     if not os.path.exists(a.input):
         sys.exit("clean_real: %s is missing: run scripts/fetch-data earth-seas" % a.input)
     tool = os.path.join(a.build_dir, "tools", "decalprep", "decalprep")
+    tools = {"": tool}
+    if a.baseline_build_dir:
+        tools["@base"] = os.path.join(a.baseline_build_dir, "tools", "decalprep", "decalprep")
+    whats = ["ogr2ogr"] + ["%s%s" % (w, t) for t in tools for w in ("dry-run", "build")]
     os.makedirs(a.out, exist_ok=True)
     work = tempfile.mkdtemp(prefix="clean_real_")
     rows = []
@@ -69,18 +78,19 @@ def main():
         scene = [a.input, "--kind", "polygon", "--extent=" + extent, "--progress", "none",
                  "--threads", str(a.threads)]
         for run in range(a.runs):
-            for what in ("ogr2ogr", "dry-run", "build"):
+            for what in whats:
                 report = os.path.join(work, "%s.json" % what)
+                exe = tools.get(what[what.find("@"):] if "@" in what else "")
                 if what == "ogr2ogr":
                     out = os.path.join(work, "floor.fgb")
                     if os.path.exists(out):
                         os.remove(out)
                     cmd = ["ogr2ogr", "-f", "FlatGeobuf", out, a.input]
-                elif what == "dry-run":
-                    cmd = [tool, "build"] + scene + ["--dry-run", "--report", report]
+                elif what.startswith("dry-run"):
+                    cmd = [exe, "build"] + scene + ["--dry-run", "--report", report]
                 else:
-                    cmd = [tool, "build"] + scene + ["-o", os.path.join(work, "seas.decals"),
-                                                     "--report", report]
+                    cmd = [exe, "build"] + scene + ["-o", os.path.join(work, "seas.decals"),
+                                                    "--report", report]
                 wall, cpu, rss = measured(cmd)
                 row = {"run": run, "what": what, "wall_s": wall, "cpu_s": cpu, "peak_rss_mib": rss,
                        "load1": os.getloadavg()[0]}
@@ -89,7 +99,7 @@ def main():
                     for stage in ("read", "project", "clean"):
                         row[stage + "_s"] = t.get(stage, float("nan"))
                 rows.append(row)
-                print("run %d %-8s wall %7.2f s  cpu %7.2f s  load %.1f" %
+                print("run %d %-13s wall %7.2f s  cpu %7.2f s  load %.1f" %
                       (run, what, wall, cpu, row["load1"]), flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -98,21 +108,24 @@ def main():
     for r in rows:
         if r["what"] not in best or r["wall_s"] < best[r["what"]]["wall_s"]:
             best[r["what"]] = r
-    dry, floor, build = best["dry-run"], best["ogr2ogr"], best["build"]
-    read_project = dry["read_s"] + dry["project_s"]
-    clean_ratio = dry["clean_s"] / read_project
-    build_ratio = build["wall_s"] / floor["wall_s"]
+    floor = best["ogr2ogr"]
+    ratios = {}
+    for t in tools:
+        dry, build = best["dry-run" + t], best["build" + t]
+        ratios[t] = (dry["clean_s"] / (dry["read_s"] + dry["project_s"]),
+                     build["wall_s"] / floor["wall_s"])
     print()
-    print("best of %d      wall s   cpu s   read s  project s  clean s" % a.runs)
-    for what in ("ogr2ogr", "dry-run", "build"):
+    print("best of %d       wall s   cpu s   read s  project s  clean s" % a.runs)
+    for what in whats:
         r = best[what]
-        print("%-12s %8.2f %7.2f %8s %10s %8s" %
+        print("%-13s %8.2f %7.2f %8s %10s %8s" %
               (what, r["wall_s"], r["cpu_s"], "%.2f" % r["read_s"] if "read_s" in r else "",
                "%.2f" % r["project_s"] if "project_s" in r else "",
                "%.2f" % r["clean_s"] if "clean_s" in r else ""))
-    print()
-    print("clean / (read + project) = %.2f   (target <= 3)" % clean_ratio)
-    print("build / ogr2ogr          = %.2f   (target <= 8)" % build_ratio)
+    for t in tools:
+        print()
+        print("clean / (read + project)%-6s = %.2f   (target <= 3)" % (t, ratios[t][0]))
+        print("build / ogr2ogr%-15s = %.2f   (target <= 8)" % (t, ratios[t][1]))
 
     fields = ["run", "what", "wall_s", "cpu_s", "peak_rss_mib", "load1", "read_s", "project_s",
               "clean_s", "clean_over_read_project", "build_over_ogr2ogr"]
@@ -122,12 +135,13 @@ def main():
         w.writeheader()
         for r in rows:
             w.writerow({k: ("%.3f" % v if isinstance(v, float) else v) for k, v in r.items()})
-        for what in ("ogr2ogr", "dry-run", "build"):
+        for what in whats:
             r = dict(best[what], run="best")
-            if what == "dry-run":
-                r["clean_over_read_project"] = clean_ratio
-            if what == "build":
-                r["build_over_ogr2ogr"] = build_ratio
+            t = what[what.find("@"):] if "@" in what else ""
+            if what.startswith("dry-run"):
+                r["clean_over_read_project"] = ratios[t][0]
+            if what.startswith("build"):
+                r["build_over_ogr2ogr"] = ratios[t][1]
             w.writerow({k: ("%.3f" % v if isinstance(v, float) else v) for k, v in r.items()})
     print("wrote %s" % path)
 

@@ -165,6 +165,8 @@
 // ============================================================================
 #include "prep/evaluate.hpp"
 
+#include "decal/layout.hpp"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -525,6 +527,16 @@ StaticView view_of(const DecalModel& m) {
 #define PREP_FROM_MODEL(T, name) v.name = m.name;
   PREP_STATIC_VIEW_BLOBS(PREP_FROM_MODEL)
 #undef PREP_FROM_MODEL
+  // The model's leaf loops as the ranges and segments the evaluator walks.
+  struct Leaves {
+    std::vector<decal::layout::u2> range, segments;
+  };
+  auto leaves = std::make_shared<Leaves>();
+  decal::layout::decode_leaves(m.qt_leaf_loop_range, m.qt_leaf_loops, leaves->range,
+                               leaves->segments);
+  v.qt_leaf_range = leaves->range;
+  v.qt_leaf_segments = leaves->segments;
+  v.storage = std::move(leaves);
   return v;
 }
 

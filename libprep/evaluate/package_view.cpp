@@ -55,10 +55,11 @@ StaticView view_of(const decal::Package& p) {
 #define PREP_FROM_PACKAGE(T, name) v.name = p.array<T>(BlobId::name);
   PREP_STATIC_VIEW_BLOBS(PREP_FROM_PACKAGE)
 #undef PREP_FROM_PACKAGE
+  v.qt_leaf_range = p.array<uvec2>(BlobId::qt_leaf_range);  // v1.2 and older
+  v.qt_leaf_segments = p.array<uvec2>(BlobId::qt_leaf_segments);
   if (p.minor() < 2) v.polygon_rank_bias = v.line_props.size();
   // v1.3 compact blobs (formats/SPEC.md "Compact layout (v1.3)"): decoded
-  // into the v1.2 ranges and leaf segments the evaluator walks, the same
-  // arrays the model held before it was written.
+  // into the v1.2 ranges and leaf segments the evaluator walks.
   namespace L = decal::layout;
   struct Decoded {
     std::vector<L::u2> seg_range, poly_range, leaf_range, leaf_segments;

@@ -7,6 +7,7 @@
 // Determinism: every parallel loop writes to its own slot; results are
 // concatenated in input order and sorted with total keys, so the arrays are
 // byte-identical at any thread count.
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
@@ -71,12 +72,21 @@ bool contains(const ivec4& outer, const QBox& in) {
   return outer[0] <= in.x0 && outer[1] <= in.y0 && in.x1 <= outer[2] && in.y1 <= outer[3];
 }
 
-// Quantised ring without repeated consecutive or closing vertices.
-std::vector<QPoint> quantise_ring(const Ring& r, double& err, const std::string& where) {
+// Quantised ring without repeated consecutive or closing vertices. `where`
+// names the ring in an error; it is called only when a vertex cannot be
+// quantised (not finite, or beyond kMaxQuanta), so a ring that can costs no
+// message.
+template <class Where>
+std::vector<QPoint> quantise_ring(const Ring& r, double& err, const Where& where) {
+  const bool fits = std::all_of(r.begin(), r.end(), [](const Point2& p) {
+    return std::fabs(p.x / decal::kQuantumMetres) <= double(kMaxQuanta) &&
+           std::fabs(p.y / decal::kQuantumMetres) <= double(kMaxQuanta);  // false for NaN
+  });
+  const std::string name = fits ? std::string() : where();
   std::vector<QPoint> q;
   q.reserve(r.size());
   for (const Point2& p : r) {
-    QPoint v = quantise(p, err, where);
+    QPoint v = quantise(p, err, name);
     if (q.empty() || !(q.back() == v)) q.push_back(v);
   }
   while (q.size() > 1 && q.back() == q.front()) q.pop_back();
@@ -91,32 +101,42 @@ struct CellPoly {
   ivec4 box;
 };
 
+// Grows `v` to `n` elements; when that needs a new buffer, reserves `scale`
+// times `n`, so that arrays filled block by block reach their final size
+// with few copies and little slack.
+template <class T>
+void grow_to(std::vector<T>& v, size_t n, double scale) {
+  if (n > v.capacity()) v.reserve(std::max(n, size_t(double(n) * scale)));
+  v.resize(n);
+}
+
 // Appends quad-trees `trees` (local indices), in order, to the model's node
-// arrays and returns the index of each root node. The arrays grow once, to
-// sizes from prefix sums, and the trees are copied and rebased in parallel
-// (each to its own range), so the bytes do not depend on the thread count;
-// the trees are freed as they are copied.
-std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalModel& m) {
+// arrays and returns the index of each root node. The arrays grow once per
+// call, to sizes from prefix sums (`scale`: see grow_to), and the trees are
+// copied and rebased in parallel (each to its own range), so the bytes do not
+// depend on the thread count; the trees are freed as they are copied.
+std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalModel& m,
+                                       double scale = 1.0) {
   struct Base {
-    size_t node, range, seg, vert;
+    size_t node, range, loop, vert;
   };
   std::vector<Base> base(trees.size() + 1);
-  base[0] = {m.qt_node.size(), m.qt_leaf_range.size(), m.qt_leaf_segments.size(),
+  base[0] = {m.qt_node.size(), m.qt_leaf_loop_range.size(), m.qt_leaf_loops.size(),
              m.qt_leaf_vertices.size()};
   for (size_t i = 0; i < trees.size(); ++i) {
     const PolyQuadTree& t = trees[i];
     base[i + 1] = {base[i].node + t.node.size(), base[i].range + t.leaf_range.size(),
-                   base[i].seg + t.leaf_segments.size(), base[i].vert + t.leaf_vertices.size()};
+                   base[i].loop + t.leaf_loops.size(), base[i].vert + t.leaf_vertices.size()};
     m.stats.qt_depth_capped += t.depth_capped;
     m.stats.qt_max_leaf_segments = std::max(m.stats.qt_max_leaf_segments, t.max_leaf_segments);
     m.stats.qt_partial_leaves += t.leaf_range.size();
   }
   const Base& end = base.back();
-  m.qt_node.resize(end.node);
-  m.qt_node_box.resize(end.node);
-  m.qt_leaf_range.resize(end.range);
-  m.qt_leaf_segments.resize(end.seg);
-  m.qt_leaf_vertices.resize(end.vert);
+  grow_to(m.qt_node, end.node, scale);
+  grow_to(m.qt_node_box, end.node, scale);
+  grow_to(m.qt_leaf_loop_range, end.range, scale);
+  grow_to(m.qt_leaf_loops, end.loop, scale);
+  grow_to(m.qt_leaf_vertices, end.vert, scale);
   tbb::parallel_for(size_t(0), trees.size(), [&](size_t i) {
     PolyQuadTree& t = trees[i];
     const Base& b = base[i];
@@ -128,10 +148,10 @@ std::vector<uint32_t> append_quadtrees(std::vector<PolyQuadTree>& trees, DecalMo
     }
     std::copy(t.box.begin(), t.box.end(), m.qt_node_box.begin() + ptrdiff_t(b.node));
     for (size_t k = 0; k < t.leaf_range.size(); ++k)
-      m.qt_leaf_range[b.range + k] = {t.leaf_range[k][0] + uint32_t(b.seg), t.leaf_range[k][1]};
-    for (size_t k = 0; k < t.leaf_segments.size(); ++k)
-      m.qt_leaf_segments[b.seg + k] = {t.leaf_segments[k][0] + uint32_t(b.vert),
-                                       t.leaf_segments[k][1] + uint32_t(b.vert)};
+      m.qt_leaf_loop_range[b.range + k] = {t.leaf_range[k][0] + uint32_t(b.loop),
+                                           t.leaf_range[k][1]};
+    for (size_t k = 0; k < t.leaf_loops.size(); ++k)
+      m.qt_leaf_loops[b.loop + k] = t.leaf_loops[k] + uint32_t(b.vert);
     std::copy(t.leaf_vertices.begin(), t.leaf_vertices.end(),
               m.qt_leaf_vertices.begin() + ptrdiff_t(b.vert));
     t = PolyQuadTree();  // free early
@@ -226,11 +246,15 @@ PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m,
   std::vector<double> qerr(np, 0.0);
   tbb::parallel_for(size_t(0), np, [&](size_t i) {
     const ScenePolygon& p = scene.polygons[i];
-    std::ostringstream w;
-    w << "layer '" << (p.layer < scene.layers.size() ? scene.layers[p.layer].name : "?") << "' fid "
-      << p.fid << " part " << p.part;
-    qrings[i].push_back(quantise_ring(p.shell, qerr[i], w.str()));
-    for (const Ring& h : p.holes) qrings[i].push_back(quantise_ring(h, qerr[i], w.str() + " hole"));
+    auto where = [&] {
+      std::ostringstream w;
+      w << "layer '" << (p.layer < scene.layers.size() ? scene.layers[p.layer].name : "?")
+        << "' fid " << p.fid << " part " << p.part;
+      return w.str();
+    };
+    qrings[i].push_back(quantise_ring(p.shell, qerr[i], where));
+    for (const Ring& h : p.holes)
+      qrings[i].push_back(quantise_ring(h, qerr[i], [&] { return where() + " hole"; }));
   });
   PolygonRings out;
   for (size_t i = 0; i < np; ++i) {
@@ -284,18 +308,51 @@ void assign_ranks(const std::vector<DrawKey>& draw_keys, size_t n_lines, Polygon
 }
 
 // One quad-tree per ring (in parallel), concatenated into the model's node
-// arrays with the polygon properties, then the outline clip trees.
-void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options,
-                         const PolygonRings& pr, DecalModel& m) {
-  const std::vector<PolyRing>& rings = pr.rings;
-  std::vector<PolyQuadTree> trees(rings.size());
+// arrays with the polygon properties, then the outline clip trees. Rings go
+// in blocks of about a sixteenth of the vertices: a block's trees are built
+// (each thread reusing its working arrays, each tree copied out at its exact
+// size), appended and freed before the next block, and each ring is freed
+// once its tree is built, so the trees never exist twice in full.
+void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options, PolygonRings& pr,
+                         DecalModel& m) {
+  std::vector<PolyRing>& rings = pr.rings;
   ProgressStage quadtree_stage(options.progress, "build.quadtrees", rings.size(), "rings");
-  tbb::parallel_for(size_t(0), rings.size(), [&](size_t r) {
-    trees[r] = build_quadtree(rings[r].ring, options.qt_leaf_capacity, options.qt_max_depth);
-    quadtree_stage.add();
-  });
+  size_t total_vertices = 0;
+  for (const PolyRing& r : rings) total_vertices += r.ring.size();
+  const size_t block_vertices = std::max<size_t>(size_t(1) << 16, total_vertices / 16);
+  struct Local {
+    QuadTreeScratch scratch;
+    PolyQuadTree tree;
+  };
+  tbb::enumerable_thread_specific<Local> local;
+  std::vector<PolyQuadTree> trees;
+  m.poly_root_node.reserve(rings.size());
+  size_t done_vertices = 0;
+  for (size_t b0 = 0; b0 < rings.size();) {
+    size_t b1 = b0, v = 0;
+    while (b1 < rings.size() && (b1 == b0 || v < block_vertices)) v += rings[b1++].ring.size();
+    trees.clear();
+    trees.resize(b1 - b0);
+    tbb::parallel_for(b0, b1, [&](size_t r) {
+      Local& l = local.local();
+      build_quadtree(rings[r].ring, options.qt_leaf_capacity, options.qt_max_depth, l.tree,
+                     l.scratch);
+      trees[r - b0] = l.tree;  // a copy holds no spare capacity
+      std::vector<QPoint>().swap(rings[r].ring);
+      quadtree_stage.add();
+    });
+    done_vertices += v;
+    // The arrays' final sizes, projected from the share of vertices done
+    // (at least a quarter more, so that a misjudged projection costs a few
+    // copies, not one per block).
+    const double scale =
+        std::max(1.25, 1.05 * double(total_vertices) / double(std::max<size_t>(done_vertices, 1)));
+    const std::vector<uint32_t> roots = append_quadtrees(trees, m, scale);
+    m.poly_root_node.insert(m.poly_root_node.end(), roots.begin(), roots.end());
+    b0 = b1;
+  }
+  trees = {};
   m.poly_props.resize(rings.size());
-  m.poly_root_node = append_quadtrees(trees, m);
   for (size_t r = 0; r < rings.size(); ++r) {
     const ScenePolygon& sp = scene.polygons[rings[r].scene_index];
     decal::PolyProps& pp = m.poly_props[r];
@@ -387,7 +444,8 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
   gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) +
                        bytes_of(m.line_props) + bytes_of(m.line_corners) + bytes_of(m.poly_props) +
                        bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) + bytes_of(m.qt_node) +
-                       bytes_of(m.qt_leaf_range) + bytes_of(m.qt_leaf_segments) +
+                       bytes_of(m.qt_leaf_loop_range) + bytes_of(m.qt_leaf_vertices) +
+                       // the v1.2 leaf segments the grid's byte model counts: one per vertex
                        bytes_of(m.qt_leaf_vertices);
   return choose_grid(gin, options);
 }

@@ -42,17 +42,41 @@ QPoint quantise(const Point2& p, double& max_err, const std::string& where);
 // local to this tree: node children, leaf ranges and leaf segments index the
 // vectors of this struct; build_model() rebases them when concatenating.
 struct PolyQuadTree {
-  std::vector<ivec4> box;         // per node
-  std::vector<ivec2> node;        // per node: (QtNodeType, offset)
-  std::vector<uvec2> leaf_range;  // per partial leaf: (first, count) into leaf_segments
-  std::vector<uvec2> leaf_segments;
+  std::vector<ivec4> box;            // per node
+  std::vector<ivec2> node;           // per node: (QtNodeType, offset)
+  std::vector<uvec2> leaf_range;     // per partial leaf: (first, count) into leaf_loops
+  std::vector<uint32_t> leaf_loops;  // per loop: one past its last vertex (DecalModel)
   std::vector<ivec2> leaf_vertices;
   uint32_t depth_capped = 0;       // leaves that stopped at max depth with > capacity segments
   uint32_t max_leaf_segments = 0;  // ring segments in the fullest leaf
 };
 
+// Working arrays of build_quadtree, kept between calls (one per thread) so
+// that a tree costs no allocation once they have grown.
+struct QtPoint2 {  // doubled integer coordinates (|v| < 2^33): box centres are integers
+  int64_t px = 0, py = 0;
+  int64_t x() const { return px; }
+  int64_t y() const { return py; }
+};
+struct QtWork {  // a node to split or close
+  QBox box;
+  uint32_t first = 0,
+           count = 0;   // its ring edges (i, i+1): [first, first+count) of the level's list
+  uint32_t id = 0;      // node index
+  bool parity = false;  // inside at the box centre (evaluator rule, exact)
+};
+struct QuadTreeScratch {
+  std::vector<QtPoint2> doubled;
+  std::vector<QtWork> level, next_level;
+  std::vector<uint32_t> edges, next_edges;
+  std::array<std::vector<uint32_t>, 4> child_edges;
+};
+
 // Builds the quad-tree of one closed ring (no repeated closing vertex, at
-// least 3 vertices, every |coordinate| <= kMaxQuanta). Thread-safe.
+// least 3 vertices, every |coordinate| <= kMaxQuanta) into `t` (cleared
+// first). Thread-safe with a scratch per thread.
+void build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capacity, uint32_t max_depth,
+                    PolyQuadTree& t, QuadTreeScratch& scratch);
 PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capacity,
                             uint32_t max_depth);
 

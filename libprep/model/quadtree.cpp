@@ -24,7 +24,8 @@
 // is added once more. Result: for every point of the closed leaf box the
 // even-odd test on the leaf polygon equals the even-odd test on the ring.
 #include <algorithm>
-#include <deque>
+#include <array>
+#include <span>
 
 #include "detail.hpp"
 
@@ -34,11 +35,7 @@ namespace {
 __extension__ typedef __int128 int128;  // products of 33-bit differences
 
 // Doubled integer coordinates (|v| < 2^33), so box centres are integers.
-struct P2 {
-  int64_t px = 0, py = 0;
-  int64_t x() const { return px; }
-  int64_t y() const { return py; }
-};
+using P2 = QtPoint2;
 inline P2 dbl(const QPoint& p) {
   return {2 * p.x, 2 * p.y};
 }
@@ -98,12 +95,7 @@ inline bool segment_meets_box(const QPoint& a, const QPoint& b, const QBox& bx) 
   return pos > 0 && neg > 0;
 }
 
-struct Work {
-  QBox box;
-  std::vector<uint32_t> edges;  // ring edges (i, i+1) meeting the closed box
-  bool parity = false;          // inside at the box centre (evaluator rule, exact)
-  uint32_t depth = 0;
-};
+using Work = QtWork;
 
 ivec4 to_ivec4(const QBox& b) {
   return {int32_t(b.x0), int32_t(b.y0), int32_t(b.x1), int32_t(b.y1)};
@@ -114,18 +106,18 @@ class LeafPolygonBuilder {
   LeafPolygonBuilder(const std::vector<QPoint>& ring, const QBox& root)
       : ring_(ring), fx0_(root.x0 - 1), fy0_(root.y0 - 1), fx1_(root.x1 + 1), fy1_(root.y1 + 1) {}
 
-  // Appends the leaf polygon of `w` (a partial leaf) to `t`.
-  void build(const Work& w, PolyQuadTree& t) {
+  // Appends the leaf polygon of `w` (a partial leaf; `edges` its sorted ring
+  // edges) to `t`.
+  void build(const Work& w, std::span<const uint32_t> edges, PolyQuadTree& t) {
     const size_t n = ring_.size();
-    const uint32_t first_seg = uint32_t(t.leaf_segments.size());
-    std::vector<char> in(w.edges.size());
-    auto member = [&](uint32_t e) { return std::binary_search(w.edges.begin(), w.edges.end(), e); };
-    if (w.edges.size() == n) {
+    const uint32_t first_loop = uint32_t(t.leaf_loops.size());
+    auto member = [&](uint32_t e) { return std::binary_search(edges.begin(), edges.end(), e); };
+    if (edges.size() == n) {
       loop_begin(t);
       for (size_t i = 0; i < n; ++i) loop_add(t, ring_[i]);
       loop_end(t);
     } else {
-      for (uint32_t e : w.edges) {
+      for (uint32_t e : edges) {
         if (member(uint32_t((e + n - 1) % n))) continue;  // not the start of a chain
         loop_begin(t);
         uint32_t k = e;
@@ -146,10 +138,13 @@ class LeafPolygonBuilder {
     // Parity fix at the leaf centre (exact).
     const P2 c{w.box.x0 + w.box.x1, w.box.y0 + w.box.y1};
     bool leaf_parity = false;
-    for (size_t s = first_seg; s < t.leaf_segments.size(); ++s) {
-      const ivec2& a = t.leaf_vertices[t.leaf_segments[s][0]];
-      const ivec2& b = t.leaf_vertices[t.leaf_segments[s][1]];
-      leaf_parity ^= ray_crosses(dbl({a[0], a[1]}), dbl({b[0], b[1]}), c);
+    for (size_t l = first_loop; l < t.leaf_loops.size(); ++l) {
+      const uint32_t begin = l > 0 ? t.leaf_loops[l - 1] : 0, end = t.leaf_loops[l];
+      for (uint32_t v = begin; v < end; ++v) {
+        const ivec2& a = t.leaf_vertices[v];
+        const ivec2& b = t.leaf_vertices[v + 1 < end ? v + 1 : begin];
+        leaf_parity ^= ray_crosses(dbl({a[0], a[1]}), dbl({b[0], b[1]}), c);
+      }
     }
     if (leaf_parity != w.parity) {
       loop_begin(t);
@@ -159,7 +154,7 @@ class LeafPolygonBuilder {
       loop_add(t, {fx0_, fy1_});
       loop_end(t);
     }
-    t.leaf_range.push_back({first_seg, uint32_t(t.leaf_segments.size()) - first_seg});
+    t.leaf_range.push_back({first_loop, uint32_t(t.leaf_loops.size()) - first_loop});
   }
 
  private:
@@ -204,9 +199,11 @@ class LeafPolygonBuilder {
       t.leaf_vertices.pop_back();
       --last;
     }
-    if (last - loop_first_ < 2) return;  // degenerate; cannot happen for a real chain
-    for (uint32_t i = loop_first_; i < last; ++i)
-      t.leaf_segments.push_back({i, i + 1 < last ? i + 1 : loop_first_});
+    if (last - loop_first_ < 2) {  // degenerate; cannot happen for a real chain
+      t.leaf_vertices.resize(loop_first_);
+      return;
+    }
+    t.leaf_loops.push_back(last);
   }
 
   const std::vector<QPoint>& ring_;
@@ -216,9 +213,15 @@ class LeafPolygonBuilder {
 
 }  // namespace
 
-PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capacity,
-                            uint32_t max_depth) {
-  PolyQuadTree t;
+void build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capacity, uint32_t max_depth,
+                    PolyQuadTree& t, QuadTreeScratch& scratch) {
+  t.box.clear();
+  t.node.clear();
+  t.leaf_range.clear();
+  t.leaf_loops.clear();
+  t.leaf_vertices.clear();
+  t.depth_capped = 0;
+  t.max_leaf_segments = 0;
   const size_t n = ring.size();
   QBox root{ring[0].x, ring[0].y, ring[0].x, ring[0].y};
   for (const QPoint& p : ring) {
@@ -227,71 +230,127 @@ PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capac
     root.x1 = std::max(root.x1, p.x);
     root.y1 = std::max(root.y1, p.y);
   }
-  std::vector<P2> v2(n);
+  std::vector<P2>& v2 = scratch.doubled;
+  v2.resize(n + 1);
   for (size_t i = 0; i < n; ++i) v2[i] = dbl(ring[i]);
+  v2[n] = v2[0];  // edge i is v2[i] -> v2[i + 1]
 
+  // Breadth first, one level at a time: the nodes of a level and their edge
+  // lists in two flat arrays, the next level's in two more. Children are
+  // numbered in the order their parents are visited, as a FIFO queue would.
+  std::vector<Work>& level = scratch.level;
+  std::vector<Work>& next = scratch.next_level;
+  std::vector<uint32_t>& edges = scratch.edges;
+  std::vector<uint32_t>& next_edges = scratch.next_edges;
+  level.clear();
+  edges.resize(n);
+  for (size_t i = 0; i < n; ++i) edges[i] = uint32_t(i);
   Work rw;
   rw.box = root;
-  rw.edges.resize(n);
-  for (size_t i = 0; i < n; ++i) rw.edges[i] = uint32_t(i);
+  rw.count = uint32_t(n);
   {
     // Exact crossing count at the root centre (integer orientation).
     const P2 c{root.x0 + root.x1, root.y0 + root.y1};
-    for (size_t i = 0; i < n; ++i) rw.parity ^= ray_crosses(v2[i], v2[(i + 1) % n], c);
+    for (size_t i = 0; i < n; ++i) rw.parity ^= ray_crosses(v2[i], v2[i + 1], c);
   }
+  level.push_back(rw);
 
   LeafPolygonBuilder leaves(ring, root);
-  std::deque<std::pair<uint32_t, Work>> queue;  // (node index, work); BFS keeps siblings adjacent
   t.box.push_back(to_ivec4(root));
   t.node.push_back({0, 0});
-  queue.emplace_back(0u, std::move(rw));
   constexpr int64_t kEps = 1;  // child boxes overlap their siblings by this many quanta
-  while (!queue.empty()) {
-    auto [id, w] = std::move(queue.front());
-    queue.pop_front();
-    const int64_t bw = w.box.x1 - w.box.x0, bh = w.box.y1 - w.box.y0;
-    const bool tiny = bw <= 4 && bh <= 4;
-    const bool leaf = w.edges.size() <= leaf_capacity || w.depth >= max_depth || tiny;
-    if (leaf) {
-      t.max_leaf_segments = std::max<uint32_t>(t.max_leaf_segments, uint32_t(w.edges.size()));
-      if (w.edges.empty()) {
-        t.node[id] = {int32_t(w.parity ? decal::QtNodeType::inside : decal::QtNodeType::outside),
-                      0};
-      } else {
-        if (w.edges.size() > leaf_capacity) ++t.depth_capped;
-        t.node[id] = {int32_t(decal::QtNodeType::partial), int32_t(t.leaf_range.size())};
-        leaves.build(w, t);
+  for (uint32_t depth = 0; !level.empty(); ++depth) {
+    next.clear();
+    next_edges.clear();
+    for (const Work& w : level) {
+      const std::span<const uint32_t> we(edges.data() + w.first, w.count);
+      const int64_t bw = w.box.x1 - w.box.x0, bh = w.box.y1 - w.box.y0;
+      const bool tiny = bw <= 4 && bh <= 4;
+      const bool leaf = w.count <= leaf_capacity || depth >= max_depth || tiny;
+      if (leaf) {
+        t.max_leaf_segments = std::max(t.max_leaf_segments, w.count);
+        if (w.count == 0) {
+          t.node[w.id] = {
+              int32_t(w.parity ? decal::QtNodeType::inside : decal::QtNodeType::outside), 0};
+        } else {
+          if (w.count > leaf_capacity) ++t.depth_capped;
+          t.node[w.id] = {int32_t(decal::QtNodeType::partial), int32_t(t.leaf_range.size())};
+          leaves.build(w, we, t);
+        }
+        continue;
       }
-      continue;
-    }
-    const int64_t mx = (w.box.x0 + w.box.x1) >> 1, my = (w.box.y0 + w.box.y1) >> 1;
-    const uint32_t first_child = uint32_t(t.box.size());
-    t.node[id] = {int32_t(decal::QtNodeType::internal), int32_t(first_child)};
-    const int64_t pcx = w.box.x0 + w.box.x1, pcy = w.box.y0 + w.box.y1;
-    for (int c = 0; c < 4; ++c) {  // SW, SE, NW, NE
-      Work cw;
-      cw.depth = w.depth + 1;
-      const bool east = c & 1, north = c & 2;
-      cw.box.x0 = east ? std::max(mx - kEps, w.box.x0) : w.box.x0;
-      cw.box.x1 = east ? w.box.x1 : std::min(mx + kEps, w.box.x1);
-      cw.box.y0 = north ? std::max(my - kEps, w.box.y0) : w.box.y0;
-      cw.box.y1 = north ? w.box.y1 : std::min(my + kEps, w.box.y1);
-      const int64_t ccx = cw.box.x0 + cw.box.x1, ccy = cw.box.y0 + cw.box.y1;
-      const P2 q1{pcx, ccy}, q2{ccx, ccy};
-      bool parity = w.parity;
-      for (uint32_t e : w.edges) {
-        const P2& a = v2[e];
-        const P2& b = v2[(e + 1) % n];
-        parity ^= vertical_flip(a, b, pcx, pcy, ccy);
-        parity ^= ray_crosses(a, b, q1) != ray_crosses(a, b, q2);
-        if (segment_meets_box(ring[e], ring[(e + 1) % n], cw.box)) cw.edges.push_back(e);
+      const int64_t mx = (w.box.x0 + w.box.x1) >> 1, my = (w.box.y0 + w.box.y1) >> 1;
+      const uint32_t first_child = uint32_t(t.box.size());
+      t.node[w.id] = {int32_t(decal::QtNodeType::internal), int32_t(first_child)};
+      const int64_t pcx = w.box.x0 + w.box.x1, pcy = w.box.y0 + w.box.y1;
+      // Children SW, SE, NW, NE; rows (south, north) share the vertical leg
+      // of the path from the parent's centre and the ray's start on it.
+      Work cw[4];
+      int64_t ccx[4], ccy[4];
+      for (int c = 0; c < 4; ++c) {
+        const bool east = c & 1, north = c & 2;
+        QBox& b = cw[c].box;
+        b.x0 = east ? std::max(mx - kEps, w.box.x0) : w.box.x0;
+        b.x1 = east ? w.box.x1 : std::min(mx + kEps, w.box.x1);
+        b.y0 = north ? std::max(my - kEps, w.box.y0) : w.box.y0;
+        b.y1 = north ? w.box.y1 : std::min(my + kEps, w.box.y1);
+        ccx[c] = b.x0 + b.x1;
+        ccy[c] = b.y0 + b.y1;
+        cw[c].parity = w.parity;
+        cw[c].id = first_child + uint32_t(c);
       }
-      cw.parity = parity;
-      t.box.push_back(to_ivec4(cw.box));
-      t.node.push_back({0, 0});
-      queue.emplace_back(first_child + uint32_t(c), std::move(cw));
+      // One pass over the parent's edges sorts them into the children's
+      // lists (each in ring order, so sorted) and flips each child's parity
+      // by the edges that cross the path from the parent's centre to the
+      // child's. That path lies in the child's closed box (the parent's
+      // centre is within a quantum of the split lines), so only an edge
+      // that meets the box can cross it.
+      std::array<std::vector<uint32_t>, 4>& child = scratch.child_edges;
+      bool parity[4];
+      P2 q1[4], q2[4];
+      for (int c = 0; c < 4; ++c) {
+        child[size_t(c)].clear();
+        parity[c] = w.parity;
+        q1[c] = {pcx, ccy[c]};
+        q2[c] = {ccx[c], ccy[c]};
+      }
+      for (uint32_t e : we) {
+        const QPoint& a = ring[e];
+        const QPoint& b = ring[e + 1 < n ? e + 1 : 0];
+        const int64_t ex0 = std::min(a.x, b.x), ex1 = std::max(a.x, b.x);
+        const int64_t ey0 = std::min(a.y, b.y), ey1 = std::max(a.y, b.y);
+        for (int c = 0; c < 4; ++c) {
+          const QBox& bx = cw[c].box;
+          if (ex1 < bx.x0 || ex0 > bx.x1 || ey1 < bx.y0 || ey0 > bx.y1) continue;
+          const bool inside = ex0 >= bx.x0 && ex1 <= bx.x1 && ey0 >= bx.y0 && ey1 <= bx.y1;
+          if (!inside && !segment_meets_box(a, b, bx)) continue;
+          child[size_t(c)].push_back(e);
+          const P2& da = v2[e];
+          const P2& db = v2[e + 1];
+          parity[c] ^= vertical_flip(da, db, pcx, pcy, ccy[c]);
+          parity[c] ^= ray_crosses(da, db, q1[c]) != ray_crosses(da, db, q2[c]);
+        }
+      }
+      for (int c = 0; c < 4; ++c) {
+        cw[c].first = uint32_t(next_edges.size());
+        next_edges.insert(next_edges.end(), child[size_t(c)].begin(), child[size_t(c)].end());
+        cw[c].count = uint32_t(child[size_t(c)].size());
+        cw[c].parity = parity[c];
+        t.box.push_back(to_ivec4(cw[c].box));
+        t.node.push_back({0, 0});
+        next.push_back(cw[c]);
+      }
     }
+    std::swap(level, next);
+    std::swap(edges, next_edges);
   }
+}
+
+PolyQuadTree build_quadtree(const std::vector<QPoint>& ring, uint32_t leaf_capacity,
+                            uint32_t max_depth) {
+  PolyQuadTree t;
+  QuadTreeScratch scratch;
+  build_quadtree(ring, leaf_capacity, max_depth, t, scratch);
   return t;
 }
 

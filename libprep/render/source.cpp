@@ -43,8 +43,8 @@ DecalSource source_of(const DecalModel& m) {
   add_blob(s, BlobId::poly_root_node, m.poly_root_node);
   add_blob(s, BlobId::qt_node_box, m.qt_node_box);
   add_blob(s, BlobId::qt_node, m.qt_node);
-  add_blob(s, BlobId::qt_leaf_range, m.qt_leaf_range);
-  add_blob(s, BlobId::qt_leaf_segments, m.qt_leaf_segments);
+  add_blob(s, BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
+  add_blob(s, BlobId::qt_leaf_loops, m.qt_leaf_loops);
   add_blob(s, BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
   add_blob(s, BlobId::cell_poly_range, m.cell_poly_range);
   add_blob(s, BlobId::cell_polys, m.cell_polys);

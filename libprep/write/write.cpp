@@ -615,20 +615,11 @@ std::vector<BlobInput> encoded_blobs(const DecalModel& m) {
   std::vector<uvec2> holes_copy = std::move(entries.holes);
   std::vector<L::u2> line_boxes = boxes16(lines, m.line_bvh_box);
   std::vector<L::u2> poly_boxes = boxes16(polys, m.poly_bvh_box);
-  std::vector<L::u2> loop_range;
-  std::vector<uint32_t> loop_end;
-  if (!L::encode_leaves(
-          std::span<const L::u2>(m.qt_leaf_range.data(), m.qt_leaf_range.size()),
-          std::span<const L::u2>(m.qt_leaf_segments.data(), m.qt_leaf_segments.size()),
-          m.qt_leaf_vertices.size(), loop_range, loop_end))
-    fail<format_error>(kWriteStage, "quad-tree leaf segments are not closed vertex runs");
   return {
       list_blob(BlobId::cell_segments, m.cell_segments, lines.list),
       owned_blob(BlobId::cell_line_first, std::move(lines.first)),
       holes_copy.empty() ? blob_of(BlobId::cell_holes, m.cell_holes)
                          : owned_blob(BlobId::cell_holes, std::move(holes_copy)),
-      owned_blob(BlobId::qt_leaf_loop_range, std::move(loop_range)),
-      owned_blob(BlobId::qt_leaf_loops, std::move(loop_end)),
       owned_blob(BlobId::cell_poly_first, std::move(polys.first)),
       owned_blob(BlobId::line_bvh_box16, std::move(line_boxes)),
       owned_blob(BlobId::poly_bvh_box16, std::move(poly_boxes)),
@@ -664,8 +655,10 @@ ModelBlobPlan model_blob_plan(const DecalModel& m) {
   blobs.push_back(blob_of(BlobId::qt_node_box, m.qt_node_box));
   blobs.push_back(blob_of(BlobId::qt_node, m.qt_node));
   blobs.push_back(blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices));
-  for (BlobId id : {BlobId::cell_holes, BlobId::qt_leaf_loop_range, BlobId::qt_leaf_loops,
-                    BlobId::cell_poly_first, BlobId::line_bvh_box16, BlobId::poly_bvh_box16,
+  defer(BlobId::cell_holes);
+  blobs.push_back(blob_of(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range));
+  blobs.push_back(blob_of(BlobId::qt_leaf_loops, m.qt_leaf_loops));
+  for (BlobId id : {BlobId::cell_poly_first, BlobId::line_bvh_box16, BlobId::poly_bvh_box16,
                     BlobId::cell_poly_entries, BlobId::cell_poly_holes})
     defer(id);
   blobs.push_back(blob_of(BlobId::dyn_vertices, m.dyn_vertices));

@@ -205,6 +205,21 @@ G by_parts(GEOSContextHandle_t h, const Rings& rings, bool structure) {
   return r ? polygonal(h, r) : G();
 }
 
+// The same with a window (offsets from kX0, kY0); `left_out` says what the
+// repair left out.
+G by_parts_in(GEOSContextHandle_t h, const Rings& rings, bool structure, const double (&w)[4],
+              prep::detail::LeftOut& left_out) {
+  const G whole = polygon_of(h, rings);
+  const prep::detail::Envelope window{kX0 + w[0], kY0 + w[1], kX0 + w[2], kY0 + w[3]};
+  GEOSGeometry* r = prep::detail::make_valid_by_parts(
+      h, whole.g, rings,
+      [&](GEOSContextHandle_t th, const GEOSGeometry* part) {
+        return make_valid(th, part, structure).release();
+      },
+      &window, &left_out);
+  return r ? polygonal(h, r) : G();
+}
+
 const char* method_name(bool structure) {
   return structure ? "structure" : "linework";
 }
@@ -336,6 +351,46 @@ TEST(RepairByParts, SelfCrossingShellEqualsWholeMakeValid) {
   for (const bool structure : {false, true})
     EXPECT_TRUE(split_equals_whole(geos, bowtie_shell, structure, "bow-tie shell, "))
         << "the split did not apply";
+}
+
+// A shell that winds twice around an inner square: its ring goes around the
+// 2 km square, then around [500, 1500]^2 once more, crossing itself at
+// (500, 500). The inner square has crossing parity 0 (the linework method
+// leaves it out), the band x > 1500 parity 1. Which holes are clear of the
+// shell is decided by crossing parity against the shell ring, without the
+// shell's own repair: holes in the band are clear, holes in the inner
+// square are not (they go into the base repair with the shell), and with
+// only band holes the base repair is the shell's own repair.
+TEST(RepairByParts, DoublyWoundShellEqualsWholeMakeValid) {
+  Geos geos;
+  const prep::Ring shell = ring({{0, 0},
+                                 {2000, 0},
+                                 {2000, 2000},
+                                 {0, 2000},
+                                 {0, 500},
+                                 {1500, 500},
+                                 {1500, 1500},
+                                 {500, 1500},
+                                 {500, 100}});
+  Rings band{shell};
+  for (int k = 0; k < 100; ++k) {
+    const int row = k / 10;
+    band.push_back(square(1620 + (k % 10) * 35, 200 + row * 160, 5));
+  }
+  Rings both = band;
+  for (int k = 0; k < 64; ++k) {
+    const int row = k / 8;
+    both.push_back(square(600 + (k % 8) * 110, 600 + row * 110, 5));
+  }
+  both.push_back(square(1500, 1000, 5));  // across the inner loop's edge
+  for (const Rings* rings : {&band, &both}) {
+    const G whole = polygon_of(geos.h, *rings);
+    ASSERT_NE(GEOSisValid_r(geos.h, whole.g), 1);
+    for (const bool structure : {false, true})
+      EXPECT_TRUE(split_equals_whole(geos, *rings, structure,
+                                     rings == &band ? "band holes, " : "band and inner holes, "))
+          << "the split did not apply";
+  }
 }
 
 // random_polygon with a bow-tie ear in the shell's top right corner (its
@@ -537,6 +592,110 @@ TEST(ClipManyHoles, FewHolesOrOtherGeometriesAreLeftToTheWholeIntersection) {
   const G line(geos.h, GEOSGeom_createLineString_r(
                            geos.h, GEOSCoordSeq_copyFromBuffer_r(geos.h, xy, 2, 0, 0)));
   EXPECT_EQ(prep::detail::clip_many_holes(geos.h, line.g, kX0, kY0, kX0 + 500, kY0 + 500), nullptr);
+}
+
+// ------------------------------------------------- a repair in a window --
+//
+// With a window (clean passes the extent a part is clipped to next), the
+// hole groups clear of the shell whose envelope misses the window are left
+// out of the repair: inside the window the repair is GEOS MakeValid of the
+// whole all the same (GEOS Intersection of both with the window), and with
+// only lone valid holes left out, its area less theirs is the whole
+// repair's area.
+TEST(RepairByParts, RepairInAWindowEqualsWholeMakeValidInsideIt) {
+  Geos geos;
+  GEOSContextHandle_t h = geos.h;
+  std::vector<std::pair<std::string, Rings>> cases{{"hostile", hostile_polygon()}};
+  for (uint64_t seed = 1; seed <= 4; ++seed)
+    cases.emplace_back("seed " + std::to_string(seed),
+                       random_polygon(seed * 0x9E3779B97F4A7C15ull));
+  size_t groups_left_out = 0, lone_left_out = 0, only_lone = 0;
+  for (const auto& [name, rings] : cases) {
+    const G whole = polygon_of(h, rings);
+    for (const bool structure : {false, true}) {
+      const G want_all = polygonal(h, make_valid(h, whole.g, structure).g);
+      int k = 0;
+      for (const auto& w : kClipRects) {
+        const std::string what =
+            name + ", window " + std::to_string(k++) + ", " + method_name(structure);
+        prep::detail::LeftOut left_out;
+        const G got_all = by_parts_in(h, rings, structure, w, left_out);
+        if (!got_all.g) {
+          ADD_FAILURE() << what << ": the split did not apply";
+          continue;
+        }
+        ASSERT_EQ(GEOSisValid_r(h, got_all.g), 1) << what;
+        const G rect(h,
+                     GEOSGeom_createRectangle_r(h, kX0 + w[0], kY0 + w[1], kX0 + w[2], kY0 + w[3]));
+        const G got(h, GEOSIntersection_r(h, got_all.g, rect.g));
+        const G want(h, GEOSIntersection_r(h, want_all.g, rect.g));
+        if (prep::test::area(want) > 0)
+          expect_same(h, polygonal(h, got.g), polygonal(h, want.g), what);
+        else
+          EXPECT_EQ(prep::test::area(got), 0) << what;
+        groups_left_out += left_out.groups;
+        lone_left_out += left_out.lone_holes;
+        if (left_out.groups == 0) {
+          ++only_lone;
+          const double a = prep::test::area(want_all);
+          EXPECT_NEAR(prep::test::area(got_all) - left_out.lone_hole_area, a, 1e-9 * a) << what;
+        }
+      }
+    }
+  }
+  std::printf("left out: %zu groups, %zu lone holes; %zu repairs with only lone holes left out\n",
+              groups_left_out, lone_left_out, only_lone);
+  EXPECT_GT(groups_left_out, 0u);
+  EXPECT_GT(lone_left_out, 0u);
+  EXPECT_GT(only_lone, 0u);
+}
+
+// Through clean(): the hostile polygon clipped to a window that leaves
+// groups out (the area after the whole repair is then not known: null,
+// "inside the scene extent") and to one that leaves only lone holes out
+// (the whole repair's area); the kept polygons against GEOS Intersection of
+// GEOS MakeValid of the whole with the extent.
+TEST(RepairByParts, CleanRepairsAPolygonCrossingTheExtentAsGeosMakeValidOfTheWhole) {
+  Geos geos;
+  GEOSContextHandle_t h = geos.h;
+  const Rings rings = hostile_polygon();
+  const G whole = polygon_of(h, rings);
+  // The hostile polygon's groups of more than one hole (or one invalid
+  // hole) lie in the columns x = 630..780 and at 1372..1718: [300, 700]^2
+  // leaves most of them out, [600, 1800] x [-100, 2100] none (only lone
+  // grid holes).
+  const double windows[][4] = {{300, 300, 700, 700}, {600, -100, 1800, 2100}};
+  for (const bool structure : {false, true}) {
+    const G want_all = make_valid(h, whole.g, structure);
+    const double area_all = prep::test::area(polygonal(h, want_all.g));
+    for (const auto& w : windows) {
+      prep::ProjectedFeatures in = prep::test::one_polygon_input("holes", rings);
+      in.clip = prep::Extent{kX0 + w[0], kY0 + w[1], kX0 + w[2], kY0 + w[3]};
+      prep::SceneSpec scene;
+      scene.repair = structure ? prep::RepairMethod::structure : prep::RepairMethod::linework;
+      const prep::SceneFeatures out = prep::clean(std::move(in), scene);
+      std::vector<G> polys;
+      for (const prep::ScenePolygon& p : out.polygons) polys.push_back(prep::test::polygon(h, p));
+      const G rect(h,
+                   GEOSGeom_createRectangle_r(h, kX0 + w[0], kY0 + w[1], kX0 + w[2], kY0 + w[3]));
+      const G want(h, GEOSIntersection_r(h, want_all.g, rect.g));
+      const std::string what = std::string("clean in a window, ") + method_name(structure);
+      expect_same(h, multipolygon(h, std::move(polys)), polygonal(h, want.g), what);
+      ASSERT_EQ(out.manifest.entries.size(), 1u) << what;
+      const prep::ManifestEntry& e = out.manifest.entries[0];
+      EXPECT_EQ(e.action, prep::ManifestAction::repaired) << what;
+      std::printf("%s: %s, area before %.17g after %.17g\n", what.c_str(), e.reason.c_str(),
+                  e.area_before, e.area_after);
+      const bool groups_out = e.reason.find("inside the scene extent") != std::string::npos;
+      EXPECT_EQ(groups_out, &w == &windows[0]) << what << ": " << e.reason;
+      if (groups_out) {
+        EXPECT_TRUE(std::isnan(e.area_after)) << what;
+        EXPECT_FALSE(std::isnan(e.area_before)) << what;
+      } else {
+        EXPECT_NEAR(e.area_after, area_all, 1e-9 * area_all) << what;
+      }
+    }
+  }
 }
 
 TEST(RepairByParts, Stress100kHolesTouchingTheShellEqualsWholeMakeValid) {

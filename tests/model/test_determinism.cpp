@@ -171,8 +171,9 @@ TEST(BuildDeterminism, SampledGridChoiceIsTheSameAtOneAndTwoThreads) {
     auto bytes = [](const auto& v) { return double(v.size() * sizeof(v[0])); };
     return bytes(m.line_vertices) + bytes(m.line_vertex_line) + bytes(m.line_props) +
            bytes(m.line_corners) + bytes(m.poly_props) + bytes(m.poly_root_node) +
-           bytes(m.qt_node_box) + bytes(m.qt_node) + bytes(m.qt_leaf_range) +
-           bytes(m.qt_leaf_segments) + bytes(m.qt_leaf_vertices);
+           bytes(m.qt_node_box) + bytes(m.qt_node) + bytes(m.qt_leaf_loop_range) +
+           bytes(m.qt_leaf_loops) + bytes(m.qt_leaf_vertices) +
+           bytes(m.qt_leaf_vertices);  // the v1.2 leaf segments the chooser counts, one per vertex
   };
   EXPECT_LE(geometry(a) + grid_dependent(a), 1.2 * (geometry(t) + grid_dependent(t)))
       << a.grid.nx << "x" << a.grid.ny;

@@ -20,15 +20,17 @@ uint64_t bytes_of(const std::vector<T>& v) {
   return uint64_t(v.size()) * sizeof(T);
 }
 
-// Every static blob of the model (what the package stores for static decals).
+// Every static blob of the model in the v1.2 layout the grid chooser's byte
+// model counts (grid.cpp): the leaf polygons as one (start, end) segment per
+// leaf vertex rather than the model's loops.
 uint64_t static_bytes(const prep::DecalModel& m) {
   return bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
          bytes_of(m.line_corners) + bytes_of(m.cell_segment_range) + bytes_of(m.cell_segments) +
          bytes_of(m.poly_props) + bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) +
-         bytes_of(m.qt_node) + bytes_of(m.qt_leaf_range) + bytes_of(m.qt_leaf_segments) +
-         bytes_of(m.qt_leaf_vertices) + bytes_of(m.cell_poly_range) + bytes_of(m.cell_polys) +
-         bytes_of(m.cell_holes) + bytes_of(m.line_bvh_range) + bytes_of(m.line_bvh_box) +
-         bytes_of(m.poly_bvh_range) + bytes_of(m.poly_bvh_box);
+         bytes_of(m.qt_node) + bytes_of(m.qt_leaf_loop_range) + 2 * bytes_of(m.qt_leaf_vertices) +
+         bytes_of(m.cell_poly_range) + bytes_of(m.cell_polys) + bytes_of(m.cell_holes) +
+         bytes_of(m.line_bvh_range) + bytes_of(m.line_bvh_box) + bytes_of(m.poly_bvh_range) +
+         bytes_of(m.poly_bvh_box);
 }
 
 // A city-like scene: polygons (a third with a hole) and polylines, denser

@@ -8,19 +8,31 @@
 #include <cmath>
 
 #include "../evaluate/synthetic.hpp"
+#include "decal/layout.hpp"
 #include "prep/model.hpp"
 
 namespace {
 
 using synth::G;
 
+// The model's leaf loops as (first, count) ranges of (start, end) segments,
+// decoded by the format library (decal/layout.hpp).
+struct LeafSegments {
+  std::vector<prep::uvec2> range, segments;
+  const prep::DecalModel& m;
+  explicit LeafSegments(const prep::DecalModel& model) : m(model) {
+    decal::layout::decode_leaves(m.qt_leaf_loop_range, m.qt_leaf_loops, range, segments);
+  }
+};
+
 // Even-odd of the leaf polygon at (x, y), written here independently of the
 // evaluator (plain double crossing test; used at face interior points only).
-bool leaf_parity(const prep::DecalModel& m, const prep::uvec2& range, double x, double y) {
+bool leaf_parity(const LeafSegments& l, const prep::uvec2& range, double x, double y) {
+  const prep::DecalModel& m = l.m;
   bool in = false;
   for (uint32_t s = range[0]; s < range[0] + range[1]; ++s) {
-    const auto& a = m.qt_leaf_vertices[m.qt_leaf_segments[s][0]];
-    const auto& b = m.qt_leaf_vertices[m.qt_leaf_segments[s][1]];
+    const auto& a = m.qt_leaf_vertices[l.segments[s][0]];
+    const auto& b = m.qt_leaf_vertices[l.segments[s][1]];
     const double ax = a[0], ay = a[1], bx = b[0], by = b[1];
     if ((ay > y) != (by > y)) {
       const double xi = ax + (y - ay) * (bx - ax) / (by - ay);
@@ -32,12 +44,13 @@ bool leaf_parity(const prep::DecalModel& m, const prep::uvec2& range, double x, 
 
 // Area of the leaf polygon's even-odd region inside box b: node the leaf
 // segments with the box outline (GEOS), polygonize, and keep odd faces.
-double leaf_region_area(GEOSContextHandle_t h, const prep::DecalModel& m, const prep::uvec2& range,
+double leaf_region_area(GEOSContextHandle_t h, const LeafSegments& l, const prep::uvec2& range,
                         const G& boxpoly) {
+  const prep::DecalModel& m = l.m;
   std::vector<G> parts;
   for (uint32_t s = range[0]; s < range[0] + range[1]; ++s) {
-    const auto& a = m.qt_leaf_vertices[m.qt_leaf_segments[s][0]];
-    const auto& b = m.qt_leaf_vertices[m.qt_leaf_segments[s][1]];
+    const auto& a = m.qt_leaf_vertices[l.segments[s][0]];
+    const auto& b = m.qt_leaf_vertices[l.segments[s][1]];
     parts.push_back(
         synth::linestring(h, {{double(a[0]), double(a[1])}, {double(b[0]), double(b[1])}}));
   }
@@ -55,7 +68,7 @@ double leaf_region_area(GEOSContextHandle_t h, const prep::DecalModel& m, const 
     GEOSGeomGetX_r(h, pt.g, &x);
     GEOSGeomGetY_r(h, pt.g, &y);
     GEOSArea_r(h, f, &a);
-    if (leaf_parity(m, range, x, y)) area += a;
+    if (leaf_parity(l, range, x, y)) area += a;
   }
   return area;
 }
@@ -76,6 +89,7 @@ TEST(QuadTree, LeafAreasEqualGeosAreaOfPolygonInLeafAndSolidLeavesMissTheRing) {
   const synth::PolygonSet set = synth::polygon_set(42, 5, 80.0, 100.0, -200.0, 4, 400);
   prep::ModelOptions opt;
   const prep::DecalModel m = prep::build_model(set.scene, opt);
+  const LeafSegments leaves_of_m(m);
   synth::Geos geos;
   auto h = geos.h;
   std::vector<prep::Ring> rings;  // package polygon order: exterior, then its holes
@@ -111,7 +125,7 @@ TEST(QuadTree, LeafAreasEqualGeosAreaOfPolygonInLeafAndSolidLeavesMissTheRing) {
         impl = type == decal::QtNodeType::inside ? box_area : 0.0;
       } else {
         ASSERT_EQ(type, decal::QtNodeType::partial);
-        impl = leaf_region_area(h, m, m.qt_leaf_range[m.qt_node[n][1]], boxpoly);
+        impl = leaf_region_area(h, leaves_of_m, leaves_of_m.range[m.qt_node[n][1]], boxpoly);
       }
       EXPECT_NEAR(impl, truth, 1e-9 * box_area)
           << "ring " << r << " node " << n << " type " << int(type);

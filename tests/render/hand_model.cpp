@@ -13,14 +13,13 @@ int32_t q(double m) {
 uint32_t add_square(prep::DecalModel& m, double lo, double hi) {
   uint32_t node = uint32_t(m.qt_node.size());
   uint32_t first_v = uint32_t(m.qt_leaf_vertices.size());
-  uint32_t first_s = uint32_t(m.qt_leaf_segments.size());
+  const uint32_t first_loop = uint32_t(m.qt_leaf_loops.size());
   m.qt_leaf_vertices.insert(m.qt_leaf_vertices.end(),
                             {{q(lo), q(lo)}, {q(hi), q(lo)}, {q(hi), q(hi)}, {q(lo), q(hi)}});
-  for (uint32_t k = 0; k < 4; ++k)
-    m.qt_leaf_segments.push_back({first_v + k, first_v + (k + 1) % 4});
-  m.qt_leaf_range.push_back({first_s, 4});
+  m.qt_leaf_loops.push_back(first_v + 4);  // one loop of the four corners
+  m.qt_leaf_loop_range.push_back({first_loop, 1});
   m.qt_node_box.push_back({q(lo), q(lo), q(hi), q(hi)});
-  m.qt_node.push_back({3, int32_t(m.qt_leaf_range.size() - 1)});
+  m.qt_node.push_back({3, int32_t(m.qt_leaf_loop_range.size() - 1)});
   return node;
 }
 

@@ -96,12 +96,12 @@ TEST(GlLoader, RenderRejectsCorruptModelBeforeCreatingAContext) {
   // render_gl validates first: the validation message (not an EGL one) comes
   // back whether or not this machine has EGL.
   auto m = render_test::hand_model();
-  m.qt_leaf_segments[0][0] = 999;
+  m.qt_leaf_loops[0] = 999;
   try {
     render_topdown(R::source_of(m), m, 8, 8);
     FAIL() << "corrupt model rendered";
   } catch (const prep::render_error& e) {
-    EXPECT_NE(std::string(e.what()).find("qt_leaf_segments[0]"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("qt_leaf_loops[0]"), std::string::npos) << e.what();
   }
 }
 

@@ -10,6 +10,7 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -144,11 +145,14 @@ TEST_F(AtomicWrite, FailingWriteThrowsAndLeavesOldTargetAndNoTempFile) {
 TEST_F(AtomicWrite, ModelTheEncoderRefusesThrowsAndLeavesOldTargetAndNoTempFile) {
   // write_model encodes the v1.3 blobs on one of the writer's threads once
   // the temporary file exists (libprep/write/write.cpp), so a refusal there
-  // must clean up like any failing write. A quad-tree leaf whose segments
-  // are not a closed run of vertices cannot be a loop (decal/layout.hpp).
+  // must clean up like any failing write. A cell whose polygon list runs
+  // past the end of cell_polys breaks the v1.2 index constraints that the
+  // v1.3 encoding needs (decal/layout.hpp encode_cells).
   prep::DecalModel m = decal_test::small_model();
-  ASSERT_FALSE(m.qt_leaf_segments.empty());
-  m.qt_leaf_segments[0][1] = m.qt_leaf_segments[0][0];
+  auto cell = std::find_if(m.cell_poly_range.begin(), m.cell_poly_range.end(),
+                           [](const prep::uvec2& r) { return r[1] > 0; });
+  ASSERT_NE(cell, m.cell_poly_range.end());
+  (*cell)[0] = static_cast<uint32_t>(m.cell_polys.size());
   for (size_t threads : {1, 4}) {
     SCOPED_TRACE(std::to_string(threads) + " threads");
     const tbb::global_control cap(tbb::global_control::max_allowed_parallelism, threads);

@@ -248,9 +248,9 @@ TEST(WriteModel, EveryModelArrayBecomesItsCatalogueBlobInCatalogueOrder) {
   expect_blob_equals(p, BlobId::qt_node, m.qt_node);
   expect_blob_equals(p, BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
   expect_blob_equals(p, BlobId::cell_holes, m.cell_holes);
-  // The v1.3 blobs decode to the model's v1.2 arrays (decal/layout.hpp).
+  // The other v1.3 blobs decode to the model's v1.2 arrays (decal/layout.hpp).
   namespace L = decal::layout;
-  std::vector<L::u2> range, leaf_range, leaf_segments;
+  std::vector<L::u2> range;
   std::vector<L::u4> bvh;
   L::decode_cells(p.array<L::u2>(BlobId::cell_line_first), range, bvh);
   EXPECT_EQ(range, m.cell_segment_range);
@@ -262,10 +262,8 @@ TEST(WriteModel, EveryModelArrayBecomesItsCatalogueBlobInCatalogueOrder) {
   L::decode_poly_entries(p.array<L::u2>(BlobId::cell_poly_entries),
                          p.array<uint32_t>(BlobId::cell_poly_holes), cell_polys);
   EXPECT_EQ(cell_polys, m.cell_polys);
-  L::decode_leaves(p.array<L::u2>(BlobId::qt_leaf_loop_range),
-                   p.array<uint32_t>(BlobId::qt_leaf_loops), leaf_range, leaf_segments);
-  EXPECT_EQ(leaf_range, m.qt_leaf_range);
-  EXPECT_EQ(leaf_segments, m.qt_leaf_segments);
+  expect_blob_equals(p, BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
+  expect_blob_equals(p, BlobId::qt_leaf_loops, m.qt_leaf_loops);
   const L::CellGrid cg{m.grid.origin_x, m.grid.origin_y, m.grid.cell_w, m.grid.cell_h, m.grid.nx};
   ASSERT_EQ(L::box16_shift(m.grid.cell_w, m.grid.cell_h), 0u);
   const auto first = p.array<L::u2>(BlobId::cell_line_first);

@@ -102,7 +102,9 @@ class RingAreas {
 }  // namespace
 
 GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* polygon,
-                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid) {
+                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid,
+                                  const Envelope* window, LeftOut* left_out) {
+  if (left_out) *left_out = LeftOut{};
   if (GEOSGeomTypeId_r(h, polygon) != GEOS_POLYGON) return nullptr;
   const int nh = GEOSGetNumInteriorRings_r(h, polygon);
   if (nh < 0 || size_t(nh) < kRepairByPartsMinHoles || size_t(nh) + 1 != rings.size())
@@ -110,30 +112,22 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   const auto n = static_cast<uint32_t>(nh);
   const GEOSGeometry* shell_ring = GEOSGetExteriorRing_r(h, polygon);
 
-  // The shell's own area: the shell when it is valid, else its repair
-  // (a self-crossing coastline far away from most holes is common in real
-  // land and sea layers). "Properly inside the shell" means properly inside
-  // that area: the faces of the shell's linework that the repair keeps.
-  std::vector<Owned> none;
-  Owned shell(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), none));
-  if (!shell) return nullptr;
-  if (GEOSisValid_r(h, shell.get()) != 1) {
-    Owned fixed(h, make_valid(h, shell.get()));
-    if (!fixed || GEOSisValid_r(h, fixed.get()) != 1) return nullptr;
-    shell = std::move(fixed);
-  }
-  std::vector<const GEOSGeometry*> shell_polys, shell_other;
-  flatten(h, shell.get(), shell_polys, shell_other);
-  if (shell_polys.empty()) return nullptr;
-  std::vector<Owned> shell_parts;
-  for (const GEOSGeometry* p : shell_polys) shell_parts.emplace_back(h, GEOSGeom_clone_r(h, p));
-  Owned shell_area = collection(h, GEOS_MULTIPOLYGON, shell_parts);
-  if (!shell_area) return nullptr;
-
+  // The holes properly inside the shell: a hole ring that meets no shell
+  // segment and whose first vertex has odd crossing parity against the shell
+  // ring (GEOS prepared ContainsProperly of the shell's polygon, which needs
+  // no valid input: the point-in-area test counts ring crossings). Such a
+  // hole lies in one face of the shell's noded linework, a face of odd
+  // parity, and so properly inside the shell's own area, whichever the
+  // method (linework keeps the faces of odd parity; structure all those
+  // the ring winds around). The shell's own repair is not needed for it:
+  // it is part of the base repair below, which runs beside the others.
   std::vector<const GEOSGeometry*> holes(n);
   std::vector<char> clear(n);  // properly inside the shell's area
   {
-    Prepared inside(h, shell_area.get());
+    std::vector<Owned> none;
+    Owned shell(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), none));
+    if (!shell) return nullptr;
+    Prepared inside(h, shell.get());
     if (!inside.get()) return nullptr;
     for (uint32_t i = 0; i < n; ++i) {
       holes[i] = GEOSGetInteriorRingN_r(h, polygon, static_cast<int>(i));
@@ -198,34 +192,56 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   if (clear_groups.empty()) return nullptr;
 
   // The MakeValid calls are independent: the base repair (the shell and the
-  // groups that reach it) and each clear group's repair inside a rectangle
-  // clear of it run in parallel (oneTBB, largest first), each thread with a
-  // GEOS context of its own, on inputs built here; the results are put
-  // together below in group order, so they do not depend on the threads.
+  // groups that reach it; with no such group, the shell's own repair, or the
+  // shell as it is when valid) and each clear group's repair inside a
+  // rectangle clear of it run in parallel (oneTBB, largest first), each
+  // thread with a GEOS context of its own, on inputs built here; the results
+  // are put together below in group order, so they do not depend on the
+  // threads.
   struct Job {
     Owned input, fixed;
     Envelope box{};
-    bool alone = false;  // a single hole that is a valid ring: no repair
-    bool valid = false;  // `fixed` is valid (GEOS isValid)
+    bool alone = false;          // a single hole that is a valid ring: no repair
+    bool outside = false;        // misses the window: left out
+    bool keep_if_valid = false;  // the shell alone: kept as it is when valid
+    bool valid = false;          // `fixed` is valid (GEOS isValid)
   };
   std::vector<Job> jobs(clear_groups.size() + 1);  // [0]: the base
-  const bool base_repair = !base_holes.empty();    // (polygon_of takes base_holes)
-  if (base_repair) {
-    jobs[0].input = Owned(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), base_holes));
-    if (!jobs[0].input) return nullptr;
-  }
+  jobs[0].keep_if_valid = base_holes.empty();
+  jobs[0].input = Owned(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, shell_ring)), base_holes));
+  if (!jobs[0].input) return nullptr;
   for (uint32_t gi = 0; gi < clear_groups.size(); ++gi) {
     const std::vector<uint32_t>& group = clear_groups[gi];
     Job& job = jobs[gi + 1];
-    if (group.size() == 1 && ring_valid(h, holes[group[0]], rings[group[0] + 1])) {
-      job.alone = true;
-      continue;
-    }
     Envelope b{INFINITY, INFINITY, -INFINITY, -INFINITY};
     for (uint32_t i : group) {
       Envelope e;
       if (!envelope_of(h, holes[i], e)) return nullptr;
       b = {std::min(b.x0, e.x0), std::min(b.y0, e.y0), std::max(b.x1, e.x1), std::max(b.y1, e.y1)};
+    }
+    const bool alone = group.size() == 1 && ring_valid(h, holes[group[0]], rings[group[0] + 1]);
+    // Everything the group's repair cuts out or adds lies in its envelope:
+    // when that misses the window, the repair inside the window is the same
+    // without it.
+    if (window &&
+        (b.x1 < window->x0 || b.x0 > window->x1 || b.y1 < window->y0 || b.y0 > window->y1)) {
+      job.outside = true;
+      if (!left_out) continue;
+      if (!alone) {
+        ++left_out->groups;
+        continue;
+      }
+      ++left_out->lone_holes;
+      std::vector<Owned> no_holes;
+      Owned area(h, polygon_of(h, Owned(h, GEOSGeom_clone_r(h, holes[group[0]])), no_holes));
+      double a = 0;
+      if (!area || GEOSArea_r(h, area.get(), &a) != 1) return nullptr;
+      left_out->lone_hole_area += a;
+      continue;
+    }
+    if (alone) {
+      job.alone = true;
+      continue;
     }
     // Clear of the group by a margin far above the coordinates' precision
     // (|x| <= 1e9 m in clean: an ulp is below 1e-6 m).
@@ -256,6 +272,12 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
         GEOSContextHandle_t th = contexts[slot];
         for (size_t r = range.begin(); r != range.end(); ++r) {
           Job& job = jobs[order[r]];
+          if (job.keep_if_valid &&
+              ring_valid(th, GEOSGetExteriorRing_r(th, job.input.get()), rings[0])) {
+            job.fixed = Owned(h, GEOSGeom_clone_r(th, job.input.get()));
+            job.valid = bool(job.fixed);
+            continue;
+          }
           job.fixed = Owned(h, make_valid(th, job.input.get()));
           job.valid = job.fixed && GEOSisValid_r(th, job.fixed.get()) == 1;
         }
@@ -264,13 +286,8 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   for (GEOSContextHandle_t c : contexts)
     if (c) GEOS_finish_r(c);
 
-  Owned base;
-  if (!base_repair) {
-    base = std::move(shell);  // valid: the shell or its repair
-  } else {
-    if (!jobs[0].valid) return nullptr;
-    base = std::move(jobs[0].fixed);
-  }
+  if (!jobs[0].valid) return nullptr;
+  Owned base = std::move(jobs[0].fixed);
   std::vector<const GEOSGeometry*> base_polys, base_other;
   flatten(h, base.get(), base_polys, base_other);
   if (base_polys.empty()) return nullptr;
@@ -282,6 +299,7 @@ GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* pol
   for (uint32_t gi = 0; gi < clear_groups.size(); ++gi) {
     const std::vector<uint32_t>& group = clear_groups[gi];
     const Job& job = jobs[gi + 1];
+    if (job.outside) continue;
     if (job.alone) {
       cut.emplace_back(h, GEOSGeom_clone_r(h, holes[group[0]]));
       cut_group.push_back(gi);

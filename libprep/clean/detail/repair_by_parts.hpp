@@ -12,12 +12,19 @@
 //    rings alone intersect), candidates from envelope contact through a GEOS
 //    STRtree (a continent-sized hole's envelope holds thousands of islands
 //    that touch nothing);
-//  - "the shell" below is the shell's area: the shell when it is valid on
-//    its own, else MakeValid(shell alone) (the faces of its linework that
-//    the repair keeps; a real coastline may cross itself somewhere);
+//  - "properly inside the shell" below means inside the shell's area (a
+//    real coastline may cross itself somewhere) without meeting the shell
+//    ring: the hole ring meets no shell segment and a vertex of it has odd
+//    crossing parity against the shell ring (GEOS prepared ContainsProperly
+//    of the polygon of the shell alone, valid or not: its point-in-area
+//    test counts crossings). The hole then lies in one face of the shell's
+//    noded linework, of odd parity, which both methods keep (linework: the
+//    faces of odd parity; structure: every face the ring winds around). So
+//    the shell's own repair is not needed before the split;
 //  - a group with a hole that is not properly inside the shell (it touches,
 //    crosses or lies outside it) is repaired together with the shell: the
-//    "base" repair R0 = MakeValid(shell + those holes);
+//    "base" repair R0 = MakeValid(shell + those holes) (with no such group,
+//    MakeValid(shell alone), or the shell itself when it is valid);
 //  - a group properly inside the shell is repaired on its own, inside a
 //    rectangle clear of it: MakeValid(box + the group's holes) is the box
 //    with the group's regions cut out (and any islands inside them). The
@@ -42,7 +49,9 @@
 // a valid polygon: rings inside their shell that touch nothing outside
 // their own valid group, islands inside the rings they came with.
 // The base repair and the groups' repairs are independent: they run in
-// parallel, largest first, and are put together in group order.
+// parallel, largest first, and are put together in group order. A hole
+// wrongly taken for clear of the shell could not pass unnoticed: its cut
+// rings must lie properly inside a polygon of R0 (the check above).
 // Tests: tests/clean/test_repair_by_parts.cpp (the result against GEOS
 // MakeValid of the whole polygon).
 #pragma once
@@ -52,6 +61,7 @@
 #include <functional>
 #include <vector>
 
+#include "detail/geos_handle.hpp"
 #include "prep/scene.hpp"
 
 namespace prep::detail {
@@ -65,8 +75,22 @@ inline constexpr size_t kRepairByPartsMinHoles = 64;
 // each with a context of its own.
 using MakeValidFn = std::function<GEOSGeometry*(GEOSContextHandle_t, const GEOSGeometry*)>;
 
+// What a repair with a window left out (below): the clear groups that
+// needed a repair of their own, and the lone valid holes with the sum of
+// their GEOS areas (the area the whole repair would have less by them).
+struct LeftOut {
+  size_t groups = 0;
+  size_t lone_holes = 0;
+  double lone_hole_area = 0;
+};
+
 // The repair of `polygon` (a GEOS polygon built from `rings`: [0] shell,
-// then holes, in the same order) by parts, as above. Null when the split
+// then holes, in the same order) by parts, as above. With a `window` (clean
+// clips the repair to the scene extent next), a clear group whose envelope
+// misses the window is left out, unrepaired: everything its repair would
+// cut out of the base or add lies in that envelope, so the result inside
+// the window is the same (groups not clear of the shell are always
+// repaired, with it); `left_out` (when given) says what was left out. Null when the split
 // does not apply (fewer than kRepairByPartsMinHoles holes, a shell whose
 // own repair has no area, no hole group clear of the shell, too many
 // envelope contacts to enumerate) or any step fails: the caller then repairs the
@@ -74,6 +98,7 @@ using MakeValidFn = std::function<GEOSGeometry*(GEOSContextHandle_t, const GEOSG
 // GeometryCollection of polygons and the collapsed (non-areal) pieces that
 // MakeValid returned; valid (checked as above).
 GEOSGeometry* make_valid_by_parts(GEOSContextHandle_t h, const GEOSGeometry* polygon,
-                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid);
+                                  const std::vector<Ring>& rings, const MakeValidFn& make_valid,
+                                  const Envelope* window = nullptr, LeftOut* left_out = nullptr);
 
 }  // namespace prep::detail

@@ -55,15 +55,15 @@ struct StaticView {
 
 // StaticView's blobs as X(element type, name). Each name is a StaticView
 // member, a DecalModel member and a decal::BlobId alike; both view_of
-// overloads fill the view from this one list.
+// overloads fill the view from this one list. The leaf ranges and segments
+// are not in it: the model and v1.3 packages hold loops, decoded into them.
 // clang-format off
 #define PREP_STATIC_VIEW_BLOBS(X)                                                              \
   X(ivec2, line_vertices) X(uint32_t, line_vertex_line) X(decal::LineProps, line_props)        \
   X(decal::LineCorner, line_corners) X(uvec2, cell_segment_range) X(uvec2, cell_segments)     \
   X(decal::PolyProps, poly_props) X(uint32_t, poly_root_node) X(ivec4, qt_node_box)            \
-  X(ivec2, qt_node) X(uvec2, qt_leaf_range) X(uvec2, qt_leaf_segments)                         \
-  X(ivec2, qt_leaf_vertices) X(uvec2, cell_poly_range) X(uvec4, cell_polys)                    \
-  X(uvec2, cell_holes) X(uvec4, line_bvh_range) X(uvec4, poly_bvh_range)                       \
+  X(ivec2, qt_node) X(ivec2, qt_leaf_vertices) X(uvec2, cell_poly_range)                       \
+  X(uvec4, cell_polys) X(uvec2, cell_holes) X(uvec4, line_bvh_range) X(uvec4, poly_bvh_range)                       \
   X(ivec4, line_bvh_box) X(ivec4, poly_bvh_box)
 // clang-format on
 

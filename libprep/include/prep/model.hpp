@@ -63,8 +63,12 @@ struct DecalModel {
   std::vector<uint32_t> poly_root_node;
   std::vector<ivec4> qt_node_box;
   std::vector<ivec2> qt_node;
-  std::vector<uvec2> qt_leaf_range;
-  std::vector<uvec2> qt_leaf_segments;
+  // Leaf polygons as loops (decal/layout.hpp, v1.3): per partial leaf
+  // (first, count) into qt_leaf_loops; per loop one past its last vertex in
+  // qt_leaf_vertices (loop l: [end[l-1], end[l]), edges v -> v + 1 and the
+  // last back to the first).
+  std::vector<uvec2> qt_leaf_loop_range;
+  std::vector<uint32_t> qt_leaf_loops;
   std::vector<ivec2> qt_leaf_vertices;
   std::vector<uvec2> cell_poly_range;
   std::vector<uvec4> cell_polys;
