@@ -28,7 +28,9 @@
 // of the 1-thread / N-thread ratio; median of R, each beside a run pair),
 // the 1-minute load average before the level's runs, and `predicted`, the
 // ratio N idle cores would give (predicted_speedup; median of R; nan for
-// codec none and runs over 10 s).
+// codec none and runs over 10 s), and on the 1-thread rows `cpu_seconds`,
+// the CPU time of the 1-thread runs (median of R), which the machine's load
+// disturbs far less than their wall time.
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
@@ -41,6 +43,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -233,6 +236,15 @@ double predicted_speedup(const std::vector<prep::BlobInput>& blobs, int level, i
   return serial_s / (std::max(0.0, serial_s - jobs) + makespan);
 }
 
+// CPU seconds of the calling thread: with one thread allowed, write_model
+// runs on it alone, so this is the writer's work whatever else the shared
+// machine runs.
+double thread_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
 double load_average() {
   double load = 0;
   if (FILE* f = std::fopen("/proc/loadavg", "r")) {
@@ -275,7 +287,7 @@ int run_levels(int argc, char** argv) {
   }
   std::fprintf(out,
                "scene,vertices,level,threads,seconds,bytes,raw_bytes,ratio,capacity,load1,"
-               "predicted\n");
+               "predicted,cpu_seconds\n");
   for (const std::string& path : scenes) {
     using Clock = std::chrono::steady_clock;
     const prep::SceneSpec spec = prep::load_scene_file(path);
@@ -301,7 +313,7 @@ int run_levels(int argc, char** argv) {
                 "1 thread s", "N thread s", "speedup", "capacity", "load", "predicted");
     const std::string pkg = bench_dir() + "/levels.decals";
     for (const int level : levels) {
-      std::vector<double> t1, tn, capacity, predicted;
+      std::vector<double> t1, tn, cpu1, capacity, predicted;
       uint64_t bytes = 0;
       const double load = load_average();
       for (int r = 0; r < repeat; ++r) {
@@ -310,9 +322,11 @@ int run_levels(int argc, char** argv) {
           const tbb::global_control cap(tbb::global_control::max_allowed_parallelism,
                                         size_t(times == &t1 ? 1 : threads));
           const auto t0 = Clock::now();
+          const double c0 = thread_cpu_seconds();
           prep::write_model(pkg, model, "", options(level));
           const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
           times->push_back(secs);
+          if (times == &t1) cpu1.push_back(thread_cpu_seconds() - c0);
           bytes = std::filesystem::file_size(pkg);
           if (secs > 10) r = repeat;  // level 19 on 10^6 vertices: one run is enough
         }
@@ -327,9 +341,10 @@ int run_levels(int argc, char** argv) {
                   (unsigned long long)raw, ratio, s1, sn, s1 / sn, cap, load, pred);
       std::fflush(stdout);
       for (const auto& [n, secs] : {std::pair{1, s1}, std::pair{threads, sn}})
-        std::fprintf(out, "%s,%llu,%d,%d,%.4f,%llu,%llu,%.4f,%.3f,%.2f,%.3f\n", path.c_str(),
+        std::fprintf(out, "%s,%llu,%d,%d,%.4f,%llu,%llu,%.4f,%.3f,%.2f,%.3f,%.4f\n", path.c_str(),
                      (unsigned long long)vertices, level, n, secs, (unsigned long long)bytes,
-                     (unsigned long long)raw, ratio, cap, load, pred);
+                     (unsigned long long)raw, ratio, cap, load, pred,
+                     n == 1 ? median(cpu1) : std::nan(""));
       std::fflush(out);
     }
   }

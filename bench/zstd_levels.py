@@ -16,11 +16,13 @@ thread) and with --threads (default: all), alternating, median of --repeat
 (`bench_io --levels`, bench/bench_io.cpp). Writes OUT/zstd_levels.csv (one
 row per scene, level and thread count: seconds, package bytes, raw model blob
 bytes, raw / package, the machine's parallel capacity at the time, the load
-average, and the 1-thread / N-thread ratio predicted for N idle cores; see
-bench_io.cpp) and OUT/zstd_levels.png (gnuplot: compression ratio
-against write seconds, one curve per scene and thread count, points labelled
-by level), and prints the table. Standard library only; needs ogr2ogr and
-gnuplot.
+average, the 1-thread / N-thread ratio predicted for N idle cores, and on the
+1-thread rows the writer's CPU seconds, which a loaded shared machine
+disturbs far less than the wall seconds; see bench_io.cpp) and
+OUT/zstd_levels.png (gnuplot: compression ratio against write seconds, one
+curve per scene and thread count plus one of the 1-thread CPU seconds, points
+labelled by level), and prints the table. Standard library only; needs
+ogr2ogr and gnuplot.
 """
 import argparse
 import csv
@@ -50,30 +52,34 @@ def synthetic_scene(work, vertices):
 
 def plot(csv_path, png):
     rows = list(csv.DictReader(open(csv_path)))
-    series = []  # (scene label, threads) -> rows
+    series = []  # (scene label, threads, time column) -> rows
     for r in rows:
         if int(r["level"]) == 0:
             continue
-        key = (r["scene"], r["vertices"], r["threads"])
-        if key not in [s[0] for s in series]:
-            series.append((key, []))
-        next(s for s in series if s[0] == key)[1].append(r)
+        keys = [(r["scene"], r["vertices"], r["threads"], "seconds")]
+        if r["threads"] == "1" and r.get("cpu_seconds", "nan") not in ("", "nan"):
+            keys.append((r["scene"], r["vertices"], r["threads"], "cpu_seconds"))
+        for key in keys:
+            if key not in [s[0] for s in series]:
+                series.append((key, []))
+            next(s for s in series if s[0] == key)[1].append(r)
     work = tempfile.mkdtemp(prefix="zstd_levels_plot-")
     plots = []
-    for i, ((scene, vertices, threads), rs) in enumerate(series):
+    for i, ((scene, vertices, threads, column), rs) in enumerate(series):
         data = os.path.join(work, "s%d.dat" % i)
         with open(data, "w") as f:
             for r in rs:
-                f.write("%s %s %s\n" % (r["seconds"], r["ratio"], r["level"]))
-        title = "%s (%s vertices), %s thread%s" % (scene, vertices, threads,
-                                                 "" if threads == "1" else "s")
+                f.write("%s %s %s\n" % (r[column], r["ratio"], r["level"]))
+        title = "%s (%s vertices), %s thread%s%s" % (
+            scene, vertices, threads, "" if threads == "1" else "s",
+            ", CPU seconds" if column == "cpu_seconds" else "")
         plots.append("'%s' using 1:2 with linespoints title '%s'" % (data, title))
         plots.append("'%s' using 1:2:3 with labels offset 0.8,0.6 left font ',9' notitle" % data)
     script = "\n".join([
         "set terminal pngcairo size 900,520 noenhanced font 'Sans,10'",
         "set output '%s'" % png,
         "set title 'zstd level: package compression ratio against write_model seconds'",
-        "set xlabel 'write_model seconds (median)'",
+        "set xlabel 'write_model seconds, wall or CPU (median)'",
         "set ylabel 'raw model bytes / package bytes'",
         "set logscale x",
         "set grid",

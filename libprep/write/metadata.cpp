@@ -9,6 +9,7 @@
 #include "prep/manifest_json.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/write.hpp"
+#include "write_internal.hpp"
 
 namespace prep {
 
@@ -51,36 +52,8 @@ void merge(json& base, const json& extra, const std::string& where, const std::s
 
 void write_model(const std::string& path, const DecalModel& model,
                  const std::string& extra_metadata_json, const WriteOptions& options) {
-  std::vector<BlobInput> blobs = model_blobs(model, /*include_empty=*/true);
-  const std::string entries = manifest_entries_json(model.manifest);
-  blobs.push_back({decal::BlobId::manifest_entries, decal::ElementType::u8, 1, entries.size(),
-                   std::as_bytes(std::span(entries.data(), entries.size()))});
-  json counts = json::object();
-  for (const BlobInput& b : blobs) counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;
-  counts["lines"] = model.line_props.size();
-  counts["polygons"] = model.poly_props.size();
-  counts["dynamic_lines"] = model.dyn_line_props.size();
-  counts["lod_lines"] = model.lod_line_range.size();
-
-  const GridParams& g = model.grid;
-  json meta = {
-      {"format", "decals"},
-      {"quantum_m", decal::kQuantumMetres},
-      {"crs_wkt", model.frame.crs_wkt},
-      {"frame", model.frame.description},
-      {"origin", {{"x", model.frame.origin_x}, {"y", model.frame.origin_y}}},
-      {"extent", {model.extent.xmin, model.extent.ymin, model.extent.xmax, model.extent.ymax}},
-      {"grid",
-       {{"origin", {g.origin_x, g.origin_y}},
-        {"cell", {g.cell_w, g.cell_h}},
-        {"dims", {g.nx, g.ny}}}},
-      {"max_representation_error_m", model.max_representation_error},
-      {"terrain", {{"min", model.terrain_min}, {"max", model.terrain_max}}},
-      {"counts", counts},
-      {"manifest", manifest_json(model.manifest)},
-  };
+  json extra;
   if (!extra_metadata_json.empty()) {
-    json extra;
     try {
       extra = json::parse(extra_metadata_json);
     } catch (const json::exception& e) {
@@ -88,11 +61,47 @@ void write_model(const std::string& path, const DecalModel& model,
     }
     if (!extra.is_object())
       fail<output_error>(kWriteStage, path + ": extra metadata must be a JSON object");
-    merge(meta, extra, "", path);
   }
-  // Keys are sorted (nlohmann::json is map-backed), so the text is
-  // deterministic; non-finite numbers are written as null.
-  write_package(path, meta.dump(), blobs, options);
+  // The writer compresses the model's own arrays while one of its threads
+  // encodes the v1.3 blobs and makes the metadata, which counts them.
+  ModelBlobPlan plan = model_blob_plan(model);
+  std::vector<BlobInput>& blobs = plan.source.blobs;
+  const std::string entries = manifest_entries_json(model.manifest);
+  blobs.push_back({decal::BlobId::manifest_entries, decal::ElementType::u8, 1, entries.size(),
+                   std::as_bytes(std::span(entries.data(), entries.size()))});
+  plan.source.complete = [&]() -> std::string {
+    plan.encode(blobs);
+    json counts = json::object();
+    for (const BlobInput& b : blobs)
+      counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;
+    counts["lines"] = model.line_props.size();
+    counts["polygons"] = model.poly_props.size();
+    counts["dynamic_lines"] = model.dyn_line_props.size();
+    counts["lod_lines"] = model.lod_line_range.size();
+
+    const GridParams& g = model.grid;
+    json meta = {
+        {"format", "decals"},
+        {"quantum_m", decal::kQuantumMetres},
+        {"crs_wkt", model.frame.crs_wkt},
+        {"frame", model.frame.description},
+        {"origin", {{"x", model.frame.origin_x}, {"y", model.frame.origin_y}}},
+        {"extent", {model.extent.xmin, model.extent.ymin, model.extent.xmax, model.extent.ymax}},
+        {"grid",
+         {{"origin", {g.origin_x, g.origin_y}},
+          {"cell", {g.cell_w, g.cell_h}},
+          {"dims", {g.nx, g.ny}}}},
+        {"max_representation_error_m", model.max_representation_error},
+        {"terrain", {{"min", model.terrain_min}, {"max", model.terrain_max}}},
+        {"counts", counts},
+        {"manifest", manifest_json(model.manifest)},
+    };
+    if (!extra.is_null()) merge(meta, extra, "", path);
+    // Keys are sorted (nlohmann::json is map-backed), so the text is
+    // deterministic; non-finite numbers are written as null.
+    return meta.dump();
+  };
+  write_package_consuming(path, plan.source, options);
 }
 
 }  // namespace prep

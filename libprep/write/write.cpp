@@ -20,6 +20,8 @@
 #include <bit>
 #include <cerrno>
 #include <climits>
+#include <condition_variable>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <mutex>
@@ -35,6 +37,7 @@
 #include "prep/progress.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/write.hpp"
+#include "write_internal.hpp"
 
 static_assert(std::endian::native == std::endian::little,
               "the package format is little-endian and written by memcpy");
@@ -165,6 +168,25 @@ class AtomicFile {
       n -= static_cast<size_t>(w);
     }
   }
+  // Starts the write-back of bytes already written (Linux
+  // sync_file_range, asynchronous), so that commit()'s fsync finds less to
+  // do. Advisory: an error here is left to fsync to report.
+  void start_writeback(uint64_t offset, uint64_t n) {
+    (void)::sync_file_range(fd_, static_cast<off_t>(offset), static_cast<off_t>(n),
+                            SYNC_FILE_RANGE_WRITE);
+  }
+  // Writes at `offset` without moving the file position.
+  void pwrite(const void* data, size_t n, uint64_t offset) {
+    const char* p = static_cast<const char*>(data);
+    while (n > 0) {
+      const ssize_t w = ::pwrite(fd_, p, n, static_cast<off_t>(offset));
+      if (w < 0 && errno == EINTR) continue;
+      if (w < 0) fail_io(path_, "write failed", errno);
+      p += w;
+      n -= static_cast<size_t>(w);
+      offset += static_cast<uint64_t>(w);
+    }
+  }
   void zeros(size_t n) {
     static const std::array<char, 4096> kZero{};
     while (n > 0) {
@@ -219,12 +241,17 @@ class AtomicFile {
   TempSlot* slot_ = nullptr;
 };
 
+// A compressed blob's zstd frame: allocated at ZSTD_compressBound (pages
+// never written are never resident), then shrunk to the frame's size.
+struct FreeBytes {
+  void operator()(std::byte* p) const noexcept { std::free(p); }
+};
+using Frame = std::unique_ptr<std::byte, FreeBytes>;
+
 struct EncodedBlob {
   decal::BlobTableEntry entry{};
-  // The zstd frame (its first stored.size() bytes), allocated at
-  // ZSTD_compressBound and not zero-filled; null when stored as is.
-  std::unique_ptr<std::byte[]> compressed;
-  std::span<const std::byte> stored;
+  Frame compressed;                   // null when stored as is
+  std::span<const std::byte> stored;  // the bytes to write
 };
 
 void check_blob(const std::string& path, const BlobInput& b, std::span<const BlobInput> all,
@@ -252,25 +279,36 @@ void check_blob(const std::string& path, const BlobInput& b, std::span<const Blo
 
 }  // namespace
 
-void write_package(const std::string& path, const std::string& metadata_json,
-                   std::span<const BlobInput> blobs, const WriteOptions& options) {
+namespace {
+
+void check_metadata(const std::string& path, const std::string& metadata_json) {
   if (metadata_json.size() < 2 || metadata_json.front() != '{' || metadata_json.back() != '}' ||
       metadata_json.find('\0') != std::string::npos)
     fail_io(path, "metadata must be a JSON object text ('{' ... '}', no NUL bytes)");
+}
+
+}  // namespace
+
+void write_package_consuming(const std::string& path, PackageSource& source,
+                             const WriteOptions& options) {
+  std::vector<BlobInput>& blobs = source.blobs;
   if (options.codec == Codec::zstd &&
       (options.zstd_level < ZSTD_minCLevel() || options.zstd_level > ZSTD_maxCLevel()))
     fail_io(path, "zstd level " + std::to_string(options.zstd_level) + " is outside [" +
                       std::to_string(ZSTD_minCLevel()) + ", " + std::to_string(ZSTD_maxCLevel()) +
                       "]");
   if (blobs.size() > UINT32_MAX) fail_io(path, "too many blobs");
+  std::vector<char> deferred(blobs.size(), 0);
+  for (const size_t i : source.deferred) deferred.at(i) = 1;
 
   uint64_t raw_bytes = 0;
   for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
-  ProgressStage stage(options.progress, "write", raw_bytes, "bytes");
+  ProgressStage stage(options.progress, "write", raw_bytes, "bytes",
+                      source.deferred.empty() ? ProgressTotal::exact : ProgressTotal::estimate);
   std::vector<EncodedBlob> enc(blobs.size());
   std::vector<std::string> names(blobs.size());
-  bool all_uncompressed = true;
-  for (size_t i = 0; i < blobs.size(); ++i) {
+  // The table entry of blob `i` but for its place in the file.
+  const auto describe = [&](size_t i) {
     const BlobInput& b = blobs[i];
     check_blob(path, b, blobs, i);
     decal::BlobTableEntry& e = enc[i].entry;
@@ -285,22 +323,124 @@ void write_package(const std::string& path, const std::string& metadata_json,
     // Empty blobs are stored as no bytes at all, whatever the codec.
     const bool zstd = options.codec == Codec::zstd && !b.bytes.empty();
     e.codec = static_cast<uint32_t>(zstd ? decal::CodecId::zstd : decal::CodecId::none);
-    if (zstd) all_uncompressed = false;
-  }
+  };
+  for (size_t i = 0; i < blobs.size(); ++i)
+    if (!deferred[i]) describe(i);
 
-  // Compression and checksums, one blob per task, largest first (the
-  // longest task starts first, so the last one to finish is short). Each
-  // blob is one single-threaded zstd frame (no ZSTD_c_nbWorkers, whose
-  // frames differ from single-threaded ones), so the bytes do not depend on
-  // the thread count, which the caller caps with tbb::global_control
-  // (`--threads`, libprep/pipeline/pipeline.cpp).
-  std::vector<size_t> order(blobs.size());
-  std::iota(order.begin(), order.end(), size_t(0));
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-    return blobs[a].bytes.size() > blobs[b].bytes.size();
-  });
+  decal::FileHeader h{};
+  std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
+  h.version_major = decal::kVersionMajor;
+  h.version_minor = decal::kVersionMinor;
+  h.header_size = sizeof(decal::FileHeader);
+  h.blob_entry_size = sizeof(decal::BlobTableEntry);
+  h.blob_count = static_cast<uint32_t>(blobs.size());
+  h.table_offset = h.header_size;
+  h.metadata_offset = h.table_offset + uint64_t(h.blob_count) * h.blob_entry_size;
+  std::string metadata_json;  // from source.complete()
+
+  // The file is written front to back as the blobs are compressed: first
+  // zeros where the header and the blob table go (their offsets, stored
+  // sizes and checksums are known only at the end, and then written over
+  // the zeros), the metadata once source.complete() has made it, then each
+  // blob as soon as it and every blob before it in table order are done. A
+  // compressed frame is freed once written, and a blob's own bytes (`owner`)
+  // once compressed or written, so the writer holds the frames of the blobs
+  // done out of order, not the whole package; and it starts the write-back
+  // of each blob, so that the final fsync has little left to do.
+  AtomicFile out(path);
+  uint64_t end = 0;  // file position
+
+  std::mutex mutex;
+  std::condition_variable queue_changed;
+  // Blobs ready to compress, taken largest first; the deferred ones join
+  // when source.complete() has made them.
+  std::vector<size_t> queue;
+  bool completing = false, completed = false, failed = false;
+  std::vector<char> ready(blobs.size(), 0);
+  bool metadata_ready = false, metadata_written = false;
+  size_t next_to_write = 0;
+  bool writing = false;
+  // With the lock held by `lock`: writes the metadata and every done blob
+  // from `next_to_write` on, unless another thread is writing (the writer
+  // re-checks under the lock after each write, so a blob marked done
+  // meanwhile is not left behind).
+  const auto write_ready = [&](std::unique_lock<std::mutex>& lock) {
+    if (writing) return;
+    writing = true;
+    for (;;) {
+      if (!metadata_written) {
+        if (!metadata_ready) break;
+        lock.unlock();
+        out.zeros(h.metadata_offset);
+        out.write(metadata_json.data(), metadata_json.size());
+        end = h.metadata_offset + metadata_json.size();
+        lock.lock();
+        metadata_written = true;
+        continue;
+      }
+      if (next_to_write == blobs.size() || !ready[next_to_write]) break;
+      const size_t j = next_to_write;
+      lock.unlock();
+      EncodedBlob& b = enc[j];
+      b.entry.offset = align_up(end);
+      out.zeros(b.entry.offset - end);
+      out.write(b.stored.data(), b.stored.size());
+      out.start_writeback(b.entry.offset, b.stored.size());
+      end = b.entry.offset + b.stored.size();
+      b.compressed.reset();
+      b.stored = {};
+      blobs[j].owner.reset();
+      lock.lock();
+      ++next_to_write;
+    }
+    writing = false;
+  };
+  const auto by_size = [&](size_t a, size_t b) {
+    // Largest first, then table order: a max-heap on size, ties to the
+    // lower index.
+    const size_t sa = blobs[a].bytes.size(), sb = blobs[b].bytes.size();
+    return sa != sb ? sa < sb : a > b;
+  };
+  for (size_t i = 0; i < blobs.size(); ++i)
+    if (!deferred[i]) queue.push_back(i);
+  std::make_heap(queue.begin(), queue.end(), by_size);
+
+  // source.complete(): the deferred blobs and the metadata, on the first
+  // slot that starts (the others meanwhile compress the blobs at hand).
+  const auto complete = [&] {
+    std::string json = source.complete ? source.complete() : std::string();
+    check_metadata(path, json);
+    uint64_t added = 0;
+    for (const size_t i : source.deferred) {
+      describe(i);
+      added += blobs[i].bytes.size();
+    }
+    if (added) stage.set_total(raw_bytes + added);
+    std::unique_lock lock(mutex);
+    metadata_json = std::move(json);
+    h.metadata_size = metadata_json.size();
+    h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
+    metadata_ready = true;
+    for (const size_t i : source.deferred) {
+      queue.push_back(i);
+      std::push_heap(queue.begin(), queue.end(), by_size);
+    }
+    completed = true;
+    queue_changed.notify_all();
+    write_ready(lock);
+  };
+
+  // Compression and checksums, one blob per task. Each blob is one
+  // single-threaded zstd frame, so the bytes do not depend on the thread
+  // count, which the caller caps with tbb::global_control (`--threads`,
+  // libprep/pipeline/pipeline.cpp). Not ZSTD_c_nbWorkers: its frames are the
+  // same for any worker count >= 1 but differ from single-threaded ones (so
+  // every package would change), and on the 10^7-vertex synthetic blobs at
+  // level 3 they cost about 20% more CPU (job overlap, input copies) and
+  // 45-90 MiB of job buffers at two threads, which undoes on two cores what
+  // splitting the largest blob (about 60% of the compression time) gains.
   const auto encode = [&](size_t i, ZSTD_CCtx*& cctx) {
-    const BlobInput& b = blobs[i];
+    BlobInput& b = blobs[i];
     decal::BlobTableEntry& e = enc[i].entry;
     if (e.codec == static_cast<uint32_t>(decal::CodecId::zstd)) {
       if (!cctx) {
@@ -313,76 +453,93 @@ void write_package(const std::string& path, const std::string& metadata_json,
       ZSTD_CCtx_setParameter(cctx, ZSTD_c_checksumFlag, 1);
       ZSTD_CCtx_setParameter(cctx, ZSTD_c_contentSizeFlag, 1);
       const size_t bound = ZSTD_compressBound(b.bytes.size());
-      enc[i].compressed = std::make_unique_for_overwrite<std::byte[]>(bound);
-      const size_t n =
-          ZSTD_compress2(cctx, enc[i].compressed.get(), bound, b.bytes.data(), b.bytes.size());
+      Frame frame(static_cast<std::byte*>(std::malloc(bound)));
+      if (!frame) fail_io(path, "out of memory compressing '" + names[i] + "'");
+      const size_t n = ZSTD_compress2(cctx, frame.get(), bound, b.bytes.data(), b.bytes.size());
       if (ZSTD_isError(n))
         fail_io(path, "zstd compression of '" + names[i] + "' failed: " + ZSTD_getErrorName(n));
+      // Shrinking keeps the address (glibc: in place, or mremap for large
+      // blocks), so no copy is made.
+      if (auto* shrunk = static_cast<std::byte*>(std::realloc(frame.get(), std::max<size_t>(n, 1))))
+        (void)frame.release(), frame.reset(shrunk);
+      enc[i].compressed = std::move(frame);
       enc[i].stored = {enc[i].compressed.get(), n};
+      b.owner.reset();
     } else {
       enc[i].stored = b.bytes;
     }
     e.stored_size = enc[i].stored.size();
     e.checksum = XXH64(enc[i].stored.data(), enc[i].stored.size(), 0);
-    stage.add(b.bytes.size());
+    stage.add(e.raw_size);
+    std::unique_lock lock(mutex);
+    ready[i] = 1;
+    write_ready(lock);
   };
-  // Each slot takes the next blob of `order` until none is left; a slot no
-  // worker thread picks up finds the queue empty.
-  std::atomic<size_t> next{0};
-  const size_t slots =
-      std::min(blobs.size(), size_t(std::max(1, tbb::this_task_arena::max_concurrency())));
+  // Each slot completes the source (the first one) or takes the largest
+  // blob ready, until none is left; a slot finding none while the source is
+  // being completed waits for it. A slot no worker thread picks up finds
+  // the work done.
+  const size_t slots = std::max<size_t>(
+      1, std::min(blobs.size(), size_t(std::max(1, tbb::this_task_arena::max_concurrency()))));
   tbb::parallel_for(size_t(0), slots, [&](size_t) {
     ZSTD_CCtx* cctx = nullptr;
     struct CctxFree {
       ZSTD_CCtx*& c;
       ~CctxFree() { ZSTD_freeCCtx(c); }
     } cctx_free{cctx};
-    for (size_t k; (k = next.fetch_add(1, std::memory_order_relaxed)) < order.size();) {
-      try {
-        encode(order[k], cctx);
-      } catch (...) {
-        next.store(order.size());  // the other slots stop after their blob
-        throw;
+    try {
+      for (;;) {
+        std::unique_lock lock(mutex);
+        if (!completing) {
+          completing = true;
+          lock.unlock();
+          // Isolated: should it wait on oneTBB work of its own, this thread
+          // must not pick up a slot that would wait for it.
+          tbb::this_task_arena::isolate(complete);
+          continue;
+        }
+        queue_changed.wait(lock, [&] { return failed || completed || !queue.empty(); });
+        if (failed || queue.empty()) return;
+        std::pop_heap(queue.begin(), queue.end(), by_size);
+        const size_t i = queue.back();
+        queue.pop_back();
+        lock.unlock();
+        encode(i, cctx);
       }
+    } catch (...) {
+      // The other slots stop after their blob.
+      const std::lock_guard lock(mutex);
+      failed = true;
+      queue_changed.notify_all();
+      throw;
     }
   });
+  if (!metadata_written || next_to_write != blobs.size())
+    fail_io(path, "internal error: a blob was not written");
 
-  decal::FileHeader h{};
-  std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
-  h.version_major = decal::kVersionMajor;
-  h.version_minor = decal::kVersionMinor;
+  bool all_uncompressed = true;
+  for (const EncodedBlob& b : enc)
+    if (b.entry.codec == static_cast<uint32_t>(decal::CodecId::zstd)) all_uncompressed = false;
   h.flags = all_uncompressed ? decal::kFlagAllUncompressed : 0;
-  h.header_size = sizeof(decal::FileHeader);
-  h.blob_entry_size = sizeof(decal::BlobTableEntry);
-  h.blob_count = static_cast<uint32_t>(blobs.size());
-  h.table_offset = h.header_size;
-  h.metadata_offset = h.table_offset + uint64_t(h.blob_count) * h.blob_entry_size;
-  h.metadata_size = metadata_json.size();
-  h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
-  uint64_t end = h.metadata_offset + h.metadata_size;
-  for (EncodedBlob& b : enc) {
-    b.entry.offset = align_up(end);
-    end = b.entry.offset + b.entry.stored_size;
-  }
   h.file_size = end;
   std::vector<decal::BlobTableEntry> table;
   table.reserve(enc.size());
   for (const EncodedBlob& b : enc) table.push_back(b.entry);
   h.table_checksum = XXH64(table.data(), table.size() * sizeof(decal::BlobTableEntry), 0);
   h.header_checksum = XXH64(&h, offsetof(decal::FileHeader, header_checksum), 0);
-
-  AtomicFile out(path);
-  out.write(&h, sizeof h);
-  out.write(table.data(), table.size() * sizeof(decal::BlobTableEntry));
-  out.write(metadata_json.data(), metadata_json.size());
-  uint64_t at = h.metadata_offset + h.metadata_size;
-  for (const EncodedBlob& b : enc) {
-    out.zeros(b.entry.offset - at);
-    out.write(b.stored.data(), b.stored.size());
-    at = b.entry.offset + b.stored.size();
-  }
+  out.pwrite(&h, sizeof h, 0);
+  out.pwrite(table.data(), table.size() * sizeof(decal::BlobTableEntry), h.table_offset);
   out.commit();
   stage.finish();
+}
+
+void write_package(const std::string& path, const std::string& metadata_json,
+                   std::span<const BlobInput> blobs, const WriteOptions& options) {
+  check_metadata(path, metadata_json);
+  PackageSource source;
+  source.blobs.assign(blobs.begin(), blobs.end());
+  source.complete = [&] { return metadata_json; };
+  write_package_consuming(path, source, options);
 }
 
 namespace {
@@ -415,7 +572,12 @@ BlobInput list_blob(decal::BlobId id, const std::vector<T>& v, std::vector<std::
 
 }  // namespace
 
-std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
+namespace {
+
+// The blobs of the v1.3 layout encoded from the model's v1.2 arrays
+// (decal/layout.hpp), in table order: the model's own list or box arrays
+// where encode_cells made no copy, the copies otherwise.
+std::vector<BlobInput> encoded_blobs(const DecalModel& m) {
   using decal::BlobId;
   namespace L = decal::layout;
   auto cells = [](const std::vector<uvec2>& range, const std::vector<uvec4>& bvh, const auto& list,
@@ -453,35 +615,75 @@ std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
   std::vector<uvec2> holes_copy = std::move(entries.holes);
   std::vector<L::u2> line_boxes = boxes16(lines, m.line_bvh_box);
   std::vector<L::u2> poly_boxes = boxes16(polys, m.poly_bvh_box);
-  std::vector<BlobInput> all = {
-      blob_of(BlobId::line_vertices, m.line_vertices),
-      blob_of(BlobId::line_vertex_line, m.line_vertex_line),
-      blob_of(BlobId::line_props, m.line_props),
-      blob_of(BlobId::line_corners, m.line_corners),
+  return {
       list_blob(BlobId::cell_segments, m.cell_segments, lines.list),
       owned_blob(BlobId::cell_line_first, std::move(lines.first)),
-      blob_of(BlobId::poly_props, m.poly_props),
-      blob_of(BlobId::poly_root_node, m.poly_root_node),
-      blob_of(BlobId::qt_node_box, m.qt_node_box),
-      blob_of(BlobId::qt_node, m.qt_node),
-      blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices),
       holes_copy.empty() ? blob_of(BlobId::cell_holes, m.cell_holes)
                          : owned_blob(BlobId::cell_holes, std::move(holes_copy)),
-      blob_of(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range),
-      blob_of(BlobId::qt_leaf_loops, m.qt_leaf_loops),
       owned_blob(BlobId::cell_poly_first, std::move(polys.first)),
       owned_blob(BlobId::line_bvh_box16, std::move(line_boxes)),
       owned_blob(BlobId::poly_bvh_box16, std::move(poly_boxes)),
       owned_blob(BlobId::cell_poly_entries, std::move(entries.entries)),
       owned_blob(BlobId::cell_poly_holes, std::move(entries.hole_first)),
-      blob_of(BlobId::dyn_vertices, m.dyn_vertices),
-      blob_of(BlobId::dyn_prev_next, m.dyn_prev_next),
-      blob_of(BlobId::dyn_line_start, m.dyn_line_start),
-      blob_of(BlobId::dyn_line_props, m.dyn_line_props),
-      blob_of(BlobId::lod_points, m.lod_points),
-      blob_of(BlobId::lod_segments, m.lod_segments),
-      blob_of(BlobId::lod_line_range, m.lod_line_range),
   };
+}
+
+// A deferred blob before encoded_blobs made it: id, type and stride.
+BlobInput placeholder(decal::BlobId id) {
+  const decal::BlobInfo* info = decal::find_blob_info(id);
+  return {id, info->type, info->stride, 0, {}};
+}
+
+}  // namespace
+
+ModelBlobPlan model_blob_plan(const DecalModel& m) {
+  using decal::BlobId;
+  ModelBlobPlan plan;
+  std::vector<BlobInput>& blobs = plan.source.blobs;
+  const auto defer = [&](BlobId id) {
+    plan.source.deferred.push_back(blobs.size());
+    blobs.push_back(placeholder(id));
+  };
+  blobs.push_back(blob_of(BlobId::line_vertices, m.line_vertices));
+  blobs.push_back(blob_of(BlobId::line_vertex_line, m.line_vertex_line));
+  blobs.push_back(blob_of(BlobId::line_props, m.line_props));
+  blobs.push_back(blob_of(BlobId::line_corners, m.line_corners));
+  defer(BlobId::cell_segments);
+  defer(BlobId::cell_line_first);
+  blobs.push_back(blob_of(BlobId::poly_props, m.poly_props));
+  blobs.push_back(blob_of(BlobId::poly_root_node, m.poly_root_node));
+  blobs.push_back(blob_of(BlobId::qt_node_box, m.qt_node_box));
+  blobs.push_back(blob_of(BlobId::qt_node, m.qt_node));
+  blobs.push_back(blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices));
+  defer(BlobId::cell_holes);
+  blobs.push_back(blob_of(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range));
+  blobs.push_back(blob_of(BlobId::qt_leaf_loops, m.qt_leaf_loops));
+  for (BlobId id : {BlobId::cell_poly_first, BlobId::line_bvh_box16, BlobId::poly_bvh_box16,
+                    BlobId::cell_poly_entries, BlobId::cell_poly_holes})
+    defer(id);
+  blobs.push_back(blob_of(BlobId::dyn_vertices, m.dyn_vertices));
+  blobs.push_back(blob_of(BlobId::dyn_prev_next, m.dyn_prev_next));
+  blobs.push_back(blob_of(BlobId::dyn_line_start, m.dyn_line_start));
+  blobs.push_back(blob_of(BlobId::dyn_line_props, m.dyn_line_props));
+  blobs.push_back(blob_of(BlobId::lod_points, m.lod_points));
+  blobs.push_back(blob_of(BlobId::lod_segments, m.lod_segments));
+  blobs.push_back(blob_of(BlobId::lod_line_range, m.lod_line_range));
+  // encoded_blobs makes the deferred blobs, in the same order.
+  plan.encode = [&m, deferred = plan.source.deferred](std::vector<BlobInput>& out) {
+    std::vector<BlobInput> made = encoded_blobs(m);
+    if (made.size() != deferred.size()) fail<format_error>(kWriteStage, "internal error");
+    for (size_t k = 0; k < made.size(); ++k) {
+      if (out[deferred[k]].id != made[k].id) fail<format_error>(kWriteStage, "internal error");
+      out[deferred[k]] = std::move(made[k]);
+    }
+  };
+  return plan;
+}
+
+std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
+  ModelBlobPlan plan = model_blob_plan(m);
+  plan.encode(plan.source.blobs);
+  std::vector<BlobInput> all = std::move(plan.source.blobs);
   // Every catalogue blob but manifest_entries, which write_model adds, and
   // the superseded ids.
   static_assert(std::size(decal::kBlobCatalogue) == 36 && std::size(decal::kSupersededBlobs) == 9,

@@ -34,7 +34,7 @@ struct BuildArgs {
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
   // terrain matching of dynamic lines (override the scene file's [build])
   std::optional<double> lmax, terrain_tolerance, z_scale, nodata_fill;
-  int zstd_level = 3;
+  int zstd_level = 2;
   std::string max_memory;  // --max-memory SIZE
   bool no_compress = false, dry_run = false, quiet = false, skip_failures = false;
   std::string progress;  // --progress MODE; empty: auto, or none with --quiet
@@ -421,7 +421,7 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   cmd->add_option("--max-depth", args->max_depth, "Quad-tree max depth (thesis: 8)")->group(b);
   cmd->add_option("--threads", args->threads, "Worker threads (0: all); output is identical")
       ->group(b);
-  cmd->add_option("--zstd-level", args->zstd_level, "zstd level (default 3)")->group(b);
+  cmd->add_option("--zstd-level", args->zstd_level, "zstd level (default 2)")->group(b);
   cmd->add_flag("--no-compress", args->no_compress, "Store blobs uncompressed (memory-mappable)")
       ->group(b);
   cmd->callback([args] {

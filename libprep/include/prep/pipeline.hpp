@@ -23,7 +23,7 @@ struct BuildRequest {
   std::string report;    // JSON report path; empty: none
   bool dry_run = false;  // stop after clean: write the report, no package
   bool compress = true;
-  int zstd_level = 3;
+  int zstd_level = 2;  // WriteOptions::zstd_level (prep/write.hpp)
   // --max-memory in bytes (0: none): the build stops with resource_error
   // (exit 6) as soon as an estimate of its peak RSS exceeds it
   // (prep/memory_estimate.hpp); no package is written.

@@ -18,13 +18,14 @@ enum class Codec { none, zstd };
 
 struct WriteOptions {
   Codec codec = Codec::zstd;
-  // Level 3 is the knee of the size/time curve (bench/zstd_levels.py,
-  // bench/report/zstd_levels.csv: 10^6 synthetic polygon vertices, Monaco;
-  // sizes exact, times of one run on a shared 2-core machine): against
-  // level 1 it makes packages 9-12% smaller for at most 1.5x the write
-  // time; level 6 makes them only 4% smaller again for another 1.9-2.3x,
-  // levels 9 and 12 at most 2% more, and 19 23-25% smaller at 40-60x.
-  int zstd_level = 3;
+  // Level 2 is the knee of the size/CPU curve (bench/zstd_levels.py,
+  // bench/report/zstd_levels.csv, bench/REPORT.md "zstd level"; sizes exact,
+  // CPU seconds of the 1-thread write): against level 1 it makes packages
+  // 8.4% smaller for 1.08-1.20x the CPU; level 3 only 1.2-2.6% smaller again
+  // for 1.18-1.39x (1.6x for the compression alone at 10^7 vertices, whose
+  // largest blob, the critical path on two threads, takes 1.7x as long),
+  // level 4 nothing, level 6 6-7% for 2-3.8x, level 19 26-28% for 50-130x.
+  int zstd_level = 2;
   // Stage "write", counted in blob bytes compressed and checksummed. Null:
   // silent. Output only: the package bytes do not depend on it.
   Progress* progress = nullptr;
