@@ -564,19 +564,25 @@ std::vector<CellPoly> ring_cell_entries(const DecalModel& m, const GridMap& map,
     QBox cb = cell_box(g, ix, iy);
     return intersect(lb, {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1});
   };
-  const uint64_t w = uint64_t(rx1 - rx0 + 1), area = w * uint64_t(ry1 - ry0 + 1);
-  if (area <= std::max<uint64_t>(4 * touched, 16)) {
-    std::vector<QBox>& dense = scratch.dense;
-    dense.assign(area, QBox{});
+  // Every non-empty (cell, leaf part), leaf by leaf.
+  auto for_each_part = [&](auto&& fn) {
     for (size_t k = 0; k < leaves.size(); ++k) {
       const auto& c = range[k];
       const QBox lb = box_of(m.qt_node_box[leaves[k]]);
       for (int64_t iy = c[1]; iy <= c[3]; ++iy)
         for (int64_t ix = c[0]; ix <= c[2]; ++ix) {
           const QBox part = part_of(lb, ix, iy);
-          if (!part.empty()) unite(dense[uint64_t(iy - ry0) * w + uint64_t(ix - rx0)], part);
+          if (!part.empty()) fn(ix, iy, part);
         }
     }
+  };
+  const uint64_t w = uint64_t(rx1 - rx0 + 1), area = w * uint64_t(ry1 - ry0 + 1);
+  if (area <= std::max<uint64_t>(4 * touched, 16)) {
+    std::vector<QBox>& dense = scratch.dense;
+    dense.assign(area, QBox{});
+    for_each_part([&](int64_t ix, int64_t iy, const QBox& part) {
+      unite(dense[uint64_t(iy - ry0) * w + uint64_t(ix - rx0)], part);
+    });
     for (int64_t iy = ry0; iy <= ry1; ++iy)
       for (int64_t ix = rx0; ix <= rx1; ++ix) {
         const QBox& u = dense[uint64_t(iy - ry0) * w + uint64_t(ix - rx0)];
@@ -585,15 +591,9 @@ std::vector<CellPoly> ring_cell_entries(const DecalModel& m, const GridMap& map,
   } else {
     std::vector<std::pair<uint32_t, QBox>>& hits = scratch.hits;
     hits.clear();
-    for (size_t k = 0; k < leaves.size(); ++k) {
-      const auto& c = range[k];
-      const QBox lb = box_of(m.qt_node_box[leaves[k]]);
-      for (int64_t iy = c[1]; iy <= c[3]; ++iy)
-        for (int64_t ix = c[0]; ix <= c[2]; ++ix) {
-          const QBox part = part_of(lb, ix, iy);
-          if (!part.empty()) hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
-        }
-    }
+    for_each_part([&](int64_t ix, int64_t iy, const QBox& part) {
+      hits.push_back({uint32_t(ix + int64_t(g.nx) * iy), part});
+    });
     std::sort(hits.begin(), hits.end(),
               [](const auto& a, const auto& b) { return a.first < b.first; });
     for (size_t i = 0; i < hits.size();) {
