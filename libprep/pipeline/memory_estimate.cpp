@@ -24,36 +24,38 @@ namespace {
 // ---- the model ------------------------------------------------------------
 // Peak RSS of `decalprep build` (the maximum over its stages: the build
 // stage, or write for polygon-heavy scenes) measured with bench/memory/
-// measure.sh (/usr/bin/time; RelWithDebInfo, 2 threads, 2026-11-21, with the
-// size-aware adaptive grid and the moving clean of main 8938cd4) on
-// generated FlatGeobuf inputs;
-// rows in bench/memory/peak_rss.csv. Estimates in MiB after read / after
-// clean:
+// measure.sh (/usr/bin/time; release, 2 threads) on generated FlatGeobuf
+// inputs; rows in bench/memory/peak_rss.csv. Estimates in MiB after read /
+// after clean, measured 2026-11-25 (quad-trees built in blocks, leaf
+// polygons held as vertex loops, a streaming writer), when the polygon
+// coefficient was refitted (it was 370 B per vertex):
 //
 //   input (after read)              vertices   parts   peak   est. read  est. clean
-//   polygons 1e5 (star, 0-3 holes)     98594     563  136.7     154.9      149.6
-//   polygons 3e5                      295890    1671  201.7     224.8      223.0
-//   polygons 1e6                      985985    5655  417.7     475.0      479.7
-//   lines 1e5 (width 4 m)             100000    2024  136.5     177.7      174.1
-//   lines 3e5                         300000    6029  241.5     293.1      296.1
-//   lines 1e6                        1000000   20077  625.9     705.3      723.9
-//   squares 20000 (5 vertices)         80000   20000   89.1     153.1      155.5
-//   squares 100000                    400000  100000  205.1     299.7      323.0
-//   3-vertex lines 20000               60000   20000  105.8     159.2      162.5
-//   3-vertex lines 100000             300000  100000  236.1     328.7      358.6
-//   lines 3e5, width 40 m             300000    6029  419.7     293.1      640.2
-//   Liechtenstein scene (OSM, 4 l.)    62425    6724  158.9     211        212
-//   Monaco scene (OSM, DEM, 7 l.)          -       -  268.3     459        343
+//   polygons 1e5 (star, 0-3 holes)     98594     563  106.4     135.2      130.3
+//   polygons 3e5                      295890    1671  131.6     165.6      164.4
+//   polygons 1e6                      985985    5655  216.0     278.2      283.0
+//   polygons 1e7 (bench/run's set)   9859712   56312 1301.8    1795.4     1807.2
+//   lines 1e5 (width 4 m)             100000    2024  133.8     177.7      174.6
+//   lines 3e5                         300000    6029  239.3     293.1      296.7
+//   lines 1e6                        1000000   20077  581.9     705.6      724.9
+//   squares 20000 (5 vertices)         80000   20000   81.5     137.1      139.9
+//   squares 100000                    400000  100000  167.7     221.0      243.7
+//   3-vertex lines 20000               60000   20000  102.4     159.2      163.4
+//   3-vertex lines 100000             300000  100000  233.2     329.9      361.2
+//   lines 3e5, width 40 m             300000    6029  374.4     293.1      640.8
+//   Liechtenstein scene (OSM, 4 l.)    62425    6724  148.2     205.7      207.0
+//   Monaco scene (OSM, DEM, 7 l.)          -       -  273.6     453.8      361.6
 //
-// Least squares on the big inputs gives ~335 B per polygon vertex and ~550 B
-// per line vertex; the per-part costs fit to about 0. The read and clean
-// stages sit on a 54 MiB base (GDAL/PROJ/GEOS loaded, thread pools); the
-// build stage on ~105 MiB: the adaptive decal grid (2e5..5e5 cells on these
-// inputs; its cell count is only known inside build_model) adds ~50 MiB. The
-// coefficients below add ~10 % (the build base 120 MiB) so that the
-// estimate stays above every measured peak, by more than the run-to-run
-// spread of the peak (~5 %): after clean 1.09x..1.75x of it, after read
-// 1.11x..1.71x except very wide lines (next paragraph).
+// Least squares on the polygon rows gives ~125 B per polygon vertex over a
+// ~95 MiB build base (10^7 vertices: 124 B); line vertices cost ~550 B;
+// the per-part costs fit to about 0. The read and clean stages sit on a
+// 54 MiB base (GDAL/PROJ/GEOS loaded, thread pools); the build stage on
+// ~95-105 MiB: the adaptive decal grid (2e5..5e5 cells on these inputs;
+// its cell count is only known inside build_model) adds ~40 MiB. The
+// coefficients below (160 B per polygon vertex, 600 per line vertex, build
+// base 120 MiB) keep the estimate above every measured peak by more than
+// the run-to-run spread of the peak (~5 %): after clean 1.22x..1.72x of it,
+// after read 1.21x..1.68x except very wide lines (next paragraph).
 //
 // Line width matters: a segment widened to w covers more cells. Measured on
 // lines 3e5 (mean segment 20 m, previous grid): width 1, 4, 10, 20, 40, 100 m
@@ -77,7 +79,7 @@ namespace {
 constexpr double kMiB = 1024.0 * 1024.0;
 constexpr double kBaseBytes = 60.0 * kMiB;        // read -> clean
 constexpr double kBuildBaseBytes = 120.0 * kMiB;  // build -> write, with the decal grid
-constexpr double kPerPolygonVertex = 370;
+constexpr double kPerPolygonVertex = 160;
 constexpr double kPerLineVertex = 600;
 constexpr double kPerPolygonPart = 256;
 constexpr double kPerLinePart = 256;
