@@ -76,20 +76,23 @@ StaticView view_of(const decal::Package& p) {
   static_assert(std::is_same_v<L::u2, uvec2> && std::is_same_v<L::u4, uvec4>);
   auto as_u2 = [](const std::vector<L::u2>& a) { return std::span<const uvec2>(a); };
   auto as_u4 = [](const std::vector<L::u4>& a) { return std::span<const uvec4>(a); };
-  if (!line_first.empty()) {
-    L::decode_cells(line_first, d->seg_range, d->line_bvh);
-    v.cell_segment_range = as_u2(d->seg_range);
-    v.line_bvh_range = as_u4(d->line_bvh);
-    d->line_boxes = L::decode_boxes16(line_first, p.array<L::u2>(BlobId::line_bvh_box16), cg);
-    v.line_bvh_box = d->line_boxes;
-  }
-  if (!poly_first.empty()) {
-    L::decode_cells(poly_first, d->poly_range, d->poly_bvh);
-    v.cell_poly_range = as_u2(d->poly_range);
-    v.poly_bvh_range = as_u4(d->poly_bvh);
-    d->poly_boxes = L::decode_boxes16(poly_first, p.array<L::u2>(BlobId::poly_bvh_box16), cg);
-    v.poly_bvh_box = d->poly_boxes;
-  }
+  // One kind's per-cell firsts and 16-bit boxes into its ranges, BVH ranges
+  // and boxes.
+  auto cells = [&](std::span<const L::u2> first, BlobId box16, std::vector<L::u2>& range,
+                   std::vector<L::u4>& bvh, std::vector<ivec4>& boxes,
+                   std::span<const uvec2>& vrange, std::span<const uvec4>& vbvh,
+                   std::span<const ivec4>& vboxes) {
+    if (first.empty()) return;
+    L::decode_cells(first, range, bvh);
+    vrange = as_u2(range);
+    vbvh = as_u4(bvh);
+    boxes = L::decode_boxes16(first, p.array<L::u2>(box16), cg);
+    vboxes = boxes;
+  };
+  cells(line_first, BlobId::line_bvh_box16, d->seg_range, d->line_bvh, d->line_boxes,
+        v.cell_segment_range, v.line_bvh_range, v.line_bvh_box);
+  cells(poly_first, BlobId::poly_bvh_box16, d->poly_range, d->poly_bvh, d->poly_boxes,
+        v.cell_poly_range, v.poly_bvh_range, v.poly_bvh_box);
   if (!loop_range.empty() || !loops.empty()) {
     L::decode_leaves(loop_range, loops, d->leaf_range, d->leaf_segments);
     v.qt_leaf_range = as_u2(d->leaf_range);

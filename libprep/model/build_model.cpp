@@ -72,21 +72,13 @@ bool contains(const ivec4& outer, const QBox& in) {
   return outer[0] <= in.x0 && outer[1] <= in.y0 && in.x1 <= outer[2] && in.y1 <= outer[3];
 }
 
-// Quantised ring without repeated consecutive or closing vertices. `where`
-// names the ring in an error; it is called only when a vertex cannot be
-// quantised (not finite, or beyond kMaxQuanta), so a ring that can costs no
-// message.
-template <class Where>
-std::vector<QPoint> quantise_ring(const Ring& r, double& err, const Where& where) {
-  const bool fits = std::all_of(r.begin(), r.end(), [](const Point2& p) {
-    return std::fabs(p.x / decal::kQuantumMetres) <= double(kMaxQuanta) &&
-           std::fabs(p.y / decal::kQuantumMetres) <= double(kMaxQuanta);  // false for NaN
-  });
-  const std::string name = fits ? std::string() : where();
+// Quantised ring without repeated consecutive or closing vertices (`where`:
+// see quantise).
+std::vector<QPoint> quantise_ring(const Ring& r, double& err, const WhereFn& where) {
   std::vector<QPoint> q;
   q.reserve(r.size());
   for (const Point2& p : r) {
-    QPoint v = quantise(p, err, name);
+    QPoint v = quantise(p, err, where);
     if (q.empty() || !(q.back() == v)) q.push_back(v);
   }
   while (q.size() > 1 && q.back() == q.front()) q.pop_back();
@@ -246,7 +238,7 @@ PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m,
   std::vector<double> qerr(np, 0.0);
   tbb::parallel_for(size_t(0), np, [&](size_t i) {
     const ScenePolygon& p = scene.polygons[i];
-    auto where = [&] {
+    const WhereFn where = [&] {
       std::ostringstream w;
       w << "layer '" << (p.layer < scene.layers.size() ? scene.layers[p.layer].name : "?")
         << "' fid " << p.fid << " part " << p.part;

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -34,7 +35,11 @@ inline constexpr int64_t kMaxQuanta = 2147483647LL - 2;
 // 1 mm quantum). Updates `max_err` with the Euclidean representation error
 // in metres. Throws resource_error (message built from `where`) when the
 // point is not finite or lies more than ~2147 km from the origin.
-QPoint quantise(const Point2& p, double& max_err, const std::string& where);
+// `where` names the feature in an error; it is called only when `p` cannot
+// be quantised (not finite, or beyond kMaxQuanta), so a vertex that can costs
+// no message.
+using WhereFn = std::function<std::string()>;
+QPoint quantise(const Point2& p, double& max_err, const WhereFn& where);
 
 // ------------------------------------------------------------- quad-tree --
 

@@ -22,17 +22,17 @@
 
 namespace prep::detail {
 
-QPoint quantise(const Point2& p, double& max_err, const std::string& where) {
+QPoint quantise(const Point2& p, double& max_err, const WhereFn& where) {
   if (!std::isfinite(p.x) || !std::isfinite(p.y)) {
     std::ostringstream m;
-    m << where << ": non-finite coordinate (" << p.x << ", " << p.y << ")";
+    m << where() << ": non-finite coordinate (" << p.x << ", " << p.y << ")";
     fail<input_error>(kBuildStage, m.str());
   }
   double qx = p.x / decal::kQuantumMetres, qy = p.y / decal::kQuantumMetres;
   if (std::fabs(qx) > double(kMaxQuanta) || std::fabs(qy) > double(kMaxQuanta)) {
     std::ostringstream m;
     m.precision(12);
-    m << where << ": vertex (" << p.x << ", " << p.y
+    m << where() << ": vertex (" << p.x << ", " << p.y
       << ") m lies more than 2147 km from the package origin; int32 millimetre positions "
          "cannot hold it (split the scene into tiles)";
     fail<resource_error>(kBuildStage, m.str());

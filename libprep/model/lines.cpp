@@ -65,7 +65,7 @@ std::string where_of(const SceneFeatures& s, const SceneLine& l) {
 LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const ModelOptions& opt,
                      decal::CornerStyle corner, decal::OutlineMode outline) {
   LineOut out;
-  const std::string where = where_of(scene, line);
+  const WhereFn where = [&] { return where_of(scene, line); };
   if (!(line.width > 0) || !std::isfinite(line.width)) {
     out.reason = "line width is not a positive finite number";
     return out;
