@@ -128,7 +128,8 @@ void decode_leaves(std::span<const u2> loop_range, std::span<const uint32_t> loo
   leaf_range.reserve(loop_range.size());
   for (const u2& r : loop_range) {
     const uint32_t first = uint32_t(segments.size());
-    for (uint64_t l = r[0]; l < uint64_t(r[0]) + r[1]; ++l) {
+    const uint64_t stop = std::min<uint64_t>(uint64_t(r[0]) + r[1], loop_end.size());
+    for (uint64_t l = r[0]; l < stop; ++l) {
       const uint32_t s = l == 0 ? 0 : loop_end[l - 1], e = loop_end[l];
       for (uint32_t v = s; v < e; ++v) segments.push_back({v, v + 1 < e ? v + 1 : s});
     }
@@ -168,6 +169,7 @@ PolyEntryEncoding encode_poly_entries(std::span<const u4> cell_polys,
 void decode_poly_entries(std::span<const u2> entries, std::span<const uint32_t> hole_first,
                          std::vector<u4>& cell_polys) {
   cell_polys.clear();
+  if (hole_first.size() <= entries.size()) return;
   cell_polys.reserve(entries.size());
   for (size_t k = 0; k < entries.size(); ++k)
     cell_polys.push_back(
@@ -196,27 +198,46 @@ uint32_t clamp16(int64_t v) {
 }
 }  // namespace
 
+Box16Encoder::Box16Encoder(const CellGrid& grid)
+    : grid_(grid), shift_(box16_shift(grid.cell_w, grid.cell_h)) {
+  // Upper bounds at most the grown cell's top (its size in steps).
+  const int64_t step = int64_t(1) << shift_;
+  top_x_ = (grid.cell_w + 2 * step + step - 1) >> shift_;
+  top_y_ = (grid.cell_h + 2 * step + step - 1) >> shift_;
+}
+
+u2 Box16Encoder::operator()(uint64_t cell, const std::array<int32_t, 4>& b) const {
+  if (b[0] > b[2] || b[1] > b[3]) return kEmpty;
+  const uint32_t s = shift_;
+  const int64_t step = int64_t(1) << s;
+  const auto base = box16_base(grid_, cell, s);
+  const uint32_t x0 = clamp16(floor_shift(b[0] - base[0], s)),
+                 y0 = clamp16(floor_shift(b[1] - base[1], s)),
+                 x1 = clamp16(std::min(floor_shift(b[2] - base[0] + step - 1, s), top_x_)),
+                 y1 = clamp16(std::min(floor_shift(b[3] - base[1] + step - 1, s), top_y_));
+  return {x0 | (y0 << 16), x1 | (y1 << 16)};
+}
+
+u2 box16_union(const u2& a, const u2& b) {
+  if (a == Box16Encoder::kEmpty) return b;
+  if (b == Box16Encoder::kEmpty) return a;
+  auto lo = [](uint32_t p, uint32_t q) {
+    return std::min(p & 0xffffu, q & 0xffffu) | (std::min(p >> 16, q >> 16) << 16);
+  };
+  auto hi = [](uint32_t p, uint32_t q) {
+    return std::max(p & 0xffffu, q & 0xffffu) | (std::max(p >> 16, q >> 16) << 16);
+  };
+  return {lo(a[0], b[0]), hi(a[1], b[1])};
+}
+
 std::vector<u2> encode_boxes16(std::span<const u2> first,
                                std::span<const std::array<int32_t, 4>> boxes,
                                const CellGrid& grid) {
-  std::vector<u2> out(boxes.size(), u2{65535u, 0u});
-  const uint32_t s = box16_shift(grid.cell_w, grid.cell_h);
-  for (size_t c = 0; c + 1 < first.size(); ++c) {
-    const auto base = box16_base(grid, c, s);
-    for (uint64_t i = first[c][1]; i < first[c + 1][1]; ++i) {
-      const auto& b = boxes[i];
-      if (b[0] > b[2] || b[1] > b[3]) continue;  // empty node
-      // Upper bounds at most the grown cell's top (its size in steps).
-      const int64_t step = int64_t(1) << s;
-      const int64_t top_x = (grid.cell_w + 2 * step + step - 1) >> s,
-                    top_y = (grid.cell_h + 2 * step + step - 1) >> s;
-      const uint32_t x0 = clamp16(floor_shift(b[0] - base[0], s)),
-                     y0 = clamp16(floor_shift(b[1] - base[1], s)),
-                     x1 = clamp16(std::min(floor_shift(b[2] - base[0] + step - 1, s), top_x)),
-                     y1 = clamp16(std::min(floor_shift(b[3] - base[1] + step - 1, s), top_y));
-      out[i] = {x0 | (y0 << 16), x1 | (y1 << 16)};
-    }
-  }
+  std::vector<u2> out(boxes.size(), Box16Encoder::kEmpty);
+  const Box16Encoder encode(grid);
+  for (size_t c = 0; c + 1 < first.size(); ++c)
+    for (uint64_t i = first[c][1]; i < std::min<uint64_t>(first[c + 1][1], boxes.size()); ++i)
+      out[i] = encode(c, boxes[i]);
   return out;
 }
 
@@ -228,7 +249,8 @@ std::vector<std::array<int32_t, 4>> decode_boxes16(std::span<const u2> first,
   const uint32_t s = box16_shift(grid.cell_w, grid.cell_h);
   for (size_t c = 0; c + 1 < first.size(); ++c) {
     const auto base = box16_base(grid, c, s);
-    for (uint64_t i = first[c][1]; i < first[c + 1][1]; ++i) {
+    const uint64_t stop = std::min<uint64_t>(first[c + 1][1], boxes.size());
+    for (uint64_t i = first[c][1]; i < stop; ++i) {
       const u2 b = boxes[i];
       const int64_t x0 = b[0] & 0xffffu, y0 = b[0] >> 16, x1 = b[1] & 0xffffu, y1 = b[1] >> 16;
       if (x0 > x1 || y0 > y1) continue;  // empty node

@@ -165,6 +165,7 @@
 // ============================================================================
 #include "prep/evaluate.hpp"
 
+#include "compact_view.hpp"
 #include "decal/layout.hpp"
 
 #include <tbb/parallel_for.h>
@@ -527,17 +528,51 @@ StaticView view_of(const DecalModel& m) {
 #define PREP_FROM_MODEL(T, name) v.name = m.name;
   PREP_STATIC_VIEW_BLOBS(PREP_FROM_MODEL)
 #undef PREP_FROM_MODEL
-  // The model's leaf loops as the ranges and segments the evaluator walks.
-  struct Leaves {
-    std::vector<decal::layout::u2> range, segments;
-  };
-  auto leaves = std::make_shared<Leaves>();
-  decal::layout::decode_leaves(m.qt_leaf_loop_range, m.qt_leaf_loops, leaves->range,
-                               leaves->segments);
-  v.qt_leaf_range = leaves->range;
-  v.qt_leaf_segments = leaves->segments;
-  v.storage = std::move(leaves);
+  CompactBlobs c;
+#define PREP_COMPACT_FROM_MODEL(T, name) c.name = m.name;
+  PREP_COMPACT_BLOBS(PREP_COMPACT_FROM_MODEL)
+#undef PREP_COMPACT_FROM_MODEL
+  decode_compact(c, v);
   return v;
+}
+
+void decode_compact(const CompactBlobs& c, StaticView& v) {
+  namespace L = decal::layout;
+  static_assert(std::is_same_v<L::u2, uvec2> && std::is_same_v<L::u4, uvec4>);
+  struct Decoded {
+    std::vector<uvec2> seg_range, poly_range, leaf_range, leaf_segments;
+    std::vector<uvec4> line_bvh, poly_bvh, cell_polys;
+    std::vector<ivec4> line_boxes, poly_boxes;
+  };
+  const L::CellGrid cg{v.grid.origin_x, v.grid.origin_y, v.grid.cell_w, v.grid.cell_h, v.grid.nx};
+  auto d = std::make_shared<Decoded>();
+  // One kind's per-cell firsts and 16-bit boxes into its ranges, BVH ranges
+  // and boxes.
+  auto cells = [&](std::span<const uvec2> first, std::span<const uvec2> box16,
+                   std::vector<uvec2>& range, std::vector<uvec4>& bvh, std::vector<ivec4>& boxes,
+                   std::span<const uvec2>& vrange, std::span<const uvec4>& vbvh,
+                   std::span<const ivec4>& vboxes) {
+    if (first.empty()) return;
+    L::decode_cells(first, range, bvh);
+    boxes = L::decode_boxes16(first, box16, cg);
+    vrange = range;
+    vbvh = bvh;
+    vboxes = boxes;
+  };
+  cells(c.cell_line_first, c.line_bvh_box16, d->seg_range, d->line_bvh, d->line_boxes,
+        v.cell_segment_range, v.line_bvh_range, v.line_bvh_box);
+  cells(c.cell_poly_first, c.poly_bvh_box16, d->poly_range, d->poly_bvh, d->poly_boxes,
+        v.cell_poly_range, v.poly_bvh_range, v.poly_bvh_box);
+  if (!c.qt_leaf_loop_range.empty() || !c.qt_leaf_loops.empty()) {
+    L::decode_leaves(c.qt_leaf_loop_range, c.qt_leaf_loops, d->leaf_range, d->leaf_segments);
+    v.qt_leaf_range = d->leaf_range;
+    v.qt_leaf_segments = d->leaf_segments;
+  }
+  if (!c.cell_poly_entries.empty()) {
+    L::decode_poly_entries(c.cell_poly_entries, c.cell_poly_holes, d->cell_polys);
+    v.cell_polys = d->cell_polys;
+  }
+  v.storage = std::move(d);
 }
 
 std::vector<DrawRun> draw_runs(const StaticView& v) {

@@ -4,8 +4,8 @@
 // without checks).
 #include <nlohmann/json.hpp>
 
+#include "compact_view.hpp"
 #include "decal/inspect.hpp"
-#include "decal/layout.hpp"
 #include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/evaluate.hpp"
@@ -55,55 +55,23 @@ StaticView view_of(const decal::Package& p) {
 #define PREP_FROM_PACKAGE(T, name) v.name = p.array<T>(BlobId::name);
   PREP_STATIC_VIEW_BLOBS(PREP_FROM_PACKAGE)
 #undef PREP_FROM_PACKAGE
-  v.qt_leaf_range = p.array<uvec2>(BlobId::qt_leaf_range);  // v1.2 and older
-  v.qt_leaf_segments = p.array<uvec2>(BlobId::qt_leaf_segments);
   if (p.minor() < 2) v.polygon_rank_bias = v.line_props.size();
-  // v1.3 compact blobs (formats/SPEC.md "Compact layout (v1.3)"): decoded
-  // into the v1.2 ranges and leaf segments the evaluator walks.
-  namespace L = decal::layout;
-  struct Decoded {
-    std::vector<L::u2> seg_range, poly_range, leaf_range, leaf_segments;
-    std::vector<L::u4> line_bvh, poly_bvh;
-    std::vector<ivec4> line_boxes, poly_boxes;
-    std::vector<L::u4> cell_polys;
-  };
-  const L::CellGrid cg{v.grid.origin_x, v.grid.origin_y, v.grid.cell_w, v.grid.cell_h, v.grid.nx};
-  auto d = std::make_shared<Decoded>();
-  const auto line_first = p.array<L::u2>(BlobId::cell_line_first);
-  const auto poly_first = p.array<L::u2>(BlobId::cell_poly_first);
-  const auto loop_range = p.array<L::u2>(BlobId::qt_leaf_loop_range);
-  const auto loops = p.array<uint32_t>(BlobId::qt_leaf_loops);
-  static_assert(std::is_same_v<L::u2, uvec2> && std::is_same_v<L::u4, uvec4>);
-  auto as_u2 = [](const std::vector<L::u2>& a) { return std::span<const uvec2>(a); };
-  auto as_u4 = [](const std::vector<L::u4>& a) { return std::span<const uvec4>(a); };
-  // One kind's per-cell firsts and 16-bit boxes into its ranges, BVH ranges
-  // and boxes.
-  auto cells = [&](std::span<const L::u2> first, BlobId box16, std::vector<L::u2>& range,
-                   std::vector<L::u4>& bvh, std::vector<ivec4>& boxes,
-                   std::span<const uvec2>& vrange, std::span<const uvec4>& vbvh,
-                   std::span<const ivec4>& vboxes) {
-    if (first.empty()) return;
-    L::decode_cells(first, range, bvh);
-    vrange = as_u2(range);
-    vbvh = as_u4(bvh);
-    boxes = L::decode_boxes16(first, p.array<L::u2>(box16), cg);
-    vboxes = boxes;
-  };
-  cells(line_first, BlobId::line_bvh_box16, d->seg_range, d->line_bvh, d->line_boxes,
-        v.cell_segment_range, v.line_bvh_range, v.line_bvh_box);
-  cells(poly_first, BlobId::poly_bvh_box16, d->poly_range, d->poly_bvh, d->poly_boxes,
-        v.cell_poly_range, v.poly_bvh_range, v.poly_bvh_box);
-  if (!loop_range.empty() || !loops.empty()) {
-    L::decode_leaves(loop_range, loops, d->leaf_range, d->leaf_segments);
-    v.qt_leaf_range = as_u2(d->leaf_range);
-    v.qt_leaf_segments = as_u2(d->leaf_segments);
-  }
-  const auto entries = p.array<L::u2>(BlobId::cell_poly_entries);
-  if (!entries.empty()) {
-    L::decode_poly_entries(entries, p.array<uint32_t>(BlobId::cell_poly_holes), d->cell_polys);
-    v.cell_polys = as_u4(d->cell_polys);
-  }
-  v.storage = std::move(d);
+  // v1.2 and older: the per-cell ranges, boxes and leaf segments as stored.
+  v.cell_segment_range = p.array<uvec2>(BlobId::cell_segment_range);
+  v.cell_poly_range = p.array<uvec2>(BlobId::cell_poly_range);
+  v.cell_polys = p.array<uvec4>(BlobId::cell_polys);
+  v.line_bvh_range = p.array<uvec4>(BlobId::line_bvh_range);
+  v.poly_bvh_range = p.array<uvec4>(BlobId::poly_bvh_range);
+  v.line_bvh_box = p.array<ivec4>(BlobId::line_bvh_box);
+  v.poly_bvh_box = p.array<ivec4>(BlobId::poly_bvh_box);
+  v.qt_leaf_range = p.array<uvec2>(BlobId::qt_leaf_range);
+  v.qt_leaf_segments = p.array<uvec2>(BlobId::qt_leaf_segments);
+  // v1.3: the compact blobs, decoded into those.
+  CompactBlobs c;
+#define PREP_COMPACT_FROM_PACKAGE(T, name) c.name = p.array<T>(BlobId::name);
+  PREP_COMPACT_BLOBS(PREP_COMPACT_FROM_PACKAGE)
+#undef PREP_COMPACT_FROM_PACKAGE
+  decode_compact(c, v);
   // Dash patterns from the layer table; the along-line distances of the
   // static-line vertices are computed here rather than stored, from each
   // line's start (a tile's cut line: from its "line_dash_start"; formats/SPEC.md

@@ -18,6 +18,8 @@
 #include <optional>
 #include <sstream>
 
+#include <decal/layout.hpp>
+
 #include "detail.hpp"
 #include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
@@ -85,12 +87,13 @@ std::vector<QPoint> quantise_ring(const Ring& r, double& err, const WhereFn& whe
   return q;
 }
 
-// One (cell, polygon) pair: BVH leaf box and culling node.
+// One (cell, polygon) pair: culling node and BVH leaf box (cell-relative
+// u16, decal::layout::Box16Encoder).
 struct CellPoly {
   uint32_t cell;
   uint32_t poly;
   uint32_t cull;
-  ivec4 box;
+  uvec2 box;
 };
 
 // Grows `v` to `n` elements; when that needs a new buffer, reserves `scale`
@@ -504,7 +507,8 @@ struct RingCellScratch {
 // does not depend on their order: in a dense array over the cell rectangle
 // the leaves reach (row-major, so in cell order) when that rectangle holds
 // at most 4 times the cells the leaves touch, else sorted by cell.
-std::vector<CellPoly> ring_cell_entries(const DecalModel& m, const GridMap& map, uint32_t r,
+std::vector<CellPoly> ring_cell_entries(const DecalModel& m, const GridMap& map,
+                                        const decal::layout::Box16Encoder& box16, uint32_t r,
                                         const std::vector<uint32_t>& leaves,
                                         RingCellScratch& scratch) {
   const GridParams& g = m.grid;
@@ -542,7 +546,7 @@ std::vector<CellPoly> ring_cell_entries(const DecalModel& m, const GridMap& map,
       if (next == node) break;
       node = next;
     }
-    out.push_back({cell, r, node, to_ivec4(u)});
+    out.push_back({cell, r, node, box16(cell, to_ivec4(u))});
   };
   auto unite = [](QBox& u, const QBox& b) {
     if (u.empty()) {
@@ -611,14 +615,15 @@ void polygon_cell_entries(const DecalModel& m, const PolygonRings& pr, ProgressS
   std::vector<std::vector<CellPoly>> per_ring(nr);
   tbb::enumerable_thread_specific<RingCellScratch> scratch;
   const GridMap map(m.grid);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, nr, 16),
-                    [&](const tbb::blocked_range<size_t>& range) {
-                      RingCellScratch& s = scratch.local();
-                      for (size_t r = range.begin(); r != range.end(); ++r) {
-                        per_ring[r] = ring_cell_entries(m, map, uint32_t(r), pr.solid_leaves[r], s);
-                        cells_stage.add();
-                      }
-                    });
+  const decal::layout::Box16Encoder box16(cell_grid(m.grid));
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, nr, 16), [&](const tbb::blocked_range<size_t>& range) {
+        RingCellScratch& s = scratch.local();
+        for (size_t r = range.begin(); r != range.end(); ++r) {
+          per_ring[r] = ring_cell_entries(m, map, box16, uint32_t(r), pr.solid_leaves[r], s);
+          cells_stage.add();
+        }
+      });
   scratch.clear();
   const size_t ncells = size_t(m.grid.nx) * m.grid.ny;
   auto ext_of = [&](uint32_t poly) {
@@ -631,20 +636,27 @@ void polygon_cell_entries(const DecalModel& m, const PolygonRings& pr, ProgressS
   };
   for (const bool holes : {false, true}) {
     std::vector<CellPoly>& dst = holes ? hole_entries : ext_entries;
-    std::vector<uint64_t> first(ncells + 1, 0);
+    // Counting sort by cell: first[c + 1] counts cell c, then holds where
+    // it starts; placing advances first[c] to cell c's end, and the shift
+    // back restores the starts.
+    std::vector<uint32_t> first(ncells + 1, 0);
+    uint64_t total = 0;
     for (size_t r = 0; r < nr; ++r)
-      if (pr.is_hole(r) == holes)
+      if (pr.is_hole(r) == holes) {
+        total += per_ring[r].size();
         for (const CellPoly& e : per_ring[r]) ++first[e.cell + 1];
-    for (size_t c = 0; c < ncells; ++c) first[c + 1] += first[c];
-    dst.resize(first[ncells]);
-    {
-      std::vector<uint64_t> fill(first.begin(), first.end() - 1);
-      for (size_t r = 0; r < nr; ++r) {
-        if (pr.is_hole(r) != holes) continue;
-        for (const CellPoly& e : per_ring[r]) dst[fill[e.cell]++] = e;
-        std::vector<CellPoly>().swap(per_ring[r]);
       }
+    if (total > 0xffffffffULL)
+      fail<resource_error>(kBuildStage, "more than 2^32 (cell, polygon) entries");
+    for (size_t c = 0; c < ncells; ++c) first[c + 1] += first[c];
+    dst.resize(total);
+    for (size_t r = 0; r < nr; ++r) {
+      if (pr.is_hole(r) != holes) continue;
+      for (const CellPoly& e : per_ring[r]) dst[first[e.cell]++] = e;
+      std::vector<CellPoly>().swap(per_ring[r]);
     }
+    for (size_t c = ncells; c > 0; --c) first[c] = first[c - 1];
+    first[0] = 0;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, ncells, 4096),
                       [&](const tbb::blocked_range<size_t>& range) {
                         for (size_t c = range.begin(); c != range.end(); ++c)
@@ -656,53 +668,66 @@ void polygon_cell_entries(const DecalModel& m, const PolygonRings& pr, ProgressS
 }
 
 // The per-cell lists (segments, exteriors with their holes) and the per-cell
-// BVHs over them.
-void fill_cells(std::vector<SegEntry>&& seg_entries, const std::vector<CellPoly>& ext_entries,
-                const std::vector<CellPoly>& hole_entries, const PolygonRings& pr, DecalModel& m) {
+// BVHs over them, in the v1.3 layout (formats/SPEC.md "Compact layout
+// (v1.3)"). Each kind's entries are freed as soon as its arrays are made;
+// a kind without entries has no per-cell arrays.
+void fill_cells(std::vector<SegEntry>&& seg_entries, std::vector<CellPoly>&& ext_entries,
+                std::vector<CellPoly>&& hole_entries, const PolygonRings& pr, DecalModel& m) {
   const size_t ncells = size_t(m.grid.nx) * m.grid.ny;
-  m.cell_segment_range.assign(ncells, uvec2{0, 0});
-  m.cell_poly_range.assign(ncells, uvec2{0, 0});
-  std::vector<uint32_t> seg_first(ncells + 1, 0), poly_first(ncells + 1, 0);
-  std::vector<ivec4> seg_boxes(seg_entries.size()), poly_boxes;
-  m.cell_segments.resize(seg_entries.size());
-  for (size_t i = 0; i < seg_entries.size(); ++i) {
-    ++seg_first[seg_entries[i].cell + 1];
-    m.cell_segments[i] = {seg_entries[i].start, seg_entries[i].end};
-    seg_boxes[i] = seg_entries[i].box;
+  const decal::layout::Box16Encoder box16(cell_grid(m.grid));
+  std::vector<uint32_t> first;
+  auto count_cells = [&](const auto& entries) {
+    first.assign(ncells + 1, 0);
+    for (const auto& e : entries) ++first[e.cell + 1];
+    for (size_t c = 0; c < ncells; ++c) first[c + 1] += first[c];
+  };
+  if (!seg_entries.empty()) {
+    count_cells(seg_entries);
+    m.cell_segments.resize(seg_entries.size());
+    for (size_t i = 0; i < seg_entries.size(); ++i)
+      m.cell_segments[i] = {seg_entries[i].start, seg_entries[i].end};
+    build_bvhs(
+        first,
+        [&](uint64_t cell, uint32_t f, uint32_t n, uvec2* out) {
+          for (uint32_t k = 0; k < n; ++k) out[k] = box16(cell, seg_entries[f + k].box);
+        },
+        m.cell_line_first, m.line_bvh_box16);
   }
   std::vector<SegEntry>().swap(seg_entries);
-  m.cell_polys.reserve(ext_entries.size());
-  m.cell_holes.reserve(hole_entries.size());
-  poly_boxes.reserve(ext_entries.size());
-  size_t h = 0;
-  for (const CellPoly& e : ext_entries) {
-    ++poly_first[e.cell + 1];
-    const uint32_t first_hole = uint32_t(m.cell_holes.size());
-    // Holes of this exterior in this cell are contiguous in hole_entries
-    // (same sort key prefix); skip holes whose exterior is absent here.
-    while (h < hole_entries.size() &&
-           (hole_entries[h].cell < e.cell ||
-            (hole_entries[h].cell == e.cell && pr.order[hole_entries[h].poly] < pr.order[e.poly])))
-      ++h;
-    while (h < hole_entries.size() && hole_entries[h].cell == e.cell &&
-           uint32_t(pr.rings[hole_entries[h].poly].exterior) == e.poly) {
-      m.cell_holes.push_back({hole_entries[h].poly, hole_entries[h].cull});
-      ++h;
+  if (!ext_entries.empty()) {
+    m.cell_poly_entries.reserve(ext_entries.size());
+    m.cell_poly_holes.reserve(ext_entries.size() + 1);
+    m.cell_holes.reserve(hole_entries.size());
+    size_t h = 0;
+    for (const CellPoly& e : ext_entries) {
+      m.cell_poly_holes.push_back(uint32_t(m.cell_holes.size()));
+      // Holes of this exterior in this cell are contiguous in hole_entries
+      // (same sort key prefix); skip holes whose exterior is absent here.
+      while (h < hole_entries.size() &&
+             (hole_entries[h].cell < e.cell || (hole_entries[h].cell == e.cell &&
+                                                pr.order[hole_entries[h].poly] < pr.order[e.poly])))
+        ++h;
+      while (h < hole_entries.size() && hole_entries[h].cell == e.cell &&
+             uint32_t(pr.rings[hole_entries[h].poly].exterior) == e.poly) {
+        m.cell_holes.push_back({hole_entries[h].poly, hole_entries[h].cull});
+        ++h;
+      }
+      m.cell_poly_entries.push_back({e.poly, e.cull});
     }
-    m.cell_polys.push_back(
-        {e.poly, e.cull, first_hole, uint32_t(m.cell_holes.size()) - first_hole});
-    poly_boxes.push_back(e.box);
+    m.cell_poly_holes.push_back(uint32_t(m.cell_holes.size()));
+    std::vector<CellPoly>().swap(hole_entries);
+    count_cells(ext_entries);
+    build_bvhs(
+        first,
+        [&](uint64_t, uint32_t f, uint32_t n, uvec2* out) {
+          for (uint32_t k = 0; k < n; ++k) out[k] = ext_entries[f + k].box;
+        },
+        m.cell_poly_first, m.poly_bvh_box16);
   }
-  m.stats.poly_cell_entries = m.cell_polys.size();
+  std::vector<CellPoly>().swap(ext_entries);
+  std::vector<CellPoly>().swap(hole_entries);
+  m.stats.poly_cell_entries = m.cell_poly_entries.size();
   m.stats.hole_cell_entries = m.cell_holes.size();
-  for (size_t c = 0; c < ncells; ++c) {
-    seg_first[c + 1] += seg_first[c];
-    poly_first[c + 1] += poly_first[c];
-    m.cell_segment_range[c] = {seg_first[c], seg_first[c + 1] - seg_first[c]};
-    m.cell_poly_range[c] = {poly_first[c], poly_first[c + 1] - poly_first[c]};
-  }
-  build_bvhs(seg_first, seg_boxes, m.line_bvh_range, m.line_bvh_box);
-  build_bvhs(poly_first, poly_boxes, m.poly_bvh_range, m.poly_bvh_box);
 }
 
 }  // namespace
@@ -742,7 +767,7 @@ DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
   m.stats.line_cell_entries = seg_entries.size();
   std::vector<CellPoly> ext_entries, hole_entries;
   polygon_cell_entries(m, rings, cells_stage, ext_entries, hole_entries);
-  fill_cells(std::move(seg_entries), ext_entries, hole_entries, rings, m);
+  fill_cells(std::move(seg_entries), std::move(ext_entries), std::move(hole_entries), rings, m);
   cells_stage.finish();
 
   // Dynamic lines and LOD.

@@ -2,20 +2,21 @@
 // Hierarchies"): an implicit full binary tree per cell. With n leaves the
 // tree has P = next power of two >= n leaf slots and 2P - 1 nodes; node i has
 // children 2i+1 and 2i+2 (Eq. 4.5/4.6); leaf k is node (P - 1) + k and refers
-// to the k-th entry of the cell's list (cell_segments / cell_polys). Empty
-// slots, and internal nodes with only empty slots below, have the empty box
-// (INT32_MAX, INT32_MAX, INT32_MIN, INT32_MIN), i.e. xmin > xmax.
+// to the k-th entry of the cell's list (cell_segments / cell_poly_entries).
+// Boxes are the cell-relative u16 boxes of the v1.3 layout; empty slots, and
+// internal nodes with only empty slots below, have the empty box
+// (decal::layout::Box16Encoder::kEmpty).
 #include <tbb/parallel_for.h>
 
-#include <limits>
+#include <decal/layout.hpp>
 
 #include "detail.hpp"
+#include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep::detail {
 
 namespace {
-constexpr ivec4 kEmptyBox{std::numeric_limits<int32_t>::max(), std::numeric_limits<int32_t>::max(),
-                          std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::min()};
 uint32_t leaf_slots(uint32_t n) {
   if (n == 0) return 0;
   uint32_t p = 1;
@@ -24,31 +25,31 @@ uint32_t leaf_slots(uint32_t n) {
 }
 }  // namespace
 
-void build_bvhs(const std::vector<uint32_t>& first, const std::vector<ivec4>& leaf_boxes,
-                std::vector<uvec4>& range, std::vector<ivec4>& boxes) {
+void build_bvhs(const std::vector<uint32_t>& first, const LeafBoxes& leaf_boxes,
+                std::vector<uvec2>& cell_first, std::vector<uvec2>& boxes) {
+  namespace L = decal::layout;
   const size_t cells = first.size() - 1;
-  range.assign(cells, uvec4{0, 0, 0, 0});
+  cell_first.resize(cells + 1);
   uint64_t total = 0;
   for (size_t c = 0; c < cells; ++c) {
+    cell_first[c] = {first[c], uint32_t(total)};
     const uint32_t p = leaf_slots(first[c + 1] - first[c]);
-    range[c] = {uint32_t(total), p, p ? p - 1 : 0, 0};
     total += p ? 2 * uint64_t(p) - 1 : 0;
+    if (total > 0xffffffffULL)
+      fail<resource_error>(kBuildStage, "per-cell BVHs need more than 2^32 nodes");
   }
-  boxes.assign(total, kEmptyBox);
+  cell_first[cells] = {first[cells], uint32_t(total)};
+  boxes.assign(total, L::Box16Encoder::kEmpty);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, cells, 256),
                     [&](const tbb::blocked_range<size_t>& r) {
                       for (size_t c = r.begin(); c != r.end(); ++c) {
                         const uint32_t n = first[c + 1] - first[c];
                         if (n == 0) continue;
-                        const uint32_t p = range[c][1];
-                        ivec4* node = boxes.data() + range[c][0];
-                        for (uint32_t k = 0; k < n; ++k) node[p - 1 + k] = leaf_boxes[first[c] + k];
-                        for (int64_t i = int64_t(p) - 2; i >= 0; --i) {
-                          const ivec4& a = node[2 * i + 1];
-                          const ivec4& b = node[2 * i + 2];
-                          node[i] = {std::min(a[0], b[0]), std::min(a[1], b[1]),
-                                     std::max(a[2], b[2]), std::max(a[3], b[3])};
-                        }
+                        const uint32_t p = leaf_slots(n);
+                        uvec2* node = boxes.data() + cell_first[c][1];
+                        leaf_boxes(c, first[c], n, node + (p - 1));
+                        for (int64_t i = int64_t(p) - 2; i >= 0; --i)
+                          node[i] = L::box16_union(node[2 * i + 1], node[2 * i + 2]);
                       }
                     });
 }

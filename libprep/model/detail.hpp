@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <decal/layout.hpp>
+
 #include "prep/model.hpp"
 #include "prep/scene.hpp"
 
@@ -183,13 +185,22 @@ inline QBox cell_box(const GridParams& g, int64_t ix, int64_t iy) {
   return b;
 }
 
+// The grid as the v1.3 box encoding sees it.
+inline decal::layout::CellGrid cell_grid(const GridParams& g) {
+  return {g.origin_x, g.origin_y, g.cell_w, g.cell_h, g.nx};
+}
+
 // ------------------------------------------------------------------- bvh --
 
 // Builds per-cell implicit full binary BVHs (thesis §4.2.1 "Bounding Volume
-// Hierarchies"): for cell c the leaves are leaf_boxes[first[c] .. first[c+1]).
-// Fills range (first node, leaf slots, internal nodes, 0) and boxes.
-void build_bvhs(const std::vector<uint32_t>& first, const std::vector<ivec4>& leaf_boxes,
-                std::vector<uvec4>& range, std::vector<ivec4>& boxes);
+// Hierarchies") in the v1.3 layout (formats/SPEC.md "Compact layout
+// (v1.3)"): cell c's leaves are entries [first[c], first[c+1]) of its list,
+// whose boxes, in the u16 form of decal::layout::Box16Encoder,
+// leaf_boxes(c, first[c], n, out) writes to out[0, n). Fills cell_first (per
+// cell plus one: first entry, first node) and the nodes' boxes.
+using LeafBoxes = std::function<void(uint64_t cell, uint32_t first, uint32_t n, uvec2* out)>;
+void build_bvhs(const std::vector<uint32_t>& first, const LeafBoxes& leaf_boxes,
+                std::vector<uvec2>& cell_first, std::vector<uvec2>& boxes);
 
 }  // namespace prep::detail
 

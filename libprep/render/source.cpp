@@ -37,8 +37,9 @@ DecalSource source_of(const DecalModel& m) {
   add_blob(s, BlobId::line_vertex_line, m.line_vertex_line);
   add_blob(s, BlobId::line_props, m.line_props);
   add_blob(s, BlobId::line_corners, m.line_corners);
-  add_blob(s, BlobId::cell_segment_range, m.cell_segment_range);
   add_blob(s, BlobId::cell_segments, m.cell_segments);
+  add_blob(s, BlobId::cell_line_first, m.cell_line_first);
+  add_blob(s, BlobId::line_bvh_box16, m.line_bvh_box16);
   add_blob(s, BlobId::poly_props, m.poly_props);
   add_blob(s, BlobId::poly_root_node, m.poly_root_node);
   add_blob(s, BlobId::qt_node_box, m.qt_node_box);
@@ -46,13 +47,11 @@ DecalSource source_of(const DecalModel& m) {
   add_blob(s, BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
   add_blob(s, BlobId::qt_leaf_loops, m.qt_leaf_loops);
   add_blob(s, BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
-  add_blob(s, BlobId::cell_poly_range, m.cell_poly_range);
-  add_blob(s, BlobId::cell_polys, m.cell_polys);
+  add_blob(s, BlobId::cell_poly_first, m.cell_poly_first);
+  add_blob(s, BlobId::cell_poly_entries, m.cell_poly_entries);
+  add_blob(s, BlobId::cell_poly_holes, m.cell_poly_holes);
   add_blob(s, BlobId::cell_holes, m.cell_holes);
-  add_blob(s, BlobId::line_bvh_range, m.line_bvh_range);
-  add_blob(s, BlobId::line_bvh_box, m.line_bvh_box);
-  add_blob(s, BlobId::poly_bvh_range, m.poly_bvh_range);
-  add_blob(s, BlobId::poly_bvh_box, m.poly_bvh_box);
+  add_blob(s, BlobId::poly_bvh_box16, m.poly_bvh_box16);
   add_blob(s, BlobId::dyn_vertices, m.dyn_vertices);
   add_blob(s, BlobId::dyn_prev_next, m.dyn_prev_next);
   add_blob(s, BlobId::dyn_line_start, m.dyn_line_start);

@@ -63,14 +63,14 @@ void write_model(const std::string& path, const DecalModel& model,
       fail<output_error>(kWriteStage, path + ": extra metadata must be a JSON object");
   }
   // The writer compresses the model's own arrays while one of its threads
-  // encodes the v1.3 blobs and makes the metadata, which counts them.
-  ModelBlobPlan plan = model_blob_plan(model);
-  std::vector<BlobInput>& blobs = plan.source.blobs;
+  // makes the metadata.
+  PackageSource source;
+  source.blobs = model_blobs(model, /*include_empty=*/true);
+  std::vector<BlobInput>& blobs = source.blobs;
   const std::string entries = manifest_entries_json(model.manifest);
   blobs.push_back({decal::BlobId::manifest_entries, decal::ElementType::u8, 1, entries.size(),
                    std::as_bytes(std::span(entries.data(), entries.size()))});
-  plan.source.complete = [&]() -> std::string {
-    plan.encode(blobs);
+  source.complete = [&]() -> std::string {
     json counts = json::object();
     for (const BlobInput& b : blobs)
       counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;
@@ -101,7 +101,7 @@ void write_model(const std::string& path, const DecalModel& model,
     // deterministic; non-finite numbers are written as null.
     return meta.dump();
   };
-  write_package_consuming(path, plan.source, options);
+  write_package_consuming(path, source, options);
 }
 
 }  // namespace prep

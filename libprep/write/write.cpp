@@ -32,7 +32,6 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include "decal/layout.hpp"
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
 #include "prep/stage_error.hpp"
@@ -298,13 +297,10 @@ void write_package_consuming(const std::string& path, PackageSource& source,
                       std::to_string(ZSTD_minCLevel()) + ", " + std::to_string(ZSTD_maxCLevel()) +
                       "]");
   if (blobs.size() > UINT32_MAX) fail_io(path, "too many blobs");
-  std::vector<char> deferred(blobs.size(), 0);
-  for (const size_t i : source.deferred) deferred.at(i) = 1;
 
   uint64_t raw_bytes = 0;
   for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
-  ProgressStage stage(options.progress, "write", raw_bytes, "bytes",
-                      source.deferred.empty() ? ProgressTotal::exact : ProgressTotal::estimate);
+  ProgressStage stage(options.progress, "write", raw_bytes, "bytes");
   std::vector<EncodedBlob> enc(blobs.size());
   std::vector<std::string> names(blobs.size());
   // The table entry of blob `i` but for its place in the file.
@@ -324,8 +320,7 @@ void write_package_consuming(const std::string& path, PackageSource& source,
     const bool zstd = options.codec == Codec::zstd && !b.bytes.empty();
     e.codec = static_cast<uint32_t>(zstd ? decal::CodecId::zstd : decal::CodecId::none);
   };
-  for (size_t i = 0; i < blobs.size(); ++i)
-    if (!deferred[i]) describe(i);
+  for (size_t i = 0; i < blobs.size(); ++i) describe(i);
 
   decal::FileHeader h{};
   std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
@@ -352,8 +347,7 @@ void write_package_consuming(const std::string& path, PackageSource& source,
 
   std::mutex mutex;
   std::condition_variable queue_changed;
-  // Blobs ready to compress, taken largest first; the deferred ones join
-  // when source.complete() has made them.
+  // Blobs to compress, taken largest first.
   std::vector<size_t> queue;
   bool completing = false, completed = false, failed = false;
   std::vector<char> ready(blobs.size(), 0);
@@ -401,30 +395,19 @@ void write_package_consuming(const std::string& path, PackageSource& source,
     const size_t sa = blobs[a].bytes.size(), sb = blobs[b].bytes.size();
     return sa != sb ? sa < sb : a > b;
   };
-  for (size_t i = 0; i < blobs.size(); ++i)
-    if (!deferred[i]) queue.push_back(i);
+  for (size_t i = 0; i < blobs.size(); ++i) queue.push_back(i);
   std::make_heap(queue.begin(), queue.end(), by_size);
 
-  // source.complete(): the deferred blobs and the metadata, on the first
-  // slot that starts (the others meanwhile compress the blobs at hand).
+  // source.complete(): the metadata, on the first slot that starts (the
+  // others meanwhile compress the blobs).
   const auto complete = [&] {
     std::string json = source.complete ? source.complete() : std::string();
     check_metadata(path, json);
-    uint64_t added = 0;
-    for (const size_t i : source.deferred) {
-      describe(i);
-      added += blobs[i].bytes.size();
-    }
-    if (added) stage.set_total(raw_bytes + added);
     std::unique_lock lock(mutex);
     metadata_json = std::move(json);
     h.metadata_size = metadata_json.size();
     h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
     metadata_ready = true;
-    for (const size_t i : source.deferred) {
-      queue.push_back(i);
-      std::push_heap(queue.begin(), queue.end(), by_size);
-    }
     completed = true;
     queue_changed.notify_all();
     write_ready(lock);
@@ -551,143 +534,43 @@ BlobInput blob_of(decal::BlobId id, const std::vector<T>& v) {
   return {id, info->type, info->stride, v.size(), std::as_bytes(std::span<const T>(v))};
 }
 
-// An encoded blob: owns its elements.
-template <class T>
-BlobInput owned_blob(decal::BlobId id, std::vector<T> v) {
-  auto p = std::make_shared<std::vector<T>>(std::move(v));
-  BlobInput b = blob_of(id, *p);
-  b.owner = p;
-  return b;
-}
-
-// A list or box blob: the model's own array, or the copy encode_cells made
-// when the model's cells were not in order.
-template <class T>
-BlobInput list_blob(decal::BlobId id, const std::vector<T>& v, std::vector<std::byte>& copy) {
-  if (copy.empty()) return blob_of(id, v);
-  auto p = std::make_shared<std::vector<std::byte>>(std::move(copy));
-  const decal::BlobInfo* info = decal::find_blob_info(id);
-  return {id, info->type, info->stride, p->size() / info->stride, *p, p};
-}
-
 }  // namespace
-
-namespace {
-
-// The blobs of the v1.3 layout encoded from the model's v1.2 arrays
-// (decal/layout.hpp), in table order: the model's own list or box arrays
-// where encode_cells made no copy, the copies otherwise.
-std::vector<BlobInput> encoded_blobs(const DecalModel& m) {
-  using decal::BlobId;
-  namespace L = decal::layout;
-  auto cells = [](const std::vector<uvec2>& range, const std::vector<uvec4>& bvh, const auto& list,
-                  const std::vector<ivec4>& boxes) {
-    return L::encode_cells(std::span<const L::u2>(range.data(), range.size()),
-                           std::span<const L::u4>(bvh.data(), bvh.size()),
-                           std::as_bytes(std::span(list)), sizeof(list[0]),
-                           std::as_bytes(std::span(boxes)), sizeof(ivec4));
-  };
-  L::CellEncoding lines =
-      cells(m.cell_segment_range, m.line_bvh_range, m.cell_segments, m.line_bvh_box);
-  L::CellEncoding polys = cells(m.cell_poly_range, m.poly_bvh_range, m.cell_polys, m.poly_bvh_box);
-  if (!lines.ok || !polys.ok)
-    fail<format_error>(kWriteStage, std::string("per-cell ranges of the ") +
-                                        (lines.ok ? "polygons" : "lines") +
-                                        " break the index constraints (formats/SPEC.md)");
-  // BVH boxes as cell-relative u16 boxes (decal/layout.hpp), from the
-  // model's boxes or the copy encode_cells made in cell order.
-  const L::CellGrid grid{m.grid.origin_x, m.grid.origin_y, m.grid.cell_w, m.grid.cell_h, m.grid.nx};
-  auto boxes16 = [&](const L::CellEncoding& e, const std::vector<ivec4>& model_boxes) {
-    if (e.first.empty()) return std::vector<L::u2>{};
-    std::span<const ivec4> src(model_boxes);
-    if (!e.boxes.empty())
-      src = {reinterpret_cast<const ivec4*>(e.boxes.data()), e.boxes.size() / sizeof(ivec4)};
-    return L::encode_boxes16(e.first, src, grid);
-  };
-  // Exterior entries as (polygon, node) plus hole firsts (decal/layout.hpp).
-  std::span<const uvec4> poly_list(m.cell_polys);
-  if (!polys.list.empty())
-    poly_list = {reinterpret_cast<const uvec4*>(polys.list.data()),
-                 polys.list.size() / sizeof(uvec4)};
-  L::PolyEntryEncoding entries = L::encode_poly_entries(poly_list, m.cell_holes);
-  if (!entries.ok)
-    fail<format_error>(kWriteStage, "cell_polys hole ranges break the index constraints");
-  std::vector<uvec2> holes_copy = std::move(entries.holes);
-  std::vector<L::u2> line_boxes = boxes16(lines, m.line_bvh_box);
-  std::vector<L::u2> poly_boxes = boxes16(polys, m.poly_bvh_box);
-  return {
-      list_blob(BlobId::cell_segments, m.cell_segments, lines.list),
-      owned_blob(BlobId::cell_line_first, std::move(lines.first)),
-      holes_copy.empty() ? blob_of(BlobId::cell_holes, m.cell_holes)
-                         : owned_blob(BlobId::cell_holes, std::move(holes_copy)),
-      owned_blob(BlobId::cell_poly_first, std::move(polys.first)),
-      owned_blob(BlobId::line_bvh_box16, std::move(line_boxes)),
-      owned_blob(BlobId::poly_bvh_box16, std::move(poly_boxes)),
-      owned_blob(BlobId::cell_poly_entries, std::move(entries.entries)),
-      owned_blob(BlobId::cell_poly_holes, std::move(entries.hole_first)),
-  };
-}
-
-// A deferred blob before encoded_blobs made it: id, type and stride.
-BlobInput placeholder(decal::BlobId id) {
-  const decal::BlobInfo* info = decal::find_blob_info(id);
-  return {id, info->type, info->stride, 0, {}};
-}
-
-}  // namespace
-
-ModelBlobPlan model_blob_plan(const DecalModel& m) {
-  using decal::BlobId;
-  ModelBlobPlan plan;
-  std::vector<BlobInput>& blobs = plan.source.blobs;
-  const auto defer = [&](BlobId id) {
-    plan.source.deferred.push_back(blobs.size());
-    blobs.push_back(placeholder(id));
-  };
-  blobs.push_back(blob_of(BlobId::line_vertices, m.line_vertices));
-  blobs.push_back(blob_of(BlobId::line_vertex_line, m.line_vertex_line));
-  blobs.push_back(blob_of(BlobId::line_props, m.line_props));
-  blobs.push_back(blob_of(BlobId::line_corners, m.line_corners));
-  defer(BlobId::cell_segments);
-  defer(BlobId::cell_line_first);
-  blobs.push_back(blob_of(BlobId::poly_props, m.poly_props));
-  blobs.push_back(blob_of(BlobId::poly_root_node, m.poly_root_node));
-  blobs.push_back(blob_of(BlobId::qt_node_box, m.qt_node_box));
-  blobs.push_back(blob_of(BlobId::qt_node, m.qt_node));
-  blobs.push_back(blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices));
-  defer(BlobId::cell_holes);
-  blobs.push_back(blob_of(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range));
-  blobs.push_back(blob_of(BlobId::qt_leaf_loops, m.qt_leaf_loops));
-  for (BlobId id : {BlobId::cell_poly_first, BlobId::line_bvh_box16, BlobId::poly_bvh_box16,
-                    BlobId::cell_poly_entries, BlobId::cell_poly_holes})
-    defer(id);
-  blobs.push_back(blob_of(BlobId::dyn_vertices, m.dyn_vertices));
-  blobs.push_back(blob_of(BlobId::dyn_prev_next, m.dyn_prev_next));
-  blobs.push_back(blob_of(BlobId::dyn_line_start, m.dyn_line_start));
-  blobs.push_back(blob_of(BlobId::dyn_line_props, m.dyn_line_props));
-  blobs.push_back(blob_of(BlobId::lod_points, m.lod_points));
-  blobs.push_back(blob_of(BlobId::lod_segments, m.lod_segments));
-  blobs.push_back(blob_of(BlobId::lod_line_range, m.lod_line_range));
-  // encoded_blobs makes the deferred blobs, in the same order.
-  plan.encode = [&m, deferred = plan.source.deferred](std::vector<BlobInput>& out) {
-    std::vector<BlobInput> made = encoded_blobs(m);
-    if (made.size() != deferred.size()) fail<format_error>(kWriteStage, "internal error");
-    for (size_t k = 0; k < made.size(); ++k) {
-      if (out[deferred[k]].id != made[k].id) fail<format_error>(kWriteStage, "internal error");
-      out[deferred[k]] = std::move(made[k]);
-    }
-  };
-  return plan;
-}
 
 std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
-  ModelBlobPlan plan = model_blob_plan(m);
-  plan.encode(plan.source.blobs);
-  std::vector<BlobInput> all = std::move(plan.source.blobs);
+  using decal::BlobId;
   // Every catalogue blob but manifest_entries, which write_model adds, and
-  // the superseded ids.
+  // the superseded ids, in table order: the model's own arrays, which hold
+  // the v1.3 layout (prep/model.hpp).
   static_assert(std::size(decal::kBlobCatalogue) == 36 && std::size(decal::kSupersededBlobs) == 9,
                 "model_blobs must list every model blob");
+  const std::vector<BlobInput> all = {
+      blob_of(BlobId::line_vertices, m.line_vertices),
+      blob_of(BlobId::line_vertex_line, m.line_vertex_line),
+      blob_of(BlobId::line_props, m.line_props),
+      blob_of(BlobId::line_corners, m.line_corners),
+      blob_of(BlobId::cell_segments, m.cell_segments),
+      blob_of(BlobId::cell_line_first, m.cell_line_first),
+      blob_of(BlobId::poly_props, m.poly_props),
+      blob_of(BlobId::poly_root_node, m.poly_root_node),
+      blob_of(BlobId::qt_node_box, m.qt_node_box),
+      blob_of(BlobId::qt_node, m.qt_node),
+      blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices),
+      blob_of(BlobId::cell_holes, m.cell_holes),
+      blob_of(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range),
+      blob_of(BlobId::qt_leaf_loops, m.qt_leaf_loops),
+      blob_of(BlobId::cell_poly_first, m.cell_poly_first),
+      blob_of(BlobId::line_bvh_box16, m.line_bvh_box16),
+      blob_of(BlobId::poly_bvh_box16, m.poly_bvh_box16),
+      blob_of(BlobId::cell_poly_entries, m.cell_poly_entries),
+      blob_of(BlobId::cell_poly_holes, m.cell_poly_holes),
+      blob_of(BlobId::dyn_vertices, m.dyn_vertices),
+      blob_of(BlobId::dyn_prev_next, m.dyn_prev_next),
+      blob_of(BlobId::dyn_line_start, m.dyn_line_start),
+      blob_of(BlobId::dyn_line_props, m.dyn_line_props),
+      blob_of(BlobId::lod_points, m.lod_points),
+      blob_of(BlobId::lod_segments, m.lod_segments),
+      blob_of(BlobId::lod_line_range, m.lod_line_range),
+  };
   std::vector<BlobInput> out;
   for (const BlobInput& b : all)
     if (include_empty || b.count > 0) out.push_back(b);

@@ -1,5 +1,7 @@
 #include "fixtures.hpp"
 
+#include "v12_cells.hpp"
+
 #include <xxhash.h>
 
 #include <cmath>
@@ -10,6 +12,24 @@
 #include <stdexcept>
 
 namespace decal_test {
+
+prep::test::V12Cells small_model_cells() {
+  prep::test::V12Cells cells;
+  // cell 0: both segments of line 0; cell 1: line 0's second and line 1's
+  // segment; the exterior (with its hole) in cell 0 only. BVHs: (first box,
+  // leaf slots, internal nodes), full binary trees, leaf k = the cell's k-th
+  // entry.
+  cells.segment_range = {{0, 2}, {2, 2}};
+  cells.poly_range = {{0, 1}, {1, 0}};
+  cells.cell_polys = {{0, 0, 0, 1}};
+  cells.line_bvh_range = {{0, 2, 1, 0}, {3, 2, 1, 0}};
+  cells.line_bvh_box = {{-9000, -100, 1000, 100}, {-1000, -100, 1000, 100},
+                        {-9000, -100, 1000, 100}, {-1000, -100, 9000, 4000},
+                        {-1000, -100, 1000, 100}, {2000, 2000, 9000, 4000}};
+  cells.poly_bvh_range = {{0, 1, 0, 0}, {1, 0, 0, 0}};
+  cells.poly_bvh_box = {{-8000, -4000, 8000, 4000}};
+  return cells;
+}
 
 prep::DecalModel small_model() {
   prep::DecalModel m;
@@ -26,7 +46,6 @@ prep::DecalModel small_model() {
                   {0.75f, 0x8000ff00u, 0, 0u | decal::kStyleClosedBit, NAN, 1, 8, 0}};
   for (int i = 0; i < 5; ++i)
     m.line_corners.push_back({{0.1f * i, -0.2f}, {0.5f, 0.25f * i}, {-1.0f, 2.0f}});
-  m.cell_segment_range = {{0, 2}, {2, 2}};
   m.cell_segments = {{0, 1}, {1, 2}, {1, 2}, {3, 4}};
   // polygons: 0 = exterior, 1 = its hole; rank 2, below both lines (one
   // rank space, formats/SPEC.md "Drawing order")
@@ -39,17 +58,8 @@ prep::DecalModel small_model() {
   m.qt_leaf_loops = {3, 6};
   m.qt_leaf_vertices = {{-8000, 0},     {0, 0},        {-4000, 4000},
                         {-2000, -1000}, {2000, -1000}, {0, 1000}};
-  m.cell_poly_range = {{0, 1}, {1, 0}};
-  m.cell_polys = {{0, 0, 0, 1}};
   m.cell_holes = {{1, 5}};
-  // BVHs
-  // (first box, leaf slots, internal nodes): full binary trees, leaf k =
-  // the cell's k-th segment
-  m.line_bvh_range = {{0, 2, 1, 0}, {3, 2, 1, 0}};
-  m.line_bvh_box = {{-9000, -100, 1000, 100},  {-1000, -100, 1000, 100}, {-9000, -100, 1000, 100},
-                    {-1000, -100, 9000, 4000}, {-1000, -100, 1000, 100}, {2000, 2000, 9000, 4000}};
-  m.poly_bvh_range = {{0, 1, 0, 0}, {1, 0, 0, 0}};
-  m.poly_bvh_box = {{-8000, -4000, 8000, 4000}};
+  prep::test::set_cells(m, small_model_cells());  // the model holds the v1.3 layout
   // dynamic lines
   m.dyn_vertices = {
       {-5000, 0, 120500, 0}, {5000, 0, 130250, 0}, {0, -3000, 99000, 1}, {0, 3000, 101000, 1}};

@@ -11,6 +11,7 @@
 #include "package_fields.hpp"  // get / put
 #include "prep/model.hpp"
 #include "prep/write.hpp"
+#include "v12_cells.hpp"
 
 namespace decal_test {
 
@@ -18,6 +19,10 @@ namespace decal_test {
 // (validate_indices passes): 2 cells, 2 static lines, an exterior polygon
 // with one hole, BVHs, 2 dynamic lines and one LOD line.
 prep::DecalModel small_model();
+// small_model()'s per-cell lists and BVHs in the v1.2 layout (plain ranges
+// and full boxes), which it stores in the v1.3 arrays with
+// prep::test::set_cells.
+prep::test::V12Cells small_model_cells();
 
 // Writes `model` with write_model and returns the file's bytes.
 std::vector<std::byte> model_package_bytes(const prep::DecalModel& model,

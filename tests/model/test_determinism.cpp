@@ -7,6 +7,7 @@
 #include "../evaluate/synthetic.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/model.hpp"
+#include "v12_cells.hpp"
 
 namespace {
 
@@ -24,6 +25,7 @@ void expect_same_static_blobs(const prep::DecalModel& a, const prep::DecalModel&
   EXPECT_EQ(a.grid.cell_w, b.grid.cell_w);
 #define PREP_EXPECT_SAME(type, name) EXPECT_TRUE(same(a.name, b.name)) << #name;
   PREP_STATIC_VIEW_BLOBS(PREP_EXPECT_SAME)
+  PREP_COMPACT_BLOBS(PREP_EXPECT_SAME)
 #undef PREP_EXPECT_SAME
 }
 
@@ -67,7 +69,7 @@ TEST(BuildDeterminism, OneThreadAndTwoThreadsGiveIdenticalBytes) {
   o2.threads = 2;
   const prep::DecalModel a = prep::build_model(scene, o1), b = prep::build_model(scene, o2);
   ASSERT_GT(a.cell_segments.size(), 1000u);
-  ASSERT_GT(a.cell_polys.size(), 100u);
+  ASSERT_GT(a.cell_poly_entries.size(), 100u);
   expect_same_static_blobs(a, b);
   EXPECT_EQ(a.manifest.notes, b.manifest.notes);
 }
@@ -107,9 +109,9 @@ TEST(BuildDrawingOrder, LinesAndPolygonsShareOneLayerMajorRankSpace) {
       best = m.line_props[i].order, top = i;
   EXPECT_EQ(scene.lines[top].length, 16.0);
   // Within every cell, segments are sorted by their line's rank.
-  for (size_t c = 0; c < m.cell_segment_range.size(); ++c) {
-    const auto r = m.cell_segment_range[c];
-    for (uint32_t k = r[0] + 1; k < r[0] + r[1]; ++k)
+  ASSERT_FALSE(m.cell_line_first.empty());
+  for (size_t c = 0; c + 1 < m.cell_line_first.size(); ++c) {
+    for (uint32_t k = m.cell_line_first[c][0] + 1; k < m.cell_line_first[c + 1][0]; ++k)
       EXPECT_LE(m.line_props[m.line_vertex_line[m.cell_segments[k - 1][0]]].order,
                 m.line_props[m.line_vertex_line[m.cell_segments[k][0]]].order);
   }
@@ -161,11 +163,9 @@ TEST(BuildDeterminism, SampledGridChoiceIsTheSameAtOneAndTwoThreads) {
   expect_same_static_blobs(a, b);
   // The size contract (kGridSizeBudget) holds on the sampled choice.
   const prep::DecalModel t = prep::build_model(s, thesis);
+  // The bytes the chooser's byte model counts: the v1.2 layout.
   auto grid_dependent = [](const prep::DecalModel& m) {
-    auto bytes = [](const auto& v) { return double(v.size() * sizeof(v[0])); };
-    return bytes(m.cell_segment_range) + bytes(m.cell_segments) + bytes(m.cell_poly_range) +
-           bytes(m.cell_polys) + bytes(m.cell_holes) + bytes(m.line_bvh_range) +
-           bytes(m.line_bvh_box) + bytes(m.poly_bvh_range) + bytes(m.poly_bvh_box);
+    return double(prep::test::v12_cell_bytes(m));
   };
   auto geometry = [](const prep::DecalModel& m) {
     auto bytes = [](const auto& v) { return double(v.size() * sizeof(v[0])); };

@@ -14,6 +14,7 @@
 #include "../evaluate/synthetic.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/model.hpp"
+#include "v12_cells.hpp"
 
 namespace {
 
@@ -27,12 +28,9 @@ uint64_t bytes_of(const std::vector<T>& v) {
 // leaf vertex rather than the model's loops.
 uint64_t static_bytes(const prep::DecalModel& m) {
   return bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
-         bytes_of(m.line_corners) + bytes_of(m.cell_segment_range) + bytes_of(m.cell_segments) +
-         bytes_of(m.poly_props) + bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) +
-         bytes_of(m.qt_node) + bytes_of(m.qt_leaf_loop_range) + 2 * bytes_of(m.qt_leaf_vertices) +
-         bytes_of(m.cell_poly_range) + bytes_of(m.cell_polys) + bytes_of(m.cell_holes) +
-         bytes_of(m.line_bvh_range) + bytes_of(m.line_bvh_box) + bytes_of(m.poly_bvh_range) +
-         bytes_of(m.poly_bvh_box);
+         bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
+         bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_loop_range) +
+         2 * bytes_of(m.qt_leaf_vertices) + prep::test::v12_cell_bytes(m);
 }
 
 // A city-like scene: polygons (a third with a hole) and polylines, denser
@@ -220,7 +218,7 @@ TEST(DecalGrid, ThinFrameIsFoundInEveryCellItCrosses) {
   const prep::DecalModel m = prep::build_model(s, thesis);
   // The frame's entries: a sixth of the grid at most (its rectangle is all of it).
   uint64_t frame_cells = 0;
-  for (const auto& e : m.cell_polys) frame_cells += e[0] == 0;
+  for (const auto& e : m.cell_poly_entries) frame_cells += e[0] == 0;
   EXPECT_LT(frame_cells * 6, uint64_t(m.grid.nx) * m.grid.ny);
   const prep::StaticView v = prep::view_of(m);
   auto inside = [](const prep::Ring& r, double x, double y, double& clearance) {

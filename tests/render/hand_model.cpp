@@ -1,5 +1,7 @@
 #include "hand_model.hpp"
 
+#include "v12_cells.hpp"
+
 namespace render_test {
 
 namespace {
@@ -44,25 +46,27 @@ prep::DecalModel hand_model() {
   m.line_corners.resize(4, decal::LineCorner{});
   m.line_props.push_back({2.0f, HandShapes::kLineRgba, 0, 0, 0.f, 0, 2, 0});
   m.line_props.push_back({3.0f, HandShapes::kLine2Rgba, 1, 0, 0.f, 0, 3, 0});
+  prep::test::V12Cells cells;
   for (uint32_t c = 0; c < 4; ++c) {
-    m.cell_poly_range.push_back({uint32_t(m.cell_polys.size()), 2});
+    cells.poly_range.push_back({uint32_t(cells.cell_polys.size()), 2});
     m.cell_holes.push_back({1, n_hole});
-    m.cell_polys.push_back({0, n_ext, uint32_t(m.cell_holes.size() - 1), 1});
-    m.cell_polys.push_back({2, n_island, 0, 0});
-    uint32_t first = uint32_t(m.poly_bvh_box.size());
-    m.poly_bvh_box.push_back({q(20), q(20), q(80), q(80)});
-    m.poly_bvh_box.push_back({q(20), q(20), q(80), q(80)});
-    m.poly_bvh_box.push_back({q(45), q(45), q(55), q(55)});
-    m.poly_bvh_range.push_back({first, 2, 1, 0});
+    cells.cell_polys.push_back({0, n_ext, uint32_t(m.cell_holes.size() - 1), 1});
+    cells.cell_polys.push_back({2, n_island, 0, 0});
+    uint32_t first = uint32_t(cells.poly_bvh_box.size());
+    cells.poly_bvh_box.push_back({q(20), q(20), q(80), q(80)});
+    cells.poly_bvh_box.push_back({q(20), q(20), q(80), q(80)});
+    cells.poly_bvh_box.push_back({q(45), q(45), q(55), q(55)});
+    cells.poly_bvh_range.push_back({first, 2, 1, 0});
     // Both lines in every cell, in drawing order (line 0 on top).
-    m.cell_segment_range.push_back({uint32_t(m.cell_segments.size()), 2});
+    cells.segment_range.push_back({uint32_t(m.cell_segments.size()), 2});
     m.cell_segments.push_back({0, 1});
     m.cell_segments.push_back({2, 3});
-    m.line_bvh_range.push_back({uint32_t(m.line_bvh_box.size()), 2, 1, 0});
-    m.line_bvh_box.push_back({q(7), q(7), q(93), q(93)});
-    m.line_bvh_box.push_back({q(8), q(8), q(92), q(92)});
-    m.line_bvh_box.push_back({q(7), q(7), q(93), q(93)});
+    cells.line_bvh_range.push_back({uint32_t(cells.line_bvh_box.size()), 2, 1, 0});
+    cells.line_bvh_box.push_back({q(7), q(7), q(93), q(93)});
+    cells.line_bvh_box.push_back({q(8), q(8), q(92), q(92)});
+    cells.line_bvh_box.push_back({q(7), q(7), q(93), q(93)});
   }
+  prep::test::set_cells(m, cells);  // the model holds the v1.3 layout
   return m;
 }
 

@@ -25,10 +25,6 @@ prep::DecalModel dynamic_model(int corner = 0) {
   prep::DecalModel m;
   m.extent = {0, 0, 200, 100};
   m.grid = {0, 0, 200000, 100000, 1, 1};
-  m.cell_segment_range = {{0, 0}};
-  m.line_bvh_range = {{0, 0, 0, 0}};
-  m.cell_poly_range = {{0, 0}};
-  m.poly_bvh_range = {{0, 0, 0, 0}};
   auto add_line = [&](double x0, double y0, double x1, double y1, uint32_t rgba, uint32_t order) {
     uint32_t line = uint32_t(m.dyn_line_props.size());
     uint32_t first = uint32_t(m.dyn_vertices.size());

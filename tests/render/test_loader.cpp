@@ -59,17 +59,28 @@ TEST(GlLoader, RejectsQuadTreeChildBeforeParentSoDescentCannotLoop) {
   EXPECT_NE(s.message.find("qt_node[1]"), std::string::npos) << s.message;
 }
 
-TEST(GlLoader, RejectsBvhRangeBeyondBoxes) {
-  auto s = validate(corrupted([](prep::DecalModel& m) { m.poly_bvh_range[3][0] = 100; }));
+TEST(GlLoader, RejectsBvhNodesBeyondBoxes) {
+  // The last cell's tree claimed to end past the 12 boxes of the model.
+  auto s = validate(corrupted([](prep::DecalModel& m) { m.cell_poly_first.back()[1] = 100; }));
   ASSERT_FALSE(s.ok);
-  EXPECT_NE(s.message.find("poly_bvh_range[3]"), std::string::npos) << s.message;
+  EXPECT_NE(s.message.find("cell_poly_first runs from (0, 0) to (8, 100)"), std::string::npos)
+      << s.message;
+}
+
+TEST(GlLoader, RejectsCellTreeThatIsNotFull) {
+  // Cell 2 left with 2 nodes for its 2 entries (a full tree has 3).
+  auto s = validate(corrupted([](prep::DecalModel& m) { m.cell_poly_first[3][1] -= 1; }));
+  ASSERT_FALSE(s.ok);
+  EXPECT_NE(s.message.find("cell_poly_first[2]: 2 nodes"), std::string::npos) << s.message;
 }
 
 TEST(GlLoader, RejectsBadNodeTypeHoleRangeAndGridCount) {
   const auto message = [](auto corrupt) { return validate(corrupted(corrupt)).message; };
   EXPECT_NE(message([](prep::DecalModel& m) { m.qt_node[0][0] = 7; }).find("type = 7"),
             std::string::npos);
-  EXPECT_NE(message([](prep::DecalModel& m) { m.cell_polys[0][3] = 5; }).find("cell_polys[0]"),
+  EXPECT_NE(message([](prep::DecalModel& m) {
+              m.cell_poly_holes[1] = 5;
+            }).find("cell_poly_holes[2] = 1 is less than cell_poly_holes[1] = 5"),
             std::string::npos);
   EXPECT_NE(message([](prep::DecalModel& m) { m.grid.nx = 3; }).find("grid cells"),
             std::string::npos);

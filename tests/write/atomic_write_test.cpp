@@ -142,21 +142,23 @@ TEST_F(AtomicWrite, FailingWriteThrowsAndLeavesOldTargetAndNoTempFile) {
   expect_old_target_and_no_temp_file();
 }
 
-TEST_F(AtomicWrite, ModelTheEncoderRefusesThrowsAndLeavesOldTargetAndNoTempFile) {
-  // write_model encodes the v1.3 blobs on one of the writer's threads once
-  // the temporary file exists (libprep/write/write.cpp), so a refusal there
-  // must clean up like any failing write. A cell whose polygon list runs
-  // past the end of cell_polys breaks the v1.2 index constraints that the
-  // v1.3 encoding needs (decal/layout.hpp encode_cells).
-  prep::DecalModel m = decal_test::small_model();
-  auto cell = std::find_if(m.cell_poly_range.begin(), m.cell_poly_range.end(),
-                           [](const prep::uvec2& r) { return r[1] > 0; });
-  ASSERT_NE(cell, m.cell_poly_range.end());
-  (*cell)[0] = static_cast<uint32_t>(m.cell_polys.size());
+TEST_F(AtomicWrite, ModelMetadataRefusedOnAWriterThreadThrowsAndLeavesOldTargetAndNoTempFile) {
+  // write_model makes the metadata on one of the writer's threads once the
+  // temporary file exists (libprep/write/metadata.cpp), so a refusal there
+  // must clean up like any failing write: extra metadata whose key
+  // conflicts with one write_model sets.
+  const prep::DecalModel m = decal_test::small_model();
   for (size_t threads : {1, 4}) {
     SCOPED_TRACE(std::to_string(threads) + " threads");
     const tbb::global_control cap(tbb::global_control::max_allowed_parallelism, threads);
-    EXPECT_THROW(prep::write_model(target_, m, "{}"), prep::format_error);
+    try {
+      prep::write_model(target_, m, R"({"grid": 7})");
+      ADD_FAILURE() << "no exception";
+    } catch (const prep::output_error& e) {
+      EXPECT_NE(std::string(e.what()).find("extra metadata key 'grid' conflicts"),
+                std::string::npos)
+          << e.what();
+    }
     expect_old_target_and_no_temp_file();
   }
 }

@@ -248,42 +248,50 @@ TEST(WriteModel, EveryModelArrayBecomesItsCatalogueBlobInCatalogueOrder) {
   expect_blob_equals(p, BlobId::qt_node, m.qt_node);
   expect_blob_equals(p, BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
   expect_blob_equals(p, BlobId::cell_holes, m.cell_holes);
-  // The other v1.3 blobs decode to the model's v1.2 arrays (decal/layout.hpp).
+  expect_blob_equals(p, BlobId::cell_line_first, m.cell_line_first);
+  expect_blob_equals(p, BlobId::line_bvh_box16, m.line_bvh_box16);
+  expect_blob_equals(p, BlobId::cell_poly_first, m.cell_poly_first);
+  expect_blob_equals(p, BlobId::poly_bvh_box16, m.poly_bvh_box16);
+  expect_blob_equals(p, BlobId::cell_poly_entries, m.cell_poly_entries);
+  expect_blob_equals(p, BlobId::cell_poly_holes, m.cell_poly_holes);
+  expect_blob_equals(p, BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
+  expect_blob_equals(p, BlobId::qt_leaf_loops, m.qt_leaf_loops);
+  // The compact blobs decode to the fixture's v1.2 ranges and boxes
+  // (decal/layout.hpp).
+  const prep::test::V12Cells want = decal_test::small_model_cells();
   namespace L = decal::layout;
   std::vector<L::u2> range;
   std::vector<L::u4> bvh;
   L::decode_cells(p.array<L::u2>(BlobId::cell_line_first), range, bvh);
-  EXPECT_EQ(range, m.cell_segment_range);
-  EXPECT_EQ(bvh, m.line_bvh_range);
+  EXPECT_EQ(range, want.segment_range);
+  EXPECT_EQ(bvh, want.line_bvh_range);
   L::decode_cells(p.array<L::u2>(BlobId::cell_poly_first), range, bvh);
-  EXPECT_EQ(range, m.cell_poly_range);
-  EXPECT_EQ(bvh, m.poly_bvh_range);
+  EXPECT_EQ(range, want.poly_range);
+  EXPECT_EQ(bvh, want.poly_bvh_range);
   std::vector<L::u4> cell_polys;
   L::decode_poly_entries(p.array<L::u2>(BlobId::cell_poly_entries),
                          p.array<uint32_t>(BlobId::cell_poly_holes), cell_polys);
-  EXPECT_EQ(cell_polys, m.cell_polys);
-  expect_blob_equals(p, BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
-  expect_blob_equals(p, BlobId::qt_leaf_loops, m.qt_leaf_loops);
+  EXPECT_EQ(cell_polys, want.cell_polys);
   const L::CellGrid cg{m.grid.origin_x, m.grid.origin_y, m.grid.cell_w, m.grid.cell_h, m.grid.nx};
   ASSERT_EQ(L::box16_shift(m.grid.cell_w, m.grid.cell_h), 0u);
   const auto first = p.array<L::u2>(BlobId::cell_line_first);
   const auto boxes = L::decode_boxes16(first, p.array<L::u2>(BlobId::line_bvh_box16), cg);
-  ASSERT_EQ(boxes.size(), m.line_bvh_box.size());
+  ASSERT_EQ(boxes.size(), want.line_bvh_box.size());
   for (size_t c = 0; c + 1 < first.size(); ++c)
     for (uint32_t i = first[c][1]; i < first[c + 1][1]; ++i) {
-      // The model's box clipped to the cell grown by one quantum.
+      // The full box clipped to the cell grown by one quantum.
       const int64_t cx = m.grid.origin_x + int64_t(c % m.grid.nx) * m.grid.cell_w - 1,
                     cy = m.grid.origin_y + int64_t(c / m.grid.nx) * m.grid.cell_h - 1;
-      const auto& b = m.line_bvh_box[i];
+      const auto& b = want.line_bvh_box[i];
       if (b[0] > b[2]) {
         EXPECT_GT(boxes[i][0], boxes[i][2]);
         continue;
       }
-      const std::array<int32_t, 4> want{int32_t(std::max<int64_t>(b[0], cx)),
-                                        int32_t(std::max<int64_t>(b[1], cy)),
-                                        int32_t(std::min<int64_t>(b[2], cx + m.grid.cell_w + 2)),
-                                        int32_t(std::min<int64_t>(b[3], cy + m.grid.cell_h + 2))};
-      EXPECT_EQ(boxes[i], want) << "node " << i << " of cell " << c;
+      const std::array<int32_t, 4> box{int32_t(std::max<int64_t>(b[0], cx)),
+                                       int32_t(std::max<int64_t>(b[1], cy)),
+                                       int32_t(std::min<int64_t>(b[2], cx + m.grid.cell_w + 2)),
+                                       int32_t(std::min<int64_t>(b[3], cy + m.grid.cell_h + 2))};
+      EXPECT_EQ(boxes[i], box) << "node " << i << " of cell " << c;
     }
   expect_blob_equals(p, BlobId::dyn_vertices, m.dyn_vertices);
   expect_blob_equals(p, BlobId::dyn_prev_next, m.dyn_prev_next);

@@ -1,14 +1,15 @@
 // decal/layout.hpp — conversions between the v1.0–1.2 and the v1.3 layouts
 // of the per-cell ranges and the quad-tree leaf polygons (SPEC.md
-// "Compact layout (v1.3)"). The writer encodes the model's arrays (the
-// v1.2 layout, which the model and the CPU evaluator work in) into the v1.3
-// blobs; the CPU view of a package decodes them back; the GL loader encodes
-// the blobs of older files and of models in memory, so that the shaders
-// read one layout only.
+// "Compact layout (v1.3)"). decalprep's build stage makes the v1.3 arrays
+// (with Box16Encoder); the CPU view of a model or a package decodes them
+// into the v1.2 arrays its evaluator walks; the GL loader encodes the blobs
+// of older files, so that the shaders read one layout only.
 //
-// Inputs must have passed decal::validate_blobs (for the layout they are
-// in): the functions index without checks. Depends on the standard library
-// only; never throws (std::bad_alloc aside).
+// Inputs that have passed decal::validate_blobs (for the layout they are
+// in) convert exactly. Others (a model in memory before the GL loader's
+// check) give unspecified results, but no function reads or writes out of
+// bounds. Depends on the standard library only; never throws
+// (std::bad_alloc aside).
 #pragma once
 
 #include <array>
@@ -89,6 +90,25 @@ struct CellGrid {
   uint32_t nx = 0;
 };
 uint32_t box16_shift(int64_t cell_w, int64_t cell_h);
+// One box of a node of cell `cell`, encoded as encode_boxes16 encodes each
+// element. Every bound is a monotone function of the box's bound, so the
+// encoding of a union of boxes is the union (least lows, greatest highs) of
+// their encodings (box16_union): a cell's tree can be built on encoded
+// leaves, to the same bytes.
+class Box16Encoder {
+ public:
+  static constexpr u2 kEmpty{65535u, 0u};  // an empty node
+  explicit Box16Encoder(const CellGrid& grid);
+  u2 operator()(uint64_t cell, const std::array<int32_t, 4>& box) const;
+
+ private:
+  CellGrid grid_;
+  uint32_t shift_ = 0;
+  int64_t top_x_ = 0, top_y_ = 0;  // the grown cell's size in steps
+};
+// The encoded box of the union of the boxes `a` and `b` encode (either may
+// be Box16Encoder::kEmpty).
+u2 box16_union(const u2& a, const u2& b);
 std::vector<u2> encode_boxes16(std::span<const u2> first,
                                std::span<const std::array<int32_t, 4>> boxes, const CellGrid& grid);
 std::vector<std::array<int32_t, 4>> decode_boxes16(std::span<const u2> first,

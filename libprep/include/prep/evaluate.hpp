@@ -44,8 +44,8 @@ struct StaticView {
   // for format 1.2 and later (one rank space), the number of lines for older
   // packages (every line over every polygon).
   uint64_t polygon_rank_bias = 0;
-  // Arrays the view owns: a v1.3 package's compact blobs decoded into the
-  // ranges and leaf segments above (package_view.cpp).
+  // Arrays the view owns: the compact blobs of the model or a v1.3 package
+  // decoded into the ranges, boxes and leaf segments above.
   std::shared_ptr<const void> storage;
   // Dashed lines (prep/dash.hpp): the layer table's patterns and the
   // static-line vertices' along-line distances, computed when the package
@@ -53,18 +53,25 @@ struct StaticView {
   std::shared_ptr<const LineDashes> dashes;
 };
 
-// StaticView's blobs as X(element type, name). Each name is a StaticView
-// member, a DecalModel member and a decal::BlobId alike; both view_of
-// overloads fill the view from this one list. The leaf ranges and segments
-// are not in it: the model and v1.3 packages hold loops, decoded into them.
+// StaticView's blobs as X(element type, name) that the model and every
+// package version hold alike. Each name is a StaticView member, a
+// DecalModel member and a decal::BlobId alike; both view_of overloads fill
+// the view from this one list. The per-cell ranges, BVH boxes, cell_polys
+// and leaf segments are not in it: the model and v1.3 packages hold the
+// compact layout, decoded into them.
 // clang-format off
 #define PREP_STATIC_VIEW_BLOBS(X)                                                              \
   X(ivec2, line_vertices) X(uint32_t, line_vertex_line) X(decal::LineProps, line_props)        \
-  X(decal::LineCorner, line_corners) X(uvec2, cell_segment_range) X(uvec2, cell_segments)     \
-  X(decal::PolyProps, poly_props) X(uint32_t, poly_root_node) X(ivec4, qt_node_box)            \
-  X(ivec2, qt_node) X(ivec2, qt_leaf_vertices) X(uvec2, cell_poly_range)                       \
-  X(uvec4, cell_polys) X(uvec2, cell_holes) X(uvec4, line_bvh_range) X(uvec4, poly_bvh_range)                       \
-  X(ivec4, line_bvh_box) X(ivec4, poly_bvh_box)
+  X(decal::LineCorner, line_corners) X(uvec2, cell_segments) X(decal::PolyProps, poly_props)   \
+  X(uint32_t, poly_root_node) X(ivec4, qt_node_box) X(ivec2, qt_node)                          \
+  X(ivec2, qt_leaf_vertices) X(uvec2, cell_holes)
+// The compact blobs (formats/SPEC.md "Compact layout (v1.3)") the model and
+// v1.3 packages hold in place of the v1.2 per-cell ranges, BVH boxes,
+// cell_polys and leaf segments: DecalModel members and decal::BlobIds.
+#define PREP_COMPACT_BLOBS(X)                                                                  \
+  X(uvec2, cell_line_first) X(uvec2, line_bvh_box16) X(uvec2, cell_poly_first)                 \
+  X(uvec2, poly_bvh_box16) X(uvec2, cell_poly_entries) X(uint32_t, cell_poly_holes)            \
+  X(uvec2, qt_leaf_loop_range) X(uint32_t, qt_leaf_loops)
 // clang-format on
 
 StaticView view_of(const DecalModel& model);

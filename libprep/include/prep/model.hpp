@@ -56,8 +56,13 @@ struct DecalModel {
   // whose dashed lines are cut; formats/SPEC.md "Dashed lines").
   std::vector<double> line_dash_start;
   std::vector<decal::LineCorner> line_corners;
-  std::vector<uvec2> cell_segment_range;
+  // The per-cell lists and BVHs are in the v1.3 layout (formats/SPEC.md
+  // "Compact layout (v1.3)"; decal/layout.hpp): per cell plus one, (first
+  // list entry, first BVH node), empty when no cell holds an entry of the
+  // kind; per node a cell-relative u16 box.
+  std::vector<uvec2> cell_line_first;
   std::vector<uvec2> cell_segments;
+  std::vector<uvec2> line_bvh_box16;
   // static polygons
   std::vector<decal::PolyProps> poly_props;
   std::vector<uint32_t> poly_root_node;
@@ -70,14 +75,11 @@ struct DecalModel {
   std::vector<uvec2> qt_leaf_loop_range;
   std::vector<uint32_t> qt_leaf_loops;
   std::vector<ivec2> qt_leaf_vertices;
-  std::vector<uvec2> cell_poly_range;
-  std::vector<uvec4> cell_polys;
-  std::vector<uvec2> cell_holes;
-  // per-cell BVHs
-  std::vector<uvec4> line_bvh_range;
-  std::vector<ivec4> line_bvh_box;
-  std::vector<uvec4> poly_bvh_range;
-  std::vector<ivec4> poly_bvh_box;
+  std::vector<uvec2> cell_poly_first;
+  std::vector<uvec2> cell_poly_entries;   // per (cell, exterior): (polygon, culling node)
+  std::vector<uint32_t> cell_poly_holes;  // per entry plus one: its first in cell_holes
+  std::vector<uvec2> cell_holes;          // per (cell, hole): (polygon, culling node)
+  std::vector<uvec2> poly_bvh_box16;
   // dynamic lines
   std::vector<ivec4> dyn_vertices;
   std::vector<ivec2> dyn_prev_next;
