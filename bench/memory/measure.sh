@@ -10,7 +10,7 @@ tool=${1:-$root/build/dev}/tools/decalprep/decalprep
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 csv=$root/bench/memory/peak_rss.csv
-echo "input,kind,threads,polygon_vertices,line_vertices,polygon_parts,line_parts,peak_rss_mib,peak_after_read_mib,peak_after_clean_mib,peak_after_build_mib,estimate_after_read_mib,estimate_after_clean_mib,wall_s" > "$csv"
+echo "input,kind,threads,polygon_vertices,line_vertices,polygon_parts,line_parts,peak_rss_mib,peak_after_read_mib,peak_after_clean_mib,peak_after_build_mib,estimate_after_read_mib,estimate_after_clean_mib,estimate_after_grid_mib,resident_at_grid_mib,grid_cell_mib,geometry_mib,wall_s" > "$csv"
 
 gen() {  # NAME KIND VERTICES
   python3 "$root/bench/gen_synthetic.py" "$2" "$3" "$work/$1.geojsonl"
@@ -44,10 +44,12 @@ r = json.load(open(sys.argv[1]))
 rss_kb, wall = open(sys.argv[2]).read().split()[-2:]
 e = r["memory_estimate"]["after read"]
 p = r["peak_rss_mib_after"]
+g = r["memory_estimate"]["after grid"]
 print(",".join(str(x) for x in [sys.argv[3], sys.argv[4], sys.argv[5], int(e["polygon_vertices"]), int(e["line_vertices"]),
       int(e["polygon_parts"]), int(e["line_parts"]), round(int(rss_kb) / 1024, 1), round(p["read"], 1),
       round(p["clean"], 1), round(p["build"], 1), round(e["mib"], 1),
-      round(r["memory_estimate"]["after clean"]["mib"], 1), wall]))
+      round(r["memory_estimate"]["after clean"]["mib"], 1), round(g["mib"], 1), round(g["resident_mib"], 1),
+      round(g["cell_mib"], 1), round(g["geometry_mib"], 1), wall]))
 PY
   tail -1 "$csv"
 }

@@ -397,7 +397,7 @@ std::vector<std::vector<uint32_t>> solid_leaves(const DecalModel& m, size_t n_ri
 // the grid-independent blobs (the per-cell lists and BVHs are counted in
 // choose_grid).
 GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const PolygonRings& pr,
-                             const ModelOptions& options, const DecalModel& m) {
+                             const ModelOptions& options, const DecalModel& m, double* cell_bytes) {
   QBox extent;
   auto grow = [&](const QBox& b) {
     if (extent.empty())
@@ -423,7 +423,7 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
                        bytes_of(m.qt_leaf_loop_range) + bytes_of(m.qt_leaf_vertices) +
                        // the v1.2 leaf segments the grid's byte model counts: one per vertex
                        bytes_of(m.qt_leaf_vertices);
-  return choose_grid(gin, options);
+  return choose_grid(gin, options, cell_bytes);
 }
 
 // One (cell, line segment) pair: the segment's box clipped to the cell.
@@ -758,9 +758,19 @@ DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
   rings.solid_leaves = solid_leaves(m, rings.rings.size());
 
   // The decal grid, then segments and polygon parts to cells, and the BVHs.
-  m.grid = choose_model_grid(shapes, rings, options, m);
+  double cell_bytes = 0;
+  m.grid = choose_model_grid(shapes, rings, options, m, options.on_grid ? &cell_bytes : nullptr);
   if (uint64_t(m.grid.nx) * m.grid.ny > 0xffffffffULL)
     fail<resource_error>(kBuildStage, "decal grid has too many cells");
+  if (options.on_grid) {
+    auto bytes_of = [](const auto& v) { return double(v.size()) * double(sizeof(v[0])); };
+    const double geometry =
+        bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
+        bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
+        bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_loop_range) +
+        bytes_of(m.qt_leaf_loops) + bytes_of(m.qt_leaf_vertices);
+    options.on_grid({uint64_t(m.grid.nx) * m.grid.ny, cell_bytes, geometry});
+  }
   ProgressStage cells_stage(options.progress, "build.cells",
                             m.line_props.size() + rings.rings.size(), "items");
   std::vector<SegEntry> seg_entries = line_cell_entries(m, shapes, cells_stage);

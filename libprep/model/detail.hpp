@@ -152,7 +152,11 @@ struct GridInput {
 // data are refused, as are grids over options.max_cells. Deterministic
 // (integer counts). bench/bench_build compares it with 500x500. Throws resource_error
 // when no grid fits.
-GridParams choose_grid(const GridInput& input, const ModelOptions& options);
+// `cell_bytes`, when given, receives the chosen grid's per-cell bytes in
+// that count (without input.geometry_bytes): exact, but for a choice made on
+// samples when there is no size budget to confirm it against.
+GridParams choose_grid(const GridInput& input, const ModelOptions& options,
+                       double* cell_bytes = nullptr);
 
 // The adaptive grid's package never exceeds this factor times the package
 // the thesis 500x500 grid gives on the same data (grid.cpp).

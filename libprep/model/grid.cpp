@@ -624,16 +624,20 @@ int64_t sample_stride(const GridParams& g) {
 // of a tileset is drawn at pixels no finer than its resolution, so cells
 // finer than that buy no pixel a shorter list and cost their ranges and
 // duplicated entries.
-GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
+GridParams choose_grid(const GridInput& in, const ModelOptions& o, double* cell_bytes) {
   // Candidates measured; how many the search takes is known at its end.
   ProgressStage stage(o.progress, "build.grid", 0, "candidates", ProgressTotal::estimate);
   const QBox& e = in.extent;
+  if (cell_bytes) *cell_bytes = 0;
   if (e.empty()) return GridParams{};
   const double w = double(e.x1 - e.x0 + 1), h = double(e.y1 - e.y0 + 1);
   if (o.grid_nx > 0 && o.grid_ny > 0) {
     stage.add();
     // Thesis §4.2.1: a fixed number of cells over the data's AABB (500x500).
-    return grid_with_cell(e, int64_t(std::ceil(w / o.grid_nx)), int64_t(std::ceil(h / o.grid_ny)));
+    const GridParams g =
+        grid_with_cell(e, int64_t(std::ceil(w / o.grid_nx)), int64_t(std::ceil(h / o.grid_ny)));
+    if (cell_bytes) *cell_bytes = exact_grid_bytes(g, in);
+    return g;
   }
   // The query-cost primitives: segment boxes and exterior solid-leaf boxes.
   size_t n_prims = in.shapes->size();
@@ -684,11 +688,12 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
     }
   };
   double byte_budget = std::numeric_limits<double>::infinity();
+  double thesis_bytes = 0;
   {
     uint64_t entries = 0;
-    const double bytes = exact_grid_bytes(thesis, in, &entries);
+    thesis_bytes = exact_grid_bytes(thesis, in, &entries);
     if (double(entries) <= entry_budget)
-      byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + bytes);
+      byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + thesis_bytes);
   }
 
   const double side0 = std::sqrt(double(thesis.cell_w) * double(thesis.cell_h));
@@ -794,7 +799,10 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
         break;
       }
     }
-    if (!best.feasible) return thesis;
+    if (!best.feasible) {
+      if (cell_bytes) *cell_bytes = thesis_bytes;
+      return thesis;
+    }
   }
   if (!best.feasible) {
     fail<resource_error>(
@@ -803,6 +811,7 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o) {
             std::to_string(uint64_t(entry_budget)) +
             " (primitives overlap too much; raise --resolution to simplify the lines)");
   }
+  if (cell_bytes) *cell_bytes = best.bytes - double(in.geometry_bytes);
   return best.g;
 }
 

@@ -26,36 +26,40 @@ namespace {
 // stage, or write for polygon-heavy scenes) measured with bench/memory/
 // measure.sh (/usr/bin/time; release, 2 threads) on generated FlatGeobuf
 // inputs; rows in bench/memory/peak_rss.csv. Estimates in MiB after read /
-// after clean, measured 2026-11-25 (quad-trees built in blocks, leaf
-// polygons held as vertex loops, a streaming writer), when the polygon
-// coefficient was refitted (it was 370 B per vertex):
+// after clean / after the grid choice, measured 2026-11-25 once the model
+// held its cell lists in the v1.3 layout, when the polygon coefficient and
+// the build base were refitted (they were 160 B per vertex over 120 MiB):
 //
-//   input (after read)              vertices   parts   peak   est. read  est. clean
-//   polygons 1e5 (star, 0-3 holes)     98594     563  106.4     135.2      130.3
-//   polygons 3e5                      295890    1671  131.6     165.6      164.4
-//   polygons 1e6                      985985    5655  216.0     278.2      283.0
-//   polygons 1e7 (bench/run's set)   9859712   56312 1301.8    1795.4     1807.2
-//   lines 1e5 (width 4 m)             100000    2024  133.8     177.7      174.6
-//   lines 3e5                         300000    6029  239.3     293.1      296.7
-//   lines 1e6                        1000000   20077  581.9     705.6      724.9
-//   squares 20000 (5 vertices)         80000   20000   81.5     137.1      139.9
-//   squares 100000                    400000  100000  167.7     221.0      243.7
-//   3-vertex lines 20000               60000   20000  102.4     159.2      163.4
-//   3-vertex lines 100000             300000  100000  233.2     329.9      361.2
-//   lines 3e5, width 40 m             300000    6029  374.4     293.1      640.8
-//   Liechtenstein scene (OSM, 4 l.)    62425    6724  148.2     205.7      207.0
-//   Monaco scene (OSM, DEM, 7 l.)          -       -  273.6     453.8      361.6
+//   input (after read)              vertices   parts   peak   read   clean   grid
+//   polygons 1e5 (star, 0-3 holes)     98594     563   80.9  108.4   103.2  113.6
+//   polygons 3e5                      295890    1671  101.9  133.1   131.5  141.3
+//   polygons 1e6                      985985    5655  178.0  225.6   230.5  227.0
+//   polygons 1e7 (bench/run's set)   9859712   56312 1157.1 1489.2  1501.0 1351.8
+//   lines 1e5 (width 4 m)             100000    2024  119.1  153.7   150.5  147.3
+//   lines 3e5                         300000    6029  221.3  269.1   272.2  258.2
+//   lines 1e6                        1000000   20077  571.5  681.6   700.8  631.3
+//   squares 20000 (5 vertices)         80000   20000   70.4  110.8   113.2   91.8
+//   squares 100000                    400000  100000  129.8  185.2   207.9  174.9
+//   3-vertex lines 20000               60000   20000   89.7  135.2   139.1  119.9
+//   3-vertex lines 100000             300000  100000  227.5  305.9   337.0  267.5
+//   lines 3e5, width 40 m             300000    6029  349.3  269.1   616.5  423.0
+//   Liechtenstein scene (OSM, 4 l.)    62425    6724  129.3  179.7   180.9  170.0
+//   Monaco scene (OSM, DEM, 7 l.)     390829   51204  274.5  431.5   342.6  325.7
 //
-// Least squares on the polygon rows gives ~125 B per polygon vertex over a
-// ~95 MiB build base (10^7 vertices: 124 B); line vertices cost ~550 B;
+// Least squares on the polygon rows gives ~116 B per polygon vertex over a
+// ~68 MiB build base (10^6 -> 10^7: 116 B); line vertices cost ~550 B;
 // the per-part costs fit to about 0. The read and clean stages sit on a
 // 54 MiB base (GDAL/PROJ/GEOS loaded, thread pools); the build stage on
-// ~95-105 MiB: the adaptive decal grid (2e5..5e5 cells on these inputs;
-// its cell count is only known inside build_model) adds ~40 MiB. The
-// coefficients below (160 B per polygon vertex, 600 per line vertex, build
-// base 120 MiB) keep the estimate above every measured peak by more than
-// the run-to-run spread of the peak (~5 %): after clean 1.22x..1.72x of it,
-// after read 1.21x..1.68x except very wide lines (next paragraph).
+// ~65-80 MiB: the adaptive decal grid (2e5..5e5 cells on these inputs;
+// its cell count is only known inside build_model) adds ~10-25 MiB. The
+// coefficients below (130 B per polygon vertex, 600 per line vertex, build
+// base 96 MiB) keep the estimate above every measured peak by more than
+// the run-to-run spread of the peak (~5-10 %): after clean 1.23x..1.76x of
+// it, after read 1.19x..1.57x except very wide lines (next paragraph), after
+// the grid choice 1.10x..1.40x. These assume the adaptive grid: a fixed fine
+// --grid (2000x2000 on polygons 3e5: 271-301 MiB against 164 after clean)
+// is seen only after the grid choice (561 MiB there), whose cell count
+// the estimate then has.
 //
 // Line width matters: a segment widened to w covers more cells. Measured on
 // lines 3e5 (mean segment 20 m, previous grid): width 1, 4, 10, 20, 40, 100 m
@@ -77,9 +81,9 @@ namespace {
 // stops only builds that cannot fit. Other formats (GeoPackage, FlatGeobuf:
 // possibly mostly attributes; zips) count only through the OSM term below.
 constexpr double kMiB = 1024.0 * 1024.0;
-constexpr double kBaseBytes = 60.0 * kMiB;        // read -> clean
-constexpr double kBuildBaseBytes = 120.0 * kMiB;  // build -> write, with the decal grid
-constexpr double kPerPolygonVertex = 160;
+constexpr double kBaseBytes = 60.0 * kMiB;       // read -> clean
+constexpr double kBuildBaseBytes = 96.0 * kMiB;  // build -> write, with the decal grid
+constexpr double kPerPolygonVertex = 130;
 constexpr double kPerLineVertex = 600;
 constexpr double kPerPolygonPart = 256;
 constexpr double kPerLinePart = 256;
@@ -88,6 +92,15 @@ constexpr double kMaxWidthRatio = 20;               // r is capped: degenerate s
 constexpr double kPerVertexDryRun = 40;
 constexpr double kPerPartDryRun = 700;
 constexpr double kPerSourceByte = 1.0;
+// After the grid choice, on top of the resident set: the cell lists and
+// BVHs to come, in the grid chooser's v1.2 count (the entries' working
+// copies: a line entry costs more than its count, 64 B against 40), and the
+// writer's compressed frames (held until every blob before them in table
+// order is written) in proportion to the whole package.
+constexpr double kAfterGridBytes = 8.0 * kMiB;
+constexpr double kPerGridCellByte = 1.2;
+constexpr double kPerPackageByteAfterGrid = 0.3;
+constexpr double kPerDynamicVertexAfterGrid = 600;
 // OSM sources: GDAL's OSM driver keeps its node index in memory (up to
 // OSM_MAX_TMPFILE_SIZE, 100 MB, then on disk), once per layer read, and
 // layers are read side by side. One multipolygons layer, 1 thread, dry run:
@@ -346,6 +359,29 @@ MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& 
   MemoryEstimate e = model("after clean", c, false, 0.0, &build_part);
   e.bytes = std::max(peak_rss_mib() * kMiB, current_rss_bytes() + build_part);
   e.basis += ", on top of " + format_memory_size(current_rss_bytes()) + " resident now";
+  return e;
+}
+
+MemoryEstimate estimate_after_grid(const GridFootprint& grid, const SceneFeatures& scene) {
+  MemoryEstimate e;
+  e.point = "after grid";
+  double dynamic_vertices = 0;
+  for (const SceneLine& l : scene.dynamic_lines) dynamic_vertices += double(l.points.size());
+  e.line_vertices = dynamic_vertices;
+  const double resident = current_rss_bytes();
+  e.resident_bytes = resident;
+  e.grid_cells = double(grid.cells);
+  e.grid_cell_bytes = grid.cell_bytes;
+  e.geometry_bytes = grid.geometry_bytes;
+  e.bytes = resident + kAfterGridBytes + kPerGridCellByte * grid.cell_bytes +
+            kPerPackageByteAfterGrid * (grid.geometry_bytes + grid.cell_bytes) +
+            kPerDynamicVertexAfterGrid * dynamic_vertices;
+  std::ostringstream m;
+  m << grid.cells << " grid cells whose lists and BVHs count "
+    << format_memory_size(grid.cell_bytes) << ", " << format_memory_size(grid.geometry_bytes)
+    << " of static geometry, " << uint64_t(dynamic_vertices) << " dynamic line vertices, on top of "
+    << format_memory_size(resident) << " resident now";
+  e.basis = m.str();
   return e;
 }
 

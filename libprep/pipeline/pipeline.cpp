@@ -351,11 +351,21 @@ void add_memory_report(nlohmann::json& report,
   for (const auto& [stage, mib] : peaks) pk[stage] = mib;
   report["peak_rss_mib_after"] = pk;
   nlohmann::json est = nlohmann::json::object();
-  for (const MemoryEstimate& e : estimates)
-    est[e.point] = {{"mib", e.bytes / (1024.0 * 1024.0)},     {"basis", e.basis},
-                    {"polygon_vertices", e.polygon_vertices}, {"line_vertices", e.line_vertices},
-                    {"polygon_parts", e.polygon_parts},       {"line_parts", e.line_parts},
+  constexpr double kMiB = 1024.0 * 1024.0;
+  for (const MemoryEstimate& e : estimates) {
+    est[e.point] = {{"mib", e.bytes / kMiB},
+                    {"basis", e.basis},
+                    {"polygon_vertices", e.polygon_vertices},
+                    {"line_vertices", e.line_vertices},
+                    {"polygon_parts", e.polygon_parts},
+                    {"line_parts", e.line_parts},
                     {"source_bytes", e.source_bytes}};
+    if (e.grid_cells > 0)
+      est[e.point].update({{"resident_mib", e.resident_bytes / kMiB},
+                           {"grid_cells", e.grid_cells},
+                           {"cell_mib", e.grid_cell_bytes / kMiB},
+                           {"geometry_mib", e.geometry_bytes / kMiB}});
+  }
   report["memory_estimate"] = est;
   if (limit) report["max_memory_mib"] = double(limit.bytes) / (1024.0 * 1024.0);
 }
@@ -579,6 +589,9 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     ModelOptions model_options = scene.model;
     model_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
     model_options.progress = request.progress;
+    model_options.on_grid = [&](const GridFootprint& grid) {
+      estimate(estimate_after_grid(grid, result.scene));
+    };
     DecalModel model = build_model(result.scene, model_options, scene.dem);
     timings.emplace_back("build", seconds_since(t0));
     peaks.emplace_back("build", peak_rss_mib());

@@ -256,3 +256,45 @@ TEST(DecalGrid, ThinFrameIsFoundInEveryCellItCrosses) {
   EXPECT_GT(in_frame, 3000);
   EXPECT_GT(in_blob, 2000);
 }
+
+// What the build reports once the grid is chosen (ModelOptions::on_grid,
+// where --max-memory checks it) is what it then makes: the cell count, and
+// the bytes the cell lists and BVHs take in the v1.2 count, read here from
+// the built arrays (prep::test::v12_cell_bytes). The chooser counts every
+// (cell, hole) pair a hole's leaves make, the build keeps those whose
+// exterior is in the cell too: equal without holes, at most a little over
+// with them. Adaptive (exact counts) and fixed grids alike.
+TEST(DecalGrid, TheFootprintReportedAtTheGridChoiceIsWhatTheBuildMakes) {
+  for (const bool holes : {false, true})
+    for (const uint32_t fixed : {0u, 300u}) {
+      SCOPED_TRACE(std::string(holes ? "with" : "without") + " holes, grid " +
+                   (fixed ? std::to_string(fixed) : std::string("adaptive")));
+      prep::SceneFeatures s = clustered_scene(400, 200);
+      if (!holes)
+        for (prep::ScenePolygon& p : s.polygons) p.holes.clear();
+      prep::ModelOptions o;
+      o.grid_nx = o.grid_ny = fixed;
+      int calls = 0;
+      prep::GridFootprint f;
+      o.on_grid = [&](const prep::GridFootprint& g) {
+        ++calls;
+        f = g;
+      };
+      const prep::DecalModel m = prep::build_model(s, o);
+      ASSERT_EQ(calls, 1);
+      EXPECT_EQ(f.cells, uint64_t(m.grid.nx) * m.grid.ny);
+      const double built = double(prep::test::v12_cell_bytes(m));
+      if (holes) {
+        EXPECT_GE(f.cell_bytes, built);
+        EXPECT_LE(f.cell_bytes, 1.02 * built);
+      } else {
+        EXPECT_EQ(f.cell_bytes, built);
+      }
+      EXPECT_EQ(
+          f.geometry_bytes,
+          double(bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
+                 bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
+                 bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_loop_range) +
+                 bytes_of(m.qt_leaf_loops) + bytes_of(m.qt_leaf_vertices)));
+    }
+}

@@ -3,7 +3,9 @@
 code 6 and writes nothing when the estimate exceeds the limit; a generous
 limit builds; and the estimate of the peak for a mid-size generated input is
 at least the peak RSS measured for the child process (getrusage via wait4)
-and at most 3x it. Batch mode applies the limit to every scene.
+and at most 3x it. A fixed fine grid, whose cells the vertex counts do not
+foresee, is stopped by the check after the grid choice. Batch mode applies
+the limit to every scene.
 
   max_memory_test.py DECALPREP SOURCE_DIR WORK_DIR
 """
@@ -67,12 +69,36 @@ code, peak, err = build(["build"] + common + ["-o", pkg, "--report", report, "--
 check(code == 0 and os.path.exists(pkg), f"--max-memory 4G builds (exit {code}) {err.strip()}")
 if code == 0:
     est = json.load(open(report))["memory_estimate"]
-    for point in ("after read", "after clean"):
+    for point in ("after read", "after clean", "after grid"):
         e = est[point]["mib"]
         print(f"     estimate {point}: {e:.1f} MiB, measured peak RSS {peak:.1f} MiB, ratio {e / peak:.2f}")
         check(peak <= e <= 3 * peak, f"estimate {point} within [1, 3] x the measured peak")
 
-# 4. Batch mode: the limit applies to every scene (each fails with exit 6).
+# 4. A fixed fine grid: 2000x2000 cells on the same input peak at about
+#    270-300 MiB, more than the vertex counts say (the estimates after read and
+#    after clean assume the adaptive grid, ~165 MiB). The check after the
+#    grid choice sees the cells coming and stops before they are made.
+pkg = os.path.join(work, "fine.decals")
+report = os.path.join(work, "fine.json")
+fine = common + ["-o", pkg, "--report", report, "--grid", "2000x2000"]
+code, peak, err = build(["build"] + fine)
+check(code == 0 and peak > 200,
+      f"without a limit that build peaks over 200 MiB (exit {code}, peak RSS {peak:.1f} MiB)")
+if code == 0:
+    est = json.load(open(report))["memory_estimate"]
+    check(est["after clean"]["mib"] < 200 < est["after grid"]["mib"],
+          "only the estimate after the grid is over 200 MiB: " +
+          ", ".join(f"{k} {v['mib']:.1f} MiB" for k, v in est.items()))
+    e = est["after grid"]["mib"]
+    check(peak <= e <= 3 * peak, f"estimate after grid {e:.1f} MiB within [1, 3] x the peak {peak:.1f} MiB")
+os.remove(pkg)
+code, peak, err = build(["build"] + fine + ["--max-memory", "200M"])
+check(code == 6, f"--grid 2000x2000 --max-memory 200M exits 6 (got {code})")
+check(not os.path.exists(pkg), "--grid 2000x2000 --max-memory 200M writes no package")
+check("estimate after grid" in err and "4000000 grid cells" in err, "it stops after the grid choice: " + err.strip())
+check(peak < 200, f"it stopped before the cells were made (peak RSS {peak:.1f} MiB < 200)")
+
+# 5. Batch mode: the limit applies to every scene (each fails with exit 6).
 scenes = os.path.join(work, "scenes")
 os.makedirs(scenes)
 for name in ("a", "b"):

@@ -11,7 +11,11 @@
 //   after read    vertices of polygon parts, of line parts, and parts;
 //   after clean   the same counts after repair, clipping and simplification,
 //                 and line widths; added to the memory resident now (read and
-//                 clean have run, so their peak is measured, not estimated).
+//                 clean have run, so their peak is measured, not estimated);
+//   after grid    the chosen decal grid's cell count and the bytes of its
+//                 per-cell lists and BVHs, counted before they are made, and
+//                 the dynamic lines' vertices; added to the memory resident
+//                 then.
 #pragma once
 
 #include <cstdint>
@@ -34,6 +38,9 @@ struct MemoryEstimate {
   // What it was computed from (after read / after clean; source bytes before read).
   double polygon_vertices = 0, line_vertices = 0, polygon_parts = 0, line_parts = 0;
   double source_bytes = 0;
+  // After grid: the resident set then, the grid's cells and the bytes its
+  // per-cell structures and the static geometry count.
+  double resident_bytes = 0, grid_cells = 0, grid_cell_bytes = 0, geometry_bytes = 0;
 };
 
 // Parses a size: a number of bytes with an optional binary suffix K, M, G, T
@@ -54,6 +61,11 @@ MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run);
 MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features,
                                    bool dry_run);
 MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& scene);
+// Once the build stage has chosen the decal grid (ModelOptions::on_grid),
+// before it makes the per-cell lists: what is resident then, plus the cell
+// structures the grid's count says are coming, plus the dynamic lines of
+// `scene` still to be built.
+MemoryEstimate estimate_after_grid(const GridFootprint& grid, const SceneFeatures& scene);
 
 // Throws resource_error when `estimate` exceeds `limit`; the message gives
 // the estimate, the limit, its basis and what to do (raise --max-memory, set

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -94,6 +95,16 @@ struct Extent {
 };
 
 // Stage 4 (model) knobs (thesis defaults noted).
+// What the decal grid the build chose will cost (ModelOptions::on_grid).
+struct GridFootprint {
+  uint64_t cells = 0;
+  // Bytes of the per-cell lists and BVHs in the v1.2 layout, as the grid
+  // chooser counts them (an upper bound on the v1.3 arrays the model holds).
+  double cell_bytes = 0;
+  // Bytes of the static blobs made before the grid (lines, quad-trees).
+  double geometry_bytes = 0;
+};
+
 struct ModelOptions {
   uint32_t grid_nx = 0, grid_ny = 0;  // 0: adaptive (default); 500x500 = thesis
   uint32_t target_per_cell = 0;       // adaptive grid: stop refining at this proxy (0: off)
@@ -116,6 +127,10 @@ struct ModelOptions {
   // (build.lines, build.quadtrees, build.grid, build.cells, build.dynamic;
   // prep/progress.hpp). Null: silent. Output only.
   Progress* progress = nullptr;
+  // Not from the scene file: called once the decal grid is chosen, before
+  // the per-cell lists are made (`--max-memory`'s check after the grid,
+  // prep/memory_estimate.hpp); it may throw to stop the build. Empty: none.
+  std::function<void(const GridFootprint&)> on_grid;
 };
 
 // SceneSpec::levels: "auto", the most levels and when auto stops.
