@@ -393,6 +393,19 @@ std::vector<std::vector<uint32_t>> solid_leaves(const DecalModel& m, size_t n_ri
   return out;
 }
 
+template <class T>
+uint64_t bytes_of(const std::vector<T>& v) {
+  return uint64_t(v.size()) * sizeof(T);
+}
+
+// The static blobs made before the grid: lines and quad-trees.
+uint64_t static_geometry_bytes(const DecalModel& m) {
+  return bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
+         bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
+         bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_loop_range) +
+         bytes_of(m.qt_leaf_loops) + bytes_of(m.qt_leaf_vertices);
+}
+
 // The decal grid over every segment and solid polygon leaf, weighed against
 // the grid-independent blobs (the per-cell lists and BVHs are counted in
 // choose_grid).
@@ -416,13 +429,10 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
   std::vector<uint8_t> ring_is_hole(pr.rings.size());
   for (size_t r = 0; r < pr.rings.size(); ++r) ring_is_hole[r] = pr.is_hole(r);
   gin.ring_is_hole = &ring_is_hole;
-  auto bytes_of = [](const auto& v) { return uint64_t(v.size()) * sizeof(v[0]); };
-  gin.geometry_bytes = bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) +
-                       bytes_of(m.line_props) + bytes_of(m.line_corners) + bytes_of(m.poly_props) +
-                       bytes_of(m.poly_root_node) + bytes_of(m.qt_node_box) + bytes_of(m.qt_node) +
-                       bytes_of(m.qt_leaf_loop_range) + bytes_of(m.qt_leaf_vertices) +
-                       // the v1.2 leaf segments the grid's byte model counts: one per vertex
-                       bytes_of(m.qt_leaf_vertices);
+  // The v1.2 layout the grid's byte model counts: one leaf segment (8 bytes)
+  // per leaf vertex instead of the loops' ends.
+  gin.geometry_bytes = static_geometry_bytes(m) - bytes_of(m.qt_leaf_loops) +
+                       m.qt_leaf_vertices.size() * sizeof(uvec2);
   return choose_grid(gin, options, cell_bytes);
 }
 
@@ -763,13 +773,8 @@ DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
   if (uint64_t(m.grid.nx) * m.grid.ny > 0xffffffffULL)
     fail<resource_error>(kBuildStage, "decal grid has too many cells");
   if (options.on_grid) {
-    auto bytes_of = [](const auto& v) { return double(v.size()) * double(sizeof(v[0])); };
-    const double geometry =
-        bytes_of(m.line_vertices) + bytes_of(m.line_vertex_line) + bytes_of(m.line_props) +
-        bytes_of(m.line_corners) + bytes_of(m.poly_props) + bytes_of(m.poly_root_node) +
-        bytes_of(m.qt_node_box) + bytes_of(m.qt_node) + bytes_of(m.qt_leaf_loop_range) +
-        bytes_of(m.qt_leaf_loops) + bytes_of(m.qt_leaf_vertices);
-    options.on_grid({uint64_t(m.grid.nx) * m.grid.ny, cell_bytes, geometry});
+    options.on_grid(
+        {uint64_t(m.grid.nx) * m.grid.ny, cell_bytes, double(static_geometry_bytes(m))});
   }
   ProgressStage cells_stage(options.progress, "build.cells",
                             m.line_props.size() + rings.rings.size(), "items");
