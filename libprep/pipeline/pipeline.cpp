@@ -607,7 +607,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     wo.codec = request.compress ? Codec::zstd : Codec::none;
     wo.zstd_level = request.zstd_level;
     wo.progress = request.progress;
-    write_model(request.output, model, extra.dump(), wo);
+    write_model(request.output, std::move(model), extra.dump(), wo);  // frees as it goes
     timings.emplace_back("write", seconds_since(t0));
     peaks.emplace_back("write", peak_rss_mib());
     result.package_written = true;

@@ -641,7 +641,7 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
             if (std::any_of(model.line_dash_start.begin(), model.line_dash_start.end(),
                             [](double s) { return s != 0; }))
               extra["line_dash_start"] = model.line_dash_start;
-            write_model(path, model, extra.dump(), wo);
+            write_model(path, std::move(model), extra.dump(), wo);
           }
           const std::optional<FileDigest> fd = file_digest(path);
           if (!fd) fail<output_error>(kTilesetStage, "cannot read back " + path);

@@ -48,10 +48,11 @@ void merge(json& base, const json& extra, const std::string& where, const std::s
   }
 }
 
-}  // namespace
-
-void write_model(const std::string& path, const DecalModel& model,
-                 const std::string& extra_metadata_json, const WriteOptions& options) {
+// write_model of `model`'s blobs `blobs` (model_blobs or take_model_blobs:
+// the model's blob arrays are not read here, they may have been taken).
+void write_model_blobs(const std::string& path, const DecalModel& model,
+                       std::vector<BlobInput> blobs_in, const std::string& extra_metadata_json,
+                       const WriteOptions& options) {
   json extra;
   if (!extra_metadata_json.empty()) {
     try {
@@ -62,23 +63,30 @@ void write_model(const std::string& path, const DecalModel& model,
     if (!extra.is_object())
       fail<output_error>(kWriteStage, path + ": extra metadata must be a JSON object");
   }
-  // The writer compresses the model's own arrays while one of its threads
-  // makes the metadata.
+  // The writer compresses the model's arrays while one of its threads makes
+  // the metadata.
   PackageSource source;
-  source.blobs = model_blobs(model, /*include_empty=*/true);
+  source.blobs = std::move(blobs_in);
   std::vector<BlobInput>& blobs = source.blobs;
+  // The counts the metadata gives, from the blobs (before any is freed).
+  json counts = json::object();
+  uint64_t lines = 0, polygons = 0, dynamic_lines = 0, lod_lines = 0;
+  for (const BlobInput& b : blobs) {
+    counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;
+    if (b.id == decal::BlobId::line_props) lines = b.count;
+    if (b.id == decal::BlobId::poly_props) polygons = b.count;
+    if (b.id == decal::BlobId::dyn_line_props) dynamic_lines = b.count;
+    if (b.id == decal::BlobId::lod_line_range) lod_lines = b.count;
+  }
+  counts["lines"] = lines;
+  counts["polygons"] = polygons;
+  counts["dynamic_lines"] = dynamic_lines;
+  counts["lod_lines"] = lod_lines;
   const std::string entries = manifest_entries_json(model.manifest);
   blobs.push_back({decal::BlobId::manifest_entries, decal::ElementType::u8, 1, entries.size(),
                    std::as_bytes(std::span(entries.data(), entries.size()))});
+  counts["manifest_entries"] = entries.size();
   source.complete = [&]() -> std::string {
-    json counts = json::object();
-    for (const BlobInput& b : blobs)
-      counts[std::string(decal::find_blob_info(b.id)->name)] = b.count;
-    counts["lines"] = model.line_props.size();
-    counts["polygons"] = model.poly_props.size();
-    counts["dynamic_lines"] = model.dyn_line_props.size();
-    counts["lod_lines"] = model.lod_line_range.size();
-
     const GridParams& g = model.grid;
     json meta = {
         {"format", "decals"},
@@ -102,6 +110,20 @@ void write_model(const std::string& path, const DecalModel& model,
     return meta.dump();
   };
   write_package_consuming(path, source, options);
+}
+
+}  // namespace
+
+void write_model(const std::string& path, const DecalModel& model,
+                 const std::string& extra_metadata_json, const WriteOptions& options) {
+  write_model_blobs(path, model, model_blobs(model, /*include_empty=*/true), extra_metadata_json,
+                    options);
+}
+
+void write_model(const std::string& path, DecalModel&& model,
+                 const std::string& extra_metadata_json, const WriteOptions& options) {
+  std::vector<BlobInput> blobs = take_model_blobs(model);
+  write_model_blobs(path, model, std::move(blobs), extra_metadata_json, options);
 }
 
 }  // namespace prep

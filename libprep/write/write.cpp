@@ -27,6 +27,7 @@
 #include <mutex>
 #include <numeric>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <tbb/parallel_for.h>
@@ -536,44 +537,60 @@ BlobInput blob_of(decal::BlobId id, const std::vector<T>& v) {
 
 }  // namespace
 
-std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
+// Calls fn(id, array) for every blob of the model but manifest_entries,
+// which write_model adds, in table order; not the superseded ids. `M` is
+// DecalModel or const DecalModel.
+template <class M, class Fn>
+void for_each_model_array(M& m, Fn&& fn) {
   using decal::BlobId;
-  // Every catalogue blob but manifest_entries, which write_model adds, and
-  // the superseded ids, in table order: the model's own arrays, which hold
-  // the v1.3 layout (prep/model.hpp).
   static_assert(std::size(decal::kBlobCatalogue) == 36 && std::size(decal::kSupersededBlobs) == 9,
-                "model_blobs must list every model blob");
-  const std::vector<BlobInput> all = {
-      blob_of(BlobId::line_vertices, m.line_vertices),
-      blob_of(BlobId::line_vertex_line, m.line_vertex_line),
-      blob_of(BlobId::line_props, m.line_props),
-      blob_of(BlobId::line_corners, m.line_corners),
-      blob_of(BlobId::cell_segments, m.cell_segments),
-      blob_of(BlobId::cell_line_first, m.cell_line_first),
-      blob_of(BlobId::poly_props, m.poly_props),
-      blob_of(BlobId::poly_root_node, m.poly_root_node),
-      blob_of(BlobId::qt_node_box, m.qt_node_box),
-      blob_of(BlobId::qt_node, m.qt_node),
-      blob_of(BlobId::qt_leaf_vertices, m.qt_leaf_vertices),
-      blob_of(BlobId::cell_holes, m.cell_holes),
-      blob_of(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range),
-      blob_of(BlobId::qt_leaf_loops, m.qt_leaf_loops),
-      blob_of(BlobId::cell_poly_first, m.cell_poly_first),
-      blob_of(BlobId::line_bvh_box16, m.line_bvh_box16),
-      blob_of(BlobId::poly_bvh_box16, m.poly_bvh_box16),
-      blob_of(BlobId::cell_poly_entries, m.cell_poly_entries),
-      blob_of(BlobId::cell_poly_holes, m.cell_poly_holes),
-      blob_of(BlobId::dyn_vertices, m.dyn_vertices),
-      blob_of(BlobId::dyn_prev_next, m.dyn_prev_next),
-      blob_of(BlobId::dyn_line_start, m.dyn_line_start),
-      blob_of(BlobId::dyn_line_props, m.dyn_line_props),
-      blob_of(BlobId::lod_points, m.lod_points),
-      blob_of(BlobId::lod_segments, m.lod_segments),
-      blob_of(BlobId::lod_line_range, m.lod_line_range),
-  };
+                "for_each_model_array must list every model blob");
+  fn(BlobId::line_vertices, m.line_vertices);
+  fn(BlobId::line_vertex_line, m.line_vertex_line);
+  fn(BlobId::line_props, m.line_props);
+  fn(BlobId::line_corners, m.line_corners);
+  fn(BlobId::cell_segments, m.cell_segments);
+  fn(BlobId::cell_line_first, m.cell_line_first);
+  fn(BlobId::poly_props, m.poly_props);
+  fn(BlobId::poly_root_node, m.poly_root_node);
+  fn(BlobId::qt_node_box, m.qt_node_box);
+  fn(BlobId::qt_node, m.qt_node);
+  fn(BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
+  fn(BlobId::cell_holes, m.cell_holes);
+  fn(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
+  fn(BlobId::qt_leaf_loops, m.qt_leaf_loops);
+  fn(BlobId::cell_poly_first, m.cell_poly_first);
+  fn(BlobId::line_bvh_box16, m.line_bvh_box16);
+  fn(BlobId::poly_bvh_box16, m.poly_bvh_box16);
+  fn(BlobId::cell_poly_entries, m.cell_poly_entries);
+  fn(BlobId::cell_poly_holes, m.cell_poly_holes);
+  fn(BlobId::dyn_vertices, m.dyn_vertices);
+  fn(BlobId::dyn_prev_next, m.dyn_prev_next);
+  fn(BlobId::dyn_line_start, m.dyn_line_start);
+  fn(BlobId::dyn_line_props, m.dyn_line_props);
+  fn(BlobId::lod_points, m.lod_points);
+  fn(BlobId::lod_segments, m.lod_segments);
+  fn(BlobId::lod_line_range, m.lod_line_range);
+}
+
+std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
   std::vector<BlobInput> out;
-  for (const BlobInput& b : all)
-    if (include_empty || b.count > 0) out.push_back(b);
+  for_each_model_array(m, [&](decal::BlobId id, const auto& v) {
+    if (include_empty || !v.empty()) out.push_back(blob_of(id, v));
+  });
+  return out;
+}
+
+std::vector<BlobInput> take_model_blobs(DecalModel& m) {
+  std::vector<BlobInput> out;
+  for_each_model_array(m, [&](decal::BlobId id, auto& v) {
+    // The moved vector keeps its buffer, so the blob's span stays valid, and
+    // leaves `v` empty.
+    auto owned = std::make_shared<std::remove_reference_t<decltype(v)>>(std::move(v));
+    BlobInput b = blob_of(id, *owned);
+    b.owner = std::move(owned);
+    out.push_back(std::move(b));
+  });
   return out;
 }
 

@@ -423,3 +423,24 @@ TEST(WriteModel, ExtraMetadataThatOverridesAModelKeyIsRejected) {
 }
 
 }  // namespace
+
+// write_model of an rvalue model frees each array once its blob is
+// compressed (libprep/pipeline passes its model so): the file must be the
+// same bytes as writing the model it was, compressed or stored, and the
+// model's blob arrays are taken.
+TEST(WriteModel, ConsumingTheModelWritesTheSameBytesAndTakesItsArrays) {
+  for (const prep::WriteOptions& o :
+       {prep::WriteOptions{prep::Codec::zstd, 3}, prep::WriteOptions{prep::Codec::none, 0}}) {
+    const prep::DecalModel m = decal_test::small_model();
+    const auto want = decal_test::model_package_bytes(m, o);
+    const std::string dir = decal_test::make_temp_dir("consume");
+    prep::DecalModel taken = m;
+    prep::write_model(dir + "/p.decals", std::move(taken), "", o);
+    EXPECT_TRUE(decal_test::read_file(dir + "/p.decals") == want);
+    std::filesystem::remove_all(dir);
+    EXPECT_TRUE(taken.qt_leaf_vertices.empty() && taken.cell_poly_first.empty() &&
+                taken.line_vertices.empty() && taken.lod_points.empty());
+    EXPECT_EQ(taken.grid.nx, m.grid.nx);  // not a blob: kept
+    EXPECT_EQ(taken.manifest.notes, m.manifest.notes);
+  }
+}

@@ -50,16 +50,23 @@ struct BlobInput {
 void write_package(const std::string& path, const std::string& metadata_json,
                    std::span<const BlobInput> blobs, const WriteOptions& options = {});
 
-// The blob list of a model, in catalogue order, in the layout of the current
-// format version: the model's per-cell ranges and leaf segments (the v1.2
-// layout the model and the evaluator work in) encoded as the v1.3 blobs
-// (decal/layout.hpp), which own their bytes; superseded ids are not listed.
-// Empty arrays are included as empty blobs only when `include_empty`.
+// The blob list of a model, in catalogue order: its own arrays, which hold
+// the layout of the current format version (prep/model.hpp); superseded ids
+// are not listed. Empty arrays are included as empty blobs only when
+// `include_empty`.
 std::vector<BlobInput> model_blobs(const DecalModel& model, bool include_empty = false);
+// model_blobs(model, true), taking the arrays: each blob owns its array
+// (`owner`), and the model's blob arrays are left empty.
+std::vector<BlobInput> take_model_blobs(DecalModel& model);
 
 // Writes a model with its metadata chunk. `extra_metadata_json` is an object
 // merged into the metadata (build options, provenance, timings).
 void write_model(const std::string& path, const DecalModel& model,
+                 const std::string& extra_metadata_json, const WriteOptions& options = {});
+// The same bytes, consuming the model: each array is freed as soon as its
+// blob is compressed (or, stored, written), so the writer holds the
+// compressed frames in place of the arrays rather than on top of them.
+void write_model(const std::string& path, DecalModel&& model,
                  const std::string& extra_metadata_json, const WriteOptions& options = {});
 
 }  // namespace prep
