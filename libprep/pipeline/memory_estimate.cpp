@@ -27,39 +27,40 @@ namespace {
 // measure.sh (/usr/bin/time; release, 2 threads) on generated FlatGeobuf
 // inputs; rows in bench/memory/peak_rss.csv. Estimates in MiB after read /
 // after clean / after the grid choice, measured 2026-11-25 once the model
-// held its cell lists in the v1.3 layout, when the polygon coefficient and
-// the build base were refitted (they were 160 B per vertex over 120 MiB):
+// held its cell lists in the v1.3 layout and the writer freed its arrays as
+// it went, when the polygon coefficient and the build base were refitted
+// (they were 160 B per vertex over 120 MiB):
 //
 //   input (after read)              vertices   parts   peak   read   clean   grid
-//   polygons 1e5 (star, 0-3 holes)     98594     563   80.9  108.4   103.2  113.6
-//   polygons 3e5                      295890    1671  101.9  133.1   131.5  141.3
-//   polygons 1e6                      985985    5655  178.0  225.6   230.5  227.0
-//   polygons 1e7 (bench/run's set)   9859712   56312 1157.1 1489.2  1501.0 1351.8
-//   lines 1e5 (width 4 m)             100000    2024  119.1  153.7   150.5  147.3
-//   lines 3e5                         300000    6029  221.3  269.1   272.2  258.2
-//   lines 1e6                        1000000   20077  571.5  681.6   700.8  631.3
-//   squares 20000 (5 vertices)         80000   20000   70.4  110.8   113.2   91.8
-//   squares 100000                    400000  100000  129.8  185.2   207.9  174.9
-//   3-vertex lines 20000               60000   20000   89.7  135.2   139.1  119.9
-//   3-vertex lines 100000             300000  100000  227.5  305.9   337.0  267.5
-//   lines 3e5, width 40 m             300000    6029  349.3  269.1   616.5  423.0
-//   Liechtenstein scene (OSM, 4 l.)    62425    6724  129.3  179.7   180.9  170.0
-//   Monaco scene (OSM, DEM, 7 l.)     390829   51204  274.5  431.5   342.6  325.7
+//   polygons 1e5 (star, 0-3 holes)     98594     563   80.9  108.4   103.6  112.7
+//   polygons 3e5                      295890    1671  100.7  133.1   131.8  138.5
+//   polygons 1e6                      985985    5655  166.1  225.7   230.6  216.6
+//   polygons 1e7 (bench/run's set)   9859712   56312 1049.6 1489.2  1501.0 1254.0
+//   lines 1e5 (width 4 m)             100000    2024  119.3  153.7   150.7  147.2
+//   lines 3e5                         300000    6029  220.8  269.1   272.8  256.4
+//   lines 1e6                        1000000   20077  570.7  681.6   700.9  620.8
+//   squares 20000 (5 vertices)         80000   20000   70.6  110.8   113.4   91.6
+//   squares 100000                    400000  100000  130.8  185.3   208.0  173.1
+//   3-vertex lines 20000               60000   20000   88.3  135.2   139.1  119.4
+//   3-vertex lines 100000             300000  100000  227.6  305.9   337.2  264.8
+//   lines 3e5, width 40 m             300000    6029  349.4  269.1   616.7  420.8
+//   Liechtenstein scene (OSM, 4 l.)    62425    6724  132.7  180.4   181.8  170.5
+//   Monaco scene (OSM, DEM, 7 l.)     390829   51204  275.7  431.8   342.9  324.7
 //
-// Least squares on the polygon rows gives ~116 B per polygon vertex over a
-// ~68 MiB build base (10^6 -> 10^7: 116 B); line vertices cost ~550 B;
+// Least squares on the polygon rows gives ~104 B per polygon vertex over a
+// ~68 MiB build base (10^6 -> 10^7: 104 B); line vertices cost ~550 B;
 // the per-part costs fit to about 0. The read and clean stages sit on a
 // 54 MiB base (GDAL/PROJ/GEOS loaded, thread pools); the build stage on
 // ~65-80 MiB: the adaptive decal grid (2e5..5e5 cells on these inputs;
 // its cell count is only known inside build_model) adds ~10-25 MiB. The
 // coefficients below (130 B per polygon vertex, 600 per line vertex, build
 // base 96 MiB) keep the estimate above every measured peak by more than
-// the run-to-run spread of the peak (~5-10 %): after clean 1.23x..1.76x of
+// the run-to-run spread of the peak (~5-10 %): after clean 1.23x..1.77x of
 // it, after read 1.19x..1.57x except very wide lines (next paragraph), after
-// the grid choice 1.10x..1.40x. These assume the adaptive grid: a fixed fine
-// --grid (2000x2000 on polygons 3e5: 271-301 MiB against 164 after clean)
-// is seen only after the grid choice (561 MiB there), whose cell count
-// the estimate then has.
+// the grid choice 1.09x..1.39x. These assume the adaptive grid: a fixed fine
+// --grid (2000x2000 on polygons 3e5: 271-301 MiB against 132 after clean)
+// is seen only after the grid choice (about 560 MiB there), whose cell
+// count the estimate then has.
 //
 // Line width matters: a segment widened to w covers more cells. Measured on
 // lines 3e5 (mean segment 20 m, previous grid): width 1, 4, 10, 20, 40, 100 m
@@ -93,13 +94,13 @@ constexpr double kPerVertexDryRun = 40;
 constexpr double kPerPartDryRun = 700;
 constexpr double kPerSourceByte = 1.0;
 // After the grid choice, on top of the resident set: the cell lists and
-// BVHs to come, in the grid chooser's v1.2 count (the entries' working
-// copies: a line entry costs more than its count, 64 B against 40), and the
-// writer's compressed frames (held until every blob before them in table
-// order is written) in proportion to the whole package.
+// BVHs to come, in the grid chooser's v1.2 count (with the entries' working
+// copies: a line entry costs more than its count, 64 B against 40), and a
+// tenth of the package for the writer (zstd state, frames in flight: it
+// frees each array of the model as its frame is made).
 constexpr double kAfterGridBytes = 8.0 * kMiB;
-constexpr double kPerGridCellByte = 1.2;
-constexpr double kPerPackageByteAfterGrid = 0.3;
+constexpr double kPerGridCellByte = 1.4;
+constexpr double kPerPackageByteAfterGrid = 0.1;
 constexpr double kPerDynamicVertexAfterGrid = 600;
 // OSM sources: GDAL's OSM driver keeps its node index in memory (up to
 // OSM_MAX_TMPFILE_SIZE, 100 MB, then on disk), once per layer read, and

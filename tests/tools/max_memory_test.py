@@ -76,7 +76,7 @@ if code == 0:
 
 # 4. A fixed fine grid: 2000x2000 cells on the same input peak at about
 #    270-300 MiB, more than the vertex counts say (the estimates after read and
-#    after clean assume the adaptive grid, ~165 MiB). The check after the
+#    after clean assume the adaptive grid, ~132 MiB). The check after the
 #    grid choice sees the cells coming and stops before they are made.
 pkg = os.path.join(work, "fine.decals")
 report = os.path.join(work, "fine.json")
