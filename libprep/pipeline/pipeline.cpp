@@ -469,7 +469,18 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
   return result;
 }
 
-BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
+// What a build has measured so far: the report's memory part, also when the
+// build fails.
+struct MemoryTrail {
+  // Peak RSS after each stage (the process high-water mark so far), for the
+  // report and the memory model (memory_estimate.hpp).
+  std::vector<std::pair<std::string, double>> peaks;
+  // Estimates of the peak, checked against --max-memory as soon as each is
+  // known (and always reported, so the model can be checked).
+  std::vector<MemoryEstimate> estimates;
+};
+
+BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, MemoryTrail& trail) {
   if (request.step != BuildRequest::Step::all) return run_tileset_step(scene, request);
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
@@ -493,13 +504,9 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
     return *provenance_value;
   };
 
-  // Peak RSS after each stage (the process high-water mark so far), for the
-  // report and the memory model (memory_estimate.hpp).
-  std::vector<std::pair<std::string, double>> peaks;
-  // Estimates of the peak, checked against --max-memory as soon as each is
-  // known (and always reported, so the model can be checked).
+  std::vector<std::pair<std::string, double>>& peaks = trail.peaks;
+  std::vector<MemoryEstimate>& estimates = trail.estimates;
   const MemoryLimit limit{request.max_memory};
-  std::vector<MemoryEstimate> estimates;
   auto estimate = [&](MemoryEstimate e) {
     estimates.push_back(e);
     if (limit) check_memory(limit, e);
@@ -645,15 +652,19 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request) {
 }  // namespace
 
 BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
+  MemoryTrail trail;
   try {
-    return run_stages(scene, request);
+    return run_stages(scene, request, trail);
   } catch (const error& e) {
-    // CI reads the report even when the build fails: say why, then rethrow.
+    // CI reads the report even when the build fails: say why, with what was
+    // measured and estimated up to the failure (a --max-memory stop names
+    // its estimate), then rethrow.
     if (!request.report.empty()) {
       nlohmann::json failed = {{"report_version", 1},
                                {"package_written", false},
                                {"error", e.what()},
                                {"exit_code", static_cast<int>(e.code())}};
+      add_memory_report(failed, trail.peaks, trail.estimates, MemoryLimit{request.max_memory});
       try {
         write_text_file(request.report, failed.dump(2) + "\n");
       } catch (const error&) {

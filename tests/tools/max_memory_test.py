@@ -97,6 +97,12 @@ check(code == 6, f"--grid 2000x2000 --max-memory 200M exits 6 (got {code})")
 check(not os.path.exists(pkg), "--grid 2000x2000 --max-memory 200M writes no package")
 check("estimate after grid" in err and "4000000 grid cells" in err, "it stops after the grid choice: " + err.strip())
 check(peak < 200, f"it stopped before the cells were made (peak RSS {peak:.1f} MiB < 200)")
+failed = json.load(open(report))
+check(failed.get("exit_code") == 6 and failed.get("max_memory_mib") == 200 and
+      failed.get("memory_estimate", {}).get("after grid", {}).get("mib", 0) > 200 and
+      "clean" in failed.get("peak_rss_mib_after", {}),
+      "the failed build's report gives the limit, the estimate that stopped it and the peaks so far: " +
+      json.dumps({k: failed.get(k) for k in ("exit_code", "max_memory_mib")}))
 
 # 5. Batch mode: the limit applies to every scene (each fails with exit 6).
 scenes = os.path.join(work, "scenes")
