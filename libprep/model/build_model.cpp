@@ -687,6 +687,8 @@ void fill_cells(std::vector<SegEntry>&& seg_entries, std::vector<CellPoly>&& ext
   const decal::layout::Box16Encoder box16(cell_grid(m.grid));
   std::vector<uint32_t> first;
   auto count_cells = [&](const auto& entries) {
+    if (entries.size() > 0xffffffffULL)
+      fail<resource_error>(kBuildStage, "more than 2^32 (cell, primitive) entries");
     first.assign(ncells + 1, 0);
     for (const auto& e : entries) ++first[e.cell + 1];
     for (size_t c = 0; c < ncells; ++c) first[c + 1] += first[c];
