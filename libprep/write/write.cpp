@@ -20,7 +20,6 @@
 #include <bit>
 #include <cerrno>
 #include <climits>
-#include <condition_variable>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -347,10 +346,6 @@ void write_package_consuming(const std::string& path, PackageSource& source,
   uint64_t end = 0;  // file position
 
   std::mutex mutex;
-  std::condition_variable queue_changed;
-  // Blobs to compress, taken largest first.
-  std::vector<size_t> queue;
-  bool completing = false, completed = false, failed = false;
   std::vector<char> ready(blobs.size(), 0);
   bool metadata_ready = false, metadata_written = false;
   size_t next_to_write = 0;
@@ -390,14 +385,14 @@ void write_package_consuming(const std::string& path, PackageSource& source,
     }
     writing = false;
   };
-  const auto by_size = [&](size_t a, size_t b) {
-    // Largest first, then table order: a max-heap on size, ties to the
-    // lower index.
-    const size_t sa = blobs[a].bytes.size(), sb = blobs[b].bytes.size();
-    return sa != sb ? sa < sb : a > b;
-  };
-  for (size_t i = 0; i < blobs.size(); ++i) queue.push_back(i);
-  std::make_heap(queue.begin(), queue.end(), by_size);
+  // The blobs in the order they are compressed: largest first (the longest
+  // task starts first, so the last one to finish is short), ties in table
+  // order.
+  std::vector<size_t> order(blobs.size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return blobs[a].bytes.size() > blobs[b].bytes.size();
+  });
 
   // source.complete(): the metadata, on the first slot that starts (the
   // others meanwhile compress the blobs).
@@ -409,8 +404,6 @@ void write_package_consuming(const std::string& path, PackageSource& source,
     h.metadata_size = metadata_json.size();
     h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
     metadata_ready = true;
-    completed = true;
-    queue_changed.notify_all();
     write_ready(lock);
   };
 
@@ -459,10 +452,12 @@ void write_package_consuming(const std::string& path, PackageSource& source,
     ready[i] = 1;
     write_ready(lock);
   };
-  // Each slot completes the source (the first one) or takes the largest
-  // blob ready, until none is left; a slot finding none while the source is
-  // being completed waits for it. A slot no worker thread picks up finds
-  // the work done.
+  // The first slot to start completes the source; then each slot takes the
+  // next blob of `order` until none is left. Whoever finishes last (a blob
+  // or the metadata) writes what is left. A slot no worker thread picks up
+  // finds the work done.
+  std::atomic<bool> completing{false};
+  std::atomic<size_t> next{0};
   const size_t slots = std::max<size_t>(
       1, std::min(blobs.size(), size_t(std::max(1, tbb::this_task_arena::max_concurrency()))));
   tbb::parallel_for(size_t(0), slots, [&](size_t) {
@@ -472,29 +467,11 @@ void write_package_consuming(const std::string& path, PackageSource& source,
       ~CctxFree() { ZSTD_freeCCtx(c); }
     } cctx_free{cctx};
     try {
-      for (;;) {
-        std::unique_lock lock(mutex);
-        if (!completing) {
-          completing = true;
-          lock.unlock();
-          // Isolated: should it wait on oneTBB work of its own, this thread
-          // must not pick up a slot that would wait for it.
-          tbb::this_task_arena::isolate(complete);
-          continue;
-        }
-        queue_changed.wait(lock, [&] { return failed || completed || !queue.empty(); });
-        if (failed || queue.empty()) return;
-        std::pop_heap(queue.begin(), queue.end(), by_size);
-        const size_t i = queue.back();
-        queue.pop_back();
-        lock.unlock();
-        encode(i, cctx);
-      }
+      if (!completing.exchange(true)) complete();
+      for (size_t k; (k = next.fetch_add(1, std::memory_order_relaxed)) < order.size();)
+        encode(order[k], cctx);
     } catch (...) {
-      // The other slots stop after their blob.
-      const std::lock_guard lock(mutex);
-      failed = true;
-      queue_changed.notify_all();
+      next.store(order.size());  // the other slots stop after their blob
       throw;
     }
   });
