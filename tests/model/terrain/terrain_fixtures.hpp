@@ -13,6 +13,7 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "ogr_lines.hpp"
@@ -21,10 +22,27 @@
 
 namespace terraintest {
 
+// The folders temp_dir made, removed when the test process exits (each test
+// runs in a process of its own under ctest).
+struct TempDirs {
+  std::vector<std::filesystem::path> made;
+  TempDirs() = default;
+  TempDirs(const TempDirs&) = delete;
+  TempDirs& operator=(const TempDirs&) = delete;
+  ~TempDirs() {
+    for (const auto& d : made) {
+      std::error_code ec;
+      std::filesystem::remove_all(d, ec);
+    }
+  }
+};
+
 inline std::string temp_dir(const std::string& name) {
+  static TempDirs dirs;
   auto dir = std::filesystem::temp_directory_path() /
              ("decalprep_terrain_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
+  dirs.made.push_back(dir);
   return dir.string();
 }
 
