@@ -102,6 +102,34 @@ constexpr double kAfterGridBytes = 8.0 * kMiB;
 constexpr double kPerGridCellByte = 1.4;
 constexpr double kPerPackageByteAfterGrid = 0.1;
 constexpr double kPerDynamicVertexAfterGrid = 600;
+// A tileset's tile (estimate_tile): the build part of the counts above, as
+// a single build of the tile would add it over the read base, times the
+// tiles built at once, on the resident set when the tiles began. Measured
+// 2026-11-25 (release; peak from /usr/bin/time, resident and the largest
+// tile's counts from the report; MiB):
+//
+//   input              tile    jobs  resident   peak  estimate     tile's polygon / line v.
+//   polygons 1e6       20 km     1      59.5   107.3   127.1 1.18x   251832 /      0
+//   polygons 1e6        5 km     1      59.4    89.4   104.2 1.17x    70241 /      0
+//   polygons 1e5      500 m      1      59.0    65.3    95.2 1.46x     1350 /      0
+//   mix 1e6 (width 3) 12 km      1      60.8   252.6   287.3 1.14x   264576 / 269399
+//   mix 1e6            4 km      1      60.7   126.2   135.0 1.07x    50965 /  54576
+//   mix 1e6            1 km      1      60.8    79.5    99.8 1.25x     4811 /   4027
+//   Monaco scene      500 m      1     227.3   234.7   267.8 1.14x     2749 /   4389
+//   Monaco scene       2 km      1     226.4   242.4   286.4 1.18x    20372 /  27314
+//   polygons 1e6      20 km      2      59.6   158.9   194.8 1.23x   251832 /      0
+//   polygons 1e6       5 km      2      59.6   118.1   149.2 1.26x    70241 /      0
+//   polygons 1e5      500 m      2      59.1    68.1   131.5 1.93x     1350 /      0
+//   mix 1e6           12 km      2      61.0   337.0   513.9 1.53x   264576 / 269399
+//   mix 1e6            4 km      2      60.5   185.9   209.2 1.13x    50965 /  54576
+//   mix 1e6            1 km      2      60.7    94.1   138.6 1.47x     4811 /   4027
+//   Monaco scene      500 m      2     227.5   249.5   308.5 1.24x     2749 /   4389
+//   Monaco scene       2 km      2     226.3   282.8   346.2 1.22x    20372 /  27314
+//
+// (polygons: bench/memory's sets; mix: bench/gen_synthetic.py mix_scene.)
+// A tile's fixed part (its decal grid, thread-local state) measures 4-28
+// MiB against the build base's 36; a smaller one left the 4 km mix tile at
+// 1.00x. Small tiles are over-estimated by the fixed part times the jobs.
 // OSM sources: GDAL's OSM driver keeps its node index in memory (up to
 // OSM_MAX_TMPFILE_SIZE, 100 MB, then on disk), once per layer read, and
 // layers are read side by side. One multipolygons layer, 1 thread, dry run:
@@ -173,6 +201,37 @@ MemoryEstimate model(const char* point, const Counts& c, bool dry_run, double re
     << " line vertices, " << uint64_t(c.polygon_parts + c.line_parts) << " parts";
   e.basis = m.str();
   return e;
+}
+
+// The after-clean counts of a cleaned scene (or of one tile of it).
+Counts counts_of(const SceneFeatures& scene) {
+  Counts c;
+  for (const ScenePolygon& p : scene.polygons) {
+    c.polygon_parts += 1;
+    c.polygon_vertices += double(p.shell.size());
+    for (const Ring& h : p.holes) c.polygon_vertices += double(h.size());
+  }
+  for (const SceneLine& l : scene.lines) {
+    c.line_parts += 1;
+    const double n = double(l.points.size());
+    c.line_vertices += n;
+    // Width over the mean segment length (frame metres; l.width is already
+    // scaled to the frame).
+    double length = 0;
+    for (size_t i = 1; i < l.points.size(); ++i)
+      length += std::hypot(l.points[i].x - l.points[i - 1].x, l.points[i].y - l.points[i - 1].y);
+    const double segments = l.closed ? n : n - 1;
+    const double mean = segments > 0 ? length / segments : 0;
+    const double r = mean > 0 ? std::min(l.width / mean, kMaxWidthRatio) : kMaxWidthRatio;
+    c.line_width_term += n * r * r;
+  }
+  // Dynamic lines: widths are pixels; their build cost is the subdivided
+  // 3D line, counted like a static line vertex.
+  for (const SceneLine& l : scene.dynamic_lines) {
+    c.line_parts += 1;
+    c.line_vertices += double(l.points.size());
+  }
+  return c;
 }
 
 // Local file behind a GDAL path (/vsizip/x.zip/y -> x.zip); empty if none.
@@ -325,32 +384,7 @@ MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& fea
 }
 
 MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& scene) {
-  Counts c;
-  for (const ScenePolygon& p : scene.polygons) {
-    c.polygon_parts += 1;
-    c.polygon_vertices += double(p.shell.size());
-    for (const Ring& h : p.holes) c.polygon_vertices += double(h.size());
-  }
-  for (const SceneLine& l : scene.lines) {
-    c.line_parts += 1;
-    const double n = double(l.points.size());
-    c.line_vertices += n;
-    // Width over the mean segment length (frame metres; l.width is already
-    // scaled to the frame).
-    double length = 0;
-    for (size_t i = 1; i < l.points.size(); ++i)
-      length += std::hypot(l.points[i].x - l.points[i - 1].x, l.points[i].y - l.points[i - 1].y);
-    const double segments = l.closed ? n : n - 1;
-    const double mean = segments > 0 ? length / segments : 0;
-    const double r = mean > 0 ? std::min(l.width / mean, kMaxWidthRatio) : kMaxWidthRatio;
-    c.line_width_term += n * r * r;
-  }
-  // Dynamic lines: widths are pixels; their build cost is the subdivided
-  // 3D line, counted like a static line vertex.
-  for (const SceneLine& l : scene.dynamic_lines) {
-    c.line_parts += 1;
-    c.line_vertices += double(l.points.size());
-  }
+  const Counts c = counts_of(scene);
   // Read and clean have run: their peak is measured, not estimated, and the
   // build adds its part to what is resident now (freed read memory is not
   // always handed back to the kernel: the Monaco scene stays at 208 MiB
@@ -386,6 +420,26 @@ MemoryEstimate estimate_after_grid(const GridFootprint& grid, const SceneFeature
   return e;
 }
 
+MemoryEstimate estimate_tile(const SceneFeatures& tile, double resident_bytes, unsigned jobs,
+                             const std::string& name) {
+  jobs = std::max(1u, jobs);
+  double build_part = 0;
+  MemoryEstimate e = model("tile", counts_of(tile), false, 0.0, &build_part);
+  e.tile = name;
+  e.jobs = jobs;
+  e.resident_bytes = resident_bytes;
+  e.bytes = resident_bytes + double(jobs) * build_part;
+  std::ostringstream m;
+  m << "tile " << name << ": " << e.basis << ", times " << jobs << (jobs == 1 ? " tile" : " tiles")
+    << " built at once, on top of " << format_memory_size(resident_bytes)
+    << " resident when the tiles began";
+  e.basis = m.str();
+  e.advice =
+      "Raise --max-memory, build fewer tiles at once (--jobs) or smaller ones (--tile-size); the "
+      "tiles already written are kept, and the next run builds only the others";
+  return e;
+}
+
 void check_memory(const MemoryLimit& limit, const MemoryEstimate& estimate) {
   if (!limit || estimate.bytes <= double(limit.bytes)) return;
   fail<resource_error>(
@@ -393,8 +447,11 @@ void check_memory(const MemoryLimit& limit, const MemoryEstimate& estimate) {
       std::string("the build needs an estimated ") + format_memory_size(estimate.bytes) +
           " at its peak (estimate " + estimate.point + ", from " + estimate.basis +
           "), over --max-memory " + format_memory_size(double(limit.bytes)) +
-          "; stopped before running out. Raise --max-memory, thin the input (--resolution to "
-          "simplify, --extent or --where to keep less), or split the scene into tiles");
+          "; stopped before running out. " +
+          (estimate.advice.empty()
+               ? std::string("Raise --max-memory, thin the input (--resolution to simplify, "
+                             "--extent or --where to keep less), or split the scene into tiles")
+               : estimate.advice));
 }
 
 }  // namespace prep

@@ -360,6 +360,9 @@ void add_memory_report(nlohmann::json& report,
                     {"polygon_parts", e.polygon_parts},
                     {"line_parts", e.line_parts},
                     {"source_bytes", e.source_bytes}};
+    if (!e.tile.empty())
+      est[e.point].update(
+          {{"tile", e.tile}, {"jobs", e.jobs}, {"resident_mib", e.resident_bytes / kMiB}});
     if (e.grid_cells > 0)
       est[e.point].update({{"resident_mib", e.resident_bytes / kMiB},
                            {"grid_cells", e.grid_cells},
@@ -377,10 +380,33 @@ nlohmann::json levels_report(const pipeline_internal::TilesetOutcome& t) {
           {"reused", t.level_reused}, {"empty", t.level_empty}, {"bytes", t.level_bytes}};
 }
 
+// What a build has measured so far: the report's memory part, also when the
+// build fails.
+struct MemoryTrail {
+  // Peak RSS after each stage (the process high-water mark so far), for the
+  // report and the memory model (memory_estimate.hpp).
+  std::vector<std::pair<std::string, double>> peaks;
+  // Estimates of the peak, checked against --max-memory as soon as each is
+  // known (and always reported, so the model can be checked).
+  std::vector<MemoryEstimate> estimates;
+};
+
+// The estimate before read, with a tileset's advice: its sources are read
+// as a single build's are, so tiles do not lower this part.
+MemoryEstimate before_read(const SceneSpec& scene, const BuildRequest& request) {
+  MemoryEstimate e = estimate_before_read(scene, request.dry_run);
+  if (scene.tile_size > 0)
+    e.advice =
+        "Raise --max-memory, or thin the input (--extent or --where to keep less): a tileset "
+        "reads its sources as a single build does";
+  return e;
+}
+
 // One step of a tileset build (BuildRequest::step), in a process of its own.
 // The report says which step ran and what it did; the state for the next
 // step is in the work folder only (pipeline_internal.hpp).
-BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request) {
+BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request,
+                             MemoryTrail& trail) {
   using Step = BuildRequest::Step;
   if (request.output.empty()) fail<usage_error>(kBuildStage, "no output path (-o)");
   if (scene.tile_size <= 0)
@@ -405,8 +431,15 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
                                     ? nlohmann::json{{"event", "step"}, {"text", line}}.dump()
                                     : line);
   };
+  // --max-memory: prepare is checked before it reads, each tile of a tiles
+  // step as it is cut; the step's report has the memory part.
+  const MemoryLimit limit{request.max_memory};
+  std::vector<std::pair<std::string, double>>& peaks = trail.peaks;
+  std::vector<MemoryEstimate>& estimates = trail.estimates;
   switch (request.step) {
     case Step::prepare: {
+      estimates.push_back(before_read(scene, request));
+      check_memory(limit, estimates.back());
       const nlohmann::json provenance = provenance_json(scene);
       const pipeline_internal::PreparedScene p = pipeline_internal::prepare_tileset_streaming(
           scene, request, [&]() -> const nlohmann::json& { return provenance; });
@@ -415,14 +448,16 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
       report["output_counts"] = {
           {"polygons", p.polygons}, {"lines", p.lines}, {"dynamic_lines", p.dynamic_lines}};
       report["entry_count"] = p.entry_count;
+      peaks.emplace_back("prepare", peak_rss_mib());
       result.skipped_failures = p.skipped_failures;
       say("step prepare: " + std::to_string(p.polygons + p.lines + p.dynamic_lines) + " parts in " +
           request.output + "/.work");
       break;
     }
     case Step::tiles: {
-      const pipeline_internal::TileStepOutcome t =
-          pipeline_internal::build_tiles(scene, request, request.step_part, request.step_parts);
+      const pipeline_internal::TileStepOutcome t = pipeline_internal::build_tiles(
+          scene, request, request.step_part, request.step_parts, &estimates);
+      peaks.emplace_back("tiles", peak_rss_mib());
       report["step"] = "tiles";
       report["part"] = request.step_part;
       report["parts"] = request.step_parts;
@@ -464,24 +499,14 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
   report["package_written"] = result.package_written;
   report["skipped_failures"] = result.skipped_failures;
   report["total_s"] = seconds_since(t0);
+  if (request.step != Step::finalize) add_memory_report(report, peaks, estimates, limit);
   result.report_json = report.dump(2) + "\n";
   if (!request.report.empty()) write_text_file(request.report, result.report_json);
   return result;
 }
 
-// What a build has measured so far: the report's memory part, also when the
-// build fails.
-struct MemoryTrail {
-  // Peak RSS after each stage (the process high-water mark so far), for the
-  // report and the memory model (memory_estimate.hpp).
-  std::vector<std::pair<std::string, double>> peaks;
-  // Estimates of the peak, checked against --max-memory as soon as each is
-  // known (and always reported, so the model can be checked).
-  std::vector<MemoryEstimate> estimates;
-};
-
 BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, MemoryTrail& trail) {
-  if (request.step != BuildRequest::Step::all) return run_tileset_step(scene, request);
+  if (request.step != BuildRequest::Step::all) return run_tileset_step(scene, request, trail);
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
   if (!request.dry_run && request.output.empty())
@@ -511,7 +536,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     estimates.push_back(e);
     if (limit) check_memory(limit, e);
   };
-  estimate(estimate_before_read(scene, request.dry_run));
+  estimate(before_read(scene, request));
 
   auto t0 = Clock::now();
   BuildResult result;
@@ -562,14 +587,14 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     timings.emplace_back("clean", seconds_since(t0));
   }
   if (!streamed) peaks.emplace_back("clean", peak_rss_mib());
-  // (A tileset's peak is one tile's per job: not modelled yet.)
+  // A tileset's tiles are checked one by one as they are cut (build_tiles).
   if (!request.dry_run && !tiled) estimate(estimate_after_clean(scene, result.scene));
 
   std::optional<pipeline_internal::TilesetOutcome> tileset;
   if (!request.dry_run && tiled) {
     t0 = Clock::now();
     try {
-      pipeline_internal::build_tiles(scene, request, 0, 1);
+      pipeline_internal::build_tiles(scene, request, 0, 1, &estimates);
       tileset = pipeline_internal::finalize_tileset(scene, request);
     } catch (...) {
       pipeline_internal::discard_work(request.output, !had_output);

@@ -6,7 +6,9 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
+#include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/scene.hpp"
 #include "prep/tile.hpp"
@@ -131,11 +133,14 @@ PreparedScene prepare_tileset_streaming(const SceneSpec& spec, const BuildReques
 void discard_work(const std::string& dir, bool made_dir);
 
 // Step 2: the plan's tiles i with i % parts == part (parts <= 1: all).
+// Each tile to build is checked against request.max_memory once its window
+// is cut (estimate_tile); `estimates` (may be null) receives the largest
+// tile's estimate, or the one that stopped the build, also when it throws.
 struct TileStepOutcome {
   size_t tiles = 0, built = 0, reused = 0, empty = 0;
 };
 TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
-                            size_t parts);
+                            size_t parts, std::vector<MemoryEstimate>* estimates = nullptr);
 
 // Step 3: every tile of the plan must have its record. `manifest` (may be
 // null) receives the scene's counts and notes.

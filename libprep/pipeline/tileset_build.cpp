@@ -22,6 +22,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <thread>
 
@@ -31,6 +32,7 @@
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/manifest_json.hpp"
+#include "prep/memory_estimate.hpp"
 #include "prep/model.hpp"
 #include "prep/progress.hpp"
 #include "prep/project.hpp"
@@ -556,7 +558,7 @@ std::vector<TileItem> plan_items(const PreparedPlan& p) {
 }  // namespace
 
 TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
-                            size_t parts) {
+                            size_t parts, std::vector<MemoryEstimate>* estimates) {
   const WorkPaths paths{request.output};
   const PreparedPlan prepared = read_plan(paths);
   const std::string& dir = request.output;
@@ -576,6 +578,22 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
   std::exception_ptr first_error;
   size_t first_error_at = items.size();
   std::mutex error_mutex;
+  const unsigned jobs = std::max(1u, request.jobs);
+  // --max-memory: every tile to build is checked once its window is cut
+  // (prep/memory_estimate.hpp, estimate_tile). The report gets the largest
+  // tile's estimate, or the one that stopped the build; ties go to the
+  // first tile in plan order, whatever the scheduling.
+  const MemoryLimit limit{request.max_memory};
+  const double resident = current_rss_bytes();
+  std::optional<std::pair<size_t, MemoryEstimate>> largest, stopped;
+  auto note_estimate = [&](size_t i, const MemoryEstimate& e) {
+    std::lock_guard<std::mutex> lock(error_mutex);
+    if (!largest || e.bytes > largest->second.bytes ||
+        (e.bytes == largest->second.bytes && i < largest->first))
+      largest.emplace(i, e);
+    if (limit && e.bytes > double(limit.bytes) && (!stopped || i < stopped->first))
+      stopped.emplace(i, e);
+  };
 
   auto work = [&] {
     std::unique_ptr<PartReader> reader;
@@ -628,6 +646,9 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
           extra["tile"]["input_xxh64"] = hex64(digest);
           const bool kept = reusable(path, digest);
           if (!kept) {
+            const MemoryEstimate est = estimate_tile(tile, resident, jobs, file);
+            note_estimate(i, est);
+            check_memory(limit, est);
             ModelOptions mo = spec.model;
             mo.dem_assume_crs = spec.assume_crs;
             // An overview level's cells: at least two of its pixels wide.
@@ -674,11 +695,18 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
       }
     }
   };
-  const unsigned jobs = std::max(1u, request.jobs);
   std::vector<std::thread> workers;
   for (unsigned j = 1; j < jobs; ++j) workers.emplace_back(work);
   work();
   for (std::thread& w : workers) w.join();
+  if (estimates) {
+    // The estimate that stopped the build when its tile failed first, else
+    // the largest.
+    if (first_error && stopped && stopped->first == first_error_at)
+      estimates->push_back(stopped->second);
+    else if (largest)
+      estimates->push_back(largest->second);
+  }
   if (first_error) std::rethrow_exception(first_error);
   stage.finish();
   out.tiles = items.size();

@@ -5,7 +5,11 @@ limit builds; and the estimate of the peak for a mid-size generated input is
 at least the peak RSS measured for the child process (getrusage via wait4)
 and at most 3x it. A fixed fine grid, whose cells the vertex counts do not
 foresee, is stopped by the check after the grid choice. Batch mode applies
-the limit to every scene.
+the limit to every scene. A tileset build checks each tile as it is cut:
+its estimate (the tile's counts times --jobs) bounds the measured peak, a
+limit between one and two tiles at once stops the build with two jobs and
+lets it through with one, which then stays under the limit and gives the
+same tileset; a --step tiles run is checked the same way.
 
   max_memory_test.py DECALPREP SOURCE_DIR WORK_DIR
 """
@@ -117,5 +121,58 @@ summary = json.load(open(os.path.join(out, "summary.json")))
 check(all(p["exit_code"] == 6 and "--max-memory" in p["error"] for p in summary["packages"]),
       "every scene of the batch failed on --max-memory: " + json.dumps(summary["packages"])[:400])
 check(not any(n.endswith(".decals") for n in os.listdir(out)), "the batch wrote no package")
+
+# 6. A tileset: each tile is checked once its window is cut, against the
+#    resident set when the tiles began plus --jobs times the tile's part.
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tileset_util import tree  # noqa: E402
+
+tiled = [source, "--kind", "polygon", "-q", "--tile-size", "2000"]
+ref = os.path.join(work, "tiles_ref")
+report = os.path.join(work, "tiles_ref.json")
+code, peak, err = build(["build"] + tiled + ["-o", ref, "--report", report, "--jobs", "2",
+                                               "--max-memory", "4G"])
+check(code == 0, f"a tileset with --max-memory 4G builds (exit {code}) {err.strip()}")
+tile_est = json.load(open(report))["memory_estimate"].get("tile", {}) if code == 0 else {}
+check(tile_est.get("jobs") == 2 and tile_est.get("tile", "").startswith("tiles/"),
+      "the report names the largest tile's estimate and its jobs: " + json.dumps(tile_est)[:300])
+if tile_est:
+    e, r = tile_est["mib"], tile_est["resident_mib"]
+    print(f"     tile estimate {e:.1f} MiB ({r:.1f} resident), measured peak RSS {peak:.1f} MiB, "
+          f"ratio {e / peak:.2f}")
+    check(peak <= e <= 3 * peak, "the tile estimate is within [1, 3] x the measured peak")
+    # Between one tile at once and two: stops with --jobs 2, not with --jobs 1.
+    part = (e - r) / 2
+    limit = r + 1.5 * part
+    out = os.path.join(work, "tiles_limited")
+    report = os.path.join(work, "tiles_limited.json")
+    lim = ["--max-memory", "%.0fM" % limit]
+    code, _, err = build(["build"] + tiled + ["-o", out, "--report", report, "--jobs", "2"] + lim)
+    check(code == 6, f"--jobs 2 --max-memory {limit:.0f}M exits 6 (got {code})")
+    check("estimate tile" in err and "--jobs" in err and "tiles/" in err,
+          "the error names the tile and says to build fewer at once: " + err.strip())
+    check(not os.path.exists(os.path.join(out, "tileset.json")), "the stopped tileset has no index")
+    failed = json.load(open(report))
+    check(failed.get("exit_code") == 6 and
+          failed.get("memory_estimate", {}).get("tile", {}).get("mib", 0) > limit,
+          "the failed build's report has the tile estimate that stopped it")
+    code, peak1, err = build(["build"] + tiled + ["-o", out, "--jobs", "1"] + lim)
+    check(code == 0, f"--jobs 1 under the same limit builds (exit {code}) {err.strip()}")
+    check(peak1 <= limit, f"and stays under it: peak RSS {peak1:.1f} MiB <= {limit:.1f}")
+    if code == 0:
+        check(tree(out) == tree(ref), "it equals the --jobs 2 tileset file for file")
+    # A step of a cluster build is checked the same way (its own process:
+    # a lower resident set, so a limit under two tiles' parts).
+    steps = os.path.join(work, "tiles_steps")
+    code, _, err = build(["build"] + tiled + ["-o", steps, "--step", "prepare"])
+    check(code == 0, f"--step prepare (exit {code}) {err.strip()}")
+    report = os.path.join(work, "tiles_step.json")
+    step_limit = ["--max-memory", "%.0fM" % (1.5 * part)]
+    code, _, err = build(["build"] + tiled + ["-o", steps, "--step", "tiles", "0/1", "--jobs", "2",
+                                              "--report", report] + step_limit)
+    check(code == 6 and "estimate tile" in err,
+          f"--step tiles 0/1 --jobs 2 {step_limit[1]} exits 6 (got {code}) {err.strip()}")
+    check(json.load(open(report)).get("memory_estimate", {}).get("tile", {}).get("jobs") == 2,
+          "the step's failed report has the tile estimate")
 
 sys.exit(1 if failures else 0)

@@ -4,6 +4,7 @@
 
 #include "prep/error.hpp"
 #include "prep/memory_estimate.hpp"
+#include "prep/scene.hpp"
 
 namespace {
 
@@ -45,6 +46,45 @@ TEST(MemoryLimit, AnEstimateOverTheLimitStopsWithAResourceErrorThatSaysWhatToDo)
     EXPECT_NE(m.find("--extent"), std::string::npos) << m;
     EXPECT_NE(m.find("split the scene"), std::string::npos) << m;
   }
+}
+
+// A tile's estimate is the resident set plus the jobs times one tile's
+// part, and that part grows with the tile's vertices; its advice is about
+// tiles (jobs, tile size, resume), not about splitting into tiles.
+TEST(MemoryTile, TheEstimateIsTheResidentSetPlusJobsTimesTheTilesPart) {
+  auto square_tile = [](int polygons) {
+    prep::SceneFeatures t;
+    for (int i = 0; i < polygons; ++i) {
+      prep::ScenePolygon p;
+      const double x = 10.0 * i;
+      p.shell = {{x, 0}, {x + 5, 0}, {x + 5, 5}, {x, 5}, {x, 0}};
+      t.polygons.push_back(p);
+    }
+    return t;
+  };
+  const double resident = 100.0 * 1024 * 1024;
+  const prep::SceneFeatures small = square_tile(10), large = square_tile(10000);
+  const prep::MemoryEstimate one = prep::estimate_tile(small, resident, 1, "tiles/x0_y0.decals");
+  const prep::MemoryEstimate three = prep::estimate_tile(small, resident, 3, "tiles/x0_y0.decals");
+  const prep::MemoryEstimate big = prep::estimate_tile(large, resident, 1, "tiles/x1_y0.decals");
+  EXPECT_GT(one.bytes, resident);
+  EXPECT_NEAR(three.bytes - resident, 3 * (one.bytes - resident), 1.0);
+  EXPECT_GT(big.bytes, one.bytes);
+  EXPECT_EQ(big.polygon_vertices, 50000);
+  EXPECT_EQ(three.jobs, 3u);
+  EXPECT_EQ(three.tile, "tiles/x0_y0.decals");
+  EXPECT_EQ(prep::estimate_tile(small, resident, 0, "t").jobs, 1u);  // 0 jobs: one
+  try {
+    prep::check_memory(prep::MemoryLimit{uint64_t(one.bytes) + 1}, three);
+    FAIL() << "three tiles at once passed a limit one tile just fits";
+  } catch (const prep::resource_error& err) {
+    const std::string m = err.what();
+    EXPECT_NE(m.find("tiles/x0_y0.decals"), std::string::npos) << m;
+    EXPECT_NE(m.find("--jobs"), std::string::npos) << m;
+    EXPECT_NE(m.find("--tile-size"), std::string::npos) << m;
+    EXPECT_EQ(m.find("split the scene"), std::string::npos) << m;
+  }
+  EXPECT_NO_THROW(prep::check_memory(prep::MemoryLimit{uint64_t(one.bytes) + 1}, one));
 }
 
 }  // namespace

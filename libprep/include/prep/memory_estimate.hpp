@@ -16,6 +16,9 @@
 //                 per-cell lists and BVHs, counted before they are made, and
 //                 the dynamic lines' vertices; added to the memory resident
 //                 then.
+//   tile          (tileset builds) a tile's counts once its window is read,
+//                 times the tiles built at once (--jobs), added to the memory
+//                 resident when the tiles began.
 #pragma once
 
 #include <cstdint>
@@ -41,6 +44,11 @@ struct MemoryEstimate {
   // After grid: the resident set then, the grid's cells and the bytes its
   // per-cell structures and the static geometry count.
   double resident_bytes = 0, grid_cells = 0, grid_cell_bytes = 0, geometry_bytes = 0;
+  // A tile's estimate: the tile ("L0/x3_y-2.decals") and the tiles built at once.
+  std::string tile;
+  unsigned jobs = 0;
+  // What check_memory tells the user to do; empty: the single-package advice.
+  std::string advice;
 };
 
 // Parses a size: a number of bytes with an optional binary suffix K, M, G, T
@@ -66,6 +74,13 @@ MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& 
 // structures the grid's count says are coming, plus the dynamic lines of
 // `scene` still to be built.
 MemoryEstimate estimate_after_grid(const GridFootprint& grid, const SceneFeatures& scene);
+// A tileset's tile, once its window of the work folder is cut (`tile`):
+// `resident_bytes` (measured when the tiles began) plus `jobs` times the
+// build part the after-clean model gives for the tile's counts. Each tile is
+// checked with the same `jobs`, so the tiles in flight together never count
+// more than `jobs` times the largest of them. `name` is the tile's file.
+MemoryEstimate estimate_tile(const SceneFeatures& tile, double resident_bytes, unsigned jobs,
+                             const std::string& name);
 
 // Throws resource_error when `estimate` exceeds `limit`; the message gives
 // the estimate, the limit, its basis and what to do (raise --max-memory, set
