@@ -104,32 +104,16 @@ constexpr double kPerPackageByteAfterGrid = 0.1;
 constexpr double kPerDynamicVertexAfterGrid = 600;
 // A tileset's tile (estimate_tile): the build part of the counts above, as
 // a single build of the tile would add it over the read base, times the
-// tiles built at once, on the resident set when the tiles began. Measured
-// 2026-11-25 (release; peak from /usr/bin/time, resident and the largest
-// tile's counts from the report; MiB):
-//
-//   input              tile    jobs  resident   peak  estimate     tile's polygon / line v.
-//   polygons 1e6       20 km     1      59.5   107.3   127.1 1.18x   251832 /      0
-//   polygons 1e6        5 km     1      59.4    89.4   104.2 1.17x    70241 /      0
-//   polygons 1e5      500 m      1      59.0    65.3    95.2 1.46x     1350 /      0
-//   mix 1e6 (width 3) 12 km      1      60.8   252.6   287.3 1.14x   264576 / 269399
-//   mix 1e6            4 km      1      60.7   126.2   135.0 1.07x    50965 /  54576
-//   mix 1e6            1 km      1      60.8    79.5    99.8 1.25x     4811 /   4027
-//   Monaco scene      500 m      1     227.3   234.7   267.8 1.14x     2749 /   4389
-//   Monaco scene       2 km      1     226.4   242.4   286.4 1.18x    20372 /  27314
-//   polygons 1e6      20 km      2      59.6   158.9   194.8 1.23x   251832 /      0
-//   polygons 1e6       5 km      2      59.6   118.1   149.2 1.26x    70241 /      0
-//   polygons 1e5      500 m      2      59.1    68.1   131.5 1.93x     1350 /      0
-//   mix 1e6           12 km      2      61.0   337.0   513.9 1.53x   264576 / 269399
-//   mix 1e6            4 km      2      60.5   185.9   209.2 1.13x    50965 /  54576
-//   mix 1e6            1 km      2      60.7    94.1   138.6 1.47x     4811 /   4027
-//   Monaco scene      500 m      2     227.5   249.5   308.5 1.24x     2749 /   4389
-//   Monaco scene       2 km      2     226.3   282.8   346.2 1.22x    20372 /  27314
-//
-// (polygons: bench/memory's sets; mix: bench/gen_synthetic.py mix_scene.)
-// A tile's fixed part (its decal grid, thread-local state) measures 4-28
-// MiB against the build base's 36; a smaller one left the 4 km mix tile at
-// 1.00x. Small tiles are over-estimated by the fixed part times the jobs.
+// tiles built at once, on the resident set when the tiles began.
+// bench/memory/tiles.py measures it (tile_peak_rss.csv, bench/REPORT.md):
+// on generated polygons (10^5, 10^6 vertices), the generated mix of
+// polygons and 3 m lines (10^6) and the Monaco scene, tiles of 500 m to
+// 20 km, 1 and 2 jobs, the estimate was 1.07-1.87x the peak RSS (20 builds,
+// 2026-11-25); the tightest is the 4 km mix tile with one job (126.5 MiB
+// measured, 135.5 estimated). A tile's fixed part (its decal grid,
+// thread-local state) measures 4-28 MiB against the build base's 36 MiB; a
+// 28 MiB one left that tile at 1.00x. Small tiles are over-estimated by the
+// fixed part times the jobs.
 // OSM sources: GDAL's OSM driver keeps its node index in memory (up to
 // OSM_MAX_TMPFILE_SIZE, 100 MB, then on disk), once per layer read, and
 // layers are read side by side. One multipolygons layer, 1 thread, dry run:
