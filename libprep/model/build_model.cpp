@@ -657,7 +657,7 @@ void polygon_cell_entries(const DecalModel& m, const PolygonRings& pr, ProgressS
         for (const CellPoly& e : per_ring[r]) ++first[e.cell + 1];
       }
     if (total > 0xffffffffULL)
-      fail<resource_error>(kBuildStage, "more than 2^32 (cell, polygon) entries");
+      fail<resource_error>(kBuildStage, "2^32 or more (cell, polygon) entries");
     for (size_t c = 0; c < ncells; ++c) first[c + 1] += first[c];
     dst.resize(total);
     for (size_t r = 0; r < nr; ++r) {
@@ -688,7 +688,7 @@ void fill_cells(std::vector<SegEntry>&& seg_entries, std::vector<CellPoly>&& ext
   std::vector<uint32_t> first;
   auto count_cells = [&](const auto& entries) {
     if (entries.size() > 0xffffffffULL)
-      fail<resource_error>(kBuildStage, "more than 2^32 (cell, primitive) entries");
+      fail<resource_error>(kBuildStage, "2^32 or more (cell, primitive) entries");
     first.assign(ncells + 1, 0);
     for (const auto& e : entries) ++first[e.cell + 1];
     for (size_t c = 0; c < ncells; ++c) first[c + 1] += first[c];

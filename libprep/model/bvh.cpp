@@ -8,6 +8,8 @@
 // (decal::layout::Box16Encoder::kEmpty).
 #include <tbb/parallel_for.h>
 
+#include <bit>
+
 #include <decal/layout.hpp>
 
 #include "detail.hpp"
@@ -17,11 +19,10 @@
 namespace prep::detail {
 
 namespace {
-uint32_t leaf_slots(uint32_t n) {
-  if (n == 0) return 0;
-  uint32_t p = 1;
-  while (p < n) p <<= 1;
-  return p;
+// 64-bit, so a cell of more than 2^31 entries (which fill_cells allows) gets
+// its 2^32 slots counted and refused below instead of wrapping to 0.
+uint64_t leaf_slots(uint32_t n) {
+  return n == 0 ? 0 : std::bit_ceil(uint64_t(n));
 }
 }  // namespace
 
@@ -33,8 +34,8 @@ void build_bvhs(const std::vector<uint32_t>& first, const LeafBoxes& leaf_boxes,
   uint64_t total = 0;
   for (size_t c = 0; c < cells; ++c) {
     cell_first[c] = {first[c], uint32_t(total)};
-    const uint32_t p = leaf_slots(first[c + 1] - first[c]);
-    total += p ? 2 * uint64_t(p) - 1 : 0;
+    const uint64_t p = leaf_slots(first[c + 1] - first[c]);
+    total += p ? 2 * p - 1 : 0;
     if (total > 0xffffffffULL)
       fail<resource_error>(kBuildStage, "per-cell BVHs need more than 2^32 nodes");
   }
@@ -45,7 +46,7 @@ void build_bvhs(const std::vector<uint32_t>& first, const LeafBoxes& leaf_boxes,
                       for (size_t c = r.begin(); c != r.end(); ++c) {
                         const uint32_t n = first[c + 1] - first[c];
                         if (n == 0) continue;
-                        const uint32_t p = leaf_slots(n);
+                        const uint64_t p = leaf_slots(n);  // <= 2^31 after the check
                         uvec2* node = boxes.data() + cell_first[c][1];
                         leaf_boxes(c, first[c], n, node + (p - 1));
                         for (int64_t i = int64_t(p) - 2; i >= 0; --i)

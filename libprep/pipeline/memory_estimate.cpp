@@ -419,8 +419,9 @@ MemoryEstimate estimate_tile(const SceneFeatures& tile, double resident_bytes, u
     << " resident when the tiles began";
   e.basis = m.str();
   e.advice =
-      "Raise --max-memory, build fewer tiles at once (--jobs) or smaller ones (--tile-size); the "
-      "tiles already written are kept, and the next run builds only the others";
+      "Raise --max-memory or build fewer tiles at once (--jobs): the tiles already written are "
+      "kept, and the next run builds only the others; or choose smaller tiles (--tile-size), a "
+      "new tiling that builds every tile again";
   return e;
 }
 

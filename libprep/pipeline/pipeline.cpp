@@ -370,7 +370,7 @@ void add_memory_report(nlohmann::json& report,
                            {"geometry_mib", e.geometry_bytes / kMiB}});
   }
   report["memory_estimate"] = est;
-  if (limit) report["max_memory_mib"] = double(limit.bytes) / (1024.0 * 1024.0);
+  if (limit) report["max_memory_mib"] = double(limit.bytes) / kMiB;
 }
 
 // The overview levels of a tileset build, for the report (all levels

@@ -129,15 +129,19 @@ bool reusable(const std::string& path, uint64_t digest) {
   }
 }
 
-// Tile packages an earlier build left that this index no longer lists.
+// Tile packages an earlier build left that this index no longer lists, and
+// the named temp files (".x3_y-2.decals.tmp-PID-N") of tile writes killed on
+// a file system without O_TMPFILE. Runs at finalize only, when no tile of
+// this build is being written.
 void remove_stale_tiles(const std::string& tiles_dir, const std::set<std::string>& keep) {
   DIR* d = opendir(tiles_dir.c_str());
   if (!d) return;
   while (const dirent* e = readdir(d)) {
     const std::string name = e->d_name;
-    if (name.size() < 8 || name.compare(name.size() - 7, 7, ".decals") != 0) continue;
-    if (name[0] != 'x' || keep.count(name)) continue;
-    std::remove((tiles_dir + "/" + name).c_str());
+    const bool temp = name.rfind(".x", 0) == 0 && name.find(".decals.tmp-") != std::string::npos;
+    const bool tile = name.size() >= 8 && name[0] == 'x' &&
+                      name.compare(name.size() - 7, 7, ".decals") == 0 && !keep.count(name);
+    if (temp || tile) std::remove((tiles_dir + "/" + name).c_str());
   }
   closedir(d);
 }

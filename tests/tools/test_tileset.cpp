@@ -652,11 +652,21 @@ TEST_F(Tileset, ARunAgainRebuildsOnlyMissingOrDamagedTiles) {
     c = char(c ^ 0x5a);
     f.write(&c, 1);
   }
+  // What a tile write killed on a file system without O_TMPFILE leaves
+  // (AtomicFile's named temp file) goes at finalize; a file of the user's
+  // beside the tiles stays.
+  const fs::path tile0 = fs::path(copy) / ix.tiles[0].file;
+  const fs::path leftover =
+      tile0.parent_path() / ("." + tile0.filename().string() + ".tmp-99999-0");
+  const fs::path users = tile0.parent_path() / ".notes.tmp-1";
+  for (const fs::path& p : {leftover, users}) std::ofstream(p) << "partial";
   r = run_tool(cmd, *dir_);
   ASSERT_EQ(r.rc, 0) << r.output;
   rep = read_json("resume.json");
   EXPECT_EQ(rep.at("tileset").at("built").get<size_t>(), 2u);
   EXPECT_EQ(rep.at("tileset").at("reused").get<size_t>(), ix.tiles.size() - 2);
+  EXPECT_FALSE(fs::exists(leftover));
+  EXPECT_TRUE(fs::exists(users));
   EXPECT_EQ(file_bytes(copy + "/tileset.json"), file_bytes(file("tiles1/tileset.json")));
   for (const prep::TileEntry& t : ix.tiles)
     EXPECT_TRUE(file_bytes(copy + "/" + t.file) == file_bytes(file("tiles1/" + t.file))) << t.file;

@@ -6,7 +6,9 @@ had not finished (formats/SPEC.md "Tilesets", resume).
 Builds the Monaco sample as a 500 m tileset once, uninterrupted (or takes
 the shared fixture's build). Then RUNS times: the same build, watched, and
 killed with SIGKILL once K of its tiles are in the output's tiles/ folder,
-K drawn uniformly over 25-85 % of the tiles; then the same build again with
+K drawn uniformly over 25-85 % of the tiles (the build at nice 19, so a busy
+machine does not starve the watcher; should it finish unseen all the same,
+it is tried again with K halved); then the same build again with
 --progress json. The kill follows the build's own progress, not a clock, so
 a loaded machine moves it no more than an idle one. After the second run
 every file of the tileset must equal the uninterrupted build's byte for
@@ -85,9 +87,21 @@ def main():
     for run in range(runs):
         out = os.path.join(work, "run%d" % run)
         k = max(1, int(ntiles * rng.uniform(0.25, 0.85)))
-        killed, seen = kill_after_tiles(build + ["-o", out, "-q"], os.path.join(out, "tiles"), k)
+        # The build runs at the lowest priority so that, on a loaded machine,
+        # the watcher still sees its tiles arrive. Should the build still end
+        # before the watcher looks, it is tried again from scratch with half
+        # the tiles; a run is only counted once it was killed.
+        for attempt in range(3):
+            shutil.rmtree(out, ignore_errors=True)
+            killed, seen = kill_after_tiles(["nice", "-n", "19"] + build + ["-o", out, "-q"],
+                                            os.path.join(out, "tiles"), k)
+            if killed:
+                break
+            print("run %d: the build finished before %d tiles were seen (%d); again with %d"
+                  % (run, k, seen, max(1, k // 2)))
+            k = max(1, k // 2)
         if not killed:
-            print("FAIL: run %d: the build finished before %d tiles were seen (%d)" % (run, k, seen))
+            print("FAIL: run %d: the build was never killed mid-way in 3 attempts" % run)
             return 1
         if os.path.exists(os.path.join(out, "tileset.json")):
             print("FAIL: run %d: tileset.json exists although the build was killed" % run)
