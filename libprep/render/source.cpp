@@ -28,34 +28,11 @@ void add_blob(DecalSource& s, decal::BlobId id, const std::vector<T>& v) {
 }  // namespace
 
 DecalSource source_of(const DecalModel& m) {
-  using decal::BlobId;
   DecalSource s;
   s.frame = m.frame;
   s.extent = m.extent;
   s.view = view_of(m);  // the evaluator's view: one list of static blobs
-  add_blob(s, BlobId::line_vertices, m.line_vertices);
-  add_blob(s, BlobId::line_vertex_line, m.line_vertex_line);
-  add_blob(s, BlobId::line_props, m.line_props);
-  add_blob(s, BlobId::line_corners, m.line_corners);
-  add_blob(s, BlobId::cell_segments, m.cell_segments);
-  add_blob(s, BlobId::cell_line_first, m.cell_line_first);
-  add_blob(s, BlobId::line_bvh_box16, m.line_bvh_box16);
-  add_blob(s, BlobId::poly_props, m.poly_props);
-  add_blob(s, BlobId::poly_root_node, m.poly_root_node);
-  add_blob(s, BlobId::qt_node_box, m.qt_node_box);
-  add_blob(s, BlobId::qt_node, m.qt_node);
-  add_blob(s, BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
-  add_blob(s, BlobId::qt_leaf_loops, m.qt_leaf_loops);
-  add_blob(s, BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
-  add_blob(s, BlobId::cell_poly_first, m.cell_poly_first);
-  add_blob(s, BlobId::cell_poly_entries, m.cell_poly_entries);
-  add_blob(s, BlobId::cell_poly_holes, m.cell_poly_holes);
-  add_blob(s, BlobId::cell_holes, m.cell_holes);
-  add_blob(s, BlobId::poly_bvh_box16, m.poly_bvh_box16);
-  add_blob(s, BlobId::dyn_vertices, m.dyn_vertices);
-  add_blob(s, BlobId::dyn_prev_next, m.dyn_prev_next);
-  add_blob(s, BlobId::dyn_line_start, m.dyn_line_start);
-  add_blob(s, BlobId::dyn_line_props, m.dyn_line_props);
+  for_each_model_array(m, [&](decal::BlobId id, const auto& v) { add_blob(s, id, v); });
   return s;
 }
 

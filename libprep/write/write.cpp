@@ -514,42 +514,6 @@ BlobInput blob_of(decal::BlobId id, const std::vector<T>& v) {
 
 }  // namespace
 
-// Calls fn(id, array) for every blob of the model but manifest_entries,
-// which write_model adds, in table order; not the superseded ids. `M` is
-// DecalModel or const DecalModel.
-template <class M, class Fn>
-void for_each_model_array(M& m, Fn&& fn) {
-  using decal::BlobId;
-  static_assert(std::size(decal::kBlobCatalogue) == 36 && std::size(decal::kSupersededBlobs) == 9,
-                "for_each_model_array must list every model blob");
-  fn(BlobId::line_vertices, m.line_vertices);
-  fn(BlobId::line_vertex_line, m.line_vertex_line);
-  fn(BlobId::line_props, m.line_props);
-  fn(BlobId::line_corners, m.line_corners);
-  fn(BlobId::cell_segments, m.cell_segments);
-  fn(BlobId::cell_line_first, m.cell_line_first);
-  fn(BlobId::poly_props, m.poly_props);
-  fn(BlobId::poly_root_node, m.poly_root_node);
-  fn(BlobId::qt_node_box, m.qt_node_box);
-  fn(BlobId::qt_node, m.qt_node);
-  fn(BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
-  fn(BlobId::cell_holes, m.cell_holes);
-  fn(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
-  fn(BlobId::qt_leaf_loops, m.qt_leaf_loops);
-  fn(BlobId::cell_poly_first, m.cell_poly_first);
-  fn(BlobId::line_bvh_box16, m.line_bvh_box16);
-  fn(BlobId::poly_bvh_box16, m.poly_bvh_box16);
-  fn(BlobId::cell_poly_entries, m.cell_poly_entries);
-  fn(BlobId::cell_poly_holes, m.cell_poly_holes);
-  fn(BlobId::dyn_vertices, m.dyn_vertices);
-  fn(BlobId::dyn_prev_next, m.dyn_prev_next);
-  fn(BlobId::dyn_line_start, m.dyn_line_start);
-  fn(BlobId::dyn_line_props, m.dyn_line_props);
-  fn(BlobId::lod_points, m.lod_points);
-  fn(BlobId::lod_segments, m.lod_segments);
-  fn(BlobId::lod_line_range, m.lod_line_range);
-}
-
 std::vector<BlobInput> model_blobs(const DecalModel& m, bool include_empty) {
   std::vector<BlobInput> out;
   for_each_model_array(m, [&](decal::BlobId id, const auto& v) {

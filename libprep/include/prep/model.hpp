@@ -98,6 +98,44 @@ struct DecalModel {
   Manifest manifest;  // carried from SceneFeatures, plus build notes
 };
 
+// Calls fn(id, array) for every blob array of the model, in the package's
+// table order: the one list of them, used by the writer (model_blobs,
+// take_model_blobs) and the renderer (render::source_of). Not
+// manifest_entries, which write_model adds, nor the superseded ids. `M` is
+// DecalModel or const DecalModel.
+template <class M, class Fn>
+void for_each_model_array(M& m, Fn&& fn) {
+  using decal::BlobId;
+  static_assert(std::size(decal::kBlobCatalogue) == 36 && std::size(decal::kSupersededBlobs) == 9,
+                "for_each_model_array must list every model blob");
+  fn(BlobId::line_vertices, m.line_vertices);
+  fn(BlobId::line_vertex_line, m.line_vertex_line);
+  fn(BlobId::line_props, m.line_props);
+  fn(BlobId::line_corners, m.line_corners);
+  fn(BlobId::cell_segments, m.cell_segments);
+  fn(BlobId::cell_line_first, m.cell_line_first);
+  fn(BlobId::poly_props, m.poly_props);
+  fn(BlobId::poly_root_node, m.poly_root_node);
+  fn(BlobId::qt_node_box, m.qt_node_box);
+  fn(BlobId::qt_node, m.qt_node);
+  fn(BlobId::qt_leaf_vertices, m.qt_leaf_vertices);
+  fn(BlobId::cell_holes, m.cell_holes);
+  fn(BlobId::qt_leaf_loop_range, m.qt_leaf_loop_range);
+  fn(BlobId::qt_leaf_loops, m.qt_leaf_loops);
+  fn(BlobId::cell_poly_first, m.cell_poly_first);
+  fn(BlobId::line_bvh_box16, m.line_bvh_box16);
+  fn(BlobId::poly_bvh_box16, m.poly_bvh_box16);
+  fn(BlobId::cell_poly_entries, m.cell_poly_entries);
+  fn(BlobId::cell_poly_holes, m.cell_poly_holes);
+  fn(BlobId::dyn_vertices, m.dyn_vertices);
+  fn(BlobId::dyn_prev_next, m.dyn_prev_next);
+  fn(BlobId::dyn_line_start, m.dyn_line_start);
+  fn(BlobId::dyn_line_props, m.dyn_line_props);
+  fn(BlobId::lod_points, m.lod_points);
+  fn(BlobId::lod_segments, m.lod_segments);
+  fn(BlobId::lod_line_range, m.lod_line_range);
+}
+
 // Builds every static structure (grid, line segments with corner data,
 // polygon quad-trees, per-cell BVHs) and, through build_dynamic(), the
 // terrain-matched dynamic lines and LOD segments. Parallel with oneTBB; the
