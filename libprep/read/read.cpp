@@ -438,13 +438,24 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
   }
 }
 
-ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress& progress,
-                      ErrorCapture& errors, bool plain_osm_index, const ReadChunks* chunks,
-                      size_t scene_layer) {
-  ReadAttempt r;
-  r.start(chunks, scene_layer);
-  r.layer.spec = spec;
-  r.counts.layer = spec.name;
+// Reads the scene layers `specs`, which share one query (same source,
+// layer, where and sql: same_query), in one pass over the OGR layer: each
+// feature goes to every spec's sink, so each layer gets what a read of its
+// own would give. The query and the messages about it are the first
+// spec's. `scene_layers`: the specs' indices in the scene.
+std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
+                                   const SceneSpec& scene, JobProgress& progress,
+                                   ErrorCapture& errors, bool plain_osm_index,
+                                   const ReadChunks* chunks,
+                                   const std::vector<size_t>& scene_layers) {
+  const LayerSpec& spec = *specs.front();
+  std::vector<ReadAttempt> attempts(specs.size());
+  for (size_t k = 0; k < specs.size(); ++k) {
+    ReadAttempt& r = attempts[k];
+    r.start(chunks, scene_layers[k]);
+    r.layer.spec = *specs[k];
+    r.counts.layer = specs[k]->name;
+  }
 
   VSIStatBufL st;
   if (VSIStatL(spec.source.c_str(), &st) != 0) {
@@ -458,7 +469,7 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
   const detail::OsmXmlOrder osm_order = detail::scan_osm_xml(spec.source);
   if (osm_order.scanned && !osm_order.node_ids_increase && !plain_osm_index) {
     plain_osm_index = true;
-    r.notes.push_back(osm_plain_index_note(spec.name));
+    for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
   }
   const ReadConfig config(plain_osm_index);
   DatasetPtr ds(GDALDataset::Open(spec.source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
@@ -515,11 +526,15 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
     }
   }
 
-  source_crs(layer, spec, scene, where, r);
-
-  LayerSink sink{spec, scene, r, layer->GetName()};
-  sink.order_field = field_index(*layer, spec.style.order_attribute, spec, "order");
-  sink.color_field = field_index(*layer, spec.style.color.attribute, spec, "colour");
+  std::vector<LayerSink> sinks;
+  sinks.reserve(specs.size());
+  for (size_t k = 0; k < specs.size(); ++k) {
+    const LayerSpec& s = *specs[k];
+    source_crs(layer, s, scene, where, attempts[k]);
+    LayerSink& sink = sinks.emplace_back(LayerSink{s, scene, attempts[k], layer->GetName()});
+    sink.order_field = field_index(*layer, s.style.order_attribute, s, "order");
+    sink.color_field = field_index(*layer, s.style.color.attribute, s, "colour");
+  }
 
   const GIntBig total = layer->GetFeatureCount(FALSE);  // -1 for OSM until read
   const uint64_t estimate = total >= 0 ? uint64_t(total) : JobProgress::kUnknown;
@@ -538,19 +553,21 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
     // like ogr2ogr -skipfailures does; without, the read fails below.
     const bool decode_failed = errors.count() > errors_before;
     if (decode_failed && first_failing_fid < 0) first_failing_fid = feature->GetFID();
-    SourceFeature proto = sink.proto_of(*feature);
-    const uint64_t index = proto.feature;
-    if (decode_failed && scene.skip_failures) {
-      skipped_errors += errors.count() - errors_before;
-      proto.drop_reason = "OGR cannot decode the feature: " + errors.last();
-      proto.failed_in = FailureStage::read;
-      r.layer.features.push_back(proto);
-      r.flush();
-      continue;
+    const uint64_t index = attempts.front().counts.read;
+    const bool skip = decode_failed && scene.skip_failures;
+    if (skip) skipped_errors += errors.count() - errors_before;
+    for (size_t k = 0; k < specs.size(); ++k) {
+      SourceFeature proto = sinks[k].proto_of(*feature);
+      if (skip) {
+        proto.drop_reason = "OGR cannot decode the feature: " + errors.last();
+        proto.failed_in = FailureStage::read;
+        attempts[k].layer.features.push_back(proto);
+      } else {
+        sinks[k].take_geometry(*feature, proto);
+      }
+      attempts[k].flush();
     }
-
-    sink.take_geometry(*feature, proto);
-    r.flush();
+    if (skip) continue;
     if ((index & 1023) == 1023)
       progress.update(index + 1,
                       estimate == JobProgress::kUnknown ? estimate : std::max(estimate, index + 1));
@@ -559,13 +576,14 @@ ReadAttempt read_once(const LayerSpec& spec, const SceneSpec& scene, JobProgress
     throw gdal_error(
         where + ": reading failed" +
         (first_failing_fid >= 0 ? " at fid " + std::to_string(first_failing_fid) : "") + " (" +
-        std::to_string(r.counts.read) + " features read): " + errors.failures() +
+        std::to_string(attempts.front().counts.read) + " features read): " + errors.failures() +
         (first_failing_fid >= 0 ? " (--skip-failures drops features OGR cannot decode)" : ""));
   }
-  progress.update(r.counts.read, r.counts.read);
-  sink.finish(errors);
-  r.flush(true);
-  return r;
+  const uint64_t read = attempts.front().counts.read;
+  progress.update(read, read);
+  for (LayerSink& sink : sinks) sink.finish(errors);
+  for (ReadAttempt& r : attempts) r.flush(true);
+  return attempts;
 }
 
 bool is_osm(const std::string& path) {
@@ -663,34 +681,42 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
   }
 }
 
-SourceLayer read_layer_job(const LayerSpec& spec, const SceneSpec& scene, Manifest& manifest,
-                           JobProgress& progress, const ReadChunks* chunks = nullptr,
-                           size_t scene_layer = 0) {
+// read_once, again with the plain OSM node index when GDAL's OSM driver
+// stopped at a node id that does not increase in a file the scan could not
+// read (osm_xml_order.hpp). The message is the OSM driver's own.
+std::vector<ReadAttempt> read_query(const std::vector<const LayerSpec*>& specs,
+                                    const SceneSpec& scene, JobProgress& progress,
+                                    const ReadChunks* chunks,
+                                    const std::vector<size_t>& scene_layers) {
   ErrorCapture errors;
-  ReadAttempt r;
   try {
-    r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/false, chunks, scene_layer);
+    return read_once(specs, scene, progress, errors, /*plain_osm_index=*/false, chunks,
+                     scene_layers);
   } catch (const gdal_error& e) {
-    // GDAL's OSM driver stopped at a node id that does not increase in a
-    // file the scan could not read (osm_xml_order.hpp): read it again with
-    // the plain index. The message is the OSM driver's own.
     const std::string what = e.what();
     if (what.find("OSM_USE_CUSTOM_INDEXING") == std::string::npos) throw;
     errors.clear();
+    std::vector<ReadAttempt> attempts;
     try {
-      r = read_once(spec, scene, progress, errors, /*plain_osm_index=*/true, chunks, scene_layer);
+      attempts =
+          read_once(specs, scene, progress, errors, /*plain_osm_index=*/true, chunks, scene_layers);
     } catch (const gdal_error& again) {
+      const std::string& source = specs.front()->source;
       throw gdal_error(std::string(again.what()) +
                        " (read again with OSM_USE_CUSTOM_INDEXING=NO after: " + what +
                        "); convert the file to OSM PBF with sorted ids, e.g. osmium sort " +
-                       spec.source + " -o sorted.osm.pbf, and build from that");
+                       source + " -o sorted.osm.pbf, and build from that");
     }
-    r.notes.push_back(osm_plain_index_note(spec.name));
+    for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
+    return attempts;
   }
+}
+
+// Moves a read layer's counts, manifest entries and notes into `manifest`.
+void account(ReadAttempt& r, Manifest& manifest) {
   manifest.layers.push_back(r.counts);
   for (auto& e : r.entries) manifest.entries.push_back(std::move(e));
   for (auto& n : r.notes) manifest.notes.push_back(std::move(n));
-  return std::move(r.layer);
 }
 
 }  // namespace
@@ -702,9 +728,10 @@ SourceLayer read_layer(const LayerSpec& spec, const SceneSpec& scene, Manifest& 
   std::vector<std::atomic<uint64_t>> estimates(1);
   estimates[0] = JobProgress::kUnknown;
   JobProgress progress(&stage, &estimates, 0);
-  SourceLayer layer = read_layer_job(spec, scene, manifest, progress);
+  std::vector<ReadAttempt> got = read_query({&spec}, scene, progress, nullptr, {0});
+  account(got.front(), manifest);
   stage.finish();
-  return layer;
+  return std::move(got.front().layer);
 }
 
 FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
@@ -721,41 +748,52 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   std::vector<std::atomic<uint64_t>> estimates(n);  // per scene layer
   for (std::atomic<uint64_t>& e : estimates) e = JobProgress::kUnknown;
   // Jobs: scene layers drawn whole (no `sql`, no `where`) from the same OSM
-  // file share one pass over it; every other layer is a job of its own.
-  // A `where` is not evaluated on the shared pass: GDAL's OSM driver applies
-  // a layer's attribute filter early, on the tags, and then emits a few
-  // closed ways (members of multipolygon relations) that it leaves out of an
-  // unfiltered read (Monaco, building IS NOT NULL: ways 38545604 and
+  // file share one pass over it; other layers that ask the same query (the
+  // fill and the outline of one selection, a layer and its casing) share
+  // one read of it; every other layer is a job of its own.
+  // A `where` is not evaluated on the shared OSM pass: GDAL's OSM driver
+  // applies a layer's attribute filter early, on the tags, and then emits a
+  // few closed ways (members of multipolygon relations) that it leaves out
+  // of an unfiltered read (Monaco, building IS NOT NULL: ways 38545604 and
   // 104863462), so only the layer's own filter gives ogrinfo's counts.
   auto groupable = [](const LayerSpec& spec) {
     return is_osm(spec.source) && spec.sql.empty() && spec.where.empty();
   };
+  auto same_query = [](const LayerSpec& a, const LayerSpec& b) {
+    return a.source == b.source && a.layer == b.layer && a.where == b.where && a.sql == b.sql;
+  };
   std::vector<std::vector<size_t>> jobs;
   for (size_t i = 0; i < n; ++i) {
     const LayerSpec& spec = scene.layers[i];
-    if (groupable(spec)) {
-      auto same = std::find_if(jobs.begin(), jobs.end(), [&](const std::vector<size_t>& job) {
-        const LayerSpec& head = scene.layers[job.front()];
-        return groupable(head) && head.source == spec.source;
-      });
-      if (same != jobs.end()) {
-        same->push_back(i);
-        continue;
-      }
-    }
-    jobs.push_back({i});
+    auto same = std::find_if(jobs.begin(), jobs.end(), [&](const std::vector<size_t>& job) {
+      const LayerSpec& head = scene.layers[job.front()];
+      return groupable(spec) ? groupable(head) && head.source == spec.source
+                             : !groupable(head) && same_query(head, spec);
+    });
+    if (same != jobs.end())
+      same->push_back(i);
+    else
+      jobs.push_back({i});
   }
-  auto read_alone = [&](size_t i) {
+  // Reads `job`'s layers with one query; a failure counts as the first's.
+  auto read_shared = [&](const std::vector<size_t>& job) {
     try {
-      JobProgress progress(&stage, &estimates, i);
-      layers[i] = read_layer_job(scene.layers[i], scene, manifests[i], progress, options.chunks, i);
+      std::vector<const LayerSpec*> specs;
+      for (size_t i : job) specs.push_back(&scene.layers[i]);
+      for (size_t k = 1; k < job.size(); ++k) estimates[job[k]] = 0;
+      JobProgress progress(&stage, &estimates, job.front());
+      std::vector<ReadAttempt> got = read_query(specs, scene, progress, options.chunks, job);
+      for (size_t k = 0; k < job.size(); ++k) {
+        account(got[k], manifests[job[k]]);
+        layers[job[k]] = std::move(got[k].layer);
+      }
     } catch (...) {
-      failures[i] = std::current_exception();
+      failures[job.front()] = std::current_exception();
     }
   };
   tbb::parallel_for(size_t(0), jobs.size(), [&](size_t j) {
     const std::vector<size_t>& job = jobs[j];
-    if (job.size() > 1) {
+    if (job.size() > 1 && groupable(scene.layers[job.front()])) {
       std::vector<const LayerSpec*> specs;
       for (size_t i : job) specs.push_back(&scene.layers[i]);
       std::vector<ReadAttempt> got;
@@ -764,17 +802,17 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
       JobProgress progress(&stage, &estimates, job.front());
       if (read_osm_group(specs, scene, progress, got, options.chunks, job)) {
         for (size_t k = 0; k < job.size(); ++k) {
-          ReadAttempt& r = got[k];
-          Manifest& m = manifests[job[k]];
-          m.layers.push_back(r.counts);
-          for (auto& e : r.entries) m.entries.push_back(std::move(e));
-          for (auto& note : r.notes) m.notes.push_back(std::move(note));
-          layers[job[k]] = std::move(r.layer);
+          account(got[k], manifests[job[k]]);
+          layers[job[k]] = std::move(got[k].layer);
         }
         return;
       }
+      // Anything out of the ordinary: each layer read on its own reports it.
+      for (size_t i : job) estimates[i] = JobProgress::kUnknown;
+      for (size_t i : job) read_shared({i});
+      return;
     }
-    for (size_t i : job) read_alone(i);
+    read_shared(job);
   });
   // The first failing layer in scene order is the one reported.
   for (const std::exception_ptr& e : failures)

@@ -149,13 +149,18 @@ TEST(Read, OrderAndColourAttributesAreReadAsNumbers) {
 }
 
 TEST(Read, CountsEveryFeatureReadIntoTheProgressStage) {
-  // kMixed has 5 features (ogrinfo -so: Feature Count: 5); the read stage
-  // ends with done == total == 5, across two layers read concurrently: 10.
+  // kMixed has 5 features (ogrinfo -so: Feature Count: 5). Two reads of it
+  // run concurrently: the layer and a copy of it (same query: one read of
+  // the file serves both, 5 features), and the layer with a filter that
+  // keeps every feature (a read of its own, 5 more): done == total == 10.
   TempDir dir;
   write_text(dir.file("mixed.geojson"), kMixed);
   prep::SceneSpec s = one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon);
   s.layers.push_back(s.layers[0]);
   s.layers[1].name = "again";
+  s.layers.push_back(s.layers[0]);
+  s.layers[2].name = "filtered";
+  s.layers[2].where = "1 = 1";
   std::vector<std::string> lines;
   std::mutex mu;
   prep::ProgressOptions po;
