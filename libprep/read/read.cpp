@@ -536,9 +536,12 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
     sink.color_field = field_index(*layer, s.style.color.attribute, s, "colour");
   }
 
+  // The stage counts features taken by scene layers, as the manifest's
+  // `read` does: each feature once per layer of the query.
+  const uint64_t n = specs.size();
   const GIntBig total = layer->GetFeatureCount(FALSE);  // -1 for OSM until read
   const uint64_t estimate = total >= 0 ? uint64_t(total) : JobProgress::kUnknown;
-  progress.update(0, estimate);
+  progress.update(0, estimate == JobProgress::kUnknown ? estimate : estimate * n);
 
   int64_t first_failing_fid = -1;
   errors.clear();
@@ -569,8 +572,9 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
     }
     if (skip) continue;
     if ((index & 1023) == 1023)
-      progress.update(index + 1,
-                      estimate == JobProgress::kUnknown ? estimate : std::max(estimate, index + 1));
+      progress.update((index + 1) * n, estimate == JobProgress::kUnknown
+                                           ? estimate
+                                           : std::max(estimate, index + 1) * n);
   }
   if (errors.count() > skipped_errors) {
     throw gdal_error(
@@ -579,7 +583,7 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
         std::to_string(attempts.front().counts.read) + " features read): " + errors.failures() +
         (first_failing_fid >= 0 ? " (--skip-failures drops features OGR cannot decode)" : ""));
   }
-  const uint64_t read = attempts.front().counts.read;
+  const uint64_t read = attempts.front().counts.read * n;
   progress.update(read, read);
   for (LayerSink& sink : sinks) sink.finish(errors);
   for (ReadAttempt& r : attempts) r.flush(true);
@@ -594,17 +598,40 @@ bool is_osm(const std::string& path) {
   return ends(".osm") || ends(".pbf") || ends(".osm.bz2") || ends(".OSM") || ends(".PBF");
 }
 
-// One pass over an OSM file for several scene layers without `sql`. GDAL's
-// OSM driver parses the whole file (and assembles every multipolygon) for
-// each layer it serves, so reading each scene layer on its own repeats the
-// parse once per layer. Here the features come interleaved from one pass
-// (GDALDataset::GetNextFeature, the way ogr2ogr reads OSM), and each scene
-// layer takes every feature of its OGR layer (only layers without `where`
-// or `sql` come here: see read_scene). Feature order per layer is the file
-// order either way. Returns false, with nothing in `out`, whenever anything
-// is out of the ordinary (an unknown layer, no CRS, a GDAL error or a bad
-// feature): the caller then reads the layers one by one, which reports the
-// problem exactly as before.
+// Whether a scene layer may take part in a shared pass over its OSM file
+// (read_osm_group): no `sql`, and a `where` only on an OGR layer other than
+// multipolygons. GDAL's OSM driver tests a multipolygons filter early, on a
+// relation's own tags, and a relation it turns away there leaves its tagged
+// closed outer ways to come out as features of their own, which it does not
+// emit when the relation passes (OGROSMDataSource::NotifyRelation and
+// ProcessPolygonsStandalone). So a multipolygons read depends on its filter
+// beyond "does this feature pass it" (Monaco, building IS NOT NULL: ways
+// 38545604 and 104863462 come out only under that filter), and only the
+// layer's own filter gives ogrinfo's features. On the points, lines,
+// multilinestrings and other_relations layers the driver decides feature by
+// feature, on the feature's own tags, so a pass under the OR of the scene
+// layers' filters, each filter then tested on each feature, gives every
+// layer what its own read gives (tests/read/test_osm_accounting.cpp checks
+// both against separate reads and ogrinfo).
+bool osm_shareable(const LayerSpec& spec) {
+  return is_osm(spec.source) && spec.sql.empty() &&
+         (spec.where.empty() ||
+          (!spec.layer.empty() && !EQUAL(spec.layer.c_str(), "multipolygons")));
+}
+
+// One pass over an OSM file for several scene layers (osm_shareable).
+// GDAL's OSM driver parses the whole file (and assembles every
+// multipolygon) for each layer it serves, so reading each scene layer on
+// its own repeats the parse once per layer. Here the features come
+// interleaved from one pass (GDALDataset::GetNextFeature, the way ogr2ogr
+// reads OSM); each OGR layer in use is filtered by the OR of its scene
+// layers' `where`s (none when one of them has none), and each scene layer
+// takes the features of its OGR layer that pass its own `where`. Feature
+// order per layer is the file order either way. Returns false, with nothing
+// in `out`, whenever anything is out of the ordinary (an unknown layer, no
+// CRS, a filter GDAL refuses, a GDAL error or a bad feature): the caller
+// then reads the layers one by one, which reports the problem exactly as
+// before.
 bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec& scene,
                     JobProgress& progress, std::vector<ReadAttempt>& out, const ReadChunks* chunks,
                     const std::vector<size_t>& scene_layers) {
@@ -623,6 +650,9 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
     std::vector<OGRLayer*> layers(specs.size(), nullptr);
     std::vector<LayerSink> sinks;
     sinks.reserve(specs.size());
+    // Per scene layer its own `where`, tested on each feature of the pass
+    // (OGRFeatureQuery: what OGRLayer::SetAttributeFilter compiles).
+    std::vector<std::unique_ptr<OGRFeatureQuery>> filters(specs.size());
     std::string interest;
     for (size_t i = 0; i < specs.size(); ++i) {
       const LayerSpec& spec = *specs[i];
@@ -634,7 +664,11 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
           spec.layer.empty() ? ds->GetLayer(0) : ds->GetLayerByName(spec.layer.c_str());
       if (!layer) return false;
       layers[i] = layer;
-      if (!spec.where.empty()) return false;  // see read_scene
+      if (!osm_shareable(spec)) return false;
+      if (!spec.where.empty()) {
+        filters[i] = std::make_unique<OGRFeatureQuery>();
+        if (filters[i]->Compile(layer, spec.where.c_str()) != OGRERR_NONE) return false;
+      }
       source_crs(layer, spec, scene, where_of(spec, layer->GetName()), r);
       LayerSink& sink = sinks.emplace_back(LayerSink{spec, scene, r, layer->GetName()});
       sink.order_field = field_index(*layer, spec.style.order_attribute, spec, "order");
@@ -647,10 +681,25 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
     // Only the OGR layers in use are assembled (ogr2ogr does the same).
     ds->ExecuteSQL(("SET interest_layers = " + interest).c_str(), nullptr, nullptr);
     if (errors.failed()) return false;
+    // Each OGR layer in use passes what any of its scene layers takes.
+    for (size_t i = 0; i < specs.size(); ++i) {
+      if (std::find(layers.begin(), layers.begin() + i, layers[i]) != layers.begin() + i) continue;
+      std::string any;
+      bool whole = false;
+      for (size_t k = i; k < specs.size(); ++k) {
+        if (layers[k] != layers[i]) continue;
+        if (specs[k]->where.empty()) whole = true;
+        any += (any.empty() ? "(" : " OR (") + specs[k]->where + ")";
+      }
+      if (!whole && layers[i]->SetAttributeFilter(any.c_str()) != OGRERR_NONE) return false;
+    }
+    if (errors.failed()) return false;
 
     progress.update(0, JobProgress::kUnknown);
     ds->ResetReading();
-    uint64_t fetched = 0;
+    // The stage counts features taken by scene layers, as the manifest's
+    // `read` does; the file fraction GDAL reports scales it to an estimate.
+    uint64_t fetched = 0, taken = 0;
     for (;;) {
       OGRLayer* from = nullptr;
       double fraction = 0;
@@ -658,18 +707,18 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
       if (!feature) break;
       if (errors.failed()) return false;
       for (size_t i = 0; i < specs.size(); ++i) {
-        if (layers[i] != from) continue;
+        if (layers[i] != from || (filters[i] && !filters[i]->Evaluate(feature.get()))) continue;
         SourceFeature proto = sinks[i].proto_of(*feature);
         sinks[i].take_geometry(*feature, proto);
         attempts[i].flush();
+        ++taken;
       }
       if ((++fetched & 1023) == 0)
-        progress.update(fetched, fraction > 0.01
-                                     ? std::max(fetched, uint64_t(double(fetched) / fraction))
-                                     : JobProgress::kUnknown);
+        progress.update(taken, fraction > 0.01 ? std::max(taken, uint64_t(double(taken) / fraction))
+                                               : JobProgress::kUnknown);
     }
     if (errors.failed()) return false;
-    progress.update(fetched, fetched);
+    progress.update(taken, taken);
     for (LayerSink& sink : sinks) sink.finish(errors);
     for (ReadAttempt& r : attempts) r.flush(true);
     if (plain_osm_index)
@@ -747,18 +796,12 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   ProgressStage stage(options.progress, "read", 0, "features", ProgressTotal::estimate);
   std::vector<std::atomic<uint64_t>> estimates(n);  // per scene layer
   for (std::atomic<uint64_t>& e : estimates) e = JobProgress::kUnknown;
-  // Jobs: scene layers drawn whole (no `sql`, no `where`) from the same OSM
-  // file share one pass over it; other layers that ask the same query (the
-  // fill and the outline of one selection, a layer and its casing) share
-  // one read of it; every other layer is a job of its own.
-  // A `where` is not evaluated on the shared OSM pass: GDAL's OSM driver
-  // applies a layer's attribute filter early, on the tags, and then emits a
-  // few closed ways (members of multipolygon relations) that it leaves out
-  // of an unfiltered read (Monaco, building IS NOT NULL: ways 38545604 and
-  // 104863462), so only the layer's own filter gives ogrinfo's counts.
-  auto groupable = [](const LayerSpec& spec) {
-    return is_osm(spec.source) && spec.sql.empty() && spec.where.empty();
-  };
+  // Jobs: scene layers of one OSM file that osm_shareable allows (no `sql`;
+  // a `where` only off the multipolygons layer) share one pass over it;
+  // other layers that ask the same query (the fill and the outline of one
+  // selection, a layer and its casing) share one read of it; every other
+  // layer is a job of its own.
+  const auto groupable = osm_shareable;
   auto same_query = [](const LayerSpec& a, const LayerSpec& b) {
     return a.source == b.source && a.layer == b.layer && a.where == b.where && a.sql == b.sql;
   };

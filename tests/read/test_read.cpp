@@ -149,10 +149,11 @@ TEST(Read, OrderAndColourAttributesAreReadAsNumbers) {
 }
 
 TEST(Read, CountsEveryFeatureReadIntoTheProgressStage) {
-  // kMixed has 5 features (ogrinfo -so: Feature Count: 5). Two reads of it
-  // run concurrently: the layer and a copy of it (same query: one read of
-  // the file serves both, 5 features), and the layer with a filter that
-  // keeps every feature (a read of its own, 5 more): done == total == 10.
+  // kMixed has 5 features (ogrinfo -so: Feature Count: 5). The stage counts
+  // features taken by scene layers, as the manifest's `read` does: the layer
+  // and a copy of it (same query: one read of the file serves both, 5
+  // features each) and, read concurrently, the layer with a filter that
+  // keeps every feature (5 more): done == total == 15.
   TempDir dir;
   write_text(dir.file("mixed.geojson"), kMixed);
   prep::SceneSpec s = one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon);
@@ -179,8 +180,8 @@ TEST(Read, CountsEveryFeatureReadIntoTheProgressStage) {
   const nlohmann::json end = nlohmann::json::parse(lines.back());
   EXPECT_EQ(end["event"], "end") << lines.back();
   EXPECT_EQ(end["stage"], "read");
-  EXPECT_EQ(end["done"], 10);
-  EXPECT_EQ(end["total"], 10);
+  EXPECT_EQ(end["done"], 15);
+  EXPECT_EQ(end["total"], 15);
 }
 
 }  // namespace
