@@ -174,10 +174,11 @@ size_t far_from_boundaries(const std::vector<size_t>& diff, const View& v,
   const prep::render::DecalSource src = prep::render::source_of(pkg);
   size_t far = 0;
   for (size_t k : diff) {
-    const double x = v.abs.xmin + (double(k % v.w) + 0.5) * 2.0 - src.frame.origin_x;
-    const double y = v.abs.ymax - (double(k / v.w) + 0.5) * 2.0 - src.frame.origin_y;
+    const size_t col = k % v.w, row = k / v.w;  // pixel k of a row-major image
+    const double x = v.abs.xmin + (double(col) + 0.5) * 2.0 - src.frame.origin_x;
+    const double y = v.abs.ymax - (double(row) + 0.5) * 2.0 - src.frame.origin_y;
     if (!near_boundary(src.view, x, y) && ++far <= 5)
-      ADD_FAILURE() << "pixel " << k % v.w << "," << k / v.w << " differs 2 mm from any boundary";
+      ADD_FAILURE() << "pixel " << col << "," << row << " differs 2 mm from any boundary";
   }
   return far;
 }
