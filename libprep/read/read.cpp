@@ -438,6 +438,14 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
   }
 }
 
+bool is_osm(const std::string& path) {
+  auto ends = [&](const char* suffix) {
+    std::string s(suffix);
+    return path.size() >= s.size() && path.compare(path.size() - s.size(), s.size(), s) == 0;
+  };
+  return ends(".osm") || ends(".pbf") || ends(".osm.bz2") || ends(".OSM") || ends(".PBF");
+}
+
 // Reads the scene layers `specs`, which share one query (same source,
 // layer, where and sql: same_query), in one pass over the OGR layer: each
 // feature goes to every spec's sink, so each layer gets what a read of its
@@ -518,6 +526,11 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
   const std::string where = where_of(spec, layer->GetName());
   if (osm_order.late_node_offset >= 0 && (from_sql || std::string(layer->GetName()) != "points"))
     throw_late_nodes(spec.source, where, osm_order);
+  // GDAL's OSM driver assembles the features of every layer while one is
+  // read unless told which it serves (ogr2ogr tells it too).
+  if (!from_sql && is_osm(spec.source))
+    ds->ExecuteSQL(("SET interest_layers = " + std::string(layer->GetName())).c_str(), nullptr,
+                   nullptr);
   if (!spec.where.empty()) {
     errors.clear();
     if (layer->SetAttributeFilter(spec.where.c_str()) != OGRERR_NONE) {
@@ -588,14 +601,6 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
   for (LayerSink& sink : sinks) sink.finish(errors);
   for (ReadAttempt& r : attempts) r.flush(true);
   return attempts;
-}
-
-bool is_osm(const std::string& path) {
-  auto ends = [&](const char* suffix) {
-    std::string s(suffix);
-    return path.size() >= s.size() && path.compare(path.size() - s.size(), s.size(), s) == 0;
-  };
-  return ends(".osm") || ends(".pbf") || ends(".osm.bz2") || ends(".OSM") || ends(".PBF");
 }
 
 // Whether a scene layer may take part in a shared pass over its OSM file
