@@ -823,18 +823,29 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
     else
       jobs.push_back({i});
   }
+  auto specs_of = [&](const std::vector<size_t>& job) {
+    std::vector<const LayerSpec*> specs;
+    for (size_t i : job) specs.push_back(&scene.layers[i]);
+    return specs;
+  };
+  // A job's read counts under its first layer; the others add nothing.
+  auto progress_of = [&](const std::vector<size_t>& job) {
+    for (size_t k = 1; k < job.size(); ++k) estimates[job[k]] = 0;
+    return JobProgress(&stage, &estimates, job.front());
+  };
+  auto keep = [&](const std::vector<size_t>& job, std::vector<ReadAttempt>& got) {
+    for (size_t k = 0; k < job.size(); ++k) {
+      account(got[k], manifests[job[k]]);
+      layers[job[k]] = std::move(got[k].layer);
+    }
+  };
   // Reads `job`'s layers with one query; a failure counts as the first's.
   auto read_shared = [&](const std::vector<size_t>& job) {
     try {
-      std::vector<const LayerSpec*> specs;
-      for (size_t i : job) specs.push_back(&scene.layers[i]);
-      for (size_t k = 1; k < job.size(); ++k) estimates[job[k]] = 0;
-      JobProgress progress(&stage, &estimates, job.front());
-      std::vector<ReadAttempt> got = read_query(specs, scene, progress, options.chunks, job);
-      for (size_t k = 0; k < job.size(); ++k) {
-        account(got[k], manifests[job[k]]);
-        layers[job[k]] = std::move(got[k].layer);
-      }
+      JobProgress progress = progress_of(job);
+      std::vector<ReadAttempt> got =
+          read_query(specs_of(job), scene, progress, options.chunks, job);
+      keep(job, got);
     } catch (...) {
       failures[job.front()] = std::current_exception();
     }
@@ -842,17 +853,10 @@ FeatureSet read_scene(const SceneSpec& scene, const ReadOptions& options) {
   tbb::parallel_for(size_t(0), jobs.size(), [&](size_t j) {
     const std::vector<size_t>& job = jobs[j];
     if (job.size() > 1 && groupable(scene.layers[job.front()])) {
-      std::vector<const LayerSpec*> specs;
-      for (size_t i : job) specs.push_back(&scene.layers[i]);
       std::vector<ReadAttempt> got;
-      // The pass counts under its first layer; the others add nothing.
-      for (size_t k = 1; k < job.size(); ++k) estimates[job[k]] = 0;
-      JobProgress progress(&stage, &estimates, job.front());
-      if (read_osm_group(specs, scene, progress, got, options.chunks, job)) {
-        for (size_t k = 0; k < job.size(); ++k) {
-          account(got[k], manifests[job[k]]);
-          layers[job[k]] = std::move(got[k].layer);
-        }
+      JobProgress progress = progress_of(job);
+      if (read_osm_group(specs_of(job), scene, progress, got, options.chunks, job)) {
+        keep(job, got);
         return;
       }
       // Anything out of the ordinary: each layer read on its own reports it.
