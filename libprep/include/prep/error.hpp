@@ -23,6 +23,13 @@ enum class ExitCode : int {
   resource = 6,       // --max-memory or a structure budget would be exceeded
   output = 7,         // the package could not be written
   render = 8,         // no EGL display/context, or a GL failure
+  empty = 9,          // the build kept no feature from any layer (see --allow-empty)
+  strict = 10,        // --strict turned a warning into an error
+  killed = 11,        // batch: a scene was killed by a signal (summary.json names it)
+  // A build or render stopped by SIGINT / SIGTERM exits 128 + the signal's
+  // number, as a shell reports it, after removing what it had made.
+  interrupted = 130,  // SIGINT
+  terminated = 143,   // SIGTERM
 };
 
 class error : public std::runtime_error {
@@ -62,6 +69,14 @@ struct format_error : error {
 // A memory or structure budget would be exceeded.
 struct resource_error : error {
   explicit resource_error(const std::string& w) : error(w, ExitCode::resource) {}
+};
+// The build kept nothing (exit 9), unless --allow-empty.
+struct empty_error : error {
+  explicit empty_error(const std::string& w) : error(w, ExitCode::empty) {}
+};
+// A warning that --strict makes an error (exit 10).
+struct strict_error : error {
+  explicit strict_error(const std::string& w) : error(w, ExitCode::strict) {}
 };
 // EGL/GL failure in the renderer.
 struct render_error : error {

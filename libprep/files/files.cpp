@@ -1,0 +1,113 @@
+// What decalprep may open and what it may write (prep/files.hpp).
+#include "prep/files.hpp"
+
+#include <sys/stat.h>
+
+#include <array>
+#include <string_view>
+
+#include "prep/error.hpp"
+
+namespace prep {
+
+namespace {
+
+const char* kind_of(mode_t m) {
+  if (S_ISFIFO(m)) return "a FIFO (named pipe)";
+  if (S_ISCHR(m)) return "a character device";
+  if (S_ISBLK(m)) return "a block device";
+  if (S_ISSOCK(m)) return "a socket";
+  if (S_ISDIR(m)) return "a directory";
+  if (S_ISREG(m)) return "";
+  return "not a regular file";
+}
+
+// The local file a /vsizip/, /vsitar/, /vsigzip/, /vsi7z/ or /vsirar/ path
+// reads: what follows the prefix up to the archive's extension (GDAL's own
+// rule is richer; this catches a FIFO or a device named as the archive).
+std::string archive_of(const std::string& path) {
+  for (std::string_view p : {"/vsizip/", "/vsitar/", "/vsigzip/", "/vsi7z/", "/vsirar/"}) {
+    if (path.rfind(p, 0) != 0) continue;
+    std::string rest = path.substr(p.size());
+    if (rest.rfind("{", 0) == 0) {
+      const size_t close = rest.find('}');
+      return close == std::string::npos ? std::string{} : rest.substr(1, close - 1);
+    }
+    for (std::string_view ext : {".zip", ".tar", ".tgz", ".tar.gz", ".gz", ".7z", ".rar", ".kmz"}) {
+      const size_t at = rest.find(ext);
+      if (at != std::string::npos) {
+        const size_t end = at + ext.size();
+        if (end == rest.size() || rest[end] == '/') return rest.substr(0, end);
+      }
+    }
+    return rest;
+  }
+  return {};
+}
+
+}  // namespace
+
+std::optional<FileId> file_id(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return std::nullopt;
+  return FileId{static_cast<unsigned long long>(st.st_dev),
+                static_cast<unsigned long long>(st.st_ino)};
+}
+
+bool is_gdal_virtual_path(const std::string& path) {
+  return path.rfind("/vsi", 0) == 0;
+}
+
+bool is_network_path(const std::string& path) {
+  static constexpr std::array<std::string_view, 11> kNetwork = {
+      "/vsicurl", "/vsis3", "/vsigs", "/vsiaz", "/vsiadls", "/vsioss",
+      "/vsiswift", "/vsiwebhdfs", "/vsihdfs", "/vsicurl_streaming", "/vsis3_streaming"};
+  for (std::string_view n : kNetwork)
+    if (path.find(n) != std::string::npos) return true;
+  // A URL GDAL would fetch through /vsicurl/ by itself.
+  for (std::string_view scheme : {"http://", "https://", "ftp://"})
+    if (path.find(scheme) != std::string::npos) return true;
+  return false;
+}
+
+std::string special_file_kind(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return {};
+  if (S_ISDIR(st.st_mode)) return {};
+  return kind_of(st.st_mode);
+}
+
+void check_input_file(const std::string& path, const std::string& what, InputKind kind) {
+  std::string local = path;
+  if (is_gdal_virtual_path(path)) {
+    local = archive_of(path);
+    if (local.empty() || is_gdal_virtual_path(local)) return;
+  }
+  struct stat st {};
+  if (::stat(local.c_str(), &st) != 0) return;  // the opener says it is missing
+  if (S_ISREG(st.st_mode)) return;
+  if (S_ISDIR(st.st_mode) && kind == InputKind::file_or_directory) return;
+  throw input_error(what + " '" + local + "' is " + kind_of(st.st_mode) +
+                    ", not a regular file; decalprep reads only regular files (a FIFO or a "
+                    "device could block or never end)");
+}
+
+void check_output_file(const std::string& path, const std::string& what,
+                       const std::vector<std::string>& inputs) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {
+    if (!S_ISREG(st.st_mode))
+      throw output_error(what + " '" + path + "' exists and is " + kind_of(st.st_mode) +
+                         "; decalprep replaces only a regular file (nothing was written)");
+    const FileId target{static_cast<unsigned long long>(st.st_dev),
+                        static_cast<unsigned long long>(st.st_ino)};
+    for (const std::string& in : inputs) {
+      if (in.empty()) continue;
+      if (file_id(in) == target)
+        throw output_error(what + " '" + path + "' is the input '" + in +
+                           "' itself; writing it would destroy the input (nothing was written)");
+    }
+  }
+}
+
+}  // namespace prep

@@ -1,0 +1,66 @@
+// prep/files.hpp — the one rule for what decalprep opens and what it writes.
+//
+// Inputs: every file decalprep reads (a source, a scene file, a DEM, a
+// package, a tile, an index) is checked with stat() before a byte is read:
+// a FIFO, a socket, a device or (unless allowed) a directory is refused, so
+// nothing can block in open() or read forever. GDAL's virtual paths
+// (/vsizip/..., /vsicurl/...) are not local files: the caller decides
+// whether it accepts one (remote_path_kind).
+//
+// Outputs: a writer touches only the named output, and only when it is a
+// regular file or absent (check_output_file) and is not one of the build's
+// inputs (compared by device and inode, not by spelling, so "a/../v.geojson",
+// a hard link or a symlink are caught too).
+//
+// Thread-safe: these functions only stat().
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace prep {
+
+// A file's identity: device and inode.
+struct FileId {
+  unsigned long long dev = 0, ino = 0;
+  bool operator==(const FileId&) const = default;
+};
+
+// The identity of the file `path` names (symlinks followed), or nullopt
+// when it does not exist or cannot be stat()ed.
+std::optional<FileId> file_id(const std::string& path);
+
+// True for a GDAL virtual file system path (/vsi...): not a local file.
+bool is_gdal_virtual_path(const std::string& path);
+// True for a GDAL virtual path that reaches the network (/vsicurl/,
+// /vsis3/, /vsigs/, /vsiaz/, /vsiadls/, /vsioss/, /vsiswift/, /vsiwebhdfs/,
+// /vsihdfs/, and any of these inside another, e.g. /vsizip//vsicurl/...).
+bool is_network_path(const std::string& path);
+
+// What an input may be besides a regular file.
+enum class InputKind { file, file_or_directory };
+
+// Refuses, with input_error "<what> '<path>' is a FIFO (named pipe): ..."
+// and the like, a local path that exists and is not a regular file (or a
+// directory, where `kind` allows one). A path that does not exist is left
+// to the opener, whose message says so. GDAL virtual paths pass unchecked,
+// except that the local file a /vsizip/, /vsitar/ or /vsigzip/ path opens
+// is checked too. Throws nothing else.
+void check_input_file(const std::string& path, const std::string& what,
+                      InputKind kind = InputKind::file);
+
+// A sentence saying what kind of non-regular file `path` is ("a FIFO
+// (named pipe)", "a character device", ...), or empty for a regular file,
+// a directory or a path that does not exist.
+std::string special_file_kind(const std::string& path);
+
+// Refuses, with output_error (exit 7), an output target that exists and is
+// not a regular file (a FIFO, a device node, a directory, a socket), and a
+// target that is the same file as any of `inputs` (existing inputs only;
+// compared by device and inode). `what` names the output in the message
+// ("package", "report", "PNG"). Leaves everything as it was.
+void check_output_file(const std::string& path, const std::string& what,
+                       const std::vector<std::string>& inputs);
+
+}  // namespace prep
