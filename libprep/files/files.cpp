@@ -60,8 +60,9 @@ bool is_gdal_virtual_path(const std::string& path) {
 
 bool is_network_path(const std::string& path) {
   static constexpr std::array<std::string_view, 11> kNetwork = {
-      "/vsicurl", "/vsis3", "/vsigs", "/vsiaz", "/vsiadls", "/vsioss",
-      "/vsiswift", "/vsiwebhdfs", "/vsihdfs", "/vsicurl_streaming", "/vsis3_streaming"};
+      "/vsicurl",        "/vsis3",    "/vsigs",      "/vsiaz",   "/vsiadls",
+      "/vsioss",         "/vsiswift", "/vsiwebhdfs", "/vsihdfs", "/vsicurl_streaming",
+      "/vsis3_streaming"};
   for (std::string_view n : kNetwork)
     if (path.find(n) != std::string::npos) return true;
   // A URL GDAL would fetch through /vsicurl/ by itself.

@@ -6,10 +6,16 @@
 #include <tbb/global_control.h>
 #include <xxhash.h>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -24,6 +30,8 @@
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
+#include "prep/files.hpp"
+#include "prep/interrupt.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/model.hpp"
@@ -32,6 +40,7 @@
 #include "prep/stage_error.hpp"
 #include "prep/tileset.hpp"
 #include "prep/write.hpp"
+#include "tileset_dir.hpp"
 
 namespace prep {
 
@@ -152,16 +161,40 @@ nlohmann::json report_object(const SceneFeatures& scene, const std::string& outp
 namespace pipeline_internal {
 
 void write_text_file(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) fail<output_error>(kReportStage, "cannot write " + path);
-    out << text;
-    if (!out.flush()) fail<output_error>(kReportStage, "cannot write " + path);
+  check_output_file(path, "output file", {});
+  // A temp name of our own, created exclusively (never truncating or
+  // following what is there), in the target's folder for the rename.
+  static std::atomic<unsigned> counter{0};
+  const size_t slash = path.rfind('/');
+  const std::string folder = slash == std::string::npos ? "" : path.substr(0, slash + 1);
+  const std::string base = slash == std::string::npos ? path : path.substr(slash + 1);
+  const std::string tmp = folder + "." + base + ".tmp-" + std::to_string(::getpid()) + "-" +
+                          std::to_string(counter.fetch_add(1));
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (fd < 0)
+    fail<output_error>(kReportStage, "cannot write " + path + ": " + std::strerror(errno));
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      fail<output_error>(kReportStage, "cannot write " + path + ": " + std::strerror(err));
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    fail<output_error>(kReportStage, "cannot write " + path + ": " + std::strerror(err));
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    fail<output_error>(kReportStage, "cannot rename " + tmp + " to " + path);
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    fail<output_error>(kReportStage,
+                       "cannot rename " + tmp + " to " + path + ": " + std::strerror(err));
   }
 }
 
@@ -436,6 +469,20 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
   const MemoryLimit limit{request.max_memory};
   std::vector<std::pair<std::string, double>>& peaks = trail.peaks;
   std::vector<MemoryEstimate>& estimates = trail.estimates;
+  // The folder is held for the step: prepare and finalize alone, the tiles
+  // steps of one job side by side. A prepare that SIGINT or SIGTERM stops
+  // leaves no half work folder.
+  pipeline_internal::TilesetDir tileset_dir(request.output,
+                                            request.step == Step::tiles
+                                                ? pipeline_internal::TilesetDir::Access::shared
+                                                : pipeline_internal::TilesetDir::Access::exclusive,
+                                            request.step == Step::prepare);
+  std::optional<OnInterrupt> undo;
+  if (request.step == Step::prepare)
+    undo.emplace("the prepare step was stopped", [dir = request.output, made = tileset_dir.made()] {
+      std::fprintf(stderr, "decalprep: %s\n",
+                   pipeline_internal::remove_after_interrupt(dir, made).c_str());
+    });
   switch (request.step) {
     case Step::prepare: {
       estimates.push_back(before_read(scene, request));
@@ -544,9 +591,20 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
   // and clean stream through the work folder chunk by chunk, and each tile
   // reads its window of the intermediate; nothing holds the whole scene.
   std::optional<pipeline_internal::PreparedScene> streamed;
-  // Whether the tileset folder was there before: a build that fails before
-  // its first tile removes only what it made.
-  const bool had_output = tiled && std::filesystem::exists(request.output);
+  // The tileset folder, held for the whole build; a build that fails
+  // before its first tile removes only what it made, and SIGINT or SIGTERM
+  // removes the work folder and the tileset folder if the build made it.
+  std::optional<pipeline_internal::TilesetDir> tileset_dir;
+  std::optional<OnInterrupt> undo;
+  if (tiled && !request.dry_run) {
+    tileset_dir.emplace(request.output, pipeline_internal::TilesetDir::Access::exclusive, true);
+    undo.emplace("the tileset build was stopped",
+                 [dir = request.output, made = tileset_dir->made()] {
+                   std::fprintf(stderr, "decalprep: %s\n",
+                                pipeline_internal::remove_after_interrupt(dir, made).c_str());
+                 });
+  }
+  const bool had_output = tiled && tileset_dir && !tileset_dir->made();
   if (tiled && !request.dry_run) {
     try {
       streamed = pipeline_internal::prepare_tileset_streaming(scene, request, provenance_of);
@@ -674,9 +732,53 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
   return result;
 }
 
+// The files a build reads: the scene file, each layer's source, the DEM.
+std::vector<std::string> scene_inputs(const SceneSpec& scene) {
+  std::vector<std::string> in = {scene.scene_path, scene.dem};
+  for (const LayerSpec& l : scene.layers) in.push_back(l.source);
+  return in;
+}
+
+// The one rule for a build's inputs and outputs (prep/files.hpp), checked before
+// anything is read: the package and the report are regular files or
+// absent, and none is an input or the other; a tileset folder is no input.
+void check_build_outputs(const SceneSpec& scene, const BuildRequest& request) {
+  // Nothing below may block on an input (the sources are hashed for the
+  // provenance and sized for --max-memory before GDAL opens them).
+  check_input_file(scene.scene_path, "scene file");
+  check_input_file(scene.dem, "DEM");
+  for (const LayerSpec& l : scene.layers)
+    check_input_file(l.source, "layer '" + l.name + "' source", InputKind::file_or_directory);
+  std::vector<std::string> inputs = scene_inputs(scene);
+  if (!request.dry_run && !request.output.empty()) {
+    if (scene.tile_size > 0) {
+      const std::optional<FileId> out = file_id(request.output);
+      for (const std::string& in : inputs)
+        if (!in.empty() && out && file_id(in) == out)
+          fail<output_error>(kBuildStage, "the tileset folder '" + request.output +
+                                              "' is the input '" + in + "' itself");
+    } else {
+      check_output_file(request.output, "package", inputs);
+      inputs.push_back(request.output);
+    }
+  }
+  if (!request.report.empty()) {
+    check_output_file(request.report, "report", inputs);
+    // Neither exists yet: compare where they would be.
+    std::error_code e1, e2;
+    if (!request.dry_run && !request.output.empty() &&
+        std::filesystem::weakly_canonical(request.report, e1) ==
+            std::filesystem::weakly_canonical(request.output, e2) &&
+        !e1 && !e2)
+      fail<usage_error>(kBuildStage, "the report '" + request.report + "' and the output '" +
+                                         request.output + "' are the same file");
+  }
+}
+
 }  // namespace
 
 BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
+  check_build_outputs(scene, request);
   MemoryTrail trail;
   try {
     return run_stages(scene, request, trail);

@@ -42,20 +42,12 @@
 #include "prep/tileset.hpp"
 #include "prep/write.hpp"
 #include "source_spill.hpp"
+#include "tileset_dir.hpp"
 #include "tileset_work.hpp"
 
 namespace prep::pipeline_internal {
 
 namespace {
-
-void make_dir(const std::string& path) {
-  if (mkdir(path.c_str(), 0777) == 0 || errno == EEXIST) {
-    struct stat st {};
-    if (stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) return;
-    fail<output_error>(kTilesetStage, path + " exists and is not a directory");
-  }
-  fail<output_error>(kTilesetStage, "cannot create " + path + ": " + std::strerror(errno));
-}
 
 // XXH64 of what a tile's package is made from.
 class Digest {
@@ -129,23 +121,6 @@ bool reusable(const std::string& path, uint64_t digest) {
   }
 }
 
-// Tile packages an earlier build left that this index no longer lists, and
-// the named temp files (".x3_y-2.decals.tmp-PID-N") of tile writes killed on
-// a file system without O_TMPFILE. Runs at finalize only, when no tile of
-// this build is being written.
-void remove_stale_tiles(const std::string& tiles_dir, const std::set<std::string>& keep) {
-  DIR* d = opendir(tiles_dir.c_str());
-  if (!d) return;
-  while (const dirent* e = readdir(d)) {
-    const std::string name = e->d_name;
-    const bool temp = name.rfind(".x", 0) == 0 && name.find(".decals.tmp-") != std::string::npos;
-    const bool tile = name.size() >= 8 && name[0] == 'x' &&
-                      name.compare(name.size() - 7, 7, ".decals") == 0 && !keep.count(name);
-    if (temp || tile) std::remove((tiles_dir + "/" + name).c_str());
-  }
-  closedir(d);
-}
-
 // How many overview levels a build makes: SceneSpec::levels, or for
 // kLevelsAuto the first level whose grid covers the data's box (scene
 // coordinates) with at most kAutoLevelTiles tiles
@@ -163,26 +138,6 @@ int level_count(const SceneSpec& spec, const Extent& data, const SceneFrame& fra
   return kMaxLevels;
 }
 
-// Level folders an earlier build left that this index no longer has
-// (tiles/L<n> with n > `levels`), removed with their packages.
-void remove_stale_levels(const std::string& tiles_dir, int levels) {
-  DIR* d = opendir(tiles_dir.c_str());
-  if (!d) return;
-  std::vector<std::string> stale;
-  while (const dirent* e = readdir(d)) {
-    const std::string name = e->d_name;
-    if (name.size() < 2 || name[0] != 'L' ||
-        name.find_first_not_of("0123456789", 1) != std::string::npos || name.size() > 4)
-      continue;
-    if (std::stoi(name.substr(1)) > levels) stale.push_back(tiles_dir + "/" + name);
-  }
-  closedir(d);
-  for (const std::string& s : stale) {
-    remove_stale_tiles(s, {});
-    ::rmdir(s.c_str());  // only when nothing else is in it
-  }
-}
-
 }  // namespace
 
 // ------------------------------------------------------------- prepare --
@@ -190,11 +145,9 @@ void remove_stale_levels(const std::string& tiles_dir, int levels) {
 TilesetPreparer::TilesetPreparer(const SceneSpec& spec, const std::string& dir)
     : spec_(spec), paths_{dir} {
   check_tile_size(spec.tile_size);
-  make_dir(dir);
-  make_dir(dir + "/tiles");
-  remove_tree(paths_.work());
-  make_dir(paths_.work());
-  make_dir(paths_.tile_records());
+  // The folder itself is held by the caller (TilesetDir).
+  make_inner_dir(dir + "/tiles");
+  renew_work_folder(paths_);
   parts_ = std::make_unique<PartWriter>(paths_);
   entries_ = std::make_unique<EntryWriter>(paths_.entries());
   read_entries_ = std::make_unique<EntryWriter>(paths_.read_entries());
@@ -572,7 +525,9 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
   for (size_t i = 0; i < all.size(); ++i)
     if (parts <= 1 || i % parts == part) items.push_back(all[i]);
   for (const PreparedPlan::Level& l : prepared.levels)
-    make_dir(dir + "/tiles/L" + std::to_string(l.params.level));
+    make_inner_dir(dir + "/tiles/L" + std::to_string(l.params.level));
+  // A file at a tile's path is replaced only when a tileset build wrote it.
+  const std::set<std::string> owned = owned_files(paths);
 
   ProgressStage stage(request.progress, "tiles", items.size(), "tiles");
   TileStepOutcome out;
@@ -649,6 +604,14 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
           const uint64_t digest = input_digest(tile, extra.dump(), request);
           extra["tile"]["input_xxh64"] = hex64(digest);
           const bool kept = reusable(path, digest);
+          if (!kept && !owned.count(file)) {
+            struct stat st {};
+            if (::lstat(path.c_str(), &st) == 0)
+              fail<output_error>(kTilesetStage,
+                                 path +
+                                     " exists and was not written by a decalprep tileset build "
+                                     "(no index or work folder records it); move it away");
+          }
           if (!kept) {
             const MemoryEstimate est = estimate_tile(tile, resident, jobs, file);
             note_estimate(i, est);
@@ -805,7 +768,7 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
         ++tally.tiles;
         (r.at("reused").get<bool>() ? tally.reused : tally.built) += 1;
         tally.bytes += e.bytes;
-        names.insert(tile_name(key) + ".decals");
+        names.insert(e.file);
         entries.push_back(std::move(e));
       } catch (const nlohmann::json::exception& e) {
         fail<output_error>(kTilesetStage, rpath + ": " + e.what());
@@ -822,15 +785,13 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
   out.bytes = tally0.bytes;
   // Overview levels (formats/SPEC.md "Overview levels").
   index.resolution = prepared.resolution;
-  std::vector<std::set<std::string>> level_names;
   for (const PreparedPlan::Level& l : prepared.levels) {
     TileLevel level = l.params;
     level.layers.resize(prepared.manifest.layers.size());
     for (size_t k = 0; k < level.layers.size(); ++k)
       level.layers[k].layer = prepared.manifest.layers[k].layer;
     LevelTally t;
-    level_names.emplace_back();
-    read_records(l.params.level, l.plan, l.keys, level.tiles, &level.layers, level_names.back(), t);
+    read_records(l.params.level, l.plan, l.keys, level.tiles, &level.layers, names, t);
     out.level_tiles += t.tiles;
     out.level_built += t.built;
     out.level_reused += t.reused;
@@ -869,10 +830,9 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
   index.manifest_bytes = md->bytes;
   index.manifest_xxh64 = md->xxh64;
 
-  remove_stale_tiles(dir + "/tiles", names);
-  for (size_t l = 0; l < level_names.size(); ++l)
-    remove_stale_tiles(dir + "/tiles/L" + std::to_string(l + 1), level_names[l]);
-  remove_stale_levels(dir + "/tiles", static_cast<int>(level_names.size()));
+  // Only files the index on disk or the work folder recorded go (read
+  // before the new index replaces the old).
+  remove_stale(dir, owned_files(paths), names, static_cast<int>(index.levels.size()));
   write_text_file(dir + "/" + kTilesetIndexName, tileset_index_json(index));
   if (manifest) *manifest = index.manifest;
   // The work folder is not part of the tileset (formats/SPEC.md "Tilesets").

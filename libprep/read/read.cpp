@@ -28,6 +28,7 @@
 #include "osm_xml_order.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
+#include "prep/files.hpp"
 #include "prep/progress.hpp"
 #include "prep/stage_error.hpp"
 
@@ -480,6 +481,7 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
     for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
   }
   const ReadConfig config(plain_osm_index);
+  check_input_file(spec.source, "source", InputKind::file_or_directory);
   DatasetPtr ds(GDALDataset::Open(spec.source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
                                   nullptr, nullptr));
   if (!ds) {
@@ -648,6 +650,7 @@ bool read_osm_group(const std::vector<const LayerSpec*>& specs, const SceneSpec&
     if (osm_order.late_node_offset >= 0) return false;
     const bool plain_osm_index = osm_order.scanned && !osm_order.node_ids_increase;
     const ReadConfig config(plain_osm_index);
+    check_input_file(source, "source", InputKind::file_or_directory);
     DatasetPtr ds(GDALDataset::Open(source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
                                     nullptr, nullptr));
     if (!ds || errors.failed()) return false;

@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "prep/error.hpp"
+#include "prep/files.hpp"
 #include "prep/tile.hpp"
 
 namespace prep {
@@ -480,6 +481,7 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
 }
 
 SceneSpec load_scene_file(const std::string& path) {
+  check_input_file(path, "scene file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw scene_error(path + ": cannot open scene file");
   std::ostringstream text;

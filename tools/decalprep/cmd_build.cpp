@@ -12,6 +12,8 @@
 #include <nlohmann/json.hpp>
 
 #include "command.hpp"
+#include "prep/files.hpp"
+#include "prep/interrupt.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/progress.hpp"
@@ -162,6 +164,7 @@ int write_plan(const BuildArgs& a, const prep::SceneSpec& scene) {
   std::filesystem::create_directories(a.output, ec);
   if (ec) throw prep::output_error("build: cannot create " + a.output + ": " + ec.message());
   const std::string path = a.output + "/plan.json";
+  prep::check_output_file(path, "plan", {});
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
@@ -215,6 +218,9 @@ void print_summary(const BuildArgs& a, const prep::BuildResult& result) {
 
 // One scene.
 int run(const BuildArgs& a) {
+  // Before any thread starts: SIGINT and SIGTERM then undo what the build
+  // made (prep/interrupt.hpp) and exit 130 / 143.
+  prep::watch_interrupts();
   const prep::SceneSpec scene = prep::scene_spec(scene_request(a, a.input));
   if (!a.dry_run && a.output.empty())
     throw prep::usage_error("build: -o OUT.decals is required (or --dry-run)");

@@ -1,0 +1,78 @@
+// The tileset folder a build writes (not a public header): what a build may
+// find there, which files it may remove, and who holds it.
+//
+// A tileset build writes only into a folder that is absent (it makes it),
+// empty, or holds a tileset (tileset.json) or a decalprep work folder
+// (.work/owner.json). It removes only files that the index on disk or its
+// own work folder recorded, never follows a symlink out of the folder, and
+// holds a lock on the folder while it runs (README "Tilesets": "Safety").
+#pragma once
+
+#include <set>
+#include <string>
+
+#include "pipeline_internal.hpp"
+
+namespace prep::pipeline_internal {
+
+// The work folder's mark of ownership: a .work without it is not
+// decalprep's and is never removed.
+constexpr const char* kWorkOwnerName = "owner.json";
+// The tile files earlier work folders recorded (carried from one work
+// folder to the next, so that a tile a killed run wrote can still go).
+constexpr const char* kWorkOwnedName = "owned.json";
+
+// Holds `dir` for one build or one step of it: checks what the folder
+// holds (above; output_error, exit 7, naming the folder and what is in the
+// way), makes it when `create` and it is absent (made() is then true),
+// and takes a lock on it (flock on the folder: exclusive for a whole build,
+// prepare and finalize, shared for a tiles step, so that the tiles steps of
+// one cluster job run side by side). A lock held elsewhere is an
+// output_error that says so; a file system without locks (some network
+// file systems) builds without one. The lock goes with the object.
+class TilesetDir {
+ public:
+  enum class Access { exclusive, shared };
+  TilesetDir(const std::string& dir, Access access, bool create);
+  ~TilesetDir();
+  TilesetDir(const TilesetDir&) = delete;
+  TilesetDir& operator=(const TilesetDir&) = delete;
+  bool made() const { return made_; }
+
+ private:
+  std::string dir_;
+  int fd_ = -1;
+  bool made_ = false;
+};
+
+// A folder inside the tileset (tiles, tiles/L<n>, .work and its folders):
+// made, or already a real folder; a symlink or anything else there is an
+// output_error (a build never writes or removes through a link).
+void make_inner_dir(const std::string& path);
+
+// Makes the work folder afresh with its owner mark. The tile files the
+// previous work folder recorded (its tile records and its owned list) are
+// carried into the new one's owned list before the old one is removed.
+void renew_work_folder(const WorkPaths& paths);
+
+// The files below the tileset folder that a build may replace or remove,
+// as paths relative to it ("tiles/x0_y0.decals", "tiles/L1/x0_y0.decals"):
+// the tiles of the index on disk (when it parses) and of the work folder's
+// tile records and owned list.
+std::set<std::string> owned_files(const WorkPaths& paths);
+
+// Removes the files of `owned` not in `keep` (regular files only), the
+// named temp files of tile writes killed without O_TMPFILE (exactly
+// ".x<int>_y<int>.decals.tmp-<pid>-<n>"), and level folders beyond `levels`
+// once they are empty.
+void remove_stale(const std::string& dir, const std::set<std::string>& owned,
+                  const std::set<std::string>& keep, int levels);
+
+// What SIGINT or SIGTERM leaves of a build (prep/interrupt.hpp): the work
+// folder goes, and the tileset folder too when the build made it. Each is
+// renamed away first, so that the build's threads, still running, can
+// create nothing more in it, then removed. Returns what it removed, for
+// the message.
+std::string remove_after_interrupt(const std::string& dir, bool made_dir);
+
+}  // namespace prep::pipeline_internal
