@@ -78,6 +78,19 @@ void add_work_owned(const WorkPaths& paths, std::set<std::string>& out) {
   }
 }
 
+// True for the plan `decalprep build --plan` writes (DIR/plan.json): a
+// JSON object with its "steps".
+bool is_build_plan(const std::string& path) {
+  if (!is_regular(path)) return false;
+  std::ifstream in(path, std::ios::binary);
+  try {
+    const nlohmann::json j = nlohmann::json::parse(in);
+    return j.is_object() && j.contains("steps") && j["steps"].is_array();
+  } catch (const nlohmann::json::exception&) {
+    return false;
+  }
+}
+
 }  // namespace
 
 TilesetDir::TilesetDir(const std::string& dir, Access access, bool create) : dir_(dir) {
@@ -108,7 +121,8 @@ TilesetDir::TilesetDir(const std::string& dir, Access access, bool create) : dir
   }
   if (made_) return;
 
-  // What the folder may hold: nothing, a tileset, or decalprep's work folder.
+  // What the folder may hold: nothing, a tileset, decalprep's work folder
+  // or the plan of a cluster build.
   const std::string work = dir + "/.work";
   const bool has_index = is_regular(dir + "/" + kTilesetIndexName);
   struct stat wst {};
@@ -119,7 +133,7 @@ TilesetDir::TilesetDir(const std::string& dir, Access access, bool create) : dir
                            kWorkOwnerName +
                            "); move it away: decalprep removes only what it made (nothing was "
                            "written)");
-  if (!has_index && !has_work) {
+  if (!has_index && !has_work && !is_build_plan(dir + "/plan.json")) {
     const std::vector<std::string> found = entries_of(dir);
     if (!found.empty()) {
       std::string list;
@@ -169,11 +183,14 @@ void renew_work_folder(const WorkPaths& paths) {
   write_text_file(
       paths.work() + "/" + kWorkOwnedName,
       nlohmann::json(std::vector<std::string>(carried.begin(), carried.end())).dump() + "\n");
-  char host[256] = {};
-  ::gethostname(host, sizeof host - 1);
-  write_text_file(
-      paths.work() + "/" + kWorkOwnerName,
-      nlohmann::json{{"made_by", "decalprep"}, {"pid", ::getpid()}, {"host", host}}.dump() + "\n");
+  // The same bytes every run: a step run again leaves the folder as it was.
+  write_text_file(paths.work() + "/" + kWorkOwnerName,
+                  nlohmann::json{{"made_by", "decalprep"},
+                                 {"what",
+                                  "work folder of a tileset build (formats/SPEC.md "
+                                  "\"Tilesets\"); removed when the build finishes"}}
+                          .dump() +
+                      "\n");
   make_inner_dir(paths.tile_records());
 }
 

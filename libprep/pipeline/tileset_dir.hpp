@@ -2,8 +2,8 @@
 // find there, which files it may remove, and who holds it.
 //
 // A tileset build writes only into a folder that is absent (it makes it),
-// empty, or holds a tileset (tileset.json) or a decalprep work folder
-// (.work/owner.json). It removes only files that the index on disk or its
+// empty, or holds a tileset (tileset.json), a decalprep work folder
+// (.work/owner.json) or the plan `build --plan` wrote (plan.json). It removes only files that the index on disk or its
 // own work folder recorded, never follows a symlink out of the folder, and
 // holds a lock on the folder while it runs (README "Tilesets": "Safety").
 #pragma once
