@@ -57,8 +57,10 @@ def sha(path):
 
 
 def render(pkg, out, *extra, timeout=20):
+    # An address-space cap: a size that is not refused must fail to
+    # allocate, not take the shared machine's memory.
     return suite.run(["render", pkg, "--cpu", "--size", "64x48", "-o", out, *extra],
-                     timeout=timeout)
+                     timeout=timeout, mem_mb=4096)
 
 
 # 1. A FIFO given as --dem: refused before GDAL opens it, by build and render.
