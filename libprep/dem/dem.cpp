@@ -60,8 +60,9 @@ OpenedDem open_dem(const DemSpec& spec) {
   std::call_once(once, [] { GDALAllRegister(); });
   const std::string& path = spec.path;
   // Before GDAL sees the path: a FIFO or a device would block its open().
+  // A directory is a raster for some drivers (an Arc/Info binary grid).
   try {
-    check_input_file(path, "DEM");
+    check_input_file(path, "DEM", InputKind::file_or_directory);
   } catch (const input_error& e) {
     fail<input_error>(kDemStage, e.what());
   }
