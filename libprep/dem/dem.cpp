@@ -5,18 +5,22 @@
 
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
+#include <sys/stat.h>
 #include <tbb/enumerable_thread_specific.h>
 
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <iterator>
 #include <limits>
 #include <mutex>
 #include <sstream>
+#include <string_view>
 #include <vector>
 
 #include "gdal_util.hpp"
 #include "prep/error.hpp"
+#include "prep/files.hpp"
 #include "prep/stage_error.hpp"
 
 namespace prep {
@@ -55,10 +59,34 @@ OpenedDem open_dem(const DemSpec& spec) {
   static std::once_flag once;
   std::call_once(once, [] { GDALAllRegister(); });
   const std::string& path = spec.path;
+  // Before GDAL sees the path: a FIFO or a device would block its open().
+  // A directory is a raster for some drivers (an Arc/Info binary grid).
+  try {
+    check_input_file(path, "DEM", InputKind::file_or_directory);
+  } catch (const input_error& e) {
+    fail<input_error>(kDemStage, e.what());
+  }
+  if (spec.named_by_package)
+    if (const std::string why = package_dem_refusal(path); !why.empty())
+      fail<input_error>(kDemStage, path + ": the package names this DEM, which is not opened: " +
+                                       why + "; pass it with --dem to use it");
   OpenedDem d;
   CPLErrorReset();
-  d.ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  if (!d.ds) fail<gdal_error>(kDemStage, path + ": cannot open DEM: " + CPLGetLastErrorMsg());
+  std::vector<const char*> drivers;
+  if (spec.named_by_package) {
+    drivers.assign(std::begin(kPackageDemDrivers), std::end(kPackageDemDrivers));
+    drivers.push_back(nullptr);
+  }
+  d.ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY,
+                               drivers.empty() ? nullptr : drivers.data()));
+  if (!d.ds)
+    fail<gdal_error>(kDemStage, path + ": cannot open DEM: " + CPLGetLastErrorMsg() +
+                                    (spec.named_by_package
+                                         ? " (a DEM the package names is opened only as one of "
+                                           "the self-contained formats GeoTIFF, SRTM .hgt, ASCII "
+                                           "grid, XYZ, EHdr, ENVI, HFA, USGS DEM, BT, PNG, JPEG, "
+                                           "GeoPackage, netCDF; pass it with --dem to use it)"
+                                         : ""));
   if (d.ds->GetRasterCount() < 1) fail<gdal_error>(kDemStage, path + ": DEM has no raster band");
   if (d.ds->GetGeoTransform(d.gt) != CE_None)
     fail<input_error>(kDemStage, path + ": DEM has no geotransform");
@@ -83,6 +111,29 @@ OpenedDem open_dem(const DemSpec& spec) {
 constexpr int kMargin = 16;  // cells read beyond the requested area, at least
 
 }  // namespace
+
+std::string package_dem_refusal(const std::string& path) {
+  if (path.empty()) return "the path is empty";
+  if (is_network_path(path)) return "it is a network path";
+  if (is_gdal_virtual_path(path)) {
+    std::string_view rest;
+    for (std::string_view p : {"/vsizip/", "/vsitar/", "/vsigzip/"})
+      if (path.rfind(p, 0) == 0) rest = std::string_view(path).substr(p.size());
+    if (rest.empty()) return "it is a GDAL virtual path other than /vsizip/, /vsitar/, /vsigzip/";
+    if (rest.find("/vsi") != std::string_view::npos)
+      return "it nests one GDAL virtual path in another";
+    // The archive itself is checked by check_input_file when it is opened
+    // (no FIFO, no device), and only self-contained drivers read its member.
+    return {};
+  }
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return "no such local file";
+  if (!S_ISREG(st.st_mode)) {
+    const std::string kind = special_file_kind(path);
+    return "it is " + (kind.empty() ? std::string("a directory") : kind) + ", not a regular file";
+  }
+  return {};
+}
 
 DemFootprint dem_footprint(const DemSpec& spec) {
   const OpenedDem d = open_dem(spec);

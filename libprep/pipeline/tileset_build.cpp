@@ -266,7 +266,7 @@ PreparedScene prepare_tileset_streaming(const SceneSpec& spec, const BuildReques
   t0 = Clock::now();
   const SpillSource source(read.layers, spill_paths);
   const SceneFrame frame = choose_frame(source, spec.crs);
-  const std::optional<Extent> clip = clip_extent(frame, spec);
+  const std::optional<Extent> clip = clip_extent(frame, spec, source);
   out.project_s = since(t0);
 
   // Pass 2, layer by layer: project, clean, write, a chunk at a time.

@@ -1052,30 +1052,156 @@ std::vector<double> LayerProjection::apply(SourceLayer& chunk, ProgressStage* st
   return impl_->apply(chunk, stage);
 }
 
-std::optional<Extent> clip_extent(const SceneFrame& frame, const SceneSpec& scene) {
+namespace {
+
+// Closed boxes meet (a zero-width data box, one line, still meets).
+bool meets(const Extent& a, const Extent& b) {
+  return a.xmax >= b.xmin && a.xmin <= b.xmax && a.ymax >= b.ymin && a.ymin <= b.ymax;
+}
+
+Extent shifted(Extent e, double dx, double dy) {
+  e.xmin += dx;
+  e.xmax += dx;
+  e.ymin += dy;
+  e.ymax += dy;
+  return e;
+}
+
+std::string box_text(const Extent& e) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%.3f,%.3f,%.3f,%.3f", e.xmin, e.ymin, e.xmax, e.ymax);
+  return buf;
+}
+
+// The data's extent in scene coordinates: each layer's box in its source
+// CRS, transformed into the frame (densified edges). nullopt when there is
+// no vertex or a layer's box cannot be transformed (then nothing is
+// checked against it).
+std::optional<Extent> data_extent_in_frame(const FeatureSource& features,
+                                           const OGRSpatialReference& frame_srs,
+                                           const SceneFrame& frame) {
+  Extent all = no_points();
+  for (size_t li = 0; li < features.layer_count(); ++li) {
+    const Extent e = bounds_of(features, li);
+    if (!(e.xmax >= e.xmin && e.ymax >= e.ymin)) continue;
+    try {
+      auto src = srs_from(features.srs_wkt(li), "source CRS");
+      auto t = make_transform(*src, frame_srs, "source to the scene frame");
+      const Extent f = transform_bounds(*t, e, "layer '" + features.spec(li).name + "'");
+      if (!(f.xmax >= f.xmin && f.ymax >= f.ymin)) return std::nullopt;
+      all = {std::min(all.xmin, f.xmin), std::min(all.ymin, f.ymin), std::max(all.xmax, f.xmax),
+             std::max(all.ymax, f.ymax)};
+    } catch (const input_error&) {
+      return std::nullopt;  // project() itself says what is wrong with the layer
+    }
+  }
+  if (!(all.xmax >= all.xmin)) return std::nullopt;
+  return shifted(all, -frame.origin_x, -frame.origin_y);
+}
+
+}  // namespace
+
+Extent dem_extent_in_frame(const DemSpec& dem, const SceneFrame& frame) {
+  register_gdal_once();
+  // The DEM module opens it and resolves its CRS (own, or assume_crs).
+  const DemFootprint footprint = dem_footprint(dem);
+  if (frame.crs_wkt.empty()) return shifted(footprint.bounds, -frame.origin_x, -frame.origin_y);
+  auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
+  const auto dem_srs = srs_from(footprint.crs_wkt, "DEM CRS");
+  auto t = make_transform(*dem_srs, *frame_srs, "DEM to the scene frame");
+  const Extent e = transform_bounds(*t, footprint.bounds, "DEM " + dem.path);
+  return shifted(e, -frame.origin_x, -frame.origin_y);
+}
+
+void check_extent_units(const Extent& extent, const std::string& extent_crs,
+                        const SceneFrame& frame, const Extent& data, const std::string& context) {
+  if (!extent_crs.empty() || frame.crs_wkt.empty()) return;
+  if (!(std::abs(extent.xmin) <= 180 && std::abs(extent.xmax) <= 180 &&
+        std::abs(extent.ymin) <= 90 && std::abs(extent.ymax) <= 90))
+    return;
+  if (!(data.xmax >= data.xmin && data.ymax >= data.ymin)) return;
+  register_gdal_once();
+  OGRSpatialReference frame_srs;
+  if (frame_srs.importFromWkt(frame.crs_wkt.c_str()) != OGRERR_NONE || !frame_srs.IsProjected())
+    return;
+  // A frame in feet is still a linear unit: numbers within +-180 are then
+  // as suspicious as in metres.
+  frame_srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  const Extent data_abs = shifted(data, frame.origin_x, frame.origin_y);
+  // The numbers read as longitude/latitude, in the frame.
+  Extent as_degrees;
+  try {
+    auto t = make_transform(*wgs84(), frame_srs, "WGS84 to the frame CRS");
+    as_degrees = transform_bounds(*t, extent, "--extent as degrees");
+  } catch (const input_error&) {
+    return;  // not a place on the globe in this frame: leave it as metres
+  }
+  if (!(as_degrees.xmax >= as_degrees.xmin) || !meets(as_degrees, data_abs)) return;
+  // Read as degrees the extent names the data's place. Read as metres it
+  // either misses the data, or its size is farther from the data's size
+  // than the degree reading's is (a 3 cm view of a 2 km scene).
+  const double data_size =
+      std::max({data_abs.xmax - data_abs.xmin, data_abs.ymax - data_abs.ymin, 1.0});
+  const double metres_size = std::max(extent.xmax - extent.xmin, extent.ymax - extent.ymin);
+  const double degrees_size =
+      std::max(as_degrees.xmax - as_degrees.xmin, as_degrees.ymax - as_degrees.ymin);
+  const bool metres_miss = !meets(extent, data_abs);
+  const bool degrees_closer =
+      metres_size > 0 && degrees_size > 0 &&
+      std::abs(std::log(degrees_size / data_size)) < std::abs(std::log(metres_size / data_size));
+  if (!metres_miss && !degrees_closer) return;
+  const char* srs_name = frame_srs.GetName();
+  // The package records the frame's WKT, whose local TM is named "unknown".
+  std::string name = frame.description;
+  if (name.empty()) name = srs_name && std::string(srs_name) != "unknown" ? srs_name : "projected";
+  char sizes[160];
+  std::snprintf(sizes, sizeof sizes, "%.3g m wide against the data's %.3g m", metres_size,
+                data_size);
+  throw usage_error(context + ": --extent " + box_text(extent) +
+                    " looks like longitude/latitude degrees, but it is read in the frame CRS (" +
+                    name + ", metres), where the data lie at " + box_text(data_abs) +
+                    " (xmin,ymin,xmax,ymax); read as metres the view " +
+                    (metres_miss ? std::string("misses them") : "is " + std::string(sizes)) +
+                    ". Pass --extent-crs EPSG:4326 to give the extent in degrees (lon/lat order)");
+}
+
+std::optional<Extent> clip_extent(const SceneFrame& frame, const SceneSpec& scene,
+                                  const FeatureSource& features) {
   register_gdal_once();
   auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
+  // The data's extent in the frame, computed once and only when a check
+  // needs it.
+  std::optional<std::optional<Extent>> data;
+  auto data_extent = [&]() -> const std::optional<Extent>& {
+    if (!data) data = data_extent_in_frame(features, *frame_srs, frame);
+    return *data;
+  };
+  std::optional<Extent> clip;
   // The clip extent: --extent, else the DEM's extent.
   if (scene.extent) {
-    Extent e = extent_in_frame_crs(*scene.extent, scene.extent_crs, frame, "project");
-    e.xmin -= frame.origin_x;
-    e.xmax -= frame.origin_x;
-    e.ymin -= frame.origin_y;
-    e.ymax -= frame.origin_y;
-    return e;
-  } else if (!scene.dem.empty()) {
-    // The DEM module opens it and resolves its CRS (own, or assume_crs).
-    const DemFootprint footprint = dem_footprint({scene.dem, scene.assume_crs});
-    const auto dem_srs = srs_from(footprint.crs_wkt, "DEM CRS");
-    auto t = make_transform(*dem_srs, *frame_srs, "DEM to the scene frame");
-    Extent e = transform_bounds(*t, footprint.bounds, "DEM " + scene.dem);
-    e.xmin -= frame.origin_x;
-    e.xmax -= frame.origin_x;
-    e.ymin -= frame.origin_y;
-    e.ymax -= frame.origin_y;
-    return e;
+    if (scene.extent_crs.empty())
+      if (const std::optional<Extent>& d = data_extent())
+        check_extent_units(*scene.extent, scene.extent_crs, frame, *d, "project");
+    clip = shifted(extent_in_frame_crs(*scene.extent, scene.extent_crs, frame, "project"),
+                   -frame.origin_x, -frame.origin_y);
   }
-  return std::nullopt;
+  if (!scene.dem.empty()) {
+    const Extent dem = dem_extent_in_frame({scene.dem, scene.assume_crs}, frame);
+    // A DEM beside the data would clip everything away (or, with --extent,
+    // drape every line on its edge cells): refused, naming both boxes.
+    auto refuse = [&](const std::string& what, const Extent& other) {
+      fail<input_error>(kProjectStage,
+                        "DEM " + scene.dem + " does not overlap " + what + ": its footprint is " +
+                            box_text(shifted(dem, frame.origin_x, frame.origin_y)) + ", " + what +
+                            " is " + box_text(shifted(other, frame.origin_x, frame.origin_y)) +
+                            " (xmin,ymin,xmax,ymax in the frame CRS); give the DEM of this area");
+    };
+    if (clip && !meets(dem, *clip)) refuse("the --extent", *clip);
+    if (const std::optional<Extent>& d = data_extent(); d && !meets(dem, *d))
+      refuse("the data's extent", *d);
+    if (!clip) clip = dem;
+  }
+  return clip;
 }
 
 ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const SceneSpec& scene,
@@ -1087,11 +1213,13 @@ ProjectedFeatures project(FeatureSet features, const SceneFrame& frame, const Sc
   ProjectedFeatures out;
   out.frame = frame;
   const SetSource source(features);
+  // Before projecting: the extent and the DEM are checked against the data
+  // in their source CRSs.
+  out.clip = clip_extent(frame, scene, source);
   for (size_t li = 0; li < features.layers.size(); ++li) {
     const LayerProjection projection(source, li, frame, scene);
     out.scale.push_back(projection.apply(features.layers[li], &stage));
   }
-  out.clip = clip_extent(frame, scene);
   out.features = std::move(features);
   stage.finish();
   return out;

@@ -165,6 +165,8 @@ DemSpec recorded_dem(const std::string& metadata_json) {
     return spec;
   const auto& bo = meta["build_options"];
   if (bo.contains("dem") && bo["dem"].is_string()) spec.path = bo["dem"].get<std::string>();
+  // A path from the package, not from the user (prep/dem.hpp).
+  spec.named_by_package = true;
   if (bo.contains("dem_assume_crs") && bo["dem_assume_crs"].is_string())
     spec.assume_crs = bo["dem_assume_crs"].get<std::string>();
   if (bo.contains("z_scale") && bo["z_scale"].is_number())

@@ -9,8 +9,13 @@
 #include <optional>
 #include <span>
 #include <sstream>
+#include <string_view>
+#include <utility>
+#include <vector>
 
 #include "command.hpp"
+#include "prep/dem.hpp"
+#include "prep/files.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
@@ -36,7 +41,71 @@ struct RenderArgs {
   std::vector<std::string> ramps;              // --ramp LAYER=value:#rrggbb,...
   uint32_t frames = 1;
   bool cpu = false, stats = false, ortho = false, fit = false, flat = false;
+  bool strict = false;  // --strict: a warning is an error (exit 10)
 };
+
+// The largest image render makes: each side at most kMaxSide pixels and at
+// most kMaxPixels in all (8192 x 8192). A pixel costs about 40 bytes
+// across the RGBA8 image, the float decal layer and the GL targets, so the
+// largest image takes about 2.5 GiB.
+constexpr uint64_t kMaxSide = 16384;
+constexpr uint64_t kMaxPixels = uint64_t(8192) * 8192;
+
+// --size WxH: two decimal integers, each side 1..kMaxSide, W * H at most
+// kMaxPixels. Parsed in 64 bits with nothing left over, so a number beyond
+// 32 bits is refused rather than wrapped (4294967396 is not 100).
+std::pair<uint32_t, uint32_t> parse_size(const std::string& text) {
+  auto bad = [&](const std::string& why) {
+    return prep::usage_error("render: --size '" + text + "': " + why);
+  };
+  const size_t x = text.find('x');
+  if (x == std::string::npos) throw bad("expected WxH, e.g. 640x360");
+  auto side = [&](std::string_view digits, const char* which) {
+    uint64_t v = 0;
+    if (digits.empty() || digits.size() > 12 ||
+        digits.find_first_not_of("0123456789") != std::string_view::npos)
+      throw bad(std::string(which) + " must be a whole number of pixels");
+    for (char c : digits) v = v * 10 + uint64_t(c - '0');
+    if (v < 1 || v > kMaxSide)
+      throw bad(std::string(which) + " " + std::string(digits) + " is not within 1.." +
+                std::to_string(kMaxSide));
+    return v;
+  };
+  const std::string_view all(text);
+  const uint64_t w = side(all.substr(0, x), "the width"), h = side(all.substr(x + 1), "the height");
+  if (w * h > kMaxPixels)
+    throw bad(std::to_string(w * h) + " pixels exceed the maximum of " +
+              std::to_string(kMaxPixels) + " (8192x8192)");
+  return {uint32_t(w), uint32_t(h)};
+}
+
+// A render warning: on stderr, or with --strict an error (exit 10).
+void warn(bool strict, const std::string& what) {
+  if (strict)
+    throw prep::strict_error("render: " + what + " (--strict makes this warning an error)");
+  std::fprintf(stderr, "render: warning: %s\n", what.c_str());
+}
+
+std::string box(const prep::Extent& e) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%.3f,%.3f,%.3f,%.3f", e.xmin, e.ymin, e.xmax, e.ymax);
+  return buf;
+}
+
+prep::Extent shifted(prep::Extent e, double dx, double dy) {
+  return {e.xmin + dx, e.ymin + dy, e.xmax + dx, e.ymax + dy};
+}
+
+bool contains(const prep::Extent& outer, const prep::Extent& inner) {
+  // A micrometre of slack: the build clips to the same box, in doubles.
+  const double eps = 1e-6;
+  return inner.xmin >= outer.xmin - eps && inner.xmax <= outer.xmax + eps &&
+         inner.ymin >= outer.ymin - eps && inner.ymax <= outer.ymax + eps;
+}
+
+bool meets(const prep::Extent& a, const prep::Extent& b) {
+  return a.xmax >= b.xmin && a.xmin <= b.xmax && a.ymax >= b.ymin && a.ymin <= b.ymax;
+}
 
 [[maybe_unused]] std::vector<double> numbers(const std::string& s, size_t n, const char* what) {
   std::vector<double> v;
@@ -47,9 +116,11 @@ struct RenderArgs {
       size_t used = 0;
       v.push_back(std::stod(item, &used));
       if (used != item.size()) throw std::invalid_argument(item);
+      // NaN or infinity gives no camera and no view: a blank image.
+      if (!std::isfinite(v.back())) throw std::invalid_argument(item);
     } catch (const std::exception&) {
       throw prep::usage_error(std::string("render: ") + what + " '" + s + "' is not " +
-                              std::to_string(n) + " numbers");
+                              std::to_string(n) + " finite numbers");
     }
   }
   if (v.size() != n)
@@ -280,10 +351,15 @@ void run(const RenderArgs& a) {
   } src{sc.frame, sc.extent};
 
   R::RenderOptions opt;
-  uint32_t w = 0, h = 0;
-  if (std::sscanf(a.size.c_str(), "%ux%u", &w, &h) != 2 || w == 0 || h == 0 || w > 16384 ||
-      h > 16384)
-    throw prep::usage_error("render: --size '" + a.size + "' must be WxH, 1..16384");
+  const auto [w, h] = parse_size(a.size);
+  // The camera's angles: NaN or infinity, or a pitch that looks up or
+  // along the ground, gives no view (a blank image).
+  if (!std::isfinite(a.fov) || !(a.fov > 0 && a.fov < 180))
+    throw prep::usage_error("render: --fov " + std::to_string(a.fov) +
+                            " must be a number of degrees in (0, 180)");
+  if (!std::isfinite(a.pitch) || !(a.pitch > 0 && a.pitch <= 90))
+    throw prep::usage_error("render: --pitch " + std::to_string(a.pitch) +
+                            " must be a number of degrees in (0, 90] below the horizon");
   opt.width = w;
   opt.height = h;
   opt.frames = a.frames;
@@ -379,6 +455,8 @@ void run(const RenderArgs& a) {
       throw prep::usage_error(
           "render: the package records no frame CRS, so --extent-crs cannot be used; "
           "give --extent in the package's frame coordinates");
+    // Degrees given as frame metres (no --extent-crs): a usage error.
+    prep::check_extent_units(given, a.extent_crs, src.frame, src.extent, "render");
     abs_view = prep::extent_in_frame_crs(given, a.extent_crs, src.frame, "render");
     const prep::Extent abs_package{
         src.extent.xmin + src.frame.origin_x, src.extent.ymin + src.frame.origin_y,
@@ -389,16 +467,12 @@ void run(const RenderArgs& a) {
       throw prep::usage_error("render: --extent '" + a.extent + "' is empty in the frame CRS");
     const bool misses = abs_view.xmax < abs_package.xmin || abs_view.xmin > abs_package.xmax ||
                         abs_view.ymax < abs_package.ymin || abs_view.ymin > abs_package.ymax;
-    if (misses) {
-      std::fprintf(stderr,
-                   "render: warning: the view %.3f,%.3f,%.3f,%.3f misses the package extent "
-                   "%.3f,%.3f,%.3f,%.3f "
-                   "(xmin,ymin,xmax,ymax in the frame CRS); --extent takes absolute coordinates of "
-                   "the package's "
-                   "frame CRS unless --extent-crs names another\n",
-                   abs_view.xmin, abs_view.ymin, abs_view.xmax, abs_view.ymax, abs_package.xmin,
-                   abs_package.ymin, abs_package.xmax, abs_package.ymax);
-    }
+    if (misses)
+      warn(a.strict, "the view " + box(abs_view) + " misses the package extent " +
+                         box(abs_package) +
+                         " (xmin,ymin,xmax,ymax in the frame CRS); --extent takes absolute "
+                         "coordinates of the package's frame CRS unless --extent-crs names "
+                         "another");
   }
   prep::Extent terrain_extent = src.extent;
   if (topdown) {
@@ -416,10 +490,22 @@ void run(const RenderArgs& a) {
     throw prep::usage_error("render: --flat and --dem exclude each other");
   prep::DemSpec dem = R::recorded_dem(sc.metadata);
   const bool dem_from_package = !a.flat && a.dem.empty() && !dem.path.empty();
-  if (a.flat)
+  if (a.flat) {
     dem.path.clear();
-  else if (!a.dem.empty())
+  } else if (!a.dem.empty()) {
+    // The user's own --dem: any GDAL path, a network one included.
     dem.path = a.dem;
+    dem.named_by_package = false;
+  }
+  // The outputs: only a regular file or nothing, never the package or the
+  // DEM, refused before anything is drawn.
+  {
+    std::vector<std::string> inputs{a.package};
+    if (!dem.path.empty()) inputs.push_back(dem.path);
+    prep::check_output_file(a.output, "PNG", inputs);
+    if (!a.decals_png.empty()) prep::check_output_file(a.decals_png, "--decals PNG", inputs);
+    if (!a.raw.empty()) prep::check_output_file(a.raw, "--raw output", inputs);
+  }
   if (a.z_scale) {
     if (!(*a.z_scale > 0) || !std::isfinite(*a.z_scale))
       throw prep::usage_error("render: --z-scale must be a positive number");
@@ -443,13 +529,29 @@ void run(const RenderArgs& a) {
                    "render: terrain from the package's build DEM %s (--flat to ignore it)\n",
                    dem.path.c_str());
     } catch (const prep::error& e) {
-      std::fprintf(
-          stderr,
-          "render: warning: the package was built with DEM %s, which cannot be read here (%s); "
-          "drawing flat terrain (pass --dem PATH)\n",
-          dem.path.c_str(), e.what());
+      // Also a DEM the package names that is not opened (a network path, a
+      // FIFO, a VRT: prep/dem.hpp package_dem_refusal).
+      warn(a.strict, "the package was built with DEM " + dem.path +
+                         ", which cannot be read here (" + e.what() +
+                         "); drawing flat terrain (pass --dem PATH)");
       terrain = R::flat_heightfield(terrain_extent);
+      dem.path.clear();
     }
+  }
+  // The DEM must cover what is drawn: the view of a top-down --extent, else
+  // the package (tileset) extent that --fit frames and the mesh spans.
+  // Beyond its footprint the terrain takes the DEM's edge heights.
+  if (!dem.path.empty()) {
+    const prep::Extent need = topdown ? view_extent : src.extent;
+    const prep::Extent have = prep::dem_extent_in_frame(dem, src.frame);
+    const double ox = src.frame.origin_x, oy = src.frame.origin_y;
+    if (!contains(have, need))
+      warn(a.strict,
+           "the DEM " + dem.path + " covers " + box(shifted(have, ox, oy)) + ", which " +
+               (meets(have, need) ? "does not cover all of " : "misses ") +
+               (topdown ? "the view " : "the package extent ") + box(shifted(need, ox, oy)) +
+               " (xmin,ymin,xmax,ymax in the frame CRS); the terrain there takes the DEM's edge "
+               "heights");
   }
   if (topdown) {
     opt.camera = R::topdown_camera(view_extent, terrain.zmin, terrain.zmax);
@@ -459,6 +561,14 @@ void run(const RenderArgs& a) {
     auto e = numbers(a.eye, 3, "--eye"), t = numbers(a.target, 3, "--target");
     opt.camera.eye = {e[0], e[1], e[2]};
     opt.camera.target = {t[0], t[1], t[2]};
+    const double dx = t[0] - e[0], dy = t[1] - e[1], dz = t[2] - e[2];
+    const double along = std::hypot(dx, dy, dz);
+    // An eye on its target has no direction to look in.
+    if (!(along > 1e-6) || !std::isfinite(along))
+      throw prep::usage_error("render: --eye " + a.eye + " and --target " + a.target +
+                              " must be apart (the camera looks from the eye to the target)");
+    // Looking straight up or down, "up" is north instead of the z axis.
+    if (std::hypot(dx, dy) <= 1e-9 * along) opt.camera.up = {0, 1, 0};
     opt.camera.fov_y_deg = a.fov;
     opt.camera.projection = a.ortho ? R::Projection::orthographic : R::Projection::perspective;
     double dist = std::hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]);
@@ -473,6 +583,17 @@ void run(const RenderArgs& a) {
                       a.ortho ? R::Projection::orthographic : R::Projection::perspective, a.pitch);
   }
 
+  // An --eye camera that sees the ground only away from the decals.
+  if (!topdown && !a.eye.empty()) {
+    const std::optional<prep::Extent> seen =
+        R::ground_footprint(opt.camera, w, h, terrain.zmin, terrain.zmax);
+    if (seen && !meets(*seen, src.extent))
+      warn(a.strict, "the camera sees the ground at " +
+                         box(shifted(*seen, src.frame.origin_x, src.frame.origin_y)) +
+                         ", which misses the package extent " +
+                         box(shifted(src.extent, src.frame.origin_x, src.frame.origin_y)) +
+                         " (xmin,ymin,xmax,ymax in the frame CRS)");
+  }
   // A tileset: only the tiles the view draws (select_tiles meets them with
   // what the camera can see of the terrain).
   if (sc.tileset) load_tiles(sc, a.package, opt.camera, w, h, terrain.zmin, terrain.zmax, select);
@@ -486,10 +607,10 @@ void run(const RenderArgs& a) {
   if (opt.method != R::Method::decal && opt.slope_widths == R::SlopeWidths::package)
     for (const R::TileSource& t : sc.tiles)
       if (!R::slope_layers(t.source, opt.slope_widths).empty()) {
-        std::fprintf(stderr,
-                     "render: warning: the package's slope_widths layers are drawn with their "
-                     "plan widths by --method %s (slope widths need --method decal)\n",
-                     a.method.c_str());
+        warn(a.strict,
+             "the package's slope_widths layers are drawn with their plan widths by "
+             "--method " +
+                 a.method + " (slope widths need --method decal)");
         break;
       }
   uint64_t blob_bytes = 0;  // the loaded packages' blobs decoded (--gpu-budget's measure)
@@ -604,9 +725,13 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_option("package", args->package, "Package (.decals) or tileset directory")->required();
   cmd->add_option("-o,--output", args->output, "Output PNG")->required();
   cmd->add_option("--dem", args->dem,
-                  "DEM raster (any GDAL path); default: the DEM the package was built with, if "
-                  "readable, else flat");
+                  "DEM raster (any GDAL path); default: the DEM the package was built with, if it "
+                  "is a local regular file (or a /vsizip/ path into one) in a self-contained "
+                  "format, else flat with a warning");
   cmd->add_flag("--flat", args->flat, "Flat terrain, even if the package was built with a DEM");
+  cmd->add_flag("--strict", args->strict,
+                "Make every warning an error (exit 10): a view that misses the package, a DEM "
+                "that does not cover the view, a build DEM that cannot be read or is not opened");
   cmd->add_option("--z-scale", args->z_scale,
                   "Height exaggeration (default: the package's build --z-scale, else 1)");
   cmd->add_option(
@@ -623,13 +748,16 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
                   "(as build --extent and the world file)");
   cmd->add_option("--extent-crs", args->extent_crs,
                   "CRS of --extent (e.g. EPSG:4326, lon/lat order; default: the frame)");
-  cmd->add_option("--size", args->size, "Image size WxH (default 640x360)");
+  cmd->add_option("--size", args->size,
+                  "Image size WxH (default 640x360; each side 1..16384, at most 8192x8192 "
+                  "pixels in all)");
   cmd->add_option("--eye", args->eye,
                   "Camera position x,y,z (metres relative to the package origin)");
   cmd->add_option("--target", args->target,
                   "Camera target x,y,z (metres relative to the package origin)");
-  cmd->add_option("--fov", args->fov, "Vertical field of view, degrees");
-  cmd->add_option("--pitch", args->pitch, "--fit: camera pitch below the horizon, degrees");
+  cmd->add_option("--fov", args->fov, "Vertical field of view, degrees, in (0, 180)");
+  cmd->add_option("--pitch", args->pitch,
+                  "--fit: camera pitch below the horizon, degrees, in (0, 90] (default 45)");
   cmd->add_flag("--ortho", args->ortho, "Orthographic projection");
   cmd->add_flag("--fit", args->fit, "Frame the package extent (default without --eye/--extent)");
   cmd->add_flag("--cpu", args->cpu, "Render with the CPU evaluator instead of GL");

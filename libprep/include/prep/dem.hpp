@@ -7,7 +7,14 @@
 // The surface of a DEM, in metres:
 //   * Opening: any GDAL raster (GeoTIFF, SRTM .hgt, VRT, /vsizip/...), band 1,
 //     with a geotransform. Its CRS is the raster's own; a raster without one
-//     is an error naming the file unless DemSpec::assume_crs is given.
+//     is an error naming the file unless DemSpec::assume_crs is given. A
+//     local path that is not a regular file (a FIFO, a device, a socket, a
+//     directory) is refused before GDAL opens it (prep/files.hpp), so no
+//     DEM can block a command. A DEM that a package names (not the user:
+//     DemSpec::named_by_package) is opened only when it is a local regular
+//     file, or a /vsizip/, /vsitar/ or /vsigzip/ path into one, and only by
+//     the drivers of self-contained raster formats (kPackageDemDrivers): never
+//     a network path, a connection string or a VRT that could reach anything.
 //   * Heights: (raw * band scale + band offset) * unit * z_scale, where unit
 //     converts the band's unit type to metres: "ft", "foot", "feet",
 //     "international foot" are 0.3048 m; "us-ft", "US survey foot", "ftUS"
@@ -47,7 +54,23 @@ struct DemSpec {
   std::string assume_crs;             // CRS of a raster that has none (--assume-crs)
   double z_scale = 1.0;               // vertical exaggeration
   std::optional<double> nodata_fill;  // raw DEM units; none: nearest valid cell
+  // The path comes from a package's metadata, not from the user: opened
+  // only under the package rule above (package_dem_refusal).
+  bool named_by_package = false;
 };
+
+// The GDAL drivers a DEM named by a package may be opened with: formats
+// whose file holds the raster itself and names no other file or URL.
+inline constexpr const char* kPackageDemDrivers[] = {
+    "GTiff", "SRTMHGT", "AAIGrid", "GSAG", "GSBG", "GS7BG", "XYZ",  "EHdr",
+    "ENVI",  "HFA",     "USGSDEM", "BT",   "PNG",  "JPEG",  "GPKG", "netCDF"};
+
+// Why the DEM path a package names is not opened, or empty when it may be:
+// it must be a local file that exists and is regular, or a /vsizip/,
+// /vsitar/ or /vsigzip/ path whose archive is one (nothing nested inside);
+// a network path, any other /vsi path, a URL or a connection string is
+// refused. Only stat()s.
+std::string package_dem_refusal(const std::string& path);
 
 // What a DEM read learned, for the manifest.
 struct TerrainStats {
@@ -69,8 +92,8 @@ struct DemFootprint {
   Extent bounds;  // bounding box of the raster's corners, in that CRS
 };
 
-// Opens the DEM (checks the geotransform and the CRS rule above) and
-// returns its footprint. Throws gdal_error / input_error naming the file.
+// Opens the DEM (checks the file, the geotransform and the CRS rule above)
+// and returns its footprint. Throws gdal_error / input_error naming the file.
 DemFootprint dem_footprint(const DemSpec& spec);
 
 // The DEM's cell-centre lattice as seen from the scene frame, when that is a

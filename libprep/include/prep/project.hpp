@@ -23,6 +23,7 @@
 
 namespace prep {
 
+struct DemSpec;       // prep/dem.hpp
 class Progress;       // prep/progress.hpp
 class ProgressStage;  // prep/progress.hpp
 
@@ -86,7 +87,30 @@ class LayerProjection {
 
 // The clip extent project() sets (ProjectedFeatures::clip): scene.extent in
 // scene.extent_crs, else the DEM's footprint, in scene coordinates.
-std::optional<Extent> clip_extent(const SceneFrame& frame, const SceneSpec& scene);
+// `features` are the read data in their source CRSs; their extent in the
+// frame is computed only for the checks: an extent that looks like degrees
+// (check_extent_units) is a usage_error; a DEM whose footprint misses the
+// data's extent or the --extent is an input_error naming the DEM, its
+// footprint and the other box in the frame CRS.
+std::optional<Extent> clip_extent(const SceneFrame& frame, const SceneSpec& scene,
+                                  const FeatureSource& features);
+
+// The bounding box, in scene coordinates of `frame` (relative to its
+// origin), of the DEM's footprint (prep/dem.hpp dem_footprint, transformed
+// with densified edges). Opens the DEM under its rules; throws as
+// dem_footprint does, or input_error when it cannot be transformed.
+Extent dem_extent_in_frame(const DemSpec& dem, const SceneFrame& frame);
+
+// The one check of `build --extent` and `render --extent` for numbers meant
+// as degrees: with no `extent_crs`, in a projected frame, an `extent` whose
+// numbers all lie within +-180 (x) and +-90 (y), which read as WGS84
+// longitude/latitude meets `data` (the data's extent, scene coordinates),
+// while read as frame units it misses `data` or its size is farther from
+// the data's size (in log ratio) than the degree reading's, throws
+// usage_error (exit 2), prefixed with `context`, that suggests
+// --extent-crs EPSG:4326. Anything else returns.
+void check_extent_units(const Extent& extent, const std::string& extent_crs,
+                        const SceneFrame& frame, const Extent& data, const std::string& context);
 
 // Transforms every feature into `frame` (parallel per feature; output order
 // is the input order). A feature whose transform fails is dropped with a
