@@ -118,7 +118,7 @@ class BatchSignals {
   }
 
   // Sleeps until a scene may have ended or a stop signal came, at most
-  // `timeout_ms` (-1: no limit).
+  // `timeout_ms`.
   static void wait(int timeout_ms) {
     struct pollfd p {
       g_wake[0], POLLIN, 0
@@ -545,7 +545,7 @@ int run_scenes(const BatchRequest& request, BatchResult& result, Summary& summar
     }
     BatchScene* ended = reap_one(running);
     if (!ended) {
-      BatchSignals::wait(-1);
+      BatchSignals::wait(1000);  // a bound, should SIGCHLD not have been hooked
       continue;
     }
     ++finished;
