@@ -1,15 +1,23 @@
 // Batch mode of `decalprep build` (prep/pipeline.hpp "batch mode"): several
 // scene files -> one package each, every scene in its own forked process,
-// and one summary JSON. The batch's exit code is that of the first failed
-// scene (input order), else 4 (partial) when skip_failures dropped features
-// in some scene, 0 when all built.
+// and one summary JSON. The batch's exit code: 130 / 143 when SIGINT /
+// SIGTERM stopped it; else that of the first failed scene (input order), a
+// scene ended by a signal counting as 11 (killed); else 4 (partial) when
+// skip_failures dropped features in some scene; 0 when all built.
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -18,6 +26,7 @@
 #include <sstream>
 
 #include "prep/error.hpp"
+#include "prep/files.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/progress.hpp"
@@ -31,6 +40,10 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 constexpr int kPartial = static_cast<int>(ExitCode::partial);
+constexpr int kKilled = static_cast<int>(ExitCode::killed);
+// How long the stopped scenes get to clean up after the batch passed
+// SIGINT/SIGTERM on, before SIGKILL.
+constexpr auto kStopGrace = std::chrono::seconds(10);
 
 // A scene in flight: its entry in the result and its process.
 struct RunningScene {
@@ -38,6 +51,109 @@ struct RunningScene {
   pid_t pid = -1;
   Clock::time_point start;
 };
+
+// ------------------------------------------------------------- signals --
+// The first SIGINT/SIGTERM the batch received (0: none), and a pipe the
+// handlers write a byte to so that the wait loop's poll() wakes up for a
+// signal or an ended scene (SIGCHLD) with no race between checking and
+// sleeping. The handlers only store an int and write(), which are
+// async-signal-safe.
+volatile sig_atomic_t g_stop_signal = 0;
+int g_wake[2] = {-1, -1};
+
+void wake_loop() {
+  const int saved = errno;
+  if (g_wake[1] >= 0) {
+    const ssize_t n = ::write(g_wake[1], "x", 1);
+    (void)n;  // a full pipe already wakes the loop
+  }
+  errno = saved;
+}
+
+extern "C" void on_stop_signal(int sig) {
+  if (g_stop_signal == 0) g_stop_signal = sig;
+  wake_loop();
+}
+
+extern "C" void on_child_ended(int) {
+  wake_loop();
+}
+
+// Installs the batch's handlers for as long as it runs scenes and restores
+// the previous ones after. SIGINT/SIGTERM that the process ignored when the
+// batch began (nohup, a background job of a non-interactive shell) stay
+// ignored, in the batch and in its scenes.
+class BatchSignals {
+ public:
+  BatchSignals() {
+    g_stop_signal = 0;
+    if (::pipe2(g_wake, O_CLOEXEC | O_NONBLOCK) != 0)
+      throw error("build: batch: cannot make a pipe: " + std::string(std::strerror(errno)),
+                  ExitCode::internal);
+    struct sigaction sa {};
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;
+    sa.sa_handler = on_stop_signal;
+    hooked_int_ = hook(SIGINT, sa, old_int_);
+    hooked_term_ = hook(SIGTERM, sa, old_term_);
+    sa.sa_handler = on_child_ended;
+    sa.sa_flags = SA_RESTART | SA_NOCLDSTOP;
+    hooked_chld_ = ::sigaction(SIGCHLD, &sa, &old_chld_) == 0;
+  }
+  ~BatchSignals() {
+    restore();
+    ::close(g_wake[0]);
+    ::close(g_wake[1]);
+    g_wake[0] = g_wake[1] = -1;
+  }
+  BatchSignals(const BatchSignals&) = delete;
+  BatchSignals& operator=(const BatchSignals&) = delete;
+
+  // In a scene's process right after fork: the dispositions the process
+  // had before the batch, and no wake pipe.
+  void restore_in_child() {
+    restore();
+    ::close(g_wake[0]);
+    ::close(g_wake[1]);
+  }
+
+  // Sleeps until a scene may have ended or a stop signal came, at most
+  // `timeout_ms`.
+  static void wait(int timeout_ms) {
+    struct pollfd p {
+      g_wake[0], POLLIN, 0
+    };
+    if (::poll(&p, 1, timeout_ms) > 0) {
+      char buf[64];
+      while (::read(g_wake[0], buf, sizeof buf) > 0) {
+      }
+    }
+  }
+
+ private:
+  static bool hook(int sig, const struct sigaction& sa, struct sigaction& old) {
+    if (::sigaction(sig, nullptr, &old) != 0) return false;
+    if (old.sa_handler == SIG_IGN && !(old.sa_flags & SA_SIGINFO)) return false;
+    return ::sigaction(sig, &sa, nullptr) == 0;
+  }
+  void restore() {
+    if (hooked_int_) ::sigaction(SIGINT, &old_int_, nullptr);
+    if (hooked_term_) ::sigaction(SIGTERM, &old_term_, nullptr);
+    if (hooked_chld_) ::sigaction(SIGCHLD, &old_chld_, nullptr);
+    hooked_int_ = hooked_term_ = hooked_chld_ = false;
+  }
+  struct sigaction old_int_ {
+  }, old_term_{}, old_chld_{};
+  bool hooked_int_ = false, hooked_term_ = false, hooked_chld_ = false;
+};
+
+// "SIGKILL" for SIGKILL; "signal N" for a number without a name.
+std::string signal_name(int sig) {
+  if (const char* abbrev = ::sigabbrev_np(sig)) return std::string("SIG") + abbrev;
+  return "signal " + std::to_string(sig);
+}
+
+// ---------------------------------------------------------------- plan --
 
 // What a failed scene's log says: the scene's error line ("decalprep: ..."),
 // else the last line that is not progress (plain: a '%' or "elapsed" at the
@@ -86,15 +202,42 @@ std::vector<std::string> list_scene_files(const std::vector<std::string>& inputs
   return scenes;
 }
 
+// Every file the scenes read that the batch can name before it starts: the
+// scene files, and the sources and DEMs of those that parse (a scene that
+// does not fails in its own process, with its own message).
+std::vector<std::string> batch_inputs(const BatchRequest& request,
+                                      const std::vector<std::string>& files) {
+  std::vector<std::string> inputs = files;
+  for (const std::string& file : files) {
+    // A scene file that is a FIFO or a device would block the read; its
+    // scene reports that itself.
+    if (!special_file_kind(file).empty()) continue;
+    try {
+      SceneRequest r = request.scene;
+      r.input = file;
+      const SceneSpec scene = scene_spec(r);
+      for (const LayerSpec& layer : scene.layers) inputs.push_back(layer.source);
+      inputs.push_back(scene.dem);
+    } catch (const error&) {
+    }
+  }
+  return inputs;
+}
+
 // Plans the batch: the scene files, the output folder (created), and each
 // scene's package, report and log paths, named after the scene file's stem.
-std::vector<BatchScene> plan_scenes(const BatchRequest& request) {
+// Every check runs before the folder is created, so a refusal writes nothing.
+std::vector<BatchScene> plan_scenes(const BatchRequest& request, const std::string& summary) {
   if (request.output_dir.empty()) fail<usage_error>(kBuildStage, "batch mode needs -o OUTDIR");
   const std::vector<std::string> files = list_scene_files(request.inputs);
-  std::error_code ec;
-  fs::create_directories(request.output_dir, ec);
-  if (!fs::is_directory(request.output_dir))
-    fail<output_error>(kBuildStage, "cannot create output folder " + request.output_dir);
+  struct stat st {};
+  if (::stat(request.output_dir.c_str(), &st) == 0 && !S_ISDIR(st.st_mode)) {
+    const std::string kind =
+        S_ISREG(st.st_mode) ? std::string("a regular file") : special_file_kind(request.output_dir);
+    fail<output_error>(kBuildStage, "batch output folder '" + request.output_dir +
+                                        "' exists and is " + kind +
+                                        ", not a folder (nothing was written)");
+  }
   std::vector<BatchScene> scenes(files.size());
   std::set<std::string> stems;
   const fs::path dir(request.output_dir);
@@ -107,6 +250,23 @@ std::vector<BatchScene> plan_scenes(const BatchRequest& request) {
     scenes[i].report = (dir / (stem + ".report.json")).string();
     scenes[i].log = (dir / (stem + ".log")).string();
   }
+  // The only files the batch writes: none may be a FIFO, a device, a folder
+  // or one of the inputs (a log opened for writing would truncate it).
+  const std::vector<std::string> inputs = batch_inputs(request, files);
+  try {
+    for (const BatchScene& s : scenes) {
+      check_output_file(s.output, "batch package", inputs);
+      check_output_file(s.report, "batch report", inputs);
+      check_output_file(s.log, "batch log", inputs);
+    }
+    check_output_file(summary, "batch summary", inputs);
+  } catch (const output_error& e) {
+    fail<output_error>(kBuildStage, e.what());
+  }
+  std::error_code ec;
+  fs::create_directories(request.output_dir, ec);
+  if (!fs::is_directory(request.output_dir))
+    fail<output_error>(kBuildStage, "cannot create output folder " + request.output_dir);
   return scenes;
 }
 
@@ -130,9 +290,12 @@ unsigned batch_jobs(const BatchRequest& request) {
   return unsigned(fit);
 }
 
+// --------------------------------------------------------------- scenes --
+
 // One ordinary single-scene build, as `decalprep build SCENE.toml` with the
 // batch's options; returns its exit code. Runs in the scene's process.
 int build_one_scene(const BatchRequest& request, const BatchScene& item) {
+  check_input_file(item.scene, "scene file");
   SceneRequest scene_request = request.scene;
   scene_request.input = item.scene;
   const SceneSpec scene = scene_spec(scene_request);
@@ -170,103 +333,274 @@ int build_one_scene(const BatchRequest& request, const BatchScene& item) {
   _exit(code);
 }
 
-RunningScene start_scene(const BatchRequest& request, BatchScene& item) {
+// Forks the scene's process. SIGINT/SIGTERM/SIGCHLD are blocked across the
+// fork so that the child cannot take one through the batch's handlers
+// before it has put the old ones back.
+RunningScene start_scene(const BatchRequest& request, BatchScene& item, BatchSignals& signals) {
   RunningScene r{&item, -1, Clock::now()};
+  sigset_t block, old;
+  sigemptyset(&block);
+  sigaddset(&block, SIGINT);
+  sigaddset(&block, SIGTERM);
+  sigaddset(&block, SIGCHLD);
+  ::pthread_sigmask(SIG_BLOCK, &block, &old);
+  const pid_t parent = ::getpid();
   r.pid = fork();
-  if (r.pid < 0) throw error("build: fork failed", ExitCode::internal);
-  if (r.pid == 0) scene_process(request, item);
+  if (r.pid == 0) {
+    // Dies with the batch, whatever kills it; a batch that died before
+    // prctl() is no longer the parent.
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (::getppid() != parent) _exit(static_cast<int>(ExitCode::terminated));
+    signals.restore_in_child();
+    ::pthread_sigmask(SIG_SETMASK, &old, nullptr);
+    scene_process(request, item);
+  }
+  const int fork_errno = errno;
+  ::pthread_sigmask(SIG_SETMASK, &old, nullptr);
+  if (r.pid < 0)
+    throw error("build: batch: fork failed: " + std::string(std::strerror(fork_errno)),
+                ExitCode::internal);
   return r;
 }
 
-// Waits for any scene's process to end and records its exit code, time,
-// peak memory and (failed) error line. Returns the scene, nullptr for a
-// process that is not one of ours, nullopt when there is none to wait for.
-std::optional<BatchScene*> collect_one(std::vector<RunningScene>& running) {
-  int status = 0;
-  struct rusage ru {};
-  const pid_t done = wait4(-1, &status, 0, &ru);
-  if (done < 0) return std::nullopt;
-  for (auto r = running.begin(); r != running.end(); ++r) {
-    if (r->pid != done) continue;
-    BatchScene& s = *r->scene;
-    s.seconds = std::chrono::duration<double>(Clock::now() - r->start).count();
-    s.peak_rss_kb = ru.ru_maxrss;
-    s.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    if (s.failed()) s.error = error_line(s.log);
-    running.erase(r);
-    return &s;
+// Records how a scene's process ended: exit code, signal, time, peak
+// memory and (failed) error line.
+void record_end(const RunningScene& r, int status, const struct rusage& ru) {
+  BatchScene& s = *r.scene;
+  s.seconds = std::chrono::duration<double>(Clock::now() - r.start).count();
+  s.peak_rss_kb = ru.ru_maxrss;
+  if (WIFSIGNALED(status)) {
+    s.signal = WTERMSIG(status);
+    s.exit_code = 128 + s.signal;
+  } else {
+    s.exit_code = WEXITSTATUS(status);
+    // A scene that caught SIGINT/SIGTERM, cleaned up and exited 130/143
+    // was stopped by that signal as much as one killed outright.
+    if (s.exit_code == static_cast<int>(ExitCode::interrupted)) s.signal = SIGINT;
+    if (s.exit_code == static_cast<int>(ExitCode::terminated)) s.signal = SIGTERM;
   }
-  return nullptr;
+  if (!s.failed()) return;
+  const std::string line = error_line(s.log);
+  if (s.signal == 0) {
+    s.error = line;
+  } else {
+    s.error = "killed by " + signal_name(s.signal);
+    if (!line.empty()) s.error += "; the log's last line: " + line;
+  }
 }
 
-// Runs every scene, at most `jobs` at once, started in input order.
-void run_scenes(const BatchRequest& request, std::vector<BatchScene>& scenes, unsigned jobs) {
+// Reaps one ended scene process without waiting. Returns its scene, or
+// nullptr when none has ended (a process not in `running` is reaped and
+// skipped).
+BatchScene* reap_one(std::vector<RunningScene>& running) {
+  for (;;) {
+    int status = 0;
+    struct rusage ru {};
+    const pid_t done = ::wait4(-1, &status, WNOHANG, &ru);
+    if (done <= 0) return nullptr;
+    for (auto r = running.begin(); r != running.end(); ++r) {
+      if (r->pid != done) continue;
+      record_end(*r, status, ru);
+      BatchScene* s = r->scene;
+      running.erase(r);
+      return s;
+    }
+  }
+}
+
+// Passes the batch's stop signal on to the running scenes and waits for
+// them, SIGKILL after kStopGrace. A scene that still ends built or partial
+// keeps that status.
+void stop_scenes(std::vector<RunningScene>& running, int sig) {
+  for (const RunningScene& r : running) ::kill(r.pid, sig);
+  const auto deadline = Clock::now() + kStopGrace;
+  bool killed = false;
+  while (!running.empty()) {
+    if (BatchScene* s = reap_one(running)) {
+      if (s->failed()) s->interrupted = true;
+      continue;
+    }
+    if (!killed && Clock::now() >= deadline) {
+      for (const RunningScene& r : running) ::kill(r.pid, SIGKILL);
+      killed = true;
+    }
+    BatchSignals::wait(100);
+  }
+}
+
+// ------------------------------------------------------------- summary --
+
+// The summary JSON (prep/pipeline.hpp run_batch). `counts` caches each
+// finished scene's manifest totals, read from its report once.
+class Summary {
+ public:
+  Summary(std::string path, size_t scenes) : path_(std::move(path)), counts_(scenes) {}
+
+  // Replaces the summary file atomically: a temp file of a name no other
+  // file has (mkstemp), renamed over it. Throws output_error.
+  void write(const BatchResult& result, const char* state, const std::vector<bool>& started) {
+    nlohmann::json summary;
+    summary["state"] = state;
+    if (result.signal != 0) summary["signal"] = signal_name(result.signal);
+    summary["packages"] = nlohmann::json::array();
+    size_t failed = 0, interrupted = 0, partial = 0, ended = 0;
+    for (size_t i = 0; i < result.scenes.size(); ++i) {
+      const BatchScene& s = result.scenes[i];
+      nlohmann::json e{{"scene", s.scene}};
+      if (s.exit_code == -1 && !s.interrupted) {
+        // Not ended yet: only while the batch runs.
+        e["status"] = started[i] ? "running" : "pending";
+        e["log"] = s.log;
+        summary["packages"].push_back(e);
+        continue;
+      }
+      ++ended;
+      e["status"] = s.status();
+      e["exit_code"] = s.exit_code;
+      e["seconds"] = s.seconds;
+      e["peak_rss_mib"] = s.peak_rss_kb / 1024.0;
+      if (s.signal != 0) e["signal"] = signal_name(s.signal);
+      if (!s.failed()) {
+        // Partial too: skip_failures dropped features; the package was written.
+        e["output"] = s.output;
+        e["report"] = s.report;
+        if (!counts_[i]) {
+          std::ifstream rin(s.report);
+          const nlohmann::json r = nlohmann::json::parse(rin, nullptr, false);
+          counts_[i] = r.is_object() && r.contains("manifest")
+                           ? r["manifest"].value("totals", nlohmann::json())
+                           : nlohmann::json();
+        }
+        if (!counts_[i]->is_null()) e["counts"] = *counts_[i];
+        if (s.partial()) ++partial;
+      } else {
+        e["error"] = s.error;
+        e["log"] = s.log;
+        ++failed;
+        if (s.interrupted) ++interrupted;
+      }
+      summary["packages"].push_back(e);
+    }
+    summary["built"] = ended - failed;
+    summary["failed"] = failed;
+    summary["partial"] = partial;
+    summary["interrupted"] = interrupted;
+    summary["jobs"] = result.jobs;
+    replace(summary.dump(2) + "\n");
+  }
+
+ private:
+  void replace(const std::string& text) {
+    const fs::path target(path_);
+    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    std::string tmp = (dir / ("." + target.filename().string() + ".XXXXXX")).string();
+    const int fd = ::mkstemp(tmp.data());
+    if (fd < 0) fail_io("cannot create a temp file beside it", errno);
+    size_t off = 0;
+    while (off < text.size()) {
+      const ssize_t n = ::write(fd, text.data() + off, text.size() - off);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        const int err = errno;
+        ::close(fd);
+        ::unlink(tmp.c_str());
+        fail_io("cannot write " + tmp, err);
+      }
+      off += size_t(n);
+    }
+    // The summary is readable as the reports are (mkstemp makes it 0600).
+    const mode_t mask = ::umask(0);
+    ::umask(mask);
+    ::fchmod(fd, 0666 & ~mask);
+    if (::close(fd) != 0 || ::rename(tmp.c_str(), path_.c_str()) != 0) {
+      const int err = errno;
+      ::unlink(tmp.c_str());
+      fail_io("cannot replace it with " + tmp, err);
+    }
+  }
+  [[noreturn]] void fail_io(const std::string& what, int err) {
+    fail<output_error>(kBuildStage, "cannot write the batch summary " + path_ + ": " + what +
+                                        (err ? std::string(": ") + std::strerror(err) : ""));
+  }
+
+  std::string path_;
+  std::vector<std::optional<nlohmann::json>> counts_;
+};
+
+// Runs every scene, at most `jobs` at once, started in input order, and
+// rewrites the summary as each ends. Returns the signal that stopped the
+// batch, 0 when every scene ran.
+int run_scenes(const BatchRequest& request, BatchResult& result, Summary& summary) {
+  std::vector<BatchScene>& scenes = result.scenes;
+  std::vector<bool> started(scenes.size(), false);
   std::vector<RunningScene> running;
   size_t next = 0, finished = 0;
   std::fflush(nullptr);
-  while (next < scenes.size() || !running.empty()) {
-    while (running.size() < jobs && next < scenes.size())
-      running.push_back(start_scene(request, scenes[next++]));
-    const std::optional<BatchScene*> ended = collect_one(running);
-    if (!ended) break;
-    if (*ended == nullptr) continue;
-    ++finished;
-    if (request.on_scene_done) request.on_scene_done(**ended, finished, scenes.size());
-  }
-}
-
-// The summary JSON (prep/pipeline.hpp run_batch) at result.summary.
-void write_summary(const BatchResult& result) {
-  nlohmann::json summary;
-  for (const BatchScene& s : result.scenes) {
-    nlohmann::json e{{"scene", s.scene},
-                     {"status", s.status()},
-                     {"exit_code", s.exit_code},
-                     {"seconds", s.seconds},
-                     {"peak_rss_mib", s.peak_rss_kb / 1024.0}};
-    if (!s.failed()) {
-      // Partial too: skip_failures dropped features; the package was written.
-      e["output"] = s.output;
-      e["report"] = s.report;
-      std::ifstream rin(s.report);
-      const nlohmann::json r = nlohmann::json::parse(rin, nullptr, false);
-      if (r.is_object() && r.contains("manifest"))
-        e["counts"] = r["manifest"].value("totals", nlohmann::json());
-    } else {
-      e["error"] = s.error;
-      e["log"] = s.log;
+  BatchSignals signals;
+  summary.write(result, "running", started);
+  while ((next < scenes.size() || !running.empty()) && g_stop_signal == 0) {
+    while (running.size() < result.jobs && next < scenes.size() && g_stop_signal == 0) {
+      started[next] = true;
+      running.push_back(start_scene(request, scenes[next++], signals));
     }
-    summary["packages"].push_back(e);
+    BatchScene* ended = reap_one(running);
+    if (!ended) {
+      BatchSignals::wait(1000);  // a bound, should SIGCHLD not have been hooked
+      continue;
+    }
+    ++finished;
+    if (g_stop_signal != 0) break;  // the scene is judged with the stop below
+    if (request.on_scene_done) request.on_scene_done(*ended, finished, scenes.size());
+    try {
+      summary.write(result, "running", started);
+    } catch (const output_error&) {
+      // The summary at the end is the one that must be written; it throws.
+    }
   }
-  summary["built"] = result.scenes.size() - result.failed;
-  summary["failed"] = result.failed;
-  summary["partial"] = result.partial;
-  summary["jobs"] = result.jobs;
-  std::ofstream out(result.summary);
-  out << summary.dump(2) << "\n";
-  if (!out) fail<output_error>(kBuildStage, "cannot write the batch summary " + result.summary);
+  const int sig = g_stop_signal;
+  if (sig == 0) return 0;
+  stop_scenes(running, sig);
+  for (BatchScene& s : scenes) {
+    // Scenes never started, and those the signal reached first (a terminal's
+    // Ctrl-C goes to the whole process group).
+    if (s.exit_code == -1 || (s.failed() && (s.signal == SIGINT || s.signal == SIGTERM)))
+      s.interrupted = true;
+    if (!s.interrupted) continue;
+    if (s.exit_code == -1)
+      s.error = "not started: the batch was stopped by " + signal_name(sig);
+    else
+      s.error = "stopped with the batch by " + signal_name(sig);
+  }
+  return sig;
 }
 
 }  // namespace
 
 BatchResult run_batch(const BatchRequest& request) {
   BatchResult result;
-  result.scenes = plan_scenes(request);
+  result.summary = request.summary.empty()
+                       ? (fs::path(request.output_dir) / "summary.json").string()
+                       : request.summary;
+  result.scenes = plan_scenes(request, result.summary);
   result.jobs = batch_jobs(request);
-  run_scenes(request, result.scenes, result.jobs);
+  Summary summary(result.summary, result.scenes.size());
+  result.signal = run_scenes(request, result, summary);
   int first_fail = 0;
   for (BatchScene& s : result.scenes) {
     if (s.partial()) ++result.partial;
     if (!s.failed()) continue;
-    if (s.exit_code == -1) s.error = error_line(s.log);  // never collected
     ++result.failed;
-    if (first_fail == 0) first_fail = s.exit_code;
+    if (s.interrupted) ++result.interrupted;
+    if (first_fail == 0) first_fail = s.signal != 0 ? kKilled : s.exit_code;
   }
-  result.summary = request.summary.empty()
-                       ? (fs::path(request.output_dir) / "summary.json").string()
-                       : request.summary;
-  write_summary(result);
-  result.exit_code = first_fail != 0 ? first_fail : result.partial > 0 ? kPartial : 0;
+  summary.write(result, result.signal != 0 ? "interrupted" : "finished",
+                std::vector<bool>(result.scenes.size(), true));
+  if (result.signal == SIGINT)
+    result.exit_code = static_cast<int>(ExitCode::interrupted);
+  else if (result.signal != 0)
+    result.exit_code = static_cast<int>(ExitCode::terminated);
+  else
+    result.exit_code = first_fail != 0 ? first_fail : result.partial > 0 ? kPartial : 0;
   return result;
 }
 

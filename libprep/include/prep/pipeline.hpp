@@ -155,35 +155,70 @@ struct BatchRequest {
 struct BatchScene {
   std::string scene;                // the scene file
   std::string output, report, log;  // in output_dir
-  int exit_code = -1;               // the process's; 128 + signal when killed
-  double seconds = 0;               // wall time
-  long peak_rss_kb = 0;             // the process's peak resident set
-  std::string error;                // failed: the log's error line (else its last line)
+  int exit_code = -1;               // the process's; 128 + signal when killed; -1 not ended
+  // The signal that ended the process (SIGKILL from the OOM killer, ...), or
+  // SIGINT/SIGTERM for a scene that exited 130/143 (it caught the signal and
+  // cleaned up); 0 when it exited by itself.
+  int signal = 0;
+  // The batch was stopped (SIGINT/SIGTERM) before this scene ended: it was
+  // never started, or was stopped with the batch.
+  bool interrupted = false;
+  double seconds = 0;    // wall time
+  long peak_rss_kb = 0;  // the process's peak resident set
+  // failed: the log's error line (else its last line); killed: "killed by
+  // SIGKILL", and the log's line after it.
+  std::string error;
 
-  bool built() const { return exit_code == 0; }
-  bool partial() const { return exit_code == static_cast<int>(ExitCode::partial); }
-  bool failed() const { return !built() && !partial(); }
-  // "built" | "partial" (package written, skip_failures dropped features) | "failed"
-  const char* status() const { return built() ? "built" : partial() ? "partial" : "failed"; }
+  bool built() const { return !interrupted && exit_code == 0; }
+  bool partial() const {
+    return !interrupted && exit_code == static_cast<int>(ExitCode::partial);
+  }
+  bool failed() const { return !built() && !partial(); }  // interrupted included
+  // "built" | "partial" (package written, skip_failures dropped features) |
+  // "failed" | "interrupted"
+  const char* status() const {
+    return interrupted ? "interrupted" : built() ? "built" : partial() ? "partial" : "failed";
+  }
 };
 
 struct BatchResult {
   std::vector<BatchScene> scenes;  // input order
   unsigned jobs = 1;               // as run (after lowering)
-  size_t failed = 0, partial = 0;  // built: scenes.size() - failed (partial included)
-  std::string summary;             // the summary JSON's path
-  // The first failed scene's exit code (input order), else ExitCode::partial
-  // when a scene is partial, else 0.
+  // built: scenes.size() - failed (partial included); failed counts the
+  // interrupted scenes too.
+  size_t failed = 0, partial = 0, interrupted = 0;
+  std::string summary;  // the summary JSON's path
+  int signal = 0;       // SIGINT or SIGTERM when the batch itself was stopped, else 0
+  // ExitCode::interrupted / terminated when the batch was stopped by SIGINT /
+  // SIGTERM; else the first failed scene's exit code (input order), a scene
+  // ended by a signal counting as ExitCode::killed; else ExitCode::partial
+  // when a scene is partial; else 0.
   int exit_code = 0;
 };
 
 // Builds every scene and writes the summary JSON: per scene its status, exit
 // code, seconds, peak RSS, and the output, report and manifest totals
-// ("counts") when written, else the error and the log; then built, failed,
-// partial and jobs. Throws usage_error (no output_dir, an input that is
-// neither a .toml nor a folder of them, two scenes with the same stem),
-// output_error (the folder or the summary cannot be written), error when fork
-// fails; a scene's own failure is only reported.
+// ("counts") when written, else the error (and "signal" when a signal ended
+// it) and the log; then built, failed, partial, interrupted, jobs and the
+// batch's "state". The summary is replaced atomically (a temp file renamed
+// over it) when the batch starts ("running", scenes "pending"), as each
+// scene ends, and at the end ("finished", or "interrupted").
+//
+// Signals: while scenes run, SIGINT and SIGTERM (unless ignored when the
+// batch began) are passed on to the running scenes; the batch then waits for
+// them (SIGKILL after 10 s), records the unfinished scenes as interrupted and
+// returns exit_code 130 / 143. Each scene's process dies with the batch's
+// (PR_SET_PDEATHSIG), so a batch killed outright leaves no scene running.
+//
+// Output: the batch writes only OUTDIR/<stem>.decals, .report.json, .log
+// and the summary (and a temp file beside the summary), and before creating
+// anything refuses with output_error an OUTDIR that exists and is not a
+// folder, and any of those names that exists and is not a regular file or
+// is an input (a scene file, a source, a DEM; prep/files.hpp). Throws
+// usage_error (no output_dir, an input that is neither a .toml nor a folder
+// of them, two scenes with the same stem), output_error (the above, the
+// folder or the summary cannot be written), error when fork fails; a scene's
+// own failure is only reported.
 BatchResult run_batch(const BatchRequest& request);
 
 }  // namespace prep
