@@ -96,6 +96,12 @@ void check_input_file(const std::string& path, const std::string& what, InputKin
 void check_output_file(const std::string& path, const std::string& what,
                        const std::vector<std::string>& inputs) {
   struct stat st {};
+  // A link is not replaced either: the rename would put a file where the
+  // user's link was, and an open() would write wherever it points.
+  if (::lstat(path.c_str(), &st) == 0 && S_ISLNK(st.st_mode))
+    throw output_error(what + " '" + path +
+                       "' is a symbolic link; decalprep replaces only a regular file (nothing "
+                       "was written)");
   if (::stat(path.c_str(), &st) == 0) {
     if (!S_ISREG(st.st_mode))
       throw output_error(what + " '" + path + "' exists and is " + kind_of(st.st_mode) +

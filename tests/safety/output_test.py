@@ -187,6 +187,27 @@ def special_targets():
         S.expect(r, 7, "not a directory")
 
 
+def link_targets():
+    """-o and --report naming a symbolic link (to a file, or dangling): the
+    link stays a link and what it points to is not created or changed."""
+    d = S.dir("links")
+    src = lines(d)
+    victim = os.path.join(d, "victim.txt")
+    with open(victim, "w") as f:
+        f.write("mine\n")
+    to_file = os.path.join(d, "to_file.decals")
+    os.symlink(victim, to_file)
+    dangling = os.path.join(d, "dangling.json")
+    os.symlink(os.path.join(d, "created_through_link.json"), dangling)
+    for args in (["-o", to_file], ["-o", os.path.join(d, "ok.decals"), "--report", dangling]):
+        r = S.run(["build", src, "--kind", "line", "--width", "3", "-q"] + args)
+        S.expect(r, 7, "symbolic link")
+    if not os.path.islink(to_file) or open(victim).read() != "mine\n":
+        raise Failure("the link or the file it points to changed")
+    if os.path.exists(os.path.join(d, "created_through_link.json")):
+        raise Failure("a file was created through a dangling link")
+
+
 def fifo_inputs():
     d = S.dir("fifo_inputs")
     fifo = os.path.join(d, "in.geojson")
@@ -301,6 +322,7 @@ S.case("a rebuild removes only the tiles the old index listed", rebuild_keeps_un
 S.case("tiles/ linked to another folder is refused, that folder untouched", tiles_symlink_refused)
 S.case("-o or --report naming an input is refused", output_is_input)
 S.case("-o or --report naming a FIFO or a device node is refused", special_targets)
+S.case("-o or --report naming a symbolic link is refused", link_targets)
 S.case("a FIFO source or scene file is refused at once", fifo_inputs)
 S.case("the report's temp file never takes a user's name", report_temp_name_untouched)
 S.case("a second build into a locked folder is refused", lock_held)

@@ -56,7 +56,8 @@ void check_input_file(const std::string& path, const std::string& what,
 std::string special_file_kind(const std::string& path);
 
 // Refuses, with output_error (exit 7), an output target that exists and is
-// not a regular file (a FIFO, a device node, a directory, a socket), and a
+// not a regular file (a FIFO, a device node, a directory, a socket, a
+// symbolic link, dangling or not), and a
 // target that is the same file as any of `inputs` (existing inputs only;
 // compared by device and inode). `what` names the output in the message
 // ("package", "report", "PNG"). Leaves everything as it was.
