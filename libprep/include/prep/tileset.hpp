@@ -30,7 +30,7 @@ constexpr double kLevelMinCellPixels = 2;
 constexpr const char* kTilesetIndexName = "tileset.json";
 // The largest tileset.json a reader parses and a writer writes
 // (formats/SPEC.md "tileset.json"): about 1.9·10^5 tiles of one layer
-// (700 bytes a tile, 230 more per layer). Parsing takes about 25 times the
+// (700 bytes a tile of one layer, 230 more per further layer). Parsing takes about 25 times the
 // text in memory, so an index at the limit costs ~3 GB; a bigger one is
 // refused before it is read.
 constexpr uint64_t kMaxTilesetIndexBytes = uint64_t(128) << 20;
