@@ -569,6 +569,10 @@ TilesetIndex read_tileset_index(const std::string& dir) {
   if (f.text(tiling, "scheme", "tiling") != "grid")
     f.bad("tiling.scheme", "only \"grid\" is defined");
   ix.tile_size = f.number(tiling, "tile_size_m", "tiling");
+  // Checked before the tiles, whose squares it gives (again in
+  // tileset_index_problem, for the writer).
+  if (!(ix.tile_size >= kMinTileSize && ix.tile_size <= kMaxTileSize))
+    f.bad("tiling.tile_size_m", "is outside [1, 4000000]");
   ix.margin = f.number(tiling, "margin_m", "tiling");
   ix.dynamic_margin = f.number(tiling, "dynamic_margin_m", "tiling");
   ix.extent = f.extent(j, "extent", "");

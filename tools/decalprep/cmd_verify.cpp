@@ -103,21 +103,30 @@ std::string tile_mismatch(const prep::TilesetIndex& ix, const prep::TileEntry& t
                   where + ".origin");
   if (why.empty() && !(at(meta, "crs_wkt") && *at(meta, "crs_wkt") == ix.frame.crs_wkt))
     why = "package metadata crs_wkt is not tileset.json frame.crs_wkt";
+  // Polygon parts are the exterior rings of poly_props (a hole is a
+  // poly_props element too); line parts and dynamic-line parts one element
+  // each.
+  uint64_t exteriors = 0;
+  for (const decal::PolyProps& pp : p.array<decal::PolyProps>(decal::BlobId::poly_props))
+    exteriors += pp.exterior < 0 ? 1 : 0;
+  auto count_of = [&](decal::BlobId id) {
+    const decal::BlobView* b = p.find(id);
+    return b ? b->count : 0;
+  };
   struct Parts {
-    decal::BlobId id;
+    uint64_t got;
+    const char* what;
     uint64_t want;
     const char* field;
   };
-  for (const Parts& k : {Parts{decal::BlobId::poly_props, t.polygons, "polygons"},
-                         Parts{decal::BlobId::line_props, t.lines, "lines"},
-                         Parts{decal::BlobId::dyn_line_props, t.dynamic_lines, "dynamic_lines"}}) {
+  for (const Parts& k : {Parts{exteriors, "exterior poly_props", t.polygons, "polygons"},
+                         Parts{count_of(decal::BlobId::line_props), "line_props", t.lines, "lines"},
+                         Parts{count_of(decal::BlobId::dyn_line_props), "dyn_line_props",
+                               t.dynamic_lines, "dynamic_lines"}}) {
     if (!why.empty()) break;
-    const decal::BlobView* b = p.find(k.id);
-    const uint64_t got = b ? b->count : 0;
-    if (got != k.want)
-      why = "the package holds " + std::to_string(got) + " " +
-            std::string(decal::find_blob_info(k.id)->name) + ", tileset.json " + where +
-            ".counts." + k.field + " = " + std::to_string(k.want);
+    if (k.got != k.want)
+      why = "the package holds " + std::to_string(k.got) + " " + k.what + ", tileset.json " +
+            where + ".counts." + k.field + " = " + std::to_string(k.want);
   }
   if (!why.empty()) return why;
   const json* manifest = at(meta, "manifest");
