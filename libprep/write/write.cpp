@@ -32,7 +32,6 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include "decal/inspect.hpp"
 #include "prep/error.hpp"
 #include "prep/progress.hpp"
 #include "prep/stage_error.hpp"
@@ -291,19 +290,6 @@ void check_metadata(const std::string& path, const std::string& metadata_json) {
                       "-byte limit readers hold it to (formats/SPEC.md \"Metadata\"); not written");
 }
 
-// The structural check `decalprep verify` runs on a package's blobs
-// (decal::validate_blobs, formats/SPEC.md "Index constraints"), run on the
-// blobs to write: a package its own verify would refuse (a line 2·10^7 m
-// wide, an index out of range) is not written. Linear in the blobs' bytes.
-void check_blobs_verify(const std::string& path, const std::vector<BlobInput>& blobs) {
-  std::vector<decal::BlobBytes> known;
-  known.reserve(blobs.size());
-  for (const BlobInput& b : blobs)
-    if (decal::find_blob_info(b.id)) known.push_back({b.id, b.count, b.bytes});
-  if (const decal::Status s = decal::validate_blobs(known); !s)
-    fail_io(path, "the package would not verify, not written: " + s.message);
-}
-
 }  // namespace
 
 void write_package_consuming(const std::string& path, PackageSource& source,
@@ -315,8 +301,6 @@ void write_package_consuming(const std::string& path, PackageSource& source,
                       std::to_string(ZSTD_minCLevel()) + ", " + std::to_string(ZSTD_maxCLevel()) +
                       "]");
   if (blobs.size() > UINT32_MAX) fail_io(path, "too many blobs");
-  for (size_t i = 0; i < blobs.size(); ++i) check_blob(path, blobs[i], blobs, i);
-  check_blobs_verify(path, blobs);
 
   uint64_t raw_bytes = 0;
   for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
@@ -326,6 +310,7 @@ void write_package_consuming(const std::string& path, PackageSource& source,
   // The table entry of blob `i` but for its place in the file.
   const auto describe = [&](size_t i) {
     const BlobInput& b = blobs[i];
+    check_blob(path, b, blobs, i);
     decal::BlobTableEntry& e = enc[i].entry;
     e.id = static_cast<uint32_t>(b.id);
     e.element_type = static_cast<uint32_t>(b.type);
