@@ -5,7 +5,7 @@ counts, a frame CRS no library reads, counts of 2^64-1, an inverted or
 1e308 extent, a negative margin, versions "1.0garbage" and
 "1.99999999999999999999", a tile that is a FIFO or a link to /dev/zero, an
 index above the size limit). `decalprep verify` (and `info` where the
-index alone is at fault) must end each with exit 5 and a message naming
+index alone is at fault, `dump --tile` for a swapped or FIFO tile) must end each with exit 5 and a message naming
 the field, within 10 s and 200 MB of peak resident memory (wait4's
 ru_maxrss of the one run), never hang or say "ok".
 
@@ -101,7 +101,9 @@ def main():
         os.rename(fa + ".tmp", fb)
         for k in ("bytes", "xxh64", "counts", "layers"):
             a[k], b[k] = b[k], a[k]
-    case("swapped_tiles", swap, ["tile.x", "tile.y"])
+    t0 = f"{index['tiles'][0]['x']},{index['tiles'][0]['y']}"
+    case("swapped_tiles", swap, ["tile.x", "tile.y", "package metadata tile"],
+         [("verify",), ("dump", "--tile", t0)])
 
     def lying_read(d, ix):
         ix["manifest"]["layers"][0]["read"] += 1
@@ -152,8 +154,7 @@ def main():
         p = os.path.join(d, ix["tiles"][0]["file"])
         os.remove(p)
         os.mkfifo(p)
-    case("fifo_tile", fifo_tile, ["FIFO"], [("verify",), ("dump", "--tile",
-                                                          f"{index['tiles'][0]['x']},{index['tiles'][0]['y']}")])
+    case("fifo_tile", fifo_tile, ["FIFO"], [("verify",), ("dump", "--tile", t0)])
 
     def dev_zero_tile(d, ix):
         p = os.path.join(d, ix["tiles"][0]["file"])
