@@ -105,7 +105,7 @@ std::string hex64(uint64_t v);
 // problem, or the text is above kMaxTilesetIndexBytes.
 std::string tileset_index_json(const TilesetIndex& index);
 
-// The first range or consistency problem of `index` as "field: what" (the
+// The first range or consistency problem of the index `ix` as "field: what" (the
 // field as tileset.json spells it, "manifest.layers[0].read"), or empty.
 // read_tileset_index and tileset_index_json both apply it, so a writer
 // never writes an index its readers refuse. Checks: the version; the frame
@@ -117,7 +117,7 @@ std::string tileset_index_json(const TilesetIndex& index);
 // every layer a level-0 tile names is the manifest's, no tile keeps more of
 // a layer than the manifest, and the level-0 tiles together hold at least
 // every feature the manifest says was kept.
-std::string tileset_index_problem(const TilesetIndex& index);
+std::string tileset_index_problem(const TilesetIndex& ix);
 
 // "MAJOR.MINOR", strictly (formats/SPEC.md "tileset.json"): two decimal
 // integers of 1 to 9 digits without sign, space or leading zero.
