@@ -77,6 +77,7 @@ def main():
         if text is not True:  # True: alter wrote tileset.json itself
             with open(os.path.join(d, "tileset.json"), "w") as f:
                 f.write(text if isinstance(text, str) else json.dumps(ix, indent=2))
+        failed_before = len(fails)
         for cmd in commands:
             args = [cmd[0], d] + list(cmd[1:])
             code, out, peak = run(tool, args)
@@ -92,6 +93,8 @@ def main():
             else:
                 passed += 1
                 print(f"[  OK  ] {what} (exit 5, {peak:.0f} MB)")
+        if len(fails) == failed_before:
+            shutil.rmtree(d)  # kept only to look at a failure (the oversized one is 140 MB)
 
     def swap(d, ix):
         a, b = ix["tiles"][0], ix["tiles"][1]
