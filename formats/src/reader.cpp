@@ -238,6 +238,14 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool w
         fmt("metadata (%llu bytes at byte %llu) runs past the end of the "
             "%llu-byte file",
             ull(h.metadata_size), ull(h.metadata_offset), ull(size)));
+  // Refused before anything parses it (formats/SPEC.md "Metadata"); also in
+  // a sizes-only read, which must reject whatever a full read rejects on the
+  // bytes it reads.
+  if (h.metadata_size > kMaxMetadataBytes)
+    return Status::failure(
+        fmt("metadata_size %llu at byte 64 is above the reader's limit of "
+            "%llu bytes (formats/SPEC.md \"Metadata\")",
+            ull(h.metadata_size), ull(kMaxMetadataBytes)));
   const char* m = whole ? reinterpret_cast<const char*>(base + h.metadata_offset) : nullptr;
   if (whole) {
     const uint64_t meta_sum = xxh64(base + h.metadata_offset, h.metadata_size);
@@ -496,23 +504,49 @@ Status Package::from_memory(std::span<const std::byte> bytes, Package& out,
 
 namespace {
 
-// Opens path for reading; it must be a regular file. On success fd is open
-// (the caller closes it) and size is the file's size.
-Status open_regular_file(const std::string& path, int& fd, uint64_t& size) {
-  fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0)
-    return Status::failure(fmt("cannot open '%s': %s", path.c_str(), std::strerror(errno)));
-  struct stat st;
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    ::close(fd);
-    fd = -1;
-    return Status::failure(fmt("'%s' is not a regular file", path.c_str()));
-  }
-  size = static_cast<uint64_t>(st.st_size);
-  return Status::success();
+// What a file of mode `mode` is, for a refusal: "a FIFO (named pipe)".
+const char* file_kind(mode_t mode) {
+  if (S_ISFIFO(mode)) return "a FIFO (named pipe)";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISSOCK(mode)) return "a socket";
+  if (S_ISDIR(mode)) return "a directory";
+  return "not a regular file";
 }
 
 }  // namespace
+
+Status open_regular_file(const std::string& path, int& fd, uint64_t& size) {
+  fd = -1;
+  size = 0;
+  // O_NONBLOCK: open() of a FIFO without a writer (or of some devices)
+  // would block before fstat() could refuse it. A FIFO, a device, a socket
+  // or a directory is refused before a byte is read; a regular file then
+  // reads as usual (O_NONBLOCK has no effect on it, but is cleared anyway).
+  const int got = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+  if (got < 0)
+    return Status::failure(fmt("cannot open '%s': %s", path.c_str(), std::strerror(errno)));
+  struct stat st;
+  if (::fstat(got, &st) != 0) {
+    const int err = errno;
+    ::close(got);
+    return Status::failure(fmt("cannot stat '%s': %s", path.c_str(), std::strerror(err)));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    ::close(got);
+    return Status::failure(fmt("'%s' is %s, not a regular file: refused before reading",
+                               path.c_str(), file_kind(st.st_mode)));
+  }
+  const int flags = ::fcntl(got, F_GETFL);
+  if (flags < 0 || ::fcntl(got, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+    const int err = errno;
+    ::close(got);
+    return Status::failure(fmt("cannot read '%s': %s", path.c_str(), std::strerror(err)));
+  }
+  fd = got;
+  size = static_cast<uint64_t>(st.st_size);
+  return Status::success();
+}
 
 Status Package::open(const std::string& path, Package& out, const OpenOptions& opt) {
   out = Package();

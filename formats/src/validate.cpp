@@ -142,7 +142,7 @@ Status check_lines(const Checker& c) {
   const auto props = c.get<LineProps>(BlobId::line_props);
   for (uint64_t i = 0; i < props.size(); ++i) {
     const LineProps p = props[i];
-    if (!(p.half_width >= 0.0f && p.half_width < 1e7f))
+    if (!(p.half_width >= 0.0f && p.half_width < kMaxHalfWidthMetres))
       return Status::failure(fmt("line_props[%llu].half_width = %g is not in [0, 1e7) metres",
                                  ull(i), double(p.half_width)));
     // A clipped outline's ring quad-tree lives in the polygon node arrays

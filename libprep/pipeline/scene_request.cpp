@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <sstream>
 
+#include "decal/format.hpp"
 #include "prep/error.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/read.hpp"
@@ -63,6 +64,14 @@ LayerSpec fileless_layer(const std::string& source, const FilelessLayer& a) {
   if (!a.color.empty()) l.style.color.rgba = parse_color(a.color);
   if (a.width) {
     if (!(*a.width > 0)) throw usage_error("--width: must be > 0");
+    // A static line's half width in a package is below kMaxHalfWidthMetres
+    // (formats/SPEC.md "Index constraints"); the writer refuses the rest.
+    if (!a.dynamic && !(*a.width < 2.0 * double(decal::kMaxHalfWidthMetres))) {
+      char v[32];
+      std::snprintf(v, sizeof v, "%g", *a.width);
+      throw usage_error(std::string("--width: ") + v +
+                        " m is too wide: a static line must be narrower than 2e7 m");
+    }
     l.style.width = *a.width;
   } else if (l.dynamic) {
     l.style.width = 3.0;  // pixels

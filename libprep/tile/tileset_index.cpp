@@ -1,16 +1,20 @@
 // The tileset index, tileset.json (formats/SPEC.md "Tilesets"): written by
 // the pipeline, read as untrusted input by every tool that takes a tileset.
+#include <ogr_spatialref.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <xxhash.h>
 
+#include <cerrno>
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
-#include <sstream>
 
+#include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/tileset.hpp"
@@ -200,6 +204,179 @@ std::vector<const TileEntry*> meeting(const std::vector<TileEntry>& tiles, const
 
 }  // namespace
 
+namespace {
+
+// What check_tileset_index found first, as "field: what".
+class IndexProblem {
+ public:
+  bool found() const { return !text_.empty(); }
+  const std::string& text() const { return text_; }
+  void bad(const std::string& field, const std::string& what) {
+    if (text_.empty()) text_ = field + ": " + what;
+  }
+  void count(const std::string& field, uint64_t v) {
+    if (v > kMaxTilesetCount)
+      bad(field, std::to_string(v) + " is above 2^53, the largest count an index holds");
+  }
+  void coordinate(const std::string& field, double v) {
+    if (!std::isfinite(v) || std::fabs(v) > kMaxTilesetCoordinate)
+      bad(field, number_text(v) + " is not a finite coordinate within +-1e12 m");
+  }
+  void length(const std::string& field, double v) {
+    if (!std::isfinite(v) || v < 0 || v > kMaxTilesetCoordinate)
+      bad(field, number_text(v) + " is not in [0, 1e12] m");
+  }
+  void extent(const std::string& field, const Extent& e) {
+    coordinate(field + "[0]", e.xmin);
+    coordinate(field + "[1]", e.ymin);
+    coordinate(field + "[2]", e.xmax);
+    coordinate(field + "[3]", e.ymax);
+    if (!found() && (e.xmin > e.xmax || e.ymin > e.ymax))
+      bad(field, "[" + number_text(e.xmin) + ", " + number_text(e.ymin) + ", " +
+                     number_text(e.xmax) + ", " + number_text(e.ymax) +
+                     "] is inverted (xmin > xmax or ymin > ymax)");
+  }
+  // A layer record of the manifest or of a tile (`tile`: read = kept).
+  void layer(const std::string& w, const LayerCounts& c, bool tile) {
+    count(w + ".read", c.read);
+    count(w + ".kept", c.kept);
+    count(w + ".repaired", c.repaired);
+    count(w + ".clipped_away", c.clipped_away);
+    count(w + ".dropped", c.dropped);
+    count(w + ".parts", c.parts);
+    count(w + ".vertices_in", c.vertices_in);
+    count(w + ".vertices_out", c.vertices_out);
+    if (found()) return;
+    // Each at most 2^53: the sum cannot wrap.
+    if (c.read != c.kept + c.clipped_away + c.dropped)
+      bad(w, "read " + std::to_string(c.read) + " is not kept + clipped_away + dropped (" +
+                 std::to_string(c.kept) + " + " + std::to_string(c.clipped_away) + " + " +
+                 std::to_string(c.dropped) + ")");
+    else if (c.repaired > c.kept)
+      bad(w + ".repaired",
+          std::to_string(c.repaired) + " is more than kept " + std::to_string(c.kept));
+    else if (tile && (c.clipped_away != 0 || c.dropped != 0))
+      bad(w, "a tile's layer counts have read = kept, no clipped_away or dropped");
+  }
+  static std::string number_text(double v) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return b;
+  }
+
+ private:
+  std::string text_;
+};
+
+// The tiles of one level against the scene's manifest: every layer a tile
+// names is the manifest's, no tile keeps more features of a layer than the
+// scene kept, and every kept feature lies in some tile (a feature kept has a
+// part, and every part reaches at least one tile).
+void check_tiles(IndexProblem& p, const TilesetIndex& ix, const std::vector<TileEntry>& tiles,
+                 const std::string& where) {
+  std::map<std::string, uint64_t> scene_kept, in_tiles;
+  for (const LayerCounts& c : ix.manifest.layers) scene_kept[c.layer] = c.kept;
+  for (size_t i = 0; i < tiles.size() && !p.found(); ++i) {
+    const TileEntry& t = tiles[i];
+    const std::string w = where + "[" + std::to_string(i) + "]";
+    p.count(w + ".bytes", t.bytes);
+    p.count(w + ".counts.polygons", t.polygons);
+    p.count(w + ".counts.lines", t.lines);
+    p.count(w + ".counts.dynamic_lines", t.dynamic_lines);
+    for (size_t k = 0; k < t.layers.size() && !p.found(); ++k) {
+      const LayerCounts& c = t.layers[k];
+      const std::string wl = w + ".layers[" + std::to_string(k) + "]";
+      p.layer(wl, c, true);
+      auto it = scene_kept.find(c.layer);
+      if (p.found()) break;
+      if (it == scene_kept.end()) {
+        p.bad(wl + ".layer", "'" + c.layer + "' is not a layer of manifest.layers");
+      } else if (c.kept > it->second) {
+        p.bad(wl + ".kept", std::to_string(c.kept) + " features, more than the " +
+                                std::to_string(it->second) + " manifest.layers says '" + c.layer +
+                                "' kept");
+      } else {
+        uint64_t& sum = in_tiles[c.layer];
+        sum = std::min(sum + c.kept, kMaxTilesetCount + 1);  // both <= 2^53: no wrap
+      }
+    }
+  }
+  for (size_t i = 0; i < ix.manifest.layers.size() && !p.found(); ++i) {
+    const LayerCounts& c = ix.manifest.layers[i];
+    if (in_tiles[c.layer] < c.kept)
+      p.bad("manifest.layers[" + std::to_string(i) + "].kept",
+            std::to_string(c.kept) + " features of '" + c.layer + "' kept, but the " +
+                std::to_string(tiles.size()) + " tiles of " + where + " hold " +
+                std::to_string(in_tiles[c.layer]) + " of them in all");
+  }
+}
+
+}  // namespace
+
+std::string tileset_index_problem(const TilesetIndex& ix) {
+  IndexProblem p;
+  if (ix.major != kTilesetMajor || ix.minor < 0)
+    p.bad("tileset_version",
+          std::to_string(ix.major) + "." + std::to_string(ix.minor) +
+              " is not supported (this reader: " + std::to_string(kTilesetMajor) + ".x)");
+  if (!p.found()) {
+    // PROJ through GDAL, as every stage that takes a CRS: a frame no CRS
+    // library reads would leave every consumer guessing (render would drape
+    // nothing on flat terrain).
+    OGRSpatialReference srs;
+    if (ix.frame.crs_wkt.empty() || srs.importFromWkt(ix.frame.crs_wkt.c_str()) != OGRERR_NONE)
+      p.bad("frame.crs_wkt", "'" + ix.frame.crs_wkt.substr(0, 60) +
+                                 (ix.frame.crs_wkt.size() > 60 ? "..." : "") +
+                                 "' is not a CRS WKT PROJ can read");
+  }
+  p.coordinate("frame.origin[0]", ix.frame.origin_x);
+  p.coordinate("frame.origin[1]", ix.frame.origin_y);
+  if (!(ix.tile_size >= kMinTileSize && ix.tile_size <= kMaxTileSize))
+    p.bad("tiling.tile_size_m",
+          IndexProblem::number_text(ix.tile_size) + " is outside [1, 4000000]");
+  p.length("tiling.margin_m", ix.margin);
+  p.length("tiling.dynamic_margin_m", ix.dynamic_margin);
+  p.extent("extent", ix.extent);
+  if (!std::isfinite(ix.resolution) || ix.resolution < 0 || ix.resolution > kMaxTilesetCoordinate)
+    p.bad("resolution_m", IndexProblem::number_text(ix.resolution) + " is not in [0, 1e12] m");
+  p.count("manifest.entry_count", ix.entry_count);
+  p.count("manifest.bytes", ix.manifest_bytes);
+  std::set<std::string> names;
+  for (size_t i = 0; i < ix.manifest.layers.size() && !p.found(); ++i) {
+    const std::string w = "manifest.layers[" + std::to_string(i) + "]";
+    p.layer(w, ix.manifest.layers[i], false);
+    if (!names.insert(ix.manifest.layers[i].layer).second)
+      p.bad(w + ".layer", "'" + ix.manifest.layers[i].layer + "' is listed twice");
+  }
+  if (!p.found()) check_tiles(p, ix, ix.tiles, "tiles");
+  for (size_t l = 0; l < ix.levels.size() && !p.found(); ++l) {
+    const TileLevel& lv = ix.levels[l];
+    const std::string w = "levels[" + std::to_string(l) + "]";
+    for (size_t k = 0; k < lv.layers.size() && !p.found(); ++k) {
+      const LayerCounts& c = lv.layers[k];
+      const std::string wl = w + ".layers[" + std::to_string(k) + "]";
+      p.count(wl + ".parts_in", c.read);
+      p.count(wl + ".parts", c.parts);
+      p.count(wl + ".dropped_small", c.dropped_small);
+      p.count(wl + ".vertices_in", c.vertices_in);
+      p.count(wl + ".vertices_out", c.vertices_out);
+      if (!p.found() && c.read != c.parts + c.dropped_small)
+        p.bad(wl, "parts_in is not parts + dropped_small");
+    }
+    for (size_t i = 0; i < lv.tiles.size() && !p.found(); ++i) {
+      const TileEntry& t = lv.tiles[i];
+      const std::string wt = w + ".tiles[" + std::to_string(i) + "]";
+      p.count(wt + ".bytes", t.bytes);
+      p.count(wt + ".counts.polygons", t.polygons);
+      p.count(wt + ".counts.lines", t.lines);
+      p.count(wt + ".counts.dynamic_lines", t.dynamic_lines);
+      for (size_t k = 0; k < t.layers.size(); ++k)
+        p.layer(wt + ".layers[" + std::to_string(k) + "]", t.layers[k], true);
+    }
+  }
+  return p.text();
+}
+
 TileLevel level_parameters(double tile_size, int level) {
   TileLevel l;
   l.level = level;
@@ -215,19 +392,33 @@ std::string tile_file(int level, const TileKey& key) {
   return "tiles/L" + std::to_string(level) + "/" + tile_name(key) + ".decals";
 }
 
-std::optional<FileDigest> file_digest(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return std::nullopt;
+std::optional<FileDigest> file_digest(const std::string& path, std::string* why) {
+  // The reader's open: a FIFO or a device (a tile symlinked to /dev/zero)
+  // is refused before a byte is read, never read forever.
+  int fd = -1;
+  uint64_t size = 0;
+  if (const decal::Status s = decal::open_regular_file(path, fd, size); !s) {
+    if (why) *why = s.message;
+    return std::nullopt;
+  }
   XXH64_state_t* st = XXH64_createState();
   XXH64_reset(st, 0);
   std::vector<char> buf(1 << 16);
   FileDigest d;
-  while (in) {
-    in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-    const auto n = static_cast<size_t>(in.gcount());
-    XXH64_update(st, buf.data(), n);
-    d.bytes += n;
+  for (;;) {
+    const ssize_t n = ::read(fd, buf.data(), buf.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      if (why) *why = "cannot read '" + path + "': " + std::strerror(errno);
+      ::close(fd);
+      XXH64_freeState(st);
+      return std::nullopt;
+    }
+    if (n == 0) break;
+    XXH64_update(st, buf.data(), static_cast<size_t>(n));
+    d.bytes += static_cast<uint64_t>(n);
   }
+  ::close(fd);
   d.xxh64 = XXH64_digest(st);
   XXH64_freeState(st);
   return d;
@@ -240,6 +431,12 @@ std::string hex64(uint64_t v) {
 }
 
 std::string tileset_index_json(const TilesetIndex& index) {
+  // The writer never writes what the reader refuses (read_tileset_index runs
+  // the same check), so a build fails here, before tileset.json is renamed
+  // into place.
+  if (const std::string why = tileset_index_problem(index); !why.empty())
+    throw output_error("tileset: " + std::string(kTilesetIndexName) +
+                       " would not verify, not written: " + why);
   json j;
   j["tileset_version"] = std::to_string(index.major) + "." + std::to_string(index.minor);
   j["generator"] = index.generator;
@@ -277,7 +474,35 @@ std::string tileset_index_json(const TilesetIndex& index) {
     }
     j["levels"] = std::move(levels);
   }
-  return j.dump(2) + "\n";
+  std::string text = j.dump(2) + "\n";
+  if (text.size() > kMaxTilesetIndexBytes)
+    throw output_error("tileset: " + std::string(kTilesetIndexName) + " would be " +
+                       std::to_string(text.size()) + " bytes, above the " +
+                       std::to_string(kMaxTilesetIndexBytes) +
+                       "-byte limit readers hold it to (formats/SPEC.md \"tileset.json\"): " +
+                       std::to_string(index.tiles.size()) +
+                       " tiles; a larger --tile-size makes fewer; not written");
+  return text;
+}
+
+bool parse_tileset_version(const std::string& text, int& major, int& minor) {
+  // Digits only: no sign, space, exponent or trailing text ("1.0garbage"),
+  // at most 9 of them so the value fits an int ("1.99999999999999999999"),
+  // and no leading zero, so that one version has one spelling.
+  auto number = [](std::string_view d, int& out) {
+    if (d.empty() || d.size() > 9 || (d.size() > 1 && d[0] == '0')) return false;
+    int v = 0;
+    for (char c : d) {
+      if (c < '0' || c > '9') return false;
+      v = v * 10 + (c - '0');
+    }
+    out = v;
+    return true;
+  };
+  const size_t dot = text.find('.');
+  if (dot == std::string::npos) return false;
+  const std::string_view t(text);
+  return number(t.substr(0, dot), major) && number(t.substr(dot + 1), minor);
 }
 
 bool is_tileset(const std::string& path) {
@@ -288,21 +513,46 @@ bool is_tileset(const std::string& path) {
 
 TilesetIndex read_tileset_index(const std::string& dir) {
   const std::string path = dir + "/" + kTilesetIndexName;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw error("cannot read " + path, ExitCode::input);
-  std::ostringstream text;
-  text << in.rdbuf();
+  // The reader's open (no FIFO or device), then the size limit, both before
+  // a byte is parsed: a JSON DOM takes about 25 times its text.
+  int fd = -1;
+  uint64_t size = 0;
+  if (const decal::Status s = decal::open_regular_file(path, fd, size); !s)
+    throw error("cannot read the tileset index: " + s.message, ExitCode::input);
+  if (size > kMaxTilesetIndexBytes) {
+    ::close(fd);
+    throw format_error(path + ": " + std::to_string(size) + " bytes, above the " +
+                       std::to_string(kMaxTilesetIndexBytes) +
+                       "-byte limit of an index (formats/SPEC.md \"tileset.json\"); not parsed");
+  }
+  std::string text(static_cast<size_t>(size), '\0');
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::read(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = errno;
+      ::close(fd);
+      throw error("cannot read " + path + ": " + (n == 0 ? "file shrank" : std::strerror(err)),
+                  ExitCode::input);
+    }
+    done += static_cast<size_t>(n);
+  }
+  ::close(fd);
   json j;
   try {
-    j = json::parse(text.str());
+    j = json::parse(text);
   } catch (const json::exception& e) {
     throw format_error(path + ": not JSON: " + e.what());
   }
+  text = std::string();
   const Fields f(path);
   TilesetIndex ix;
   const std::string version = f.text(j, "tileset_version", "");
-  if (std::sscanf(version.c_str(), "%d.%d", &ix.major, &ix.minor) != 2)
-    f.bad("tileset_version", "'" + version + "' is not MAJOR.MINOR");
+  if (!parse_tileset_version(version, ix.major, ix.minor))
+    f.bad("tileset_version", "'" + version +
+                                 "' is not MAJOR.MINOR (two decimal integers below 10^9, no sign, "
+                                 "space or leading zero)");
   if (ix.major != kTilesetMajor)
     f.bad("tileset_version", "version " + version + " is not supported (this reader: " +
                                  std::to_string(kTilesetMajor) + ".x)");
@@ -319,6 +569,8 @@ TilesetIndex read_tileset_index(const std::string& dir) {
   if (f.text(tiling, "scheme", "tiling") != "grid")
     f.bad("tiling.scheme", "only \"grid\" is defined");
   ix.tile_size = f.number(tiling, "tile_size_m", "tiling");
+  // Checked before the tiles, whose squares it gives (again in
+  // tileset_index_problem, for the writer).
   if (!(ix.tile_size >= kMinTileSize && ix.tile_size <= kMaxTileSize))
     f.bad("tiling.tile_size_m", "is outside [1, 4000000]");
   ix.margin = f.number(tiling, "margin_m", "tiling");
@@ -385,6 +637,8 @@ TilesetIndex read_tileset_index(const std::string& dir) {
       ix.levels.push_back(std::move(lv));
     }
   }
+  if (const std::string why = tileset_index_problem(ix); !why.empty())
+    throw format_error(path + ": " + why);
   return ix;
 }
 

@@ -5,6 +5,7 @@
 #include <span>
 #include <string>
 
+#include "decal/inspect.hpp"
 #include "prep/error.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/stage_error.hpp"
@@ -48,6 +49,24 @@ void merge(json& base, const json& extra, const std::string& where, const std::s
   }
 }
 
+// The structural check `decalprep verify` runs on a package's blobs
+// (decal::validate_blobs, formats/SPEC.md "Index constraints"), on a
+// model's blobs before any byte is written: the build never writes a
+// package its own verify refuses (a line 2·10^7 m wide, an index out of
+// range). write_package itself stays a raw writer (tests make hostile
+// packages with it). Linear in the blobs' bytes.
+void check_blobs_verify(const std::string& path, const std::vector<BlobInput>& blobs) {
+  std::vector<decal::BlobBytes> known;
+  known.reserve(blobs.size());
+  for (const BlobInput& b : blobs)
+    if (decal::find_blob_info(b.id) && b.stride == decal::find_blob_info(b.id)->stride &&
+        b.bytes.size() == b.count * uint64_t(b.stride))
+      known.push_back({b.id, b.count, b.bytes});
+  if (const decal::Status s = decal::validate_blobs(known); !s)
+    fail<output_error>(kWriteStage,
+                       path + ": the package would not verify, not written: " + s.message);
+}
+
 // write_model of `model`'s blobs `blobs` (model_blobs or take_model_blobs:
 // the model's blob arrays are not read here, they may have been taken).
 void write_model_blobs(const std::string& path, const DecalModel& model,
@@ -65,6 +84,7 @@ void write_model_blobs(const std::string& path, const DecalModel& model,
   }
   // The writer compresses the model's arrays while one of its threads makes
   // the metadata.
+  if (options.check_blobs) check_blobs_verify(path, blobs_in);
   PackageSource source;
   source.blobs = std::move(blobs_in);
   std::vector<BlobInput>& blobs = source.blobs;

@@ -284,6 +284,10 @@ void check_metadata(const std::string& path, const std::string& metadata_json) {
   if (metadata_json.size() < 2 || metadata_json.front() != '{' || metadata_json.back() != '}' ||
       metadata_json.find('\0') != std::string::npos)
     fail_io(path, "metadata must be a JSON object text ('{' ... '}', no NUL bytes)");
+  if (metadata_json.size() > decal::kMaxMetadataBytes)
+    fail_io(path, "metadata of " + std::to_string(metadata_json.size()) + " bytes is above the " +
+                      std::to_string(decal::kMaxMetadataBytes) +
+                      "-byte limit readers hold it to (formats/SPEC.md \"Metadata\"); not written");
 }
 
 }  // namespace

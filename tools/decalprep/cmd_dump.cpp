@@ -382,10 +382,43 @@ std::string tile_package(const std::string& path, const std::string& tile, int l
                           "` lists them)");
 }
 
-void run_dump(const std::string& path, bool as_json, bool summary, const std::string& only) {
+// A tileset's tile must be the tile its index entry names: its metadata's
+// `tile` key and level (formats/SPEC.md "tileset.json"), so that a tile
+// swapped on disk (its size and hash swapped in the index too) is refused,
+// not dumped as the other one.
+void check_tile_key(const decal::Package& p, const std::string& path, long long x, long long y,
+                    int level) {
+  json meta;
+  try {
+    meta = json::parse(p.metadata_json());
+  } catch (const json::exception& e) {
+    throw prep::format_error("dump: " + path + ": metadata is not valid JSON: " + e.what());
+  }
+  const json* tile = meta.is_object() && meta.contains("tile") ? &meta["tile"] : nullptr;
+  const json want = {{"x", x}, {"y", y}, {"level", level}};
+  json got = {{"x", nullptr}, {"y", nullptr}, {"level", 0}};
+  if (tile && tile->is_object())
+    for (auto& [k, v] : got.items())
+      if (tile->contains(k)) v = (*tile)[k];
+  if (got != want)
+    throw prep::format_error("dump: " + path + ": package metadata tile " + got.dump() +
+                             " is not the index's tile " + want.dump() +
+                             " (`decalprep verify` checks the whole tileset)");
+}
+
+// `tile`: the key and level of a tileset's tile, checked against the
+// package's own metadata; null for a package.
+struct TileRequest {
+  long long x = 0, y = 0;
+  int level = 0;
+};
+
+void run_dump(const std::string& path, bool as_json, bool summary, const std::string& only,
+              const TileRequest* tile = nullptr) {
   decal::Package p;
   if (decal::Status s = decal::Package::open(path, p); !s)
     throw prep::format_error("dump: " + s.message);
+  if (tile) check_tile_key(p, path, tile->x, tile->y, tile->level);
   bool found = only.empty();
   for (const auto& b : p.blobs()) found = found || b.name == only;
   if (!found) throw prep::usage_error("dump: " + path + " has no blob named '" + only + "'");
@@ -496,7 +529,13 @@ const decalprep::CommandRegistrar kDump(22, [](CLI::App& app) {
       ->excludes(json_flag);
   cmd->add_option("--blob", *only, "only the blob with this name (e.g. line_vertices)");
   cmd->callback([path, as_json, summary, only, tile, level] {
-    run_dump(tile_package(*path, *tile, *level), *as_json, *summary, *only);
+    const std::string package = tile_package(*path, *tile, *level);
+    TileRequest key;
+    key.level = *level;
+    char end = 0;
+    const bool is_tile =
+        package != *path && std::sscanf(tile->c_str(), "%lld,%lld%c", &key.x, &key.y, &end) == 2;
+    run_dump(package, *as_json, *summary, *only, is_tile ? &key : nullptr);
     decalprep::set_exit_code(prep::ExitCode::ok);
   });
 });

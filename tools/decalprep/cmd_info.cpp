@@ -18,6 +18,7 @@
 
 #include "command.hpp"
 #include "decal/inspect.hpp"
+#include "decal/reader.hpp"
 #include "prep/tileset.hpp"
 
 namespace {
@@ -29,15 +30,12 @@ using json = nlohmann::ordered_json;
 class MappedFile {
  public:
   explicit MappedFile(const std::string& path) {
-    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0)
-      throw prep::input_error("info: cannot open '" + path + "': " + std::strerror(errno));
-    struct stat st;
-    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-      ::close(fd);
-      throw prep::input_error("info: '" + path + "' is not a regular file");
-    }
-    size_ = static_cast<size_t>(st.st_size);
+    // The reader's open: a FIFO or a device is refused without blocking.
+    int fd = -1;
+    uint64_t size = 0;
+    if (const decal::Status s = decal::open_regular_file(path, fd, size); !s)
+      throw prep::input_error("info: " + s.message);
+    size_ = static_cast<size_t>(size);
     if (size_ > 0) {
       void* m = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
       if (m == MAP_FAILED) {

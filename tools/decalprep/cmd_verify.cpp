@@ -10,6 +10,7 @@
 #include "command.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
+#include "prep/manifest_json.hpp"
 #include "prep/tileset.hpp"
 
 namespace {
@@ -37,7 +38,10 @@ decal::Status check_metadata(const decal::Package& p) {
   return decal::Status::success();
 }
 
-decal::Status verify_one(const std::string& path, std::string& summary) {
+// `meta`, when given, receives the package's metadata (checked to be a
+// JSON object).
+decal::Status verify_one(const std::string& path, std::string& summary,
+                         nlohmann::json* meta = nullptr, decal::Package* opened = nullptr) {
   decal::Package p;
   decal::OpenOptions opt;
   opt.verify_checksums = true;
@@ -46,16 +50,97 @@ decal::Status verify_one(const std::string& path, std::string& summary) {
     return decal::Status::failure(path + ": " + s.message);
   if (decal::Status s = check_metadata(p); !s)
     return decal::Status::failure(path + ": " + s.message);
+  if (meta) *meta = nlohmann::json::parse(p.metadata_json());  // check_metadata parsed it
   uint64_t raw = 0;
   for (const auto& b : p.blobs()) raw += b.bytes.size();
   summary = "v" + std::to_string(p.major()) + "." + std::to_string(p.minor()) + ", " +
             std::to_string(p.blobs().size()) + " blobs, " + std::to_string(raw) + " raw bytes";
+  if (opened) *opened = std::move(p);
   return decal::Status::success();
 }
 
-// A tileset: the index, manifest.json's and every tile's bytes and XXH64
-// against the index, then every tile as a package. Returns false when any
-// fails (each failure printed).
+// What a tile's package says of itself against what the index says of the
+// tile (formats/SPEC.md "tileset.json"): the key, square, tile size,
+// margin and level in its metadata's `tile`, its origin, its frame CRS,
+// its parts (the poly_props, line_props and dyn_line_props counts) and its
+// per-layer counts. Empty when they agree, else the first difference,
+// naming the metadata field and the index field. Catches tiles swapped
+// with their bytes and hashes in the index, which the hashes cannot.
+std::string tile_mismatch(const prep::TilesetIndex& ix, const prep::TileEntry& t,
+                          const std::string& where, int level, double tile_size,
+                          const decal::Package& p, const nlohmann::json& meta) {
+  using nlohmann::json;
+  auto differs = [&](const std::string& field, const json* got, const json& want,
+                     const std::string& index_field) -> std::string {
+    if (got && *got == want) return "";
+    return "package metadata " + field + " = " + (got ? got->dump() : std::string("(missing)")) +
+           ", tileset.json " + index_field + " = " + want.dump();
+  };
+  auto at = [](const json& j, const char* key) -> const json* {
+    if (!j.is_object()) return nullptr;
+    auto it = j.find(key);
+    return it == j.end() ? nullptr : &*it;
+  };
+  const json* tile = at(meta, "tile");
+  if (!tile || !tile->is_object()) return "package metadata has no \"tile\" object";
+  std::string why = differs("tile.x", at(*tile, "x"), t.key.x, where + ".x");
+  if (why.empty()) why = differs("tile.y", at(*tile, "y"), t.key.y, where + ".y");
+  if (why.empty() && level > 0) why = differs("tile.level", at(*tile, "level"), level, "level");
+  if (why.empty() && level == 0 && at(*tile, "level") && *at(*tile, "level") != 0)
+    why = "package metadata tile.level = " + at(*tile, "level")->dump() + ", a level-0 tile";
+  if (why.empty())
+    why = differs("tile.square", at(*tile, "square"),
+                  json::array({t.square.xmin, t.square.ymin, t.square.xmax, t.square.ymax}),
+                  where + ".square");
+  if (why.empty())
+    why = differs("tile.tile_size_m", at(*tile, "tile_size_m"), tile_size,
+                  level ? "levels[" + std::to_string(level - 1) + "].tile_size_m"
+                        : std::string("tiling.tile_size_m"));
+  if (why.empty())
+    why = differs("tile.margin_m", at(*tile, "margin_m"), ix.margin, "tiling.margin_m");
+  if (why.empty())
+    why = differs("origin", at(meta, "origin"), json{{"x", t.origin_x}, {"y", t.origin_y}},
+                  where + ".origin");
+  if (why.empty() && !(at(meta, "crs_wkt") && *at(meta, "crs_wkt") == ix.frame.crs_wkt))
+    why = "package metadata crs_wkt is not tileset.json frame.crs_wkt";
+  // Polygon parts are the exterior rings of poly_props (a hole is a
+  // poly_props element too); line parts and dynamic-line parts one element
+  // each.
+  uint64_t exteriors = 0;
+  for (const decal::PolyProps& pp : p.array<decal::PolyProps>(decal::BlobId::poly_props))
+    exteriors += pp.exterior < 0 ? 1 : 0;
+  auto count_of = [&](decal::BlobId id) {
+    const decal::BlobView* b = p.find(id);
+    return b ? b->count : 0;
+  };
+  struct Parts {
+    uint64_t got;
+    const char* what;
+    uint64_t want;
+    const char* field;
+  };
+  for (const Parts& k : {Parts{exteriors, "exterior poly_props", t.polygons, "polygons"},
+                         Parts{count_of(decal::BlobId::line_props), "line_props", t.lines, "lines"},
+                         Parts{count_of(decal::BlobId::dyn_line_props), "dyn_line_props",
+                               t.dynamic_lines, "dynamic_lines"}}) {
+    if (!why.empty()) break;
+    if (k.got != k.want)
+      why = "the package holds " + std::to_string(k.got) + " " + k.what + ", tileset.json " +
+            where + ".counts." + k.field + " = " + std::to_string(k.want);
+  }
+  if (!why.empty()) return why;
+  const json* manifest = at(meta, "manifest");
+  const json* layers = manifest ? at(*manifest, "layers") : nullptr;
+  json want = json::array();
+  for (const prep::LayerCounts& c : t.layers) want.push_back(prep::layer_counts_json(c));
+  return differs("manifest.layers", layers, want, where + ".layers");
+}
+
+// A tileset: the index (read_tileset_index checks its fields, ranges and
+// its manifest against its tiles' counts), manifest.json's and every
+// tile's bytes and XXH64 against the index, every tile as a package, and
+// what each tile's package says of itself against its index entry.
+// Returns false when any fails (each failure printed).
 bool verify_tileset(const std::string& dir) {
   prep::TilesetIndex ix;
   try {
@@ -67,10 +152,10 @@ bool verify_tileset(const std::string& dir) {
   bool good = true;
   auto check_file = [&](const std::string& rel, uint64_t bytes, uint64_t hash) {
     const std::string path = dir + "/" + rel;
-    const std::optional<prep::FileDigest> d = prep::file_digest(path);
     std::string why;
+    const std::optional<prep::FileDigest> d = prep::file_digest(path, &why);
     if (!d)
-      why = "missing";
+      why = why.empty() ? "missing" : why;
     else if (d->bytes != bytes)
       why = std::to_string(d->bytes) + " bytes, tileset.json says " + std::to_string(bytes);
     else if (d->xxh64 != hash)
@@ -81,22 +166,33 @@ bool verify_tileset(const std::string& dir) {
     return false;
   };
   check_file(prep::kTilesetManifestName, ix.manifest_bytes, ix.manifest_xxh64);
-  auto check_tiles = [&](const std::vector<prep::TileEntry>& tiles) {
-    for (const prep::TileEntry& t : tiles) {
+  auto check_tiles = [&](const std::vector<prep::TileEntry>& tiles, int level, double size) {
+    const std::string where =
+        level ? "levels[" + std::to_string(level - 1) + "].tiles" : std::string("tiles");
+    for (size_t i = 0; i < tiles.size(); ++i) {
+      const prep::TileEntry& t = tiles[i];
       if (!check_file(t.file, t.bytes, t.xxh64)) continue;
       std::string summary;
+      nlohmann::json meta;
+      decal::Package p;
       const std::string path = dir + "/" + t.file;
-      if (const decal::Status s = verify_one(path, summary); !s) {
+      if (const decal::Status s = verify_one(path, summary, &meta, &p); !s) {
         std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), s.message.c_str());
+        good = false;
+        continue;
+      }
+      const std::string w = where + "[" + std::to_string(i) + "]";
+      if (const std::string why = tile_mismatch(ix, t, w, level, size, p, meta); !why.empty()) {
+        std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), why.c_str());
         good = false;
       }
     }
   };
-  check_tiles(ix.tiles);
+  check_tiles(ix.tiles, 0, ix.tile_size);
   // Overview levels: every level's tiles the same way.
   size_t level_tiles = 0;
   for (const prep::TileLevel& l : ix.levels) {
-    check_tiles(l.tiles);
+    check_tiles(l.tiles, l.level, l.tile_size);
     level_tiles += l.tiles.size();
   }
   if (good && ix.levels.empty())
@@ -115,8 +211,10 @@ const decalprep::CommandRegistrar kVerify(21, [](CLI::App& app) {
   cmd->footer(
       "Prints '<path>: ok (...)' or '<path>: FAILED: <reason>' per package.\n"
       "Exit code 0 when every package is good, 5 when any is not.\n"
-      "A tileset directory: tileset.json, the bytes and XXH64 of manifest.json and of every tile\n"
-      "against it, then every tile as a package; the same for every overview level's tiles.\n"
+      "A tileset directory: tileset.json (fields, ranges, its manifest's counts against its\n"
+      "tiles'), the bytes and XXH64 of manifest.json and of every tile against it, then every\n"
+      "tile as a package, its key, square, origin, CRS and counts against the index; the same\n"
+      "for every overview level's tiles.\n"
       "Example:\n  decalprep verify city.decals roads.decals");
   auto paths = std::make_shared<std::vector<std::string>>();
   cmd->add_option("PACKAGE", *paths, "the .decals files, or tileset directories")->required();

@@ -155,6 +155,11 @@ inline constexpr uint32_t kStyleClosedBit = 1u << 4;
 inline constexpr uint32_t kStyleClipBit = 1u << 5;
 inline constexpr uint32_t kStyleClipInsideBit = 1u << 6;
 
+// A static line's half width is in [0, kMaxHalfWidthMetres) (SPEC.md "Index
+// constraints"): half the equator's length, so no real stroke reaches it,
+// and well inside the int32 millimetre range a package's positions use.
+inline constexpr float kMaxHalfWidthMetres = 1e7f;
+
 struct LineProps {
   float half_width;    // metres for static lines (already doubled for inset/offset);
                        // pixels for dynamic lines
@@ -362,6 +367,12 @@ inline constexpr uint32_t kKnownRequiredFlags = 0;  // none in v1.x
 // Every blob is stored with codec none, so the whole package can be mapped.
 inline constexpr uint32_t kFlagAllUncompressed = 1u << 16;
 inline constexpr uint32_t kKnownOptionalFlags = kFlagAllUncompressed;
+
+// The largest metadata chunk a reader accepts (SPEC.md "Metadata"), refused
+// before it is parsed: a JSON DOM takes about 25 times its text, and the
+// metadata decalprep writes is a few kB per layer (the manifest entries
+// are a blob).
+inline constexpr uint64_t kMaxMetadataBytes = uint64_t(16) << 20;
 
 // Every blob starts at a multiple of this many bytes from the file start;
 // the bytes between regions are zero.

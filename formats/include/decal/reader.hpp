@@ -86,6 +86,14 @@ class Package {
   std::unique_ptr<Impl> impl_;
 };
 
+// Opens `path` read-only for the reader's use: it must be a regular file
+// (symlinks followed). A FIFO, a device, a socket or a directory is refused
+// without blocking and before a byte is read (the open does not wait for a
+// FIFO's writer; formats/SPEC.md "Validation"). On success `fd` is open,
+// blocking, close-on-exec (the caller closes it) and `size` is the file's
+// size; on failure `fd` is -1 and the message names the path and what it is.
+Status open_regular_file(const std::string& path, int& fd, uint64_t& size);
+
 // One blob as the package's blob table describes it.
 struct BlobSize : BlobEntry {
   uint64_t raw_bytes = 0;     // count * stride: its size decoded

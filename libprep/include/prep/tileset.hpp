@@ -28,6 +28,19 @@ constexpr double kLevelTilePixels = 1024;
 // resolutions wide (ModelOptions::min_cell_m).
 constexpr double kLevelMinCellPixels = 2;
 constexpr const char* kTilesetIndexName = "tileset.json";
+// The largest tileset.json a reader parses and a writer writes
+// (formats/SPEC.md "tileset.json"): about 1.9·10^5 tiles of one layer
+// (700 bytes a tile of one layer, 230 more per further layer). Parsing takes about 25 times the
+// text in memory, so an index at the limit costs ~3 GB; a bigger one is
+// refused before it is read.
+constexpr uint64_t kMaxTilesetIndexBytes = uint64_t(128) << 20;
+// Every count of an index (features, parts, vertices, bytes) is at most
+// 2^53: exact as a JSON number in any reader, and sums of a few thousand
+// cannot wrap 64 bits.
+constexpr uint64_t kMaxTilesetCount = uint64_t(1) << 53;
+// Every coordinate, extent, origin and margin of an index lies within
+// +-1e12 frame metres (the tile keys' bound times a 1 m tile).
+constexpr double kMaxTilesetCoordinate = 1e12;
 constexpr const char* kTilesetManifestName = "manifest.json";
 
 struct TileEntry {
@@ -78,22 +91,48 @@ struct TilesetIndex {
 struct FileDigest {
   uint64_t bytes = 0, xxh64 = 0;
 };
-std::optional<FileDigest> file_digest(const std::string& path);
+// The file is opened as the package reader opens one (decal::open_regular_file):
+// a FIFO, a device or a socket is refused before a byte is read; `why`,
+// when given, then says why (the path and what it is).
+std::optional<FileDigest> file_digest(const std::string& path, std::string* why = nullptr);
 
 // "%016llx"
 std::string hex64(uint64_t v);
 
 // The index as JSON text (2-space indent, trailing newline; the same index
-// gives the same bytes).
+// gives the same bytes). Throws output_error, before any byte is written,
+// when the index would not read back: tileset_index_problem() finds a
+// problem, or the text is above kMaxTilesetIndexBytes.
 std::string tileset_index_json(const TilesetIndex& index);
+
+// The first range or consistency problem of the index `ix` as "field: what" (the
+// field as tileset.json spells it, "manifest.layers[0].read"), or empty.
+// read_tileset_index and tileset_index_json both apply it, so a writer
+// never writes an index its readers refuse. Checks: the version; the frame
+// CRS WKT reads (GDAL/PROJ); origin, extent (not inverted), margins and
+// resolution finite and within +-kMaxTilesetCoordinate; the tile size;
+// every count at most kMaxTilesetCount; per layer read = kept +
+// clipped_away + dropped and repaired <= kept (a tile's layers: read =
+// kept); layer names unique; each level's parts_in = parts + dropped_small;
+// every layer a level-0 tile names is the manifest's, no tile keeps more of
+// a layer than the manifest, and the level-0 tiles together hold at least
+// every feature the manifest says was kept.
+std::string tileset_index_problem(const TilesetIndex& ix);
+
+// "MAJOR.MINOR", strictly (formats/SPEC.md "tileset.json"): two decimal
+// integers of 1 to 9 digits without sign, space or leading zero.
+bool parse_tileset_version(const std::string& text, int& major, int& minor);
 
 // True when `path` is a directory holding tileset.json.
 bool is_tileset(const std::string& path);
 
-// Reads and checks `dir`/tileset.json as untrusted input: types, version,
-// every tile's file name (tiles/<name>.decals, no other path), keys unique,
-// squares matching keys and size. Throws format_error naming the file and
-// the field at fault; io_error when it cannot be read.
+// Reads and checks `dir`/tileset.json as untrusted input: a regular file
+// (no FIFO or device) of at most kMaxTilesetIndexBytes, refused before it
+// is parsed; types, strict version, every tile's file name
+// (tiles/<name>.decals, no other path), keys unique, squares matching keys
+// and size, then tileset_index_problem(). Throws format_error naming the
+// file and the field at fault; error(ExitCode::input) when it cannot be
+// read.
 TilesetIndex read_tileset_index(const std::string& dir);
 
 // The tiles whose squares meet `view` (absolute frame coordinates), in index order.

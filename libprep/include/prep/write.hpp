@@ -29,6 +29,10 @@ struct WriteOptions {
   // Stage "write", counted in blob bytes compressed and checksummed. Null:
   // silent. Output only: the package bytes do not depend on it.
   Progress* progress = nullptr;
+  // write_model first runs the structural check `decalprep verify` runs
+  // (decal::validate_blobs) and writes nothing when it fails (output_error).
+  // Tests that make hostile packages on purpose turn it off.
+  bool check_blobs = true;
 };
 
 // One blob to write: `count` elements of `stride` bytes at `bytes`.
