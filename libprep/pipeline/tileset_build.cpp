@@ -824,6 +824,11 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
 
   // manifest.json: the scene's entries, each feature once (clean's, then read's).
   const std::string manifest_path = dir + "/" + kTilesetManifestName;
+  // An index the reader would refuse stops the build before manifest.json
+  // or any stale tile is touched (tileset_index_json checks it again).
+  if (const std::string problem = tileset_index_problem(index); !problem.empty())
+    fail<output_error>(kTilesetStage, dir + "/" + kTilesetIndexName +
+                                          " would not verify, so nothing was replaced: " + problem);
   write_manifest_from({paths.entries(), paths.read_entries()}, index.entry_count, manifest_path);
   const std::optional<FileDigest> md = file_digest(manifest_path);
   if (!md) fail<output_error>(kTilesetStage, "cannot read back " + manifest_path);
