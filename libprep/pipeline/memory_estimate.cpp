@@ -270,6 +270,20 @@ uint64_t parse_memory_size(const std::string& text) {
   return uint64_t(std::llround(value * scale));
 }
 
+uint64_t parse_memory_limit(const std::string& text) {
+  const uint64_t bytes = parse_memory_size(text);
+  // parse_memory_size took it, so it is a number with or without a unit.
+  const auto last = text.find_last_not_of(" \t");
+  if (last != std::string::npos && std::isdigit(static_cast<unsigned char>(text[last])) == 0 &&
+      text[last] != '.')
+    return bytes;
+  std::string number = text;
+  number.erase(0, number.find_first_not_of(" \t"));
+  number.erase(number.find_last_not_of(" \t") + 1);
+  throw usage_error("--max-memory: \"" + text + "\" has no unit; give one, e.g. " + number +
+                    "M (MiB), " + number + "G (GiB), or " + number + "B if bytes are meant");
+}
+
 std::string format_memory_size(double bytes) {
   char buf[64];
   if (bytes >= 1024.0 * 1024 * 1024)

@@ -389,7 +389,102 @@ struct MemoryTrail {
   // Estimates of the peak, checked against --max-memory as soon as each is
   // known (and always reported, so the model can be checked).
   std::vector<MemoryEstimate> estimates;
+  // The warnings given so far (the report's "warnings"), and the layer
+  // counts once clean has made them (a failed build's report has them too).
+  std::vector<std::string> warnings;
+  nlohmann::json layer_counts;
 };
+
+// ------------------------------------------------ warnings, empty builds --
+
+// One warning on stderr ("decalprep build: warning: ...", or with
+// --progress json the object {"event": "warning", "text": ...}). Printed
+// with -q too: it says the package is not what the scene asked for.
+void print_warning(const BuildRequest& request, const std::string& text) {
+  const ProgressMode mode = request.progress ? request.progress->mode() : ProgressMode::none;
+  if (mode == ProgressMode::json)
+    request.progress->message(nlohmann::json{{"event", "warning"}, {"text", text}}.dump());
+  else if (mode != ProgressMode::none)
+    request.progress->message("decalprep build: warning: " + text);
+  else
+    std::fprintf(stderr, "decalprep build: warning: %s\n", text.c_str());
+}
+
+// Gives `warnings` (recorded in the trail for the report); with --strict
+// they stop the build instead (strict_error, exit 10), all of them named.
+void give_warnings(const std::vector<std::string>& warnings, const BuildRequest& request,
+                   MemoryTrail& trail) {
+  if (warnings.empty()) return;
+  trail.warnings.insert(trail.warnings.end(), warnings.begin(), warnings.end());
+  if (!request.strict) {
+    for (const std::string& w : warnings) print_warning(request, w);
+    return;
+  }
+  std::string text;
+  for (const std::string& w : warnings) text += (text.empty() ? "" : "; ") + w;
+  fail<strict_error>(kBuildStage, "--strict makes this warning an error: " + text);
+}
+
+// A layer that read no feature: a `where` or `sql` that matches nothing, a
+// wrong source layer, an empty source. Named with its source and filter
+// (a casing layer shares its layer's read and is not named again).
+std::vector<std::string> empty_layer_warnings(const SceneSpec& scene, const Manifest& manifest) {
+  std::vector<std::string> out;
+  for (const LayerCounts& c : manifest.layers) {
+    if (c.read > 0) continue;
+    const auto l = std::find_if(scene.layers.begin(), scene.layers.end(),
+                                [&](const LayerSpec& s) { return s.name == c.layer; });
+    if (l == scene.layers.end() || !l->casing_of.empty()) continue;
+    std::string text = "layer '" + l->name + "' read no feature from " + l->source;
+    if (!l->layer.empty()) text += " layer '" + l->layer + "'";
+    if (!l->where.empty()) text += " where \"" + l->where + "\"";
+    if (!l->sql.empty()) text += " sql \"" + l->sql + "\"";
+    out.push_back(text);
+  }
+  return out;
+}
+
+// Dynamic-line vertices whose heights came from beyond the DEM (its edge
+// cell's value, not the terrain under them), counted by the build stage.
+std::vector<std::string> terrain_warnings(const SceneSpec& scene, const DecalModel& model) {
+  if (model.dyn_vertices_outside_dem == 0) return {};
+  return {std::to_string(model.dyn_vertices_outside_dem) + " of " +
+          std::to_string(model.dyn_vertices.size()) + " dynamic-line vertices, on " +
+          std::to_string(model.dyn_lines_outside_dem) + " of " +
+          std::to_string(model.dyn_line_start.size()) + " lines, lie outside the DEM " + scene.dem +
+          ": their heights are its edge cells', not the terrain's (use a DEM that covers the "
+          "scene, or an --extent within it)"};
+}
+
+// A build that kept no feature from any layer stops (empty_error, exit 9)
+// before it writes a package, unless allow_empty; `parts` are the parts
+// clean kept. The message gives every layer's counts.
+void check_not_empty(const SceneSpec& scene, const Manifest& manifest, size_t parts) {
+  const LayerCounts total = manifest_totals(manifest);
+  if (scene.allow_empty || (total.kept > 0 && parts > 0)) return;
+  std::string layers;
+  for (const LayerCounts& c : manifest.layers)
+    layers += (layers.empty() ? "" : "; ") +
+              ("'" + c.layer + "' read " + std::to_string(c.read) + ", clipped away " +
+               std::to_string(c.clipped_away) + ", dropped " + std::to_string(c.dropped));
+  fail<empty_error>(kBuildStage,
+                    "no layer kept a feature (" + layers +
+                        "), so no package was written; check the sources, their where/sql "
+                        "filters and the extent, or give --allow-empty to write an empty package");
+}
+
+// The checks once clean has run: for a tileset (whose read runs inside its
+// prepare step) the warnings of layers that read nothing, errors under
+// --strict (a single build gives them right after read); then an empty
+// result (not for a dry run, which writes no package anyway).
+void check_cleaned(const SceneSpec& scene, const BuildRequest& request, const Manifest& manifest,
+                   size_t parts, bool layer_warnings, MemoryTrail& trail) {
+  nlohmann::json layers = nlohmann::json::array();
+  for (const LayerCounts& c : manifest.layers) layers.push_back(layer_counts_json(c));
+  trail.layer_counts = {{"layers", layers}, {"totals", totals_json(manifest)}};
+  if (layer_warnings) give_warnings(empty_layer_warnings(scene, manifest), request, trail);
+  if (!request.dry_run) check_not_empty(scene, manifest, parts);
+}
 
 // The estimate before read, with a tileset's advice: its sources are read
 // as a single build's are, so tiles do not lower this part.
@@ -562,6 +657,13 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     result.scene.extent = streamed->extent;
     result.scene.layers = streamed->layers;
     result.scene.manifest = streamed->manifest;
+    try {
+      check_cleaned(scene, request, result.scene.manifest,
+                    streamed->polygons + streamed->lines + streamed->dynamic_lines, true, trail);
+    } catch (...) {
+      pipeline_internal::discard_work(request.output, !had_output);
+      throw;
+    }
   } else {
     // Scoped: the projected features are freed before the build stage.
     ReadOptions ro;
@@ -569,6 +671,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     FeatureSet features = read_scene(scene, ro);
     timings.emplace_back("read", seconds_since(t0));
     peaks.emplace_back("read", peak_rss_mib());
+    give_warnings(empty_layer_warnings(scene, features.manifest), request, trail);
     estimate(estimate_after_read(scene, features, request.dry_run));
 
     t0 = Clock::now();
@@ -585,6 +688,10 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     result.scene = clean(std::move(projected), scene, co);
     if (!tiled) check_build_range(result.scene, scene.skip_failures);
     timings.emplace_back("clean", seconds_since(t0));
+    check_cleaned(scene, request, result.scene.manifest,
+                  result.scene.polygons.size() + result.scene.lines.size() +
+                      result.scene.dynamic_lines.size(),
+                  false, trail);
   }
   if (!streamed) peaks.emplace_back("clean", peak_rss_mib());
   // A tileset's tiles are checked one by one as they are cut (build_tiles).
@@ -625,6 +732,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
       estimate(estimate_after_grid(grid, result.scene));
     };
     DecalModel model = build_model(result.scene, model_options, scene.dem);
+    give_warnings(terrain_warnings(scene, model), request, trail);
     timings.emplace_back("build", seconds_since(t0));
     peaks.emplace_back("build", peak_rss_mib());
 
@@ -656,6 +764,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     if (tileset->levels > 0) report["tileset"]["levels"] = levels_report(*tileset);
   }
   report["dry_run"] = request.dry_run;
+  report["warnings"] = trail.warnings;
   add_memory_report(report, peaks, estimates, limit);
   if (streamed) {
     // The entries are in manifest.json, not in memory.
@@ -690,6 +799,8 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
                                {"error", e.what()},
                                {"exit_code", static_cast<int>(e.code())}};
       add_memory_report(failed, trail.peaks, trail.estimates, MemoryLimit{request.max_memory});
+      failed["warnings"] = trail.warnings;
+      if (!trail.layer_counts.is_null()) failed["manifest"] = trail.layer_counts;
       try {
         write_text_file(request.report, failed.dump(2) + "\n");
       } catch (const error&) {

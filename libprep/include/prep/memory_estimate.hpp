@@ -56,6 +56,11 @@ struct MemoryEstimate {
 // "1.5G", "1073741824". Throws usage_error for anything else or for 0.
 uint64_t parse_memory_size(const std::string& text);
 
+// --max-memory SIZE: as parse_memory_size, but the unit is required (K, M,
+// G, T, or B for bytes): a bare "200" is a usage_error that suggests "200M",
+// since a limit of 200 bytes is never what was meant.
+uint64_t parse_memory_limit(const std::string& text);
+
 // "1.50 GiB", "512.0 MiB".
 std::string format_memory_size(double bytes);
 
