@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -477,6 +478,45 @@ void check_not_empty(const SceneSpec& scene, const Manifest& manifest, size_t pa
 // prepare step) the warnings of layers that read nothing, errors under
 // --strict (a single build gives them right after read); then an empty
 // result (not for a dry run, which writes no package anyway).
+// The report of a build that failed with `e` (run_build): what was
+// measured and estimated up to the failure, the warnings and counts so far.
+nlohmann::json failed_report(const error& e, const BuildRequest& request,
+                             const MemoryTrail& trail) {
+  nlohmann::json failed = {{"report_version", 1},
+                           {"package_written", false},
+                           {"error", e.what()},
+                           {"exit_code", static_cast<int>(e.code())}};
+  add_memory_report(failed, trail.peaks, trail.estimates, MemoryLimit{request.max_memory});
+  failed["warnings"] = trail.warnings;
+  if (!trail.layer_counts.is_null()) failed["manifest"] = trail.layer_counts;
+  return failed;
+}
+
+// --max-memory while the sources are read (RssWatch): the resident set is
+// over the limit inside GDAL, which cannot be interrupted, so the build
+// ends here as a resource_error would end it, from the watching thread:
+// the report (if asked), the message, exit 6. No package exists yet.
+[[noreturn]] void stop_reading(double rss, const BuildRequest& request, const MemoryTrail& trail) {
+  const resource_error e(
+      std::string(kMemoryStage) + ": the read stage's resident set reached " +
+      format_memory_size(rss) + ", over --max-memory " +
+      format_memory_size(double(request.max_memory)) +
+      " (the source driver's own memory, e.g. GeoJSON parsed a feature at a time, each feature's "
+      "JSON object whole: bench/memory/geojson_peak_rss.csv); stopped at the limit. Raise "
+      "--max-memory, or convert the source to a format read feature by feature (ogr2ogr -f "
+      "FlatGeobuf, or GeoJSONSeq), or split its large features");
+  if (!request.report.empty()) {
+    try {
+      write_text_file(request.report, failed_report(e, request, trail).dump(2) + "\n");
+    } catch (const error&) {
+      // The memory stop matters more than the report.
+    }
+  }
+  std::fprintf(stderr, "decalprep: %s\n", e.what());
+  std::fflush(nullptr);
+  std::_Exit(static_cast<int>(ExitCode::resource));
+}
+
 void check_cleaned(const SceneSpec& scene, const BuildRequest& request, const Manifest& manifest,
                    size_t parts, bool layer_warnings, MemoryTrail& trail) {
   nlohmann::json layers = nlohmann::json::array();
@@ -668,7 +708,13 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     // Scoped: the projected features are freed before the build stage.
     ReadOptions ro;
     ro.progress = request.progress;
-    FeatureSet features = read_scene(scene, ro);
+    std::optional<FeatureSet> read;
+    {
+      const RssWatch watch(limit, [&](double rss) { stop_reading(rss, request, trail); });
+      read = read_scene(scene, ro);
+    }
+    FeatureSet features = std::move(*read);
+    read.reset();
     timings.emplace_back("read", seconds_since(t0));
     peaks.emplace_back("read", peak_rss_mib());
     give_warnings(empty_layer_warnings(scene, features.manifest), request, trail);
@@ -794,15 +840,8 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
     // measured and estimated up to the failure (a --max-memory stop names
     // its estimate), then rethrow.
     if (!request.report.empty()) {
-      nlohmann::json failed = {{"report_version", 1},
-                               {"package_written", false},
-                               {"error", e.what()},
-                               {"exit_code", static_cast<int>(e.code())}};
-      add_memory_report(failed, trail.peaks, trail.estimates, MemoryLimit{request.max_memory});
-      failed["warnings"] = trail.warnings;
-      if (!trail.layer_counts.is_null()) failed["manifest"] = trail.layer_counts;
       try {
-        write_text_file(request.report, failed.dump(2) + "\n");
+        write_text_file(request.report, failed_report(e, request, trail).dump(2) + "\n");
       } catch (const error&) {
         // The original failure matters more than the report's.
       }
