@@ -305,22 +305,123 @@ size_t count_skipped_failures(const Manifest& m) {
 
 }  // namespace
 
+namespace {
+
+// ------------------------------------------------------ recorded paths --
+// The folder a package's paths are recorded relative to: the scene file's,
+// or the working folder for the file-less form (whose paths are as typed,
+// relative to it). Absolute and lexically normal.
+std::filesystem::path record_base(const SceneSpec& scene) {
+  namespace fs = std::filesystem;
+  const fs::path cwd = fs::current_path();
+  if (scene.scene_path.empty()) return cwd.lexically_normal();
+  return (cwd / fs::path(scene.scene_path)).parent_path().lexically_normal();
+}
+
+// A path as a package records it (formats/SPEC.md "Metadata"): relative to
+// `base` when the two share a folder below the root, so that a package's
+// bytes do not depend on where a checkout lives, on the working folder or on
+// how the scene path was typed; absolute when they share only the root (a
+// chain of ../ up to it would say no more). The archive path of /vsizip/,
+// /vsigzip/, /vsitar/ and /vsi7z/ is recorded so, behind its prefix; what is
+// not a local path (a URL, "PG:...", another /vsi handler) is kept as given.
+// Lexical only: no file is opened and symbolic links are not followed.
+std::string recorded_path(const std::string& path, const std::filesystem::path& base) {
+  namespace fs = std::filesystem;
+  if (path.empty() || path.find("://") != std::string::npos) return path;
+  std::string prefix, rest = path;
+  if (path.rfind("/vsi", 0) == 0) {
+    for (std::string_view p : {"/vsizip/", "/vsigzip/", "/vsitar/", "/vsi7z/"})
+      if (path.rfind(p, 0) == 0) prefix = p;
+    if (prefix.empty()) return path;
+    rest = path.substr(prefix.size());
+    if (rest.empty() || rest[0] == '{' || rest.rfind("/vsi", 0) == 0) return path;
+  } else {
+    const auto colon = path.find(':');
+    if (colon != std::string::npos && colon > 1 && path.find('/') > colon) return path;
+  }
+  const fs::path abs = (fs::current_path() / fs::path(rest)).lexically_normal();
+  const fs::path rel = abs.lexically_relative(base);
+  if (rel.empty()) return path;
+  size_t up = 0, depth = 0;
+  for (const fs::path& part : rel) up += part == "..";
+  for (const fs::path& part : base.relative_path()) depth += !part.empty();
+  if (up >= depth) return prefix + abs.string();  // only the root in common
+  return prefix + rel.string();
+}
+
+// The provenance a package records: its "path" and "file" as recorded_path,
+// sorted by the recorded path (as provenance_json sorts the given ones, whose
+// order depends on the folders).
+nlohmann::json recorded_provenance(const nlohmann::json& provenance,
+                                   const std::filesystem::path& base) {
+  nlohmann::json out = provenance;
+  if (!out.is_array()) return out;
+  for (nlohmann::json& s : out)
+    for (const char* key : {"path", "file"})
+      if (s.contains(key) && s[key].is_string())
+        s[key] = recorded_path(s[key].get<std::string>(), base);
+  std::stable_sort(out.begin(), out.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
+    return a.value("path", std::string()) < b.value("path", std::string());
+  });
+  return out;
+}
+
+// The manifest a package records: its notes and entry reasons name the
+// sources and the DEM as recorded_path records them (a note describes the
+// DEM by its path as given, a read note its source's).
+void record_manifest_paths(const SceneSpec& scene, Manifest& manifest) {
+  const std::filesystem::path base = record_base(scene);
+  std::vector<std::pair<std::string, std::string>> paths;
+  auto add = [&](const std::string& p) {
+    const std::string r = recorded_path(p, base);
+    if (!p.empty() && r != p) paths.emplace_back(p, r);
+  };
+  add(scene.dem);
+  for (const LayerSpec& l : scene.layers) add(l.source);
+  // Longest first: a path that holds another is replaced whole.
+  std::sort(paths.begin(), paths.end(),
+            [](const auto& a, const auto& b) { return a.first.size() > b.first.size(); });
+  auto fix = [&](std::string& text) {
+    for (const auto& [given, recorded] : paths)
+      for (size_t at = text.find(given); at != std::string::npos;
+           at = text.find(given, at + recorded.size()))
+        text.replace(at, given.size(), recorded);
+  };
+  for (std::string& n : manifest.notes) fix(n);
+  for (ManifestEntry& e : manifest.entries) fix(e.reason);
+}
+
+}  // namespace
+
 namespace pipeline_internal {
 
-// Keys must not collide with write_model's.
+// Keys must not collide with write_model's. Paths are recorded relative to
+// the scene file's folder (recorded_path), the DEM relative to the
+// package's own folder when `package_path` is given, since `render` looks
+// for it there (formats/SPEC.md "Metadata"); the report keeps them as given.
 nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest,
-                                const nlohmann::json& provenance) {
+                                const nlohmann::json& provenance, const std::string& package_path) {
+  const std::filesystem::path base = record_base(scene);
+  const std::string dem =
+      package_path.empty()
+          ? scene.dem
+          : recorded_path(
+                scene.dem,
+                (std::filesystem::current_path() / package_path).lexically_normal().parent_path());
   nlohmann::json totals = totals_json(manifest);
   nlohmann::json extra;
   extra["manifest"]["totals"] = totals;
   extra["layers"] = layers_json(scene.layers);
-  extra["provenance"] = provenance;
-  extra["scene_file"] = scene.scene_path;
+  for (nlohmann::json& l : extra["layers"])
+    l["source"] = recorded_path(l["source"].get<std::string>(), base);
+  extra["provenance"] = recorded_provenance(provenance, base);
+  extra["scene_file"] = recorded_path(scene.scene_path, base);
   extra["build_options"] = {
       {"resolution_m", scene.resolution},
       {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
       {"crs", scene.crs},
-      {"dem", scene.dem},
+      {"dem", dem},
       {"grid", {scene.model.grid_nx, scene.model.grid_ny}},
       {"qt_leaf_capacity", scene.model.qt_leaf_capacity},
       {"qt_max_depth", scene.model.qt_max_depth},
@@ -788,7 +889,9 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     // The report carries what the build stage added too (quad-tree depth
     // cap / leaf overflow notes, dynamic-line notes), not only clean's part.
     result.scene.manifest = model.manifest;
-    const nlohmann::json extra = package_metadata(scene, model.manifest, provenance_of());
+    record_manifest_paths(scene, model.manifest);  // the report keeps them as given
+    const nlohmann::json extra =
+        package_metadata(scene, model.manifest, provenance_of(), request.output);
     WriteOptions wo;
     wo.codec = request.compress ? Codec::zstd : Codec::none;
     wo.zstd_level = request.zstd_level;
