@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -337,22 +338,123 @@ size_t count_skipped_failures(const Manifest& m) {
 
 }  // namespace
 
+namespace {
+
+// ------------------------------------------------------ recorded paths --
+// The folder a package's paths are recorded relative to: the scene file's,
+// or the working folder for the file-less form (whose paths are as typed,
+// relative to it). Absolute and lexically normal.
+std::filesystem::path record_base(const SceneSpec& scene) {
+  namespace fs = std::filesystem;
+  const fs::path cwd = fs::current_path();
+  if (scene.scene_path.empty()) return cwd.lexically_normal();
+  return (cwd / fs::path(scene.scene_path)).parent_path().lexically_normal();
+}
+
+// A path as a package records it (formats/SPEC.md "Metadata"): relative to
+// `base` when the two share a folder below the root, so that a package's
+// bytes do not depend on where a checkout lives, on the working folder or on
+// how the scene path was typed; absolute when they share only the root (a
+// chain of ../ up to it would say no more). The archive path of /vsizip/,
+// /vsigzip/, /vsitar/ and /vsi7z/ is recorded so, behind its prefix; what is
+// not a local path (a URL, "PG:...", another /vsi handler) is kept as given.
+// Lexical only: no file is opened and symbolic links are not followed.
+std::string recorded_path(const std::string& path, const std::filesystem::path& base) {
+  namespace fs = std::filesystem;
+  if (path.empty() || path.find("://") != std::string::npos) return path;
+  std::string prefix, rest = path;
+  if (path.rfind("/vsi", 0) == 0) {
+    for (std::string_view p : {"/vsizip/", "/vsigzip/", "/vsitar/", "/vsi7z/"})
+      if (path.rfind(p, 0) == 0) prefix = p;
+    if (prefix.empty()) return path;
+    rest = path.substr(prefix.size());
+    if (rest.empty() || rest[0] == '{' || rest.rfind("/vsi", 0) == 0) return path;
+  } else {
+    const auto colon = path.find(':');
+    if (colon != std::string::npos && colon > 1 && path.find('/') > colon) return path;
+  }
+  const fs::path abs = (fs::current_path() / fs::path(rest)).lexically_normal();
+  const fs::path rel = abs.lexically_relative(base);
+  if (rel.empty()) return path;
+  size_t up = 0, depth = 0;
+  for (const fs::path& part : rel) up += part == "..";
+  for (const fs::path& part : base.relative_path()) depth += !part.empty();
+  if (up >= depth) return prefix + abs.string();  // only the root in common
+  return prefix + rel.string();
+}
+
+// The provenance a package records: its "path" and "file" as recorded_path,
+// sorted by the recorded path (as provenance_json sorts the given ones, whose
+// order depends on the folders).
+nlohmann::json recorded_provenance(const nlohmann::json& provenance,
+                                   const std::filesystem::path& base) {
+  nlohmann::json out = provenance;
+  if (!out.is_array()) return out;
+  for (nlohmann::json& s : out)
+    for (const char* key : {"path", "file"})
+      if (s.contains(key) && s[key].is_string())
+        s[key] = recorded_path(s[key].get<std::string>(), base);
+  std::stable_sort(out.begin(), out.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
+    return a.value("path", std::string()) < b.value("path", std::string());
+  });
+  return out;
+}
+
+// The manifest a package records: its notes and entry reasons name the
+// sources and the DEM as recorded_path records them (a note describes the
+// DEM by its path as given, a read note its source's).
+void record_manifest_paths(const SceneSpec& scene, Manifest& manifest) {
+  const std::filesystem::path base = record_base(scene);
+  std::vector<std::pair<std::string, std::string>> paths;
+  auto add = [&](const std::string& p) {
+    const std::string r = recorded_path(p, base);
+    if (!p.empty() && r != p) paths.emplace_back(p, r);
+  };
+  add(scene.dem);
+  for (const LayerSpec& l : scene.layers) add(l.source);
+  // Longest first: a path that holds another is replaced whole.
+  std::sort(paths.begin(), paths.end(),
+            [](const auto& a, const auto& b) { return a.first.size() > b.first.size(); });
+  auto fix = [&](std::string& text) {
+    for (const auto& [given, recorded] : paths)
+      for (size_t at = text.find(given); at != std::string::npos;
+           at = text.find(given, at + recorded.size()))
+        text.replace(at, given.size(), recorded);
+  };
+  for (std::string& n : manifest.notes) fix(n);
+  for (ManifestEntry& e : manifest.entries) fix(e.reason);
+}
+
+}  // namespace
+
 namespace pipeline_internal {
 
-// Keys must not collide with write_model's.
+// Keys must not collide with write_model's. Paths are recorded relative to
+// the scene file's folder (recorded_path), the DEM relative to the
+// package's own folder when `package_path` is given, since `render` looks
+// for it there (formats/SPEC.md "Metadata"); the report keeps them as given.
 nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest,
-                                const nlohmann::json& provenance) {
+                                const nlohmann::json& provenance, const std::string& package_path) {
+  const std::filesystem::path base = record_base(scene);
+  const std::string dem =
+      package_path.empty()
+          ? scene.dem
+          : recorded_path(
+                scene.dem,
+                (std::filesystem::current_path() / package_path).lexically_normal().parent_path());
   nlohmann::json totals = totals_json(manifest);
   nlohmann::json extra;
   extra["manifest"]["totals"] = totals;
   extra["layers"] = layers_json(scene.layers);
-  extra["provenance"] = provenance;
-  extra["scene_file"] = scene.scene_path;
+  for (nlohmann::json& l : extra["layers"])
+    l["source"] = recorded_path(l["source"].get<std::string>(), base);
+  extra["provenance"] = recorded_provenance(provenance, base);
+  extra["scene_file"] = recorded_path(scene.scene_path, base);
   extra["build_options"] = {
       {"resolution_m", scene.resolution},
       {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
       {"crs", scene.crs},
-      {"dem", scene.dem},
+      {"dem", dem},
       {"grid", {scene.model.grid_nx, scene.model.grid_ny}},
       {"qt_leaf_capacity", scene.model.qt_leaf_capacity},
       {"qt_max_depth", scene.model.qt_max_depth},
@@ -422,7 +524,141 @@ struct MemoryTrail {
   // Estimates of the peak, checked against --max-memory as soon as each is
   // known (and always reported, so the model can be checked).
   std::vector<MemoryEstimate> estimates;
+  // The warnings given so far (the report's "warnings"), and the layer
+  // counts once clean has made them (a failed build's report has them too).
+  std::vector<std::string> warnings;
+  nlohmann::json layer_counts;
 };
+
+// ------------------------------------------------ warnings, empty builds --
+
+// One warning on stderr ("decalprep build: warning: ...", or with
+// --progress json the object {"event": "warning", "text": ...}). Printed
+// with -q too: it says the package is not what the scene asked for.
+void print_warning(const BuildRequest& request, const std::string& text) {
+  const ProgressMode mode = request.progress ? request.progress->mode() : ProgressMode::none;
+  if (mode == ProgressMode::json)
+    request.progress->message(nlohmann::json{{"event", "warning"}, {"text", text}}.dump());
+  else if (mode != ProgressMode::none)
+    request.progress->message("decalprep build: warning: " + text);
+  else
+    std::fprintf(stderr, "decalprep build: warning: %s\n", text.c_str());
+}
+
+// Gives `warnings` (recorded in the trail for the report); with --strict
+// they stop the build instead (strict_error, exit 10), all of them named.
+void give_warnings(const std::vector<std::string>& warnings, const BuildRequest& request,
+                   MemoryTrail& trail) {
+  if (warnings.empty()) return;
+  trail.warnings.insert(trail.warnings.end(), warnings.begin(), warnings.end());
+  if (!request.strict) {
+    for (const std::string& w : warnings) print_warning(request, w);
+    return;
+  }
+  std::string text;
+  for (const std::string& w : warnings) text += (text.empty() ? "" : "; ") + w;
+  fail<strict_error>(kBuildStage, "--strict makes this warning an error: " + text);
+}
+
+// A layer that read no feature: a `where` or `sql` that matches nothing, a
+// wrong source layer, an empty source. Named with its source and filter
+// (a casing layer shares its layer's read and is not named again).
+std::vector<std::string> empty_layer_warnings(const SceneSpec& scene, const Manifest& manifest) {
+  std::vector<std::string> out;
+  for (const LayerCounts& c : manifest.layers) {
+    if (c.read > 0) continue;
+    const auto l = std::find_if(scene.layers.begin(), scene.layers.end(),
+                                [&](const LayerSpec& s) { return s.name == c.layer; });
+    if (l == scene.layers.end() || !l->casing_of.empty()) continue;
+    std::string text = "layer '" + l->name + "' read no feature from " + l->source;
+    if (!l->layer.empty()) text += " layer '" + l->layer + "'";
+    if (!l->where.empty()) text += " where \"" + l->where + "\"";
+    if (!l->sql.empty()) text += " sql \"" + l->sql + "\"";
+    out.push_back(text);
+  }
+  return out;
+}
+
+// Dynamic-line vertices whose heights came from beyond the DEM (its edge
+// cell's value, not the terrain under them), counted by the build stage.
+std::vector<std::string> terrain_warnings(const SceneSpec& scene, const DecalModel& model) {
+  if (model.dyn_vertices_outside_dem == 0) return {};
+  return {std::to_string(model.dyn_vertices_outside_dem) + " of " +
+          std::to_string(model.dyn_vertices.size()) + " dynamic-line vertices, on " +
+          std::to_string(model.dyn_lines_outside_dem) + " of " +
+          std::to_string(model.dyn_line_start.size()) + " lines, lie outside the DEM " + scene.dem +
+          ": their heights are its edge cells', not the terrain's (use a DEM that covers the "
+          "scene, or an --extent within it)"};
+}
+
+// A build that kept no feature from any layer stops (empty_error, exit 9)
+// before it writes a package, unless allow_empty; `parts` are the parts
+// clean kept. The message gives every layer's counts.
+void check_not_empty(const SceneSpec& scene, const Manifest& manifest, size_t parts) {
+  const LayerCounts total = manifest_totals(manifest);
+  if (scene.allow_empty || (total.kept > 0 && parts > 0)) return;
+  std::string layers;
+  for (const LayerCounts& c : manifest.layers)
+    layers += (layers.empty() ? "" : "; ") +
+              ("'" + c.layer + "' read " + std::to_string(c.read) + ", clipped away " +
+               std::to_string(c.clipped_away) + ", dropped " + std::to_string(c.dropped));
+  fail<empty_error>(kBuildStage,
+                    "no layer kept a feature (" + layers +
+                        "), so no package was written; check the sources, their where/sql "
+                        "filters and the extent, or give --allow-empty to write an empty package");
+}
+
+// The checks once clean has run: for a tileset (whose read runs inside its
+// prepare step) the warnings of layers that read nothing, errors under
+// --strict (a single build gives them right after read); then an empty
+// result (not for a dry run, which writes no package anyway).
+// The report of a build that failed with `e` (run_build): what was
+// measured and estimated up to the failure, the warnings and counts so far.
+nlohmann::json failed_report(const error& e, const BuildRequest& request,
+                             const MemoryTrail& trail) {
+  nlohmann::json failed = {{"report_version", 1},
+                           {"package_written", false},
+                           {"error", e.what()},
+                           {"exit_code", static_cast<int>(e.code())}};
+  add_memory_report(failed, trail.peaks, trail.estimates, MemoryLimit{request.max_memory});
+  failed["warnings"] = trail.warnings;
+  if (!trail.layer_counts.is_null()) failed["manifest"] = trail.layer_counts;
+  return failed;
+}
+
+// --max-memory while the sources are read (RssWatch): the resident set is
+// over the limit inside GDAL, which cannot be interrupted, so the build
+// ends here as a resource_error would end it, from the watching thread:
+// the report (if asked), the message, exit 6. No package exists yet.
+[[noreturn]] void stop_reading(double rss, const BuildRequest& request, const MemoryTrail& trail) {
+  const resource_error e(
+      std::string(kMemoryStage) + ": the read stage's resident set reached " +
+      format_memory_size(rss) + ", over --max-memory " +
+      format_memory_size(double(request.max_memory)) +
+      " (the source driver's own memory, e.g. GeoJSON parsed a feature at a time, each feature's "
+      "JSON object whole: bench/memory/geojson_peak_rss.csv); stopped at the limit. Raise "
+      "--max-memory, or convert the source to a format read feature by feature (ogr2ogr -f "
+      "FlatGeobuf, or GeoJSONSeq), or split its large features");
+  if (!request.report.empty()) {
+    try {
+      write_text_file(request.report, failed_report(e, request, trail).dump(2) + "\n");
+    } catch (const error&) {
+      // The memory stop matters more than the report.
+    }
+  }
+  std::fprintf(stderr, "decalprep: %s\n", e.what());
+  std::fflush(nullptr);
+  std::_Exit(static_cast<int>(ExitCode::resource));
+}
+
+void check_cleaned(const SceneSpec& scene, const BuildRequest& request, const Manifest& manifest,
+                   size_t parts, bool layer_warnings, MemoryTrail& trail) {
+  nlohmann::json layers = nlohmann::json::array();
+  for (const LayerCounts& c : manifest.layers) layers.push_back(layer_counts_json(c));
+  trail.layer_counts = {{"layers", layers}, {"totals", totals_json(manifest)}};
+  if (layer_warnings) give_warnings(empty_layer_warnings(scene, manifest), request, trail);
+  if (!request.dry_run) check_not_empty(scene, manifest, parts);
+}
 
 // The estimate before read, with a tileset's advice: its sources are read
 // as a single build's are, so tiles do not lower this part.
@@ -620,13 +856,27 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     result.scene.extent = streamed->extent;
     result.scene.layers = streamed->layers;
     result.scene.manifest = streamed->manifest;
+    try {
+      check_cleaned(scene, request, result.scene.manifest,
+                    streamed->polygons + streamed->lines + streamed->dynamic_lines, true, trail);
+    } catch (...) {
+      pipeline_internal::discard_work(request.output, !had_output);
+      throw;
+    }
   } else {
     // Scoped: the projected features are freed before the build stage.
     ReadOptions ro;
     ro.progress = request.progress;
-    FeatureSet features = read_scene(scene, ro);
+    std::optional<FeatureSet> read;
+    {
+      const RssWatch watch(limit, [&](double rss) { stop_reading(rss, request, trail); });
+      read = read_scene(scene, ro);
+    }
+    FeatureSet features = std::move(*read);
+    read.reset();
     timings.emplace_back("read", seconds_since(t0));
     peaks.emplace_back("read", peak_rss_mib());
+    give_warnings(empty_layer_warnings(scene, features.manifest), request, trail);
     estimate(estimate_after_read(scene, features, request.dry_run));
 
     t0 = Clock::now();
@@ -643,6 +893,10 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     result.scene = clean(std::move(projected), scene, co);
     if (!tiled) check_build_range(result.scene, scene.skip_failures);
     timings.emplace_back("clean", seconds_since(t0));
+    check_cleaned(scene, request, result.scene.manifest,
+                  result.scene.polygons.size() + result.scene.lines.size() +
+                      result.scene.dynamic_lines.size(),
+                  false, trail);
   }
   if (!streamed) peaks.emplace_back("clean", peak_rss_mib());
   // A tileset's tiles are checked one by one as they are cut (build_tiles).
@@ -683,6 +937,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
       estimate(estimate_after_grid(grid, result.scene));
     };
     DecalModel model = build_model(result.scene, model_options, scene.dem);
+    give_warnings(terrain_warnings(scene, model), request, trail);
     timings.emplace_back("build", seconds_since(t0));
     peaks.emplace_back("build", peak_rss_mib());
 
@@ -692,7 +947,9 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     // The report carries what the build stage added too (quad-tree depth
     // cap / leaf overflow notes, dynamic-line notes), not only clean's part.
     result.scene.manifest = model.manifest;
-    const nlohmann::json extra = package_metadata(scene, model.manifest, provenance_of());
+    record_manifest_paths(scene, model.manifest);  // the report keeps them as given
+    const nlohmann::json extra =
+        package_metadata(scene, model.manifest, provenance_of(), request.output);
     WriteOptions wo;
     wo.codec = request.compress ? Codec::zstd : Codec::none;
     wo.zstd_level = request.zstd_level;
@@ -714,6 +971,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
     if (tileset->levels > 0) report["tileset"]["levels"] = levels_report(*tileset);
   }
   report["dry_run"] = request.dry_run;
+  report["warnings"] = trail.warnings;
   add_memory_report(report, peaks, estimates, limit);
   if (streamed) {
     // The entries are in manifest.json, not in memory.
@@ -787,13 +1045,8 @@ BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
     // measured and estimated up to the failure (a --max-memory stop names
     // its estimate), then rethrow.
     if (!request.report.empty()) {
-      nlohmann::json failed = {{"report_version", 1},
-                               {"package_written", false},
-                               {"error", e.what()},
-                               {"exit_code", static_cast<int>(e.code())}};
-      add_memory_report(failed, trail.peaks, trail.estimates, MemoryLimit{request.max_memory});
       try {
-        write_text_file(request.report, failed.dump(2) + "\n");
+        write_text_file(request.report, failed_report(e, request, trail).dump(2) + "\n");
       } catch (const error&) {
         // The original failure matters more than the report's.
       }

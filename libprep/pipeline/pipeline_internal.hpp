@@ -21,9 +21,12 @@ void write_text_file(const std::string& path, const std::string& text);
 
 // The package metadata only the pipeline knows (write_model writes frame,
 // grid, counts and the manifest itself): the manifest totals, the layers,
-// provenance, scene file and build options.
+// provenance, scene file and build options. Paths are recorded relative to
+// the scene file's folder; build_options.dem relative to the folder of
+// `package_path` (the package being written; empty: as the scene gives it).
 nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest,
-                                const nlohmann::json& provenance);
+                                const nlohmann::json& provenance,
+                                const std::string& package_path = {});
 
 // What write_tileset() did, for the report.
 struct TilesetOutcome {

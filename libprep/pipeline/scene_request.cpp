@@ -144,6 +144,7 @@ void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
   if (o.max_depth) scene.model.qt_max_depth = *o.max_depth;
   if (o.threads) scene.model.threads = *o.threads;
   if (o.skip_failures) scene.skip_failures = true;
+  if (o.allow_empty) scene.allow_empty = true;
   apply_terrain_overrides(o, scene.model);
 }
 

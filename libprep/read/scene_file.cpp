@@ -411,6 +411,8 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
       scene.dem = resolve_scene_path(get_string(v, ref), base);
     } else if (key == "skip_failures") {
       scene.skip_failures = get_bool(v, ref);
+    } else if (key == "allow_empty") {
+      scene.allow_empty = get_bool(v, ref);
     } else if (key == "build") {
       const toml::table* t = v.as_table();
       if (!t) fail(ref, "expected a table [build]");

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <memory>
 
@@ -158,13 +159,34 @@ Heightfield load_heightfield(const DemSpec& spec, const SceneFrame& frame, const
   return h;
 }
 
-DemSpec recorded_dem(const std::string& metadata_json) {
+namespace {
+
+// A recorded relative path resolved against `dir` (the package's folder).
+std::string resolve_recorded(const std::string& path, const std::string& dir) {
+  if (path.empty() || dir.empty() || path.find("://") != std::string::npos) return path;
+  std::string prefix, rest = path;
+  for (std::string_view p : {"/vsizip/", "/vsigzip/", "/vsitar/", "/vsi7z/"})
+    if (path.rfind(p, 0) == 0) prefix = p;
+  if (!prefix.empty()) rest = path.substr(prefix.size());
+  if (rest.empty() || rest[0] == '/' || rest[0] == '{') return path;
+  const auto colon = rest.find(':');
+  if (colon != std::string::npos && colon > 1 && rest.find('/') > colon) return path;  // "PG:..."
+  return prefix + (std::filesystem::path(dir) / rest).lexically_normal().string();
+}
+
+}  // namespace
+
+DemSpec recorded_dem(const std::string& metadata_json, const std::string& package_path) {
   DemSpec spec;
   const auto meta = nlohmann::json::parse(metadata_json, nullptr, /*allow_exceptions=*/false);
   if (!meta.is_object() || !meta.contains("build_options") || !meta["build_options"].is_object())
     return spec;
   const auto& bo = meta["build_options"];
-  if (bo.contains("dem") && bo["dem"].is_string()) spec.path = bo["dem"].get<std::string>();
+  if (bo.contains("dem") && bo["dem"].is_string())
+    spec.path = resolve_recorded(bo["dem"].get<std::string>(),
+                                 package_path.empty()
+                                     ? std::string()
+                                     : std::filesystem::path(package_path).parent_path().string());
   // A path from the package, not from the user (prep/dem.hpp).
   spec.named_by_package = true;
   if (bo.contains("dem_assume_crs") && bo["dem_assume_crs"].is_string())

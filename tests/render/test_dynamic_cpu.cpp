@@ -105,8 +105,8 @@ TEST(DynamicLinesCpu, AgreeWithTheGlPassOnMonacoRoadsInPerspectiveOn999Permille)
   decal::Package pkg;
   ASSERT_TRUE(decal::Package::open(path, pkg));
   const R::DecalSource src = R::source_of(pkg);
-  const R::Heightfield terrain =
-      R::load_heightfield(R::recorded_dem(std::string(pkg.metadata_json())), src.frame, src.extent);
+  const R::Heightfield terrain = R::load_heightfield(
+      R::recorded_dem(std::string(pkg.metadata_json()), path), src.frame, src.extent);
   const fs::path out = fs::current_path() / "render-out" / "dynamic_cpu";
   fs::create_directories(out);
   struct View {

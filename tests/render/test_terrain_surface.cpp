@@ -173,7 +173,7 @@ SurfaceCheck check_package(const std::string& pkg_path) {
   EXPECT_TRUE(st) << st.message;
   if (!st) return c;
   const R::DecalSource src = R::source_of(pkg);
-  const prep::DemSpec dem = R::recorded_dem(std::string(pkg.metadata_json()));
+  const prep::DemSpec dem = R::recorded_dem(std::string(pkg.metadata_json()), pkg_path);
   EXPECT_DOUBLE_EQ(dem.z_scale, kZScale);
   EXPECT_FALSE(dem.nodata_fill);
   const R::Heightfield mesh = R::load_heightfield(dem, src.frame, src.extent, R::kMeshSamples);

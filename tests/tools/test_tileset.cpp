@@ -489,9 +489,12 @@ TEST_F(Tileset, GlRenderOfTheTilesetEqualsTheSinglePackagesGlRender) {
   // moved into the package's.
   const prep::Extent ground{ix.extent.xmin - 3000, ix.extent.ymin - 3000, ix.extent.xmax + 3000,
                             ix.extent.ymax + 3000};
+  // The package records its DEM relative to the folder it was built in; the
+  // fixture may have copied it elsewhere, so the sample's DEM is named here.
+  prep::DemSpec dem = R::recorded_dem(std::string(single.metadata_json()));
+  dem.path = "/vsizip/" + prep::test::monaco_sample("N43E007.hgt.zip") + "/N43E007.hgt";
   const R::Heightfield terrain =
-      R::load_heightfield(R::recorded_dem(std::string(single.metadata_json())), ix.frame,
-                          shift(ground, ox, oy), R::kMeshSamples);
+      R::load_heightfield(dem, ix.frame, shift(ground, ox, oy), R::kMeshSamples);
   R::Heightfield one_terrain = terrain;
   one_terrain.x0 += ox - one.frame.origin_x;
   one_terrain.y0 += oy - one.frame.origin_y;

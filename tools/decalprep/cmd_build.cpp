@@ -39,6 +39,7 @@ struct BuildArgs {
   int zstd_level = 2;
   std::string max_memory;  // --max-memory SIZE
   bool no_compress = false, dry_run = false, quiet = false, skip_failures = false;
+  bool strict = false, allow_empty = false;
   std::string progress;  // --progress MODE; empty: auto, or none with --quiet
   // Tilesets as separate steps: --step prepare | tiles K/N | finalize, and
   // --plan N (write DIR/plan.json with the steps' command lines, N tile jobs).
@@ -82,6 +83,7 @@ prep::SceneRequest scene_request(const BuildArgs& a, const std::string& input) {
   o.z_scale = a.z_scale;
   o.nodata_fill = a.nodata_fill;
   o.skip_failures = a.skip_failures;
+  o.allow_empty = a.allow_empty;
   return r;
 }
 
@@ -94,6 +96,7 @@ prep::BuildRequest build_request(const BuildArgs& a) {
   req.compress = !a.no_compress;
   req.zstd_level = a.zstd_level;
   req.jobs = a.jobs;
+  req.strict = a.strict;
   return req;
 }
 
@@ -227,7 +230,7 @@ int run(const BuildArgs& a) {
   if (a.plan) return write_plan(a, scene);
   prep::BuildRequest req = build_request(a);
   parse_step(a.step, req);
-  if (!a.max_memory.empty()) req.max_memory = prep::parse_memory_size(a.max_memory);
+  if (!a.max_memory.empty()) req.max_memory = prep::parse_memory_limit(a.max_memory);
   prep::ProgressOptions po;
   po.mode = prep::parse_progress_mode(progress_text(a), isatty(STDERR_FILENO) != 0);
   const bool json = po.mode == prep::ProgressMode::json;
@@ -293,6 +296,9 @@ int run_batch(const BuildArgs& a) {
   req.jobs = a.jobs;
   req.scene = scene_request(a, "");
   req.build = build_request(a);
+  // Checked here, once, so that a bad size is a usage error of the batch,
+  // not a failure of every scene.
+  if (!a.max_memory.empty()) prep::parse_memory_limit(a.max_memory);
   req.max_memory = a.max_memory;
   // Each scene's log gets plain progress lines (json with --progress json).
   req.scene_progress =
@@ -354,8 +360,14 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
       "Drop a failing feature (recorded in the manifest) and go on; exit code 4 (partial)");
   cmd->add_option(
       "--max-memory", args->max_memory,
-      "Stop early (exit 6) when the estimated peak memory exceeds SIZE (e.g. 2G, 512M); "
-      "batch mode: per scene");
+      "Stop early (exit 6) when the estimated peak memory exceeds SIZE, with its unit (2G, "
+      "512M; 200B for bytes); batch mode: per scene");
+  cmd->add_flag("--strict", args->strict,
+                "Make a warning an error (exit 10): a layer that read no feature, dynamic-line "
+                "heights taken outside the DEM; batch mode: every scene");
+  cmd->add_flag("--allow-empty", args->allow_empty,
+                "Write the package (exit 0) even when no layer kept a feature; without it such a "
+                "build writes none and exits 9 (scene file: allow_empty = true)");
   cmd->add_option("--step", args->step,
                   "Tileset in steps (a cluster's jobs on a shared filesystem): prepare | tiles "
                   "K/N (the tiles i with i % N == K) | finalize; each may run again")

@@ -142,6 +142,7 @@ struct Scene {
   std::vector<decal::Package> packages;  // own what `tiles` view
   std::vector<R::TileSource> tiles;
   std::string metadata;        // a package's metadata (the recorded DEM)
+  std::string metadata_file;   // that package (a recorded DEM is relative to its folder)
   R::TileSelection selection;  // a tileset: the tiles drawn (prep/tile_select.hpp)
 };
 
@@ -166,6 +167,7 @@ Scene open_scene(const std::string& path) {
     sc.frame = src.frame;
     sc.extent = src.extent;
     sc.metadata = std::string(sc.packages[0].metadata_json());
+    sc.metadata_file = path;
     sc.tiles.push_back({src, prep::Extent{-INFINITY, -INFINITY, INFINITY, INFINITY}, 0, 0});
     return sc;
   }
@@ -180,6 +182,7 @@ Scene open_scene(const std::string& path) {
     decal::Package first;
     open_package(path + "/" + sc.index.tiles.front().file, first);
     sc.metadata = std::string(first.metadata_json());
+    sc.metadata_file = path + "/" + sc.index.tiles.front().file;
   }
   return sc;
 }
@@ -488,7 +491,7 @@ void run(const RenderArgs& a) {
   // surface the dynamic lines were matched to (prep/dem.hpp).
   if (a.flat && !a.dem.empty())
     throw prep::usage_error("render: --flat and --dem exclude each other");
-  prep::DemSpec dem = R::recorded_dem(sc.metadata);
+  prep::DemSpec dem = R::recorded_dem(sc.metadata, sc.metadata_file);
   const bool dem_from_package = !a.flat && a.dem.empty() && !dem.path.empty();
   if (a.flat) {
     dem.path.clear();

@@ -21,8 +21,11 @@
 //                 resident when the tiles began.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <functional>
 #include <string>
+#include <thread>
 
 #include "prep/scene.hpp"
 
@@ -56,6 +59,11 @@ struct MemoryEstimate {
 // "1.5G", "1073741824". Throws usage_error for anything else or for 0.
 uint64_t parse_memory_size(const std::string& text);
 
+// --max-memory SIZE: as parse_memory_size, but the unit is required (K, M,
+// G, T, or B for bytes): a bare "200" is a usage_error that suggests "200M",
+// since a limit of 200 bytes is never what was meant.
+uint64_t parse_memory_limit(const std::string& text);
+
 // "1.50 GiB", "512.0 MiB".
 std::string format_memory_size(double bytes);
 
@@ -81,6 +89,30 @@ MemoryEstimate estimate_after_grid(const GridFootprint& grid, const SceneFeature
 // more than `jobs` times the largest of them. `name` is the tile's file.
 MemoryEstimate estimate_tile(const SceneFeatures& tile, double resident_bytes, unsigned jobs,
                              const std::string& name);
+
+// Watches the process's resident set while it lives, from a thread of its
+// own that reads /proc/self/statm every kRssWatchPollMs: for a stage whose
+// memory no estimate made before it can bound. GDAL's GeoJSON driver parses
+// each feature's JSON object whole, at up to 0.9 MiB of resident set per MB of
+// a collection of small features but 22 MiB per MB of one large feature
+// (bench/memory/geojson_peak_rss.csv), so a file's size does not say what
+// reading it costs. Once the resident set exceeds `limit`, `on_exceed` is
+// called once, on the watching thread, with the resident bytes seen; it must
+// end the process (the stage cannot be interrupted inside GDAL). The
+// resident set can pass the limit by what the stage allocates in one poll
+// interval (a few MiB at the driver's rate, ~150 MiB/s). No limit: no thread.
+inline constexpr int kRssWatchPollMs = 5;
+class RssWatch {
+ public:
+  RssWatch(const MemoryLimit& limit, std::function<void(double rss_bytes)> on_exceed);
+  ~RssWatch();
+  RssWatch(const RssWatch&) = delete;
+  RssWatch& operator=(const RssWatch&) = delete;
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
 
 // Throws resource_error when `estimate` exceeds `limit`; the message gives
 // the estimate, the limit, its basis and what to do (raise --max-memory, set

@@ -86,6 +86,9 @@ struct DecalModel {
   std::vector<uint32_t> dyn_line_start;
   std::vector<decal::LineProps> dyn_line_props;
   double terrain_min = 0, terrain_max = 0;  // metres
+  // Of them: vertices whose height came from beyond the DEM (its edge
+  // cells), and the lines holding at least one such vertex.
+  uint64_t dyn_vertices_outside_dem = 0, dyn_lines_outside_dem = 0;
   // LOD
   std::vector<decal::LodPoint> lod_points;
   std::vector<decal::LodSegment> lod_segments;

@@ -28,6 +28,10 @@ struct BuildRequest {
   // (exit 6) as soon as an estimate of its peak RSS exceeds it
   // (prep/memory_estimate.hpp); no package is written.
   uint64_t max_memory = 0;
+  // --strict: a warning is an error (strict_error, exit 10): a layer that
+  // read no feature, dynamic-line heights taken outside the DEM. Without it
+  // they are printed on stderr and listed in the report's "warnings".
+  bool strict = false;
   // Tilesets: tiles built side by side (0 counts as 1). The bytes do not
   // depend on it.
   unsigned jobs = 1;
@@ -102,6 +106,7 @@ struct SceneOverrides {
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
   std::optional<double> lmax, terrain_tolerance, z_scale, nodata_fill;
   bool skip_failures = false;  // true turns it on; false keeps the file's
+  bool allow_empty = false;    // --allow-empty: true turns it on; false keeps the file's
 };
 
 struct SceneRequest {

@@ -148,6 +148,10 @@ struct SceneSpec {
   RepairMethod repair = RepairMethod::linework;  // invalid polygons (see RepairMethod)
   std::string dem;                               // GDAL raster path; empty: flat terrain
   bool skip_failures = false;
+  // A build that keeps no feature from any layer is an error (empty_error,
+  // exit 9) and writes no package, unless this is set (`--allow-empty`,
+  // the scene file's allow_empty): then the empty package is written.
+  bool allow_empty = false;
   ModelOptions model;  // stage 4 knobs (the scene file's [build] table)
   // > 0: the output is a tileset of square tiles this many frame metres on a
   // side (prep/tile.hpp; the scene file's [tiling] tile_size); 0: one package.

@@ -45,6 +45,7 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options,
   model.lod_segments.clear();
   model.lod_line_range.clear();
   model.terrain_min = model.terrain_max = 0;
+  model.dyn_vertices_outside_dem = model.dyn_lines_outside_dem = 0;
 
   auto layer_name = [&](uint32_t layer) {
     return layer < scene.layers.size() ? scene.layers[layer].name : std::to_string(layer);
@@ -118,6 +119,8 @@ void build_dynamic(const SceneFeatures& scene, const ModelOptions& options,
       const TerrainStats& t = m.terrain;
       model.terrain_min = t.min;
       model.terrain_max = t.max;
+      model.dyn_vertices_outside_dem = t.samples_outside;
+      model.dyn_lines_outside_dem = m.lines_outside;
       notes.push_back(
           "terrain: DEM window " + std::to_string(t.window_cells) + " cells, " +
           std::to_string(t.nodata_cells) + " no-data cells filled (" + t.fill_policy + "); " +

@@ -420,6 +420,13 @@ MatchedLines match_terrain(const std::vector<SceneLine>& lines, DemSampler* dem,
         static_cast<uint64_t>(std::count(touched.begin(), touched.end(), 1));
     out.terrain.samples_outside =
         static_cast<uint64_t>(std::count(outside.begin(), outside.end(), 1));
+    // Line li holds the vertices from line_start[li] to the next line's start.
+    for (size_t li = 0; li < out.line_start.size(); ++li) {
+      const size_t end = li + 1 < out.line_start.size() ? out.line_start[li + 1] : size_t(nout);
+      out.lines_outside +=
+          std::any_of(outside.begin() + out.line_start[li], outside.begin() + std::ptrdiff_t(end),
+                      [](uint8_t o) { return o != 0; });
+    }
   }
   return out;
 }

@@ -34,6 +34,7 @@ struct MatchedLines {
   double max_piece_length = 0;       // longest stored piece, horizontal metres
   double max_deviation = 0;          // max |3D piece - DEM surface| along stored pieces, metres
   uint64_t tolerance_misses = 0;     // adaptive pieces that reached 1 cm and still miss the bound
+  uint64_t lines_outside = 0;  // lines with a vertex outside the DEM (terrain.samples_outside)
   TerrainStats terrain;
 };
 

@@ -116,10 +116,13 @@ Heightfield load_heightfield(const DemSpec& dem, const SceneFrame& frame, const 
 // The DEM a package was built with and the settings that made its surface,
 // from its metadata (build_options: dem, dem_assume_crs, z_scale,
 // nodata_fill); an empty path when it records none. Missing keys keep the
-// DemSpec defaults. The spec is marked named_by_package, so opening it
-// follows prep/dem.hpp's rule for a DEM a package names (a local regular
-// file, self-contained drivers; never the network).
-DemSpec recorded_dem(const std::string& metadata_json);
+// DemSpec defaults. A relative DEM path is relative to the package's folder
+// (formats/SPEC.md "Metadata"): given `package_path`, it is resolved there
+// (also behind a /vsizip/, /vsigzip/, /vsitar/ or /vsi7z/ prefix). The spec
+// is marked named_by_package, so opening it follows prep/dem.hpp's rule for
+// a DEM a package names (a local regular file, self-contained drivers;
+// never the network).
+DemSpec recorded_dem(const std::string& metadata_json, const std::string& package_path = {});
 
 // The decal data a renderer reads: frame, extent, grid and the static view
 // (CPU) plus the raw blobs (GL), all views into an owner that must outlive it.
