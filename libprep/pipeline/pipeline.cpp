@@ -400,6 +400,10 @@ nlohmann::json recorded_provenance(const nlohmann::json& provenance,
   return out;
 }
 
+}  // namespace
+
+namespace pipeline_internal {
+
 // The manifest a package records: its notes and entry reasons name the
 // sources and the DEM as recorded_path records them (a note describes the
 // DEM by its path as given, a read note its source's).
@@ -424,10 +428,6 @@ void record_manifest_paths(const SceneSpec& scene, Manifest& manifest) {
   for (std::string& n : manifest.notes) fix(n);
   for (ManifestEntry& e : manifest.entries) fix(e.reason);
 }
-
-}  // namespace
-
-namespace pipeline_internal {
 
 // Keys must not collide with write_model's. Paths are recorded relative to
 // the scene file's folder (recorded_path), the DEM relative to the
@@ -474,6 +474,7 @@ nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest
 }  // namespace pipeline_internal
 
 using pipeline_internal::package_metadata;
+using pipeline_internal::record_manifest_paths;
 
 namespace {
 
@@ -581,14 +582,27 @@ std::vector<std::string> empty_layer_warnings(const SceneSpec& scene, const Mani
 
 // Dynamic-line vertices whose heights came from beyond the DEM (its edge
 // cell's value, not the terrain under them), counted by the build stage.
-std::vector<std::string> terrain_warnings(const SceneSpec& scene, const DecalModel& model) {
-  if (model.dyn_vertices_outside_dem == 0) return {};
-  return {std::to_string(model.dyn_vertices_outside_dem) + " of " +
-          std::to_string(model.dyn_vertices.size()) + " dynamic-line vertices, on " +
-          std::to_string(model.dyn_lines_outside_dem) + " of " +
-          std::to_string(model.dyn_line_start.size()) + " lines, lie outside the DEM " + scene.dem +
+// `lines` is the count of dynamic lines, or 0 where it is not known (a
+// tileset's lines are cut by its tiles).
+std::vector<std::string> terrain_warnings(const SceneSpec& scene, uint64_t outside,
+                                          uint64_t vertices, uint64_t lines_outside,
+                                          uint64_t lines) {
+  if (outside == 0) return {};
+  return {std::to_string(outside) + " of " + std::to_string(vertices) +
+          " dynamic-line vertices, on " + std::to_string(lines_outside) +
+          (lines ? " of " + std::to_string(lines) : std::string()) + " lines" +
+          (lines ? "" : " (counted per tile)") + ", lie outside the DEM " + scene.dem +
           ": their heights are its edge cells', not the terrain's (use a DEM that covers the "
           "scene, or an --extent within it)"};
+}
+std::vector<std::string> terrain_warnings(const SceneSpec& scene, const DecalModel& model) {
+  return terrain_warnings(scene, model.dyn_vertices_outside_dem, model.dyn_vertices.size(),
+                          model.dyn_lines_outside_dem, model.dyn_line_start.size());
+}
+std::vector<std::string> terrain_warnings(const SceneSpec& scene,
+                                          const pipeline_internal::TileStepOutcome& t) {
+  return terrain_warnings(scene, t.dyn_vertices_outside_dem, t.dyn_vertices,
+                          t.dyn_lines_outside_dem, 0);
 }
 
 // A build that kept no feature from any layer stops (empty_error, exit 9)
@@ -608,10 +622,6 @@ void check_not_empty(const SceneSpec& scene, const Manifest& manifest, size_t pa
                         "filters and the extent, or give --allow-empty to write an empty package");
 }
 
-// The checks once clean has run: for a tileset (whose read runs inside its
-// prepare step) the warnings of layers that read nothing, errors under
-// --strict (a single build gives them right after read); then an empty
-// result (not for a dry run, which writes no package anyway).
 // The report of a build that failed with `e` (run_build): what was
 // measured and estimated up to the failure, the warnings and counts so far.
 nlohmann::json failed_report(const error& e, const BuildRequest& request,
@@ -651,6 +661,10 @@ nlohmann::json failed_report(const error& e, const BuildRequest& request,
   std::_Exit(static_cast<int>(ExitCode::resource));
 }
 
+// The checks once clean has run: for a tileset (whose read runs inside its
+// prepare step) the warnings of layers that read nothing, errors under
+// --strict (a single build gives them right after read); then an empty
+// result (not for a dry run, which writes no package anyway).
 void check_cleaned(const SceneSpec& scene, const BuildRequest& request, const Manifest& manifest,
                    size_t parts, bool layer_warnings, MemoryTrail& trail) {
   nlohmann::json layers = nlohmann::json::array();
@@ -724,8 +738,21 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
       estimates.push_back(before_read(scene, request));
       check_memory(limit, estimates.back());
       const nlohmann::json provenance = provenance_json(scene);
-      const pipeline_internal::PreparedScene p = pipeline_internal::prepare_tileset_streaming(
-          scene, request, [&]() -> const nlohmann::json& { return provenance; });
+      pipeline_internal::PreparedScene p;
+      try {
+        // The sources' drivers may hold more than any estimate: watched.
+        const RssWatch watch(limit, [&](double rss) {
+          pipeline_internal::remove_after_interrupt(request.output, tileset_dir.made());
+          stop_reading(rss, request, trail);
+        });
+        p = pipeline_internal::prepare_tileset_streaming(
+            scene, request, [&]() -> const nlohmann::json& { return provenance; });
+        check_cleaned(scene, request, p.manifest, p.polygons + p.lines + p.dynamic_lines, true,
+                      trail);
+      } catch (...) {
+        pipeline_internal::discard_work(request.output, tileset_dir.made());
+        throw;
+      }
       report["step"] = "prepare";
       report["timings_s"] = {{"read", p.read_s}, {"project", p.project_s}, {"clean", p.clean_s}};
       report["output_counts"] = {
@@ -740,6 +767,7 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
     case Step::tiles: {
       const pipeline_internal::TileStepOutcome t = pipeline_internal::build_tiles(
           scene, request, request.step_part, request.step_parts, &estimates);
+      give_warnings(terrain_warnings(scene, t), request, trail);
       peaks.emplace_back("tiles", peak_rss_mib());
       report["step"] = "tiles";
       report["part"] = request.step_part;
@@ -843,6 +871,10 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
   const bool had_output = tiled && tileset_dir && !tileset_dir->made();
   if (tiled && !request.dry_run) {
     try {
+      const RssWatch watch(limit, [&](double rss) {
+        pipeline_internal::remove_after_interrupt(request.output, !had_output);
+        stop_reading(rss, request, trail);
+      });
       streamed = pipeline_internal::prepare_tileset_streaming(scene, request, provenance_of);
     } catch (...) {
       pipeline_internal::discard_work(request.output, !had_output);
@@ -906,7 +938,9 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
   if (!request.dry_run && tiled) {
     t0 = Clock::now();
     try {
-      pipeline_internal::build_tiles(scene, request, 0, 1, &estimates);
+      const pipeline_internal::TileStepOutcome t =
+          pipeline_internal::build_tiles(scene, request, 0, 1, &estimates);
+      give_warnings(terrain_warnings(scene, t), request, trail);
       tileset = pipeline_internal::finalize_tileset(scene, request);
     } catch (...) {
       pipeline_internal::discard_work(request.output, !had_output);

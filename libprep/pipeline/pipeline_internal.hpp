@@ -28,6 +28,11 @@ nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest
                                 const nlohmann::json& provenance,
                                 const std::string& package_path = {});
 
+// Rewrites the source and DEM paths in the manifest's notes and entry
+// reasons as a package records them (relative to the scene file's folder),
+// so that the package's bytes do not depend on where the checkout is.
+void record_manifest_paths(const SceneSpec& scene, Manifest& manifest);
+
 // What write_tileset() did, for the report.
 struct TilesetOutcome {
   size_t tiles = 0;   // packages in the index
@@ -141,6 +146,9 @@ void discard_work(const std::string& dir, bool made_dir);
 // tile's estimate, or the one that stopped the build, also when it throws.
 struct TileStepOutcome {
   size_t tiles = 0, built = 0, reused = 0, empty = 0;
+  // Dynamic-line vertices of the tiles built by this step whose heights
+  // came from beyond the DEM, on how many lines, of how many vertices.
+  uint64_t dyn_vertices_outside_dem = 0, dyn_lines_outside_dem = 0, dyn_vertices = 0;
 };
 TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
                             size_t parts, std::vector<MemoryEstimate>* estimates = nullptr);

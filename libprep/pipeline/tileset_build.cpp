@@ -532,6 +532,7 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
   ProgressStage stage(request.progress, "tiles", items.size(), "tiles");
   TileStepOutcome out;
   std::atomic<size_t> built{0}, reused{0}, empty{0};
+  std::atomic<uint64_t> dyn_outside{0}, dyn_lines_outside{0}, dyn_vertices{0};
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
   std::exception_ptr first_error;
@@ -588,7 +589,10 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
         if (!tile.polygons.empty() || !tile.lines.empty() || !tile.dynamic_lines.empty()) {
           const std::string file = tile_file(level, key);
           const std::string path = dir + "/" + file;
-          nlohmann::json extra = package_metadata(spec, tile.manifest, prepared.provenance);
+          // Paths as the package records them: the same bytes from any checkout.
+          Manifest recorded = tile.manifest;
+          record_manifest_paths(spec, recorded);
+          nlohmann::json extra = package_metadata(spec, recorded, prepared.provenance, path);
           const Extent sq = plan.square(key);
           extra["tile"] = {{"x", key.x},
                            {"y", key.y},
@@ -622,6 +626,10 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
             if (lv) mo.min_cell_m = kLevelMinCellPixels * lv->params.resolution;
             DecalModel model = build_model(tile, mo, spec.dem);
             if (model.manifest.layers.empty()) model.manifest = tile.manifest;
+            record_manifest_paths(spec, model.manifest);
+            dyn_outside += model.dyn_vertices_outside_dem;
+            dyn_lines_outside += model.dyn_lines_outside_dem;
+            dyn_vertices += model.dyn_vertices.size();
             WriteOptions wo;
             wo.codec = request.compress ? Codec::zstd : Codec::none;
             wo.zstd_level = request.zstd_level;
@@ -680,6 +688,9 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
   out.built = built;
   out.reused = reused;
   out.empty = empty;
+  out.dyn_vertices_outside_dem = dyn_outside;
+  out.dyn_lines_outside_dem = dyn_lines_outside;
+  out.dyn_vertices = dyn_vertices;
   return out;
 }
 
@@ -687,7 +698,6 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
 
 TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& request,
                                 Manifest* manifest) {
-  (void)spec;
   const WorkPaths paths{request.output};
   const PreparedPlan prepared = read_plan(paths);
   const TilePlan& plan = prepared.plan;
@@ -806,6 +816,7 @@ TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& reque
   index.extent =
       e.xmax >= e.xmin ? Extent{e.xmin + ox, e.ymin + oy, e.xmax + ox, e.ymax + oy} : Extent{};
   index.manifest = prepared.manifest;
+  record_manifest_paths(spec, index.manifest);
   // Each level's drops as a note too, so that no reader of the manifest
   // misses them (the per-layer counts are the level's `layers`).
   for (const TileLevel& l : index.levels) {

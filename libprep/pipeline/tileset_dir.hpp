@@ -3,8 +3,8 @@
 //
 // A tileset build writes only into a folder that is absent (it makes it),
 // empty, or holds a tileset (tileset.json), a decalprep work folder
-// (.work/owner.json) or the plan `build --plan` wrote (plan.json). It removes only files that the index on disk or its
-// own work folder recorded, never follows a symlink out of the folder, and
+// (.work/owner.json) or the plan `build --plan` wrote (plan.json). It removes only files that the
+// index on disk or its own work folder recorded, never follows a symlink out of the folder, and
 // holds a lock on the folder while it runs (README "Tilesets": "Safety").
 #pragma once
 

@@ -115,9 +115,36 @@ def fileless_form():
         raise Failure("the file-less builds of one source in two folders differ")
 
 
+def tilesets_across_checkouts():
+    """A tileset of the same scene from two checkouts: the same tile files,
+    each cmp-identical, and the same tileset.json and manifest.json."""
+    root = suite.dir("tile_checkouts")
+    a = make_scene(os.path.join(root, "runner-a", "decalprep"))
+    b = make_scene(os.path.join(root, "p", "q", "runner-b"))
+    os.makedirs(os.path.join(b, "build"))
+    out_a = os.path.join(a, "scenes", "tiles")
+    r = suite.run(["build", os.path.join(a, "scenes", "scene.toml"), "-o", out_a, "--tile-size", "150",
+                   "--levels", "1", "-q"], cwd=suite.work, timeout=120)
+    suite.expect(r, 0)
+    r = suite.run(["build", "../scenes/scene.toml", "-o", "../scenes/tiles", "--tile-size", "150",
+                   "--levels", "1", "-q"], cwd=os.path.join(b, "build"), timeout=120)
+    suite.expect(r, 0)
+    out_b = os.path.join(b, "scenes", "tiles")
+    files_a = sorted(os.path.relpath(os.path.join(d, f), out_a) for d, _, fs in os.walk(out_a) for f in fs)
+    files_b = sorted(os.path.relpath(os.path.join(d, f), out_b) for d, _, fs in os.walk(out_b) for f in fs)
+    if files_a != files_b:
+        raise Failure(f"different files: {files_a} vs {files_b}")
+    if not any(f.endswith(".decals") for f in files_a):
+        raise Failure(f"no tile was written: {files_a}")
+    differ = [f for f in files_a if not filecmp.cmp(os.path.join(out_a, f), os.path.join(out_b, f), shallow=False)]
+    if differ:
+        raise Failure(f"these differ between the checkouts: {differ}")
+
+
 suite.case("two checkouts, absolute and relative scene paths: cmp-identical packages",
            same_bytes_across_checkouts)
 suite.case("render finds the recorded DEM from another folder, and after the checkout moved",
            render_finds_the_recorded_dem)
 suite.case("the file-less form: the same bytes from two folders", fileless_form)
+suite.case("a tileset from two checkouts: every file cmp-identical", tilesets_across_checkouts)
 sys.exit(suite.finish())

@@ -10,29 +10,39 @@
 
 namespace {
 
-constexpr const char* kFooter = R"(Examples:
+constexpr const char* kExitCodes = R"(Exit codes:
+  0 ok, 1 internal error, 2 usage, 3 input, 4 partial (--skip-failures),
+  5 corrupt or unsupported package, 6 resource (--max-memory, budgets), 7 output
+  (a target that is not a regular file, or is an input, is refused), 8 render,
+  9 empty: build kept no feature (--allow-empty writes the package, exit 0),
+  10 --strict made a warning an error (build: a layer that read nothing, heights
+  outside the DEM; render: a view or DEM that does not cover), 11 a batch scene
+  was killed by a signal, 130/143 stopped by SIGINT/SIGTERM (what the build made
+  is removed))";
+
+constexpr const char* kExamples = R"(Examples:
   decalprep build scene.toml -o city.decals --report city.report.json
   decalprep build roads.shp -o roads.decals --kind line --width 4 --corner miter
   decalprep info city.decals --json
   decalprep verify city.decals
-  decalprep render city.decals --fit --size 640x360 -o city.png
-
-Exit codes:
-  0 ok, 1 internal error, 2 usage, 3 input, 4 partial (--skip-failures),
-  5 corrupt or unsupported package, 6 resource (--max-memory, budgets), 7 output,
-  8 render)";
+  decalprep render city.decals --fit --size 640x360 -o city.png)";
 
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"decalprep: GIS vector data to GPU-ready decal packages"};
-  app.footer(kFooter);
+  app.footer(std::string(kExamples) + "\n\n" + kExitCodes);
   app.set_version_flag("--version", std::string("decalprep ") + DECALPREP_VERSION);
   app.require_subcommand(1);
 
   auto& registry = decalprep::command_registry();
   std::ranges::stable_sort(registry, {}, &decalprep::CommandEntry::order);
   for (auto& entry : registry) entry.setup(app);
+  // Every command's --help ends with the exit codes, --allow-empty's and
+  // --strict's among them.
+  for (CLI::App* sub : app.get_subcommands({}))
+    sub->footer(sub->get_footer().empty() ? std::string(kExitCodes)
+                                          : sub->get_footer() + "\n\n" + kExitCodes);
 
   decalprep::command_line().assign(argv, argv + argc);
   try {
