@@ -238,6 +238,48 @@ def report_temp_name_untouched():
     json.load(open(rep))
 
 
+def full_disk():
+    """On a full file system (a small tmpfs this test mounts) the build
+    fails with exit 7, the package and report already there stay as they
+    were, and no temporary file is left."""
+    d = S.dir("full_disk")
+    mnt = os.path.join(d, "mnt")
+    os.makedirs(mnt)
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", mnt], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise Skip(f"cannot mount a tmpfs here ({r.stderr.strip() or 'not root'})")
+    try:
+        small = lines(d, n=3)
+        big = big_lines(d)
+        pkg, rep = os.path.join(mnt, "out.decals"), os.path.join(mnt, "out.report.json")
+        S.expect(S.run(["build", small, "-o", pkg, "--report", rep, "--kind", "line", "--width", "3", "-q"]), 0)
+        before = snapshot(mnt)
+        # Fill the rest but for 8 KiB.
+        st = os.statvfs(mnt)
+        free = st.f_bavail * st.f_frsize
+        with open(os.path.join(mnt, "filler"), "wb") as f:
+            f.write(b"\0" * max(0, free - 8192))
+        before["filler"] = snapshot(mnt)["filler"]
+        r = S.run(["build", big, "-o", pkg, "--report", rep, "--kind", "line", "--width", "3", "-q"], timeout=60)
+        S.expect(r, 7)
+        # The report is replaced by the failed build's (CI reads why), and
+        # says so; everything else is as it was.
+        failed = json.load(open(rep))
+        if failed.get("package_written") is not False or failed.get("exit_code") != 7:
+            raise Failure(f"the report does not say the build failed: {failed}")
+        before[os.path.basename(rep)] = snapshot(mnt)[os.path.basename(rep)]
+        after = snapshot(mnt)
+        if after != before:
+            raise Failure(f"the full file system changed: added {sorted(set(after) - set(before))}, "
+                          f"changed {[k for k in before if after.get(k) != before[k]]}")
+        r = S.run(tileset_args(big, os.path.join(mnt, "tiles")), timeout=60)
+        S.expect(r, 7)
+        if snapshot(mnt) != before:
+            raise Failure(f"the tileset build left {sorted(set(snapshot(mnt)) - set(before))}")
+    finally:
+        subprocess.run(["umount", mnt], capture_output=True)
+
+
 def lock_held():
     """While another build holds the folder (its flock), a build is refused
     at once and leaves the folder as it was."""
@@ -326,6 +368,7 @@ S.case("-o or --report naming a symbolic link is refused", link_targets)
 S.case("a FIFO source or scene file is refused at once", fifo_inputs)
 S.case("the report's temp file never takes a user's name", report_temp_name_untouched)
 S.case("a second build into a locked folder is refused", lock_held)
+S.case("a full file system: exit 7, what was there stays, no temp file", full_disk)
 S.case("SIGTERM removes the folder the build made", interrupted(signal.SIGTERM, True))
 S.case("SIGINT removes the work folder of an existing folder", interrupted(signal.SIGINT, False))
 sys.exit(S.finish())
