@@ -105,20 +105,41 @@ uint64_t input_digest(const SceneFeatures& t, const std::string& metadata,
   return d.value();
 }
 
-// True when `path` holds a package that verifies and was built from `digest`.
-bool reusable(const std::string& path, uint64_t digest) {
+// What a tile's package holds, as tileset.json counts it (formats/SPEC.md
+// "Tilesets": a polygon part is an exterior ring; the build stage may drop
+// a part that collapses at 1 mm, so the package, not the cut scene, says).
+struct HeldParts {
+  uint64_t polygons = 0, lines = 0, dynamic_lines = 0;
+};
+HeldParts held_parts(const std::vector<decal::PolyProps>& polys, size_t lines,
+                     size_t dynamic_lines) {
+  HeldParts h{0, lines, dynamic_lines};
+  for (const decal::PolyProps& pp : polys) h.polygons += pp.exterior < 0 ? 1 : 0;
+  return h;
+}
+
+// What `path` holds when it is a package that verifies and was built from
+// `digest`; nullopt otherwise.
+std::optional<HeldParts> reusable(const std::string& path, uint64_t digest) {
   struct stat st {};
-  if (stat(path.c_str(), &st) != 0) return false;
+  if (stat(path.c_str(), &st) != 0) return std::nullopt;
   decal::Package p;
   decal::OpenOptions opt;
   opt.verify_checksums = true;
-  if (!decal::Package::open(path, p, opt)) return false;
+  if (!decal::Package::open(path, p, opt)) return std::nullopt;
   try {
     const nlohmann::json meta = nlohmann::json::parse(p.metadata_json());
-    return meta.at("tile").at("input_xxh64").get<std::string>() == hex64(digest);
+    if (meta.at("tile").at("input_xxh64").get<std::string>() != hex64(digest)) return std::nullopt;
   } catch (const nlohmann::json::exception&) {
-    return false;
+    return std::nullopt;
   }
+  auto count_of = [&](decal::BlobId id) -> size_t {
+    const decal::BlobView* b = p.find(id);
+    return b ? b->count : 0;
+  };
+  const auto polys = p.array<decal::PolyProps>(decal::BlobId::poly_props);
+  return held_parts({polys.begin(), polys.end()}, count_of(decal::BlobId::line_props),
+                    count_of(decal::BlobId::dyn_line_props));
 }
 
 // How many overview levels a build makes: SceneSpec::levels, or for
@@ -607,7 +628,8 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
           }
           const uint64_t digest = input_digest(tile, extra.dump(), request);
           extra["tile"]["input_xxh64"] = hex64(digest);
-          const bool kept = reusable(path, digest);
+          std::optional<HeldParts> held = reusable(path, digest);
+          const bool kept = held.has_value();
           if (!kept && !owned.count(file)) {
             struct stat st {};
             if (::lstat(path.c_str(), &st) == 0)
@@ -627,6 +649,8 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
             DecalModel model = build_model(tile, mo, spec.dem);
             if (model.manifest.layers.empty()) model.manifest = tile.manifest;
             record_manifest_paths(spec, model.manifest);
+            held =
+                held_parts(model.poly_props, model.line_props.size(), model.dyn_line_props.size());
             dyn_outside += model.dyn_vertices_outside_dem;
             dyn_lines_outside += model.dyn_lines_outside_dem;
             dyn_vertices += model.dyn_vertices.size();
@@ -645,9 +669,9 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
           e.file = file;
           e.bytes = fd->bytes;
           e.xxh64 = fd->xxh64;
-          e.polygons = tile.polygons.size();
-          e.lines = tile.lines.size();
-          e.dynamic_lines = tile.dynamic_lines.size();
+          e.polygons = held->polygons;
+          e.lines = held->lines;
+          e.dynamic_lines = held->dynamic_lines;
           e.layers = tile.manifest.layers;
           record = tile_record_json(e, kept);
           (kept ? reused : built) += 1;

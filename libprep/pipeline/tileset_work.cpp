@@ -242,6 +242,18 @@ std::vector<TileKey> planned_tiles(const WorkPaths& paths, const TilePlan& plan)
       const double by =
           r.kind == static_cast<int>(PartKind::dynamic_line) ? plan.dynamic_margin : plan.margin;
       const TileRange t = tile_range({r.xmin, r.ymin, r.xmax, r.ymax}, by, ox, oy, plan.size);
+      // A part (with its stroke margin) over more tiles than any index can
+      // list would plan for ever: refused, with the numbers.
+      const double reach = double(t.hi.x - t.lo.x + 1) * double(t.hi.y - t.lo.y + 1);
+      if (reach > double(kMaxPlannedTiles) || keys.size() > kMaxPlannedTiles) {
+        char m[256];
+        std::snprintf(m, sizeof m,
+                      "the tiles of %.10g m reached by the parts (each with its stroke margin of "
+                      "%.10g m) number more than %zu; use a larger --tile-size or narrower lines",
+                      plan.size, by, kMaxPlannedTiles);
+        std::fclose(f);
+        fail<resource_error>(kTilesetStage, m);
+      }
       for (int64_t y = t.lo.y; y <= t.hi.y; ++y)
         for (int64_t x = t.lo.x; x <= t.hi.x; ++x) keys.insert({x, y});
     }

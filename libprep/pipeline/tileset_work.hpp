@@ -68,8 +68,13 @@ class PartWriter {
   double half_width_ = 0;
 };
 
+// The most tiles one level's plan may have: far above what tileset.json's
+// size limit lets an index list (formats/SPEC.md "Tilesets"), low enough that
+// planning them takes seconds.
+inline constexpr size_t kMaxPlannedTiles = 2'000'000;
+
 // The tile keys the parts of boxes.bin reach (tile_range with the plan's
-// margins), in key order.
+// margins), in key order. More than kMaxPlannedTiles: resource_error.
 std::vector<TileKey> planned_tiles(const WorkPaths& paths, const TilePlan& plan);
 
 // What an overview level does to each part a tile's window holds, as the

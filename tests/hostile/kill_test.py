@@ -42,6 +42,9 @@ def main():
         text = open(monaco_scene, encoding="utf-8").read()
         text = re.sub(r'(?m)^source\s*=.*$', 'source = "%s"' % lie, text)
         text = re.sub(r'(?m)^dem\s*=.*$', '', text)
+        # Monaco's extent would clip all of Liechtenstein away (a build
+        # that keeps nothing now stops with exit 9 instead of writing it).
+        text = re.sub(r'(?m)^extent(_crs)?\s*=.*$', '', text)
         scene = os.path.join(work, "liechtenstein.toml")
         open(scene, "w", encoding="utf-8").write(text)
         what = "Liechtenstein"

@@ -8,8 +8,9 @@
 - `build --kind line --width 1e300` (and 2e7, the first width whose half
   width a package cannot hold) is refused with exit 2 naming --width, for a
   package and for a tileset, and writes nothing; a width just below builds
-  a package that `verify` accepts. A scene file's width of 1e300 reaches
-  the package writer, which refuses it with exit 7 before writing.
+  a package that `verify` accepts. A scene file's width of 1e300 is refused
+  as the scene is read (exit 3); a line as wide as a package allows, cut in
+  500 m tiles, is refused by the tile plan (exit 6) instead of hanging.
 
 Usage: verify_test.py DECALPREP WORK_DIR SOURCE_DIR
 """
@@ -77,16 +78,30 @@ def too_wide():
         if os.path.exists(ts):
             raise safety.Failure(f"--width {width} --tile-size 500: {ts} was made: "
                                  f"{sorted(os.listdir(ts))}")
-    # A scene file's width reaches the writer, which runs verify's checks
-    # before writing: exit 7, nothing written.
+    # A scene file's width is refused as it is read: exit 3 naming the
+    # file, the line and the width; nothing written, package or tileset.
     scene = os.path.join(d, "wide.toml")
     with open(scene, "w") as f:
         f.write(f'source = "{src}"\n\n[[layer]]\nname = "wide"\nkind = "line"\nwidth = 1e300\n')
     pkg = os.path.join(d, "scene.decals")
     r = suite.run(["build", scene, "-o", pkg, "-q"], timeout=60)
-    suite.expect(r, 7, "half_width", "would not verify")
+    suite.expect(r, 3, "wide.toml", "width 1e+300", "too wide")
     if os.path.exists(pkg):
         raise safety.Failure(f"scene width 1e300: {pkg} was written")
+    ts = os.path.join(d, "scene_ts")
+    r = suite.run(["build", scene, "-o", ts, "--tile-size", "500", "-q"], timeout=60)
+    suite.expect(r, 3, "too wide")
+    if os.path.exists(ts):
+        raise safety.Failure(f"scene width 1e300 --tile-size 500: {ts} was made")
+    # The widest line a package holds, with tiles far smaller than its
+    # stroke: its margin would reach ~10^11 tiles, which the plan refuses
+    # (exit 6) instead of listing them for ever.
+    ts = os.path.join(d, "wide_small_tiles")
+    r = suite.run(["build", src, "-o", ts, "--kind", "line", "--width", "1.9999e7", "--tile-size", "500",
+                   "-q"], timeout=60)
+    suite.expect(r, 6, "more than")
+    if os.path.exists(ts):
+        raise safety.Failure(f"--width 1.9999e7 --tile-size 500: {ts} was left: {sorted(os.listdir(ts))}")
     # Just below the limit: built, and its own verify accepts it.
     pkg = os.path.join(d, "widest.decals")
     suite.expect(suite.run(["build", src, "-o", pkg, "--kind", "line", "--width", "1.99e7", "-q"],
