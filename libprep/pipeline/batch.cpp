@@ -25,6 +25,7 @@
 #include <set>
 #include <sstream>
 
+#include "pipeline_internal.hpp"
 #include "prep/error.hpp"
 #include "prep/files.hpp"
 #include "prep/memory_estimate.hpp"
@@ -490,39 +491,9 @@ class Summary {
   }
 
  private:
-  void replace(const std::string& text) {
-    const fs::path target(path_);
-    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-    std::string tmp = (dir / ("." + target.filename().string() + ".XXXXXX")).string();
-    const int fd = ::mkstemp(tmp.data());
-    if (fd < 0) fail_io("cannot create a temp file beside it", errno);
-    size_t off = 0;
-    while (off < text.size()) {
-      const ssize_t n = ::write(fd, text.data() + off, text.size() - off);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) {
-        const int err = errno;
-        ::close(fd);
-        ::unlink(tmp.c_str());
-        fail_io("cannot write " + tmp, err);
-      }
-      off += size_t(n);
-    }
-    // The summary is readable as the reports are (mkstemp makes it 0600).
-    const mode_t mask = ::umask(0);
-    ::umask(mask);
-    ::fchmod(fd, 0666 & ~mask);
-    if (::close(fd) != 0 || ::rename(tmp.c_str(), path_.c_str()) != 0) {
-      const int err = errno;
-      ::unlink(tmp.c_str());
-      fail_io("cannot replace it with " + tmp, err);
-    }
-  }
-  [[noreturn]] void fail_io(const std::string& what, int err) {
-    fail<output_error>(kBuildStage, "cannot write the batch summary " + path_ + ": " + what +
-                                        (err ? std::string(": ") + std::strerror(err) : ""));
-  }
-
+  // Through a temp file of its own and a rename (write_text_file), so a
+  // reader, or a batch stopped meanwhile, never leaves half a summary.
+  void replace(const std::string& text) { pipeline_internal::write_text_file(path_, text); }
   std::string path_;
   std::vector<std::optional<nlohmann::json>> counts_;
 };
