@@ -267,10 +267,10 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
   // A static line's half width in a package is below kMaxHalfWidthMetres
   // (formats/SPEC.md "Index constraints"), its casing's too.
   if (!layer.dynamic &&
-      !(layer.style.width + 2 * layer.casing_width < 2.0 * double(decal::kMaxHalfWidthMetres)))
-  {
+      !(layer.style.width + 2 * layer.casing_width < 2.0 * double(decal::kMaxHalfWidthMetres))) {
     char v[96];
-    std::snprintf(v, sizeof v, layer.casing_width > 0 ? "width %g with casing_width %g" : "width %g",
+    std::snprintf(v, sizeof v,
+                  layer.casing_width > 0 ? "width %g with casing_width %g" : "width %g",
                   layer.style.width, layer.casing_width);
     fail(here, std::string(v) + " m is too wide: a static line must be narrower than 2e7 m");
   }

@@ -175,9 +175,7 @@ struct BatchScene {
   std::string error;
 
   bool built() const { return !interrupted && exit_code == 0; }
-  bool partial() const {
-    return !interrupted && exit_code == static_cast<int>(ExitCode::partial);
-  }
+  bool partial() const { return !interrupted && exit_code == static_cast<int>(ExitCode::partial); }
   bool failed() const { return !built() && !partial(); }  // interrupted included
   // "built" | "partial" (package written, skip_failures dropped features) |
   // "failed" | "interrupted"
