@@ -1,9 +1,15 @@
 // What decalprep may open and what it may write (prep/files.hpp).
 #include "prep/files.hpp"
 
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <array>
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <string_view>
 
 #include "prep/error.hpp"
@@ -114,6 +120,44 @@ void check_output_file(const std::string& path, const std::string& what,
         throw output_error(what + " '" + path + "' is the input '" + in +
                            "' itself; writing it would destroy the input (nothing was written)");
     }
+  }
+}
+
+void write_file_atomically(const std::string& path, std::string_view bytes,
+                           const std::string& what) {
+  check_output_file(path, what, {});
+  static std::atomic<unsigned> counter{0};
+  const size_t slash = path.rfind('/');
+  const std::string folder = slash == std::string::npos ? "" : path.substr(0, slash + 1);
+  const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+  const std::string tmp = folder + "." + name + ".tmp-" + std::to_string(::getpid()) + "-" +
+                          std::to_string(counter.fetch_add(1));
+  auto fail_with = [&](const std::string& doing, int err) {
+    throw output_error(what + " '" + path + "': " + doing + ": " + std::strerror(err));
+  };
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (fd < 0) fail_with("cannot create a temporary file beside it", errno);
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = n < 0 ? errno : ENOSPC;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      fail_with("cannot write", err);
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    fail_with("cannot write", err);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    fail_with("cannot rename " + tmp + " over it", err);
   }
 }
 

@@ -162,41 +162,7 @@ nlohmann::json report_object(const SceneFeatures& scene, const std::string& outp
 namespace pipeline_internal {
 
 void write_text_file(const std::string& path, const std::string& text) {
-  check_output_file(path, "output file", {});
-  // A temp name of our own, created exclusively (never truncating or
-  // following what is there), in the target's folder for the rename.
-  static std::atomic<unsigned> counter{0};
-  const size_t slash = path.rfind('/');
-  const std::string folder = slash == std::string::npos ? "" : path.substr(0, slash + 1);
-  const std::string base = slash == std::string::npos ? path : path.substr(slash + 1);
-  const std::string tmp = folder + "." + base + ".tmp-" + std::to_string(::getpid()) + "-" +
-                          std::to_string(counter.fetch_add(1));
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
-  if (fd < 0)
-    fail<output_error>(kReportStage, "cannot write " + path + ": " + std::strerror(errno));
-  size_t done = 0;
-  while (done < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int err = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      fail<output_error>(kReportStage, "cannot write " + path + ": " + std::strerror(err));
-    }
-    done += static_cast<size_t>(n);
-  }
-  if (::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    fail<output_error>(kReportStage, "cannot write " + path + ": " + std::strerror(err));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    fail<output_error>(kReportStage,
-                       "cannot rename " + tmp + " to " + path + ": " + std::strerror(err));
-  }
+  write_file_atomically(path, text, "output file");
 }
 
 }  // namespace pipeline_internal

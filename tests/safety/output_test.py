@@ -208,6 +208,35 @@ def link_targets():
         raise Failure("a file was created through a dangling link")
 
 
+def render_side_files():
+    """A top-down render writes NAME.png, NAME.pgw and NAME.png.aux.xml:
+    a FIFO or a link at either side file stops it before it draws (exit 7,
+    no PNG); with them clear, all three are written."""
+    d = S.dir("render_side")
+    src = lines(d)
+    pkg = os.path.join(d, "l.decals")
+    S.expect(S.run(["build", src, "-o", pkg, "--kind", "line", "--width", "3", "-q"]), 0)
+    view = ["render", pkg, "--cpu", "--size", "64x48", "--extent", "-60,-60,60,60"]
+    png = os.path.join(d, "v.png")
+    os.mkfifo(os.path.join(d, "v.pgw"))
+    S.expect(S.run(view + ["-o", png], timeout=15), 7, "v.pgw")
+    os.remove(os.path.join(d, "v.pgw"))
+    victim = os.path.join(d, "victim.txt")
+    with open(victim, "w") as f:
+        f.write("mine\n")
+    os.symlink(victim, png + ".aux.xml")
+    S.expect(S.run(view + ["-o", png], timeout=15), 7, "symbolic link")
+    if os.path.exists(png) or open(victim).read() != "mine\n":
+        raise Failure("the render drew or wrote through the link although a side file was refused")
+    os.remove(png + ".aux.xml")
+    S.expect(S.run(view + ["-o", png], timeout=30), 0)
+    for f in (png, os.path.join(d, "v.pgw"), png + ".aux.xml"):
+        if not os.path.isfile(f):
+            raise Failure(f"{f} was not written")
+    if open(png, "rb").read(8) != b"\x89PNG\r\n\x1a\n":
+        raise Failure("the PNG does not start with the PNG signature")
+
+
 def fifo_inputs():
     d = S.dir("fifo_inputs")
     fifo = os.path.join(d, "in.geojson")
@@ -365,6 +394,7 @@ S.case("tiles/ linked to another folder is refused, that folder untouched", tile
 S.case("-o or --report naming an input is refused", output_is_input)
 S.case("-o or --report naming a FIFO or a device node is refused", special_targets)
 S.case("-o or --report naming a symbolic link is refused", link_targets)
+S.case("render: a FIFO or link at a world file is refused before drawing", render_side_files)
 S.case("a FIFO source or scene file is refused at once", fifo_inputs)
 S.case("the report's temp file never takes a user's name", report_temp_name_untouched)
 S.case("a second build into a locked folder is refused", lock_held)

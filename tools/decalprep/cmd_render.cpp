@@ -508,6 +508,9 @@ void run(const RenderArgs& a) {
     prep::check_output_file(a.output, "PNG", inputs);
     if (!a.decals_png.empty()) prep::check_output_file(a.decals_png, "--decals PNG", inputs);
     if (!a.raw.empty()) prep::check_output_file(a.raw, "--raw output", inputs);
+    if (topdown)
+      for (const std::string& side : prep::world_file_paths(a.output))
+        prep::check_output_file(side, "world file", inputs);
   }
   if (a.z_scale) {
     if (!(*a.z_scale > 0) || !std::isfinite(*a.z_scale))

@@ -147,8 +147,9 @@ bool segment_covers(const StaticView& view, uint32_t start, uint32_t end, double
 std::vector<float> render_topdown(const StaticView& view, const Extent& extent, uint32_t width,
                                   uint32_t height);
 
-// Writes an 8-bit RGBA PNG (libpng), rows top to bottom, straight alpha.
-// Throws output_error naming the path on failure.
+// Writes an 8-bit RGBA PNG (libpng), rows top to bottom, straight alpha,
+// whole or not at all (prep/files.hpp write_file_atomically: only over a
+// regular file or nothing). Throws output_error naming the path on failure.
 void write_png_rgba(const std::string& path, uint32_t width, uint32_t height,
                     std::span<const uint8_t> rgba8);
 
@@ -162,5 +163,8 @@ std::vector<uint8_t> to_rgba8(std::span<const float> rgba);
 // extent + frame origin. Throws output_error on failure.
 void write_world_file(const std::string& png_path, const Extent& extent, uint32_t width,
                       uint32_t height, const std::string& crs_wkt);
+// The two files write_world_file writes for `png_path`: the .pgw, then the
+// .aux.xml (so a caller can check them before it draws).
+std::vector<std::string> world_file_paths(const std::string& png_path);
 
 }  // namespace prep

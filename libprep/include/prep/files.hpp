@@ -17,6 +17,7 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace prep {
@@ -63,5 +64,14 @@ std::string special_file_kind(const std::string& path);
 // ("package", "report", "PNG"). Leaves everything as it was.
 void check_output_file(const std::string& path, const std::string& what,
                        const std::vector<std::string>& inputs);
+
+// Writes `bytes` to `path` whole, or leaves `path` as it was: the target is
+// checked as check_output_file does (no inputs), the bytes go to a temp file
+// of this process's own beside it (".<name>.tmp-<pid>-<n>", created
+// exclusively, never through a link) and are renamed over the target, so a
+// reader never sees half of it. Throws output_error naming `what` and the
+// path on failure, after removing the temp file. Thread-safe.
+void write_file_atomically(const std::string& path, std::string_view bytes,
+                           const std::string& what);
 
 }  // namespace prep
