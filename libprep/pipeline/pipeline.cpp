@@ -834,16 +834,16 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
                                 pipeline_internal::remove_after_interrupt(dir, made).c_str());
                  });
   }
-  const bool had_output = tiled && tileset_dir && !tileset_dir->made();
+  const bool made_dir = tileset_dir && tileset_dir->made();
   if (tiled && !request.dry_run) {
     try {
       const RssWatch watch(limit, [&](double rss) {
-        pipeline_internal::remove_after_interrupt(request.output, !had_output);
+        pipeline_internal::remove_after_interrupt(request.output, made_dir);
         stop_reading(rss, request, trail);
       });
       streamed = pipeline_internal::prepare_tileset_streaming(scene, request, provenance_of);
     } catch (...) {
-      pipeline_internal::discard_work(request.output, !had_output);
+      pipeline_internal::discard_work(request.output, made_dir);
       throw;
     }
     timings.emplace_back("read", streamed->read_s);
@@ -858,7 +858,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
       check_cleaned(scene, request, result.scene.manifest,
                     streamed->polygons + streamed->lines + streamed->dynamic_lines, true, trail);
     } catch (...) {
-      pipeline_internal::discard_work(request.output, !had_output);
+      pipeline_internal::discard_work(request.output, made_dir);
       throw;
     }
   } else {
@@ -909,7 +909,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
       give_warnings(terrain_warnings(scene, t), request, trail);
       tileset = pipeline_internal::finalize_tileset(scene, request);
     } catch (...) {
-      pipeline_internal::discard_work(request.output, !had_output);
+      pipeline_internal::discard_work(request.output, made_dir);
       throw;
     }
     timings.emplace_back("tiles", seconds_since(t0));

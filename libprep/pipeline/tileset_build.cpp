@@ -533,6 +533,63 @@ std::vector<TileItem> plan_items(const PreparedPlan& p) {
   return items;
 }
 
+// The metadata of a tile's package beside what write_model writes: the
+// scene's, with paths as a package records them (the same bytes from any
+// checkout), and the tile's key, square, size and overview level.
+nlohmann::json tile_metadata(const SceneSpec& spec, const SceneFeatures& tile,
+                             const nlohmann::json& provenance, const std::string& path,
+                             const TilePlan& plan, const TileKey& key, const TileLevel* level) {
+  Manifest recorded = tile.manifest;
+  record_manifest_paths(spec, recorded);
+  nlohmann::json extra = package_metadata(spec, recorded, provenance, path);
+  const Extent sq = plan.square(key);
+  extra["tile"] = {{"x", key.x},
+                   {"y", key.y},
+                   {"square", {sq.xmin, sq.ymin, sq.xmax, sq.ymax}},
+                   {"tile_size_m", plan.size},
+                   {"margin_m", plan.margin}};
+  if (level) {
+    extra["tile"]["level"] = level->level;
+    extra["tile"]["resolution_m"] = level->resolution;
+    extra["tile"]["min_area_m2"] = level->min_area;
+    extra["tile"]["min_length_m"] = level->min_length;
+  }
+  return extra;
+}
+
+// Dynamic-line heights taken beyond the DEM, summed over the tiles built.
+struct DemTally {
+  std::atomic<uint64_t> outside{0}, lines_outside{0}, vertices{0};
+};
+
+// Builds a tile's model (on an overview level `level`, cells at least two
+// of its pixels wide) and writes its package with `extra`; returns what the
+// package holds and adds its DEM counts to `dem`.
+HeldParts write_tile(const SceneFeatures& tile, const SceneSpec& spec, const BuildRequest& request,
+                     const TileLevel* level, const std::string& path, nlohmann::json& extra,
+                     DemTally& dem) {
+  ModelOptions mo = spec.model;
+  mo.dem_assume_crs = spec.assume_crs;
+  if (level) mo.min_cell_m = kLevelMinCellPixels * level->resolution;
+  DecalModel model = build_model(tile, mo, spec.dem);
+  if (model.manifest.layers.empty()) model.manifest = tile.manifest;
+  record_manifest_paths(spec, model.manifest);
+  const HeldParts held =
+      held_parts(model.poly_props, model.line_props.size(), model.dyn_line_props.size());
+  dem.outside += model.dyn_vertices_outside_dem;
+  dem.lines_outside += model.dyn_lines_outside_dem;
+  dem.vertices += model.dyn_vertices.size();
+  WriteOptions wo;
+  wo.codec = request.compress ? Codec::zstd : Codec::none;
+  wo.zstd_level = request.zstd_level;
+  // Dashed lines cut by the tile keep the whole line's phase.
+  if (std::any_of(model.line_dash_start.begin(), model.line_dash_start.end(),
+                  [](double s) { return s != 0; }))
+    extra["line_dash_start"] = model.line_dash_start;
+  write_model(path, std::move(model), extra.dump(), wo);
+  return held;
+}
+
 }  // namespace
 
 TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
@@ -553,7 +610,7 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
   ProgressStage stage(request.progress, "tiles", items.size(), "tiles");
   TileStepOutcome out;
   std::atomic<size_t> built{0}, reused{0}, empty{0};
-  std::atomic<uint64_t> dyn_outside{0}, dyn_lines_outside{0}, dyn_vertices{0};
+  DemTally dem;
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
   std::exception_ptr first_error;
@@ -610,22 +667,8 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
         if (!tile.polygons.empty() || !tile.lines.empty() || !tile.dynamic_lines.empty()) {
           const std::string file = tile_file(level, key);
           const std::string path = dir + "/" + file;
-          // Paths as the package records them: the same bytes from any checkout.
-          Manifest recorded = tile.manifest;
-          record_manifest_paths(spec, recorded);
-          nlohmann::json extra = package_metadata(spec, recorded, prepared.provenance, path);
-          const Extent sq = plan.square(key);
-          extra["tile"] = {{"x", key.x},
-                           {"y", key.y},
-                           {"square", {sq.xmin, sq.ymin, sq.xmax, sq.ymax}},
-                           {"tile_size_m", plan.size},
-                           {"margin_m", plan.margin}};
-          if (lv) {
-            extra["tile"]["level"] = level;
-            extra["tile"]["resolution_m"] = lv->params.resolution;
-            extra["tile"]["min_area_m2"] = lv->params.min_area;
-            extra["tile"]["min_length_m"] = lv->params.min_length;
-          }
+          nlohmann::json extra = tile_metadata(spec, tile, prepared.provenance, path, plan, key,
+                                               lv ? &lv->params : nullptr);
           const uint64_t digest = input_digest(tile, extra.dump(), request);
           extra["tile"]["input_xxh64"] = hex64(digest);
           std::optional<HeldParts> held = reusable(path, digest);
@@ -642,26 +685,7 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
             const MemoryEstimate est = estimate_tile(tile, resident, jobs, file);
             note_estimate(i, est);
             check_memory(limit, est);
-            ModelOptions mo = spec.model;
-            mo.dem_assume_crs = spec.assume_crs;
-            // An overview level's cells: at least two of its pixels wide.
-            if (lv) mo.min_cell_m = kLevelMinCellPixels * lv->params.resolution;
-            DecalModel model = build_model(tile, mo, spec.dem);
-            if (model.manifest.layers.empty()) model.manifest = tile.manifest;
-            record_manifest_paths(spec, model.manifest);
-            held =
-                held_parts(model.poly_props, model.line_props.size(), model.dyn_line_props.size());
-            dyn_outside += model.dyn_vertices_outside_dem;
-            dyn_lines_outside += model.dyn_lines_outside_dem;
-            dyn_vertices += model.dyn_vertices.size();
-            WriteOptions wo;
-            wo.codec = request.compress ? Codec::zstd : Codec::none;
-            wo.zstd_level = request.zstd_level;
-            // Dashed lines cut by the tile keep the whole line's phase.
-            if (std::any_of(model.line_dash_start.begin(), model.line_dash_start.end(),
-                            [](double s) { return s != 0; }))
-              extra["line_dash_start"] = model.line_dash_start;
-            write_model(path, std::move(model), extra.dump(), wo);
+            held = write_tile(tile, spec, request, lv ? &lv->params : nullptr, path, extra, dem);
           }
           const std::optional<FileDigest> fd = file_digest(path);
           if (!fd) fail<output_error>(kTilesetStage, "cannot read back " + path);
@@ -712,9 +736,9 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
   out.built = built;
   out.reused = reused;
   out.empty = empty;
-  out.dyn_vertices_outside_dem = dyn_outside;
-  out.dyn_lines_outside_dem = dyn_lines_outside;
-  out.dyn_vertices = dyn_vertices;
+  out.dyn_vertices_outside_dem = dem.outside;
+  out.dyn_lines_outside_dem = dem.lines_outside;
+  out.dyn_vertices = dem.vertices;
   return out;
 }
 

@@ -146,13 +146,12 @@ TilesetDir::TilesetDir(const std::string& dir, Access access, bool create) : dir
                              "or a tileset it built (nothing was written)");
     }
   }
-  for (const std::string& inner : {dir + "/tiles"}) {
-    struct stat ist {};
-    if (::lstat(inner.c_str(), &ist) == 0 && !S_ISDIR(ist.st_mode))
-      fail<output_error>(kTilesetStage, inner +
-                                            " is not a folder (a link or a file); decalprep "
-                                            "never writes through a link (nothing was written)");
-  }
+  const std::string tiles = dir + "/tiles";
+  struct stat tst {};
+  if (::lstat(tiles.c_str(), &tst) == 0 && !S_ISDIR(tst.st_mode))
+    fail<output_error>(kTilesetStage, tiles +
+                                          " is not a folder (a link or a file); decalprep "
+                                          "never writes through a link (nothing was written)");
 }
 
 TilesetDir::~TilesetDir() {
