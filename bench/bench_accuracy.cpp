@@ -114,13 +114,13 @@ Args parse(int argc, char** argv) {
   return a;
 }
 
-prep::SceneSpec spec_of(const Args& a) {
+prep::BuildSpec spec_of(const Args& a) {
   if (a.input.size() > 5 && a.input.substr(a.input.size() - 5) == ".toml") {
-    prep::SceneSpec s = prep::load_scene_file(a.input);
+    prep::BuildSpec s = prep::load_scene_file(a.input);
     if (!a.crs.empty()) s.crs = a.crs;
     return s;
   }
-  prep::SceneSpec s;
+  prep::BuildSpec s;
   prep::LayerSpec l;
   l.name = "input";
   l.source = a.input;
@@ -395,7 +395,7 @@ int main(int argc, char** argv) try {
   GEOSContextHandle_t h = GEOS_init_r();
   GEOSContext_setErrorMessageHandler_r(h, geos_msg, nullptr);
 
-  prep::SceneSpec spec = spec_of(a);
+  prep::BuildSpec spec = spec_of(a);
   const double package_resolution = a.resolution >= 0 && a.input.find(".toml") == std::string::npos
                                         ? a.resolution
                                         : spec.resolution;
@@ -542,7 +542,7 @@ int main(int argc, char** argv) try {
   }
 
   if (a.hausdorff) {
-    prep::SceneSpec simp = spec;
+    prep::BuildSpec simp = spec;
     simp.resolution = package_resolution;
     const prep::SceneFeatures s2 = prep::run_build(simp, req).scene;
     std::map<std::tuple<uint32_t, int64_t, int>, const prep::ScenePolygon*> orig;

@@ -290,7 +290,7 @@ int run_levels(int argc, char** argv) {
                "predicted,cpu_seconds\n");
   for (const std::string& path : scenes) {
     using Clock = std::chrono::steady_clock;
-    const prep::SceneSpec spec = prep::load_scene_file(path);
+    const prep::BuildSpec spec = prep::load_scene_file(path);
     prep::BuildRequest req;
     req.dry_run = true;
     const prep::SceneFeatures scene = prep::run_build(spec, req).scene;

@@ -3,7 +3,7 @@
 
 #include <cstdint>
 
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 
 namespace bench {
 

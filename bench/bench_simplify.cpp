@@ -18,7 +18,7 @@
 namespace {
 
 prep::SceneFeatures build(const std::string& pbf, double resolution) {
-  prep::SceneSpec s;
+  prep::BuildSpec s;
   s.layers = {{.name = "landuse",
                .source = pbf,
                .layer = "multipolygons",

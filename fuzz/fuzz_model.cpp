@@ -94,7 +94,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   GEOSContext_setNoticeMessageHandler_r(h, geos_quiet, nullptr);
   GEOSContext_setErrorMessageHandler_r(h, geos_quiet, nullptr);
 
-  prep::SceneSpec scene;
+  prep::BuildSpec scene;
   prep::LayerSpec spec;
   spec.name = "fuzz";
   const int kind = style & 3;

@@ -241,7 +241,7 @@ struct Cleaner {
     return geos_fail_fid && f.fid == *geos_fail_fid;
   }
 
-  // GEOS MakeValid with the scene's method (prep/scene.hpp RepairMethod).
+  // GEOS MakeValid with the scene's method (prep/spec.hpp RepairMethod).
   GEOSGeometry* make_valid(GEOSContextHandle_t h, const GEOSGeometry* g) const {
     if (repair == RepairMethod::linework) return GEOSMakeValid_r(h, g);
     GEOSMakeValidParams* params = GEOSMakeValidParams_create_r(h);

@@ -1,5 +1,5 @@
-// libprep/evaluate/dash.cpp — dashed lines (prep/dash.hpp).
-#include "prep/dash.hpp"
+// libprep/evaluate/dash.cpp — dashed lines (prep/evaluate.hpp).
+#include "prep/evaluate.hpp"
 
 #include <bit>
 #include <cmath>

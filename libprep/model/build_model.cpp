@@ -21,7 +21,6 @@
 #include <decal/layout.hpp>
 
 #include "detail.hpp"
-#include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
 #include "prep/model.hpp"
 #include "prep/progress.hpp"

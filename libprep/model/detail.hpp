@@ -10,8 +10,8 @@
 
 #include <decal/layout.hpp>
 
+#include "prep/features.hpp"
 #include "prep/model.hpp"
-#include "prep/scene.hpp"
 
 namespace prep::detail {
 

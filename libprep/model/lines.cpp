@@ -21,8 +21,8 @@
 #include <sstream>
 
 #include "detail.hpp"
-#include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
+#include "prep/model.hpp"
 #include "prep/progress.hpp"
 #include "prep/stage_error.hpp"
 

@@ -216,7 +216,7 @@ std::vector<std::string> batch_inputs(const BatchRequest& request,
     try {
       SceneRequest r = request.scene;
       r.input = file;
-      const SceneSpec scene = scene_spec(r);
+      const BuildSpec scene = scene_spec(r);
       for (const LayerSpec& layer : scene.layers) inputs.push_back(layer.source);
       inputs.push_back(scene.dem);
     } catch (const error&) {
@@ -299,7 +299,7 @@ int build_one_scene(const BatchRequest& request, const BatchScene& item) {
   check_input_file(item.scene, "scene file");
   SceneRequest scene_request = request.scene;
   scene_request.input = item.scene;
-  const SceneSpec scene = scene_spec(scene_request);
+  const BuildSpec scene = scene_spec(scene_request);
   BuildRequest build = request.build;
   build.output = item.output;
   build.report = item.report;

@@ -138,7 +138,7 @@ struct Counts {
 };
 
 // Memory the read stage needs for OSM sources on top of the features.
-double osm_read_bytes(const SceneSpec& scene) {
+double osm_read_bytes(const BuildSpec& scene) {
   auto is_osm = [](const std::string& p) {
     auto ends = [&](const char* sfx) {
       const std::string x(sfx);
@@ -316,7 +316,7 @@ double peak_rss_mib() {
   return double(ru.ru_maxrss) / 1024.0;  // Linux: KiB
 }
 
-MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run) {
+MemoryEstimate estimate_before_read(const BuildSpec& scene, bool dry_run) {
   double bytes = 0;
   std::vector<std::string> seen;
   // Only files whose size bounds what the read holds: GeoJSON (GDAL parses
@@ -355,7 +355,7 @@ MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run) {
   return e;
 }
 
-MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features,
+MemoryEstimate estimate_after_read(const BuildSpec& scene, const FeatureSet& features,
                                    bool dry_run) {
   Counts c;
   for (const SourceLayer& layer : features.layers) {
@@ -387,7 +387,7 @@ MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& fea
   return e;
 }
 
-MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& scene) {
+MemoryEstimate estimate_after_clean(const BuildSpec& spec, const SceneFeatures& scene) {
   const Counts c = counts_of(scene);
   // Read and clean have run: their peak is measured, not estimated, and the
   // build adds its part to what is resident now (freed read memory is not

@@ -39,7 +39,7 @@
 #include "prep/project.hpp"
 #include "prep/read.hpp"
 #include "prep/stage_error.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 #include "prep/write.hpp"
 #include "tileset_dir.hpp"
 
@@ -81,7 +81,7 @@ nlohmann::json frame_json(const SceneFrame& f, const Extent& e) {
 }
 
 // Provenance: path, size and XXH64 of every local source (formats/SPEC.md "Metadata").
-nlohmann::json provenance_json(const SceneSpec& scene) {
+nlohmann::json provenance_json(const BuildSpec& scene) {
   nlohmann::json sources = nlohmann::json::array();
   std::vector<std::string> paths;
   for (const LayerSpec& l : scene.layers) paths.push_back(l.source);
@@ -310,7 +310,7 @@ namespace {
 // The folder a package's paths are recorded relative to: the scene file's,
 // or the working folder for the file-less form (whose paths are as typed,
 // relative to it). Absolute and lexically normal.
-std::filesystem::path record_base(const SceneSpec& scene) {
+std::filesystem::path record_base(const BuildSpec& scene) {
   namespace fs = std::filesystem;
   const fs::path cwd = fs::current_path();
   if (scene.scene_path.empty()) return cwd.lexically_normal();
@@ -373,7 +373,7 @@ namespace pipeline_internal {
 // The manifest a package records: its notes and entry reasons name the
 // sources and the DEM as recorded_path records them (a note describes the
 // DEM by its path as given, a read note its source's).
-void record_manifest_paths(const SceneSpec& scene, Manifest& manifest) {
+void record_manifest_paths(const BuildSpec& scene, Manifest& manifest) {
   const std::filesystem::path base = record_base(scene);
   std::vector<std::pair<std::string, std::string>> paths;
   auto add = [&](const std::string& p) {
@@ -399,7 +399,7 @@ void record_manifest_paths(const SceneSpec& scene, Manifest& manifest) {
 // the scene file's folder (recorded_path), the DEM relative to the
 // package's own folder when `package_path` is given, since `render` looks
 // for it there (formats/SPEC.md "Metadata"); the report keeps them as given.
-nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest,
+nlohmann::json package_metadata(const BuildSpec& scene, const Manifest& manifest,
                                 const nlohmann::json& provenance, const std::string& package_path) {
   const std::filesystem::path base = record_base(scene);
   const std::string dem =
@@ -530,7 +530,7 @@ void give_warnings(const std::vector<std::string>& warnings, const BuildRequest&
 // A layer that read no feature: a `where` or `sql` that matches nothing, a
 // wrong source layer, an empty source. Named with its source and filter
 // (a casing layer shares its layer's read and is not named again).
-std::vector<std::string> empty_layer_warnings(const SceneSpec& scene, const Manifest& manifest) {
+std::vector<std::string> empty_layer_warnings(const BuildSpec& scene, const Manifest& manifest) {
   std::vector<std::string> out;
   for (const LayerCounts& c : manifest.layers) {
     if (c.read > 0) continue;
@@ -550,7 +550,7 @@ std::vector<std::string> empty_layer_warnings(const SceneSpec& scene, const Mani
 // cell's value, not the terrain under them), counted by the build stage.
 // `lines` is the count of dynamic lines, or 0 where it is not known (a
 // tileset's lines are cut by its tiles).
-std::vector<std::string> terrain_warnings(const SceneSpec& scene, uint64_t outside,
+std::vector<std::string> terrain_warnings(const BuildSpec& scene, uint64_t outside,
                                           uint64_t vertices, uint64_t lines_outside,
                                           uint64_t lines) {
   if (outside == 0) return {};
@@ -561,11 +561,11 @@ std::vector<std::string> terrain_warnings(const SceneSpec& scene, uint64_t outsi
           ": their heights are its edge cells', not the terrain's (use a DEM that covers the "
           "scene, or an --extent within it)"};
 }
-std::vector<std::string> terrain_warnings(const SceneSpec& scene, const DecalModel& model) {
+std::vector<std::string> terrain_warnings(const BuildSpec& scene, const DecalModel& model) {
   return terrain_warnings(scene, model.dyn_vertices_outside_dem, model.dyn_vertices.size(),
                           model.dyn_lines_outside_dem, model.dyn_line_start.size());
 }
-std::vector<std::string> terrain_warnings(const SceneSpec& scene,
+std::vector<std::string> terrain_warnings(const BuildSpec& scene,
                                           const pipeline_internal::TileStepOutcome& t) {
   return terrain_warnings(scene, t.dyn_vertices_outside_dem, t.dyn_vertices,
                           t.dyn_lines_outside_dem, 0);
@@ -574,7 +574,7 @@ std::vector<std::string> terrain_warnings(const SceneSpec& scene,
 // A build that kept no feature from any layer stops (empty_error, exit 9)
 // before it writes a package, unless allow_empty; `parts` are the parts
 // clean kept. The message gives every layer's counts.
-void check_not_empty(const SceneSpec& scene, const Manifest& manifest, size_t parts) {
+void check_not_empty(const BuildSpec& scene, const Manifest& manifest, size_t parts) {
   const LayerCounts total = manifest_totals(manifest);
   if (scene.allow_empty || (total.kept > 0 && parts > 0)) return;
   std::string layers;
@@ -631,7 +631,7 @@ nlohmann::json failed_report(const error& e, const BuildRequest& request,
 // prepare step) the warnings of layers that read nothing, errors under
 // --strict (a single build gives them right after read); then an empty
 // result (not for a dry run, which writes no package anyway).
-void check_cleaned(const SceneSpec& scene, const BuildRequest& request, const Manifest& manifest,
+void check_cleaned(const BuildSpec& scene, const BuildRequest& request, const Manifest& manifest,
                    size_t parts, bool layer_warnings, MemoryTrail& trail) {
   nlohmann::json layers = nlohmann::json::array();
   for (const LayerCounts& c : manifest.layers) layers.push_back(layer_counts_json(c));
@@ -642,7 +642,7 @@ void check_cleaned(const SceneSpec& scene, const BuildRequest& request, const Ma
 
 // The estimate before read, with a tileset's advice: its sources are read
 // as a single build's are, so tiles do not lower this part.
-MemoryEstimate before_read(const SceneSpec& scene, const BuildRequest& request) {
+MemoryEstimate before_read(const BuildSpec& scene, const BuildRequest& request) {
   MemoryEstimate e = estimate_before_read(scene, request.dry_run);
   if (scene.tile_size > 0)
     e.advice =
@@ -654,7 +654,7 @@ MemoryEstimate before_read(const SceneSpec& scene, const BuildRequest& request) 
 // One step of a tileset build (BuildRequest::step), in a process of its own.
 // The report says which step ran and what it did; the state for the next
 // step is in the work folder only (pipeline_internal.hpp).
-BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request,
+BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request,
                              MemoryTrail& trail) {
   using Step = BuildRequest::Step;
   if (request.output.empty()) fail<usage_error>(kBuildStage, "no output path (-o)");
@@ -782,7 +782,7 @@ BuildResult run_tileset_step(const SceneSpec& scene, const BuildRequest& request
   return result;
 }
 
-BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, MemoryTrail& trail) {
+BuildResult run_stages(const BuildSpec& scene, const BuildRequest& request, MemoryTrail& trail) {
   if (request.step != BuildRequest::Step::all) return run_tileset_step(scene, request, trail);
   std::vector<std::pair<std::string, double>> timings;
   const auto t_all = Clock::now();
@@ -991,7 +991,7 @@ BuildResult run_stages(const SceneSpec& scene, const BuildRequest& request, Memo
 }
 
 // The files a build reads: the scene file, each layer's source, the DEM.
-std::vector<std::string> scene_inputs(const SceneSpec& scene) {
+std::vector<std::string> scene_inputs(const BuildSpec& scene) {
   std::vector<std::string> in = {scene.scene_path, scene.dem};
   for (const LayerSpec& l : scene.layers) in.push_back(l.source);
   return in;
@@ -1000,7 +1000,7 @@ std::vector<std::string> scene_inputs(const SceneSpec& scene) {
 // The one rule for a build's inputs and outputs (prep/files.hpp), checked before
 // anything is read: the package and the report are regular files or
 // absent, and none is an input or the other; a tileset folder is no input.
-void check_build_outputs(const SceneSpec& scene, const BuildRequest& request) {
+void check_build_outputs(const BuildSpec& scene, const BuildRequest& request) {
   // Nothing below may block on an input (the sources are hashed for the
   // provenance and sized for --max-memory before GDAL opens them).
   check_input_file(scene.scene_path, "scene file");
@@ -1035,7 +1035,7 @@ void check_build_outputs(const SceneSpec& scene, const BuildRequest& request) {
 
 }  // namespace
 
-BuildResult run_build(const SceneSpec& scene, const BuildRequest& request) {
+BuildResult run_build(const BuildSpec& scene, const BuildRequest& request) {
   check_build_outputs(scene, request);
   MemoryTrail trail;
   try {

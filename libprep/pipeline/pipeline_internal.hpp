@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "prep/features.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
-#include "prep/scene.hpp"
 #include "prep/tile.hpp"
 
 namespace prep::pipeline_internal {
@@ -24,14 +24,14 @@ void write_text_file(const std::string& path, const std::string& text);
 // provenance, scene file and build options. Paths are recorded relative to
 // the scene file's folder; build_options.dem relative to the folder of
 // `package_path` (the package being written; empty: as the scene gives it).
-nlohmann::json package_metadata(const SceneSpec& scene, const Manifest& manifest,
+nlohmann::json package_metadata(const BuildSpec& scene, const Manifest& manifest,
                                 const nlohmann::json& provenance,
                                 const std::string& package_path = {});
 
 // Rewrites the source and DEM paths in the manifest's notes and entry
 // reasons as a package records them (relative to the scene file's folder),
 // so that the package's bytes do not depend on where the checkout is.
-void record_manifest_paths(const SceneSpec& scene, Manifest& manifest);
+void record_manifest_paths(const BuildSpec& scene, Manifest& manifest);
 
 // What write_tileset() did, for the report.
 struct TilesetOutcome {
@@ -87,7 +87,7 @@ struct WorkPaths {
 // stage's entries follow them in manifest.json.
 class TilesetPreparer {
  public:
-  TilesetPreparer(const SceneSpec& spec, const std::string& dir);
+  TilesetPreparer(const BuildSpec& spec, const std::string& dir);
   ~TilesetPreparer();
   TilesetPreparer(const TilesetPreparer&) = delete;
   TilesetPreparer& operator=(const TilesetPreparer&) = delete;
@@ -109,7 +109,7 @@ class TilesetPreparer {
   uint64_t entries() const;
 
  private:
-  const SceneSpec& spec_;
+  const BuildSpec& spec_;
   WorkPaths paths_;
   std::unique_ptr<PartWriter> parts_;
   std::unique_ptr<EntryWriter> entries_, read_entries_;
@@ -132,7 +132,7 @@ struct PreparedScene {
   uint64_t polygons = 0, lines = 0, dynamic_lines = 0;
   double read_s = 0, project_s = 0, clean_s = 0;
 };
-PreparedScene prepare_tileset_streaming(const SceneSpec& spec, const BuildRequest& request,
+PreparedScene prepare_tileset_streaming(const BuildSpec& spec, const BuildRequest& request,
                                         const std::function<const nlohmann::json&()>& provenance);
 
 // After a failed step: removes the work folder and, when `made_dir` (the
@@ -150,12 +150,12 @@ struct TileStepOutcome {
   // came from beyond the DEM, on how many lines, of how many vertices.
   uint64_t dyn_vertices_outside_dem = 0, dyn_lines_outside_dem = 0, dyn_vertices = 0;
 };
-TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
+TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, size_t part,
                             size_t parts, std::vector<MemoryEstimate>* estimates = nullptr);
 
 // Step 3: every tile of the plan must have its record. `manifest` (may be
 // null) receives the scene's counts and notes.
-TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& request,
+TilesetOutcome finalize_tileset(const BuildSpec& spec, const BuildRequest& request,
                                 Manifest* manifest = nullptr);
 
 }  // namespace prep::pipeline_internal

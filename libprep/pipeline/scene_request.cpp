@@ -107,7 +107,7 @@ void apply_terrain_overrides(const SceneOverrides& o, ModelOptions& b) {
 }
 
 // Command-line values override the scene file's.
-void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
+void apply_overrides(const SceneOverrides& o, BuildSpec& scene) {
   if (!o.crs.empty()) scene.crs = o.crs;
   if (!o.assume_crs.empty()) scene.assume_crs = o.assume_crs;
   if (!o.extent.empty()) scene.extent = parse_extent(o.extent);
@@ -150,8 +150,8 @@ void apply_overrides(const SceneOverrides& o, SceneSpec& scene) {
 
 }  // namespace
 
-SceneSpec scene_spec(const SceneRequest& request) {
-  SceneSpec scene;
+BuildSpec scene_spec(const SceneRequest& request) {
+  BuildSpec scene;
   if (request.input.ends_with(".toml")) {
     if (any_given(request.layer)) {
       fail<usage_error>(

@@ -1,6 +1,6 @@
 // Read features spilled to disk (not a public header): the prepare step of
 // a tileset reads every source once, writing each scene layer's features
-// (prep/scene.hpp SourceFeature, every field, coordinates as the read stage
+// (prep/features.hpp SourceFeature, every field, coordinates as the read stage
 // gave them) to a file of its own in DIR/.work; the frame, the projection's
 // fit and the cleaned chunks then come from these files, read front to back.
 // A scratch file of this process's own structs, never kept: a record is the
@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "prep/features.hpp"
 #include "prep/project.hpp"
-#include "prep/scene.hpp"
 
 namespace prep::pipeline_internal {
 

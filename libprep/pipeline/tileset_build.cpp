@@ -39,7 +39,6 @@
 #include "prep/read.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
-#include "prep/tileset.hpp"
 #include "prep/write.hpp"
 #include "source_spill.hpp"
 #include "tileset_dir.hpp"
@@ -147,7 +146,7 @@ std::optional<HeldParts> reusable(const std::string& path, uint64_t digest) {
 // coordinates) with at most kAutoLevelTiles tiles
 // (none when level 0 does), at most kMaxLevels and no tile above
 // kMaxTileSize.
-int level_count(const SceneSpec& spec, const Extent& data, const SceneFrame& frame) {
+int level_count(const BuildSpec& spec, const Extent& data, const SceneFrame& frame) {
   if (spec.levels != kLevelsAuto) return spec.levels;
   for (int l = 0; l <= kMaxLevels; ++l) {
     const double size = std::ldexp(spec.tile_size, l);
@@ -163,7 +162,7 @@ int level_count(const SceneSpec& spec, const Extent& data, const SceneFrame& fra
 
 // ------------------------------------------------------------- prepare --
 
-TilesetPreparer::TilesetPreparer(const SceneSpec& spec, const std::string& dir)
+TilesetPreparer::TilesetPreparer(const BuildSpec& spec, const std::string& dir)
     : spec_(spec), paths_{dir} {
   check_tile_size(spec.tile_size);
   // The folder itself is held by the caller (TilesetDir).
@@ -251,7 +250,7 @@ uint64_t TilesetPreparer::entries() const {
   return entries_->count() + read_entries_->count();
 }
 
-PreparedScene prepare_tileset_streaming(const SceneSpec& spec, const BuildRequest& request,
+PreparedScene prepare_tileset_streaming(const BuildSpec& spec, const BuildRequest& request,
                                         const std::function<const nlohmann::json&()>& provenance) {
   using Clock = std::chrono::steady_clock;
   auto since = [](Clock::time_point t0) {
@@ -536,7 +535,7 @@ std::vector<TileItem> plan_items(const PreparedPlan& p) {
 // The metadata of a tile's package beside what write_model writes: the
 // scene's, with paths as a package records them (the same bytes from any
 // checkout), and the tile's key, square, size and overview level.
-nlohmann::json tile_metadata(const SceneSpec& spec, const SceneFeatures& tile,
+nlohmann::json tile_metadata(const BuildSpec& spec, const SceneFeatures& tile,
                              const nlohmann::json& provenance, const std::string& path,
                              const TilePlan& plan, const TileKey& key, const TileLevel* level) {
   Manifest recorded = tile.manifest;
@@ -565,7 +564,7 @@ struct DemTally {
 // Builds a tile's model (on an overview level `level`, cells at least two
 // of its pixels wide) and writes its package with `extra`; returns what the
 // package holds and adds its DEM counts to `dem`.
-HeldParts write_tile(const SceneFeatures& tile, const SceneSpec& spec, const BuildRequest& request,
+HeldParts write_tile(const SceneFeatures& tile, const BuildSpec& spec, const BuildRequest& request,
                      const TileLevel* level, const std::string& path, nlohmann::json& extra,
                      DemTally& dem) {
   ModelOptions mo = spec.model;
@@ -592,7 +591,7 @@ HeldParts write_tile(const SceneFeatures& tile, const SceneSpec& spec, const Bui
 
 }  // namespace
 
-TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, size_t part,
+TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, size_t part,
                             size_t parts, std::vector<MemoryEstimate>* estimates) {
   const WorkPaths paths{request.output};
   const PreparedPlan prepared = read_plan(paths);
@@ -744,7 +743,7 @@ TileStepOutcome build_tiles(const SceneSpec& spec, const BuildRequest& request, 
 
 // -------------------------------------------------------------- finalize --
 
-TilesetOutcome finalize_tileset(const SceneSpec& spec, const BuildRequest& request,
+TilesetOutcome finalize_tileset(const BuildSpec& spec, const BuildRequest& request,
                                 Manifest* manifest) {
   const WorkPaths paths{request.output};
   const PreparedPlan prepared = read_plan(paths);

@@ -18,7 +18,7 @@
 
 #include "prep/error.hpp"
 #include "prep/stage_error.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 
 namespace prep::pipeline_internal {
 

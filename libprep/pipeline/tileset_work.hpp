@@ -26,9 +26,8 @@
 #include <vector>
 
 #include "pipeline_internal.hpp"
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 #include "prep/tile.hpp"
-#include "prep/tileset.hpp"
 
 namespace prep::pipeline_internal {
 

@@ -201,4 +201,11 @@ std::optional<Extent> ground_footprint(const Camera& c, uint32_t width, uint32_t
   return b;
 }
 
+double pixel_ground_size(const Camera& c, uint32_t width, uint32_t height, const Vec3& p) {
+  if (c.projection == Projection::orthographic)
+    return std::min(c.ortho_w / double(width), c.ortho_h / double(height));
+  const double d = std::hypot(p[0] - c.eye[0], p[1] - c.eye[1], p[2] - c.eye[2]);
+  return d * 2 * std::tan(c.fov_y_deg * std::numbers::pi / 360.0) / double(height);
+}
+
 }  // namespace prep::render

@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "decal/format.hpp"
-#include "lod/lod.hpp"
+#include "decal/lod.hpp"
 
 namespace prep::render {
 
@@ -89,7 +89,7 @@ uint32_t outcode(const std::array<double, 4>& c) {
 
 // The lod_*.comp.glsl passes in double precision: the LOD lines' vertices
 // leave the vertex chains (lod_mask), the visible segments
-// (prep::visible_segments, lod_select) link their neighbours, and each one
+// (decal::visible_segments, lod_select) link their neighbours, and each one
 // not outside a frustum plane becomes a segment between its points'
 // dynamic vertices (lod_segments).
 void DynamicLinesCpu::add_lod_segments(const DecalSource& source, const DynamicLod& lod,
@@ -100,17 +100,18 @@ void DynamicLinesCpu::add_lod_segments(const DecalSource& source, const DynamicL
   const auto points = blob<decal::LodPoint>(source, decal::BlobId::lod_points);
   const auto segs = blob<decal::LodSegment>(source, decal::BlobId::lod_segments);
   if (!lod.on || points.empty() || segs.empty()) return;
-  const LodDrawMap map =
-      lod_draw_map(points, segs, blob<uvec2>(source, decal::BlobId::lod_line_range), verts,
-                   blob<uint32_t>(source, decal::BlobId::dyn_line_start),
-                   blob<std::array<int32_t, 2>>(source, decal::BlobId::dyn_prev_next));
+  const decal::LodDrawMap map =
+      decal::lod_draw_map(points, segs, blob<uvec2>(source, decal::BlobId::lod_line_range), verts,
+                          blob<uint32_t>(source, decal::BlobId::dyn_line_start),
+                          blob<std::array<int32_t, 2>>(source, decal::BlobId::dyn_prev_next));
   for (size_t v = 0; v < verts.size(); ++v) {
     const auto line = size_t(verts[v][3]);
     if (line < map.line_drawn.size() && map.line_drawn[line]) keep[v] = 0;
   }
   const LodView lv = lod_view(cam, H, lod.zmin, lod.zmax, lod.tolerance_px);
-  const std::vector<uint32_t> visible = visible_segments(
-      points, segs, LodCamera{lv.cx, lv.cy, lv.cz}, LinearThreshold{lv.base, lv.slope});
+  const std::vector<uint32_t> visible =
+      decal::visible_segments(points, segs, decal::LodCamera{lv.cx, lv.cy, lv.cz},
+                              decal::LinearThreshold{lv.base, lv.slope});
   constexpr uint32_t kNone = decal::kLodNone;
   std::vector<uint32_t> prev_of(points.size(), kNone), next_of(points.size(), kNone);
   for (uint32_t s : visible) {

@@ -7,13 +7,13 @@
 #include <cstring>
 #include <string>
 
+#include "decal/lod.hpp"
 #include "detail/gl_render.hpp"
-#include "lod/lod.hpp"
 
 namespace prep::render::detail {
 
 // A package's LOD data on the GPU (lod_common.glsl): its lod_points and
-// lod_segments, the map of prep::lod_draw_map and the lines it draws.
+// lod_segments, the map of decal::lod_draw_map and the lines it draws.
 struct LodBuffers {
   const DecalSource* source = nullptr;
   GLuint points = 0, segments = 0, map = 0, line_drawn = 0;
@@ -36,10 +36,10 @@ std::shared_ptr<LodBuffers> lod_buffers(GlObjects& gl, const DecalSource& src) {
   const auto points = blob_span<decal::LodPoint>(src, decal::BlobId::lod_points);
   const auto segments = blob_span<decal::LodSegment>(src, decal::BlobId::lod_segments);
   const auto starts = blob_span<uint32_t>(src, decal::BlobId::dyn_line_start);
-  const LodDrawMap map =
-      lod_draw_map(points, segments, blob_span<uvec2>(src, decal::BlobId::lod_line_range),
-                   blob_span<std::array<int32_t, 4>>(src, decal::BlobId::dyn_vertices), starts,
-                   blob_span<std::array<int32_t, 2>>(src, decal::BlobId::dyn_prev_next));
+  const decal::LodDrawMap map = decal::lod_draw_map(
+      points, segments, blob_span<uvec2>(src, decal::BlobId::lod_line_range),
+      blob_span<std::array<int32_t, 4>>(src, decal::BlobId::dyn_vertices), starts,
+      blob_span<std::array<int32_t, 2>>(src, decal::BlobId::dyn_prev_next));
   std::vector<uint32_t> pairs(2 * points.size());
   for (size_t p = 0; p < points.size(); ++p) {
     pairs[2 * p] = map.vertex[p];

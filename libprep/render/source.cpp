@@ -7,8 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
+#include "prep/model.hpp"
 #include "prep/render.hpp"
 #include "prep/stage_error.hpp"
 

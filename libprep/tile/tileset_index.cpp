@@ -17,7 +17,7 @@
 #include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/manifest_json.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 
 namespace prep {
 

@@ -121,7 +121,7 @@ std::string collection(const std::vector<Case>& cs) {
 prep::SceneFeatures run(const std::string& source, prep::DecalKind kind, double resolution = 0,
                         std::optional<prep::Extent> extent = std::nullopt, unsigned threads = 0,
                         prep::RepairMethod repair = prep::RepairMethod::linework) {
-  prep::SceneSpec s = prep::test::one_layer("cases", source, kind);
+  prep::BuildSpec s = prep::test::one_layer("cases", source, kind);
   s.crs = "EPSG:32632";
   s.resolution = resolution;
   s.extent = extent;
@@ -398,7 +398,7 @@ TEST(Clean, WithADemTheSceneIsClippedToTheDemExtent) {
       polygon_case(2, "beyond the DEM",
                    {{{1000, 0}, {1100, 0}, {1100, 100}, {1000, 100}, {1000, 0}}})};
   prep::test::write_text(dir.file("d.geojson"), collection(cs));
-  prep::SceneSpec s = prep::test::one_layer("d", dir.file("d.geojson"));
+  prep::BuildSpec s = prep::test::one_layer("d", dir.file("d.geojson"));
   s.crs = "EPSG:32632";
   s.dem = write_dem(dir);
   prep::SceneFeatures sf = prep::test::dry_run(s);
@@ -423,7 +423,7 @@ TEST(Clean, ExtentGivenInLonLatIsTransformedIntoTheFrame) {
                    {{{50000, 0}, {50100, 0}, {50100, 100}, {50000, 100}, {50000, 0}}})};
   prep::test::write_text(dir.file("e.geojson"), collection(cs));
   // Zone 32's central meridian is 9°E; (500000, 4800000) is near 43.35°N.
-  prep::SceneSpec s = prep::test::one_layer("e", dir.file("e.geojson"));
+  prep::BuildSpec s = prep::test::one_layer("e", dir.file("e.geojson"));
   s.crs = "EPSG:32632";
   s.extent = prep::Extent{8.9, 43.0, 9.1, 43.7};
   s.extent_crs = "EPSG:4326";

@@ -20,7 +20,7 @@
 namespace {
 
 prep::SceneFeatures monaco(double resolution) {
-  prep::SceneSpec s;
+  prep::BuildSpec s;
   for (auto [name, layer, where, kind] :
        {std::tuple{"buildings", "multipolygons", "building IS NOT NULL", prep::DecalKind::polygon},
         std::tuple{"roads", "lines", "highway IS NOT NULL", prep::DecalKind::line}}) {
@@ -117,7 +117,7 @@ TEST(CleanRealHoles, AegeanIslandsRepairedAsGeosMakeValidOfTheWhole) {
   const std::vector<prep::Ring> rings = aegean_islands(seas);
   ASSERT_GT(rings.size(), 300u);  // 357 islands
   const prep::SceneFeatures out =
-      prep::clean(prep::test::one_polygon_input("aegean", rings), prep::SceneSpec{});
+      prep::clean(prep::test::one_polygon_input("aegean", rings), prep::BuildSpec{});
   ASSERT_EQ(out.manifest.entries.size(), 1u);
   EXPECT_EQ(out.manifest.entries[0].action, prep::ManifestAction::repaired);
 

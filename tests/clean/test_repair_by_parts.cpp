@@ -432,7 +432,7 @@ TEST(RepairByParts, RandomPolygonsWithASelfCrossingShellEqualWholeMakeValid) {
 
 prep::SceneFeatures clean_one(const Rings& rings, prep::RepairMethod method) {
   prep::ProjectedFeatures in = prep::test::one_polygon_input("holes", rings);
-  prep::SceneSpec scene;
+  prep::BuildSpec scene;
   scene.repair = method;
   return prep::clean(std::move(in), scene);
 }
@@ -671,7 +671,7 @@ TEST(RepairByParts, CleanRepairsAPolygonCrossingTheExtentAsGeosMakeValidOfTheWho
     for (const auto& w : windows) {
       prep::ProjectedFeatures in = prep::test::one_polygon_input("holes", rings);
       in.clip = prep::Extent{kX0 + w[0], kY0 + w[1], kX0 + w[2], kY0 + w[3]};
-      prep::SceneSpec scene;
+      prep::BuildSpec scene;
       scene.repair = structure ? prep::RepairMethod::structure : prep::RepairMethod::linework;
       const prep::SceneFeatures out = prep::clean(std::move(in), scene);
       std::vector<G> polys;

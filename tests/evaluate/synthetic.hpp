@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "geos_oracle.hpp"
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 
 namespace synth {
 

@@ -229,7 +229,7 @@ Outcome check(const prep::SceneFeatures& s, const prep::DecalModel& m,
           line.load(),   wrong.load(),    wrong_io.load()};
 }
 
-void run(const char* name, const prep::SceneSpec& spec) {
+void run(const char* name, const prep::BuildSpec& spec) {
   prep::BuildRequest req;
   req.dry_run = true;
   const prep::BuildResult r = prep::run_build(spec, req);
@@ -261,7 +261,7 @@ TEST(RealData, MonacoSampleSceneAgreesWithGeos) {
   const std::string scene = std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/scene.toml";
   if (!std::filesystem::exists(data) || !std::filesystem::exists(scene))
     GTEST_SKIP() << "Monaco data missing: " << data;
-  prep::SceneSpec spec = prep::load_scene_file(scene);
+  prep::BuildSpec spec = prep::load_scene_file(scene);
   for (auto& l : spec.layers) l.source = data;
   spec.dem = "/vsizip/" + prep::test::monaco_sample("N43E007.hgt.zip/N43E007.hgt");
   run("Monaco", spec);
@@ -271,7 +271,7 @@ TEST(RealData, LiechtensteinAgreesWithGeos) {
   const std::string data =
       prep::test::shared_data("liechtenstein/liechtenstein-2013-08-03.osm.pbf");
   if (!std::filesystem::exists(data)) GTEST_SKIP() << "Liechtenstein data missing: " << data;
-  prep::SceneSpec spec = prep::parse_scene(R"(
+  prep::BuildSpec spec = prep::parse_scene(R"(
 source = ")" + data + R"("
 resolution = 0.1
 [[layer]]

@@ -65,12 +65,12 @@ std::string three_squares() {
   return fc + "]}";
 }
 
-prep::SceneSpec scene_of(const std::string& path, bool skip_failures) {
+prep::BuildSpec scene_of(const std::string& path, bool skip_failures) {
   prep::LayerSpec l;
   l.source = path;
   l.name = "layer0";  // the name the tool gives a file-less layer
   l.kind = prep::DecalKind::polygon;
-  prep::SceneSpec s;
+  prep::BuildSpec s;
   s.layers.push_back(l);
   s.skip_failures = skip_failures;
   return s;
@@ -78,7 +78,7 @@ prep::SceneSpec scene_of(const std::string& path, bool skip_failures) {
 
 // Read, project, clean, as the pipeline runs them; `projected` keeps the
 // projected input for the oracle.
-prep::SceneFeatures clean_failing_fid_2(const prep::SceneSpec& s,
+prep::SceneFeatures clean_failing_fid_2(const prep::BuildSpec& s,
                                         prep::ProjectedFeatures* projected = nullptr) {
   prep::FeatureSet features = prep::read_scene(s);
   const prep::SceneFrame frame = prep::choose_frame(features, s.crs);

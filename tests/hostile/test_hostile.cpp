@@ -35,9 +35,9 @@
 
 #include "decal/reader.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/features.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/read.hpp"
-#include "prep/scene.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -84,14 +84,14 @@ bool is_scene_file(const json& c) {
   return p.size() > 5 && p.compare(p.size() - 5, 5, ".toml") == 0;
 }
 
-prep::SceneSpec scene_of(const json& c) {
+prep::BuildSpec scene_of(const json& c) {
   // A scene-file case (several layers) is read as decalprep reads it.
   if (is_scene_file(c)) return prep::load_scene_file(c["path"].get<std::string>());
   prep::LayerSpec l;
   l.source = c["path"].get<std::string>();
   l.name = "layer0";
   l.kind = prep::parse_kind(c["kind"].get<std::string>());
-  prep::SceneSpec s;
+  prep::BuildSpec s;
   const auto args = c["args"].get<std::vector<std::string>>();
   for (size_t i = 0; i < args.size(); i += 2) {
     if (args[i] == "--skip-failures") {

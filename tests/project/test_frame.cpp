@@ -114,7 +114,7 @@ Projected ogr_project(const prep::FeatureSet& fs, const std::string& frame_wkt) 
 // ------------------------------------------------ (a) the local TM stays --
 
 TEST(DefaultFrame, MonacoSampleKeepsItsLocalTransverseMercatorExactly) {
-  prep::SceneSpec scene = prep::load_scene_file(prep::test::monaco_sample("scene.toml"));
+  prep::BuildSpec scene = prep::load_scene_file(prep::test::monaco_sample("scene.toml"));
   const prep::FeatureSet fs = prep::read_scene(scene);
   const prep::SceneFrame frame = prep::choose_frame(fs, "");
   const TmFrame want = expected_local_tm(fs);
@@ -166,7 +166,7 @@ TEST(DefaultFrame, PacificDataAcrossTheAntimeridianIsCentredNear180AndStaysSmall
     // The arc 177.2 .. 181.5 has its centre at 179.35.
     EXPECT_NEAR(frame.tm_lon0, 179.35, 0.1) << frame.description;
     EXPECT_NEAR(frame.tm_lat0, -16.5, 1e-9);
-    const prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+    const prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
     // Oracle: Karney's exact TM on the frame's central meridian.
     const GeographicLib::TransverseMercatorExact tm(GeographicLib::Constants::WGS84_a(),
                                                     GeographicLib::Constants::WGS84_f(), 1.0);
@@ -195,7 +195,7 @@ TEST(DefaultFrame, PacificDataAcrossTheAntimeridianIsCentredNear180AndStaysSmall
   // The split halves meet: 180 and -180 land on the same frame easting.
   prep::FeatureSet fs = layer_of(split);
   const prep::SceneFrame frame = prep::choose_frame(fs, "");
-  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
   const auto& west_half = p.features.layers[0].features[0].rings[0];  // 177.2 .. 180
   const auto& east_half = p.features.layers[0].features[1].rings[0];  // -180 .. -178.5
   EXPECT_NEAR(west_half[1].x, east_half[0].x, 1e-6);                  // (180, -17), (-180, -17)
@@ -222,7 +222,7 @@ TEST(DefaultFrame, ManyVerticesAcrossTheAntimeridianMatchProjPerVertex) {
   const prep::SceneFrame frame = prep::choose_frame(fs, "");
   ASSERT_TRUE(std::isfinite(frame.tm_lon0)) << frame.description;
   EXPECT_NEAR(frame.tm_lon0, 180.0, 0.01) << frame.description;
-  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
   const Projected want = ogr_project(original, frame.crs_wkt);
   size_t k = 0;
   double worst = 0;
@@ -328,7 +328,7 @@ TEST(DefaultFrame, WorldLayerGetsEqualEarthAndEveryVertexProjectsFinite) {
 
   // Every vertex projects (project() throws on the first that does not)
   // to a finite point, where OGR puts it.
-  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
   const Projected want = ogr_project(original, frame.crs_wkt);
   size_t k = 0;
   double worst = 0;
@@ -368,7 +368,7 @@ TEST(DefaultFrame, WorldRingAtBothEdgesKeepsItsSidesWhenTheOriginIsOffTheCentral
   const prep::SceneFrame frame = prep::choose_frame(fs, "");
   EXPECT_EQ(frame.description, "Equal Earth lon0=0.0000000 (WGS84; EPSG:8857)");
   EXPECT_LT(frame.origin_x, -1e6) << "the origin should lie west of the central meridian";
-  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  const prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
   const Projected want = ogr_project(original, frame.crs_wkt);
   size_t k = 0;
   double worst = 0;
@@ -388,7 +388,7 @@ TEST(DefaultFrame, FijiFromTheWorldLayerGetsASmallFrameNear180) {
   const std::string path = prep::test::spdata_dir() + "/shapes/world.gpkg";
   if (!prep::test::exists(path))
     GTEST_SKIP() << path << " is missing: run scripts/fetch-data (it unpacks r-cran-spdata)";
-  prep::SceneSpec scene = prep::test::one_layer("fiji", path);
+  prep::BuildSpec scene = prep::test::one_layer("fiji", path);
   scene.layers[0].where = "name_long = 'Fiji'";
   prep::FeatureSet fs = prep::read_scene(scene);
   const prep::SceneFrame frame = prep::choose_frame(fs, "");

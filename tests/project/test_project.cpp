@@ -47,7 +47,7 @@ TEST_P(LocalTm, MatchesGeographicLibExactTransverseMercatorTo1Micrometre) {
   ASSERT_TRUE(std::isfinite(frame.tm_lon0));
   EXPECT_NEAR(frame.tm_lon0, lon_c, 1e-9);
   EXPECT_NEAR(frame.tm_lat0, lat_c, 1e-9);
-  prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
 
   // Reference: Karney's exact TM (elliptic functions), not a series.
   const GeographicLib::TransverseMercatorExact tm(GeographicLib::Constants::WGS84_a(),
@@ -79,7 +79,7 @@ TEST(Project, Epsg4326IsReadAsLonLatNotInAuthorityOrder) {
   prep::FeatureSet fs = grid_of_points(7.42, 43.73, 0.01);
   const prep::FeatureSet original = fs;
   prep::SceneFrame frame = prep::choose_frame(fs, "EPSG:32632");
-  prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
   const auto& in = original.layers[0].features[0].rings;
   const auto& out = p.features.layers[0].features[0].rings;
   for (size_t i = 0; i < in.size(); ++i) {
@@ -127,7 +127,7 @@ std::string write_3857_line(const prep::test::TempDir& dir) {
 }
 
 prep::SceneFeatures build_line(const std::string& path, const std::string& crs) {
-  prep::SceneSpec s = prep::test::one_layer("l", path, prep::DecalKind::line);
+  prep::BuildSpec s = prep::test::one_layer("l", path, prep::DecalKind::line);
   s.layers[0].style.width = 10.0;
   s.crs = crs;
   return prep::test::dry_run(s);
@@ -194,7 +194,7 @@ void expect_matches_proj_per_vertex(const std::string& src_wkt, double x0, doubl
   fs.layers.push_back(layer);
   const prep::FeatureSet original = fs;
   prep::SceneFrame frame = prep::choose_frame(fs, crs);
-  prep::ProjectedFeatures p = prep::project(fs, frame, prep::SceneSpec{});
+  prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
 
   OGRSpatialReference src, dst;
   src.SetFromUserInput(src_wkt.c_str());

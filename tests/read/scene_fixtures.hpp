@@ -6,9 +6,9 @@
 #include <string>
 #include <string_view>
 
+#include "prep/features.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/project.hpp"
-#include "prep/scene.hpp"
 
 namespace prep::test {
 
@@ -23,15 +23,15 @@ inline LayerSpec layer_of(const std::string& name, const std::string& source,
 }
 
 // A scene of that one layer.
-inline SceneSpec one_layer(const std::string& name, const std::string& source,
+inline BuildSpec one_layer(const std::string& name, const std::string& source,
                            DecalKind kind = DecalKind::polygon) {
-  SceneSpec s;
+  BuildSpec s;
   s.layers.push_back(layer_of(name, source, kind));
   return s;
 }
 
 // The cleaned scene of a dry run of the pipeline (nothing written).
-inline SceneFeatures dry_run(const SceneSpec& s) {
+inline SceneFeatures dry_run(const BuildSpec& s) {
   BuildRequest req;
   req.dry_run = true;
   return run_build(s, req).scene;

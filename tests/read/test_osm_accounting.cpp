@@ -36,7 +36,7 @@ const LayerDef kLayers[] = {
 void check_extract(const std::string& source, double resolution) {
   if (!prep::test::exists(source)) GTEST_SKIP() << "missing real data: " << source;
   TempDir dir;
-  prep::SceneSpec scene;
+  prep::BuildSpec scene;
   for (const LayerDef& d : kLayers)
     scene.layers.push_back({.name = d.name,
                             .source = source,
@@ -145,7 +145,7 @@ TEST(OsmAccounting, LiechtensteinManifestAccountsForEveryFeatureAndMatchesOgrinf
 // Layer `i` of `together` (read_scene) holds exactly what reading the
 // scene layer alone (read_layer) gives: same count, features, order and
 // coordinates.
-void expect_same_as_read_alone(const prep::SceneSpec& scene, const prep::FeatureSet& together,
+void expect_same_as_read_alone(const prep::BuildSpec& scene, const prep::FeatureSet& together,
                                size_t i) {
   prep::Manifest alone_manifest;
   prep::SourceLayer alone =
@@ -181,7 +181,7 @@ TEST(OsmAccounting, WholeOsmLayersReadInOnePassMatchOgrinfoAndSeparateReads) {
   const std::string source = prep::test::monaco_sample("monaco.osm.pbf");
   if (!prep::test::exists(source)) GTEST_SKIP() << "missing real data: " << source;
   TempDir dir;
-  prep::SceneSpec scene;
+  prep::BuildSpec scene;
   const std::pair<const char*, prep::DecalKind> defs[] = {
       {"multipolygons", prep::DecalKind::polygon},
       {"lines", prep::DecalKind::line},
@@ -220,7 +220,7 @@ TEST(OsmAccounting, LayersSharingAReadMatchOgrinfoAndSeparateReads) {
   TempDir dir;
   const std::string water =
       "SELECT * FROM multipolygons WHERE \"natural\" = 'water' OR leisure = 'swimming_pool'";
-  prep::SceneSpec scene;
+  prep::BuildSpec scene;
   scene.layers.push_back({.name = "buildings",
                           .source = source,
                           .layer = "multipolygons",

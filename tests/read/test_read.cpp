@@ -17,7 +17,7 @@ namespace {
 using prep::test::TempDir;
 using prep::test::write_text;
 
-prep::SceneSpec one_layer(const std::string& source, prep::DecalKind kind) {
+prep::BuildSpec one_layer(const std::string& source, prep::DecalKind kind) {
   return prep::test::one_layer("l", source, kind);
 }
 
@@ -37,7 +37,7 @@ const char* kMixed = R"({"type":"FeatureCollection","features":[
 TEST(Read, MultiGeometriesAndCollectionsAreSplitIntoParts) {
   TempDir dir;
   write_text(dir.file("mixed.geojson"), kMixed);
-  prep::SceneSpec s = one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon);
+  prep::BuildSpec s = one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon);
   prep::FeatureSet fs = prep::read_scene(s);
   ASSERT_EQ(fs.layers.size(), 1u);
   const auto& f = fs.layers[0].features;
@@ -88,7 +88,7 @@ TEST(Read, NanCoordinateFailsWithTheFeatureId) {
  {"type":"Feature","properties":{},"geometry":{"type":"LineString","coordinates":[[1,1],[2,2]]}},
  {"type":"Feature","properties":{},"geometry":{"type":"LineString","coordinates":[[1,1],[2,3]]}},
  {"type":"Feature","properties":{},"geometry":{"type":"LineString","coordinates":[[1,1],[NaN,2]]}}]})");
-  prep::SceneSpec s = one_layer(dir.file("nan.geojson"), prep::DecalKind::line);
+  prep::BuildSpec s = one_layer(dir.file("nan.geojson"), prep::DecalKind::line);
   try {
     prep::read_scene(s);
     FAIL() << "NaN accepted";
@@ -117,7 +117,7 @@ TEST(Read, OverpassOsmWithNonIncreasingIdsIsReadWithPlainIndexing) {
     <tag k="highway" v="residential"/></way>
 </osm>
 )");
-  prep::SceneSpec s = one_layer(dir.file("overpass.osm"), prep::DecalKind::line);
+  prep::BuildSpec s = one_layer(dir.file("overpass.osm"), prep::DecalKind::line);
   s.layers[0].layer = "lines";
   prep::FeatureSet fs = prep::read_scene(s);
   ASSERT_EQ(fs.layers[0].features.size(), 1u);
@@ -131,7 +131,7 @@ TEST(Read, OrderAndColourAttributesAreReadAsNumbers) {
   write_text(dir.file("a.geojson"), R"({"type":"FeatureCollection","features":[
  {"type":"Feature","properties":{"rank":7,"temp":"2.5"},"geometry":{"type":"LineString","coordinates":[[0,0],[1,1]]}},
  {"type":"Feature","properties":{"rank":null,"temp":"1"},"geometry":{"type":"LineString","coordinates":[[0,0],[1,2]]}}]})");
-  prep::SceneSpec s = one_layer(dir.file("a.geojson"), prep::DecalKind::line);
+  prep::BuildSpec s = one_layer(dir.file("a.geojson"), prep::DecalKind::line);
   s.layers[0].style.order_attribute = "rank";
   s.layers[0].style.color.attribute = "temp";
   prep::FeatureSet fs = prep::read_scene(s);
@@ -156,7 +156,7 @@ TEST(Read, CountsEveryFeatureReadIntoTheProgressStage) {
   // keeps every feature (5 more): done == total == 15.
   TempDir dir;
   write_text(dir.file("mixed.geojson"), kMixed);
-  prep::SceneSpec s = one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon);
+  prep::BuildSpec s = one_layer(dir.file("mixed.geojson"), prep::DecalKind::polygon);
   s.layers.push_back(s.layers[0]);
   s.layers[1].name = "again";
   s.layers.push_back(s.layers[0]);
@@ -207,7 +207,7 @@ TEST(Read, SceneFileWithRelativeVsizipSourceReadsFromTheArchiveNextToIt) {
       dir.file("scene.toml"),
       "[[layer]]\nname = \"roads\"\nsource = \"/vsizip/data.zip/roads.geojson\"\n"
       "kind = \"line\"\nwidth = 4\n");
-  prep::SceneSpec s = prep::load_scene_file(dir.file("scene.toml"));
+  prep::BuildSpec s = prep::load_scene_file(dir.file("scene.toml"));
   prep::BuildRequest req;
   req.dry_run = true;
   prep::BuildResult r = prep::run_build(s, req);

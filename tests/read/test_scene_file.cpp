@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "prep/error.hpp"
-#include "prep/read.hpp"
+#include "prep/pipeline.hpp"
 
 namespace {
 
@@ -52,7 +52,7 @@ name = "hw"
 kind = "line"
 dynamic = true
 )";
-  prep::SceneSpec s = prep::parse_scene(text, "/data/city/scene.toml");
+  prep::BuildSpec s = prep::parse_scene(text, "/data/city/scene.toml");
   ASSERT_EQ(s.layers.size(), 3u);
   EXPECT_EQ(s.crs, "EPSG:32632");
   EXPECT_DOUBLE_EQ(s.resolution, 0.5);
@@ -137,7 +137,7 @@ TEST(SceneFile, DuplicateLayerNamesAreRejected) {
 }
 
 TEST(SceneFile, ShippedMonacoSampleParses) {
-  prep::SceneSpec s =
+  prep::BuildSpec s =
       prep::load_scene_file(std::string(DECALPREP_SOURCE_DIR) + "/samples/monaco/scene.toml");
   ASSERT_GE(s.layers.size(), 5u);
   EXPECT_EQ(s.layers[0].source,

@@ -2,7 +2,7 @@
 // render --lod on) on Liechtenstein's roads built as dynamic lines with
 // `lod = true`, at near, middle and far zoom, top-down and in perspective:
 // - the segments the GPU selects (the compacted indices read back) are the
-//   ones prep::visible_segments selects for the same camera and threshold
+//   ones decal::visible_segments selects for the same camera and threshold
 //   (prep::render::lod_view), exactly;
 // - per line they form one polyline from its first to its last point
 //   (tests/model/lod/lod_chain.hpp), which for a constant threshold and a
@@ -220,8 +220,8 @@ class LodGpu : public ::testing::Test {
   std::vector<uint32_t> cpu_selection(const prep::LodSet& set, const R::Camera& cam,
                                       double tolerance_px) const {
     const R::LodView v = R::lod_view(cam, H, terrain_.zmin, terrain_.zmax, tolerance_px);
-    return prep::visible_segments(set.points, set.segments, prep::LodCamera{v.cx, v.cy, v.cz},
-                                  prep::LinearThreshold{v.base, v.slope});
+    return decal::visible_segments(set.points, set.segments, decal::LodCamera{v.cx, v.cy, v.cz},
+                                   decal::LinearThreshold{v.base, v.slope});
   }
 
   // Pairs of lines whose full-detail lines do not meet but whose boxes do.
@@ -277,7 +277,7 @@ std::vector<Pt> metres(const std::vector<ivec2>& q) {
 
 // Top-down views (a constant threshold: tolerance times the pixel's ground
 // size) of the lines' LOD set without dependees: the GPU's selection is
-// prep::visible_segments' and, per line, exactly the Douglas-Peucker result.
+// decal::visible_segments' and, per line, exactly the Douglas-Peucker result.
 TEST_F(LodGpu, TopDownSelectionIsTheCpuSelectionAndExactlyDouglasPeucker) {
   const prep::LodSet plain = without_dependees(set_);
   ASSERT_EQ(plain.points.size(), set_.points.size());
@@ -342,7 +342,7 @@ TEST_F(LodGpu, TopDownSelectionIsTheCpuSelectionAndExactlyDouglasPeucker) {
 }
 
 // The package's own LOD set (with dependees) in perspective and top-down:
-// the GPU's selection is prep::visible_segments', each line one polyline,
+// the GPU's selection is decal::visible_segments', each line one polyline,
 // the DP result at its largest threshold or finer, and no new crossings.
 TEST_F(LodGpu, PerspectiveSelectionIsTheCpuSelectionConnectedAndNeverCrosses) {
   find_disjoint_pairs();
@@ -379,8 +379,8 @@ TEST_F(LodGpu, PerspectiveSelectionIsTheCpuSelectionConnectedAndNeverCrosses) {
       double dmax = 0;
       for (uint32_t p = set_.line_points[i][0]; p < set_.line_points[i][0] + set_.line_points[i][1];
            ++p)
-        dmax = std::max(dmax, prep::lod_distance(set_.points[p], {lv.cx, lv.cy, lv.cz}));
-      const double eps_hi = prep::LinearThreshold{lv.base, lv.slope}(dmax) * (1 + 1e-5);
+        dmax = std::max(dmax, decal::lod_distance(set_.points[p], {lv.cx, lv.cy, lv.cz}));
+      const double eps_hi = decal::LinearThreshold{lv.base, lv.slope}(dmax) * (1 + 1e-5);
       const auto full = metres(line_points(set_, i));
       std::vector<bool> keep(full.size(), false);
       keep.front() = keep.back() = true;
@@ -402,7 +402,7 @@ TEST_F(LodGpu, PerspectiveSelectionIsTheCpuSelectionConnectedAndNeverCrosses) {
 }
 
 // With LOD on, the GL image (dynamic layer) agrees with render --cpu's,
-// which draws prep::visible_segments' selection, and the counts match.
+// which draws decal::visible_segments' selection, and the counts match.
 TEST_F(LodGpu, LodOnImageAgreesWithTheCpuPath) {
   const fs::path out = render_test::process_dir("lod_gpu");
   R::RenderOptions opt;

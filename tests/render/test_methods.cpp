@@ -24,7 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "decal/reader.hpp"
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 #include "smoke_util.hpp"
 
 namespace fs = std::filesystem;

@@ -331,7 +331,7 @@ TEST(RenderSmoke, MonacoTopDownPolygonCoverageMatchesGdalRasterize) {
   std::vector<uint8_t> drawn(640 * 360);
   for (size_t k = 0; k < drawn.size() && 4 * k + 3 < gl.size(); ++k) drawn[k] = gl[4 * k + 3] > 0;
   // The same cleaned polygons (the pipeline is deterministic), burnt by GDAL.
-  prep::SceneSpec spec = prep::load_scene_file(kSource + "/samples/monaco/scene.toml");
+  prep::BuildSpec spec = prep::load_scene_file(kSource + "/samples/monaco/scene.toml");
   prep::BuildRequest req;
   req.dry_run = true;
   prep::BuildResult built = prep::run_build(spec, req);

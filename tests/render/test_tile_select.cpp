@@ -1,4 +1,4 @@
-// Which tiles of a tileset a view draws (prep/tile_select.hpp), on an index
+// Which tiles of a tileset a view draws (prep/tile.hpp), on an index
 // in memory: an 8 x 8 grid of 100 m tiles with overview levels 1..3 (200,
 // 400, 800 m; resolution S 2^L / 1024), against analytic pixel sizes and
 // budgets counted by hand in decoded blob bytes.
@@ -14,7 +14,8 @@
 #include <vector>
 
 #include "prep/error.hpp"
-#include "prep/tile_select.hpp"
+#include "prep/render.hpp"
+#include "prep/tile.hpp"
 
 namespace {
 

@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 
 namespace prep::test {
 

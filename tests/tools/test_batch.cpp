@@ -31,12 +31,12 @@ std::string square_scene(const TempDir& dir, const std::string& name, const std:
   return scene;
 }
 
-TEST(SceneSpec, TheFilelessFormIsOneLayerNamedAfterTheSourceLayerWithDynamicLinesThreePixelsWide) {
+TEST(BuildSpec, TheFilelessFormIsOneLayerNamedAfterTheSourceLayerWithDynamicLinesThreePixelsWide) {
   prep::SceneRequest r;
   r.input = "roads.shp";
   r.layer.kind = "line";
   r.layer.dynamic = true;
-  prep::SceneSpec s = prep::scene_spec(r);
+  prep::BuildSpec s = prep::scene_spec(r);
   ASSERT_EQ(s.layers.size(), 1u);
   EXPECT_EQ(s.layers[0].source, "roads.shp");
   EXPECT_EQ(s.layers[0].name, "layer0");
@@ -46,7 +46,7 @@ TEST(SceneSpec, TheFilelessFormIsOneLayerNamedAfterTheSourceLayerWithDynamicLine
   EXPECT_EQ(prep::scene_spec(r).layers[0].name, "roads");
 }
 
-TEST(SceneSpec, OverridesReplaceTheSceneFilesValuesAndABadOneNamesItsOption) {
+TEST(BuildSpec, OverridesReplaceTheSceneFilesValuesAndABadOneNamesItsOption) {
   TempDir dir("decalprep_scene_spec");
   prep::SceneRequest r;
   r.input = square_scene(dir, "a.toml", dir.file("square.geojson"));
@@ -54,7 +54,7 @@ TEST(SceneSpec, OverridesReplaceTheSceneFilesValuesAndABadOneNamesItsOption) {
   r.overrides.grid = "20x30";
   r.overrides.extent = "1,2,3,4";
   r.overrides.skip_failures = true;
-  const prep::SceneSpec s = prep::scene_spec(r);
+  const prep::BuildSpec s = prep::scene_spec(r);
   EXPECT_EQ(s.resolution, 0.25);
   EXPECT_EQ(s.model.grid_nx, 20u);
   EXPECT_EQ(s.model.grid_ny, 30u);

@@ -3,8 +3,8 @@
 #include <gtest/gtest.h>
 
 #include "prep/error.hpp"
+#include "prep/features.hpp"
 #include "prep/memory_estimate.hpp"
-#include "prep/scene.hpp"
 
 namespace {
 

@@ -30,7 +30,7 @@
 #include "prep/error.hpp"
 #include "prep/evaluate.hpp"
 #include "prep/render.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 #include "test_support.hpp"
 
 namespace {

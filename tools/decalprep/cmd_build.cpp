@@ -125,7 +125,7 @@ void parse_step(const std::vector<std::string>& step, prep::BuildRequest& req) {
 // --plan N: DIR/plan.json, the three steps of the tileset build with the
 // exact command line of each (this command line without --plan, plus
 // --step); the tile step's "{K}" is the job index 0..N-1. Runs nothing.
-int write_plan(const BuildArgs& a, const prep::SceneSpec& scene) {
+int write_plan(const BuildArgs& a, const prep::BuildSpec& scene) {
   if (scene.tile_size <= 0)
     throw prep::usage_error("build: --plan is for tilesets: give --tile-size");
   if (a.output.empty()) throw prep::usage_error("build: --plan needs -o DIR");
@@ -224,7 +224,7 @@ int run(const BuildArgs& a) {
   // Before any thread starts: SIGINT and SIGTERM then undo what the build
   // made (prep/interrupt.hpp) and exit 130 / 143.
   prep::watch_interrupts();
-  const prep::SceneSpec scene = prep::scene_spec(scene_request(a, a.input));
+  const prep::BuildSpec scene = prep::scene_spec(scene_request(a, a.input));
   if (!a.dry_run && a.output.empty())
     throw prep::usage_error("build: -o OUT.decals is required (or --dry-run)");
   if (a.plan) return write_plan(a, scene);

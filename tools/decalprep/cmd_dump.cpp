@@ -24,7 +24,7 @@
 #include "command.hpp"
 #include "decal/reader.hpp"
 #include "prep/manifest_words.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 
 namespace {
 

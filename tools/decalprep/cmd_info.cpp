@@ -19,7 +19,7 @@
 #include "command.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 
 namespace {
 

@@ -20,8 +20,7 @@
 #include "prep/project.hpp"
 #include "prep/read.hpp"
 #include "prep/render.hpp"
-#include "prep/tile_select.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 
 #include "decal/reader.hpp"
 
@@ -143,7 +142,7 @@ struct Scene {
   std::vector<R::TileSource> tiles;
   std::string metadata;        // a package's metadata (the recorded DEM)
   std::string metadata_file;   // that package (a recorded DEM is relative to its folder)
-  R::TileSelection selection;  // a tileset: the tiles drawn (prep/tile_select.hpp)
+  R::TileSelection selection;  // a tileset: the tiles drawn (prep/tile.hpp)
 };
 
 // Whether a tile of the view has LOD segments (render --stats).
@@ -265,7 +264,7 @@ uint64_t decoded_bytes(const decal::Package& pkg) {
   return n;
 }
 
-// Loads the tiles of a tileset that the view draws (prep/tile_select.hpp:
+// Loads the tiles of a tileset that the view draws (prep/tile.hpp:
 // the level-0 tiles that meet the camera's ground footprint, or overview
 // tiles where their resolution is below a pixel, within --gpu-budget), and
 // only those. The budget counts each tile's blobs decoded, as its header

@@ -11,7 +11,7 @@
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
 #include "prep/manifest_json.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 
 namespace {
 

@@ -62,7 +62,7 @@
 #include <vector>
 
 #include "detail/geos_handle.hpp"
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 
 namespace prep::detail {
 

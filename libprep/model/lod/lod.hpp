@@ -1,7 +1,8 @@
 // lod/lod.hpp — LOCALIS view-dependent LOD segments (seed 001 §3.1-3.5):
 // a Douglas-Peucker BLG-tree per line, the exhaustive attributed segment
 // set, saturated errors/distances, intersection-avoiding dependees with
-// cycles merged into proxy points, and the CPU side of the visibility test.
+// cycles merged into proxy points. The visibility test a renderer runs on
+// them is decal/lod.hpp, beside the package reader.
 //
 // The stored layout and the exact visibility rule are documented beside
 // decal::LodPoint / decal::LodSegment in decal/format.hpp.
@@ -14,6 +15,7 @@
 #include <vector>
 
 #include "decal/format.hpp"
+#include "decal/lod.hpp"
 #include "prep/model.hpp"
 
 namespace prep {
@@ -66,63 +68,5 @@ struct LodSet {
 // independent of the thread count. Throws input_error for a line with fewer
 // than 2 points (or a closed ring with fewer than 3).
 LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& options = {});
-
-// Camera position in scene metres relative to the package origin.
-struct LodCamera {
-  double x = 0, y = 0, z = 0;
-};
-
-// Screen-space error threshold eps(d) in metres as a function of the camera
-// distance d (metres). Must be non-decreasing in d (also for d < 0).
-using LodThreshold = std::function<double(double)>;
-
-// eps(d) = base + slope * max(d, 0): a simple non-decreasing threshold.
-struct LinearThreshold {
-  double base = 0, slope = 0;
-  double operator()(double d) const { return base + slope * (d > 0 ? d : 0.0); }
-};
-
-// Camera distance d of a point as the format defines it (format.hpp).
-double lod_distance(const decal::LodPoint& p, const LodCamera& camera);
-
-// True iff the point is included for this camera and threshold (format.hpp
-// rule). Thread-safe.
-bool lod_point_included(const decal::LodPoint& p, const LodCamera& camera, const LodThreshold& eps);
-
-// Indices (into `segments`) of the visible segments, in increasing order.
-// Thread-safe (reads only).
-std::vector<uint32_t> visible_segments(std::span<const decal::LodPoint> points,
-                                       std::span<const decal::LodSegment> segments,
-                                       const LodCamera& camera, const LodThreshold& eps);
-
-// How the renderers draw the visible segments of a package's LOD set on its
-// terrain-matched dynamic lines (formats/SPEC.md "Choosing the threshold"):
-// a LodPoint has no height, so each point is drawn at the vertex of its
-// dynamic line (dyn_vertices) at its position, found once when a package is
-// loaded: the line's vertices are walked in order and each point takes the
-// first vertex at or after the previous point's with its x and y (terrain
-// matching keeps every input vertex and only inserts pieces between them;
-// a closed ring's repeated last point takes the line's first vertex). A LOD
-// line whose points do not all map, or whose dynamic line another LOD line
-// also names, is drawn from its full vertex chain instead.
-struct LodDrawMap {
-  // Per LOD point: its dyn_vertices index; kLodNone when its line is not
-  // drawn from LOD segments.
-  std::vector<uint32_t> vertex;
-  // Per LOD point: kLodNone for an interior point; the point itself at an
-  // open line's first or last point (no neighbour); the other end at a
-  // closed ring's first or last point (the ring wraps there).
-  std::vector<uint32_t> end;
-  std::vector<uint8_t> line_drawn;  // per dynamic line: 1 when drawn from its LOD segments
-  uint64_t lines = 0;               // LOD lines drawn from their segments
-  uint64_t original_segments = 0;   // their full-detail segments (points - 1 each)
-};
-
-LodDrawMap lod_draw_map(std::span<const decal::LodPoint> points,
-                        std::span<const decal::LodSegment> segments,
-                        std::span<const uvec2> line_range,
-                        std::span<const std::array<int32_t, 4>> dyn_vertices,
-                        std::span<const uint32_t> dyn_line_start,
-                        std::span<const std::array<int32_t, 2>> dyn_prev_next);
 
 }  // namespace prep

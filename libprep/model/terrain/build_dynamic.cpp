@@ -10,7 +10,6 @@
 #include <sstream>
 
 #include "lod/lod.hpp"
-#include "prep/color_ramp.hpp"
 #include "prep/error.hpp"
 #include "prep/model.hpp"
 #include "prep/stage_error.hpp"

@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "prep/dem.hpp"
+#include "prep/features.hpp"
 #include "prep/model.hpp"
-#include "prep/scene.hpp"
 
 namespace prep {
 

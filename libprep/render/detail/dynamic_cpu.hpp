@@ -30,7 +30,7 @@ class DynamicLinesCpu {
  public:
   // `camera` in the source's frame (metres relative to its origin). With
   // `lod.on`, the lines that have LOD segments are drawn from those
-  // prep::visible_segments selects for lod_view (the GL pass's lod_*.comp.glsl),
+  // decal::visible_segments selects for lod_view (the GL pass's lod_*.comp.glsl),
   // with the same neighbours and frustum test as the other segments.
   DynamicLinesCpu(const DecalSource& source, const Camera& camera, uint32_t width, uint32_t height,
                   const DynamicLod& lod = {});

@@ -96,9 +96,9 @@ TEST(LodSegments, UniformThresholdWithoutDependeesEqualsDouglasPeucker) {
       for (uint32_t k = 0; k < p.size(); ++k)
         if (keep[k]) expected.push_back(set.line_points[i][0] + k);
 
-      const prep::LodCamera cam{u(rng) * 1000, u(rng) * 1000, u(rng) * 100};
+      const decal::LodCamera cam{u(rng) * 1000, u(rng) * 1000, u(rng) * 100};
       const auto vis =
-          prep::visible_segments(set.points, set.segments, cam, prep::LinearThreshold{eps, 0});
+          decal::visible_segments(set.points, set.segments, cam, decal::LinearThreshold{eps, 0});
       std::string why;
       const auto chain = lodtest::visible_chain(set, i, vis, &why);
       ASSERT_TRUE(chain) << "line " << i << " eps " << eps << ": " << why;
@@ -150,15 +150,15 @@ TEST(LodSegments, DistanceDependentThresholdAlwaysGivesConnectedPolyline) {
     EXPECT_GT(set.stats.dependee_edges, 0u);
     size_t total_visible = 0, total_original = 0;
     for (int cam_i = 0; cam_i < 60; ++cam_i) {
-      const prep::LodCamera cam{u(rng) * 2000, u(rng) * 2000, 10 + u(rng) * 500};
+      const decal::LodCamera cam{u(rng) * 2000, u(rng) * 2000, 10 + u(rng) * 500};
       const double base = u(rng) * 5, slope = u(rng) * 0.05;
-      prep::LodThreshold eps;
+      decal::LodThreshold eps;
       switch (cam_i % 3) {
-        case 0: eps = prep::LinearThreshold{base, slope}; break;
+        case 0: eps = decal::LinearThreshold{base, slope}; break;
         case 1: eps = [=](double d) { return base + slope * 0.01 * (d > 0 ? d * d : 0.0); }; break;
         default: eps = [=](double d) { return base * std::floor(std::max(d, 0.0) / 200.0); }; break;
       }
-      const auto vis = prep::visible_segments(set.points, set.segments, cam, eps);
+      const auto vis = decal::visible_segments(set.points, set.segments, cam, eps);
       for (uint32_t i = 0; i < lines.size(); ++i) {
         std::string why;
         const auto chain = lodtest::visible_chain(set, i, vis, &why);
@@ -194,8 +194,8 @@ TEST(LodSegments, MutualDependeesAreMergedIntoOneProxy) {
   EXPECT_GE(a.d_star, 4.5f);
   EXPECT_NEAR(a.e_star, 11.0, 1e-3);  // max of the two DP errors (10 m and 11 m)
   for (double eps : {0.0, 5.0, 10.5, 11.5, 100.0})
-    EXPECT_EQ(prep::lod_point_included(a, {3, 4, 5}, prep::LinearThreshold{eps, 0}),
-              prep::lod_point_included(b, {3, 4, 5}, prep::LinearThreshold{eps, 0}));
+    EXPECT_EQ(decal::lod_point_included(a, {3, 4, 5}, decal::LinearThreshold{eps, 0}),
+              decal::lod_point_included(b, {3, 4, 5}, decal::LinearThreshold{eps, 0}));
 }
 
 TEST(LodSegments, LineEndInsideBaselinePolygonKeepsTheSplitterAlways) {
@@ -208,7 +208,7 @@ TEST(LodSegments, LineEndInsideBaselinePolygonKeepsTheSplitterAlways) {
   const auto set = prep::build_lod(lines, {});
   EXPECT_TRUE(set.points[1].flags & decal::kLodPointAlways);
   const auto vis =
-      prep::visible_segments(set.points, set.segments, {0, 0, 0}, prep::LinearThreshold{1e6, 0});
+      decal::visible_segments(set.points, set.segments, {0, 0, 0}, decal::LinearThreshold{1e6, 0});
   std::string why;
   const auto chain = lodtest::visible_chain(set, 0, vis, &why);
   ASSERT_TRUE(chain) << why;

@@ -1,4 +1,4 @@
-// prep::lod_draw_map: each LOD point to the dynamic vertex the renderers draw
+// decal::lod_draw_map: each LOD point to the dynamic vertex the renderers draw
 // it at (formats/SPEC.md "Choosing the threshold"), on hand-made lines whose
 // answers are counted by hand: an open line subdivided between its points,
 // a closed ring, and a line whose points are not on its dynamic line.
@@ -51,8 +51,8 @@ TEST(LodDrawMap, PointsMapToTheirVerticesAndRingsWrap) {
   // The stray line's LOD points are moved off its dynamic line.
   auto points = set.points;
   for (uint32_t p = 9; p < 12; ++p) points[p].y += 1;
-  const prep::LodDrawMap m =
-      prep::lod_draw_map(points, set.segments, set.line_range, d.vertices, d.start, d.prev_next);
+  const decal::LodDrawMap m =
+      decal::lod_draw_map(points, set.segments, set.line_range, d.vertices, d.start, d.prev_next);
   const uint32_t none = decal::kLodNone;
   EXPECT_EQ(m.vertex, (std::vector<uint32_t>{0, 2, 4, 6, 7, 10, 13, 16, 7, none, none, none}));
   EXPECT_EQ(m.end,
@@ -69,8 +69,8 @@ TEST(LodDrawMap, ADynamicLineClaimedTwiceKeepsItsVertexChain) {
   d.add(a, false, 1);
   std::vector<prep::LodInputLine> in{{a, false, 0}, {a, false, 0}};
   const prep::LodSet set = prep::build_lod(in);
-  const prep::LodDrawMap m = prep::lod_draw_map(set.points, set.segments, set.line_range,
-                                                d.vertices, d.start, d.prev_next);
+  const decal::LodDrawMap m = decal::lod_draw_map(set.points, set.segments, set.line_range,
+                                                  d.vertices, d.start, d.prev_next);
   EXPECT_EQ(m.line_drawn, (std::vector<uint8_t>{0}));
   EXPECT_EQ(m.lines, 0u);
   for (uint32_t v : m.vertex) EXPECT_EQ(v, decal::kLodNone);

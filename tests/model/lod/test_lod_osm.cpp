@@ -101,9 +101,9 @@ class LiechtensteinLod : public ::testing::Test {
   }
 
   // Counts pairs whose simplified lines intersect while the originals do not.
-  size_t new_intersections(const prep::LodSet& set, const prep::LodCamera& cam,
-                           const prep::LodThreshold& eps, size_t* visible_total) {
-    const auto vis = prep::visible_segments(set.points, set.segments, cam, eps);
+  size_t new_intersections(const prep::LodSet& set, const decal::LodCamera& cam,
+                           const decal::LodThreshold& eps, size_t* visible_total) {
+    const auto vis = decal::visible_segments(set.points, set.segments, cam, eps);
     std::vector<GEOSGeometry*> simp;
     *visible_total = 0;
     for (uint32_t i = 0; i < data.lines.size(); ++i) {
@@ -166,9 +166,9 @@ TEST_F(LiechtensteinLod, SimplifiedLinesNeverCrossWhereOriginalsDoNot) {
   for (uint32_t i = 0; i < data.lines.size(); ++i) original += set.line_points[i][1] - 1;
   size_t simplified_cases = 0;
   for (int k = 0; k < 50; ++k) {
-    const prep::LodCamera cam{data.xmin + u(rng) * (data.xmax - data.xmin),
-                              data.ymin + u(rng) * (data.ymax - data.ymin), 20 + u(rng) * 3000};
-    const prep::LinearThreshold eps{u(rng) * 20, u(rng) * u(rng) * 0.05};
+    const decal::LodCamera cam{data.xmin + u(rng) * (data.xmax - data.xmin),
+                               data.ymin + u(rng) * (data.ymax - data.ymin), 20 + u(rng) * 3000};
+    const decal::LinearThreshold eps{u(rng) * 20, u(rng) * u(rng) * 0.05};
     size_t visible = 0;
     const size_t bad = new_intersections(set, cam, eps, &visible);
     EXPECT_EQ(bad, 0u) << "camera " << k << " (" << cam.x << ", " << cam.y << ", " << cam.z
@@ -199,9 +199,9 @@ TEST_F(LiechtensteinLod, WithoutDependeesTheSameCheckFindsCrossings) {
   std::uniform_real_distribution<double> u(0, 1);
   size_t bad = 0;
   for (int k = 0; k < 50 && bad == 0; ++k) {
-    const prep::LodCamera cam{data.xmin + u(rng) * (data.xmax - data.xmin),
-                              data.ymin + u(rng) * (data.ymax - data.ymin), 20 + u(rng) * 3000};
-    const prep::LinearThreshold eps{u(rng) * 20, u(rng) * u(rng) * 0.05};
+    const decal::LodCamera cam{data.xmin + u(rng) * (data.xmax - data.xmin),
+                               data.ymin + u(rng) * (data.ymax - data.ymin), 20 + u(rng) * 3000};
+    const decal::LinearThreshold eps{u(rng) * 20, u(rng) * u(rng) * 0.05};
     size_t visible = 0;
     bad += new_intersections(set, cam, eps, &visible);
   }

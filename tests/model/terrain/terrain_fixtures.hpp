@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "ogr_lines.hpp"
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 #include "test_support.hpp"
 
 namespace terraintest {

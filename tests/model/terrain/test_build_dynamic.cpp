@@ -91,13 +91,13 @@ TEST(BuildDynamic, LodLayerGetsAttributedSegmentsForItsLinesOnly) {
   EXPECT_EQ(m.lod_segments.size(), 2u * 4u - 1u);
   for (const auto& pt : m.lod_points) EXPECT_EQ(pt.line, 2u);
   // Coarse threshold: only the base segment; zero threshold: all 4.
-  const auto coarse = prep::visible_segments(m.lod_points, m.lod_segments, {0, 0, 10},
-                                             prep::LinearThreshold{1e3, 0});
+  const auto coarse = decal::visible_segments(m.lod_points, m.lod_segments, {0, 0, 10},
+                                              decal::LinearThreshold{1e3, 0});
   ASSERT_EQ(coarse.size(), 1u);
   EXPECT_EQ(m.lod_segments[coarse[0]].a, 0u);
   EXPECT_EQ(m.lod_segments[coarse[0]].b, 4u);
-  const auto fine =
-      prep::visible_segments(m.lod_points, m.lod_segments, {0, 0, 10}, prep::LinearThreshold{0, 0});
+  const auto fine = decal::visible_segments(m.lod_points, m.lod_segments, {0, 0, 10},
+                                            decal::LinearThreshold{0, 0});
   EXPECT_EQ(fine.size(), 4u);
 }
 

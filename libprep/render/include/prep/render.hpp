@@ -22,8 +22,8 @@
 
 #include "prep/dem.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/features.hpp"
 #include "prep/model.hpp"
-#include "prep/scene.hpp"
 
 namespace decal {
 class Package;
@@ -181,7 +181,7 @@ struct RestyledProps {
 // Recolours `source` for every renderer (decal, volume and texture methods,
 // GL and CPU alike): each exterior polygon, static line and dynamic line of a
 // layer with stops gets prep::ramp_rgba(stops, its stored value, its stored
-// colour) (prep/color_ramp.hpp, the build's own formula); a feature with no
+// colour) (prep/model.hpp, the build's own formula); a feature with no
 // value (NaN) keeps its stored colour. The props are copied into `held`
 // and the source's view and blobs point at the copies; the package is not
 // touched. Throws format_error when a feature names a layer past `ramps`.
@@ -229,7 +229,7 @@ struct RenderOptions {
   // lines of layers built with `lod = true` are drawn from the LOD segments
   // visible for this view at a screen-space tolerance of lod_tolerance_px
   // pixels (lod_view; GL: chosen per segment in a compute shader, CPU:
-  // prep::visible_segments); off: from their full vertex chains. Other
+  // decal::visible_segments); off: from their full vertex chains. Other
   // lines, and packages without LOD data, draw the same either way.
   bool lod = true;
   double lod_tolerance_px = 0.5;
@@ -309,13 +309,13 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain,
 // point by the rules of the GL pass (detail/dynamic_cpu.hpp: vertices kept,
 // segments, corners at the pixel's scale, every covering line composited in
 // drawing order; with RenderOptions::lod, the LOD lines from the segments
-// prep::visible_segments selects for lod_view, the GL pass's selection)
+// decal::visible_segments selects for lod_view, the GL pass's selection)
 // into Image::dynamic, and composited over the decals.
 // Thread-safe.
 Image render_cpu(const DecalSource& source, const Heightfield& terrain,
                  const RenderOptions& options);
 
-// One tile of a tileset (prep/tileset.hpp) as the renderers take it. The
+// One tile of a tileset (prep/tile.hpp) as the renderers take it. The
 // camera and the terrain are in a reference frame (metres relative to a
 // reference origin, e.g. the tileset's frame origin); `square` is the part
 // of that plane this tile answers, half-open [xmin, xmax) x [ymin, ymax),
@@ -341,6 +341,10 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
 // one tile with an unbounded square.
 Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
                  const RenderOptions& options);
+
+// The ground size of one screen pixel at `point` (metres relative to the
+// camera's frame, like the camera).
+double pixel_ground_size(const Camera& camera, uint32_t width, uint32_t height, const Vec3& point);
 
 // The box of scene points the camera can see on terrain between zmin and
 // zmax (metres relative to the origin): the top-down extent, or the box of

@@ -1,7 +1,7 @@
 // Scene file parser (toml++). Every key is documented in samples/README.md;
 // an unknown key is an error, so a typo never silently falls back to a
 // default.
-#include "prep/read.hpp"
+#include "prep/pipeline.hpp"
 
 #include <toml++/toml.h>
 
@@ -25,7 +25,7 @@ struct KeyRef {
   int line;
 };
 
-[[noreturn]] void fail(const KeyRef& ref, const std::string& what) {
+[[noreturn]] void fail_key(const KeyRef& ref, const std::string& what) {
   throw scene_error(ref.file + ":" + std::to_string(ref.line) + ": " + ref.key + ": " + what);
 }
 
@@ -46,33 +46,33 @@ std::string type_name(const toml::node& n) {
 }
 
 std::string get_string(const toml::node& n, const KeyRef& ref) {
-  if (!n.is_string()) fail(ref, "expected a string, got " + type_name(n));
+  if (!n.is_string()) fail_key(ref, "expected a string, got " + type_name(n));
   return std::string(*n.value<std::string_view>());
 }
 
 double get_number(const toml::node& n, const KeyRef& ref) {
-  if (!n.is_number()) fail(ref, "expected a number, got " + type_name(n));
+  if (!n.is_number()) fail_key(ref, "expected a number, got " + type_name(n));
   return *n.value<double>();
 }
 
 bool get_bool(const toml::node& n, const KeyRef& ref) {
-  if (!n.is_boolean()) fail(ref, "expected true or false, got " + type_name(n));
+  if (!n.is_boolean()) fail_key(ref, "expected true or false, got " + type_name(n));
   return *n.value<bool>();
 }
 
 uint32_t get_count(const toml::node& n, const KeyRef& ref, int64_t min, int64_t max) {
-  if (!n.is_integer()) fail(ref, "expected an integer, got " + type_name(n));
+  if (!n.is_integer()) fail_key(ref, "expected an integer, got " + type_name(n));
   int64_t v = *n.value<int64_t>();
   if (v < min || v > max)
-    fail(ref, "value " + std::to_string(v) + " out of range [" + std::to_string(min) + ", " +
-                  std::to_string(max) + "]");
+    fail_key(ref, "value " + std::to_string(v) + " out of range [" + std::to_string(min) + ", " +
+                      std::to_string(max) + "]");
   return static_cast<uint32_t>(v);
 }
 
 double get_non_negative(const toml::node& n, const KeyRef& ref) {
   double v = get_number(n, ref);
   if (!(v >= 0) || !std::isfinite(v))
-    fail(ref, "expected a finite number >= 0, got " + std::to_string(v));
+    fail_key(ref, "expected a finite number >= 0, got " + std::to_string(v));
   return v;
 }
 
@@ -83,7 +83,7 @@ auto with_key(const KeyRef& ref, F&& parse) {
   try {
     return parse();
   } catch (const usage_error& e) {
-    fail(ref, e.what());
+    fail_key(ref, e.what());
   }
 }
 
@@ -104,7 +104,7 @@ void parse_build_table(const toml::table& t, const std::string& file, ModelOptio
         continue;
       }
       const toml::array* a = v.as_array();
-      if (!a || a->size() != 2) fail(ref, "expected \"auto\" or [nx, ny]");
+      if (!a || a->size() != 2) fail_key(ref, "expected \"auto\" or [nx, ny]");
       b.grid_nx = get_count(*a->get(0), ref, 1, 65536);
       b.grid_ny = get_count(*a->get(1), ref, 1, 65536);
     } else if (key == "target_per_cell") {
@@ -117,7 +117,7 @@ void parse_build_table(const toml::table& t, const std::string& file, ModelOptio
       b.qt_max_depth = get_count(v, ref, 0, 24);
     } else if (key == "miter_limit_deg") {
       b.miter_limit_deg = get_non_negative(v, ref);
-      if (b.miter_limit_deg > 180) fail(ref, "expected an angle in [0, 180] degrees");
+      if (b.miter_limit_deg > 180) fail_key(ref, "expected an angle in [0, 180] degrees");
     } else if (key == "lmax") {
       b.lmax = get_non_negative(v, ref);
     } else if (key == "terrain_tolerance") {
@@ -129,7 +129,7 @@ void parse_build_table(const toml::table& t, const std::string& file, ModelOptio
     } else if (key == "threads") {
       b.threads = get_count(v, ref, 0, 1024);
     } else {
-      fail(ref, "unknown key (see samples/README.md)");
+      fail_key(ref, "unknown key (see samples/README.md)");
     }
   }
 }
@@ -161,7 +161,7 @@ LayerSpec casing_of(const LayerSpec& layer) {
 // `dash = [on, off, ...]`: an even count >= 2 of finite lengths > 0.
 std::vector<double> parse_dash(const toml::node& v, const KeyRef& ref) {
   const toml::array* a = v.as_array();
-  if (!a) fail(ref, "expected an array [on, off, ...] of lengths > 0, got " + type_name(v));
+  if (!a) fail_key(ref, "expected an array [on, off, ...] of lengths > 0, got " + type_name(v));
   std::vector<double> dash;
   std::string text = "[";
   for (size_t i = 0; i < a->size(); ++i) {
@@ -169,12 +169,12 @@ std::vector<double> parse_dash(const toml::node& v, const KeyRef& ref) {
     KeyRef xref{ref.file, ref.key + "[" + std::to_string(i) + "]", line_of(x)};
     dash.push_back(get_number(x, xref));
     if (!(dash.back() > 0) || !std::isfinite(dash.back()))
-      fail(xref, "expected a dash length > 0, got " + std::to_string(dash.back()));
+      fail_key(xref, "expected a dash length > 0, got " + std::to_string(dash.back()));
     text += (i ? ", " : "") + std::to_string(dash.back());
   }
   if (dash.size() < 2 || dash.size() % 2 != 0)
-    fail(ref, "expected an even count >= 2 of lengths [on, off, ...], got " + text + "] (" +
-                  std::to_string(dash.size()) + " values)");
+    fail_key(ref, "expected an even count >= 2 of lengths [on, off, ...], got " + text + "] (" +
+                      std::to_string(dash.size()) + " values)");
   return dash;
 }
 
@@ -213,22 +213,22 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
       layer.style.color.attribute = get_string(v, ref);
     } else if (key == "color_ramp") {
       const toml::array* a = v.as_array();
-      if (!a || a->empty()) fail(ref, "expected an array of [value, \"#rrggbb\"] pairs");
+      if (!a || a->empty()) fail_key(ref, "expected an array of [value, \"#rrggbb\"] pairs");
       for (size_t i = 0; i < a->size(); ++i) {
         const toml::array* stop = a->get(i)->as_array();
         KeyRef sref{file, ref.key + "[" + std::to_string(i) + "]", line_of(*a->get(i))};
-        if (!stop || stop->size() != 2) fail(sref, "expected [value, \"#rrggbb\"]");
+        if (!stop || stop->size() != 2) fail_key(sref, "expected [value, \"#rrggbb\"]");
         ColorStop cs;
         cs.value = get_number(*stop->get(0), sref);
         cs.rgba = with_key(sref, [&] { return parse_color(get_string(*stop->get(1), sref)); });
         if (!layer.style.color.ramp.empty() && cs.value <= layer.style.color.ramp.back().value)
-          fail(sref, "ramp values must increase");
+          fail_key(sref, "ramp values must increase");
         layer.style.color.ramp.push_back(cs);
       }
     } else if (key == "casing_width") {
       layer.casing_width = get_number(v, ref);
       if (!(layer.casing_width > 0) || !std::isfinite(layer.casing_width))
-        fail(ref, "expected a casing width > 0, got " + std::to_string(layer.casing_width));
+        fail_key(ref, "expected a casing width > 0, got " + std::to_string(layer.casing_width));
     } else if (key == "casing_color") {
       layer.casing_rgba = with_key(ref, [&] { return parse_color(get_string(v, ref)); });
     } else if (key == "slope_widths") {
@@ -238,7 +238,7 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     } else if (key == "width") {
       layer.style.width = get_number(v, ref);
       if (!(layer.style.width > 0) || !std::isfinite(layer.style.width))
-        fail(ref, "expected a width > 0, got " + std::to_string(layer.style.width));
+        fail_key(ref, "expected a width > 0, got " + std::to_string(layer.style.width));
       width_set = true;
     } else if (key == "corner") {
       layer.style.corner = with_key(ref, [&] { return parse_corner(get_string(v, ref)); });
@@ -247,23 +247,25 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     } else if (key == "order_attribute") {
       layer.style.order_attribute = get_string(v, ref);
     } else {
-      fail(ref, "unknown key (see samples/README.md)");
+      fail_key(ref, "unknown key (see samples/README.md)");
     }
   }
   KeyRef here{file, prefix.substr(0, prefix.size() - 1), layer.scene_line};
-  if (layer.source.empty()) fail(here, "no source (set layer.source or a top-level source)");
+  if (layer.source.empty()) fail_key(here, "no source (set layer.source or a top-level source)");
   if (!layer.sql.empty() && (!layer.where.empty() || !layer.layer.empty()))
-    fail(here, "sql replaces layer and where; give either sql or layer/where");
+    fail_key(here, "sql replaces layer and where; give either sql or layer/where");
   if (layer.dynamic && layer.kind == DecalKind::polygon)
-    fail(here, "dynamic = true needs kind = \"line\" or \"outline\"");
+    fail_key(here, "dynamic = true needs kind = \"line\" or \"outline\"");
   if (!layer.style.color.attribute.empty() && layer.style.color.ramp.empty())
-    fail(here, "color_attribute needs a color_ramp");
+    fail_key(here, "color_attribute needs a color_ramp");
   if (layer.style.outline != decal::OutlineMode::normal &&
       layer.style.corner != decal::CornerStyle::miter)
-    fail(here,
-         "outline_mode inset/offset needs corner = \"miter\" (the kept half is cut at the miter "
-         "corners)");
-  if (layer.casing_rgba && layer.casing_width == 0) fail(here, "casing_color needs a casing_width");
+    fail_key(
+        here,
+        "outline_mode inset/offset needs corner = \"miter\" (the kept half is cut at the miter "
+        "corners)");
+  if (layer.casing_rgba && layer.casing_width == 0)
+    fail_key(here, "casing_color needs a casing_width");
   // A static line's half width in a package is below kMaxHalfWidthMetres
   // (formats/SPEC.md "Index constraints"), its casing's too.
   if (!layer.dynamic &&
@@ -272,24 +274,25 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     std::snprintf(v, sizeof v,
                   layer.casing_width > 0 ? "width %g with casing_width %g" : "width %g",
                   layer.style.width, layer.casing_width);
-    fail(here, std::string(v) + " m is too wide: a static line must be narrower than 2e7 m");
+    fail_key(here, std::string(v) + " m is too wide: a static line must be narrower than 2e7 m");
   }
   if (layer.casing_width > 0 &&
       (layer.kind == DecalKind::polygon || layer.style.outline != decal::OutlineMode::normal))
-    fail(here, "casing_width needs kind = \"line\" or \"outline\" with outline_mode \"normal\"");
+    fail_key(here,
+             "casing_width needs kind = \"line\" or \"outline\" with outline_mode \"normal\"");
   if (layer.slope_widths && (layer.kind == DecalKind::polygon || layer.dynamic))
-    fail(here,
-         "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
-         "dynamic widths are pixels, polygons have no width)");
+    fail_key(here,
+             "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
+             "dynamic widths are pixels, polygons have no width)");
   if (!layer.dash.empty() && layer.kind == DecalKind::polygon)
-    fail(here, "dash needs kind = \"line\" or \"outline\"");
+    fail_key(here, "dash needs kind = \"line\" or \"outline\"");
   // The dynamic dash scan measures the kept vertex chains, which the LOD
   // segments replace for the lines of a lod layer (formats/SPEC.md "Dashed
   // lines").
   if (!layer.dash.empty() && layer.lod)
-    fail(here,
-         "dash and lod = true cannot be combined yet: the LOD segments replace the "
-         "vertex chains the dash is measured along");
+    fail_key(here,
+             "dash and lod = true cannot be combined yet: the LOD segments replace the "
+             "vertex chains the dash is measured along");
   if (layer.dynamic && !width_set) layer.style.width = 3.0;  // pixels
   if (layer.name.empty())
     layer.name = layer.layer.empty() ? "layer" + std::to_string(index) : layer.layer;
@@ -337,15 +340,6 @@ decal::OutlineMode parse_outline_mode(const std::string& t) {
   throw usage_error("expected normal|inset|offset, got \"" + t + "\"");
 }
 
-const char* kind_name(DecalKind k) {
-  switch (k) {
-    case DecalKind::polygon: return "polygon";
-    case DecalKind::line: return "line";
-    case DecalKind::outline: return "outline";
-  }
-  return "?";
-}
-
 DecalKind parse_kind(const std::string& t) {
   if (t == "polygon") return DecalKind::polygon;
   if (t == "line") return DecalKind::line;
@@ -374,7 +368,7 @@ std::string resolve_scene_path(const std::string& path, const std::string& base_
   return base_dir + "/" + path;
 }
 
-SceneSpec parse_scene(const std::string& text, const std::string& path) {
+BuildSpec parse_scene(const std::string& text, const std::string& path) {
   toml::table root;
   try {
     root = toml::parse(text, std::string_view(path));
@@ -382,7 +376,7 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
     throw scene_error(path + ":" + std::to_string(e.source().begin.line) + ": " +
                       std::string(e.description()));
   }
-  SceneSpec scene;
+  BuildSpec scene;
   scene.scene_path = path;
   const std::string base = dir_of(path);
   std::string default_source;
@@ -404,10 +398,10 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
       scene.extent_crs = get_string(v, ref);
     } else if (key == "extent") {
       const toml::array* a = v.as_array();
-      if (!a || a->size() != 4) fail(ref, "expected [xmin, ymin, xmax, ymax]");
+      if (!a || a->size() != 4) fail_key(ref, "expected [xmin, ymin, xmax, ymax]");
       Extent e{get_number(*a->get(0), ref), get_number(*a->get(1), ref),
                get_number(*a->get(2), ref), get_number(*a->get(3), ref)};
-      if (e.empty()) fail(ref, "empty extent: need xmax > xmin and ymax > ymin");
+      if (e.empty()) fail_key(ref, "empty extent: need xmax > xmin and ymax > ymin");
       scene.extent = e;
     } else if (key == "resolution") {
       scene.resolution = get_non_negative(v, ref);
@@ -415,7 +409,7 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
       try {
         scene.repair = parse_repair_method(get_string(v, ref));
       } catch (const usage_error& e) {
-        fail(ref, e.what());
+        fail_key(ref, e.what());
       }
     } else if (key == "dem") {
       scene.dem = resolve_scene_path(get_string(v, ref), base);
@@ -425,11 +419,11 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
       scene.allow_empty = get_bool(v, ref);
     } else if (key == "build") {
       const toml::table* t = v.as_table();
-      if (!t) fail(ref, "expected a table [build]");
+      if (!t) fail_key(ref, "expected a table [build]");
       parse_build_table(*t, path, scene.model);
     } else if (key == "tiling") {
       const toml::table* t = v.as_table();
-      if (!t) fail(ref, "expected a table [tiling]");
+      if (!t) fail_key(ref, "expected a table [tiling]");
       for (auto&& [tk, tv] : *t) {
         const KeyRef tref{path, "tiling." + std::string(tk.str()), line_of(tv)};
         if (tk.str() == "levels") {
@@ -439,21 +433,21 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
           } else if (tv.is_integer()) {
             scene.levels = static_cast<int>(get_count(tv, tref, 0, kMaxLevels));
           } else {
-            fail(tref, "expected a number of levels (0 to 16) or \"auto\"");
+            fail_key(tref, "expected a number of levels (0 to 16) or \"auto\"");
           }
           continue;
         }
-        if (tk.str() != "tile_size") fail(tref, "unknown key (see samples/README.md)");
+        if (tk.str() != "tile_size") fail_key(tref, "unknown key (see samples/README.md)");
         scene.tile_size = get_non_negative(tv, tref);
         if (scene.tile_size < kMinTileSize || scene.tile_size > kMaxTileSize)
-          fail(tref, "expected a tile size in [1, 4000000] metres");
+          fail_key(tref, "expected a tile size in [1, 4000000] metres");
       }
     } else if (key == "layer") {
       layers = v.as_array();
       layers_line = ref.line;
-      if (!layers) fail(ref, "expected an array of tables [[layer]]");
+      if (!layers) fail_key(ref, "expected an array of tables [[layer]]");
     } else {
-      fail(ref, "unknown key (see samples/README.md)");
+      fail_key(ref, "unknown key (see samples/README.md)");
     }
   }
   if (!layers || layers->empty()) {
@@ -463,8 +457,8 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
   for (size_t i = 0; i < layers->size(); ++i) {
     const toml::table* t = layers->get(i)->as_table();
     if (!t)
-      fail({path, "layer[" + std::to_string(i) + "]", line_of(*layers->get(i))},
-           "expected a table");
+      fail_key({path, "layer[" + std::to_string(i) + "]", line_of(*layers->get(i))},
+               "expected a table");
     LayerSpec layer = parse_layer(*t, path, i, default_source, base);
     if (layer.casing_width > 0) scene.layers.push_back(casing_of(layer));
     scene.layers.push_back(std::move(layer));
@@ -480,7 +474,7 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
       if (scene.layers[i].name == scene.layers[j].name) {
         const bool casing =
             !scene.layers[i].casing_of.empty() || !scene.layers[j].casing_of.empty();
-        fail(
+        fail_key(
             {path, "layer[" + std::to_string(file_index(i)) + "].name", scene.layers[i].scene_line},
             "duplicate layer name \"" + scene.layers[i].name + "\" (also layer[" +
                 std::to_string(file_index(j)) + "]" +
@@ -492,7 +486,7 @@ SceneSpec parse_scene(const std::string& text, const std::string& path) {
   return scene;
 }
 
-SceneSpec load_scene_file(const std::string& path) {
+BuildSpec load_scene_file(const std::string& path) {
   check_input_file(path, "scene file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw scene_error(path + ": cannot open scene file");

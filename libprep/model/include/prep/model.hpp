@@ -4,15 +4,68 @@
 // statistics.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "decal/format.hpp"
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 
 namespace prep {
+
+class Progress;  // prep/progress.hpp
+
+// Stage 4 (model) knobs (thesis defaults noted).
+// What the decal grid the build chose will cost (ModelOptions::on_grid).
+struct GridFootprint {
+  uint64_t cells = 0;
+  // Bytes of the per-cell lists and BVHs in the v1.2 layout, as the grid
+  // chooser counts them (an upper bound on the v1.3 arrays the model holds).
+  double cell_bytes = 0;
+  // Bytes of the static blobs made before the grid (lines, quad-trees).
+  double geometry_bytes = 0;
+};
+
+struct ModelOptions {
+  uint32_t grid_nx = 0, grid_ny = 0;  // 0: adaptive (default); 500x500 = thesis
+  uint32_t target_per_cell = 0;       // adaptive grid: stop refining at this proxy (0: off)
+  uint32_t max_cells = 4'000'000;     // grid cell budget
+  // Adaptive grid: no cell side below this many metres (0: no floor). A
+  // tileset's overview level sets twice its resolution (formats/SPEC.md
+  // "Overview levels"); not from the scene file.
+  double min_cell_m = 0.0;
+  uint32_t qt_leaf_capacity = 8;  // thesis default
+  uint32_t qt_max_depth = 8;      // thesis default
+  double miter_limit_deg = 40.0;  // below this angle, miter falls back to round
+  // dynamic lines / terrain
+  double lmax = 0.0;               // 0: half the DEM cell size
+  double terrain_tolerance = 0.0;  // >0: adaptive subdivision, metres
+  double z_scale = 1.0;
+  std::optional<double> nodata_fill;  // raw DEM units; none: nearest valid cell (prep/dem.hpp)
+  std::string dem_assume_crs;         // CRS of a DEM that has none (the scene's assume_crs)
+  unsigned threads = 0;               // 0: all hardware threads
+  // Not from the scene file: where the build stage reports its sub-stages
+  // (build.lines, build.quadtrees, build.grid, build.cells, build.dynamic;
+  // prep/progress.hpp). Null: silent. Output only.
+  Progress* progress = nullptr;
+  // Not from the scene file: called once the decal grid is chosen, before
+  // the per-cell lists are made (`--max-memory`'s check after the grid,
+  // prep/memory_estimate.hpp); it may throw to stop the build. Empty: none.
+  std::function<void(const GridFootprint&)> on_grid;
+};
+
+// What a whole build is asked: the scene (read, project and clean take the
+// SceneSpec part) and the model stage's knobs (the scene file's [build]
+// table, the build options of the command line). The scene file and the
+// command line make one (prep/pipeline.hpp scene_spec, load_scene_file).
+struct BuildSpec : SceneSpec {
+  ModelOptions model;
+};
 
 using ivec2 = std::array<int32_t, 2>;
 using uvec2 = std::array<uint32_t, 2>;
@@ -152,5 +205,42 @@ DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,
 // notes and counts to model.manifest.
 void build_dynamic(const SceneFeatures& scene, const ModelOptions& options, const std::string& dem,
                    DecalModel& model);
+
+// ---------------------------------------------------------- colour ramps --
+
+// a feature's colour from its attribute value through
+// a layer's colour ramp (thesis §4.2.1: the value stored per feature, mapped
+// through a transfer function). One formula for the build, which bakes the
+// colour into LineProps/PolyProps.rgba, and for render --ramp, which maps the
+// stored value again when drawing.
+// `value` through `ramp` (stops sorted by increasing value): linear per
+// channel (R, G, B, A) between the two stops around it, rounded to the
+// nearest integer, clamped to the first and last stop's colour outside them.
+// `fallback` when the ramp is empty or the value is not finite (no value).
+// The value is taken at float precision, as LineProps/PolyProps store it, so
+// the build and a draw-time ramp give the same colour for the same stops.
+inline uint32_t ramp_rgba(const std::vector<ColorStop>& ramp, double value, uint32_t fallback) {
+  const double v = double(float(value));
+  if (ramp.empty() || !std::isfinite(v)) return fallback;
+  if (v <= ramp.front().value) return ramp.front().rgba;
+  if (v >= ramp.back().value) return ramp.back().rgba;
+  size_t k = 1;
+  while (ramp[k].value < v) ++k;  // ramp.back().value > v ends the search
+  const ColorStop& a = ramp[k - 1];
+  const ColorStop& b = ramp[k];
+  const double t = (v - a.value) / (b.value - a.value);
+  uint32_t out = 0;
+  for (int c = 0; c < 4; ++c) {
+    const double ca = double((a.rgba >> (8 * c)) & 0xffu), cb = double((b.rgba >> (8 * c)) & 0xffu);
+    out |= uint32_t(std::clamp(std::lround(ca + t * (cb - ca)), 0L, 255L)) << (8 * c);
+  }
+  return out;
+}
+
+// A layer's colour for one feature: its constant colour, or the feature's
+// value through the ramp when the layer is coloured by an attribute.
+inline uint32_t resolve_color(const LayerColor& color, double value) {
+  return color.attribute.empty() ? color.rgba : ramp_rgba(color.ramp, value, color.rgba);
+}
 
 }  // namespace prep

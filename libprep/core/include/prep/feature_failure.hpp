@@ -25,7 +25,7 @@
 #include <string>
 
 #include "prep/error.hpp"
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 
 namespace prep {
 

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "prep/features.hpp"
 #include "prep/project.hpp"
-#include "prep/scene.hpp"
 
 namespace prep {
 

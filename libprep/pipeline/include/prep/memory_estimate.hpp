@@ -27,7 +27,7 @@
 #include <string>
 #include <thread>
 
-#include "prep/scene.hpp"
+#include "prep/model.hpp"
 
 namespace prep {
 
@@ -73,10 +73,10 @@ double peak_rss_mib();
 double current_rss_bytes();
 
 // The estimates. `dry_run`: the build stops after clean (no build/write).
-MemoryEstimate estimate_before_read(const SceneSpec& scene, bool dry_run);
-MemoryEstimate estimate_after_read(const SceneSpec& scene, const FeatureSet& features,
+MemoryEstimate estimate_before_read(const BuildSpec& scene, bool dry_run);
+MemoryEstimate estimate_after_read(const BuildSpec& scene, const FeatureSet& features,
                                    bool dry_run);
-MemoryEstimate estimate_after_clean(const SceneSpec& spec, const SceneFeatures& scene);
+MemoryEstimate estimate_after_clean(const BuildSpec& spec, const SceneFeatures& scene);
 // Once the build stage has chosen the decal grid (ModelOptions::on_grid),
 // before it makes the per-cell lists: what is resident then, plus the cell
 // structures the grid's count says are coming, plus the dynamic lines of

@@ -44,7 +44,7 @@
 #include <span>
 #include <string>
 
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 
 namespace prep {
 

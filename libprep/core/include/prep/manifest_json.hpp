@@ -10,8 +10,8 @@
 #include <string>
 
 #include "prep/error.hpp"
+#include "prep/features.hpp"
 #include "prep/manifest_words.hpp"
-#include "prep/scene.hpp"
 
 namespace prep {
 

@@ -1,5 +1,5 @@
-// Which tiles of a tileset a view draws (prep/tile_select.hpp).
-#include "prep/tile_select.hpp"
+// Which tiles of a tileset a view draws (prep/tile.hpp).
+#include "prep/tile.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +10,7 @@
 #include <string>
 
 #include "prep/error.hpp"
+#include "prep/render.hpp"
 
 namespace prep::render {
 namespace {
@@ -47,13 +48,6 @@ std::string bytes_text(uint64_t b) {
 }
 
 }  // namespace
-
-double pixel_ground_size(const Camera& c, uint32_t width, uint32_t height, const Vec3& p) {
-  if (c.projection == Projection::orthographic)
-    return std::min(c.ortho_w / double(width), c.ortho_h / double(height));
-  const double d = std::hypot(p[0] - c.eye[0], p[1] - c.eye[1], p[2] - c.eye[2]);
-  return d * 2 * std::tan(c.fov_y_deg * std::numbers::pi / 360.0) / double(height);
-}
 
 TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint32_t width,
                            uint32_t height, double zmin, double zmax,

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 
 namespace prep {
 

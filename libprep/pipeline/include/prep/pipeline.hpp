@@ -10,9 +10,10 @@
 #include <vector>
 
 #include "prep/error.hpp"
+#include "prep/features.hpp"
+#include "prep/model.hpp"
 #include "prep/progress.hpp"
 #include "prep/read.hpp"
-#include "prep/scene.hpp"
 
 namespace prep {
 
@@ -69,7 +70,7 @@ struct BuildResult {
 // "package_written": false} before the exception propagates.
 // Throws error(ExitCode::internal) when a package is asked for but this build
 // has no build/write stage linked (use dry_run).
-BuildResult run_build(const SceneSpec& scene, const BuildRequest& request);
+BuildResult run_build(const BuildSpec& scene, const BuildRequest& request);
 
 // The report of a cleaned scene as JSON (layer counts, manifest entries and
 // notes, frame, timings in seconds, output path).
@@ -119,7 +120,7 @@ struct SceneRequest {
 // form's one layer. Throws usage_error naming the option at fault (file-less
 // options given with a scene file, a bad or out-of-range value), and what
 // load_scene_file() throws.
-SceneSpec scene_spec(const SceneRequest& request);
+BuildSpec scene_spec(const SceneRequest& request);
 
 // Exit code of a build that returned: ExitCode::partial when skip_failures
 // dropped failing features, else ok.
@@ -223,5 +224,36 @@ struct BatchResult {
 // folder or the summary cannot be written), error when fork fails; a scene's
 // own failure is only reported.
 BatchResult run_batch(const BatchRequest& request);
+
+// ---------------------------------------------------------- the scene file --
+
+// Parses scene-file text. `path` is used for messages and to resolve relative
+// source and DEM paths (against the file's directory, also inside /vsizip/
+// and friends). Unknown keys, wrong types and bad values throw scene_error
+// whose message names the file, the key and its line:
+//   scene.toml:12: layer[2].kind: expected polygon|line|outline, got "poly"
+// Thread-safe (no shared state).
+BuildSpec parse_scene(const std::string& text, const std::string& path);
+
+// Reads and parses a scene file. Throws scene_error if it cannot be read.
+BuildSpec load_scene_file(const std::string& path);
+
+// Resolves a GDAL path written in a scene file against `base_dir`: a plain
+// relative path becomes base_dir/path, and a /vsizip/, /vsigzip/, /vsitar/ or
+// /vsi7z/ path with a relative archive path gets base_dir inserted after the
+// prefix. Absolute paths, URLs and other /vsi prefixes are returned as given.
+std::string resolve_scene_path(const std::string& path, const std::string& base_dir);
+
+// Parses a colour: "#rrggbb", "#rrggbbaa" or a CSS-like name list is not
+// supported. Returns RGBA with R in the low byte. Throws usage_error.
+uint32_t parse_color(const std::string& text);
+
+// Parses "round|miter|bevel", "normal|inset|offset", "polygon|line|outline".
+// Throw usage_error naming the accepted values.
+decal::CornerStyle parse_corner(const std::string& text);
+decal::OutlineMode parse_outline_mode(const std::string& text);
+// Parses "linework|structure" (SceneSpec::repair).
+RepairMethod parse_repair_method(const std::string& text);
+DecalKind parse_kind(const std::string& text);
 
 }  // namespace prep

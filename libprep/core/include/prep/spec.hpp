@@ -1,0 +1,126 @@
+// prep/spec.hpp — what a build is asked to do: the layers (LayerSpec), their
+// styles, and the scene (SceneSpec): CRS, extent, resolution, repair, DEM,
+// tiling. The model stage's knobs are ModelOptions (prep/model.hpp), and a
+// whole build's ask is a BuildSpec there. Read, project and clean take a
+// SceneSpec.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "decal/format.hpp"
+
+namespace prep {
+
+enum class DecalKind { polygon, line, outline };
+
+// The scene-file word of a kind (the inverse of parse_kind, prep/pipeline.hpp).
+inline const char* kind_name(DecalKind kind) {
+  switch (kind) {
+    case DecalKind::polygon: return "polygon";
+    case DecalKind::line: return "line";
+    case DecalKind::outline: return "outline";
+  }
+  return "?";
+}
+
+// How `clean` repairs an invalid polygon (GEOS MakeValid's two methods).
+//   linework:  GEOS's default (and OGR's): rebuild from all the ring lines,
+//              even-odd; a hole sharing an edge with its shell or another
+//              hole toggles coverage, and collapsed pieces become lines.
+//   structure: union the shells, subtract the holes (GEOS >= 3.10); what a
+//              hole is meant to do, and far faster on polygons with very many
+//              touching holes when a single MakeValid is needed (polygons
+//              with many holes are repaired by parts with either method:
+//              libprep/clean/detail/repair_by_parts.hpp).
+enum class RepairMethod { linework, structure };
+
+struct ColorStop {
+  double value;
+  uint32_t rgba;  // R in the low byte
+};
+
+// Colour of a layer: a constant, or an attribute mapped through a ramp
+// (linear interpolation between stops, clamped at both ends).
+struct LayerColor {
+  uint32_t rgba = 0xff3366ccu;
+  std::string attribute;        // empty: constant colour
+  std::vector<ColorStop> ramp;  // sorted by value
+};
+
+struct LayerStyle {
+  LayerColor color;
+  double width = 2.0;  // ground metres (static lines/outlines) or pixels (dynamic)
+  decal::CornerStyle corner = decal::CornerStyle::round;
+  decal::OutlineMode outline = decal::OutlineMode::normal;
+  std::string order_attribute;  // importance; empty: length (lines) / area (polygons)
+};
+
+struct LayerSpec {
+  std::string name;    // unique within the scene; defaults to the source layer
+  std::string source;  // any GDAL path, /vsizip/ included
+  std::string layer;   // source layer name; empty: the first layer
+  std::string where;   // OGR attribute filter
+  std::string sql;     // OGR SQL (replaces layer + where)
+  DecalKind kind = DecalKind::polygon;
+  bool dynamic = false;  // dynamic lines: width in pixels, terrain-matched
+  bool lod = false;      // build LOCALIS LOD segments for this layer's lines
+  LayerStyle style;
+  int scene_line = 0;  // line in the scene file, for messages (0: command line)
+  // Casing (scene file casing_width, casing_color): the scene file's loader
+  // puts a copy of the layer just below it, casing_width wider on each side
+  // in the casing colour, so that every line of the layer lies on the
+  // casings of all of them and crossings of one road class merge cleanly.
+  // The copy's casing_of names the layer it lies under.
+  double casing_width = 0;  // metres (static) or pixels (dynamic); 0: none
+  std::optional<uint32_t> casing_rgba;
+  std::string casing_of;
+  // Scene file slope_widths: the layer's static line widths are ground
+  // widths along the terrain surface, not in plan (formats/SPEC.md "Slope
+  // widths"). Recorded in the package's layer table; the package itself
+  // stays in plan, and `decalprep render` applies it with its DEM.
+  bool slope_widths = false;
+  // Dash pattern (scene file `dash`): [on, off, on, off, ...], lengths > 0
+  // along the line from its start, ground metres (static) or pixels
+  // (dynamic); empty: solid. A casing copy is solid.
+  std::vector<double> dash;
+};
+
+struct Extent {
+  double xmin = 0, ymin = 0, xmax = 0, ymax = 0;
+  bool empty() const { return !(xmax > xmin && ymax > ymin); }
+};
+
+// SceneSpec::levels: "auto", the most levels and when auto stops.
+constexpr int kLevelsAuto = -1;
+constexpr int kMaxLevels = 16;
+constexpr int kAutoLevelTiles = 4;
+
+struct SceneSpec {
+  std::vector<LayerSpec> layers;
+  std::string crs;               // empty: local Transverse Mercator on the data
+  std::string assume_crs;        // CRS for sources that have none
+  std::optional<Extent> extent;  // in `extent_crs` (default: scene frame)
+  std::string extent_crs;
+  double resolution = 0.0;                       // metres; 0 keeps every vertex
+  RepairMethod repair = RepairMethod::linework;  // invalid polygons (see RepairMethod)
+  std::string dem;                               // GDAL raster path; empty: flat terrain
+  bool skip_failures = false;
+  // A build that keeps no feature from any layer is an error (empty_error,
+  // exit 9) and writes no package, unless this is set (`--allow-empty`,
+  // the scene file's allow_empty): then the empty package is written.
+  bool allow_empty = false;
+  // > 0: the output is a tileset of square tiles this many frame metres on a
+  // side (prep/tile.hpp; the scene file's [tiling] tile_size); 0: one package.
+  double tile_size = 0;
+  // Overview levels of a tileset (formats/SPEC.md "Overview levels";
+  // --levels, the scene file's [tiling] levels): 0 none, 1..kMaxLevels that
+  // many, kLevelsAuto as many as it takes for one level to cover the data
+  // with at most kAutoLevelTiles tiles.
+  int levels = 0;
+  std::string scene_path;  // for messages and provenance
+};
+
+}  // namespace prep
