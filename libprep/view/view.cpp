@@ -83,6 +83,15 @@ std::optional<uint64_t> parse_u64(std::string_view s) {
   return v;
 }
 
+// A file descriptor closed with its last owner (the response's provider).
+struct OpenFile {
+  int fd;
+  explicit OpenFile(int f) : fd(f) {}
+  ~OpenFile() { ::close(fd); }
+  OpenFile(const OpenFile&) = delete;
+  OpenFile& operator=(const OpenFile&) = delete;
+};
+
 // Answers a request for the file `file`: whole, one range, or 416.
 void serve_file(const httplib::Request& req, httplib::Response& res, const fs::path& file) {
   const int fd = ::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
@@ -92,10 +101,7 @@ void serve_file(const httplib::Request& req, httplib::Response& res, const fs::p
     res.status = 404;
     return;
   }
-  auto handle = std::shared_ptr<int>(new int(fd), [](int* f) {
-    ::close(*f);
-    delete f;
-  });
+  auto handle = std::make_shared<OpenFile>(fd);
   const auto size = static_cast<uint64_t>(st.st_size);
   ByteRange r{0, size ? size - 1 : 0};
   RangeAnswer answer = RangeAnswer::whole;
@@ -125,7 +131,7 @@ void serve_file(const httplib::Request& req, httplib::Response& res, const fs::p
   res.set_content_provider(length, content_type(file.filename().string()),
                            [handle, first](size_t offset, size_t want, httplib::DataSink& sink) {
                              std::vector<char> buf(std::min<size_t>(want, size_t(1) << 20));
-                             const ssize_t n = ::pread(*handle, buf.data(), buf.size(),
+                             const ssize_t n = ::pread(handle->fd, buf.data(), buf.size(),
                                                        static_cast<off_t>(first + offset));
                              if (n <= 0) return false;  // the file shrank: end the response
                              sink.write(buf.data(), static_cast<size_t>(n));
@@ -215,7 +221,7 @@ std::optional<fs::path> resolve_data_path(const ServeRoot& root, std::string_vie
   while (true) {
     const size_t slash = rel.find('/', at);
     const std::string_view c =
-        rel.substr(at, slash == std::string_view::npos ? rel.npos : slash - at);
+        rel.substr(at, slash == std::string_view::npos ? std::string_view::npos : slash - at);
     if (!plain_component(c)) return std::nullopt;
     parts.push_back(c);
     if (slash == std::string_view::npos) break;
@@ -226,7 +232,7 @@ std::optional<fs::path> resolve_data_path(const ServeRoot& root, std::string_vie
     return std::nullopt;
   fs::path p = root.dir;
   for (const std::string_view c : parts) p /= fs::path(std::string(c));
-  const auto real = real_path(p);
+  auto real = real_path(p);
   if (!real || !is_regular(*real)) return std::nullopt;
   // The resolved file (links followed) must itself obey the rule.
   if (root.kind == ServeRoot::Kind::package) {
