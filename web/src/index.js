@@ -1,0 +1,8 @@
+// index.js — the public API of the browser reader of decalprep packages and
+// tilesets (formats/SPEC.md). See web/README.md.
+export { FormatError } from "./errors.js";
+export { Package, openPackage, openPackageUrl } from "./package.js";
+export { bufferSource, urlSource } from "./source.js";
+export { parseTileset, fetchTileset, openTile, MAX_TILESET_BYTES } from "./tileset.js";
+export { xxh64, hex64 } from "./xxh64.js";
+export * from "./format.js";
