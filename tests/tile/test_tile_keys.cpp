@@ -11,7 +11,6 @@
 
 #include "prep/error.hpp"
 #include "prep/tile.hpp"
-#include "prep/tileset.hpp"
 #include "tile_scenes.hpp"
 
 namespace {

@@ -22,7 +22,7 @@
 #include <string>
 
 #include "prep/pipeline.hpp"
-#include "prep/tileset.hpp"
+#include "prep/tile.hpp"
 #include "test_support.hpp"
 #include "tile_scenes.hpp"
 
@@ -76,7 +76,7 @@ prep::TilesetIndex build(const prep::test::TempDir& dir, int levels) {
   prep::test::write_text(
       paths, collection({segment(X0 + 500, Y0 + 100, 3), segment(X0 + 500, Y0 + 200, 1.5),
                          segment(X0 + 500, Y0 + 300, 2.01), segment(X0 + 500, Y0 + 400, 1.99)}));
-  prep::SceneSpec spec;
+  prep::BuildSpec spec;
   spec.crs = "EPSG:32631";
   spec.assume_crs = "EPSG:32631";
   spec.tile_size = 1024;

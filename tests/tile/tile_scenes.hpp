@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "prep/scene.hpp"
+#include "prep/features.hpp"
 #include "prep/tile.hpp"
 
 namespace prep {
