@@ -568,6 +568,214 @@ int64_t sample_stride(const GridParams& g) {
   return std::clamp<int64_t>(int64_t(g.ny) / 64, 1, 32);
 }
 
+constexpr double kBytesWeight = 0.1;    // of log(package bytes) in a grid's cost
+constexpr uint32_t kThesisCells = 500;  // per side of the thesis grid
+
+// The adaptive search of choose_grid() (the rule is documented there):
+// what it counts candidates against (the budgets, the thesis grid, the
+// bins or the primitive list) and every candidate counted.
+class GridSearch {
+ public:
+  GridSearch(const GridInput& in, const ModelOptions& o, ProgressStage& stage)
+      : in_(in), o_(o), stage_(stage), e_(in.extent) {
+    const double w = double(e_.x1 - e_.x0 + 1), h = double(e_.y1 - e_.y0 + 1);
+    // The query-cost primitives: segment boxes and exterior solid-leaf boxes.
+    n_prims_ = in.shapes->size();
+    for (size_t r = 0; r < in.ring_leaves->size(); ++r)
+      if (!(*in.ring_is_hole)[r]) n_prims_ += (*in.ring_leaves)[r].size();
+    const double n = std::max<double>(double(n_prims_), 1.0);
+    max_cells_ = std::max<uint32_t>(o.max_cells, 1);
+    // Cell-entry budget: where primitives overlap heavily (10^5 collinear
+    // 1 cm segments of a 2 m wide line), no cell size reaches a low proxy and
+    // shrinking cells only multiplies the entries (each box then covers
+    // (box/side)^2 cells: ~10^9 entries, tens of GB). Such grids are refused.
+    entry_budget_ = std::max(64.0 * n, double(1u << 22));
+    // The cell floor (quanta): a candidate finer than it is refused like one
+    // over the budgets, so the coarser walk goes on past it.
+    min_side_ = o.min_cell_m > 0 ? std::ceil(o.min_cell_m / decal::kQuantumMetres) : 0;
+    // Size budget from the thesis grid on the same data.
+    thesis_ = grid_with_cell(e_, int64_t(std::ceil(w / kThesisCells)),
+                             int64_t(std::ceil(h / kThesisCells)));
+    // Large inputs binned by y in buckets of half the thesis cell: a
+    // sampled row of any candidate finds its items without a pass over all.
+    if (n_prims_ >= kSampleMinPrimitives) {
+      bins_.emplace(bin_inputs(in, std::max<int64_t>(1, thesis_.cell_h / 2)));
+      if (!bins_->sampling()) bins_.reset();
+    }
+    uint64_t entries = 0;
+    thesis_bytes_ = exact_grid_bytes(thesis_, in, &entries);
+    if (double(entries) <= entry_budget_)
+      byte_budget_ = kGridSizeBudget * (double(in.geometry_bytes) + thesis_bytes_);
+    side0_ = std::sqrt(double(thesis_.cell_w) * double(thesis_.cell_h));
+  }
+
+  const GridParams& thesis() const { return thesis_; }
+  double thesis_bytes() const { return thesis_bytes_; }
+  double entry_budget() const { return entry_budget_; }
+
+  // The walks of the ladder: coarser from the thesis side, then finer
+  // (with the bisection under the size budget); the best candidate.
+  Candidate walk() {
+    double best_k = 0;
+    Candidate best = walk_coarser(best_k);
+    if (best.feasible && !reached(best)) walk_finer(best, best_k);
+    return best;
+  }
+
+  // A choice made on sampled counts confirmed on exact ones: the chosen
+  // candidate, else the next by score, whose exact bytes keep the size
+  // budget (one exact count when the sample was right). False, with `best`
+  // infeasible, when none does (the thesis grid is then the choice, within
+  // the budget by definition).
+  bool confirm_exact(Candidate& best) {
+    if (!(best.feasible && best.stride > 1 && std::isfinite(byte_budget_))) return true;
+    std::vector<Candidate> order;
+    for (const Candidate& c : measured_)
+      if (c.feasible && (c.g.cell_w != best.g.cell_w)) order.push_back(c);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](const Candidate& a, const Candidate& b) { return better(a, b); });
+    order.insert(order.begin(), best);
+    best.feasible = false;
+    for (Candidate c : order) {
+      if (c.stride > 1) {
+        c.bytes = double(in_.geometry_bytes) + exact_grid_bytes(c.g, in_);
+        c.stride = 1;
+        stage_.add();
+      }
+      if (c.bytes <= byte_budget_) {
+        best = c;
+        break;
+      }
+    }
+    return best.feasible;
+  }
+
+ private:
+  // a strictly better than b
+  static bool better(const Candidate& a, const Candidate& b) {
+    return a.feasible && (!b.feasible || a.score < b.score);
+  }
+  bool reached(const Candidate& c) const {
+    return o_.target_per_cell > 0 && c.feasible && c.proxy <= o_.target_per_cell;
+  }
+
+  // The primitive boxes and weights, listed (once) where a grid is counted
+  // without the bins.
+  void list_prims() {
+    if (!prims_.empty() || n_prims_ == 0) return;
+    prims_.reserve(n_prims_);
+    weights_.reserve(n_prims_);
+    for (const SegmentShape& sh : *in_.shapes) {
+      prims_.push_back(sh.box);
+      weights_.push_back(kLineWeight);
+    }
+    for (size_t r = 0; r < in_.ring_leaves->size(); ++r) {
+      if ((*in_.ring_is_hole)[r]) continue;
+      for (uint32_t nd : (*in_.ring_leaves)[r]) {
+        const ivec4& b = (*in_.node_box)[nd];
+        prims_.push_back({b[0], b[1], b[2], b[3]});
+        weights_.push_back(kPolygonWeight);
+      }
+    }
+  }
+
+  // The candidate of ladder step k (side side0 * 2^(-k/4)): refused
+  // (infeasible, not recorded) over max_cells, under the cell floor or over
+  // the entry budget; else counted, scored and recorded in `measured_`.
+  Candidate measure(double k) {
+    Candidate c;
+    const int64_t side = std::max<int64_t>(1, int64_t(std::ceil(side0_ * std::pow(2.0, -k / 4.0))));
+    c.g = grid_with_cell(e_, side, side);
+    if (double(c.g.nx) * double(c.g.ny) > max_cells_ ||
+        (double(side) < min_side_ && (c.g.nx > 1 || c.g.ny > 1)))
+      return c;
+    // Small inputs: exact counts. Large ones: counts on a row sample, the
+    // choice confirmed on exact bytes at the end.
+    c.stride = bins_ ? sample_stride(c.g) : 1;
+    if (c.stride == 1) {
+      list_prims();
+      if (entry_count(c.g, prims_) > entry_budget_) return Candidate{c.g};
+      c.bytes = double(in_.geometry_bytes) + exact_grid_bytes(c.g, in_);
+      c.proxy = weighted_mean_per_cell(c.g, prims_, weights_);
+    } else {
+      const GridCount gc = grid_bytes(c.g, *bins_, c.stride);
+      if (gc.entries > entry_budget_) return Candidate{c.g};
+      c.bytes = double(in_.geometry_bytes) + gc.bytes;
+      c.proxy = gc.proxy;
+    }
+    c.score = std::log(1.0 + c.proxy) + kBytesWeight * std::log(std::max(c.bytes, 1.0));
+    // A sampled count must stay 1% under the budget (its error on the sets
+    // of bench/gen_synthetic.py: -0.3% to -0.4%), so that the exact
+    // confirmation (confirm_exact) usually passes at the first try.
+    c.feasible = c.bytes <= (c.stride > 1 ? kSampleMargin : 1.0) * byte_budget_;
+    measured_.push_back(c);
+    stage_.add();
+    return c;
+  }
+
+  // From the thesis side coarser while that is cheaper, while the
+  // candidate is refused, or while the target is still met; `best_k`
+  // receives the best candidate's step.
+  Candidate walk_coarser(double& best_k) {
+    Candidate best = measure(0);
+    best_k = 0;
+    for (int k = -1;; --k) {
+      const Candidate c = measure(k);
+      const bool go_on = !best.feasible || reached(c);
+      if (better(c, best) || reached(c)) {
+        best = c;
+        best_k = k;
+      } else if (!go_on) {
+        break;
+      }
+      if (c.g.nx <= 1 && c.g.ny <= 1) break;
+    }
+    return best;
+  }
+
+  // Finer from step best_k while that is cheaper and the target is not yet
+  // reached. When the size budget stops the walk, bisects the last step to
+  // land close under it.
+  void walk_finer(Candidate& best, double best_k) {
+    for (double k = best_k + 1; k < best_k + 64; k += 1) {
+      const Candidate c = measure(k);
+      if (double(c.g.nx) * double(c.g.ny) > max_cells_) break;
+      if (!c.feasible && c.bytes > 0) {  // over the size budget (not refused)
+        double lo = k - 1, hi = k;
+        for (int it = 0; it < 4; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          const Candidate m = measure(mid);
+          if (m.feasible) {
+            if (better(m, best)) best = m;
+            lo = mid;
+          } else {
+            hi = mid;
+          }
+        }
+        break;
+      }
+      if (!better(c, best)) break;
+      best = c;
+      if (reached(c) || c.g.cell_w <= 1) break;
+    }
+  }
+
+  const GridInput& in_;
+  const ModelOptions& o_;
+  ProgressStage& stage_;
+  const QBox& e_;
+  size_t n_prims_ = 0;
+  double max_cells_ = 1, entry_budget_ = 0, min_side_ = 0;
+  GridParams thesis_;
+  std::optional<GridBins> bins_;
+  std::vector<QBox> prims_;
+  std::vector<float> weights_;
+  double byte_budget_ = std::numeric_limits<double>::infinity();
+  double thesis_bytes_ = 0;
+  double side0_ = 0;
+  std::vector<Candidate> measured_;  // every candidate counted, in search order
+};
+
 }  // namespace
 
 // The adaptive rule (measured with bench/bench_build):
@@ -630,185 +838,26 @@ GridParams choose_grid(const GridInput& in, const ModelOptions& o, double* cell_
   const QBox& e = in.extent;
   if (cell_bytes) *cell_bytes = 0;
   if (e.empty()) return GridParams{};
-  const double w = double(e.x1 - e.x0 + 1), h = double(e.y1 - e.y0 + 1);
   if (o.grid_nx > 0 && o.grid_ny > 0) {
     stage.add();
     // Thesis §4.2.1: a fixed number of cells over the data's AABB (500x500).
+    const double w = double(e.x1 - e.x0 + 1), h = double(e.y1 - e.y0 + 1);
     const GridParams g =
         grid_with_cell(e, int64_t(std::ceil(w / o.grid_nx)), int64_t(std::ceil(h / o.grid_ny)));
     if (cell_bytes) *cell_bytes = exact_grid_bytes(g, in);
     return g;
   }
-  // The query-cost primitives: segment boxes and exterior solid-leaf boxes.
-  size_t n_prims = in.shapes->size();
-  for (size_t r = 0; r < in.ring_leaves->size(); ++r)
-    if (!(*in.ring_is_hole)[r]) n_prims += (*in.ring_leaves)[r].size();
-  const double n = std::max<double>(double(n_prims), 1.0);
-  const double max_cells = std::max<uint32_t>(o.max_cells, 1);
-  constexpr double kBytesWeight = 0.1;
-  constexpr uint32_t kThesisCells = 500;
-  // Cell-entry budget: where primitives overlap heavily (10^5 collinear
-  // 1 cm segments of a 2 m wide line), no cell size reaches a low proxy and
-  // shrinking cells only multiplies the entries (each box then covers
-  // (box/side)^2 cells: ~10^9 entries, tens of GB). Such grids are refused.
-  const double entry_budget = std::max(64.0 * n, double(1u << 22));
-  // The cell floor (quanta): a candidate finer than it is refused like one
-  // over the budgets, so the coarser walk goes on past it.
-  const double min_side = o.min_cell_m > 0 ? std::ceil(o.min_cell_m / decal::kQuantumMetres) : 0;
-
-  // Size budget from the thesis grid on the same data.
-  const GridParams thesis =
-      grid_with_cell(e, int64_t(std::ceil(w / kThesisCells)), int64_t(std::ceil(h / kThesisCells)));
-  // Large inputs binned by y in buckets of half the thesis cell: a
-  // sampled row of any candidate finds its items without a pass over all.
-  std::optional<GridBins> bins;
-  if (n_prims >= kSampleMinPrimitives) {
-    bins.emplace(bin_inputs(in, std::max<int64_t>(1, thesis.cell_h / 2)));
-    if (!bins->sampling()) bins.reset();
-  }
-  // The primitive boxes and weights, listed where a grid is counted without
-  // the bins.
-  std::vector<QBox> prims;
-  std::vector<float> weights;
-  auto list_prims = [&] {
-    if (!prims.empty() || n_prims == 0) return;
-    prims.reserve(n_prims);
-    weights.reserve(n_prims);
-    for (const SegmentShape& sh : *in.shapes) {
-      prims.push_back(sh.box);
-      weights.push_back(kLineWeight);
-    }
-    for (size_t r = 0; r < in.ring_leaves->size(); ++r) {
-      if ((*in.ring_is_hole)[r]) continue;
-      for (uint32_t nd : (*in.ring_leaves)[r]) {
-        const ivec4& b = (*in.node_box)[nd];
-        prims.push_back({b[0], b[1], b[2], b[3]});
-        weights.push_back(kPolygonWeight);
-      }
-    }
-  };
-  double byte_budget = std::numeric_limits<double>::infinity();
-  double thesis_bytes = 0;
-  {
-    uint64_t entries = 0;
-    thesis_bytes = exact_grid_bytes(thesis, in, &entries);
-    if (double(entries) <= entry_budget)
-      byte_budget = kGridSizeBudget * (double(in.geometry_bytes) + thesis_bytes);
-  }
-
-  const double side0 = std::sqrt(double(thesis.cell_w) * double(thesis.cell_h));
-  std::vector<Candidate> measured;  // every candidate counted, in search order
-  auto measure = [&](double k) {
-    Candidate c;
-    const int64_t side = std::max<int64_t>(1, int64_t(std::ceil(side0 * std::pow(2.0, -k / 4.0))));
-    c.g = grid_with_cell(e, side, side);
-    if (double(c.g.nx) * double(c.g.ny) > max_cells ||
-        (double(side) < min_side && (c.g.nx > 1 || c.g.ny > 1)))
-      return c;
-    // Small inputs: exact counts. Large ones: counts on a row sample, the
-    // choice confirmed on exact bytes at the end.
-    c.stride = bins ? sample_stride(c.g) : 1;
-    if (c.stride == 1) {
-      list_prims();
-      if (entry_count(c.g, prims) > entry_budget) return Candidate{c.g};
-      c.bytes = double(in.geometry_bytes) + exact_grid_bytes(c.g, in);
-      c.proxy = weighted_mean_per_cell(c.g, prims, weights);
-    } else {
-      const GridCount gc = grid_bytes(c.g, *bins, c.stride);
-      if (gc.entries > entry_budget) return Candidate{c.g};
-      c.bytes = double(in.geometry_bytes) + gc.bytes;
-      c.proxy = gc.proxy;
-    }
-    c.score = std::log(1.0 + c.proxy) + kBytesWeight * std::log(std::max(c.bytes, 1.0));
-    // A sampled count must stay 1% under the budget (its error on the sets
-    // of bench/gen_synthetic.py: -0.3% to -0.4%), so that the exact
-    // confirmation below usually passes at the first try.
-    c.feasible = c.bytes <= (c.stride > 1 ? kSampleMargin : 1.0) * byte_budget;
-    measured.push_back(c);
-    stage.add();
-    return c;
-  };
-  auto better = [](const Candidate& a, const Candidate& b) {  // a strictly better than b
-    return a.feasible && (!b.feasible || a.score < b.score);
-  };
-  const bool use_target = o.target_per_cell > 0;
-  auto reached = [&](const Candidate& c) {
-    return use_target && c.feasible && c.proxy <= o.target_per_cell;
-  };
-
-  Candidate best = measure(0);
-  double best_k = 0;
-  // Coarser while that is cheaper, while the candidate is refused, or while
-  // the target is still met.
-  for (int k = -1;; --k) {
-    const Candidate c = measure(k);
-    const bool go_on = !best.feasible || reached(c);
-    if (better(c, best) || reached(c)) {
-      best = c;
-      best_k = k;
-    } else if (!go_on) {
-      break;
-    }
-    if (c.g.nx <= 1 && c.g.ny <= 1) break;
-  }
-  // Finer while that is cheaper and the target is not yet reached. When the
-  // size budget stops the walk, bisect the last step to land close under it.
-  if (best.feasible && !reached(best)) {
-    for (double k = best_k + 1; k < best_k + 64; k += 1) {
-      const Candidate c = measure(k);
-      if (double(c.g.nx) * double(c.g.ny) > max_cells) break;
-      if (!c.feasible && c.bytes > 0) {  // over the size budget (not refused)
-        double lo = k - 1, hi = k;
-        for (int it = 0; it < 4; ++it) {
-          const double mid = 0.5 * (lo + hi);
-          const Candidate m = measure(mid);
-          if (m.feasible) {
-            if (better(m, best)) best = m;
-            lo = mid;
-          } else {
-            hi = mid;
-          }
-        }
-        break;
-      }
-      if (!better(c, best)) break;
-      best = c;
-      if (reached(c) || c.g.cell_w <= 1) break;
-    }
-  }
-  // A choice made on sampled counts is confirmed on exact ones: the chosen
-  // candidate, else the next by score, whose exact bytes keep the size
-  // budget (one exact count when the sample was right), else the thesis
-  // grid itself, within the budget by definition.
-  if (best.feasible && best.stride > 1 && std::isfinite(byte_budget)) {
-    std::vector<Candidate> order;
-    for (const Candidate& c : measured)
-      if (c.feasible && (c.g.cell_w != best.g.cell_w)) order.push_back(c);
-    std::stable_sort(order.begin(), order.end(),
-                     [&](const Candidate& a, const Candidate& b) { return better(a, b); });
-    order.insert(order.begin(), best);
-    best.feasible = false;
-    for (Candidate c : order) {
-      if (c.stride > 1) {
-        c.bytes = double(in.geometry_bytes) + exact_grid_bytes(c.g, in);
-        c.stride = 1;
-        stage.add();
-      }
-      if (c.bytes <= byte_budget) {
-        best = c;
-        break;
-      }
-    }
-    if (!best.feasible) {
-      if (cell_bytes) *cell_bytes = thesis_bytes;
-      return thesis;
-    }
+  GridSearch search(in, o, stage);
+  Candidate best = search.walk();
+  if (!search.confirm_exact(best)) {
+    if (cell_bytes) *cell_bytes = search.thesis_bytes();
+    return search.thesis();
   }
   if (!best.feasible) {
     fail<resource_error>(
         kBuildStage,
         "decal grid: no cell size keeps the segment/cell entries under " +
-            std::to_string(uint64_t(entry_budget)) +
+            std::to_string(uint64_t(search.entry_budget())) +
             " (primitives overlap too much; raise --resolution to simplify the lines)");
   }
   if (cell_bytes) *cell_bytes = best.bytes - double(in.geometry_bytes);

@@ -142,15 +142,15 @@ LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const Mo
   return out;
 }
 
-}  // namespace
-
-void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalModel& model,
-                 std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys) {
-  const size_t nl = scene.lines.size();
-  // Per-layer style, with the outline-mode fallback of thesis §3.6 (inset and
-  // offset need the miter corner style).
-  std::vector<decal::CornerStyle> corner(scene.layers.size());
-  std::vector<decal::OutlineMode> outline(scene.layers.size());
+// Per layer the corner style and the outline mode drawn, with the fallback
+// of thesis §3.6 (inset and offset need the miter corner style: a layer
+// with lines that asks for them otherwise is noted and drawn in normal
+// mode).
+void layer_line_styles(const SceneFeatures& scene, DecalModel& model,
+                       std::vector<decal::CornerStyle>& corner,
+                       std::vector<decal::OutlineMode>& outline) {
+  corner.resize(scene.layers.size());
+  outline.resize(scene.layers.size());
   for (size_t l = 0; l < scene.layers.size(); ++l) {
     const LayerStyle& st = scene.layers[l].style;
     corner[l] = st.corner;
@@ -165,6 +165,149 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
                                        "drawn in normal mode");
     }
   }
+}
+
+// Where the kept lines lie in the model's arrays: per kept line (and one
+// past the last) its first vertex and first segment.
+struct KeptLines {
+  std::vector<uint32_t> first_vertex, seg_first;
+  uint32_t segments = 0;
+};
+
+// The converted lines appended to the model in input order (deterministic):
+// vertices, corners, properties, dash starts and a draw key per kept line;
+// a dropped line goes to the manifest with its reason.
+KeptLines append_lines(const SceneFeatures& scene, const std::vector<LineOut>& outs,
+                       DecalModel& model, std::vector<DrawKey>& keys) {
+  KeptLines kept;
+  uint32_t nseg = 0;
+  for (size_t i = 0; i < outs.size(); ++i) {
+    const LineOut& o = outs[i];
+    model.max_representation_error = std::max(model.max_representation_error, o.max_err);
+    const SceneLine& l = scene.lines[i];
+    if (!o.kept) {
+      ManifestEntry e;
+      e.layer = scene.layers[l.layer].name;
+      e.fid = l.fid;
+      e.part = l.part;
+      e.action = ManifestAction::dropped;
+      e.reason = "build: " + o.reason;
+      model.manifest.entries.push_back(e);
+      continue;
+    }
+    const uint32_t line_index = uint32_t(model.line_props.size());
+    kept.first_vertex.push_back(uint32_t(model.line_vertices.size()));
+    kept.seg_first.push_back(nseg);
+    for (const QPoint& q : o.q) {
+      model.line_vertices.push_back({int32_t(q.x), int32_t(q.y)});
+      model.line_vertex_line.push_back(line_index);
+    }
+    model.line_corners.insert(model.line_corners.end(), o.corners.begin(), o.corners.end());
+    model.line_props.push_back(o.props);
+    model.line_dash_start.push_back(l.dash_start);
+    const bool closed = o.props.style & decal::kStyleClosedBit;
+    nseg += uint32_t(closed ? o.q.size() : o.q.size() - 1);
+    keys.push_back({std::isnan(l.order_value) ? l.length : l.order_value, l.layer, DrawKind::line,
+                    l.fid, l.part, uint32_t(i)});
+  }
+  kept.first_vertex.push_back(uint32_t(model.line_vertices.size()));
+  kept.seg_first.push_back(nseg);
+  kept.segments = nseg;
+  return kept;
+}
+
+// The miter quad of segment `sh` (a - ma, b - mb, b + mb, a + ma, in
+// quanta; a bevel vector stands in at a null miter) as the four triangles
+// of three of its corners, and `sh`'s box bounds (minx .. maxy) grown to
+// hold them. Carathéodory: those triangles cover the quad's convex hull,
+// hence the evaluator's two triangles whatever the quad's shape.
+void miter_triangles(const decal::LineCorner& ca, const decal::LineCorner& cb, bool null_a,
+                     bool null_b, double inv_q, SegmentShape& sh, double& minx, double& maxx,
+                     double& miny, double& maxy) {
+  double max_, may_, mbx, mby;
+  if (!null_a) {
+    max_ = ca.miter[0];
+    may_ = ca.miter[1];
+  } else {
+    max_ = ca.bevel_out[0];
+    may_ = ca.bevel_out[1];
+  }
+  if (!null_b) {
+    mbx = cb.miter[0];
+    mby = cb.miter[1];
+  } else {
+    mbx = cb.bevel_in[0];
+    mby = cb.bevel_in[1];
+  }
+  max_ *= inv_q;
+  may_ *= inv_q;
+  mbx *= inv_q;
+  mby *= inv_q;
+  const double A1x = sh.ax + max_, A1y = sh.ay + may_, A2x = sh.ax - max_, A2y = sh.ay - may_;
+  const double B1x = sh.bx + mbx, B1y = sh.by + mby, B2x = sh.bx - mbx, B2y = sh.by - mby;
+  const double xs[4] = {A1x, A2x, B1x, B2x}, ys[4] = {A1y, A2y, B1y, B2y};
+  sh.ntri = 4;
+  for (int k = 0; k < 4; ++k) {
+    int t = 0;
+    for (int j = 0; j < 4; ++j)
+      if (j != k) {
+        sh.tri[k][t++] = xs[j];
+        sh.tri[k][t++] = ys[j];
+      }
+    minx = std::min(minx, xs[k]);
+    maxx = std::max(maxx, xs[k]);
+    miny = std::min(miny, ys[k]);
+    maxy = std::max(maxy, ys[k]);
+  }
+}
+
+// The widened shape (quanta) of the segment from vertex ia to vertex ib of
+// kept line `li`: a capsule of the half width (a hair wider: float-stored
+// vectors may be a hair longer) for round and bevel corners and at a null
+// miter, the miter quad's triangles for miter corners, and the box of
+// both, a quantum wider on each side.
+void segment_shape(const DecalModel& model, uint32_t li, uint32_t ia, uint32_t ib, double inv_q,
+                   SegmentShape& sh) {
+  const decal::LineProps& pr = model.line_props[li];
+  const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
+  const double hw = double(pr.half_width) * inv_q;
+  sh.line = li;
+  sh.start = ia;
+  sh.end = ib;
+  sh.ax = model.line_vertices[ia][0];
+  sh.ay = model.line_vertices[ia][1];
+  sh.bx = model.line_vertices[ib][0];
+  sh.by = model.line_vertices[ib][1];
+  sh.hw = hw * (1.0 + 1e-6);  // float-stored vectors may be a hair longer
+  const decal::LineCorner& ca = model.line_corners[ia];
+  const decal::LineCorner& cb = model.line_corners[ib];
+  const bool null_a = ca.miter[0] == 0.f && ca.miter[1] == 0.f;
+  const bool null_b = cb.miter[0] == 0.f && cb.miter[1] == 0.f;
+  double minx = std::min(sh.ax, sh.bx), maxx = std::max(sh.ax, sh.bx);
+  double miny = std::min(sh.ay, sh.by), maxy = std::max(sh.ay, sh.by);
+  sh.capsule = style != decal::CornerStyle::miter || null_a || null_b;
+  if (sh.capsule) {
+    minx -= sh.hw;
+    maxx += sh.hw;
+    miny -= sh.hw;
+    maxy += sh.hw;
+  }
+  if (style == decal::CornerStyle::miter)
+    miter_triangles(ca, cb, null_a, null_b, inv_q, sh, minx, maxx, miny, maxy);
+  sh.box.x0 = int64_t(std::floor(minx)) - 1;
+  sh.box.y0 = int64_t(std::floor(miny)) - 1;
+  sh.box.x1 = int64_t(std::ceil(maxx)) + 1;
+  sh.box.y1 = int64_t(std::ceil(maxy)) + 1;
+}
+
+}  // namespace
+
+void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalModel& model,
+                 std::vector<SegmentShape>& shapes, std::vector<DrawKey>& keys) {
+  const size_t nl = scene.lines.size();
+  std::vector<decal::CornerStyle> corner;
+  std::vector<decal::OutlineMode> outline;
+  layer_line_styles(scene, model, corner, outline);
   for (const SceneLine& l : scene.lines)
     if (l.layer >= scene.layers.size())
       fail<input_error>(kBuildStage, "line fid " + std::to_string(l.fid) +
@@ -183,131 +326,23 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
         }
         stage.add(r.size());
       });
-
-  // Concatenate in input order (deterministic); record drops.
-  std::vector<uint32_t> first_vertex, seg_first;
-  std::vector<size_t> kept_input;
-  uint32_t nseg = 0;
-  for (size_t i = 0; i < nl; ++i) {
-    LineOut& o = outs[i];
-    model.max_representation_error = std::max(model.max_representation_error, o.max_err);
-    const SceneLine& l = scene.lines[i];
-    if (!o.kept) {
-      ManifestEntry e;
-      e.layer = scene.layers[l.layer].name;
-      e.fid = l.fid;
-      e.part = l.part;
-      e.action = ManifestAction::dropped;
-      e.reason = "build: " + o.reason;
-      model.manifest.entries.push_back(e);
-      continue;
-    }
-    const uint32_t line_index = uint32_t(model.line_props.size());
-    first_vertex.push_back(uint32_t(model.line_vertices.size()));
-    seg_first.push_back(nseg);
-    kept_input.push_back(i);
-    for (const QPoint& q : o.q) {
-      model.line_vertices.push_back({int32_t(q.x), int32_t(q.y)});
-      model.line_vertex_line.push_back(line_index);
-    }
-    model.line_corners.insert(model.line_corners.end(), o.corners.begin(), o.corners.end());
-    model.line_props.push_back(o.props);
-    model.line_dash_start.push_back(l.dash_start);
-    const bool closed = o.props.style & decal::kStyleClosedBit;
-    nseg += uint32_t(closed ? o.q.size() : o.q.size() - 1);
-    keys.push_back({std::isnan(l.order_value) ? l.length : l.order_value, l.layer, DrawKind::line,
-                    l.fid, l.part, uint32_t(i)});
-  }
-  first_vertex.push_back(uint32_t(model.line_vertices.size()));
-  seg_first.push_back(nseg);
+  const KeptLines kept = append_lines(scene, outs, model, keys);
 
   // Widened segment shapes (quanta), parallel per line.
-  shapes.resize(nseg);
+  shapes.resize(kept.segments);
   stage.set_total(nl + model.line_props.size());
   const double inv_q = 1.0 / decal::kQuantumMetres;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, model.line_props.size(), 64),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                      for (size_t li = r.begin(); li != r.end(); ++li) {
-                        const decal::LineProps& pr = model.line_props[li];
-                        const uint32_t v0 = first_vertex[li], v1 = first_vertex[li + 1];
-                        const uint32_t nv = v1 - v0;
-                        const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
-                        const double hw = double(pr.half_width) * inv_q;
-                        for (uint32_t s = 0; s < seg_first[li + 1] - seg_first[li]; ++s) {
-                          SegmentShape& sh = shapes[seg_first[li] + s];
-                          const uint32_t ia = v0 + s, ib = v0 + (s + 1) % nv;
-                          sh.line = uint32_t(li);
-                          sh.start = ia;
-                          sh.end = ib;
-                          sh.ax = model.line_vertices[ia][0];
-                          sh.ay = model.line_vertices[ia][1];
-                          sh.bx = model.line_vertices[ib][0];
-                          sh.by = model.line_vertices[ib][1];
-                          sh.hw = hw * (1.0 + 1e-6);  // float-stored vectors may be a hair longer
-                          const decal::LineCorner& ca = model.line_corners[ia];
-                          const decal::LineCorner& cb = model.line_corners[ib];
-                          const bool null_a = ca.miter[0] == 0.f && ca.miter[1] == 0.f;
-                          const bool null_b = cb.miter[0] == 0.f && cb.miter[1] == 0.f;
-                          double minx = std::min(sh.ax, sh.bx), maxx = std::max(sh.ax, sh.bx);
-                          double miny = std::min(sh.ay, sh.by), maxy = std::max(sh.ay, sh.by);
-                          sh.capsule = style != decal::CornerStyle::miter || null_a || null_b;
-                          if (sh.capsule) {
-                            minx -= sh.hw;
-                            maxx += sh.hw;
-                            miny -= sh.hw;
-                            maxy += sh.hw;
-                          }
-                          if (style == decal::CornerStyle::miter) {
-                            // The quad (a - ma, b - mb, b + mb, a + ma) as the evaluator splits it.
-                            double max_, may_, mbx, mby;
-                            if (!null_a) {
-                              max_ = ca.miter[0];
-                              may_ = ca.miter[1];
-                            } else {
-                              max_ = ca.bevel_out[0];
-                              may_ = ca.bevel_out[1];
-                            }
-                            if (!null_b) {
-                              mbx = cb.miter[0];
-                              mby = cb.miter[1];
-                            } else {
-                              mbx = cb.bevel_in[0];
-                              mby = cb.bevel_in[1];
-                            }
-                            max_ *= inv_q;
-                            may_ *= inv_q;
-                            mbx *= inv_q;
-                            mby *= inv_q;
-                            const double A1x = sh.ax + max_, A1y = sh.ay + may_, A2x = sh.ax - max_,
-                                         A2y = sh.ay - may_;
-                            const double B1x = sh.bx + mbx, B1y = sh.by + mby, B2x = sh.bx - mbx,
-                                         B2y = sh.by - mby;
-                            // Carathéodory: the four triangles of three of the four corners cover
-                            // their convex hull, hence the evaluator's two triangles whatever
-                            // the quad's shape.
-                            const double xs[4] = {A1x, A2x, B1x, B2x}, ys[4] = {A1y, A2y, B1y, B2y};
-                            sh.ntri = 4;
-                            for (int k = 0; k < 4; ++k) {
-                              int t = 0;
-                              for (int j = 0; j < 4; ++j)
-                                if (j != k) {
-                                  sh.tri[k][t++] = xs[j];
-                                  sh.tri[k][t++] = ys[j];
-                                }
-                              minx = std::min(minx, xs[k]);
-                              maxx = std::max(maxx, xs[k]);
-                              miny = std::min(miny, ys[k]);
-                              maxy = std::max(maxy, ys[k]);
-                            }
-                          }
-                          sh.box.x0 = int64_t(std::floor(minx)) - 1;
-                          sh.box.y0 = int64_t(std::floor(miny)) - 1;
-                          sh.box.x1 = int64_t(std::ceil(maxx)) + 1;
-                          sh.box.y1 = int64_t(std::ceil(maxy)) + 1;
-                        }
-                      }
-                      stage.add(r.size());
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, model.line_props.size(), 64),
+      [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t li = r.begin(); li != r.end(); ++li) {
+          const uint32_t v0 = kept.first_vertex[li], nv = kept.first_vertex[li + 1] - v0;
+          const uint32_t s0 = kept.seg_first[li], ns = kept.seg_first[li + 1] - s0;
+          for (uint32_t s = 0; s < ns; ++s)
+            segment_shape(model, uint32_t(li), v0 + s, v0 + (s + 1) % nv, inv_q, shapes[s0 + s]);
+        }
+        stage.add(r.size());
+      });
   stage.finish();
 }
 

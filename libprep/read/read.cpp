@@ -447,25 +447,9 @@ bool is_osm(const std::string& path) {
   return ends(".osm") || ends(".pbf") || ends(".osm.bz2") || ends(".OSM") || ends(".PBF");
 }
 
-// Reads the scene layers `specs`, which share one query (same source,
-// layer, where and sql: same_query), in one pass over the OGR layer: each
-// feature goes to every spec's sink, so each layer gets what a read of its
-// own would give. The query and the messages about it are the first
-// spec's. `scene_layers`: the specs' indices in the scene.
-std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
-                                   const SceneSpec& scene, JobProgress& progress,
-                                   ErrorCapture& errors, bool plain_osm_index,
-                                   const ReadChunks* chunks,
-                                   const std::vector<size_t>& scene_layers) {
-  const LayerSpec& spec = *specs.front();
-  std::vector<ReadAttempt> attempts(specs.size());
-  for (size_t k = 0; k < specs.size(); ++k) {
-    ReadAttempt& r = attempts[k];
-    r.start(chunks, scene_layers[k]);
-    r.layer.spec = *specs[k];
-    r.counts.layer = specs[k]->name;
-  }
-
+// Fails (gdal_error) when the source of `spec` does not exist, naming the
+// scene file and layer when there is a scene file.
+void check_source_exists(const LayerSpec& spec, const SceneSpec& scene) {
   VSIStatBufL st;
   if (VSIStatL(spec.source.c_str(), &st) != 0) {
     fail<gdal_error>(kReadStage,
@@ -474,13 +458,12 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
                                                    : " (scene file " + scene.scene_path +
                                                          ", layer '" + spec.name + "')"));
   }
-  // OSM XML: its element order decides the node index GDAL opens it with.
-  const detail::OsmXmlOrder osm_order = detail::scan_osm_xml(spec.source);
-  if (osm_order.scanned && !osm_order.node_ids_increase && !plain_osm_index) {
-    plain_osm_index = true;
-    for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
-  }
-  const ReadConfig config(plain_osm_index);
+}
+
+// The source of `spec` opened as vector data (under the caller's
+// ReadConfig); fails (gdal_error) when GDAL cannot open it, or it has no
+// layers and the query is no SQL.
+DatasetPtr open_vector_source(const LayerSpec& spec, ErrorCapture& errors) {
   check_input_file(spec.source, "source", InputKind::file_or_directory);
   DatasetPtr ds(GDALDataset::Open(spec.source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
                                   nullptr, nullptr));
@@ -492,79 +475,82 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
   if (ds->GetLayerCount() == 0 && spec.sql.empty()) {
     fail<gdal_error>(kReadStage, spec.source + ": the source has no vector layers");
   }
+  return ds;
+}
 
-  OGRLayer* layer = nullptr;
-  bool from_sql = false;
+// The OGR layer the query of `spec` reads: the result set of its SQL
+// (`from_sql`: the caller releases it), its named layer, else the first.
+// Fails (gdal_error) on invalid SQL or an unknown layer, listing the
+// source's layers.
+OGRLayer* query_layer(GDALDataset& ds, const LayerSpec& spec, ErrorCapture& errors,
+                      bool& from_sql) {
+  from_sql = false;
   if (!spec.sql.empty()) {
     errors.clear();
-    layer = ds->ExecuteSQL(spec.sql.c_str(), nullptr, nullptr);
+    OGRLayer* layer = ds.ExecuteSQL(spec.sql.c_str(), nullptr, nullptr);
     if (!layer) {
       fail<gdal_error>(kReadStage,
                        spec.source + ": invalid SQL \"" + spec.sql + "\"" +
                            (errors.failures().empty() ? std::string() : ": " + errors.failures()));
     }
     from_sql = true;
-  } else if (!spec.layer.empty()) {
-    layer = ds->GetLayerByName(spec.layer.c_str());
-    if (!layer) {
-      std::string names;
-      for (int i = 0; i < ds->GetLayerCount(); ++i)
-        names += (i ? ", " : "") + std::string(ds->GetLayer(i)->GetName());
-      fail<gdal_error>(
-          kReadStage, spec.source + ": unknown layer '" + spec.layer + "' (layers: " + names + ")");
-    }
-  } else {
-    layer = ds->GetLayer(0);
+    return layer;
   }
-  struct SqlRelease {
-    GDALDataset* ds;
-    OGRLayer* layer;
-    bool active;
-    ~SqlRelease() {
-      if (active) ds->ReleaseResultSet(layer);
-    }
-  } release{ds.get(), layer, from_sql};
+  if (spec.layer.empty()) return ds.GetLayer(0);
+  OGRLayer* layer = ds.GetLayerByName(spec.layer.c_str());
+  if (!layer) {
+    std::string names;
+    for (int i = 0; i < ds.GetLayerCount(); ++i)
+      names += (i ? ", " : "") + std::string(ds.GetLayer(i)->GetName());
+    fail<gdal_error>(kReadStage,
+                     spec.source + ": unknown layer '" + spec.layer + "' (layers: " + names + ")");
+  }
+  return layer;
+}
 
-  const std::string where = where_of(spec, layer->GetName());
-  if (osm_order.late_node_offset >= 0 && (from_sql || std::string(layer->GetName()) != "points"))
+// The layer made ready for the pass: nodes after ways in an OSM XML file
+// fail it (but for the points layer), GDAL's OSM driver is told which layer
+// it serves (else it assembles the features of every layer while one is
+// read, as ogr2ogr tells it too), and the `where` of `spec` is set (a
+// filter GDAL refuses throws gdal_error).
+void prepare_query_layer(GDALDataset& ds, OGRLayer& layer, const LayerSpec& spec, bool from_sql,
+                         const detail::OsmXmlOrder& osm_order, const std::string& where,
+                         ErrorCapture& errors) {
+  if (osm_order.late_node_offset >= 0 && (from_sql || std::string(layer.GetName()) != "points"))
     throw_late_nodes(spec.source, where, osm_order);
-  // GDAL's OSM driver assembles the features of every layer while one is
-  // read unless told which it serves (ogr2ogr tells it too).
   if (!from_sql && is_osm(spec.source))
-    ds->ExecuteSQL(("SET interest_layers = " + std::string(layer->GetName())).c_str(), nullptr,
-                   nullptr);
+    ds.ExecuteSQL(("SET interest_layers = " + std::string(layer.GetName())).c_str(), nullptr,
+                  nullptr);
   if (!spec.where.empty()) {
     errors.clear();
-    if (layer->SetAttributeFilter(spec.where.c_str()) != OGRERR_NONE) {
+    if (layer.SetAttributeFilter(spec.where.c_str()) != OGRERR_NONE) {
       throw gdal_error(where + ": invalid where \"" + spec.where + "\"" +
                        (errors.failures().empty() ? std::string() : ": " + errors.failures()));
     }
   }
+}
 
-  std::vector<LayerSink> sinks;
-  sinks.reserve(specs.size());
-  for (size_t k = 0; k < specs.size(); ++k) {
-    const LayerSpec& s = *specs[k];
-    source_crs(layer, s, scene, where, attempts[k]);
-    LayerSink& sink = sinks.emplace_back(LayerSink{s, scene, attempts[k], layer->GetName()});
-    sink.order_field = field_index(*layer, s.style.order_attribute, s, "order");
-    sink.color_field = field_index(*layer, s.style.color.attribute, s, "colour");
-  }
-
-  // The stage counts features taken by scene layers, as the manifest's
-  // `read` does: each feature once per layer of the query.
-  const uint64_t n = specs.size();
-  const GIntBig total = layer->GetFeatureCount(FALSE);  // -1 for OSM until read
+// The pass over `layer`: each feature to every spec's sink (or, when OGR
+// could not decode it and skip_failures is set, dropped in every attempt
+// like ogr2ogr -skipfailures does), with progress per 1024 features. The
+// stage counts features taken by scene layers, as the manifest's `read`
+// does: each feature once per layer of the query. Throws gdal_error when
+// GDAL reported an error it did not drop.
+void read_shared_features(OGRLayer& layer, const SceneSpec& scene, const std::string& where,
+                          std::vector<LayerSink>& sinks, std::vector<ReadAttempt>& attempts,
+                          JobProgress& progress, ErrorCapture& errors) {
+  const uint64_t n = sinks.size();
+  const GIntBig total = layer.GetFeatureCount(FALSE);  // -1 for OSM until read
   const uint64_t estimate = total >= 0 ? uint64_t(total) : JobProgress::kUnknown;
   progress.update(0, estimate == JobProgress::kUnknown ? estimate : estimate * n);
 
   int64_t first_failing_fid = -1;
   errors.clear();
-  layer->ResetReading();
+  layer.ResetReading();
   size_t skipped_errors = 0;  // GDAL errors of features dropped under skip_failures
   for (;;) {
     const size_t errors_before = errors.count();
-    std::unique_ptr<OGRFeature> feature(layer->GetNextFeature());
+    std::unique_ptr<OGRFeature> feature(layer.GetNextFeature());
     if (!feature) break;
     // A GDAL error while this feature was fetched: OGR could not decode it
     // (e.g. a corrupt shapefile record). With skip_failures it is dropped
@@ -574,7 +560,7 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
     const uint64_t index = attempts.front().counts.read;
     const bool skip = decode_failed && scene.skip_failures;
     if (skip) skipped_errors += errors.count() - errors_before;
-    for (size_t k = 0; k < specs.size(); ++k) {
+    for (size_t k = 0; k < sinks.size(); ++k) {
       SourceFeature proto = sinks[k].proto_of(*feature);
       if (skip) {
         proto.drop_reason = "OGR cannot decode the feature: " + errors.last();
@@ -600,6 +586,58 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
   }
   const uint64_t read = attempts.front().counts.read * n;
   progress.update(read, read);
+}
+
+// Reads the scene layers `specs`, which share one query (same source,
+// layer, where and sql: same_query), in one pass over the OGR layer: each
+// feature goes to every spec's sink, so each layer gets what a read of its
+// own would give. The query and the messages about it are the first
+// spec's. `scene_layers`: the specs' indices in the scene.
+std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
+                                   const SceneSpec& scene, JobProgress& progress,
+                                   ErrorCapture& errors, bool plain_osm_index,
+                                   const ReadChunks* chunks,
+                                   const std::vector<size_t>& scene_layers) {
+  const LayerSpec& spec = *specs.front();
+  std::vector<ReadAttempt> attempts(specs.size());
+  for (size_t k = 0; k < specs.size(); ++k) {
+    ReadAttempt& r = attempts[k];
+    r.start(chunks, scene_layers[k]);
+    r.layer.spec = *specs[k];
+    r.counts.layer = specs[k]->name;
+  }
+  check_source_exists(spec, scene);
+  // OSM XML: its element order decides the node index GDAL opens it with.
+  const detail::OsmXmlOrder osm_order = detail::scan_osm_xml(spec.source);
+  if (osm_order.scanned && !osm_order.node_ids_increase && !plain_osm_index) {
+    plain_osm_index = true;
+    for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
+  }
+  const ReadConfig config(plain_osm_index);
+  DatasetPtr ds = open_vector_source(spec, errors);
+  bool from_sql = false;
+  OGRLayer* layer = query_layer(*ds, spec, errors, from_sql);
+  struct SqlRelease {
+    GDALDataset* ds;
+    OGRLayer* layer;
+    bool active;
+    ~SqlRelease() {
+      if (active) ds->ReleaseResultSet(layer);
+    }
+  } release{ds.get(), layer, from_sql};
+
+  const std::string where = where_of(spec, layer->GetName());
+  prepare_query_layer(*ds, *layer, spec, from_sql, osm_order, where, errors);
+  std::vector<LayerSink> sinks;
+  sinks.reserve(specs.size());
+  for (size_t k = 0; k < specs.size(); ++k) {
+    const LayerSpec& s = *specs[k];
+    source_crs(layer, s, scene, where, attempts[k]);
+    LayerSink& sink = sinks.emplace_back(LayerSink{s, scene, attempts[k], layer->GetName()});
+    sink.order_field = field_index(*layer, s.style.order_attribute, s, "order");
+    sink.color_field = field_index(*layer, s.style.color.attribute, s, "colour");
+  }
+  read_shared_features(*layer, scene, where, sinks, attempts, progress, errors);
   for (LayerSink& sink : sinks) sink.finish(errors);
   for (ReadAttempt& r : attempts) r.flush(true);
   return attempts;

@@ -290,75 +290,85 @@ void check_metadata(const std::string& path, const std::string& metadata_json) {
                       "-byte limit readers hold it to (formats/SPEC.md \"Metadata\"); not written");
 }
 
-}  // namespace
-
-void write_package_consuming(const std::string& path, PackageSource& source,
-                             const WriteOptions& options) {
-  std::vector<BlobInput>& blobs = source.blobs;
+// The codec options and the blob count a package can hold.
+void check_write_options(const std::string& path, const WriteOptions& options, size_t blobs) {
   if (options.codec == Codec::zstd &&
       (options.zstd_level < ZSTD_minCLevel() || options.zstd_level > ZSTD_maxCLevel()))
     fail_io(path, "zstd level " + std::to_string(options.zstd_level) + " is outside [" +
                       std::to_string(ZSTD_minCLevel()) + ", " + std::to_string(ZSTD_maxCLevel()) +
                       "]");
-  if (blobs.size() > UINT32_MAX) fail_io(path, "too many blobs");
+  if (blobs > UINT32_MAX) fail_io(path, "too many blobs");
+}
 
-  uint64_t raw_bytes = 0;
-  for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
-  ProgressStage stage(options.progress, "write", raw_bytes, "bytes");
-  std::vector<EncodedBlob> enc(blobs.size());
-  std::vector<std::string> names(blobs.size());
-  // The table entry of blob `i` but for its place in the file.
-  const auto describe = [&](size_t i) {
-    const BlobInput& b = blobs[i];
-    check_blob(path, b, blobs, i);
-    decal::BlobTableEntry& e = enc[i].entry;
-    e.id = static_cast<uint32_t>(b.id);
-    e.element_type = static_cast<uint32_t>(b.type);
-    e.stride = b.stride;
-    e.count = b.count;
-    e.raw_size = b.bytes.size();
-    const decal::BlobInfo* info = decal::find_blob_info(b.id);
-    names[i] = info ? std::string(info->name) : "blob_" + std::to_string(e.id);
-    std::memcpy(e.name, names[i].data(), names[i].size());
-    // Empty blobs are stored as no bytes at all, whatever the codec.
-    const bool zstd = options.codec == Codec::zstd && !b.bytes.empty();
-    e.codec = static_cast<uint32_t>(zstd ? decal::CodecId::zstd : decal::CodecId::none);
-  };
-  for (size_t i = 0; i < blobs.size(); ++i) describe(i);
+// The table entry of blob `i` of `blobs` (checked: check_blob) but for its
+// place in the file, stored size and checksum; `name` receives its name
+// (the catalogue's, else blob_<id>).
+void describe_blob(const std::string& path, std::span<const BlobInput> blobs, size_t i,
+                   const WriteOptions& options, decal::BlobTableEntry& e, std::string& name) {
+  const BlobInput& b = blobs[i];
+  check_blob(path, b, blobs, i);
+  e.id = static_cast<uint32_t>(b.id);
+  e.element_type = static_cast<uint32_t>(b.type);
+  e.stride = b.stride;
+  e.count = b.count;
+  e.raw_size = b.bytes.size();
+  const decal::BlobInfo* info = decal::find_blob_info(b.id);
+  name = info ? std::string(info->name) : "blob_" + std::to_string(e.id);
+  std::memcpy(e.name, name.data(), name.size());
+  // Empty blobs are stored as no bytes at all, whatever the codec.
+  const bool zstd = options.codec == Codec::zstd && !b.bytes.empty();
+  e.codec = static_cast<uint32_t>(zstd ? decal::CodecId::zstd : decal::CodecId::none);
+}
 
+// The header of a package of `blob_count` blobs: its layout (the blob
+// table after the header, the metadata after the table); the sizes,
+// flags and checksums known only at the end are left zero.
+decal::FileHeader package_header(uint32_t blob_count) {
   decal::FileHeader h{};
   std::memcpy(h.magic, decal::kMagic, sizeof h.magic);
   h.version_major = decal::kVersionMajor;
   h.version_minor = decal::kVersionMinor;
   h.header_size = sizeof(decal::FileHeader);
   h.blob_entry_size = sizeof(decal::BlobTableEntry);
-  h.blob_count = static_cast<uint32_t>(blobs.size());
+  h.blob_count = blob_count;
   h.table_offset = h.header_size;
   h.metadata_offset = h.table_offset + uint64_t(h.blob_count) * h.blob_entry_size;
+  return h;
+}
+
+// The package written front to back as the blobs are compressed: first
+// zeros where the header and the blob table go (their offsets, stored
+// sizes and checksums are known only at the end, and then written over
+// the zeros), the metadata once source.complete() has made it, then each
+// blob as soon as it and every blob before it in table order are done. A
+// compressed frame is freed once written, and a blob's own bytes (`owner`)
+// once compressed or written, so the writer holds the frames of the blobs
+// done out of order, not the whole package; and it starts the write-back
+// of each blob, so that the final fsync has little left to do. The fields
+// under `mutex` are shared by the compressing threads.
+struct PackageStream {
+  const std::string& path;
+  const WriteOptions& options;
+  std::vector<BlobInput>& blobs;
+  std::vector<EncodedBlob>& enc;
+  const std::vector<std::string>& names;
+  decal::FileHeader& h;
+  AtomicFile& out;
+  ProgressStage& stage;
+  uint64_t end = 0;           // file position
   std::string metadata_json;  // from source.complete()
 
-  // The file is written front to back as the blobs are compressed: first
-  // zeros where the header and the blob table go (their offsets, stored
-  // sizes and checksums are known only at the end, and then written over
-  // the zeros), the metadata once source.complete() has made it, then each
-  // blob as soon as it and every blob before it in table order are done. A
-  // compressed frame is freed once written, and a blob's own bytes (`owner`)
-  // once compressed or written, so the writer holds the frames of the blobs
-  // done out of order, not the whole package; and it starts the write-back
-  // of each blob, so that the final fsync has little left to do.
-  AtomicFile out(path);
-  uint64_t end = 0;  // file position
-
   std::mutex mutex;
-  std::vector<char> ready(blobs.size(), 0);
+  std::vector<char> ready = std::vector<char>(blobs.size(), 0);
   bool metadata_ready = false, metadata_written = false;
   size_t next_to_write = 0;
   bool writing = false;
+
   // With the lock held by `lock`: writes the metadata and every done blob
   // from `next_to_write` on, unless another thread is writing (the writer
   // re-checks under the lock after each write, so a blob marked done
   // meanwhile is not left behind).
-  const auto write_ready = [&](std::unique_lock<std::mutex>& lock) {
+  void write_ready(std::unique_lock<std::mutex>& lock) {
     if (writing) return;
     writing = true;
     for (;;) {
@@ -388,19 +398,11 @@ void write_package_consuming(const std::string& path, PackageSource& source,
       ++next_to_write;
     }
     writing = false;
-  };
-  // The blobs in the order they are compressed: largest first (the longest
-  // task starts first, so the last one to finish is short), ties in table
-  // order.
-  std::vector<size_t> order(blobs.size());
-  std::iota(order.begin(), order.end(), size_t(0));
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-    return blobs[a].bytes.size() > blobs[b].bytes.size();
-  });
+  }
 
-  // source.complete(): the metadata, on the first slot that starts (the
-  // others meanwhile compress the blobs).
-  const auto complete = [&] {
+  // source.complete(): the metadata, checked, into the header; then written
+  // with whatever is ready.
+  void complete(PackageSource& source) {
     std::string json = source.complete ? source.complete() : std::string();
     check_metadata(path, json);
     std::unique_lock lock(mutex);
@@ -409,18 +411,12 @@ void write_package_consuming(const std::string& path, PackageSource& source,
     h.metadata_checksum = XXH64(metadata_json.data(), metadata_json.size(), 0);
     metadata_ready = true;
     write_ready(lock);
-  };
+  }
 
-  // Compression and checksums, one blob per task. Each blob is one
-  // single-threaded zstd frame, so the bytes do not depend on the thread
-  // count, which the caller caps with tbb::global_control (`--threads`,
-  // libprep/pipeline/pipeline.cpp). Not ZSTD_c_nbWorkers: its frames are the
-  // same for any worker count >= 1 but differ from single-threaded ones (so
-  // every package would change), and on the 10^7-vertex synthetic blobs at
-  // level 3 they cost about 20% more CPU (job overlap, input copies) and
-  // 45-90 MiB of job buffers at two threads, which undoes on two cores what
-  // splitting the largest blob (about 60% of the compression time) gains.
-  const auto encode = [&](size_t i, ZSTD_CCtx*& cctx) {
+  // Blob `i` compressed (one single-threaded zstd frame, in `cctx`, made on
+  // first use) or stored as is, checksummed, marked done and written with
+  // whatever is ready.
+  void encode(size_t i, ZSTD_CCtx*& cctx) {
     BlobInput& b = blobs[i];
     decal::BlobTableEntry& e = enc[i].entry;
     if (e.codec == static_cast<uint32_t>(decal::CodecId::zstd)) {
@@ -455,33 +451,55 @@ void write_package_consuming(const std::string& path, PackageSource& source,
     std::unique_lock lock(mutex);
     ready[i] = 1;
     write_ready(lock);
-  };
-  // The first slot to start completes the source; then each slot takes the
-  // next blob of `order` until none is left. Whoever finishes last (a blob
-  // or the metadata) writes what is left. A slot no worker thread picks up
-  // finds the work done.
-  std::atomic<bool> completing{false};
-  std::atomic<size_t> next{0};
-  const size_t slots = std::max<size_t>(
-      1, std::min(blobs.size(), size_t(std::max(1, tbb::this_task_arena::max_concurrency()))));
-  tbb::parallel_for(size_t(0), slots, [&](size_t) {
-    ZSTD_CCtx* cctx = nullptr;
-    struct CctxFree {
-      ZSTD_CCtx*& c;
-      ~CctxFree() { ZSTD_freeCCtx(c); }
-    } cctx_free{cctx};
-    try {
-      if (!completing.exchange(true)) complete();
-      for (size_t k; (k = next.fetch_add(1, std::memory_order_relaxed)) < order.size();)
-        encode(order[k], cctx);
-    } catch (...) {
-      next.store(order.size());  // the other slots stop after their blob
-      throw;
-    }
-  });
-  if (!metadata_written || next_to_write != blobs.size())
-    fail_io(path, "internal error: a blob was not written");
+  }
 
+  // Compression and checksums, one blob per task. Each blob is one
+  // single-threaded zstd frame, so the bytes do not depend on the thread
+  // count, which the caller caps with tbb::global_control (`--threads`,
+  // libprep/pipeline/pipeline.cpp). Not ZSTD_c_nbWorkers: its frames are the
+  // same for any worker count >= 1 but differ from single-threaded ones (so
+  // every package would change), and on the 10^7-vertex synthetic blobs at
+  // level 3 they cost about 20% more CPU (job overlap, input copies) and
+  // 45-90 MiB of job buffers at two threads, which undoes on two cores what
+  // splitting the largest blob (about 60% of the compression time) gains.
+  // The blobs are compressed largest first (the longest task starts first,
+  // so the last one to finish is short), ties in table order. The first
+  // slot to start completes the source; then each slot takes the next blob
+  // of that order until none is left. Whoever finishes last (a blob or the
+  // metadata) writes what is left. A slot no worker thread picks up finds
+  // the work done.
+  void run(PackageSource& source) {
+    std::vector<size_t> order(blobs.size());
+    std::iota(order.begin(), order.end(), size_t(0));
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+      return blobs[a].bytes.size() > blobs[b].bytes.size();
+    });
+    std::atomic<bool> completing{false};
+    std::atomic<size_t> next{0};
+    const size_t slots = std::max<size_t>(
+        1, std::min(blobs.size(), size_t(std::max(1, tbb::this_task_arena::max_concurrency()))));
+    tbb::parallel_for(size_t(0), slots, [&](size_t) {
+      ZSTD_CCtx* cctx = nullptr;
+      struct CctxFree {
+        ZSTD_CCtx*& c;
+        ~CctxFree() { ZSTD_freeCCtx(c); }
+      } cctx_free{cctx};
+      try {
+        if (!completing.exchange(true)) complete(source);
+        for (size_t k; (k = next.fetch_add(1, std::memory_order_relaxed)) < order.size();)
+          encode(order[k], cctx);
+      } catch (...) {
+        next.store(order.size());  // the other slots stop after their blob
+        throw;
+      }
+    });
+  }
+};
+
+// Fills in what the header and the blob table lack once every blob is
+// written (`end`: the file size) and writes both over their zeros.
+void write_header_and_table(AtomicFile& out, decal::FileHeader& h,
+                            const std::vector<EncodedBlob>& enc, uint64_t end) {
   bool all_uncompressed = true;
   for (const EncodedBlob& b : enc)
     if (b.entry.codec == static_cast<uint32_t>(decal::CodecId::zstd)) all_uncompressed = false;
@@ -494,6 +512,29 @@ void write_package_consuming(const std::string& path, PackageSource& source,
   h.header_checksum = XXH64(&h, offsetof(decal::FileHeader, header_checksum), 0);
   out.pwrite(&h, sizeof h, 0);
   out.pwrite(table.data(), table.size() * sizeof(decal::BlobTableEntry), h.table_offset);
+}
+
+}  // namespace
+
+void write_package_consuming(const std::string& path, PackageSource& source,
+                             const WriteOptions& options) {
+  std::vector<BlobInput>& blobs = source.blobs;
+  check_write_options(path, options, blobs.size());
+  uint64_t raw_bytes = 0;
+  for (const BlobInput& b : blobs) raw_bytes += b.bytes.size();
+  ProgressStage stage(options.progress, "write", raw_bytes, "bytes");
+  std::vector<EncodedBlob> enc(blobs.size());
+  std::vector<std::string> names(blobs.size());
+  for (size_t i = 0; i < blobs.size(); ++i)
+    describe_blob(path, blobs, i, options, enc[i].entry, names[i]);
+  decal::FileHeader h = package_header(static_cast<uint32_t>(blobs.size()));
+
+  AtomicFile out(path);
+  PackageStream stream{path, options, blobs, enc, names, h, out, stage};
+  stream.run(source);
+  if (!stream.metadata_written || stream.next_to_write != blobs.size())
+    fail_io(path, "internal error: a blob was not written");
+  write_header_and_table(out, h, enc, stream.end);
   out.commit();
   stage.finish();
 }

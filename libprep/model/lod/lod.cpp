@@ -244,50 +244,56 @@ uint32_t strongly_connected(const std::vector<uint32_t>& adj_start,
   return next_comp;
 }
 
-}  // namespace
-}  // namespace detail
+// What build_lod's steps hand on: the points of every line, per line and
+// concatenated, and per point its own error, always-flag and dependency
+// edges.
+struct LodWork {
+  std::vector<ivec2> all;                   // every line's points; closed rings repeat the first
+  std::vector<std::vector<ivec2>> local;    // per line, as in `all`
+  std::vector<uint32_t> point_line;         // per point of `all`: its line
+  std::vector<BlgTree> trees;               // per line (§3.1)
+  std::vector<double> e0;                   // per point: its own error
+  std::vector<char> always;                 // per point: a line end, always drawn
+  std::vector<std::vector<uint32_t>> deps;  // per point s: dependency edges s -> j
+};
 
-LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& options) {
-  using namespace detail;
-  LodSet out;
+// The global point array (closed rings repeat their first point at the
+// end) and out.line_points; throws input_error for a line with too few
+// points.
+void gather_lod_points(const std::vector<LodInputLine>& lines, LodSet& out, LodWork& w) {
   const auto nlines = static_cast<uint32_t>(lines.size());
-  out.line_points.resize(nlines);
-  out.line_range.resize(nlines);
-
-  // Global point array; closed rings repeat their first point at the end.
-  std::vector<ivec2> all;
-  std::vector<std::vector<ivec2>> local(nlines);
+  w.local.resize(nlines);
   for (uint32_t li = 0; li < nlines; ++li) {
     const auto& in = lines[li];
     if (in.points.size() < 2 || (in.closed && in.points.size() < 3))
       fail<input_error>(
           kLodStage, "line " + std::to_string(in.line) + ": " + std::to_string(in.points.size()) +
                          " points are too few for a " + (in.closed ? "closed ring" : "line"));
-    local[li] = in.points;
-    if (in.closed) local[li].push_back(in.points.front());
-    out.line_points[li] = {static_cast<uint32_t>(all.size()),
-                           static_cast<uint32_t>(local[li].size())};
-    all.insert(all.end(), local[li].begin(), local[li].end());
+    w.local[li] = in.points;
+    if (in.closed) w.local[li].push_back(in.points.front());
+    out.line_points[li] = {static_cast<uint32_t>(w.all.size()),
+                           static_cast<uint32_t>(w.local[li].size())};
+    w.all.insert(w.all.end(), w.local[li].begin(), w.local[li].end());
   }
-  const auto npts = static_cast<uint32_t>(all.size());
-  std::vector<uint32_t> point_line(npts);
+  w.point_line.resize(w.all.size());
   for (uint32_t li = 0; li < nlines; ++li)
     for (uint32_t k = 0; k < out.line_points[li][1]; ++k)
-      point_line[out.line_points[li][0] + k] = li;
+      w.point_line[out.line_points[li][0] + k] = li;
+}
 
-  // §3.1 BLG-trees, one per line, in parallel.
-  std::vector<BlgTree> trees(nlines);
-  tbb::parallel_for(uint32_t(0), nlines, [&](uint32_t li) { trees[li] = build_blg(local[li]); });
-
-  // Per global point: own error e0, tree children, always-flag.
-  std::vector<double> e0(npts, 0.0);
-  std::vector<char> always(npts, 0);
-  std::vector<std::vector<uint32_t>> deps(npts);  // dependency edges s -> j
-  for (uint32_t li = 0; li < nlines; ++li) {
-    const BlgTree& t = trees[li];
-    const uint32_t base = out.line_points[li][0];
-    const uint32_t n = out.line_points[li][1];
-    always[base] = always[base + n - 1] = 1;  // line ends are always drawn
+// Per point: its own error e0 (top-down over each tree, parents before
+// children; under dp_exact no more than its parent's), the tree edges
+// (§3.3 saturation edges) and the always-flag of the line ends.
+void own_errors(const std::vector<uvec2>& line_points, const LodOptions& options, LodWork& w) {
+  const size_t npts = w.all.size();
+  w.e0.assign(npts, 0.0);
+  w.always.assign(npts, 0);
+  w.deps.resize(npts);
+  for (uint32_t li = 0; li < line_points.size(); ++li) {
+    const BlgTree& t = w.trees[li];
+    const uint32_t base = line_points[li][0];
+    const uint32_t n = line_points[li][1];
+    w.always[base] = w.always[base + n - 1] = 1;  // line ends are always drawn
     // e0 top-down (parents are created before children, so a preorder walk).
     if (t.root == kNone) continue;
     std::vector<uint32_t> stack{t.root};
@@ -296,19 +302,22 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
       stack.pop_back();
       double e = t.error[i];
       if (options.error_rule == LodErrorRule::dp_exact && t.parent[i] != kNone)
-        e = std::min(e, e0[base + t.parent[i]]);
-      e0[base + i] = e;
+        e = std::min(e, w.e0[base + t.parent[i]]);
+      w.e0[base + i] = e;
       for (uint32_t c : {t.child_l[i], t.child_r[i]})
         if (c != kNone) {
-          deps[base + i].push_back(base + c);  // §3.3 saturation edge
+          w.deps[base + i].push_back(base + c);  // §3.3 saturation edge
           stack.push_back(c);
         }
     }
   }
+}
 
-  // §3.2 the attributed segment set (rules 1-3): per node its baseline
-  // (generator = parent, splitter = node), plus the original segments.
-  for (uint32_t li = 0; li < nlines; ++li) {
+// §3.2 the attributed segment set (rules 1-3): per node its baseline
+// (generator = parent, splitter = node), plus the original segments; per
+// line sorted by (a, b), into out.segments, out.line_range and the stats.
+void attributed_segments(const std::vector<BlgTree>& trees, LodSet& out) {
+  for (uint32_t li = 0; li < trees.size(); ++li) {
     const BlgTree& t = trees[li];
     const uint32_t base = out.line_points[li][0];
     const uint32_t n = out.line_points[li][1];
@@ -328,73 +337,99 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
     out.segments.insert(out.segments.end(), segs.begin(), segs.end());
     out.stats.original_segments += n - 1;
   }
-  out.stats.lines = nlines;
+  out.stats.lines = static_cast<uint32_t>(trees.size());
   out.stats.attributed_segments = out.segments.size();
+}
 
-  // §3.4 dependees: points (of any LOD line) inside the closed polygon of the
-  // sub-line a node's baseline replaces. Excluding the node while such a
-  // point is drawn could make the baseline cross a line the original does
-  // not cross; the polygon (not only the triangle of §3.4) makes that a
-  // guarantee: a segment crossing the baseline with both ends outside the
-  // polygon also crosses the original sub-line.
-  if (options.dependees && npts > 0) {
-    PointGrid grid;
-    grid.build(all);
-    std::vector<std::vector<uint32_t>> found(npts);
-    tbb::parallel_for(uint32_t(0), npts, [&](uint32_t s) {
-      const uint32_t li = point_line[s];
-      const uint32_t base = out.line_points[li][0];
-      const uint32_t i = s - base;
-      const BlgTree& t = trees[li];
-      if (i >= t.span_l.size() || t.span_l[i] == kNone) return;
-      const auto& pts = local[li];
-      const uint32_t l = t.span_l[i], r = t.span_r[i];
-      int64_t xmin = pts[l][0], xmax = xmin, ymin = pts[l][1], ymax = ymin;
-      for (uint32_t k = l; k <= r; ++k) {
-        xmin = std::min<int64_t>(xmin, pts[k][0]);
-        xmax = std::max<int64_t>(xmax, pts[k][0]);
-        ymin = std::min<int64_t>(ymin, pts[k][1]);
-        ymax = std::max<int64_t>(ymax, pts[k][1]);
-      }
-      auto& mine = found[s];
-      const SpanPolygon polygon(pts, l, r, ymin, ymax);
-      for (int64_t gy = grid.cy(ymin); gy <= grid.cy(ymax); ++gy)
-        for (int64_t gx = grid.cx(xmin); gx <= grid.cx(xmax); ++gx) {
-          const auto c = static_cast<size_t>(gx + grid.nx * gy);
-          for (uint32_t k = grid.start[c]; k < grid.start[c + 1]; ++k) {
-            const uint32_t q = grid.items[k];
-            if (point_line[q] == li && q >= base + l && q <= base + r) continue;
-            const Vec qv{all[q][0], all[q][1]};
-            if (qv.x < xmin || qv.x > xmax || qv.y < ymin || qv.y > ymax) continue;
-            // A point on an end of the baseline is a joint with this line,
-            // not something the baseline can cross.
-            if ((qv.x == pts[l][0] && qv.y == pts[l][1]) ||
-                (qv.x == pts[r][0] && qv.y == pts[r][1]))
-              continue;
-            if (polygon.inside_or_on(qv)) mine.push_back(q);
-          }
-        }
-      std::sort(mine.begin(), mine.end());
-    });
-    for (uint32_t s = 0; s < npts; ++s) {
-      out.stats.dependee_edges += found[s].size();
-      deps[s].insert(deps[s].end(), found[s].begin(), found[s].end());
-    }
+// The dependees of point s (a node of its line's tree; none for a line
+// end), sorted: the points of other lines, or of its own line outside the
+// sub-line, inside or on the closed polygon of the sub-line s's baseline
+// replaces, but for points on the baseline's ends.
+std::vector<uint32_t> dependees_of(uint32_t s, const LodWork& w, const PointGrid& grid,
+                                   const std::vector<uvec2>& line_points) {
+  std::vector<uint32_t> mine;
+  const uint32_t li = w.point_line[s];
+  const uint32_t base = line_points[li][0];
+  const uint32_t i = s - base;
+  const BlgTree& t = w.trees[li];
+  if (i >= t.span_l.size() || t.span_l[i] == kNone) return mine;
+  const auto& pts = w.local[li];
+  const uint32_t l = t.span_l[i], r = t.span_r[i];
+  int64_t xmin = pts[l][0], xmax = xmin, ymin = pts[l][1], ymax = ymin;
+  for (uint32_t k = l; k <= r; ++k) {
+    xmin = std::min<int64_t>(xmin, pts[k][0]);
+    xmax = std::max<int64_t>(xmax, pts[k][0]);
+    ymin = std::min<int64_t>(ymin, pts[k][1]);
+    ymax = std::max<int64_t>(ymax, pts[k][1]);
   }
+  const SpanPolygon polygon(pts, l, r, ymin, ymax);
+  for (int64_t gy = grid.cy(ymin); gy <= grid.cy(ymax); ++gy)
+    for (int64_t gx = grid.cx(xmin); gx <= grid.cx(xmax); ++gx) {
+      const auto c = static_cast<size_t>(gx + grid.nx * gy);
+      for (uint32_t k = grid.start[c]; k < grid.start[c + 1]; ++k) {
+        const uint32_t q = grid.items[k];
+        if (w.point_line[q] == li && q >= base + l && q <= base + r) continue;
+        const Vec qv{w.all[q][0], w.all[q][1]};
+        if (qv.x < xmin || qv.x > xmax || qv.y < ymin || qv.y > ymax) continue;
+        // A point on an end of the baseline is a joint with this line,
+        // not something the baseline can cross.
+        if ((qv.x == pts[l][0] && qv.y == pts[l][1]) || (qv.x == pts[r][0] && qv.y == pts[r][1]))
+          continue;
+        if (polygon.inside_or_on(qv)) mine.push_back(q);
+      }
+    }
+  std::sort(mine.begin(), mine.end());
+  return mine;
+}
 
-  // Condense cycles (§3.4, proxy points) and saturate e*, d* over the DAG.
+// §3.4 dependees: points (of any LOD line) inside the closed polygon of the
+// sub-line a node's baseline replaces. Excluding the node while such a
+// point is drawn could make the baseline cross a line the original does
+// not cross; the polygon (not only the triangle of §3.4) makes that a
+// guarantee: a segment crossing the baseline with both ends outside the
+// polygon also crosses the original sub-line. Found in parallel, added to
+// each point's edges in point order.
+void add_dependees(const std::vector<uvec2>& line_points, LodWork& w, LodStats& stats) {
+  const auto npts = static_cast<uint32_t>(w.all.size());
+  PointGrid grid;
+  grid.build(w.all);
+  std::vector<std::vector<uint32_t>> found(npts);
+  tbb::parallel_for(uint32_t(0), npts,
+                    [&](uint32_t s) { found[s] = dependees_of(s, w, grid, line_points); });
+  for (uint32_t s = 0; s < npts; ++s) {
+    stats.dependee_edges += found[s].size();
+    w.deps[s].insert(w.deps[s].end(), found[s].begin(), found[s].end());
+  }
+}
+
+// Per component of the dependency graph (cycles condensed into proxy
+// points, §3.4): its evaluation point and the saturated e*, d* and
+// always-flag.
+struct Saturated {
+  std::vector<uint32_t> comp;  // per point
+  std::vector<ivec2> eval;
+  std::vector<float> estar, dstar;
+  std::vector<char> always;
+};
+
+// Condenses cycles (§3.4, proxy points: the rounded mean of the members)
+// and saturates e*, d* over the DAG, successors first.
+Saturated saturate(const LodWork& w, LodStats& stats) {
+  const auto npts = static_cast<uint32_t>(w.all.size());
   std::vector<uint32_t> adj_start(npts + 1, 0), adj;
-  for (uint32_t s = 0; s < npts; ++s) adj_start[s + 1] = adj_start[s] + uint32_t(deps[s].size());
+  for (uint32_t s = 0; s < npts; ++s) adj_start[s + 1] = adj_start[s] + uint32_t(w.deps[s].size());
   adj.reserve(adj_start.back());
-  for (const auto& d : deps) adj.insert(adj.end(), d.begin(), d.end());
-  std::vector<uint32_t> comp;
-  const uint32_t ncomp = strongly_connected(adj_start, adj, comp);
+  for (const auto& d : w.deps) adj.insert(adj.end(), d.begin(), d.end());
+  Saturated z;
+  const uint32_t ncomp = strongly_connected(adj_start, adj, z.comp);
 
   std::vector<std::vector<uint32_t>> members(ncomp);
-  for (uint32_t p = 0; p < npts; ++p) members[comp[p]].push_back(p);
-  std::vector<ivec2> eval(ncomp);
-  std::vector<float> estar(ncomp), dstar(ncomp);
-  std::vector<char> comp_always(ncomp, 0);
+  for (uint32_t p = 0; p < npts; ++p) members[z.comp[p]].push_back(p);
+  z.eval.resize(ncomp);
+  z.estar.resize(ncomp);
+  z.dstar.resize(ncomp);
+  z.always.assign(ncomp, 0);
+  const auto& all = w.all;
   for (uint32_t c = 0; c < ncomp; ++c) {  // reverse topological: successors first
     const auto& m = members[c];
     double sx = 0, sy = 0, e = 0;
@@ -402,48 +437,73 @@ LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& optio
     for (uint32_t p : m) {
       sx += all[p][0];
       sy += all[p][1];
-      e = std::max(e, e0[p]);
-      alw = alw || always[p];
+      e = std::max(e, w.e0[p]);
+      alw = alw || w.always[p];
     }
-    eval[c] = {static_cast<int32_t>(std::llround(sx / double(m.size()))),
-               static_cast<int32_t>(std::llround(sy / double(m.size())))};
+    z.eval[c] = {static_cast<int32_t>(std::llround(sx / double(m.size()))),
+                 static_cast<int32_t>(std::llround(sy / double(m.size())))};
     double d = 0;
     if (m.size() > 1) {
-      ++out.stats.cycles;
-      out.stats.points_in_cycles += m.size();
+      ++stats.cycles;
+      stats.points_in_cycles += m.size();
       for (uint32_t p : m)
         d = std::max(
-            d,
-            std::hypot(double(all[p][0] - eval[c][0]), double(all[p][1] - eval[c][1])) * kQ + 1e-3);
+            d, std::hypot(double(all[p][0] - z.eval[c][0]), double(all[p][1] - z.eval[c][1])) * kQ +
+                   1e-3);
     }
     for (uint32_t p : m)
       for (uint32_t k = adj_start[p]; k < adj_start[p + 1]; ++k) {
-        const uint32_t y = comp[adj[k]];
+        const uint32_t y = z.comp[adj[k]];
         if (y == c) continue;
-        alw = alw || comp_always[y];
-        e = std::max(e, double(estar[y]));
+        alw = alw || z.always[y];
+        e = std::max(e, double(z.estar[y]));
         const double dist =
-            std::hypot(double(eval[c][0] - eval[y][0]), double(eval[c][1] - eval[y][1])) * kQ;
-        d = std::max(d, dist + double(dstar[y]) + 1e-3);
+            std::hypot(double(z.eval[c][0] - z.eval[y][0]), double(z.eval[c][1] - z.eval[y][1])) *
+            kQ;
+        d = std::max(d, dist + double(z.dstar[y]) + 1e-3);
       }
-    comp_always[c] = alw;
-    estar[c] = alw ? std::numeric_limits<float>::max() : round_up(e);
-    dstar[c] = alw ? 0.0f : round_up(d);
+    z.always[c] = alw;
+    z.estar[c] = alw ? std::numeric_limits<float>::max() : round_up(e);
+    z.dstar[c] = alw ? 0.0f : round_up(d);
   }
+  return z;
+}
+
+}  // namespace
+}  // namespace detail
+
+LodSet build_lod(const std::vector<LodInputLine>& lines, const LodOptions& options) {
+  using namespace detail;
+  LodSet out;
+  const auto nlines = static_cast<uint32_t>(lines.size());
+  out.line_points.resize(nlines);
+  out.line_range.resize(nlines);
+  LodWork w;
+  gather_lod_points(lines, out, w);
+  const auto npts = static_cast<uint32_t>(w.all.size());
+
+  // §3.1 BLG-trees, one per line, in parallel.
+  w.trees.resize(nlines);
+  tbb::parallel_for(uint32_t(0), nlines,
+                    [&](uint32_t li) { w.trees[li] = build_blg(w.local[li]); });
+  own_errors(out.line_points, options, w);
+  attributed_segments(w.trees, out);
+  if (options.dependees && npts > 0) add_dependees(out.line_points, w, out.stats);
+  const Saturated z = saturate(w, out.stats);
 
   out.points.resize(npts);
   for (uint32_t p = 0; p < npts; ++p) {
-    const uint32_t c = comp[p];
+    const uint32_t c = z.comp[p];
     auto& lp = out.points[p];
-    lp.x = all[p][0];
-    lp.y = all[p][1];
-    lp.eval_x = eval[c][0];
-    lp.eval_y = eval[c][1];
-    lp.e_star = estar[c];
-    lp.d_star = dstar[c];
-    lp.line = lines[point_line[p]].line;
-    lp.flags = comp_always[c] ? decal::kLodPointAlways : 0u;
-    if (comp_always[c]) ++out.stats.always_points;
+    lp.x = w.all[p][0];
+    lp.y = w.all[p][1];
+    lp.eval_x = z.eval[c][0];
+    lp.eval_y = z.eval[c][1];
+    lp.e_star = z.estar[c];
+    lp.d_star = z.dstar[c];
+    lp.line = lines[w.point_line[p]].line;
+    lp.flags = z.always[c] ? decal::kLodPointAlways : 0u;
+    if (z.always[c]) ++out.stats.always_points;
   }
   return out;
 }
