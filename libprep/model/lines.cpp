@@ -160,9 +160,10 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
       bool used = std::any_of(scene.lines.begin(), scene.lines.end(),
                               [&](const SceneLine& x) { return x.layer == l; });
       if (used)
-        model.manifest.notes.push_back("build: layer '" + scene.layers[l].name +
-                                       "': outline mode inset/offset needs corner style miter; "
-                                       "drawn in normal mode");
+        model.manifest.notes.push_back(
+            stage_message(kBuildStage, "layer '" + scene.layers[l].name +
+                                           "': outline mode inset/offset needs corner style miter; "
+                                           "drawn in normal mode"));
     }
   }
   for (const SceneLine& l : scene.lines)
@@ -198,7 +199,7 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
       e.fid = l.fid;
       e.part = l.part;
       e.action = ManifestAction::dropped;
-      e.reason = "build: " + o.reason;
+      e.reason = stage_message(kBuildStage, o.reason);
       model.manifest.entries.push_back(e);
       continue;
     }
