@@ -22,6 +22,7 @@
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
 namespace {
@@ -751,9 +752,10 @@ class LayerGather {
   const LayerCounts& counts() const {
     const LayerCounts& c = counts_;
     if (c.kept + c.clipped_away + c.dropped != c.read) {
-      throw error("clean: layer '" + spec_.name + "': accounting mismatch: read " +
-                  std::to_string(c.read) + " != kept " + std::to_string(c.kept) + " + clipped " +
-                  std::to_string(c.clipped_away) + " + dropped " + std::to_string(c.dropped));
+      fail<error>(kCleanStage, "layer '" + spec_.name + "': accounting mismatch: read " +
+                                   std::to_string(c.read) + " != kept " + std::to_string(c.kept) +
+                                   " + clipped " + std::to_string(c.clipped_away) + " + dropped " +
+                                   std::to_string(c.dropped));
     }
     return c;
   }
@@ -795,8 +797,7 @@ class LayerGather {
 
   void add_failure(const SourceFeature& head, const PartResult& failure) {
     if (!scene_.skip_failures)
-      throw feature_failure_error(*failure.failed_in, spec_.source, spec_.name, head.fid,
-                                  failure.drop_reason);
+      fail_feature(*failure.failed_in, spec_.source, spec_.name, head.fid, failure.drop_reason);
     ++counts_.dropped;
     ManifestEntry e{spec_.name, head.fid, -1, ManifestAction::dropped, failure.drop_reason};
     e.failed_in = failure.failed_in;
@@ -992,12 +993,12 @@ bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
     if (r.size() >= 3) rings.push_back(r);
   Geom g(h, make_polygon(h, rings));
   if (!g)
-    throw input_error("overview level: " + what +
-                      ": GEOS cannot build the polygon: " + impl_->ctx.last_error);
+    fail<input_error>(kNoStage, "overview level: " + what +
+                                    ": GEOS cannot build the polygon: " + impl_->ctx.last_error);
   Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), impl_->tolerance));
   if (!simple)
-    throw input_error("overview level: " + what +
-                      ": GEOS simplification failed: " + impl_->ctx.last_error);
+    fail<input_error>(kNoStage, "overview level: " + what +
+                                    ": GEOS simplification failed: " + impl_->ctx.last_error);
   // Topology-preserving; keep the part as it is if GEOS ever disagrees (as clean() does).
   if (GEOSisValid_r(h, simple.get()) != 1) return true;
   std::vector<const GEOSGeometry*> polys;
@@ -1026,12 +1027,12 @@ bool PartSimplifier::line(SceneLine& l, const std::string& what, double toleranc
   if (l.closed) pts.push_back(pts.front());
   Geom g(h, make_line(h, pts));
   if (!g)
-    throw input_error("overview level: " + what +
-                      ": GEOS cannot build the line: " + impl_->ctx.last_error);
+    fail<input_error>(kNoStage, "overview level: " + what +
+                                    ": GEOS cannot build the line: " + impl_->ctx.last_error);
   Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), tolerance));
   if (!simple)
-    throw input_error("overview level: " + what +
-                      ": GEOS simplification failed: " + impl_->ctx.last_error);
+    fail<input_error>(kNoStage, "overview level: " + what +
+                                    ": GEOS simplification failed: " + impl_->ctx.last_error);
   std::vector<const GEOSGeometry*> lines;
   bool ignored = false;
   collect(h, simple.get(), GEOS_LINESTRING, lines, ignored);

@@ -13,6 +13,7 @@
 #include <string_view>
 
 #include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
 
@@ -94,9 +95,10 @@ void check_input_file(const std::string& path, const std::string& what, InputKin
   if (::stat(local.c_str(), &st) != 0) return;  // the opener says it is missing
   if (S_ISREG(st.st_mode)) return;
   if (S_ISDIR(st.st_mode) && kind == InputKind::file_or_directory) return;
-  throw input_error(what + " '" + local + "' is " + kind_of(st.st_mode) +
-                    ", not a regular file; decalprep reads only regular files (a FIFO or a "
-                    "device could block or never end)");
+  fail<input_error>(kNoStage,
+                    what + " '" + local + "' is " + kind_of(st.st_mode) +
+                        ", not a regular file; decalprep reads only regular files (a FIFO or a "
+                        "device could block or never end)");
 }
 
 void check_output_file(const std::string& path, const std::string& what,
@@ -105,20 +107,23 @@ void check_output_file(const std::string& path, const std::string& what,
   // A link is not replaced either: the rename would put a file where the
   // user's link was, and an open() would write wherever it points.
   if (::lstat(path.c_str(), &st) == 0 && S_ISLNK(st.st_mode))
-    throw output_error(what + " '" + path +
-                       "' is a symbolic link; decalprep replaces only a regular file (nothing "
-                       "was written)");
+    fail<output_error>(kNoStage,
+                       what + " '" + path +
+                           "' is a symbolic link; decalprep replaces only a regular file (nothing "
+                           "was written)");
   if (::stat(path.c_str(), &st) == 0) {
     if (!S_ISREG(st.st_mode))
-      throw output_error(what + " '" + path + "' exists and is " + kind_of(st.st_mode) +
-                         "; decalprep replaces only a regular file (nothing was written)");
+      fail<output_error>(kNoStage,
+                         what + " '" + path + "' exists and is " + kind_of(st.st_mode) +
+                             "; decalprep replaces only a regular file (nothing was written)");
     const FileId target{static_cast<unsigned long long>(st.st_dev),
                         static_cast<unsigned long long>(st.st_ino)};
     for (const std::string& in : inputs) {
       if (in.empty()) continue;
       if (file_id(in) == target)
-        throw output_error(what + " '" + path + "' is the input '" + in +
-                           "' itself; writing it would destroy the input (nothing was written)");
+        fail<output_error>(
+            kNoStage, what + " '" + path + "' is the input '" + in +
+                          "' itself; writing it would destroy the input (nothing was written)");
     }
   }
 }
@@ -133,7 +138,7 @@ void write_file_atomically(const std::string& path, std::string_view bytes,
   const std::string tmp = folder + "." + name + ".tmp-" + std::to_string(::getpid()) + "-" +
                           std::to_string(counter.fetch_add(1));
   auto fail_with = [&](const std::string& doing, int err) {
-    throw output_error(what + " '" + path + "': " + doing + ": " + std::strerror(err));
+    fail<output_error>(kNoStage, what + " '" + path + "': " + doing + ": " + std::strerror(err));
   };
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
   if (fd < 0) fail_with("cannot create a temporary file beside it", errno);

@@ -265,7 +265,7 @@ PolygonRings quantise_polygons(const SceneFeatures& scene, DecalModel& m,
       e.fid = p.fid;
       e.part = p.part;
       e.action = ManifestAction::dropped;
-      e.reason = "build: " + why;
+      e.reason = stage_message(kBuildStage, why);
       m.manifest.entries.push_back(e);
     };
     if (qrings[i][0].size() < 3) {
@@ -366,10 +366,10 @@ void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options
   m.stats.qt_nodes = m.qt_node.size();
   if (m.stats.qt_depth_capped > 0) {
     std::ostringstream note;
-    note << "build: " << m.stats.qt_depth_capped << " quad-tree leaves reached the maximum depth "
+    note << m.stats.qt_depth_capped << " quad-tree leaves reached the maximum depth "
          << options.qt_max_depth << " with more than " << options.qt_leaf_capacity
          << " segments (fullest leaf: " << m.stats.qt_max_leaf_segments << ")";
-    m.manifest.notes.push_back(note.str());
+    m.manifest.notes.push_back(stage_message(kBuildStage, note.str()));
   }
 }
 

@@ -160,9 +160,10 @@ void layer_line_styles(const SceneFeatures& scene, DecalModel& model,
       bool used = std::any_of(scene.lines.begin(), scene.lines.end(),
                               [&](const SceneLine& x) { return x.layer == l; });
       if (used)
-        model.manifest.notes.push_back("build: layer '" + scene.layers[l].name +
-                                       "': outline mode inset/offset needs corner style miter; "
-                                       "drawn in normal mode");
+        model.manifest.notes.push_back(
+            stage_message(kBuildStage, "layer '" + scene.layers[l].name +
+                                           "': outline mode inset/offset needs corner style miter; "
+                                           "drawn in normal mode"));
     }
   }
 }
@@ -191,7 +192,7 @@ KeptLines append_lines(const SceneFeatures& scene, const std::vector<LineOut>& o
       e.fid = l.fid;
       e.part = l.part;
       e.action = ManifestAction::dropped;
-      e.reason = "build: " + o.reason;
+      e.reason = stage_message(kBuildStage, o.reason);
       model.manifest.entries.push_back(e);
       continue;
     }

@@ -89,7 +89,7 @@ class BatchSignals {
   BatchSignals() {
     g_stop_signal = 0;
     if (::pipe2(g_wake, O_CLOEXEC | O_NONBLOCK) != 0)
-      throw error("build: batch: cannot make a pipe: " + std::string(std::strerror(errno)),
+      fail<error>(kBuildStage, "batch: cannot make a pipe: " + std::string(std::strerror(errno)),
                   ExitCode::internal);
     struct sigaction sa {};
     sigemptyset(&sa.sa_mask);
@@ -359,7 +359,7 @@ RunningScene start_scene(const BatchRequest& request, BatchScene& item, BatchSig
   const int fork_errno = errno;
   ::pthread_sigmask(SIG_SETMASK, &old, nullptr);
   if (r.pid < 0)
-    throw error("build: batch: fork failed: " + std::string(std::strerror(fork_errno)),
+    fail<error>(kBuildStage, "batch: fork failed: " + std::string(std::strerror(fork_errno)),
                 ExitCode::internal);
   return r;
 }

@@ -269,9 +269,9 @@ uint64_t parse_memory_size(const std::string& text) {
     scale = 1;
   if (used == 0 || scale == 0 || !(value > 0) || !std::isfinite(value * scale) ||
       value * scale >= 1.8e19) {
-    throw usage_error(
-        "--max-memory: expected a size such as 2G, 512M or 1073741824 (bytes), got \"" + text +
-        "\"");
+    fail<usage_error>(
+        kNoStage, "--max-memory: expected a size such as 2G, 512M or 1073741824 (bytes), got \"" +
+                      text + "\"");
   }
   return uint64_t(std::llround(value * scale));
 }
@@ -286,8 +286,9 @@ uint64_t parse_memory_limit(const std::string& text) {
   std::string number = text;
   number.erase(0, number.find_first_not_of(" \t"));
   number.erase(number.find_last_not_of(" \t") + 1);
-  throw usage_error("--max-memory: \"" + text + "\" has no unit; give one, e.g. " + number +
-                    "M (MiB), " + number + "G (GiB), or " + number + "B if bytes are meant");
+  fail<usage_error>(kNoStage, "--max-memory: \"" + text + "\" has no unit; give one, e.g. " +
+                                  number + "M (MiB), " + number + "G (GiB), or " + number +
+                                  "B if bytes are meant");
 }
 
 std::string format_memory_size(double bytes) {

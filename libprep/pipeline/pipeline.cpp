@@ -224,8 +224,8 @@ void check_range_early(const ProjectedFeatures& p) {
           if (p.clip && !(q.x >= p.clip->xmin && q.x <= p.clip->xmax && q.y >= p.clip->ymin &&
                           q.y <= p.clip->ymax))
             continue;
-          throw feature_failure_error(FailureStage::build, layer.spec.source, layer.spec.name,
-                                      f.fid, out_of_range_reason(q));
+          fail_feature(FailureStage::build, layer.spec.source, layer.spec.name, f.fid,
+                       out_of_range_reason(q));
         }
     }
 }
@@ -246,7 +246,7 @@ void check_build_range(SceneFeatures& s, bool skip_failures) {
       const std::string reason = out_of_range_reason(p);
       if (!skip_failures) {
         const LayerSpec& l = s.layers.at(layer);
-        throw feature_failure_error(FailureStage::build, l.source, l.name, fid, reason);
+        fail_feature(FailureStage::build, l.source, l.name, fid, reason);
       }
       failed[{layer, fid}] = reason;
       order.push_back({layer, fid});
@@ -923,10 +923,11 @@ BuildResult run_stages(const BuildSpec& scene, const BuildRequest& request, Memo
       request.progress->message(
           request.progress->mode() == ProgressMode::json
               ? j.dump()
-              : "tileset: " + std::to_string(tileset->tiles) + " tiles (" +
-                    std::to_string(tileset->built) + " built, " + std::to_string(tileset->reused) +
-                    " kept from an earlier run), " + std::to_string(tileset->bytes) + " bytes in " +
-                    request.output);
+              : stage_message(kTilesetStage,
+                              std::to_string(tileset->tiles) + " tiles (" +
+                                  std::to_string(tileset->built) + " built, " +
+                                  std::to_string(tileset->reused) + " kept from an earlier run), " +
+                                  std::to_string(tileset->bytes) + " bytes in " + request.output));
     }
   } else if (!request.dry_run) {
     t0 = Clock::now();

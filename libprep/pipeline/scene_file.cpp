@@ -13,6 +13,7 @@
 
 #include "prep/error.hpp"
 #include "prep/files.hpp"
+#include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 
 namespace prep {
@@ -26,7 +27,8 @@ struct KeyRef {
 };
 
 [[noreturn]] void fail_key(const KeyRef& ref, const std::string& what) {
-  throw scene_error(ref.file + ":" + std::to_string(ref.line) + ": " + ref.key + ": " + what);
+  prep::fail<scene_error>(kNoStage,
+                          ref.file + ":" + std::to_string(ref.line) + ": " + ref.key + ": " + what);
 }
 
 int line_of(const toml::node& n) {
@@ -307,15 +309,16 @@ uint32_t parse_color(const std::string& text) {
       if (c >= '0' && c <= '9') return c - '0';
       if (c >= 'a' && c <= 'f') return c - 'a' + 10;
       if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-      throw usage_error("bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
+      prep::fail<usage_error>(kNoStage,
+                              "bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
     };
     return digit(text[i]) * 16 + digit(text[i + 1]);
   };
   if (text.size() != 7 && text.size() != 9) {
-    throw usage_error("bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
+    prep::fail<usage_error>(kNoStage, "bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
   }
   if (text[0] != '#')
-    throw usage_error("bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
+    prep::fail<usage_error>(kNoStage, "bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
   uint32_t r = hex(1), g = hex(3), b = hex(5), a = text.size() == 9 ? hex(7) : 255u;
   return r | (g << 8) | (b << 16) | (a << 24);
 }
@@ -324,27 +327,27 @@ decal::CornerStyle parse_corner(const std::string& t) {
   if (t == "round") return decal::CornerStyle::round;
   if (t == "miter") return decal::CornerStyle::miter;
   if (t == "bevel") return decal::CornerStyle::bevel;
-  throw usage_error("expected round|miter|bevel, got \"" + t + "\"");
+  prep::fail<usage_error>(kNoStage, "expected round|miter|bevel, got \"" + t + "\"");
 }
 
 RepairMethod parse_repair_method(const std::string& t) {
   if (t == "linework") return RepairMethod::linework;
   if (t == "structure") return RepairMethod::structure;
-  throw usage_error("expected linework|structure, got \"" + t + "\"");
+  prep::fail<usage_error>(kNoStage, "expected linework|structure, got \"" + t + "\"");
 }
 
 decal::OutlineMode parse_outline_mode(const std::string& t) {
   if (t == "normal") return decal::OutlineMode::normal;
   if (t == "inset") return decal::OutlineMode::inset;
   if (t == "offset") return decal::OutlineMode::offset;
-  throw usage_error("expected normal|inset|offset, got \"" + t + "\"");
+  prep::fail<usage_error>(kNoStage, "expected normal|inset|offset, got \"" + t + "\"");
 }
 
 DecalKind parse_kind(const std::string& t) {
   if (t == "polygon") return DecalKind::polygon;
   if (t == "line") return DecalKind::line;
   if (t == "outline") return DecalKind::outline;
-  throw usage_error("expected polygon|line|outline, got \"" + t + "\"");
+  prep::fail<usage_error>(kNoStage, "expected polygon|line|outline, got \"" + t + "\"");
 }
 
 std::string resolve_scene_path(const std::string& path, const std::string& base_dir) {
@@ -373,8 +376,8 @@ BuildSpec parse_scene(const std::string& text, const std::string& path) {
   try {
     root = toml::parse(text, std::string_view(path));
   } catch (const toml::parse_error& e) {
-    throw scene_error(path + ":" + std::to_string(e.source().begin.line) + ": " +
-                      std::string(e.description()));
+    prep::fail<scene_error>(kNoStage, path + ":" + std::to_string(e.source().begin.line) + ": " +
+                                          std::string(e.description()));
   }
   BuildSpec scene;
   scene.scene_path = path;
@@ -451,8 +454,8 @@ BuildSpec parse_scene(const std::string& text, const std::string& path) {
     }
   }
   if (!layers || layers->empty()) {
-    throw scene_error(path + ":" + std::to_string(layers_line) +
-                      ": layer: the scene has no [[layer]] table");
+    prep::fail<scene_error>(kNoStage, path + ":" + std::to_string(layers_line) +
+                                          ": layer: the scene has no [[layer]] table");
   }
   for (size_t i = 0; i < layers->size(); ++i) {
     const toml::table* t = layers->get(i)->as_table();
@@ -489,7 +492,7 @@ BuildSpec parse_scene(const std::string& text, const std::string& path) {
 BuildSpec load_scene_file(const std::string& path) {
   check_input_file(path, "scene file");
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw scene_error(path + ": cannot open scene file");
+  if (!in) prep::fail<scene_error>(kNoStage, path + ": cannot open scene file");
   std::ostringstream text;
   text << in.rdbuf();
   return parse_scene(text.str(), path);

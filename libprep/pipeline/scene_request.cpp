@@ -27,8 +27,8 @@ Extent parse_extent(const std::string& text) {
   std::istringstream in(text);
   if (!(in >> e.xmin >> c1 >> e.ymin >> c2 >> e.xmax >> c3 >> e.ymax) || c1 != ',' || c2 != ',' ||
       c3 != ',' || e.empty()) {
-    throw usage_error("--extent: expected xmin,ymin,xmax,ymax with max > min, got \"" + text +
-                      "\"");
+    fail<usage_error>(
+        kNoStage, "--extent: expected xmin,ymin,xmax,ymax with max > min, got \"" + text + "\"");
   }
   return e;
 }
@@ -43,7 +43,8 @@ void parse_grid(const std::string& text, ModelOptions& b) {
   std::istringstream in(text);
   if (!(in >> nx >> x >> ny) || (x != 'x' && x != 'X') || nx == 0 || ny == 0 || nx > 65536 ||
       ny > 65536) {
-    throw usage_error("--grid: expected NXxNY (e.g. 500x500) or auto, got \"" + text + "\"");
+    fail<usage_error>(kNoStage,
+                      "--grid: expected NXxNY (e.g. 500x500) or auto, got \"" + text + "\"");
   }
   b.grid_nx = nx;
   b.grid_ny = ny;
@@ -63,45 +64,49 @@ LayerSpec fileless_layer(const std::string& source, const FilelessLayer& a) {
   if (!a.outline_mode.empty()) l.style.outline = parse_outline_mode(a.outline_mode);
   if (!a.color.empty()) l.style.color.rgba = parse_color(a.color);
   if (a.width) {
-    if (!(*a.width > 0)) throw usage_error("--width: must be > 0");
+    if (!(*a.width > 0)) fail<usage_error>(kNoStage, "--width: must be > 0");
     // A static line's half width in a package is below kMaxHalfWidthMetres
     // (formats/SPEC.md "Index constraints"); the writer refuses the rest.
     if (!a.dynamic && !(*a.width < 2.0 * double(decal::kMaxHalfWidthMetres))) {
       char v[32];
       std::snprintf(v, sizeof v, "%g", *a.width);
-      throw usage_error(std::string("--width: ") + v +
-                        " m is too wide: a static line must be narrower than 2e7 m");
+      fail<usage_error>(kNoStage, std::string("--width: ") + v +
+                                      " m is too wide: a static line must be narrower than 2e7 m");
     }
     l.style.width = *a.width;
   } else if (l.dynamic) {
     l.style.width = 3.0;  // pixels
   }
   if (l.dynamic && l.kind == DecalKind::polygon)
-    throw usage_error("--dynamic needs --kind line or outline");
+    fail<usage_error>(kNoStage, "--dynamic needs --kind line or outline");
   if (!l.sql.empty() && (!l.where.empty() || !l.layer.empty()))
-    throw usage_error("--sql replaces --layer and --where; give one or the other");
+    fail<usage_error>(kNoStage, "--sql replaces --layer and --where; give one or the other");
   if (l.style.outline != decal::OutlineMode::normal && l.style.corner != decal::CornerStyle::miter)
-    throw usage_error("--outline-mode inset/offset needs --corner miter");
+    fail<usage_error>(kNoStage, "--outline-mode inset/offset needs --corner miter");
   return l;
 }
 
 // Terrain matching of dynamic lines and the DEM surface (ModelOptions).
 void apply_terrain_overrides(const SceneOverrides& o, ModelOptions& b) {
   if (o.lmax) {
-    if (!(*o.lmax >= 0)) throw usage_error("--lmax: must be >= 0 metres (0: half the DEM cell)");
+    if (!(*o.lmax >= 0))
+      fail<usage_error>(kNoStage, "--lmax: must be >= 0 metres (0: half the DEM cell)");
     b.lmax = *o.lmax;
   }
   if (o.terrain_tolerance) {
     if (!(*o.terrain_tolerance >= 0))
-      throw usage_error("--terrain-tolerance: must be >= 0 metres (0: uniform subdivision)");
+      fail<usage_error>(kNoStage,
+                        "--terrain-tolerance: must be >= 0 metres (0: uniform subdivision)");
     b.terrain_tolerance = *o.terrain_tolerance;
   }
   if (o.z_scale) {
-    if (!std::isfinite(*o.z_scale)) throw usage_error("--z-scale: must be a finite number");
+    if (!std::isfinite(*o.z_scale))
+      fail<usage_error>(kNoStage, "--z-scale: must be a finite number");
     b.z_scale = *o.z_scale;
   }
   if (o.nodata_fill) {
-    if (!std::isfinite(*o.nodata_fill)) throw usage_error("--nodata-fill: must be a finite height");
+    if (!std::isfinite(*o.nodata_fill))
+      fail<usage_error>(kNoStage, "--nodata-fill: must be a finite height");
     b.nodata_fill = *o.nodata_fill;
   }
 }
@@ -112,17 +117,18 @@ void apply_overrides(const SceneOverrides& o, BuildSpec& scene) {
   if (!o.assume_crs.empty()) scene.assume_crs = o.assume_crs;
   if (!o.extent.empty()) scene.extent = parse_extent(o.extent);
   if (!o.extent_crs.empty()) scene.extent_crs = o.extent_crs;
-  if (!o.extent_crs.empty() && !scene.extent) throw usage_error("--extent-crs needs --extent");
+  if (!o.extent_crs.empty() && !scene.extent)
+    fail<usage_error>(kNoStage, "--extent-crs needs --extent");
   if (!o.dem.empty()) scene.dem = o.dem;
   if (o.resolution) {
-    if (!(*o.resolution >= 0)) throw usage_error("--resolution: must be >= 0 metres");
+    if (!(*o.resolution >= 0)) fail<usage_error>(kNoStage, "--resolution: must be >= 0 metres");
     scene.resolution = *o.resolution;
   }
   if (o.tile_size) {
     if (!(*o.tile_size >= kMinTileSize && *o.tile_size <= kMaxTileSize))
-      throw usage_error(
-          "--tile-size: must be in [1, 4000000] metres of the frame CRS (a tile's "
-          "half must fit int32 millimetres around its centre)");
+      fail<usage_error>(kNoStage,
+                        "--tile-size: must be in [1, 4000000] metres of the frame CRS (a tile's "
+                        "half must fit int32 millimetres around its centre)");
     scene.tile_size = *o.tile_size;
   }
   if (!o.levels.empty()) {
@@ -132,9 +138,9 @@ void apply_overrides(const SceneOverrides& o, BuildSpec& scene) {
       int n = -1;
       char tail = 0;
       if (std::sscanf(o.levels.c_str(), "%d%c", &n, &tail) != 1 || n < 0 || n > kMaxLevels)
-        throw usage_error(
-            "--levels: expected a number of overview levels (0 to 16) or auto, not '" + o.levels +
-            "'");
+        fail<usage_error>(
+            kNoStage, "--levels: expected a number of overview levels (0 to 16) or auto, not '" +
+                          o.levels + "'");
       scene.levels = n;
     }
   }
@@ -169,14 +175,15 @@ BuildSpec scene_spec(const SceneRequest& request) {
   const std::string levels_from =
       !request.overrides.levels.empty() ? "--levels" : "[tiling] levels in " + request.input;
   if (scene.levels != 0 && scene.tile_size <= 0)
-    throw usage_error(levels_from +
+    fail<usage_error>(
+        kNoStage, levels_from +
                       ": overview levels are levels of a tileset: give --tile-size (or [tiling] "
                       "tile_size)");
   if (scene.levels > 0 && std::ldexp(scene.tile_size, scene.levels) > kMaxTileSize)
-    throw usage_error(levels_from + ": level " + std::to_string(scene.levels) +
-                      " would have tiles of " +
-                      std::to_string(std::ldexp(scene.tile_size, scene.levels)) +
-                      " m, above the largest tile size (4000000 m)");
+    fail<usage_error>(kNoStage, levels_from + ": level " + std::to_string(scene.levels) +
+                                    " would have tiles of " +
+                                    std::to_string(std::ldexp(scene.tile_size, scene.levels)) +
+                                    " m, above the largest tile size (4000000 m)");
   return scene;
 }
 

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
 
@@ -70,8 +71,8 @@ ProgressMode parse_progress_mode(std::string_view text, bool stderr_is_tty) {
   if (text == "plain") return ProgressMode::plain;
   if (text == "json") return ProgressMode::json;
   if (text == "none") return ProgressMode::none;
-  throw usage_error("--progress: expected auto, tty, plain, json or none, got \"" +
-                    std::string(text) + "\"");
+  fail<usage_error>(kNoStage, "--progress: expected auto, tty, plain, json or none, got \"" +
+                                  std::string(text) + "\"");
 }
 
 struct ProgressStage::State {

@@ -979,8 +979,7 @@ struct LayerProjection::Impl {
     // the build (the loop above runs in any order).
     if (!scene_.skip_failures) {
       for (const SourceFeature& f : chunk.features)
-        if (f.failed_in)
-          throw feature_failure_error(*f.failed_in, spec_.source, spec_.name, f.fid, f.drop_reason);
+        if (f.failed_in) fail_feature(*f.failed_in, spec_.source, spec_.name, f.fid, f.drop_reason);
     }
     chunk.srs_wkt = frame_.crs_wkt;
     return k;
@@ -1157,12 +1156,13 @@ void check_extent_units(const Extent& extent, const std::string& extent_crs,
   char sizes[160];
   std::snprintf(sizes, sizeof sizes, "%.3g m wide against the data's %.3g m", metres_size,
                 data_size);
-  throw usage_error(context + ": --extent " + box_text(extent) +
-                    " looks like longitude/latitude degrees, but it is read in the frame CRS (" +
-                    name + ", metres), where the data lie at " + box_text(data_abs) +
-                    " (xmin,ymin,xmax,ymax); read as metres the view " +
-                    (metres_miss ? std::string("misses them") : "is " + std::string(sizes)) +
-                    ". Pass --extent-crs EPSG:4326 to give the extent in degrees (lon/lat order)");
+  fail<usage_error>(
+      context, "--extent " + box_text(extent) +
+                   " looks like longitude/latitude degrees, but it is read in the frame CRS (" +
+                   name + ", metres), where the data lie at " + box_text(data_abs) +
+                   " (xmin,ymin,xmax,ymax); read as metres the view " +
+                   (metres_miss ? std::string("misses them") : "is " + std::string(sizes)) +
+                   ". Pass --extent-crs EPSG:4326 to give the extent in degrees (lon/lat order)");
 }
 
 std::optional<Extent> clip_extent(const SceneFrame& frame, const SceneSpec& scene,
@@ -1237,9 +1237,10 @@ Extent extent_in_frame_crs(const Extent& extent, const std::string& crs, const S
   } catch (const input_error& e) {
     // srs_from and friends speak for the project stage.
     std::string what = e.what();
-    if (context != "project" && what.rfind("project: ", 0) == 0)
-      what = context + ": " + what.substr(9);
-    throw input_error(what);
+    const std::string project = stage_message(kProjectStage, "");
+    if (context != kProjectStage && what.rfind(project, 0) == 0)
+      what = stage_message(context, what.substr(project.size()));
+    fail<input_error>(kNoStage, what);
   }
 }
 

@@ -126,14 +126,15 @@ std::string osm_plain_index_note(const std::string& layer) {
       "Put the nodes first: sort the file (osmium sort " + source +
       " -o sorted.osm), or end the Overpass query with '(._;>;); out body;' instead of "
       "'out; >; out skel qt;'";
-  throw input_error(where + ": " + found +
-                    "; GDAL's OSM driver assembles ways and multipolygons only from nodes that "
-                    "come before them, so they would be lost. " +
-                    what_to_do);
+  fail<input_error>(kNoStage,
+                    where + ": " + found +
+                        "; GDAL's OSM driver assembles ways and multipolygons only from nodes that "
+                        "come before them, so they would be lost. " +
+                        what_to_do);
 }
 
 std::string where_of(const LayerSpec& spec, const std::string& layer_name) {
-  std::string w = "read: " + spec.source;
+  std::string w = stage_message(kReadStage, spec.source);
   if (!spec.sql.empty()) return w + " sql \"" + spec.sql + "\"";
   return w + " layer '" + layer_name + "'";
 }
@@ -256,8 +257,8 @@ int field_index(OGRLayer& layer, const std::string& name, const LayerSpec& spec,
     for (int k = 0; k < layer.GetLayerDefn()->GetFieldCount(); ++k) {
       fields += (k ? ", " : "") + std::string(layer.GetLayerDefn()->GetFieldDefn(k)->GetNameRef());
     }
-    throw input_error(where_of(spec, layer.GetName()) + ": " + what + " attribute '" + name +
-                      "' not found (fields: " + fields + ")");
+    fail<input_error>(kNoStage, where_of(spec, layer.GetName()) + ": " + what + " attribute '" +
+                                    name + "' not found (fields: " + fields + ")");
   }
   return i;
 }
@@ -359,8 +360,8 @@ struct LayerSink {
     if (split.bad_coordinate) {
       r.layer.features.resize(first);
       if (!scene.skip_failures) {
-        throw feature_failure_error(FailureStage::read, spec.source, ogr_layer.c_str(), proto.fid,
-                                    split.bad_coordinate_text);
+        fail_feature(FailureStage::read, spec.source, ogr_layer.c_str(), proto.fid,
+                     split.bad_coordinate_text);
       }
       proto.drop_reason = split.bad_coordinate_text;
       proto.failed_in = FailureStage::read;
@@ -426,13 +427,13 @@ void source_crs(OGRLayer* layer_ptr, const LayerSpec& spec, const SceneSpec& sce
   }
   if (r.layer.srs_wkt.empty()) {
     if (scene.assume_crs.empty()) {
-      throw input_error(where +
-                        ": the source has no CRS; pass --assume-crs (e.g. EPSG:4326) "
-                        "or set assume_crs in the scene file");
+      fail<input_error>(kNoStage, where +
+                                      ": the source has no CRS; pass --assume-crs (e.g. EPSG:4326) "
+                                      "or set assume_crs in the scene file");
     }
     OGRSpatialReference assumed;
     if (assumed.SetFromUserInput(scene.assume_crs.c_str()) != OGRERR_NONE) {
-      throw input_error(where + ": invalid --assume-crs '" + scene.assume_crs + "'");
+      fail<input_error>(kNoStage, where + ": invalid --assume-crs '" + scene.assume_crs + "'");
     }
     r.layer.srs_wkt = crs_wkt2(assumed);
     r.notes.push_back("layer '" + spec.name + "': source has no CRS, assumed " + scene.assume_crs);
@@ -524,8 +525,9 @@ void prepare_query_layer(GDALDataset& ds, OGRLayer& layer, const LayerSpec& spec
   if (!spec.where.empty()) {
     errors.clear();
     if (layer.SetAttributeFilter(spec.where.c_str()) != OGRERR_NONE) {
-      throw gdal_error(where + ": invalid where \"" + spec.where + "\"" +
-                       (errors.failures().empty() ? std::string() : ": " + errors.failures()));
+      fail<gdal_error>(kNoStage,
+                       where + ": invalid where \"" + spec.where + "\"" +
+                           (errors.failures().empty() ? std::string() : ": " + errors.failures()));
     }
   }
 }
@@ -578,11 +580,12 @@ void read_shared_features(OGRLayer& layer, const SceneSpec& scene, const std::st
                                            : std::max(estimate, index + 1) * n);
   }
   if (errors.count() > skipped_errors) {
-    throw gdal_error(
+    fail<gdal_error>(
+        kNoStage,
         where + ": reading failed" +
-        (first_failing_fid >= 0 ? " at fid " + std::to_string(first_failing_fid) : "") + " (" +
-        std::to_string(attempts.front().counts.read) + " features read): " + errors.failures() +
-        (first_failing_fid >= 0 ? " (--skip-failures drops features OGR cannot decode)" : ""));
+            (first_failing_fid >= 0 ? " at fid " + std::to_string(first_failing_fid) : "") + " (" +
+            std::to_string(attempts.front().counts.read) + " features read): " + errors.failures() +
+            (first_failing_fid >= 0 ? " (--skip-failures drops features OGR cannot decode)" : ""));
   }
   const uint64_t read = attempts.front().counts.read * n;
   progress.update(read, read);
@@ -797,10 +800,11 @@ std::vector<ReadAttempt> read_query(const std::vector<const LayerSpec*>& specs,
           read_once(specs, scene, progress, errors, /*plain_osm_index=*/true, chunks, scene_layers);
     } catch (const gdal_error& again) {
       const std::string& source = specs.front()->source;
-      throw gdal_error(std::string(again.what()) +
-                       " (read again with OSM_USE_CUSTOM_INDEXING=NO after: " + what +
-                       "); convert the file to OSM PBF with sorted ids, e.g. osmium sort " +
-                       source + " -o sorted.osm.pbf, and build from that");
+      fail<gdal_error>(kNoStage,
+                       std::string(again.what()) +
+                           " (read again with OSM_USE_CUSTOM_INDEXING=NO after: " + what +
+                           "); convert the file to OSM PBF with sorted ids, e.g. osmium sort " +
+                           source + " -o sorted.osm.pbf, and build from that");
     }
     for (ReadAttempt& r : attempts) r.notes.push_back(osm_plain_index_note(r.layer.spec.name));
     return attempts;

@@ -32,7 +32,7 @@ int64_t floor_div(int64_t a, int64_t b) {
 }  // namespace
 
 void check(const decal::Status& s) {
-  if (!s) throw render_error(s.message);
+  if (!s) fail<render_error>(kNoStage, s.message);
 }
 
 // --- GlObjects, PassTimer

@@ -11,6 +11,7 @@
 
 #include "prep/error.hpp"
 #include "prep/render.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep::render {
 namespace {
@@ -55,13 +56,15 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
   const int top = int(index.levels.size());
   for (int l = 1; l <= top; ++l)
     if (index.levels[size_t(l - 1)].level != l)
-      throw format_error("render: tileset.json: overview level " + std::to_string(l) +
-                         " is numbered " + std::to_string(index.levels[size_t(l - 1)].level));
+      fail<format_error>(kRenderStage, "tileset.json: overview level " + std::to_string(l) +
+                                           " is numbered " +
+                                           std::to_string(index.levels[size_t(l - 1)].level));
   if (options.level && (*options.level < 0 || *options.level > top))
-    throw usage_error("render: --level " + std::to_string(*options.level) +
-                      ": the tileset has levels 0.." + std::to_string(top));
+    fail<usage_error>(kRenderStage, "--level " + std::to_string(*options.level) +
+                                        ": the tileset has levels 0.." + std::to_string(top));
   if (options.gpu_budget && !options.blob_bytes)
-    throw usage_error("render: --gpu-budget needs the tiles' decoded blob bytes (blob_bytes)");
+    fail<usage_error>(kRenderStage,
+                      "--gpu-budget needs the tiles' decoded blob bytes (blob_bytes)");
   auto blob_bytes_of = [&](int l, const TileEntry& t) -> uint64_t {
     return options.blob_bytes ? options.blob_bytes(l, t) : 0;
   };
@@ -122,10 +125,11 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
         ++out.per_level[size_t(l)];
       }
     if (options.gpu_budget && out.blob_bytes > options.gpu_budget)
-      throw resource_error("render: --gpu-budget " + bytes_text(options.gpu_budget) +
-                           " is exceeded: level " + std::to_string(l) + " of this view needs " +
-                           need_text(out.blob_bytes, out.package_bytes) + " in " +
-                           std::to_string(out.tiles.size()) + " tiles");
+      fail<resource_error>(kRenderStage, "--gpu-budget " + bytes_text(options.gpu_budget) +
+                                             " is exceeded: level " + std::to_string(l) +
+                                             " of this view needs " +
+                                             need_text(out.blob_bytes, out.package_bytes) + " in " +
+                                             std::to_string(out.tiles.size()) + " tiles");
     return out;
   }
 
@@ -230,10 +234,11 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
         queue.push({nodes[size_t(n.parent)].sse, n.parent});
     }
     if (out.blob_bytes > options.gpu_budget)
-      throw resource_error("render: --gpu-budget " + bytes_text(options.gpu_budget) +
-                           " is exceeded: the coarsest tiles of this view (level " +
-                           std::to_string(top) + ", " + std::to_string(roots.size()) +
-                           " tiles) need " + need_text(out.blob_bytes, out.package_bytes));
+      fail<resource_error>(kRenderStage,
+                           "--gpu-budget " + bytes_text(options.gpu_budget) +
+                               " is exceeded: the coarsest tiles of this view (level " +
+                               std::to_string(top) + ", " + std::to_string(roots.size()) +
+                               " tiles) need " + need_text(out.blob_bytes, out.package_bytes));
   }
 
   for (const Node& n : nodes)

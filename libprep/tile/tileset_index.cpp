@@ -17,6 +17,7 @@
 #include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/manifest_json.hpp"
+#include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 
 namespace prep {
@@ -35,7 +36,7 @@ class Fields {
  public:
   explicit Fields(std::string file) : file_(std::move(file)) {}
   [[noreturn]] void bad(const std::string& field, const std::string& what) const {
-    throw format_error(file_ + ": " + field + ": " + what);
+    fail<format_error>(kNoStage, file_ + ": " + field + ": " + what);
   }
   const json& at(const json& j, const char* key, const std::string& where) const {
     if (!j.is_object()) bad(where, "is not an object");
@@ -435,8 +436,8 @@ std::string tileset_index_json(const TilesetIndex& index) {
   // the same check), so a build fails here, before tileset.json is renamed
   // into place.
   if (const std::string why = tileset_index_problem(index); !why.empty())
-    throw output_error("tileset: " + std::string(kTilesetIndexName) +
-                       " would not verify, not written: " + why);
+    fail<output_error>(kTilesetStage,
+                       std::string(kTilesetIndexName) + " would not verify, not written: " + why);
   json j;
   j["tileset_version"] = std::to_string(index.major) + "." + std::to_string(index.minor);
   j["generator"] = index.generator;
@@ -476,12 +477,12 @@ std::string tileset_index_json(const TilesetIndex& index) {
   }
   std::string text = j.dump(2) + "\n";
   if (text.size() > kMaxTilesetIndexBytes)
-    throw output_error("tileset: " + std::string(kTilesetIndexName) + " would be " +
-                       std::to_string(text.size()) + " bytes, above the " +
-                       std::to_string(kMaxTilesetIndexBytes) +
-                       "-byte limit readers hold it to (formats/SPEC.md \"tileset.json\"): " +
-                       std::to_string(index.tiles.size()) +
-                       " tiles; a larger --tile-size makes fewer; not written");
+    fail<output_error>(kTilesetStage,
+                       std::string(kTilesetIndexName) + " would be " + std::to_string(text.size()) +
+                           " bytes, above the " + std::to_string(kMaxTilesetIndexBytes) +
+                           "-byte limit readers hold it to (formats/SPEC.md \"tileset.json\"): " +
+                           std::to_string(index.tiles.size()) +
+                           " tiles; a larger --tile-size makes fewer; not written");
   return text;
 }
 
@@ -518,12 +519,13 @@ TilesetIndex read_tileset_index(const std::string& dir) {
   int fd = -1;
   uint64_t size = 0;
   if (const decal::Status s = decal::open_regular_file(path, fd, size); !s)
-    throw error("cannot read the tileset index: " + s.message, ExitCode::input);
+    fail<error>(kNoStage, "cannot read the tileset index: " + s.message, ExitCode::input);
   if (size > kMaxTilesetIndexBytes) {
     ::close(fd);
-    throw format_error(path + ": " + std::to_string(size) + " bytes, above the " +
-                       std::to_string(kMaxTilesetIndexBytes) +
-                       "-byte limit of an index (formats/SPEC.md \"tileset.json\"); not parsed");
+    fail<format_error>(
+        kNoStage, path + ": " + std::to_string(size) + " bytes, above the " +
+                      std::to_string(kMaxTilesetIndexBytes) +
+                      "-byte limit of an index (formats/SPEC.md \"tileset.json\"); not parsed");
   }
   std::string text(static_cast<size_t>(size), '\0');
   size_t done = 0;
@@ -533,7 +535,8 @@ TilesetIndex read_tileset_index(const std::string& dir) {
     if (n <= 0) {
       const int err = errno;
       ::close(fd);
-      throw error("cannot read " + path + ": " + (n == 0 ? "file shrank" : std::strerror(err)),
+      fail<error>(kNoStage,
+                  "cannot read " + path + ": " + (n == 0 ? "file shrank" : std::strerror(err)),
                   ExitCode::input);
     }
     done += static_cast<size_t>(n);
@@ -543,7 +546,7 @@ TilesetIndex read_tileset_index(const std::string& dir) {
   try {
     j = json::parse(text);
   } catch (const json::exception& e) {
-    throw format_error(path + ": not JSON: " + e.what());
+    fail<format_error>(kNoStage, path + ": not JSON: " + e.what());
   }
   text = std::string();
   const Fields f(path);
@@ -638,7 +641,7 @@ TilesetIndex read_tileset_index(const std::string& dir) {
     }
   }
   if (const std::string why = tileset_index_problem(ix); !why.empty())
-    throw format_error(path + ": " + why);
+    fail<format_error>(kNoStage, path + ": " + why);
   return ix;
 }
 

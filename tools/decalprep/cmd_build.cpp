@@ -17,6 +17,7 @@
 #include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/progress.hpp"
+#include "prep/stage_error.hpp"
 
 namespace {
 
@@ -107,7 +108,8 @@ void parse_step(const std::vector<std::string>& step, prep::BuildRequest& req) {
   const std::string& name = step[0];
   if (name == "prepare" || name == "finalize") {
     if (step.size() != 1)
-      throw prep::usage_error("build: --step " + name + " takes no part (" + step[1] + ")");
+      prep::fail<prep::usage_error>(prep::kBuildStage,
+                                    "--step " + name + " takes no part (" + step[1] + ")");
     req.step = name == "prepare" ? Step::prepare : Step::finalize;
     return;
   }
@@ -115,8 +117,9 @@ void parse_step(const std::vector<std::string>& step, prep::BuildRequest& req) {
   char tail = 0;
   if (name != "tiles" || step.size() != 2 ||
       std::sscanf(step[1].c_str(), "%u/%u%c", &k, &n, &tail) != 2 || n == 0 || k >= n)
-    throw prep::usage_error("build: --step is prepare, tiles K/N (0 <= K < N) or finalize, not '" +
-                            name + (step.size() > 1 ? " " + step[1] : std::string()) + "'");
+    prep::fail<prep::usage_error>(
+        prep::kBuildStage, "--step is prepare, tiles K/N (0 <= K < N) or finalize, not '" + name +
+                               (step.size() > 1 ? " " + step[1] : std::string()) + "'");
   req.step = Step::tiles;
   req.step_part = k;
   req.step_parts = n;
@@ -127,9 +130,10 @@ void parse_step(const std::vector<std::string>& step, prep::BuildRequest& req) {
 // --step); the tile step's "{K}" is the job index 0..N-1. Runs nothing.
 int write_plan(const BuildArgs& a, const prep::BuildSpec& scene) {
   if (scene.tile_size <= 0)
-    throw prep::usage_error("build: --plan is for tilesets: give --tile-size");
-  if (a.output.empty()) throw prep::usage_error("build: --plan needs -o DIR");
-  if (*a.plan == 0) throw prep::usage_error("build: --plan N needs N >= 1 tile jobs");
+    prep::fail<prep::usage_error>(prep::kBuildStage, "--plan is for tilesets: give --tile-size");
+  if (a.output.empty()) prep::fail<prep::usage_error>(prep::kBuildStage, "--plan needs -o DIR");
+  if (*a.plan == 0)
+    prep::fail<prep::usage_error>(prep::kBuildStage, "--plan N needs N >= 1 tile jobs");
   std::vector<std::string> base;
   const std::vector<std::string>& argv = decalprep::command_line();
   std::error_code ec;
@@ -165,17 +169,20 @@ int write_plan(const BuildArgs& a, const prep::BuildSpec& scene) {
          {"command", with({"--step", "tiles", "{K}/" + std::to_string(n)})}},
         {{"step", "finalize"}, {"command", with({"--step", "finalize"})}}}}};
   std::filesystem::create_directories(a.output, ec);
-  if (ec) throw prep::output_error("build: cannot create " + a.output + ": " + ec.message());
+  if (ec)
+    prep::fail<prep::output_error>(prep::kBuildStage,
+                                   "cannot create " + a.output + ": " + ec.message());
   const std::string path = a.output + "/plan.json";
   prep::check_output_file(path, "plan", {});
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     out << plan.dump(2) << "\n";
-    if (!out) throw prep::output_error("build: cannot write " + tmp);
+    if (!out) prep::fail<prep::output_error>(prep::kBuildStage, "cannot write " + tmp);
   }
   std::filesystem::rename(tmp, path, ec);
-  if (ec) throw prep::output_error("build: cannot write " + path + ": " + ec.message());
+  if (ec)
+    prep::fail<prep::output_error>(prep::kBuildStage, "cannot write " + path + ": " + ec.message());
   if (!a.quiet)
     std::fprintf(stderr, "wrote %s (prepare, %u tiles jobs, finalize)\n", path.c_str(), n);
   return 0;
@@ -226,7 +233,7 @@ int run(const BuildArgs& a) {
   prep::watch_interrupts();
   const prep::BuildSpec scene = prep::scene_spec(scene_request(a, a.input));
   if (!a.dry_run && a.output.empty())
-    throw prep::usage_error("build: -o OUT.decals is required (or --dry-run)");
+    prep::fail<prep::usage_error>(prep::kBuildStage, "-o OUT.decals is required (or --dry-run)");
   if (a.plan) return write_plan(a, scene);
   prep::BuildRequest req = build_request(a);
   parse_step(a.step, req);
@@ -448,7 +455,8 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
         args->inputs.size() > 1 || std::filesystem::is_directory(args->inputs[0], ec);
     if (batch) {
       if (!args->step.empty() || args->plan)
-        throw prep::usage_error("build: --step and --plan take one scene, not a batch");
+        prep::fail<prep::usage_error>(prep::kBuildStage,
+                                      "--step and --plan take one scene, not a batch");
       decalprep::set_exit_code(run_batch(*args));
       return;
     }

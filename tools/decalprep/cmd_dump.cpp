@@ -24,6 +24,7 @@
 #include "command.hpp"
 #include "decal/reader.hpp"
 #include "prep/manifest_words.hpp"
+#include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 
 namespace {
@@ -275,10 +276,12 @@ void summarise_manifest(const std::string& path, const decal::BlobView& b) {
   try {
     entries = json::parse(as_text(b));
   } catch (const json::exception& e) {
-    throw prep::format_error("dump: " + path + ": manifest_entries is not valid JSON: " + e.what());
+    prep::fail<prep::format_error>(prep::kDumpStage,
+                                   path + ": manifest_entries is not valid JSON: " + e.what());
   }
   if (!entries.is_array())
-    throw prep::format_error("dump: " + path + ": manifest_entries is not a JSON array");
+    prep::fail<prep::format_error>(prep::kDumpStage,
+                                   path + ": manifest_entries is not a JSON array");
   // (action rank, stage rank, label) -> count, per layer.
   using Key = std::tuple<int, int, std::string>;
   std::vector<std::pair<std::string, std::vector<std::pair<Key, uint64_t>>>> layers;
@@ -287,8 +290,9 @@ void summarise_manifest(const std::string& path, const decal::BlobView& b) {
     const auto text = [&](const char* k) {
       const auto it = e.is_object() ? e.find(k) : e.end();
       if (it == e.end() || !it->is_string())
-        throw prep::format_error("dump: " + path + ": manifest entry " + std::to_string(i) +
-                                 " has no string '" + k + "'");
+        prep::fail<prep::format_error>(
+            prep::kDumpStage,
+            path + ": manifest entry " + std::to_string(i) + " has no string '" + k + "'");
       return it->get<std::string>();
     };
     const std::string layer = text("layer"), action = text("action");
@@ -331,7 +335,8 @@ void run_summary(const decal::Package& p, const std::string& path, const std::st
     try {
       meta = json::parse(p.metadata_json());
     } catch (const json::exception& e) {
-      throw prep::format_error("dump: " + path + ": metadata is not valid JSON: " + e.what());
+      prep::fail<prep::format_error>(prep::kDumpStage,
+                                     path + ": metadata is not valid JSON: " + e.what());
     }
     std::string text;
     flatten(meta, "", text);
@@ -358,28 +363,32 @@ void run_summary(const decal::Package& p, const std::string& path, const std::st
 // The package to dump: PACKAGE itself, or a tileset's tile --tile X,Y.
 std::string tile_package(const std::string& path, const std::string& tile, int level) {
   if (!prep::is_tileset(path)) {
-    if (!tile.empty()) throw prep::usage_error("dump: --tile needs a tileset directory");
-    if (level != 0) throw prep::usage_error("dump: --level needs a tileset directory");
+    if (!tile.empty())
+      prep::fail<prep::usage_error>(prep::kDumpStage, "--tile needs a tileset directory");
+    if (level != 0)
+      prep::fail<prep::usage_error>(prep::kDumpStage, "--level needs a tileset directory");
     return path;
   }
   long long x = 0, y = 0;
   char end = 0;
   if (tile.empty() || std::sscanf(tile.c_str(), "%lld,%lld%c", &x, &y, &end) != 2)
-    throw prep::usage_error("dump: " + path + " is a tileset: name one tile with --tile X,Y" +
-                            (tile.empty() ? "" : " ('" + tile + "' is not X,Y)"));
+    prep::fail<prep::usage_error>(prep::kDumpStage,
+                                  path + " is a tileset: name one tile with --tile X,Y" +
+                                      (tile.empty() ? "" : " ('" + tile + "' is not X,Y)"));
   const prep::TilesetIndex ix = prep::read_tileset_index(path);
   if (level < 0 || size_t(level) > ix.levels.size())
-    throw prep::usage_error("dump: --level " + std::to_string(level) + ": " + path +
-                            " has levels 0" +
-                            (ix.levels.empty() ? "" : " to " + std::to_string(ix.levels.size())));
+    prep::fail<prep::usage_error>(
+        prep::kDumpStage, "--level " + std::to_string(level) + ": " + path + " has levels 0" +
+                              (ix.levels.empty() ? "" : " to " + std::to_string(ix.levels.size())));
   const std::vector<prep::TileEntry>& tiles =
       level == 0 ? ix.tiles : ix.levels[size_t(level - 1)].tiles;
   for (const prep::TileEntry& t : tiles)
     if (t.key.x == x && t.key.y == y) return path + "/" + t.file;
-  throw prep::usage_error("dump: " + path + " has no tile " + tile +
-                          (level ? " on level " + std::to_string(level) : std::string()) + " (" +
-                          std::to_string(tiles.size()) + " tiles; `decalprep info " + path +
-                          "` lists them)");
+  prep::fail<prep::usage_error>(
+      prep::kDumpStage, path + " has no tile " + tile +
+                            (level ? " on level " + std::to_string(level) : std::string()) + " (" +
+                            std::to_string(tiles.size()) + " tiles; `decalprep info " + path +
+                            "` lists them)");
 }
 
 // A tileset's tile must be the tile its index entry names: its metadata's
@@ -392,7 +401,8 @@ void check_tile_key(const decal::Package& p, const std::string& path, long long 
   try {
     meta = json::parse(p.metadata_json());
   } catch (const json::exception& e) {
-    throw prep::format_error("dump: " + path + ": metadata is not valid JSON: " + e.what());
+    prep::fail<prep::format_error>(prep::kDumpStage,
+                                   path + ": metadata is not valid JSON: " + e.what());
   }
   const json* tile = meta.is_object() && meta.contains("tile") ? &meta["tile"] : nullptr;
   const json want = {{"x", x}, {"y", y}, {"level", level}};
@@ -401,9 +411,10 @@ void check_tile_key(const decal::Package& p, const std::string& path, long long 
     for (auto& [k, v] : got.items())
       if (tile->contains(k)) v = (*tile)[k];
   if (got != want)
-    throw prep::format_error("dump: " + path + ": package metadata tile " + got.dump() +
-                             " is not the index's tile " + want.dump() +
-                             " (`decalprep verify` checks the whole tileset)");
+    prep::fail<prep::format_error>(prep::kDumpStage,
+                                   path + ": package metadata tile " + got.dump() +
+                                       " is not the index's tile " + want.dump() +
+                                       " (`decalprep verify` checks the whole tileset)");
 }
 
 // `tile`: the key and level of a tileset's tile, checked against the
@@ -417,11 +428,12 @@ void run_dump(const std::string& path, bool as_json, bool summary, const std::st
               const TileRequest* tile = nullptr) {
   decal::Package p;
   if (decal::Status s = decal::Package::open(path, p); !s)
-    throw prep::format_error("dump: " + s.message);
+    prep::fail<prep::format_error>(prep::kDumpStage, s.message);
   if (tile) check_tile_key(p, path, tile->x, tile->y, tile->level);
   bool found = only.empty();
   for (const auto& b : p.blobs()) found = found || b.name == only;
-  if (!found) throw prep::usage_error("dump: " + path + " has no blob named '" + only + "'");
+  if (!found)
+    prep::fail<prep::usage_error>(prep::kDumpStage, path + " has no blob named '" + only + "'");
 
   if (summary) return run_summary(p, path, only);
   if (as_json) {
@@ -430,7 +442,8 @@ void run_dump(const std::string& path, bool as_json, bool summary, const std::st
     try {
       meta = json::parse(p.metadata_json());
     } catch (const json::exception& e) {
-      throw prep::format_error("dump: " + path + ": metadata is not valid JSON: " + e.what());
+      prep::fail<prep::format_error>(prep::kDumpStage,
+                                     path + ": metadata is not valid JSON: " + e.what());
     }
     out["metadata"] = meta;
     out["quantum_m"] = decal::kQuantumMetres;
@@ -443,8 +456,8 @@ void run_dump(const std::string& path, bool as_json, bool summary, const std::st
         try {
           entries = json::parse(as_text(b));
         } catch (const json::exception& e) {
-          throw prep::format_error("dump: " + path +
-                                   ": manifest_entries is not valid JSON: " + e.what());
+          prep::fail<prep::format_error>(
+              prep::kDumpStage, path + ": manifest_entries is not valid JSON: " + e.what());
         }
         blobs.push_back({{"id", b.id},
                          {"name", b.name},
@@ -519,8 +532,10 @@ const decalprep::CommandRegistrar kDump(22, [](CLI::App& app) {
   cmd->add_option("PACKAGE", *path, "the .decals file, or a tileset directory (with --tile)")
       ->required();
   cmd->add_option("--tile", *tile,
+                  // not a stage prefix: help text
                   "tileset: the tile to dump, X,Y (its key; `decalprep info DIR` lists them)");
   cmd->add_option("--level", *level,
+                  // not a stage prefix: help text
                   "tileset: the overview level of --tile (default 0, full detail)");
   auto* json_flag = cmd->add_flag("--json", *as_json, "print the decoded elements as JSON");
   cmd->add_flag(

@@ -19,6 +19,7 @@
 #include "command.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
+#include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 
 namespace {
@@ -34,14 +35,15 @@ class MappedFile {
     int fd = -1;
     uint64_t size = 0;
     if (const decal::Status s = decal::open_regular_file(path, fd, size); !s)
-      throw prep::input_error("info: " + s.message);
+      prep::fail<prep::input_error>(prep::kInfoStage, s.message);
     size_ = static_cast<size_t>(size);
     if (size_ > 0) {
       void* m = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
       if (m == MAP_FAILED) {
         const int err = errno;
         ::close(fd);
-        throw prep::input_error("info: cannot map '" + path + "': " + std::strerror(err));
+        prep::fail<prep::input_error>(prep::kInfoStage,
+                                      "cannot map '" + path + "': " + std::strerror(err));
       }
       data_ = static_cast<const std::byte*>(m);
     }
@@ -146,7 +148,7 @@ void run_info(const std::string& path, bool as_json) {
   const std::span<const std::byte> bytes = file.bytes();
   decal::PackageLayout layout;
   if (decal::Status s = decal::read_layout(bytes, layout); !s)
-    throw prep::format_error("info: " + path + ": " + s.message);
+    prep::fail<prep::format_error>(prep::kInfoStage, path + ": " + s.message);
   const decal::FileHeader& h = layout.header;
   const std::string meta_text(reinterpret_cast<const char*>(bytes.data() + h.metadata_offset),
                               h.metadata_size);
@@ -154,7 +156,8 @@ void run_info(const std::string& path, bool as_json) {
   try {
     meta = json::parse(meta_text);
   } catch (const json::exception& e) {
-    throw prep::format_error("info: " + path + ": metadata is not valid JSON: " + e.what());
+    prep::fail<prep::format_error>(prep::kInfoStage,
+                                   path + ": metadata is not valid JSON: " + e.what());
   }
 
   if (as_json) {

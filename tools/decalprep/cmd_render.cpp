@@ -20,6 +20,7 @@
 #include "prep/project.hpp"
 #include "prep/read.hpp"
 #include "prep/render.hpp"
+#include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 
 #include "decal/reader.hpp"
@@ -54,35 +55,38 @@ constexpr uint64_t kMaxPixels = uint64_t(8192) * 8192;
 // kMaxPixels. Parsed in 64 bits with nothing left over, so a number beyond
 // 32 bits is refused rather than wrapped (4294967396 is not 100).
 std::pair<uint32_t, uint32_t> parse_size(const std::string& text) {
-  auto bad = [&](const std::string& why) {
-    return prep::usage_error("render: --size '" + text + "': " + why);
-  };
+  auto bad = [&](const std::string& why) { return "--size '" + text + "': " + why; };
   const size_t x = text.find('x');
-  if (x == std::string::npos) throw bad("expected WxH, e.g. 640x360");
+  if (x == std::string::npos)
+    prep::fail<prep::usage_error>(prep::kRenderStage, bad("expected WxH, e.g. 640x360"));
   auto side = [&](std::string_view digits, const char* which) {
     uint64_t v = 0;
     if (digits.empty() || digits.size() > 12 ||
         digits.find_first_not_of("0123456789") != std::string_view::npos)
-      throw bad(std::string(which) + " must be a whole number of pixels");
+      prep::fail<prep::usage_error>(prep::kRenderStage,
+                                    bad(std::string(which) + " must be a whole number of pixels"));
     for (char c : digits) v = v * 10 + uint64_t(c - '0');
     if (v < 1 || v > kMaxSide)
-      throw bad(std::string(which) + " " + std::string(digits) + " is not within 1.." +
-                std::to_string(kMaxSide));
+      prep::fail<prep::usage_error>(prep::kRenderStage,
+                                    bad(std::string(which) + " " + std::string(digits) +
+                                        " is not within 1.." + std::to_string(kMaxSide)));
     return v;
   };
   const std::string_view all(text);
   const uint64_t w = side(all.substr(0, x), "the width"), h = side(all.substr(x + 1), "the height");
   if (w * h > kMaxPixels)
-    throw bad(std::to_string(w * h) + " pixels exceed the maximum of " +
-              std::to_string(kMaxPixels) + " (8192x8192)");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  bad(std::to_string(w * h) + " pixels exceed the maximum of " +
+                                      std::to_string(kMaxPixels) + " (8192x8192)"));
   return {uint32_t(w), uint32_t(h)};
 }
 
 // A render warning: on stderr, or with --strict an error (exit 10).
 void warn(bool strict, const std::string& what) {
   if (strict)
-    throw prep::strict_error("render: " + what + " (--strict makes this warning an error)");
-  std::fprintf(stderr, "render: warning: %s\n", what.c_str());
+    prep::fail<prep::strict_error>(prep::kRenderStage,
+                                   what + " (--strict makes this warning an error)");
+  decalprep::print_stage(prep::kRenderStage, "warning: %s\n", what.c_str());
 }
 
 std::string box(const prep::Extent& e) {
@@ -118,13 +122,14 @@ bool meets(const prep::Extent& a, const prep::Extent& b) {
       // NaN or infinity gives no camera and no view: a blank image.
       if (!std::isfinite(v.back())) throw std::invalid_argument(item);
     } catch (const std::exception&) {
-      throw prep::usage_error(std::string("render: ") + what + " '" + s + "' is not " +
-                              std::to_string(n) + " finite numbers");
+      prep::fail<prep::usage_error>(prep::kRenderStage, std::string(what) + " '" + s + "' is not " +
+                                                            std::to_string(n) + " finite numbers");
     }
   }
   if (v.size() != n)
-    throw prep::usage_error(std::string("render: ") + what + " '" + s + "' needs " +
-                            std::to_string(n) + " comma-separated numbers");
+    prep::fail<prep::usage_error>(
+        prep::kRenderStage,
+        std::string(what) + " '" + s + "' needs " + std::to_string(n) + " comma-separated numbers");
   return v;
 }
 
@@ -154,7 +159,8 @@ bool has_lod(const std::vector<R::TileSource>& tiles) {
 }
 
 void open_package(const std::string& path, decal::Package& pkg) {
-  if (decal::Status s = decal::Package::open(path, pkg); !s) throw prep::format_error(s.message);
+  if (decal::Status s = decal::Package::open(path, pkg); !s)
+    prep::fail<prep::format_error>(prep::kNoStage, s.message);
 }
 
 Scene open_scene(const std::string& path) {
@@ -196,37 +202,39 @@ struct RampArg {
 // "LAYER=value:#rrggbb[aa],value:#rrggbb[aa],..." with values increasing.
 RampArg parse_ramp(const std::string& text) {
   auto bad = [&](const std::string& why) {
-    return prep::usage_error("render: --ramp '" + text + "': " + why +
-                             " (expected LAYER=value:#rrggbb,value:#rrggbb,...)");
+    return "--ramp '" + text + "': " + why + " (expected LAYER=value:#rrggbb,value:#rrggbb,...)";
   };
   RampArg r;
   r.text = text;
   const size_t eq = text.find('=');
-  if (eq == std::string::npos || eq == 0) throw bad("no layer name before '='");
+  if (eq == std::string::npos || eq == 0)
+    prep::fail<prep::usage_error>(prep::kRenderStage, bad("no layer name before '='"));
   r.layer = text.substr(0, eq);
   std::stringstream ss(text.substr(eq + 1));
   std::string stop;
   while (std::getline(ss, stop, ',')) {
     const size_t colon = stop.find(':');
-    if (colon == std::string::npos) throw bad("stop '" + stop + "' has no ':'");
+    if (colon == std::string::npos)
+      prep::fail<prep::usage_error>(prep::kRenderStage, bad("stop '" + stop + "' has no ':'"));
     prep::ColorStop cs{};
     try {
       size_t used = 0;
       cs.value = std::stod(stop.substr(0, colon), &used);
       if (used != colon || !std::isfinite(cs.value)) throw std::invalid_argument(stop);
     } catch (const std::exception&) {
-      throw bad("stop '" + stop + "' does not start with a finite number");
+      prep::fail<prep::usage_error>(prep::kRenderStage,
+                                    bad("stop '" + stop + "' does not start with a finite number"));
     }
     try {
       cs.rgba = prep::parse_color(stop.substr(colon + 1));
     } catch (const prep::error& e) {
-      throw bad(e.what());
+      prep::fail<prep::usage_error>(prep::kRenderStage, bad(e.what()));
     }
     if (!r.stops.empty() && !(cs.value > r.stops.back().value))
-      throw bad("stop values must increase");
+      prep::fail<prep::usage_error>(prep::kRenderStage, bad("stop values must increase"));
     r.stops.push_back(cs);
   }
-  if (r.stops.empty()) throw bad("no stops");
+  if (r.stops.empty()) prep::fail<prep::usage_error>(prep::kRenderStage, bad("no stops"));
   return r;
 }
 
@@ -245,9 +253,9 @@ uint64_t apply_ramps(const std::vector<RampArg>& ramps, std::span<const decal::P
       if (it == names.end()) {
         std::string known;
         for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
-        throw prep::usage_error("render: --ramp '" + r.text + "': the package has no layer '" +
-                                r.layer + "' (its layers: " + (known.empty() ? "none" : known) +
-                                ")");
+        prep::fail<prep::usage_error>(
+            prep::kRenderStage, "--ramp '" + r.text + "': the package has no layer '" + r.layer +
+                                    "' (its layers: " + (known.empty() ? "none" : known) + ")");
       }
       by_layer[size_t(it - names.begin())] = r.stops;
     }
@@ -275,7 +283,7 @@ void load_tiles(Scene& sc, const std::string& dir, const R::Camera& camera, uint
   select.blob_bytes = [&dir](int, const prep::TileEntry& t) {
     decal::PackageSizes sizes;
     if (decal::Status s = decal::read_package_sizes(dir + "/" + t.file, sizes); !s)
-      throw prep::format_error("render: " + s.message);
+      prep::fail<prep::format_error>(prep::kRenderStage, s.message);
     return sizes.raw_bytes;
   };
   sc.selection = R::select_tiles(sc.index, camera, w, h, zmin, zmax, select);
@@ -285,14 +293,16 @@ void load_tiles(Scene& sc, const std::string& dir, const R::Camera& camera, uint
     const prep::TileEntry& t = *hit[k].entry;
     open_package(dir + "/" + t.file, sc.packages[k]);
     if (const uint64_t got = decoded_bytes(sc.packages[k]); got != hit[k].blob_bytes)
-      throw prep::format_error("render: " + dir + "/" + t.file + ": holds " + std::to_string(got) +
-                               " bytes of decoded blobs; its blob table said " +
-                               std::to_string(hit[k].blob_bytes) +
-                               " when the tiles were chosen (the file changed?)");
+      prep::fail<prep::format_error>(prep::kRenderStage,
+                                     dir + "/" + t.file + ": holds " + std::to_string(got) +
+                                         " bytes of decoded blobs; its blob table said " +
+                                         std::to_string(hit[k].blob_bytes) +
+                                         " when the tiles were chosen (the file changed?)");
     R::DecalSource src = R::source_of(sc.packages[k]);
     if (src.frame.origin_x != t.origin_x || src.frame.origin_y != t.origin_y)
-      throw prep::format_error(dir + "/" + t.file + ": origin differs from tileset.json's tile " +
-                               prep::tile_name(t.key));
+      prep::fail<prep::format_error>(
+          prep::kNoStage, dir + "/" + t.file + ": origin differs from tileset.json's tile " +
+                              prep::tile_name(t.key));
     const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
     sc.tiles.push_back(
         {src,
@@ -301,8 +311,8 @@ void load_tiles(Scene& sc, const std::string& dir, const R::Camera& camera, uint
          t.origin_y - oy});
   }
   if (sc.index.levels.empty()) {
-    std::fprintf(stderr, "render: %zu of %zu tiles meet the view\n", hit.size(),
-                 sc.index.tiles.size());
+    decalprep::print_stage(prep::kRenderStage, "%zu of %zu tiles meet the view\n", hit.size(),
+                           sc.index.tiles.size());
     return;
   }
   std::string levels;
@@ -310,10 +320,11 @@ void load_tiles(Scene& sc, const std::string& dir, const R::Camera& camera, uint
     if (sc.selection.per_level[l])
       levels += (levels.empty() ? "" : ", ") + std::to_string(sc.selection.per_level[l]) +
                 " of level " + std::to_string(l);
-  std::fprintf(stderr, "render: %zu of %zu level-0 tiles meet the view; drawing %zu tiles (%s)%s\n",
-               sc.selection.full_detail_tiles, sc.index.tiles.size(), hit.size(),
-               levels.empty() ? "none" : levels.c_str(),
-               sc.selection.coarsened ? ", coarsened to fit --gpu-budget" : "");
+  decalprep::print_stage(prep::kRenderStage,
+                         "%zu of %zu level-0 tiles meet the view; drawing %zu tiles (%s)%s\n",
+                         sc.selection.full_detail_tiles, sc.index.tiles.size(), hit.size(),
+                         levels.empty() ? "none" : levels.c_str(),
+                         sc.selection.coarsened ? ", coarsened to fit --gpu-budget" : "");
 }
 
 // --level auto|L
@@ -325,8 +336,8 @@ std::optional<int> level_option(const std::string& s) {
     if (used == s.size() && l >= 0) return l;
   } catch (const std::exception&) {
   }
-  throw prep::usage_error("render: --level '" + s +
-                          "' must be auto or a level number (0: full detail)");
+  prep::fail<prep::usage_error>(
+      prep::kRenderStage, "--level '" + s + "' must be auto or a level number (0: full detail)");
 }
 
 void run(const RenderArgs& a) {
@@ -336,16 +347,17 @@ void run(const RenderArgs& a) {
     try {
       select.gpu_budget = prep::parse_memory_size(a.gpu_budget);
     } catch (const prep::usage_error&) {
-      throw prep::usage_error(
-          "render: --gpu-budget: expected a size such as 512M, 2G or "
-          "1073741824 (bytes), got \"" +
-          a.gpu_budget + "\"");
+      prep::fail<prep::usage_error>(prep::kRenderStage,
+                                    "--gpu-budget: expected a size such as 512M, 2G or "
+                                    "1073741824 (bytes), got \"" +
+                                        a.gpu_budget + "\"");
     }
   }
   Scene sc = open_scene(a.package);
   if (!sc.tileset && (select.level || select.gpu_budget))
-    throw prep::usage_error("render: --level and --gpu-budget choose among a tileset's tiles; '" +
-                            a.package + "' is one package");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--level and --gpu-budget choose among a tileset's tiles; '" +
+                                      a.package + "' is one package");
   // The frame and the data's box, as one package's (the tileset's scene frame).
   struct {
     prep::SceneFrame frame;
@@ -357,11 +369,13 @@ void run(const RenderArgs& a) {
   // The camera's angles: NaN or infinity, or a pitch that looks up or
   // along the ground, gives no view (a blank image).
   if (!std::isfinite(a.fov) || !(a.fov > 0 && a.fov < 180))
-    throw prep::usage_error("render: --fov " + std::to_string(a.fov) +
-                            " must be a number of degrees in (0, 180)");
+    prep::fail<prep::usage_error>(
+        prep::kRenderStage,
+        "--fov " + std::to_string(a.fov) + " must be a number of degrees in (0, 180)");
   if (!std::isfinite(a.pitch) || !(a.pitch > 0 && a.pitch <= 90))
-    throw prep::usage_error("render: --pitch " + std::to_string(a.pitch) +
-                            " must be a number of degrees in (0, 90] below the horizon");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--pitch " + std::to_string(a.pitch) +
+                                      " must be a number of degrees in (0, 90] below the horizon");
   opt.width = w;
   opt.height = h;
   opt.frames = a.frames;
@@ -372,11 +386,13 @@ void run(const RenderArgs& a) {
   else if (a.aa == "msaa4")
     opt.aa = R::AntiAliasing::msaa4;
   else
-    throw prep::usage_error("render: --aa '" + a.aa + "' must be none, coverage or msaa4");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--aa '" + a.aa + "' must be none, coverage or msaa4");
   // The CPU evaluator answers per point: it draws aliased, so comparisons
   // with the GL path use --aa none.
   if (a.cpu && opt.aa != R::AntiAliasing::none)
-    throw prep::usage_error("render: --cpu draws without anti-aliasing; use --aa none");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--cpu draws without anti-aliasing; use --aa none");
   if (a.method == "decal")
     opt.method = R::Method::decal;
   else if (a.method == "volume")
@@ -384,17 +400,21 @@ void run(const RenderArgs& a) {
   else if (a.method == "texture")
     opt.method = R::Method::texture;
   else
-    throw prep::usage_error("render: --method '" + a.method + "' must be decal, volume or texture");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--method '" + a.method + "' must be decal, volume or texture");
   if (a.cpu && opt.method != R::Method::decal)
-    throw prep::usage_error("render: --cpu is the decal evaluator; --method " + a.method +
-                            " is drawn with GL only (leave out --cpu)");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--cpu is the decal evaluator; --method " + a.method +
+                                      " is drawn with GL only (leave out --cpu)");
   if (opt.method != R::Method::decal && opt.aa != R::AntiAliasing::none)
-    throw prep::usage_error("render: --method " + a.method +
-                            " draws without anti-aliasing; use --aa none");
+    prep::fail<prep::usage_error>(
+        prep::kRenderStage, "--method " + a.method + " draws without anti-aliasing; use --aa none");
   if (a.texture_resolution != 0 && opt.method != R::Method::texture)
-    throw prep::usage_error("render: --texture-resolution needs --method texture");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--texture-resolution needs --method texture");
   if (a.texture_resolution < 0 || !std::isfinite(a.texture_resolution))
-    throw prep::usage_error("render: --texture-resolution must be a positive number of metres");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--texture-resolution must be a positive number of metres");
   opt.texture_resolution = a.texture_resolution;
   if (a.slope_widths == "auto")
     opt.slope_widths = R::SlopeWidths::package;
@@ -403,17 +423,19 @@ void run(const RenderArgs& a) {
   else if (a.slope_widths == "off")
     opt.slope_widths = R::SlopeWidths::off;
   else
-    throw prep::usage_error("render: --slope-widths '" + a.slope_widths +
-                            "' must be auto, on or off");
+    prep::fail<prep::usage_error>(
+        prep::kRenderStage, "--slope-widths '" + a.slope_widths + "' must be auto, on or off");
   if (opt.slope_widths == R::SlopeWidths::on && opt.method != R::Method::decal)
-    throw prep::usage_error("render: --slope-widths on needs --method decal (--method " + a.method +
-                            " draws the features' plan geometry)");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--slope-widths on needs --method decal (--method " + a.method +
+                                      " draws the features' plan geometry)");
   if (a.binding == "ssbo")
     opt.binding = R::Binding::ssbo;
   else if (a.binding == "texture")
     opt.binding = R::Binding::texture;
   else
-    throw prep::usage_error("render: --binding '" + a.binding + "' must be ssbo or texture");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--binding '" + a.binding + "' must be ssbo or texture");
 
   if (!a.only.empty()) {
     opt.draw_polygons = opt.draw_lines = opt.draw_dynamic = false;
@@ -427,17 +449,18 @@ void run(const RenderArgs& a) {
       else if (kind == "dynamic")
         opt.draw_dynamic = true;
       else
-        throw prep::usage_error("render: --only '" + a.only +
-                                "': kinds are polygons, lines, dynamic");
+        prep::fail<prep::usage_error>(
+            prep::kRenderStage, "--only '" + a.only + "': kinds are polygons, lines, dynamic");
     }
   }
   // --lod: dynamic lines of LOD layers from the LOD segments this view
   // selects (prep/render.hpp RenderOptions::lod); a package without LOD
   // data draws the same either way.
   if (a.lod != "on" && a.lod != "off")
-    throw prep::usage_error("render: --lod '" + a.lod + "' must be on or off");
+    prep::fail<prep::usage_error>(prep::kRenderStage, "--lod '" + a.lod + "' must be on or off");
   if (!(a.lod_tolerance > 0) || !std::isfinite(a.lod_tolerance))
-    throw prep::usage_error("render: --lod-tolerance must be a positive number of pixels");
+    prep::fail<prep::usage_error>(prep::kRenderStage,
+                                  "--lod-tolerance must be a positive number of pixels");
   opt.lod = a.lod == "on";
   opt.lod_tolerance_px = a.lod_tolerance;
   // --extent is in absolute coordinates of the package's frame CRS (or in
@@ -446,16 +469,18 @@ void run(const RenderArgs& a) {
   prep::Extent view_extent, abs_view;
   bool topdown = !a.extent.empty();
   if (!a.extent_crs.empty() && !topdown)
-    throw prep::usage_error("render: --extent-crs needs --extent");
+    prep::fail<prep::usage_error>(prep::kRenderStage, "--extent-crs needs --extent");
   if (topdown) {
     auto v = numbers(a.extent, 4, "--extent");
     prep::Extent given{v[0], v[1], v[2], v[3]};
     if (given.empty())
-      throw prep::usage_error("render: --extent '" + a.extent +
-                              "' is empty (xmin,ymin,xmax,ymax with max > min)");
+      prep::fail<prep::usage_error>(
+          prep::kRenderStage,
+          "--extent '" + a.extent + "' is empty (xmin,ymin,xmax,ymax with max > min)");
     if (!a.extent_crs.empty() && src.frame.crs_wkt.empty())
-      throw prep::usage_error(
-          "render: the package records no frame CRS, so --extent-crs cannot be used; "
+      prep::fail<prep::usage_error>(
+          prep::kRenderStage,
+          "the package records no frame CRS, so --extent-crs cannot be used; "
           "give --extent in the package's frame coordinates");
     // Degrees given as frame metres (no --extent-crs): a usage error.
     prep::check_extent_units(given, a.extent_crs, src.frame, src.extent, "render");
@@ -466,7 +491,8 @@ void run(const RenderArgs& a) {
     view_extent = {abs_view.xmin - src.frame.origin_x, abs_view.ymin - src.frame.origin_y,
                    abs_view.xmax - src.frame.origin_x, abs_view.ymax - src.frame.origin_y};
     if (view_extent.empty())
-      throw prep::usage_error("render: --extent '" + a.extent + "' is empty in the frame CRS");
+      prep::fail<prep::usage_error>(prep::kRenderStage,
+                                    "--extent '" + a.extent + "' is empty in the frame CRS");
     const bool misses = abs_view.xmax < abs_package.xmin || abs_view.xmin > abs_package.xmax ||
                         abs_view.ymax < abs_package.ymin || abs_view.ymin > abs_package.ymax;
     if (misses)
@@ -489,7 +515,7 @@ void run(const RenderArgs& a) {
   // fill, assumed CRS) apply unless given here, so the terrain is the
   // surface the dynamic lines were matched to (prep/dem.hpp).
   if (a.flat && !a.dem.empty())
-    throw prep::usage_error("render: --flat and --dem exclude each other");
+    prep::fail<prep::usage_error>(prep::kRenderStage, "--flat and --dem exclude each other");
   prep::DemSpec dem = R::recorded_dem(sc.metadata, sc.metadata_file);
   const bool dem_from_package = !a.flat && a.dem.empty() && !dem.path.empty();
   if (a.flat) {
@@ -513,12 +539,12 @@ void run(const RenderArgs& a) {
   }
   if (a.z_scale) {
     if (!(*a.z_scale > 0) || !std::isfinite(*a.z_scale))
-      throw prep::usage_error("render: --z-scale must be a positive number");
+      prep::fail<prep::usage_error>(prep::kRenderStage, "--z-scale must be a positive number");
     dem.z_scale = *a.z_scale;
   }
   if (a.nodata_fill) {
     if (!std::isfinite(*a.nodata_fill))
-      throw prep::usage_error("render: --nodata-fill must be a finite height");
+      prep::fail<prep::usage_error>(prep::kRenderStage, "--nodata-fill must be a finite height");
     dem.nodata_fill = *a.nodata_fill;
   }
   if (!a.assume_crs.empty()) dem.assume_crs = a.assume_crs;
@@ -530,9 +556,9 @@ void run(const RenderArgs& a) {
   } else {
     try {
       terrain = R::load_heightfield(dem, src.frame, terrain_extent, R::kMeshSamples);
-      std::fprintf(stderr,
-                   "render: terrain from the package's build DEM %s (--flat to ignore it)\n",
-                   dem.path.c_str());
+      decalprep::print_stage(prep::kRenderStage,
+                             "terrain from the package's build DEM %s (--flat to ignore it)\n",
+                             dem.path.c_str());
     } catch (const prep::error& e) {
       // Also a DEM the package names that is not opened (a network path, a
       // FIFO, a VRT: prep/dem.hpp package_dem_refusal).
@@ -562,7 +588,7 @@ void run(const RenderArgs& a) {
     opt.camera = R::topdown_camera(view_extent, terrain.zmin, terrain.zmax);
   } else if (!a.eye.empty() || !a.target.empty()) {
     if (a.eye.empty() || a.target.empty())
-      throw prep::usage_error("render: --eye and --target go together");
+      prep::fail<prep::usage_error>(prep::kRenderStage, "--eye and --target go together");
     auto e = numbers(a.eye, 3, "--eye"), t = numbers(a.target, 3, "--target");
     opt.camera.eye = {e[0], e[1], e[2]};
     opt.camera.target = {t[0], t[1], t[2]};
@@ -570,8 +596,9 @@ void run(const RenderArgs& a) {
     const double along = std::hypot(dx, dy, dz);
     // An eye on its target has no direction to look in.
     if (!(along > 1e-6) || !std::isfinite(along))
-      throw prep::usage_error("render: --eye " + a.eye + " and --target " + a.target +
-                              " must be apart (the camera looks from the eye to the target)");
+      prep::fail<prep::usage_error>(
+          prep::kRenderStage, "--eye " + a.eye + " and --target " + a.target +
+                                  " must be apart (the camera looks from the eye to the target)");
     // Looking straight up or down, "up" is north instead of the z axis.
     if (std::hypot(dx, dy) <= 1e-9 * along) opt.camera.up = {0, 1, 0};
     opt.camera.fov_y_deg = a.fov;
@@ -626,7 +653,8 @@ void run(const RenderArgs& a) {
       a.cpu ? R::render_cpu(sc.tiles, terrain, opt) : R::render_gl(sc.tiles, terrain, opt);
 #else
   if (!a.cpu)
-    throw prep::render_error("render: this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
+    prep::fail<prep::render_error>(prep::kRenderStage,
+                                   "this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
   R::Image img = R::render_cpu(sc.tiles, terrain, opt);
 #endif
   const double frame_ms =
@@ -641,7 +669,7 @@ void run(const RenderArgs& a) {
     std::ofstream out(a.raw, std::ios::binary);
     out.write(reinterpret_cast<const char*>(img.decals.data()),
               std::streamsize(img.decals.size() * sizeof(float)));
-    if (!out) throw prep::output_error("render: cannot write '" + a.raw + "'");
+    if (!out) prep::fail<prep::output_error>(prep::kRenderStage, "cannot write '" + a.raw + "'");
   }
   if (a.stats) {
     if (opt.method == R::Method::decal)
@@ -652,6 +680,7 @@ void run(const RenderArgs& a) {
     std::printf("%-48s %12s %12s\n", "pass", "gpu ms", "wall ms");
     for (const auto& t : img.times)
       std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
+    // "terrain:", "lod:": --stats labels, not a stage prefix.
     std::printf("terrain: %ux%u vertices, within %s of the DEM surface\n", terrain.nx, terrain.ny,
                 std::isfinite(terrain.surface_error_bound)
                     ? (std::to_string(terrain.surface_error_bound * 1e3) + " mm").c_str()
@@ -699,6 +728,7 @@ void run(const RenderArgs& a) {
           img.dyn_kept, img.dyn_segments, img.dyn_nodes, img.list_grows, img.dyn_truncated);
     if (img.lod_lines)
       std::printf(
+          // not a stage prefix: a --stats label
           "lod: on, %.3g px: %llu LOD segments drawn of %llu full-detail segments (%.2f%%) on "
           "%llu LOD lines; %llu selected, %llu outside the frustum\n",
           opt.lod_tolerance_px, static_cast<unsigned long long>(img.lod_drawn),
@@ -708,6 +738,7 @@ void run(const RenderArgs& a) {
           static_cast<unsigned long long>(img.lod_selected),
           static_cast<unsigned long long>(img.lod_selected - img.lod_drawn));
     else if (!opt.lod && has_lod(sc.tiles))
+      // not a stage prefix: a --stats label
       std::printf("lod: off (the package has LOD segments; dynamic lines drawn in full)\n");
   }
 }
@@ -806,6 +837,7 @@ const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
   cmd->add_flag("--stats", args->stats,
                 "Print per-pass times (GL timestamp queries and wall time), the frame time, "
                 "LOD segments drawn against full detail; a "
+                // not a stage prefix: help text
                 "tileset: tiles drawn per level, package bytes loaded against full detail, "
                 "decoded blob bytes, --gpu-budget; --method "
                 "volume: prism triangles and groups; --method texture: texture size and bytes");

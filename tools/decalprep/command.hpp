@@ -8,11 +8,15 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cstdarg>
+#include <cstdio>
 #include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "prep/error.hpp"
+#include "prep/stage_error.hpp"
 
 namespace decalprep {
 
@@ -44,6 +48,23 @@ inline void set_exit_code(int c) {
 inline std::vector<std::string>& command_line() {
   static std::vector<std::string> args;
   return args;
+}
+
+// Prints a line a command reports as a stage or command (a constant of
+// prep/stage_error.hpp) on stderr: "<stage>: " and the printf-formatted
+// rest, as one write, the same prefix fail<E>() gives what it throws.
+[[gnu::format(printf, 2, 3)]] inline void print_stage(std::string_view stage, const char* format,
+                                                      ...) {
+  va_list args;
+  va_start(args, format);
+  va_list again;
+  va_copy(again, args);
+  const int n = std::vsnprintf(nullptr, 0, format, args);
+  va_end(args);
+  std::string text(n > 0 ? size_t(n) : 0, '\0');
+  if (n > 0) std::vsnprintf(text.data(), text.size() + 1, format, again);
+  va_end(again);
+  std::fputs(prep::stage_message(stage, text).c_str(), stderr);
 }
 
 struct CommandRegistrar {

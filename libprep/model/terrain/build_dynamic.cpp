@@ -56,18 +56,19 @@ std::vector<SceneLine> usable_dynamic_lines(const SceneFeatures& scene, DecalMod
     if (l.points.size() < 2 || (l.closed && l.points.size() < 3)) {
       model.manifest.entries.push_back(
           {dynamic_layer_name(scene, l.layer), l.fid, l.part, ManifestAction::dropped,
-           "build: dynamic line has " + std::to_string(l.points.size()) +
-               " points, too few to draw"});
+           stage_message(kBuildStage, "dynamic line has " + std::to_string(l.points.size()) +
+                                          " points, too few to draw")});
       continue;
     }
     lines.push_back(l);
   }
   for (size_t i = 0; i < scene.layers.size(); ++i)
     if (scene.layers[i].lod && !scene.layers[i].dynamic)
-      model.manifest.notes.push_back(
-          "lod: layer '" + scene.layers[i].name +
-          "' is static; LOD segments are built for dynamic lines only, its lines keep "
-          "full detail");
+      model.manifest.notes.push_back(stage_message(
+          kLodStage,
+          "layer '" + scene.layers[i].name +
+              "' is static; LOD segments are built for dynamic lines only, its lines keep "
+              "full detail"));
   return lines;
 }
 
@@ -87,10 +88,12 @@ void prepare_terrain(const SceneFeatures& scene, const ModelOptions& options,
                                        std::to_string(options.terrain_tolerance) + ", z-scale " +
                                        std::to_string(options.z_scale) + ")");
   if (dem_path.empty()) {
-    notes.push_back("terrain: no DEM given; dynamic lines lie on flat terrain z = 0");
+    notes.push_back(
+        stage_message(kTerrainStage, "no DEM given; dynamic lines lie on flat terrain z = 0"));
     match_options.lmax = options.lmax > 0 ? options.lmax : std::numeric_limits<double>::infinity();
   } else if (lines.empty()) {
-    notes.push_back("terrain: no dynamic lines; DEM " + dem_path + " not read");
+    notes.push_back(
+        stage_message(kTerrainStage, "no dynamic lines; DEM " + dem_path + " not read"));
   } else {
     dem = std::make_unique<DemSampler>(
         DemSpec{dem_path, options.dem_assume_crs, options.z_scale, options.nodata_fill},
@@ -99,8 +102,8 @@ void prepare_terrain(const SceneFeatures& scene, const ModelOptions& options,
     for (const auto& l : lines) extend(b, l.points);
     const double cell = dem->cell_size_metres({0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax)});
     match_options.lmax = options.lmax > 0 ? options.lmax : 0.5 * cell;
-    notes.push_back("terrain: " + dem->stats().description + "; DEM cell " + fmt(cell) +
-                    " m near the data centre");
+    notes.push_back(stage_message(kTerrainStage, dem->stats().description + "; DEM cell " +
+                                                     fmt(cell) + " m near the data centre"));
   }
 }
 
@@ -116,28 +119,31 @@ void match_dynamic_lines(const std::vector<SceneLine>& lines, DemSampler* dem,
   std::string mode = match_options.tolerance > 0 && dem
                          ? "adaptive, tolerance " + fmt(match_options.tolerance) + " m"
                          : "fixed lmax";
-  notes.push_back(
-      "terrain: dynamic lines " + std::to_string(lines.size()) + ", vertices in " +
-      std::to_string(m.vertices_in) + ", after subdivision to lmax " +
-      (std::isinf(match_options.lmax) ? std::string("inf (none)") : fmt(match_options.lmax)) +
-      " m " + std::to_string(m.vertices_fixed) + ", stored " + std::to_string(m.vertices_out) +
-      " (" + mode + "); longest stored piece " + fmt(m.max_piece_length, 4) +
-      " m; max deviation from the DEM surface " + fmt(m.max_deviation, 4) + " m");
+  notes.push_back(stage_message(
+      kTerrainStage,
+      "dynamic lines " + std::to_string(lines.size()) + ", vertices in " +
+          std::to_string(m.vertices_in) + ", after subdivision to lmax " +
+          (std::isinf(match_options.lmax) ? std::string("inf (none)") : fmt(match_options.lmax)) +
+          " m " + std::to_string(m.vertices_fixed) + ", stored " + std::to_string(m.vertices_out) +
+          " (" + mode + "); longest stored piece " + fmt(m.max_piece_length, 4) +
+          " m; max deviation from the DEM surface " + fmt(m.max_deviation, 4) + " m"));
   if (m.tolerance_misses > 0)
-    notes.push_back("terrain: " + std::to_string(m.tolerance_misses) +
-                    " pieces reached 1 cm and still exceed the terrain tolerance");
+    notes.push_back(stage_message(
+        kTerrainStage, "" + std::to_string(m.tolerance_misses) +
+                           " pieces reached 1 cm and still exceed the terrain tolerance"));
   if (!dem) return;
   const TerrainStats& t = m.terrain;
   model.terrain_min = t.min;
   model.terrain_max = t.max;
   model.dyn_vertices_outside_dem = t.samples_outside;
   model.dyn_lines_outside_dem = m.lines_outside;
-  notes.push_back(
-      "terrain: DEM window " + std::to_string(t.window_cells) + " cells, " +
-      std::to_string(t.nodata_cells) + " no-data cells filled (" + t.fill_policy + "); " +
-      std::to_string(t.samples_touching_fill) + " of " + std::to_string(t.samples) +
-      " vertex heights used a filled cell, " + std::to_string(t.samples_outside) +
-      " lie outside the DEM (edge value); terrain " + fmt(t.min) + " .. " + fmt(t.max) + " m");
+  notes.push_back(stage_message(
+      kTerrainStage,
+      "DEM window " + std::to_string(t.window_cells) + " cells, " + std::to_string(t.nodata_cells) +
+          " no-data cells filled (" + t.fill_policy + "); " +
+          std::to_string(t.samples_touching_fill) + " of " + std::to_string(t.samples) +
+          " vertex heights used a filled cell, " + std::to_string(t.samples_outside) +
+          " lie outside the DEM (edge value); terrain " + fmt(t.min) + " .. " + fmt(t.max) + " m"));
 }
 
 // Line properties (dyn_line_props); drawing order (formats/SPEC.md "Drawing
@@ -199,9 +205,9 @@ std::vector<LodInputLine> lod_input_lines(const SceneFeatures& scene,
     if (in.closed && in.points.size() > 1 && in.points.front() == in.points.back())
       in.points.pop_back();
     if (in.points.size() < (in.closed ? 3u : 2u)) {
-      model.manifest.entries.push_back({dynamic_layer_name(scene, l.layer), l.fid, l.part,
-                                        ManifestAction::note,
-                                        "lod: line collapses at 1 mm; no LOD segments"});
+      model.manifest.entries.push_back(
+          {dynamic_layer_name(scene, l.layer), l.fid, l.part, ManifestAction::note,
+           stage_message(kLodStage, "line collapses at 1 mm; no LOD segments")});
       continue;
     }
     lod_lines.push_back(std::move(in));
@@ -217,14 +223,16 @@ void store_lod(const std::vector<LodInputLine>& lod_lines, DecalModel& model) {
   model.lod_segments = std::move(lod.segments);
   model.lod_line_range = std::move(lod.line_range);
   const auto& s = lod.stats;
-  model.manifest.notes.push_back(
-      "lod: " + std::to_string(s.lines) + " lines, " + std::to_string(s.original_segments) +
-      " original segments -> " + std::to_string(s.attributed_segments) + " attributed segments (x" +
-      fmt(s.original_segments ? double(s.attributed_segments) / double(s.original_segments) : 0,
-          2) +
-      "); " + std::to_string(s.dependee_edges) + " dependees, " + std::to_string(s.cycles) +
-      " cycles merged into proxies (" + std::to_string(s.points_in_cycles) + " points), " +
-      std::to_string(s.always_points) + " points always drawn");
+  model.manifest.notes.push_back(stage_message(
+      kLodStage,
+      "" + std::to_string(s.lines) + " lines, " + std::to_string(s.original_segments) +
+          " original segments -> " + std::to_string(s.attributed_segments) +
+          " attributed segments (x" +
+          fmt(s.original_segments ? double(s.attributed_segments) / double(s.original_segments) : 0,
+              2) +
+          "); " + std::to_string(s.dependee_edges) + " dependees, " + std::to_string(s.cycles) +
+          " cycles merged into proxies (" + std::to_string(s.points_in_cycles) + " points), " +
+          std::to_string(s.always_points) + " points always drawn"));
 }
 
 }  // namespace

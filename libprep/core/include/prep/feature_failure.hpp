@@ -14,7 +14,7 @@
 // stages then call the stage's own check after their loop, in input order, so
 // the failure reported without skip_failures is the first one in input order
 // at any thread count. Without skip_failures the first failure stops the
-// build: feature_failure_error() (an input_error, exit code 3) names the
+// build: fail_feature() (an input_error, exit code 3) names the
 // stage, file, layer, fid and the bad value. With skip_failures the feature
 // is dropped, its manifest entry (ManifestAction::dropped, failed_in set)
 // carries the reason, written "failed in <stage>: <what>", and the build
@@ -26,6 +26,7 @@
 
 #include "prep/error.hpp"
 #include "prep/features.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
 
@@ -34,15 +35,16 @@ inline bool is_skipped_failure(const ManifestEntry& e) {
   return e.action == ManifestAction::dropped && e.failed_in.has_value();
 }
 
-// The error that stops a build at a failing feature (skip_failures off):
+// Throws the error that stops a build at a failing feature (skip_failures
+// off), an input_error:
 //   "<stage>: <source> layer '<layer>' fid <fid>: <what> (--skip-failures drops ...)"
-inline input_error feature_failure_error(FailureStage stage, const std::string& source,
-                                         const std::string& layer, int64_t fid,
-                                         const std::string& what) {
-  return input_error(std::string(word(stage)) + ": " + source + " layer '" + layer + "' fid " +
-                     std::to_string(fid) + ": " + what +
-                     " (--skip-failures drops failing features, records them in the manifest and "
-                     "exits 4)");
+[[noreturn]] inline void fail_feature(FailureStage stage, const std::string& source,
+                                      const std::string& layer, int64_t fid,
+                                      const std::string& what) {
+  fail<input_error>(word(stage), source + " layer '" + layer + "' fid " + std::to_string(fid) +
+                                     ": " + what +
+                                     " (--skip-failures drops failing features, records them in "
+                                     "the manifest and exits 4)");
 }
 
 }  // namespace prep

@@ -12,6 +12,8 @@
 #include "prep/error.hpp"
 #include "prep/features.hpp"
 #include "prep/manifest_words.hpp"
+#include "prep/features.hpp"
+#include "prep/stage_error.hpp"
 
 namespace prep {
 
@@ -58,8 +60,8 @@ inline ManifestEntry manifest_entry_from_json(const nlohmann::json& j) {
   const std::string action = j.at("action").get<std::string>();
   const std::optional<ManifestAction> a = manifest_action_from_word(action);
   if (!a)
-    throw format_error("manifest entry of layer '" + e.layer + "' fid " + std::to_string(e.fid) +
-                       ": unknown action '" + action + "'");
+    fail<format_error>(kNoStage, "manifest entry of layer '" + e.layer + "' fid " +
+                                     std::to_string(e.fid) + ": unknown action '" + action + "'");
   e.action = *a;
   ParsedReason r = parse_reason_text(j.at("reason").get<std::string>());
   e.failed_in = r.failed_in;
