@@ -12,7 +12,6 @@
 #include "prep/error.hpp"
 #include "prep/features.hpp"
 #include "prep/manifest_words.hpp"
-#include "prep/features.hpp"
 #include "prep/stage_error.hpp"
 
 namespace prep {
