@@ -146,3 +146,26 @@ uint bvh_next(uint i) {
   while (i != 0u && (i & 1u) == 0u) i = (i - 1u) >> 1;
   return i == 0u ? 0u : i + 1u;
 }
+
+// The stack-less walk of a cell's BVH, one for both static passes: every
+// leaf whose box, grown by `margin` metres, holds p is handed in drawing
+// order to bvh_leaf(range.x + k, p) (k: the cell's k-th entry), until
+// bvh_leaf returns false. bvh = (first node, leaf slots, internal nodes, 0)
+// of the cell (poly_bvh_range / line_bvh_range), base its cell_box_base.
+// The pass defines bvh_box (its BVH's node boxes) and bvh_leaf (its test
+// and compositing of one entry).
+ivec4 bvh_box(uint node, ivec3 base);
+bool bvh_leaf(uint entry, vec2 p);
+void bvh_walk(uvec2 range, uvec4 bvh, ivec3 base, vec2 p, float margin) {
+  if (bvh.y == 0u) return;
+  uint internal = bvh.z;
+  uint i = 0u;
+  do {
+    if (box_near(bvh_box(bvh.x + i, base), p, margin)) {
+      if (i < internal) { i = 2u * i + 1u; continue; }
+      uint k = i - internal;
+      if (k < range.y && !bvh_leaf(range.x + k, p)) break;
+    }
+    i = bvh_next(i);
+  } while (i != 0u);
+}
