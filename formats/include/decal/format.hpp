@@ -280,44 +280,32 @@ struct LodSegment {
 };
 static_assert(sizeof(LodSegment) == 16);
 
-// The element C++ types of the plain element types (std430 layouts).
+// The plain element types and their C++ types (std430 layouts):
+// X(ElementType, C++ type).
+// clang-format off
+#define DECAL_ELEMENT_TYPES(X) \
+  X(u8, uint8_t) X(u32, uint32_t) X(i32, int32_t) X(f32, float) \
+  X(ivec2, std::array<int32_t, 2>) X(uvec2, std::array<uint32_t, 2>) \
+  X(ivec4, std::array<int32_t, 4>) X(uvec4, std::array<uint32_t, 4>) \
+  X(vec2, std::array<float, 2>) X(vec4, std::array<float, 4>)
+// clang-format on
+
+// element::ivec2 etc.: the C++ type of a plain element type.
 namespace element {
-using u8 = uint8_t;
-using u32 = uint32_t;
-using i32 = int32_t;
-using f32 = float;
-using ivec2 = std::array<int32_t, 2>;
-using uvec2 = std::array<uint32_t, 2>;
-using ivec4 = std::array<int32_t, 4>;
-using uvec4 = std::array<uint32_t, 4>;
-using vec2 = std::array<float, 2>;
-using vec4 = std::array<float, 4>;
+#define DECAL_ELEMENT_ALIAS(tag, ...) using tag = __VA_ARGS__;
+DECAL_ELEMENT_TYPES(DECAL_ELEMENT_ALIAS)
+#undef DECAL_ELEMENT_ALIAS
 }  // namespace element
 
-// The element type tag of a C++ element type: the plain types above, else a
+// The element type tag of a C++ element type: a plain type above, else a
 // record (an element struct).
 template <class T>
 inline constexpr ElementType element_type_of = ElementType::record;
-template <>
-inline constexpr ElementType element_type_of<element::u8> = ElementType::u8;
-template <>
-inline constexpr ElementType element_type_of<element::u32> = ElementType::u32;
-template <>
-inline constexpr ElementType element_type_of<element::i32> = ElementType::i32;
-template <>
-inline constexpr ElementType element_type_of<element::f32> = ElementType::f32;
-template <>
-inline constexpr ElementType element_type_of<element::ivec2> = ElementType::ivec2;
-template <>
-inline constexpr ElementType element_type_of<element::uvec2> = ElementType::uvec2;
-template <>
-inline constexpr ElementType element_type_of<element::ivec4> = ElementType::ivec4;
-template <>
-inline constexpr ElementType element_type_of<element::uvec4> = ElementType::uvec4;
-template <>
-inline constexpr ElementType element_type_of<element::vec2> = ElementType::vec2;
-template <>
-inline constexpr ElementType element_type_of<element::vec4> = ElementType::vec4;
+#define DECAL_ELEMENT_TAG(tag, ...) \
+  template <>                       \
+  inline constexpr ElementType element_type_of<element::tag> = ElementType::tag;
+DECAL_ELEMENT_TYPES(DECAL_ELEMENT_TAG)
+#undef DECAL_ELEMENT_TAG
 
 // The blob catalogue, the one list of the blobs this build knows, in
 // catalogue order: X(id, C++ element type). The catalogue rows (name,
