@@ -10,7 +10,7 @@
 
 const float QUANTUM = 0.001;  // decal::kQuantumMetres
 
-layout(binding = 31) uniform sampler2D u_depth;  // terrain depth (reversed Z, float)
+layout(binding = DECAL_UNIT_DEPTH) uniform sampler2D u_depth;  // terrain depth (reversed Z, float)
 uniform mat4 u_inv_view_proj;     // clip -> anchor-relative world (metres)
 uniform vec2 u_viewport;          // pixels
 uniform ivec2 u_anchor_q;         // anchor, quanta from the package origin
@@ -138,6 +138,27 @@ void composite_under(inout vec4 acc, uint rgba) {
   acc.a += w;
 }
 bool opaque(vec4 acc) { return acc.a >= 0.999; }
+
+// The pass's colour at the pixel so far (premultiplied), front to back.
+vec4 g_acc = vec4(0.0);
+// composite_under / composite_under_cov into g_acc; true once it is opaque.
+bool under_opaque(uint rgba) { composite_under(g_acc, rgba); return opaque(g_acc); }
+bool under_opaque_cov(uint rgba, float cov) { composite_under_cov(g_acc, rgba, cov); return opaque(g_acc); }
+
+float g_wpix = 0.0;  // coverage AA: pixel_metres at the pixel's point
+
+// The pixel's back-projected point and its grid cell; false where the pass
+// draws nothing (no terrain, outside the grid or the clip). Starts g_acc
+// (and g_wpix) for the pixel.
+bool pixel_cell(out vec3 p, out int cell) {
+  if (!pixel_world(p)) return false;
+  cell = cell_of(p.xy);
+  g_acc = vec4(0.0);
+#ifdef DECAL_AA_COVERAGE
+  g_wpix = pixel_metres(p);
+#endif
+  return cell >= 0;
+}
 
 // Next node of the stack-less traversal of a full binary tree stored in heap
 // order (thesis Eq. 4.5-4.7): climb while on a right child (even index), then

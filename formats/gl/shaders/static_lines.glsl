@@ -164,13 +164,10 @@ float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float 
 }
 #endif
 
-// The run's colour at this pixel so far (premultiplied), composited by
-// bvh_leaf in drawing order; the last line decided (aliased).
-vec4 g_acc = vec4(0.0);
+// The last line decided (aliased).
 uint g_last_line = 0xffffffffu;
 #ifdef DECAL_AA_COVERAGE
 // One coverage per line: the largest over its (consecutive) segments.
-float g_wpix = 0.0;  // pixel_metres at the pixel's point
 uint g_cur_line = 0xffffffffu, g_cur_rgba = 0u;
 float g_cur_cov = 0.0;
 bool g_done = false;  // composited to opaque: g_cur_cov is not added
@@ -192,8 +189,7 @@ bool bvh_leaf(uint entry, vec2 p) {
     g_cur_cov = max(g_cur_cov, cov);
   } else {
     if (g_cur_cov > 0.0) {
-      composite_under_cov(g_acc, g_cur_rgba, g_cur_cov);
-      if (opaque(g_acc)) { g_done = true; return false; }
+      if (under_opaque_cov(g_cur_rgba, g_cur_cov)) { g_done = true; return false; }
     }
     g_cur_line = line;
     g_cur_rgba = props.y;
@@ -206,26 +202,20 @@ bool bvh_leaf(uint entry, vec2 p) {
     int hit = segment_test(seg.x, seg.y, p, line, props);
     if (hit == HIT_COVERED && !dash_covers(seg.x, seg.y, p, line)) hit = HIT_NONE;
     if (hit != HIT_NONE) g_last_line = line;
-    if (hit == HIT_COVERED) {
-      composite_under(g_acc, props.y);
-      if (opaque(g_acc)) return false;
-    }
+    if (hit == HIT_COVERED && under_opaque(props.y)) return false;
   }
 #endif
   return true;
 }
 
 void main() {
-  vec3 p;
-  if (!pixel_world(p)) discard;
 #ifdef DECAL_SLOPE_WIDTHS
   slope_begin();
 #endif
-  int cell = cell_of(p.xy);
-  if (cell < 0) discard;
-  g_acc = vec4(0.0);
+  vec3 p;
+  int cell;
+  if (!pixel_cell(p, cell)) discard;
 #ifdef DECAL_AA_COVERAGE
-  g_wpix = pixel_metres(p);
   float margin = g_wpix;
 #else
   float margin = 0.0;

@@ -104,12 +104,6 @@ float polygon_coverage(uvec4 e, vec2 p, float wpix) {
 }
 #endif
 
-// The run's colour at this pixel so far (premultiplied), composited by
-// bvh_leaf in drawing order.
-vec4 g_acc = vec4(0.0);
-#ifdef DECAL_AA_COVERAGE
-float g_wpix = 0.0;  // pixel_metres at the pixel's point
-#endif
 
 ivec4 bvh_box(uint node, ivec3 base) { return poly_bvh_box(node, base); }
 
@@ -122,27 +116,18 @@ bool bvh_leaf(uint entry, vec2 p) {
   if (order < u_order_lo) return true;
 #ifdef DECAL_AA_COVERAGE
   float cov = polygon_coverage(e, p, g_wpix);
-  if (cov > 0.0) {
-    composite_under_cov(g_acc, poly_rgba(e.x), cov);
-    if (opaque(g_acc)) return false;
-  }
+  if (cov > 0.0 && under_opaque_cov(poly_rgba(e.x), cov)) return false;
 #else
-  if (polygon_covers(e, p)) {
-    composite_under(g_acc, poly_rgba(e.x));
-    if (opaque(g_acc)) return false;
-  }
+  if (polygon_covers(e, p) && under_opaque(poly_rgba(e.x))) return false;
 #endif
   return true;
 }
 
 void main() {
   vec3 p;
-  if (!pixel_world(p)) discard;
-  int cell = cell_of(p.xy);
-  if (cell < 0) discard;
-  g_acc = vec4(0.0);
+  int cell;
+  if (!pixel_cell(p, cell)) discard;
 #ifdef DECAL_AA_COVERAGE
-  g_wpix = pixel_metres(p);
   float margin = 0.5 * g_wpix;
 #else
   float margin = 0.0;
