@@ -127,34 +127,31 @@ bool plausible_zstd_raw_size(uint64_t stored, uint64_t raw) {
 
 namespace {
 
-// The checks of read_layout. With `whole`, `base` holds the whole file
-// (avail == size) and everything is checked. Without, it holds the first
-// `avail` bytes of a file of `size` bytes (read_package_sizes): the header
-// and the blob table are read and checked as with `whole`, the metadata
-// and the blobs are placed by their offsets and sizes only (their bytes,
-// the metadata's checksum and the padding between them are not read), and
-// it fails, never reading past `avail`, when the header and the table do
-// not lie within the first `avail` bytes.
-Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool whole,
-                    PackageLayout& out) {
-  out = {};
-  if (whole && avail != size) return Status::failure("check_layout: not the whole file");
-  // The header or the table past the bytes read (a guard: read_package_sizes
-  // reads as far as the header places the table's end).
-  auto beyond = [&](uint64_t end, const char* what) {
-    return Status::failure(fmt("%s ends at byte %llu, past the %llu bytes read of the file", what,
-                               ull(end), ull(avail)));
-  };
+// The header or the table past the bytes read (a guard: read_package_sizes
+// reads as far as the header places the table's end).
+Status beyond(uint64_t avail, uint64_t end, const char* what) {
+  return Status::failure(fmt("%s ends at byte %llu, past the %llu bytes read of the file", what,
+                             ull(end), ull(avail)));
+}
+
+// Reserved fields and optional flags may gain a meaning in a later minor
+// version; only a file of our minor or older must have them zero.
+bool is_newer_minor(const FileHeader& h) {
+  return h.version_minor > kVersionMinor;
+}
+
+// check_layout's header checks, in order: size, magic, version, header size
+// and checksum, file size, flags, reserved fields. Sets `h` from the file.
+Status check_header(const std::byte* base, uint64_t avail, uint64_t size, FileHeader& h) {
   if (size == 0) return Status::failure("empty file (0 bytes): not a .decals package");
   if (avail < std::min<uint64_t>(size, sizeof(FileHeader)))
-    return beyond(sizeof(FileHeader), "the header");
+    return beyond(avail, sizeof(FileHeader), "the header");
   const size_t magic_n = std::min<size_t>(size, sizeof kMagic);
   if (std::memcmp(base, kMagic, magic_n) != 0)
     return Status::failure("not a .decals package: magic bytes do not match at byte 0");
   if (size < sizeof(FileHeader))
     return Status::failure(fmt("truncated package: %llu bytes, the header alone needs %zu",
                                ull(size), sizeof(FileHeader)));
-  FileHeader h;
   std::memcpy(&h, base, sizeof h);
 
   // The version comes first: a newer major may lay out everything else
@@ -169,7 +166,7 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool w
         fmt("header_size %u at byte 16 is invalid (must be >= %zu, a multiple "
             "of 8 and within the %llu-byte file)",
             h.header_size, sizeof(FileHeader), ull(size)));
-  if (h.header_size > avail) return beyond(h.header_size, "the header");
+  if (h.header_size > avail) return beyond(avail, h.header_size, "the header");
   uint64_t stored_header_sum;
   std::memcpy(&stored_header_sum, base + h.header_size - 8, 8);
   const uint64_t header_sum = xxh64(base, h.header_size - 8);
@@ -182,14 +179,11 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool w
     return Status::failure(fmt("file size mismatch: header says %llu bytes, file has %llu%s",
                                ull(h.file_size), ull(size),
                                size < h.file_size ? " (truncated)" : " (trailing bytes)"));
-  // Reserved fields and optional flags may gain a meaning in a later minor
-  // version; only a file of our minor or older must have them zero.
-  const bool newer_minor = h.version_minor > kVersionMinor;
   const uint32_t unknown_required = h.flags & kRequiredFlagsMask & ~kKnownRequiredFlags;
   if (unknown_required)
     return Status::failure(fmt("unsupported required flag bits 0x%08x in flags 0x%08x at byte 12",
                                unknown_required, h.flags));
-  if (!newer_minor) {
+  if (!is_newer_minor(h)) {
     if (h.flags & ~kRequiredFlagsMask & ~kKnownOptionalFlags)
       return Status::failure(
           fmt("undefined optional flag bits set in flags 0x%08x at byte 12 "
@@ -206,6 +200,13 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool w
       return Status::failure(fmt("header byte %zu (past the v%u.%u fields) is not zero",
                                  v1_end + extra, h.version_major, h.version_minor));
   }
+  return Status::success();
+}
+
+// check_layout's checks of the blob table's placement and checksum and of
+// the metadata (its bytes only when `whole`), after check_header.
+Status check_table_and_metadata(const std::byte* base, uint64_t avail, uint64_t size, bool whole,
+                                const FileHeader& h) {
   if (h.blob_entry_size < sizeof(BlobTableEntry) || h.blob_entry_size % 8 != 0)
     return Status::failure(
         fmt("blob_entry_size %u at byte 20 is invalid (must be >= %zu and a "
@@ -222,7 +223,7 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool w
             "of the %llu-byte file",
             h.blob_count, h.blob_entry_size, ull(h.table_offset), ull(size)));
   if (table_bytes > avail - h.table_offset)
-    return beyond(h.table_offset + table_bytes, "the blob table");
+    return beyond(avail, h.table_offset + table_bytes, "the blob table");
   const uint64_t table_sum = xxh64(base + h.table_offset, table_bytes);
   if (table_sum != h.table_checksum)
     return Status::failure(fmt("blob table checksum mismatch: stored %016llx, computed %016llx",
@@ -260,99 +261,126 @@ Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool w
             ull(h.metadata_offset)));
   if (m && std::memchr(m, 0, h.metadata_size) != nullptr)
     return Status::failure("metadata contains a NUL byte");
+  return Status::success();
+}
 
+// check_layout's checks of table entry `i` (read into entries[i]): name,
+// reserved fields, element type and stride against the catalogue, duplicate
+// ids, sizes, codec, then its placement after `prev_end` (what ends there is
+// `prev_label`), which it advances past the blob.
+Status check_entry(const std::byte* base, uint64_t size, bool whole, const FileHeader& h,
+                   std::vector<BlobTableEntry>& entries, size_t i, uint64_t& prev_end,
+                   std::string& prev_label) {
+  BlobTableEntry& e = entries[i];
+  const uint64_t at = h.table_offset + i * uint64_t(h.blob_entry_size);
+  std::memcpy(&e, base + at, sizeof e);
+  const std::string label = entry_label(i, e);
+  std::string_view name;
+  if (!valid_name(e, name))
+    return Status::failure(
+        fmt("%s, table entry at byte %llu: name must be 1-31 characters "
+            "[a-z0-9_], NUL-padded",
+            label.c_str(), ull(at)));
+  if (!is_newer_minor(h)) {
+    if (e.reserved[0] != 0 || e.reserved[1] != 0)
+      return Status::failure(fmt("%s: reserved entry field is not zero", label.c_str()));
+    if (!all_zero(base + at + sizeof e, h.blob_entry_size - sizeof e))
+      return Status::failure(fmt("%s: entry bytes past the v1 fields are not zero", label.c_str()));
+  }
+  if (!valid_element_type(e.element_type))
+    return Status::failure(fmt("%s: unknown element type %u", label.c_str(), e.element_type));
+  const auto type = static_cast<ElementType>(e.element_type);
+  if (type == ElementType::record) {
+    if (e.stride == 0 || e.stride % 4 != 0)
+      return Status::failure(
+          fmt("%s: record stride %u is not a positive multiple of 4", label.c_str(), e.stride));
+  } else if (e.stride != std430_stride(type)) {
+    return Status::failure(fmt("%s: stride %u does not match element type %s (std430 stride %u)",
+                               label.c_str(), e.stride, element_type_name(type).data(),
+                               std430_stride(type)));
+  }
+  if (const BlobInfo* info = find_blob_info(static_cast<BlobId>(e.id))) {
+    if (name != info->name)
+      return Status::failure(
+          fmt("%s: id %u is '%s' in the catalogue", label.c_str(), e.id, info->name.data()));
+    if (type != info->type || e.stride != info->stride)
+      return Status::failure(fmt("%s: element type %s stride %u, catalogue says %s stride %u",
+                                 label.c_str(), element_type_name(type).data(), e.stride,
+                                 element_type_name(info->type).data(), info->stride));
+  }
+  for (size_t j = 0; j < i; ++j)
+    if (entries[j].id == e.id)
+      return Status::failure(fmt("%s: duplicate blob id (also entry #%zu)", label.c_str(), j));
+  uint64_t raw = 0;
+  if (__builtin_mul_overflow(e.count, uint64_t(e.stride), &raw))
+    return Status::failure(
+        fmt("%s: count %llu x stride %u overflows uint64", label.c_str(), ull(e.count), e.stride));
+  if (raw != e.raw_size)
+    return Status::failure(fmt("%s: raw_size %llu != count %llu x stride %u", label.c_str(),
+                               ull(e.raw_size), ull(e.count), e.stride));
+  if (e.codec == uint32_t(CodecId::none)) {
+    if (e.stored_size != e.raw_size)
+      return Status::failure(fmt("%s: uncompressed but stored_size %llu != raw_size %llu",
+                                 label.c_str(), ull(e.stored_size), ull(e.raw_size)));
+  } else if (e.codec == uint32_t(CodecId::zstd)) {
+    if (h.flags & kFlagAllUncompressed)
+      return Status::failure(
+          fmt("%s: zstd codec in a package flagged all-uncompressed", label.c_str()));
+    if (!plausible_zstd_raw_size(e.stored_size, e.raw_size))
+      return Status::failure(fmt("%s: raw_size %llu cannot come from %llu zstd bytes",
+                                 label.c_str(), ull(e.raw_size), ull(e.stored_size)));
+  } else {
+    return Status::failure(fmt("%s: unknown codec %u", label.c_str(), e.codec));
+  }
+  if (e.offset % kBlobAlignment != 0)
+    return Status::failure(fmt("%s: offset %llu is not a multiple of %llu", label.c_str(),
+                               ull(e.offset), ull(kBlobAlignment)));
+  if (e.offset > size || e.stored_size > size - e.offset)
+    return Status::failure(
+        fmt("%s: %llu bytes at offset %llu run past the end of the "
+            "%llu-byte file",
+            label.c_str(), ull(e.stored_size), ull(e.offset), ull(size)));
+  if (e.offset < prev_end)
+    return Status::failure(fmt("%s: offset %llu overlaps %s, which ends at byte %llu",
+                               label.c_str(), ull(e.offset), prev_label.c_str(), ull(prev_end)));
+  if (e.offset != align_up(prev_end))
+    return Status::failure(
+        fmt("%s: offset %llu leaves a gap; the next aligned offset after "
+            "byte %llu is %llu",
+            label.c_str(), ull(e.offset), ull(prev_end), ull(align_up(prev_end))));
+  // The padding lies past the table: checked when the file is at hand.
+  if (whole) {
+    const size_t pad = first_nonzero(base + prev_end, e.offset - prev_end);
+    if (pad != e.offset - prev_end)
+      return Status::failure(
+          fmt("padding byte %llu before %s is not zero", ull(prev_end + pad), label.c_str()));
+  }
+  prev_end = e.offset + e.stored_size;
+  prev_label = label;
+  return Status::success();
+}
+
+// The checks of read_layout. With `whole`, `base` holds the whole file
+// (avail == size) and everything is checked. Without, it holds the first
+// `avail` bytes of a file of `size` bytes (read_package_sizes): the header
+// and the blob table are read and checked as with `whole`, the metadata
+// and the blobs are placed by their offsets and sizes only (their bytes,
+// the metadata's checksum and the padding between them are not read), and
+// it fails, never reading past `avail`, when the header and the table do
+// not lie within the first `avail` bytes.
+Status check_layout(const std::byte* base, uint64_t avail, uint64_t size, bool whole,
+                    PackageLayout& out) {
+  out = {};
+  if (whole && avail != size) return Status::failure("check_layout: not the whole file");
+  FileHeader h{};
+  if (Status s = check_header(base, avail, size, h); !s) return s;
+  if (Status s = check_table_and_metadata(base, avail, size, whole, h); !s) return s;
   std::vector<BlobTableEntry> entries(h.blob_count);
   uint64_t prev_end = h.metadata_offset + h.metadata_size;
   std::string prev_label = "the metadata";
-  for (size_t i = 0; i < entries.size(); ++i) {
-    BlobTableEntry& e = entries[i];
-    const uint64_t at = h.table_offset + i * uint64_t(h.blob_entry_size);
-    std::memcpy(&e, base + at, sizeof e);
-    const std::string label = entry_label(i, e);
-    std::string_view name;
-    if (!valid_name(e, name))
-      return Status::failure(
-          fmt("%s, table entry at byte %llu: name must be 1-31 characters "
-              "[a-z0-9_], NUL-padded",
-              label.c_str(), ull(at)));
-    if (!newer_minor) {
-      if (e.reserved[0] != 0 || e.reserved[1] != 0)
-        return Status::failure(fmt("%s: reserved entry field is not zero", label.c_str()));
-      if (!all_zero(base + at + sizeof e, h.blob_entry_size - sizeof e))
-        return Status::failure(
-            fmt("%s: entry bytes past the v1 fields are not zero", label.c_str()));
-    }
-    if (!valid_element_type(e.element_type))
-      return Status::failure(fmt("%s: unknown element type %u", label.c_str(), e.element_type));
-    const auto type = static_cast<ElementType>(e.element_type);
-    if (type == ElementType::record) {
-      if (e.stride == 0 || e.stride % 4 != 0)
-        return Status::failure(
-            fmt("%s: record stride %u is not a positive multiple of 4", label.c_str(), e.stride));
-    } else if (e.stride != std430_stride(type)) {
-      return Status::failure(fmt("%s: stride %u does not match element type %s (std430 stride %u)",
-                                 label.c_str(), e.stride, element_type_name(type).data(),
-                                 std430_stride(type)));
-    }
-    if (const BlobInfo* info = find_blob_info(static_cast<BlobId>(e.id))) {
-      if (name != info->name)
-        return Status::failure(
-            fmt("%s: id %u is '%s' in the catalogue", label.c_str(), e.id, info->name.data()));
-      if (type != info->type || e.stride != info->stride)
-        return Status::failure(fmt("%s: element type %s stride %u, catalogue says %s stride %u",
-                                   label.c_str(), element_type_name(type).data(), e.stride,
-                                   element_type_name(info->type).data(), info->stride));
-    }
-    for (size_t j = 0; j < i; ++j)
-      if (entries[j].id == e.id)
-        return Status::failure(fmt("%s: duplicate blob id (also entry #%zu)", label.c_str(), j));
-    uint64_t raw = 0;
-    if (__builtin_mul_overflow(e.count, uint64_t(e.stride), &raw))
-      return Status::failure(fmt("%s: count %llu x stride %u overflows uint64", label.c_str(),
-                                 ull(e.count), e.stride));
-    if (raw != e.raw_size)
-      return Status::failure(fmt("%s: raw_size %llu != count %llu x stride %u", label.c_str(),
-                                 ull(e.raw_size), ull(e.count), e.stride));
-    if (e.codec == uint32_t(CodecId::none)) {
-      if (e.stored_size != e.raw_size)
-        return Status::failure(fmt("%s: uncompressed but stored_size %llu != raw_size %llu",
-                                   label.c_str(), ull(e.stored_size), ull(e.raw_size)));
-    } else if (e.codec == uint32_t(CodecId::zstd)) {
-      if (h.flags & kFlagAllUncompressed)
-        return Status::failure(
-            fmt("%s: zstd codec in a package flagged all-uncompressed", label.c_str()));
-      if (!plausible_zstd_raw_size(e.stored_size, e.raw_size))
-        return Status::failure(fmt("%s: raw_size %llu cannot come from %llu zstd bytes",
-                                   label.c_str(), ull(e.raw_size), ull(e.stored_size)));
-    } else {
-      return Status::failure(fmt("%s: unknown codec %u", label.c_str(), e.codec));
-    }
-    if (e.offset % kBlobAlignment != 0)
-      return Status::failure(fmt("%s: offset %llu is not a multiple of %llu", label.c_str(),
-                                 ull(e.offset), ull(kBlobAlignment)));
-    if (e.offset > size || e.stored_size > size - e.offset)
-      return Status::failure(
-          fmt("%s: %llu bytes at offset %llu run past the end of the "
-              "%llu-byte file",
-              label.c_str(), ull(e.stored_size), ull(e.offset), ull(size)));
-    if (e.offset < prev_end)
-      return Status::failure(fmt("%s: offset %llu overlaps %s, which ends at byte %llu",
-                                 label.c_str(), ull(e.offset), prev_label.c_str(), ull(prev_end)));
-    if (e.offset != align_up(prev_end))
-      return Status::failure(
-          fmt("%s: offset %llu leaves a gap; the next aligned offset after "
-              "byte %llu is %llu",
-              label.c_str(), ull(e.offset), ull(prev_end), ull(align_up(prev_end))));
-    // The padding lies past the table: checked when the file is at hand.
-    if (whole) {
-      const size_t pad = first_nonzero(base + prev_end, e.offset - prev_end);
-      if (pad != e.offset - prev_end)
-        return Status::failure(
-            fmt("padding byte %llu before %s is not zero", ull(prev_end + pad), label.c_str()));
-    }
-    prev_end = e.offset + e.stored_size;
-    prev_label = label;
-  }
+  for (size_t i = 0; i < entries.size(); ++i)
+    if (Status s = check_entry(base, size, whole, h, entries, i, prev_end, prev_label); !s)
+      return s;
   if (prev_end != size)
     return Status::failure(fmt("%llu unexplained bytes after %s (byte %llu to %llu)",
                                ull(size - prev_end), prev_label.c_str(), ull(prev_end), ull(size)));

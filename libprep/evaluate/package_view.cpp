@@ -52,23 +52,23 @@ StaticView view_of(const decal::Package& p) {
                          v.grid.cell_h,   v.grid.nx,       v.grid.ny};
   if (decal::Status st = decal::validate_indices(p, &grid); !st)
     fail<format_error>(kEvaluateStage, st.message);
-#define PREP_FROM_PACKAGE(T, name) v.name = p.array<T>(BlobId::name);
+#define PREP_FROM_PACKAGE(T, name) v.name = p.array<BlobId::name>();
   PREP_STATIC_VIEW_BLOBS(PREP_FROM_PACKAGE)
 #undef PREP_FROM_PACKAGE
   if (p.minor() < 2) v.polygon_rank_bias = v.line_props.size();
   // v1.2 and older: the per-cell ranges, boxes and leaf segments as stored.
-  v.cell_segment_range = p.array<uvec2>(BlobId::cell_segment_range);
-  v.cell_poly_range = p.array<uvec2>(BlobId::cell_poly_range);
-  v.cell_polys = p.array<uvec4>(BlobId::cell_polys);
-  v.line_bvh_range = p.array<uvec4>(BlobId::line_bvh_range);
-  v.poly_bvh_range = p.array<uvec4>(BlobId::poly_bvh_range);
-  v.line_bvh_box = p.array<ivec4>(BlobId::line_bvh_box);
-  v.poly_bvh_box = p.array<ivec4>(BlobId::poly_bvh_box);
-  v.qt_leaf_range = p.array<uvec2>(BlobId::qt_leaf_range);
-  v.qt_leaf_segments = p.array<uvec2>(BlobId::qt_leaf_segments);
+  v.cell_segment_range = p.array<BlobId::cell_segment_range>();
+  v.cell_poly_range = p.array<BlobId::cell_poly_range>();
+  v.cell_polys = p.array<BlobId::cell_polys>();
+  v.line_bvh_range = p.array<BlobId::line_bvh_range>();
+  v.poly_bvh_range = p.array<BlobId::poly_bvh_range>();
+  v.line_bvh_box = p.array<BlobId::line_bvh_box>();
+  v.poly_bvh_box = p.array<BlobId::poly_bvh_box>();
+  v.qt_leaf_range = p.array<BlobId::qt_leaf_range>();
+  v.qt_leaf_segments = p.array<BlobId::qt_leaf_segments>();
   // v1.3: the compact blobs, decoded into those.
   CompactBlobs c;
-#define PREP_COMPACT_FROM_PACKAGE(T, name) c.name = p.array<T>(BlobId::name);
+#define PREP_COMPACT_FROM_PACKAGE(T, name) c.name = p.array<BlobId::name>();
   PREP_COMPACT_BLOBS(PREP_COMPACT_FROM_PACKAGE)
 #undef PREP_COMPACT_FROM_PACKAGE
   decode_compact(c, v);

@@ -136,7 +136,7 @@ std::optional<HeldParts> reusable(const std::string& path, uint64_t digest) {
     const decal::BlobView* b = p.find(id);
     return b ? b->count : 0;
   };
-  const auto polys = p.array<decal::PolyProps>(decal::BlobId::poly_props);
+  const auto polys = p.array<decal::BlobId::poly_props>();
   return held_parts({polys.begin(), polys.end()}, count_of(decal::BlobId::line_props),
                     count_of(decal::BlobId::dyn_line_props));
 }

@@ -248,7 +248,7 @@ TEST(Reader, MisalignedInputBufferIsReadCorrectly) {
   std::memcpy(shifted.data() + 1, good.data(), good.size());
   decal::Package p;
   ASSERT_TRUE(decal::Package::from_memory(std::span(shifted).subspan(1), p));
-  const auto verts = p.array<std::array<int32_t, 2>>(decal::BlobId::line_vertices);
+  const auto verts = p.array<decal::BlobId::line_vertices>();
   ASSERT_EQ(verts.size(), 4u);
   EXPECT_EQ(verts[1][0], 300);
   EXPECT_EQ(verts[1][1], -400);
@@ -269,7 +269,7 @@ TEST(Reader, UnknownBlobIdsAreListedAndDoNotDisturbKnownOnes) {
   ASSERT_EQ(p.blobs().size(), 3u);
   EXPECT_FALSE(p.blobs()[1].known());
   EXPECT_EQ(p.blobs()[1].name, "blob_999");
-  EXPECT_EQ(p.array<uint32_t>(decal::BlobId::poly_root_node)[0], 9u);
+  EXPECT_EQ(p.array<decal::BlobId::poly_root_node>()[0], 9u);
   std::filesystem::remove_all(dir);
 }
 

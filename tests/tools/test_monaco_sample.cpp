@@ -42,7 +42,7 @@ TEST(MonacoSample, BuildsWithEveryCornerStyleAndOutlineModeAndVerifies) {
   decal::Package p;
   const decal::Status s = decal::Package::open(pkg.string(), p);
   ASSERT_TRUE(s) << s.message;
-  const auto props = p.array<decal::LineProps>(decal::BlobId::line_props);
+  const auto props = p.array<decal::BlobId::line_props>();
   const uint64_t nodes = p.find(decal::BlobId::qt_node) ? p.find(decal::BlobId::qt_node)->count : 0;
   // The layer table (metadata `layers`, indexed by LineProps::layer) tells
   // outlines from lines.

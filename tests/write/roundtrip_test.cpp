@@ -123,7 +123,7 @@ TEST_P(RoundTrip, EveryElementTypeAndEmptyBlobsComeBackByteForByte) {
   decal::Package p = write_and_read(blobs);
   expect_same_blobs(p, blobs);
   // Typed access agrees with the raw bytes.
-  auto verts = p.array<std::array<int32_t, 2>>(BlobId::line_vertices);
+  auto verts = p.array<BlobId::line_vertices>();
   ASSERT_EQ(verts.size(), 1000u);
   int32_t first[2];
   std::memcpy(first, blobs[0].bytes.data(), 8);
@@ -262,20 +262,20 @@ TEST(WriteModel, EveryModelArrayBecomesItsCatalogueBlobInCatalogueOrder) {
   namespace L = decal::layout;
   std::vector<L::u2> range;
   std::vector<L::u4> bvh;
-  L::decode_cells(p.array<L::u2>(BlobId::cell_line_first), range, bvh);
+  L::decode_cells(p.array<BlobId::cell_line_first>(), range, bvh);
   EXPECT_EQ(range, want.segment_range);
   EXPECT_EQ(bvh, want.line_bvh_range);
-  L::decode_cells(p.array<L::u2>(BlobId::cell_poly_first), range, bvh);
+  L::decode_cells(p.array<BlobId::cell_poly_first>(), range, bvh);
   EXPECT_EQ(range, want.poly_range);
   EXPECT_EQ(bvh, want.poly_bvh_range);
   std::vector<L::u4> cell_polys;
-  L::decode_poly_entries(p.array<L::u2>(BlobId::cell_poly_entries),
-                         p.array<uint32_t>(BlobId::cell_poly_holes), cell_polys);
+  L::decode_poly_entries(p.array<BlobId::cell_poly_entries>(), p.array<BlobId::cell_poly_holes>(),
+                         cell_polys);
   EXPECT_EQ(cell_polys, want.cell_polys);
   const L::CellGrid cg{m.grid.origin_x, m.grid.origin_y, m.grid.cell_w, m.grid.cell_h, m.grid.nx};
   ASSERT_EQ(L::box16_shift(m.grid.cell_w, m.grid.cell_h), 0u);
-  const auto first = p.array<L::u2>(BlobId::cell_line_first);
-  const auto boxes = L::decode_boxes16(first, p.array<L::u2>(BlobId::line_bvh_box16), cg);
+  const auto first = p.array<BlobId::cell_line_first>();
+  const auto boxes = L::decode_boxes16(first, p.array<BlobId::line_bvh_box16>(), cg);
   ASSERT_EQ(boxes.size(), want.line_bvh_box.size());
   for (size_t c = 0; c + 1 < first.size(); ++c)
     for (uint32_t i = first[c][1]; i < first[c + 1][1]; ++i) {

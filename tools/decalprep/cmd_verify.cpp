@@ -107,7 +107,7 @@ std::string tile_mismatch(const prep::TilesetIndex& ix, const prep::TileEntry& t
   // poly_props element too); line parts and dynamic-line parts one element
   // each.
   uint64_t exteriors = 0;
-  for (const decal::PolyProps& pp : p.array<decal::PolyProps>(decal::BlobId::poly_props))
+  for (const decal::PolyProps& pp : p.array<decal::BlobId::poly_props>())
     exteriors += pp.exterior < 0 ? 1 : 0;
   auto count_of = [&](decal::BlobId id) {
     const decal::BlobView* b = p.find(id);

@@ -1,8 +1,8 @@
 // composite.frag.glsl — dynamic lines over static decals over the terrain
 // colour (both decal layers premultiplied).
-layout(binding = 28) uniform sampler2D u_dynamic;
-layout(binding = 29) uniform sampler2D u_terrain;
-layout(binding = 30) uniform sampler2D u_decals;
+layout(binding = DECAL_UNIT_DYNAMIC_LAYER) uniform sampler2D u_dynamic;
+layout(binding = DECAL_UNIT_TERRAIN_COLOUR) uniform sampler2D u_terrain;
+layout(binding = DECAL_UNIT_DECAL_LAYER) uniform sampler2D u_decals;
 layout(location = 0) out vec4 o_color;
 void main() {
   ivec2 px = ivec2(gl_FragCoord.xy);

@@ -3,12 +3,12 @@
 // in float, over the table prep::dash_gpu_words writes: [0] = layer count N;
 // layer L: [1 + 3L] = first word of its pattern, [2 + 3L] = its length (0:
 // solid), [3 + 3L] = the period (f32 bits); the patterns as f32 bits. Bound
-// as an SSBO in both binding modes (bindings.hpp kBindingDashTable), like
+// as an SSBO in both binding modes (bindings.hpp DECAL_SSBO_DASH_TABLE), like
 // the static lines' per-vertex along-line distances.
-layout(std430, binding = 38) readonly buffer DashTable { uint d_dash[]; };
+layout(std430, binding = DECAL_SSBO_DASH_TABLE) readonly buffer DashTable { uint d_dash[]; };
 #ifdef DECAL_LINES
 // per static-line vertex: the line's length from its first vertex, metres
-layout(std430, binding = 39) readonly buffer DashVertex { float d_dash_vertex[]; };
+layout(std430, binding = DECAL_SSBO_DASH_VERTEX) readonly buffer DashVertex { float d_dash_vertex[]; };
 #endif
 
 bool dash_solid(uint layer) { return layer >= d_dash[0] || d_dash[2u + 3u * layer] == 0u; }

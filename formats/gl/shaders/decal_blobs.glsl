@@ -1,6 +1,8 @@
 // decal_blobs.glsl — declarations of the package blobs and one accessor per
 // element, for SSBO binding (std430, default) or buffer-texture binding
-// (#define DECAL_TEXTURE). Binding numbers: formats/gl/include/decal/gl/bindings.hpp.
+// (#define DECAL_TEXTURE). The declarations themselves (binding, sampler
+// and element types, blob name) are DECAL_BLOBS_<GROUP>, made by
+// build_program from the table in formats/gl/include/decal/gl/bindings.hpp.
 // Define DECAL_POLYGONS and/or DECAL_LINES to declare only what a pass reads
 // (a fragment shader may use at most 16 storage blocks).
 
@@ -18,11 +20,7 @@
 // for the rings of clipped outlines (LineProps bit 5).
 #if defined(DECAL_POLYGONS) || defined(DECAL_LINES)
 #define DECAL_QUADTREE 1
-DECAL_BLOB(1, isamplerBuffer, qt_node_box, ivec4)
-DECAL_BLOB(2, isamplerBuffer, qt_node, ivec2)
-DECAL_BLOB(3, usamplerBuffer, qt_leaf_loop_range, uvec2)
-DECAL_BLOB(4, usamplerBuffer, qt_leaf_loops, uint)
-DECAL_BLOB(5, isamplerBuffer, qt_leaf_vertices, ivec2)
+DECAL_BLOBS_QUADTREE
 DECAL_FETCH(ivec4, qt_node_box, qt_node_box, .xyzw)
 DECAL_FETCH(ivec2, qt_node, qt_node, .xy)
 DECAL_FETCH(uvec2, qt_leaf_loop_range, qt_leaf_loop_range, .xy)
@@ -45,13 +43,7 @@ ivec4 bvh_box16(uvec2 b, ivec3 base) {
 
 #ifdef DECAL_POLYGONS
 struct PolyProps { uint rgba; uint order; int exterior; float value; uint layer; uint feature; uint r0; uint r1; };
-DECAL_BLOB(0, usamplerBuffer, poly_props, PolyProps)
-DECAL_BLOB(6, usamplerBuffer, cell_poly_first, uvec2)
-DECAL_BLOB(7, usamplerBuffer, cell_poly_entries, uvec2)
-DECAL_BLOB(9, usamplerBuffer, cell_poly_holes, uint)
-DECAL_BLOB(8, usamplerBuffer, cell_holes, uvec2)
-DECAL_BLOB(10, usamplerBuffer, poly_bvh_box16, uvec2)
-DECAL_BLOB(23, usamplerBuffer, poly_root_node, uint)
+DECAL_BLOBS_POLYGONS
 DECAL_FETCH(uvec2, cell_poly_first, cell_poly_first, .xy)
 DECAL_FETCH(uvec2, cell_poly_entry, cell_poly_entries, .xy)
 DECAL_FETCH(uint, cell_poly_hole_first, cell_poly_holes, .x)
@@ -85,13 +77,7 @@ uint  poly_order(uint i)        { return d_poly_props[i].order; }
 #ifdef DECAL_LINES
 struct LineProps { float half_width; uint rgba; uint order; uint style; float value; uint layer; uint feature; uint clip_node; };
 struct LineCorner { vec2 miter; vec2 bevel_in; vec2 bevel_out; };
-DECAL_BLOB(11, isamplerBuffer, line_vertices, ivec2)
-DECAL_BLOB(12, usamplerBuffer, line_vertex_line, uint)
-DECAL_BLOB(13, usamplerBuffer, line_props, LineProps)
-DECAL_BLOB(14, samplerBuffer, line_corners, LineCorner)
-DECAL_BLOB(15, usamplerBuffer, cell_line_first, uvec2)
-DECAL_BLOB(16, usamplerBuffer, cell_segments, uvec2)
-DECAL_BLOB(18, usamplerBuffer, line_bvh_box16, uvec2)
+DECAL_BLOBS_LINES
 DECAL_FETCH(ivec2, line_vertex, line_vertices, .xy)
 DECAL_FETCH(uint, line_of_vertex, line_vertex_line, .x)
 DECAL_FETCH(uvec2, cell_line_first, cell_line_first, .xy)
@@ -123,13 +109,10 @@ vec2  corner_bevel_out(uint v)   { return d_line_corners[v].bevel_out; }
 #endif  // DECAL_LINES
 
 #ifdef DECAL_DYNAMIC
-DECAL_BLOB(19, isamplerBuffer, dyn_vertices, ivec4)
-DECAL_BLOB(20, isamplerBuffer, dyn_prev_next, ivec2)
-DECAL_BLOB(21, usamplerBuffer, dyn_line_start, uint)
 #ifndef DECAL_LINES
 struct LineProps { float half_width; uint rgba; uint order; uint style; float value; uint layer; uint feature; uint clip_node; };
 #endif
-DECAL_BLOB(22, usamplerBuffer, dyn_line_props, LineProps)
+DECAL_BLOBS_DYNAMIC
 DECAL_FETCH(ivec4, dyn_vertex, dyn_vertices, .xyzw)
 DECAL_FETCH(ivec2, dyn_prev_next, dyn_prev_next, .xy)
 DECAL_FETCH(uint, dyn_line_start, dyn_line_start, .x)

@@ -7,7 +7,7 @@
 // Nodes beyond the capacity are only counted;
 // the host grows the buffer and repeats the pass.
 flat in uvec4 g_seg;
-layout(binding = 31) uniform sampler2D u_depth;
+layout(binding = DECAL_UNIT_DEPTH) uniform sampler2D u_depth;
 uniform mat4 u_inv_view_proj;
 uniform vec4 u_clip;  // decals only in [x, z) x [y, w), anchor-relative metres (a tileset's tile)
 uniform float u_miter_limit_cos;  // cos of the package's miter limit (build_options.miter_limit_deg)

@@ -6,10 +6,10 @@
 #ifdef DECAL_SLOPE_WIDTHS
 // The terrain pass's G-buffer target: (dh/dx, dh/dy) of the terrain
 // triangle at the pixel (Heightfield::triangle_gradient, per primitive).
-layout(binding = 26) uniform sampler2D u_terrain_gradient;
+layout(binding = DECAL_UNIT_TERRAIN_GRADIENT) uniform sampler2D u_terrain_gradient;
 // Per layer-table index: nonzero when the layer's lines take slope widths;
 // an index past the end takes the last flag (prep::SurfaceSlope).
-layout(binding = 24) uniform usamplerBuffer u_slope_layers;
+layout(binding = DECAL_UNIT_SLOPE_LAYERS) uniform usamplerBuffer u_slope_layers;
 
 // Defined in static_lines.glsl.
 float cross2(vec2 a, vec2 b);

@@ -10,7 +10,7 @@
 
 const float QUANTUM = 0.001;  // decal::kQuantumMetres
 
-layout(binding = 31) uniform sampler2D u_depth;  // terrain depth (reversed Z, float)
+layout(binding = DECAL_UNIT_DEPTH) uniform sampler2D u_depth;  // terrain depth (reversed Z, float)
 uniform mat4 u_inv_view_proj;     // clip -> anchor-relative world (metres)
 uniform vec2 u_viewport;          // pixels
 uniform ivec2 u_anchor_q;         // anchor, quanta from the package origin
@@ -139,10 +139,54 @@ void composite_under(inout vec4 acc, uint rgba) {
 }
 bool opaque(vec4 acc) { return acc.a >= 0.999; }
 
+// The pass's colour at the pixel so far (premultiplied), front to back.
+vec4 g_acc = vec4(0.0);
+// composite_under / composite_under_cov into g_acc; true once it is opaque.
+bool under_opaque(uint rgba) { composite_under(g_acc, rgba); return opaque(g_acc); }
+bool under_opaque_cov(uint rgba, float cov) { composite_under_cov(g_acc, rgba, cov); return opaque(g_acc); }
+
+float g_wpix = 0.0;  // coverage AA: pixel_metres at the pixel's point
+
+// The pixel's back-projected point and its grid cell; false where the pass
+// draws nothing (no terrain, outside the grid or the clip). Starts g_acc
+// (and g_wpix) for the pixel.
+bool pixel_cell(out vec3 p, out int cell) {
+  if (!pixel_world(p)) return false;
+  cell = cell_of(p.xy);
+  g_acc = vec4(0.0);
+#ifdef DECAL_AA_COVERAGE
+  g_wpix = pixel_metres(p);
+#endif
+  return cell >= 0;
+}
+
 // Next node of the stack-less traversal of a full binary tree stored in heap
 // order (thesis Eq. 4.5-4.7): climb while on a right child (even index), then
 // step to the right sibling. Returns 0 when the traversal is complete.
 uint bvh_next(uint i) {
   while (i != 0u && (i & 1u) == 0u) i = (i - 1u) >> 1;
   return i == 0u ? 0u : i + 1u;
+}
+
+// The stack-less walk of a cell's BVH, one for both static passes: every
+// leaf whose box, grown by `margin` metres, holds p is handed in drawing
+// order to bvh_leaf(range.x + k, p) (k: the cell's k-th entry), until
+// bvh_leaf returns false. bvh = (first node, leaf slots, internal nodes, 0)
+// of the cell (poly_bvh_range / line_bvh_range), base its cell_box_base.
+// The pass defines bvh_box (its BVH's node boxes) and bvh_leaf (its test
+// and compositing of one entry).
+ivec4 bvh_box(uint node, ivec3 base);
+bool bvh_leaf(uint entry, vec2 p);
+void bvh_walk(uvec2 range, uvec4 bvh, ivec3 base, vec2 p, float margin) {
+  if (bvh.y == 0u) return;
+  uint internal = bvh.z;
+  uint i = 0u;
+  do {
+    if (box_near(bvh_box(bvh.x + i, base), p, margin)) {
+      if (i < internal) { i = 2u * i + 1u; continue; }
+      uint k = i - internal;
+      if (k < range.y && !bvh_leaf(range.x + k, p)) break;
+    }
+    i = bvh_next(i);
+  } while (i != 0u);
 }

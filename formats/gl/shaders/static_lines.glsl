@@ -164,76 +164,67 @@ float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float 
 }
 #endif
 
+// The last line decided (aliased).
+uint g_last_line = 0xffffffffu;
+#ifdef DECAL_AA_COVERAGE
+// One coverage per line: the largest over its (consecutive) segments.
+uint g_cur_line = 0xffffffffu, g_cur_rgba = 0u;
+float g_cur_cov = 0.0;
+bool g_done = false;  // composited to opaque: g_cur_cov is not added
+#endif
+
+ivec4 bvh_box(uint node, ivec3 base) { return line_bvh_box(node, base); }
+
+// Leaf of the walk (static_common.glsl bvh_walk): segment entry `entry` of
+// the cell; false ends the walk (past the run, or opaque).
+bool bvh_leaf(uint entry, vec2 p) {
+  uvec2 seg = cell_segment(entry);
+  uint line = line_of_vertex(seg.x);
+  uvec4 props = line_props(line);
+  if (props.z >= u_order_hi) return false;
+  if (props.z < u_order_lo) return true;
+#ifdef DECAL_AA_COVERAGE
+  float cov = segment_coverage(seg.x, seg.y, p, line, props, g_wpix);
+  if (line == g_cur_line) {
+    g_cur_cov = max(g_cur_cov, cov);
+  } else {
+    if (g_cur_cov > 0.0) {
+      if (under_opaque_cov(g_cur_rgba, g_cur_cov)) { g_done = true; return false; }
+    }
+    g_cur_line = line;
+    g_cur_rgba = props.y;
+    g_cur_cov = cov;
+  }
+#else
+  // Segments of one line are consecutive: a line adds its colour once
+  // (thesis Fig. 4.7); a clipped-away line is decided as well.
+  if (line != g_last_line) {
+    int hit = segment_test(seg.x, seg.y, p, line, props);
+    if (hit == HIT_COVERED && !dash_covers(seg.x, seg.y, p, line)) hit = HIT_NONE;
+    if (hit != HIT_NONE) g_last_line = line;
+    if (hit == HIT_COVERED && under_opaque(props.y)) return false;
+  }
+#endif
+  return true;
+}
+
 void main() {
-  vec3 p;
-  if (!pixel_world(p)) discard;
 #ifdef DECAL_SLOPE_WIDTHS
   slope_begin();
 #endif
-  int cell = cell_of(p.xy);
-  if (cell < 0) discard;
-  uvec2 range = cell_segment_range(uint(cell));
-  uvec4 bvh = line_bvh_range(uint(cell));
-  ivec3 box_base = cell_box_base(cell);
-  vec4 acc = vec4(0.0);
-  uint last_line = 0xffffffffu;
+  vec3 p;
+  int cell;
+  if (!pixel_cell(p, cell)) discard;
 #ifdef DECAL_AA_COVERAGE
-  // One coverage per line: the largest over its (consecutive) segments.
-  float wpix = pixel_metres(p);
-  float margin = wpix;
-  uint cur_line = 0xffffffffu, cur_rgba = 0u;
-  float cur_cov = 0.0;
-  bool done = false;
+  float margin = g_wpix;
 #else
   float margin = 0.0;
 #endif
-  if (bvh.y > 0u) {
-    uint internal = bvh.z;
-    uint i = 0u;
-    do {
-      if (box_near(line_bvh_box(bvh.x + i, box_base), p.xy, margin)) {
-        if (i < internal) { i = 2u * i + 1u; continue; }
-        uint k = i - internal;  // leaf k = the cell's k-th segment in drawing order
-        if (k < range.y) {
-          uvec2 seg = cell_segment(range.x + k);
-          uint line = line_of_vertex(seg.x);
-          uvec4 props = line_props(line);
-          if (props.z >= u_order_hi) break;
-          if (props.z < u_order_lo) { i = bvh_next(i); continue; }
+  bvh_walk(cell_segment_range(uint(cell)), line_bvh_range(uint(cell)), cell_box_base(cell), p.xy,
+           margin);
 #ifdef DECAL_AA_COVERAGE
-          float cov = segment_coverage(seg.x, seg.y, p.xy, line, props, wpix);
-          if (line == cur_line) {
-            cur_cov = max(cur_cov, cov);
-          } else {
-            if (cur_cov > 0.0) {
-              composite_under_cov(acc, cur_rgba, cur_cov);
-              if (opaque(acc)) { done = true; break; }
-            }
-            cur_line = line;
-            cur_rgba = props.y;
-            cur_cov = cov;
-          }
-#else
-          // Segments of one line are consecutive: a line adds its colour once
-          // (thesis Fig. 4.7); a clipped-away line is decided as well.
-          if (line != last_line) {
-            int hit = segment_test(seg.x, seg.y, p.xy, line, props);
-            if (hit == HIT_COVERED && !dash_covers(seg.x, seg.y, p.xy, line)) hit = HIT_NONE;
-            if (hit != HIT_NONE) last_line = line;
-            if (hit == HIT_COVERED) {
-              composite_under(acc, props.y);
-              if (opaque(acc)) break;
-            }
-          }
+  if (!g_done && g_cur_cov > 0.0) composite_under_cov(g_acc, g_cur_rgba, g_cur_cov);
 #endif
-        }
-      }
-      i = bvh_next(i);
-    } while (i != 0u);
-  }
-#ifdef DECAL_AA_COVERAGE
-  if (!done && cur_cov > 0.0) composite_under_cov(acc, cur_rgba, cur_cov);
-#endif
-  if (acc.a <= 0.0) discard;
-  o_color = acc;
+  if (g_acc.a <= 0.0) discard;
+  o_color = g_acc;
 }

@@ -104,50 +104,36 @@ float polygon_coverage(uvec4 e, vec2 p, float wpix) {
 }
 #endif
 
+
+ivec4 bvh_box(uint node, ivec3 base) { return poly_bvh_box(node, base); }
+
+// Leaf of the walk (static_common.glsl bvh_walk): exterior polygon entry
+// `entry` of the cell; false ends the walk (past the run, or opaque).
+bool bvh_leaf(uint entry, vec2 p) {
+  uvec4 e = cell_poly(entry);
+  uint order = poly_order(e.x);
+  if (order >= u_order_hi) return false;
+  if (order < u_order_lo) return true;
+#ifdef DECAL_AA_COVERAGE
+  float cov = polygon_coverage(e, p, g_wpix);
+  if (cov > 0.0 && under_opaque_cov(poly_rgba(e.x), cov)) return false;
+#else
+  if (polygon_covers(e, p) && under_opaque(poly_rgba(e.x))) return false;
+#endif
+  return true;
+}
+
 void main() {
   vec3 p;
-  if (!pixel_world(p)) discard;
-  int cell = cell_of(p.xy);
-  if (cell < 0) discard;
-  uvec2 range = cell_poly_range(uint(cell));
-  uvec4 bvh = poly_bvh_range(uint(cell));
-  ivec3 box_base = cell_box_base(cell);
-  vec4 acc = vec4(0.0);
+  int cell;
+  if (!pixel_cell(p, cell)) discard;
 #ifdef DECAL_AA_COVERAGE
-  float wpix = pixel_metres(p);
-  float margin = 0.5 * wpix;
+  float margin = 0.5 * g_wpix;
 #else
   float margin = 0.0;
 #endif
-  if (bvh.y > 0u) {
-    uint internal = bvh.z;
-    uint i = 0u;
-    do {
-      if (box_near(poly_bvh_box(bvh.x + i, box_base), p.xy, margin)) {
-        if (i < internal) { i = 2u * i + 1u; continue; }
-        uint k = i - internal;  // leaf k = the cell's k-th polygon in drawing order
-        if (k < range.y) {
-          uvec4 e = cell_poly(range.x + k);
-          uint order = poly_order(e.x);
-          if (order >= u_order_hi) break;
-          if (order < u_order_lo) { i = bvh_next(i); continue; }
-#ifdef DECAL_AA_COVERAGE
-          float cov = polygon_coverage(e, p.xy, wpix);
-          if (cov > 0.0) {
-            composite_under_cov(acc, poly_rgba(e.x), cov);
-            if (opaque(acc)) break;
-          }
-#else
-          if (polygon_covers(e, p.xy)) {
-            composite_under(acc, poly_rgba(e.x));
-            if (opaque(acc)) break;
-          }
-#endif
-        }
-      }
-      i = bvh_next(i);
-    } while (i != 0u);
-  }
-  if (acc.a <= 0.0) discard;
-  o_color = acc;
+  bvh_walk(cell_poly_range(uint(cell)), poly_bvh_range(uint(cell)), cell_box_base(cell), p.xy,
+           margin);
+  if (g_acc.a <= 0.0) discard;
+  o_color = g_acc;
 }

@@ -12,7 +12,7 @@ layout(location = 0) out vec4 o_color;
 // The texture method (Taibo et al. §4): the decal layer sampled from the
 // mipmapped texture of the rasterised features (trilinear), premultiplied.
 in vec2 v_ground;
-layout(binding = 27) uniform sampler2D u_decal_texture;
+layout(binding = DECAL_UNIT_DECAL_TEXTURE) uniform sampler2D u_decal_texture;
 uniform vec4 u_texture_box;  // anchor-relative xmin, ymin and 1 / width, 1 / height (metres)
 uniform vec4 u_clip;         // anchor-relative xmin, ymin, xmax, ymax: decals only inside
 layout(location = 1) out vec4 o_decal;
@@ -25,7 +25,7 @@ layout(location = 1) out vec4 o_decal;
 #ifdef DECAL_TEXTURE_METHOD
 #error "slope widths are drawn by the decal method only"
 #endif
-layout(std430, binding = 24) readonly buffer B_terrain_gradient { vec2 d_terrain_gradient[]; };
+layout(std430, binding = DECAL_SSBO_TERRAIN_GRADIENT) readonly buffer B_terrain_gradient { vec2 d_terrain_gradient[]; };
 layout(location = 1) out vec2 o_gradient;
 #endif
 void main() {

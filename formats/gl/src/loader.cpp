@@ -13,7 +13,7 @@ namespace decal::gl {
 
 namespace {
 
-constexpr uint32_t kSlots = static_cast<uint32_t>(Binding::poly_root_node) + 1;
+constexpr uint32_t kSlots = kBlobBindingSlots;
 
 // Buffer-texture format of a blob: the element type's texel format; records
 // are read as several texels (bindings.hpp).

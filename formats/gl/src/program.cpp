@@ -20,6 +20,26 @@ std::string_view shader_source(std::string_view name) {
   return {};
 }
 
+std::string glsl_bindings() {
+  static constexpr std::pair<BlobGroup, const char*> kGroups[] = {{BlobGroup::quadtree, "QUADTREE"},
+                                                                  {BlobGroup::polygons, "POLYGONS"},
+                                                                  {BlobGroup::lines, "LINES"},
+                                                                  {BlobGroup::dynamic, "DYNAMIC"}};
+  std::string out;
+  for (const auto& [group, macro] : kGroups) {
+    out += "#define DECAL_BLOBS_" + std::string(macro);
+    for (const BlobBinding& b : kBlobBindings) {
+      if (b.group != group) continue;
+      out += " DECAL_BLOB(" + std::to_string(b.index) + ", " + std::string(b.sampler) + ", " +
+             std::string(find_blob_info(b.blob)->name) + ", " + std::string(b.element) + ")";
+    }
+    out += "\n";
+  }
+  for (const FrameBinding& f : kFrameBindings)
+    out += "#define " + std::string(f.macro) + " " + std::to_string(f.index) + "\n";
+  return out;
+}
+
 namespace {
 
 // The info log of a shader or program (glGetShaderiv/glGetShaderInfoLog or
@@ -35,7 +55,7 @@ std::string info_log(GLuint object, GetIv get_iv, GetLog get_log) {
 
 Status compile(GLenum stage, const std::vector<std::string>& files, const std::string& defines,
                GLuint& out) {
-  std::string src = "#version 450 core\n" + defines + "\n";
+  std::string src = "#version 450 core\n" + defines + "\n" + glsl_bindings();
   for (const auto& f : files) {
     std::string_view text = shader_source(f);
     if (text.empty()) return Status::failure("gl loader: no embedded shader named '" + f + "'");

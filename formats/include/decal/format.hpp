@@ -7,6 +7,7 @@
 // Depends on the C++ standard library only.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string_view>
@@ -279,44 +280,101 @@ struct LodSegment {
 };
 static_assert(sizeof(LodSegment) == 16);
 
+// The plain element types and their C++ types (std430 layouts):
+// X(ElementType, C++ type).
+// clang-format off
+#define DECAL_ELEMENT_TYPES(X) \
+  X(u8, uint8_t) X(u32, uint32_t) X(i32, int32_t) X(f32, float) \
+  X(ivec2, std::array<int32_t, 2>) X(uvec2, std::array<uint32_t, 2>) \
+  X(ivec4, std::array<int32_t, 4>) X(uvec4, std::array<uint32_t, 4>) \
+  X(vec2, std::array<float, 2>) X(vec4, std::array<float, 4>)
+// clang-format on
+
+// element::ivec2 etc.: the C++ type of a plain element type.
+namespace element {
+#define DECAL_ELEMENT_ALIAS(tag, ...) using tag = __VA_ARGS__;
+DECAL_ELEMENT_TYPES(DECAL_ELEMENT_ALIAS)
+#undef DECAL_ELEMENT_ALIAS
+}  // namespace element
+
+// The element type tag of a C++ element type: a plain type above, else a
+// record (an element struct).
+template <class T>
+inline constexpr ElementType element_type_of = ElementType::record;
+#define DECAL_ELEMENT_TAG(tag, ...) \
+  template <>                       \
+  inline constexpr ElementType element_type_of<element::tag> = ElementType::tag;
+DECAL_ELEMENT_TYPES(DECAL_ELEMENT_TAG)
+#undef DECAL_ELEMENT_TAG
+
+// The blob catalogue, the one list of the blobs this build knows, in
+// catalogue order: X(id, C++ element type). The catalogue rows (name,
+// element type tag, stride) and BlobTraits below are made from it.
+// clang-format off
+#define DECAL_BLOB_CATALOGUE(X) \
+  X(line_vertices, element::ivec2)      \
+  X(line_vertex_line, element::u32)     \
+  X(line_props, LineProps)              \
+  X(line_corners, LineCorner)           \
+  X(cell_segment_range, element::uvec2) \
+  X(cell_segments, element::uvec2)      \
+  X(cell_line_first, element::uvec2)    \
+  X(poly_props, PolyProps)              \
+  X(poly_root_node, element::u32)       \
+  X(qt_node_box, element::ivec4)        \
+  X(qt_node, element::ivec2)            \
+  X(qt_leaf_range, element::uvec2)      \
+  X(qt_leaf_segments, element::uvec2)   \
+  X(qt_leaf_vertices, element::ivec2)   \
+  X(cell_poly_range, element::uvec2)    \
+  X(cell_polys, element::uvec4)         \
+  X(cell_holes, element::uvec2)         \
+  X(line_bvh_range, element::uvec4)     \
+  X(line_bvh_box, element::ivec4)       \
+  X(poly_bvh_range, element::uvec4)     \
+  X(poly_bvh_box, element::ivec4)       \
+  X(qt_leaf_loop_range, element::uvec2) \
+  X(qt_leaf_loops, element::u32)        \
+  X(cell_poly_first, element::uvec2)    \
+  X(line_bvh_box16, element::uvec2)     \
+  X(poly_bvh_box16, element::uvec2)     \
+  X(cell_poly_entries, element::uvec2)  \
+  X(cell_poly_holes, element::u32)      \
+  X(dyn_vertices, element::ivec4)       \
+  X(dyn_prev_next, element::ivec2)      \
+  X(dyn_line_start, element::u32)       \
+  X(dyn_line_props, LineProps)          \
+  X(lod_points, LodPoint)               \
+  X(lod_segments, LodSegment)           \
+  X(lod_line_range, element::uvec2)     \
+  X(manifest_entries, element::u8)
+// clang-format on
+
 inline constexpr BlobInfo kBlobCatalogue[] = {
-    {BlobId::line_vertices, "line_vertices", ElementType::ivec2, 8},
-    {BlobId::line_vertex_line, "line_vertex_line", ElementType::u32, 4},
-    {BlobId::line_props, "line_props", ElementType::record, sizeof(LineProps)},
-    {BlobId::line_corners, "line_corners", ElementType::record, sizeof(LineCorner)},
-    {BlobId::cell_segment_range, "cell_segment_range", ElementType::uvec2, 8},
-    {BlobId::cell_segments, "cell_segments", ElementType::uvec2, 8},
-    {BlobId::cell_line_first, "cell_line_first", ElementType::uvec2, 8},
-    {BlobId::poly_props, "poly_props", ElementType::record, sizeof(PolyProps)},
-    {BlobId::poly_root_node, "poly_root_node", ElementType::u32, 4},
-    {BlobId::qt_node_box, "qt_node_box", ElementType::ivec4, 16},
-    {BlobId::qt_node, "qt_node", ElementType::ivec2, 8},
-    {BlobId::qt_leaf_range, "qt_leaf_range", ElementType::uvec2, 8},
-    {BlobId::qt_leaf_segments, "qt_leaf_segments", ElementType::uvec2, 8},
-    {BlobId::qt_leaf_vertices, "qt_leaf_vertices", ElementType::ivec2, 8},
-    {BlobId::cell_poly_range, "cell_poly_range", ElementType::uvec2, 8},
-    {BlobId::cell_polys, "cell_polys", ElementType::uvec4, 16},
-    {BlobId::cell_holes, "cell_holes", ElementType::uvec2, 8},
-    {BlobId::line_bvh_range, "line_bvh_range", ElementType::uvec4, 16},
-    {BlobId::line_bvh_box, "line_bvh_box", ElementType::ivec4, 16},
-    {BlobId::poly_bvh_range, "poly_bvh_range", ElementType::uvec4, 16},
-    {BlobId::poly_bvh_box, "poly_bvh_box", ElementType::ivec4, 16},
-    {BlobId::qt_leaf_loop_range, "qt_leaf_loop_range", ElementType::uvec2, 8},
-    {BlobId::qt_leaf_loops, "qt_leaf_loops", ElementType::u32, 4},
-    {BlobId::cell_poly_first, "cell_poly_first", ElementType::uvec2, 8},
-    {BlobId::line_bvh_box16, "line_bvh_box16", ElementType::uvec2, 8},
-    {BlobId::poly_bvh_box16, "poly_bvh_box16", ElementType::uvec2, 8},
-    {BlobId::cell_poly_entries, "cell_poly_entries", ElementType::uvec2, 8},
-    {BlobId::cell_poly_holes, "cell_poly_holes", ElementType::u32, 4},
-    {BlobId::dyn_vertices, "dyn_vertices", ElementType::ivec4, 16},
-    {BlobId::dyn_prev_next, "dyn_prev_next", ElementType::ivec2, 8},
-    {BlobId::dyn_line_start, "dyn_line_start", ElementType::u32, 4},
-    {BlobId::dyn_line_props, "dyn_line_props", ElementType::record, sizeof(LineProps)},
-    {BlobId::lod_points, "lod_points", ElementType::record, sizeof(LodPoint)},
-    {BlobId::lod_segments, "lod_segments", ElementType::record, sizeof(LodSegment)},
-    {BlobId::lod_line_range, "lod_line_range", ElementType::uvec2, 8},
-    {BlobId::manifest_entries, "manifest_entries", ElementType::u8, 1},
+#define DECAL_BLOB_INFO(id, T) {BlobId::id, #id, element_type_of<T>, uint32_t(sizeof(T))},
+    DECAL_BLOB_CATALOGUE(DECAL_BLOB_INFO)
+#undef DECAL_BLOB_INFO
 };
+
+// BlobTraits<id>::type: the element type of blob `id` (undefined for an id
+// not in the catalogue), e.g. decal::Package::array<id>() returns a span of it.
+template <BlobId id>
+struct BlobTraits;
+#define DECAL_BLOB_TRAITS(id, T)  \
+  template <>                     \
+  struct BlobTraits<BlobId::id> { \
+    using type = T;               \
+  };
+DECAL_BLOB_CATALOGUE(DECAL_BLOB_TRAITS)
+#undef DECAL_BLOB_TRAITS
+
+// A plain element type's C++ type has its std430 stride.
+constexpr bool catalogue_strides_match() {
+  for (const auto& b : kBlobCatalogue)
+    if (b.type != ElementType::record && b.stride != std430_stride(b.type)) return false;
+  return true;
+}
+static_assert(catalogue_strides_match());
 
 // Blobs of the v1.0–1.2 layout that v1.3 replaced (SPEC.md "Compact layout
 // (v1.3)"): readers still read them in older files; writers of v1.3 do not

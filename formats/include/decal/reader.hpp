@@ -72,10 +72,12 @@ class Package {
   // The blob with this id, or nullptr when absent.
   const BlobView* find(BlobId id) const;
 
-  // Typed view of a known blob; empty span when absent. The stride was
-  // checked against the catalogue at open(), so sizeof(T) must equal it.
-  template <class T>
-  std::span<const T> array(BlobId id) const {
+  // Typed view of blob `id`, elements of its catalogue type
+  // (BlobTraits<id>::type, decal/format.hpp); empty span when absent. open()
+  // checked the stride against the catalogue, so it is sizeof that type.
+  template <BlobId id>
+  std::span<const typename BlobTraits<id>::type> array() const {
+    using T = typename BlobTraits<id>::type;
     const BlobView* b = find(id);
     if (!b || b->stride != sizeof(T)) return {};
     return {reinterpret_cast<const T*>(b->bytes.data()), static_cast<size_t>(b->count)};

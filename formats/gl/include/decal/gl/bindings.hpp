@@ -3,9 +3,13 @@
 // Every blob the renderer reads has one fixed binding index. With SSBO
 // binding (the default) it is the shader-storage binding point of a std430
 // `readonly buffer`; with buffer-texture binding it is the texture unit of a
-// `*samplerBuffer` over the same GL buffer. The GLSL declarations in
-// formats/gl/shaders/decal_blobs.glsl use exactly these numbers (a test
-// compiles them against this table).
+// `*samplerBuffer` over the same GL buffer. This file is the one list of the
+// binding points and texture units the shaders use: build_program puts the
+// GLSL declarations of the blobs (DECAL_BLOBS_QUADTREE, _POLYGONS, _LINES,
+// _DYNAMIC, expanded by formats/gl/shaders/decal_blobs.glsl) and a #define
+// per renderer-owned binding and unit (DECAL_SSBO_*, DECAL_UNIT_*) before
+// every shader (glsl_bindings()), and a test compiles them against this
+// table (tests/formats/gl_bindings_test.cpp).
 //
 // The static pass reads the polygon blobs in one draw and the line blobs in
 // another (thesis §4.4.1 renders polygons first, then lines over them); the
@@ -23,83 +27,133 @@
 #pragma once
 
 #include <cstdint>
+#include <string_view>
 
 #include "decal/format.hpp"
 
 namespace decal::gl {
 
-enum class Binding : uint32_t {
-  // static polygons (polygon draw; qt_* also in the line draw)
-  poly_props = 0,
-  qt_node_box = 1,
-  qt_node = 2,
-  qt_leaf_loop_range = 3,
-  qt_leaf_loops = 4,
-  qt_leaf_vertices = 5,
-  cell_poly_first = 6,
-  cell_poly_entries = 7,
-  cell_holes = 8,
-  cell_poly_holes = 9,  // v1.3 (poly_bvh_range before: now derived from cell_poly_first)
-  poly_bvh_box16 = 10,
-  // static lines (line draw)
-  line_vertices = 11,
-  line_vertex_line = 12,
-  line_props = 13,
-  line_corners = 14,
-  cell_line_first = 15,
-  cell_segments = 16,
-  unused_17 = 17,  // line_bvh_range before v1.3 (now derived from cell_line_first)
-  line_bvh_box16 = 18,
-  // dynamic lines
-  dyn_vertices = 19,
-  dyn_prev_next = 20,
-  dyn_line_start = 21,
-  dyn_line_props = 22,
-  // polygon roots (their boxes are the polygon bounding boxes; coverage AA)
-  poly_root_node = 23,
-  none = 0xffffffffu,
+// Which passes declare a blob: decal_blobs.glsl expands DECAL_BLOBS_<GROUP>
+// where the pass defines DECAL_POLYGONS and/or DECAL_LINES (quadtree: either),
+// or DECAL_DYNAMIC.
+enum class BlobGroup : uint8_t { quadtree, polygons, lines, dynamic };
+
+// A blob the renderer reads: its binding index and how GLSL declares it
+// (`sampler` t_<name> with buffer textures, else a std430 block B_<name> of
+// `element`s d_<name>[]; <name> is the catalogue name).
+struct BlobBinding {
+  BlobId blob;
+  uint32_t index;
+  BlobGroup group;
+  std::string_view sampler;
+  std::string_view element;
 };
 
-// Binding of a blob id; Binding::none for blobs the renderer does not read
-// (LOD blobs, unknown ids).
+// clang-format off
+inline constexpr BlobBinding kBlobBindings[] = {
+  // static polygons (polygon draw; qt_* also in the line draw)
+  {BlobId::poly_props,         0,  BlobGroup::polygons, "usamplerBuffer", "PolyProps"},
+  {BlobId::qt_node_box,        1,  BlobGroup::quadtree, "isamplerBuffer", "ivec4"},
+  {BlobId::qt_node,            2,  BlobGroup::quadtree, "isamplerBuffer", "ivec2"},
+  {BlobId::qt_leaf_loop_range, 3,  BlobGroup::quadtree, "usamplerBuffer", "uvec2"},
+  {BlobId::qt_leaf_loops,      4,  BlobGroup::quadtree, "usamplerBuffer", "uint"},
+  {BlobId::qt_leaf_vertices,   5,  BlobGroup::quadtree, "isamplerBuffer", "ivec2"},
+  {BlobId::cell_poly_first,    6,  BlobGroup::polygons, "usamplerBuffer", "uvec2"},
+  {BlobId::cell_poly_entries,  7,  BlobGroup::polygons, "usamplerBuffer", "uvec2"},
+  {BlobId::cell_holes,         8,  BlobGroup::polygons, "usamplerBuffer", "uvec2"},
+  {BlobId::cell_poly_holes,    9,  BlobGroup::polygons, "usamplerBuffer", "uint"},
+  {BlobId::poly_bvh_box16,     10, BlobGroup::polygons, "usamplerBuffer", "uvec2"},
+  // static lines (line draw); 17 unused (line_bvh_range before v1.3)
+  {BlobId::line_vertices,      11, BlobGroup::lines,    "isamplerBuffer", "ivec2"},
+  {BlobId::line_vertex_line,   12, BlobGroup::lines,    "usamplerBuffer", "uint"},
+  {BlobId::line_props,         13, BlobGroup::lines,    "usamplerBuffer", "LineProps"},
+  {BlobId::line_corners,       14, BlobGroup::lines,    "samplerBuffer",  "LineCorner"},
+  {BlobId::cell_line_first,    15, BlobGroup::lines,    "usamplerBuffer", "uvec2"},
+  {BlobId::cell_segments,      16, BlobGroup::lines,    "usamplerBuffer", "uvec2"},
+  {BlobId::line_bvh_box16,     18, BlobGroup::lines,    "usamplerBuffer", "uvec2"},
+  // dynamic lines
+  {BlobId::dyn_vertices,       19, BlobGroup::dynamic,  "isamplerBuffer", "ivec4"},
+  {BlobId::dyn_prev_next,      20, BlobGroup::dynamic,  "isamplerBuffer", "ivec2"},
+  {BlobId::dyn_line_start,     21, BlobGroup::dynamic,  "usamplerBuffer", "uint"},
+  {BlobId::dyn_line_props,     22, BlobGroup::dynamic,  "usamplerBuffer", "LineProps"},
+  // polygon roots (their boxes are the polygon bounding boxes; coverage AA)
+  {BlobId::poly_root_node,     23, BlobGroup::polygons, "usamplerBuffer", "uint"},
+};
+// clang-format on
+
+// A blob's binding index; Binding::none for blobs the renderer does not read
+// (LOD blobs, superseded blobs, unknown ids).
+enum class Binding : uint32_t { none = 0xffffffffu };
 constexpr Binding binding_of(BlobId id) {
-  switch (id) {
-    case BlobId::poly_props: return Binding::poly_props;
-    case BlobId::qt_node_box: return Binding::qt_node_box;
-    case BlobId::qt_node: return Binding::qt_node;
-    case BlobId::qt_leaf_loop_range: return Binding::qt_leaf_loop_range;
-    case BlobId::qt_leaf_loops: return Binding::qt_leaf_loops;
-    case BlobId::qt_leaf_vertices: return Binding::qt_leaf_vertices;
-    case BlobId::cell_poly_first: return Binding::cell_poly_first;
-    case BlobId::cell_poly_entries: return Binding::cell_poly_entries;
-    case BlobId::cell_poly_holes: return Binding::cell_poly_holes;
-    case BlobId::cell_holes: return Binding::cell_holes;
-    case BlobId::poly_bvh_box16: return Binding::poly_bvh_box16;
-    case BlobId::line_vertices: return Binding::line_vertices;
-    case BlobId::line_vertex_line: return Binding::line_vertex_line;
-    case BlobId::line_props: return Binding::line_props;
-    case BlobId::line_corners: return Binding::line_corners;
-    case BlobId::cell_line_first: return Binding::cell_line_first;
-    case BlobId::cell_segments: return Binding::cell_segments;
-    case BlobId::line_bvh_box16: return Binding::line_bvh_box16;
-    case BlobId::dyn_vertices: return Binding::dyn_vertices;
-    case BlobId::dyn_prev_next: return Binding::dyn_prev_next;
-    case BlobId::dyn_line_start: return Binding::dyn_line_start;
-    case BlobId::dyn_line_props: return Binding::dyn_line_props;
-    case BlobId::poly_root_node: return Binding::poly_root_node;
-    default: return Binding::none;
-  }
+  for (const BlobBinding& b : kBlobBindings)
+    if (b.blob == id) return Binding{b.index};
+  return Binding::none;
 }
 
-// Renderer-owned bindings (per-frame buffers), above the blob bindings.
+// The blob bindings occupy [0, kBlobBindingSlots).
+constexpr uint32_t blob_binding_slots() {
+  uint32_t n = 0;
+  for (const BlobBinding& b : kBlobBindings) n = b.index + 1 > n ? b.index + 1 : n;
+  return n;
+}
+inline constexpr uint32_t kBlobBindingSlots = blob_binding_slots();
+
+// Renderer-owned bindings (per-frame buffers, G-buffer targets), from 24 up,
+// above the blob bindings: X(kind, C++ constant, GLSL macro, index, GLSL
+// resource). kind ssbo: a std430 block named `resource` at that binding
+// point; unit: a sampler uniform named `resource` on that texture unit. The
+// two are separate GL name spaces, and passes that are never one program
+// may share an index (SSBO 24: the dynamic pass's flags, the terrain pass's
+// gradients; unit 24: the line pass's slope layers).
+// clang-format off
+#define DECAL_GL_FRAME_BINDINGS(X)                                                              \
+  X(ssbo, kSsboDynFlags,        "DECAL_SSBO_DYN_FLAGS",        24, "DynFlags")                   \
+  X(ssbo, kSsboDynScan,         "DECAL_SSBO_DYN_SCAN",         25, "DynScan")                    \
+  X(ssbo, kSsboDynBlocks,       "DECAL_SSBO_DYN_BLOCKS",       26, "DynBlocks")                  \
+  X(ssbo, kSsboDynCompact,      "DECAL_SSBO_DYN_COMPACT",      27, "DynCompact")                 \
+  X(ssbo, kSsboDynSegments,     "DECAL_SSBO_DYN_SEGMENTS",     28, "DynSegments")                \
+  X(ssbo, kSsboDynCounters,     "DECAL_SSBO_DYN_COUNTERS",     29, "DynCounters")                \
+  X(ssbo, kSsboLodSelection,    "DECAL_SSBO_LOD_SELECTION",    30, "LodSelection")               \
+  X(ssbo, kSsboDynHeads,        "DECAL_SSBO_DYN_HEADS",        31, "DynHeads")                   \
+  X(ssbo, kSsboDynNodes,        "DECAL_SSBO_DYN_NODES",        32, "DynNodes")                   \
+  X(ssbo, kSsboLodPoints,       "DECAL_SSBO_LOD_POINTS",       33, "LodPoints")                  \
+  X(ssbo, kSsboLodSegments,     "DECAL_SSBO_LOD_SEGMENTS",     34, "LodSegments")                \
+  X(ssbo, kSsboLodMap,          "DECAL_SSBO_LOD_MAP",          35, "LodMap")                     \
+  X(ssbo, kSsboLodLinks,        "DECAL_SSBO_LOD_LINKS",        36, "LodLinks")                   \
+  X(ssbo, kSsboLodLineDrawn,    "DECAL_SSBO_LOD_LINE_DRAWN",   37, "LodLineDrawn")               \
+  X(ssbo, kBindingDashTable,    "DECAL_SSBO_DASH_TABLE",       38, "DashTable")                  \
+  X(ssbo, kBindingDashVertex,   "DECAL_SSBO_DASH_VERTEX",      39, "DashVertex")                 \
+  X(ssbo, kSsboDynDash,         "DECAL_SSBO_DYN_DASH",         40, "DynDash")                    \
+  X(ssbo, kSsboTerrainGradient, "DECAL_SSBO_TERRAIN_GRADIENT", 24, "B_terrain_gradient")         \
+  X(unit, kUnitSlopeLayers,     "DECAL_UNIT_SLOPE_LAYERS",     24, "u_slope_layers")             \
+  X(unit, kUnitTerrainGradient, "DECAL_UNIT_TERRAIN_GRADIENT", 26, "u_terrain_gradient")         \
+  X(unit, kUnitDecalTexture,    "DECAL_UNIT_DECAL_TEXTURE",    27, "u_decal_texture")            \
+  X(unit, kUnitDynamicLayer,    "DECAL_UNIT_DYNAMIC_LAYER",    28, "u_dynamic")                  \
+  X(unit, kUnitTerrainColour,   "DECAL_UNIT_TERRAIN_COLOUR",   29, "u_terrain")                  \
+  X(unit, kUnitDecalLayer,      "DECAL_UNIT_DECAL_LAYER",      30, "u_decals")                   \
+  X(unit, kUnitDepth,           "DECAL_UNIT_DEPTH",            31, "u_depth")
+// clang-format on
+
+#define DECAL_GL_FRAME_CONSTANT(kind, name, macro, index, resource) \
+  inline constexpr uint32_t name = index;
+DECAL_GL_FRAME_BINDINGS(DECAL_GL_FRAME_CONSTANT)
+#undef DECAL_GL_FRAME_CONSTANT
+
 inline constexpr uint32_t kBindingFrameFirst = 24;
 
-// Dashed lines (formats/SPEC.md "Dashed lines"): the renderer's dash table
-// and the static-line vertices' along-line distances, computed at load, not
-// blobs; SSBOs in both binding modes (formats/gl/shaders/dash.glsl). The
-// dynamic pass's per-frame dash buffer is binding 40 (dyn_common.glsl).
-inline constexpr uint32_t kBindingDashTable = 38;
-inline constexpr uint32_t kBindingDashVertex = 39;
+enum class FrameKind : uint8_t { ssbo, unit };
+struct FrameBinding {
+  FrameKind kind;
+  std::string_view macro;  // the GLSL #define of the index
+  uint32_t index;
+  std::string_view resource;  // the block or sampler uniform
+};
+inline constexpr FrameBinding kFrameBindings[] = {
+#define DECAL_GL_FRAME_ROW(kind, name, macro, index, resource) \
+  {FrameKind::kind, macro, name, resource},
+    DECAL_GL_FRAME_BINDINGS(DECAL_GL_FRAME_ROW)
+#undef DECAL_GL_FRAME_ROW
+};
 
 // How blobs are exposed to shaders.
 enum class BindingMode { ssbo, texture };

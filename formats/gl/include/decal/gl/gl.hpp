@@ -63,8 +63,14 @@ class Context {
 // an empty view when there is none.
 std::string_view shader_source(std::string_view name);
 
+// The GLSL lines of bindings.hpp's table: DECAL_BLOBS_QUADTREE, _POLYGONS,
+// _LINES and _DYNAMIC (the blobs' DECAL_BLOB(index, sampler, name, element)
+// declarations, expanded by decal_blobs.glsl) and one "#define MACRO index"
+// per kFrameBindings row.
+std::string glsl_bindings();
+
 // Builds a program. Each stage's source is "#version 450 core", then
-// `defines` (one "#define X" per line), then the named shader files in order
+// `defines` (one "#define X" per line), then glsl_bindings(), then the named shader files in order
 // (later files may use what earlier ones declare). Empty name lists skip the
 // stage. `out` holds the GL program name on success.
 struct ProgramSources {
