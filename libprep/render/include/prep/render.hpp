@@ -239,6 +239,13 @@ struct RenderOptions {
   SlopeWidths slope_widths = SlopeWidths::package;
 };
 
+// Throws usage_error ("render: ...", in the words of `decalprep render`'s
+// options) when `options` cannot be drawn: a side outside 1..16384 pixels,
+// anti-aliasing or slope widths on with the volume or texture method, a
+// negative or non-finite texture resolution. render_gl checks them, and
+// check_render_request (prep/render_request.hpp) before a file is opened.
+void check_render_options(const RenderOptions& options);
+
 // The layers whose static lines `mode` measures along the terrain, as
 // prep::SurfaceSlope::layers takes them (on: {1}); empty when none is.
 std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode);
