@@ -651,6 +651,26 @@ MemoryEstimate before_read(const BuildSpec& scene, const BuildRequest& request) 
   return e;
 }
 
+// --threads caps every stage's oneTBB work (the output does not depend on it).
+std::unique_ptr<tbb::global_control> cap_threads(const BuildSpec& scene) {
+  if (scene.model.threads <= 0) return nullptr;
+  return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                               scene.model.threads);
+}
+
+// A tileset's part of the report.
+nlohmann::json tileset_report(const BuildSpec& scene, const pipeline_internal::TilesetOutcome& t) {
+  nlohmann::json j = {{"tile_size_m", scene.tile_size},
+                      {"margin_m", t.margin},
+                      {"tiles", t.tiles},
+                      {"built", t.built},
+                      {"reused", t.reused},
+                      {"empty", t.empty},
+                      {"bytes", t.bytes}};
+  if (t.levels > 0) j["levels"] = levels_report(t);
+  return j;
+}
+
 // One step of a tileset build (BuildRequest::step), in a process of its own.
 // The report says which step ran and what it did; the state for the next
 // step is in the work folder only (pipeline_internal.hpp).
@@ -666,11 +686,7 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
     fail<usage_error>(kBuildStage, "--step tiles K/N needs 0 <= K < N, not " +
                                        std::to_string(request.step_part) + "/" +
                                        std::to_string(request.step_parts));
-  std::unique_ptr<tbb::global_control> threads;
-  if (scene.model.threads > 0) {
-    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                    scene.model.threads);
-  }
+  const std::unique_ptr<tbb::global_control> threads = cap_threads(scene);
   const auto t0 = Clock::now();
   BuildResult result;
   nlohmann::json report = {{"report_version", 1}, {"output", request.output}};
@@ -758,14 +774,7 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
       }
       const pipeline_internal::TilesetOutcome t =
           pipeline_internal::finalize_tileset(scene, request);
-      report["tileset"] = {{"tile_size_m", scene.tile_size},
-                           {"margin_m", t.margin},
-                           {"tiles", t.tiles},
-                           {"built", t.built},
-                           {"reused", t.reused},
-                           {"empty", t.empty},
-                           {"bytes", t.bytes}};
-      if (t.levels > 0) report["tileset"]["levels"] = levels_report(t);
+      report["tileset"] = tileset_report(scene, t);
       result.package_written = true;
       say("step finalize: " + std::to_string(t.tiles) + " tiles, " + std::to_string(t.bytes) +
           " bytes in " + request.output);
@@ -782,198 +791,214 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
   return result;
 }
 
-BuildResult run_stages(const BuildSpec& scene, const BuildRequest& request, MemoryTrail& trail) {
-  if (request.step != BuildRequest::Step::all) return run_tileset_step(scene, request, trail);
-  std::vector<std::pair<std::string, double>> timings;
-  const auto t_all = Clock::now();
-  if (!request.dry_run && request.output.empty())
-    fail<usage_error>(kBuildStage, "no output path (-o)");
+// ------------------------------------------------ a build, stage by stage --
+
+// The bookkeeping beside a build's stages: each stage's time and the peak
+// RSS after it, and the memory estimates, each checked against --max-memory
+// as soon as it is known. Peaks and estimates live in the trail, which a
+// failed build reports too.
+class StageLog {
+ public:
+  StageLog(const BuildRequest& request, MemoryTrail& trail)
+      : limit_{request.max_memory}, trail_(trail) {}
+  const MemoryLimit& limit() const { return limit_; }
+  const std::vector<std::pair<std::string, double>>& timings() const { return timings_; }
+  // A stage starts now (the clock of done()).
+  void start() { t0_ = Clock::now(); }
+  // A stage's time as measured elsewhere; since start(); the peak RSS now.
+  void time(const std::string& stage, double seconds) { timings_.emplace_back(stage, seconds); }
+  void time(const std::string& stage) { time(stage, seconds_since(t0_)); }
+  void peak(const std::string& stage) { trail_.peaks.emplace_back(stage, peak_rss_mib()); }
+  // Both, for a stage that ends now.
+  void done(const std::string& stage) {
+    time(stage);
+    peak(stage);
+  }
+  void estimate(const MemoryEstimate& e) {
+    trail_.estimates.push_back(e);
+    if (limit_) check_memory(limit_, e);
+  }
+
+ private:
+  const MemoryLimit limit_;
+  MemoryTrail& trail_;
+  std::vector<std::pair<std::string, double>> timings_;
+  Clock::time_point t0_ = Clock::now();
+};
+
+// The sources' hashes (provenance), computed once, beside the read: hashing
+// a large source costs as much as a stage.
+class SourceProvenance {
+ public:
+  explicit SourceProvenance(const BuildSpec& scene)
+      : future_(std::async(std::launch::async, [&scene] { return provenance_json(scene); })) {}
+  const nlohmann::json& get() {
+    if (!value_) value_ = future_.get();
+    return *value_;
+  }
+
+ private:
+  std::future<nlohmann::json> future_;
+  std::optional<nlohmann::json> value_;
+};
+
+// A tileset's read, project and clean, out of core (pipeline_internal.hpp):
+// they stream through the work folder chunk by chunk, and each tile later
+// reads its window of the intermediate; nothing holds the whole scene. A
+// failure removes the work folder (and the tileset folder if `made_dir`).
+pipeline_internal::PreparedScene prepare_streamed(const BuildSpec& scene,
+                                                  const BuildRequest& request, bool made_dir,
+                                                  SourceProvenance& provenance, StageLog& log,
+                                                  MemoryTrail& trail, BuildResult& result) {
+  pipeline_internal::PreparedScene p;
+  try {
+    const RssWatch watch(log.limit(), [&](double rss) {
+      pipeline_internal::remove_after_interrupt(request.output, made_dir);
+      stop_reading(rss, request, trail);
+    });
+    p = pipeline_internal::prepare_tileset_streaming(
+        scene, request, [&]() -> const nlohmann::json& { return provenance.get(); });
+  } catch (...) {
+    pipeline_internal::discard_work(request.output, made_dir);
+    throw;
+  }
+  log.time("read", p.read_s);
+  log.time("project", p.project_s);
+  log.time("clean", p.clean_s);
+  log.peak("clean");
+  result.scene.frame = p.frame;
+  result.scene.extent = p.extent;
+  result.scene.layers = p.layers;
+  result.scene.manifest = p.manifest;
+  try {
+    check_cleaned(scene, request, result.scene.manifest, p.polygons + p.lines + p.dynamic_lines,
+                  true, trail);
+  } catch (...) {
+    pipeline_internal::discard_work(request.output, made_dir);
+    throw;
+  }
+  return p;
+}
+
+// Read, project and clean in memory (a single package, or a tileset's dry
+// run) into result.scene; the projected features are freed before the
+// build stage.
+void read_project_clean(const BuildSpec& scene, const BuildRequest& request, StageLog& log,
+                        MemoryTrail& trail, BuildResult& result) {
   const bool tiled = scene.tile_size > 0;
-  // --threads caps every stage's oneTBB work (the output does not depend on it).
-  std::unique_ptr<tbb::global_control> threads;
-  if (scene.model.threads > 0) {
-    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                    scene.model.threads);
+  ReadOptions ro;
+  ro.progress = request.progress;
+  std::optional<FeatureSet> read;
+  {
+    const RssWatch watch(log.limit(), [&](double rss) { stop_reading(rss, request, trail); });
+    read = read_scene(scene, ro);
   }
+  FeatureSet features = std::move(*read);
+  read.reset();
+  log.done("read");
+  give_warnings(empty_layer_warnings(scene, features.manifest), request, trail);
+  log.estimate(estimate_after_read(scene, features, request.dry_run));
 
-  // The sources' hashes (provenance) are computed once, beside the read:
-  // hashing a large source costs as much as a stage.
-  std::future<nlohmann::json> provenance =
-      std::async(std::launch::async, [&scene] { return provenance_json(scene); });
-  std::optional<nlohmann::json> provenance_value;
-  auto provenance_of = [&]() -> const nlohmann::json& {
-    if (!provenance_value) provenance_value = provenance.get();
-    return *provenance_value;
+  log.start();
+  SceneFrame frame = choose_frame(features, scene.crs);
+  ProjectedFeatures projected = project(std::move(features), frame, scene, request.progress);
+  log.done("project");
+  if (!tiled && !scene.skip_failures) check_range_early(projected);
+
+  log.start();
+  CleanOptions co;
+  co.threads = scene.model.threads;
+  co.progress = request.progress;
+  result.scene = clean(std::move(projected), scene, co);
+  if (!tiled) check_build_range(result.scene, scene.skip_failures);
+  log.time("clean");
+  check_cleaned(
+      scene, request, result.scene.manifest,
+      result.scene.polygons.size() + result.scene.lines.size() + result.scene.dynamic_lines.size(),
+      false, trail);
+  log.peak("clean");
+}
+
+// A tileset's tiles, each checked against --max-memory as it is cut, then
+// tileset.json; the progress line says which tiles this run built (a
+// resumed build says how many it kept).
+pipeline_internal::TilesetOutcome build_tileset(const BuildSpec& scene, const BuildRequest& request,
+                                                bool made_dir, StageLog& log, MemoryTrail& trail) {
+  log.start();
+  pipeline_internal::TilesetOutcome tileset;
+  try {
+    const pipeline_internal::TileStepOutcome t =
+        pipeline_internal::build_tiles(scene, request, 0, 1, &trail.estimates);
+    give_warnings(terrain_warnings(scene, t), request, trail);
+    tileset = pipeline_internal::finalize_tileset(scene, request);
+  } catch (...) {
+    pipeline_internal::discard_work(request.output, made_dir);
+    throw;
+  }
+  log.done("tiles");
+  if (request.progress && request.progress->mode() != ProgressMode::none) {
+    const nlohmann::json j = {{"event", "tileset"},     {"tiles", tileset.tiles},
+                              {"built", tileset.built}, {"reused", tileset.reused},
+                              {"bytes", tileset.bytes}, {"output", request.output}};
+    request.progress->message(
+        request.progress->mode() == ProgressMode::json
+            ? j.dump()
+            : stage_message(kTilesetStage,
+                            std::to_string(tileset.tiles) + " tiles (" +
+                                std::to_string(tileset.built) + " built, " +
+                                std::to_string(tileset.reused) + " kept from an earlier run), " +
+                                std::to_string(tileset.bytes) + " bytes in " + request.output));
+  }
+  return tileset;
+}
+
+// The build stage (the model, checked against --max-memory once its grid
+// is chosen) and the write stage of a single package.
+void build_and_write(const BuildSpec& scene, const BuildRequest& request,
+                     SourceProvenance& provenance, StageLog& log, MemoryTrail& trail,
+                     BuildResult& result) {
+  log.start();
+  ModelOptions model_options = scene.model;
+  model_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
+  model_options.progress = request.progress;
+  model_options.on_grid = [&](const GridFootprint& grid) {
+    log.estimate(estimate_after_grid(grid, result.scene));
   };
+  DecalModel model = build_model(result.scene, model_options, scene.dem);
+  give_warnings(terrain_warnings(scene, model), request, trail);
+  log.done("build");
 
-  std::vector<std::pair<std::string, double>>& peaks = trail.peaks;
-  std::vector<MemoryEstimate>& estimates = trail.estimates;
-  const MemoryLimit limit{request.max_memory};
-  auto estimate = [&](MemoryEstimate e) {
-    estimates.push_back(e);
-    if (limit) check_memory(limit, e);
-  };
-  estimate(before_read(scene, request));
+  log.start();
+  // build_model carries the manifest; make sure the package has it.
+  if (model.manifest.layers.empty()) model.manifest = result.scene.manifest;
+  // The report carries what the build stage added too (quad-tree depth
+  // cap / leaf overflow notes, dynamic-line notes), not only clean's part.
+  result.scene.manifest = model.manifest;
+  record_manifest_paths(scene, model.manifest);  // the report keeps them as given
+  const nlohmann::json extra =
+      package_metadata(scene, model.manifest, provenance.get(), request.output);
+  WriteOptions wo;
+  wo.codec = request.compress ? Codec::zstd : Codec::none;
+  wo.zstd_level = request.zstd_level;
+  wo.progress = request.progress;
+  write_model(request.output, std::move(model), extra.dump(), wo);  // frees as it goes
+  log.done("write");
+  result.package_written = true;
+}
 
-  auto t0 = Clock::now();
-  BuildResult result;
-  // A tileset is built out of core (pipeline_internal.hpp): read, project
-  // and clean stream through the work folder chunk by chunk, and each tile
-  // reads its window of the intermediate; nothing holds the whole scene.
-  std::optional<pipeline_internal::PreparedScene> streamed;
-  // The tileset folder, held for the whole build; a build that fails
-  // before its first tile removes only what it made, and SIGINT or SIGTERM
-  // removes the work folder and the tileset folder if the build made it.
-  std::optional<pipeline_internal::TilesetDir> tileset_dir;
-  std::optional<OnInterrupt> undo;
-  if (tiled && !request.dry_run) {
-    tileset_dir.emplace(request.output, pipeline_internal::TilesetDir::Access::exclusive, true);
-    undo.emplace("the tileset build was stopped",
-                 [dir = request.output, made = tileset_dir->made()] {
-                   std::fprintf(stderr, "decalprep: %s\n",
-                                pipeline_internal::remove_after_interrupt(dir, made).c_str());
-                 });
-  }
-  const bool made_dir = tileset_dir && tileset_dir->made();
-  if (tiled && !request.dry_run) {
-    try {
-      const RssWatch watch(limit, [&](double rss) {
-        pipeline_internal::remove_after_interrupt(request.output, made_dir);
-        stop_reading(rss, request, trail);
-      });
-      streamed = pipeline_internal::prepare_tileset_streaming(scene, request, provenance_of);
-    } catch (...) {
-      pipeline_internal::discard_work(request.output, made_dir);
-      throw;
-    }
-    timings.emplace_back("read", streamed->read_s);
-    timings.emplace_back("project", streamed->project_s);
-    timings.emplace_back("clean", streamed->clean_s);
-    peaks.emplace_back("clean", peak_rss_mib());
-    result.scene.frame = streamed->frame;
-    result.scene.extent = streamed->extent;
-    result.scene.layers = streamed->layers;
-    result.scene.manifest = streamed->manifest;
-    try {
-      check_cleaned(scene, request, result.scene.manifest,
-                    streamed->polygons + streamed->lines + streamed->dynamic_lines, true, trail);
-    } catch (...) {
-      pipeline_internal::discard_work(request.output, made_dir);
-      throw;
-    }
-  } else {
-    // Scoped: the projected features are freed before the build stage.
-    ReadOptions ro;
-    ro.progress = request.progress;
-    std::optional<FeatureSet> read;
-    {
-      const RssWatch watch(limit, [&](double rss) { stop_reading(rss, request, trail); });
-      read = read_scene(scene, ro);
-    }
-    FeatureSet features = std::move(*read);
-    read.reset();
-    timings.emplace_back("read", seconds_since(t0));
-    peaks.emplace_back("read", peak_rss_mib());
-    give_warnings(empty_layer_warnings(scene, features.manifest), request, trail);
-    estimate(estimate_after_read(scene, features, request.dry_run));
-
-    t0 = Clock::now();
-    SceneFrame frame = choose_frame(features, scene.crs);
-    ProjectedFeatures projected = project(std::move(features), frame, scene, request.progress);
-    timings.emplace_back("project", seconds_since(t0));
-    peaks.emplace_back("project", peak_rss_mib());
-    if (!tiled && !scene.skip_failures) check_range_early(projected);
-
-    t0 = Clock::now();
-    CleanOptions co;
-    co.threads = scene.model.threads;
-    co.progress = request.progress;
-    result.scene = clean(std::move(projected), scene, co);
-    if (!tiled) check_build_range(result.scene, scene.skip_failures);
-    timings.emplace_back("clean", seconds_since(t0));
-    check_cleaned(scene, request, result.scene.manifest,
-                  result.scene.polygons.size() + result.scene.lines.size() +
-                      result.scene.dynamic_lines.size(),
-                  false, trail);
-  }
-  if (!streamed) peaks.emplace_back("clean", peak_rss_mib());
-  // A tileset's tiles are checked one by one as they are cut (build_tiles).
-  if (!request.dry_run && !tiled) estimate(estimate_after_clean(scene, result.scene));
-
-  std::optional<pipeline_internal::TilesetOutcome> tileset;
-  if (!request.dry_run && tiled) {
-    t0 = Clock::now();
-    try {
-      const pipeline_internal::TileStepOutcome t =
-          pipeline_internal::build_tiles(scene, request, 0, 1, &estimates);
-      give_warnings(terrain_warnings(scene, t), request, trail);
-      tileset = pipeline_internal::finalize_tileset(scene, request);
-    } catch (...) {
-      pipeline_internal::discard_work(request.output, made_dir);
-      throw;
-    }
-    timings.emplace_back("tiles", seconds_since(t0));
-    peaks.emplace_back("tiles", peak_rss_mib());
-    result.package_written = true;
-    if (request.progress && request.progress->mode() != ProgressMode::none) {
-      // Which tiles this run built: a resumed build says how many it kept.
-      const nlohmann::json j = {{"event", "tileset"},      {"tiles", tileset->tiles},
-                                {"built", tileset->built}, {"reused", tileset->reused},
-                                {"bytes", tileset->bytes}, {"output", request.output}};
-      request.progress->message(
-          request.progress->mode() == ProgressMode::json
-              ? j.dump()
-              : stage_message(kTilesetStage,
-                              std::to_string(tileset->tiles) + " tiles (" +
-                                  std::to_string(tileset->built) + " built, " +
-                                  std::to_string(tileset->reused) + " kept from an earlier run), " +
-                                  std::to_string(tileset->bytes) + " bytes in " + request.output));
-    }
-  } else if (!request.dry_run) {
-    t0 = Clock::now();
-    ModelOptions model_options = scene.model;
-    model_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
-    model_options.progress = request.progress;
-    model_options.on_grid = [&](const GridFootprint& grid) {
-      estimate(estimate_after_grid(grid, result.scene));
-    };
-    DecalModel model = build_model(result.scene, model_options, scene.dem);
-    give_warnings(terrain_warnings(scene, model), request, trail);
-    timings.emplace_back("build", seconds_since(t0));
-    peaks.emplace_back("build", peak_rss_mib());
-
-    t0 = Clock::now();
-    // build_model carries the manifest; make sure the package has it.
-    if (model.manifest.layers.empty()) model.manifest = result.scene.manifest;
-    // The report carries what the build stage added too (quad-tree depth
-    // cap / leaf overflow notes, dynamic-line notes), not only clean's part.
-    result.scene.manifest = model.manifest;
-    record_manifest_paths(scene, model.manifest);  // the report keeps them as given
-    const nlohmann::json extra =
-        package_metadata(scene, model.manifest, provenance_of(), request.output);
-    WriteOptions wo;
-    wo.codec = request.compress ? Codec::zstd : Codec::none;
-    wo.zstd_level = request.zstd_level;
-    wo.progress = request.progress;
-    write_model(request.output, std::move(model), extra.dump(), wo);  // frees as it goes
-    timings.emplace_back("write", seconds_since(t0));
-    peaks.emplace_back("write", peak_rss_mib());
-    result.package_written = true;
-  }
-  timings.emplace_back("total", seconds_since(t_all));
+// The report of a whole build, into result.report_json (and --report).
+void finish_report(const BuildSpec& scene, const BuildRequest& request,
+                   const std::optional<pipeline_internal::PreparedScene>& streamed,
+                   const std::optional<pipeline_internal::TilesetOutcome>& tileset,
+                   SourceProvenance& provenance, const StageLog& log, const MemoryTrail& trail,
+                   BuildResult& result) {
   nlohmann::json report = report_object(result.scene, request.dry_run ? "" : request.output,
-                                        timings, result.package_written);
-  report["provenance"] = provenance_of();
-  if (tileset) {
-    report["tileset"] = {{"tile_size_m", scene.tile_size}, {"margin_m", tileset->margin},
-                         {"tiles", tileset->tiles},        {"built", tileset->built},
-                         {"reused", tileset->reused},      {"empty", tileset->empty},
-                         {"bytes", tileset->bytes}};
-    if (tileset->levels > 0) report["tileset"]["levels"] = levels_report(*tileset);
-  }
+                                        log.timings(), result.package_written);
+  report["provenance"] = provenance.get();
+  if (tileset) report["tileset"] = tileset_report(scene, *tileset);
   report["dry_run"] = request.dry_run;
   report["warnings"] = trail.warnings;
-  add_memory_report(report, peaks, estimates, limit);
+  add_memory_report(report, trail.peaks, trail.estimates, log.limit());
   if (streamed) {
     // The entries are in manifest.json, not in memory.
     report["manifest"].erase("entries");
@@ -988,6 +1013,53 @@ BuildResult run_stages(const BuildSpec& scene, const BuildRequest& request, Memo
   report["skipped_failures"] = result.skipped_failures;
   result.report_json = report.dump(2) + "\n";
   if (!request.report.empty()) write_text_file(request.report, result.report_json);
+}
+
+// A whole build: read, project, clean, then build and write one package, or
+// cut and write a tileset's tiles; a dry run stops after clean. The stages
+// in order; the bookkeeping (times, peaks, estimates, the report) in the
+// helpers above.
+BuildResult run_stages(const BuildSpec& scene, const BuildRequest& request, MemoryTrail& trail) {
+  if (request.step != BuildRequest::Step::all) return run_tileset_step(scene, request, trail);
+  const auto t_all = Clock::now();
+  if (!request.dry_run && request.output.empty())
+    fail<usage_error>(kBuildStage, "no output path (-o)");
+  const bool tiled = scene.tile_size > 0 && !request.dry_run;
+  const std::unique_ptr<tbb::global_control> threads = cap_threads(scene);
+  SourceProvenance provenance(scene);
+  StageLog log(request, trail);
+  log.estimate(before_read(scene, request));
+  log.start();
+  BuildResult result;
+  // The tileset folder, held for the whole build; a build that fails
+  // before its first tile removes only what it made, and SIGINT or SIGTERM
+  // removes the work folder and the tileset folder if the build made it.
+  std::optional<pipeline_internal::TilesetDir> tileset_dir;
+  std::optional<OnInterrupt> undo;
+  if (tiled) {
+    tileset_dir.emplace(request.output, pipeline_internal::TilesetDir::Access::exclusive, true);
+    undo.emplace("the tileset build was stopped",
+                 [dir = request.output, made = tileset_dir->made()] {
+                   std::fprintf(stderr, "decalprep: %s\n",
+                                pipeline_internal::remove_after_interrupt(dir, made).c_str());
+                 });
+  }
+  const bool made_dir = tileset_dir && tileset_dir->made();
+  std::optional<pipeline_internal::PreparedScene> streamed;
+  std::optional<pipeline_internal::TilesetOutcome> tileset;
+  if (tiled) {
+    streamed = prepare_streamed(scene, request, made_dir, provenance, log, trail, result);
+    tileset = build_tileset(scene, request, made_dir, log, trail);
+    result.package_written = true;
+  } else {
+    read_project_clean(scene, request, log, trail, result);
+    if (!request.dry_run && scene.tile_size <= 0) {
+      log.estimate(estimate_after_clean(scene, result.scene));
+      build_and_write(scene, request, provenance, log, trail, result);
+    }
+  }
+  log.time("total", seconds_since(t_all));
+  finish_report(scene, request, streamed, tileset, provenance, log, trail, result);
   return result;
 }
 

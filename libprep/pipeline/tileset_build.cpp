@@ -743,6 +743,131 @@ TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, 
 
 // -------------------------------------------------------------- finalize --
 
+namespace {
+
+// Every tile of the plan, of every level, must have been built: names the
+// missing ones (output_error).
+void check_all_built(const WorkPaths& paths, const std::vector<TileItem>& items) {
+  std::vector<std::string> missing;
+  for (const TileItem& t : items)
+    if (!std::filesystem::exists(paths.tile_record(t.key, t.level)))
+      missing.push_back(item_name(t));
+  if (missing.empty()) return;
+  std::string list;
+  for (size_t i = 0; i < missing.size() && i < 20; ++i) list += (i ? ", " : "") + missing[i];
+  if (missing.size() > 20) list += ", ... (" + std::to_string(missing.size() - 20) + " more)";
+  fail<output_error>(kTilesetStage, std::to_string(missing.size()) + " of " +
+                                        std::to_string(items.size()) +
+                                        " tiles have not been built: " + list +
+                                        "; run their tiles steps, then finalize again");
+}
+
+// One level's tiles as its records count them.
+struct LevelTally {
+  size_t tiles = 0, built = 0, reused = 0, empty = 0;
+  uint64_t bytes = 0;
+};
+
+// An overview tile's record's per-layer counts (its "level_counts") added
+// to the level's `counts`.
+void add_level_counts(const std::string& rpath, const nlohmann::json& r,
+                      std::vector<LayerCounts>& counts) {
+  const nlohmann::json& lc = r.at("level_counts");
+  if (lc.size() != counts.size())
+    fail<output_error>(kTilesetStage, rpath + ": level_counts has " + std::to_string(lc.size()) +
+                                          " layers, not " + std::to_string(counts.size()));
+  for (size_t k = 0; k < counts.size(); ++k) {
+    LayerCounts& c = counts[k];
+    const nlohmann::json& v = lc.at(k);
+    c.read += v.at(0).get<uint64_t>();
+    c.parts += v.at(1).get<uint64_t>();
+    c.kept += v.at(1).get<uint64_t>();
+    c.dropped_small += v.at(2).get<uint64_t>();
+    c.vertices_in += v.at(3).get<uint64_t>();
+    c.vertices_out += v.at(4).get<uint64_t>();
+  }
+}
+
+// One level's records into its entries (and, for an overview level, its
+// per-layer counts summed over its tiles); the tile files into `names`.
+void read_level_records(const WorkPaths& paths, int level, const TilePlan& lplan,
+                        const std::vector<TileKey>& keys, std::vector<TileEntry>& entries,
+                        std::vector<LayerCounts>* counts, std::set<std::string>& names,
+                        LevelTally& tally) {
+  for (const TileKey& key : keys) {
+    const std::string rpath = paths.tile_record(key, level);
+    std::ifstream in(rpath, std::ios::binary);
+    if (!in) fail<output_error>(kTilesetStage, "cannot read " + rpath);
+    try {
+      const nlohmann::json r = nlohmann::json::parse(in);
+      if (counts) add_level_counts(rpath, r, *counts);
+      if (r.at("empty").get<bool>()) {
+        ++tally.empty;
+        continue;
+      }
+      TileEntry e;
+      e.key = key;
+      e.square = lplan.square(key);
+      std::tie(e.origin_x, e.origin_y) = lplan.origin(key);
+      e.file = r.at("file").get<std::string>();
+      e.bytes = r.at("bytes").get<uint64_t>();
+      e.xxh64 = std::stoull(r.at("xxh64").get<std::string>(), nullptr, 16);
+      e.polygons = r.at("polygons").get<uint64_t>();
+      e.lines = r.at("lines").get<uint64_t>();
+      e.dynamic_lines = r.at("dynamic_lines").get<uint64_t>();
+      e.layers = counts_from_json(r.at("layers"));
+      ++tally.tiles;
+      (r.at("reused").get<bool>() ? tally.reused : tally.built) += 1;
+      tally.bytes += e.bytes;
+      names.insert(e.file);
+      entries.push_back(std::move(e));
+    } catch (const nlohmann::json::exception& e) {
+      fail<output_error>(kTilesetStage, rpath + ": " + e.what());
+    }
+  }
+}
+
+// The overview levels (formats/SPEC.md "Overview levels") into the index,
+// their tallies into `out`.
+void read_overview_levels(const WorkPaths& paths, const PreparedPlan& prepared, TilesetIndex& index,
+                          std::set<std::string>& names, TilesetOutcome& out) {
+  for (const PreparedPlan::Level& l : prepared.levels) {
+    TileLevel level = l.params;
+    level.layers.resize(prepared.manifest.layers.size());
+    for (size_t k = 0; k < level.layers.size(); ++k)
+      level.layers[k].layer = prepared.manifest.layers[k].layer;
+    LevelTally t;
+    read_level_records(paths, l.params.level, l.plan, l.keys, level.tiles, &level.layers, names, t);
+    out.level_tiles += t.tiles;
+    out.level_built += t.built;
+    out.level_reused += t.reused;
+    out.level_empty += t.empty;
+    out.level_bytes += t.bytes;
+    index.levels.push_back(std::move(level));
+  }
+  out.levels = static_cast<int>(index.levels.size());
+  if (!index.levels.empty()) index.minor = kTilesetMinorLevels;
+}
+
+// Each level's drops as a note too, so that no reader of the manifest
+// misses them (the per-layer counts are the level's `layers`).
+void add_level_notes(TilesetIndex& index) {
+  for (const TileLevel& l : index.levels) {
+    uint64_t dropped = 0, parts_in = 0;
+    for (const LayerCounts& c : l.layers) dropped += c.dropped_small, parts_in += c.read;
+    char note[256];
+    std::snprintf(note, sizeof note,
+                  "overview level %d: %llu of %llu parts dropped_small (below %.10g m2 or %.10g m, "
+                  "or collapsed at %.10g m or an eighth of a line's width)",
+                  l.level, static_cast<unsigned long long>(dropped),
+                  static_cast<unsigned long long>(parts_in), l.min_area, l.min_length,
+                  level_tolerance(l));
+    index.manifest.notes.emplace_back(note);
+  }
+}
+
+}  // namespace
+
 TilesetOutcome finalize_tileset(const BuildSpec& spec, const BuildRequest& request,
                                 Manifest* manifest) {
   const WorkPaths paths{request.output};
@@ -759,125 +884,24 @@ TilesetOutcome finalize_tileset(const BuildSpec& spec, const BuildRequest& reque
   index.tile_size = plan.size;
   index.margin = plan.margin;
   index.dynamic_margin = plan.dynamic_margin;
-  // Every tile of the plan, of every level, must have been built: name the
-  // missing ones.
-  const std::vector<TileItem> items = plan_items(prepared);
-  std::vector<std::string> missing;
-  for (const TileItem& t : items)
-    if (!std::filesystem::exists(paths.tile_record(t.key, t.level)))
-      missing.push_back(item_name(t));
-  if (!missing.empty()) {
-    std::string list;
-    for (size_t i = 0; i < missing.size() && i < 20; ++i) list += (i ? ", " : "") + missing[i];
-    if (missing.size() > 20) list += ", ... (" + std::to_string(missing.size() - 20) + " more)";
-    fail<output_error>(kTilesetStage, std::to_string(missing.size()) + " of " +
-                                          std::to_string(items.size()) +
-                                          " tiles have not been built: " + list +
-                                          "; run their tiles steps, then finalize again");
-  }
-  // One level's records into its entries (and, for an overview level, its
-  // per-layer counts summed over its tiles).
-  struct LevelTally {
-    size_t tiles = 0, built = 0, reused = 0, empty = 0;
-    uint64_t bytes = 0;
-  };
-  auto read_records = [&](int level, const TilePlan& lplan, const std::vector<TileKey>& keys,
-                          std::vector<TileEntry>& entries, std::vector<LayerCounts>* counts,
-                          std::set<std::string>& names, LevelTally& tally) {
-    for (const TileKey& key : keys) {
-      const std::string rpath = paths.tile_record(key, level);
-      std::ifstream in(rpath, std::ios::binary);
-      if (!in) fail<output_error>(kTilesetStage, "cannot read " + rpath);
-      try {
-        const nlohmann::json r = nlohmann::json::parse(in);
-        if (counts) {
-          const nlohmann::json& lc = r.at("level_counts");
-          if (lc.size() != counts->size())
-            fail<output_error>(kTilesetStage, rpath + ": level_counts has " +
-                                                  std::to_string(lc.size()) + " layers, not " +
-                                                  std::to_string(counts->size()));
-          for (size_t k = 0; k < counts->size(); ++k) {
-            LayerCounts& c = (*counts)[k];
-            const nlohmann::json& v = lc.at(k);
-            c.read += v.at(0).get<uint64_t>();
-            c.parts += v.at(1).get<uint64_t>();
-            c.kept += v.at(1).get<uint64_t>();
-            c.dropped_small += v.at(2).get<uint64_t>();
-            c.vertices_in += v.at(3).get<uint64_t>();
-            c.vertices_out += v.at(4).get<uint64_t>();
-          }
-        }
-        if (r.at("empty").get<bool>()) {
-          ++tally.empty;
-          continue;
-        }
-        TileEntry e;
-        e.key = key;
-        e.square = lplan.square(key);
-        std::tie(e.origin_x, e.origin_y) = lplan.origin(key);
-        e.file = r.at("file").get<std::string>();
-        e.bytes = r.at("bytes").get<uint64_t>();
-        e.xxh64 = std::stoull(r.at("xxh64").get<std::string>(), nullptr, 16);
-        e.polygons = r.at("polygons").get<uint64_t>();
-        e.lines = r.at("lines").get<uint64_t>();
-        e.dynamic_lines = r.at("dynamic_lines").get<uint64_t>();
-        e.layers = counts_from_json(r.at("layers"));
-        ++tally.tiles;
-        (r.at("reused").get<bool>() ? tally.reused : tally.built) += 1;
-        tally.bytes += e.bytes;
-        names.insert(e.file);
-        entries.push_back(std::move(e));
-      } catch (const nlohmann::json::exception& e) {
-        fail<output_error>(kTilesetStage, rpath + ": " + e.what());
-      }
-    }
-  };
+  check_all_built(paths, plan_items(prepared));
   std::set<std::string> names;
   LevelTally tally0;
-  read_records(0, plan, prepared.keys, index.tiles, nullptr, names, tally0);
+  read_level_records(paths, 0, plan, prepared.keys, index.tiles, nullptr, names, tally0);
   out.tiles = tally0.tiles;
   out.built = tally0.built;
   out.reused = tally0.reused;
   out.empty = tally0.empty;
   out.bytes = tally0.bytes;
-  // Overview levels (formats/SPEC.md "Overview levels").
   index.resolution = prepared.resolution;
-  for (const PreparedPlan::Level& l : prepared.levels) {
-    TileLevel level = l.params;
-    level.layers.resize(prepared.manifest.layers.size());
-    for (size_t k = 0; k < level.layers.size(); ++k)
-      level.layers[k].layer = prepared.manifest.layers[k].layer;
-    LevelTally t;
-    read_records(l.params.level, l.plan, l.keys, level.tiles, &level.layers, names, t);
-    out.level_tiles += t.tiles;
-    out.level_built += t.built;
-    out.level_reused += t.reused;
-    out.level_empty += t.empty;
-    out.level_bytes += t.bytes;
-    index.levels.push_back(std::move(level));
-  }
-  out.levels = static_cast<int>(index.levels.size());
-  if (!index.levels.empty()) index.minor = kTilesetMinorLevels;
+  read_overview_levels(paths, prepared, index, names, out);
   const Extent& e = prepared.extent;  // {} when empty
   const double ox = plan.frame.origin_x, oy = plan.frame.origin_y;
   index.extent =
       e.xmax >= e.xmin ? Extent{e.xmin + ox, e.ymin + oy, e.xmax + ox, e.ymax + oy} : Extent{};
   index.manifest = prepared.manifest;
   record_manifest_paths(spec, index.manifest);
-  // Each level's drops as a note too, so that no reader of the manifest
-  // misses them (the per-layer counts are the level's `layers`).
-  for (const TileLevel& l : index.levels) {
-    uint64_t dropped = 0, parts_in = 0;
-    for (const LayerCounts& c : l.layers) dropped += c.dropped_small, parts_in += c.read;
-    char note[256];
-    std::snprintf(note, sizeof note,
-                  "overview level %d: %llu of %llu parts dropped_small (below %.10g m2 or %.10g m, "
-                  "or collapsed at %.10g m or an eighth of a line's width)",
-                  l.level, static_cast<unsigned long long>(dropped),
-                  static_cast<unsigned long long>(parts_in), l.min_area, l.min_length,
-                  level_tolerance(l));
-    index.manifest.notes.emplace_back(note);
-  }
+  add_level_notes(index);
   index.entry_count = prepared.entries + prepared.read_entries;
 
   // manifest.json: the scene's entries, each feature once (clean's, then read's).

@@ -43,7 +43,7 @@ struct HeightRange {
   }
 };
 
-std::array<float, 16> to_float(const Mat4& m) {
+std::array<float, 16> method_floats(const Mat4& m) {
   std::array<float, 16> f{};
   for (int k = 0; k < 16; ++k) f[k] = static_cast<float>(m[k]);
   return f;
@@ -84,128 +84,159 @@ GLuint upload_positions(GlObjects& gl, const std::vector<float>& xyz, const char
 
 }  // namespace
 
+namespace {
+
+// The end of the group that starts at feature k: a run of consecutive
+// opaque features of one colour; translucent features of one colour share
+// a group while their boxes are disjoint (then no texel is covered twice).
+size_t group_end(const MethodGeometry& g, size_t k) {
+  const MethodFeature& f0 = g.features[k];
+  const bool opaque = (f0.rgba >> 24) == 255;
+  std::vector<Extent> boxes{f0.box};
+  auto disjoint = [&](const Extent& b) {
+    if (boxes.size() >= 64) return false;
+    for (const Extent& o : boxes)
+      if (b.xmin <= o.xmax && o.xmin <= b.xmax && b.ymin <= o.ymax && o.ymin <= b.ymax)
+        return false;
+    boxes.push_back(b);
+    return true;
+  };
+  size_t end = k + 1;
+  while (end < g.features.size() && g.features[end].rgba == f0.rgba &&
+         (opaque || disjoint(g.features[end].box)))
+    ++end;
+  return end;
+}
+
+// The prisms of features [k, end) appended to `xyz` (anchor-relative):
+// caps over their triangles, walls over their boundary edges, faces
+// outwards, from below to above the terrain under each; `box`, `zlo` and
+// `zhi` grow to hold them.
+void append_prisms(const MethodGeometry& g, size_t k, size_t end, const HeightRange& range,
+                   const Vec3& anchor, std::vector<float>& xyz, Extent& box, double& zlo,
+                   double& zhi) {
+  auto put = [&](const P2d& p, double z) {
+    xyz.push_back(float(p[0] - anchor[0]));
+    xyz.push_back(float(p[1] - anchor[1]));
+    xyz.push_back(float(z));
+  };
+  for (size_t i = k; i < end; ++i) {
+    const MethodFeature& f = g.features[i];
+    auto [lo, hi] = range(f.box);
+    // Margins keep the caps off the terrain (depth ties).
+    const double margin = 0.5 + 1e-3 * (hi - lo);
+    lo -= margin;
+    hi += margin;
+    for (uint32_t t = f.first_triangle; t < f.first_triangle + f.triangles; ++t) {
+      const P2d* v = &g.triangles[size_t(t) * 3];
+      for (int c : {0, 1, 2}) put(v[c], hi);  // top cap, facing up
+      for (int c : {0, 2, 1}) put(v[c], lo);  // bottom cap, facing down
+    }
+    for (uint32_t e = f.first_edge; e < f.first_edge + f.edges; ++e) {
+      const auto& [a, b] = g.edges[e];  // interior on the left: the wall faces right
+      put(a, lo);
+      put(b, lo);
+      put(b, hi);
+      put(a, lo);
+      put(b, hi);
+      put(a, hi);
+    }
+    box = {std::min(box.xmin, f.box.xmin), std::min(box.ymin, f.box.ymin),
+           std::max(box.xmax, f.box.xmax), std::max(box.ymax, f.box.ymax)};
+    zlo = std::min(zlo, lo);
+    zhi = std::max(zhi, hi);
+  }
+}
+
+// z-pass unless a prism may reach the near plane (Schneider & Klein §4.2.1
+// decide per volume from its bounding box): a box corner closer than the
+// near plane (perspective) or behind the eye plane (orthographic) means
+// z-fail. Scissor: the box's projection, on a W x H image.
+void place_group(MethodState::Group& grp, const Extent& box, double zlo, double zhi, const Mat4& vp,
+                 const Vec3& anchor, const Camera& camera, uint32_t W, uint32_t H) {
+  const bool perspective = camera.projection == Projection::perspective;
+  double sx0 = INFINITY, sy0 = INFINITY, sx1 = -INFINITY, sy1 = -INFINITY;
+  bool near_hit = false;
+  for (int c = 0; c < 8; ++c) {
+    const double x = (c & 1 ? box.xmax : box.xmin) - anchor[0];
+    const double y = (c & 2 ? box.ymax : box.ymin) - anchor[1];
+    const double z = c & 4 ? zhi : zlo;
+    double clip[4];
+    for (int r = 0; r < 4; ++r) clip[r] = vp[r] * x + vp[4 + r] * y + vp[8 + r] * z + vp[12 + r];
+    const double w = clip[3];
+    if (perspective ? !(w > camera.near * 1.001) : !(clip[2] <= w)) {
+      near_hit = true;
+      continue;
+    }
+    sx0 = std::min(sx0, clip[0] / w), sx1 = std::max(sx1, clip[0] / w);
+    sy0 = std::min(sy0, clip[1] / w), sy1 = std::max(sy1, clip[1] / w);
+  }
+  grp.zfail = near_hit;
+  if (near_hit) {
+    grp.scissor = {0, 0, GLint(W), GLint(H)};
+    return;
+  }
+  const double px0 = std::floor((std::max(sx0, -1.0) + 1) * 0.5 * W) - 1;
+  const double px1 = std::ceil((std::min(sx1, 1.0) + 1) * 0.5 * W) + 1;
+  const double py0 = std::floor((std::max(sy0, -1.0) + 1) * 0.5 * H) - 1;
+  const double py1 = std::ceil((std::min(sy1, 1.0) + 1) * 0.5 * H) + 1;
+  const GLint x0 = GLint(std::clamp(px0, 0.0, double(W)));
+  const GLint y0 = GLint(std::clamp(py0, 0.0, double(H)));
+  const GLint x1 = GLint(std::clamp(px1, 0.0, double(W)));
+  const GLint y1 = GLint(std::clamp(py1, 0.0, double(H)));
+  grp.scissor = {x0, y0, std::max(0, x1 - x0), std::max(0, y1 - y0)};
+}
+
+}  // namespace
+
 void GlRenderer::method_setup() {
   const MethodGeometry g =
       method_geometry(source_->view, opt_.draw_polygons, opt_.draw_lines, opt_.clip);
-  const Vec3& anchor = view_.anchor;
-  if (opt_.method == Method::volume) {
-    // Schneider & Klein §4.1: every feature extruded to a closed prism from
-    // below to above the terrain under it (caps over its triangles, walls
-    // over its boundary edges, faces outwards). Groups (§4.2): a run of
-    // consecutive opaque features of one colour shares one stencil and one
-    // cover pass (their union composites as the features one by one would);
-    // translucent ones share one only while their boxes are disjoint, so
-    // overlapping features blend as often as in the decal method.
-    const HeightRange range{terrain_};
-    const Mat4 vp = mat_mul(projection_matrix(opt_.camera, double(W_) / H_),
-                            view_matrix(opt_.camera, view_.eye_rel));
-    const bool perspective = opt_.camera.projection == Projection::perspective;
-    std::vector<float> xyz;
-    auto put = [&](const P2d& p, double z) {
-      xyz.push_back(float(p[0] - anchor[0]));
-      xyz.push_back(float(p[1] - anchor[1]));
-      xyz.push_back(float(z));
-    };
-    for (size_t k = 0; k < g.features.size();) {
-      const MethodFeature& f0 = g.features[k];
-      const bool opaque = (f0.rgba >> 24) == 255;
-      // Translucent features of one colour share a group while their boxes
-      // are disjoint (then no texel is covered twice).
-      std::vector<Extent> boxes{f0.box};
-      auto disjoint = [&](const Extent& b) {
-        if (boxes.size() >= 64) return false;
-        for (const Extent& o : boxes)
-          if (b.xmin <= o.xmax && o.xmin <= b.xmax && b.ymin <= o.ymax && o.ymin <= b.ymax)
-            return false;
-        boxes.push_back(b);
-        return true;
-      };
-      size_t end = k + 1;
-      while (end < g.features.size() && g.features[end].rgba == f0.rgba &&
-             (opaque || disjoint(g.features[end].box)))
-        ++end;
-      MethodState::Group grp;
-      grp.first = GLint(xyz.size() / 3);
-      grp.rgba = f0.rgba;
-      Extent box{INFINITY, INFINITY, -INFINITY, -INFINITY};
-      double zlo = INFINITY, zhi = -INFINITY;
-      for (size_t i = k; i < end; ++i) {
-        const MethodFeature& f = g.features[i];
-        auto [lo, hi] = range(f.box);
-        // Margins keep the caps off the terrain (depth ties).
-        const double margin = 0.5 + 1e-3 * (hi - lo);
-        lo -= margin;
-        hi += margin;
-        for (uint32_t t = f.first_triangle; t < f.first_triangle + f.triangles; ++t) {
-          const P2d* v = &g.triangles[size_t(t) * 3];
-          for (int c : {0, 1, 2}) put(v[c], hi);  // top cap, facing up
-          for (int c : {0, 2, 1}) put(v[c], lo);  // bottom cap, facing down
-        }
-        for (uint32_t e = f.first_edge; e < f.first_edge + f.edges; ++e) {
-          const auto& [a, b] = g.edges[e];  // interior on the left: the wall faces right
-          put(a, lo);
-          put(b, lo);
-          put(b, hi);
-          put(a, lo);
-          put(b, hi);
-          put(a, hi);
-        }
-        box = {std::min(box.xmin, f.box.xmin), std::min(box.ymin, f.box.ymin),
-               std::max(box.xmax, f.box.xmax), std::max(box.ymax, f.box.ymax)};
-        zlo = std::min(zlo, lo);
-        zhi = std::max(zhi, hi);
-      }
-      grp.count = GLsizei(xyz.size() / 3) - grp.first;
-      // z-pass unless a prism may reach the near plane (Schneider & Klein
-      // §4.2.1 decide per volume from its bounding box): a box corner
-      // closer than the near plane (perspective) or behind the eye plane
-      // (orthographic) means z-fail. Scissor: the box's projection.
-      double sx0 = INFINITY, sy0 = INFINITY, sx1 = -INFINITY, sy1 = -INFINITY;
-      bool near_hit = false;
-      for (int c = 0; c < 8; ++c) {
-        const double x = (c & 1 ? box.xmax : box.xmin) - anchor[0];
-        const double y = (c & 2 ? box.ymax : box.ymin) - anchor[1];
-        const double z = c & 4 ? zhi : zlo;
-        double clip[4];
-        for (int r = 0; r < 4; ++r)
-          clip[r] = vp[r] * x + vp[4 + r] * y + vp[8 + r] * z + vp[12 + r];
-        const double w = clip[3];
-        if (perspective ? !(w > opt_.camera.near * 1.001) : !(clip[2] <= w)) {
-          near_hit = true;
-          continue;
-        }
-        sx0 = std::min(sx0, clip[0] / w), sx1 = std::max(sx1, clip[0] / w);
-        sy0 = std::min(sy0, clip[1] / w), sy1 = std::max(sy1, clip[1] / w);
-      }
-      grp.zfail = near_hit;
-      if (near_hit) {
-        grp.scissor = {0, 0, GLint(W_), GLint(H_)};
-      } else {
-        const double px0 = std::floor((std::max(sx0, -1.0) + 1) * 0.5 * W_) - 1;
-        const double px1 = std::ceil((std::min(sx1, 1.0) + 1) * 0.5 * W_) + 1;
-        const double py0 = std::floor((std::max(sy0, -1.0) + 1) * 0.5 * H_) - 1;
-        const double py1 = std::ceil((std::min(sy1, 1.0) + 1) * 0.5 * H_) + 1;
-        const GLint x0 = GLint(std::clamp(px0, 0.0, double(W_)));
-        const GLint y0 = GLint(std::clamp(py0, 0.0, double(H_)));
-        const GLint x1 = GLint(std::clamp(px1, 0.0, double(W_)));
-        const GLint y1 = GLint(std::clamp(py1, 0.0, double(H_)));
-        grp.scissor = {x0, y0, std::max(0, x1 - x0), std::max(0, y1 - y0)};
-      }
-      if (grp.count > 0 && grp.scissor[2] > 0 && grp.scissor[3] > 0) m_.groups.push_back(grp);
-      m_.prism_triangles += uint64_t(grp.count) / 3;
-      k = end;
-    }
-    m_.prism_vao = upload_positions(gl_, xyz, "volume");
-    m_.f_volume = gl_.framebuffer(t_.decal, t_.depth);
-    m_.volume_program =
-        gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
-    m_.cover_program =
-        gl_.program({{"fullscreen.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
-    return;
-  }
+  if (opt_.method == Method::volume)
+    volume_setup(g);
+  else
+    texture_setup(g);
+}
 
-  // Texture method (Taibo et al. §4): the package extent (a tile's square
-  // where clipped) at `texture_resolution` metres per texel.
+// Schneider & Klein §4.1: every feature extruded to a closed prism from
+// below to above the terrain under it (caps over its triangles, walls over
+// its boundary edges, faces outwards). Groups (§4.2): a run of consecutive
+// opaque features of one colour shares one stencil and one cover pass
+// (their union composites as the features one by one would); translucent
+// ones share one only while their boxes are disjoint, so overlapping
+// features blend as often as in the decal method.
+void GlRenderer::volume_setup(const MethodGeometry& g) {
+  const Vec3& anchor = view_.anchor;
+  const HeightRange range{terrain_};
+  const Mat4 vp = mat_mul(projection_matrix(opt_.camera, double(W_) / H_),
+                          view_matrix(opt_.camera, view_.eye_rel));
+  std::vector<float> xyz;
+  for (size_t k = 0; k < g.features.size();) {
+    const size_t end = group_end(g, k);
+    MethodState::Group grp;
+    grp.first = GLint(xyz.size() / 3);
+    grp.rgba = g.features[k].rgba;
+    Extent box{INFINITY, INFINITY, -INFINITY, -INFINITY};
+    double zlo = INFINITY, zhi = -INFINITY;
+    append_prisms(g, k, end, range, anchor, xyz, box, zlo, zhi);
+    grp.count = GLsizei(xyz.size() / 3) - grp.first;
+    place_group(grp, box, zlo, zhi, vp, anchor, opt_.camera, W_, H_);
+    if (grp.count > 0 && grp.scissor[2] > 0 && grp.scissor[3] > 0) m_.groups.push_back(grp);
+    m_.prism_triangles += uint64_t(grp.count) / 3;
+    k = end;
+  }
+  m_.prism_vao = upload_positions(gl_, xyz, "volume");
+  m_.f_volume = gl_.framebuffer(t_.decal, t_.depth);
+  m_.volume_program =
+      gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
+  m_.cover_program =
+      gl_.program({{"fullscreen.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
+}
+
+// Texture method (Taibo et al. §4): the package extent (a tile's square
+// where clipped) at `texture_resolution` metres per texel.
+void GlRenderer::texture_setup(const MethodGeometry& g) {
+  const Vec3& anchor = view_.anchor;
   Extent e = source_->extent;
   if (opt_.clip)
     e = {std::max(e.xmin, opt_.clip->xmin), std::max(e.ymin, opt_.clip->ymin),
@@ -310,7 +341,7 @@ void GlRenderer::texture_raster() {
   m[12] = -1;
   m[13] = -1;
   m[15] = 1;
-  const std::array<float, 16> mf = to_float(m);
+  const std::array<float, 16> mf = method_floats(m);
   const GLuint p = m_.volume_program;
   glUseProgram(p);
   glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, mf.data());

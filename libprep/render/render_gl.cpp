@@ -67,22 +67,6 @@ void GlRenderer::read_back(Image& img) {
 
 namespace {
 
-void check_options(const RenderOptions& opt) {
-  const uint32_t W = opt.width, H = opt.height;
-  if (W == 0 || H == 0 || W > 16384 || H > 16384)
-    fail<usage_error>(kRenderStage, "image size must be 1..16384 pixels");
-  if (opt.method != Method::decal && opt.aa != AntiAliasing::none)
-    fail<usage_error>(kRenderStage,
-                      "--method volume and --method texture draw without anti-aliasing; use --aa "
-                      "none");
-  if (opt.method != Method::decal && opt.slope_widths == SlopeWidths::on)
-    fail<usage_error>(kRenderStage,
-                      "--slope-widths on needs --method decal (the volume and texture methods draw "
-                      "the features' plan geometry)");
-  if (!(opt.texture_resolution >= 0) || !std::isfinite(opt.texture_resolution))
-    fail<usage_error>(kRenderStage, "--texture-resolution must be a positive number of metres");
-}
-
 // Whether a tileset is drawn in one frame (render_gl of tiles below).
 bool one_frame(std::span<const TileSource> tiles, const RenderOptions& opt) {
   if (opt.method != Method::decal) return false;
@@ -115,7 +99,7 @@ Image draw_frames(const RenderOptions& opt, Make&& make) {
 // blobs resident only while its passes draw (detail::GlRenderer).
 Image render_gl_one_frame(std::span<const TileSource> tiles, const Heightfield& terrain,
                           const RenderOptions& opt) {
-  check_options(opt);
+  check_render_options(opt);
   // Validate before anything touches GL, as for one package.
   for (const TileSource& t : tiles)
     if (!t.source.validated)
@@ -128,7 +112,7 @@ Image render_gl_one_frame(std::span<const TileSource> tiles, const Heightfield& 
 }  // namespace
 
 Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
-  check_options(opt);
+  check_render_options(opt);
   // Validate before anything touches GL (formats/gl validate_blobs), once:
   // a package's source was checked when it was made.
   const std::vector<decal::gl::BlobBytes> blobs = detail::gl_blobs(source);

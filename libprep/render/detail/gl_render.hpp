@@ -156,6 +156,7 @@ StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slo
 
 // gl_dynamic.cpp: a package's LOD data on the GPU (kept across frames).
 struct LodBuffers;
+struct MethodGeometry;  // detail/method_geometry.hpp
 
 // One render_gl call: the state set up once (constructor) and the passes of
 // a frame, in order.
@@ -209,6 +210,8 @@ class GlRenderer {
   // gl_methods.cpp: set-up of the volume and texture methods, the volume
   // passes and the texture's rasterisation (once, before the first frame).
   void method_setup();
+  void volume_setup(const MethodGeometry& g);
+  void texture_setup(const MethodGeometry& g);
   void volume_passes();
   void texture_raster();
   void method_stats(Image& img) const;

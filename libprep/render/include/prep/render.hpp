@@ -207,6 +207,13 @@ enum class Method { decal, volume, texture };
 // and polygons never change.
 enum class SlopeWidths { package, on, off };
 
+// The largest image: each side at most kMaxImageSide pixels and at most
+// kMaxImagePixels in all (8192 x 8192). A pixel costs about 40 bytes across
+// the RGBA8 image, the float decal layer and the GL targets, so the largest
+// image takes about 2.5 GiB.
+constexpr uint64_t kMaxImageSide = 16384;
+constexpr uint64_t kMaxImagePixels = uint64_t(8192) * 8192;
+
 struct RenderOptions {
   uint32_t width = 640, height = 360;
   Camera camera;
@@ -238,6 +245,13 @@ struct RenderOptions {
   bool lod_read_selection = false;
   SlopeWidths slope_widths = SlopeWidths::package;
 };
+
+// Throws usage_error ("render: ...", in the words of `decalprep render`'s
+// options) when `options` cannot be drawn: a side outside 1..16384 pixels,
+// anti-aliasing or slope widths on with the volume or texture method, a
+// negative or non-finite texture resolution. render_gl checks them, and
+// check_render_request (prep/render_request.hpp) before a file is opened.
+void check_render_options(const RenderOptions& options);
 
 // The layers whose static lines `mode` measures along the terrain, as
 // prep::SurfaceSlope::layers takes them (on: {1}); empty when none is.

@@ -303,7 +303,7 @@ namespace prep::render {
 // draws: full-detail tiles near the camera, overview levels farther away,
 // within a budget of GPU memory (the drawn tiles' blobs, decoded). No GL:
 // `decalprep render` runs it before either renderer
-// (tools/decalprep/cmd_render.cpp).
+// (prep/render_request.hpp render()).
 //
 // The rule is a screen-space-error rule, as 3D Tiles refines by geometric
 // error: the quadtree of levels is walked from the coarsest level down, and

@@ -1,0 +1,694 @@
+// `decalprep render` as one request (prep/render_request.hpp): every option
+// checked once, here, then the scene opened, the terrain loaded, the camera
+// placed, the tiles of a tileset chosen, drawn and written.
+#include "prep/render_request.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <span>
+#include <sstream>
+#include <string_view>
+#include <utility>
+
+#include "decal/reader.hpp"
+#include "prep/dem.hpp"
+#include "prep/error.hpp"
+#include "prep/evaluate.hpp"
+#include "prep/files.hpp"
+#include "prep/memory_estimate.hpp"
+#include "prep/pipeline.hpp"
+#include "prep/project.hpp"
+#include "prep/stage_error.hpp"
+#include "prep/tile.hpp"
+
+namespace prep::render {
+
+// The helpers of render(), in a namespace of their own (the unity build
+// shares one translation unit across the stage's files).
+namespace request {
+namespace {
+
+[[noreturn]] void bad_option(const std::string& what) {
+  fail<usage_error>(kRenderStage, what);
+}
+
+// --size WxH: two decimal integers, each side 1..kMaxImageSide, W * H at
+// most kMaxImagePixels. Parsed in 64 bits with nothing left over, so a
+// number beyond 32 bits is refused rather than wrapped (4294967396 is not
+// 100).
+std::pair<uint32_t, uint32_t> parse_size(const std::string& text) {
+  auto bad = [&](const std::string& why) { bad_option("--size '" + text + "': " + why); };
+  const size_t x = text.find('x');
+  if (x == std::string::npos) bad("expected WxH, e.g. 640x360");
+  auto side = [&](std::string_view digits, const char* which) {
+    uint64_t v = 0;
+    if (digits.empty() || digits.size() > 12 ||
+        digits.find_first_not_of("0123456789") != std::string_view::npos)
+      bad(std::string(which) + " must be a whole number of pixels");
+    for (char c : digits) v = v * 10 + uint64_t(c - '0');
+    if (v < 1 || v > kMaxImageSide)
+      bad(std::string(which) + " " + std::string(digits) + " is not within 1.." +
+          std::to_string(kMaxImageSide));
+    return v;
+  };
+  const std::string_view all(text);
+  const uint64_t w = side(all.substr(0, x), "the width"), h = side(all.substr(x + 1), "the height");
+  if (w * h > kMaxImagePixels)
+    bad(std::to_string(w * h) + " pixels exceed the maximum of " + std::to_string(kMaxImagePixels) +
+        " (8192x8192)");
+  return {uint32_t(w), uint32_t(h)};
+}
+
+// `n` comma-separated finite numbers (--extent, --eye, --target).
+std::vector<double> numbers(const std::string& s, size_t n, const char* what) {
+  std::vector<double> v;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+      // NaN or infinity gives no camera and no view: a blank image.
+      if (!std::isfinite(v.back())) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      bad_option(std::string(what) + " '" + s + "' is not " + std::to_string(n) +
+                 " finite numbers");
+    }
+  }
+  if (v.size() != n)
+    bad_option(std::string(what) + " '" + s + "' needs " + std::to_string(n) +
+               " comma-separated numbers");
+  return v;
+}
+
+// "LAYER=value:#rrggbb[aa],value:#rrggbb[aa],..." with values increasing.
+RampRequest parse_ramp(const std::string& text) {
+  auto bad = [&](const std::string& why) {
+    bad_option("--ramp '" + text + "': " + why +
+               " (expected LAYER=value:#rrggbb,value:#rrggbb,...)");
+  };
+  RampRequest r;
+  r.text = text;
+  const size_t eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) bad("no layer name before '='");
+  r.layer = text.substr(0, eq);
+  std::stringstream ss(text.substr(eq + 1));
+  std::string stop;
+  while (std::getline(ss, stop, ',')) {
+    const size_t colon = stop.find(':');
+    if (colon == std::string::npos) bad("stop '" + stop + "' has no ':'");
+    ColorStop cs{};
+    try {
+      size_t used = 0;
+      cs.value = std::stod(stop.substr(0, colon), &used);
+      if (used != colon || !std::isfinite(cs.value)) throw std::invalid_argument(stop);
+    } catch (const std::exception&) {
+      bad("stop '" + stop + "' does not start with a finite number");
+    }
+    try {
+      cs.rgba = parse_color(stop.substr(colon + 1));
+    } catch (const error& e) {
+      bad(e.what());
+    }
+    if (!r.stops.empty() && !(cs.value > r.stops.back().value)) bad("stop values must increase");
+    r.stops.push_back(cs);
+  }
+  if (r.stops.empty()) bad("no stops");
+  return r;
+}
+
+// --level auto|L
+std::optional<int> parse_level(const std::string& s) {
+  if (s == "auto") return std::nullopt;
+  try {
+    size_t used = 0;
+    const int l = std::stoi(s, &used);
+    if (used == s.size() && l >= 0) return l;
+  } catch (const std::exception&) {
+  }
+  bad_option("--level '" + s + "' must be auto or a level number (0: full detail)");
+}
+
+// --gpu-budget SIZE (prep/memory_estimate.hpp's sizes, in this option's words).
+uint64_t parse_gpu_budget(const std::string& s) {
+  try {
+    return parse_memory_size(s);
+  } catch (const usage_error&) {
+    bad_option("--gpu-budget: expected a size such as 512M, 2G or 1073741824 (bytes), got \"" + s +
+               "\"");
+  }
+}
+
+// --aa, --method, --slope-widths, --binding: each one of its words.
+template <class E>
+E one_of(const std::string& option, const std::string& given,
+         std::initializer_list<std::pair<const char*, E>> words, const char* must) {
+  for (const auto& [word, value] : words)
+    if (given == word) return value;
+  bad_option(option + " '" + given + "' must be " + must);
+}
+
+// --size, --fov, --pitch, the drawing options and their pairings.
+void check_drawing(const RenderRequest& a, RenderOptions& opt) {
+  const auto [w, h] = parse_size(a.size);
+  // The camera's angles: NaN or infinity, or a pitch that looks up or
+  // along the ground, gives no view (a blank image).
+  if (!std::isfinite(a.fov) || !(a.fov > 0 && a.fov < 180))
+    bad_option("--fov " + std::to_string(a.fov) + " must be a number of degrees in (0, 180)");
+  if (!std::isfinite(a.pitch) || !(a.pitch > 0 && a.pitch <= 90))
+    bad_option("--pitch " + std::to_string(a.pitch) +
+               " must be a number of degrees in (0, 90] below the horizon");
+  opt.width = w;
+  opt.height = h;
+  opt.frames = a.frames;
+  opt.aa = one_of<AntiAliasing>("--aa", a.aa,
+                                {{"none", AntiAliasing::none},
+                                 {"coverage", AntiAliasing::coverage},
+                                 {"msaa4", AntiAliasing::msaa4}},
+                                "none, coverage or msaa4");
+  // The CPU evaluator answers per point: it draws aliased, so comparisons
+  // with the GL path use --aa none.
+  if (a.cpu && opt.aa != AntiAliasing::none)
+    bad_option("--cpu draws without anti-aliasing; use --aa none");
+  opt.method = one_of<Method>(
+      "--method", a.method,
+      {{"decal", Method::decal}, {"volume", Method::volume}, {"texture", Method::texture}},
+      "decal, volume or texture");
+  if (a.cpu && opt.method != Method::decal)
+    bad_option("--cpu is the decal evaluator; --method " + a.method +
+               " is drawn with GL only (leave out --cpu)");
+  if (a.texture_resolution != 0 && opt.method != Method::texture)
+    bad_option("--texture-resolution needs --method texture");
+  opt.texture_resolution = a.texture_resolution;
+  opt.slope_widths = one_of<SlopeWidths>(
+      "--slope-widths", a.slope_widths,
+      {{"auto", SlopeWidths::package}, {"on", SlopeWidths::on}, {"off", SlopeWidths::off}},
+      "auto, on or off");
+  check_render_options(opt);
+  opt.binding =
+      one_of<Binding>("--binding", a.binding,
+                      {{"ssbo", Binding::ssbo}, {"texture", Binding::texture}}, "ssbo or texture");
+}
+
+// --only, --lod, --lod-tolerance.
+void check_kinds_and_lod(const RenderRequest& a, RenderOptions& opt) {
+  if (!a.only.empty()) {
+    opt.draw_polygons = opt.draw_lines = opt.draw_dynamic = false;
+    std::stringstream ss(a.only);
+    std::string kind;
+    while (std::getline(ss, kind, ',')) {
+      if (kind == "polygons")
+        opt.draw_polygons = true;
+      else if (kind == "lines")
+        opt.draw_lines = true;
+      else if (kind == "dynamic")
+        opt.draw_dynamic = true;
+      else
+        bad_option("--only '" + a.only + "': kinds are polygons, lines, dynamic");
+    }
+  }
+  // --lod: dynamic lines of LOD layers from the LOD segments this view
+  // selects (RenderOptions::lod); a package without LOD data draws the same
+  // either way.
+  if (a.lod != "on" && a.lod != "off") bad_option("--lod '" + a.lod + "' must be on or off");
+  if (!(a.lod_tolerance > 0) || !std::isfinite(a.lod_tolerance))
+    bad_option("--lod-tolerance must be a positive number of pixels");
+  opt.lod = a.lod == "on";
+  opt.lod_tolerance_px = a.lod_tolerance;
+}
+
+// --extent, --extent-crs, --eye, --target and the terrain options.
+void check_view(const RenderRequest& a, CheckedRender& c) {
+  const bool topdown = !a.extent.empty();
+  if (!a.extent_crs.empty() && !topdown) bad_option("--extent-crs needs --extent");
+  if (topdown) {
+    const std::vector<double> v = numbers(a.extent, 4, "--extent");
+    c.extent = Extent{v[0], v[1], v[2], v[3]};
+    if (c.extent->empty())
+      bad_option("--extent '" + a.extent + "' is empty (xmin,ymin,xmax,ymax with max > min)");
+  }
+  if (a.flat && !a.dem.empty()) bad_option("--flat and --dem exclude each other");
+  if (a.z_scale && (!(*a.z_scale > 0) || !std::isfinite(*a.z_scale)))
+    bad_option("--z-scale must be a positive number");
+  if (a.nodata_fill && !std::isfinite(*a.nodata_fill))
+    bad_option("--nodata-fill must be a finite height");
+  // A top-down --extent places the camera itself: --eye and --target are
+  // not read then.
+  if (topdown || (a.eye.empty() && a.target.empty())) return;
+  if (a.eye.empty() || a.target.empty()) bad_option("--eye and --target go together");
+  const std::vector<double> e = numbers(a.eye, 3, "--eye"), t = numbers(a.target, 3, "--target");
+  c.eye = Vec3{e[0], e[1], e[2]};
+  c.target = Vec3{t[0], t[1], t[2]};
+  const double along = std::hypot(t[0] - e[0], t[1] - e[1], t[2] - e[2]);
+  // An eye on its target has no direction to look in.
+  if (!(along > 1e-6) || !std::isfinite(along))
+    bad_option("--eye " + a.eye + " and --target " + a.target +
+               " must be apart (the camera looks from the eye to the target)");
+}
+
+}  // namespace
+}  // namespace request
+
+namespace request {
+namespace {
+
+// A line for the user (RenderRequest::note).
+void note(const RenderRequest& a, const std::string& line) {
+  if (a.note)
+    a.note(line);
+  else
+    std::fprintf(stderr, "%s\n", line.c_str());
+}
+
+// A render warning: a note, or with --strict an error (exit 10).
+void warn(const RenderRequest& a, const std::string& what) {
+  if (a.strict)
+    fail<strict_error>(kRenderStage, "" + what + " (--strict makes this warning an error)");
+  note(a, stage_message(kRenderStage, "warning: " + what));
+}
+
+std::string box(const Extent& e) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%.3f,%.3f,%.3f,%.3f", e.xmin, e.ymin, e.xmax, e.ymax);
+  return buf;
+}
+
+Extent shifted(Extent e, double dx, double dy) {
+  return {e.xmin + dx, e.ymin + dy, e.xmax + dx, e.ymax + dy};
+}
+
+bool contains(const Extent& outer, const Extent& inner) {
+  // A micrometre of slack: the build clips to the same box, in doubles.
+  const double eps = 1e-6;
+  return inner.xmin >= outer.xmin - eps && inner.xmax <= outer.xmax + eps &&
+         inner.ymin >= outer.ymin - eps && inner.ymax <= outer.ymax + eps;
+}
+
+bool meets(const Extent& a, const Extent& b) {
+  return a.xmax >= b.xmin && a.xmin <= b.xmax && a.ymax >= b.ymin && a.ymin <= b.ymax;
+}
+
+// What is drawn: one package, or the tiles of a tileset that meet the view.
+// Coordinates are metres relative to `frame`'s origin (the package's, or the
+// tileset's scene origin); `extent` is the data's box in them.
+struct Scene {
+  SceneFrame frame;
+  Extent extent;
+  bool tileset = false;
+  TilesetIndex index;
+  std::vector<decal::Package> packages;  // own what `tiles` view
+  std::vector<TileSource> tiles;
+  std::string metadata;       // a package's metadata (the recorded DEM)
+  std::string metadata_file;  // that package (a recorded DEM is relative to its folder)
+  TileSelection selection;    // a tileset: the tiles drawn (prep/tile_select.hpp)
+};
+
+// Whether a tile of the view has LOD segments (RenderOutcome::lod_data_unused).
+bool has_lod(const std::vector<TileSource>& tiles) {
+  for (const TileSource& t : tiles)
+    for (const auto& b : t.source.blobs)
+      if (b.id == decal::BlobId::lod_segments && b.count > 0) return true;
+  return false;
+}
+
+void open_package(const std::string& path, decal::Package& pkg) {
+  if (decal::Status s = decal::Package::open(path, pkg); !s)
+    fail<format_error>(kNoStage, s.message);
+}
+
+Scene open_scene(const std::string& path) {
+  Scene sc;
+  if (!is_tileset(path)) {
+    sc.packages.resize(1);
+    open_package(path, sc.packages[0]);
+    DecalSource src = source_of(sc.packages[0]);
+    sc.frame = src.frame;
+    sc.extent = src.extent;
+    sc.metadata = std::string(sc.packages[0].metadata_json());
+    sc.metadata_file = path;
+    sc.tiles.push_back({src, Extent{-INFINITY, -INFINITY, INFINITY, INFINITY}, 0, 0});
+    return sc;
+  }
+  sc.tileset = true;
+  sc.index = read_tileset_index(path);
+  sc.frame = sc.index.frame;
+  const Extent& e = sc.index.extent;
+  sc.extent = {e.xmin - sc.frame.origin_x, e.ymin - sc.frame.origin_y, e.xmax - sc.frame.origin_x,
+               e.ymax - sc.frame.origin_y};
+  // The build's DEM and surface settings are the same in every tile.
+  if (!sc.index.tiles.empty()) {
+    decal::Package first;
+    open_package(path + "/" + sc.index.tiles.front().file, first);
+    sc.metadata = std::string(first.metadata_json());
+    sc.metadata_file = path + "/" + sc.index.tiles.front().file;
+  }
+  return sc;
+}
+
+// The bytes a package holds decoded: all its blobs, the unknown ids' too.
+uint64_t decoded_bytes(const decal::Package& pkg) {
+  uint64_t n = 0;
+  for (const decal::BlobView& b : pkg.blobs()) n += b.bytes.size();
+  return n;
+}
+
+// The note of the tiles a view draws.
+void note_tiles(const RenderRequest& a, const Scene& sc) {
+  const size_t drawn = sc.selection.tiles.size();
+  if (sc.index.levels.empty()) {
+    note(a, stage_message(kRenderStage, "" + std::to_string(drawn) + " of " +
+                                            std::to_string(sc.index.tiles.size()) +
+                                            " tiles meet the view"));
+    return;
+  }
+  std::string levels;
+  for (size_t l = 0; l < sc.selection.per_level.size(); ++l)
+    if (sc.selection.per_level[l])
+      levels += (levels.empty() ? "" : ", ") + std::to_string(sc.selection.per_level[l]) +
+                " of level " + std::to_string(l);
+  note(a, stage_message(kRenderStage,
+                        "" + std::to_string(sc.selection.full_detail_tiles) + " of " +
+                            std::to_string(sc.index.tiles.size()) +
+                            " level-0 tiles meet the view; drawing " + std::to_string(drawn) +
+                            " tiles (" + (levels.empty() ? "none" : levels) + ")" +
+                            (sc.selection.coarsened ? ", coarsened to fit --gpu-budget" : "")));
+}
+
+// Loads the tiles of a tileset that the view draws (prep/tile_select.hpp:
+// the level-0 tiles that meet the camera's ground footprint, or overview
+// tiles where their resolution is below a pixel, within --gpu-budget), and
+// only those. The budget counts each tile's blobs decoded, as its header
+// and blob table give them (decal::read_package_sizes, no blob decoded);
+// a loaded tile that holds another figure is refused.
+void load_tiles(const RenderRequest& a, Scene& sc, const RenderOptions& opt,
+                const Heightfield& terrain, TileSelectOptions select) {
+  const std::string& dir = a.package;
+  select.blob_bytes = [&dir](int, const TileEntry& t) {
+    decal::PackageSizes sizes;
+    if (decal::Status s = decal::read_package_sizes(dir + "/" + t.file, sizes); !s)
+      fail<format_error>(kRenderStage, "" + s.message);
+    return sizes.raw_bytes;
+  };
+  sc.selection =
+      select_tiles(sc.index, opt.camera, opt.width, opt.height, terrain.zmin, terrain.zmax, select);
+  const std::vector<SelectedTile>& hit = sc.selection.tiles;
+  sc.packages.resize(hit.size());
+  for (size_t k = 0; k < hit.size(); ++k) {
+    const TileEntry& t = *hit[k].entry;
+    open_package(dir + "/" + t.file, sc.packages[k]);
+    if (const uint64_t got = decoded_bytes(sc.packages[k]); got != hit[k].blob_bytes)
+      fail<format_error>(kRenderStage, "" + dir + "/" + t.file + ": holds " + std::to_string(got) +
+                                           " bytes of decoded blobs; its blob table said " +
+                                           std::to_string(hit[k].blob_bytes) +
+                                           " when the tiles were chosen (the file changed?)");
+    DecalSource src = source_of(sc.packages[k]);
+    if (src.frame.origin_x != t.origin_x || src.frame.origin_y != t.origin_y)
+      fail<format_error>(
+          kNoStage,
+          dir + "/" + t.file + ": origin differs from tileset.json's tile " + tile_name(t.key));
+    const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
+    sc.tiles.push_back(
+        {src,
+         {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
+         t.origin_x - ox,
+         t.origin_y - oy});
+  }
+  note_tiles(a, sc);
+}
+
+// Restyles every loaded tile with the --ramp stops, by the layer names of
+// its package's layer table; the recoloured props live in `held`.
+uint64_t apply_ramps(const std::vector<RampRequest>& ramps,
+                     std::span<const decal::Package> packages, std::span<TileSource> tiles,
+                     std::vector<RestyledProps>& held) {
+  held.resize(tiles.size());
+  uint64_t recoloured = 0;
+  for (size_t k = 0; k < tiles.size(); ++k) {
+    const std::string metadata(packages[k].metadata_json());
+    const std::vector<std::string> names = layer_names(metadata);
+    LayerRamps by_layer(names.size());
+    for (const RampRequest& r : ramps) {
+      const auto it = std::find(names.begin(), names.end(), r.layer);
+      if (it == names.end()) {
+        std::string known;
+        for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+        bad_option("--ramp '" + r.text + "': the package has no layer '" + r.layer +
+                   "' (its layers: " + (known.empty() ? "none" : known) + ")");
+      }
+      by_layer[size_t(it - names.begin())] = r.stops;
+    }
+    restyle(tiles[k].source, by_layer, held[k]);
+    recoloured += held[k].recoloured;
+  }
+  return recoloured;
+}
+
+// A top-down --extent in the frame: absolute (as given, for the world file)
+// and relative to the origin (for the camera).
+struct View {
+  bool topdown = false;
+  Extent absolute, relative;
+};
+
+// --extent is in absolute coordinates of the package's frame CRS (or in
+// --extent-crs), as `build --extent` and the world file; the renderer works
+// relative to the package origin.
+View place_extent(const RenderRequest& a, const CheckedRender& c, const Scene& sc) {
+  View v;
+  if (!c.extent) return v;
+  v.topdown = true;
+  const Extent& given = *c.extent;
+  if (!a.extent_crs.empty() && sc.frame.crs_wkt.empty())
+    bad_option(
+        "the package records no frame CRS, so --extent-crs cannot be used; give --extent in the "
+        "package's frame coordinates");
+  // Degrees given as frame metres (no --extent-crs): a usage error.
+  check_extent_units(given, a.extent_crs, sc.frame, sc.extent, "render");
+  v.absolute = extent_in_frame_crs(given, a.extent_crs, sc.frame, "render");
+  const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
+  const Extent abs_package = shifted(sc.extent, ox, oy);
+  v.relative = shifted(v.absolute, -ox, -oy);
+  if (v.relative.empty()) bad_option("--extent '" + a.extent + "' is empty in the frame CRS");
+  const Extent& w = v.absolute;
+  if (w.xmax < abs_package.xmin || w.xmin > abs_package.xmax || w.ymax < abs_package.ymin ||
+      w.ymin > abs_package.ymax)
+    warn(a, "the view " + box(w) + " misses the package extent " + box(abs_package) +
+                " (xmin,ymin,xmax,ymax in the frame CRS); --extent takes absolute coordinates "
+                "of the package's frame CRS unless --extent-crs names another");
+  return v;
+}
+
+// Terrain: --dem, else the DEM the package was built with (its metadata's
+// build_options.dem) when it can still be read, else flat. --flat forces
+// flat. The surface settings the package was built with (z-scale, no-data
+// fill, assumed CRS) apply unless given here, so the terrain is the surface
+// the dynamic lines were matched to (prep/dem.hpp).
+DemSpec choose_dem(const RenderRequest& a, const Scene& sc, bool& from_package) {
+  DemSpec dem = recorded_dem(sc.metadata, sc.metadata_file);
+  from_package = !a.flat && a.dem.empty() && !dem.path.empty();
+  if (a.flat) {
+    dem.path.clear();
+  } else if (!a.dem.empty()) {
+    // The user's own --dem: any GDAL path, a network one included.
+    dem.path = a.dem;
+    dem.named_by_package = false;
+  }
+  if (a.z_scale) dem.z_scale = *a.z_scale;
+  if (a.nodata_fill) dem.nodata_fill = *a.nodata_fill;
+  if (!a.assume_crs.empty()) dem.assume_crs = a.assume_crs;
+  return dem;
+}
+
+// The outputs: only a regular file or nothing, never the package or the
+// DEM, refused before anything is drawn.
+void check_outputs(const RenderRequest& a, const DemSpec& dem, bool topdown) {
+  std::vector<std::string> inputs{a.package};
+  if (!dem.path.empty()) inputs.push_back(dem.path);
+  check_output_file(a.output, "PNG", inputs);
+  if (!a.decals_png.empty()) check_output_file(a.decals_png, "--decals PNG", inputs);
+  if (!a.raw.empty()) check_output_file(a.raw, "--raw output", inputs);
+  if (topdown)
+    for (const std::string& side : world_file_paths(a.output))
+      check_output_file(side, "world file", inputs);
+}
+
+// The terrain mesh under `extent`; a build DEM that cannot be read gives
+// flat terrain with a warning (and `dem.path` cleared).
+Heightfield load_terrain(const RenderRequest& a, DemSpec& dem, bool from_package,
+                         const SceneFrame& frame, const Extent& extent) {
+  if (dem.path.empty()) return flat_heightfield(extent);
+  if (!from_package) return load_heightfield(dem, frame, extent, kMeshSamples);
+  try {
+    Heightfield h = load_heightfield(dem, frame, extent, kMeshSamples);
+    note(a, stage_message(kRenderStage, "terrain from the package's build DEM " + dem.path +
+                                            " (--flat to ignore it)"));
+    return h;
+  } catch (const error& e) {
+    // Also a DEM the package names that is not opened (a network path, a
+    // FIFO, a VRT: prep/dem.hpp package_dem_refusal).
+    warn(a, "the package was built with DEM " + dem.path + ", which cannot be read here (" +
+                e.what() + "); drawing flat terrain (pass --dem PATH)");
+    dem.path.clear();
+    return flat_heightfield(extent);
+  }
+}
+
+// The DEM must cover what is drawn: the view of a top-down --extent, else
+// the package (tileset) extent that --fit frames and the mesh spans. Beyond
+// its footprint the terrain takes the DEM's edge heights.
+void check_dem_covers(const RenderRequest& a, const DemSpec& dem, const Scene& sc,
+                      const View& view) {
+  if (dem.path.empty()) return;
+  const Extent need = view.topdown ? view.relative : sc.extent;
+  const Extent have = dem_extent_in_frame(dem, sc.frame);
+  const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
+  if (!contains(have, need))
+    warn(a, "the DEM " + dem.path + " covers " + box(shifted(have, ox, oy)) + ", which " +
+                (meets(have, need) ? "does not cover all of " : "misses ") +
+                (view.topdown ? "the view " : "the package extent ") + box(shifted(need, ox, oy)) +
+                " (xmin,ymin,xmax,ymax in the frame CRS); the terrain there takes the DEM's edge "
+                "heights");
+}
+
+// The camera: top-down over --extent, from --eye to --target, or --fit
+// framing the data obliquely (the default).
+Camera place_camera(const RenderRequest& a, const CheckedRender& c, const View& view,
+                    const Scene& sc, const Heightfield& terrain) {
+  const uint32_t w = c.options.width, h = c.options.height;
+  const Projection projection = a.ortho ? Projection::orthographic : Projection::perspective;
+  if (view.topdown) return topdown_camera(view.relative, terrain.zmin, terrain.zmax);
+  if (!c.eye) return fit_camera(sc.extent, terrain.zmin, terrain.zmax, w, h, projection, a.pitch);
+  const Vec3 &e = *c.eye, &t = *c.target;
+  Camera cam;
+  cam.eye = e;
+  cam.target = t;
+  const double dx = t[0] - e[0], dy = t[1] - e[1], dz = t[2] - e[2];
+  const double along = std::hypot(dx, dy, dz);
+  // Looking straight up or down, "up" is north instead of the z axis.
+  if (std::hypot(dx, dy) <= 1e-9 * along) cam.up = {0, 1, 0};
+  cam.fov_y_deg = a.fov;
+  cam.projection = projection;
+  const double dist = std::hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]);
+  cam.near = std::max(0.1, dist * 1e-3);
+  cam.ortho_h = 2 * dist * std::tan(a.fov * 3.14159265358979 / 360);
+  cam.ortho_w = cam.ortho_h * w / h;
+  cam.depth_range = 4 * dist;
+  // A camera that sees the ground only away from the decals.
+  const std::optional<Extent> seen = ground_footprint(cam, w, h, terrain.zmin, terrain.zmax);
+  const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
+  if (seen && !meets(*seen, sc.extent))
+    warn(a, "the camera sees the ground at " + box(shifted(*seen, ox, oy)) +
+                ", which misses the package extent " + box(shifted(sc.extent, ox, oy)) +
+                " (xmin,ymin,xmax,ymax in the frame CRS)");
+  return cam;
+}
+
+// The slope widths the volume and texture methods cannot draw.
+void warn_plan_widths(const RenderRequest& a, const RenderOptions& opt, const Scene& sc) {
+  if (opt.method == Method::decal || opt.slope_widths != SlopeWidths::package) return;
+  for (const TileSource& t : sc.tiles)
+    if (!slope_layers(t.source, opt.slope_widths).empty()) {
+      warn(a, "the package's slope_widths layers are drawn with their plan widths by --method " +
+                  a.method + " (slope widths need --method decal)");
+      return;
+    }
+}
+
+// Draws with GL, or the CPU evaluator with --cpu; `ms` the call's time.
+Image draw(const RenderRequest& a, const Scene& sc, const Heightfield& terrain,
+           const RenderOptions& opt, double& ms) {
+  const auto start = std::chrono::steady_clock::now();
+#ifdef PREP_RENDER_WITH_GL
+  Image img = a.cpu ? render_cpu(sc.tiles, terrain, opt) : render_gl(sc.tiles, terrain, opt);
+#else
+  if (!a.cpu)
+    fail<render_error>(kRenderStage, "this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
+  Image img = render_cpu(sc.tiles, terrain, opt);
+#endif
+  ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return img;
+}
+
+// The PNG, the world file of a top-down view (the absolute extent as given,
+// not origin + relative), --decals and --raw.
+void write_outputs(const RenderRequest& a, const Image& img, const View& view,
+                   const SceneFrame& frame) {
+  write_png_rgba(a.output, img.width, img.height, img.rgba);
+  if (view.topdown) write_world_file(a.output, view.absolute, img.width, img.height, frame.crs_wkt);
+  if (!a.decals_png.empty())
+    write_png_rgba(a.decals_png, img.width, img.height, to_rgba8(img.decals));
+  if (!a.raw.empty()) {
+    std::ofstream out(a.raw, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(img.decals.data()),
+              std::streamsize(img.decals.size() * sizeof(float)));
+    if (!out) fail<output_error>(kRenderStage, "cannot write '" + a.raw + "'");
+  }
+}
+
+}  // namespace
+}  // namespace request
+
+CheckedRender check_render_request(const RenderRequest& a) {
+  CheckedRender c;
+  c.select.level = request::parse_level(a.level);
+  if (!a.gpu_budget.empty()) c.select.gpu_budget = request::parse_gpu_budget(a.gpu_budget);
+  request::check_drawing(a, c.options);
+  request::check_kinds_and_lod(a, c.options);
+  request::check_view(a, c);
+  for (const std::string& text : a.ramps) c.ramps.push_back(request::parse_ramp(text));
+  return c;
+}
+
+RenderOutcome render(const RenderRequest& a) {
+  using namespace request;
+  const CheckedRender c = check_render_request(a);
+  Scene sc = open_scene(a.package);
+  if (!sc.tileset && (c.select.level || c.select.gpu_budget))
+    bad_option("--level and --gpu-budget choose among a tileset's tiles; '" + a.package +
+               "' is one package");
+  const View view = place_extent(a, c, sc);
+  bool dem_from_package = false;
+  DemSpec dem = choose_dem(a, sc, dem_from_package);
+  check_outputs(a, dem, view.topdown);
+  Extent terrain_extent = sc.extent;
+  if (view.topdown) {
+    const Extent& v = view.relative;
+    terrain_extent = {std::min(terrain_extent.xmin, v.xmin), std::min(terrain_extent.ymin, v.ymin),
+                      std::max(terrain_extent.xmax, v.xmax), std::max(terrain_extent.ymax, v.ymax)};
+  }
+  const Heightfield terrain = load_terrain(a, dem, dem_from_package, sc.frame, terrain_extent);
+  check_dem_covers(a, dem, sc, view);
+
+  RenderOutcome out;
+  out.options = c.options;
+  out.options.camera = place_camera(a, c, view, sc, terrain);
+  // A tileset: only the tiles the view draws (select_tiles meets them with
+  // what the camera can see of the terrain).
+  if (sc.tileset) load_tiles(a, sc, out.options, terrain, c.select);
+  // --ramp: value-coloured layers restyled when drawing, from the values the
+  // package stores; the package itself is not changed.
+  std::vector<RestyledProps> restyled;
+  if (!c.ramps.empty()) out.recoloured = apply_ramps(c.ramps, sc.packages, sc.tiles, restyled);
+  warn_plan_widths(a, out.options, sc);
+  for (const decal::Package& p : sc.packages) out.blob_bytes += decoded_bytes(p);
+  out.image = draw(a, sc, terrain, out.options, out.frame_ms);
+  write_outputs(a, out.image, view, sc.frame);
+
+  out.terrain_nx = terrain.nx;
+  out.terrain_ny = terrain.ny;
+  out.surface_error_bound = terrain.surface_error_bound;
+  out.ramps = c.ramps.size();
+  out.tileset = sc.tileset;
+  out.selection = std::move(sc.selection);
+  for (SelectedTile& t : out.selection.tiles) t.entry = nullptr;  // the index goes
+  out.index_tiles = sc.index.tiles.size();
+  out.gpu_budget = c.select.gpu_budget;
+  out.lod_data_unused = !out.options.lod && has_lod(sc.tiles);
+  return out;
+}
+
+}  // namespace prep::render
