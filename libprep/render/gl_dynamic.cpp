@@ -7,6 +7,7 @@
 #include <cstring>
 #include <string>
 
+#include "decal/gl/bindings.hpp"
 #include "decal/lod.hpp"
 #include "detail/gl_render.hpp"
 
@@ -112,7 +113,8 @@ DynPrograms dyn_programs(GlObjects& gl, const std::string& dd) {
 }
 
 // One frame of the pass: its work buffers, bound at their SSBO bindings
-// (24..32, 40), and the uniforms every stage takes.
+// (decal::gl::kSsboDyn*, kSsboLod*: decal/gl/bindings.hpp), and the uniforms
+// every stage takes.
 class DynamicLines {
  public:
   DynamicLines(GlObjects& gl, PassTimer& timer, const ViewUniforms& view,
@@ -176,16 +178,17 @@ GLuint DynamicLines::buffer(uint64_t bytes, uint32_t binding) {
 }
 
 void DynamicLines::make_buffers() {
-  buffer(n_dyn_ * 4, 24);
-  buffer(n_dyn_ * 4, 25);
-  buffer(uint64_t(blocks_) * 4, 26);
-  buffer(n_dyn_ * 4, 27);
-  buffer(n_dyn_ * 16, 28);
-  counters_ = buffer(48, 29);
-  heads_ = buffer(uint64_t(W_) * H_ * 4, 31);
+  buffer(n_dyn_ * 4, decal::gl::kSsboDynFlags);
+  buffer(n_dyn_ * 4, decal::gl::kSsboDynScan);
+  buffer(uint64_t(blocks_) * 4, decal::gl::kSsboDynBlocks);
+  buffer(n_dyn_ * 4, decal::gl::kSsboDynCompact);
+  buffer(n_dyn_ * 16, decal::gl::kSsboDynSegments);
+  counters_ = buffer(48, decal::gl::kSsboDynCounters);
+  heads_ = buffer(uint64_t(W_) * H_ * 4, decal::gl::kSsboDynHeads);
   capacity_ = W_ * H_ * 2;
-  nodes_ = buffer(uint64_t(capacity_) * 16, 32);
-  buffer(dashes_ ? (4 * n_dyn_ + 3 * uint64_t(blocks_)) * 4 : 16, 40);  // dyn_common.glsl DynDash
+  nodes_ = buffer(uint64_t(capacity_) * 16, decal::gl::kSsboDynNodes);
+  // dyn_common.glsl DynDash
+  buffer(dashes_ ? (4 * n_dyn_ + 3 * uint64_t(blocks_)) * 4 : 16, decal::gl::kSsboDynDash);
   const uint32_t init[12] = {0, 1, 0, 0, 0, 0, capacity_, uint32_t(n_dyn_), 0, 0, 0, 0};
   glNamedBufferSubData(counters_, 0, sizeof init, init);
 }
@@ -214,14 +217,14 @@ void DynamicLines::set_uniforms(GLuint p) const {
 
 void DynamicLines::make_lod_buffers(const LodBuffers& lod, double zmin, double zmax,
                                     double tolerance_px, const Camera& camera) {
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 33, lod.points);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 34, lod.segments);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 35, lod.map);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 37, lod.line_drawn);
-  const GLuint links = buffer(lod.n_points * 8, 36);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kSsboLodPoints, lod.points);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kSsboLodSegments, lod.segments);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kSsboLodMap, lod.map);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kSsboLodLineDrawn, lod.line_drawn);
+  const GLuint links = buffer(lod.n_points * 8, decal::gl::kSsboLodLinks);
   const uint32_t none = 0xffffffffu;
   glClearNamedBufferData(links, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
-  lod_selection_ = buffer(16 + lod.n_segments * 4, 30);
+  lod_selection_ = buffer(16 + lod.n_segments * 4, decal::gl::kSsboLodSelection);
   const uint32_t zero[4] = {};
   glNamedBufferSubData(lod_selection_, 0, sizeof zero, zero);
   lod_view_ = lod_view(camera, H_, zmin, zmax, tolerance_px);
@@ -322,7 +325,7 @@ uint32_t DynamicLines::lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao) {
     if (used <= capacity_) break;
     capacity_ = uint32_t(std::min<uint64_t>(uint64_t(used) * 5 / 4 + 1024, 0x7fffffff / 16));
     glNamedBufferData(nodes_, GLsizeiptr(uint64_t(capacity_) * 16), nullptr, GL_DYNAMIC_COPY);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 32, nodes_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kSsboDynNodes, nodes_);
     grows++;
   }
   glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);

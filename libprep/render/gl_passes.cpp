@@ -6,6 +6,7 @@
 #include <cstring>
 #include <string>
 
+#include "decal/gl/bindings.hpp"
 #include "decal/layout.hpp"
 #include "detail/gl_render.hpp"
 #include "detail/math.hpp"
@@ -471,14 +472,14 @@ void GlRenderer::terrain_pass() {
   if (slope_) {
     const float level[4] = {0, 0, 0, 0};
     glClearNamedFramebufferfv(fb, GL_COLOR, 1, level);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 24, mesh_.gradients);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kSsboTerrainGradient, mesh_.gradients);
   }
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_GREATER);
   const GLuint p = sample_texture ? m_.terrain_program : p_.terrain;
   glUseProgram(p);
   if (sample_texture) {
-    glBindTextureUnit(27, m_.texture);
+    glBindTextureUnit(decal::gl::kUnitDecalTexture, m_.texture);
     glUniform4fv(glGetUniformLocation(p, "u_texture_box"), 1, m_.texture_box.data());
     glUniform4fv(glGetUniformLocation(p, "u_clip"), 1, view0_.clip.data());
   }
@@ -541,10 +542,10 @@ void GlRenderer::set_static_uniforms(GLuint p) const {
 void GlRenderer::bind_package() const {
   gpu_->bind(opt_.binding == Binding::texture ? decal::gl::BindingMode::texture
                                               : decal::gl::BindingMode::ssbo);
-  glBindTextureUnit(31, t_.depth);
+  glBindTextureUnit(decal::gl::kUnitDepth, t_.depth);
   if (slope_) {
-    glBindTextureUnit(26, t_.gradient);
-    glBindTextureUnit(24, slope_layers_);
+    glBindTextureUnit(decal::gl::kUnitTerrainGradient, t_.gradient);
+    glBindTextureUnit(decal::gl::kUnitSlopeLayers, slope_layers_);
   }
 }
 
@@ -643,9 +644,9 @@ void GlRenderer::composite_pass() {
   timer_.begin("composite");
   glBindFramebuffer(GL_FRAMEBUFFER, t_.f_final);
   glUseProgram(p_.composite);
-  glBindTextureUnit(29, t_.color);
-  glBindTextureUnit(30, t_.decal);
-  glBindTextureUnit(28, t_.dyn);
+  glBindTextureUnit(decal::gl::kUnitTerrainColour, t_.color);
+  glBindTextureUnit(decal::gl::kUnitDecalLayer, t_.decal);
+  glBindTextureUnit(decal::gl::kUnitDynamicLayer, t_.dyn);
   glDrawArrays(GL_TRIANGLES, 0, 3);
   timer_.end();
 }
