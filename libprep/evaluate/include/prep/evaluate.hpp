@@ -80,24 +80,52 @@ struct LineDashes {
 
 // ------------------------------------------------------------- evaluator --
 
+// The element type of blob `id`: the one the catalogue gives it
+// (decal/format.hpp DECAL_BLOB_CATALOGUE), e.g. what Package::array<id>()
+// returns a span of.
+template <decal::BlobId id>
+using blob_element_t = typename decal::BlobTraits<id>::type;
+
+// X(element type, name) for one blob `name`, its type from the catalogue.
+#define PREP_BLOB(X, name) X(::prep::blob_element_t<::decal::BlobId::name>, name)
+
+// The static blobs as X(element type, name) that the model and every
+// package version hold alike. Each name is a StaticView member, a
+// DecalModel member and a decal::BlobId alike; both view_of overloads fill
+// the view from this one list. The per-cell ranges, BVH boxes, cell_polys
+// and leaf segments are not in it: the model and v1.3 packages hold the
+// compact layout, decoded into them.
+// clang-format off
+#define PREP_STATIC_VIEW_BLOBS(X)                                                              \
+  PREP_BLOB(X, line_vertices) PREP_BLOB(X, line_vertex_line) PREP_BLOB(X, line_props)          \
+  PREP_BLOB(X, line_corners) PREP_BLOB(X, cell_segments) PREP_BLOB(X, poly_props)              \
+  PREP_BLOB(X, poly_root_node) PREP_BLOB(X, qt_node_box) PREP_BLOB(X, qt_node)                 \
+  PREP_BLOB(X, qt_leaf_vertices) PREP_BLOB(X, cell_holes)
+// The compact blobs (formats/SPEC.md "Compact layout (v1.3)") the model and
+// v1.3 packages hold in place of the v1.2 per-cell ranges, BVH boxes,
+// cell_polys and leaf segments, as X(element type, name): DecalModel
+// members and decal::BlobIds.
+#define PREP_COMPACT_BLOBS(X)                                                                  \
+  PREP_BLOB(X, cell_line_first) PREP_BLOB(X, line_bvh_box16) PREP_BLOB(X, cell_poly_first)     \
+  PREP_BLOB(X, poly_bvh_box16) PREP_BLOB(X, cell_poly_entries) PREP_BLOB(X, cell_poly_holes)   \
+  PREP_BLOB(X, qt_leaf_loop_range) PREP_BLOB(X, qt_leaf_loops)
+// clang-format on
+
 // Non-owning view of the static blobs: built from a DecalModel in memory or
 // from a decal::Package read from disk, so the same code answers for both.
 struct StaticView {
   GridParams grid;
-  std::span<const ivec2> line_vertices;
-  std::span<const uint32_t> line_vertex_line;
-  std::span<const decal::LineProps> line_props;
-  std::span<const decal::LineCorner> line_corners;
-  std::span<const uvec2> cell_segment_range, cell_segments;
-  std::span<const decal::PolyProps> poly_props;
-  std::span<const uint32_t> poly_root_node;
-  std::span<const ivec4> qt_node_box;
-  std::span<const ivec2> qt_node;
+  // The blobs of PREP_STATIC_VIEW_BLOBS (line_vertices ... cell_holes), each
+  // a span of its catalogue element type.
+#define PREP_STATIC_VIEW_MEMBER(T, name) std::span<const T> name;
+  PREP_STATIC_VIEW_BLOBS(PREP_STATIC_VIEW_MEMBER)
+#undef PREP_STATIC_VIEW_MEMBER
+  // The v1.2 layout: stored by packages before v1.3, decoded from the
+  // compact blobs otherwise.
+  std::span<const uvec2> cell_segment_range;
   std::span<const uvec2> qt_leaf_range, qt_leaf_segments;
-  std::span<const ivec2> qt_leaf_vertices;
   std::span<const uvec2> cell_poly_range;
   std::span<const uvec4> cell_polys;
-  std::span<const uvec2> cell_holes;
   std::span<const uvec4> line_bvh_range, poly_bvh_range;
   std::span<const ivec4> line_bvh_box, poly_bvh_box;
   // Added to PolyProps.order when merging the line and polygon streams: 0
@@ -112,27 +140,6 @@ struct StaticView {
   // is loaded; null or no dashed layer: every line solid.
   std::shared_ptr<const LineDashes> dashes;
 };
-
-// StaticView's blobs as X(element type, name) that the model and every
-// package version hold alike. Each name is a StaticView member, a
-// DecalModel member and a decal::BlobId alike; both view_of overloads fill
-// the view from this one list. The per-cell ranges, BVH boxes, cell_polys
-// and leaf segments are not in it: the model and v1.3 packages hold the
-// compact layout, decoded into them.
-// clang-format off
-#define PREP_STATIC_VIEW_BLOBS(X)                                                              \
-  X(ivec2, line_vertices) X(uint32_t, line_vertex_line) X(decal::LineProps, line_props)        \
-  X(decal::LineCorner, line_corners) X(uvec2, cell_segments) X(decal::PolyProps, poly_props)   \
-  X(uint32_t, poly_root_node) X(ivec4, qt_node_box) X(ivec2, qt_node)                          \
-  X(ivec2, qt_leaf_vertices) X(uvec2, cell_holes)
-// The compact blobs (formats/SPEC.md "Compact layout (v1.3)") the model and
-// v1.3 packages hold in place of the v1.2 per-cell ranges, BVH boxes,
-// cell_polys and leaf segments: DecalModel members and decal::BlobIds.
-#define PREP_COMPACT_BLOBS(X)                                                                  \
-  X(uvec2, cell_line_first) X(uvec2, line_bvh_box16) X(uvec2, cell_poly_first)                 \
-  X(uvec2, poly_bvh_box16) X(uvec2, cell_poly_entries) X(uint32_t, cell_poly_holes)            \
-  X(uvec2, qt_leaf_loop_range) X(uint32_t, qt_leaf_loops)
-// clang-format on
 
 StaticView view_of(const DecalModel& model);
 
