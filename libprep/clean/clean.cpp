@@ -17,8 +17,8 @@
 
 #include "detail/certainly_valid.hpp"
 #include "detail/clip_many_holes.hpp"
-#include "detail/geos_handle.hpp"
 #include "detail/repair_by_parts.hpp"
+#include "geos_handle.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/progress.hpp"
@@ -29,29 +29,13 @@ namespace {
 
 // ------------------------------------------------------------ GEOS context --
 
-struct GeosContext {
-  GEOSContextHandle_t h = nullptr;
-  std::string last_error;
-  // The part this thread is cleaning, for the progress watchdog
-  // (prep/progress.hpp); null when progress is off.
+// A worker thread's GEOS context, and the part it is cleaning for the
+// progress watchdog (prep/progress.hpp; null when progress is off).
+struct WorkerContext : detail::GeosContext {
   ProgressWatch* watch = nullptr;
   void step(const char* operation) {
     if (watch) watch->operation(operation);
   }
-
-  GeosContext() {
-    h = GEOS_init_r();
-    GEOSContext_setErrorMessageHandler_r(h, &GeosContext::on_error, this);
-    GEOSContext_setNoticeMessageHandler_r(h, &GeosContext::on_notice, this);
-  }
-  ~GeosContext() { GEOS_finish_r(h); }
-  GeosContext(const GeosContext&) = delete;
-  GeosContext& operator=(const GeosContext&) = delete;
-
-  static void on_error(const char* msg, void* self) {
-    static_cast<GeosContext*>(self)->last_error = msg ? msg : "";
-  }
-  static void on_notice(const char*, void*) {}
 };
 
 using Geom = detail::GeosGeom;
@@ -262,12 +246,12 @@ struct Cleaner {
   // Topology-preserving simplification of one part to the scene resolution:
   // `out` stays empty when there is nothing to simplify. False (and the
   // feature recorded as failed) when GEOS reports an error.
-  bool simplify(GeosContext& ctx, const SourceFeature& f, const GEOSGeometry* part, Geom& out,
+  bool simplify(WorkerContext& ctx, const SourceFeature& f, const GEOSGeometry* part, Geom& out,
                 PartResult& r) const {
     if (!(resolution > 0) && !fails_on_purpose(f)) return true;
     ctx.step("GEOS TopologyPreserveSimplify");
-    out = Geom(ctx.h, GEOSTopologyPreserveSimplify_r(ctx.h, part, tolerance_for(f)));
-    if (!out) fail(r, "GEOS simplification failed: " + ctx.last_error);
+    out = Geom(ctx.handle(), GEOSTopologyPreserveSimplify_r(ctx.handle(), part, tolerance_for(f)));
+    if (!out) fail(r, "GEOS simplification failed: " + ctx.last_error());
     return bool(out);
   }
 
@@ -302,8 +286,8 @@ struct Cleaner {
 
   // §1.3 for one polygon part: dedupe, validity, clip, simplify, orient.
   // Takes the part's rings (f.rings is left empty).
-  void polygon(GeosContext& ctx, SourceFeature& f, PartResult& r) const {
-    GEOSContextHandle_t h = ctx.h;
+  void polygon(WorkerContext& ctx, SourceFeature& f, PartResult& r) const {
+    GEOSContextHandle_t h = ctx.handle();
     std::vector<Ring> rings = std::move(f.rings);
     if (!remove_degenerate(rings, r)) return;
     int rel = clip_relation(rings);
@@ -320,7 +304,7 @@ struct Cleaner {
       return;
     }
     Geom g(h, make_polygon(h, rings));
-    if (!g) return fail(r, "GEOS cannot build the polygon: " + ctx.last_error);
+    if (!g) return fail(r, "GEOS cannot build the polygon: " + ctx.last_error());
     ctx.step("GEOS isValid");
     if (!proven && !make_valid_if_invalid(ctx, g, rings, rel == 0 ? &*clip : nullptr, r)) return;
     if (rel == 0) {
@@ -334,7 +318,8 @@ struct Cleaner {
         Geom rect(h, clip_rect(h));
         cut = Geom(h, GEOSIntersection_r(h, g.get(), rect.get()));
       }
-      if (!cut) return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error);
+      if (!cut)
+        return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error());
       g = std::move(cut);
     }
     std::vector<const GEOSGeometry*> parts;
@@ -389,9 +374,9 @@ struct Cleaner {
   // its result is not valid, the whole polygon is repaired. `window`: the
   // extent the part is clipped to next (null: none); the repair by parts
   // is then the whole repair inside it only.
-  bool make_valid_if_invalid(GeosContext& ctx, Geom& g, const std::vector<Ring>& rings,
+  bool make_valid_if_invalid(WorkerContext& ctx, Geom& g, const std::vector<Ring>& rings,
                              const Extent* window, PartResult& r) const {
-    GEOSContextHandle_t h = ctx.h;
+    GEOSContextHandle_t h = ctx.handle();
     // One validation, not isValid and then isValidReason: both run GEOS
     // IsValidOp, which on a large polygon nodes every ring (half a second
     // for the 1.8e6 vertices of bench/clean_real.py's world ocean).
@@ -423,7 +408,7 @@ struct Cleaner {
       ctx.step(repair == RepairMethod::structure ? "GEOS MakeValid (structure)" : "GEOS MakeValid");
       fixed = Geom(h, make_valid(h, g.get()));
       if (!fixed) {
-        fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error);
+        fail(r, "invalid (" + reason + ") and GEOS MakeValid failed: " + ctx.last_error());
         return false;
       }
       // A repair that is still invalid would break point-in-polygon later.
@@ -464,10 +449,10 @@ struct Cleaner {
   // emit() the pieces of `type` (GEOS_POLYGON or GEOS_LINESTRING) of the
   // result; false when a simplification failed (recorded in r).
   template <class Emit>
-  bool simplify_pieces(GeosContext& ctx, const SourceFeature& f,
+  bool simplify_pieces(WorkerContext& ctx, const SourceFeature& f,
                        const std::vector<const GEOSGeometry*>& parts, int type, PartResult& r,
                        Emit&& emit) const {
-    GEOSContextHandle_t h = ctx.h;
+    GEOSContextHandle_t h = ctx.handle();
     for (const GEOSGeometry* p : parts) {
       r.vertices_in += vertex_count(h, p);
       Geom simple;
@@ -487,11 +472,11 @@ struct Cleaner {
   }
 
   // Simplifies each valid, clipped polygon piece and emits what is left.
-  void simplify_and_emit_polygons(GeosContext& ctx, const SourceFeature& f,
+  void simplify_and_emit_polygons(WorkerContext& ctx, const SourceFeature& f,
                                   const std::vector<const GEOSGeometry*>& parts,
                                   PartResult& r) const {
     if (!simplify_pieces(ctx, f, parts, GEOS_POLYGON, r,
-                         [&](const GEOSGeometry* poly) { emit_polygon(ctx.h, f, poly, r); }))
+                         [&](const GEOSGeometry* poly) { emit_polygon(ctx.handle(), f, poly, r); }))
       return;
     if (r.polygons.empty()) {
       r.outcome = Outcome::dropped;
@@ -534,8 +519,8 @@ struct Cleaner {
   // --------------------------------------------------------------- lines --
 
   // Takes the part's points (f.rings[0] is left empty).
-  void line(GeosContext& ctx, SourceFeature& f, PartResult& r) const {
-    GEOSContextHandle_t h = ctx.h;
+  void line(WorkerContext& ctx, SourceFeature& f, PartResult& r) const {
+    GEOSContextHandle_t h = ctx.handle();
     Ring pts = std::move(f.rings[0]);
     const bool was_closed =
         pts.size() >= 3 && pts.front().x == pts.back().x && pts.front().y == pts.back().y;
@@ -556,12 +541,13 @@ struct Cleaner {
       return;
     }
     Geom g(h, make_line(h, pts));
-    if (!g) return fail(r, "GEOS cannot build the line: " + ctx.last_error);
+    if (!g) return fail(r, "GEOS cannot build the line: " + ctx.last_error());
     if (rel == 0) {
       ctx.step("GEOS Intersection with the extent");
       Geom rect(h, clip_rect(h));
       Geom cut(h, GEOSIntersection_r(h, g.get(), rect.get()));
-      if (!cut) return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error);
+      if (!cut)
+        return fail(r, "GEOS intersection with the clip extent failed: " + ctx.last_error());
       // Pieces that meet at a vertex are joined again.
       Geom merged(h, GEOSLineMerge_r(h, cut.get()));
       g = merged ? std::move(merged) : std::move(cut);
@@ -601,10 +587,10 @@ struct Cleaner {
 
   // Simplifies each (clipped) line piece and emits what is left; a piece
   // stays a closed line when `may_close` and its ends meet.
-  void simplify_and_emit_lines(GeosContext& ctx, const SourceFeature& f,
+  void simplify_and_emit_lines(WorkerContext& ctx, const SourceFeature& f,
                                const std::vector<const GEOSGeometry*>& parts, bool may_close,
                                PartResult& r) const {
-    GEOSContextHandle_t h = ctx.h;
+    GEOSContextHandle_t h = ctx.handle();
     if (!simplify_pieces(ctx, f, parts, GEOS_LINESTRING, r, [&](const GEOSGeometry* l) {
           SceneLine out;
           out.points = read_coords(h, l, false);
@@ -659,7 +645,7 @@ std::string unsafe_vertex(const SourceFeature& f) {
 // already dropped stay dropped with their reason; an unsafe vertex or an
 // exception fails the feature. The progress watchdog names the part while
 // it is here (in GEOS) too long.
-void clean_part(const Cleaner& cleaner, GeosContext& ctx, ProgressStage& stage,
+void clean_part(const Cleaner& cleaner, WorkerContext& ctx, ProgressStage& stage,
                 const std::string& layer, SourceFeature& f, PartResult& r) {
   if (!f.drop_reason.empty() || f.rings.empty() || f.rings[0].empty()) {
     r.outcome = Outcome::dropped;
@@ -691,12 +677,12 @@ void clean_part(const Cleaner& cleaner, GeosContext& ctx, ProgressStage& stage,
 // Cleans every part of `layer` in parallel (one GEOS context per worker
 // thread); the results are in input order.
 std::vector<PartResult> clean_parts(const Cleaner& cleaner,
-                                    tbb::enumerable_thread_specific<GeosContext>& contexts,
+                                    tbb::enumerable_thread_specific<WorkerContext>& contexts,
                                     ProgressStage& stage, SourceLayer& layer) {
   std::vector<PartResult> results(layer.features.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, layer.features.size(), 16),
                     [&](const tbb::blocked_range<size_t>& range) {
-                      GeosContext& ctx = contexts.local();
+                      WorkerContext& ctx = contexts.local();
                       for (size_t i = range.begin(); i != range.end(); ++i) {
                         struct CountPart {  // one part done, whichever way it leaves
                           ProgressStage& stage;
@@ -895,7 +881,7 @@ SceneFeatures clean(ProjectedFeatures&& input, const SceneSpec& scene,
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                   options.threads);
   }
-  tbb::enumerable_thread_specific<GeosContext> contexts;
+  tbb::enumerable_thread_specific<WorkerContext> contexts;
   const Cleaner cleaner{input.clip, scene.resolution, scene.repair, options.test_geos_failure_fid};
   uint64_t parts = 0;
   for (const SourceLayer& layer : input.features.layers) parts += layer.features.size();
@@ -922,7 +908,7 @@ struct ChunkCleaner::Impl {
   std::optional<Extent> clip;
   Cleaner cleaner;
   std::unique_ptr<tbb::global_control> limit;
-  tbb::enumerable_thread_specific<GeosContext> contexts;
+  tbb::enumerable_thread_specific<WorkerContext> contexts;
   ProgressStage silent;
   ProgressStage* stage;
   std::optional<LayerGather> layer;
@@ -975,7 +961,7 @@ Extent kept_extent(const SceneFeatures& s) {
 // ------------------------------------------------------- overview levels --
 
 struct PartSimplifier::Impl {
-  GeosContext ctx;
+  detail::GeosContext ctx;
   double tolerance;
   explicit Impl(double t) : tolerance(t) {}
 };
@@ -984,7 +970,7 @@ PartSimplifier::PartSimplifier(double tolerance) : impl_(std::make_unique<Impl>(
 PartSimplifier::~PartSimplifier() = default;
 
 bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
-  GEOSContextHandle_t h = impl_->ctx.h;
+  GEOSContextHandle_t h = impl_->ctx.handle();
   if (p.shell.size() < 3) return false;
   std::vector<Ring> rings;
   rings.reserve(1 + p.holes.size());
@@ -994,11 +980,11 @@ bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
   Geom g(h, make_polygon(h, rings));
   if (!g)
     fail<input_error>(kNoStage, "overview level: " + what +
-                                    ": GEOS cannot build the polygon: " + impl_->ctx.last_error);
+                                    ": GEOS cannot build the polygon: " + impl_->ctx.last_error());
   Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), impl_->tolerance));
   if (!simple)
     fail<input_error>(kNoStage, "overview level: " + what +
-                                    ": GEOS simplification failed: " + impl_->ctx.last_error);
+                                    ": GEOS simplification failed: " + impl_->ctx.last_error());
   // Topology-preserving; keep the part as it is if GEOS ever disagrees (as clean() does).
   if (GEOSisValid_r(h, simple.get()) != 1) return true;
   std::vector<const GEOSGeometry*> polys;
@@ -1021,18 +1007,18 @@ bool PartSimplifier::line(SceneLine& l, const std::string& what) {
 }
 
 bool PartSimplifier::line(SceneLine& l, const std::string& what, double tolerance) {
-  GEOSContextHandle_t h = impl_->ctx.h;
+  GEOSContextHandle_t h = impl_->ctx.handle();
   if (l.points.size() < 2) return false;
   Ring pts = l.points;
   if (l.closed) pts.push_back(pts.front());
   Geom g(h, make_line(h, pts));
   if (!g)
     fail<input_error>(kNoStage, "overview level: " + what +
-                                    ": GEOS cannot build the line: " + impl_->ctx.last_error);
+                                    ": GEOS cannot build the line: " + impl_->ctx.last_error());
   Geom simple(h, GEOSTopologyPreserveSimplify_r(h, g.get(), tolerance));
   if (!simple)
     fail<input_error>(kNoStage, "overview level: " + what +
-                                    ": GEOS simplification failed: " + impl_->ctx.last_error);
+                                    ": GEOS simplification failed: " + impl_->ctx.last_error());
   std::vector<const GEOSGeometry*> lines;
   bool ignored = false;
   collect(h, simple.get(), GEOS_LINESTRING, lines, ignored);

@@ -10,6 +10,7 @@
 #include <set>
 #include <string>
 
+#include "geos_handle.hpp"
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
 #include "prep/stage_error.hpp"
@@ -52,47 +53,38 @@ double signed_area(const Ring& r) {
 
 // ------------------------------------------------------------ GEOS clips --
 
-class Geos {
+// Rectangle clips of polygons, on one GEOS context.
+class PolygonClipper {
  public:
-  Geos() : h_(GEOS_init_r()) { GEOSContext_setErrorMessageHandler_r(h_, &Geos::on_error, this); }
-  ~Geos() { GEOS_finish_r(h_); }
-  Geos(const Geos&) = delete;
-  Geos& operator=(const Geos&) = delete;
-
   // Polygon (shell, holes) clipped to `box`: the polygons of the result,
   // each as rings (shell first). Rings come back unclosed.
   std::vector<std::vector<Ring>> clip(const Ring& shell, const std::vector<Ring>& holes,
                                       const Extent& box, const std::string& what) {
-    GEOSGeometry* s = ring(shell, what);
-    std::vector<GEOSGeometry*> hs;
+    detail::GeosGeom s = ring(shell, what);
+    std::vector<detail::GeosGeom> hs;
     for (const Ring& h : holes) hs.push_back(ring(h, what));
-    GEOSGeometry* poly =
-        GEOSGeom_createPolygon_r(h_, s, hs.data(), static_cast<unsigned>(hs.size()));
+    detail::GeosGeom poly(h_, detail::polygon_of(h_, std::move(s), hs));
     if (!poly) failed(what, "cannot make the polygon");
-    GEOSGeometry* cut = GEOSClipByRect_r(h_, poly, box.xmin, box.ymin, box.xmax, box.ymax);
-    GEOSGeom_destroy_r(h_, poly);
+    detail::GeosGeom cut(h_,
+                         GEOSClipByRect_r(h_, poly.get(), box.xmin, box.ymin, box.xmax, box.ymax));
     if (!cut) failed(what, "rectangle clip failed");
     std::vector<std::vector<Ring>> out;
-    collect(cut, out);
-    GEOSGeom_destroy_r(h_, cut);
+    collect(cut.get(), out);
     return out;
   }
 
  private:
-  static void on_error(const char* msg, void* self) {
-    static_cast<Geos*>(self)->last_error_ = msg ? msg : "";
-  }
   [[noreturn]] void failed(const std::string& what, const std::string& step) {
-    fail<error>(kTileStage, what + ": " + step + " (GEOS: " + last_error_ + ")");
+    fail<error>(kTileStage, what + ": " + step + " (GEOS: " + geos_.last_error() + ")");
   }
 
-  GEOSGeometry* ring(const Ring& r, const std::string& what) {
+  detail::GeosGeom ring(const Ring& r, const std::string& what) {
     GEOSCoordSequence* cs = GEOSCoordSeq_create_r(h_, static_cast<unsigned>(r.size() + 1), 2);
     for (size_t i = 0; i <= r.size(); ++i) {
       const Point2& p = r[i % r.size()];
       GEOSCoordSeq_setXY_r(h_, cs, static_cast<unsigned>(i), p.x, p.y);
     }
-    GEOSGeometry* g = GEOSGeom_createLinearRing_r(h_, cs);
+    detail::GeosGeom g(h_, GEOSGeom_createLinearRing_r(h_, cs));
     if (!g) failed(what, "cannot make a ring");
     return g;
   }
@@ -126,8 +118,8 @@ class Geos {
     // Points and lines (a polygon touching the box along an edge) cover no area.
   }
 
-  GEOSContextHandle_t h_;
-  std::string last_error_;
+  detail::GeosContext geos_;
+  const GEOSContextHandle_t h_ = geos_.handle();
 };
 
 // A ring with the orientation `ccw` (true: counter-clockwise).
@@ -370,7 +362,7 @@ SceneFeatures tile_scene(const SceneFeatures& scene, const TilePlan& plan, const
   // scene coordinates -> tile coordinates
   const double dx = sx - tox, dy = sy - toy;
 
-  Geos geos;
+  PolygonClipper clipper;
   for (uint32_t i : members.polygons) {
     const ScenePolygon& p = scene.polygons[i];
     if (inside(reach, box_of(p.shell))) {
@@ -381,7 +373,7 @@ SceneFeatures tile_scene(const SceneFeatures& scene, const TilePlan& plan, const
       continue;
     }
     for (std::vector<Ring>& rings :
-         geos.clip(p.shell, p.holes, reach, where_of(scene, p.layer, p.fid))) {
+         clipper.clip(p.shell, p.holes, reach, where_of(scene, p.layer, p.fid))) {
       if (rings.front().size() < 3) continue;
       ScenePolygon q = p;  // area and order keys: the whole feature's
       q.shell = oriented(std::move(rings.front()), true);
@@ -402,7 +394,7 @@ SceneFeatures tile_scene(const SceneFeatures& scene, const TilePlan& plan, const
       // inside the square; the new edges lie on the reach's border.
       const bool ccw = signed_area(l.points) > 0;
       for (std::vector<Ring>& rings :
-           geos.clip(l.points, {}, reach, where_of(scene, l.layer, l.fid))) {
+           clipper.clip(l.points, {}, reach, where_of(scene, l.layer, l.fid))) {
         if (rings.front().size() < 3) continue;
         SceneLine q = l;
         q.points = oriented(std::move(rings.front()), ccw);

@@ -7,7 +7,7 @@
 #include <numeric>
 #include <vector>
 
-#include "detail/geos_handle.hpp"
+#include "geos_handle.hpp"
 
 namespace prep::detail {
 namespace {

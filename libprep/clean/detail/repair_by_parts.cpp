@@ -11,9 +11,10 @@
 #include <cstdint>
 #include <memory>
 #include <numeric>
+#include <optional>
 
 #include "detail/certainly_valid.hpp"
-#include "detail/geos_handle.hpp"
+#include "geos_handle.hpp"
 
 namespace prep::detail {
 namespace {
@@ -275,15 +276,16 @@ void run_repair_jobs(GEOSContextHandle_t h, const std::vector<Ring>& rings,
   }
   std::stable_sort(order.begin(), order.end(),
                    [&](uint32_t a, uint32_t b) { return vertices[a] > vertices[b]; });
-  std::vector<GEOSContextHandle_t> contexts(
-      static_cast<size_t>(std::max(tbb::this_task_arena::max_concurrency(), 1)), nullptr);
+  // One context per arena slot, made when its thread takes a first job.
+  std::vector<std::optional<GeosContext>> contexts(
+      static_cast<size_t>(std::max(tbb::this_task_arena::max_concurrency(), 1)));
   tbb::parallel_for(
       tbb::blocked_range<size_t>(0, order.size(), 1),
       [&](const tbb::blocked_range<size_t>& range) {
         const auto slot = static_cast<size_t>(tbb::this_task_arena::current_thread_index());
         if (slot >= contexts.size()) return;  // not expected; the job stays unrepaired
-        if (!contexts[slot]) contexts[slot] = GEOS_init_r();
-        GEOSContextHandle_t th = contexts[slot];
+        if (!contexts[slot]) contexts[slot].emplace();
+        GEOSContextHandle_t th = contexts[slot]->handle();
         for (size_t r = range.begin(); r != range.end(); ++r) {
           RepairJob& job = jobs[order[r]];
           if (job.keep_if_valid &&
@@ -297,8 +299,6 @@ void run_repair_jobs(GEOSContextHandle_t h, const std::vector<Ring>& rings,
         }
       },
       tbb::simple_partitioner());
-  for (GEOSContextHandle_t c : contexts)
-    if (c) GEOS_finish_r(c);
 }
 
 // What the clear groups' repairs give the assembly: the rings each cuts out

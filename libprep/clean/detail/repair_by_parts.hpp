@@ -61,7 +61,7 @@
 #include <functional>
 #include <vector>
 
-#include "detail/geos_handle.hpp"
+#include "geos_handle.hpp"
 #include "prep/features.hpp"
 
 namespace prep::detail {

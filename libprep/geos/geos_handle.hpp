@@ -1,15 +1,47 @@
-// One owning handle for a GEOS geometry of one context (destroyed unless
-// released), and the small GEOS helpers the clean stage's files share
-// (prepared geometries, STR trees, envelopes, building and taking apart
-// collections).
+// geos_handle.hpp — the GEOS context and geometry handles that clean and
+// tile share: one owning context per thread (GEOS _r API) that keeps the
+// last error message GEOS reported, one owning handle for a GEOS geometry of
+// a context (destroyed unless released), and the small GEOS helpers the
+// clean stage's files share (prepared geometries, STR trees, envelopes,
+// building and taking apart collections). Internal to the stages that link
+// prep_geos: no public stage header includes it, so GEOS stays out of them.
 #pragma once
 
 #include <geos_c.h>
 
+#include <string>
 #include <utility>
 #include <vector>
 
 namespace prep::detail {
+
+// One GEOS context (GEOS_init_r .. GEOS_finish_r) for the thread that owns
+// it. GEOS reports an error through the context's error handler before the
+// failing call returns null or an error code: last_error() is that message
+// (empty before the first), for the caller's own error. Notices are
+// dropped. Neither copied nor moved: the handlers point at the object.
+class GeosContext {
+ public:
+  GeosContext() : h_(GEOS_init_r()) {
+    GEOSContext_setErrorMessageHandler_r(h_, &GeosContext::on_error, this);
+    GEOSContext_setNoticeMessageHandler_r(h_, &GeosContext::on_notice, this);
+  }
+  ~GeosContext() { GEOS_finish_r(h_); }
+  GeosContext(const GeosContext&) = delete;
+  GeosContext& operator=(const GeosContext&) = delete;
+
+  GEOSContextHandle_t handle() const { return h_; }
+  const std::string& last_error() const { return last_error_; }
+
+ private:
+  static void on_error(const char* msg, void* self) {
+    static_cast<GeosContext*>(self)->last_error_ = msg ? msg : "";
+  }
+  static void on_notice(const char*, void*) {}
+
+  GEOSContextHandle_t h_;
+  std::string last_error_;
+};
 
 class GeosGeom {
  public:
