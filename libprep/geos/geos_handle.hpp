@@ -37,7 +37,7 @@ class GeosContext {
   static void on_error(const char* msg, void* self) {
     static_cast<GeosContext*>(self)->last_error_ = msg ? msg : "";
   }
-  static void on_notice(const char*, void*) {}
+  static void on_notice(const char* /*msg*/, void* /*self*/) {}
 
   GEOSContextHandle_t h_;
   std::string last_error_;

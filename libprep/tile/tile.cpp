@@ -62,6 +62,7 @@ class PolygonClipper {
                                       const Extent& box, const std::string& what) {
     detail::GeosGeom s = ring(shell, what);
     std::vector<detail::GeosGeom> hs;
+    hs.reserve(holes.size());
     for (const Ring& h : holes) hs.push_back(ring(h, what));
     detail::GeosGeom poly(h_, detail::polygon_of(h_, std::move(s), hs));
     if (!poly) failed(what, "cannot make the polygon");
