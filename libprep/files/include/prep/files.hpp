@@ -15,6 +15,7 @@
 // Thread-safe: these functions only stat().
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -73,5 +74,23 @@ void check_output_file(const std::string& path, const std::string& what,
 // path on failure, after removing the temp file. Thread-safe.
 void write_file_atomically(const std::string& path, std::string_view bytes,
                            const std::string& what);
+
+// Bytes and XXH64 (seed 0) of a file, read in 64 KiB pieces; nullopt when it
+// cannot be opened.
+struct FileDigest {
+  uint64_t bytes = 0, xxh64 = 0;
+};
+// The file is opened as the package reader opens one (decal::open_regular_file):
+// a FIFO, a device or a socket is refused before a byte is read; `why`,
+// when given, then says why (the path and what it is).
+std::optional<FileDigest> file_digest(const std::string& path, std::string* why = nullptr);
+
+// "%016llx"
+std::string hex64(uint64_t v);
+
+// Writes a small text file whole, through an exclusive temp file and a
+// rename (write_file_atomically), so that a reader never sees half of it.
+// Throws output_error naming the path.
+void write_text_file(const std::string& path, const std::string& text);
 
 }  // namespace prep
