@@ -398,7 +398,7 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   auto* s = "Scene (override the scene file)";
   cmd->add_option("--crs", args->crs,
                   "Scene frame CRS (PROJ/EPSG/WKT); default chosen from the data's extent (local "
-                  "TM, oblique stereographic or Equal Earth; README \"The scene frame\")")
+                  "TM, oblique stereographic or Equal Earth; docs/build.md \"The scene frame\")")
       ->group(s);
   cmd->add_option("--assume-crs", args->assume_crs,
                   "CRS for sources and a DEM that have none (otherwise an error)")
