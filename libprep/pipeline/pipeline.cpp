@@ -31,7 +31,6 @@
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/files.hpp"
-#include "prep/interrupt.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/model.hpp"

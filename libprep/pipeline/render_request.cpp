@@ -1,7 +1,7 @@
-// `decalprep render` as one request (prep/render_request.hpp): every option
+// `decalprep render` as one request (prep/pipeline.hpp): every option
 // checked once, here, then the scene opened, the terrain loaded, the camera
 // placed, the tiles of a tileset chosen, drawn and written.
-#include "prep/render_request.hpp"
+#include "prep/pipeline.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -19,7 +19,6 @@
 #include "prep/evaluate.hpp"
 #include "prep/files.hpp"
 #include "prep/memory_estimate.hpp"
-#include "prep/pipeline.hpp"
 #include "prep/project.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"

@@ -293,7 +293,7 @@ namespace prep::render {
 // draws: full-detail tiles near the camera, overview levels farther away,
 // within a budget of GPU memory (the drawn tiles' blobs, decoded). No GL:
 // `decalprep render` runs it before either renderer
-// (prep/render_request.hpp render()).
+// (prep/pipeline.hpp render()).
 //
 // The rule is a screen-space-error rule, as 3D Tiles refines by geometric
 // error: the quadtree of levels is walked from the coarsest level down, and
@@ -465,7 +465,7 @@ class TilesetDir {
   bool made_ = false;
 };
 
-// What SIGINT or SIGTERM leaves of a build (prep/interrupt.hpp): the work
+// What SIGINT or SIGTERM leaves of a build (prep/files.hpp): the work
 // folder goes, and the tileset folder too when the build made it. Each is
 // renamed away first, so that the build's threads, still running, can
 // create nothing more in it, then removed. Returns what it removed, for
