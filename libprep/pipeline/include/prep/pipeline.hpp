@@ -293,7 +293,7 @@ struct RenderOutcome {
   size_t ramps = 0;         // --ramp options
   uint64_t recoloured = 0;  // features the ramps recoloured
   bool tileset = false;
-  // A tileset: the tiles drawn (prep/tile_select.hpp; their entries are
+  // A tileset: the tiles drawn (prep/tile.hpp; their entries are
   // cleared: the index is gone), the index's level-0 tiles, and the drawn
   // tiles' blobs decoded (what --gpu-budget measures).
   TileSelection selection;
