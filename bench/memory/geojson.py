@@ -3,7 +3,7 @@
 GDAL's GeoJSON driver reads the whole file and builds an object tree of it
 before the first feature comes out, so the read stage, not the build, holds
 the peak. Writes geojson_peak_rss.csv beside this script (the fit the
-before-read estimate of libprep/pipeline/memory_estimate.cpp cites).
+before-read estimate of libprep/memory/memory_estimate.cpp cites).
 
   bench/memory/geojson.py DECALPREP [WORK_DIR] [--sizes 10,50,150]
       [--kinds polygons,lines,one_line] [--one-sizes 10,50]

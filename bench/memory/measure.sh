@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Measures decalprep build's peak RSS on generated inputs of a few sizes, for
-# the --max-memory model (libprep/pipeline/memory_estimate.cpp). Writes
+# the --max-memory model (libprep/memory/memory_estimate.cpp). Writes
 # peak_rss.csv (one row per build) next to this script; fit.py fits the model.
 # Usage: bench/memory/measure.sh [BUILD_DIR]   (default build/dev)
 # Needs /usr/bin/time (package `time`) and ogr2ogr (gdal-bin). ~1 min on 2 cores.

@@ -9,7 +9,7 @@ the Monaco sample as tilesets of several tile sizes with --jobs 1 and 2, and
 compares the kernel's peak resident set of each build (wait4's ru_maxrss)
 with the largest tile's estimate in the report (memory_estimate.tile: the
 resident set when the tiles began plus the jobs times the tile's build
-part, libprep/pipeline/memory_estimate.cpp). The estimate must never be
+part, libprep/memory/memory_estimate.cpp). The estimate must never be
 below the peak. Writes tile_peak_rss.csv next to this script and prints a
 Markdown table.
 """

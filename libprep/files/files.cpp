@@ -5,13 +5,17 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <xxhash.h>
+
 #include <array>
 #include <atomic>
 #include <cerrno>
+#include <cinttypes>
 #include <cstdio>
 #include <cstring>
 #include <string_view>
 
+#include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/stage_error.hpp"
 
@@ -164,6 +168,48 @@ void write_file_atomically(const std::string& path, std::string_view bytes,
     ::unlink(tmp.c_str());
     fail_with("cannot rename " + tmp + " over it", err);
   }
+}
+
+std::optional<FileDigest> file_digest(const std::string& path, std::string* why) {
+  // The reader's open: a FIFO or a device (a tile symlinked to /dev/zero)
+  // is refused before a byte is read, never read forever.
+  int fd = -1;
+  uint64_t size = 0;
+  if (const decal::Status s = decal::open_regular_file(path, fd, size); !s) {
+    if (why) *why = s.message;
+    return std::nullopt;
+  }
+  XXH64_state_t* st = XXH64_createState();
+  XXH64_reset(st, 0);
+  std::vector<char> buf(1 << 16);
+  FileDigest d;
+  for (;;) {
+    const ssize_t n = ::read(fd, buf.data(), buf.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      if (why) *why = "cannot read '" + path + "': " + std::strerror(errno);
+      ::close(fd);
+      XXH64_freeState(st);
+      return std::nullopt;
+    }
+    if (n == 0) break;
+    XXH64_update(st, buf.data(), static_cast<size_t>(n));
+    d.bytes += static_cast<uint64_t>(n);
+  }
+  ::close(fd);
+  d.xxh64 = XXH64_digest(st);
+  XXH64_freeState(st);
+  return d;
+}
+
+std::string hex64(uint64_t v) {
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016" PRIx64, v);
+  return hex;
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+  write_file_atomically(path, text, "output file");
 }
 
 }  // namespace prep

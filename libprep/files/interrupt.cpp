@@ -1,6 +1,6 @@
 // SIGINT / SIGTERM: undo what the build made, then exit 128 + signal
-// (prep/interrupt.hpp).
-#include "prep/interrupt.hpp"
+// (prep/files.hpp).
+#include "prep/files.hpp"
 
 #include <signal.h>
 #include <unistd.h>

@@ -25,7 +25,6 @@
 #include <set>
 #include <sstream>
 
-#include "pipeline_internal.hpp"
 #include "prep/error.hpp"
 #include "prep/files.hpp"
 #include "prep/memory_estimate.hpp"
@@ -493,7 +492,7 @@ class Summary {
  private:
   // Through a temp file of its own and a rename (write_text_file), so a
   // reader, or a batch stopped meanwhile, never leaves half a summary.
-  void replace(const std::string& text) { pipeline_internal::write_text_file(path_, text); }
+  void replace(const std::string& text) { write_text_file(path_, text); }
   std::string path_;
   std::vector<std::optional<nlohmann::json>> counts_;
 };

@@ -27,12 +27,10 @@
 #include <set>
 #include <sstream>
 
-#include "pipeline_internal.hpp"
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
 #include "prep/files.hpp"
-#include "prep/interrupt.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/model.hpp"
@@ -41,7 +39,6 @@
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 #include "prep/write.hpp"
-#include "tileset_dir.hpp"
 
 namespace prep {
 
@@ -53,133 +50,7 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// The manifest's "totals": every count summed over the layers, without "layer".
-nlohmann::json totals_json(const Manifest& m) {
-  nlohmann::json totals = layer_counts_json(manifest_totals(m));
-  totals.erase("layer");
-  return totals;
-}
-
-nlohmann::json manifest_json(const Manifest& m, bool with_entries) {
-  nlohmann::json layers = nlohmann::json::array();
-  for (const LayerCounts& c : m.layers) layers.push_back(layer_counts_json(c));
-  nlohmann::json j = {{"layers", layers}, {"totals", totals_json(m)}, {"notes", m.notes}};
-  if (with_entries) {
-    nlohmann::json entries = nlohmann::json::array();
-    for (const ManifestEntry& e : m.entries) entries.push_back(manifest_entry_json(e));
-    j["entries"] = std::move(entries);
-  }
-  j["entry_count"] = m.entries.size();
-  return j;
-}
-
-nlohmann::json frame_json(const SceneFrame& f, const Extent& e) {
-  return {{"crs_wkt", f.crs_wkt},
-          {"description", f.description},
-          {"origin", {f.origin_x, f.origin_y}},
-          {"extent", {e.xmin, e.ymin, e.xmax, e.ymax}}};
-}
-
-// Provenance: path, size and XXH64 of every local source (formats/SPEC.md "Metadata").
-nlohmann::json provenance_json(const BuildSpec& scene) {
-  nlohmann::json sources = nlohmann::json::array();
-  std::vector<std::string> paths;
-  for (const LayerSpec& l : scene.layers) paths.push_back(l.source);
-  if (!scene.dem.empty()) paths.push_back(scene.dem);
-  std::sort(paths.begin(), paths.end());
-  paths.erase(std::unique(paths.begin(), paths.end()), paths.end());
-  for (const std::string& p : paths) {
-    nlohmann::json s = {{"path", p}};
-    // Hash the file itself (for /vsizip/x.zip/y: the archive).
-    std::string file = p;
-    if (file.rfind("/vsizip/", 0) == 0) {
-      file = file.substr(8);
-      auto zip = file.find(".zip");
-      if (zip != std::string::npos) file = file.substr(0, zip + 4);
-    }
-    if (const std::optional<FileDigest> d = file_digest(file)) {
-      s["file"] = file;
-      s["bytes"] = d->bytes;
-      s["xxh64"] = hex64(d->xxh64);
-    }
-    sources.push_back(std::move(s));
-  }
-  return sources;
-}
-
-nlohmann::json layers_json(const std::vector<LayerSpec>& layers) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const LayerSpec& l : layers) {
-    out.push_back({{"name", l.name},
-                   {"source", l.source},
-                   {"layer", l.layer},
-                   {"where", l.where},
-                   {"sql", l.sql},
-                   {"kind", kind_name(l.kind)},
-                   {"dynamic", l.dynamic},
-                   {"width", l.style.width},
-                   {"width_unit", l.dynamic ? "pixel" : "ground metre"},
-                   {"color_rgba", l.style.color.rgba},
-                   {"color_attribute", l.style.color.attribute},
-                   {"corner", static_cast<uint32_t>(l.style.corner)},
-                   {"outline_mode", static_cast<uint32_t>(l.style.outline)},
-                   {"order_attribute", l.style.order_attribute}});
-    if (!l.casing_of.empty()) out.back()["casing_of"] = l.casing_of;
-    if (l.slope_widths) out.back()["slope_widths"] = true;
-    if (!l.dash.empty()) out.back()["dash"] = l.dash;  // formats/SPEC.md "Dashed lines"
-    // The stops an attribute-coloured layer's values went through (the
-    // colours baked into the props); `render --ramp` maps them anew.
-    if (!l.style.color.attribute.empty()) {
-      nlohmann::json stops = nlohmann::json::array();
-      for (const ColorStop& c : l.style.color.ramp) stops.push_back({c.value, c.rgba});
-      out.back()["color_ramp"] = stops;
-    }
-  }
-  return out;
-}
-
-nlohmann::json report_object(const SceneFeatures& scene, const std::string& output,
-                             const std::vector<std::pair<std::string, double>>& timings,
-                             bool package_written) {
-  nlohmann::json j;
-  j["report_version"] = 1;
-  j["output"] = output;
-  j["package_written"] = package_written;
-  j["frame"] = frame_json(scene.frame, scene.extent);
-  j["layers"] = layers_json(scene.layers);
-  j["manifest"] = manifest_json(scene.manifest, true);
-  j["output_counts"] = {{"polygons", scene.polygons.size()},
-                        {"lines", scene.lines.size()},
-                        {"dynamic_lines", scene.dynamic_lines.size()}};
-  nlohmann::json t = nlohmann::json::object();
-  for (const auto& [stage, s] : timings) t[stage] = s;
-  j["timings_s"] = t;
-  return j;
-}
-
 }  // namespace
-
-namespace pipeline_internal {
-
-void write_text_file(const std::string& path, const std::string& text) {
-  write_file_atomically(path, text, "output file");
-}
-
-}  // namespace pipeline_internal
-
-using pipeline_internal::write_text_file;
-
-LayerCounts manifest_totals(const Manifest& manifest) {
-  LayerCounts total;
-  for (const LayerCounts& c : manifest.layers) total += c;
-  return total;
-}
-
-std::string report_json(const SceneFeatures& scene, const std::string& output,
-                        const std::vector<std::pair<std::string, double>>& timings,
-                        bool package_written) {
-  return report_object(scene, output, timings, package_written).dump(2) + "\n";
-}
 
 namespace {
 
@@ -306,144 +177,6 @@ size_t count_skipped_failures(const Manifest& m) {
 
 namespace {
 
-// ------------------------------------------------------ recorded paths --
-// The folder a package's paths are recorded relative to: the scene file's,
-// or the working folder for the file-less form (whose paths are as typed,
-// relative to it). Absolute and lexically normal.
-std::filesystem::path record_base(const BuildSpec& scene) {
-  namespace fs = std::filesystem;
-  const fs::path cwd = fs::current_path();
-  if (scene.scene_path.empty()) return cwd.lexically_normal();
-  return (cwd / fs::path(scene.scene_path)).parent_path().lexically_normal();
-}
-
-// A path as a package records it (formats/SPEC.md "Metadata"): relative to
-// `base` when the two share a folder below the root, so that a package's
-// bytes do not depend on where a checkout lives, on the working folder or on
-// how the scene path was typed; absolute when they share only the root (a
-// chain of ../ up to it would say no more). The archive path of /vsizip/,
-// /vsigzip/, /vsitar/ and /vsi7z/ is recorded so, behind its prefix; what is
-// not a local path (a URL, "PG:...", another /vsi handler) is kept as given.
-// Lexical only: no file is opened and symbolic links are not followed.
-std::string recorded_path(const std::string& path, const std::filesystem::path& base) {
-  namespace fs = std::filesystem;
-  if (path.empty() || path.find("://") != std::string::npos) return path;
-  std::string prefix, rest = path;
-  if (path.rfind("/vsi", 0) == 0) {
-    for (std::string_view p : {"/vsizip/", "/vsigzip/", "/vsitar/", "/vsi7z/"})
-      if (path.rfind(p, 0) == 0) prefix = p;
-    if (prefix.empty()) return path;
-    rest = path.substr(prefix.size());
-    if (rest.empty() || rest[0] == '{' || rest.rfind("/vsi", 0) == 0) return path;
-  } else {
-    const auto colon = path.find(':');
-    if (colon != std::string::npos && colon > 1 && path.find('/') > colon) return path;
-  }
-  const fs::path abs = (fs::current_path() / fs::path(rest)).lexically_normal();
-  const fs::path rel = abs.lexically_relative(base);
-  if (rel.empty()) return path;
-  size_t up = 0, depth = 0;
-  for (const fs::path& part : rel) up += part == "..";
-  for (const fs::path& part : base.relative_path()) depth += !part.empty();
-  if (up >= depth) return prefix + abs.string();  // only the root in common
-  return prefix + rel.string();
-}
-
-// The provenance a package records: its "path" and "file" as recorded_path,
-// sorted by the recorded path (as provenance_json sorts the given ones, whose
-// order depends on the folders).
-nlohmann::json recorded_provenance(const nlohmann::json& provenance,
-                                   const std::filesystem::path& base) {
-  nlohmann::json out = provenance;
-  if (!out.is_array()) return out;
-  for (nlohmann::json& s : out)
-    for (const char* key : {"path", "file"})
-      if (s.contains(key) && s[key].is_string())
-        s[key] = recorded_path(s[key].get<std::string>(), base);
-  std::stable_sort(out.begin(), out.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
-    return a.value("path", std::string()) < b.value("path", std::string());
-  });
-  return out;
-}
-
-}  // namespace
-
-namespace pipeline_internal {
-
-// The manifest a package records: its notes and entry reasons name the
-// sources and the DEM as recorded_path records them (a note describes the
-// DEM by its path as given, a read note its source's).
-void record_manifest_paths(const BuildSpec& scene, Manifest& manifest) {
-  const std::filesystem::path base = record_base(scene);
-  std::vector<std::pair<std::string, std::string>> paths;
-  auto add = [&](const std::string& p) {
-    const std::string r = recorded_path(p, base);
-    if (!p.empty() && r != p) paths.emplace_back(p, r);
-  };
-  add(scene.dem);
-  for (const LayerSpec& l : scene.layers) add(l.source);
-  // Longest first: a path that holds another is replaced whole.
-  std::sort(paths.begin(), paths.end(),
-            [](const auto& a, const auto& b) { return a.first.size() > b.first.size(); });
-  auto fix = [&](std::string& text) {
-    for (const auto& [given, recorded] : paths)
-      for (size_t at = text.find(given); at != std::string::npos;
-           at = text.find(given, at + recorded.size()))
-        text.replace(at, given.size(), recorded);
-  };
-  for (std::string& n : manifest.notes) fix(n);
-  for (ManifestEntry& e : manifest.entries) fix(e.reason);
-}
-
-// Keys must not collide with write_model's. Paths are recorded relative to
-// the scene file's folder (recorded_path), the DEM relative to the
-// package's own folder when `package_path` is given, since `render` looks
-// for it there (formats/SPEC.md "Metadata"); the report keeps them as given.
-nlohmann::json package_metadata(const BuildSpec& scene, const Manifest& manifest,
-                                const nlohmann::json& provenance, const std::string& package_path) {
-  const std::filesystem::path base = record_base(scene);
-  const std::string dem =
-      package_path.empty()
-          ? scene.dem
-          : recorded_path(
-                scene.dem,
-                (std::filesystem::current_path() / package_path).lexically_normal().parent_path());
-  nlohmann::json totals = totals_json(manifest);
-  nlohmann::json extra;
-  extra["manifest"]["totals"] = totals;
-  extra["layers"] = layers_json(scene.layers);
-  for (nlohmann::json& l : extra["layers"])
-    l["source"] = recorded_path(l["source"].get<std::string>(), base);
-  extra["provenance"] = recorded_provenance(provenance, base);
-  extra["scene_file"] = recorded_path(scene.scene_path, base);
-  extra["build_options"] = {
-      {"resolution_m", scene.resolution},
-      {"repair", scene.repair == RepairMethod::structure ? "structure" : "linework"},
-      {"crs", scene.crs},
-      {"dem", dem},
-      {"grid", {scene.model.grid_nx, scene.model.grid_ny}},
-      {"qt_leaf_capacity", scene.model.qt_leaf_capacity},
-      {"qt_max_depth", scene.model.qt_max_depth},
-      {"miter_limit_deg", scene.model.miter_limit_deg}};
-  // What decides the DEM surface (prep/dem.hpp), so that `decalprep render`
-  // draws the surface the dynamic lines were matched to. Only with a DEM.
-  if (!scene.dem.empty()) {
-    auto& bo = extra["build_options"];
-    bo["dem_assume_crs"] = scene.assume_crs;
-    bo["z_scale"] = scene.model.z_scale;
-    bo["nodata_fill"] = scene.model.nodata_fill ? nlohmann::json(*scene.model.nodata_fill)
-                                                : nlohmann::json(nullptr);
-  }
-  return extra;
-}
-
-}  // namespace pipeline_internal
-
-using pipeline_internal::package_metadata;
-using pipeline_internal::record_manifest_paths;
-
-namespace {
-
 // The report's memory part: peak RSS after each stage, every estimate with
 // its basis, and the limit (prep/memory_estimate.hpp).
 void add_memory_report(nlohmann::json& report,
@@ -477,7 +210,7 @@ void add_memory_report(nlohmann::json& report,
 
 // The overview levels of a tileset build, for the report (all levels
 // together; tileset.json has them level by level).
-nlohmann::json levels_report(const pipeline_internal::TilesetOutcome& t) {
+nlohmann::json levels_report(const tiling::TilesetOutcome& t) {
   return {{"levels", t.levels},       {"tiles", t.level_tiles}, {"built", t.level_built},
           {"reused", t.level_reused}, {"empty", t.level_empty}, {"bytes", t.level_bytes}};
 }
@@ -566,7 +299,7 @@ std::vector<std::string> terrain_warnings(const BuildSpec& scene, const DecalMod
                           model.dyn_lines_outside_dem, model.dyn_line_start.size());
 }
 std::vector<std::string> terrain_warnings(const BuildSpec& scene,
-                                          const pipeline_internal::TileStepOutcome& t) {
+                                          const tiling::TileStepOutcome& t) {
   return terrain_warnings(scene, t.dyn_vertices_outside_dem, t.dyn_vertices,
                           t.dyn_lines_outside_dem, 0);
 }
@@ -659,7 +392,7 @@ std::unique_ptr<tbb::global_control> cap_threads(const BuildSpec& scene) {
 }
 
 // A tileset's part of the report.
-nlohmann::json tileset_report(const BuildSpec& scene, const pipeline_internal::TilesetOutcome& t) {
+nlohmann::json tileset_report(const BuildSpec& scene, const tiling::TilesetOutcome& t) {
   nlohmann::json j = {{"tile_size_m", scene.tile_size},
                       {"margin_m", t.margin},
                       {"tiles", t.tiles},
@@ -673,7 +406,7 @@ nlohmann::json tileset_report(const BuildSpec& scene, const pipeline_internal::T
 
 // One step of a tileset build (BuildRequest::step), in a process of its own.
 // The report says which step ran and what it did; the state for the next
-// step is in the work folder only (pipeline_internal.hpp).
+// step is in the work folder only (prep/tile.hpp, namespace tiling).
 BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request,
                              MemoryTrail& trail) {
   using Step = BuildRequest::Step;
@@ -704,35 +437,34 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
   // The folder is held for the step: prepare and finalize alone, the tiles
   // steps of one job side by side. A prepare that SIGINT or SIGTERM stops
   // leaves no half work folder.
-  pipeline_internal::TilesetDir tileset_dir(request.output,
-                                            request.step == Step::tiles
-                                                ? pipeline_internal::TilesetDir::Access::shared
-                                                : pipeline_internal::TilesetDir::Access::exclusive,
-                                            request.step == Step::prepare);
+  tiling::TilesetDir tileset_dir(request.output,
+                                 request.step == Step::tiles
+                                     ? tiling::TilesetDir::Access::shared
+                                     : tiling::TilesetDir::Access::exclusive,
+                                 request.step == Step::prepare);
   std::optional<OnInterrupt> undo;
   if (request.step == Step::prepare)
     undo.emplace("the prepare step was stopped", [dir = request.output, made = tileset_dir.made()] {
-      std::fprintf(stderr, "decalprep: %s\n",
-                   pipeline_internal::remove_after_interrupt(dir, made).c_str());
+      std::fprintf(stderr, "decalprep: %s\n", tiling::remove_after_interrupt(dir, made).c_str());
     });
   switch (request.step) {
     case Step::prepare: {
       estimates.push_back(before_read(scene, request));
       check_memory(limit, estimates.back());
       const nlohmann::json provenance = provenance_json(scene);
-      pipeline_internal::PreparedScene p;
+      tiling::PreparedScene p;
       try {
         // The sources' drivers may hold more than any estimate: watched.
         const RssWatch watch(limit, [&](double rss) {
-          pipeline_internal::remove_after_interrupt(request.output, tileset_dir.made());
+          tiling::remove_after_interrupt(request.output, tileset_dir.made());
           stop_reading(rss, request, trail);
         });
-        p = pipeline_internal::prepare_tileset_streaming(
+        p = tiling::prepare_tileset_streaming(
             scene, request, [&]() -> const nlohmann::json& { return provenance; });
         check_cleaned(scene, request, p.manifest, p.polygons + p.lines + p.dynamic_lines, true,
                       trail);
       } catch (...) {
-        pipeline_internal::discard_work(request.output, tileset_dir.made());
+        tiling::discard_work(request.output, tileset_dir.made());
         throw;
       }
       report["step"] = "prepare";
@@ -747,8 +479,8 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
       break;
     }
     case Step::tiles: {
-      const pipeline_internal::TileStepOutcome t = pipeline_internal::build_tiles(
-          scene, request, request.step_part, request.step_parts, &estimates);
+      const tiling::TileStepOutcome t =
+          tiling::build_tiles(scene, request, request.step_part, request.step_parts, &estimates);
       give_warnings(terrain_warnings(scene, t), request, trail);
       peaks.emplace_back("tiles", peak_rss_mib());
       report["step"] = "tiles";
@@ -772,8 +504,7 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
         result.package_written = true;
         break;
       }
-      const pipeline_internal::TilesetOutcome t =
-          pipeline_internal::finalize_tileset(scene, request);
+      const tiling::TilesetOutcome t = tiling::finalize_tileset(scene, request);
       report["tileset"] = tileset_report(scene, t);
       result.package_written = true;
       say("step finalize: " + std::to_string(t.tiles) + " tiles, " + std::to_string(t.bytes) +
@@ -842,24 +573,23 @@ class SourceProvenance {
   std::optional<nlohmann::json> value_;
 };
 
-// A tileset's read, project and clean, out of core (pipeline_internal.hpp):
+// A tileset's read, project and clean, out of core (prep/tile.hpp, namespace tiling):
 // they stream through the work folder chunk by chunk, and each tile later
 // reads its window of the intermediate; nothing holds the whole scene. A
 // failure removes the work folder (and the tileset folder if `made_dir`).
-pipeline_internal::PreparedScene prepare_streamed(const BuildSpec& scene,
-                                                  const BuildRequest& request, bool made_dir,
-                                                  SourceProvenance& provenance, StageLog& log,
-                                                  MemoryTrail& trail, BuildResult& result) {
-  pipeline_internal::PreparedScene p;
+tiling::PreparedScene prepare_streamed(const BuildSpec& scene, const BuildRequest& request,
+                                       bool made_dir, SourceProvenance& provenance, StageLog& log,
+                                       MemoryTrail& trail, BuildResult& result) {
+  tiling::PreparedScene p;
   try {
     const RssWatch watch(log.limit(), [&](double rss) {
-      pipeline_internal::remove_after_interrupt(request.output, made_dir);
+      tiling::remove_after_interrupt(request.output, made_dir);
       stop_reading(rss, request, trail);
     });
-    p = pipeline_internal::prepare_tileset_streaming(
+    p = tiling::prepare_tileset_streaming(
         scene, request, [&]() -> const nlohmann::json& { return provenance.get(); });
   } catch (...) {
-    pipeline_internal::discard_work(request.output, made_dir);
+    tiling::discard_work(request.output, made_dir);
     throw;
   }
   log.time("read", p.read_s);
@@ -874,7 +604,7 @@ pipeline_internal::PreparedScene prepare_streamed(const BuildSpec& scene,
     check_cleaned(scene, request, result.scene.manifest, p.polygons + p.lines + p.dynamic_lines,
                   true, trail);
   } catch (...) {
-    pipeline_internal::discard_work(request.output, made_dir);
+    tiling::discard_work(request.output, made_dir);
     throw;
   }
   return p;
@@ -922,17 +652,16 @@ void read_project_clean(const BuildSpec& scene, const BuildRequest& request, Sta
 // A tileset's tiles, each checked against --max-memory as it is cut, then
 // tileset.json; the progress line says which tiles this run built (a
 // resumed build says how many it kept).
-pipeline_internal::TilesetOutcome build_tileset(const BuildSpec& scene, const BuildRequest& request,
-                                                bool made_dir, StageLog& log, MemoryTrail& trail) {
+tiling::TilesetOutcome build_tileset(const BuildSpec& scene, const BuildRequest& request,
+                                     bool made_dir, StageLog& log, MemoryTrail& trail) {
   log.start();
-  pipeline_internal::TilesetOutcome tileset;
+  tiling::TilesetOutcome tileset;
   try {
-    const pipeline_internal::TileStepOutcome t =
-        pipeline_internal::build_tiles(scene, request, 0, 1, &trail.estimates);
+    const tiling::TileStepOutcome t = tiling::build_tiles(scene, request, 0, 1, &trail.estimates);
     give_warnings(terrain_warnings(scene, t), request, trail);
-    tileset = pipeline_internal::finalize_tileset(scene, request);
+    tileset = tiling::finalize_tileset(scene, request);
   } catch (...) {
-    pipeline_internal::discard_work(request.output, made_dir);
+    tiling::discard_work(request.output, made_dir);
     throw;
   }
   log.done("tiles");
@@ -988,8 +717,8 @@ void build_and_write(const BuildSpec& scene, const BuildRequest& request,
 
 // The report of a whole build, into result.report_json (and --report).
 void finish_report(const BuildSpec& scene, const BuildRequest& request,
-                   const std::optional<pipeline_internal::PreparedScene>& streamed,
-                   const std::optional<pipeline_internal::TilesetOutcome>& tileset,
+                   const std::optional<tiling::PreparedScene>& streamed,
+                   const std::optional<tiling::TilesetOutcome>& tileset,
                    SourceProvenance& provenance, const StageLog& log, const MemoryTrail& trail,
                    BuildResult& result) {
   nlohmann::json report = report_object(result.scene, request.dry_run ? "" : request.output,
@@ -1034,19 +763,18 @@ BuildResult run_stages(const BuildSpec& scene, const BuildRequest& request, Memo
   // The tileset folder, held for the whole build; a build that fails
   // before its first tile removes only what it made, and SIGINT or SIGTERM
   // removes the work folder and the tileset folder if the build made it.
-  std::optional<pipeline_internal::TilesetDir> tileset_dir;
+  std::optional<tiling::TilesetDir> tileset_dir;
   std::optional<OnInterrupt> undo;
   if (tiled) {
-    tileset_dir.emplace(request.output, pipeline_internal::TilesetDir::Access::exclusive, true);
-    undo.emplace("the tileset build was stopped",
-                 [dir = request.output, made = tileset_dir->made()] {
-                   std::fprintf(stderr, "decalprep: %s\n",
-                                pipeline_internal::remove_after_interrupt(dir, made).c_str());
-                 });
+    tileset_dir.emplace(request.output, tiling::TilesetDir::Access::exclusive, true);
+    undo.emplace("the tileset build was stopped", [dir = request.output,
+                                                   made = tileset_dir->made()] {
+      std::fprintf(stderr, "decalprep: %s\n", tiling::remove_after_interrupt(dir, made).c_str());
+    });
   }
   const bool made_dir = tileset_dir && tileset_dir->made();
-  std::optional<pipeline_internal::PreparedScene> streamed;
-  std::optional<pipeline_internal::TilesetOutcome> tileset;
+  std::optional<tiling::PreparedScene> streamed;
+  std::optional<tiling::TilesetOutcome> tileset;
   if (tiled) {
     streamed = prepare_streamed(scene, request, made_dir, provenance, log, trail, result);
     tileset = build_tileset(scene, request, made_dir, log, trail);

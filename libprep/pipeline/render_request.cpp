@@ -1,7 +1,7 @@
-// `decalprep render` as one request (prep/render_request.hpp): every option
+// `decalprep render` as one request (prep/pipeline.hpp): every option
 // checked once, here, then the scene opened, the terrain loaded, the camera
 // placed, the tiles of a tileset chosen, drawn and written.
-#include "prep/render_request.hpp"
+#include "prep/pipeline.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -19,7 +19,6 @@
 #include "prep/evaluate.hpp"
 #include "prep/files.hpp"
 #include "prep/memory_estimate.hpp"
-#include "prep/pipeline.hpp"
 #include "prep/project.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
@@ -304,7 +303,7 @@ struct Scene {
   std::vector<TileSource> tiles;
   std::string metadata;       // a package's metadata (the recorded DEM)
   std::string metadata_file;  // that package (a recorded DEM is relative to its folder)
-  TileSelection selection;    // a tileset: the tiles drawn (prep/tile_select.hpp)
+  TileSelection selection;    // a tileset: the tiles drawn (prep/tile.hpp)
 };
 
 // Whether a tile of the view has LOD segments (RenderOutcome::lod_data_unused).
@@ -378,7 +377,7 @@ void note_tiles(const RenderRequest& a, const Scene& sc) {
                             (sc.selection.coarsened ? ", coarsened to fit --gpu-budget" : "")));
 }
 
-// Loads the tiles of a tileset that the view draws (prep/tile_select.hpp:
+// Loads the tiles of a tileset that the view draws (prep/tile.hpp:
 // the level-0 tiles that meet the camera's ground footprint, or overview
 // tiles where their resolution is below a pixel, within --gpu-budget), and
 // only those. The budget counts each tile's blobs decoded, as its header

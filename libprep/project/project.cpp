@@ -482,7 +482,7 @@ std::pair<double, double> data_centre_in(const FeatureSource& features,
 // ------------------------------------------------------- the default frame --
 //
 // With no --crs the frame is the first of three that holds the data
-// (README "The scene frame", ARCHITECTURE.md "2. project"):
+// (docs/build.md "The scene frame", ARCHITECTURE.md "project"):
 //
 // 1. local TM: a transverse Mercator centred on the data, while the data
 //    lies within kTmMaxEasting of its central meridian. There PROJ's tmerc

@@ -87,9 +87,10 @@ struct DatasetCloser {
 };
 using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
 
-// GDAL configuration options a read sets for the user (README "GDAL
-// configuration options"), thread-locally on the reading thread for as long
-// as the object lives, each restored afterwards (CPLConfigOptionSetter):
+// GDAL configuration options a read sets for the user (docs/build.md
+// "GDAL configuration options decalprep sets"), thread-locally on the
+// reading thread for as long as the object lives, each restored afterwards
+// (CPLConfigOptionSetter):
 //  - OGR_GEOJSON_MAX_OBJ_SIZE=0: GDAL's GeoJSON reader refuses a single
 //    object whose parse it estimates above 200 MB ("GeoJSON object too
 //    complex/large"); a large coastline or country polygon is such an object.

@@ -1,6 +1,6 @@
 // The one check of the renderer's options (prep/render.hpp
 // check_render_options): the GL renderer and `decalprep render`'s request
-// (prep/render_request.hpp) both call it, so each option is refused in one
+// (prep/pipeline.hpp) both call it, so each option is refused in one
 // place and in one wording.
 #include <cmath>
 #include <cstdint>

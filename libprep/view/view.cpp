@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "prep/error.hpp"
-#include "prep/interrupt.hpp"
+#include "prep/files.hpp"
 #include "prep/stage_error.hpp"
 
 namespace prep::view {

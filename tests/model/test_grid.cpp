@@ -111,7 +111,7 @@ TEST(DecalGrid, AdaptivePackageIsAtMost1Point2TimesTheThesisGridsAndQueriesCostL
     ASSERT_EQ(t.grid.nx, 500u);
     ASSERT_GT(a.grid.nx, 0u);
     const double ratio = double(static_bytes(a)) / double(static_bytes(t));
-    // The size contract of the README and grid.cpp (kGridSizeBudget).
+    // The size contract of docs/build.md and grid.cpp (kGridSizeBudget).
     EXPECT_LE(ratio, 1.2) << "adaptive grid " << a.grid.nx << "x" << a.grid.ny;
     std::printf("[%s] adaptive %ux%u: %.4f x the 500x500 package\n",
                 lines ? "polygons and lines" : "polygons only", a.grid.nx, a.grid.ny, ratio);

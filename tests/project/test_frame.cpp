@@ -120,7 +120,7 @@ TEST(DefaultFrame, MonacoSampleKeepsItsLocalTransverseMercatorExactly) {
   const TmFrame want = expected_local_tm(fs);
   EXPECT_EQ(frame.description, want.description);
   EXPECT_EQ(frame.crs_wkt, want.wkt);
-  // The frame README.md has always shown for the sample.
+  // The frame the documentation (docs/build.md) has always shown for the sample.
   EXPECT_EQ(frame.description, "local TM lon0=7.4199727 lat0=43.7425030 (WGS84, k0=1)");
   EXPECT_EQ(frame.origin_x, 0.0);
   EXPECT_EQ(frame.origin_y, 0.0);

@@ -1,8 +1,8 @@
-// GDAL quirks the user never has to know (README "GDAL configuration
-// options"): OSM XML as Overpass API writes it, and GeoJSON objects over
-// GDAL's default size limit. End to end through `decalprep build`; the read
-// counts are checked against ogrinfo run with the option that makes GDAL
-// read the file (the independent oracle).
+// GDAL quirks the user never has to know (docs/build.md "GDAL configuration
+// options decalprep sets"): OSM XML as Overpass API writes it, and GeoJSON
+// objects over GDAL's default size limit. End to end through `decalprep
+// build`; the read counts are checked against ogrinfo run with the option
+// that makes GDAL read the file (the independent oracle).
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>

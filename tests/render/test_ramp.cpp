@@ -4,7 +4,7 @@
 // its own attribute value, rendered top-down with no ramp, then with two
 // different ramps, on the CPU and in GL; at every feature's centre the decal
 // colour must be the ramp's colour for that feature's value. The oracle is
-// the ramp rule as the README states it (linear per channel between the two
+// the ramp rule as docs/render.md states it (linear per channel between the two
 // stops around the value, clamped outside them, the layer colour for a
 // feature without a value), computed here from the values this test wrote.
 #include <gtest/gtest.h>
@@ -40,7 +40,7 @@ struct Stop {
 };
 using Ramp = std::vector<Stop>;
 
-// The README's rule, per channel.
+// The rule of docs/render.md, per channel.
 std::array<int, 4> ramp_colour(const Ramp& r, std::optional<double> v, std::array<int, 4> none) {
   if (!v) return none;
   const double x = float(*v);  // stored as f32

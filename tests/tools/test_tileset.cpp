@@ -29,6 +29,7 @@
 #include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/evaluate.hpp"
+#include "prep/files.hpp"
 #include "prep/render.hpp"
 #include "prep/tile.hpp"
 #include "test_support.hpp"

@@ -13,7 +13,6 @@
 
 #include "command.hpp"
 #include "prep/files.hpp"
-#include "prep/interrupt.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/progress.hpp"
@@ -229,7 +228,7 @@ void print_summary(const BuildArgs& a, const prep::BuildResult& result) {
 // One scene.
 int run(const BuildArgs& a) {
   // Before any thread starts: SIGINT and SIGTERM then undo what the build
-  // made (prep/interrupt.hpp) and exit 130 / 143.
+  // made (prep/files.hpp) and exit 130 / 143.
   prep::watch_interrupts();
   const prep::BuildSpec scene = prep::scene_spec(scene_request(a, a.input));
   if (!a.dry_run && a.output.empty())
@@ -398,7 +397,7 @@ const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
   auto* s = "Scene (override the scene file)";
   cmd->add_option("--crs", args->crs,
                   "Scene frame CRS (PROJ/EPSG/WKT); default chosen from the data's extent (local "
-                  "TM, oblique stereographic or Equal Earth; README \"The scene frame\")")
+                  "TM, oblique stereographic or Equal Earth; docs/build.md \"The scene frame\")")
       ->group(s);
   cmd->add_option("--assume-crs", args->assume_crs,
                   "CRS for sources and a DEM that have none (otherwise an error)")

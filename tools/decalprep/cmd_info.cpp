@@ -19,6 +19,7 @@
 #include "command.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
+#include "prep/files.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 

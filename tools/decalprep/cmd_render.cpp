@@ -1,14 +1,14 @@
 // decalprep render — draws a package over terrain headless (GL via EGL, or
 // the CPU evaluator with --cpu) and writes a PNG. Thin: the options go into
 // a prep::render::RenderRequest, prep_render checks and draws it
-// (prep/render_request.hpp), and --stats prints what it drew.
+// (prep/pipeline.hpp), and --stats prints what it drew.
 #include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
 
 #include "command.hpp"
-#include "prep/render_request.hpp"
+#include "prep/pipeline.hpp"
 
 namespace {
 

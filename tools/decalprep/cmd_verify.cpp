@@ -10,6 +10,7 @@
 #include "command.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
+#include "prep/files.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/tile.hpp"
 

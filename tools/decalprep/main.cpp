@@ -1,6 +1,6 @@
 // decalprep — GIS vector data to GPU-ready decal packages.
 // Thin main: parses the command line and dispatches to the registered
-// subcommands (cmd_*.cpp). Exit codes: prep::ExitCode (README "Exit codes").
+// subcommands (cmd_*.cpp). Exit codes: prep::ExitCode (docs/cli.md "Exit codes").
 #include <algorithm>
 #include <cstdio>
 #include <exception>

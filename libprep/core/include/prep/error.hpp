@@ -11,7 +11,7 @@
 
 namespace prep {
 
-// Exit codes of the decalprep tool. Stable: documented in README.md.
+// Exit codes of the decalprep tool. Stable: documented in docs/cli.md "Exit codes".
 // Kept clear of 124–127 and 137 (timeout / shell / SIGKILL).
 enum class ExitCode : int {
   ok = 0,

@@ -123,4 +123,46 @@ struct SceneSpec {
   std::string scene_path;  // for messages and provenance
 };
 
+// ------------------------------------------------------------- how to run --
+
+class Progress;  // prep/progress.hpp
+
+struct BuildRequest {
+  // Package path, written atomically; for a tileset (scene.tile_size > 0)
+  // the directory (created when missing; formats/SPEC.md "Tilesets").
+  std::string output;
+  std::string report;    // JSON report path; empty: none
+  bool dry_run = false;  // stop after clean: write the report, no package
+  bool compress = true;
+  int zstd_level = 2;  // WriteOptions::zstd_level (prep/write.hpp)
+  // --max-memory in bytes (0: none): the build stops with resource_error
+  // (exit 6) as soon as an estimate of its peak RSS exceeds it
+  // (prep/memory_estimate.hpp); no package is written.
+  uint64_t max_memory = 0;
+  // --strict: a warning is an error (strict_error, exit 10): a layer that
+  // read no feature, dynamic-line heights taken outside the DEM. Without it
+  // they are printed on stderr and listed in the report's "warnings".
+  bool strict = false;
+  // Tilesets: tiles built side by side (0 counts as 1). The bytes do not
+  // depend on it.
+  unsigned jobs = 1;
+  // Progress of every stage, in pipeline order: read, project, clean,
+  // build.lines, build.quadtrees, build.grid, build.cells, build.dynamic,
+  // write (prep/progress.hpp); for a tileset: read, "prepare" (parts
+  // projected, cleaned and written to the work folder), then "tiles"
+  // (counted in tiles). Null: silent. Output only.
+  Progress* progress = nullptr;
+  // Tilesets: run one step of the build only (`--step`), each in a process
+  // of its own, possibly on another machine that sees the same output
+  // folder (a shared filesystem); the state between steps is the work
+  // folder DIR/.work only. prepare: read, project and clean into the work
+  // folder, and the plan. tiles: the plan's tiles i with
+  // i % step_parts == step_part. finalize: manifest.json, then tileset.json;
+  // refuses, naming them, while tiles are missing. Each step run again gives
+  // the same bytes; all: the three in one process.
+  enum class Step { all, prepare, tiles, finalize };
+  Step step = Step::all;
+  unsigned step_part = 0, step_parts = 1;
+};
+
 }  // namespace prep

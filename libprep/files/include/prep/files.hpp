@@ -15,6 +15,8 @@
 // Thread-safe: these functions only stat().
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -73,5 +75,60 @@ void check_output_file(const std::string& path, const std::string& what,
 // path on failure, after removing the temp file. Thread-safe.
 void write_file_atomically(const std::string& path, std::string_view bytes,
                            const std::string& what);
+
+// Bytes and XXH64 (seed 0) of a file, read in 64 KiB pieces; nullopt when it
+// cannot be opened.
+struct FileDigest {
+  uint64_t bytes = 0, xxh64 = 0;
+};
+// The file is opened as the package reader opens one (decal::open_regular_file):
+// a FIFO, a device or a socket is refused before a byte is read; `why`,
+// when given, then says why (the path and what it is).
+std::optional<FileDigest> file_digest(const std::string& path, std::string* why = nullptr);
+
+// "%016llx"
+std::string hex64(uint64_t v);
+
+// Writes a small text file whole, through an exclusive temp file and a
+// rename (write_file_atomically), so that a reader never sees half of it.
+// Throws output_error naming the path.
+void write_text_file(const std::string& path, const std::string& text);
+
+// ------------------------------------------------------------ interrupts --
+
+// what a build undoes when SIGINT or SIGTERM stops it.
+//
+// A command that makes things on disk over a long run (a tileset build)
+// calls watch_interrupts() before it starts any thread: SIGINT and SIGTERM
+// are then blocked in every thread and one watcher thread waits for them
+// (sigwait). When one comes, the watcher runs every registered cleanup,
+// newest first, runs the handler a library installed for that signal, if
+// any (prep/write.hpp's temp-file removal), prints what it did and ends the
+// process with exit code 128 + the signal's number (130 for SIGINT, 143 for
+// SIGTERM: prep::ExitCode::interrupted / terminated), the code a shell
+// reports for a process that a signal stopped.
+//
+// Cleanups run on the watcher thread while the build's other threads may
+// still be working: a cleanup must not wait for them and must tolerate
+// files that come and go (rename a folder away before removing it).
+// Without watch_interrupts() (the library used in-process, as by the
+// tests) an OnInterrupt does nothing.
+// Blocks SIGINT and SIGTERM in the calling thread (every thread it starts
+// inherits the mask) and starts the watcher. Call once, from main's thread,
+// before any other thread exists. Idempotent.
+void watch_interrupts();
+
+// Registers `cleanup` (with a line that says what it undoes, printed when it
+// runs) for as long as the object lives. Thread-safe.
+class OnInterrupt {
+ public:
+  OnInterrupt(std::string what, std::function<void()> cleanup);
+  ~OnInterrupt();
+  OnInterrupt(const OnInterrupt&) = delete;
+  OnInterrupt& operator=(const OnInterrupt&) = delete;
+
+ private:
+  unsigned long id_ = 0;
+};
 
 }  // namespace prep

@@ -6,7 +6,7 @@
 // a local Transverse Mercator (scale 1 on the central meridian, WGS84
 // ellipsoid) while the data lies within 3900 km of the central meridian,
 // else an oblique stereographic within 90 degrees of the data's centre (or
-// the nearer pole), else Equal Earth (README "The scene frame"). The
+// the nearer pole), else Equal Earth (docs/build.md "The scene frame"). The
 // transformation runs through PROJ (GDAL); the local TM's point scale factor
 // comes from GeographicLib. `scene.crs` picks any other projected CRS.
 // Every SRS is used with OAMS_TRADITIONAL_GIS_ORDER (x = easting/longitude).

@@ -250,7 +250,7 @@ struct RenderOptions {
 // options) when `options` cannot be drawn: a side outside 1..16384 pixels,
 // anti-aliasing or slope widths on with the volume or texture method, a
 // negative or non-finite texture resolution. render_gl checks them, and
-// check_render_request (prep/render_request.hpp) before a file is opened.
+// check_render_request (prep/pipeline.hpp) before a file is opened.
 void check_render_options(const RenderOptions& options);
 
 // The layers whose static lines `mode` measures along the terrain, as

@@ -39,7 +39,10 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "prep/features.hpp"
+#include "prep/memory_estimate.hpp"
 #include "prep/model.hpp"
 
 namespace prep {
@@ -202,19 +205,6 @@ struct TilesetIndex {
   std::vector<TileLevel> levels;  // overview levels 1, 2, ... in order; empty: none
 };
 
-// Bytes and XXH64 (seed 0) of a file, read in 64 KiB pieces; nullopt when it
-// cannot be opened.
-struct FileDigest {
-  uint64_t bytes = 0, xxh64 = 0;
-};
-// The file is opened as the package reader opens one (decal::open_regular_file):
-// a FIFO, a device or a socket is refused before a byte is read; `why`,
-// when given, then says why (the path and what it is).
-std::optional<FileDigest> file_digest(const std::string& path, std::string* why = nullptr);
-
-// "%016llx"
-std::string hex64(uint64_t v);
-
 // The index as JSON text (2-space indent, trailing newline; the same index
 // gives the same bytes). Throws output_error, before any byte is written,
 // when the index would not read back: tileset_index_problem() finds a
@@ -303,7 +293,7 @@ namespace prep::render {
 // draws: full-detail tiles near the camera, overview levels farther away,
 // within a budget of GPU memory (the drawn tiles' blobs, decoded). No GL:
 // `decalprep render` runs it before either renderer
-// (prep/render_request.hpp render()).
+// (prep/pipeline.hpp render()).
 //
 // The rule is a screen-space-error rule, as 3D Tiles refines by geometric
 // error: the quadtree of levels is walked from the coarsest level down, and
@@ -375,3 +365,111 @@ TileSelection select_tiles(const TilesetIndex& index, const Camera& camera, uint
                            const TileSelectOptions& options = {});
 
 }  // namespace prep::render
+
+// --------------------------------------------------------- tileset build --
+
+namespace prep::tiling {
+
+// A tileset build in three steps whose state is on disk only, in the work
+// folder request.output/.work (tileset_work.hpp), so that each may run in a
+// process of its own:
+//  1. prepare: the cleaned parts, chunk by chunk in scene order, into the
+//     intermediate, the manifest entries into their files, then the plan
+//     (which tiles exist, margins, frame, counts, notes, provenance);
+//  2. build_tiles: any subset of the plan's tiles, each from its window of
+//     the intermediate (tile_scene, build_model, write_model; request.jobs
+//     side by side), each with a record of what it made;
+//  3. finalize: manifest.json (streamed), then tileset.json last; removes
+//     the work folder.
+
+// What write_tileset() did, for the report.
+struct TilesetOutcome {
+  size_t tiles = 0;   // packages in the index
+  size_t built = 0;   // of those, built by this run
+  size_t reused = 0;  // of those, kept from an earlier run (they verified)
+  size_t empty = 0;   // tiles reached by a part's box but left with no part
+  uint64_t bytes = 0;
+  double margin = 0;
+  // Overview levels (formats/SPEC.md "Overview levels"), all together; the
+  // fields above are level 0's.
+  int levels = 0;
+  size_t level_tiles = 0, level_built = 0, level_reused = 0, level_empty = 0;
+  uint64_t level_bytes = 0;
+};
+
+// Step 1 out of core: every source read once, in chunks, its features
+// spilled to the work folder; the frame chosen from the spill; each layer
+// projected (its approximation fitted to the whole layer), cleaned and
+// written to the intermediate chunk by chunk; entries streamed. Memory: a
+// chunk, the tile keys, the per-layer counts and the read stage's entries.
+// The same intermediate, plan and entries as prepare_tileset() of the
+// scene read, projected and cleaned in memory.
+struct PreparedScene {
+  SceneFrame frame;
+  Extent extent;  // scene coordinates, as clean sets it
+  std::vector<LayerSpec> layers;
+  Manifest manifest;  // per-layer counts and notes; no entries
+  uint64_t entry_count = 0;
+  size_t skipped_failures = 0;  // entries for features skip_failures dropped
+  uint64_t polygons = 0, lines = 0, dynamic_lines = 0;
+  double read_s = 0, project_s = 0, clean_s = 0;
+};
+
+PreparedScene prepare_tileset_streaming(const BuildSpec& spec, const BuildRequest& request,
+                                        const std::function<const nlohmann::json&()>& provenance);
+
+// After a failed step: removes the work folder and, when `made_dir` (the
+// build created `dir`), `dir`/tiles and `dir` if they are empty; tiles
+// already written stay for the next run to keep.
+void discard_work(const std::string& dir, bool made_dir);
+
+// Step 2: the plan's tiles i with i % parts == part (parts <= 1: all).
+// Each tile to build is checked against request.max_memory once its window
+// is cut (estimate_tile); `estimates` (may be null) receives the largest
+// tile's estimate, or the one that stopped the build, also when it throws.
+struct TileStepOutcome {
+  size_t tiles = 0, built = 0, reused = 0, empty = 0;
+  // Dynamic-line vertices of the tiles built by this step whose heights
+  // came from beyond the DEM, on how many lines, of how many vertices.
+  uint64_t dyn_vertices_outside_dem = 0, dyn_lines_outside_dem = 0, dyn_vertices = 0;
+};
+
+TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, size_t part,
+                            size_t parts, std::vector<MemoryEstimate>* estimates = nullptr);
+
+// Step 3: every tile of the plan must have its record. `manifest` (may be
+// null) receives the scene's counts and notes.
+TilesetOutcome finalize_tileset(const BuildSpec& spec, const BuildRequest& request,
+                                Manifest* manifest = nullptr);
+
+// Holds `dir` for one build or one step of it: checks what the folder
+// holds (above; output_error, exit 7, naming the folder and what is in the
+// way), makes it when `create` and it is absent (made() is then true),
+// and takes a lock on it (flock on the folder: exclusive for a whole build,
+// prepare and finalize, shared for a tiles step, so that the tiles steps of
+// one cluster job run side by side). A lock held elsewhere is an
+// output_error that says so; a file system without locks (some network
+// file systems) builds without one. The lock goes with the object.
+class TilesetDir {
+ public:
+  enum class Access { exclusive, shared };
+  TilesetDir(const std::string& dir, Access access, bool create);
+  ~TilesetDir();
+  TilesetDir(const TilesetDir&) = delete;
+  TilesetDir& operator=(const TilesetDir&) = delete;
+  bool made() const { return made_; }
+
+ private:
+  std::string dir_;
+  int fd_ = -1;
+  bool made_ = false;
+};
+
+// What SIGINT or SIGTERM leaves of a build (prep/files.hpp): the work
+// folder goes, and the tileset folder too when the build made it. Each is
+// renamed away first, so that the build's threads, still running, can
+// create nothing more in it, then removed. Returns what it removed, for
+// the message.
+std::string remove_after_interrupt(const std::string& dir, bool made_dir);
+
+}  // namespace prep::tiling

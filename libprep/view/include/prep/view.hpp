@@ -77,7 +77,7 @@ struct ServeOptions {
 };
 
 // Serves until the process is stopped (SIGINT/SIGTERM end it through
-// prep/interrupt.hpp with 130/143). Calls `on_listening` with the page's URL
+// prep/files.hpp with 130/143). Calls `on_listening` with the page's URL
 // once the socket listens. Throws prep::input_error for a bad PATH and
 // prep::usage_error when it cannot listen on bind:port.
 void serve(const ServeOptions& options,

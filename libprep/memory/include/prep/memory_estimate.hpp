@@ -4,7 +4,7 @@
 // fit stops early with a clear error (resource_error, exit code 6) instead of
 // being killed by the kernel's OOM killer half-way.
 //
-// The model (coefficients and their fit: libprep/pipeline/memory_estimate.cpp
+// The model (coefficients and their fit: libprep/memory/memory_estimate.cpp
 // and bench/memory/) is linear in what each point knows:
 //   before read   the sizes of GeoJSON and .shp sources and the OSM driver's
 //                 cache for .pbf/.osm sources (a lower bound);

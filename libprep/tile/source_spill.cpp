@@ -8,7 +8,7 @@
 #include "prep/error.hpp"
 #include "prep/stage_error.hpp"
 
-namespace prep::pipeline_internal {
+namespace prep::tiling {
 
 namespace {
 
@@ -177,4 +177,4 @@ void SpillSource::chunks(size_t layer, size_t parts, size_t vertices,
   if (!chunk.features.empty()) take(chunk);
 }
 
-}  // namespace prep::pipeline_internal
+}  // namespace prep::tiling

@@ -16,7 +16,7 @@
 #include "prep/features.hpp"
 #include "prep/project.hpp"
 
-namespace prep::pipeline_internal {
+namespace prep::tiling {
 
 class SpillWriter {
  public:
@@ -61,4 +61,4 @@ class SpillSource final : public FeatureSource {
   std::vector<std::string> paths_;
 };
 
-}  // namespace prep::pipeline_internal
+}  // namespace prep::tiling

@@ -27,24 +27,26 @@
 #include <thread>
 
 #include "decal/reader.hpp"
-#include "pipeline_internal.hpp"
 #include "prep/clean.hpp"
 #include "prep/error.hpp"
 #include "prep/feature_failure.hpp"
+#include "prep/files.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/memory_estimate.hpp"
 #include "prep/model.hpp"
 #include "prep/progress.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
+#include "prep/report.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 #include "prep/write.hpp"
 #include "source_spill.hpp"
 #include "tileset_dir.hpp"
+#include "tileset_internal.hpp"
 #include "tileset_work.hpp"
 
-namespace prep::pipeline_internal {
+namespace prep::tiling {
 
 namespace {
 
@@ -927,4 +929,4 @@ TilesetOutcome finalize_tileset(const BuildSpec& spec, const BuildRequest& reque
   return out;
 }
 
-}  // namespace prep::pipeline_internal
+}  // namespace prep::tiling

@@ -17,10 +17,11 @@
 #include <vector>
 
 #include "prep/error.hpp"
+#include "prep/files.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 
-namespace prep::pipeline_internal {
+namespace prep::tiling {
 
 namespace {
 
@@ -245,4 +246,4 @@ std::string remove_after_interrupt(const std::string& dir, bool made_dir) {
   return "removed " + gone + (made_dir ? " (the build had made it)" : " (the work folder)");
 }
 
-}  // namespace prep::pipeline_internal
+}  // namespace prep::tiling

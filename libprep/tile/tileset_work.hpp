@@ -25,11 +25,11 @@
 #include <string>
 #include <vector>
 
-#include "pipeline_internal.hpp"
 #include "prep/features.hpp"
 #include "prep/tile.hpp"
+#include "tileset_internal.hpp"
 
-namespace prep::pipeline_internal {
+namespace prep::tiling {
 
 // Part kinds as the intermediate stores them (and the order of the scene's
 // vectors: polygons, static lines, dynamic lines).
@@ -138,4 +138,4 @@ std::vector<LayerCounts> counts_from_json(const nlohmann::json& j);
 // Removes `path` and everything under it (the work folder); errors ignored.
 void remove_tree(const std::string& path);
 
-}  // namespace prep::pipeline_internal
+}  // namespace prep::tiling

@@ -5,15 +5,15 @@
 // empty, or holds a tileset (tileset.json), a decalprep work folder
 // (.work/owner.json) or the plan `build --plan` wrote (plan.json). It removes only files that the
 // index on disk or its own work folder recorded, never follows a symlink out of the folder, and
-// holds a lock on the folder while it runs (README "Tilesets": "Safety").
+// holds a lock on the folder while it runs (docs/tilesets.md "Safe in a folder that is not empty").
 #pragma once
 
 #include <set>
 #include <string>
 
-#include "pipeline_internal.hpp"
+#include "tileset_internal.hpp"
 
-namespace prep::pipeline_internal {
+namespace prep::tiling {
 
 // The work folder's mark of ownership: a .work without it is not
 // decalprep's and is never removed.
@@ -21,29 +21,6 @@ constexpr const char* kWorkOwnerName = "owner.json";
 // The tile files earlier work folders recorded (carried from one work
 // folder to the next, so that a tile a killed run wrote can still go).
 constexpr const char* kWorkOwnedName = "owned.json";
-
-// Holds `dir` for one build or one step of it: checks what the folder
-// holds (above; output_error, exit 7, naming the folder and what is in the
-// way), makes it when `create` and it is absent (made() is then true),
-// and takes a lock on it (flock on the folder: exclusive for a whole build,
-// prepare and finalize, shared for a tiles step, so that the tiles steps of
-// one cluster job run side by side). A lock held elsewhere is an
-// output_error that says so; a file system without locks (some network
-// file systems) builds without one. The lock goes with the object.
-class TilesetDir {
- public:
-  enum class Access { exclusive, shared };
-  TilesetDir(const std::string& dir, Access access, bool create);
-  ~TilesetDir();
-  TilesetDir(const TilesetDir&) = delete;
-  TilesetDir& operator=(const TilesetDir&) = delete;
-  bool made() const { return made_; }
-
- private:
-  std::string dir_;
-  int fd_ = -1;
-  bool made_ = false;
-};
 
 // A folder inside the tileset (tiles, tiles/L<n>, .work and its folders):
 // made, or already a real folder; a symlink or anything else there is an
@@ -68,11 +45,4 @@ std::set<std::string> owned_files(const WorkPaths& paths);
 void remove_stale(const std::string& dir, const std::set<std::string>& owned,
                   const std::set<std::string>& keep, int levels);
 
-// What SIGINT or SIGTERM leaves of a build (prep/interrupt.hpp): the work
-// folder goes, and the tileset folder too when the build made it. Each is
-// renamed away first, so that the build's threads, still running, can
-// create nothing more in it, then removed. Returns what it removed, for
-// the message.
-std::string remove_after_interrupt(const std::string& dir, bool made_dir);
-
-}  // namespace prep::pipeline_internal
+}  // namespace prep::tiling

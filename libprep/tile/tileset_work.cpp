@@ -19,7 +19,7 @@
 #include "prep/manifest_json.hpp"
 #include "prep/stage_error.hpp"
 
-namespace prep::pipeline_internal {
+namespace prep::tiling {
 
 namespace {
 
@@ -512,4 +512,4 @@ void remove_tree(const std::string& path) {
   std::filesystem::remove_all(path, ec);
 }
 
-}  // namespace prep::pipeline_internal
+}  // namespace prep::tiling
