@@ -37,7 +37,6 @@
 #include "prep/progress.hpp"
 #include "prep/project.hpp"
 #include "prep/read.hpp"
-#include "prep/report.hpp"
 #include "prep/stage_error.hpp"
 #include "prep/tile.hpp"
 #include "prep/write.hpp"

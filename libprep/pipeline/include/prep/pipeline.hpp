@@ -15,8 +15,8 @@
 #include "prep/progress.hpp"
 #include "prep/read.hpp"
 #include "prep/render.hpp"
-#include "prep/report.hpp"
 #include "prep/tile.hpp"
+#include "prep/write.hpp"
 
 namespace prep {
 

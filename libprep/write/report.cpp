@@ -1,7 +1,7 @@
-// The build's report and a package's metadata (prep/report.hpp): the JSON
+// The build's report and a package's metadata (prep/write.hpp): the JSON
 // of the manifest, the frame, the layers and the sources, and the paths a
 // package records.
-#include "prep/report.hpp"
+#include "prep/write.hpp"
 
 #include <algorithm>
 #include <filesystem>
