@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <functional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -90,6 +91,62 @@ inline PolygonSet polygon_set(uint64_t seed, int tiles, double tile, double ox, 
       s.scene.polygons.push_back(island);
     }
   s.scene.extent = {ox, oy, ox + tiles * tile, oy + tiles * tile};
+  return s;
+}
+
+// A city-like scene, denser towards (0, 0): layer 0 "parcels" holds
+// `polygons` star shells around normally distributed centres (standard
+// deviation sx, sy metres), every third with a star hole; layer 1 "roads"
+// holds `lines` random walks from such centres. Ring vertex counts come
+// from shell_vertices / hole_vertices (drawn from the scene's generator, if
+// at all, just before the ring), so that a scene is the same for a seed.
+struct ClusteredScene {
+  uint64_t seed = 0;
+  int polygons = 0, lines = 0;
+  double sx = 0, sy = 0;
+  std::function<int(std::mt19937_64&)> shell_vertices, hole_vertices;
+  int walk_points = 0;        // points per line
+  double step = 0, turn = 0;  // metres per step; turn ~ N(0, turn) radians
+  decal::CornerStyle corner = decal::CornerStyle::round;
+  double width = 0;                   // the roads' width, metres
+  std::function<double(int)> length;  // line i's length
+};
+inline prep::SceneFeatures clustered_scene(const ClusteredScene& c) {
+  std::mt19937_64 rng(c.seed);
+  std::normal_distribution<double> N(0, 1);
+  std::uniform_real_distribution<double> U(0, 1);
+  prep::SceneFeatures s;
+  s.layers.push_back(layer("parcels", prep::DecalKind::polygon, 0xc0406080u));
+  s.layers.push_back(layer("roads", prep::DecalKind::line, 0xffffffffu, c.corner,
+                           decal::OutlineMode::normal, c.width));
+  for (int i = 0; i < c.polygons; ++i) {
+    const double cx = c.sx * N(rng), cy = c.sy * N(rng), size = 6 + 20 * std::abs(N(rng));
+    prep::ScenePolygon p;
+    const int shell = c.shell_vertices(rng);
+    p.shell = star(rng, cx, cy, 0.6 * size, size, shell, false);
+    if (i % 3 == 0) {
+      const int hole = c.hole_vertices(rng);
+      p.holes.push_back(star(rng, cx, cy, 0.15 * size, 0.3 * size, hole, true));
+    }
+    p.fid = i;
+    p.area = size * size;
+    s.polygons.push_back(std::move(p));
+  }
+  for (int i = 0; i < c.lines; ++i) {
+    prep::SceneLine l;
+    double x = c.sx * N(rng), y = c.sy * N(rng), a = 2 * M_PI * U(rng);
+    for (int k = 0; k < c.walk_points; ++k) {
+      l.points.push_back({x, y});
+      x += c.step * std::cos(a);
+      y += c.step * std::sin(a);
+      a += c.turn * N(rng);
+    }
+    l.layer = 1;
+    l.width = c.width;
+    l.length = c.length(i);
+    l.fid = i;
+    s.lines.push_back(std::move(l));
+  }
   return s;
 }
 

@@ -4,6 +4,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -72,6 +74,22 @@ struct OwnedBlob {
   uint64_t count() const { return bytes.size() / stride; }
   prep::BlobInput input() const { return {id, type, stride, count(), bytes}; }
 };
+
+// `n` elements of `stride` bytes, random but reproducible from `seed`: a
+// random walk of 32-bit words (compressible like coordinates), random bytes
+// after the last whole word.
+inline OwnedBlob walk_blob(decal::BlobId id, decal::ElementType type, uint32_t stride, uint64_t n,
+                           uint64_t seed) {
+  OwnedBlob b{id, type, stride, std::vector<std::byte>(n * stride)};
+  std::mt19937_64 rng(seed);
+  int32_t walk = 0;
+  for (size_t i = 0; i + 4 <= b.bytes.size(); i += 4) {
+    walk += static_cast<int32_t>(rng() % 2001) - 1000;
+    std::memcpy(b.bytes.data() + i, &walk, 4);
+  }
+  for (size_t i = b.bytes.size() / 4 * 4; i < b.bytes.size(); ++i) b.bytes[i] = std::byte(rng());
+  return b;
+}
 
 // The writer's inputs viewing `blobs`.
 inline std::vector<prep::BlobInput> inputs(const std::vector<OwnedBlob>& blobs) {

@@ -123,37 +123,21 @@ TEST(BuildDrawingOrder, LinesAndPolygonsShareOneLayerMajorRankSpace) {
 // counts: the grid and every array must still be the same at any thread
 // count, and the package within the size budget of the thesis grid.
 TEST(BuildDeterminism, SampledGridChoiceIsTheSameAtOneAndTwoThreads) {
-  std::mt19937_64 rng(17);
-  std::normal_distribution<double> N(0, 1);
-  std::uniform_real_distribution<double> U(0, 1);
-  prep::SceneFeatures s;
-  s.layers.push_back(synth::layer("parcels", prep::DecalKind::polygon, 0xc0406080u));
-  s.layers.push_back(synth::layer("roads", prep::DecalKind::line, 0xffffffffu,
-                                  decal::CornerStyle::miter, decal::OutlineMode::normal, 3.0));
-  for (int i = 0; i < 4000; ++i) {
-    const double cx = 2000 * N(rng), cy = 1500 * N(rng), size = 6 + 20 * std::abs(N(rng));
-    prep::ScenePolygon p;
-    p.shell = synth::star(rng, cx, cy, 0.6 * size, size, 24, false);
-    if (i % 3 == 0) p.holes.push_back(synth::star(rng, cx, cy, 0.15 * size, 0.3 * size, 8, true));
-    p.fid = i;
-    p.area = size * size;
-    s.polygons.push_back(std::move(p));
-  }
-  for (int i = 0; i < 6000; ++i) {
-    prep::SceneLine l;
-    double x = 2000 * N(rng), y = 1500 * N(rng), a = 2 * M_PI * U(rng);
-    for (int k = 0; k < 30; ++k) {
-      l.points.push_back({x, y});
-      x += 15 * std::cos(a);
-      y += 15 * std::sin(a);
-      a += 0.4 * N(rng);
-    }
-    l.layer = 1;
-    l.width = 3;
-    l.length = double(i % 13);
-    l.fid = i;
-    s.lines.push_back(std::move(l));
-  }
+  auto fixed = [](int n) { return [n](std::mt19937_64&) { return n; }; };
+  const prep::SceneFeatures s =
+      synth::clustered_scene({.seed = 17,
+                              .polygons = 4000,
+                              .lines = 6000,
+                              .sx = 2000,
+                              .sy = 1500,
+                              .shell_vertices = fixed(24),
+                              .hole_vertices = fixed(8),
+                              .walk_points = 30,
+                              .step = 15,
+                              .turn = 0.4,
+                              .corner = decal::CornerStyle::miter,
+                              .width = 3,
+                              .length = [](int i) { return double(i % 13); }});
   prep::ModelOptions o1, o2, thesis;
   o1.threads = 1;
   o2.threads = 2;

@@ -36,40 +36,22 @@ uint64_t static_bytes(const prep::DecalModel& m) {
 // A city-like scene: polygons (a third with a hole) and polylines, denser
 // towards the centre, so that cells near it hold many primitives.
 prep::SceneFeatures clustered_scene(int polygons, int lines) {
-  std::mt19937_64 rng(21);
-  std::normal_distribution<double> N(0, 1);
-  std::uniform_real_distribution<double> U(0, 1);
-  std::uniform_int_distribution<int> nv(6, 30);
-  prep::SceneFeatures s;
-  s.layers.push_back(synth::layer("parcels", prep::DecalKind::polygon, 0xc0406080u));
-  s.layers.push_back(synth::layer("roads", prep::DecalKind::line, 0xffffffffu,
-                                  decal::CornerStyle::bevel, decal::OutlineMode::normal, 4.0));
-  for (int i = 0; i < polygons; ++i) {
-    const double cx = 800 * N(rng), cy = 500 * N(rng), size = 6 + 20 * std::abs(N(rng));
-    prep::ScenePolygon p;
-    p.shell = synth::star(rng, cx, cy, 0.6 * size, size, nv(rng), false);
-    if (i % 3 == 0)
-      p.holes.push_back(synth::star(rng, cx, cy, 0.15 * size, 0.3 * size, nv(rng), true));
-    p.fid = i;
-    p.area = size * size;
-    s.polygons.push_back(std::move(p));
-  }
-  for (int i = 0; i < lines; ++i) {
-    prep::SceneLine l;
-    double x = 800 * N(rng), y = 500 * N(rng), a = 2 * M_PI * U(rng);
-    for (int k = 0; k < 12; ++k) {
-      l.points.push_back({x, y});
-      x += 20 * std::cos(a);
-      y += 20 * std::sin(a);
-      a += 0.5 * N(rng);
-    }
-    l.layer = 1;
-    l.width = 4;
-    l.length = 220;
-    l.fid = i;
-    s.lines.push_back(std::move(l));
-  }
-  return s;
+  auto vertices = [nv = std::uniform_int_distribution<int>(6, 30)](std::mt19937_64& rng) mutable {
+    return nv(rng);
+  };
+  return synth::clustered_scene({.seed = 21,
+                                 .polygons = polygons,
+                                 .lines = lines,
+                                 .sx = 800,
+                                 .sy = 500,
+                                 .shell_vertices = vertices,
+                                 .hole_vertices = vertices,
+                                 .walk_points = 12,
+                                 .step = 20,
+                                 .turn = 0.5,
+                                 .corner = decal::CornerStyle::bevel,
+                                 .width = 4,
+                                 .length = [](int) { return 220.0; }});
 }
 
 // Mean of all query-cost counters over `n` covered points sampled uniformly

@@ -13,6 +13,7 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include "dem_tiff.hpp"
 #include "hand_model.hpp"
 #include "prep/write.hpp"
 #include "test_support.hpp"
@@ -88,13 +89,8 @@ TEST_F(RenderCli, UsesThePackagesBuildDemUnlessFlatIsAsked) {
   // A 20 x 20 DEM over the scene (origin 0), a 300 m ramp from west to east.
   const std::string dem = (dir_ / "ramp.tif").string();
   {
-    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-    ASSERT_NE(gtiff, nullptr);
-    GDALDatasetUniquePtr ds(gtiff->Create(dem.c_str(), 20, 20, 1, GDT_Float32, nullptr));
+    GDALDatasetUniquePtr ds = create_dem_tiff(dem, 20, 20, GDT_Float32, -50, 150, 10, frame_wkt);
     ASSERT_TRUE(ds);
-    double gt[6] = {-50, 10, 0, 150, 0, -10};
-    ds->SetGeoTransform(gt);
-    ds->SetProjection(frame_wkt.c_str());
     std::vector<float> z(400);
     for (int j = 0; j < 20; ++j)
       for (int i = 0; i < 20; ++i) z[size_t(j * 20 + i)] = float(15 * i);

@@ -266,6 +266,16 @@ struct HoleScene {
     return run_tool("build " + gpkg + " --kind polygon --color '#d04020' --crs EPSG:32632 " +
                     "--extent " + ext + " --resolution 0 " + options + " -o " + out + " -q");
   }
+  // The scene built into the package dir/NAME.decals; "" (a test failure
+  // naming the build's exit code and output) when the build fails.
+  std::string package(const fs::path& dir, const std::string& name,
+                      const std::string& options) const {
+    const std::string pkg = (dir / (name + ".decals")).string();
+    const prep::test::ToolRun b = build(dir, name, pkg, options);
+    if (b.rc == 0) return pkg;
+    ADD_FAILURE() << name << ": build exit " << b.rc << "\n" << b.output;
+    return "";
+  }
   // A top-down view of n x n pixels over [-half, half]² around the centre,
   // absolute coordinates.
   std::string view(double half, uint32_t n) const {
@@ -284,9 +294,8 @@ struct HoleScene {
 TEST(RenderMethods, VolumeDrawsAGeneratedPolygonWithAHoleAndAnIslandInsideTheHole) {
   const HoleScene s;
   const fs::path d = out_dir("methods");
-  const std::string pkg = (d / "hole_island.decals").string();
-  auto b = s.build(d, "hole_island", pkg, "--leaf-capacity 8");
-  ASSERT_EQ(b.rc, 0) << b.output;
+  const std::string pkg = s.package(d, "hole_island", "--leaf-capacity 8");
+  ASSERT_FALSE(pkg.empty());
   // Top-down over [-460, 460]² around the centre.
   constexpr uint32_t n = 320;
   const double half = 460, px = 2 * half / n;
@@ -363,9 +372,8 @@ TEST(RenderMethods, VolumeDrawsTheHoleAndIslandFromATilesetCutAtTheTileSquares) 
 TEST(RenderMethods, VolumeWithTheCameraInsideAPrismCountsZFailAndMatchesCpuEvaluator) {
   const HoleScene s;
   const fs::path d = out_dir("methods");
-  const std::string pkg = (d / "hole_island_zfail.decals").string();
-  auto b = s.build(d, "hole_island_zfail", pkg, "");
-  ASSERT_EQ(b.rc, 0) << b.output;
+  const std::string pkg = s.package(d, "hole_island_zfail", "");
+  ASSERT_FALSE(pkg.empty());
   decal::Package package;
   ASSERT_TRUE(decal::Package::open(pkg, package));
   const auto meta = nlohmann::json::parse(package.metadata_json());

@@ -2,8 +2,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 
 #include "hand_model.hpp"
 #include "prep/error.hpp"
@@ -45,6 +47,18 @@ R::Vec3 pixel_ray(const R::RenderOptions& opt, uint32_t i, uint32_t j) {
   R::Vec3 d;
   for (int k = 0; k < 3; ++k) d[k] = b.f[k] + nx * t * aspect * b.r[k] + ny * t * b.u[k];
   return d;
+}
+
+// The ground point (x, y) where the ray of pixel (i, j), cast in double
+// precision, first meets `terrain`; none when it misses.
+std::optional<std::array<double, 2>> ground_at(const R::RenderOptions& opt,
+                                               const R::Heightfield& terrain, uint32_t i,
+                                               uint32_t j) {
+  const R::Vec3& eye = opt.camera.eye;
+  const R::Vec3 d = pixel_ray(opt, i, j);
+  const std::optional<double> hit = terrain.intersect(eye, d);
+  if (!hit) return std::nullopt;
+  return std::array<double, 2>{eye[0] + *hit * d[0], eye[1] + *hit * d[1]};
 }
 
 // Expected straight-alpha colour: line (alpha 0x80) over the polygon layer.
@@ -181,14 +195,11 @@ TEST(RenderGl, ObliquePerspectiveOverHillsAgreesWithDoubleRayCastOn999Permille) 
   }
   prep::write_png_rgba((out_dir() / "hand_perspective.png").string(), img.width, img.height,
                        img.rgba);
-  const auto& c = opt.camera;
   size_t considered = 0, agree = 0;
   for (uint32_t j = 0; j < opt.height; ++j)
     for (uint32_t i = 0; i < opt.width; ++i) {
-      const R::Vec3 d = pixel_ray(opt, i, j);
-      auto hit = hills.intersect(c.eye, d);
       std::array<double, 4> e{0, 0, 0, 0};
-      if (hit) e = expected(c.eye[0] + *hit * d[0], c.eye[1] + *hit * d[1]);
+      if (const auto ground = ground_at(opt, hills, i, j)) e = expected((*ground)[0], (*ground)[1]);
       const float* g = &img.decals[4 * (i + size_t(opt.width) * j)];
       if (e[3] == 0 && g[3] == 0) continue;
       ++considered;
@@ -217,14 +228,12 @@ TEST(RenderCpu, ASeaAtExactlyZeroIsTintedAsSeaOnEveryRowOfAnObliqueView) {
   prep::write_png_rgba((out_dir() / "cpu_coast.png").string(), img.width, img.height, img.rgba);
   const double l = 0.75 / std::sqrt(0.4 * 0.4 + 0.5 * 0.5 + 0.75 * 0.75);
   const double sea[3] = {0.45, 0.58, 0.70};
-  const auto& c = opt.camera;
   size_t considered = 0, wrong = 0;
   for (uint32_t j = 0; j < opt.height; ++j)
     for (uint32_t i = 0; i < opt.width; ++i) {
-      const R::Vec3 d = pixel_ray(opt, i, j);
-      auto hit = coast.intersect(c.eye, d);
-      if (!hit) continue;
-      const double x = c.eye[0] + *hit * d[0], y = c.eye[1] + *hit * d[1];
+      const auto ground = ground_at(opt, coast, i, j);
+      if (!ground) continue;
+      const auto [x, y] = *ground;
       const size_t k = i + size_t(opt.width) * j;
       if (!(x < 40 && x > -18 && y > -18 && y < 118) || img.decals[4 * k + 3] != 0) continue;
       ++considered;

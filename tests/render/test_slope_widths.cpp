@@ -27,6 +27,7 @@
 #include <nlohmann/json.hpp>
 
 #include "decal/reader.hpp"
+#include "dem_tiff.hpp"
 #include "epsg_wkt.hpp"
 #include "prep/error.hpp"
 #include "prep/render.hpp"
@@ -59,14 +60,9 @@ double cone(double x, double y) {
 // its upper-left corner at (x0, y0).
 void write_dem(const std::string& path, const Height& h, double x0, double y0, int w, int ht,
                double cell) {
-  GDALAllRegister();
-  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-  ASSERT_NE(gtiff, nullptr);
-  GDALDatasetUniquePtr ds(gtiff->Create(path.c_str(), w, ht, 1, GDT_Float64, nullptr));
+  GDALDatasetUniquePtr ds =
+      create_dem_tiff(path, w, ht, GDT_Float64, x0, y0, cell, epsg_wkt(32632));
   ASSERT_TRUE(ds);
-  double gt[6] = {x0, cell, 0, y0, 0, -cell};
-  ds->SetGeoTransform(gt);
-  ds->SetProjection(epsg_wkt(32632).c_str());
   std::vector<double> z(size_t(w) * ht);
   for (int j = 0; j < ht; ++j)
     for (int i = 0; i < w; ++i)

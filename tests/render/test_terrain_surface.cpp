@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "decal/reader.hpp"
+#include "dem_tiff.hpp"
 #include "epsg_wkt.hpp"
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
@@ -89,14 +90,9 @@ double surface(double x, double y, bool* near_strip = nullptr) {
 
 // The DEM through GDAL's GTiff driver; without a CRS when `with_crs` is false.
 void write_dem(const std::string& path, bool with_crs) {
-  GDALAllRegister();
-  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-  ASSERT_NE(gtiff, nullptr);
-  GDALDatasetUniquePtr ds(gtiff->Create(path.c_str(), kW, kH, 1, GDT_Int16, nullptr));
+  GDALDatasetUniquePtr ds = create_dem_tiff(path, kW, kH, GDT_Int16, kX0, kY0, kCell,
+                                            with_crs ? epsg_wkt(32632) : std::string());
   ASSERT_TRUE(ds);
-  double gt[6] = {kX0, kCell, 0, kY0, 0, -kCell};
-  ds->SetGeoTransform(gt);
-  if (with_crs) ds->SetProjection(epsg_wkt(32632).c_str());
   GDALRasterBand* b = ds->GetRasterBand(1);
   b->SetNoDataValue(kNoData);
   b->SetScale(kScale);

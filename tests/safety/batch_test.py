@@ -31,7 +31,7 @@ import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from safety import Failure, Skip, Suite, write_polygons_geojson  # noqa: E402
+from safety import Failure, Skip, Suite, snapshot, write_polygons_geojson  # noqa: E402
 
 suite = Suite(sys.argv)
 TOOL = suite.tool
@@ -100,6 +100,15 @@ def kill_session(p):
         os.killpg(p.pid, signal.SIGKILL)
     except OSError:
         pass
+
+
+def run_batch(args, timeout):
+    """start_batch, then finish: (code, stderr); its session killed after."""
+    p = start_batch(args)
+    try:
+        return finish(p, timeout)
+    finally:
+        kill_session(p)
 
 
 def wait_children(pid, n, timeout=30):
@@ -222,21 +231,6 @@ def batch_killed_outright():
 
 # ---------------------------------------------------------- output folder --
 
-def snapshot(folder):
-    """name -> (kind, bytes or None, mtime) of everything in a folder."""
-    snap = {}
-    for root, dirs, files in os.walk(folder):
-        for n in dirs + files:
-            path = os.path.join(root, n)
-            st = os.lstat(path)
-            data = None
-            if stat.S_ISREG(st.st_mode):
-                with open(path, "rb") as f:
-                    data = f.read()
-            snap[os.path.relpath(path, folder)] = (stat.S_IFMT(st.st_mode), data, st.st_mtime_ns)
-    return snap
-
-
 def refused(setup, needle):
     """A batch of scenes a and b into out/, after setup(d, out, sources)
     planted something; it must exit 7 naming `needle`, write nothing and
@@ -250,17 +244,13 @@ def refused(setup, needle):
             scene(scenes, k, src[k])
         out = os.path.join(d, "out")
         args = setup(d, out, src) or []
-        before = snapshot(d)
-        p = start_batch(["build", scenes, "-o", out] + args)
-        try:
-            code, err = finish(p, 30)
-        finally:
-            kill_session(p)
+        before = snapshot(d, mtimes=True)
+        code, err = run_batch(["build", scenes, "-o", out] + args, 30)
         if code != 7:
             raise Failure(f"exit {code}, expected 7\n{err}")
         if needle not in err:
             raise Failure(f"the message lacks {needle!r}: {err}")
-        after = snapshot(d)
+        after = snapshot(d, mtimes=True)
         if after != before:
             changed = sorted(k for k in set(before) | set(after) if before.get(k) != after.get(k))
             raise Failure(f"a refused batch changed {changed}")
@@ -316,15 +306,11 @@ def other_files_left_alone():
     for n, data in planted.items():
         with open(os.path.join(out, n), "wb") as f:
             f.write(data)
-    before = snapshot(out)
-    p = start_batch(["build", scenes, "-o", out])
-    try:
-        code, err = finish(p, 60)
-    finally:
-        kill_session(p)
+    before = snapshot(out, mtimes=True)
+    code, err = run_batch(["build", scenes, "-o", out], 60)
     if code != 0:
         raise Failure(f"exit {code}\n{err}")
-    after = snapshot(out)
+    after = snapshot(out, mtimes=True)
     for n in planted:
         if after.get(n) != before[n]:
             raise Failure(f"the batch changed {n}")
@@ -426,24 +412,40 @@ def sbatch_output_name(pattern, job):
     return out
 
 
+def stub_submit_inputs(folder, scene_name="scene.toml", tool_name="decalprep"):
+    """A scene file that submit does not read and the stub decalprep, in
+    folder; returns their paths."""
+    scene_path, tool = os.path.join(folder, scene_name), os.path.join(folder, tool_name)
+    with open(scene_path, "w") as f:
+        f.write("# not read\n")
+    write_exe(tool, STUB_TOOL)
+    return scene_path, tool
+
+
+def submit(env, tool, scene_path, out_dir, n, opts=(), text=False):
+    """scripts/slurm/submit --tool TOOL SCENE OUT N [OPTS...] under env."""
+    return subprocess.run(["bash", SUBMIT, "--tool", tool, scene_path, out_dir, n, *opts],
+                          env=env, capture_output=True, text=text, timeout=60)
+
+
+def sbatch_calls(env):
+    """What the stub sbatch recorded, one dict per call."""
+    with open(env["STUB_SBATCH_LOG"]) as f:
+        return [json.loads(line) for line in f]
+
+
 def submit_odd_paths():
     d = suite.dir("submit_odd")
     env = submit_env(d)
     base = os.path.join(d, ODD)
     os.makedirs(base)
-    scene_path = os.path.join(base, "scène %a.toml")
-    with open(scene_path, "w") as f:
-        f.write("# not read\n")
-    tool = os.path.join(base, "decal prep")
-    write_exe(tool, STUB_TOOL)
+    scene_path, tool = stub_submit_inputs(base, "scène %a.toml", "decal prep")
     out_dir = os.path.join(base, "tiles 100%")
     opts = ["--tile-size", "500", "--note", "a'b \"c\" $d `e` %j é\nf"]
-    r = subprocess.run(["bash", SUBMIT, "--tool", tool, scene_path, out_dir, "3"] + opts,
-                       env=env, capture_output=True, timeout=60)
+    r = submit(env, tool, scene_path, out_dir, "3", opts)
     if r.returncode != 0:
         raise Failure(f"submit exit {r.returncode}: {r.stderr!r}")
-    with open(env["STUB_SBATCH_LOG"]) as f:
-        calls = [json.loads(line) for line in f]
+    calls = sbatch_calls(env)
     if len(calls) != 3:
         raise Failure(f"{len(calls)} sbatch calls, expected 3 (prepare, tiles, finalize)")
     enc = os.fsencode
@@ -470,17 +472,11 @@ def submit_odd_paths():
 def submit_n_leading_zero():
     d = suite.dir("submit_08")
     env = submit_env(d)
-    scene_path = os.path.join(d, "scene.toml")
-    with open(scene_path, "w") as f:
-        f.write("# not read\n")
-    tool = os.path.join(d, "decalprep")
-    write_exe(tool, STUB_TOOL)
-    r = subprocess.run(["bash", SUBMIT, "--tool", tool, scene_path, os.path.join(d, "out"), "08"],
-                       env=env, capture_output=True, timeout=60)
+    scene_path, tool = stub_submit_inputs(d)
+    r = submit(env, tool, scene_path, os.path.join(d, "out"), "08")
     if r.returncode != 0:
         raise Failure(f"N=08: submit exit {r.returncode}: {r.stderr!r}")
-    with open(env["STUB_SBATCH_LOG"]) as f:
-        calls = [json.loads(line) for line in f]
+    calls = sbatch_calls(env)
     tiles = [bytes.fromhex(a) for a in calls[1]["argv"]]
     if b"--array=0-7" not in tiles:
         raise Failure(f"N=08: the tiles job is {tiles}")
@@ -488,8 +484,7 @@ def submit_n_leading_zero():
     if got[-3:] != [b"--step", b"tiles", b"5/8"]:
         raise Failure(f"N=08: task 5 ran {got}")
     for bad in ("0", "00", "-1", "1e3", "0x10", "9999999999"):
-        r = subprocess.run(["bash", SUBMIT, "--tool", tool, scene_path, os.path.join(d, "out"), bad],
-                           env=env, capture_output=True, text=True, timeout=60)
+        r = submit(env, tool, scene_path, os.path.join(d, "out"), bad, text=True)
         if r.returncode != 2 or "N must be" not in r.stderr:
             raise Failure(f"N={bad}: exit {r.returncode} {r.stderr!r}")
 
@@ -498,13 +493,8 @@ def submit_dry_run():
     d = suite.dir("submit_dry")
     env = submit_env(d)
     env["DECALPREP_SUBMIT_DRY"] = "1"
-    scene_path = os.path.join(d, "scene.toml")
-    with open(scene_path, "w") as f:
-        f.write("# not read\n")
-    tool = os.path.join(d, "decalprep")
-    write_exe(tool, STUB_TOOL)
-    r = subprocess.run(["bash", SUBMIT, "--tool", tool, scene_path, os.path.join(d, "out"), "2"],
-                       env=env, capture_output=True, timeout=60)
+    scene_path, tool = stub_submit_inputs(d)
+    r = submit(env, tool, scene_path, os.path.join(d, "out"), "2")
     if r.returncode != 0:
         raise Failure(f"dry run: exit {r.returncode}: {r.stderr!r}")
     if os.path.exists(env["STUB_SBATCH_LOG"]):

@@ -15,7 +15,6 @@
 Usage: output_test.py DECALPREP WORK_DIR [SOURCE_DIR]
 """
 import fcntl
-import hashlib
 import json
 import os
 import signal
@@ -25,26 +24,9 @@ import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from safety import Failure, Skip, Suite, write_lines_geojson  # noqa: E402
+from safety import Failure, Skip, Suite, snapshot, write_lines_geojson  # noqa: E402
 
 S = Suite(sys.argv)
-
-
-def snapshot(root):
-    """Every path below root (links not followed) with its kind and bytes."""
-    out = {}
-    for dirpath, dirnames, filenames in os.walk(root):
-        for n in dirnames + filenames:
-            p = os.path.join(dirpath, n)
-            st = os.lstat(p)
-            rel = os.path.relpath(p, root)
-            if stat.S_ISREG(st.st_mode):
-                out[rel] = hashlib.sha1(open(p, "rb").read()).hexdigest()
-            elif stat.S_ISLNK(st.st_mode):
-                out[rel] = "link:" + os.readlink(p)
-            else:
-                out[rel] = stat.filemode(st.st_mode)[0]
-    return out
 
 
 def lines(d, n=5):
@@ -54,6 +36,16 @@ def lines(d, n=5):
 def tileset_args(src, out, *extra, width=3, tile=500):
     return ["build", src, "-o", out, "--kind", "line", "--width", str(width), "--tile-size", str(tile),
             "-q"] + list(extra)
+
+
+def expect_refused_leaving(args, folder, needle, what):
+    """decalprep `args` is refused (exit 7, its message naming `needle`) and
+    leaves `folder` (`what` in the failure) as it was."""
+    before = snapshot(folder)
+    S.expect(S.run(args), 7, needle)
+    after = snapshot(folder)
+    if after != before:
+        raise Failure(f"{what} changed: {before} -> {after}")
 
 
 def foreign_folder():
@@ -66,11 +58,7 @@ def foreign_folder():
     for f in (".work/n", "manifest.json", "tiles/xray.decals", "tiles/L3/x1_y1.decals"):
         with open(os.path.join(u, f), "w") as fh:
             fh.write("a\n")
-    before = snapshot(u)
-    r = S.run(tileset_args(src, u))
-    S.expect(r, 7, "nothing was written")
-    if snapshot(u) != before:
-        raise Failure(f"the folder changed: {before} -> {snapshot(u)}")
+    expect_refused_leaving(tileset_args(src, u), u, "nothing was written", "the folder")
 
 
 def foreign_work_folder_in_tileset():
@@ -132,11 +120,7 @@ def tiles_symlink_refused():
         os.remove(os.path.join(u, "tiles", f))
     os.rmdir(os.path.join(u, "tiles"))
     os.symlink(other, os.path.join(u, "tiles"))
-    before = snapshot(other)
-    r = S.run(tileset_args(src, u, width=4))
-    S.expect(r, 7, "tiles")
-    if snapshot(other) != before:
-        raise Failure(f"the linked folder changed: {before} -> {snapshot(other)}")
+    expect_refused_leaving(tileset_args(src, u, width=4), other, "tiles", "the linked folder")
 
 
 def output_is_input():

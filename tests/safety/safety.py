@@ -6,10 +6,12 @@ A script builds a Suite from sys.argv (DECALPREP WORK_DIR SOURCE_DIR), runs
 its cases with suite.case(name, fn) and ends with sys.exit(suite.finish()).
 A case function raises Failure (or AssertionError) to fail and Skip to skip.
 """
+import hashlib
 import json
 import os
 import resource
 import shutil
+import stat
 import subprocess
 import sys
 import traceback
@@ -105,6 +107,29 @@ class Suite:
         if not self.passed and self.skipped:
             return 77
         return 0
+
+
+def snapshot(root, mtimes=False):
+    """Every path below root (links not followed) -> (kind, what it holds,
+    mtime): the kind as `ls -l` writes it (d, -, l, p, c...), the SHA-1 of
+    a regular file's bytes or a link's target (None for the rest), and the
+    modification time in ns with mtimes=True (else None). Two snapshots are
+    equal when nothing below root was added, removed, rewritten, relinked
+    or (with mtimes) touched."""
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(root):
+        for n in dirnames + filenames:
+            p = os.path.join(dirpath, n)
+            st = os.lstat(p)
+            held = None
+            if stat.S_ISREG(st.st_mode):
+                with open(p, "rb") as f:
+                    held = hashlib.sha1(f.read()).hexdigest()
+            elif stat.S_ISLNK(st.st_mode):
+                held = os.readlink(p)
+            out[os.path.relpath(p, root)] = (stat.filemode(st.st_mode)[0], held,
+                                             st.st_mtime_ns if mtimes else None)
+    return out
 
 
 def write_lines_geojson(path, n=3, lon=7.42, lat=43.73, step=1e-3):

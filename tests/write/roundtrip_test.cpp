@@ -6,7 +6,6 @@
 #include <cstring>
 #include <filesystem>
 #include <nlohmann/json.hpp>
-#include <random>
 
 #include "decal/inspect.hpp"
 #include "decal/layout.hpp"
@@ -25,18 +24,9 @@ using decal_test::read_file;
 
 using decal_test::OwnedBlob;
 
-// Random but reproducible contents of `n` elements.
+// walk_blob (fixtures.hpp) with the blob id as a number, catalogue or not.
 OwnedBlob make_blob(uint32_t id, ElementType type, uint32_t stride, uint64_t n, uint64_t seed) {
-  OwnedBlob b{static_cast<BlobId>(id), type, stride, std::vector<std::byte>(n * stride)};
-  std::mt19937_64 rng(seed);
-  // A random walk of 32-bit words: compressible like real coordinates.
-  int32_t walk = 0;
-  for (size_t i = 0; i + 4 <= b.bytes.size(); i += 4) {
-    walk += static_cast<int32_t>(rng() % 2001) - 1000;
-    std::memcpy(b.bytes.data() + i, &walk, 4);
-  }
-  for (size_t i = b.bytes.size() / 4 * 4; i < b.bytes.size(); ++i) b.bytes[i] = std::byte(rng());
-  return b;
+  return decal_test::walk_blob(static_cast<BlobId>(id), type, stride, n, seed);
 }
 
 // One blob of every element type: catalogue blobs for the types the

@@ -15,7 +15,6 @@
 
 #include <cstring>
 #include <filesystem>
-#include <random>
 
 #include "decal/format.hpp"
 #include "fixtures.hpp"
@@ -27,21 +26,9 @@ using decal::BlobId;
 using decal::ElementType;
 using decal_test::make_temp_dir;
 using decal_test::read_file;
+using decal_test::walk_blob;
 
 using decal_test::OwnedBlob;
-
-// A random walk of 32-bit words (compressible like coordinates), `n`
-// elements of `stride` bytes.
-OwnedBlob walk_blob(BlobId id, ElementType type, uint32_t stride, uint64_t n, uint64_t seed) {
-  OwnedBlob b{id, type, stride, std::vector<std::byte>(n * stride)};
-  std::mt19937_64 rng(seed);
-  int32_t walk = 0;
-  for (size_t i = 0; i + 4 <= b.bytes.size(); i += 4) {
-    walk += static_cast<int32_t>(rng() % 2001) - 1000;
-    std::memcpy(b.bytes.data() + i, &walk, 4);
-  }
-  return b;
-}
 
 // Blobs of very different sizes (so that the largest-first order differs
 // from the table order and threads finish out of order), with an empty one

@@ -337,10 +337,11 @@ int run_batch(const BuildArgs& a) {
   return r.exit_code;
 }
 
-const decalprep::CommandRegistrar kBuild(10, [](CLI::App& app) {
+constexpr decalprep::CommandHelp kBuildHelp{
+    "build", "Build a .decals package from a scene file (SCENE.toml) or one GDAL source"};
+
+const decalprep::CommandRegistrar kBuild(10, kBuildHelp, [](CLI::App* cmd) {
   auto args = std::make_shared<BuildArgs>();
-  CLI::App* cmd = app.add_subcommand(
-      "build", "Build a .decals package from a scene file (SCENE.toml) or one GDAL source");
   cmd->add_option("input", args->inputs,
                   "Scene file (.toml) or any GDAL vector source; several scene files or folders "
                   "of them: batch mode, -o is then a folder")

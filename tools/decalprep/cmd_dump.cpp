@@ -331,13 +331,7 @@ void summarise_manifest(const std::string& path, const decal::BlobView& b) {
 void run_summary(const decal::Package& p, const std::string& path, const std::string& only) {
   std::printf("decals %u.%u\n", p.major(), p.minor());
   if (only.empty()) {
-    json meta;
-    try {
-      meta = json::parse(p.metadata_json());
-    } catch (const json::exception& e) {
-      prep::fail<prep::format_error>(prep::kDumpStage,
-                                     path + ": metadata is not valid JSON: " + e.what());
-    }
+    const json meta = decalprep::parse_metadata(p.metadata_json(), path, prep::kDumpStage);
     std::string text;
     flatten(meta, "", text);
     std::printf("metadata\n%s", text.c_str());
@@ -397,13 +391,7 @@ std::string tile_package(const std::string& path, const std::string& tile, int l
 // not dumped as the other one.
 void check_tile_key(const decal::Package& p, const std::string& path, long long x, long long y,
                     int level) {
-  json meta;
-  try {
-    meta = json::parse(p.metadata_json());
-  } catch (const json::exception& e) {
-    prep::fail<prep::format_error>(prep::kDumpStage,
-                                   path + ": metadata is not valid JSON: " + e.what());
-  }
+  const json meta = decalprep::parse_metadata(p.metadata_json(), path, prep::kDumpStage);
   const json* tile = meta.is_object() && meta.contains("tile") ? &meta["tile"] : nullptr;
   const json want = {{"x", x}, {"y", y}, {"level", level}};
   json got = {{"x", nullptr}, {"y", nullptr}, {"level", 0}};
@@ -438,13 +426,7 @@ void run_dump(const std::string& path, bool as_json, bool summary, const std::st
   if (summary) return run_summary(p, path, only);
   if (as_json) {
     json out = {{"version", {{"major", p.major()}, {"minor", p.minor()}}}};
-    json meta;
-    try {
-      meta = json::parse(p.metadata_json());
-    } catch (const json::exception& e) {
-      prep::fail<prep::format_error>(prep::kDumpStage,
-                                     path + ": metadata is not valid JSON: " + e.what());
-    }
+    const json meta = decalprep::parse_metadata(p.metadata_json(), path, prep::kDumpStage);
     out["metadata"] = meta;
     out["quantum_m"] = decal::kQuantumMetres;
     json blobs = json::array();
@@ -508,21 +490,22 @@ void run_dump(const std::string& path, bool as_json, bool summary, const std::st
   }
 }
 
-const decalprep::CommandRegistrar kDump(22, [](CLI::App& app) {
-  auto* cmd = app.add_subcommand("dump", "Print every blob of a package as canonical text or JSON");
-  cmd->footer(
-      "Text: one line per element, records as name=value pairs; identical for\n"
-      "compressed and uncompressed packages of the same model (golden tests).\n"
-      "JSON: {version, metadata, quantum_m, blobs:[{id,name,type,stride,count,elements,\n"
-      "scene_m}]}; scene_m (position blobs only) holds coordinates in scene metres.\n"
-      "Summary: text short enough to review as a diff: the metadata one value per\n"
-      "line (`path value`); per blob its count, xxh64 (seed 0, hex) of its decoded\n"
-      "bytes (what `info` lists for a blob stored uncompressed) and its first and\n"
-      "last 3 elements; for manifest_entries (hashed as the JSON text stored) the\n"
-      "entries counted per layer and action, then the first and last 3 entries.\n"
-      "Examples:\n  decalprep dump city.decals > city.txt\n"
-      "  decalprep dump city.decals --summary > city.summary.txt\n"
-      "  decalprep dump city.decals --json --blob line_vertices");
+constexpr decalprep::CommandHelp kDumpHelp{
+    "dump", "Print every blob of a package as canonical text or JSON",
+    "Text: one line per element, records as name=value pairs; identical for\n"
+    "compressed and uncompressed packages of the same model (golden tests).\n"
+    "JSON: {version, metadata, quantum_m, blobs:[{id,name,type,stride,count,elements,\n"
+    "scene_m}]}; scene_m (position blobs only) holds coordinates in scene metres.\n"
+    "Summary: text short enough to review as a diff: the metadata one value per\n"
+    "line (`path value`); per blob its count, xxh64 (seed 0, hex) of its decoded\n"
+    "bytes (what `info` lists for a blob stored uncompressed) and its first and\n"
+    "last 3 elements; for manifest_entries (hashed as the JSON text stored) the\n"
+    "entries counted per layer and action, then the first and last 3 entries.\n"
+    "Examples:\n  decalprep dump city.decals > city.txt\n"
+    "  decalprep dump city.decals --summary > city.summary.txt\n"
+    "  decalprep dump city.decals --json --blob line_vertices"};
+
+const decalprep::CommandRegistrar kDump(22, kDumpHelp, [](CLI::App* cmd) {
   auto path = std::make_shared<std::string>();
   auto as_json = std::make_shared<bool>(false);
   auto summary = std::make_shared<bool>(false);

@@ -153,13 +153,7 @@ void run_info(const std::string& path, bool as_json) {
   const decal::FileHeader& h = layout.header;
   const std::string meta_text(reinterpret_cast<const char*>(bytes.data() + h.metadata_offset),
                               h.metadata_size);
-  json meta;
-  try {
-    meta = json::parse(meta_text);
-  } catch (const json::exception& e) {
-    prep::fail<prep::format_error>(prep::kInfoStage,
-                                   path + ": metadata is not valid JSON: " + e.what());
-  }
+  const json meta = decalprep::parse_metadata(meta_text, path, prep::kInfoStage);
 
   if (as_json) {
     json out = {{"path", path},
@@ -210,15 +204,16 @@ void run_info(const std::string& path, bool as_json) {
   }
 }
 
-const decalprep::CommandRegistrar kInfo(20, [](CLI::App& app) {
-  auto* cmd = app.add_subcommand("info", "Print a package's header, metadata and blob table");
-  cmd->footer(
-      "Checks the package structure but not blob checksums (use verify).\n"
-      "A tileset directory prints its index: frame, tiling, the scene's per-layer counts and one\n"
-      "line per tile, then each overview level: its tiles, bytes, resolution and per-layer\n"
-      "parts, drops and vertices.\n"
-      "Examples:\n  decalprep info city.decals\n  decalprep info city.decals --json | jq .blobs\n"
-      "  decalprep info country/");
+constexpr decalprep::CommandHelp kInfoHelp{
+    "info", "Print a package's header, metadata and blob table",
+    "Checks the package structure but not blob checksums (use verify).\n"
+    "A tileset directory prints its index: frame, tiling, the scene's per-layer counts and one\n"
+    "line per tile, then each overview level: its tiles, bytes, resolution and per-layer\n"
+    "parts, drops and vertices.\n"
+    "Examples:\n  decalprep info city.decals\n  decalprep info city.decals --json | jq .blobs\n"
+    "  decalprep info country/"};
+
+const decalprep::CommandRegistrar kInfo(20, kInfoHelp, [](CLI::App* cmd) {
   auto path = std::make_shared<std::string>();
   auto as_json = std::make_shared<bool>(false);
   cmd->add_option("PACKAGE", *path, "the .decals file, or a tileset directory")->required();

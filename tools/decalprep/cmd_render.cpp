@@ -108,21 +108,21 @@ void run(const Args& a) {
   print_frame(a, out);
 }
 
-const decalprep::CommandRegistrar kRegister(60, [](CLI::App& app) {
+constexpr decalprep::CommandHelp kRenderHelp{
+    "render", "Draw a package over terrain (headless GL, or --cpu) into a PNG",
+    "Coordinates: --extent is in absolute coordinates of the package's frame CRS (the crs and\n"
+    "origin of `decalprep info`), like build --extent; --extent-crs gives it in another CRS.\n"
+    "The .pgw/.aux.xml world file of a top-down view uses the frame CRS's absolute coordinates.\n"
+    "--eye and --target are metres relative to the package origin.\n"
+    "Examples:\n"
+    "  decalprep render city.decals --dem dem.tif --fit --pitch 50 --size 1280x720 -o city.png\n"
+    "  decalprep render city.decals --extent 372000,4843200,373600,4844100 --size 800x450 -o "
+    "top.png\n"
+    "  decalprep render city.decals --extent 7.41,43.73,7.43,43.745 --extent-crs EPSG:4326 --cpu "
+    "-o top.png"};
+
+const decalprep::CommandRegistrar kRegister(60, kRenderHelp, [](CLI::App* cmd) {
   auto args = std::make_shared<Args>();
-  CLI::App* cmd = app.add_subcommand(
-      "render", "Draw a package over terrain (headless GL, or --cpu) into a PNG");
-  cmd->footer(
-      "Coordinates: --extent is in absolute coordinates of the package's frame CRS (the crs and\n"
-      "origin of `decalprep info`), like build --extent; --extent-crs gives it in another CRS.\n"
-      "The .pgw/.aux.xml world file of a top-down view uses the frame CRS's absolute coordinates.\n"
-      "--eye and --target are metres relative to the package origin.\n"
-      "Examples:\n"
-      "  decalprep render city.decals --dem dem.tif --fit --pitch 50 --size 1280x720 -o city.png\n"
-      "  decalprep render city.decals --extent 372000,4843200,373600,4844100 --size 800x450 -o "
-      "top.png\n"
-      "  decalprep render city.decals --extent 7.41,43.73,7.43,43.745 --extent-crs EPSG:4326 --cpu "
-      "-o top.png");
   cmd->add_option("package", args->package, "Package (.decals) or tileset directory")->required();
   cmd->add_option("-o,--output", args->output, "Output PNG")->required();
   cmd->add_option("--dem", args->dem,

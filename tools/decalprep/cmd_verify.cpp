@@ -207,16 +207,17 @@ bool verify_tileset(const std::string& dir) {
   return good;
 }
 
-const decalprep::CommandRegistrar kVerify(21, [](CLI::App& app) {
-  auto* cmd = app.add_subcommand("verify", "Check packages: checksums, structure and indices");
-  cmd->footer(
-      "Prints '<path>: ok (...)' or '<path>: FAILED: <reason>' per package.\n"
-      "Exit code 0 when every package is good, 5 when any is not.\n"
-      "A tileset directory: tileset.json (fields, ranges, its manifest's counts against its\n"
-      "tiles'), the bytes and XXH64 of manifest.json and of every tile against it, then every\n"
-      "tile as a package, its key, square, origin, CRS and counts against the index; the same\n"
-      "for every overview level's tiles.\n"
-      "Example:\n  decalprep verify city.decals roads.decals");
+constexpr decalprep::CommandHelp kVerifyHelp{
+    "verify", "Check packages: checksums, structure and indices",
+    "Prints '<path>: ok (...)' or '<path>: FAILED: <reason>' per package.\n"
+    "Exit code 0 when every package is good, 5 when any is not.\n"
+    "A tileset directory: tileset.json (fields, ranges, its manifest's counts against its\n"
+    "tiles'), the bytes and XXH64 of manifest.json and of every tile against it, then every\n"
+    "tile as a package, its key, square, origin, CRS and counts against the index; the same\n"
+    "for every overview level's tiles.\n"
+    "Example:\n  decalprep verify city.decals roads.decals"};
+
+const decalprep::CommandRegistrar kVerify(21, kVerifyHelp, [](CLI::App* cmd) {
   auto paths = std::make_shared<std::vector<std::string>>();
   cmd->add_option("PACKAGE", *paths, "the .decals files, or tileset directories")->required();
   cmd->callback([paths] {

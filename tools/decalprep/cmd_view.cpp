@@ -10,15 +10,16 @@
 
 namespace {
 
-const decalprep::CommandRegistrar kView(70, [](CLI::App& app) {
-  auto* cmd = app.add_subcommand("view", "Serve a package or tileset to the browser viewer");
-  cmd->footer(
-      "Serves the viewer page (web/, built into decalprep) and the data over HTTP, and prints\n"
-      "the URL to open. Only the package and its side files (STEM.* next to STEM.decals), or the\n"
-      "files under the tileset folder, are served; never a listing, a path with '..' or a link\n"
-      "that leads out. Listens on 127.0.0.1 unless --bind says otherwise. Stop with Ctrl-C.\n"
-      "Examples:\n  decalprep view city.decals\n  decalprep view country/ --port 0\n"
-      "  decalprep view city.decals --bind 0.0.0.0 --port 8000");
+constexpr decalprep::CommandHelp kViewHelp{
+    "view", "Serve a package or tileset to the browser viewer",
+    "Serves the viewer page (web/, built into decalprep) and the data over HTTP, and prints\n"
+    "the URL to open. Only the package and its side files (STEM.* next to STEM.decals), or the\n"
+    "files under the tileset folder, are served; never a listing, a path with '..' or a link\n"
+    "that leads out. Listens on 127.0.0.1 unless --bind says otherwise. Stop with Ctrl-C.\n"
+    "Examples:\n  decalprep view city.decals\n  decalprep view country/ --port 0\n"
+    "  decalprep view city.decals --bind 0.0.0.0 --port 8000"};
+
+const decalprep::CommandRegistrar kView(70, kViewHelp, [](CLI::App* cmd) {
   auto opt = std::make_shared<prep::view::ServeOptions>();
   cmd->add_option("PATH", opt->path,
                   "the .decals package, or a tileset folder (or its tileset.json)")

@@ -1,12 +1,14 @@
 // command.hpp — how a subcommand plugs into the decalprep tool.
 //
-// Each cmd_<name>.cpp defines one static CommandRegistrar. Its setup function
-// adds a CLI11 subcommand and sets a callback that runs the command and
-// stores its exit code with set_exit_code(). Errors are thrown as prep::error
+// Each cmd_<name>.cpp defines one static CommandRegistrar: the command's
+// CommandHelp (name, description, --help footer) and a function that adds
+// its options and sets a callback that runs the command and stores its exit
+// code with set_exit_code(). Errors are thrown as prep::error
 // (see prep/error.hpp); main() prints them and maps them to exit codes.
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <cstdarg>
 #include <cstdio>
@@ -21,6 +23,19 @@
 namespace decalprep {
 
 using CommandSetup = std::function<void(CLI::App& app)>;
+
+// What --help says of a command: its name and one line in the list of
+// commands, and the footer under its options (what the options cannot say,
+// and examples; main() appends the exit codes). An empty footer adds none.
+struct CommandHelp {
+  const char* name;
+  const char* description;
+  const char* footer = "";
+};
+
+// Adds the options of a command to `cmd`, its subcommand, and sets its
+// callback.
+using CommandOptions = std::function<void(CLI::App* cmd)>;
 
 struct CommandEntry {
   int order;  // position in --help
@@ -67,9 +82,26 @@ inline std::vector<std::string>& command_line() {
   std::fputs(prep::stage_message(stage, text).c_str(), stderr);
 }
 
+// A package's metadata (formats/SPEC.md "Metadata"), parsed; a format_error
+// "<stage>: <path>: metadata is not valid JSON: ..." when it is not JSON.
+inline nlohmann::json parse_metadata(std::string_view text, const std::string& path,
+                                     std::string_view stage) {
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    prep::fail<prep::format_error>(stage, path + ": metadata is not valid JSON: " + e.what());
+  }
+}
+
 struct CommandRegistrar {
-  CommandRegistrar(int order, CommandSetup setup) {
-    command_registry().push_back({order, std::move(setup)});
+  // Registers the subcommand `help` describes, at `order` in --help, with
+  // the options and callback `options` adds.
+  CommandRegistrar(int order, CommandHelp help, CommandOptions options) {
+    command_registry().push_back({order, [help, options = std::move(options)](CLI::App& app) {
+                                    CLI::App* cmd = app.add_subcommand(help.name, help.description);
+                                    if (*help.footer) cmd->footer(help.footer);
+                                    options(cmd);
+                                  }});
   }
 };
 

@@ -70,6 +70,25 @@ class Blobs {
       throw new FormatError(`${this.name(blob)}[${i}] = (first ${first}, count ${n}) runs past ` +
                             `the end of ${this.name(target)} (${this.count(target)} elements)`);
   }
+  /**
+   * Every element of `blob` is a (first, count) range within `target`.
+   * @param {number} blob @param {number} target
+   */
+  ranges(blob, target) {
+    const r = this.words(blob);
+    for (let i = 0; i < r.n; ++i) this.range(blob, i, r.u(i, 0), r.u(i, 1), target);
+  }
+  /**
+   * Every element of `blob` is a (start, end) segment of vertices of `target`.
+   * @param {number} blob @param {number} target
+   */
+  segments(blob, target) {
+    const s = this.words(blob);
+    for (let i = 0; i < s.n; ++i) {
+      this.index(blob, i, "start", s.u(i, 0), target);
+      this.index(blob, i, "end", s.u(i, 1), target);
+    }
+  }
 }
 
 // Blob ids (SPEC "Blob catalogue").
@@ -132,14 +151,8 @@ function checkLines(c, newerMinor) {
       throw new FormatError(`line_props[${i}].clip_node = ${clip} without style bit 5 ` +
                             `(clipped); must be zero`);
   }
-  const ranges = c.words(B.cell_segment_range);
-  for (let i = 0; i < ranges.n; ++i)
-    c.range(B.cell_segment_range, i, ranges.u(i, 0), ranges.u(i, 1), B.cell_segments);
-  const segs = c.words(B.cell_segments);
-  for (let i = 0; i < segs.n; ++i) {
-    c.index(B.cell_segments, i, "start", segs.u(i, 0), B.line_vertices);
-    c.index(B.cell_segments, i, "end", segs.u(i, 1), B.line_vertices);
-  }
+  c.ranges(B.cell_segment_range, B.cell_segments);
+  c.segments(B.cell_segments, B.line_vertices);
 }
 
 /** @param {Blobs} c @param {boolean} newerMinor */
@@ -179,9 +192,7 @@ function checkPolygons(c, newerMinor) {
       c.index(B.qt_node, i, "offset", off, leafBlob);
     }
   }
-  const loopRanges = c.words(B.qt_leaf_loop_range);
-  for (let i = 0; i < loopRanges.n; ++i)
-    c.range(B.qt_leaf_loop_range, i, loopRanges.u(i, 0), loopRanges.u(i, 1), B.qt_leaf_loops);
+  c.ranges(B.qt_leaf_loop_range, B.qt_leaf_loops);
   const loops = c.words(B.qt_leaf_loops);
   for (let i = 0, prev = 0; i < loops.n; prev = loops.u(i, 0), ++i) {
     const end = loops.u(i, 0);
@@ -192,18 +203,10 @@ function checkPolygons(c, newerMinor) {
       throw new FormatError(`qt_leaf_loops[${i}] = ${end} runs past the end of ` +
                             `qt_leaf_vertices (${c.count(B.qt_leaf_vertices)} elements)`);
   }
-  const leaves = c.words(B.qt_leaf_range);
-  for (let i = 0; i < leaves.n; ++i)
-    c.range(B.qt_leaf_range, i, leaves.u(i, 0), leaves.u(i, 1), B.qt_leaf_segments);
-  const lsegs = c.words(B.qt_leaf_segments);
-  for (let i = 0; i < lsegs.n; ++i) {
-    c.index(B.qt_leaf_segments, i, "start", lsegs.u(i, 0), B.qt_leaf_vertices);
-    c.index(B.qt_leaf_segments, i, "end", lsegs.u(i, 1), B.qt_leaf_vertices);
-  }
+  c.ranges(B.qt_leaf_range, B.qt_leaf_segments);
+  c.segments(B.qt_leaf_segments, B.qt_leaf_vertices);
   checkLeafRuns(c);
-  const cranges = c.words(B.cell_poly_range);
-  for (let i = 0; i < cranges.n; ++i)
-    c.range(B.cell_poly_range, i, cranges.u(i, 0), cranges.u(i, 1), B.cell_polys);
+  c.ranges(B.cell_poly_range, B.cell_polys);
   const cpolys = c.words(B.cell_polys);
   for (let i = 0; i < cpolys.n; ++i) {
     c.index(B.cell_polys, i, "polygon", cpolys.u(i, 0), B.poly_props);
@@ -391,9 +394,7 @@ function checkLod(c) {
     if (segs.u(i, 2) !== LOD_NONE) c.index(B.lod_segments, i, "generator", segs.u(i, 2), B.lod_points);
     if (segs.u(i, 3) !== LOD_NONE) c.index(B.lod_segments, i, "splitter", segs.u(i, 3), B.lod_points);
   }
-  const ranges = c.words(B.lod_line_range);
-  for (let i = 0; i < ranges.n; ++i)
-    c.range(B.lod_line_range, i, ranges.u(i, 0), ranges.u(i, 1), B.lod_segments);
+  c.ranges(B.lod_line_range, B.lod_segments);
 }
 
 /**
