@@ -27,6 +27,10 @@
 #include "geos_oracle.hpp"
 #include "test_support.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace clean_certainly_valid {
+
 namespace {
 
 using prep::Point2;
@@ -376,3 +380,5 @@ TEST(CertainlyValid, ProvesALargeSimplePolygon) {
 }
 
 }  // namespace
+
+}  // namespace clean_certainly_valid

@@ -10,6 +10,10 @@
 #include "geos_oracle.hpp"
 #include "prep/clean.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace clean_part_simplifier {
+
 namespace {
 
 using prep::Point2;
@@ -115,3 +119,5 @@ TEST(PartSimplifier, AreaAndLengthAreTheAnalyticOnes) {
 }
 
 }  // namespace
+
+}  // namespace clean_part_simplifier

@@ -38,6 +38,10 @@
 #include "prep/clean.hpp"
 #include "test_support.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace clean_repair_by_parts {
+
 namespace {
 
 using prep::Point2;
@@ -725,3 +729,5 @@ TEST(RepairByParts, Stress100kHolesTouchingTheShellEqualsWholeMakeValid) {
 }
 
 }  // namespace
+
+}  // namespace clean_repair_by_parts

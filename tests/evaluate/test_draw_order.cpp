@@ -11,6 +11,10 @@
 #include "prep/model.hpp"
 #include "synthetic.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace evaluate_draw_order {
+
 namespace {
 
 constexpr uint32_t kRed = 0xff0000ffu, kGreen = 0xff00ff00u, kBlue = 0xffff0000u,
@@ -135,3 +139,5 @@ TEST(DrawOrder, PackagesBeforeOneRankSpaceDrawEveryLineOverEveryPolygon) {
   EXPECT_EQ(runs[0].kind, prep::DrawRun::Kind::lines);
   EXPECT_EQ(runs[1].kind, prep::DrawRun::Kind::polygons);
 }
+
+}  // namespace evaluate_draw_order

@@ -27,6 +27,10 @@
 #include "synthetic.hpp"
 #include "test_support.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace evaluate_line_accuracy {
+
 using synth::oracle;
 
 namespace {
@@ -322,3 +326,5 @@ TEST(LineAccuracy, OutlinesOfRingsNarrowerThanTheirBandAreClippedByTheRing) {
   EXPECT_EQ(exact.wrong, 0u);
   EXPECT_GT(thesis.wrong, exact.tested / 100);
 }
+
+}  // namespace evaluate_line_accuracy

@@ -14,6 +14,10 @@
 #include "prep/write.hpp"
 #include "synthetic.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace evaluate_package_view {
+
 namespace {
 
 prep::SceneFeatures small_scene() {
@@ -132,3 +136,5 @@ TEST(PackageView, FormatOneOnePackageKeepsEveryLineOverEveryPolygon) {
   EXPECT_EQ(runs[0].hi, uint32_t(v.line_props.size()));
   EXPECT_EQ(runs[1].kind, prep::DrawRun::Kind::polygons);
 }
+
+}  // namespace evaluate_package_view

@@ -12,6 +12,10 @@
 #include "synthetic.hpp"
 #include "test_support.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace evaluate_polygon_accuracy {
+
 namespace {
 
 // 10^6 samples for each dataset at the origin; the variants (900 km, mm
@@ -131,3 +135,5 @@ TEST(PolygonAccuracy, EvaluatorAgreesWithGeosOnMillimetreFeatures) {
   // quanta. Most samples fall in the 2 mm band, the rest must agree.
   run_case("mm", synth::polygon_set(9, 20, 0.04, 12.0, 34.0), 0.004, 0.2);
 }
+
+}  // namespace evaluate_polygon_accuracy

@@ -24,6 +24,10 @@
 #include "synthetic.hpp"
 #include "test_support.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace evaluate_slope_accuracy {
+
 namespace {
 
 using synth::G;
@@ -176,3 +180,5 @@ TEST(SlopeAccuracy, CornersAndEndsOnAThirtyDegreePlaneAgreeWithGeosBuffers) {
 }
 
 }  // namespace
+
+}  // namespace evaluate_slope_accuracy

@@ -15,6 +15,10 @@
 
 #include "decal/gl/gl.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace formats_gl_bindings {
+
 namespace {
 
 namespace G = decal::gl;
@@ -190,3 +194,5 @@ TEST(GlBindings, BlobBindingsAreDistinctAndBelowTheFrameBindings) {
 }
 
 }  // namespace
+
+}  // namespace formats_gl_bindings

@@ -12,6 +12,10 @@
 
 #include "decal/layout.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace formats_layout {
+
 namespace {
 
 namespace L = decal::layout;
@@ -74,3 +78,5 @@ TEST(Box16, EmptyBoxEncodesAsTheEmptyNode) {
 }
 
 }  // namespace
+
+}  // namespace formats_layout

@@ -19,6 +19,10 @@
 #include "fixtures.hpp"
 #include "test_support.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace formats_package_sizes {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -297,3 +301,5 @@ TEST(PackageSizes, MissingFilesAndDirectoriesAreRejected) {
 }
 
 }  // namespace
+
+}  // namespace formats_package_sizes

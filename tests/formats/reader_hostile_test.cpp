@@ -13,6 +13,10 @@
 #include "fixtures.hpp"
 #include "prep/write.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace formats_reader_hostile {
+
 namespace {
 
 using decal_test::entry_at;
@@ -420,3 +424,5 @@ TEST(ValidateIndices, EachBrokenCompactBlobIsNamed) {
 }
 
 }  // namespace
+
+}  // namespace formats_reader_hostile

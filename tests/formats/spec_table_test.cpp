@@ -10,6 +10,10 @@
 
 #include "decal/format.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace formats_spec_table {
+
 namespace {
 
 using Row = std::vector<std::string>;
@@ -165,3 +169,5 @@ TEST(Spec, RecordHeadingsGiveTheStructSizes) {
 }
 
 }  // namespace
+
+}  // namespace formats_spec_table

@@ -9,6 +9,10 @@
 #include "prep/model.hpp"
 #include "v12_cells.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace model_determinism {
+
 namespace {
 
 template <class T>
@@ -163,3 +167,5 @@ TEST(BuildDeterminism, SampledGridChoiceIsTheSameAtOneAndTwoThreads) {
       << a.grid.nx << "x" << a.grid.ny;
   EXPECT_GT(uint64_t(a.grid.nx) * a.grid.ny, 250000u);  // refined past the thesis grid
 }
+
+}  // namespace model_determinism

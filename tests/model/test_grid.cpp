@@ -16,6 +16,10 @@
 #include "prep/model.hpp"
 #include "v12_cells.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace model_grid {
+
 namespace {
 
 template <class T>
@@ -280,3 +284,5 @@ TEST(DecalGrid, TheFootprintReportedAtTheGridChoiceIsWhatTheBuildMakes) {
                  bytes_of(m.qt_leaf_loops) + bytes_of(m.qt_leaf_vertices)));
     }
 }
+
+}  // namespace model_grid

@@ -11,6 +11,10 @@
 #include "decal/layout.hpp"
 #include "prep/model.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace model_quadtree {
+
 namespace {
 
 using synth::G;
@@ -159,3 +163,5 @@ TEST(QuadTree, DepthCapAndLeafOverflowAreReportedInTheManifest) {
   EXPECT_GT(m.stats.qt_depth_capped, 0u);
   EXPECT_GT(m.stats.qt_max_leaf_segments, 2u);
 }
+
+}  // namespace model_quadtree

@@ -21,6 +21,10 @@
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_casing {
+
 namespace fs = std::filesystem;
 namespace R = prep::render;
 using prep::test::run_tool;
@@ -168,3 +172,5 @@ TEST(Casing, ScenesThatCannotBeCasedAreRefusedNamingTheKey) {
 }
 
 }  // namespace
+
+}  // namespace render_casing

@@ -26,6 +26,10 @@
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_dashes {
+
 namespace fs = std::filesystem;
 namespace R = prep::render;
 using prep::test::run_tool;
@@ -368,3 +372,5 @@ TEST(Dashes, BadPatternsAreRefusedNamingTheKeyAndValue) {
 }
 
 }  // namespace
+
+}  // namespace render_dashes

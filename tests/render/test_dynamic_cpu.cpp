@@ -19,6 +19,10 @@
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_dynamic_cpu {
+
 namespace fs = std::filesystem;
 namespace R = prep::render;
 
@@ -144,3 +148,5 @@ TEST(DynamicLinesCpu, AgreeWithTheGlPassOnMonacoRoadsInPerspectiveOn999Permille)
 }
 
 }  // namespace
+
+}  // namespace render_dynamic_cpu

@@ -27,6 +27,10 @@
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_layer_order {
+
 namespace fs = std::filesystem;
 using prep::test::run_tool;
 
@@ -298,3 +302,5 @@ TEST(LayerOrder, MonacoBuildingsAfterLandUseAreDrawnAboveIt) {
 TEST(LayerOrder, MonacoLandUseAfterBuildingsIsDrawnAboveThem) {
   check_stack("landuse_on_top", false);
 }
+
+}  // namespace render_layer_order

@@ -33,6 +33,10 @@
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_lod_gpu {
+
 namespace fs = std::filesystem;
 namespace R = prep::render;
 
@@ -449,3 +453,5 @@ TEST_F(LodGpu, LodOnImageAgreesWithTheCpuPath) {
 }
 
 }  // namespace
+
+}  // namespace render_lod_gpu

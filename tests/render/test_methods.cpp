@@ -27,6 +27,10 @@
 #include "prep/features.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_methods {
+
 namespace fs = std::filesystem;
 using prep::test::run_tool;
 using render_test::read_raw;
@@ -479,3 +483,5 @@ TEST(RenderMethods, CpuWithAnotherMethodIsAUsageError) {
 }
 
 }  // namespace
+
+}  // namespace render_methods

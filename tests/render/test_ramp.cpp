@@ -22,6 +22,10 @@
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_ramp {
+
 namespace fs = std::filesystem;
 using prep::test::run_tool;
 
@@ -262,3 +266,5 @@ TEST_F(RenderRamp, AnUnknownLayerOrDecreasingStopsAreUsageErrorsThatSayWhy) {
 }
 
 }  // namespace
+
+}  // namespace render_ramp

@@ -33,6 +33,10 @@
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_slope_widths {
+
 namespace fs = std::filesystem;
 namespace R = prep::render;
 using prep::test::run_tool;
@@ -375,3 +379,5 @@ TEST_F(SlopeWidths, RenderRefusesBadOptionValues) {
 }
 
 }  // namespace
+
+}  // namespace render_slope_widths

@@ -26,6 +26,10 @@
 #include "prep/read.hpp"
 #include "smoke_util.hpp"
 
+// The render tests share one binary (a unity build): each file keeps its
+// names in a namespace of its own.
+namespace render_smoke {
+
 namespace fs = std::filesystem;
 using prep::test::run_tool;
 using render_test::agreement;
@@ -885,3 +889,5 @@ color = "#20a020ff"
 }
 
 }  // namespace
+
+}  // namespace render_smoke

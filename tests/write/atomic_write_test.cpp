@@ -21,6 +21,10 @@
 #include "prep/error.hpp"
 #include "prep/write.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace write_atomic_write {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -188,3 +192,5 @@ TEST_F(AtomicWrite, SuccessfulWriteReplacesTheTargetAndLeavesNothingElse) {
 }
 
 }  // namespace
+
+}  // namespace write_atomic_write

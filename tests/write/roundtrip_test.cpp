@@ -15,6 +15,10 @@
 #include "prep/manifest_json.hpp"
 #include "prep/write.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace write_roundtrip {
+
 namespace {
 
 using decal::BlobId;
@@ -436,3 +440,5 @@ TEST(WriteModel, ConsumingTheModelWritesTheSameBytesAndTakesItsArrays) {
     EXPECT_EQ(taken.manifest.notes, m.manifest.notes);
   }
 }
+
+}  // namespace write_roundtrip

@@ -20,6 +20,10 @@
 #include "fixtures.hpp"
 #include "prep/write.hpp"
 
+// One test binary holds several files (a unity build): each keeps its
+// names in a namespace of its own.
+namespace write_thread_count {
+
 namespace {
 
 using decal::BlobId;
@@ -168,3 +172,5 @@ INSTANTIATE_TEST_SUITE_P(Codecs, ThreadCount,
                          });
 
 }  // namespace
+
+}  // namespace write_thread_count
