@@ -26,6 +26,13 @@ const normalize = (a) => {
 };
 export { normalize };
 
+/** The camera's right, up and forward unit vectors (camera.cpp camera_basis). @param {Camera} c */
+export function cameraBasis(c) {
+  const f = normalize(sub(c.target, c.eye));
+  const r = normalize(cross(f, c.up));
+  return { r, u: cross(r, f), f };
+}
+
 /**
  * Column-major view matrix of the camera with its eye at eye_rel.
  * @param {Camera} c @param {number[]} eyeRel
@@ -100,4 +107,31 @@ export function topdownCamera(e, zmin, zmax) {
     depthRange: top - zmin + 1000,
     topdownExtent: e.slice(),
   };
+}
+
+/**
+ * Inverse of a column-major 4×4 matrix in double (Gauss-Jordan; the same
+ * matrix as camera.cpp mat_inverse up to rounding).
+ * @param {number[]} m
+ */
+export function mat4Inverse(m) {
+  /** @param {number} r @param {number} c */
+  const at = (r, c) => m[c * 4 + r];
+  // Gauss-Jordan with partial pivoting on [m | I], rows r, columns c.
+  const a = [0, 1, 2, 3].map((r) => [at(r, 0), at(r, 1), at(r, 2), at(r, 3), ...[0, 1, 2, 3].map((c) => (c === r ? 1 : 0))]);
+  for (let c = 0; c < 4; ++c) {
+    let piv = c;
+    for (let r = c + 1; r < 4; ++r) if (Math.abs(a[r][c]) > Math.abs(a[piv][c])) piv = r;
+    [a[c], a[piv]] = [a[piv], a[c]];
+    const d = a[c][c];
+    for (let k = 0; k < 8; ++k) a[c][k] /= d;
+    for (let r = 0; r < 4; ++r) {
+      if (r === c) continue;
+      const f = a[r][c];
+      for (let k = 0; k < 8; ++k) a[r][k] -= f * a[c][k];
+    }
+  }
+  const out = new Array(16);
+  for (let r = 0; r < 4; ++r) for (let c = 0; c < 4; ++c) out[c * 4 + r] = a[r][4 + c];
+  return out;
 }

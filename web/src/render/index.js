@@ -10,7 +10,7 @@
 
 import { DECALS_WGSL, FRAME_BYTES, SLOTS } from "./wgsl_decals.js";
 import { TERRAIN_WGSL, TERRAIN_UNIFORM_BYTES, COMPOSITE_WGSL, PRESENT_WGSL } from "./wgsl_frame.js";
-import { viewMatrix, projectionMatrix, matMul, normalize, topdownCamera } from "./camera.js";
+import { viewMatrix, projectionMatrix, matMul, mat4Inverse, normalize, topdownCamera, cameraBasis } from "./camera.js";
 import { packScene } from "./scene.js";
 
 export { topdownCamera };
@@ -76,6 +76,7 @@ export class Renderer {
     /** @type {Terrain | null} */ this.terrain = null;
     /** @type {any} */ this.blobBuffer = null;
     /** @type {any} */ this.visBuffer = null;
+    /** @type {any} */ this.heights = null;
     /** @type {Uint32Array} */ this.visBits = new Uint32Array(1);
     /** @type {any} */ this.mesh = null;
     /** @type {any} */ this.targets = null;
@@ -92,7 +93,7 @@ export class Renderer {
           { shaderLocation: 0, offset: 0, format: "float32x3" },
           { shaderLocation: 1, offset: 12, format: "float32x3" }] }],
       },
-      fragment: { module: tm, entryPoint: "fs", targets: [{ format: "rgba8unorm" }, { format: "rgba32float" }] },
+      fragment: { module: tm, entryPoint: "fs", targets: [{ format: "rgba8unorm" }] },
       primitive: { topology: "triangle-list", cullMode: "none" },
       depthStencil: { format: "depth32float", depthWriteEnabled: true, depthCompare: "greater" },
     });
@@ -134,6 +135,9 @@ export class Renderer {
     const ext = pkg.metadata.extent || [0, 0, 1, 1];
     this.terrain = terrain ?? flatTerrain(ext);
     this.freeMesh();
+    this.free(this.heights);
+    this.heights = this.buffer(4 * this.terrain.z.length, BU.STORAGE | BU.COPY_DST);
+    this.device.queue.writeBuffer(this.heights, 0, Float32Array.from(this.terrain.z));
   }
 
   freeMesh() {
@@ -205,7 +209,7 @@ export class Renderer {
     const n = W * H;
     this.targets = {
       W, H,
-      color: tex("rgba8unorm", 4), ground: tex("rgba32float", 16), depth: tex("depth32float", 4),
+      color: tex("rgba8unorm", 4), depth: tex("depth32float", 4),
       dec: this.buffer(16 * n, BU.STORAGE),
       rgba: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
       decals: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
@@ -218,8 +222,8 @@ export class Renderer {
   freeTargets() {
     const t = this.targets;
     if (!t) return;
-    for (const x of [t.color, t.ground, t.depth]) x.destroy();
-    this.gpuBytes -= t.W * t.H * 24;
+    for (const x of [t.color, t.depth]) x.destroy();
+    this.gpuBytes -= t.W * t.H * 8;
     for (const b of [t.dec, t.rgba, t.decals, t.readRgba, t.readDecals]) this.free(b);
     this.targets = null;
   }
@@ -264,6 +268,16 @@ export class Renderer {
     fu.set([W, H, scene.polyBias, 0], 16);
     if (td) ff.set([td[0] - ax, td[3] - ay, (td[2] - td[0]) / W, -(td[3] - td[1]) / H], 20);
     fu.set(scene.offsets, 24);
+    ff.set(mat4Inverse(vp), 44);
+    // The terrain and the pixel rays (wgsl_decals.js ground_point).
+    ff.set([terrain.x0 - ax, terrain.y0 - ay, terrain.dx, terrain.dy], 60);
+    fu.set([terrain.nx, terrain.ny, 0, 0], 64);
+    const basis = cameraBasis(camera);
+    const persp = camera.projection === "perspective";
+    const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
+    const sx = persp ? th * (W / H) : 0.5 * camera.orthoW, sy = persp ? th : 0.5 * camera.orthoH;
+    ff.set([...eyeRel, persp ? 1 : 0], 68);
+    ff.set([...basis.r.map((x) => x * sx), 0, ...basis.u.map((x) => x * sy), 0, ...basis.f, 0], 72);
     d.queue.writeBuffer(this.frameUniform, 0, fb);
     d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, 0, 0));
 
@@ -272,7 +286,6 @@ export class Renderer {
     const rp = enc.beginRenderPass({
       colorAttachments: [
         { view: T.color.createView(), clearValue: { r: 0.8, g: 0.86, b: 0.93, a: 1 }, loadOp: "clear", storeOp: "store" },
-        { view: T.ground.createView(), clearValue: { r: 0, g: 0, b: 0, a: 0 }, loadOp: "clear", storeOp: "store" },
       ],
       depthStencilAttachment: { view: T.depth.createView(), depthClearValue: 0, depthLoadOp: "clear", depthStoreOp: "store" },
     });
@@ -290,8 +303,9 @@ export class Renderer {
       { binding: 0, resource: { buffer: this.frameUniform } },
       { binding: 1, resource: { buffer: this.blobBuffer } },
       { binding: 2, resource: { buffer: this.visBuffer } },
-      { binding: 3, resource: T.ground.createView() },
-      { binding: 4, resource: { buffer: T.dec } }] }));
+      { binding: 3, resource: T.depth.createView() },
+      { binding: 4, resource: { buffer: T.dec } },
+      { binding: 5, resource: { buffer: this.heights } }] }));
     cp.dispatchWorkgroups(gx, gy);
     cp.end();
     cp = enc.beginComputePass();
@@ -357,7 +371,8 @@ export class Renderer {
     this.freeMesh();
     this.free(this.blobBuffer);
     this.free(this.visBuffer);
-    this.blobBuffer = this.visBuffer = null;
+    this.free(this.heights);
+    this.blobBuffer = this.visBuffer = this.heights = null;
     this.device.destroy();
   }
 }

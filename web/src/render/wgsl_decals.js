@@ -22,7 +22,7 @@ export const SLOTS = [
   "cell_line_first", "cell_segments", "line_bvh_box16", "dash_table", "dash_vertex",
 ];
 
-export const FRAME_BYTES = 176;
+export const FRAME_BYTES = 336;
 
 export const DECALS_WGSL = /* wgsl */ `
 struct Frame {
@@ -33,12 +33,20 @@ struct Frame {
   e: vec4<u32>,    // width, height, polygon rank bias (pre-v1.2 files), 0
   f: vec4f,        // top-down: anchor-relative x of column 0's left edge, y of row 0's top edge; pixel size x, -y
   off: array<vec4<u32>, 5>,  // word offsets of the blobs (SLOTS)
+  inv_view_proj: mat4x4f,    // clip -> anchor-relative world (metres)
+  tg: vec4f,       // terrain: anchor-relative x, y of vertex (0, 0); spacing dx, dy
+  tn: vec4<u32>,   // terrain vertex counts nx, ny
+  ro: vec4f,       // pixel rays: eye (anchor-relative); w: 1 perspective, 0 orthographic
+  rr: vec4f,       // right (scaled to NDC x = 1)
+  ru: vec4f,       // up (scaled to NDC y = 1)
+  rf: vec4f,       // forward
 }
 @group(0) @binding(0) var<uniform> F: Frame;
 @group(0) @binding(1) var<storage, read> B: array<u32>;
 @group(0) @binding(2) var<storage, read> VIS: array<u32>;     // layer visibility bits
-@group(0) @binding(3) var posTex: texture_2d<f32>;              // terrain pass: anchor-relative ground point, w = 1 where hit
+@group(0) @binding(3) var depthTex: texture_depth_2d;            // terrain depth (reversed: 0 = nothing drawn)
 @group(0) @binding(4) var<storage, read_write> OUT: array<vec4f>;  // premultiplied decal colour per pixel
+@group(0) @binding(5) var<storage, read> TZ: array<f32>;       // terrain heights, i + nx j
 
 const Q: f32 = 0.001;
 const QT_BOX = 0u; const QT_NODE = 1u; const QT_LLR = 2u; const QT_LOOPS = 3u; const QT_VERT = 4u;
@@ -330,6 +338,36 @@ fn query(p: vec2f) -> vec4f {
   return acc;
 }
 
+fn tvertex(i: u32, j: u32) -> vec3f {
+  return vec3f(F.tg.x + f32(i) * F.tg.z, F.tg.y + f32(j) * F.tg.w, TZ[i + F.tn.x * j]);
+}
+// The pixel ray (libprep/render PixelRays) meets the plane of the mesh
+// triangle (00, 10, 11) or (00, 11, 01) under \`near\`: the ground point
+// without the depth buffer's rounding along the ray. Twice: the second time
+// on the triangle under the first answer.
+fn ground_point(ndc: vec2f, near: vec2f) -> vec2f {
+  var o = F.ro.xyz;
+  var d = F.rf.xyz + ndc.x * F.rr.xyz + ndc.y * F.ru.xyz;
+  if (F.ro.w == 0.0) { o = F.ro.xyz + ndc.x * F.rr.xyz + ndc.y * F.ru.xyz; d = F.rf.xyz; }
+  var p = near;
+  for (var it = 0; it < 2; it++) {
+    let fx = (p.x - F.tg.x) / F.tg.z;
+    let fy = (p.y - F.tg.y) / F.tg.w;
+    let i = u32(clamp(floor(fx), 0.0, f32(F.tn.x - 2u)));
+    let j = u32(clamp(floor(fy), 0.0, f32(F.tn.y - 2u)));
+    let A = tvertex(i, j);
+    var Bv = tvertex(i + 1u, j);
+    var C = tvertex(i + 1u, j + 1u);
+    if (fy - f32(j) > fx - f32(i)) { Bv = C; C = tvertex(i, j + 1u); }
+    let n = cross(Bv - A, C - A);
+    let dn = dot(d, n);
+    if (dn == 0.0) { break; }
+    let t = dot(A - o, n) / dn;
+    p = (o + t * d).xy;
+  }
+  return p;
+}
+
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
   let W = F.e.x;
@@ -340,9 +378,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // top-down: the pixel centre exactly (SPEC "Points, pixels and precision")
     p = vec2f(F.f.x + (f32(gid.x) + 0.5) * F.f.z, F.f.y + (f32(gid.y) + 0.5) * F.f.w);
   } else {
-    let g = textureLoad(posTex, vec2<i32>(gid.xy), 0);
-    if (g.w <= 0.0) { OUT[gid.x + W * gid.y] = vec4f(0.0); return; }
-    p = g.xy;
+    // the ray's terrain point from the depth (static_common.glsl pixel_world)
+    let depth = textureLoad(depthTex, vec2<i32>(gid.xy), 0);
+    if (depth <= 0.0) { OUT[gid.x + W * gid.y] = vec4f(0.0); return; }
+    let ndc = vec2f((f32(gid.x) + 0.5) / f32(W) * 2.0 - 1.0, 1.0 - (f32(gid.y) + 0.5) / f32(H) * 2.0);
+    let wp = F.inv_view_proj * vec4f(ndc, depth, 1.0);
+    p = ground_point(ndc, wp.xy / wp.w);
   }
   OUT[gid.x + W * gid.y] = query(p);
 }

@@ -25,19 +25,12 @@ fn vs(@location(0) p: vec3f, @location(1) n: vec3f) -> VOut {
   o.ground = p;
   return o;
 }
-struct FOut {
-  @location(0) color: vec4f,
-  @location(1) ground: vec4f,
-}
 @fragment
-fn fs(v: VOut) -> FOut {
-  var o: FOut;
+fn fs(v: VOut) -> @location(0) vec4f {
   let l = max(dot(normalize(v.normal), U.light.xyz), 0.0);
   var albedo = U.albedo.rgb;
   if (v.ground.z <= U.light.w) { albedo = vec3f(0.45, 0.58, 0.70); }
-  o.color = vec4f(albedo * (0.35 + 0.65 * l), 1.0);
-  o.ground = vec4f(v.ground, 1.0);
-  return o;
+  return vec4f(albedo * (0.35 + 0.65 * l), 1.0);
 }
 `;
 
