@@ -6,3 +6,5 @@ export { bufferSource, urlSource } from "./source.js";
 export { parseTileset, fetchTileset, openTile, MAX_TILESET_BYTES } from "./tileset.js";
 export { xxh64, hex64 } from "./xxh64.js";
 export * from "./format.js";
+// Terrain files (formats/SPEC.md "Terrain files"): the mesh render draws.
+export { parseTerrain, fetchTerrain, xxh64Sync } from "./terrain.js";
