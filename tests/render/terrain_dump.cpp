@@ -1,0 +1,51 @@
+// terrain_dump FILE: a terrain file as the C++ reader (prep::render::
+// decode_terrain) reads it, as JSON (numbers with 17 digits, so that they
+// read back bit for bit), for the JavaScript reader's test
+// (tests/web/terrain_test.mjs). Exit 5 with the message on a refusal.
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <vector>
+
+#include "prep/error.hpp"
+#include "prep/render.hpp"
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: terrain_dump FILE\n");
+    return 2;
+  }
+  std::ifstream in(argv[1], std::ios::binary);
+  const std::vector<uint8_t> bytes{std::istreambuf_iterator<char>(in), {}};
+  try {
+    const prep::render::TerrainFile t = prep::render::decode_terrain(bytes, argv[1]);
+    const prep::render::Heightfield& h = t.mesh;
+    auto num = [](double v) { std::printf(std::isfinite(v) ? "%.17g" : "null", v); };
+    std::printf("{\"nx\": %u, \"ny\": %u", h.nx, h.ny);
+    const std::pair<const char*, double> fields[] = {
+        {"x0", h.x0},
+        {"y0", h.y0},
+        {"dx", h.dx},
+        {"dy", h.dy},
+        {"zmin", h.zmin},
+        {"zmax", h.zmax},
+        {"origin_x", t.origin_x},
+        {"origin_y", t.origin_y},
+        {"surface_error_bound", h.surface_error_bound}};
+    for (const auto& [name, v] : fields) {
+      std::printf(", \"%s\": ", name);
+      num(v);
+    }
+    std::printf(", \"z\": [");
+    for (size_t k = 0; k < h.z.size(); ++k) {
+      if (k) std::printf(",");
+      num(h.z[k]);
+    }
+    std::printf("]}\n");
+  } catch (const prep::error& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return 5;
+  }
+  return 0;
+}
