@@ -6,3 +6,4 @@ export { bufferSource, urlSource } from "./source.js";
 export { parseTileset, fetchTileset, openTile, MAX_TILESET_BYTES } from "./tileset.js";
 export { xxh64, hex64 } from "./xxh64.js";
 export * from "./format.js";
+export { createRenderer, flatTerrain, Renderer, topdownCamera } from "./render/index.js";

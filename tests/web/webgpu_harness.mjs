@@ -1,0 +1,140 @@
+#!/usr/bin/env node
+// webgpu_harness.mjs — renders one frame of a package with the WebGPU
+// renderer (web/src/render/) in headless Chromium and writes the frame and
+// its decal layer as PNGs. No npm deps: a node:http server on 127.0.0.1
+// serves the repository's web/ folder, the package, the job and a page;
+// the page POSTs the RGBA bytes back.
+//
+//   node tests/web/webgpu_harness.mjs --pkg P.decals --size 480x270 --out /tmp/x \
+//        (--extent xmin,ymin,xmax,ymax | --camera cam.json) [--terrain t.json] [--frames N]
+//
+// --extent: top-down, metres relative to the package origin (as render's
+// --extent minus the origin). --camera: a renderFrame camera as JSON.
+// --terrain: a Terrain as JSON ({x0, y0, dx, dy, nx, ny, z: [...], zmin, zmax}).
+// Writes OUT_rgba.png and OUT_decals.png; prints the frame times.
+import { createServer } from "node:http";
+import { spawn } from "node:child_process";
+import { mkdtempSync, readFileSync, writeFileSync, rmSync, existsSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { join, dirname, resolve, extname } from "node:path";
+import { fileURLToPath } from "node:url";
+import { encodePng } from "./webgpu_png.mjs";
+
+const here = dirname(fileURLToPath(import.meta.url));
+const webDir = resolve(here, "../../web");
+const args = Object.fromEntries(
+  process.argv.slice(2).reduce((acc, a, i, all) => (a.startsWith("--") ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
+if (!args.pkg || !args.size || !args.out || !(args.extent || args.camera)) {
+  console.error("usage: webgpu_harness.mjs --pkg P --size WxH --out PREFIX (--extent a,b,c,d | --camera C.json) [--terrain T.json] [--frames N]");
+  process.exit(2);
+}
+const [W, H] = args.size.split("x").map(Number);
+const job = {
+  width: W, height: H, frames: Number(args.frames ?? 1),
+  extent: args.extent ? args.extent.split(",").map(Number) : null,
+  camera: args.camera ? JSON.parse(readFileSync(args.camera, "utf8")) : null,
+  terrain: Boolean(args.terrain),
+  present: Boolean(args.present),
+  ramps: args.ramps ? JSON.parse(args.ramps) : [],
+};
+
+const PAGE = `<!doctype html><html><head><meta charset="utf-8">
+<script type="importmap">{"imports": {"fzstd": "/web/node_modules/fzstd/esm/index.mjs",
+ "xxhash-wasm": "/web/node_modules/xxhash-wasm/esm/xxhash-wasm.js"}}</script></head>
+<body style="margin:0"><canvas id="c"></canvas><script type="module">
+const post = (path, body) => fetch(path, { method: "POST", body });
+const step = (m) => post("/result/log", m);
+try {
+  const { openPackage, createRenderer, flatTerrain, topdownCamera } = await import("/web/src/index.js");
+  const job = await (await fetch("/job.json")).json();
+  const pkg = await openPackage(await (await fetch("/pkg.decals")).arrayBuffer(), { label: "pkg.decals" });
+  await pkg.validate();
+  await step("validated");
+  const r = await createRenderer({ canvas: document.getElementById("c") });
+  let terrain = null;
+  if (job.terrain) {
+    const t = await (await fetch("/terrain.json")).json();
+    terrain = { ...t, z: Float64Array.from(t.z) };
+  }
+  await step("renderer " + r.adapterName);
+  r.device.onuncapturederror = (e) => step("gpu error: " + e.error.message);
+  r.device.lost.then((i) => step("device lost: " + i.message));
+  await r.setScene({ pkg, terrain, ramps: job.ramps });
+  await step("scene");
+  const t = terrain ?? flatTerrain(pkg.metadata.extent);
+  const camera = job.camera ?? topdownCamera(job.extent, t.zmin, t.zmax);
+  const times = [];
+  let out;
+  for (let i = 0; i < job.frames; ++i) {
+    out = await r.renderFrame({ camera, width: job.width, height: job.height, decals: true, present: job.present });
+    times.push(out.ms);
+  }
+  await post("/result/info", JSON.stringify({ adapter: r.adapterName, gpuBytes: r.gpuBytes, times }));
+  await post("/result/rgba", out.rgba);
+  await post("/result/decals", out.decals);
+  await post("/result/done", "");
+} catch (e) {
+  await post("/result/error", String(e && e.stack || e));
+}
+</script></body></html>`;
+
+const TYPES = { ".js": "text/javascript", ".mjs": "text/javascript", ".json": "application/json", ".wasm": "application/wasm" };
+let chromium = null;
+const results = {};
+const finished = new Promise((resolveDone) => {
+  const server = createServer((req, res) => {
+    const url = new URL(req.url, "http://x");
+    if (req.method === "POST") {
+      const parts = [];
+      req.on("data", (c) => parts.push(c));
+      req.on("end", () => {
+        const body = Buffer.concat(parts);
+        const what = url.pathname.replace("/result/", "");
+        results[what] = body;
+        if (what === "log" && process.env.HARNESS_VERBOSE) console.error("page: " + body.toString());
+        res.end("ok");
+        if (what === "done" || what === "error") resolveDone(server);
+      });
+      return;
+    }
+    let file = null, type = "application/octet-stream";
+    if (url.pathname === "/") { res.setHeader("content-type", "text/html"); res.end(PAGE); return; }
+    if (url.pathname === "/job.json") { res.setHeader("content-type", "application/json"); res.end(JSON.stringify(job)); return; }
+    if (url.pathname === "/pkg.decals") file = resolve(args.pkg);
+    else if (url.pathname === "/terrain.json" && args.terrain) file = resolve(args.terrain);
+    else if (url.pathname.startsWith("/web/")) {
+      file = resolve(webDir, "." + url.pathname.slice(4));
+      if (!file.startsWith(webDir)) file = null;
+      type = TYPES[extname(file ?? "")] ?? type;
+    }
+    if (!file || !existsSync(file)) { res.statusCode = 404; res.end("not found"); return; }
+    res.setHeader("content-type", type);
+    res.end(readFileSync(file));
+  });
+  server.listen(0, "127.0.0.1", () => {
+    const port = server.address().port;
+    const profile = mkdtempSync(join(tmpdir(), "webgpu-harness-"));
+    chromium = spawn("/usr/bin/chromium", ["--headless", "--no-sandbox", "--enable-unsafe-webgpu",
+      "--enable-unsafe-swiftshader", `--user-data-dir=${profile}`, `--window-size=${W},${H}`,
+      "--enable-logging=stderr", "--v=0", `http://127.0.0.1:${port}/`], { stdio: ["ignore", "ignore", "pipe"] });
+    let log = "";
+    chromium.stderr.on("data", (c) => { log += c; if (process.env.HARNESS_VERBOSE) process.stderr.write(c); });
+    chromium.on("exit", () => {
+      rmSync(profile, { recursive: true, force: true });
+      if (!results.done && !results.error) { results.error = Buffer.from("chromium exited early:\n" + log.slice(-3000)); resolveDone(server); }
+    });
+  });
+});
+const timeout = setTimeout(() => { results.error = Buffer.from("timeout"); chromium?.kill(); process.exit(3); }, Number(args.timeout ?? 600) * 1000);
+const server = await finished;
+clearTimeout(timeout);
+chromium?.kill();
+server.close();
+if (results.error && !results.done) {
+  console.error("page error: " + results.error.toString());
+  process.exit(1);
+}
+const info = JSON.parse(results.info.toString());
+writeFileSync(`${args.out}_rgba.png`, encodePng(W, H, new Uint8Array(results.rgba)));
+writeFileSync(`${args.out}_decals.png`, encodePng(W, H, new Uint8Array(results.decals)));
+console.log(`${info.adapter}: ${W}x${H}, frame ms ${info.times.map((t) => t.toFixed(1)).join(", ")}, gpuBytes ${info.gpuBytes}`);

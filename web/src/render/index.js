@@ -1,0 +1,365 @@
+// render/index.js — the WebGPU renderer of one decal package over a terrain
+// (the interface of the browser renderer, §2): the terrain pass
+// (libprep/render/gl_passes.cpp terrain_pass), the static decal query at
+// each pixel's ground point (formats/SPEC.md "Drawing rules"; the pixel
+// centre exactly for a top-down view), and the composite. Dynamic lines and
+// LOD are not drawn.
+//
+// WebGPU objects are typed `any`: the checked lib (es2022 + dom) has no
+// WebGPU declarations and the project adds no type packages.
+
+import { DECALS_WGSL, FRAME_BYTES, SLOTS } from "./wgsl_decals.js";
+import { TERRAIN_WGSL, TERRAIN_UNIFORM_BYTES, COMPOSITE_WGSL, PRESENT_WGSL } from "./wgsl_frame.js";
+import { viewMatrix, projectionMatrix, matMul, normalize, topdownCamera } from "./camera.js";
+import { packScene } from "./scene.js";
+
+export { topdownCamera };
+
+/** @typedef {import("./camera.js").Camera} Camera */
+/** @typedef {{x0: number, y0: number, dx: number, dy: number, nx: number, ny: number,
+ *             z: Float64Array, zmin: number, zmax: number}} Terrain */
+
+// GPUBufferUsage / GPUTextureUsage / GPUMapMode bits (WebGPU spec).
+const BU = { MAP_READ: 1, COPY_SRC: 4, COPY_DST: 8, INDEX: 16, VERTEX: 32, UNIFORM: 64, STORAGE: 128 };
+const TU = { COPY_SRC: 1, TEXTURE_BINDING: 4, RENDER_ATTACHMENT: 16 };
+const MAP_READ = 1;
+const Q = 0.001;
+
+/**
+ * The flat heightfield render uses without a DEM (terrain.cpp flat_heightfield).
+ * @param {number[]} extent [xmin, ymin, xmax, ymax] metres relative to the origin
+ * @returns {Terrain}
+ */
+export function flatTerrain(extent) {
+  return {
+    x0: extent[0], y0: extent[1], dx: extent[2] - extent[0], dy: extent[3] - extent[1],
+    nx: 2, ny: 2, z: new Float64Array(4), zmin: 0, zmax: 0,
+  };
+}
+
+/**
+ * Creates the WebGPU renderer; throws an Error saying what is missing when
+ * navigator.gpu or an adapter is absent.
+ * @param {{canvas?: HTMLCanvasElement}} [options]
+ */
+export async function createRenderer(options = {}) {
+  const gpu = /** @type {any} */ (globalThis.navigator)?.gpu;
+  if (!gpu) throw new Error("WebGPU is not available: navigator.gpu is missing (a secure origin and a WebGPU-enabled browser are needed)");
+  const adapter = await gpu.requestAdapter();
+  if (!adapter) throw new Error("WebGPU is not available: navigator.gpu.requestAdapter() returned no adapter");
+  const lim = adapter.limits;
+  const device = await adapter.requestDevice({
+    requiredLimits: {
+      maxStorageBuffersPerShaderStage: Math.min(10, lim.maxStorageBuffersPerShaderStage),
+      maxStorageBufferBindingSize: lim.maxStorageBufferBindingSize,
+      maxBufferSize: lim.maxBufferSize,
+    },
+  });
+  const info = adapter.info || {};
+  const name = `WebGPU ${info.vendor || "unknown"}/${info.architecture || info.device || info.description || "unknown"}`;
+  return new Renderer(device, name, options.canvas ?? null, gpu);
+}
+
+/** Integer floor division. @param {number} a @param {number} b */
+const floorDiv = (a, b) => Math.floor(a / b);
+
+export class Renderer {
+  /** @param {any} device @param {string} name @param {HTMLCanvasElement | null} canvas @param {any} gpu */
+  constructor(device, name, canvas, gpu) {
+    this.device = device;
+    this.adapterName = name;
+    this.gpuBytes = 0;
+    this.canvas = canvas;
+    this.gpu = gpu;
+    /** @type {any} */ this.context = null;
+    /** @type {import("./scene.js").PackedScene | null} */ this.scene = null;
+    /** @type {Terrain | null} */ this.terrain = null;
+    /** @type {any} */ this.blobBuffer = null;
+    /** @type {any} */ this.visBuffer = null;
+    /** @type {Uint32Array} */ this.visBits = new Uint32Array(1);
+    /** @type {any} */ this.mesh = null;
+    /** @type {any} */ this.targets = null;
+    const d = device;
+    const mod = (/** @type {string} */ code) => d.createShaderModule({ code });
+    this.decalPipeline = d.createComputePipeline({ layout: "auto", compute: { module: mod(DECALS_WGSL), entryPoint: "main" } });
+    this.compositePipeline = d.createComputePipeline({ layout: "auto", compute: { module: mod(COMPOSITE_WGSL), entryPoint: "main" } });
+    const tm = mod(TERRAIN_WGSL);
+    this.terrainPipeline = d.createRenderPipeline({
+      layout: "auto",
+      vertex: {
+        module: tm, entryPoint: "vs",
+        buffers: [{ arrayStride: 24, attributes: [
+          { shaderLocation: 0, offset: 0, format: "float32x3" },
+          { shaderLocation: 1, offset: 12, format: "float32x3" }] }],
+      },
+      fragment: { module: tm, entryPoint: "fs", targets: [{ format: "rgba8unorm" }, { format: "rgba32float" }] },
+      primitive: { topology: "triangle-list", cullMode: "none" },
+      depthStencil: { format: "depth32float", depthWriteEnabled: true, depthCompare: "greater" },
+    });
+    this.frameUniform = d.createBuffer({ size: FRAME_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
+    this.terrainUniform = d.createBuffer({ size: TERRAIN_UNIFORM_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
+    this.sizeUniform = d.createBuffer({ size: 16, usage: BU.UNIFORM | BU.COPY_DST });
+    /** @type {any} */ this.presentPipeline = null;
+  }
+
+  /** @param {number} size @param {number} usage */
+  buffer(size, usage) {
+    const b = this.device.createBuffer({ size: Math.max(16, Math.ceil(size / 4) * 4), usage });
+    this.gpuBytes += b.size;
+    return b;
+  }
+  /** @param {any} b */
+  free(b) {
+    if (!b) return;
+    this.gpuBytes -= b.size;
+    b.destroy();
+  }
+
+  /**
+   * Uploads a validated Package and its terrain (or null: flat over the
+   * package extent). ramps: render --ramp's stops per layer (SPEC "Colour").
+   * @param {{pkg: import("../package.js").Package, terrain: Terrain | null,
+   *          ramps?: import("./scene.js").LayerRamp[]}} args
+   */
+  async setScene({ pkg, terrain, ramps }) {
+    const scene = await packScene(pkg, ramps ?? []);
+    this.free(this.blobBuffer);
+    this.free(this.visBuffer);
+    this.blobBuffer = this.buffer(scene.words.byteLength, BU.STORAGE | BU.COPY_DST);
+    this.device.queue.writeBuffer(this.blobBuffer, 0, scene.words);
+    this.visBits = new Uint32Array(Math.max(1, Math.ceil(scene.layerCount / 32))).fill(0xffffffff);
+    this.visBuffer = this.buffer(this.visBits.byteLength, BU.STORAGE | BU.COPY_DST);
+    this.device.queue.writeBuffer(this.visBuffer, 0, this.visBits);
+    this.scene = scene;
+    const ext = pkg.metadata.extent || [0, 0, 1, 1];
+    this.terrain = terrain ?? flatTerrain(ext);
+    this.freeMesh();
+  }
+
+  freeMesh() {
+    if (this.mesh) {
+      this.free(this.mesh.vbo);
+      this.free(this.mesh.ibo);
+    }
+    this.mesh = null;
+  }
+
+  /** @param {number} layerIndex  the metadata layer table's index @param {boolean} visible */
+  setLayerVisible(layerIndex, visible) {
+    const word = layerIndex >>> 5;
+    if (word >= this.visBits.length) return;
+    const bit = 1 << (layerIndex & 31);
+    this.visBits[word] = visible ? this.visBits[word] | bit : this.visBits[word] & ~bit;
+    if (this.visBuffer) this.device.queue.writeBuffer(this.visBuffer, 0, this.visBits);
+  }
+
+  /**
+   * The terrain mesh relative to the anchor (metres, double then float, as
+   * gl_passes.cpp upload_terrain_mesh), normals of Heightfield::normal_at.
+   * @param {number} ax @param {number} ay anchor, metres
+   */
+  meshFor(ax, ay) {
+    if (this.mesh && this.mesh.ax === ax && this.mesh.ay === ay) return this.mesh;
+    this.freeMesh();
+    const t = /** @type {Terrain} */ (this.terrain);
+    const { nx, ny } = t;
+    const v = new Float32Array(nx * ny * 6);
+    const zat = (/** @type {number} */ a, /** @type {number} */ b) =>
+      t.z[Math.min(Math.max(a, 0), nx - 1) + nx * Math.min(Math.max(b, 0), ny - 1)];
+    for (let j = 0; j < ny; ++j)
+      for (let i = 0; i < nx; ++i) {
+        const gx = (zat(i + 1, j) - zat(i - 1, j)) / (2 * t.dx);
+        const gy = (zat(i, j + 1) - zat(i, j - 1)) / (2 * t.dy);
+        const n = normalize([-gx, -gy, 1]);
+        const k = 6 * (i + nx * j);
+        v[k] = t.x0 + i * t.dx - ax;
+        v[k + 1] = t.y0 + j * t.dy - ay;
+        v[k + 2] = t.z[i + nx * j];
+        v[k + 3] = n[0]; v[k + 4] = n[1]; v[k + 5] = n[2];
+      }
+    const idx = new Uint32Array((nx - 1) * (ny - 1) * 6);
+    let at = 0;
+    for (let j = 0; j + 1 < ny; ++j)
+      for (let i = 0; i + 1 < nx; ++i) {
+        const v00 = i + nx * j, v10 = v00 + 1, v01 = v00 + nx, v11 = v01 + 1;
+        idx.set([v00, v10, v11, v00, v11, v01], at);
+        at += 6;
+      }
+    const vbo = this.buffer(v.byteLength, BU.VERTEX | BU.COPY_DST);
+    const ibo = this.buffer(idx.byteLength, BU.INDEX | BU.COPY_DST);
+    this.device.queue.writeBuffer(vbo, 0, v);
+    this.device.queue.writeBuffer(ibo, 0, idx);
+    this.mesh = { ax, ay, vbo, ibo, count: idx.length };
+    return this.mesh;
+  }
+
+  /** Per-size targets and buffers. @param {number} W @param {number} H */
+  targetsFor(W, H) {
+    if (this.targets && this.targets.W === W && this.targets.H === H) return this.targets;
+    this.freeTargets();
+    const d = this.device;
+    const tex = (/** @type {string} */ format, /** @type {number} */ bpp) => {
+      this.gpuBytes += W * H * bpp;
+      return d.createTexture({ size: [W, H], format, usage: TU.RENDER_ATTACHMENT | TU.TEXTURE_BINDING });
+    };
+    const n = W * H;
+    this.targets = {
+      W, H,
+      color: tex("rgba8unorm", 4), ground: tex("rgba32float", 16), depth: tex("depth32float", 4),
+      dec: this.buffer(16 * n, BU.STORAGE),
+      rgba: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
+      decals: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
+      readRgba: this.buffer(4 * n, BU.MAP_READ | BU.COPY_DST),
+      readDecals: this.buffer(4 * n, BU.MAP_READ | BU.COPY_DST),
+    };
+    return this.targets;
+  }
+
+  freeTargets() {
+    const t = this.targets;
+    if (!t) return;
+    for (const x of [t.color, t.ground, t.depth]) x.destroy();
+    this.gpuBytes -= t.W * t.H * 24;
+    for (const b of [t.dec, t.rgba, t.decals, t.readRgba, t.readDecals]) this.free(b);
+    this.targets = null;
+  }
+
+  /**
+   * Draws one frame and returns its pixels (RGBA8, row 0 at the top).
+   * @param {{camera: Camera, width: number, height: number, albedo?: number[],
+   *          decals?: boolean, present?: boolean, readback?: boolean}} args
+   * @returns {Promise<{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number}>}
+   */
+  async renderFrame({ camera, width, height, albedo, decals, present, readback }) {
+    const scene = this.scene;
+    if (!scene) throw new Error("renderFrame: no scene (call setScene first)");
+    const t0 = performance.now();
+    const d = this.device, W = width, H = height;
+    const T = this.targetsFor(W, H);
+    // Anchor: the eye rounded to whole quanta (gl_passes.cpp view_uniforms).
+    const axq = Math.round(camera.eye[0] / Q), ayq = Math.round(camera.eye[1] / Q);
+    const ax = axq * Q, ay = ayq * Q;
+    const eyeRel = [camera.eye[0] - ax, camera.eye[1] - ay, camera.eye[2]];
+    const vp = matMul(projectionMatrix(camera, W / H), viewMatrix(camera, eyeRel));
+    const terrain = /** @type {Terrain} */ (this.terrain);
+    const light = normalize([-0.4, -0.5, 0.75]);
+    const alb = albedo ?? [0.62, 0.66, 0.58];
+    const tu = new Float32Array(TERRAIN_UNIFORM_BYTES / 4);
+    tu.set(vp, 0);
+    tu.set([light[0], light[1], light[2], terrain.zmax > terrain.zmin ? 0 : -1e30], 16);
+    tu.set([alb[0], alb[1], alb[2], 1], 20);
+    d.queue.writeBuffer(this.terrainUniform, 0, tu);
+    // The frame uniform of the decal pass (wgsl_decals.js Frame).
+    const g = scene.grid;
+    const rx = axq - g.gx, ry = ayq - g.gy;
+    const cx = floorDiv(rx, g.cw), cy = floorDiv(ry, g.ch);
+    const fb = new ArrayBuffer(FRAME_BYTES);
+    const fi = new Int32Array(fb), ff = new Float32Array(fb), fu = new Uint32Array(fb);
+    fi.set([axq, ayq, cx, cy], 0);
+    ff.set([(rx - cx * g.cw) * Q, (ry - cy * g.ch) * Q, g.cw * Q, g.ch * Q], 4);
+    fi.set([g.nx, g.ny, g.gx, g.gy], 8);
+    const td = camera.topdownExtent;
+    const flags = (td ? 1 : 0) | (scene.haveLines ? 2 : 0) | (scene.havePolygons ? 4 : 0);
+    fi.set([g.cw, g.ch, scene.shift, flags], 12);
+    fu.set([W, H, scene.polyBias, 0], 16);
+    if (td) ff.set([td[0] - ax, td[3] - ay, (td[2] - td[0]) / W, -(td[3] - td[1]) / H], 20);
+    fu.set(scene.offsets, 24);
+    d.queue.writeBuffer(this.frameUniform, 0, fb);
+    d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, 0, 0));
+
+    const mesh = this.meshFor(ax, ay);
+    const enc = d.createCommandEncoder();
+    const rp = enc.beginRenderPass({
+      colorAttachments: [
+        { view: T.color.createView(), clearValue: { r: 0.8, g: 0.86, b: 0.93, a: 1 }, loadOp: "clear", storeOp: "store" },
+        { view: T.ground.createView(), clearValue: { r: 0, g: 0, b: 0, a: 0 }, loadOp: "clear", storeOp: "store" },
+      ],
+      depthStencilAttachment: { view: T.depth.createView(), depthClearValue: 0, depthLoadOp: "clear", depthStoreOp: "store" },
+    });
+    rp.setPipeline(this.terrainPipeline);
+    rp.setBindGroup(0, d.createBindGroup({ layout: this.terrainPipeline.getBindGroupLayout(0),
+      entries: [{ binding: 0, resource: { buffer: this.terrainUniform } }] }));
+    rp.setVertexBuffer(0, mesh.vbo);
+    rp.setIndexBuffer(mesh.ibo, "uint32");
+    rp.drawIndexed(mesh.count);
+    rp.end();
+    const gx = Math.ceil(W / 8), gy = Math.ceil(H / 8);
+    let cp = enc.beginComputePass();
+    cp.setPipeline(this.decalPipeline);
+    cp.setBindGroup(0, d.createBindGroup({ layout: this.decalPipeline.getBindGroupLayout(0), entries: [
+      { binding: 0, resource: { buffer: this.frameUniform } },
+      { binding: 1, resource: { buffer: this.blobBuffer } },
+      { binding: 2, resource: { buffer: this.visBuffer } },
+      { binding: 3, resource: T.ground.createView() },
+      { binding: 4, resource: { buffer: T.dec } }] }));
+    cp.dispatchWorkgroups(gx, gy);
+    cp.end();
+    cp = enc.beginComputePass();
+    cp.setPipeline(this.compositePipeline);
+    cp.setBindGroup(0, d.createBindGroup({ layout: this.compositePipeline.getBindGroupLayout(0), entries: [
+      { binding: 0, resource: { buffer: this.sizeUniform } },
+      { binding: 1, resource: T.color.createView() },
+      { binding: 2, resource: { buffer: T.dec } },
+      { binding: 3, resource: { buffer: T.rgba } },
+      { binding: 4, resource: { buffer: T.decals } }] }));
+    cp.dispatchWorkgroups(gx, gy);
+    cp.end();
+    const wantRgba = readback !== false;
+    if (wantRgba) enc.copyBufferToBuffer(T.rgba, 0, T.readRgba, 0, 4 * W * H);
+    if (decals) enc.copyBufferToBuffer(T.decals, 0, T.readDecals, 0, 4 * W * H);
+    if (present && this.canvas) this.encodePresent(enc, T, W, H);
+    d.queue.submit([enc.finish()]);
+    await d.queue.onSubmittedWorkDone();
+    const ms = performance.now() - t0;
+    /** @param {any} b */
+    const read = async (b) => {
+      await b.mapAsync(MAP_READ);
+      const out = new Uint8Array(b.getMappedRange().slice(0));
+      b.unmap();
+      return out;
+    };
+    return {
+      rgba: wantRgba ? await read(T.readRgba) : null,
+      decals: decals ? await read(T.readDecals) : null,
+      ms,
+    };
+  }
+
+  /** @param {any} enc @param {any} T @param {number} W @param {number} H */
+  encodePresent(enc, T, W, H) {
+    const d = this.device;
+    const canvas = /** @type {HTMLCanvasElement} */ (this.canvas);
+    if (!this.context) {
+      this.context = /** @type {any} */ (canvas.getContext("webgpu"));
+      this.presentFormat = this.gpu.getPreferredCanvasFormat();
+      this.context.configure({ device: d, format: this.presentFormat, alphaMode: "opaque" });
+      const m = d.createShaderModule({ code: PRESENT_WGSL });
+      this.presentPipeline = d.createRenderPipeline({ layout: "auto",
+        vertex: { module: m, entryPoint: "vs" },
+        fragment: { module: m, entryPoint: "fs", targets: [{ format: this.presentFormat }] } });
+    }
+    if (canvas.width !== W || canvas.height !== H) {
+      canvas.width = W;
+      canvas.height = H;
+    }
+    const rp = enc.beginRenderPass({ colorAttachments: [{ view: this.context.getCurrentTexture().createView(),
+      clearValue: { r: 0, g: 0, b: 0, a: 1 }, loadOp: "clear", storeOp: "store" }] });
+    rp.setPipeline(this.presentPipeline);
+    rp.setBindGroup(0, d.createBindGroup({ layout: this.presentPipeline.getBindGroupLayout(0), entries: [
+      { binding: 0, resource: { buffer: this.sizeUniform } },
+      { binding: 1, resource: { buffer: T.rgba } }] }));
+    rp.draw(3);
+    rp.end();
+  }
+
+  destroy() {
+    this.freeTargets();
+    this.freeMesh();
+    this.free(this.blobBuffer);
+    this.free(this.visBuffer);
+    this.blobBuffer = this.visBuffer = null;
+    this.device.destroy();
+  }
+}
+
+export { SLOTS };

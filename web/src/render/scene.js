@@ -1,0 +1,172 @@
+// scene.js — what the renderer uploads from a package (the CPU side of
+// formats/gl/src/loader.cpp and GlRenderer::bind_dashes): the v1.3 blobs
+// packed into one u32 array, the dash table and per-vertex along-line
+// distances (formats/SPEC.md "Dashed lines"), and `--ramp` restyling
+// (SPEC "Colour").
+
+import { SLOTS } from "./wgsl_decals.js";
+
+/** @typedef {[number, Array<[number, number, number, number, number]>]} LayerRamp */
+
+/** A colour (R low byte) as its four channels. @param {number} c */
+const channels = (c) => [c & 255, (c >>> 8) & 255, (c >>> 16) & 255, (c >>> 24) & 255];
+
+/** round half away from zero (std::lround) @param {number} x */
+const lround = (x) => (x < 0 ? -Math.round(-x) : Math.round(x));
+
+/**
+ * ramp(value) of SPEC "Colour" (prep::ramp_rgba): `fallback` for NaN or an
+ * empty ramp; stops [value, r, g, b, a] in increasing value order.
+ * @param {Array<[number, number, number, number, number]>} stops
+ * @param {number} v  the stored f32 value
+ * @param {number} fallback
+ */
+export function rampRgba(stops, v, fallback) {
+  if (stops.length === 0 || !Number.isFinite(v)) return fallback;
+  const pack = (/** @type {number[]} */ s) => ((s[1] | (s[2] << 8) | (s[3] << 16) | (s[4] << 24)) >>> 0);
+  if (v <= stops[0][0]) return pack(stops[0]);
+  if (v >= stops[stops.length - 1][0]) return pack(stops[stops.length - 1]);
+  let k = 1;
+  while (stops[k][0] < v) ++k;
+  const a = stops[k - 1], b = stops[k];
+  const t = (v - a[0]) / (b[0] - a[0]);
+  let out = 0;
+  for (let c = 0; c < 4; ++c)
+    out |= Math.min(255, Math.max(0, lround(a[c + 1] + t * (b[c + 1] - a[c + 1])))) << (8 * c);
+  return out >>> 0;
+}
+
+/**
+ * The dash table of prep::dash_gpu_words from the metadata layer table.
+ * @param {any[]} layers
+ */
+export function dashWords(layers) {
+  /** @type {number[]} */
+  const words = [layers.length];
+  for (let l = 0; l < layers.length; ++l) words.push(0, 0, 0);
+  const f = new Float32Array(1), u = new Uint32Array(f.buffer);
+  const bits = (/** @type {number} */ x) => ((f[0] = x), u[0]);
+  for (let l = 0; l < layers.length; ++l) {
+    const p = layers[l] && Array.isArray(layers[l].dash) ? /** @type {number[]} */ (layers[l].dash) : [];
+    let period = 0;
+    for (const x of p) period += x;
+    words[1 + 3 * l] = words.length;
+    words[2 + 3 * l] = p.length;
+    words[3 + 3 * l] = bits(period);
+    for (const x of p) words.push(bits(x));
+  }
+  return Uint32Array.from(words);
+}
+
+/**
+ * D(v) per static-line vertex (prep::line_vertex_distances), in double,
+ * stored as f32 (as the GL renderer binds it).
+ * @param {Int32Array} verts @param {Uint32Array} vline @param {number[]} start
+ */
+export function vertexDistances(verts, vline, start) {
+  const n = vline.length;
+  const out = new Float32Array(n);
+  let prev = 0;
+  for (let k = 0; k < n; ++k) {
+    if (k === 0 || vline[k] !== vline[k - 1]) {
+      const l = vline[k];
+      prev = l < start.length ? start[l] : 0;
+    } else {
+      const dx = (verts[2 * k] - verts[2 * k - 2]) * 0.001;
+      const dy = (verts[2 * k + 1] - verts[2 * k - 1]) * 0.001;
+      prev += Math.hypot(dx, dy);
+    }
+    out[k] = prev;
+  }
+  return out;
+}
+
+/**
+ * @typedef {{
+ *   words: Uint32Array, offsets: Uint32Array,
+ *   grid: {gx: number, gy: number, cw: number, ch: number, nx: number, ny: number},
+ *   shift: number, haveLines: boolean, havePolygons: boolean, polyBias: number,
+ *   layerCount: number
+ * }} PackedScene
+ */
+
+/** u16 box step shift (decal/layout.hpp box16_shift). @param {number} cw @param {number} ch */
+export function box16Shift(cw, ch) {
+  const side = Math.max(cw, ch);
+  let s = 0;
+  while (s < 31 && side + 2 * 2 ** s > 65535 * 2 ** s) ++s;
+  return s;
+}
+
+/**
+ * Reads the package's static blobs and packs them for the decal pass.
+ * @param {import("../package.js").Package} pkg
+ * @param {LayerRamp[]} ramps
+ * @returns {Promise<PackedScene>}
+ */
+export async function packScene(pkg, ramps) {
+  const meta = pkg.metadata;
+  const g = meta.grid || { origin: [0, 0], cell: [1, 1], dims: [0, 0] };
+  const grid = { gx: g.origin[0], gy: g.origin[1], cw: g.cell[0], ch: g.cell[1], nx: g.dims[0], ny: g.dims[1] };
+  const cells = grid.nx * grid.ny;
+  const layers = Array.isArray(meta.layers) ? meta.layers : [];
+  const count = (/** @type {string} */ name) => pkg.entry(name)?.count ?? 0;
+  // The v1.2 per-cell layout (ids 5, 17, 20–23) is not encoded here yet.
+  for (const old of ["cell_segment_range", "cell_poly_range", "qt_leaf_range"])
+    if (count(old) > 0)
+      throw new Error(`${pkg.label}: the v1.2 blob '${old}' is not supported by the WebGPU renderer ` +
+                      "(rebuild the package with this decalprep: v1.3 layout)");
+  /** @type {Map<string, Uint32Array>} */
+  const arrays = new Map();
+  for (const name of SLOTS) {
+    if (name === "dash_table" || name === "dash_vertex") continue;
+    const bytes = await pkg.bytes(name);
+    const copy = bytes.slice();
+    arrays.set(name, new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2));
+  }
+  // --ramp restyling (SPEC "Colour"): line and exterior polygon colours.
+  /** @type {Map<number, Array<[number, number, number, number, number]>>} */
+  const byLayer = new Map();
+  for (const [layer, stops] of ramps) byLayer.set(layer, stops);
+  if (byLayer.size > 0) {
+    const lp = /** @type {Uint32Array} */ (arrays.get("line_props"));
+    const lpf = new Float32Array(lp.buffer, lp.byteOffset, lp.length);
+    for (let i = 0; i < lp.length; i += 8) {
+      const stops = byLayer.get(lp[i + 5]);
+      if (stops) lp[i + 1] = rampRgba(stops, lpf[i + 4], lp[i + 1]);
+    }
+    const pp = /** @type {Uint32Array} */ (arrays.get("poly_props"));
+    const ppf = new Float32Array(pp.buffer, pp.byteOffset, pp.length);
+    const ppi = new Int32Array(pp.buffer, pp.byteOffset, pp.length);
+    for (let i = 0; i < pp.length; i += 8) {
+      if (ppi[i + 2] >= 0) continue;  // interior polygons are drawn by their exterior
+      const stops = byLayer.get(pp[i + 4]);
+      if (stops) pp[i] = rampRgba(stops, ppf[i + 3], pp[i]);
+    }
+  }
+  arrays.set("dash_table", dashWords(layers));
+  const lv = /** @type {Uint32Array} */ (arrays.get("line_vertices"));
+  const start = Array.isArray(meta.line_dash_start) ? meta.line_dash_start.map(Number) : [];
+  const dist = vertexDistances(new Int32Array(lv.buffer, lv.byteOffset, lv.length),
+                               /** @type {Uint32Array} */ (arrays.get("line_vertex_line")), start);
+  arrays.set("dash_vertex", new Uint32Array(dist.buffer));
+  let total = 0;
+  for (const a of arrays.values()) total += a.length;
+  const words = new Uint32Array(Math.max(4, total));
+  const offsets = new Uint32Array(SLOTS.length);
+  let at = 0;
+  SLOTS.forEach((name, k) => {
+    const a = /** @type {Uint32Array} */ (arrays.get(name));
+    offsets[k] = at;
+    words.set(a, at);
+    at += a.length;
+  });
+  return {
+    words, offsets, grid,
+    shift: box16Shift(grid.cw, grid.ch),
+    haveLines: cells > 0 && count("cell_line_first") === cells + 1,
+    havePolygons: cells > 0 && count("cell_poly_first") === cells + 1,
+    polyBias: pkg.major === 1 && pkg.minor < 2 ? count("line_props") : 0,
+    layerCount: layers.length,
+  };
+}
