@@ -7,3 +7,5 @@ export { parseTileset, fetchTileset, openTile, MAX_TILESET_BYTES } from "./tiles
 export { xxh64, hex64 } from "./xxh64.js";
 export * from "./format.js";
 export { createRenderer, flatTerrain, Renderer, topdownCamera } from "./render/index.js";
+// Terrain files (formats/SPEC.md "Terrain files"): the mesh render draws.
+export { parseTerrain, fetchTerrain, xxh64Sync } from "./terrain.js";

@@ -124,6 +124,40 @@ Heightfield load_heightfield(const DemSpec& dem, const SceneFrame& frame, const 
 // never the network).
 DemSpec recorded_dem(const std::string& metadata_json, const std::string& package_path = {});
 
+// ---------------------------------------------------------- terrain files --
+// The mesh `render` draws, in a file a browser reads (formats/SPEC.md
+// "Terrain files"): STEM.terrain beside STEM.decals, written by `decalprep
+// terrain`. The heights are stored bit for bit, so a decoded mesh is the
+// encoded one exactly.
+struct TerrainFile {
+  Heightfield mesh;                   // x0, y0 relative to the origin below; zmin, zmax, bound
+  double origin_x = 0, origin_y = 0;  // the package's frame origin (absolute)
+  uint64_t source_xxh64 = 0;          // XXH64 of the package (tileset.json); 0: none
+};
+// The first 8 bytes of every terrain file.
+inline constexpr std::array<uint8_t, 8> kTerrainMagic = {0x89, 'D',  'T',  'R',
+                                                         0x0D, 0x0A, 0x1A, 0x0A};
+// Limits a reader enforces (SPEC "Terrain files": Limits).
+constexpr uint32_t kTerrainMaxSide = 16384;
+constexpr uint64_t kTerrainMaxVertices = uint64_t(1) << 24;
+
+// The mesh `render` draws for a package (or tileset) whose frame and data
+// extent (metres relative to the origin) are given, with `dem`: exactly
+// load_heightfield(dem, frame, extent, kMeshSamples), the terrain of
+// render's --fit, --eye/--target and of a top-down --extent inside the
+// extent. Throws as load_heightfield does.
+TerrainFile make_terrain(const DemSpec& dem, const SceneFrame& frame, const Extent& extent,
+                         uint64_t source_xxh64);
+
+// The file's bytes. Throws usage_error when the mesh breaks a limit of the
+// format (sizes, non-finite numbers, zmin/zmax not the heights' range).
+std::string encode_terrain(const TerrainFile& terrain);
+
+// Reads a terrain file, treating it as hostile: every field is checked in
+// the order of SPEC "Terrain files" (Validation) before it is used. Throws
+// format_error "<label>: <field>: <why>" naming the field and the bad value.
+TerrainFile decode_terrain(std::span<const uint8_t> bytes, const std::string& label);
+
 // The decal data a renderer reads: frame, extent, grid and the static view
 // (CPU) plus the raw blobs (GL), all views into an owner that must outlive it.
 struct DecalSource {

@@ -1,0 +1,276 @@
+// terrain.js — a reader of terrain files (formats/SPEC.md "Terrain files"):
+// the heightfield mesh `decalprep render` draws, written beside a package
+// as STEM.terrain by `decalprep terrain`. It treats every file as hostile:
+// each field is checked, in the order of SPEC "Terrain files"
+// (Validation), before it is used, and a bad file is refused with a
+// FormatError naming the field and the bad value.
+//
+// Synchronous: the checksums use the XXH64 below (the package reader's
+// xxhash-wasm answers only after an await) and fzstd decodes in place.
+import { decompress } from "fzstd";
+import { FormatError } from "./errors.js";
+
+/**
+ * The mesh render draws: vertex (i, j) at (x0 + i dx, y0 + j dy), metres
+ * relative to the package origin, height z[i + nx j]; cell (i, j) splits
+ * into the triangles (00, 10, 11) and (00, 11, 01).
+ * @typedef {{
+ *   x0: number, y0: number,
+ *   dx: number, dy: number,
+ *   nx: number, ny: number,
+ *   z: Float64Array,
+ *   zmin: number, zmax: number,
+ *   surfaceErrorBound: number,
+ *   origin: [number, number],
+ *   sourceXxh64: string
+ * }} Terrain
+ */
+
+export const TERRAIN_MAGIC = Object.freeze([0x89, 0x44, 0x54, 0x52, 0x0d, 0x0a, 0x1a, 0x0a]);
+export const TERRAIN_VERSION_MAJOR = 1;
+export const TERRAIN_VERSION_MINOR = 0;
+export const TERRAIN_HEADER_SIZE = 144;
+export const TERRAIN_MAX_SIDE = 16384;
+export const TERRAIN_MAX_VERTICES = 16777216;
+const MAX_METRES = 1e12;
+const CODEC_NONE = 0, CODEC_ZSTD = 1;
+
+// ---------------------------------------------------------------- XXH64 --
+// 64-bit words as [hi, lo] pairs of unsigned 32-bit numbers.
+
+/** @typedef {[number, number]} U64 */
+
+/** @param {bigint} v @returns {U64} */
+const u64 = (v) => [Number(v >> 32n), Number(v & 0xffffffffn)];
+const P1 = u64(0x9e3779b185ebca87n), P2 = u64(0xc2b2ae3d27d4eb4fn);
+const P3 = u64(0x165667b19e3779f9n), P4 = u64(0x85ebca77c2b2ae63n);
+const P5 = u64(0x27d4eb2f165667c5n);
+const MINUS_P1 = u64((1n << 64n) - 0x9e3779b185ebca87n);
+
+/** @param {U64} a @param {U64} b @returns {U64} */
+function add(a, b) {
+  const lo = a[1] + b[1];
+  return [(a[0] + b[0] + (lo > 0xffffffff ? 1 : 0)) >>> 0, lo >>> 0];
+}
+
+/** The low 64 bits of a * b. @param {U64} a @param {U64} b @returns {U64} */
+function mul(a, b) {
+  const al = a[1], bl = b[1];
+  const a0 = al & 0xffff, a1 = al >>> 16, b0 = bl & 0xffff, b1 = bl >>> 16;
+  const mid = a0 * b1 + a1 * b0;                 // < 2^33
+  const low = a0 * b0 + (mid % 65536) * 65536;   // < 2^33
+  const carry = Math.floor(low / 4294967296);
+  const hi = a1 * b1 + Math.floor(mid / 65536) + carry +
+    Math.imul(al, b[0]) + Math.imul(a[0], bl);
+  return [hi >>> 0, low >>> 0];
+}
+
+/** @param {U64} a @param {U64} b @returns {U64} */
+const xor = (a, b) => [(a[0] ^ b[0]) >>> 0, (a[1] ^ b[1]) >>> 0];
+
+/** Rotation left by 0 < r < 32. @param {U64} a @param {number} r @returns {U64} */
+const rotl = (a, r) => [((a[0] << r) | (a[1] >>> (32 - r))) >>> 0,
+                        ((a[1] << r) | (a[0] >>> (32 - r))) >>> 0];
+
+/** Shift right by 0 < r < 64. @param {U64} a @param {number} r @returns {U64} */
+function shr(a, r) {
+  if (r >= 32) return [0, a[0] >>> (r - 32)];
+  return [a[0] >>> r, ((a[1] >>> r) | (a[0] << (32 - r))) >>> 0];
+}
+
+/** @param {DataView} dv @param {number} at @returns {U64} */
+const read64 = (dv, at) => [dv.getUint32(at + 4, true), dv.getUint32(at, true)];
+
+/** @param {U64} acc @param {U64} input */
+const round = (acc, input) => mul(rotl(add(acc, mul(input, P2)), 31), P1);
+
+/** @param {U64} acc @param {U64} v */
+const merge = (acc, v) => add(mul(xor(acc, round([0, 0], v)), P1), P4);
+
+/**
+ * XXH64 (seed 0) of `bytes`, synchronously.
+ * @param {Uint8Array} bytes
+ * @returns {bigint}
+ */
+export function xxh64Sync(bytes) {
+  const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const n = bytes.length;
+  let at = 0;
+  /** @type {U64} */
+  let h;
+  if (n >= 32) {
+    let v1 = add(P1, P2), v2 = P2, v3 = /** @type {U64} */ ([0, 0]);
+    let v4 = MINUS_P1;
+    for (; at + 32 <= n; at += 32) {
+      v1 = round(v1, read64(dv, at));
+      v2 = round(v2, read64(dv, at + 8));
+      v3 = round(v3, read64(dv, at + 16));
+      v4 = round(v4, read64(dv, at + 24));
+    }
+    h = add(add(rotl(v1, 1), rotl(v2, 7)), add(rotl(v3, 12), rotl(v4, 18)));
+    h = merge(merge(merge(merge(h, v1), v2), v3), v4);
+  } else {
+    h = P5;
+  }
+  h = add(h, [Math.floor(n / 4294967296), n >>> 0]);
+  for (; at + 8 <= n; at += 8) h = add(mul(rotl(xor(h, round([0, 0], read64(dv, at))), 27), P1), P4);
+  if (at + 4 <= n) {
+    h = add(mul(rotl(xor(h, mul([0, dv.getUint32(at, true)], P1)), 23), P2), P3);
+    at += 4;
+  }
+  for (; at < n; ++at) h = mul(rotl(xor(h, mul([0, bytes[at]], P5)), 11), P1);
+  h = mul(xor(h, shr(h, 33)), P2);
+  h = mul(xor(h, shr(h, 29)), P3);
+  h = xor(h, shr(h, 32));
+  return (BigInt(h[0]) << 32n) | BigInt(h[1]);
+}
+
+// --------------------------------------------------------------- reader --
+
+/**
+ * Parses and checks a terrain file (SPEC "Terrain files", Validation, in
+ * its order). Throws FormatError "<label>: <field>: <why>".
+ * @param {ArrayBuffer | Uint8Array} input
+ * @param {string} [label]
+ * @returns {Terrain}
+ */
+export function parseTerrain(input, label = "terrain file") {
+  const b = input instanceof Uint8Array ? input : new Uint8Array(input);
+  const dv = new DataView(b.buffer, b.byteOffset, b.byteLength);
+  /** @param {string} what */
+  const bad = (what) => new FormatError(`${label}: ${what}`);
+  // 1. Magic. 2. Version. 3. Header size and checksum. 4. File size.
+  if (b.length < 8 || TERRAIN_MAGIC.some((v, k) => b[k] !== v))
+    throw bad("magic: not a terrain file (the first 8 bytes are not 89 44 54 52 0d 0a 1a 0a)");
+  if (b.length < 16)
+    throw bad(`header: truncated, ${b.length} bytes (the header has ${TERRAIN_HEADER_SIZE})`);
+  const major = dv.getUint16(8, true), minor = dv.getUint16(10, true);
+  if (major !== TERRAIN_VERSION_MAJOR)
+    throw bad(`version_major: unsupported terrain file version ${major}.${minor}; ` +
+              "this reader reads major version 1");
+  const header = dv.getUint32(12, true);
+  if (header < TERRAIN_HEADER_SIZE || header % 8 !== 0)
+    throw bad(`header_size: ${header} (at least 144, a multiple of 8)`);
+  if (header > b.length)
+    throw bad(`header_size: ${header} bytes, but the file holds ${b.length} (truncated)`);
+  if (dv.getBigUint64(header - 8, true) !== xxh64Sync(b.subarray(0, header - 8)))
+    throw bad("header_checksum: mismatch (the header is damaged)");
+  const fileSize = dv.getBigUint64(32, true);
+  if (fileSize !== BigInt(b.length))
+    throw bad(`file_size: ${fileSize}, but the file holds ${b.length} bytes`);
+  // 5. Flags and the bytes of a newer minor.
+  const flags = dv.getUint32(16, true);
+  if (flags & 0xffff) throw bad(`flags: ${flags} sets a required flag this reader does not know`);
+  if (minor <= TERRAIN_VERSION_MINOR) {
+    if (flags) throw bad(`flags: ${flags} (no flag is defined in version 1.0)`);
+    for (let k = 136; k + 8 < header; ++k)
+      if (b[k]) throw bad(`header: byte ${k} beyond the 1.0 fields is not zero`);
+  }
+  // 6. Codec, sizes, numbers.
+  const codec = dv.getUint32(20, true);
+  if (codec !== CODEC_NONE && codec !== CODEC_ZSTD) throw bad(`codec: ${codec} (0 none or 1 zstd)`);
+  const nx = dv.getUint32(24, true), ny = dv.getUint32(28, true);
+  if (nx < 2 || nx > TERRAIN_MAX_SIDE) throw bad(`nx: ${nx} not in 2..16384`);
+  if (ny < 2 || ny > TERRAIN_MAX_SIDE) throw bad(`ny: ${ny} not in 2..16384`);
+  if (nx * ny > TERRAIN_MAX_VERTICES) throw bad(`nx * ny: ${nx * ny} vertices exceed 16777216`);
+  const f = (/** @type {number} */ at) => dv.getFloat64(at, true);
+  const t = { x0: f(40), y0: f(48), dx: f(56), dy: f(64), zmin: f(72), zmax: f(80) };
+  const bound = f(88), origin = /** @type {[number, number]} */ ([f(96), f(104)]);
+  /** @type {[string, number][]} */
+  const numbers = [...Object.entries(t), ["origin_x", origin[0]], ["origin_y", origin[1]]];
+  for (const [name, v] of numbers)
+    if (!Number.isFinite(v) || Math.abs(v) > MAX_METRES)
+      throw bad(`${name}: ${v} is not a finite number within 1e12`);
+  if (!(t.dx > 0)) throw bad(`dx: ${t.dx} is not positive`);
+  if (!(t.dy > 0)) throw bad(`dy: ${t.dy} is not positive`);
+  if (!(Math.abs(t.x0 + t.dx * (nx - 1)) <= MAX_METRES))
+    throw bad(`dx: the grid's last column ${t.x0 + t.dx * (nx - 1)} is beyond 1e12`);
+  if (!(Math.abs(t.y0 + t.dy * (ny - 1)) <= MAX_METRES))
+    throw bad(`dy: the grid's last row ${t.y0 + t.dy * (ny - 1)} is beyond 1e12`);
+  if (!(t.zmin <= t.zmax)) throw bad(`zmin: ${t.zmin} exceeds zmax ${t.zmax}`);
+  if (!(bound >= 0)) throw bad(`surface_error_bound: ${bound} (a length, or +infinity)`);
+  const raw = nx * ny * 8, stored = dv.getBigUint64(120, true);
+  if (codec === CODEC_NONE && stored !== BigInt(raw))
+    throw bad(`heights_size: ${stored} (codec none stores nx * ny * 8 = ${raw})`);
+  if (codec === CODEC_ZSTD && (stored === 0n || BigInt(raw) > stored * 32768n + 131072n))
+    throw bad(`heights_size: ${stored} zstd bytes cannot hold ${raw}`);
+  if (stored !== BigInt(b.length - header))
+    throw bad(`heights_size: ${stored}, but ${b.length - header} bytes follow the header`);
+  // 7. Checksum. 8. Decoding.
+  const heights = b.subarray(header);
+  if (dv.getBigUint64(128, true) !== xxh64Sync(heights))
+    throw bad("heights_checksum: mismatch (the heights are damaged)");
+  const planes = codec === CODEC_ZSTD ? unzstd(heights, raw, bad) : heights;
+  // 9. The heights: byte plane k holds byte k of every vertex's f64.
+  const n = nx * ny, z = new Float64Array(n), bytes = new Uint8Array(z.buffer);
+  for (let v = 0; v < n; ++v)
+    for (let k = 0; k < 8; ++k) bytes[v * 8 + k] = planes[k * n + v];
+  let lo = Infinity, hi = -Infinity;
+  for (let v = 0; v < n; ++v) {
+    const h = z[v];
+    if (!Number.isFinite(h) || Math.abs(h) > MAX_METRES)
+      throw bad(`heights: vertex ${v} (i ${v % nx}, j ${Math.floor(v / nx)}) is ${h}, ` +
+                "not a finite height");
+    if (h < lo) lo = h;
+    if (h > hi) hi = h;
+  }
+  if (lo !== t.zmin) throw bad(`zmin: ${t.zmin} is not the lowest height ${lo}`);
+  if (hi !== t.zmax) throw bad(`zmax: ${t.zmax} is not the highest height ${hi}`);
+  const source = dv.getBigUint64(112, true).toString(16).padStart(16, "0");
+  return { ...t, nx, ny, z, surfaceErrorBound: bound, origin, sourceXxh64: source };
+}
+
+/**
+ * One zstd frame (RFC 8878) with a content size of `raw` and nothing after
+ * it, decoded; its content checksum (low 32 bits of XXH64) checked.
+ * @param {Uint8Array} s @param {number} raw @param {(what: string) => Error} bad
+ */
+function unzstd(s, raw, bad) {
+  const notOne = () => bad("heights: the stored bytes are not exactly one zstd frame");
+  const dv = new DataView(s.buffer, s.byteOffset, s.byteLength);
+  if (s.length < 6 || dv.getUint32(0, true) !== 0xfd2fb528) throw notOne();
+  const fhd = s[4];
+  if (fhd & 0x08) throw notOne();
+  const single = (fhd >> 5) & 1, hasChecksum = (fhd >> 2) & 1, fcsFlag = fhd >> 6;
+  const fcsBytes = fcsFlag === 0 ? single : [0, 2, 4, 8][fcsFlag];
+  let at = 5 + (single ? 0 : 1) + [0, 1, 2, 4][fhd & 3];
+  const sizeWrong = () => bad(`heights: the zstd frame's content size is not nx * ny * 8 = ${raw}`);
+  if (fcsBytes === 0 || at + fcsBytes > s.length) throw sizeWrong();
+  const fcs = fcsBytes === 1 ? s[at] : fcsBytes === 2 ? dv.getUint16(at, true) + 256
+    : fcsBytes === 4 ? dv.getUint32(at, true) : Number(dv.getBigUint64(at, true));
+  if (fcs !== raw) throw sizeWrong();
+  at += fcsBytes;
+  for (;;) {
+    if (at + 3 > s.length) throw notOne();
+    const bh = s[at] | (s[at + 1] << 8) | (s[at + 2] << 16);
+    const type = (bh >> 1) & 3;
+    if (type === 3) throw bad("heights: zstd decoding failed: reserved block type");
+    at += 3 + (type === 1 ? 1 : bh >>> 3);
+    if (bh & 1) break;
+  }
+  if (at + (hasChecksum ? 4 : 0) !== s.length) throw notOne();
+  let out;
+  try {
+    out = decompress(s);
+  } catch (err) {
+    throw bad(`heights: zstd decoding failed: ${err instanceof Error ? err.message : String(err)}`);
+  }
+  if (out.length !== raw) throw bad(`heights: zstd decoded ${out.length} bytes, not ${raw}`);
+  if (hasChecksum && dv.getUint32(s.length - 4, true) !== Number(xxh64Sync(out) & 0xffffffffn))
+    throw bad("heights: zstd content checksum mismatch");
+  return out;
+}
+
+/**
+ * Fetches and parses a terrain file; null when the server answers 404 (no
+ * terrain beside the package: draw flat terrain).
+ * @param {string} url
+ * @param {{fetch?: typeof fetch}} [options]
+ * @returns {Promise<Terrain | null>}
+ */
+export async function fetchTerrain(url, options = {}) {
+  const response = await (options.fetch ?? fetch)(url);
+  if (response.status === 404) return null;
+  if (!response.ok) throw new Error(`${url}: HTTP ${response.status} ${response.statusText}`);
+  return parseTerrain(await response.arrayBuffer(), url);
+}
