@@ -419,6 +419,24 @@ void load_tiles(const RenderRequest& a, Scene& sc, const RenderOptions& opt,
   note_tiles(a, sc);
 }
 
+// The --ramp stops by the index of their layer in a package's layer table
+// (its metadata); a layer the table lacks is a usage error.
+LayerRamps ramps_by_layer(const std::vector<RampRequest>& ramps, const std::string& metadata) {
+  const std::vector<std::string> names = layer_names(metadata);
+  LayerRamps by_layer(names.size());
+  for (const RampRequest& r : ramps) {
+    const auto it = std::find(names.begin(), names.end(), r.layer);
+    if (it == names.end()) {
+      std::string known;
+      for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+      bad_option("--ramp '" + r.text + "': the package has no layer '" + r.layer +
+                 "' (its layers: " + (known.empty() ? "none" : known) + ")");
+    }
+    by_layer[size_t(it - names.begin())] = r.stops;
+  }
+  return by_layer;
+}
+
 // Restyles every loaded tile with the --ramp stops, by the layer names of
 // its package's layer table; the recoloured props live in `held`.
 uint64_t apply_ramps(const std::vector<RampRequest>& ramps,
@@ -427,19 +445,7 @@ uint64_t apply_ramps(const std::vector<RampRequest>& ramps,
   held.resize(tiles.size());
   uint64_t recoloured = 0;
   for (size_t k = 0; k < tiles.size(); ++k) {
-    const std::string metadata(packages[k].metadata_json());
-    const std::vector<std::string> names = layer_names(metadata);
-    LayerRamps by_layer(names.size());
-    for (const RampRequest& r : ramps) {
-      const auto it = std::find(names.begin(), names.end(), r.layer);
-      if (it == names.end()) {
-        std::string known;
-        for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
-        bad_option("--ramp '" + r.text + "': the package has no layer '" + r.layer +
-                   "' (its layers: " + (known.empty() ? "none" : known) + ")");
-      }
-      by_layer[size_t(it - names.begin())] = r.stops;
-    }
+    const LayerRamps by_layer = ramps_by_layer(ramps, std::string(packages[k].metadata_json()));
     restyle(tiles[k].source, by_layer, held[k]);
     recoloured += held[k].recoloured;
   }
@@ -642,29 +648,68 @@ CheckedRender check_render_request(const RenderRequest& a) {
   return c;
 }
 
+namespace request {
+namespace {
+
+// What render() draws, up to the drawing: the view, the terrain and the
+// camera, after the outputs were checked.
+struct Placed {
+  View view;
+  Heightfield terrain;
+  Camera camera;
+};
+
+Placed place(const RenderRequest& a, const CheckedRender& c, const Scene& sc) {
+  if (!sc.tileset && (c.select.level || c.select.gpu_budget))
+    bad_option("--level and --gpu-budget choose among a tileset's tiles; '" + a.package +
+               "' is one package");
+  Placed p;
+  p.view = place_extent(a, c, sc);
+  bool dem_from_package = false;
+  DemSpec dem = choose_dem(a, sc, dem_from_package);
+  check_outputs(a, dem, p.view.topdown);
+  Extent terrain_extent = sc.extent;
+  if (p.view.topdown) {
+    const Extent& v = p.view.relative;
+    terrain_extent = {std::min(terrain_extent.xmin, v.xmin), std::min(terrain_extent.ymin, v.ymin),
+                      std::max(terrain_extent.xmax, v.xmax), std::max(terrain_extent.ymax, v.ymax)};
+  }
+  p.terrain = load_terrain(a, dem, dem_from_package, sc.frame, terrain_extent);
+  check_dem_covers(a, dem, sc, p.view);
+  p.camera = place_camera(a, c, p.view, sc, p.terrain);
+  return p;
+}
+
+}  // namespace
+}  // namespace request
+
+RenderView place_render_view(const RenderRequest& a) {
+  using namespace request;
+  const CheckedRender c = check_render_request(a);
+  const Scene sc = open_scene(a.package);
+  Placed p = place(a, c, sc);
+  RenderView v;
+  v.options = c.options;
+  v.options.camera = p.camera;
+  v.terrain = std::move(p.terrain);
+  v.frame = sc.frame;
+  v.extent = sc.extent;
+  if (p.view.topdown) v.topdown_absolute = p.view.absolute;
+  if (!c.ramps.empty()) v.ramps = ramps_by_layer(c.ramps, sc.metadata);
+  return v;
+}
+
 RenderOutcome render(const RenderRequest& a) {
   using namespace request;
   const CheckedRender c = check_render_request(a);
   Scene sc = open_scene(a.package);
-  if (!sc.tileset && (c.select.level || c.select.gpu_budget))
-    bad_option("--level and --gpu-budget choose among a tileset's tiles; '" + a.package +
-               "' is one package");
-  const View view = place_extent(a, c, sc);
-  bool dem_from_package = false;
-  DemSpec dem = choose_dem(a, sc, dem_from_package);
-  check_outputs(a, dem, view.topdown);
-  Extent terrain_extent = sc.extent;
-  if (view.topdown) {
-    const Extent& v = view.relative;
-    terrain_extent = {std::min(terrain_extent.xmin, v.xmin), std::min(terrain_extent.ymin, v.ymin),
-                      std::max(terrain_extent.xmax, v.xmax), std::max(terrain_extent.ymax, v.ymax)};
-  }
-  const Heightfield terrain = load_terrain(a, dem, dem_from_package, sc.frame, terrain_extent);
-  check_dem_covers(a, dem, sc, view);
+  Placed placed = place(a, c, sc);
+  const View& view = placed.view;
+  const Heightfield& terrain = placed.terrain;
 
   RenderOutcome out;
   out.options = c.options;
-  out.options.camera = place_camera(a, c, view, sc, terrain);
+  out.options.camera = placed.camera;
   // A tileset: only the tiles the view draws (select_tiles meets them with
   // what the camera can see of the terrain).
   if (sc.tileset) load_tiles(a, sc, out.options, terrain, c.select);

@@ -1,9 +1,11 @@
 # Writes OUT: a C++ file defining prep::view::detail::embedded_assets(), one
-# entry per file of the viewer (web/viewer, web/src) and, when web/ has run
+# entry per file of the viewer (web/viewer, web/src and its folders, such as
+# the renderer's web/src/render) and, when web/ has run
 # `npm ci`, the two modules the reader imports (fzstd, xxhash-wasm), each at
 # the URL path /web/<path under web/>. Text is embedded as raw strings.
 # Usage: cmake -DOUT=... -DWEB_DIR=... -P embed_assets.cmake
-file(GLOB files ${WEB_DIR}/viewer/*.html ${WEB_DIR}/viewer/*.js ${WEB_DIR}/src/*.js)
+file(GLOB_RECURSE files ${WEB_DIR}/viewer/*.html ${WEB_DIR}/viewer/*.js ${WEB_DIR}/viewer/*.css
+     ${WEB_DIR}/src/*.js ${WEB_DIR}/src/*.wgsl)
 foreach(module fzstd/esm/index.mjs xxhash-wasm/esm/xxhash-wasm.js)
   if(EXISTS ${WEB_DIR}/node_modules/${module})
     list(APPEND files ${WEB_DIR}/node_modules/${module})
@@ -23,6 +25,10 @@ foreach(f ${files})
   endif()
   if(rel MATCHES "\\.html$")
     set(type "text/html; charset=utf-8")
+  elseif(rel MATCHES "\\.css$")
+    set(type "text/css; charset=utf-8")
+  elseif(rel MATCHES "\\.wgsl$")
+    set(type "text/plain; charset=utf-8")
   else()
     set(type "text/javascript; charset=utf-8")
   endif()

@@ -6,7 +6,6 @@
 #include "prep/view.hpp"
 
 #include <fcntl.h>
-#include <httplib.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -24,6 +23,7 @@
 #include "prep/error.hpp"
 #include "prep/files.hpp"
 #include "prep/stage_error.hpp"
+#include "server.hpp"
 
 namespace prep::view {
 
@@ -172,9 +172,9 @@ std::string url_component(std::string_view s) {
   return out;
 }
 
-constexpr std::string_view kViewStage = "view";
-
 }  // namespace
+
+using detail::kViewStage;
 
 ServeRoot resolve_root(const std::string& path) {
   struct stat st {};
@@ -280,43 +280,44 @@ const Asset* find_asset(std::string_view url_path) {
   return nullptr;
 }
 
-void serve(const ServeOptions& options,
-           const std::function<void(const std::string& url)>& on_listening) {
-  const ServeRoot root = resolve_root(options.path);
-  if (options.port < 0 || options.port > 65535)
-    fail<usage_error>(kViewStage, "--port " + std::to_string(options.port) + " is not 0-65535");
-  httplib::Server server;
-  const std::string data_url = "/data/" + [&] {
-    std::string u;
-    for (const auto& c : fs::path(root.entry))
-      u += (u.empty() ? "" : "/") + url_component(c.string());
-    return u;
-  }();
-  const std::string config =
-      std::string("{\"kind\":") +
-      (root.kind == ServeRoot::Kind::package ? "\"package\"" : "\"tileset\"") +
-      ",\"url\":" + json_string(data_url) + "}";
+namespace detail {
+
+std::string config_json(const ServeRoot& root, std::string_view screenshot_json) {
+  std::string entry;
+  for (const auto& c : fs::path(root.entry))
+    entry += (entry.empty() ? "" : "/") + url_component(c.string());
+  // The terrain (formats/SPEC.md) beside a package STEM.decals: STEM.terrain.
+  std::string terrain = "null";
+  if (root.kind == ServeRoot::Kind::package && is_regular(root.dir / (root.stem + ".terrain")))
+    terrain = json_string("/data/" + url_component(root.stem + ".terrain"));
+  return std::string("{\"kind\":") +
+         (root.kind == ServeRoot::Kind::package ? "\"package\"" : "\"tileset\"") +
+         ",\"url\":" + json_string("/data/" + entry) + ",\"terrain\":" + terrain +
+         ",\"screenshot\":" + std::string(screenshot_json.empty() ? "null" : screenshot_json) + "}";
+}
+
+void add_routes(httplib::Server& server, const ServeRoot& root, const std::string& config) {
   auto send_asset = [](httplib::Response& res, const Asset& a) {
     res.set_header("Cache-Control", "no-cache");
     res.set_content(std::string(a.bytes), std::string(a.type));
   };
-  server.Get("/", [&](const httplib::Request&, httplib::Response& res) {
+  server.Get("/", [send_asset](const httplib::Request&, httplib::Response& res) {
     if (const Asset* a = find_asset("/web/viewer/index.html"))
       send_asset(res, *a);
     else
       res.status = 404;
   });
-  server.Get("/config.json", [&](const httplib::Request&, httplib::Response& res) {
+  server.Get("/config.json", [config](const httplib::Request&, httplib::Response& res) {
     res.set_header("Cache-Control", "no-cache");
     res.set_content(config, "application/json");
   });
-  server.Get(R"(/web/.*)", [&](const httplib::Request& req, httplib::Response& res) {
+  server.Get(R"(/web/.*)", [send_asset](const httplib::Request& req, httplib::Response& res) {
     if (const Asset* a = find_asset(req.path))
       send_asset(res, *a);
     else
       res.status = 404;
   });
-  server.Get(R"(/data/(.*))", [&](const httplib::Request& req, httplib::Response& res) {
+  server.Get(R"(/data/(.*))", [root](const httplib::Request& req, httplib::Response& res) {
     const auto file = resolve_data_path(root, req.matches[1].str());
     if (!file) {
       res.status = 404;
@@ -324,17 +325,31 @@ void serve(const ServeOptions& options,
     }
     serve_file(req, res, *file);
   });
-  // Anything else (other paths, other methods) httplib refuses itself.
-  server.set_payload_max_length(1 << 16);
+}
 
-  int port = options.port;
+int bind_server(httplib::Server& server, const std::string& bind, int port) {
+  if (port < 0 || port > 65535)
+    fail<usage_error>(kViewStage, "--port " + std::to_string(port) + " is not 0-65535");
   if (port == 0) {
-    port = server.bind_to_any_port(options.bind);
-    if (port < 0) fail<usage_error>(kViewStage, "cannot listen on " + options.bind + " (any port)");
-  } else if (!server.bind_to_port(options.bind, port)) {
-    fail<usage_error>(kViewStage, "cannot listen on " + options.bind + ":" + std::to_string(port) +
+    port = server.bind_to_any_port(bind);
+    if (port < 0) fail<usage_error>(kViewStage, "cannot listen on " + bind + " (any port)");
+  } else if (!server.bind_to_port(bind, port)) {
+    fail<usage_error>(kViewStage, "cannot listen on " + bind + ":" + std::to_string(port) +
                                       " (in use, or not an address here)");
   }
+  return port;
+}
+
+}  // namespace detail
+
+void serve(const ServeOptions& options,
+           const std::function<void(const std::string& url)>& on_listening) {
+  const ServeRoot root = resolve_root(options.path);
+  httplib::Server server;
+  detail::add_routes(server, root, detail::config_json(root, {}));
+  // Anything else (other paths, other methods) httplib refuses itself.
+  server.set_payload_max_length(1 << 16);
+  const int port = detail::bind_server(server, options.bind, options.port);
   // SIGINT/SIGTERM: stop accepting, then the watcher ends the process.
   watch_interrupts();
   const OnInterrupt stop("stopped the viewer server", [&server] { server.stop(); });

@@ -1,14 +1,119 @@
 // cmd_view.cpp — `decalprep view PACKAGE|TILESET [--bind ADDR] [--port N]`:
 // serves the browser viewer and the data over HTTP (prep/view.hpp) until
-// SIGINT or SIGTERM.
+// SIGINT or SIGTERM. With --screenshot OUT.png it places the camera as
+// `decalprep render` does (prep::render::place_render_view, the same code and
+// options), has a headless Chromium draw that view with the browser
+// renderer and writes what the page sends back (prep::view::screenshot).
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 
 #include "command.hpp"
+#include "prep/pipeline.hpp"
 #include "prep/view.hpp"
 
 namespace {
+
+namespace R = prep::render;
+
+constexpr std::string_view kViewCommand = "view";
+
+struct ViewArgs {
+  prep::view::ServeOptions serve;
+  // --screenshot: render's camera options and outputs (output, decals_png,
+  // extent, extent_crs, eye, target, fit, pitch, fov, ortho, size, ramps).
+  R::RenderRequest shot;
+  double timeout = 120;
+  bool verbose = false;
+};
+
+nlohmann::json vec3(const prep::render::Vec3& v) {
+  return nlohmann::json::array({v[0], v[1], v[2]});
+}
+
+// The config's "screenshot" object (web/viewer reads it): the camera as
+// prep::render::Camera holds it, metres relative to the package origin.
+nlohmann::json shot_config(const R::RenderView& v, bool decals) {
+  const R::Camera& c = v.options.camera;
+  nlohmann::json cam = {
+      {"projection", c.projection == R::Projection::orthographic ? "orthographic" : "perspective"},
+      {"eye", vec3(c.eye)},
+      {"target", vec3(c.target)},
+      {"up", vec3(c.up)},
+      {"fovYDeg", c.fov_y_deg},
+      {"orthoW", c.ortho_w},
+      {"orthoH", c.ortho_h},
+      {"near", c.near},
+      {"depthRange", c.depth_range},
+      {"topdownExtent", nullptr}};
+  if (c.topdown_extent) {
+    const prep::Extent& e = *c.topdown_extent;
+    cam["topdownExtent"] = {e.xmin, e.ymin, e.xmax, e.ymax};
+  }
+  // --ramp: [[layer index, [[value, r, g, b, a], ...]], ...]
+  nlohmann::json ramps = nlohmann::json::array();
+  for (size_t layer = 0; layer < v.ramps.size(); ++layer) {
+    if (v.ramps[layer].empty()) continue;
+    nlohmann::json stops = nlohmann::json::array();
+    for (const prep::ColorStop& s : v.ramps[layer])
+      stops.push_back({s.value, s.rgba & 0xff, (s.rgba >> 8) & 0xff, (s.rgba >> 16) & 0xff,
+                       (s.rgba >> 24) & 0xff});
+    ramps.push_back({layer, stops});
+  }
+  const auto& a = v.options.albedo;
+  return {{"width", v.options.width},     {"height", v.options.height}, {"camera", cam},
+          {"albedo", {a[0], a[1], a[2]}}, {"decals", decals},           {"ramps", ramps}};
+}
+
+// A package's terrain file STEM.terrain (formats/SPEC.md), which the page
+// draws; none: the page draws flat terrain, and so the camera is placed
+// over flat terrain too.
+bool has_terrain_file(const std::string& package) {
+  const std::filesystem::path p(package);
+  if (p.extension() != ".decals") return false;
+  std::error_code ec;
+  return std::filesystem::is_regular_file(p.parent_path() / (p.stem().string() + ".terrain"), ec);
+}
+
+void run_screenshot(ViewArgs& a) {
+  R::RenderRequest& r = a.shot;
+  r.package = a.serve.path;
+  // The camera's terrain: until a reader of the terrain file is here, the
+  // package's build DEM through render's own code stands for it (the file
+  // is written from that DEM); without the file the page draws flat.
+  r.flat = !has_terrain_file(r.package);
+  const R::RenderView v = R::place_render_view(r);
+  const auto chromium = prep::view::find_chromium();
+  if (!chromium) {
+    const char* env = std::getenv("DECALPREP_CHROMIUM");
+    prep::fail<prep::error>(
+        kViewCommand,
+        std::string("--screenshot needs Chromium: ") +
+            (env && *env
+                 ? "$DECALPREP_CHROMIUM '" + std::string(env) + "' is not an executable file"
+                 : "neither chromium nor chromium-headless-shell is on PATH") +
+            " (install it with `apt-get install chromium`, or set DECALPREP_CHROMIUM to its path)",
+        prep::ExitCode::browser);
+  }
+  prep::view::ShotOptions s;
+  s.width = v.options.width;
+  s.height = v.options.height;
+  s.decals = !r.decals_png.empty();
+  s.config_json = shot_config(v, s.decals).dump();
+  s.chromium = *chromium;
+  s.timeout_s = a.timeout;
+  s.verbose = a.verbose;
+  s.write_frame = [&](std::span<const uint8_t> rgba) {
+    prep::write_png_rgba(r.output, s.width, s.height, rgba);
+    if (v.topdown_absolute)
+      prep::write_world_file(r.output, *v.topdown_absolute, s.width, s.height, v.frame.crs_wkt);
+  };
+  s.write_decals = [&](std::span<const uint8_t> rgba) {
+    prep::write_png_rgba(r.decals_png, s.width, s.height, rgba);
+  };
+  prep::view::screenshot(a.serve.path, s);
+}
 
 constexpr decalprep::CommandHelp kViewHelp{
     "view", "Serve a package or tileset to the browser viewer",
@@ -16,23 +121,62 @@ constexpr decalprep::CommandHelp kViewHelp{
     "the URL to open. Only the package and its side files (STEM.* next to STEM.decals), or the\n"
     "files under the tileset folder, are served; never a listing, a path with '..' or a link\n"
     "that leads out. Listens on 127.0.0.1 unless --bind says otherwise. Stop with Ctrl-C.\n"
+    "--screenshot: a headless Chromium (chromium or chromium-headless-shell on PATH, or\n"
+    "$DECALPREP_CHROMIUM) draws the view that `render` would draw with the same camera\n"
+    "options; exit 12 when there is no Chromium, 8 when the page fails or times out.\n"
     "Examples:\n  decalprep view city.decals\n  decalprep view country/ --port 0\n"
-    "  decalprep view city.decals --bind 0.0.0.0 --port 8000"};
+    "  decalprep view city.decals --bind 0.0.0.0 --port 8000\n"
+    "  decalprep view city.decals --screenshot city.png --fit --pitch 50 --size 1280x720"};
+
+void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
+  R::RenderRequest& r = a.shot;
+  auto* shot = cmd->add_option("--screenshot", r.output,
+                               "Draw one frame in a headless Chromium and write it as PNG "
+                               "(the camera options below are render's)");
+  auto needs = [shot](CLI::Option* o) { return o->needs(shot); };
+  needs(cmd->add_option("--decals", r.decals_png, "--screenshot: the decal layer alone as PNG"));
+  needs(
+      cmd->add_option("--extent", r.extent,
+                      "Top-down view xmin,ymin,xmax,ymax in the package's frame CRS (as render)"));
+  needs(cmd->add_option("--extent-crs", r.extent_crs, "CRS of --extent (as render)"));
+  needs(cmd->add_option("--eye", r.eye, "Camera position x,y,z (metres relative to the origin)"));
+  needs(cmd->add_option("--target", r.target, "Camera target x,y,z (relative to the origin)"));
+  needs(cmd->add_flag("--fit", r.fit, "Frame the package extent (the default, as render)"));
+  needs(cmd->add_option("--pitch", r.pitch, "--fit: pitch below the horizon, degrees (45)"));
+  needs(cmd->add_option("--fov", r.fov, "Vertical field of view, degrees (45)"));
+  needs(cmd->add_flag("--ortho", r.ortho, "Orthographic projection"));
+  needs(cmd->add_option("--size", r.size, "Image size WxH (default 640x360, as render)"));
+  needs(cmd->add_option("--ramp", r.ramps,
+                        "Colour ramp LAYER=value:#rrggbb[aa],... (as render; repeat for more)")
+            ->expected(1)
+            ->take_all());
+  needs(cmd->add_option("--timeout", a.timeout,
+                        "--screenshot: seconds to wait for the page (default 120)")
+            ->check(CLI::PositiveNumber));
+  needs(cmd->add_flag("--verbose", a.verbose,
+                      "--screenshot: Chromium's log and the page's console on stderr"));
+}
 
 const decalprep::CommandRegistrar kView(70, kViewHelp, [](CLI::App* cmd) {
-  auto opt = std::make_shared<prep::view::ServeOptions>();
-  cmd->add_option("PATH", opt->path,
+  auto args = std::make_shared<ViewArgs>();
+  prep::view::ServeOptions& opt = args->serve;
+  cmd->add_option("PATH", opt.path,
                   "the .decals package, or a tileset folder (or its tileset.json)")
       ->required();
-  cmd->add_option("--bind", opt->bind,
+  cmd->add_option("--bind", opt.bind,
                   "the address to listen on (default 127.0.0.1: this machine only)");
-  cmd->add_option("--port", opt->port, "the port (default 8080; 0: a free one)")
+  cmd->add_option("--port", opt.port, "the port (default 8080; 0: a free one)")
       ->check(CLI::Range(0, 65535));
-  cmd->callback([opt] {
-    prep::view::serve(*opt, [](const std::string& url) {
-      std::printf("decalprep view: serving on %s (Ctrl-C stops)\n", url.c_str());
-      std::fflush(stdout);
-    });
+  add_screenshot_options(cmd, *args);
+  cmd->callback([args] {
+    if (!args->shot.output.empty()) {
+      run_screenshot(*args);
+    } else {
+      prep::view::serve(args->serve, [](const std::string& url) {
+        std::printf("decalprep view: serving on %s (Ctrl-C stops)\n", url.c_str());
+        std::fflush(stdout);
+      });
+    }
     decalprep::set_exit_code(prep::ExitCode::ok);
   });
 });

@@ -1,61 +1,162 @@
-// viewer.js — the placeholder viewer page: asks the server what it serves
-// (/config.json), loads it with the reader (web/src) and prints its
-// summary. The renderer comes later.
-import { fetchTileset, hex64, openPackageUrl, openTile } from "../src/index.js";
+// viewer.js — the viewer page of `decalprep view`: asks the server what it
+// serves (/config.json), opens the package (a tileset: its first tile, for
+// now) with the reader, fetches its terrain file (flat without one), and
+// draws it with the WebGPU renderer (web/src/render) under a map camera,
+// on demand. With ?shot=1 (`decalprep view --screenshot`) it draws the
+// config's camera once and POSTs the pixels back (prep/view.hpp).
+import { createRenderer, fetchTerrain, fetchTileset, openPackageUrl, openTile } from "../src/index.js";
+import { MapCamera, attachControls } from "./camera.js";
+import { layerNames, showLayers, showOverlay, showStatus } from "./ui.js";
 
-const statusEl = /** @type {HTMLElement} */ (document.getElementById("status"));
-const summaryEl = /** @type {HTMLElement} */ (document.getElementById("summary"));
+/** @typedef {import("../src/package.js").Package} Package */
+/** @typedef {import("../src/render/camera.js").Camera} Camera */
+/** @typedef {import("../src/render/index.js").Terrain} Terrain */
 
-/** @param {string} line */
-function print(line) {
-  summaryEl.textContent += line + "\n";
+/**
+ * @typedef {{width: number, height: number, camera: Camera, albedo: number[], decals: boolean,
+ *            ramps: import("../src/render/scene.js").LayerRamp[]}} ShotConfig
+ * @typedef {{kind: string, url: string, terrain?: string | null, screenshot?: ShotConfig | null}} Config
+ */
+
+const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById("map"));
+const shotMode = new URLSearchParams(location.search).get("shot") === "1";
+
+/** @returns {Promise<Config>} */
+async function fetchConfig() {
+  const res = await fetch("/config.json");
+  if (!res.ok) throw new Error(`/config.json: HTTP ${res.status}`);
+  return res.json();
 }
 
 /**
- * Prints a package's header, metadata summary and blob table.
- * @param {import("../src/package.js").Package} pkg
+ * The package the config names; for a tileset its first tile (streaming
+ * the tiles a view needs comes later). Validated: every checksum and index.
+ * @param {Config} config
+ * @returns {Promise<{pkg: Package, tiles: number}>}
  */
-function printPackage(pkg) {
-  const meta = pkg.metadata;
-  print(`${pkg.label}: decals ${pkg.major}.${pkg.minor}, ${pkg.fileSize} bytes, ${pkg.blobs.length} blobs`);
-  if (meta && typeof meta === "object") {
-    if (typeof meta.frame === "string") print(`frame   ${meta.frame}`);
-    if (Array.isArray(meta.extent)) print(`extent  ${meta.extent.join(", ")} m`);
-    if (meta.grid && Array.isArray(meta.grid.dims)) print(`grid    ${meta.grid.dims.join(" x ")} cells`);
-  }
-  for (const b of pkg.blobs)
-    print(`  ${b.name.padEnd(20)} ${b.typeName.padEnd(7)} ${String(b.count).padStart(9)} ` +
-          `${b.codec === 1 ? "zstd" : "none"} ${hex64(b.checksum)}`);
-}
-
-async function main() {
-  const res = await fetch("/config.json");
-  if (!res.ok) throw new Error(`/config.json: HTTP ${res.status}`);
-  /** @type {{kind: string, url: string}} */
-  const config = await res.json();
+async function openData(config) {
   const url = new URL(config.url, location.href).href;
+  /** @type {Package} */
+  let pkg;
   if (config.kind === "package") {
-    const pkg = await openPackageUrl(url);
-    printPackage(pkg);
-    await pkg.validate();
-    statusEl.textContent = `Package ${config.url}: verified (every checksum and index)`;
+    pkg = await openPackageUrl(url);
   } else {
     const ts = await fetchTileset(url);
-    print(`${config.url}: tileset ${ts.major}.${ts.minor}, ${ts.tiles.length} tiles of ` +
-          `${ts.tileSize} m, ${ts.levels.length} overview levels`);
-    for (const t of ts.tiles) print(`  ${t.file} ${t.bytes} bytes`);
-    if (ts.tiles.length > 0) {
-      const pkg = await openTile(new URL(".", url).href, ts.tiles[0]);
-      printPackage(pkg);
-      await pkg.validate();
-    }
-    statusEl.textContent = `Tileset ${config.url}: index checked`;
+    if (ts.tiles.length === 0) throw new Error(`${config.url}: the tileset has no tiles`);
+    pkg = await openTile(new URL(".", url).href, ts.tiles[0]);
   }
-  document.title = `decalprep view: ${config.url}`;
+  await pkg.validate();
+  return { pkg, tiles: 1 };
 }
 
-main().catch((e) => {
-  statusEl.textContent = `Error: ${e instanceof Error ? e.message : String(e)}`;
-  statusEl.className = "error";
+/** @param {Config} config @returns {Promise<Terrain | null>} */
+async function loadTerrain(config) {
+  return config.terrain ? fetchTerrain(new URL(config.terrain, location.href).href) : null;
+}
+
+/** The renderer, or an Error that says WebGPU is missing and what to do. @param {HTMLCanvasElement} c */
+async function openRenderer(c) {
+  try {
+    return await createRenderer({ canvas: c });
+  } catch (e) {
+    const why = e instanceof Error ? e.message : String(e);
+    throw new Error(`this viewer needs WebGPU, which this browser does not offer (${why}); use a ` +
+      "recent Chrome, Edge or Chromium (headless: --enable-unsafe-webgpu), or Firefox/Safari with " +
+      "WebGPU enabled. A WebGL2 fallback is planned.");
+  }
+}
+
+/** @param {string} path @param {BodyInit} body */
+async function post(path, body) {
+  const res = await fetch(path, { method: "POST", body });
+  if (!res.ok) throw new Error(`${path}: HTTP ${res.status}: ${await res.text()}`);
+}
+
+/** Screenshot mode: one frame of the config's camera, POSTed back. @param {Config} config */
+async function screenshot(config) {
+  const s = config.screenshot;
+  if (!s) throw new Error("?shot=1, but /config.json has no screenshot (not started with --screenshot)");
+  const [{ pkg }, terrain] = await Promise.all([openData(config), loadTerrain(config)]);
+  canvas.width = s.width;
+  canvas.height = s.height;
+  const renderer = await openRenderer(canvas);
+  await renderer.setScene({ pkg, terrain, ramps: s.ramps });
+  const out = await renderer.renderFrame({
+    camera: s.camera, width: s.width, height: s.height, albedo: s.albedo, decals: s.decals,
+    present: false, readback: true,
+  });
+  if (!out.rgba) throw new Error("renderFrame returned no pixels");
+  // Each POST is W*H*4 bytes of RGBA8, row 0 at the top.
+  await post("/__shot/frame", new Blob([out.rgba]));
+  if (s.decals) {
+    if (!out.decals) throw new Error("renderFrame returned no decal layer");
+    await post("/__shot/decals", new Blob([out.decals]));
+  }
+  showStatus(`screenshot sent (${s.width}x${s.height}, ${out.ms.toFixed(1)} ms)`);
+}
+
+/** The interactive viewer. @param {Config} config */
+async function interactive(config) {
+  const [{ pkg, tiles }, terrain] = await Promise.all([openData(config), loadTerrain(config)]);
+  const renderer = await openRenderer(canvas);
+  await renderer.setScene({ pkg, terrain, ramps: [] });
+  const meta = /** @type {any} */ (pkg.metadata);
+  const extent = Array.isArray(meta?.extent) ? meta.extent : [0, 0, 1000, 1000];
+  const cam = new MapCamera(extent, terrain ? (terrain.zmin + terrain.zmax) / 2 : 0);
+  let dirty = true, busy = false;
+  const draw = async () => {
+    if (busy || !dirty) return;
+    busy = true;
+    dirty = false;
+    try {
+      const scale = Math.min(window.devicePixelRatio || 1, 2);
+      const width = Math.max(1, Math.round(canvas.clientWidth * scale));
+      const height = Math.max(1, Math.round(canvas.clientHeight * scale));
+      if (canvas.width !== width || canvas.height !== height) [canvas.width, canvas.height] = [width, height];
+      const out = await renderer.renderFrame({ camera: cam.camera(), width, height, present: true, readback: false });
+      showOverlay({ ms: out.ms, gpuBytes: renderer.gpuBytes, tiles, width, height, adapter: renderer.adapterName });
+    } catch (e) {
+      showStatus(`Error: ${e instanceof Error ? e.message : String(e)}`, true);
+      throw e;
+    } finally {
+      busy = false;
+    }
+    if (dirty) requestAnimationFrame(() => void draw());
+  };
+  const redraw = () => {
+    dirty = true;
+    requestAnimationFrame(() => void draw());
+  };
+  attachControls(canvas, cam, redraw);
+  showLayers(layerNames(pkg.metadata), (i, visible) => {
+    renderer.setLayerVisible(i, visible);
+    redraw();
+  });
+  new ResizeObserver(redraw).observe(canvas);
+  document.title = `decalprep view: ${config.url}`;
+  showStatus("");
+  redraw();
+}
+
+/** @param {unknown} e */
+const message = (e) => (e instanceof Error ? e.message : String(e));
+
+async function main() {
+  const config = await fetchConfig();
+  if (shotMode) await screenshot(config);
+  else await interactive(config);
+}
+
+let reported = false;
+/** A failure: shown, and in screenshot mode POSTed to the server once. @param {unknown} e */
+function failed(e) {
+  showStatus(`Error: ${message(e)}`, true);
   console.error(e);
-});
+  if (shotMode && !reported) {
+    reported = true;
+    fetch("/__shot/error", { method: "POST", body: message(e) }).catch(() => {});
+  }
+}
+window.addEventListener("error", (e) => failed(e.error ?? e.message));
+window.addEventListener("unhandledrejection", (e) => failed(e.reason));
+main().catch(failed);

@@ -26,6 +26,7 @@ enum class ExitCode : int {
   empty = 9,          // the build kept no feature from any layer (see --allow-empty)
   strict = 10,        // --strict turned a warning into an error
   killed = 11,        // batch: a scene was killed by a signal (summary.json names it)
+  browser = 12,       // view --screenshot: no Chromium to draw with
   // A build or render stopped by SIGINT / SIGTERM exits 128 + the signal's
   // number, as a shell reports it, after removing what it had made.
   interrupted = 130,  // SIGINT

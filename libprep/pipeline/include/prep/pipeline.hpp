@@ -282,6 +282,24 @@ struct CheckedRender {
 // CRS, --extent in degrees, a --ramp layer the package lacks) render checks.
 CheckedRender check_render_request(const RenderRequest& request);
 
+// What render() would draw, up to the drawing (`decalprep view
+// --screenshot` draws it in a browser): the checked options with the camera
+// placed, the terrain mesh it was placed over, and the scene's frame.
+struct RenderView {
+  RenderOptions options;                   // as render() draws them, the camera included
+  Heightfield terrain;                     // the mesh render() draws (flat with --flat)
+  SceneFrame frame;                        // the package's (a tileset's scene) frame
+  Extent extent;                           // the data's, metres relative to the origin
+  std::optional<Extent> topdown_absolute;  // --extent in the frame CRS (the world file's)
+  LayerRamps ramps;                        // --ramp by layer table index; empty: none
+};
+
+// Does what render() does before it draws, with the same checks, notes,
+// warnings and errors (the outputs are checked, not written): opens the
+// package or tileset (a tileset's first tile names the layers and DEM),
+// loads the terrain and places the camera. Draws and writes nothing.
+RenderView place_render_view(const RenderRequest& request);
+
 // What render drew, for `--stats`.
 struct RenderOutcome {
   Image image;

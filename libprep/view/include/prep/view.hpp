@@ -5,7 +5,10 @@
 //
 // What it serves, and nothing else:
 //   /                 the viewer page (web/viewer/index.html)
-//   /config.json      {"kind": "package"|"tileset", "url": "/data/NAME"}
+//   /config.json      {"kind": "package"|"tileset", "url": "/data/NAME",
+//                      "terrain": "/data/STEM.terrain" (a package's terrain
+//                      file, when there is one) | null,
+//                      "screenshot": {...} (screenshot mode) | null}
 //   /web/...          the embedded files of web/ (viewer, reader, and the
 //                     two modules web/node_modules held at build time)
 //   /data/NAME        for a package DIR/STEM.decals: DIR/STEM.decals and its
@@ -25,6 +28,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -82,5 +86,43 @@ struct ServeOptions {
 // prep::usage_error when it cannot listen on bind:port.
 void serve(const ServeOptions& options,
            const std::function<void(const std::string& url)>& on_listening);
+
+// ------------------------------------------------------ screenshot mode --
+// `decalprep view PATH --screenshot OUT.png`: the server runs on 127.0.0.1
+// (a free port), a headless Chromium opens the page with ?shot=1, the page
+// draws the config's camera once and POSTs the pixels back:
+//   POST /__shot/frame    the final frame, W*H*4 bytes of RGBA8, row 0 at the top
+//   POST /__shot/decals   the decal layer alone (when asked), the same size
+//   POST /__shot/error    the page's failure, as text (at most 64 KiB)
+// A POST from another address than 127.0.0.1, or of another size, is
+// refused (403, 400) and the screenshot waits on.
+
+struct ShotOptions {
+  uint32_t width = 0, height = 0;
+  // The config's "screenshot" value: a JSON object the page reads (size,
+  // camera, albedo, decals, ramps; web/viewer).
+  std::string config_json;
+  bool decals = false;   // wait for /__shot/decals too
+  std::string chromium;  // the browser's executable (find_chromium)
+  double timeout_s = 120;
+  bool verbose = false;  // Chromium's log and the page's console on stderr
+  // Called with the POSTed pixels once Chromium is stopped.
+  std::function<void(std::span<const uint8_t> rgba)> write_frame, write_decals;
+};
+
+// The Chromium to draw with: $DECALPREP_CHROMIUM when set (it must be an
+// executable file), else `chromium` or `chromium-headless-shell` on PATH,
+// else nullopt.
+std::optional<std::string> find_chromium();
+
+// Serves PATH as serve() does (with "screenshot" in /config.json), runs
+// Chromium headless on the page in a process group of its own with a fresh
+// --user-data-dir (removed afterwards), waits for the pixels, stops
+// Chromium (the whole group) and the server, then calls the writers. Throws
+// input_error for a bad PATH, render_error when the page POSTs an error
+// (its text in the message), Chromium exits before the pixels come, or
+// `timeout_s` passes; SIGINT/SIGTERM stop Chromium and end the process
+// (130/143).
+void screenshot(const std::string& path, const ShotOptions& shot);
 
 }  // namespace prep::view

@@ -1,0 +1,29 @@
+// server.hpp — the parts of the `decalprep view` server (view.cpp) that the
+// screenshot mode (screenshot.cpp) builds on; private to libprep/view.
+#pragma once
+
+#include <httplib.h>
+
+#include <string>
+#include <string_view>
+
+#include "prep/view.hpp"
+
+namespace prep::view::detail {
+
+inline constexpr std::string_view kViewStage = "view";
+
+// The body of /config.json: {"kind", "url", "terrain": URL of STEM.terrain
+// beside a package, or null, "screenshot": `screenshot_json` (a JSON value;
+// empty: null)}.
+std::string config_json(const ServeRoot& root, std::string_view screenshot_json);
+
+// Adds the GET routes of prep/view.hpp: /, /config.json (`config`), /web/...
+// and /data/... of `root`.
+void add_routes(httplib::Server& server, const ServeRoot& root, const std::string& config);
+
+// Binds `server` to bind:port (0: a free port); returns the port. Throws
+// usage_error when it cannot.
+int bind_server(httplib::Server& server, const std::string& bind, int port);
+
+}  // namespace prep::view::detail

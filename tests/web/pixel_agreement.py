@@ -1,0 +1,195 @@
+#!/usr/bin/env python3
+"""The browser renderer against decalprep's own (tests/web/CMakeLists.txt,
+Web.PixelAgreement).
+
+For each case it draws the same view twice, with `decalprep render` and with
+`decalprep view --screenshot` (the WebGPU renderer of web/src/render in a
+headless Chromium), and compares the images: the share of pixels within
+1/255 on every channel, leaving out a one-pixel band along feature edges
+(a pixel whose 3x3 neighbourhood in the reference image is not uniform),
+must reach the case's threshold.
+
+  top-down cases: render --cpu --decals against view --decals (the static
+                  decal layer alone, straight alpha): the CPU evaluator's
+                  query points are the pixel centres, as the browser's are;
+  oblique case:   render (GL, --aa none) -o against view's final frame,
+                  both at --fit --pitch 45 over flat terrain.
+
+Prints one line per case with the counts. Exit 0 when every case passes,
+1 when one fails (a wrong renderer fails here, it is never skipped), 77
+(skip) only when Chromium is missing or cannot start.
+
+Usage: pixel_agreement.py DECALPREP REPO_ROOT WORK_DIR
+"""
+import json
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import zlib
+
+SKIP = 77
+BROWSER_EXIT = 12  # view --screenshot: no Chromium (docs/cli.md)
+LIECHTENSTEIN = "/work/shared/data/liechtenstein/liechtenstein-2013-08-03.osm.pbf"
+
+
+def read_png(path):
+    """(width, height, rows of RGBA bytes) of an 8-bit RGBA PNG, non-interlaced
+    (what the project's PNG writer writes)."""
+    data = open(path, "rb").read()
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError(f"{path}: not a PNG")
+    at, idat, width = 8, b"", None
+    while at < len(data):
+        n, kind = struct.unpack(">I4s", data[at:at + 8])
+        body = data[at + 8:at + 8 + n]
+        at += 12 + n
+        if kind == b"IHDR":
+            width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
+            if (depth, colour, interlace) != (8, 6, 0):
+                raise ValueError(f"{path}: not 8-bit RGBA non-interlaced")
+        elif kind == b"IDAT":
+            idat += body
+    raw = zlib.decompress(idat)
+    stride = width * 4
+    rows, prev = [], bytearray(stride)
+    for y in range(height):
+        f = raw[y * (stride + 1)]
+        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - 4] if i >= 4 else 0
+            b = prev[i]
+            c = prev[i - 4] if i >= 4 else 0
+            if f == 1:
+                line[i] = (line[i] + a) & 255
+            elif f == 2:
+                line[i] = (line[i] + b) & 255
+            elif f == 3:
+                line[i] = (line[i] + (a + b) // 2) & 255
+            elif f == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append(bytes(line))
+        prev = line
+    return width, height, rows
+
+
+def compare(ref_path, got_path):
+    """(compared, agreeing, band, worst channel difference) outside the edge band."""
+    w, h, ref = read_png(ref_path)
+    w2, h2, got = read_png(got_path)
+    if (w, h) != (w2, h2):
+        raise ValueError(f"{got_path}: {w2}x{h2}, the reference {ref_path} is {w}x{h}")
+    px = [[ref[y][4 * x:4 * x + 4] for x in range(w)] for y in range(h)]
+    compared = agree = band = worst = 0
+    for y in range(h):
+        for x in range(w):
+            p = px[y][x]
+            edge = any(px[j][i] != p for j in range(max(0, y - 1), min(h, y + 2))
+                       for i in range(max(0, x - 1), min(w, x + 2)))
+            if edge:
+                band += 1
+                continue
+            q = got[y][4 * x:4 * x + 4]
+            d = max(abs(p[k] - q[k]) for k in range(4))
+            compared += 1
+            agree += d <= 1
+            worst = max(worst, d)
+    return compared, agree, band, worst
+
+
+def blank(path):
+    """True when every pixel of the PNG is the same."""
+    _, _, rows = read_png(path)
+    first = rows[0][:4]
+    return all(r == first * (len(r) // 4) for r in rows)
+
+
+def run(cmd, **kw):
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=900, **kw)
+
+
+def package_centre(decalprep, pkg):
+    """The package extent's centre in absolute frame coordinates (render --extent's)."""
+    meta = json.loads(run([decalprep, "info", "--json", pkg]).stdout)["metadata"]
+    e, o = meta["extent"], meta.get("origin", {"x": 0.0, "y": 0.0})
+    return (e[0] + e[2]) / 2 + o["x"], (e[1] + e[3]) / 2 + o["y"]
+
+
+def main():
+    decalprep, root, work = sys.argv[1], sys.argv[2], sys.argv[3]
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    size = (480, 270)
+    packages = {"monaco": os.path.join(work, "monaco.decals")}
+    b = run([decalprep, "build", os.path.join(root, "samples/monaco/scene.toml"), "-o", packages["monaco"]])
+    if b.returncode:
+        print("FAIL: building the Monaco sample:", b.stderr[-2000:])
+        return 1
+    li_scene = os.path.join(root, "tests/web/webgpu_liechtenstein.toml")
+    if os.path.exists(LIECHTENSTEIN) and os.path.exists(li_scene):
+        packages["liechtenstein"] = os.path.join(work, "liechtenstein.decals")
+        b = run([decalprep, "build", li_scene, "-o", packages["liechtenstein"]])
+        if b.returncode:
+            print("FAIL: building", li_scene, b.stderr[-2000:])
+            return 1
+    else:
+        print(f"note: {LIECHTENSTEIN} or {li_scene} is missing: the Liechtenstein cases are left out")
+
+    # (name, package, reference command options, view options, compare decals?, threshold)
+    cases = []
+    for name, pkg in packages.items():
+        cx, cy = package_centre(decalprep, pkg)
+        for metres in (0.5, 4.0):
+            hw, hh = size[0] * metres / 2, size[1] * metres / 2
+            extent = f"{cx - hw!r},{cy - hh!r},{cx + hw!r},{cy + hh!r}"
+            opts = ["--extent", extent, "--size", f"{size[0]}x{size[1]}"]
+            cases.append((f"{name} top-down {metres} m", pkg, ["--cpu"] + opts, opts, True, 0.999))
+    # The final frame, oblique, over flat terrain (no STEM.terrain beside the
+    # package: view draws flat), against the GL renderer without anti-aliasing.
+    oblique = ["--fit", "--pitch", "45", "--size", f"{size[0]}x{size[1]}"]
+    cases.append(("monaco oblique --fit --pitch 45, final frame", packages["monaco"],
+                  ["--flat", "--aa", "none"] + oblique, oblique, False, 0.995))
+
+    failed = 0
+    for k, (name, pkg, ref_opts, view_opts, decals, threshold) in enumerate(cases):
+        ref, ref_d = os.path.join(work, f"case{k}_render.png"), os.path.join(work, f"case{k}_render_decals.png")
+        web, web_d = os.path.join(work, f"case{k}_view.png"), os.path.join(work, f"case{k}_view_decals.png")
+        r = run([decalprep, "render", pkg, "-o", ref] + (["--decals", ref_d] if decals else []) + ref_opts)
+        if r.returncode:
+            print(f"FAIL {name}: render exited {r.returncode}: {r.stderr[-2000:]}")
+            failed += 1
+            continue
+        v = run([decalprep, "view", pkg, "--screenshot", web] + (["--decals", web_d] if decals else []) +
+                view_opts + ["--timeout", "300"])
+        if v.returncode == BROWSER_EXIT:
+            print("SKIP: no Chromium:", v.stderr.strip())
+            return SKIP
+        if v.returncode:
+            if "Chromium" in v.stderr and "exited" in v.stderr and "before the page" in v.stderr \
+                    and "the page failed" not in v.stderr:
+                print("SKIP: Chromium could not start:", v.stderr[-2000:])
+                return SKIP
+            print(f"FAIL {name}: view --screenshot exited {v.returncode}: {v.stderr[-3000:]}")
+            failed += 1
+            continue
+        a, bpath = (ref_d, web_d) if decals else (ref, web)
+        if blank(a):
+            print(f"FAIL {name}: the reference {a} is blank (a case that tests nothing)")
+            failed += 1
+            continue
+        compared, agree, band, worst = compare(a, bpath)
+        share = agree / compared if compared else 0.0
+        ok = compared > 0 and share >= threshold
+        failed += not ok
+        print(f"{'ok  ' if ok else 'FAIL'} {name}: {agree} of {compared} pixels within 1/255 "
+              f"({100 * share:.3f}%, need {100 * threshold:.1f}%), {band} edge-band pixels left out, "
+              f"largest difference {worst}/255; {os.path.basename(a)} vs {os.path.basename(bpath)}")
+    print(f"{len(cases) - failed} of {len(cases)} cases agree")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

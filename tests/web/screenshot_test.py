@@ -1,0 +1,174 @@
+#!/usr/bin/env python3
+"""`decalprep view --screenshot` (tests/web/CMakeLists.txt, Web.Screenshot):
+the protocol of prep/view.hpp with a stand-in browser (a script that only
+waits, so the test plays the page), and one real frame in Chromium.
+
+  - no Chromium ($DECALPREP_CHROMIUM=/nonexistent): exit 12, and the message
+    says `apt-get install chromium`;
+  - a POST of the wrong size is refused (400) and the server waits on; the
+    right size is written as a PNG of that size, the browser's process group
+    is stopped and its temp profile removed;
+  - a POST to /__shot/error: exit 8 with the page's text; no pixels before
+    --timeout: exit 8; a browser that exits early: exit 8;
+  - outputs: the package itself, or a FIFO, as --screenshot or --decals is
+    refused (exit 7) and left as it was;
+  - a real Chromium draws a top-down frame of the Monaco sample: the PNG has
+    the asked size and is not blank. Skipped (77) only when Chromium is
+    missing or cannot start.
+
+Usage: screenshot_test.py DECALPREP REPO_ROOT WORK_DIR
+"""
+import os
+import shutil
+import stat
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pixel_agreement import blank, read_png  # noqa: E402
+
+SKIP = 77
+failures = []
+
+
+def check(ok, what):
+    print(("ok   " if ok else "FAIL ") + what)
+    if not ok:
+        failures.append(what)
+
+
+def post(port, path, body):
+    req = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=body, method="POST")
+    try:
+        with urllib.request.urlopen(req, timeout=30) as r:
+            return r.status, r.read()
+    except urllib.error.HTTPError as e:
+        return e.code, e.read()
+
+
+class Shot:
+    """`view --screenshot` running in the background with the stand-in browser."""
+
+    def __init__(self, decalprep, pkg, out, extra, env):
+        self.proc = subprocess.Popen([decalprep, "view", pkg, "--screenshot", out] + extra,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        line = self.proc.stdout.readline()
+        self.port = int(line.split("127.0.0.1:")[1].split("/")[0]) if "127.0.0.1:" in line else None
+
+    def finish(self):
+        out, err = self.proc.communicate(timeout=60)
+        return self.proc.returncode, err
+
+
+def main():
+    decalprep, root, work = sys.argv[1], sys.argv[2], sys.argv[3]
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    pkg = os.path.join(work, "monaco.decals")
+    b = subprocess.run([decalprep, "build", os.path.join(root, "samples/monaco/scene.toml"), "-o", pkg],
+                       capture_output=True, text=True)
+    if b.returncode:
+        print("FAIL building the Monaco sample:", b.stderr[-2000:])
+        return 1
+    view = ["--extent", "-200,-120,200,120", "--size", "40x24"]
+
+    # No Chromium.
+    env = dict(os.environ, DECALPREP_CHROMIUM="/nonexistent")
+    r = subprocess.run([decalprep, "view", pkg, "--screenshot", os.path.join(work, "none.png")] + view,
+                       capture_output=True, text=True, env=env)
+    check(r.returncode == 12 and "apt-get install chromium" in r.stderr,
+          f"no Chromium: exit {r.returncode} (12), {r.stderr.strip()!r}")
+    check(not os.path.exists(os.path.join(work, "none.png")), "no Chromium: no PNG written")
+
+    # The stand-in browser: records its pid and profile folder, then waits.
+    stub = os.path.join(work, "browser.sh")
+    pidfile = os.path.join(work, "browser.pid")
+    with open(stub, "w") as f:
+        f.write("#!/bin/sh\necho $$ \"$@\" > '%s'\nexec sleep 300\n" % pidfile)
+    os.chmod(stub, 0o755)
+    env = dict(os.environ, DECALPREP_CHROMIUM=stub)
+
+    out, dec = os.path.join(work, "frame.png"), os.path.join(work, "decals.png")
+    s = Shot(decalprep, pkg, out, view + ["--decals", dec], env)
+    check(s.port is not None, "the screenshot prints its URL")
+    for _ in range(100):
+        if os.path.exists(pidfile):
+            break
+        time.sleep(0.05)
+    words = open(pidfile).read().split()
+    pid, profile = int(words[0]), next(w.split("=", 1)[1] for w in words if w.startswith("--user-data-dir="))
+    check("--headless" in words and "--enable-unsafe-webgpu" in words and "--window-size=40,24" in words
+          and words[-1].endswith("/?shot=1"), f"Chromium's command line: {' '.join(words[1:])}")
+    with urllib.request.urlopen(f"http://127.0.0.1:{s.port}/config.json") as c:
+        config = c.read().decode()
+    check('"screenshot":{' in config and '"topdownExtent":[-200.0,-120.0,200.0,120.0]' in config
+          and '"terrain":null' in config, f"config.json: {config[:300]}")
+    st, body = post(s.port, "/__shot/frame", b"\x80" * 100)
+    check(st == 400 and b"3840" in body, f"a frame of the wrong size is refused: {st} {body!r}")
+    st, _ = post(s.port, "/__shot/frame", bytes(range(256)) * 15)
+    check(st == 200, f"a frame of 40*24*4 bytes: {st}")
+    check(s.proc.poll() is None, "waits for --decals after the frame")
+    st, _ = post(s.port, "/__shot/decals", b"\x10\x20\x30\x40" * 960)
+    rc, err = s.finish()
+    check(rc == 0, f"pixels in: exit {rc} {err.strip()!r}")
+    w, h, rows = read_png(out)
+    check((w, h) == (40, 24) and rows[0][:8] == bytes(range(8)), f"frame.png: {w}x{h}, as POSTed")
+    w, h, rows = read_png(dec)
+    check((w, h) == (40, 24) and rows[5][:4] == b"\x10\x20\x30\x40", f"decals.png: {w}x{h}, as POSTed")
+    check(not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().split()[2] == "Z",
+          "the browser's process group is stopped")
+    check(not os.path.exists(profile), f"its temp profile {profile} is removed")
+
+    # The page's error, a timeout, a browser that exits early.
+    s = Shot(decalprep, pkg, os.path.join(work, "err.png"), view, env)
+    post(s.port, "/__shot/error", b"WebGPU adapter lost: test text")
+    rc, err = s.finish()
+    check(rc == 8 and "test text" in err, f"page error: exit {rc} {err.strip()!r}")
+    s = Shot(decalprep, pkg, os.path.join(work, "slow.png"), view + ["--timeout", "1"], env)
+    rc, err = s.finish()
+    check(rc == 8 and "--timeout" in err, f"timeout: exit {rc} {err.strip()!r}")
+    quick = os.path.join(work, "quick.sh")
+    with open(quick, "w") as f:
+        f.write("#!/bin/sh\necho 'cannot open display' >&2\nexit 3\n")
+    os.chmod(quick, 0o755)
+    s = Shot(decalprep, pkg, os.path.join(work, "quick.png"), view, dict(env, DECALPREP_CHROMIUM=quick))
+    rc, err = s.finish()
+    check(rc == 8 and "exited with status 3" in err and "cannot open display" in err,
+          f"browser exits early: exit {rc} {err.strip()!r}")
+    check(not any(os.path.exists(os.path.join(work, n)) for n in ("err.png", "slow.png", "quick.png")),
+          "no PNG after a failure")
+
+    # Outputs: never an input, never a special file.
+    before = os.stat(pkg)
+    fifo = os.path.join(work, "fifo.png")
+    os.mkfifo(fifo)
+    for target, extra in ((pkg, []), (fifo, []), (os.path.join(work, "ok.png"), ["--decals", pkg]),
+                          (os.path.join(work, "ok.png"), ["--decals", fifo])):
+        r = subprocess.run([decalprep, "view", pkg, "--screenshot", target] + view + extra,
+                           capture_output=True, text=True, env=env, timeout=60)
+        check(r.returncode == 7, f"output {target} {extra}: exit {r.returncode} (7) {r.stderr.strip()!r}")
+    after = os.stat(pkg)
+    check((before.st_size, before.st_mtime_ns) == (after.st_size, after.st_mtime_ns)
+          and stat.S_ISFIFO(os.stat(fifo).st_mode), "the package and the FIFO are left as they were")
+
+    # A real frame.
+    real = os.path.join(work, "real.png")
+    env = {k: v for k, v in os.environ.items() if k != "DECALPREP_CHROMIUM"}
+    r = subprocess.run([decalprep, "view", pkg, "--screenshot", real, "--extent", "-480,-270,480,270",
+                        "--size", "96x54", "--timeout", "300"], capture_output=True, text=True, env=env)
+    if r.returncode == 12 or (r.returncode == 8 and "before the page sent" in r.stderr):
+        print("SKIP the real frame: Chromium is missing or cannot start:", r.stderr.strip()[-1500:])
+        return 1 if failures else SKIP
+    check(r.returncode == 0, f"real Chromium: exit {r.returncode} {r.stderr.strip()[-2000:]!r}")
+    if r.returncode == 0:
+        w, h, _ = read_png(real)
+        check((w, h) == (96, 54) and not blank(real), f"real.png: {w}x{h}, not blank")
+    print(f"{len(failures)} failed")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

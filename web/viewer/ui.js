@@ -1,0 +1,60 @@
+// ui.js — the viewer's panels: the layer list (a visibility toggle per entry
+// of the package metadata's layer table), the overlay (frame time, GPU
+// bytes, tiles drawn) and the status line.
+
+const el = (/** @type {string} */ id) => /** @type {HTMLElement} */ (document.getElementById(id));
+
+/**
+ * Shows `text` in the status panel; an error in red. Empty text hides it.
+ * @param {string} text
+ * @param {boolean} [isError]
+ */
+export function showStatus(text, isError = false) {
+  const s = el("status");
+  s.textContent = text;
+  s.className = "panel" + (isError ? " error" : "") + (text ? "" : " hidden");
+}
+
+/**
+ * The layer names of a package's metadata layer table, in table order
+ * ("" for an entry without a name, as prep::render::layer_names).
+ * @param {unknown} metadata
+ * @returns {string[]}
+ */
+export function layerNames(metadata) {
+  const layers = metadata && typeof metadata === "object" ? /** @type {any} */ (metadata).layers : null;
+  if (!Array.isArray(layers)) return [];
+  return layers.map((l) => (l && typeof l === "object" && typeof l.name === "string" ? l.name : ""));
+}
+
+/**
+ * Fills the layer list: one checkbox per layer, calling `toggle(index,
+ * visible)` when it changes.
+ * @param {string[]} names
+ * @param {(index: number, visible: boolean) => void} toggle
+ */
+export function showLayers(names, toggle) {
+  const box = el("layers");
+  box.replaceChildren();
+  names.forEach((name, i) => {
+    const label = document.createElement("label");
+    const check = document.createElement("input");
+    check.type = "checkbox";
+    check.checked = true;
+    check.addEventListener("change", () => toggle(i, check.checked));
+    label.append(check, " ", name || `layer ${i}`);
+    box.append(label);
+  });
+  box.classList.toggle("hidden", names.length === 0);
+}
+
+/**
+ * The overlay's figures.
+ * @param {{ms: number, gpuBytes: number, tiles: number, width: number, height: number, adapter: string}} f
+ */
+export function showOverlay(f) {
+  const o = el("overlay");
+  o.textContent = `${f.ms.toFixed(1)} ms  ${f.width}x${f.height}\n` +
+    `${(f.gpuBytes / 1048576).toFixed(1)} MiB GPU  ${f.tiles} tile${f.tiles === 1 ? "" : "s"}\n${f.adapter}`;
+  o.classList.remove("hidden");
+}
