@@ -3,7 +3,11 @@
 # decalprep render: top-down decal layers against `render --cpu` at 4 m and
 # 0.5 m pixels (Monaco, and Liechtenstein with casing and dashes), and an
 # oblique view (pitch 45°) over flat ground and over a tilted-plane DEM
-# against `render --cpu` (decals) and `render` GL (final frame).
+# against `render --cpu` (decals) and `render` GL (final frame);
+# value-coloured layers (baked ramps and `render --ramp` given to setScene),
+# hidden layers (setLayerVisible against a package built without them),
+# packages of format 1.1 and 1.2 (encoded to the v1.3 layout on upload),
+# and present: true (the frame on the page's canvas).
 #   tests/web/webgpu_agreement.sh [DECALPREP] [WORKDIR]
 # Needs headless Chromium (/usr/bin/chromium), node, gdal_translate, and
 # `npm ci` in web/. Exits non-zero when a comparison is below 99.9%.
@@ -29,6 +33,42 @@ if [ -f "$W/li.decals" ]; then
   topdown li l4 -3400,-1900,-1480,-820
   topdown li l05 -2740,-1350,-2500,-1215
 fi
+# Any package top-down: name, package, extent (frame CRS), render options,
+# harness package and options. The harness takes the extent relative to
+# the harness package's origin.
+cmp() {
+  "$D" render "$2" --cpu --only polygons,lines --flat --extent="$3" --size $S -o "$W/$1_cpu.png" --decals "$W/$1_cpu_decals.png" $4
+  rel=$("$D" info "$5" --json 2>/dev/null | E="$3" node -e 'let s="";process.stdin.on("data",c=>s+=c).on("end",()=>{
+    const j=JSON.parse(s), o=(j.metadata??j).origin, e=process.env.E.split(",").map(Number);
+    process.stdout.write([e[0]-o.x,e[1]-o.y,e[2]-o.x,e[3]-o.y].join(","))})')
+  $H --pkg "$5" --size $S --extent "$rel" --out "$W/$1_gpu" $6
+  printf '%s decals vs cpu: ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_gpu_decals.png" || status=1
+}
+# Value-coloured layers (webgpu_ramp.toml: buildings by way id, streets by
+# id, both with colour ramps): the colours the build baked, then render's
+# --ramp given to setScene as RAMPS (layer 1 buildings, 3 streets).
+[ -f "$W/ramp.decals" ] || "$D" build "$REPO/tests/web/webgpu_ramp.toml" -o "$W/ramp.decals" >/dev/null
+RE=-415,-698,545,-158
+cmp ramp_baked "$W/ramp.decals" $RE "" "$W/ramp.decals" ""
+cmp ramp_restyled "$W/ramp.decals" $RE "--ramp buildings=1e8:#0000ff,2.5e8:#20ff20c0,3e8:#ff000080 --ramp streets=1e7:#00ffff,2e8:#ff00ff" \
+  "$W/ramp.decals" "--ramps [[1,[[1e8,0,0,255,255],[2.5e8,32,255,32,192],[3e8,255,0,0,128]]],[3,[[1e7,0,255,255,255],[2e8,255,0,255,255]]]]"
+# Hidden layers: render has no per-layer option, so the reference is the
+# same scene built without the buildings and streets layers.
+awk -v src="source = \"$REPO/samples/monaco/monaco.osm.pbf\"" '
+  function flush() { if (block !~ /name = "(buildings|streets)"/) printf "%s", block; block = "" }
+  /^\[\[layer\]\]/ { flush() }
+  /^source = / { $0 = src }
+  { block = block $0 "\n" }
+  END { flush() }' "$REPO/tests/web/webgpu_ramp.toml" > "$W/ramp_hidden.toml"
+[ -f "$W/ramp_hidden.decals" ] || "$D" build "$W/ramp_hidden.toml" -o "$W/ramp_hidden.decals" >/dev/null
+cmp ramp_hidden "$W/ramp_hidden.decals" $RE "" "$W/ramp.decals" "--hide 1,3"
+# Packages of format 1.1 and 1.2 (the v1.2 layout; 1.1 ranks lines over
+# every polygon), encoded to the v1.3 layout on upload.
+for v in 1_1 1_2; do
+  G=$REPO/tests/formats/legacy/golden_v$v.decals
+  cmp legacy_${v}_w "$G" 300,-615,700,-390 "" "$G" ""
+  cmp legacy_${v}_z "$G" 420,-560,540,-492.5 "" "$G" ""
+done
 # Oblique views: render's --eye/--target camera (render_request.cpp: near =
 # max(0.1, dist / 1000), depth range 4 dist, up z).
 node -e '

@@ -5,6 +5,13 @@
 // (SPEC "Colour").
 
 import { SLOTS } from "./wgsl_decals.js";
+import { box16Shift, encodeLegacy } from "./legacy.js";
+
+export { box16Shift };
+
+/** The v1.0–1.2 blobs the v1.3 layout replaced (formats/SPEC.md "Compact layout (v1.3)"). */
+const LEGACY = ["cell_segment_range", "line_bvh_range", "line_bvh_box", "cell_poly_range", "poly_bvh_range",
+                "poly_bvh_box", "cell_polys", "qt_leaf_range", "qt_leaf_segments"];
 
 /** @typedef {[number, Array<[number, number, number, number, number]>]} LayerRamp */
 
@@ -90,14 +97,6 @@ export function vertexDistances(verts, vline, start) {
  * }} PackedScene
  */
 
-/** u16 box step shift (decal/layout.hpp box16_shift). @param {number} cw @param {number} ch */
-export function box16Shift(cw, ch) {
-  const side = Math.max(cw, ch);
-  let s = 0;
-  while (s < 31 && side + 2 * 2 ** s > 65535 * 2 ** s) ++s;
-  return s;
-}
-
 /**
  * Reads the package's static blobs and packs them for the decal pass.
  * @param {import("../package.js").Package} pkg
@@ -111,18 +110,24 @@ export async function packScene(pkg, ramps) {
   const cells = grid.nx * grid.ny;
   const layers = Array.isArray(meta.layers) ? meta.layers : [];
   const count = (/** @type {string} */ name) => pkg.entry(name)?.count ?? 0;
-  // The v1.2 per-cell layout (ids 5, 17, 20–23) is not encoded here yet.
-  for (const old of ["cell_segment_range", "cell_poly_range", "qt_leaf_range"])
-    if (count(old) > 0)
-      throw new Error(`${pkg.label}: the v1.2 blob '${old}' is not supported by the WebGPU renderer ` +
-                      "(rebuild the package with this decalprep: v1.3 layout)");
   /** @type {Map<string, Uint32Array>} */
   const arrays = new Map();
+  const read = async (/** @type {string} */ name) => {
+    const copy = (await pkg.bytes(name)).slice();
+    return new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2);
+  };
   for (const name of SLOTS) {
     if (name === "dash_table" || name === "dash_vertex") continue;
-    const bytes = await pkg.bytes(name);
-    const copy = bytes.slice();
-    arrays.set(name, new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2));
+    arrays.set(name, await read(name));
+  }
+  // Older layouts (v1.0–1.2) encoded to v1.3 on upload, as the GL loader does.
+  /** @type {Map<string, Uint32Array>} */
+  const legacy = new Map();
+  for (const name of LEGACY) if (count(name) > 0) legacy.set(name, await read(name));
+  if (legacy.size > 0) {
+    const original = new Map(arrays);
+    const blob = (/** @type {string} */ name) => legacy.get(name) ?? original.get(name) ?? new Uint32Array(0);
+    encodeLegacy(blob, arrays, grid, pkg.label);
   }
   // --ramp restyling (SPEC "Colour"): line and exterior polygon colours.
   /** @type {Map<number, Array<[number, number, number, number, number]>>} */
@@ -164,8 +169,8 @@ export async function packScene(pkg, ramps) {
   return {
     words, offsets, grid,
     shift: box16Shift(grid.cw, grid.ch),
-    haveLines: cells > 0 && count("cell_line_first") === cells + 1,
-    havePolygons: cells > 0 && count("cell_poly_first") === cells + 1,
+    haveLines: cells > 0 && (arrays.get("cell_line_first")?.length ?? 0) === 2 * (cells + 1),
+    havePolygons: cells > 0 && (arrays.get("cell_poly_first")?.length ?? 0) === 2 * (cells + 1),
     polyBias: pkg.major === 1 && pkg.minor < 2 ? count("line_props") : 0,
     layerCount: layers.length,
   };
