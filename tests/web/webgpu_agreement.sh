@@ -104,13 +104,63 @@ fs.writeFileSync(w + "/plane_terrain.json", JSON.stringify({x0: tx, y0: ty, dx: 
 ' "$W"
 "$D" info "$W/monaco.decals" --json 2>/dev/null | node -e 'let s="";process.stdin.on("data",c=>s+=c).on("end",()=>{const j=JSON.parse(s);const m=j.metadata??j;process.stdout.write(m.crs_wkt)})' > "$W/plane.prj" || true
 gdal_translate -q -a_srs "$W/plane.prj" -ot Float64 "$W/plane.asc" "$W/plane.tif"
-oblique() {  # name, camera, eye, target, render terrain option, harness terrain option
-  "$D" render "$W/monaco.decals" --cpu --only polygons,lines $5 --eye "$3" --target "$4" --size $S -o "$W/$1_cpu.png" --decals "$W/$1_cpu_decals.png"
-  "$D" render "$W/monaco.decals" --aa none --only polygons,lines $5 --eye "$3" --target "$4" --size $S -o "$W/$1_gl.png" --decals "$W/$1_gl_decals.png"
-  $H --pkg "$W/monaco.decals" --size $S --camera "$W/$2" $6 --out "$W/$1_gpu"
+oblique() {  # name, camera, eye, target, render terrain option, harness terrain option[, package]
+  P=${7:-$W/monaco.decals}
+  "$D" render "$P" --cpu --only polygons,lines $5 --eye "$3" --target "$4" --size $S -o "$W/$1_cpu.png" --decals "$W/$1_cpu_decals.png"
+  "$D" render "$P" --aa none --only polygons,lines $5 --eye "$3" --target "$4" --size $S -o "$W/$1_gl.png" --decals "$W/$1_gl_decals.png"
+  $H --pkg "$P" --size $S --camera "$W/$2" $6 --out "$W/$1_gpu"
   printf '%s decals vs cpu: ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_gpu_decals.png" || status=1
   printf '%s frame vs gl: ' "$1"; $C "$W/$1_gl.png" "$W/$1_gpu_rgba.png" || status=1
 }
+# Slope widths (webgpu_slope.toml: paths bevel, streets round, main roads
+# miter with casing measured along the terrain; rail and the polygons in
+# plan) over the steep plane z = 100 + 0.8 x + 0.4 y (41.8°, lines across
+# it 34% narrower in plan), top-down (the gradient under the pixel centre)
+# and oblique, against render --cpu (decals) and GL (final frame).
+[ -f "$W/slope.decals" ] || "$D" build "$REPO/tests/web/webgpu_slope.toml" -o "$W/slope.decals" >/dev/null
+"$D" info "$W/slope.decals" --json 2>/dev/null | node -e '
+let s = ""; process.stdin.on("data", (c) => (s += c)).on("end", () => {
+  const fs = require("fs"), w = process.argv[1], m = JSON.parse(s).metadata ?? JSON.parse(s);
+  const f = (x, y) => 100 + 0.8 * x + 0.4 * y, cell = 30, x0 = -1800, y0 = -2500, n = 140;
+  let asc = `ncols ${n}\nnrows ${n}\nxllcorner ${x0}\nyllcorner ${y0}\ncellsize ${cell}\n`;
+  for (let r = 0; r < n; ++r) {
+    const yc = y0 + (n - 1 - r + 0.5) * cell, row = [];
+    for (let c = 0; c < n; ++c) row.push(f(x0 + (c + 0.5) * cell, yc).toFixed(6));
+    asc += row.join(" ") + "\n";
+  }
+  fs.writeFileSync(w + "/steep.asc", asc);
+  fs.writeFileSync(w + "/steep.prj", m.crs_wkt);
+  // The Terrain: metres relative to the package origin.
+  const ox = m.origin.x, oy = m.origin.y, tx = -1785 - ox, ty = -2485 - oy, k = 139, z = [];
+  for (let j = 0; j < k; ++j) for (let i = 0; i < k; ++i) z.push(f(tx + 30 * i + ox, ty + 30 * j + oy));
+  fs.writeFileSync(w + "/steep_terrain.json", JSON.stringify({x0: tx, y0: ty, dx: 30, dy: 30, nx: k, ny: k, z,
+    zmin: Math.min(...z), zmax: Math.max(...z)}));
+  fs.writeFileSync(w + "/steep_origin", `${ox},${oy}`);
+})' "$W"
+gdal_translate -q -a_srs "$W/steep.prj" -ot Float64 "$W/steep.asc" "$W/steep.tif"
+SO=$(cat "$W/steep_origin")
+steep_topdown() {  # name, extent (frame CRS)
+  rel=$(E="$2" O="$SO" node -e 'const e = process.env.E.split(",").map(Number), o = process.env.O.split(",").map(Number);
+    process.stdout.write([e[0] - o[0], e[1] - o[1], e[2] - o[0], e[3] - o[1]].join(","))')
+  "$D" render "$W/slope.decals" --cpu --only polygons,lines --dem "$W/steep.tif" --extent="$2" --size $S -o "$W/$1_cpu.png" --decals "$W/$1_cpu_decals.png"
+  "$D" render "$W/slope.decals" --cpu --only polygons,lines --dem "$W/steep.tif" --slope-widths off --extent="$2" --size $S -o "$W/$1_plan.png" --decals "$W/$1_plan_decals.png"
+  $H --pkg "$W/slope.decals" --size $S --extent "$rel" --terrain "$W/steep_terrain.json" --out "$W/$1_gpu"
+  printf '%s decals vs cpu: ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_gpu_decals.png" || status=1
+  printf '%s (what the check tells apart: cpu in plan widths vs cpu): ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_plan_decals.png" || true
+}
+steep_topdown slope1 -215,-496,265,-226
+steep_topdown slope05 0,-400,240,-265
 oblique mo_flat cam_flat.json 400,-400,500 400,100,0 --flat ""
 oblique mo_plane cam_plane.json 400,-400,690 400,100,190 "--dem $W/plane.tif" "--terrain $W/plane_terrain.json"
+# The slope package over the steep plane, oblique, looking east up the
+# slope (render's --eye and --target are relative to the package origin,
+# as the harness camera is).
+node -e '
+const [eye, target, out] = [process.argv[1], process.argv[2], process.argv[3]];
+const e = eye.split(",").map(Number), t = target.split(",").map(Number);
+const dist = Math.hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]);
+require("fs").writeFileSync(out, JSON.stringify({projection: "perspective", eye: e, target: t, up: [0, 0, 1],
+  fovYDeg: 45, orthoW: 0, orthoH: 0, near: Math.max(0.1, dist * 1e-3), depthRange: 4 * dist, topdownExtent: null}));
+' -- -100,-300,900 400,-300,300 "$W/cam_steep.json"
+oblique slope_oblique cam_steep.json -100,-300,900 400,-300,300 "--dem $W/steep.tif" "--terrain $W/steep_terrain.json" "$W/slope.decals"
 exit $status

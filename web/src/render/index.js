@@ -60,6 +60,28 @@ export async function createRenderer(options = {}) {
   return new Renderer(device, name, options.canvas ?? null, gpu);
 }
 
+/**
+ * Per terrain triangle, the gradient (dh/dx, dh/dy) of
+ * Heightfield::triangle_gradient in double, stored as f32: cell (i, j) at
+ * 2 (i + (nx - 1) j), the lower triangle (00, 10, 11) then the upper
+ * (00, 11, 01).
+ * @param {Terrain} t
+ */
+export function triangleGradients(t) {
+  const { nx, ny, z } = t;
+  const out = new Float32Array(Math.max(4, 4 * (nx - 1) * (ny - 1)));
+  for (let j = 0; j + 1 < ny; ++j)
+    for (let i = 0; i + 1 < nx; ++i) {
+      const z00 = z[i + nx * j], z10 = z[i + 1 + nx * j], z01 = z[i + nx * (j + 1)], z11 = z[i + 1 + nx * (j + 1)];
+      const k = 4 * (i + (nx - 1) * j);
+      out[k] = (z10 - z00) / t.dx;
+      out[k + 1] = (z11 - z10) / t.dy;
+      out[k + 2] = (z11 - z01) / t.dx;
+      out[k + 3] = (z01 - z00) / t.dy;
+    }
+  return out;
+}
+
 /** Integer floor division. @param {number} a @param {number} b */
 const floorDiv = (a, b) => Math.floor(a / b);
 
@@ -77,6 +99,7 @@ export class Renderer {
     /** @type {any} */ this.blobBuffer = null;
     /** @type {any} */ this.visBuffer = null;
     /** @type {any} */ this.heights = null;
+    /** @type {any} */ this.gradients = null;
     /** @type {Uint32Array} */ this.visBits = new Uint32Array(1);
     /** @type {any} */ this.mesh = null;
     /** @type {any} */ this.targets = null;
@@ -119,11 +142,15 @@ export class Renderer {
   /**
    * Uploads a validated Package and its terrain (or null: flat over the
    * package extent). ramps: render --ramp's stops per layer (SPEC "Colour").
+   * slopeWidths: as render --slope-widths (default "auto": the layers whose
+   * metadata entry has slope_widths: true measure their static line widths
+   * along the terrain; SPEC "Slope widths").
    * @param {{pkg: import("../package.js").Package, terrain: Terrain | null,
-   *          ramps?: import("./scene.js").LayerRamp[]}} args
+   *          ramps?: import("./scene.js").LayerRamp[],
+   *          slopeWidths?: import("./scene.js").SlopeWidths}} args
    */
-  async setScene({ pkg, terrain, ramps }) {
-    const scene = await packScene(pkg, ramps ?? []);
+  async setScene({ pkg, terrain, ramps, slopeWidths }) {
+    const scene = await packScene(pkg, ramps ?? [], slopeWidths ?? "auto");
     this.free(this.blobBuffer);
     this.free(this.visBuffer);
     this.blobBuffer = this.buffer(scene.words.byteLength, BU.STORAGE | BU.COPY_DST);
@@ -138,6 +165,10 @@ export class Renderer {
     this.free(this.heights);
     this.heights = this.buffer(4 * this.terrain.z.length, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.heights, 0, Float32Array.from(this.terrain.z));
+    const grad = triangleGradients(this.terrain);
+    this.free(this.gradients);
+    this.gradients = this.buffer(grad.byteLength, BU.STORAGE | BU.COPY_DST);
+    this.device.queue.writeBuffer(this.gradients, 0, grad);
   }
 
   freeMesh() {
@@ -268,16 +299,16 @@ export class Renderer {
     fu.set([W, H, scene.polyBias, 0], 16);
     if (td) ff.set([td[0] - ax, td[3] - ay, (td[2] - td[0]) / W, -(td[3] - td[1]) / H], 20);
     fu.set(scene.offsets, 24);
-    ff.set(mat4Inverse(vp), 44);
+    ff.set(mat4Inverse(vp), 48);
     // The terrain and the pixel rays (wgsl_decals.js ground_point).
-    ff.set([terrain.x0 - ax, terrain.y0 - ay, terrain.dx, terrain.dy], 60);
-    fu.set([terrain.nx, terrain.ny, 0, 0], 64);
+    ff.set([terrain.x0 - ax, terrain.y0 - ay, terrain.dx, terrain.dy], 64);
+    fu.set([terrain.nx, terrain.ny, scene.slopeCount, 0], 68);
     const basis = cameraBasis(camera);
     const persp = camera.projection === "perspective";
     const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
     const sx = persp ? th * (W / H) : 0.5 * camera.orthoW, sy = persp ? th : 0.5 * camera.orthoH;
-    ff.set([...eyeRel, persp ? 1 : 0], 68);
-    ff.set([...basis.r.map((x) => x * sx), 0, ...basis.u.map((x) => x * sy), 0, ...basis.f, 0], 72);
+    ff.set([...eyeRel, persp ? 1 : 0], 72);
+    ff.set([...basis.r.map((x) => x * sx), 0, ...basis.u.map((x) => x * sy), 0, ...basis.f, 0], 76);
     d.queue.writeBuffer(this.frameUniform, 0, fb);
     d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, 0, 0));
 
@@ -305,7 +336,8 @@ export class Renderer {
       { binding: 2, resource: { buffer: this.visBuffer } },
       { binding: 3, resource: T.depth.createView() },
       { binding: 4, resource: { buffer: T.dec } },
-      { binding: 5, resource: { buffer: this.heights } }] }));
+      { binding: 5, resource: { buffer: this.heights } },
+      { binding: 6, resource: { buffer: this.gradients } }] }));
     cp.dispatchWorkgroups(gx, gy);
     cp.end();
     cp = enc.beginComputePass();
@@ -372,7 +404,8 @@ export class Renderer {
     this.free(this.blobBuffer);
     this.free(this.visBuffer);
     this.free(this.heights);
-    this.blobBuffer = this.visBuffer = this.heights = null;
+    this.free(this.gradients);
+    this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
     this.device.destroy();
   }
 }

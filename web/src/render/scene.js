@@ -65,6 +65,30 @@ export function dashWords(layers) {
   return Uint32Array.from(words);
 }
 
+/** @typedef {"auto" | "on" | "off"} SlopeWidths */
+
+/**
+ * The layers whose static lines are measured along the terrain (formats/
+ * SPEC.md "Slope widths"; prep::slope_layers of render --slope-widths): per
+ * layer-table index 1 when its entry has `slope_widths: true`, then a 0 for
+ * a layer past the table; empty when no layer asks. "on": every layer
+ * ([1]) when the package has static lines; "off": none.
+ * @param {any[]} layers @param {SlopeWidths} mode @param {boolean} haveLines
+ */
+export function slopeLayers(layers, mode, haveLines) {
+  if (mode === "off") return new Uint32Array(0);
+  if (mode === "on") return haveLines ? Uint32Array.of(1) : new Uint32Array(0);
+  /** @type {number[]} */
+  let flags = [];
+  layers.forEach((l, i) => {
+    if (l && l.slope_widths === true) {
+      if (flags.length === 0) flags = new Array(layers.length + 1).fill(0);
+      flags[i] = 1;
+    }
+  });
+  return Uint32Array.from(flags);
+}
+
 /**
  * D(v) per static-line vertex (prep::line_vertex_distances), in double,
  * stored as f32 (as the GL renderer binds it).
@@ -93,7 +117,7 @@ export function vertexDistances(verts, vline, start) {
  *   words: Uint32Array, offsets: Uint32Array,
  *   grid: {gx: number, gy: number, cw: number, ch: number, nx: number, ny: number},
  *   shift: number, haveLines: boolean, havePolygons: boolean, polyBias: number,
- *   layerCount: number
+ *   layerCount: number, slopeCount: number
  * }} PackedScene
  */
 
@@ -101,9 +125,10 @@ export function vertexDistances(verts, vline, start) {
  * Reads the package's static blobs and packs them for the decal pass.
  * @param {import("../package.js").Package} pkg
  * @param {LayerRamp[]} ramps
+ * @param {SlopeWidths} [slopeWidths]
  * @returns {Promise<PackedScene>}
  */
-export async function packScene(pkg, ramps) {
+export async function packScene(pkg, ramps, slopeWidths = "auto") {
   const meta = pkg.metadata;
   const g = meta.grid || { origin: [0, 0], cell: [1, 1], dims: [0, 0] };
   const grid = { gx: g.origin[0], gy: g.origin[1], cw: g.cell[0], ch: g.cell[1], nx: g.dims[0], ny: g.dims[1] };
@@ -117,7 +142,7 @@ export async function packScene(pkg, ramps) {
     return new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2);
   };
   for (const name of SLOTS) {
-    if (name === "dash_table" || name === "dash_vertex") continue;
+    if (name === "dash_table" || name === "dash_vertex" || name === "slope_layers") continue;
     arrays.set(name, await read(name));
   }
   // Older layouts (v1.0–1.2) encoded to v1.3 on upload, as the GL loader does.
@@ -150,6 +175,8 @@ export async function packScene(pkg, ramps) {
     }
   }
   arrays.set("dash_table", dashWords(layers));
+  const slope = slopeLayers(layers, slopeWidths, count("line_props") > 0);
+  arrays.set("slope_layers", slope);
   const lv = /** @type {Uint32Array} */ (arrays.get("line_vertices"));
   const start = Array.isArray(meta.line_dash_start) ? meta.line_dash_start.map(Number) : [];
   const dist = vertexDistances(new Int32Array(lv.buffer, lv.byteOffset, lv.length),
@@ -173,5 +200,6 @@ export async function packScene(pkg, ramps) {
     havePolygons: cells > 0 && (arrays.get("cell_poly_first")?.length ?? 0) === 2 * (cells + 1),
     polyBias: pkg.major === 1 && pkg.minor < 2 ? count("line_props") : 0,
     layerCount: layers.length,
+    slopeCount: slope.length,
   };
 }
