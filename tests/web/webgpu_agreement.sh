@@ -33,14 +33,18 @@ if [ -f "$W/li.decals" ]; then
   topdown li l4 -3400,-1900,-1480,-820
   topdown li l05 -2740,-1350,-2500,-1215
 fi
+# An extent (frame CRS) relative to a package's origin: package, extent.
+relext() {
+  "$D" info "$1" --json 2>/dev/null | E="$2" node -e 'let s="";process.stdin.on("data",c=>s+=c).on("end",()=>{
+    const j=JSON.parse(s), o=(j.metadata??j).origin, e=process.env.E.split(",").map(Number);
+    process.stdout.write([e[0]-o.x,e[1]-o.y,e[2]-o.x,e[3]-o.y].join(","))})'
+}
 # Any package top-down: name, package, extent (frame CRS), render options,
 # harness package and options. The harness takes the extent relative to
 # the harness package's origin.
 cmp() {
   "$D" render "$2" --cpu --only polygons,lines --flat --extent="$3" --size $S -o "$W/$1_cpu.png" --decals "$W/$1_cpu_decals.png" $4
-  rel=$("$D" info "$5" --json 2>/dev/null | E="$3" node -e 'let s="";process.stdin.on("data",c=>s+=c).on("end",()=>{
-    const j=JSON.parse(s), o=(j.metadata??j).origin, e=process.env.E.split(",").map(Number);
-    process.stdout.write([e[0]-o.x,e[1]-o.y,e[2]-o.x,e[3]-o.y].join(","))})')
+  rel=$(relext "$5" "$3")
   $H --pkg "$5" --size $S --extent "$rel" --out "$W/$1_gpu" $6
   printf '%s decals vs cpu: ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_gpu_decals.png" || status=1
 }
@@ -52,6 +56,19 @@ RE=-415,-698,545,-158
 cmp ramp_baked "$W/ramp.decals" $RE "" "$W/ramp.decals" ""
 cmp ramp_restyled "$W/ramp.decals" $RE "--ramp buildings=1e8:#0000ff,2.5e8:#20ff20c0,3e8:#ff000080 --ramp streets=1e7:#00ffff,2e8:#ff00ff" \
   "$W/ramp.decals" "--ramps [[1,[[1e8,0,0,255,255],[2.5e8,32,255,32,192],[3e8,255,0,0,128]]],[3,[[1e7,0,255,255,255],[2e8,255,0,255,255]]]]"
+# present: true (two frames): the page's canvas, read back through a 2D
+# canvas, holds the frame exactly, by whichever path the renderer chose
+# (headless SwiftShader: "2d", the WebGPU canvas context loses the device);
+# the frame against GL and its decals against --cpu.
+rel=$(relext "$W/ramp.decals" $RE)
+"$D" render "$W/ramp.decals" --aa none --only polygons,lines --flat --extent=$RE --size $S -o "$W/present_gl.png"
+"$D" render "$W/ramp.decals" --cpu --only polygons,lines --flat --extent=$RE --size $S -o "$W/present_cpu.png" --decals "$W/present_cpu_decals.png"
+out=$($H --pkg "$W/ramp.decals" --size $S --extent "$rel" --present 1 --frames 2 --out "$W/present_gpu") || status=1
+echo "$out"
+case "$out" in *"presentPath 2d"*|*"presentPath webgpu"*) ;; *) echo "present: no frame shown"; status=1 ;; esac
+printf 'present canvas vs frame: '; $C "$W/present_gpu_rgba.png" "$W/present_gpu_canvas.png" --tol 0 --min 1 --all || status=1
+printf 'present frame vs gl: '; $C "$W/present_gl.png" "$W/present_gpu_rgba.png" || status=1
+printf 'present decals vs cpu: '; $C "$W/present_cpu_decals.png" "$W/present_gpu_decals.png" || status=1
 # Hidden layers: render has no per-layer option, so the reference is the
 # same scene built without the buildings and streets layers.
 awk -v src="source = \"$REPO/samples/monaco/monaco.osm.pbf\"" '
@@ -145,8 +162,10 @@ steep_topdown() {  # name, extent (frame CRS)
   "$D" render "$W/slope.decals" --cpu --only polygons,lines --dem "$W/steep.tif" --extent="$2" --size $S -o "$W/$1_cpu.png" --decals "$W/$1_cpu_decals.png"
   "$D" render "$W/slope.decals" --cpu --only polygons,lines --dem "$W/steep.tif" --slope-widths off --extent="$2" --size $S -o "$W/$1_plan.png" --decals "$W/$1_plan_decals.png"
   $H --pkg "$W/slope.decals" --size $S --extent "$rel" --terrain "$W/steep_terrain.json" --out "$W/$1_gpu"
-  printf '%s decals vs cpu: ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_gpu_decals.png" || status=1
-  printf '%s (what the check tells apart: cpu in plan widths vs cpu): ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_plan_decals.png" || true
+  # Every pixel counts here: plan widths differ from the reference mostly
+  # on the lines' edges, in the edge band.
+  printf '%s decals vs cpu, all pixels: ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_gpu_decals.png" --all --min 0.9999 || status=1
+  printf '%s (what the check tells apart: cpu in plan widths vs cpu): ' "$1"; $C "$W/$1_cpu_decals.png" "$W/$1_plan_decals.png" --all --min 0.9999 || true
 }
 steep_topdown slope1 -215,-496,265,-226
 steep_topdown slope05 0,-400,240,-265
@@ -163,4 +182,7 @@ require("fs").writeFileSync(out, JSON.stringify({projection: "perspective", eye:
   fovYDeg: 45, orthoW: 0, orthoH: 0, near: Math.max(0.1, dist * 1e-3), depthRange: 4 * dist, topdownExtent: null}));
 ' -- -100,-300,900 400,-300,300 "$W/cam_steep.json"
 oblique slope_oblique cam_steep.json -100,-300,900 400,-300,300 "--dem $W/steep.tif" "--terrain $W/steep_terrain.json" "$W/slope.decals"
+printf 'slope_oblique decals vs cpu, all pixels: '; $C "$W/slope_oblique_cpu_decals.png" "$W/slope_oblique_gpu_decals.png" --all --min 0.9999 || status=1
+"$D" render "$W/slope.decals" --cpu --only polygons,lines --dem "$W/steep.tif" --slope-widths off --eye -100,-300,900 --target 400,-300,300 --size $S -o "$W/slope_oblique_plan.png" --decals "$W/slope_oblique_plan_decals.png"
+printf 'slope_oblique (what the check tells apart: cpu in plan widths vs cpu): '; $C "$W/slope_oblique_cpu_decals.png" "$W/slope_oblique_plan_decals.png" --all --min 0.9999 || true
 exit $status

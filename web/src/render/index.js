@@ -2,8 +2,11 @@
 // (the interface of the browser renderer, §2): the terrain pass
 // (libprep/render/gl_passes.cpp terrain_pass), the static decal query at
 // each pixel's ground point (formats/SPEC.md "Drawing rules"; the pixel
-// centre exactly for a top-down view), and the composite. Dynamic lines and
-// LOD are not drawn.
+// centre exactly for a top-down view; slope widths from the gradient of the
+// terrain triangle under it), and the composite. Dynamic lines and LOD are
+// not drawn. Frames are shown on the canvas through its WebGPU context, or,
+// where that fails (headless Chromium), read back into its 2D context
+// (presentPath).
 //
 // WebGPU objects are typed `any`: the checked lib (es2022 + dom) has no
 // WebGPU declarations and the project adds no type packages.
@@ -45,6 +48,12 @@ export function flatTerrain(extent) {
 export async function createRenderer(options = {}) {
   const gpu = /** @type {any} */ (globalThis.navigator)?.gpu;
   if (!gpu) throw new Error("WebGPU is not available: navigator.gpu is missing (a secure origin and a WebGPU-enabled browser are needed)");
+  const { device, name } = await openDevice(gpu);
+  return new Renderer(device, name, options.canvas ?? null, gpu);
+}
+
+/** An adapter's device with the limits the passes need, and its name. @param {any} gpu */
+async function openDevice(gpu) {
   const adapter = await gpu.requestAdapter();
   if (!adapter) throw new Error("WebGPU is not available: navigator.gpu.requestAdapter() returned no adapter");
   const lim = adapter.limits;
@@ -57,8 +66,11 @@ export async function createRenderer(options = {}) {
   });
   const info = adapter.info || {};
   const name = `WebGPU ${info.vendor || "unknown"}/${info.architecture || info.device || info.description || "unknown"}`;
-  return new Renderer(device, name, options.canvas ?? null, gpu);
+  return { device, name };
 }
+
+/** @param {number} ms */
+const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
 /**
  * Per terrain triangle, the gradient (dh/dx, dh/dy) of
@@ -88,7 +100,6 @@ const floorDiv = (a, b) => Math.floor(a / b);
 export class Renderer {
   /** @param {any} device @param {string} name @param {HTMLCanvasElement | null} canvas @param {any} gpu */
   constructor(device, name, canvas, gpu) {
-    this.device = device;
     this.adapterName = name;
     this.gpuBytes = 0;
     this.canvas = canvas;
@@ -103,6 +114,36 @@ export class Renderer {
     /** @type {Uint32Array} */ this.visBits = new Uint32Array(1);
     /** @type {any} */ this.mesh = null;
     /** @type {any} */ this.targets = null;
+    /**
+     * How present: true shows frames: null until the first such frame,
+     * "webgpu" (the canvas's WebGPU context), "2d" (read back and put into
+     * the canvas's 2D context: where the WebGPU context cannot be
+     * configured or presenting fails, e.g. headless Chromium with
+     * SwiftShader, whose GPU process has no swap-chain image backing), or
+     * "none" (the canvas took a WebGPU context that then failed: frames are
+     * still drawn and read back, not shown). presentError says why.
+     * @type {"webgpu" | "2d" | "none" | null}
+     */
+    this.presentPath = null;
+    /** @type {string} */ this.presentError = "";
+    /** @type {any} */ this.context2d = null;
+    this.destroyed = false;
+    this.initDevice(device);
+  }
+
+  /**
+   * Pipelines and uniforms on a device (again after a device loss).
+   * @param {any} device
+   */
+  initDevice(device) {
+    this.device = device;
+    this.lost = false;
+    this.lostMessage = "";
+    device.lost.then((/** @type {any} */ info) => {
+      if (this.device !== device || this.destroyed) return;
+      this.lost = true;
+      this.lostMessage = String(info?.message ?? "");
+    });
     const d = device;
     const mod = (/** @type {string} */ code) => d.createShaderModule({ code });
     this.decalPipeline = d.createComputePipeline({ layout: "auto", compute: { module: mod(DECALS_WGSL), entryPoint: "main" } });
@@ -151,16 +192,23 @@ export class Renderer {
    */
   async setScene({ pkg, terrain, ramps, slopeWidths }) {
     const scene = await packScene(pkg, ramps ?? [], slopeWidths ?? "auto");
+    this.scene = scene;
+    this.visBits = new Uint32Array(Math.max(1, Math.ceil(scene.layerCount / 32))).fill(0xffffffff);
+    const ext = pkg.metadata.extent || [0, 0, 1, 1];
+    this.terrain = terrain ?? flatTerrain(ext);
+    this.uploadScene();
+  }
+
+  /** The scene's buffers on the device, from what setScene kept. */
+  uploadScene() {
+    const scene = /** @type {import("./scene.js").PackedScene} */ (this.scene);
     this.free(this.blobBuffer);
     this.free(this.visBuffer);
     this.blobBuffer = this.buffer(scene.words.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.blobBuffer, 0, scene.words);
-    this.visBits = new Uint32Array(Math.max(1, Math.ceil(scene.layerCount / 32))).fill(0xffffffff);
     this.visBuffer = this.buffer(this.visBits.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.visBuffer, 0, this.visBits);
-    this.scene = scene;
-    const ext = pkg.metadata.extent || [0, 0, 1, 1];
-    this.terrain = terrain ?? flatTerrain(ext);
+    this.terrain = /** @type {Terrain} */ (this.terrain);
     this.freeMesh();
     this.free(this.heights);
     this.heights = this.buffer(4 * this.terrain.z.length, BU.STORAGE | BU.COPY_DST);
@@ -169,6 +217,77 @@ export class Renderer {
     this.free(this.gradients);
     this.gradients = this.buffer(grad.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.gradients, 0, grad);
+  }
+
+  /**
+   * A new device after the old one was lost (a GPU process that crashed
+   * while presenting): pipelines, uniforms and the scene again.
+   */
+  async recover() {
+    const { device } = await openDevice(this.gpu);
+    // The lost device's objects are gone with it.
+    this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
+    this.mesh = null;
+    this.targets = null;
+    this.context = null;
+    this.gpuBytes = 0;
+    this.initDevice(device);
+    if (this.scene) this.uploadScene();
+  }
+
+  /**
+   * Picks the present path before the canvas takes a context: a WebGPU
+   * context configured on a throwaway OffscreenCanvas with this device and
+   * one frame submitted to it. Where that throws, reports an error or loses
+   * the device (the device is then opened again), frames are shown through
+   * the canvas's 2D context.
+   */
+  async choosePresentPath() {
+    const canvas = /** @type {HTMLCanvasElement} */ (this.canvas);
+    let ok = false;
+    const d = this.device;
+    try {
+      if (typeof OffscreenCanvas === "undefined") throw new Error("no OffscreenCanvas to try a WebGPU context on");
+      const probe = /** @type {any} */ (new OffscreenCanvas(4, 4)).getContext("webgpu");
+      if (!probe) throw new Error("OffscreenCanvas.getContext('webgpu') returned null");
+      probe.configure({ device: d, format: this.gpu.getPreferredCanvasFormat(), alphaMode: "opaque" });
+      d.pushErrorScope("validation");
+      const enc = d.createCommandEncoder();
+      const rp = enc.beginRenderPass({ colorAttachments: [{ view: probe.getCurrentTexture().createView(),
+        clearValue: { r: 0, g: 0, b: 0, a: 1 }, loadOp: "clear", storeOp: "store" }] });
+      rp.end();
+      d.queue.submit([enc.finish()]);
+      await d.queue.onSubmittedWorkDone();
+      const err = await d.popErrorScope();
+      if (err) throw new Error(err.message);
+      // A GPU process that failed to back the texture loses the device soon after.
+      await Promise.race([d.lost, sleep(100)]);
+      if (this.lost) throw new Error(`the device was lost (${this.lostMessage})`);
+      probe.unconfigure();
+      ok = true;
+    } catch (e) {
+      this.presentError = `WebGPU canvas presentation failed: ${e instanceof Error ? e.message : String(e)}`;
+    }
+    if (this.lost) await this.recover();
+    if (ok) {
+      try {
+        this.context = /** @type {any} */ (canvas.getContext("webgpu"));
+        if (!this.context) throw new Error("canvas.getContext('webgpu') returned null (the canvas has another context)");
+        this.presentFormat = this.gpu.getPreferredCanvasFormat();
+        this.context.configure({ device: this.device, format: this.presentFormat, alphaMode: "opaque" });
+        this.presentPath = "webgpu";
+        return;
+      } catch (e) {
+        this.presentError = `WebGPU canvas context: ${e instanceof Error ? e.message : String(e)}`;
+        if (this.context) {  // the canvas is WebGPU's now: no 2D context on it
+          this.presentPath = "none";
+          return;
+        }
+      }
+    }
+    this.context2d = canvas.getContext("2d");
+    this.presentPath = this.context2d ? "2d" : "none";
+    if (!this.context2d) this.presentError += "; canvas.getContext('2d') returned null";
   }
 
   freeMesh() {
@@ -261,11 +380,35 @@ export class Renderer {
 
   /**
    * Draws one frame and returns its pixels (RGBA8, row 0 at the top).
+   * present: also show it on the canvas, by the path the first such frame
+   * picks (presentPath); rgba is read back for the 2D path even when
+   * readback is false (and then not returned).
    * @param {{camera: Camera, width: number, height: number, albedo?: number[],
    *          decals?: boolean, present?: boolean, readback?: boolean}} args
    * @returns {Promise<{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number}>}
    */
-  async renderFrame({ camera, width, height, albedo, decals, present, readback }) {
+  async renderFrame(args) {
+    const show = Boolean(args.present && this.canvas);
+    if (show && this.presentPath === null) await this.choosePresentPath();
+    try {
+      return await this.drawFrame(args, show);
+    } catch (e) {
+      if (!(show && this.presentPath === "webgpu" && this.lost)) throw e;
+      // Presenting lost the device: draw again on a new one, frames not shown.
+      this.presentError = `presenting lost the device (${this.lostMessage})`;
+      this.presentPath = "none";
+      await this.recover();
+      return this.drawFrame(args, false);
+    }
+  }
+
+  /**
+   * @param {{camera: Camera, width: number, height: number, albedo?: number[],
+   *          decals?: boolean, present?: boolean, readback?: boolean}} args
+   * @param {boolean} show  show the frame on the canvas by the present path
+   * @returns {Promise<{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number}>}
+   */
+  async drawFrame({ camera, width, height, albedo, decals, readback }, show) {
     const scene = this.scene;
     if (!scene) throw new Error("renderFrame: no scene (call setScene first)");
     const t0 = performance.now();
@@ -351,9 +494,10 @@ export class Renderer {
     cp.dispatchWorkgroups(gx, gy);
     cp.end();
     const wantRgba = readback !== false;
-    if (wantRgba) enc.copyBufferToBuffer(T.rgba, 0, T.readRgba, 0, 4 * W * H);
+    const put2d = show && this.presentPath === "2d";
+    if (wantRgba || put2d) enc.copyBufferToBuffer(T.rgba, 0, T.readRgba, 0, 4 * W * H);
     if (decals) enc.copyBufferToBuffer(T.decals, 0, T.readDecals, 0, 4 * W * H);
-    if (present && this.canvas) this.encodePresent(enc, T, W, H);
+    if (show && this.presentPath === "webgpu") this.encodePresent(enc, T, W, H);
     d.queue.submit([enc.finish()]);
     await d.queue.onSubmittedWorkDone();
     const ms = performance.now() - t0;
@@ -364,21 +508,28 @@ export class Renderer {
       b.unmap();
       return out;
     };
-    return {
-      rgba: wantRgba ? await read(T.readRgba) : null,
-      decals: decals ? await read(T.readDecals) : null,
-      ms,
-    };
+    const rgba = wantRgba || put2d ? await read(T.readRgba) : null;
+    if (put2d && rgba) this.put2d(rgba, W, H);
+    if (this.lost) throw new Error(`renderFrame: the WebGPU device was lost (${this.lostMessage})`);
+    return { rgba: wantRgba ? rgba : null, decals: decals ? await read(T.readDecals) : null, ms };
+  }
+
+  /** The 2D present path. @param {Uint8Array} rgba @param {number} W @param {number} H */
+  put2d(rgba, W, H) {
+    const canvas = /** @type {HTMLCanvasElement} */ (this.canvas);
+    if (canvas.width !== W || canvas.height !== H) {
+      canvas.width = W;
+      canvas.height = H;
+    }
+    const px = new Uint8ClampedArray(rgba.buffer, rgba.byteOffset, rgba.byteLength);
+    this.context2d.putImageData(new ImageData(px, W, H), 0, 0);
   }
 
   /** @param {any} enc @param {any} T @param {number} W @param {number} H */
   encodePresent(enc, T, W, H) {
     const d = this.device;
     const canvas = /** @type {HTMLCanvasElement} */ (this.canvas);
-    if (!this.context) {
-      this.context = /** @type {any} */ (canvas.getContext("webgpu"));
-      this.presentFormat = this.gpu.getPreferredCanvasFormat();
-      this.context.configure({ device: d, format: this.presentFormat, alphaMode: "opaque" });
+    if (!this.presentPipeline) {
       const m = d.createShaderModule({ code: PRESENT_WGSL });
       this.presentPipeline = d.createRenderPipeline({ layout: "auto",
         vertex: { module: m, entryPoint: "vs" },
@@ -399,6 +550,7 @@ export class Renderer {
   }
 
   destroy() {
+    this.destroyed = true;
     this.freeTargets();
     this.freeMesh();
     this.free(this.blobBuffer);

@@ -1,8 +1,9 @@
 // scene.js — what the renderer uploads from a package (the CPU side of
 // formats/gl/src/loader.cpp and GlRenderer::bind_dashes): the v1.3 blobs
-// packed into one u32 array, the dash table and per-vertex along-line
-// distances (formats/SPEC.md "Dashed lines"), and `--ramp` restyling
-// (SPEC "Colour").
+// packed into one u32 array (older layouts encoded to v1.3: legacy.js), the
+// dash table and per-vertex along-line distances (formats/SPEC.md "Dashed
+// lines"), the slope-width layer flags (SPEC "Slope widths"), and `--ramp`
+// restyling (SPEC "Colour").
 
 import { SLOTS } from "./wgsl_decals.js";
 import { box16Shift, encodeLegacy } from "./legacy.js";

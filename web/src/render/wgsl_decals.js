@@ -1,10 +1,10 @@
 // wgsl_decals.js — the static decal query (formats/SPEC.md "The static decal
 // query", steps 1–8) as one WGSL compute pass: the port of
 // formats/gl/shaders/static_common.glsl, decal_blobs.glsl,
-// static_lines.glsl, static_polygons.glsl and dash.glsl (aliased, no
-// coverage anti-aliasing). Unlike the GL renderer, which draws one pass per
-// run of ranks, it merges the line and polygon BVH walks by rank in one
-// pass, as the CPU evaluator does (step 4); the sum is the same.
+// static_lines.glsl, static_polygons.glsl, dash.glsl and slope_widths.glsl
+// (aliased, no coverage anti-aliasing). Unlike the GL renderer, which draws
+// one pass per run of ranks, it merges the line and polygon BVH walks by
+// rank in one pass, as the CPU evaluator does (step 4); the sum is the same.
 //
 // Every blob of the package lives in one u32 storage buffer (the word
 // offset of each in the frame uniform), so the pass binds 3 storage
