@@ -52,9 +52,25 @@ export async function createRenderer(options = {}) {
   return new Renderer(device, name, options.canvas ?? null, gpu);
 }
 
-/** An adapter's device with the limits the passes need, and its name. @param {any} gpu */
-async function openDevice(gpu) {
-  const adapter = await gpu.requestAdapter();
+/** @param {number} ms */
+const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+
+/**
+ * An adapter's device with the limits the passes need, and its name.
+ * tries: requestAdapter calls 250 ms apart while it returns none or throws
+ * (after a device loss, until the browser's GPU process is back).
+ * @param {any} gpu @param {number} [tries]
+ */
+async function openDevice(gpu, tries = 1) {
+  let adapter = null;
+  for (let k = 0; k < tries && !adapter; ++k) {
+    if (k > 0) await sleep(250);
+    try {
+      adapter = await gpu.requestAdapter();
+    } catch (e) {
+      if (k + 1 === tries) throw e;
+    }
+  }
   if (!adapter) throw new Error("WebGPU is not available: navigator.gpu.requestAdapter() returned no adapter");
   const lim = adapter.limits;
   const device = await adapter.requestDevice({
@@ -68,9 +84,6 @@ async function openDevice(gpu) {
   const name = `WebGPU ${info.vendor || "unknown"}/${info.architecture || info.device || info.description || "unknown"}`;
   return { device, name };
 }
-
-/** @param {number} ms */
-const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
 /**
  * Per terrain triangle, the gradient (dh/dx, dh/dy) of
@@ -224,7 +237,7 @@ export class Renderer {
    * while presenting): pipelines, uniforms and the scene again.
    */
   async recover() {
-    const { device } = await openDevice(this.gpu);
+    const { device } = await openDevice(this.gpu, 40);
     // The lost device's objects are gone with it.
     this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
     this.mesh = null;
