@@ -1,10 +1,11 @@
 #!/usr/bin/env node
 // webgpu_compare.mjs — pixel agreement of two PNGs of the same size:
-//   node tests/web/webgpu_compare.mjs REFERENCE.png OTHER.png [--tol 1] [--min 0.999]
+//   node tests/web/webgpu_compare.mjs REFERENCE.png OTHER.png [--tol 1] [--min 0.999] [--all]
 // The edge band: pixels whose 3×3 neighbourhood in REFERENCE is not uniform
 // (image borders: the neighbours inside). Prints pixels compared (outside
 // the band), the mismatches there (a channel differs by more than tol/255),
-// the largest channel difference, and exits 1 when the agreement is below min.
+// the largest channel difference, and exits 1 when the agreement is below min
+// (with --all: the agreement over every pixel, the edge band included).
 import { readFileSync } from "node:fs";
 import { decodePng } from "./webgpu_png.mjs";
 
@@ -43,7 +44,8 @@ for (let y = 0; y < H; ++y)
     maxOut = Math.max(maxOut, diff);
     if (diff > tol) ++bad;
   }
-const agree = compared ? (compared - bad) / compared : 1;
+const all = argv.includes("--all");
+const agree = all ? (W * H - badAll) / (W * H) : compared ? (compared - bad) / compared : 1;
 console.log(`${W}x${H}: ${compared} pixels outside the edge band (${band} in it); ` +
             `${bad} differ by more than ${tol}/255 (agreement ${(100 * agree).toFixed(4)}%), ` +
             `max channel difference ${maxOut} outside the band, ${maxAll} overall; ` +

@@ -7,10 +7,16 @@
 //
 //   node tests/web/webgpu_harness.mjs --pkg P.decals --size 480x270 --out /tmp/x \
 //        (--extent xmin,ymin,xmax,ymax | --camera cam.json) [--terrain t.json] [--frames N]
+//        [--ramps RAMPS] [--hide 1,3] [--present 1]
 //
 // --extent: top-down, metres relative to the package origin (as render's
 // --extent minus the origin). --camera: a renderFrame camera as JSON.
 // --terrain: a Terrain as JSON ({x0, y0, dx, dy, nx, ny, z: [...], zmin, zmax}).
+// --ramps: setScene's RAMPS as JSON ([[layerIndex, [[value, r, g, b, a], ...]], ...]).
+// --hide: layer-table indices drawn hidden (setLayerVisible(i, false)).
+// --present 1: renderFrame shows the frame on the page's canvas; the canvas
+// is then read back through a 2D canvas (drawImage) into OUT_canvas.png and
+// the renderer's presentPath is printed.
 // Writes OUT_rgba.png and OUT_decals.png; prints the frame times.
 import { createServer } from "node:http";
 import { spawn } from "node:child_process";
@@ -36,6 +42,7 @@ const job = {
   terrain: Boolean(args.terrain),
   present: Boolean(args.present),
   ramps: args.ramps ? JSON.parse(args.ramps) : [],
+  hide: args.hide ? args.hide.split(",").map(Number) : [],
 };
 
 const PAGE = `<!doctype html><html><head><meta charset="utf-8">
@@ -60,6 +67,7 @@ try {
   r.device.onuncapturederror = (e) => step("gpu error: " + e.error.message);
   r.device.lost.then((i) => step("device lost: " + i.message));
   await r.setScene({ pkg, terrain, ramps: job.ramps });
+  for (const layer of job.hide) r.setLayerVisible(layer, false);
   await step("scene");
   const t = terrain ?? flatTerrain(pkg.metadata.extent);
   const camera = job.camera ?? topdownCamera(job.extent, t.zmin, t.zmax);
@@ -68,6 +76,18 @@ try {
   for (let i = 0; i < job.frames; ++i) {
     out = await r.renderFrame({ camera, width: job.width, height: job.height, decals: true, present: job.present });
     times.push(out.ms);
+  }
+  if (job.present) {
+    // What the page shows: the canvas drawn into a 2D canvas and read back.
+    const c = document.getElementById("c");
+    const copy = document.createElement("canvas");
+    copy.width = c.width;
+    copy.height = c.height;
+    const g = copy.getContext("2d");
+    g.drawImage(c, 0, 0);
+    const img = g.getImageData(0, 0, copy.width, copy.height);
+    await post("/result/canvas", JSON.stringify({ width: copy.width, height: copy.height, path: r.presentPath }));
+    await post("/result/canvaspx", img.data);
   }
   await post("/result/info", JSON.stringify({ adapter: r.adapterName, gpuBytes: r.gpuBytes, times }));
   await post("/result/rgba", out.rgba);
@@ -120,7 +140,8 @@ const finished = new Promise((resolveDone) => {
     let log = "";
     chromium.stderr.on("data", (c) => { log += c; if (process.env.HARNESS_VERBOSE) process.stderr.write(c); });
     chromium.on("exit", () => {
-      rmSync(profile, { recursive: true, force: true });
+      // Chromium's helpers may still write into the profile as it goes.
+      try { rmSync(profile, { recursive: true, force: true, maxRetries: 5, retryDelay: 100 }); } catch { /* left in tmp */ }
       if (!results.done && !results.error) { results.error = Buffer.from("chromium exited early:\n" + log.slice(-3000)); resolveDone(server); }
     });
   });
@@ -137,4 +158,9 @@ if (results.error && !results.done) {
 const info = JSON.parse(results.info.toString());
 writeFileSync(`${args.out}_rgba.png`, encodePng(W, H, new Uint8Array(results.rgba)));
 writeFileSync(`${args.out}_decals.png`, encodePng(W, H, new Uint8Array(results.decals)));
+if (job.present) {
+  const c = JSON.parse(results.canvas.toString());
+  writeFileSync(`${args.out}_canvas.png`, encodePng(c.width, c.height, new Uint8Array(results.canvaspx)));
+  console.log(`presentPath ${c.path}: canvas ${c.width}x${c.height}`);
+}
 console.log(`${info.adapter}: ${W}x${H}, frame ms ${info.times.map((t) => t.toFixed(1)).join(", ")}, gpuBytes ${info.gpuBytes}`);

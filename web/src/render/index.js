@@ -2,8 +2,11 @@
 // (the interface of the browser renderer, §2): the terrain pass
 // (libprep/render/gl_passes.cpp terrain_pass), the static decal query at
 // each pixel's ground point (formats/SPEC.md "Drawing rules"; the pixel
-// centre exactly for a top-down view), and the composite. Dynamic lines and
-// LOD are not drawn.
+// centre exactly for a top-down view; slope widths from the gradient of the
+// terrain triangle under it), and the composite. Dynamic lines and LOD are
+// not drawn. Frames are shown on the canvas through its WebGPU context, or,
+// where that fails (headless Chromium), read back into its 2D context
+// (presentPath).
 //
 // WebGPU objects are typed `any`: the checked lib (es2022 + dom) has no
 // WebGPU declarations and the project adds no type packages.
@@ -45,7 +48,29 @@ export function flatTerrain(extent) {
 export async function createRenderer(options = {}) {
   const gpu = /** @type {any} */ (globalThis.navigator)?.gpu;
   if (!gpu) throw new Error("WebGPU is not available: navigator.gpu is missing (a secure origin and a WebGPU-enabled browser are needed)");
-  const adapter = await gpu.requestAdapter();
+  const { device, name } = await openDevice(gpu);
+  return new Renderer(device, name, options.canvas ?? null, gpu);
+}
+
+/** @param {number} ms */
+const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+
+/**
+ * An adapter's device with the limits the passes need, and its name.
+ * tries: requestAdapter calls 250 ms apart while it returns none or throws
+ * (after a device loss, until the browser's GPU process is back).
+ * @param {any} gpu @param {number} [tries]
+ */
+async function openDevice(gpu, tries = 1) {
+  let adapter = null;
+  for (let k = 0; k < tries && !adapter; ++k) {
+    if (k > 0) await sleep(250);
+    try {
+      adapter = await gpu.requestAdapter();
+    } catch (e) {
+      if (k + 1 === tries) throw e;
+    }
+  }
   if (!adapter) throw new Error("WebGPU is not available: navigator.gpu.requestAdapter() returned no adapter");
   const lim = adapter.limits;
   const device = await adapter.requestDevice({
@@ -57,7 +82,29 @@ export async function createRenderer(options = {}) {
   });
   const info = adapter.info || {};
   const name = `WebGPU ${info.vendor || "unknown"}/${info.architecture || info.device || info.description || "unknown"}`;
-  return new Renderer(device, name, options.canvas ?? null, gpu);
+  return { device, name };
+}
+
+/**
+ * Per terrain triangle, the gradient (dh/dx, dh/dy) of
+ * Heightfield::triangle_gradient in double, stored as f32: cell (i, j) at
+ * 2 (i + (nx - 1) j), the lower triangle (00, 10, 11) then the upper
+ * (00, 11, 01).
+ * @param {Terrain} t
+ */
+export function triangleGradients(t) {
+  const { nx, ny, z } = t;
+  const out = new Float32Array(Math.max(4, 4 * (nx - 1) * (ny - 1)));
+  for (let j = 0; j + 1 < ny; ++j)
+    for (let i = 0; i + 1 < nx; ++i) {
+      const z00 = z[i + nx * j], z10 = z[i + 1 + nx * j], z01 = z[i + nx * (j + 1)], z11 = z[i + 1 + nx * (j + 1)];
+      const k = 4 * (i + (nx - 1) * j);
+      out[k] = (z10 - z00) / t.dx;
+      out[k + 1] = (z11 - z10) / t.dy;
+      out[k + 2] = (z11 - z01) / t.dx;
+      out[k + 3] = (z01 - z00) / t.dy;
+    }
+  return out;
 }
 
 /** Integer floor division. @param {number} a @param {number} b */
@@ -66,7 +113,6 @@ const floorDiv = (a, b) => Math.floor(a / b);
 export class Renderer {
   /** @param {any} device @param {string} name @param {HTMLCanvasElement | null} canvas @param {any} gpu */
   constructor(device, name, canvas, gpu) {
-    this.device = device;
     this.adapterName = name;
     this.gpuBytes = 0;
     this.canvas = canvas;
@@ -77,9 +123,40 @@ export class Renderer {
     /** @type {any} */ this.blobBuffer = null;
     /** @type {any} */ this.visBuffer = null;
     /** @type {any} */ this.heights = null;
+    /** @type {any} */ this.gradients = null;
     /** @type {Uint32Array} */ this.visBits = new Uint32Array(1);
     /** @type {any} */ this.mesh = null;
     /** @type {any} */ this.targets = null;
+    /**
+     * How present: true shows frames: null until the first such frame,
+     * "webgpu" (the canvas's WebGPU context), "2d" (read back and put into
+     * the canvas's 2D context: where the WebGPU context cannot be
+     * configured or presenting fails, e.g. headless Chromium with
+     * SwiftShader, whose GPU process has no swap-chain image backing), or
+     * "none" (the canvas took a WebGPU context that then failed: frames are
+     * still drawn and read back, not shown). presentError says why.
+     * @type {"webgpu" | "2d" | "none" | null}
+     */
+    this.presentPath = null;
+    /** @type {string} */ this.presentError = "";
+    /** @type {any} */ this.context2d = null;
+    this.destroyed = false;
+    this.initDevice(device);
+  }
+
+  /**
+   * Pipelines and uniforms on a device (again after a device loss).
+   * @param {any} device
+   */
+  initDevice(device) {
+    this.device = device;
+    this.lost = false;
+    this.lostMessage = "";
+    device.lost.then((/** @type {any} */ info) => {
+      if (this.device !== device || this.destroyed) return;
+      this.lost = true;
+      this.lostMessage = String(info?.message ?? "");
+    });
     const d = device;
     const mod = (/** @type {string} */ code) => d.createShaderModule({ code });
     this.decalPipeline = d.createComputePipeline({ layout: "auto", compute: { module: mod(DECALS_WGSL), entryPoint: "main" } });
@@ -119,25 +196,111 @@ export class Renderer {
   /**
    * Uploads a validated Package and its terrain (or null: flat over the
    * package extent). ramps: render --ramp's stops per layer (SPEC "Colour").
+   * slopeWidths: as render --slope-widths (default "auto": the layers whose
+   * metadata entry has slope_widths: true measure their static line widths
+   * along the terrain; SPEC "Slope widths").
    * @param {{pkg: import("../package.js").Package, terrain: Terrain | null,
-   *          ramps?: import("./scene.js").LayerRamp[]}} args
+   *          ramps?: import("./scene.js").LayerRamp[],
+   *          slopeWidths?: import("./scene.js").SlopeWidths}} args
    */
-  async setScene({ pkg, terrain, ramps }) {
-    const scene = await packScene(pkg, ramps ?? []);
+  async setScene({ pkg, terrain, ramps, slopeWidths }) {
+    const scene = await packScene(pkg, ramps ?? [], slopeWidths ?? "auto");
+    this.scene = scene;
+    this.visBits = new Uint32Array(Math.max(1, Math.ceil(scene.layerCount / 32))).fill(0xffffffff);
+    const ext = pkg.metadata.extent || [0, 0, 1, 1];
+    this.terrain = terrain ?? flatTerrain(ext);
+    this.uploadScene();
+  }
+
+  /** The scene's buffers on the device, from what setScene kept. */
+  uploadScene() {
+    const scene = /** @type {import("./scene.js").PackedScene} */ (this.scene);
     this.free(this.blobBuffer);
     this.free(this.visBuffer);
     this.blobBuffer = this.buffer(scene.words.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.blobBuffer, 0, scene.words);
-    this.visBits = new Uint32Array(Math.max(1, Math.ceil(scene.layerCount / 32))).fill(0xffffffff);
     this.visBuffer = this.buffer(this.visBits.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.visBuffer, 0, this.visBits);
-    this.scene = scene;
-    const ext = pkg.metadata.extent || [0, 0, 1, 1];
-    this.terrain = terrain ?? flatTerrain(ext);
+    this.terrain = /** @type {Terrain} */ (this.terrain);
     this.freeMesh();
     this.free(this.heights);
     this.heights = this.buffer(4 * this.terrain.z.length, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.heights, 0, Float32Array.from(this.terrain.z));
+    const grad = triangleGradients(this.terrain);
+    this.free(this.gradients);
+    this.gradients = this.buffer(grad.byteLength, BU.STORAGE | BU.COPY_DST);
+    this.device.queue.writeBuffer(this.gradients, 0, grad);
+  }
+
+  /**
+   * A new device after the old one was lost (a GPU process that crashed
+   * while presenting): pipelines, uniforms and the scene again.
+   */
+  async recover() {
+    const { device } = await openDevice(this.gpu, 40);
+    // The lost device's objects are gone with it.
+    this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
+    this.mesh = null;
+    this.targets = null;
+    this.context = null;
+    this.gpuBytes = 0;
+    this.initDevice(device);
+    if (this.scene) this.uploadScene();
+  }
+
+  /**
+   * Picks the present path before the canvas takes a context: a WebGPU
+   * context configured on a throwaway OffscreenCanvas with this device and
+   * one frame submitted to it. Where that throws, reports an error or loses
+   * the device (the device is then opened again), frames are shown through
+   * the canvas's 2D context.
+   */
+  async choosePresentPath() {
+    const canvas = /** @type {HTMLCanvasElement} */ (this.canvas);
+    let ok = false;
+    const d = this.device;
+    try {
+      if (typeof OffscreenCanvas === "undefined") throw new Error("no OffscreenCanvas to try a WebGPU context on");
+      const probe = /** @type {any} */ (new OffscreenCanvas(4, 4)).getContext("webgpu");
+      if (!probe) throw new Error("OffscreenCanvas.getContext('webgpu') returned null");
+      probe.configure({ device: d, format: this.gpu.getPreferredCanvasFormat(), alphaMode: "opaque" });
+      d.pushErrorScope("validation");
+      const enc = d.createCommandEncoder();
+      const rp = enc.beginRenderPass({ colorAttachments: [{ view: probe.getCurrentTexture().createView(),
+        clearValue: { r: 0, g: 0, b: 0, a: 1 }, loadOp: "clear", storeOp: "store" }] });
+      rp.end();
+      d.queue.submit([enc.finish()]);
+      await d.queue.onSubmittedWorkDone();
+      const err = await d.popErrorScope();
+      if (err) throw new Error(err.message);
+      // A GPU process that failed to back the texture loses the device soon after.
+      await Promise.race([d.lost, sleep(100)]);
+      if (this.lost) throw new Error(`the device was lost (${this.lostMessage})`);
+      probe.unconfigure();
+      ok = true;
+    } catch (e) {
+      this.presentError = `WebGPU canvas presentation failed: ${e instanceof Error ? e.message : String(e)}`;
+    }
+    if (this.lost) await this.recover();
+    if (ok) {
+      try {
+        this.context = /** @type {any} */ (canvas.getContext("webgpu"));
+        if (!this.context) throw new Error("canvas.getContext('webgpu') returned null (the canvas has another context)");
+        this.presentFormat = this.gpu.getPreferredCanvasFormat();
+        this.context.configure({ device: this.device, format: this.presentFormat, alphaMode: "opaque" });
+        this.presentPath = "webgpu";
+        return;
+      } catch (e) {
+        this.presentError = `WebGPU canvas context: ${e instanceof Error ? e.message : String(e)}`;
+        if (this.context) {  // the canvas is WebGPU's now: no 2D context on it
+          this.presentPath = "none";
+          return;
+        }
+      }
+    }
+    this.context2d = canvas.getContext("2d");
+    this.presentPath = this.context2d ? "2d" : "none";
+    if (!this.context2d) this.presentError += "; canvas.getContext('2d') returned null";
   }
 
   freeMesh() {
@@ -230,11 +393,35 @@ export class Renderer {
 
   /**
    * Draws one frame and returns its pixels (RGBA8, row 0 at the top).
+   * present: also show it on the canvas, by the path the first such frame
+   * picks (presentPath); rgba is read back for the 2D path even when
+   * readback is false (and then not returned).
    * @param {{camera: Camera, width: number, height: number, albedo?: number[],
    *          decals?: boolean, present?: boolean, readback?: boolean}} args
    * @returns {Promise<{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number}>}
    */
-  async renderFrame({ camera, width, height, albedo, decals, present, readback }) {
+  async renderFrame(args) {
+    const show = Boolean(args.present && this.canvas);
+    if (show && this.presentPath === null) await this.choosePresentPath();
+    try {
+      return await this.drawFrame(args, show);
+    } catch (e) {
+      if (!(show && this.presentPath === "webgpu" && this.lost)) throw e;
+      // Presenting lost the device: draw again on a new one, frames not shown.
+      this.presentError = `presenting lost the device (${this.lostMessage})`;
+      this.presentPath = "none";
+      await this.recover();
+      return this.drawFrame(args, false);
+    }
+  }
+
+  /**
+   * @param {{camera: Camera, width: number, height: number, albedo?: number[],
+   *          decals?: boolean, present?: boolean, readback?: boolean}} args
+   * @param {boolean} show  show the frame on the canvas by the present path
+   * @returns {Promise<{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number}>}
+   */
+  async drawFrame({ camera, width, height, albedo, decals, readback }, show) {
     const scene = this.scene;
     if (!scene) throw new Error("renderFrame: no scene (call setScene first)");
     const t0 = performance.now();
@@ -268,16 +455,16 @@ export class Renderer {
     fu.set([W, H, scene.polyBias, 0], 16);
     if (td) ff.set([td[0] - ax, td[3] - ay, (td[2] - td[0]) / W, -(td[3] - td[1]) / H], 20);
     fu.set(scene.offsets, 24);
-    ff.set(mat4Inverse(vp), 44);
+    ff.set(mat4Inverse(vp), 48);
     // The terrain and the pixel rays (wgsl_decals.js ground_point).
-    ff.set([terrain.x0 - ax, terrain.y0 - ay, terrain.dx, terrain.dy], 60);
-    fu.set([terrain.nx, terrain.ny, 0, 0], 64);
+    ff.set([terrain.x0 - ax, terrain.y0 - ay, terrain.dx, terrain.dy], 64);
+    fu.set([terrain.nx, terrain.ny, scene.slopeCount, 0], 68);
     const basis = cameraBasis(camera);
     const persp = camera.projection === "perspective";
     const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
     const sx = persp ? th * (W / H) : 0.5 * camera.orthoW, sy = persp ? th : 0.5 * camera.orthoH;
-    ff.set([...eyeRel, persp ? 1 : 0], 68);
-    ff.set([...basis.r.map((x) => x * sx), 0, ...basis.u.map((x) => x * sy), 0, ...basis.f, 0], 72);
+    ff.set([...eyeRel, persp ? 1 : 0], 72);
+    ff.set([...basis.r.map((x) => x * sx), 0, ...basis.u.map((x) => x * sy), 0, ...basis.f, 0], 76);
     d.queue.writeBuffer(this.frameUniform, 0, fb);
     d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, 0, 0));
 
@@ -305,7 +492,8 @@ export class Renderer {
       { binding: 2, resource: { buffer: this.visBuffer } },
       { binding: 3, resource: T.depth.createView() },
       { binding: 4, resource: { buffer: T.dec } },
-      { binding: 5, resource: { buffer: this.heights } }] }));
+      { binding: 5, resource: { buffer: this.heights } },
+      { binding: 6, resource: { buffer: this.gradients } }] }));
     cp.dispatchWorkgroups(gx, gy);
     cp.end();
     cp = enc.beginComputePass();
@@ -319,9 +507,10 @@ export class Renderer {
     cp.dispatchWorkgroups(gx, gy);
     cp.end();
     const wantRgba = readback !== false;
-    if (wantRgba) enc.copyBufferToBuffer(T.rgba, 0, T.readRgba, 0, 4 * W * H);
+    const put2d = show && this.presentPath === "2d";
+    if (wantRgba || put2d) enc.copyBufferToBuffer(T.rgba, 0, T.readRgba, 0, 4 * W * H);
     if (decals) enc.copyBufferToBuffer(T.decals, 0, T.readDecals, 0, 4 * W * H);
-    if (present && this.canvas) this.encodePresent(enc, T, W, H);
+    if (show && this.presentPath === "webgpu") this.encodePresent(enc, T, W, H);
     d.queue.submit([enc.finish()]);
     await d.queue.onSubmittedWorkDone();
     const ms = performance.now() - t0;
@@ -332,21 +521,28 @@ export class Renderer {
       b.unmap();
       return out;
     };
-    return {
-      rgba: wantRgba ? await read(T.readRgba) : null,
-      decals: decals ? await read(T.readDecals) : null,
-      ms,
-    };
+    const rgba = wantRgba || put2d ? await read(T.readRgba) : null;
+    if (put2d && rgba) this.put2d(rgba, W, H);
+    if (this.lost) throw new Error(`renderFrame: the WebGPU device was lost (${this.lostMessage})`);
+    return { rgba: wantRgba ? rgba : null, decals: decals ? await read(T.readDecals) : null, ms };
+  }
+
+  /** The 2D present path. @param {Uint8Array} rgba @param {number} W @param {number} H */
+  put2d(rgba, W, H) {
+    const canvas = /** @type {HTMLCanvasElement} */ (this.canvas);
+    if (canvas.width !== W || canvas.height !== H) {
+      canvas.width = W;
+      canvas.height = H;
+    }
+    const px = new Uint8ClampedArray(rgba.buffer, rgba.byteOffset, rgba.byteLength);
+    this.context2d.putImageData(new ImageData(px, W, H), 0, 0);
   }
 
   /** @param {any} enc @param {any} T @param {number} W @param {number} H */
   encodePresent(enc, T, W, H) {
     const d = this.device;
     const canvas = /** @type {HTMLCanvasElement} */ (this.canvas);
-    if (!this.context) {
-      this.context = /** @type {any} */ (canvas.getContext("webgpu"));
-      this.presentFormat = this.gpu.getPreferredCanvasFormat();
-      this.context.configure({ device: d, format: this.presentFormat, alphaMode: "opaque" });
+    if (!this.presentPipeline) {
       const m = d.createShaderModule({ code: PRESENT_WGSL });
       this.presentPipeline = d.createRenderPipeline({ layout: "auto",
         vertex: { module: m, entryPoint: "vs" },
@@ -367,12 +563,14 @@ export class Renderer {
   }
 
   destroy() {
+    this.destroyed = true;
     this.freeTargets();
     this.freeMesh();
     this.free(this.blobBuffer);
     this.free(this.visBuffer);
     this.free(this.heights);
-    this.blobBuffer = this.visBuffer = this.heights = null;
+    this.free(this.gradients);
+    this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
     this.device.destroy();
   }
 }

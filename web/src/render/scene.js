@@ -1,10 +1,18 @@
 // scene.js — what the renderer uploads from a package (the CPU side of
 // formats/gl/src/loader.cpp and GlRenderer::bind_dashes): the v1.3 blobs
-// packed into one u32 array, the dash table and per-vertex along-line
-// distances (formats/SPEC.md "Dashed lines"), and `--ramp` restyling
-// (SPEC "Colour").
+// packed into one u32 array (older layouts encoded to v1.3: legacy.js), the
+// dash table and per-vertex along-line distances (formats/SPEC.md "Dashed
+// lines"), the slope-width layer flags (SPEC "Slope widths"), and `--ramp`
+// restyling (SPEC "Colour").
 
 import { SLOTS } from "./wgsl_decals.js";
+import { box16Shift, encodeLegacy } from "./legacy.js";
+
+export { box16Shift };
+
+/** The v1.0–1.2 blobs the v1.3 layout replaced (formats/SPEC.md "Compact layout (v1.3)"). */
+const LEGACY = ["cell_segment_range", "line_bvh_range", "line_bvh_box", "cell_poly_range", "poly_bvh_range",
+                "poly_bvh_box", "cell_polys", "qt_leaf_range", "qt_leaf_segments"];
 
 /** @typedef {[number, Array<[number, number, number, number, number]>]} LayerRamp */
 
@@ -58,6 +66,30 @@ export function dashWords(layers) {
   return Uint32Array.from(words);
 }
 
+/** @typedef {"auto" | "on" | "off"} SlopeWidths */
+
+/**
+ * The layers whose static lines are measured along the terrain (formats/
+ * SPEC.md "Slope widths"; prep::slope_layers of render --slope-widths): per
+ * layer-table index 1 when its entry has `slope_widths: true`, then a 0 for
+ * a layer past the table; empty when no layer asks. "on": every layer
+ * ([1]) when the package has static lines; "off": none.
+ * @param {any[]} layers @param {SlopeWidths} mode @param {boolean} haveLines
+ */
+export function slopeLayers(layers, mode, haveLines) {
+  if (mode === "off") return new Uint32Array(0);
+  if (mode === "on") return haveLines ? Uint32Array.of(1) : new Uint32Array(0);
+  /** @type {number[]} */
+  let flags = [];
+  layers.forEach((l, i) => {
+    if (l && l.slope_widths === true) {
+      if (flags.length === 0) flags = new Array(layers.length + 1).fill(0);
+      flags[i] = 1;
+    }
+  });
+  return Uint32Array.from(flags);
+}
+
 /**
  * D(v) per static-line vertex (prep::line_vertex_distances), in double,
  * stored as f32 (as the GL renderer binds it).
@@ -86,43 +118,42 @@ export function vertexDistances(verts, vline, start) {
  *   words: Uint32Array, offsets: Uint32Array,
  *   grid: {gx: number, gy: number, cw: number, ch: number, nx: number, ny: number},
  *   shift: number, haveLines: boolean, havePolygons: boolean, polyBias: number,
- *   layerCount: number
+ *   layerCount: number, slopeCount: number
  * }} PackedScene
  */
-
-/** u16 box step shift (decal/layout.hpp box16_shift). @param {number} cw @param {number} ch */
-export function box16Shift(cw, ch) {
-  const side = Math.max(cw, ch);
-  let s = 0;
-  while (s < 31 && side + 2 * 2 ** s > 65535 * 2 ** s) ++s;
-  return s;
-}
 
 /**
  * Reads the package's static blobs and packs them for the decal pass.
  * @param {import("../package.js").Package} pkg
  * @param {LayerRamp[]} ramps
+ * @param {SlopeWidths} [slopeWidths]
  * @returns {Promise<PackedScene>}
  */
-export async function packScene(pkg, ramps) {
+export async function packScene(pkg, ramps, slopeWidths = "auto") {
   const meta = pkg.metadata;
   const g = meta.grid || { origin: [0, 0], cell: [1, 1], dims: [0, 0] };
   const grid = { gx: g.origin[0], gy: g.origin[1], cw: g.cell[0], ch: g.cell[1], nx: g.dims[0], ny: g.dims[1] };
   const cells = grid.nx * grid.ny;
   const layers = Array.isArray(meta.layers) ? meta.layers : [];
   const count = (/** @type {string} */ name) => pkg.entry(name)?.count ?? 0;
-  // The v1.2 per-cell layout (ids 5, 17, 20–23) is not encoded here yet.
-  for (const old of ["cell_segment_range", "cell_poly_range", "qt_leaf_range"])
-    if (count(old) > 0)
-      throw new Error(`${pkg.label}: the v1.2 blob '${old}' is not supported by the WebGPU renderer ` +
-                      "(rebuild the package with this decalprep: v1.3 layout)");
   /** @type {Map<string, Uint32Array>} */
   const arrays = new Map();
+  const read = async (/** @type {string} */ name) => {
+    const copy = (await pkg.bytes(name)).slice();
+    return new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2);
+  };
   for (const name of SLOTS) {
-    if (name === "dash_table" || name === "dash_vertex") continue;
-    const bytes = await pkg.bytes(name);
-    const copy = bytes.slice();
-    arrays.set(name, new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2));
+    if (name === "dash_table" || name === "dash_vertex" || name === "slope_layers") continue;
+    arrays.set(name, await read(name));
+  }
+  // Older layouts (v1.0–1.2) encoded to v1.3 on upload, as the GL loader does.
+  /** @type {Map<string, Uint32Array>} */
+  const legacy = new Map();
+  for (const name of LEGACY) if (count(name) > 0) legacy.set(name, await read(name));
+  if (legacy.size > 0) {
+    const original = new Map(arrays);
+    const blob = (/** @type {string} */ name) => legacy.get(name) ?? original.get(name) ?? new Uint32Array(0);
+    encodeLegacy(blob, arrays, grid, pkg.label);
   }
   // --ramp restyling (SPEC "Colour"): line and exterior polygon colours.
   /** @type {Map<number, Array<[number, number, number, number, number]>>} */
@@ -145,6 +176,8 @@ export async function packScene(pkg, ramps) {
     }
   }
   arrays.set("dash_table", dashWords(layers));
+  const slope = slopeLayers(layers, slopeWidths, count("line_props") > 0);
+  arrays.set("slope_layers", slope);
   const lv = /** @type {Uint32Array} */ (arrays.get("line_vertices"));
   const start = Array.isArray(meta.line_dash_start) ? meta.line_dash_start.map(Number) : [];
   const dist = vertexDistances(new Int32Array(lv.buffer, lv.byteOffset, lv.length),
@@ -164,9 +197,10 @@ export async function packScene(pkg, ramps) {
   return {
     words, offsets, grid,
     shift: box16Shift(grid.cw, grid.ch),
-    haveLines: cells > 0 && count("cell_line_first") === cells + 1,
-    havePolygons: cells > 0 && count("cell_poly_first") === cells + 1,
+    haveLines: cells > 0 && (arrays.get("cell_line_first")?.length ?? 0) === 2 * (cells + 1),
+    havePolygons: cells > 0 && (arrays.get("cell_poly_first")?.length ?? 0) === 2 * (cells + 1),
     polyBias: pkg.major === 1 && pkg.minor < 2 ? count("line_props") : 0,
     layerCount: layers.length,
+    slopeCount: slope.length,
   };
 }

@@ -1,10 +1,10 @@
 // wgsl_decals.js — the static decal query (formats/SPEC.md "The static decal
 // query", steps 1–8) as one WGSL compute pass: the port of
 // formats/gl/shaders/static_common.glsl, decal_blobs.glsl,
-// static_lines.glsl, static_polygons.glsl and dash.glsl (aliased, no
-// coverage anti-aliasing). Unlike the GL renderer, which draws one pass per
-// run of ranks, it merges the line and polygon BVH walks by rank in one
-// pass, as the CPU evaluator does (step 4); the sum is the same.
+// static_lines.glsl, static_polygons.glsl, dash.glsl and slope_widths.glsl
+// (aliased, no coverage anti-aliasing). Unlike the GL renderer, which draws
+// one pass per run of ranks, it merges the line and polygon BVH walks by
+// rank in one pass, as the CPU evaluator does (step 4); the sum is the same.
 //
 // Every blob of the package lives in one u32 storage buffer (the word
 // offset of each in the frame uniform), so the pass binds 3 storage
@@ -19,10 +19,10 @@ export const SLOTS = [
   "qt_node_box", "qt_node", "qt_leaf_loop_range", "qt_leaf_loops", "qt_leaf_vertices",
   "cell_poly_first", "cell_poly_entries", "cell_poly_holes", "cell_holes", "poly_bvh_box16",
   "poly_props", "line_vertices", "line_vertex_line", "line_props", "line_corners",
-  "cell_line_first", "cell_segments", "line_bvh_box16", "dash_table", "dash_vertex",
+  "cell_line_first", "cell_segments", "line_bvh_box16", "dash_table", "dash_vertex", "slope_layers",
 ];
 
-export const FRAME_BYTES = 336;
+export const FRAME_BYTES = 352;
 
 export const DECALS_WGSL = /* wgsl */ `
 struct Frame {
@@ -32,10 +32,10 @@ struct Frame {
   d: vec4<i32>,    // cell size (quanta); u16 box shift; flags: 1 top-down, 2 lines, 4 polygons
   e: vec4<u32>,    // width, height, polygon rank bias (pre-v1.2 files), 0
   f: vec4f,        // top-down: anchor-relative x of column 0's left edge, y of row 0's top edge; pixel size x, -y
-  off: array<vec4<u32>, 5>,  // word offsets of the blobs (SLOTS)
+  off: array<vec4<u32>, 6>,  // word offsets of the blobs (SLOTS)
   inv_view_proj: mat4x4f,    // clip -> anchor-relative world (metres)
   tg: vec4f,       // terrain: anchor-relative x, y of vertex (0, 0); spacing dx, dy
-  tn: vec4<u32>,   // terrain vertex counts nx, ny
+  tn: vec4<u32>,   // terrain vertex counts nx, ny; slope-width layer flags (0: none); 0
   ro: vec4f,       // pixel rays: eye (anchor-relative); w: 1 perspective, 0 orthographic
   rr: vec4f,       // right (scaled to NDC x = 1)
   ru: vec4f,       // up (scaled to NDC y = 1)
@@ -47,12 +47,14 @@ struct Frame {
 @group(0) @binding(3) var depthTex: texture_depth_2d;            // terrain depth (reversed: 0 = nothing drawn)
 @group(0) @binding(4) var<storage, read_write> OUT: array<vec4f>;  // premultiplied decal colour per pixel
 @group(0) @binding(5) var<storage, read> TZ: array<f32>;       // terrain heights, i + nx j
+// Per terrain triangle (cell i + (nx - 1) j, lower then upper): (dh/dx, dh/dy).
+@group(0) @binding(6) var<storage, read> TG: array<vec2f>;
 
 const Q: f32 = 0.001;
 const QT_BOX = 0u; const QT_NODE = 1u; const QT_LLR = 2u; const QT_LOOPS = 3u; const QT_VERT = 4u;
 const CPF = 5u; const CPE = 6u; const CPH = 7u; const CH = 8u; const PBVH = 9u; const PPROPS = 10u;
 const LV = 11u; const LVL = 12u; const LP = 13u; const LC = 14u; const CLF = 15u; const CS = 16u;
-const LBVH = 17u; const DT = 18u; const DV = 19u;
+const LBVH = 17u; const DT = 18u; const DV = 19u; const SL = 20u;
 
 fn wo(k: u32) -> u32 { return F.off[k >> 2u][k & 3u]; }
 fn w(k: u32, i: u32) -> u32 { return B[wo(k) + i]; }
@@ -179,6 +181,101 @@ fn c_out(v: u32) -> vec2f { return vec2f(wf(LC, 6u * v + 4u), wf(LC, 6u * v + 5u
 
 const HIT_NONE = 0; const HIT_CLIPPED = 1; const HIT_COVERED = 2;
 
+// Slope widths (formats/SPEC.md "Slope widths", step 6b): the port of
+// formats/gl/shaders/slope_widths.glsl. GS: the terrain gradient g under
+// the pixel (0: plan widths).
+var<private> GS: vec2f;
+// Step 6b applies: a flagged layer (an index past the flags takes the
+// last) where the ground is not level.
+fn slope_applies(line: u32) -> bool {
+  if (F.tn.z == 0u || (GS.x == 0.0 && GS.y == 0.0)) { return false; }
+  return w(SL, min(w(LP, 8u * line + 5u), F.tn.z - 1u)) != 0u;
+}
+// <u, v>_G = u.v + (g.u)(g.v)
+fn gdot(u: vec2f, v: vec2f) -> f32 { return dot(u, v) + dot(GS, u) * dot(GS, v); }
+// N(w) = hw (w - g (g.w) / gam) / sqrt(w.w - (g.w)^2 / gam)
+fn slope_normal(wv: vec2f, hw: f32) -> vec2f {
+  let gam = 1.0 + dot(GS, GS);
+  let gw = dot(GS, wv);
+  return hw / sqrt(dot(wv, wv) - gw * gw / gam) * (wv - gw / gam * GS);
+}
+// M(a, b) = hw^2 (a + b) / (hw^2 + <a, b>_G)
+fn slope_miter(a: vec2f, b: vec2f, hw: f32) -> vec2f { return hw * hw / (hw * hw + gdot(a, b)) * (a + b); }
+// O(x, m, mg, w): x in the neighbouring segment's ground piece past the
+// plan miter line m, onto this segment's side; \`ahead\` for the next one.
+fn slope_overhang(x: vec2f, m: vec2f, mg: vec2f, wv: vec2f, hw: f32, ahead: bool) -> bool {
+  var t = vec2f(-wv.y, wv.x);
+  if (ahead) { t = vec2f(wv.y, -wv.x); }
+  if (cross2(mg, x) * cross2(mg, t) < 0.0 || cross2(m, x) * cross2(m, t) > 0.0) { return false; }
+  let gt = dot(GS, t);
+  let c = cross2(t, x);
+  return c * c * (1.0 + dot(GS, GS)) <= hw * hw * (dot(t, t) + gt * gt);
+}
+// The band of segment (s, ei) measured in G; d and e as in segment_test.
+fn surface_band_covers(e: vec2f, d: vec2f, hw: f32, corner: u32, s: u32, ei: u32) -> bool {
+  let hw2 = hw * hw;
+  let ee = dot(e, e);
+  var tp = 0.0;
+  if (ee > 0.0) { tp = clamp(dot(d, e) / ee, 0.0, 1.0); }
+  let r = d - tp * e;
+  if (corner == 0u) {  // round
+    let eg = gdot(e, e);
+    var t = 0.0;
+    if (eg > 0.0) { t = clamp(gdot(d, e) / eg, 0.0, 1.0); }
+    let rg = d - t * e;
+    return gdot(rg, rg) <= hw2;
+  }
+  // Within hw (bevel) or the longer plan miter of the segment in plan.
+  let pa = c_miter(s);
+  let pb = c_miter(ei);
+  var reach2 = hw2;
+  if (corner == 1u) { reach2 = max(hw2, max(dot(pa, pa), dot(pb, pb))); }
+  if (dot(r, r) > reach2) { return false; }
+  let a_in = c_in(s);
+  let a_out = c_out(s);
+  let b_in = c_in(ei);
+  let b_out = c_out(ei);
+  if (corner == 1u) {  // miter; sa, sb make the stored (outer) bevels left
+    let na = is_null(pa);
+    let nb = is_null(pb);
+    let sa = select(-1.0, 1.0, cross2(e, a_out) >= 0.0);
+    let sb = select(-1.0, 1.0, cross2(e, b_in) >= 0.0);
+    var ma = slope_normal(sa * a_out, hw);
+    if (!na) { ma = slope_miter(slope_normal(sa * a_in, hw), slope_normal(sa * a_out, hw), hw); }
+    var mb = slope_normal(sb * b_in, hw);
+    if (!nb) { mb = slope_miter(slope_normal(sb * b_in, hw), slope_normal(sb * b_out, hw), hw); }
+    return in_triangle(-ma, e - mb, e + mb, d) || in_triangle(-ma, e + mb, ma, d) ||
+           (na && gdot(d, d) <= hw2) || (nb && gdot(d - e, d - e) <= hw2) ||
+           (!na && slope_overhang(d, pa, ma, sa * a_in, hw, false)) ||
+           (!nb && slope_overhang(d - e, pb, mb, sb * b_out, hw, true));
+  }
+  // bevel
+  let n = slope_normal(a_out, hw);
+  let c = cross2(e, n);
+  if (c != 0.0) {
+    let sv = cross2(e, d) / c;
+    let tv = cross2(d, n) / c;
+    if (tv >= 0.0 && tv <= 1.0 && abs(sv) <= 1.0) { return true; }
+  }
+  if (is_null(a_in)) {
+    if (gdot(d, d) <= hw2) { return true; }
+  } else if (in_triangle(vec2f(0.0), slope_normal(a_in, hw), n, d)) { return true; }
+  if (is_null(b_out)) { return gdot(d - e, d - e) <= hw2; }
+  return in_triangle(e, e + slope_normal(b_in, hw), e + slope_normal(b_out, hw), d);
+}
+
+// The gradient of the terrain triangle under p (Heightfield::gradient_at):
+// 0 outside the mesh.
+fn gradient_at(p: vec2f) -> vec2f {
+  let fx = (p.x - F.tg.x) / F.tg.z;
+  let fy = (p.y - F.tg.y) / F.tg.w;
+  if (!(fx >= 0.0 && fy >= 0.0 && fx <= f32(F.tn.x - 1u) && fy <= f32(F.tn.y - 1u))) { return vec2f(0.0); }
+  let i = min(u32(fx), F.tn.x - 2u);
+  let j = min(u32(fy), F.tn.y - 2u);
+  let upper = fx - f32(i) < fy - f32(j);
+  return TG[2u * (i + (F.tn.x - 1u) * j) + select(0u, 1u, upper)];
+}
+
 // Step 6: segment (s, ei) of line \`line\` at p.
 fn segment_test(s: u32, ei: u32, p: vec2f, line: u32) -> i32 {
   let hw = wf(LP, 8u * line);
@@ -190,7 +287,10 @@ fn segment_test(s: u32, ei: u32, p: vec2f, line: u32) -> i32 {
   let e = vec2f(iv2(LV, ei) - ai) * Q;
   let d = p - rel(ai);
   var covered = false;
-  if (corner == 0u) {
+  if (slope_applies(line)) {
+    // Step 6b: the band measured along the terrain replaces the plan band.
+    covered = surface_band_covers(e, d, hw, corner, s, ei);
+  } else if (corner == 0u) {
     let ee = dot(e, e);
     var t = 0.0;
     if (ee > 0.0) { t = clamp(dot(d, e) / ee, 0.0, 1.0); }
@@ -385,6 +485,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let wp = F.inv_view_proj * vec4f(ndc, depth, 1.0);
     p = ground_point(ndc, wp.xy / wp.w);
   }
+  if (F.tn.z != 0u) { GS = gradient_at(p); }
   OUT[gid.x + W * gid.y] = query(p);
 }
 `;
