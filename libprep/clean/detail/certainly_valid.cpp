@@ -20,11 +20,69 @@
 namespace prep::detail {
 namespace {
 
+// Set when an orientation was decided where GEOS may decide otherwise
+// (below); polygon_validity then answers `unsure`.
+thread_local bool fragile = false;
+
+bool same_point(const Point2& a, const Point2& b) {
+  return a.x == b.x && a.y == b.y;
+}
+
+// True when a - b is exact in double (Knuth's two-sum error is zero).
+bool exact_difference(double a, double b) {
+  const double d = a - b, bv = a - d, av = d + bv;
+  return (a - av) + (bv - b) == 0;
+}
+
+// A double-double number (hi + lo, |lo| <= ulp(hi) / 2).
+struct DD {
+  double hi, lo;
+};
+DD two_sum(double a, double b) {
+  const double s = a + b, bv = s - a, av = s - bv;
+  return {s, (a - av) + (b - bv)};
+}
+DD normalized(double hi, double lo) {
+  const double s = hi + lo;
+  return {s, lo - (s - hi)};
+}
+DD dd_mul(DD a, DD b) {
+  const double p = a.hi * b.hi, e = std::fma(a.hi, b.hi, -p);
+  return normalized(p, e + (a.hi * b.lo + a.lo * b.hi));
+}
+DD dd_sub(DD a, DD b) {
+  const DD s = two_sum(a.hi, -b.hi);
+  return normalized(s.hi, s.lo + (a.lo - b.lo));
+}
+
+// True when GEOS's double-double orientation of (a, b, c) surely has the
+// exact sign `o` (CGAL's). Its differences of two doubles are exact;
+// products and sums of double-doubles err by about 2^-104 of the terms,
+// so its sign is the exact one when the determinant is not within 10^-26
+// of the terms (measured here in double-double too), and its zero is
+// exact when the differences are exact doubles (the products then are too)
+// or two of the points are equal.
+bool geos_agrees(const Point2& a, const Point2& b, const Point2& c, int o) {
+  if (same_point(a, b) || same_point(a, c) || same_point(b, c)) return true;
+  if (exact_difference(b.x, a.x) && exact_difference(c.x, a.x) && exact_difference(c.x, b.x) &&
+      exact_difference(b.y, a.y) && exact_difference(c.y, a.y) && exact_difference(c.y, b.y))
+    return true;
+  if (o == 0) return false;
+  const DD dx1 = two_sum(b.x, -a.x), dy1 = two_sum(b.y, -a.y);
+  const DD dx2 = two_sum(c.x, -b.x), dy2 = two_sum(c.y, -b.y);
+  const DD l = dd_mul(dx1, dy2), r = dd_mul(dy1, dx2), det = dd_sub(l, r);
+  const double terms = std::fabs(l.hi) + std::fabs(r.hi);
+  return std::fabs(det.hi) > 1e-26 * terms;
+}
+
 // Sign of the orientation of (a, b, c): +1 left turn, -1 right turn, 0
 // collinear. Exact: the floating-point determinant where Shewchuk's
 // orient2d error bound A (which covers the rounding of the differences)
 // trusts it, CGAL's exact predicate where it does not (and near underflow,
-// where the bound does not hold).
+// where the bound does not hold). GEOS (CGAlgorithmsDD::orientationIndex)
+// decides that second case in double-double arithmetic, which may differ
+// from the exact sign for (nearly) collinear points: such a case is
+// `fragile` (geos_agrees).
 int orientation(const Point2& a, const Point2& b, const Point2& c) {
   const double l = (b.x - a.x) * (c.y - a.y), r = (b.y - a.y) * (c.x - a.x);
   const double det = l - r, sum = std::fabs(l) + std::fabs(r);
@@ -33,7 +91,9 @@ int orientation(const Point2& a, const Point2& b, const Point2& c) {
     if (det > bound) return 1;
     if (det < -bound) return -1;
   }
-  return exact_orientation(a, b, c);
+  const int o = exact_orientation(a, b, c);
+  if (!geos_agrees(a, b, c, o)) fragile = true;
+  return o;
 }
 
 bool same(const Point2& a, const Point2& b) {
@@ -132,7 +192,12 @@ Validity append_chains(const Ring& r, uint32_t ri, std::vector<Chain>& chains) {
   const uint32_t n = static_cast<uint32_t>(r.size());
   for (uint32_t i = 0; i < n; ++i) {
     const Point2 &a = r[i == 0 ? n - 1 : i - 1], &v = r[i], &b = r[i + 1 == n ? 0 : i + 1];
-    if (orientation(a, v, b) == 0 && before(a, v) == before(b, v)) return Validity::invalid;
+    const bool was_fragile = fragile, back = before(a, v) == before(b, v);
+    const int o = orientation(a, v, b);
+    if (o == 0 && back) return Validity::invalid;
+    // Going on past v (v between its neighbours along x, or y): the edges
+    // meet only at v whether GEOS finds them collinear or not.
+    if (!back) fragile = was_fragile;
   }
   // Chains: start at an edge whose direction class differs from the
   // previous edge's, so no chain wraps around the ring's start.
@@ -576,9 +641,8 @@ const std::vector<Ring>* without_repeats(const std::vector<Ring>& rings, std::ve
   return &copy;
 }
 
-}  // namespace
-
-Validity polygon_validity(const std::vector<Ring>& input) {
+// polygon_validity without the check of fragile orientations.
+Validity decide(const std::vector<Ring>& input) {
   if (input.empty()) return Validity::unsure;
   for (const Ring& r : input)
     for (const Point2& p : r)
@@ -604,6 +668,14 @@ Validity polygon_validity(const std::vector<Ring>& input) {
   std::vector<Point2> free;
   if (!free_vertices(rings, scratch.touch_points, free)) return Validity::unsure;
   return holes_placed(rings, free, 32 * total + 4096);
+}
+
+}  // namespace
+
+Validity polygon_validity(const std::vector<Ring>& rings) {
+  fragile = false;
+  const Validity v = decide(rings);
+  return fragile ? Validity::unsure : v;
 }
 
 bool certainly_valid(const std::vector<Ring>& rings) {
