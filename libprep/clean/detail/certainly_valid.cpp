@@ -60,10 +60,9 @@ DD dd_sub(DD a, DD b) {
 // products and sums of double-doubles err by about 2^-104 of the terms,
 // so its sign is the exact one when the determinant is not within 10^-26
 // of the terms (measured here in double-double too), and its zero is
-// exact when the differences are exact doubles (the products then are too)
-// or two of the points are equal.
+// exact when the differences are exact doubles (the products then are
+// too).
 bool geos_agrees(const Point2& a, const Point2& b, const Point2& c, int o) {
-  if (same_point(a, b) || same_point(a, c) || same_point(b, c)) return true;
   if (exact_difference(b.x, a.x) && exact_difference(c.x, a.x) && exact_difference(c.x, b.x) &&
       exact_difference(b.y, a.y) && exact_difference(c.y, a.y) && exact_difference(c.y, b.y))
     return true;
@@ -91,6 +90,8 @@ int orientation(const Point2& a, const Point2& b, const Point2& c) {
     if (det > bound) return 1;
     if (det < -bound) return -1;
   }
+  // Two equal points (a touch at a shared vertex): collinear, for GEOS too.
+  if (same_point(a, b) || same_point(a, c) || same_point(b, c)) return 0;
   const int o = exact_orientation(a, b, c);
   if (!geos_agrees(a, b, c, o)) fragile = true;
   return o;
