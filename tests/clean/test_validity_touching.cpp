@@ -86,10 +86,11 @@ Ring cell_hole(Point2 c, const std::array<SideKind, 4>& sides, double reach_far 
 // `step` units along its boundary.
 Ring rectangle(double w, double h, double step) {
   Ring r;
-  for (double x = 0; x < w; x += step) r.push_back({x, 0});
-  for (double y = 0; y < h; y += step) r.push_back({w, y});
-  for (double x = w; x > 0; x -= step) r.push_back({x, h});
-  for (double y = h; y > 0; y -= step) r.push_back({0, y});
+  const int nx = int(std::ceil(w / step)), ny = int(std::ceil(h / step));
+  for (int i = 0; i < nx; ++i) r.push_back({i * step, 0});
+  for (int j = 0; j < ny; ++j) r.push_back({w, j * step});
+  for (int i = 0; i < nx; ++i) r.push_back({w - i * step, h});
+  for (int j = 0; j < ny; ++j) r.push_back({0, h - j * step});
   return r;
 }
 
