@@ -40,7 +40,7 @@ using detail::kViewStage;
 struct Received {
   std::mutex m;
   std::condition_variable cv;
-  std::string frame, decals, error;
+  std::string frame, decals, error, notes;
   bool have_frame = false, have_decals = false, failed = false;
 };
 
@@ -95,6 +95,17 @@ void add_post_routes(httplib::Server& server, Received& got, size_t bytes) {
     if (got.error.empty()) got.error = "(no message)";
     got.failed = true;
     got.cv.notify_all();
+    res.set_content("ok\n", "text/plain");
+  });
+  // What the page says the frame leaves out (layers it does not draw), one
+  // note per POST, sent before the frame; printed on stderr.
+  server.Post("/__shot/note", [&got](const httplib::Request& req, httplib::Response& res) {
+    if (req.remote_addr != "127.0.0.1") {
+      res.status = 403;
+      return;
+    }
+    const std::lock_guard lock(got.m);
+    if (got.notes.size() < kMaxErrorText) got.notes += req.body.substr(0, kMaxErrorText) + "\n";
     res.set_content("ok\n", "text/plain");
   });
   // The pixels of the largest frame, and no more.
@@ -302,6 +313,9 @@ void screenshot(const std::string& path, const ShotOptions& opt) {
   };
   opt.write_frame(span_of(got.frame));
   if (opt.decals && opt.write_decals) opt.write_decals(span_of(got.decals));
+  std::stringstream notes(got.notes);
+  for (std::string line; std::getline(notes, line);)
+    if (!line.empty()) std::fprintf(stderr, "decalprep view: note: %s\n", line.c_str());
 }
 
 }  // namespace prep::view

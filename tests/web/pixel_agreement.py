@@ -12,14 +12,18 @@ must reach the case's threshold.
   top-down cases: render --cpu --decals against view --decals (the static
                   decal layer alone, straight alpha): the CPU evaluator's
                   query points are the pixel centres, as the browser's are;
-  oblique case:   render (GL, --aa none) -o against view's final frame,
-                  both at --fit --pitch 45 over flat terrain.
+  oblique cases:  render (GL, --aa none) -o against view's final frame,
+                  both at --fit --pitch 45 and --only polygons,lines (the
+                  browser does not draw dynamic lines yet): Liechtenstein
+                  over flat ground (no DEM), Monaco over its SRTM terrain
+                  (the package's STEM.terrain, written by `decalprep
+                  terrain`, against render's mesh of the build DEM).
 
 Prints one line per case with the counts. Exit 0 when every case passes,
 1 when one fails (a wrong renderer fails here, it is never skipped), 77
 (skip) only when Chromium is missing or cannot start.
 
-Usage: pixel_agreement.py DECALPREP REPO_ROOT WORK_DIR
+Usage: pixel_agreement.py DECALPREP REPO_ROOT WORK_DIR SHARED_DATA_DIR
 """
 import json
 import os
@@ -31,7 +35,7 @@ import zlib
 
 SKIP = 77
 BROWSER_EXIT = 12  # view --screenshot: no Chromium (docs/cli.md)
-LIECHTENSTEIN = "/work/shared/data/liechtenstein/liechtenstein-2013-08-03.osm.pbf"
+LIECHTENSTEIN = "liechtenstein/liechtenstein-2013-08-03.osm.pbf"  # in SHARED_DATA_DIR
 
 
 def read_png(path):
@@ -119,7 +123,7 @@ def package_centre(decalprep, pkg):
 
 
 def main():
-    decalprep, root, work = sys.argv[1], sys.argv[2], sys.argv[3]
+    decalprep, root, work, data = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     size = (480, 270)
@@ -128,15 +132,20 @@ def main():
     if b.returncode:
         print("FAIL: building the Monaco sample:", b.stderr[-2000:])
         return 1
-    li_scene = os.path.join(root, "tests/web/webgpu_liechtenstein.toml")
-    if os.path.exists(LIECHTENSTEIN) and os.path.exists(li_scene):
+    li_source = os.path.join(data, LIECHTENSTEIN)
+    if os.path.exists(li_source):
+        li_scene = os.path.join(work, "webgpu_liechtenstein.toml")
+        with open(os.path.join(root, "tests/web/webgpu_liechtenstein.toml")) as f:
+            text = f.read().replace("@SHARED_DATA@", os.path.abspath(data))
+        with open(li_scene, "w") as f:
+            f.write(text)
         packages["liechtenstein"] = os.path.join(work, "liechtenstein.decals")
         b = run([decalprep, "build", li_scene, "-o", packages["liechtenstein"]])
         if b.returncode:
             print("FAIL: building", li_scene, b.stderr[-2000:])
             return 1
     else:
-        print(f"note: {LIECHTENSTEIN} or {li_scene} is missing: the Liechtenstein cases are left out")
+        print(f"note: {li_source} is missing: the Liechtenstein cases are left out")
 
     # (name, package, reference command options, view options, compare decals?, threshold)
     cases = []
@@ -147,11 +156,20 @@ def main():
             extent = f"{cx - hw!r},{cy - hh!r},{cx + hw!r},{cy + hh!r}"
             opts = ["--extent", extent, "--size", f"{size[0]}x{size[1]}"]
             cases.append((f"{name} top-down {metres} m", pkg, ["--cpu"] + opts, opts, True, 0.999))
-    # The final frame, oblique, over flat terrain (no STEM.terrain beside the
-    # package: view draws flat), against the GL renderer without anti-aliasing.
-    oblique = ["--fit", "--pitch", "45", "--size", f"{size[0]}x{size[1]}"]
-    cases.append(("monaco oblique --fit --pitch 45, final frame", packages["monaco"],
-                  ["--flat", "--aa", "none"] + oblique, oblique, False, 0.995))
+    # The final frame, oblique, against the GL renderer without
+    # anti-aliasing: Liechtenstein on flat ground (built without a DEM, no
+    # STEM.terrain), Monaco over the terrain file `decalprep terrain` writes
+    # from its build DEM, which render reads itself.
+    oblique = ["--fit", "--pitch", "45", "--size", f"{size[0]}x{size[1]}", "--only", "polygons,lines"]
+    if "liechtenstein" in packages:
+        cases.append(("liechtenstein oblique --fit --pitch 45 flat, final frame",
+                      packages["liechtenstein"], ["--aa", "none"] + oblique, oblique, False, 0.999))
+    t = run([decalprep, "terrain", packages["monaco"]])
+    if t.returncode:
+        print("FAIL: decalprep terrain on the Monaco sample:", t.stderr[-2000:])
+        return 1
+    cases.append(("monaco oblique --fit --pitch 45 over terrain, final frame", packages["monaco"],
+                  ["--aa", "none"] + oblique, oblique, False, 0.999))
 
     failed = 0
     for k, (name, pkg, ref_opts, view_opts, decals, threshold) in enumerate(cases):

@@ -62,8 +62,13 @@ nlohmann::json shot_config(const R::RenderView& v, bool decals) {
     ramps.push_back({layer, stops});
   }
   const auto& a = v.options.albedo;
-  return {{"width", v.options.width},     {"height", v.options.height}, {"camera", cam},
-          {"albedo", {a[0], a[1], a[2]}}, {"decals", decals},           {"ramps", ramps}};
+  // --only: the decal kinds to draw (the page hides the other layers).
+  const nlohmann::json only = {{"polygons", v.options.draw_polygons},
+                               {"lines", v.options.draw_lines},
+                               {"dynamic", v.options.draw_dynamic}};
+  return {{"width", v.options.width}, {"height", v.options.height}, {"camera", cam},
+          {"albedo", {a[0], a[1], a[2]}}, {"decals", decals},       {"ramps", ramps},
+          {"only", only}};
 }
 
 // A package's terrain file STEM.terrain (formats/SPEC.md), which the page
@@ -146,6 +151,9 @@ void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
   needs(cmd->add_option("--fov", r.fov, "Vertical field of view, degrees (45)"));
   needs(cmd->add_flag("--ortho", r.ortho, "Orthographic projection"));
   needs(cmd->add_option("--size", r.size, "Image size WxH (default 640x360, as render)"));
+  needs(cmd->add_option("--only", r.only,
+                        "Draw only these decal kinds: polygons,lines,dynamic (as render; the "
+                        "browser does not draw dynamic lines yet)"));
   needs(cmd->add_option("--ramp", r.ramps,
                         "Colour ramp LAYER=value:#rrggbb[aa],... (as render; repeat for more)")
             ->expected(1)
