@@ -4,7 +4,7 @@
 // processes inherit it), so stopping it is one kill of the group; its
 // profile is a fresh temp folder, removed afterwards.
 #include <fcntl.h>
-#include <signal.h>
+#include <csignal>
 #include <sys/prctl.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -40,11 +40,11 @@ using detail::kViewStage;
 struct Received {
   std::mutex m;
   std::condition_variable cv;
-  std::string frame, decals, error, notes;
+  std::string frame, decals, error, notes, stats;
   bool have_frame = false, have_decals = false, failed = false;
 };
 
-constexpr size_t kMaxErrorText = 64 * 1024;
+constexpr size_t kMaxErrorText = size_t{64} * 1024;
 
 bool executable_file(const std::string& p) {
   struct stat st {};
@@ -106,6 +106,16 @@ void add_post_routes(httplib::Server& server, Received& got, size_t bytes) {
     }
     const std::lock_guard lock(got.m);
     if (got.notes.size() < kMaxErrorText) got.notes += req.body.substr(0, kMaxErrorText) + "\n";
+    res.set_content("ok\n", "text/plain");
+  });
+  // The page's frame times (JSON, web/viewer/viewer.js), sent before the frame.
+  server.Post("/__shot/stats", [&got](const httplib::Request& req, httplib::Response& res) {
+    if (req.remote_addr != "127.0.0.1") {
+      res.status = 403;
+      return;
+    }
+    const std::lock_guard lock(got.m);
+    got.stats = req.body.substr(0, kMaxErrorText);
     res.set_content("ok\n", "text/plain");
   });
   // The pixels of the largest frame, and no more.
@@ -316,6 +326,7 @@ void screenshot(const std::string& path, const ShotOptions& opt) {
   std::stringstream notes(got.notes);
   for (std::string line; std::getline(notes, line);)
     if (!line.empty()) std::fprintf(stderr, "decalprep view: note: %s\n", line.c_str());
+  if (opt.on_stats && !got.stats.empty()) opt.on_stats(got.stats);
 }
 
 }  // namespace prep::view

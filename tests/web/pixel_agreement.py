@@ -12,6 +12,8 @@ must reach the case's threshold.
   top-down cases: render --cpu --decals against view --decals (the static
                   decal layer alone, straight alpha): the CPU evaluator's
                   query points are the pixel centres, as the browser's are;
+                  one with --only lines (the page must hide the polygons)
+                  and --frames 2 --stats (the frame times printed);
   oblique cases:  render (GL, --aa none) -o against view's final frame,
                   both at --fit --pitch 45 and --only polygons,lines (the
                   browser does not draw dynamic lines yet): Liechtenstein
@@ -19,7 +21,8 @@ must reach the case's threshold.
                   (the package's STEM.terrain, written by `decalprep
                   terrain`, against render's mesh of the build DEM).
 
-Prints one line per case with the counts. Exit 0 when every case passes,
+Without --only, view must name the dynamic layers it leaves out (Monaco's
+motorways); with it, not. Prints one line per case with the counts. Exit 0 when every case passes,
 1 when one fails (a wrong renderer fails here, it is never skipped), 77
 (skip) only when Chromium is missing or cannot start.
 
@@ -27,6 +30,7 @@ Usage: pixel_agreement.py DECALPREP REPO_ROOT WORK_DIR SHARED_DATA_DIR
 """
 import json
 import os
+import re
 import shutil
 import struct
 import subprocess
@@ -156,6 +160,13 @@ def main():
             extent = f"{cx - hw!r},{cy - hh!r},{cx + hw!r},{cy + hh!r}"
             opts = ["--extent", extent, "--size", f"{size[0]}x{size[1]}"]
             cases.append((f"{name} top-down {metres} m", pkg, ["--cpu"] + opts, opts, True, 0.999))
+        if name == "monaco":
+            # --only reaches the page: the polygon layers hidden, the lines
+            # drawn (a page that ignored it would draw the polygons too);
+            # --frames/--stats: the frame times printed. The 4 m extent.
+            opts = ["--extent", extent, "--size", f"{size[0]}x{size[1]}", "--only", "lines"]
+            cases.append((f"{name} top-down 4.0 m --only lines", pkg, ["--cpu"] + opts,
+                          opts + ["--frames", "2", "--stats"], True, 0.999))
     # The final frame, oblique, against the GL renderer without
     # anti-aliasing: Liechtenstein on flat ground (built without a DEM, no
     # STEM.terrain), Monaco over the terrain file `decalprep terrain` writes
@@ -191,6 +202,20 @@ def main():
                 print("SKIP: Chromium could not start:", v.stderr[-2000:])
                 return SKIP
             print(f"FAIL {name}: view --screenshot exited {v.returncode}: {v.stderr[-3000:]}")
+            failed += 1
+            continue
+        # The note naming the dynamic layers the browser leaves out (Monaco's
+        # motorways) when the view asks for every kind, and none otherwise.
+        wants_dynamic = "--only" not in view_opts
+        noted = "motorways left out" in v.stderr
+        if pkg == packages["monaco"] and noted != wants_dynamic:
+            print(f"FAIL {name}: the note on dynamic lines {'missing' if wants_dynamic else 'printed'}: "
+                  f"{v.stderr[-2000:]}")
+            failed += 1
+            continue
+        if "--stats" in view_opts and not re.search(r"^frame: [\d.]+ ms median of 1 warm frame, first ",
+                                                    v.stdout, re.M):
+            print(f"FAIL {name}: view --stats printed no frame times: {v.stdout[-2000:]}")
             failed += 1
             continue
         a, bpath = (ref_d, web_d) if decals else (ref, web)

@@ -4,10 +4,13 @@
 // `decalprep render` does (prep::render::place_render_view, the same code and
 // options), has a headless Chromium draw that view with the browser
 // renderer and writes what the page sends back (prep::view::screenshot).
+#include <algorithm>
+#include <cstddef>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "command.hpp"
 #include "prep/pipeline.hpp"
@@ -26,6 +29,7 @@ struct ViewArgs {
   R::RenderRequest shot;
   double timeout = 120;
   bool verbose = false;
+  bool stats = false;  // --stats: the page's frame times
 };
 
 nlohmann::json vec3(const prep::render::Vec3& v) {
@@ -66,9 +70,14 @@ nlohmann::json shot_config(const R::RenderView& v, bool decals) {
   const nlohmann::json only = {{"polygons", v.options.draw_polygons},
                                {"lines", v.options.draw_lines},
                                {"dynamic", v.options.draw_dynamic}};
-  return {{"width", v.options.width}, {"height", v.options.height}, {"camera", cam},
-          {"albedo", {a[0], a[1], a[2]}}, {"decals", decals},       {"ramps", ramps},
-          {"only", only}};
+  return {{"width", v.options.width},
+          {"height", v.options.height},
+          {"camera", cam},
+          {"albedo", {a[0], a[1], a[2]}},
+          {"decals", decals},
+          {"ramps", ramps},
+          {"only", only},
+          {"frames", v.options.frames}};
 }
 
 // A package's terrain file STEM.terrain (formats/SPEC.md), which the page
@@ -79,6 +88,41 @@ bool has_terrain_file(const std::string& package) {
   if (p.extension() != ".decals") return false;
   std::error_code ec;
   return std::filesystem::is_regular_file(p.parent_path() / (p.stem().string() + ".terrain"), ec);
+}
+
+// --stats: what the page measured (its JSON is the page's, so untrusted:
+// a field that is missing or of the wrong type is left out).
+void print_stats(const std::string& text, uint32_t width, uint32_t height) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (!j.is_object()) {
+    std::printf("stats: the page sent no readable frame times\n");
+    return;
+  }
+  const auto str = [&j](const char* key) {
+    return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string("?");
+  };
+  std::printf("device: %s in %s, %ux%u\n", str("adapter").c_str(), str("browser").c_str(), width,
+              height);
+  std::vector<double> ms;
+  if (j.contains("times") && j["times"].is_array())
+    for (const auto& t : j["times"])
+      if (t.is_number()) ms.push_back(t.get<double>());
+  if (ms.empty()) return;
+  std::string all;
+  for (double t : ms) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%s%.2f", all.empty() ? "" : ", ", t);
+    all += buf;
+  }
+  std::vector<double> warm(ms.begin() + (ms.size() > 1 ? 1 : 0), ms.end());
+  const auto mid = warm.begin() + static_cast<std::ptrdiff_t>(warm.size() / 2);
+  std::nth_element(warm.begin(), mid, warm.end());
+  std::printf(
+      "frame: %.3f ms median of %zu warm frame%s, first %.3f ms (renderFrame: encode, submit "
+      "and the queue done, read-back not included); all: %s\n",
+      *mid, warm.size(), warm.size() == 1 ? "" : "s", ms.front(), all.c_str());
+  if (j.contains("gpuBytes") && j["gpuBytes"].is_number())
+    std::printf("gpu memory: %.0f bytes of buffers and textures\n", j["gpuBytes"].get<double>());
 }
 
 void run_screenshot(ViewArgs& a) {
@@ -117,6 +161,7 @@ void run_screenshot(ViewArgs& a) {
   s.write_decals = [&](std::span<const uint8_t> rgba) {
     prep::write_png_rgba(r.decals_png, s.width, s.height, rgba);
   };
+  if (a.stats) s.on_stats = [&](const std::string& text) { print_stats(text, s.width, s.height); };
   prep::view::screenshot(a.serve.path, s);
 }
 
@@ -158,6 +203,11 @@ void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
                         "Colour ramp LAYER=value:#rrggbb[aa],... (as render; repeat for more)")
             ->expected(1)
             ->take_all());
+  needs(cmd->add_option("--frames", r.frames,
+                        "--screenshot: draw N frames, write the last (for --stats; default 1)")
+            ->check(CLI::Range(1, 1000)));
+  needs(cmd->add_flag("--stats", a.stats,
+                      "--screenshot: print the browser's adapter and frame times"));
   needs(cmd->add_option("--timeout", a.timeout,
                         "--screenshot: seconds to wait for the page (default 120)")
             ->check(CLI::PositiveNumber));

@@ -15,7 +15,8 @@ import { layerNames, showLayers, showOverlay, showStatus } from "./ui.js";
 /**
  * @typedef {{polygons: boolean, lines: boolean, dynamic: boolean}} Kinds
  * @typedef {{width: number, height: number, camera: Camera, albedo: number[], decals: boolean,
- *            ramps: import("../src/render/scene.js").LayerRamp[], only?: Kinds}} ShotConfig
+ *            ramps: import("../src/render/scene.js").LayerRamp[], only?: Kinds,
+ *            frames?: number}} ShotConfig
  * @typedef {{kind: string, url: string, terrain?: string | null, screenshot?: ShotConfig | null}} Config
  */
 
@@ -111,11 +112,24 @@ async function screenshot(config) {
       undrawn.length > 1 ? "s" : ""} ${undrawn.join(", ")} left out (render --only polygons,lines ` +
       "draws the same decals)");
   }
-  const out = await renderer.renderFrame({
-    camera: s.camera, width: s.width, height: s.height, albedo: s.albedo, decals: s.decals,
-    present: false, readback: true,
-  });
-  if (!out.rgba) throw new Error("renderFrame returned no pixels");
+  // --frames N: N frames drawn, the last one sent; their times go to
+  // /__shot/stats (view --stats prints them).
+  const frames = Math.max(1, Math.min(1000, Math.floor(s.frames ?? 1)));
+  const times = [];
+  let out = null;
+  for (let i = 0; i < frames; ++i) {
+    const last = i === frames - 1;
+    out = await renderer.renderFrame({
+      camera: s.camera, width: s.width, height: s.height, albedo: s.albedo, decals: s.decals && last,
+      present: false, readback: last,
+    });
+    times.push(out.ms);
+  }
+  if (!out || !out.rgba) throw new Error("renderFrame returned no pixels");
+  await post("/__shot/stats", JSON.stringify({
+    adapter: renderer.adapterName,
+    browser: /(?:HeadlessChrome|Chrome|Firefox|Safari)\/[\d.]+/.exec(navigator.userAgent)?.[0] ?? navigator.userAgent, times, gpuBytes: renderer.gpuBytes,
+  }));
   // Each POST is W*H*4 bytes of RGBA8, row 0 at the top.
   await post("/__shot/frame", new Blob([out.rgba]));
   if (s.decals) {

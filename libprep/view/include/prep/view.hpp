@@ -108,6 +108,9 @@ struct ShotOptions {
   bool verbose = false;  // Chromium's log and the page's console on stderr
   // Called with the POSTed pixels once Chromium is stopped.
   std::function<void(std::span<const uint8_t> rgba)> write_frame, write_decals;
+  // Called after the writers with what the page POSTed to /__shot/stats
+  // (JSON: the adapter and the frame times; untrusted text), if it did.
+  std::function<void(const std::string& json)> on_stats;
 };
 
 // The Chromium to draw with: $DECALPREP_CHROMIUM when set (it must be an
@@ -123,6 +126,6 @@ std::optional<std::string> find_chromium();
 // (its text in the message), Chromium exits before the pixels come, or
 // `timeout_s` passes; SIGINT/SIGTERM stop Chromium and end the process
 // (130/143).
-void screenshot(const std::string& path, const ShotOptions& shot);
+void screenshot(const std::string& path, const ShotOptions& opt);
 
 }  // namespace prep::view
