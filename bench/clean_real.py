@@ -3,7 +3,7 @@
 
   bench/clean_real.py [--input PATH] [--runs 3] [--threads 0]
                       [--build-dir build/release] [--out bench/report]
-                      [--baseline-build-dir DIR]
+                      [--baseline-build-dir DIR] [--tileset METRES]
 
 The input (default: the optional earth-seas set of scripts/fetch-data,
 @geo-maps/earth-seas-10m: the world ocean as one polygon of 239372 shell
@@ -17,6 +17,9 @@ origin, which a first dry run with an extent beyond the data reports
   dry-run   `decalprep build --dry-run --report`: read, project and clean
             timings from the report;
   build     the whole `decalprep build -o`.
+With --tileset METRES, also the same build as a tileset of that tile size
+(`tileset`: `build --tile-size METRES -o DIR`) and with overview levels
+(`tileset+levels`: `--levels auto`), each against the same floor.
 With --baseline-build-dir (another build, e.g. of the previous commit), its
 dry-run and build (`dry-run@base`, `build@base`) alternate with the others in
 the same runs, so that before and after are compared under the same load.
@@ -60,6 +63,7 @@ def main():
     ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
     ap.add_argument("--baseline-build-dir", default=None)
+    ap.add_argument("--tileset", type=float, default=0)
     a = ap.parse_args()
     if not os.path.exists(a.input):
         sys.exit("clean_real: %s is missing: run scripts/fetch-data earth-seas" % a.input)
@@ -67,7 +71,8 @@ def main():
     tools = {"": tool}
     if a.baseline_build_dir:
         tools["@base"] = os.path.join(a.baseline_build_dir, "tools", "decalprep", "decalprep")
-    whats = ["ogr2ogr"] + ["%s%s" % (w, t) for t in tools for w in ("dry-run", "build")]
+    kinds = ("dry-run", "build") + (("tileset", "tileset+levels") if a.tileset > 0 else ())
+    whats = ["ogr2ogr"] + ["%s%s" % (w, t) for t in tools for w in kinds]
     os.makedirs(a.out, exist_ok=True)
     work = tempfile.mkdtemp(prefix="clean_real_")
     rows = []
@@ -88,13 +93,20 @@ def main():
                     cmd = ["ogr2ogr", "-f", "FlatGeobuf", out, a.input]
                 elif what.startswith("dry-run"):
                     cmd = [exe, "build"] + scene + ["--dry-run", "--report", report]
+                elif what.startswith("tileset"):
+                    out = os.path.join(work, "seas-tiles")
+                    shutil.rmtree(out, ignore_errors=True)
+                    cmd = [exe, "build"] + scene + ["-o", out, "--tile-size", "%g" % a.tileset,
+                                                    "--report", report]
+                    if what.startswith("tileset+levels"):
+                        cmd += ["--levels", "auto"]
                 else:
                     cmd = [exe, "build"] + scene + ["-o", os.path.join(work, "seas.decals"),
                                                     "--report", report]
                 wall, cpu, rss = measured(cmd)
                 row = {"run": run, "what": what, "wall_s": wall, "cpu_s": cpu, "peak_rss_mib": rss,
                        "load1": os.getloadavg()[0]}
-                if what != "ogr2ogr":
+                if what.startswith(("dry-run", "build")):
                     t = json.load(open(report))["timings_s"]
                     for stage in ("read", "project", "clean"):
                         row[stage + "_s"] = t.get(stage, float("nan"))
@@ -125,7 +137,11 @@ def main():
     for t in tools:
         print()
         print("clean / (read + project)%-6s = %.2f   (target <= 3)" % (t, ratios[t][0]))
-        print("build / ogr2ogr%-15s = %.2f   (target <= 8)" % (t, ratios[t][1]))
+        print("build / ogr2ogr%-15s = %.2f   (target <= 5)" % (t, ratios[t][1]))
+        for kind, target in (("tileset", 6), ("tileset+levels", 8)):
+            if kind + t in best:
+                print("%s / ogr2ogr%-*s = %.2f   (target <= %d)" %
+                      (kind, 21 - len(kind), t, best[kind + t]["wall_s"] / floor["wall_s"], target))
 
     fields = ["run", "what", "wall_s", "cpu_s", "peak_rss_mib", "load1", "read_s", "project_s",
               "clean_s", "clean_over_read_project", "build_over_ogr2ogr"]
@@ -142,6 +158,8 @@ def main():
                 r["clean_over_read_project"] = ratios[t][0]
             if what.startswith("build"):
                 r["build_over_ogr2ogr"] = ratios[t][1]
+            if what.startswith("tileset"):
+                r["build_over_ogr2ogr"] = r["wall_s"] / floor["wall_s"]
             w.writerow({k: ("%.3f" % v if isinstance(v, float) else v) for k, v in r.items()})
     print("wrote %s" % path)
 

@@ -132,6 +132,32 @@ void read_oriented_rings(GEOSContextHandle_t h, const GEOSGeometry* poly, Ring& 
   }
 }
 
+// GEOS's isValid of a geometry, with a polygon decided by the sweep of
+// detail/certainly_valid.hpp where it can (near-linear time; GEOS places
+// each hole by a walk over the whole shell) and by GEOS where the sweep is
+// unsure or a ring is too short for it: the same answer either way
+// (tests/clean/test_validity_touching.cpp).
+bool geos_valid(GEOSContextHandle_t h, const GEOSGeometry* g) {
+  if (GEOSGeomTypeId_r(h, g) == GEOS_POLYGON && GEOSisEmpty_r(h, g) == 0) {
+    std::vector<Ring> rings;
+    const int nh = GEOSGetNumInteriorRings_r(h, g);
+    rings.reserve(1 + size_t(std::max(nh, 0)));
+    rings.push_back(read_coords(h, GEOSGetExteriorRing_r(h, g), true));
+    for (int i = 0; i < nh; ++i)
+      rings.push_back(read_coords(h, GEOSGetInteriorRingN_r(h, g, i), true));
+    const bool sweepable =
+        std::all_of(rings.begin(), rings.end(), [](const Ring& r) { return r.size() >= 3; });
+    if (sweepable) {
+      switch (detail::polygon_validity(rings)) {
+        case detail::Validity::valid: return true;
+        case detail::Validity::invalid: return false;
+        case detail::Validity::unsure: break;
+      }
+    }
+  }
+  return GEOSisValid_r(h, g) == 1;
+}
+
 // Collects the polygons (or line strings) of any geometry, recursively.
 void collect(GEOSContextHandle_t h, const GEOSGeometry* g, int want_type,
              std::vector<const GEOSGeometry*>& out, bool& had_other) {
@@ -460,8 +486,8 @@ struct Cleaner {
       if (type == GEOS_POLYGON) {
         // Simplification is topology-preserving; keep the unsimplified part
         // if GEOS ever disagrees.
-        ctx.step("GEOS isValid of the simplified part");
-        if (simple && GEOSisValid_r(h, simple.get()) != 1) simple = Geom();
+        ctx.step("validity of the simplified part");
+        if (simple && !geos_valid(h, simple.get())) simple = Geom();
       }
       std::vector<const GEOSGeometry*> pieces;
       bool ignored = false;
@@ -985,8 +1011,9 @@ bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
   if (!simple)
     fail<input_error>(kNoStage, "overview level: " + what +
                                     ": GEOS simplification failed: " + impl_->ctx.last_error());
-  // Topology-preserving; keep the part as it is if GEOS ever disagrees (as clean() does).
-  if (GEOSisValid_r(h, simple.get()) != 1) return true;
+  // Topology-preserving; keep the part as it is if GEOS ever disagrees (as
+  // clean() does), decided by the sweep where it can (geos_valid).
+  if (!geos_valid(h, simple.get())) return true;
   std::vector<const GEOSGeometry*> polys;
   bool ignored = false;
   collect(h, simple.get(), GEOS_POLYGON, polys, ignored);
