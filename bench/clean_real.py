@@ -3,7 +3,7 @@
 
   bench/clean_real.py [--input PATH] [--runs 3] [--threads 0]
                       [--build-dir build/release] [--out bench/report]
-                      [--baseline-build-dir DIR] [--tileset METRES]
+                      [--baseline-build-dir DIR] [--tileset METRES] [--jobs N]
 
 The input (default: the optional earth-seas set of scripts/fetch-data,
 @geo-maps/earth-seas-10m: the world ocean as one polygon of 239372 shell
@@ -19,7 +19,8 @@ origin, which a first dry run with an extent beyond the data reports
   build     the whole `decalprep build -o`.
 With --tileset METRES, also the same build as a tileset of that tile size
 (`tileset`: `build --tile-size METRES -o DIR`) and with overview levels
-(`tileset+levels`: `--levels auto`), each against the same floor.
+(`tileset+levels`: `--levels auto`), each against the same floor, with
+--jobs N tiles built side by side (default 1, the tool's default).
 With --baseline-build-dir (another build, e.g. of the previous commit), its
 dry-run and build (`dry-run@base`, `build@base`) alternate with the others in
 the same runs, so that before and after are compared under the same load.
@@ -64,6 +65,7 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
     ap.add_argument("--baseline-build-dir", default=None)
     ap.add_argument("--tileset", type=float, default=0)
+    ap.add_argument("--jobs", type=int, default=1)
     a = ap.parse_args()
     if not os.path.exists(a.input):
         sys.exit("clean_real: %s is missing: run scripts/fetch-data earth-seas" % a.input)
@@ -97,7 +99,7 @@ def main():
                     out = os.path.join(work, "seas-tiles")
                     shutil.rmtree(out, ignore_errors=True)
                     cmd = [exe, "build"] + scene + ["-o", out, "--tile-size", "%g" % a.tileset,
-                                                    "--report", report]
+                                                    "--jobs", str(a.jobs), "--report", report]
                     if what.startswith("tileset+levels"):
                         cmd += ["--levels", "auto"]
                 else:

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <span>
 #include <sstream>
@@ -513,6 +514,7 @@ DemSpec choose_dem(const RenderRequest& a, const Scene& sc, bool& from_package) 
 void check_outputs(const RenderRequest& a, const DemSpec& dem, bool topdown) {
   std::vector<std::string> inputs{a.package};
   if (!dem.path.empty()) inputs.push_back(dem.path);
+  if (!a.terrain_file.empty()) inputs.push_back(a.terrain_file);
   check_output_file(a.output, "PNG", inputs);
   if (!a.decals_png.empty()) check_output_file(a.decals_png, "--decals PNG", inputs);
   if (!a.raw.empty()) check_output_file(a.raw, "--raw output", inputs);
@@ -540,6 +542,48 @@ Heightfield load_terrain(const RenderRequest& a, DemSpec& dem, bool from_package
     dem.path.clear();
     return flat_heightfield(extent);
   }
+}
+
+// RenderRequest::terrain_file's mesh, read as hostile (a regular file of at
+// most the format's largest size, then decode_terrain's checks); it must
+// be made for this package's frame (the same origin).
+Heightfield read_terrain_file(const RenderRequest& a, const Scene& sc) {
+  const std::string& path = a.terrain_file;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    fail<input_error>(kRenderStage, path + ": not a regular file; a terrain file is one");
+  constexpr uintmax_t kMaxBytes = 144 + kTerrainMaxVertices * 8 + (uintmax_t(1) << 20);
+  const uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec || size > kMaxBytes)
+    fail<input_error>(kRenderStage,
+                      path + ": " +
+                          (ec ? "cannot read its size (" + ec.message() + ")"
+                              : std::to_string(size) + " bytes, more than a terrain file holds"));
+  std::vector<uint8_t> bytes(size);
+  std::ifstream in(path, std::ios::binary);
+  in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size));
+  if (!in || in.gcount() != std::streamsize(size))
+    fail<input_error>(kRenderStage, path + ": cannot read it");
+  TerrainFile t = decode_terrain(bytes, path);
+  if (t.origin_x != sc.frame.origin_x || t.origin_y != sc.frame.origin_y)
+    fail<input_error>(kRenderStage, path + ": made for a frame whose origin is (" +
+                                        std::to_string(t.origin_x) + ", " +
+                                        std::to_string(t.origin_y) + "), but " + a.package +
+                                        " has (" + std::to_string(sc.frame.origin_x) + ", " +
+                                        std::to_string(sc.frame.origin_y) +
+                                        "); write it again with decalprep terrain");
+  // A file left from an earlier build of the package (SPEC: a reader may
+  // compare source_xxh64): drawn all the same, as the page draws it.
+  if (t.source_xxh64 != 0 && !sc.tileset) {
+    const std::optional<FileDigest> d = file_digest(a.package);
+    if (d && d->xxh64 != t.source_xxh64)
+      warn(a, path + " was made from another build of " + a.package + " (its source_xxh64 " +
+                  hex64(t.source_xxh64) + ", the package's XXH64 " + hex64(d->xxh64) +
+                  "); drawing it all the same: write it again with `decalprep terrain " +
+                  a.package + "`");
+  }
+  note(a, stage_message(kRenderStage, "terrain from the terrain file " + path));
+  return std::move(t.mesh);
 }
 
 // The DEM must cover what is drawn: the view of a top-down --extent, else
@@ -665,6 +709,12 @@ Placed place(const RenderRequest& a, const CheckedRender& c, const Scene& sc) {
                "' is one package");
   Placed p;
   p.view = place_extent(a, c, sc);
+  if (!a.terrain_file.empty()) {
+    check_outputs(a, DemSpec{}, p.view.topdown);
+    p.terrain = read_terrain_file(a, sc);
+    p.camera = place_camera(a, c, p.view, sc, p.terrain);
+    return p;
+  }
   bool dem_from_package = false;
   DemSpec dem = choose_dem(a, sc, dem_from_package);
   check_outputs(a, dem, p.view.topdown);

@@ -154,6 +154,45 @@ def main():
     check((before.st_size, before.st_mtime_ns) == (after.st_size, after.st_mtime_ns)
           and stat.S_ISFIFO(os.stat(fifo).st_mode), "the package and the FIFO are left as they were")
 
+    # A terrain file beside the package is what the camera is placed over:
+    # a damaged one is refused before any browser starts, naming the file
+    # and the field; one from another build is drawn with a warning; a FIFO
+    # there is not read (flat terrain), never waited on.
+    terrain = os.path.join(work, "monaco.terrain")
+    t = subprocess.run([decalprep, "terrain", pkg], capture_output=True, text=True)
+    check(t.returncode == 0, f"decalprep terrain: exit {t.returncode} {t.stderr.strip()!r}")
+    good = open(terrain, "rb").read()
+    bad = bytearray(good)
+    bad[len(bad) // 2] ^= 0x40
+    with open(terrain, "wb") as f:
+        f.write(bad)
+    other = os.path.join(work, "golden.decals")
+    o = subprocess.run([decalprep, "build", os.path.join(root, "tests/tools/golden/scene.toml"), "-o", other],
+                       capture_output=True, text=True)
+    check(o.returncode == 0, f"building the golden scene: {o.stderr.strip()[-500:]!r}")
+    with open(os.path.join(work, "golden.terrain"), "wb") as f:
+        f.write(good)
+    r = subprocess.run([decalprep, "view", pkg, "--screenshot", os.path.join(work, "t.png")] + view,
+                       capture_output=True, text=True, env=env, timeout=60)
+    check(r.returncode not in (0, 8) and "monaco.terrain" in r.stderr and "heights_checksum" in r.stderr
+          and not os.path.exists(os.path.join(work, "t.png")),
+          f"terrain file, damaged heights: exit {r.returncode} {r.stderr.strip()!r}")
+    # Monaco's file beside the golden package (the same frame origin): a
+    # file from another build is named in a warning (SPEC: source_xxh64),
+    # and the view goes on (here to the missing browser, exit 12).
+    r = subprocess.run([decalprep, "view", other, "--screenshot", os.path.join(work, "t.png")] + view,
+                       capture_output=True, text=True, timeout=60,
+                       env=dict(os.environ, DECALPREP_CHROMIUM="/nonexistent"))
+    check(r.returncode == 12 and "golden.terrain was made from another build of" in r.stderr,
+          f"terrain file of another build: warned, exit {r.returncode} (12) {r.stderr.strip()!r}")
+    os.remove(terrain)
+    os.mkfifo(terrain)
+    s = Shot(decalprep, pkg, os.path.join(work, "f.png"), view, env)
+    check(s.port is not None, "a FIFO named STEM.terrain is not read: the screenshot starts")
+    s.proc.kill()
+    s.proc.communicate(timeout=60)
+    os.remove(terrain)
+
     # A real frame.
     real = os.path.join(work, "real.png")
     env = {k: v for k, v in os.environ.items() if k != "DECALPREP_CHROMIUM"}

@@ -81,13 +81,14 @@ nlohmann::json shot_config(const R::RenderView& v, bool decals) {
 }
 
 // A package's terrain file STEM.terrain (formats/SPEC.md), which the page
-// draws; none: the page draws flat terrain, and so the camera is placed
-// over flat terrain too.
-bool has_terrain_file(const std::string& package) {
+// draws; empty when there is none (the page draws flat terrain, and so the
+// camera is placed over flat terrain too).
+std::string terrain_file_of(const std::string& package) {
   const std::filesystem::path p(package);
-  if (p.extension() != ".decals") return false;
+  if (p.extension() != ".decals") return {};
+  const std::filesystem::path t = p.parent_path() / (p.stem().string() + ".terrain");
   std::error_code ec;
-  return std::filesystem::is_regular_file(p.parent_path() / (p.stem().string() + ".terrain"), ec);
+  return std::filesystem::is_regular_file(t, ec) ? t.string() : std::string();
 }
 
 // --stats: what the page measured (its JSON is the page's, so untrusted:
@@ -128,10 +129,10 @@ void print_stats(const std::string& text, uint32_t width, uint32_t height) {
 void run_screenshot(ViewArgs& a) {
   R::RenderRequest& r = a.shot;
   r.package = a.serve.path;
-  // The camera's terrain: until a reader of the terrain file is here, the
-  // package's build DEM through render's own code stands for it (the file
-  // is written from that DEM); without the file the page draws flat.
-  r.flat = !has_terrain_file(r.package);
+  // The camera is placed over the terrain the page draws: the package's
+  // terrain file, else flat ground.
+  r.terrain_file = terrain_file_of(r.package);
+  r.flat = r.terrain_file.empty();
   const R::RenderView v = R::place_render_view(r);
   const auto chromium = prep::view::find_chromium();
   if (!chromium) {

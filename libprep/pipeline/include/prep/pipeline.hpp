@@ -232,6 +232,10 @@ struct RenderRequest {
   std::string decals_png;  // --decals: the decal layer alone as PNG
   // Terrain: --dem, else the package's build DEM; --flat forces none.
   std::string dem, assume_crs;
+  // A terrain file (formats/SPEC.md "Terrain files") to draw instead of a
+  // DEM: the mesh the browser draws (`view --screenshot` places its camera
+  // over it). Not a render option; the DEM options are then unused.
+  std::string terrain_file;
   bool flat = false;
   std::optional<double> z_scale, nodata_fill;  // none: the package's
   // The view: a top-down --extent (in --extent-crs or the frame CRS), else
