@@ -4,11 +4,11 @@
 // processes inherit it), so stopping it is one kill of the group; its
 // profile is a fresh temp folder, removed afterwards.
 #include <fcntl.h>
-#include <csignal>
 #include <sys/prctl.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <csignal>
 
 #include <algorithm>
 #include <chrono>
