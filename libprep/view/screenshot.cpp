@@ -85,39 +85,31 @@ void add_post_routes(httplib::Server& server, Received& got, size_t bytes) {
   };
   server.Post("/__shot/frame", pixels(&Received::frame, &Received::have_frame));
   server.Post("/__shot/decals", pixels(&Received::decals, &Received::have_decals));
-  server.Post("/__shot/error", [&got](const httplib::Request& req, httplib::Response& res) {
-    if (req.remote_addr != "127.0.0.1") {
-      res.status = 403;
-      return;
-    }
-    const std::lock_guard lock(got.m);
-    got.error = req.body.substr(0, kMaxErrorText);
-    if (got.error.empty()) got.error = "(no message)";
-    got.failed = true;
-    got.cv.notify_all();
-    res.set_content("ok\n", "text/plain");
-  });
+  // A text route: from 127.0.0.1 only, `take` stores the body (at most
+  // kMaxErrorText bytes) under the lock.
+  auto text = [&got](auto take) {
+    return [&got, take](const httplib::Request& req, httplib::Response& res) {
+      if (req.remote_addr != "127.0.0.1") {
+        res.status = 403;
+        return;
+      }
+      const std::lock_guard lock(got.m);
+      take(req.body.substr(0, kMaxErrorText));
+      res.set_content("ok\n", "text/plain");
+    };
+  };
+  server.Post("/__shot/error", text([&got](std::string body) {
+                got.error = body.empty() ? "(no message)" : std::move(body);
+                got.failed = true;
+                got.cv.notify_all();
+              }));
   // What the page says the frame leaves out (layers it does not draw), one
   // note per POST, sent before the frame; printed on stderr.
-  server.Post("/__shot/note", [&got](const httplib::Request& req, httplib::Response& res) {
-    if (req.remote_addr != "127.0.0.1") {
-      res.status = 403;
-      return;
-    }
-    const std::lock_guard lock(got.m);
-    if (got.notes.size() < kMaxErrorText) got.notes += req.body.substr(0, kMaxErrorText) + "\n";
-    res.set_content("ok\n", "text/plain");
-  });
+  server.Post("/__shot/note", text([&got](const std::string& body) {
+                if (got.notes.size() < kMaxErrorText) got.notes += body + "\n";
+              }));
   // The page's frame times (JSON, web/viewer/viewer.js), sent before the frame.
-  server.Post("/__shot/stats", [&got](const httplib::Request& req, httplib::Response& res) {
-    if (req.remote_addr != "127.0.0.1") {
-      res.status = 403;
-      return;
-    }
-    const std::lock_guard lock(got.m);
-    got.stats = req.body.substr(0, kMaxErrorText);
-    res.set_content("ok\n", "text/plain");
-  });
+  server.Post("/__shot/stats", text([&got](std::string body) { got.stats = std::move(body); }));
   // The pixels of the largest frame, and no more.
   server.set_payload_max_length(std::max<size_t>(bytes, kMaxErrorText));
 }
