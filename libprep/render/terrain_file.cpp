@@ -227,15 +227,7 @@ void check_fields(std::span<const uint8_t> b, const TerrainFile& t, uint32_t cod
   if (h.ny < 2 || h.ny > kTerrainMaxSide) bad("ny: " + std::to_string(h.ny) + " not in 2..16384");
   if (uint64_t(h.nx) * h.ny > kTerrainMaxVertices)
     bad("nx * ny: " + std::to_string(uint64_t(h.nx) * h.ny) + " vertices exceed 16777216");
-  const std::pair<const char*, double> finite[] = {{"x0", h.x0},
-                                                   {"y0", h.y0},
-                                                   {"dx", h.dx},
-                                                   {"dy", h.dy},
-                                                   {"zmin", h.zmin},
-                                                   {"zmax", h.zmax},
-                                                   {"origin_x", t.origin_x},
-                                                   {"origin_y", t.origin_y}};
-  for (const auto& [name, v] : finite)
+  for (const auto& [name, v] : terrain_fields(t))
     if (!std::isfinite(v) || std::abs(v) > kMaxMetres)
       bad(std::string(name) + ": " + num(v) + " is not a finite number within 1e12");
   if (!(h.dx > 0)) bad("dx: " + num(h.dx) + " is not positive");
@@ -262,6 +254,18 @@ void check_fields(std::span<const uint8_t> b, const TerrainFile& t, uint32_t cod
 
 }  // namespace
 }  // namespace terrain_format
+
+std::array<std::pair<const char*, double>, 8> terrain_fields(const TerrainFile& t) {
+  const Heightfield& h = t.mesh;
+  return {{{"x0", h.x0},
+           {"y0", h.y0},
+           {"dx", h.dx},
+           {"dy", h.dy},
+           {"zmin", h.zmin},
+           {"zmax", h.zmax},
+           {"origin_x", t.origin_x},
+           {"origin_y", t.origin_y}}};
+}
 
 TerrainFile decode_terrain(std::span<const uint8_t> b, const std::string& label) {
   using namespace terrain_format;

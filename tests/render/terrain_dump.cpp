@@ -23,20 +23,12 @@ int main(int argc, char** argv) {
     const prep::render::Heightfield& h = t.mesh;
     auto num = [](double v) { std::printf(std::isfinite(v) ? "%.17g" : "null", v); };
     std::printf("{\"nx\": %u, \"ny\": %u", h.nx, h.ny);
-    const std::pair<const char*, double> fields[] = {
-        {"x0", h.x0},
-        {"y0", h.y0},
-        {"dx", h.dx},
-        {"dy", h.dy},
-        {"zmin", h.zmin},
-        {"zmax", h.zmax},
-        {"origin_x", t.origin_x},
-        {"origin_y", t.origin_y},
-        {"surface_error_bound", h.surface_error_bound}};
-    for (const auto& [name, v] : fields) {
+    for (const auto& [name, v] : prep::render::terrain_fields(t)) {
       std::printf(", \"%s\": ", name);
       num(v);
     }
+    std::printf(", \"surface_error_bound\": ");
+    num(h.surface_error_bound);
     std::printf(", \"z\": [");
     for (size_t k = 0; k < h.z.size(); ++k) {
       if (k) std::printf(",");

@@ -153,6 +153,11 @@ TerrainFile make_terrain(const DemSpec& dem, const SceneFrame& frame, const Exte
 // format (sizes, non-finite numbers, zmin/zmax not the heights' range).
 std::string encode_terrain(const TerrainFile& terrain);
 
+// The header's position and height fields by their SPEC names, in the
+// order SPEC "Terrain files" lists them: x0, y0, dx, dy, zmin, zmax,
+// origin_x, origin_y (surface_error_bound, which may be infinite, apart).
+std::array<std::pair<const char*, double>, 8> terrain_fields(const TerrainFile& t);
+
 // Reads a terrain file, treating it as hostile: every field is checked in
 // the order of SPEC "Terrain files" (Validation) before it is used. Throws
 // format_error "<label>: <field>: <why>" naming the field and the bad value.
