@@ -3,13 +3,16 @@
 // prep::SceneRequest / prep::BuildRequest / prep::BatchRequest, calls
 // prep::run_build or prep::run_batch (libprep/pipeline), and turns the
 // results into messages and the exit code.
+#include <sched.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "command.hpp"
 #include "prep/files.hpp"
@@ -23,7 +26,7 @@ namespace {
 struct BuildArgs {
   std::string input, output, report;
   std::vector<std::string> inputs;  // as given; several (or a folder): batch mode
-  unsigned jobs = 1;
+  unsigned jobs = 0;                // --jobs; 0: not given (default_tile_jobs, or 1 in a batch)
   // file-less layer options
   std::string layer, where, sql, kind, corner, outline_mode, color;
   std::optional<double> width;
@@ -87,6 +90,19 @@ prep::SceneRequest scene_request(const BuildArgs& a, const std::string& input) {
   return r;
 }
 
+// The tileset's tiles built side by side without --jobs: one per CPU this
+// process may run on (its affinity mask: a Slurm step's cpuset, a taskset),
+// or one with --max-memory (which checks each tile against the limit and
+// stops rather than lowering). The bytes are the same either way.
+unsigned default_tile_jobs(const BuildArgs& a) {
+  if (!a.max_memory.empty()) return 1;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (::sched_getaffinity(0, sizeof set, &set) == 0 && CPU_COUNT(&set) > 0)
+    return static_cast<unsigned>(CPU_COUNT(&set));
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
 // Output, report and compression; max_memory and progress are the caller's.
 prep::BuildRequest build_request(const BuildArgs& a) {
   prep::BuildRequest req;
@@ -95,7 +111,7 @@ prep::BuildRequest build_request(const BuildArgs& a) {
   req.dry_run = a.dry_run;
   req.compress = !a.no_compress;
   req.zstd_level = a.zstd_level;
-  req.jobs = a.jobs;
+  req.jobs = a.jobs != 0 ? a.jobs : default_tile_jobs(a);
   req.strict = a.strict;
   return req;
 }
@@ -299,9 +315,11 @@ int run_batch(const BuildArgs& a) {
   req.inputs = a.inputs;
   req.output_dir = a.output;
   req.summary = a.report;
-  req.jobs = a.jobs;
+  // Scenes side by side, and a tileset scene's tiles: as asked, else one.
+  req.jobs = a.jobs != 0 ? a.jobs : 1;
   req.scene = scene_request(a, "");
   req.build = build_request(a);
+  req.build.jobs = req.jobs;
   // Checked here, once, so that a bad size is a usage error of the batch,
   // not a failure of every scene.
   if (!a.max_memory.empty()) prep::parse_memory_limit(a.max_memory);
@@ -347,8 +365,9 @@ const decalprep::CommandRegistrar kBuild(10, kBuildHelp, [](CLI::App* cmd) {
                   "of them: batch mode, -o is then a folder")
       ->required();
   cmd->add_option("--jobs", args->jobs,
-                  "Batch mode: scenes built side by side; tileset: tiles built side by side "
-                  "(default 1; the bytes do not depend on it)");
+                  "Batch mode: scenes built side by side (default 1); tileset: tiles built side "
+                  "by side (default: one per CPU this process may use, 1 with --max-memory); "
+                  "the bytes do not depend on it");
   cmd->add_option("-o,--output", args->output,
                   "Package to write (atomically); with --tile-size, the tileset directory");
   cmd->add_option("--report", args->report, "Write the JSON report (counts, manifest, timings)");
