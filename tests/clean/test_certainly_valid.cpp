@@ -37,6 +37,7 @@ using prep::Point2;
 using prep::Ring;
 using Rings = std::vector<Ring>;
 
+using prep::test::describe;
 using prep::test::Rng;
 
 // n vertices around c at increasing angles (jitter < 1 keeps them in order:
@@ -66,14 +67,7 @@ Rings place(const Rings& rings, Rng& rng) {
   const double scale = std::ldexp(1.0, rng.below(21) - 10);  // 2^-10 .. 2^10
   const double ox = mode >= 2 ? 500000 : 0, oy = mode >= 2 ? 4800000 : 0;
   const bool rotate = mode % 2 == 1;
-  const double a = 2 * M_PI * rng.uniform(), ca = std::cos(a), sa = std::sin(a);
-  Rings out = rings;
-  for (Ring& r : out)
-    for (Point2& p : r) {
-      const double x = p.x * scale, y = p.y * scale;
-      p = rotate ? Point2{ox + ca * x - sa * y, oy + sa * x + ca * y} : Point2{ox + x, oy + y};
-    }
-  return out;
+  return prep::test::placed(rings, scale, ox, oy, 2 * M_PI * rng.uniform(), rotate);
 }
 
 // ------------------------------------------------------------- generators --
@@ -232,20 +226,6 @@ std::optional<bool> geos_valid(const prep::test::Geos& geos, const Rings& rings)
   const char v = GEOSisValid_r(geos.h, g.g);
   if (v == 2) return std::nullopt;
   return v == 1;
-}
-
-std::string describe(const Rings& rings) {
-  std::string s;
-  char buf[64];
-  for (const Ring& r : rings) {
-    s += "(";
-    for (const Point2& p : r) {
-      std::snprintf(buf, sizeof buf, "%.17g %.17g, ", p.x, p.y);
-      s += buf;
-    }
-    s += ") ";
-  }
-  return s;
 }
 
 struct Tally {

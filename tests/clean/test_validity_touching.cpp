@@ -48,6 +48,7 @@ using prep::Ring;
 using prep::detail::Validity;
 using Rings = std::vector<Ring>;
 
+using prep::test::describe;
 using prep::test::Rng;
 
 // ------------------------------------------------------------ lattice --
@@ -250,14 +251,7 @@ Rings place(const Rings& rings, Rng& rng, bool rotate) {
   const double scale = std::ldexp(1.0, rng.below(21) - 10);
   const bool far = rng.below(2) == 0;
   const double ox = far ? 500000 : 0, oy = far ? 4800000 : 0;
-  const double a = 2 * M_PI * rng.uniform(), ca = std::cos(a), sa = std::sin(a);
-  Rings out = rings;
-  for (Ring& r : out)
-    for (Point2& p : r) {
-      const double x = p.x * scale, y = p.y * scale;
-      p = rotate ? Point2{ox + ca * x - sa * y, oy + sa * x + ca * y} : Point2{ox + x, oy + y};
-    }
-  return out;
+  return prep::test::placed(rings, scale, ox, oy, 2 * M_PI * rng.uniform(), rotate);
 }
 
 // ------------------------------------------------------------- oracle --
@@ -274,20 +268,6 @@ std::optional<bool> geos_valid(GEOSContextHandle_t h, const Rings& rings) {
   } catch (const std::runtime_error&) {
     return std::nullopt;
   }
-}
-
-std::string describe(const Rings& rings) {
-  std::string s;
-  char buf[64];
-  for (const Ring& r : rings) {
-    s += "(";
-    for (const Point2& p : r) {
-      std::snprintf(buf, sizeof buf, "%.17g %.17g, ", p.x, p.y);
-      s += buf;
-    }
-    s += ") ";
-  }
-  return s;
 }
 
 struct Tally {
@@ -368,66 +348,31 @@ TEST(ValidityTouching, DecidesAsGeosOnTouchingHoles) {
         return lattice(r, o).rings;
       },
       tally);
-  run(
-      geos.h, rng, "touch along a segment", 800,
-      [&](Rng& r) {
-        LatticeOptions o = flats;
-        o.flat = 0.4;
-        return lattice(r, o).rings;
-      },
-      tally);
-  run(
-      geos.h, rng, "crossing holes", 800,
-      [&](Rng& r) {
-        Lattice l = lattice(r, points);
-        cross_neighbour(r, l);
-        return l.rings;
-      },
-      tally);
-  run(
-      geos.h, rng, "nested holes", 800,
-      [&](Rng& r) {
-        Lattice l = lattice(r, points);
-        nest(r, l);
-        return l.rings;
-      },
-      tally);
-  run(
-      geos.h, rng, "hole outside the shell", 800,
-      [&](Rng& r) {
-        Lattice l = lattice(r, points);
-        outside(r, l);
-        return l.rings;
-      },
-      tally);
-  run(
-      geos.h, rng, "repeated points", 1000,
-      [&](Rng& r) {
-        Rings rings = lattice(r, flats).rings;
-        repeat_points(r, rings);
-        return rings;
-      },
-      tally);
-  run(
-      geos.h, rng, "cycle of touching holes", 600, [&](Rng& r) { return touch_cycle(r, false); },
-      tally);
-  run(
-      geos.h, rng, "chain of touching holes", 600, [&](Rng& r) { return touch_cycle(r, true); },
-      tally);
-  run(
-      geos.h, rng, "chain from shell to shell", 500,
-      [&](Rng& r) { return shell_to_shell(r, false); }, tally);
-  run(
-      geos.h, rng, "broken chain from shell to shell", 500,
-      [&](Rng& r) { return shell_to_shell(r, true); }, tally);
-  run(
-      geos.h, rng, "self-touching rings", 800,
-      [&](Rng& r) {
-        Lattice l = lattice(r, points);
-        self_touch(r, l);
-        return l.rings;
-      },
-      tally);
+  // A lattice of `o`, then changed by `modify` (none: as it is).
+  const auto altered = [](const LatticeOptions& o, void (*modify)(Rng&, Lattice&)) {
+    return [o, modify](Rng& r) {
+      Lattice l = lattice(r, o);
+      if (modify) modify(r, l);
+      return l.rings;
+    };
+  };
+  LatticeOptions along = flats;
+  along.flat = 0.4;
+  run(geos.h, rng, "touch along a segment", 800, altered(along, nullptr), tally);
+  run(geos.h, rng, "crossing holes", 800, altered(points, cross_neighbour), tally);
+  run(geos.h, rng, "nested holes", 800, altered(points, nest), tally);
+  run(geos.h, rng, "hole outside the shell", 800, altered(points, outside), tally);
+  run(geos.h, rng, "repeated points", 1000,
+      altered(flats, [](Rng& r, Lattice& l) { repeat_points(r, l.rings); }), tally);
+  for (const bool open : {false, true})
+    run(
+        geos.h, rng, open ? "chain of touching holes" : "cycle of touching holes", 600,
+        [open](Rng& r) { return touch_cycle(r, open); }, tally);
+  for (const bool broken : {false, true})
+    run(
+        geos.h, rng, broken ? "broken chain from shell to shell" : "chain from shell to shell", 500,
+        [broken](Rng& r) { return shell_to_shell(r, broken); }, tally);
+  run(geos.h, rng, "self-touching rings", 800, altered(points, self_touch), tally);
   run(
       geos.h, rng, "mixed", 1600,
       [&](Rng& r) {

@@ -7,6 +7,8 @@
 
 #include <geos_c.h>
 
+#include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -15,6 +17,35 @@
 #include "prep/features.hpp"
 
 namespace prep::test {
+
+// Rings scaled by `scale`, turned by `angle` radians about (0, 0) when
+// `rotate`, then moved by (ox, oy): where the validity tests place a sample.
+inline std::vector<Ring> placed(std::vector<Ring> rings, double scale, double ox, double oy,
+                                double angle, bool rotate) {
+  const double ca = std::cos(angle), sa = std::sin(angle);
+  for (Ring& r : rings)
+    for (Point2& p : r) {
+      const double x = p.x * scale, y = p.y * scale;
+      p = rotate ? Point2{ox + ca * x - sa * y, oy + sa * x + ca * y} : Point2{ox + x, oy + y};
+    }
+  return rings;
+}
+
+// Rings as text for a failure message: "(x y, x y, ...) (...) ", every
+// coordinate with 17 digits so that it reads back exactly.
+inline std::string describe(const std::vector<Ring>& rings) {
+  std::string s;
+  char buf[64];
+  for (const Ring& r : rings) {
+    s += "(";
+    for (const Point2& p : r) {
+      std::snprintf(buf, sizeof buf, "%.17g %.17g, ", p.x, p.y);
+      s += buf;
+    }
+    s += ") ";
+  }
+  return s;
+}
 
 // ------------------------------------------------------------- context --
 inline void geos_notice(const char*, void*) {}
