@@ -93,20 +93,17 @@ for v in 1_1 1_2; do
 done
 # Oblique views: render's --eye/--target camera (render_request.cpp: near =
 # max(0.1, dist / 1000), depth range 4 dist, up z).
-node -e '
+camera_json() {  # eye target out
+  node -e '
 const [eye, target, out] = [process.argv[1], process.argv[2], process.argv[3]];
 const e = eye.split(",").map(Number), t = target.split(",").map(Number);
 const dist = Math.hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]);
 require("fs").writeFileSync(out, JSON.stringify({projection: "perspective", eye: e, target: t, up: [0, 0, 1],
   fovYDeg: 45, orthoW: 0, orthoH: 0, near: Math.max(0.1, dist * 1e-3), depthRange: 4 * dist, topdownExtent: null}));
-' 400,-400,500 400,100,0 "$W/cam_flat.json"
-node -e '
-const [eye, target, out] = [process.argv[1], process.argv[2], process.argv[3]];
-const e = eye.split(",").map(Number), t = target.split(",").map(Number);
-const dist = Math.hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]);
-require("fs").writeFileSync(out, JSON.stringify({projection: "perspective", eye: e, target: t, up: [0, 0, 1],
-  fovYDeg: 45, orthoW: 0, orthoH: 0, near: Math.max(0.1, dist * 1e-3), depthRange: 4 * dist, topdownExtent: null}));
-' 400,-400,690 400,100,190 "$W/cam_plane.json"
+' "$@"
+}
+camera_json 400,-400,500 400,100,0 "$W/cam_flat.json"
+camera_json 400,-400,690 400,100,190 "$W/cam_plane.json"
 # The tilted plane z = 100 + 0.2 x + 0.1 y: any mesh of it is the same
 # surface, so the Terrain here and render's DEM mesh agree exactly.
 node -e '

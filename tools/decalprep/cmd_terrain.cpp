@@ -13,6 +13,7 @@
 #include <fstream>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "command.hpp"
@@ -171,18 +172,12 @@ std::vector<Written> run_tileset(const TerrainArgs& a) {
 
 nlohmann::ordered_json to_json(const Written& w) {
   const R::Heightfield& h = w.terrain.mesh;
-  nlohmann::ordered_json j = {{"path", w.path},
-                              {"bytes", w.bytes},
-                              {"nx", h.nx},
-                              {"ny", h.ny},
-                              {"x0", h.x0},
-                              {"y0", h.y0},
-                              {"dx", h.dx},
-                              {"dy", h.dy},
-                              {"zmin", h.zmin},
-                              {"zmax", h.zmax},
-                              {"origin", {w.terrain.origin_x, w.terrain.origin_y}},
-                              {"source_xxh64", prep::hex64(w.terrain.source_xxh64)}};
+  nlohmann::ordered_json j = {{"path", w.path}, {"bytes", w.bytes}, {"nx", h.nx}, {"ny", h.ny}};
+  // x0, y0, dx, dy, zmin, zmax by their SPEC names; the origin as a pair.
+  for (const auto& [name, v] : R::terrain_fields(w.terrain))
+    if (std::string_view(name).substr(0, 6) != "origin") j[name] = v;
+  j["origin"] = {w.terrain.origin_x, w.terrain.origin_y};
+  j["source_xxh64"] = prep::hex64(w.terrain.source_xxh64);
   // JSON has no infinity: null when the mesh has no bound.
   j["surface_error_bound_m"] = std::isfinite(h.surface_error_bound)
                                    ? nlohmann::ordered_json(h.surface_error_bound)

@@ -484,28 +484,24 @@ export class Renderer {
     rp.drawIndexed(mesh.count);
     rp.end();
     const gx = Math.ceil(W / 8), gy = Math.ceil(H / 8);
-    let cp = enc.beginComputePass();
-    cp.setPipeline(this.decalPipeline);
-    cp.setBindGroup(0, d.createBindGroup({ layout: this.decalPipeline.getBindGroupLayout(0), entries: [
-      { binding: 0, resource: { buffer: this.frameUniform } },
-      { binding: 1, resource: { buffer: this.blobBuffer } },
-      { binding: 2, resource: { buffer: this.visBuffer } },
-      { binding: 3, resource: T.depth.createView() },
-      { binding: 4, resource: { buffer: T.dec } },
-      { binding: 5, resource: { buffer: this.heights } },
-      { binding: 6, resource: { buffer: this.gradients } }] }));
-    cp.dispatchWorkgroups(gx, gy);
-    cp.end();
-    cp = enc.beginComputePass();
-    cp.setPipeline(this.compositePipeline);
-    cp.setBindGroup(0, d.createBindGroup({ layout: this.compositePipeline.getBindGroupLayout(0), entries: [
-      { binding: 0, resource: { buffer: this.sizeUniform } },
-      { binding: 1, resource: T.color.createView() },
-      { binding: 2, resource: { buffer: T.dec } },
-      { binding: 3, resource: { buffer: T.rgba } },
-      { binding: 4, resource: { buffer: T.decals } }] }));
-    cp.dispatchWorkgroups(gx, gy);
-    cp.end();
+    /**
+     * One compute pass of `pipeline` over the frame, its resources bound in order.
+     * @param {any} pipeline @param {any[]} resources
+     */
+    const dispatch = (pipeline, resources) => {
+      const cp = enc.beginComputePass();
+      cp.setPipeline(pipeline);
+      cp.setBindGroup(0, d.createBindGroup({ layout: pipeline.getBindGroupLayout(0),
+        entries: resources.map((resource, binding) => ({ binding, resource })) }));
+      cp.dispatchWorkgroups(gx, gy);
+      cp.end();
+    };
+    /** @param {any} buffer */
+    const buf = (buffer) => ({ buffer });
+    dispatch(this.decalPipeline, [buf(this.frameUniform), buf(this.blobBuffer), buf(this.visBuffer),
+      T.depth.createView(), buf(T.dec), buf(this.heights), buf(this.gradients)]);
+    dispatch(this.compositePipeline, [buf(this.sizeUniform), T.color.createView(), buf(T.dec),
+      buf(T.rgba), buf(T.decals)]);
     const wantRgba = readback !== false;
     const put2d = show && this.presentPath === "2d";
     if (wantRgba || put2d) enc.copyBufferToBuffer(T.rgba, 0, T.readRgba, 0, 4 * W * H);
