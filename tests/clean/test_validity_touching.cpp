@@ -272,6 +272,12 @@ std::optional<bool> geos_valid(GEOSContextHandle_t h, const Rings& rings) {
 
 struct Tally {
   int samples = 0, geos_valid = 0, valid = 0, invalid = 0, unsure = 0, wrong = 0;
+  Tally& operator+=(const Tally& o) {
+    for (int Tally::*m : {&Tally::samples, &Tally::geos_valid, &Tally::valid, &Tally::invalid,
+                          &Tally::unsure, &Tally::wrong})
+      this->*m += o.*m;
+    return *this;
+  }
 };
 
 // Decides one sample both ways and counts it under `kind`; a decision that
@@ -302,12 +308,7 @@ Tally print(const std::map<std::string, Tally>& tally) {
   for (const auto& [kind, t] : tally) {
     std::printf("%-40s %7d %7d %7d %7d %7d\n", kind.c_str(), t.samples, t.geos_valid, t.valid,
                 t.invalid, t.unsure);
-    all.samples += t.samples;
-    all.geos_valid += t.geos_valid;
-    all.valid += t.valid;
-    all.invalid += t.invalid;
-    all.unsure += t.unsure;
-    all.wrong += t.wrong;
+    all += t;
   }
   std::printf("%-40s %7d %7d %7d %7d %7d (%d agree with GEOS, %d deferred to it)\n", "all",
               all.samples, all.geos_valid, all.valid, all.invalid, all.unsure,

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "detail/exact_orientation.hpp"
+#include "detail/union_find.hpp"
 
 namespace prep::detail {
 namespace {
@@ -413,24 +414,6 @@ Validity crossing_at(const Point2& o, const Arms& a, const Arms& b) {
   return c0 == c1 ? Validity::valid : Validity::invalid;
 }
 
-// Disjoint sets over rings and touch points.
-struct Forest {
-  std::vector<uint32_t> parent;
-  explicit Forest(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-  uint32_t root(uint32_t a) {
-    while (parent[a] != a) a = parent[a] = parent[parent[a]];
-    return a;
-  }
-  // Joins a and b; false when they were joined already (a cycle).
-  bool join(uint32_t a, uint32_t b) {
-    a = root(a);
-    b = root(b);
-    if (a == b) return false;
-    parent[a] = b;
-    return true;
-  }
-};
-
 // Checks the touch points: the rings through each must not cross there
 // (pairwise), and the graph of rings and touch points must be a forest:
 // two rings touching twice, or a chain of touching rings closing on itself,
@@ -445,7 +428,7 @@ Validity check_touches(const std::vector<Ring>& rings, std::vector<Touch>& touch
     if (!same(a.at, b.at)) return before(a.at, b.at);
     return a.ring < b.ring || (a.ring == b.ring && a.edge < b.edge);
   });
-  Forest forest(rings.size() + touches.size());
+  UnionFind forest(rings.size() + touches.size());
   std::vector<Arms> arms;
   for (size_t i = 0; i < touches.size();) {
     const Point2 at = touches[i].at;
@@ -456,7 +439,7 @@ Validity check_touches(const std::vector<Ring>& rings, std::vector<Touch>& touch
       if (arms.empty() || arms.back().ring != touches[i].ring) {
         if (arms.size() == kMaxRingsAtAPoint) return Validity::unsure;
         arms.push_back(arms_at(rings, touches[i]));
-        if (!forest.join(touches[i].ring, node)) return Validity::invalid;
+        if (!forest.unite(touches[i].ring, node)) return Validity::invalid;
       }
     for (size_t a = 0; a < arms.size(); ++a)
       for (size_t b = a + 1; b < arms.size(); ++b) {

@@ -14,6 +14,7 @@
 #include <optional>
 
 #include "detail/certainly_valid.hpp"
+#include "detail/union_find.hpp"
 #include "geos_handle.hpp"
 
 namespace prep::detail {
@@ -21,22 +22,9 @@ namespace {
 
 using Owned = GeosGeom;
 
-// Union-find over the holes (path halving; the smaller index is the root,
+// The hole groups (detail/union_find.hpp: the smaller index is the root,
 // so the groups do not depend on the order contacts are found in).
-struct Groups {
-  std::vector<uint32_t> parent;
-  explicit Groups(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-  uint32_t find(uint32_t i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  }
-  void unite(uint32_t a, uint32_t b) {
-    a = find(a);
-    b = find(b);
-    if (a < b) parent[b] = a;
-    if (b < a) parent[a] = b;
-  }
-};
+using Groups = UnionFind;
 
 struct Candidates {
   std::vector<uint32_t> found;
