@@ -7,7 +7,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <fstream>
 #include <span>
 #include <sstream>
@@ -544,27 +543,11 @@ Heightfield load_terrain(const RenderRequest& a, DemSpec& dem, bool from_package
   }
 }
 
-// RenderRequest::terrain_file's mesh, read as hostile (a regular file of at
-// most the format's largest size, then decode_terrain's checks); it must
-// be made for this package's frame (the same origin).
+// RenderRequest::terrain_file's mesh (read_terrain_file: read as hostile);
+// it must be made for this package's frame (the same origin).
 Heightfield read_terrain_file(const RenderRequest& a, const Scene& sc) {
   const std::string& path = a.terrain_file;
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    fail<input_error>(kRenderStage, path + ": not a regular file; a terrain file is one");
-  constexpr uintmax_t kMaxBytes = 144 + kTerrainMaxVertices * 8 + (uintmax_t(1) << 20);
-  const uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec || size > kMaxBytes)
-    fail<input_error>(kRenderStage,
-                      path + ": " +
-                          (ec ? "cannot read its size (" + ec.message() + ")"
-                              : std::to_string(size) + " bytes, more than a terrain file holds"));
-  std::vector<uint8_t> bytes(size);
-  std::ifstream in(path, std::ios::binary);
-  in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size));
-  if (!in || in.gcount() != std::streamsize(size))
-    fail<input_error>(kRenderStage, path + ": cannot read it");
-  TerrainFile t = decode_terrain(bytes, path);
+  TerrainFile t = prep::render::read_terrain_file(path);
   if (t.origin_x != sc.frame.origin_x || t.origin_y != sc.frame.origin_y)
     fail<input_error>(kRenderStage, path + ": made for a frame whose origin is (" +
                                         std::to_string(t.origin_x) + ", " +

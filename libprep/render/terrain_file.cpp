@@ -1,16 +1,19 @@
 // Terrain files (formats/SPEC.md "Terrain files"): the heightfield mesh
 // render draws (terrain.cpp), written beside a package for readers without
 // GDAL, and read back as hostile input.
+#include <unistd.h>
 #include <xxhash.h>
 #include <zstd.h>
 
 #include <algorithm>
 #include <bit>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <string>
 
+#include "decal/reader.hpp"
 #include "prep/error.hpp"
 #include "prep/render.hpp"
 #include "prep/stage_error.hpp"
@@ -320,6 +323,35 @@ TerrainFile decode_terrain(std::span<const uint8_t> b, const std::string& label)
   if (lo != h.zmin) bad("zmin: " + num(h.zmin) + " is not the lowest height " + num(lo));
   if (hi != h.zmax) bad("zmax: " + num(h.zmax) + " is not the highest height " + num(hi));
   return t;
+}
+
+TerrainFile read_terrain_file(const std::string& path) {
+  using terrain_format::kHeaderSize;
+  // A header, the largest mesh's raw heights, and room for a longer header.
+  constexpr uint64_t kMaxBytes = kHeaderSize + kTerrainMaxVertices * 8 + (uint64_t(1) << 20);
+  int fd = -1;
+  uint64_t size = 0;
+  if (const decal::Status s = decal::open_regular_file(path, fd, size); !s)
+    fail<input_error>(kTerrainStage, "cannot read the terrain file: " + s.message);
+  if (size > kMaxBytes) {
+    ::close(fd);
+    fail<input_error>(kTerrainStage, path + ": " + std::to_string(size) +
+                                         " bytes, more than a terrain file holds");
+  }
+  std::vector<uint8_t> bytes(size);
+  for (size_t done = 0; done < bytes.size();) {
+    const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = errno;
+      ::close(fd);
+      fail<input_error>(kTerrainStage, "cannot read " + path + ": " +
+                                           (n == 0 ? "the file shrank" : std::strerror(err)));
+    }
+    done += size_t(n);
+  }
+  ::close(fd);
+  return decode_terrain(bytes, path);
 }
 
 }  // namespace prep::render

@@ -274,6 +274,11 @@ RangeAnswer parse_range(std::string_view header, uint64_t size, ByteRange& range
   return RangeAnswer::partial;
 }
 
+std::optional<fs::path> page_terrain(const ServeRoot& root) {
+  if (root.kind != ServeRoot::Kind::package) return std::nullopt;
+  return resolve_data_path(root, root.stem + ".terrain");
+}
+
 const Asset* find_asset(std::string_view url_path) {
   for (const Asset& a : detail::embedded_assets())
     if (a.path == url_path) return &a;
@@ -286,10 +291,8 @@ std::string config_json(const ServeRoot& root, std::string_view screenshot_json)
   std::string entry;
   for (const auto& c : fs::path(root.entry))
     entry += (entry.empty() ? "" : "/") + url_component(c.string());
-  // The terrain (formats/SPEC.md) beside a package STEM.decals: STEM.terrain.
   std::string terrain = "null";
-  if (root.kind == ServeRoot::Kind::package && is_regular(root.dir / (root.stem + ".terrain")))
-    terrain = json_string("/data/" + url_component(root.stem + ".terrain"));
+  if (page_terrain(root)) terrain = json_string("/data/" + url_component(root.stem + ".terrain"));
   return std::string("{\"kind\":") +
          (root.kind == ServeRoot::Kind::package ? "\"package\"" : "\"tileset\"") +
          ",\"url\":" + json_string("/data/" + entry) + ",\"terrain\":" + terrain +

@@ -1,12 +1,10 @@
 // terrain_dump FILE: a terrain file as the C++ reader (prep::render::
 // decode_terrain) reads it, as JSON (numbers with 17 digits, so that they
 // read back bit for bit), for the JavaScript reader's test
-// (tests/web/terrain_test.mjs). Exit 5 with the message on a refusal.
+// (tests/web/terrain_test.mjs). Exit 5 with the message on a refusal
+// (read_terrain_file: an unreadable file, or decode_terrain's checks).
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <iterator>
-#include <vector>
 
 #include "prep/error.hpp"
 #include "prep/render.hpp"
@@ -16,10 +14,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: terrain_dump FILE\n");
     return 2;
   }
-  std::ifstream in(argv[1], std::ios::binary);
-  const std::vector<uint8_t> bytes{std::istreambuf_iterator<char>(in), {}};
   try {
-    const prep::render::TerrainFile t = prep::render::decode_terrain(bytes, argv[1]);
+    const prep::render::TerrainFile t = prep::render::read_terrain_file(argv[1]);
     const prep::render::Heightfield& h = t.mesh;
     auto num = [](double v) { std::printf(std::isfinite(v) ? "%.17g" : "null", v); };
     std::printf("{\"nx\": %u, \"ny\": %u", h.nx, h.ny);

@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -80,17 +79,6 @@ nlohmann::json shot_config(const R::RenderView& v, bool decals) {
           {"frames", v.options.frames}};
 }
 
-// A package's terrain file STEM.terrain (formats/SPEC.md), which the page
-// draws; empty when there is none (the page draws flat terrain, and so the
-// camera is placed over flat terrain too).
-std::string terrain_file_of(const std::string& package) {
-  const std::filesystem::path p(package);
-  if (p.extension() != ".decals") return {};
-  const std::filesystem::path t = p.parent_path() / (p.stem().string() + ".terrain");
-  std::error_code ec;
-  return std::filesystem::is_regular_file(t, ec) ? t.string() : std::string();
-}
-
 // --stats: what the page measured (its JSON is the page's, so untrusted:
 // a field that is missing or of the wrong type is left out).
 void print_stats(const std::string& text, uint32_t width, uint32_t height) {
@@ -129,10 +117,11 @@ void print_stats(const std::string& text, uint32_t width, uint32_t height) {
 void run_screenshot(ViewArgs& a) {
   R::RenderRequest& r = a.shot;
   r.package = a.serve.path;
-  // The camera is placed over the terrain the page draws: the package's
-  // terrain file, else flat ground.
-  r.terrain_file = terrain_file_of(r.package);
-  r.flat = r.terrain_file.empty();
+  // The camera is placed over the terrain the page draws: the terrain file
+  // the server names in /config.json, else flat ground.
+  const auto terrain = prep::view::page_terrain(prep::view::resolve_root(r.package));
+  r.terrain_file = terrain ? terrain->string() : std::string();
+  r.flat = !terrain;
   const R::RenderView v = R::place_render_view(r);
   const auto chromium = prep::view::find_chromium();
   if (!chromium) {

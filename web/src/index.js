@@ -4,8 +4,8 @@ export { FormatError } from "./errors.js";
 export { Package, openPackage, openPackageUrl } from "./package.js";
 export { bufferSource, urlSource } from "./source.js";
 export { parseTileset, fetchTileset, openTile, MAX_TILESET_BYTES } from "./tileset.js";
-export { xxh64, hex64 } from "./xxh64.js";
+export { xxh64, xxh64Sync, hex64 } from "./xxh64.js";
 export * from "./format.js";
 export { createRenderer, flatTerrain, Renderer, topdownCamera } from "./render/index.js";
 // Terrain files (formats/SPEC.md "Terrain files"): the mesh render draws.
-export { parseTerrain, fetchTerrain, xxh64Sync } from "./terrain.js";
+export { parseTerrain, fetchTerrain } from "./terrain.js";

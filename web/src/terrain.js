@@ -5,10 +5,11 @@
 // (Validation), before it is used, and a bad file is refused with a
 // FormatError naming the field and the bad value.
 //
-// Synchronous: the checksums use the XXH64 below (the package reader's
-// xxhash-wasm answers only after an await) and fzstd decodes in place.
+// Synchronous: the checksums use xxhash-wasm's synchronous hash
+// (xxh64.js, instantiated when the module loads) and fzstd decodes in place.
 import { decompress } from "fzstd";
 import { FormatError } from "./errors.js";
+import { xxh64Sync } from "./xxh64.js";
 
 /**
  * The mesh render draws: vertex (i, j) at (x0 + i dx, y0 + j dy), metres
@@ -34,96 +35,6 @@ export const TERRAIN_MAX_SIDE = 16384;
 export const TERRAIN_MAX_VERTICES = 16777216;
 const MAX_METRES = 1e12;
 const CODEC_NONE = 0, CODEC_ZSTD = 1;
-
-// ---------------------------------------------------------------- XXH64 --
-// 64-bit words as [hi, lo] pairs of unsigned 32-bit numbers.
-
-/** @typedef {[number, number]} U64 */
-
-/** @param {bigint} v @returns {U64} */
-const u64 = (v) => [Number(v >> 32n), Number(v & 0xffffffffn)];
-const P1 = u64(0x9e3779b185ebca87n), P2 = u64(0xc2b2ae3d27d4eb4fn);
-const P3 = u64(0x165667b19e3779f9n), P4 = u64(0x85ebca77c2b2ae63n);
-const P5 = u64(0x27d4eb2f165667c5n);
-const MINUS_P1 = u64((1n << 64n) - 0x9e3779b185ebca87n);
-
-/** @param {U64} a @param {U64} b @returns {U64} */
-function add(a, b) {
-  const lo = a[1] + b[1];
-  return [(a[0] + b[0] + (lo > 0xffffffff ? 1 : 0)) >>> 0, lo >>> 0];
-}
-
-/** The low 64 bits of a * b. @param {U64} a @param {U64} b @returns {U64} */
-function mul(a, b) {
-  const al = a[1], bl = b[1];
-  const a0 = al & 0xffff, a1 = al >>> 16, b0 = bl & 0xffff, b1 = bl >>> 16;
-  const mid = a0 * b1 + a1 * b0;                 // < 2^33
-  const low = a0 * b0 + (mid % 65536) * 65536;   // < 2^33
-  const carry = Math.floor(low / 4294967296);
-  const hi = a1 * b1 + Math.floor(mid / 65536) + carry +
-    Math.imul(al, b[0]) + Math.imul(a[0], bl);
-  return [hi >>> 0, low >>> 0];
-}
-
-/** @param {U64} a @param {U64} b @returns {U64} */
-const xor = (a, b) => [(a[0] ^ b[0]) >>> 0, (a[1] ^ b[1]) >>> 0];
-
-/** Rotation left by 0 < r < 32. @param {U64} a @param {number} r @returns {U64} */
-const rotl = (a, r) => [((a[0] << r) | (a[1] >>> (32 - r))) >>> 0,
-                        ((a[1] << r) | (a[0] >>> (32 - r))) >>> 0];
-
-/** Shift right by 0 < r < 64. @param {U64} a @param {number} r @returns {U64} */
-function shr(a, r) {
-  if (r >= 32) return [0, a[0] >>> (r - 32)];
-  return [a[0] >>> r, ((a[1] >>> r) | (a[0] << (32 - r))) >>> 0];
-}
-
-/** @param {DataView} dv @param {number} at @returns {U64} */
-const read64 = (dv, at) => [dv.getUint32(at + 4, true), dv.getUint32(at, true)];
-
-/** @param {U64} acc @param {U64} input */
-const round = (acc, input) => mul(rotl(add(acc, mul(input, P2)), 31), P1);
-
-/** @param {U64} acc @param {U64} v */
-const merge = (acc, v) => add(mul(xor(acc, round([0, 0], v)), P1), P4);
-
-/**
- * XXH64 (seed 0) of `bytes`, synchronously.
- * @param {Uint8Array} bytes
- * @returns {bigint}
- */
-export function xxh64Sync(bytes) {
-  const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
-  const n = bytes.length;
-  let at = 0;
-  /** @type {U64} */
-  let h;
-  if (n >= 32) {
-    let v1 = add(P1, P2), v2 = P2, v3 = /** @type {U64} */ ([0, 0]);
-    let v4 = MINUS_P1;
-    for (; at + 32 <= n; at += 32) {
-      v1 = round(v1, read64(dv, at));
-      v2 = round(v2, read64(dv, at + 8));
-      v3 = round(v3, read64(dv, at + 16));
-      v4 = round(v4, read64(dv, at + 24));
-    }
-    h = add(add(rotl(v1, 1), rotl(v2, 7)), add(rotl(v3, 12), rotl(v4, 18)));
-    h = merge(merge(merge(merge(h, v1), v2), v3), v4);
-  } else {
-    h = P5;
-  }
-  h = add(h, [Math.floor(n / 4294967296), n >>> 0]);
-  for (; at + 8 <= n; at += 8) h = add(mul(rotl(xor(h, round([0, 0], read64(dv, at))), 27), P1), P4);
-  if (at + 4 <= n) {
-    h = add(mul(rotl(xor(h, mul([0, dv.getUint32(at, true)], P1)), 23), P2), P3);
-    at += 4;
-  }
-  for (; at < n; ++at) h = mul(rotl(xor(h, mul([0, bytes[at]], P5)), 11), P1);
-  h = mul(xor(h, shr(h, 33)), P2);
-  h = mul(xor(h, shr(h, 29)), P3);
-  h = xor(h, shr(h, 32));
-  return (BigInt(h[0]) << 32n) | BigInt(h[1]);
-}
 
 // --------------------------------------------------------------- reader --
 

@@ -16,15 +16,20 @@ export function showStatus(text, isError = false) {
 }
 
 /**
- * The layer names of a package's metadata layer table, in table order
- * ("" for an entry without a name, as prep::render::layer_names).
+ * Each layer of a package's metadata layer table, in table order: its name
+ * ("" for an entry without one, as prep::render::layer_names) and its kind
+ * as `render --only` counts it: "dynamic" (a dynamic line), "polygons" (a
+ * polygon layer) or "lines" (static lines and outlines).
  * @param {unknown} metadata
- * @returns {string[]}
+ * @returns {{name: string, kind: "polygons" | "lines" | "dynamic"}[]}
  */
-export function layerNames(metadata) {
+export function layerKinds(metadata) {
   const layers = metadata && typeof metadata === "object" ? /** @type {any} */ (metadata).layers : null;
   if (!Array.isArray(layers)) return [];
-  return layers.map((l) => (l && typeof l === "object" && typeof l.name === "string" ? l.name : ""));
+  return layers.map((l) => ({
+    name: l && typeof l === "object" && typeof l.name === "string" ? l.name : "",
+    kind: l?.dynamic === true ? "dynamic" : l?.kind === "polygon" ? "polygons" : "lines",
+  }));
 }
 
 /**

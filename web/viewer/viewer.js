@@ -6,7 +6,7 @@
 // config's camera once and POSTs the pixels back (prep/view.hpp).
 import { createRenderer, fetchTerrain, fetchTileset, openPackageUrl, openTile } from "../src/index.js";
 import { MapCamera, attachControls } from "./camera.js";
-import { layerNames, showLayers, showOverlay, showStatus } from "./ui.js";
+import { layerKinds, showLayers, showOverlay, showStatus } from "./ui.js";
 
 /** @typedef {import("../src/package.js").Package} Package */
 /** @typedef {import("../src/render/camera.js").Camera} Camera */
@@ -68,22 +68,6 @@ async function openRenderer(c) {
   }
 }
 
-/**
- * Each layer of the metadata's layer table as `render --only` counts it:
- * "dynamic" (a dynamic line), "polygons" (a polygon layer) or "lines"
- * (static lines and outlines).
- * @param {unknown} metadata
- * @returns {{name: string, kind: keyof Kinds}[]}
- */
-function layerKinds(metadata) {
-  const layers = metadata && typeof metadata === "object" ? /** @type {any} */ (metadata).layers : null;
-  if (!Array.isArray(layers)) return [];
-  return layers.map((l, i) => ({
-    name: typeof l?.name === "string" ? l.name : `layer ${i}`,
-    kind: l?.dynamic === true ? "dynamic" : l?.kind === "polygon" ? "polygons" : "lines",
-  }));
-}
-
 /** @param {string} path @param {BodyInit} body */
 async function post(path, body) {
   const res = await fetch(path, { method: "POST", body });
@@ -105,7 +89,7 @@ async function screenshot(config) {
   const undrawn = [];
   for (const [i, { name, kind }] of layerKinds(pkg.metadata).entries()) {
     renderer.setLayerVisible(i, only[kind]);
-    if (kind === "dynamic" && only.dynamic) undrawn.push(name);
+    if (kind === "dynamic" && only.dynamic) undrawn.push(name || `layer ${i}`);
   }
   if (undrawn.length > 0) {
     await post("/__shot/note", `the browser renderer does not draw dynamic lines yet: layer${
@@ -159,10 +143,7 @@ async function interactive(config) {
       if (canvas.width !== width || canvas.height !== height) [canvas.width, canvas.height] = [width, height];
       const out = await renderer.renderFrame({ camera: cam.camera(), width, height, present: true, readback: false });
       showOverlay({ ms: out.ms, gpuBytes: renderer.gpuBytes, tiles, width, height, adapter: renderer.adapterName });
-    } catch (e) {
-      showStatus(`Error: ${e instanceof Error ? e.message : String(e)}`, true);
-      throw e;
-    } finally {
+    } finally {  // a failure reaches failed() through "unhandledrejection"
       busy = false;
     }
     if (dirty) requestAnimationFrame(() => void draw());
@@ -173,8 +154,8 @@ async function interactive(config) {
   };
   attachControls(canvas, cam, redraw);
   // Dynamic lines are not drawn by this renderer yet: the list says so.
-  const names = layerNames(pkg.metadata).map((n, i) =>
-    layerKinds(pkg.metadata)[i]?.kind === "dynamic" ? `${n} (dynamic: not drawn yet)` : n);
+  const names = layerKinds(pkg.metadata).map(({ name, kind }) =>
+    kind === "dynamic" ? `${name} (dynamic: not drawn yet)` : name);
   showLayers(names, (i, visible) => {
     renderer.setLayerVisible(i, visible);
     redraw();

@@ -221,12 +221,14 @@ export class Renderer {
     this.device.queue.writeBuffer(this.blobBuffer, 0, scene.words);
     this.visBuffer = this.buffer(this.visBits.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.visBuffer, 0, this.visBits);
-    this.terrain = /** @type {Terrain} */ (this.terrain);
+    const terrain = /** @type {Terrain} */ (this.terrain);
     this.freeMesh();
     this.free(this.heights);
-    this.heights = this.buffer(4 * this.terrain.z.length, BU.STORAGE | BU.COPY_DST);
-    this.device.queue.writeBuffer(this.heights, 0, Float32Array.from(this.terrain.z));
-    const grad = triangleGradients(this.terrain);
+    this.heights = this.buffer(4 * terrain.z.length, BU.STORAGE | BU.COPY_DST);
+    this.device.queue.writeBuffer(this.heights, 0, Float32Array.from(terrain.z));
+    // The triangles' gradients: read only for slope widths (F.tn.z, the
+    // slope layers' count, not 0); a placeholder otherwise.
+    const grad = scene.slopeCount > 0 ? triangleGradients(terrain) : new Float32Array(4);
     this.free(this.gradients);
     this.gradients = this.buffer(grad.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.gradients, 0, grad);

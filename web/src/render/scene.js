@@ -8,7 +8,6 @@
 import { SLOTS } from "./wgsl_decals.js";
 import { box16Shift, encodeLegacy } from "./legacy.js";
 
-export { box16Shift };
 
 /** The v1.0–1.2 blobs the v1.3 layout replaced (formats/SPEC.md "Compact layout (v1.3)"). */
 const LEGACY = ["cell_segment_range", "line_bvh_range", "line_bvh_box", "cell_poly_range", "poly_bvh_range",

@@ -163,6 +163,12 @@ std::array<std::pair<const char*, double>, 8> terrain_fields(const TerrainFile& 
 // format_error "<label>: <field>: <why>" naming the field and the bad value.
 TerrainFile decode_terrain(std::span<const uint8_t> bytes, const std::string& label);
 
+// The terrain file at `path`: opened as the package reader opens a file
+// (never a FIFO, device or socket), refused unread when larger than the
+// format's largest file, then decode_terrain. Throws input_error when it
+// cannot be read.
+TerrainFile read_terrain_file(const std::string& path);
+
 // The decal data a renderer reads: frame, extent, grid and the static view
 // (CPU) plus the raw blobs (GL), all views into an owner that must outlive it.
 struct DecalSource {

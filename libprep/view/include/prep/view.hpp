@@ -52,6 +52,12 @@ ServeRoot resolve_root(const std::string& path);
 // no regular file.
 std::optional<std::filesystem::path> resolve_data_path(const ServeRoot& root, std::string_view rel);
 
+// The terrain file the page draws for `root` (formats/SPEC.md "Terrain
+// files"): STEM.terrain beside a package when the server serves it
+// (resolve_data_path's rules); nullopt for a tileset or when there is none.
+// /config.json names it, and `view --screenshot` places its camera over it.
+std::optional<std::filesystem::path> page_terrain(const ServeRoot& root);
+
 // A single byte range [first, last] of a file of `size` bytes.
 struct ByteRange {
   uint64_t first = 0, last = 0;
