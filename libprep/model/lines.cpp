@@ -225,25 +225,11 @@ KeptLines append_lines(const SceneFeatures& scene, const std::vector<LineOut>& o
 void miter_triangles(const decal::LineCorner& ca, const decal::LineCorner& cb, bool null_a,
                      bool null_b, double inv_q, SegmentShape& sh, double& minx, double& maxx,
                      double& miny, double& maxy) {
-  double max_, may_, mbx, mby;
-  if (!null_a) {
-    max_ = ca.miter[0];
-    may_ = ca.miter[1];
-  } else {
-    max_ = ca.bevel_out[0];
-    may_ = ca.bevel_out[1];
-  }
-  if (!null_b) {
-    mbx = cb.miter[0];
-    mby = cb.miter[1];
-  } else {
-    mbx = cb.bevel_in[0];
-    mby = cb.bevel_in[1];
-  }
-  max_ *= inv_q;
-  may_ *= inv_q;
-  mbx *= inv_q;
-  mby *= inv_q;
+  // A null miter falls back to the bevel vector on that side.
+  const float* ma = null_a ? ca.bevel_out : ca.miter;
+  const float* mb = null_b ? cb.bevel_in : cb.miter;
+  const double max_ = ma[0] * inv_q, may_ = ma[1] * inv_q;
+  const double mbx = mb[0] * inv_q, mby = mb[1] * inv_q;
   const double A1x = sh.ax + max_, A1y = sh.ay + may_, A2x = sh.ax - max_, A2y = sh.ay - may_;
   const double B1x = sh.bx + mbx, B1y = sh.by + mby, B2x = sh.bx - mbx, B2y = sh.by - mby;
   const double xs[4] = {A1x, A2x, B1x, B2x}, ys[4] = {A1y, A2y, B1y, B2y};

@@ -254,27 +254,27 @@ void DynamicLines::read_lod(const LodBuffers& lod, Image& img, bool indices) con
 // with LOD data, the LOD lines leave the chains after the cull and their
 // visible segments are chosen and appended after the segments pass.
 void DynamicLines::update(const DynPrograms& p, const LodBuffers* lod) {
+  constexpr GLbitfield kStorage = GL_SHADER_STORAGE_BARRIER_BIT;
+  constexpr GLbitfield kDrawn = GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT;
+  // Dispatches `groups` work groups of the program in use, then the
+  // barrier the next pass needs.
+  auto run = [](GLuint groups, GLbitfield barrier) {
+    glDispatchCompute(groups, 1, 1);
+    glMemoryBarrier(barrier);
+  };
   timer_.begin("dynamic update (cull, compact, segments)");
   set_uniforms(p.cull);
-  glDispatchCompute(blocks_, 1, 1);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  run(blocks_, kStorage);
   if (lod) {
     set_uniforms(p.lod_mask);
-    glDispatchCompute(blocks_, 1, 1);
-    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    run(blocks_, kStorage);
   }
-  set_uniforms(p.scan_local);
-  glDispatchCompute(blocks_, 1, 1);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  set_uniforms(p.scan_blocks);
-  glDispatchCompute(1, 1, 1);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  set_uniforms(p.scatter);
-  glDispatchCompute(blocks_, 1, 1);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  for (GLuint prog : {p.scan_local, p.scan_blocks, p.scatter}) {
+    set_uniforms(prog);
+    run(prog == p.scan_blocks ? 1 : blocks_, kStorage);
+  }
   set_uniforms(p.segments);
-  glDispatchCompute(blocks_, 1, 1);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+  run(blocks_, kDrawn);
   timer_.end();
   if (lod) {
     timer_.begin("dynamic LOD (select, compact, segments)");
@@ -282,11 +282,9 @@ void DynamicLines::update(const DynPrograms& p, const LodBuffers* lod) {
     set_lod_uniforms(p.lod_select);
     glUniform1ui(glGetUniformLocation(p.lod_select, "u_lod_segment_count"),
                  GLuint(lod->n_segments));
-    glDispatchCompute(groups, 1, 1);
-    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    run(groups, kStorage);
     set_lod_uniforms(p.lod_segments);
-    glDispatchCompute(groups, 1, 1);
-    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+    run(groups, kDrawn);
     timer_.end();
   }
   if (dashes_) dash(p);

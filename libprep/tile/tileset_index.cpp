@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <initializer_list>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -88,14 +89,7 @@ class Fields {
   LayerCounts layer_counts(const json& j, const std::string& where) const {
     LayerCounts c;
     c.layer = text(j, "layer", where);
-    c.read = count(j, "read", where);
-    c.kept = count(j, "kept", where);
-    c.repaired = count(j, "repaired", where);
-    c.clipped_away = count(j, "clipped_away", where);
-    c.dropped = count(j, "dropped", where);
-    c.parts = count(j, "parts", where);
-    c.vertices_in = count(j, "vertices_in", where);
-    c.vertices_out = count(j, "vertices_out", where);
+    for (const auto& [name, m] : kLayerCountFields) c.*m = count(j, name, where);
     return c;
   }
   // An overview level's per-layer counts (level_counts_json).
@@ -220,6 +214,18 @@ class IndexProblem {
     if (v > kMaxTilesetCount)
       bad(field, std::to_string(v) + " is above 2^53, the largest count an index holds");
   }
+  // count() of each field `w`.NAME.
+  void counts(const std::string& w,
+              std::initializer_list<std::pair<const char*, uint64_t>> fields) {
+    for (const auto& [name, v] : fields) count(w + "." + name, v);
+  }
+  // A tile entry's own counts.
+  void tile(const std::string& w, const TileEntry& t) {
+    counts(w, {{"bytes", t.bytes},
+               {"counts.polygons", t.polygons},
+               {"counts.lines", t.lines},
+               {"counts.dynamic_lines", t.dynamic_lines}});
+  }
   void coordinate(const std::string& field, double v) {
     if (!std::isfinite(v) || std::fabs(v) > kMaxTilesetCoordinate)
       bad(field, number_text(v) + " is not a finite coordinate within +-1e12 m");
@@ -240,14 +246,7 @@ class IndexProblem {
   }
   // A layer record of the manifest or of a tile (`tile`: read = kept).
   void layer(const std::string& w, const LayerCounts& c, bool tile) {
-    count(w + ".read", c.read);
-    count(w + ".kept", c.kept);
-    count(w + ".repaired", c.repaired);
-    count(w + ".clipped_away", c.clipped_away);
-    count(w + ".dropped", c.dropped);
-    count(w + ".parts", c.parts);
-    count(w + ".vertices_in", c.vertices_in);
-    count(w + ".vertices_out", c.vertices_out);
+    for (const auto& [name, m] : kLayerCountFields) count(w + "." + name, c.*m);
     if (found()) return;
     // Each at most 2^53: the sum cannot wrap.
     if (c.read != c.kept + c.clipped_away + c.dropped)
@@ -281,10 +280,7 @@ void check_tiles(IndexProblem& p, const TilesetIndex& ix, const std::vector<Tile
   for (size_t i = 0; i < tiles.size() && !p.found(); ++i) {
     const TileEntry& t = tiles[i];
     const std::string w = where + "[" + std::to_string(i) + "]";
-    p.count(w + ".bytes", t.bytes);
-    p.count(w + ".counts.polygons", t.polygons);
-    p.count(w + ".counts.lines", t.lines);
-    p.count(w + ".counts.dynamic_lines", t.dynamic_lines);
+    p.tile(w, t);
     for (size_t k = 0; k < t.layers.size() && !p.found(); ++k) {
       const LayerCounts& c = t.layers[k];
       const std::string wl = w + ".layers[" + std::to_string(k) + "]";
@@ -357,21 +353,18 @@ std::string tileset_index_problem(const TilesetIndex& ix) {
     for (size_t k = 0; k < lv.layers.size() && !p.found(); ++k) {
       const LayerCounts& c = lv.layers[k];
       const std::string wl = w + ".layers[" + std::to_string(k) + "]";
-      p.count(wl + ".parts_in", c.read);
-      p.count(wl + ".parts", c.parts);
-      p.count(wl + ".dropped_small", c.dropped_small);
-      p.count(wl + ".vertices_in", c.vertices_in);
-      p.count(wl + ".vertices_out", c.vertices_out);
+      p.counts(wl, {{"parts_in", c.read},
+                    {"parts", c.parts},
+                    {"dropped_small", c.dropped_small},
+                    {"vertices_in", c.vertices_in},
+                    {"vertices_out", c.vertices_out}});
       if (!p.found() && c.read != c.parts + c.dropped_small)
         p.bad(wl, "parts_in is not parts + dropped_small");
     }
     for (size_t i = 0; i < lv.tiles.size() && !p.found(); ++i) {
       const TileEntry& t = lv.tiles[i];
       const std::string wt = w + ".tiles[" + std::to_string(i) + "]";
-      p.count(wt + ".bytes", t.bytes);
-      p.count(wt + ".counts.polygons", t.polygons);
-      p.count(wt + ".counts.lines", t.lines);
-      p.count(wt + ".counts.dynamic_lines", t.dynamic_lines);
+      p.tile(wt, t);
       for (size_t k = 0; k < t.layers.size(); ++k)
         p.layer(wt + ".layers[" + std::to_string(k) + "]", t.layers[k], true);
     }

@@ -494,14 +494,7 @@ std::vector<LayerCounts> counts_from_json(const nlohmann::json& j) {
   for (const nlohmann::json& c : j) {
     LayerCounts l;
     l.layer = c.at("layer").get<std::string>();
-    l.read = c.at("read").get<uint64_t>();
-    l.kept = c.at("kept").get<uint64_t>();
-    l.repaired = c.at("repaired").get<uint64_t>();
-    l.clipped_away = c.at("clipped_away").get<uint64_t>();
-    l.dropped = c.at("dropped").get<uint64_t>();
-    l.parts = c.at("parts").get<uint64_t>();
-    l.vertices_in = c.at("vertices_in").get<uint64_t>();
-    l.vertices_out = c.at("vertices_out").get<uint64_t>();
+    for (const auto& [name, m] : kLayerCountFields) l.*m = c.at(name).get<uint64_t>();
     out.push_back(std::move(l));
   }
   return out;

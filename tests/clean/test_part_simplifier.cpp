@@ -16,10 +16,7 @@ namespace clean_part_simplifier {
 
 namespace {
 
-using prep::Point2;
-using prep::Ring;
-using prep::test::G;
-using prep::test::Geos;
+using prep::Point2, prep::Ring, prep::test::G, prep::test::Geos;
 
 // A circle of radius r with n vertices whose radius wobbles by +-wobble.
 Ring wobbly_circle(double cx, double cy, double r, int n, double wobble, bool ccw) {

@@ -118,6 +118,17 @@ bool is_sampler(GLint type) {
 // "program: what" for every block or sampler not where the table says.
 std::vector<std::string> mismatches(GLuint prog, const std::string& label) {
   std::vector<std::string> out;
+  // `noun` NAME (a storage block, a sampler) was found `at` index `got`.
+  auto check = [&](const char* noun, const std::string& name, G::FrameKind kind, const char* at,
+                   GLint got) {
+    const auto want = table_index(name, kind);
+    const std::string what = label + ": " + noun + " " + name;
+    if (!want)
+      out.push_back(what + " is not in the table");
+    else if (GLint(*want) != got)
+      out.push_back(what + " " + at + " " + std::to_string(got) + ", the table says " +
+                    std::to_string(*want));
+  };
   char name[256];
   GLint n = 0;
   glGetProgramInterfaceiv(prog, GL_SHADER_STORAGE_BLOCK, GL_ACTIVE_RESOURCES, &n);
@@ -127,12 +138,7 @@ std::vector<std::string> mismatches(GLuint prog, const std::string& label) {
     GLint binding = -1;
     glGetProgramResourceiv(prog, GL_SHADER_STORAGE_BLOCK, GLuint(i), 1, &prop, 1, nullptr,
                            &binding);
-    const auto want = table_index(name, G::FrameKind::ssbo);
-    if (!want)
-      out.push_back(label + ": storage block " + name + " is not in the table");
-    else if (GLint(*want) != binding)
-      out.push_back(label + ": storage block " + name + " at binding " + std::to_string(binding) +
-                    ", the table says " + std::to_string(*want));
+    check("storage block", name, G::FrameKind::ssbo, "at binding", binding);
   }
   glGetProgramInterfaceiv(prog, GL_UNIFORM, GL_ACTIVE_RESOURCES, &n);
   for (GLint i = 0; i < n; ++i) {
@@ -143,12 +149,7 @@ std::vector<std::string> mismatches(GLuint prog, const std::string& label) {
     if (!is_sampler(v[0])) continue;
     GLint unit = -1;
     glGetUniformiv(prog, v[1], &unit);
-    const auto want = table_index(name, G::FrameKind::unit);
-    if (!want)
-      out.push_back(label + ": sampler " + name + " is not in the table");
-    else if (GLint(*want) != unit)
-      out.push_back(label + ": sampler " + name + " on unit " + std::to_string(unit) +
-                    ", the table says " + std::to_string(*want));
+    check("sampler", name, G::FrameKind::unit, "on unit", unit);
   }
   return out;
 }

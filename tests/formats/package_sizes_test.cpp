@@ -26,10 +26,7 @@ namespace formats_package_sizes {
 namespace {
 
 namespace fs = std::filesystem;
-using decal_test::entry_at;
-using decal_test::get;
-using decal_test::put;
-using decal_test::reseal;
+using namespace decal_test;
 using H = decal::FileHeader;
 using E = decal::BlobTableEntry;
 
@@ -79,11 +76,11 @@ decal::Status sizes_of(const std::vector<std::byte>& b, decal::PackageSizes* out
 }
 
 std::vector<std::byte> small_package(prep::Codec codec) {
-  return decal_test::model_package_bytes(decal_test::small_model(), {codec, 3});
+  return model_package_bytes(small_model(), {codec, 3});
 }
 
 TEST(PackageSizes, EqualWhatOpenDecodesOnSmallModelsOfEitherCodec) {
-  const std::string dir = decal_test::make_temp_dir("sizes");
+  const std::string dir = make_temp_dir("sizes");
   for (prep::Codec codec : {prep::Codec::none, prep::Codec::zstd}) {
     const auto b = small_package(codec);
     decal::Package p;
@@ -96,7 +93,7 @@ TEST(PackageSizes, EqualWhatOpenDecodesOnSmallModelsOfEitherCodec) {
       EXPECT_TRUE(blob.known()) << blob.name;
       EXPECT_EQ(blob.raw_bytes, blob.count * blob.stride) << blob.name;
     }
-    decal_test::write_file(dir + "/p.decals", b);
+    write_file(dir + "/p.decals", b);
     expect_same_on_file(dir + "/p.decals");
   }
   fs::remove_all(dir);
@@ -146,10 +143,10 @@ TEST(PackageSizes, ReadNeitherTheMetadataNorAnyBlob) {
     b[i] ^= std::byte{0x20};
   }
   // From a file too: the blobs zeroed.
-  const std::string dir = decal_test::make_temp_dir("sizes_noread");
+  const std::string dir = make_temp_dir("sizes_noread");
   b = good;
   std::memset(b.data() + moff, 0, b.size() - moff);
-  decal_test::write_file(dir + "/z.decals", b);
+  write_file(dir + "/z.decals", b);
   decal::PackageSizes s;
   ASSERT_TRUE(decal::read_package_sizes(dir + "/z.decals", s));
   EXPECT_EQ(s.raw_bytes, before.raw_bytes);
@@ -167,9 +164,9 @@ TEST(PackageSizes, EveryTruncatedPrefixIsRejectedWithAMessage) {
     ASSERT_EQ(s.message.find('\n'), std::string::npos) << s.message;
   }
   // On disk, the message names the file.
-  const std::string dir = decal_test::make_temp_dir("sizes_prefix");
+  const std::string dir = make_temp_dir("sizes_prefix");
   for (size_t n : {size_t(0), size_t(7), size_t(95), size_t(96), size_t(500), good.size() - 1}) {
-    decal_test::write_file(dir + "/p.decals", {good.begin(), good.begin() + static_cast<long>(n)});
+    write_file(dir + "/p.decals", {good.begin(), good.begin() + static_cast<long>(n)});
     decal::PackageSizes s;
     const decal::Status st = decal::read_package_sizes(dir + "/p.decals", s);
     EXPECT_FALSE(st) << n;
@@ -261,9 +258,9 @@ TEST(PackageSizes, HostileHeadersAndTablesAreRejectedWithTheirReason) {
 // sizes accept with open()'s figures; what the sizes refuse, open() refuses.
 TEST(PackageSizes, AgreeWithOpenOnEveryHostileVariantAndSeed) {
   std::vector<std::vector<std::byte>> images;
-  for (auto& h : decal_test::hostile_variants(small_package(prep::Codec::zstd)))
+  for (auto& h : hostile_variants(small_package(prep::Codec::zstd)))
     images.push_back(std::move(h.bytes));
-  for (auto& [name, bytes] : decal_test::seed_corpus()) images.push_back(std::move(bytes));
+  for (auto& [name, bytes] : seed_corpus()) images.push_back(std::move(bytes));
   size_t both = 0, refused = 0;
   for (size_t i = 0; i < images.size(); ++i) {
     decal::Package p;
@@ -285,7 +282,7 @@ TEST(PackageSizes, AgreeWithOpenOnEveryHostileVariantAndSeed) {
 }
 
 TEST(PackageSizes, MissingFilesAndDirectoriesAreRejected) {
-  const std::string dir = decal_test::make_temp_dir("sizes_files");
+  const std::string dir = make_temp_dir("sizes_files");
   decal::PackageSizes s;
   decal::Status st = decal::read_package_sizes(dir + "/missing.decals", s);
   EXPECT_FALSE(st);
@@ -293,7 +290,7 @@ TEST(PackageSizes, MissingFilesAndDirectoriesAreRejected) {
   st = decal::read_package_sizes(dir, s);
   EXPECT_FALSE(st);
   EXPECT_NE(st.message.find("not a regular file"), std::string::npos) << st.message;
-  decal_test::write_file(dir + "/empty.decals", {});
+  write_file(dir + "/empty.decals", {});
   st = decal::read_package_sizes(dir + "/empty.decals", s);
   EXPECT_FALSE(st);
   EXPECT_NE(st.message.find("empty file"), std::string::npos) << st.message;

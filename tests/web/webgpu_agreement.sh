@@ -100,29 +100,37 @@ const e = eye.split(",").map(Number), t = target.split(",").map(Number);
 const dist = Math.hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]);
 require("fs").writeFileSync(out, JSON.stringify({projection: "perspective", eye: e, target: t, up: [0, 0, 1],
   fovYDeg: 45, orthoW: 0, orthoH: 0, near: Math.max(0.1, dist * 1e-3), depthRange: 4 * dist, topdownExtent: null}));
-' "$@"
+' -- "$@"
 }
 camera_json 400,-400,500 400,100,0 "$W/cam_flat.json"
 camera_json 400,-400,690 400,100,190 "$W/cam_plane.json"
-# The tilted plane z = 100 + 0.2 x + 0.1 y: any mesh of it is the same
-# surface, so the Terrain here and render's DEM mesh agree exactly.
-node -e '
-const fs = require("fs"), w = process.argv[1], f = (x, y) => 100 + 0.2 * x + 0.1 * y;
-const cell = 30, x0 = -1800, y0 = -2500, n = 140;
-let asc = `ncols ${n}\nnrows ${n}\nxllcorner ${x0}\nyllcorner ${y0}\ncellsize ${cell}\n`;
-for (let r = 0; r < n; ++r) {
-  const yc = y0 + (n - 1 - r + 0.5) * cell, row = [];
-  for (let c = 0; c < n; ++c) row.push(f(x0 + (c + 0.5) * cell, yc).toFixed(6));
-  asc += row.join(" ") + "\n";
+# plane_dem NAME PACKAGE A B: the plane z = 100 + A x + B y (frame metres)
+# as NAME.tif (a 140 x 140 grid of 30 m cells in the package's CRS) and as
+# the harness's Terrain NAME_terrain.json (metres relative to the package
+# origin, written to NAME_origin). Any mesh of a plane is the same surface,
+# so the Terrain and render's DEM mesh agree exactly.
+plane_dem() {
+  "$D" info "$2" --json 2>/dev/null | node -e '
+let s = ""; process.stdin.on("data", (c) => (s += c)).on("end", () => {
+  const fs = require("fs"), [w, name, a, b] = process.argv.slice(1), j = JSON.parse(s), m = j.metadata ?? j;
+  const f = (x, y) => 100 + Number(a) * x + Number(b) * y, cell = 30, x0 = -1800, y0 = -2500, n = 140;
+  let asc = `ncols ${n}\nnrows ${n}\nxllcorner ${x0}\nyllcorner ${y0}\ncellsize ${cell}\n`;
+  for (let r = 0; r < n; ++r) {
+    const yc = y0 + (n - 1 - r + 0.5) * cell, row = [];
+    for (let c = 0; c < n; ++c) row.push(f(x0 + (c + 0.5) * cell, yc).toFixed(6));
+    asc += row.join(" ") + "\n";
+  }
+  fs.writeFileSync(`${w}/${name}.asc`, asc);
+  fs.writeFileSync(`${w}/${name}.prj`, m.crs_wkt);
+  const ox = m.origin.x, oy = m.origin.y, tx = -1785 - ox, ty = -2485 - oy, k = 139, z = [];
+  for (let j = 0; j < k; ++j) for (let i = 0; i < k; ++i) z.push(f(tx + 30 * i + ox, ty + 30 * j + oy));
+  fs.writeFileSync(`${w}/${name}_terrain.json`, JSON.stringify({x0: tx, y0: ty, dx: 30, dy: 30, nx: k, ny: k, z,
+    zmin: Math.min(...z), zmax: Math.max(...z)}));
+  fs.writeFileSync(`${w}/${name}_origin`, `${ox},${oy}`);
+})' "$W" "$1" "$3" "$4"
+  gdal_translate -q -a_srs "$W/$1.prj" -ot Float64 "$W/$1.asc" "$W/$1.tif"
 }
-fs.writeFileSync(w + "/plane.asc", asc);
-const tx = -1785, ty = -2485, m = 139, z = [];
-for (let j = 0; j < m; ++j) for (let i = 0; i < m; ++i) z.push(f(tx + 30 * i, ty + 30 * j));
-fs.writeFileSync(w + "/plane_terrain.json", JSON.stringify({x0: tx, y0: ty, dx: 30, dy: 30, nx: m, ny: m, z,
-  zmin: Math.min(...z), zmax: Math.max(...z)}));
-' "$W"
-"$D" info "$W/monaco.decals" --json 2>/dev/null | node -e 'let s="";process.stdin.on("data",c=>s+=c).on("end",()=>{const j=JSON.parse(s);const m=j.metadata??j;process.stdout.write(m.crs_wkt)})' > "$W/plane.prj" || true
-gdal_translate -q -a_srs "$W/plane.prj" -ot Float64 "$W/plane.asc" "$W/plane.tif"
+plane_dem plane "$W/monaco.decals" 0.2 0.1
 oblique() {  # name, camera, eye, target, render terrain option, harness terrain option[, package]
   P=${7:-$W/monaco.decals}
   "$D" render "$P" --cpu --only polygons,lines $5 --eye "$3" --target "$4" --size $S -o "$W/$1_cpu.png" --decals "$W/$1_cpu_decals.png"
@@ -137,26 +145,7 @@ oblique() {  # name, camera, eye, target, render terrain option, harness terrain
 # it 34% narrower in plan), top-down (the gradient under the pixel centre)
 # and oblique, against render --cpu (decals) and GL (final frame).
 [ -f "$W/slope.decals" ] || "$D" build "$REPO/tests/web/webgpu_slope.toml" -o "$W/slope.decals" >/dev/null
-"$D" info "$W/slope.decals" --json 2>/dev/null | node -e '
-let s = ""; process.stdin.on("data", (c) => (s += c)).on("end", () => {
-  const fs = require("fs"), w = process.argv[1], m = JSON.parse(s).metadata ?? JSON.parse(s);
-  const f = (x, y) => 100 + 0.8 * x + 0.4 * y, cell = 30, x0 = -1800, y0 = -2500, n = 140;
-  let asc = `ncols ${n}\nnrows ${n}\nxllcorner ${x0}\nyllcorner ${y0}\ncellsize ${cell}\n`;
-  for (let r = 0; r < n; ++r) {
-    const yc = y0 + (n - 1 - r + 0.5) * cell, row = [];
-    for (let c = 0; c < n; ++c) row.push(f(x0 + (c + 0.5) * cell, yc).toFixed(6));
-    asc += row.join(" ") + "\n";
-  }
-  fs.writeFileSync(w + "/steep.asc", asc);
-  fs.writeFileSync(w + "/steep.prj", m.crs_wkt);
-  // The Terrain: metres relative to the package origin.
-  const ox = m.origin.x, oy = m.origin.y, tx = -1785 - ox, ty = -2485 - oy, k = 139, z = [];
-  for (let j = 0; j < k; ++j) for (let i = 0; i < k; ++i) z.push(f(tx + 30 * i + ox, ty + 30 * j + oy));
-  fs.writeFileSync(w + "/steep_terrain.json", JSON.stringify({x0: tx, y0: ty, dx: 30, dy: 30, nx: k, ny: k, z,
-    zmin: Math.min(...z), zmax: Math.max(...z)}));
-  fs.writeFileSync(w + "/steep_origin", `${ox},${oy}`);
-})' "$W"
-gdal_translate -q -a_srs "$W/steep.prj" -ot Float64 "$W/steep.asc" "$W/steep.tif"
+plane_dem steep "$W/slope.decals" 0.8 0.4
 SO=$(cat "$W/steep_origin")
 steep_topdown() {  # name, extent (frame CRS)
   rel=$(E="$2" O="$SO" node -e 'const e = process.env.E.split(",").map(Number), o = process.env.O.split(",").map(Number);
@@ -176,13 +165,7 @@ oblique mo_plane cam_plane.json 400,-400,690 400,100,190 "--dem $W/plane.tif" "-
 # The slope package over the steep plane, oblique, looking east up the
 # slope (render's --eye and --target are relative to the package origin,
 # as the harness camera is).
-node -e '
-const [eye, target, out] = [process.argv[1], process.argv[2], process.argv[3]];
-const e = eye.split(",").map(Number), t = target.split(",").map(Number);
-const dist = Math.hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]);
-require("fs").writeFileSync(out, JSON.stringify({projection: "perspective", eye: e, target: t, up: [0, 0, 1],
-  fovYDeg: 45, orthoW: 0, orthoH: 0, near: Math.max(0.1, dist * 1e-3), depthRange: 4 * dist, topdownExtent: null}));
-' -- -100,-300,900 400,-300,300 "$W/cam_steep.json"
+camera_json -100,-300,900 400,-300,300 "$W/cam_steep.json"
 oblique slope_oblique cam_steep.json -100,-300,900 400,-300,300 "--dem $W/steep.tif" "--terrain $W/steep_terrain.json" "$W/slope.decals"
 printf 'slope_oblique decals vs cpu, all pixels: '; $C "$W/slope_oblique_cpu_decals.png" "$W/slope_oblique_gpu_decals.png" --all --min 0.9999 || status=1
 "$D" render "$W/slope.decals" --cpu --only polygons,lines --dem "$W/steep.tif" --slope-widths off --eye -100,-300,900 --target 400,-300,300 --size $S -o "$W/slope_oblique_plan.png" --decals "$W/slope_oblique_plan_decals.png"

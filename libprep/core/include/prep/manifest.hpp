@@ -8,6 +8,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "prep/manifest_words.hpp"
@@ -46,15 +47,28 @@ struct LayerCounts {
   uint64_t dropped_small = 0;
 
   // Adds every count of `o` (not the layer name).
-  LayerCounts& operator+=(const LayerCounts& o) {
-    for (uint64_t LayerCounts::*m :
-         {&LayerCounts::read, &LayerCounts::kept, &LayerCounts::repaired,
-          &LayerCounts::clipped_away, &LayerCounts::dropped, &LayerCounts::parts,
-          &LayerCounts::vertices_in, &LayerCounts::vertices_out, &LayerCounts::dropped_small})
-      this->*m += o.*m;
-    return *this;
-  }
+  LayerCounts& operator+=(const LayerCounts& o);
 };
+
+// The counts of a layer record in formats/SPEC.md §Metadata, in its words
+// and order: the one list the package metadata, the report, the tileset
+// index and their readers go by (dropped_small, an overview level's, is
+// not among them).
+inline constexpr std::pair<const char*, uint64_t LayerCounts::*> kLayerCountFields[] = {
+    {"read", &LayerCounts::read},
+    {"kept", &LayerCounts::kept},
+    {"repaired", &LayerCounts::repaired},
+    {"clipped_away", &LayerCounts::clipped_away},
+    {"dropped", &LayerCounts::dropped},
+    {"parts", &LayerCounts::parts},
+    {"vertices_in", &LayerCounts::vertices_in},
+    {"vertices_out", &LayerCounts::vertices_out}};
+
+inline LayerCounts& LayerCounts::operator+=(const LayerCounts& o) {
+  for (const auto& [name, m] : kLayerCountFields) this->*m += o.*m;
+  dropped_small += o.dropped_small;
+  return *this;
+}
 
 struct Manifest {
   std::vector<LayerCounts> layers;

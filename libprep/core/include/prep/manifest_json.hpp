@@ -37,15 +37,9 @@ inline nlohmann::json manifest_entry_json(const ManifestEntry& e) {
 // formats/SPEC.md §Metadata lists, for the package metadata and the report
 // alike.
 inline nlohmann::json layer_counts_json(const LayerCounts& c) {
-  return {{"layer", c.layer},
-          {"read", c.read},
-          {"kept", c.kept},
-          {"repaired", c.repaired},
-          {"clipped_away", c.clipped_away},
-          {"dropped", c.dropped},
-          {"parts", c.parts},
-          {"vertices_in", c.vertices_in},
-          {"vertices_out", c.vertices_out}};
+  nlohmann::json j = {{"layer", c.layer}};
+  for (const auto& [name, m] : kLayerCountFields) j[name] = c.*m;
+  return j;
 }
 
 // The inverse of manifest_entry_json(), for code that reads a package's
