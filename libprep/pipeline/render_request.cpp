@@ -12,6 +12,9 @@
 #include <sstream>
 #include <string_view>
 #include <utility>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 #include "decal/reader.hpp"
 #include "prep/dem.hpp"
@@ -299,18 +302,30 @@ struct Scene {
   Extent extent;
   bool tileset = false;
   TilesetIndex index;
-  std::vector<decal::Package> packages;  // own what `tiles` view
+  // One package: the package and its source (a tileset's tiles are opened
+  // one at a time as they are drawn: `list`).
+  std::vector<decal::Package> packages;
   std::vector<TileSource> tiles;
-  std::string metadata;       // a package's metadata (the recorded DEM)
-  std::string metadata_file;  // that package (a recorded DEM is relative to its folder)
-  TileSelection selection;    // a tileset: the tiles drawn (prep/tile.hpp)
+  std::string metadata;        // a package's metadata (the recorded DEM)
+  std::string metadata_file;   // that package (a recorded DEM is relative to its folder)
+  bool slope_flagged = false;  // its layer table flags a layer slope_widths = true
+  TileSelection selection;     // a tileset: the tiles drawn (prep/tile.hpp)
+  TileList list;               // a tileset: those tiles, as the renderers open them
 };
 
-// Whether a tile of the view has LOD segments (RenderOutcome::lod_data_unused).
-bool has_lod(const std::vector<TileSource>& tiles) {
-  for (const TileSource& t : tiles)
-    for (const auto& b : t.source.blobs)
-      if (b.id == decal::BlobId::lod_segments && b.count > 0) return true;
+// What opening a tileset's tiles found, as they were drawn: the features
+// the ramps recoloured (each tile counted once, however often it is opened)
+// and whether a tile had LOD segments.
+struct OpenedStats {
+  std::vector<char> counted;
+  uint64_t recoloured = 0;
+  bool lod = false;
+};
+
+// Whether a source has LOD segments (RenderOutcome::lod_data_unused).
+bool has_lod(const DecalSource& source) {
+  for (const auto& b : source.blobs)
+    if (b.id == decal::BlobId::lod_segments && b.count > 0) return true;
   return false;
 }
 
@@ -329,6 +344,7 @@ Scene open_scene(const std::string& path) {
     sc.extent = src.extent;
     sc.metadata = std::string(sc.packages[0].metadata_json());
     sc.metadata_file = path;
+    sc.slope_flagged = !src.slope_layers.empty();
     sc.tiles.push_back({src, Extent{-INFINITY, -INFINITY, INFINITY, INFINITY}, 0, 0});
     return sc;
   }
@@ -344,6 +360,7 @@ Scene open_scene(const std::string& path) {
     open_package(path + "/" + sc.index.tiles.front().file, first);
     sc.metadata = std::string(first.metadata_json());
     sc.metadata_file = path + "/" + sc.index.tiles.front().file;
+    sc.slope_flagged = !source_of(first).slope_layers.empty();
   }
   return sc;
 }
@@ -377,14 +394,18 @@ void note_tiles(const RenderRequest& a, const Scene& sc) {
                             (sc.selection.coarsened ? ", coarsened to fit --gpu-budget" : "")));
 }
 
-// Loads the tiles of a tileset that the view draws (prep/tile.hpp:
-// the level-0 tiles that meet the camera's ground footprint, or overview
-// tiles where their resolution is below a pixel, within --gpu-budget), and
-// only those. The budget counts each tile's blobs decoded, as its header
-// and blob table give them (decal::read_package_sizes, no blob decoded);
-// a loaded tile that holds another figure is refused.
+LayerRamps ramps_by_layer(const std::vector<RampRequest>& ramps, const std::string& metadata);
+
+// Chooses the tiles of a tileset that the view draws (prep/tile.hpp: the
+// level-0 tiles that meet the camera's ground footprint, or overview tiles
+// where their resolution is below a pixel, within --gpu-budget), and makes
+// sc.list open them, one at a time, as the renderer draws them. The budget
+// counts each tile's blobs decoded, as its header and blob table give them
+// (decal::read_package_sizes, no blob decoded); an opened tile that holds
+// another figure is refused. An opened tile is restyled by `ramps`.
 void load_tiles(const RenderRequest& a, Scene& sc, const RenderOptions& opt,
-                const Heightfield& terrain, TileSelectOptions select) {
+                const Heightfield& terrain, TileSelectOptions select,
+                const std::vector<RampRequest>& ramps, std::shared_ptr<OpenedStats> stats) {
   const std::string& dir = a.package;
   select.blob_bytes = [&dir](int, const TileEntry& t) {
     decal::PackageSizes sizes;
@@ -395,27 +416,69 @@ void load_tiles(const RenderRequest& a, Scene& sc, const RenderOptions& opt,
   sc.selection =
       select_tiles(sc.index, opt.camera, opt.width, opt.height, terrain.zmin, terrain.zmax, select);
   const std::vector<SelectedTile>& hit = sc.selection.tiles;
-  sc.packages.resize(hit.size());
-  for (size_t k = 0; k < hit.size(); ++k) {
-    const TileEntry& t = *hit[k].entry;
-    open_package(dir + "/" + t.file, sc.packages[k]);
-    if (const uint64_t got = decoded_bytes(sc.packages[k]); got != hit[k].blob_bytes)
-      fail<format_error>(kRenderStage, "" + dir + "/" + t.file + ": holds " + std::to_string(got) +
-                                           " bytes of decoded blobs; its blob table said " +
-                                           std::to_string(hit[k].blob_bytes) +
-                                           " when the tiles were chosen (the file changed?)");
-    DecalSource src = source_of(sc.packages[k]);
-    if (src.frame.origin_x != t.origin_x || src.frame.origin_y != t.origin_y)
-      fail<format_error>(
-          kNoStage,
-          dir + "/" + t.file + ": origin differs from tileset.json's tile " + tile_name(t.key));
-    const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
-    sc.tiles.push_back(
-        {src,
-         {t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
+  struct Want {
+    std::string path, name;
+    uint64_t blob_bytes;
+    double origin_x, origin_y;
+  };
+  auto wants = std::make_shared<std::vector<Want>>();
+  const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
+  bool lines = false;
+  for (const SelectedTile& h : hit) {
+    const TileEntry& t = *h.entry;
+    wants->push_back({dir + "/" + t.file, tile_name(t.key), h.blob_bytes, t.origin_x, t.origin_y});
+    sc.list.places.push_back(
+        {{t.square.xmin - ox, t.square.ymin - oy, t.square.xmax - ox, t.square.ymax - oy},
          t.origin_x - ox,
          t.origin_y - oy});
+    lines = lines || t.lines > 0;
   }
+  // The layer table is the scene's in every tile: the first tile's tells.
+  sc.list.slope =
+      opt.draw_lines && (opt.slope_widths == SlopeWidths::on
+                             ? lines
+                             : opt.slope_widths == SlopeWidths::package && sc.slope_flagged);
+  stats->counted.assign(hit.size(), 0);
+  struct Held {
+    decal::Package package;
+    RestyledProps restyled;
+  };
+  sc.list.open = [wants, ramps, stats, places = sc.list.places](size_t k) {
+    const Want& w = (*wants)[k];
+#ifdef __GLIBC__
+    // The renderers let the last tile go before they open the next. The
+    // heap's free holes, each a little too small for the next tile's
+    // blobs, would grow with the tiles drawn (0.07 MiB a tile on 10^7
+    // generated vertices in 2 km tiles); past kTrimSlack free bytes their
+    // pages go back to the system. Not at every tile: pages given back
+    // are faulted in again. There (1,122 tiles, GL, 2000x1000) trimming at
+    // every tile took 31 s and peaked at 366 MiB, at 160 MiB of slack
+    // 15 s and 392-416 MiB, never trimming 15 s and 504 MiB.
+    constexpr size_t kTrimSlack = size_t(160) << 20;
+    if (mallinfo2().fordblks > kTrimSlack) malloc_trim(0);
+#endif
+    auto held = std::make_shared<Held>();
+    open_package(w.path, held->package);
+    if (const uint64_t got = decoded_bytes(held->package); got != w.blob_bytes)
+      fail<format_error>(kRenderStage, "" + w.path + ": holds " + std::to_string(got) +
+                                           " bytes of decoded blobs; its blob table said " +
+                                           std::to_string(w.blob_bytes) +
+                                           " when the tiles were chosen (the file changed?)");
+    OpenedTile out{{source_of(held->package), places[k].square, places[k].dx, places[k].dy}, {}};
+    if (out.tile.source.frame.origin_x != w.origin_x ||
+        out.tile.source.frame.origin_y != w.origin_y)
+      fail<format_error>(kNoStage, w.path + ": origin differs from tileset.json's tile " + w.name);
+    if (!ramps.empty())
+      restyle(out.tile.source, ramps_by_layer(ramps, std::string(held->package.metadata_json())),
+              held->restyled);
+    if (!stats->counted[k]) {
+      stats->counted[k] = 1;
+      stats->recoloured += held->restyled.recoloured;
+      stats->lod = stats->lod || has_lod(out.tile.source);
+    }
+    out.keep = std::move(held);
+    return out;
+  };
   note_tiles(a, sc);
 }
 
@@ -435,21 +498,6 @@ LayerRamps ramps_by_layer(const std::vector<RampRequest>& ramps, const std::stri
     by_layer[size_t(it - names.begin())] = r.stops;
   }
   return by_layer;
-}
-
-// Restyles every loaded tile with the --ramp stops, by the layer names of
-// its package's layer table; the recoloured props live in `held`.
-uint64_t apply_ramps(const std::vector<RampRequest>& ramps,
-                     std::span<const decal::Package> packages, std::span<TileSource> tiles,
-                     std::vector<RestyledProps>& held) {
-  held.resize(tiles.size());
-  uint64_t recoloured = 0;
-  for (size_t k = 0; k < tiles.size(); ++k) {
-    const LayerRamps by_layer = ramps_by_layer(ramps, std::string(packages[k].metadata_json()));
-    restyle(tiles[k].source, by_layer, held[k]);
-    recoloured += held[k].recoloured;
-  }
-  return recoloured;
 }
 
 // A top-down --extent in the frame: absolute (as given, for the world file)
@@ -622,12 +670,9 @@ Camera place_camera(const RenderRequest& a, const CheckedRender& c, const View& 
 // The slope widths the volume and texture methods cannot draw.
 void warn_plan_widths(const RenderRequest& a, const RenderOptions& opt, const Scene& sc) {
   if (opt.method == Method::decal || opt.slope_widths != SlopeWidths::package) return;
-  for (const TileSource& t : sc.tiles)
-    if (!slope_layers(t.source, opt.slope_widths).empty()) {
-      warn(a, "the package's slope_widths layers are drawn with their plan widths by --method " +
-                  a.method + " (slope widths need --method decal)");
-      return;
-    }
+  if (sc.slope_flagged)
+    warn(a, "the package's slope_widths layers are drawn with their plan widths by --method " +
+                a.method + " (slope widths need --method decal)");
 }
 
 // Draws with GL, or the CPU evaluator with --cpu; `ms` the call's time.
@@ -635,11 +680,11 @@ Image draw(const RenderRequest& a, const Scene& sc, const Heightfield& terrain,
            const RenderOptions& opt, double& ms) {
   const auto start = std::chrono::steady_clock::now();
 #ifdef PREP_RENDER_WITH_GL
-  Image img = a.cpu ? render_cpu(sc.tiles, terrain, opt) : render_gl(sc.tiles, terrain, opt);
+  Image img = a.cpu ? render_cpu(sc.list, terrain, opt) : render_gl(sc.list, terrain, opt);
 #else
   if (!a.cpu)
     fail<render_error>(kRenderStage, "this build has no GL renderer (DECALPREP_GL=OFF); use --cpu");
-  Image img = render_cpu(sc.tiles, terrain, opt);
+  Image img = render_cpu(sc.list, terrain, opt);
 #endif
   ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return img;
@@ -743,16 +788,29 @@ RenderOutcome render(const RenderRequest& a) {
   RenderOutcome out;
   out.options = c.options;
   out.options.camera = placed.camera;
-  // A tileset: only the tiles the view draws (select_tiles meets them with
-  // what the camera can see of the terrain).
-  if (sc.tileset) load_tiles(a, sc, out.options, terrain, c.select);
   // --ramp: value-coloured layers restyled when drawing, from the values the
-  // package stores; the package itself is not changed.
-  std::vector<RestyledProps> restyled;
-  if (!c.ramps.empty()) out.recoloured = apply_ramps(c.ramps, sc.packages, sc.tiles, restyled);
+  // package stores; the package itself is not changed. A layer the package
+  // lacks is an error before anything is drawn.
+  if (!c.ramps.empty()) ramps_by_layer(c.ramps, sc.metadata);
+  RestyledProps restyled;
+  auto stats = std::make_shared<OpenedStats>();
+  if (sc.tileset) {
+    // Only the tiles the view draws (select_tiles meets them with what the
+    // camera can see of the terrain), each opened as it is drawn.
+    load_tiles(a, sc, out.options, terrain, c.select, c.ramps, stats);
+    for (const SelectedTile& t : sc.selection.tiles) out.blob_bytes += t.blob_bytes;
+  } else {
+    if (!c.ramps.empty()) {
+      restyle(sc.tiles[0].source, ramps_by_layer(c.ramps, sc.metadata), restyled);
+      stats->recoloured = restyled.recoloured;
+    }
+    stats->lod = has_lod(sc.tiles[0].source);
+    sc.list = tile_list(sc.tiles, out.options);
+    out.blob_bytes = decoded_bytes(sc.packages[0]);
+  }
   warn_plan_widths(a, out.options, sc);
-  for (const decal::Package& p : sc.packages) out.blob_bytes += decoded_bytes(p);
   out.image = draw(a, sc, terrain, out.options, out.frame_ms);
+  out.recoloured = stats->recoloured;
   write_outputs(a, out.image, view, sc.frame);
 
   out.terrain_nx = terrain.nx;
@@ -764,7 +822,7 @@ RenderOutcome render(const RenderRequest& a) {
   for (SelectedTile& t : out.selection.tiles) t.entry = nullptr;  // the index goes
   out.index_tiles = sc.index.tiles.size();
   out.gpu_budget = c.select.gpu_budget;
-  out.lod_data_unused = !out.options.lod && has_lod(sc.tiles);
+  out.lod_data_unused = !out.options.lod && stats->lod;
   return out;
 }
 

@@ -406,8 +406,7 @@ void GlRenderer::dynamic_pass(Image& img, GlObjects& work) {
 const LodBuffers* GlRenderer::lod_data(GlObjects& work) {
   if (!opt_.lod || blob_span<decal::LodSegment>(*source_, decal::BlobId::lod_segments).empty())
     return nullptr;
-  if (!tiles_.empty() || !lod_ || lod_->source != source_)
-    lod_ = lod_buffers(tiles_.empty() ? gl_ : work, *source_);
+  if (tiles_ || !lod_ || lod_->source != source_) lod_ = lod_buffers(tiles_ ? work : gl_, *source_);
   return lod_.get();
 }
 

@@ -308,18 +308,16 @@ GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal:
   if (opt.method != Method::decal) method_setup();
 }
 
-GlRenderer::GlRenderer(std::span<const TileSource> tiles, const Heightfield& terrain,
-                       const RenderOptions& opt)
-    : tiles_(tiles), terrain_(terrain), opt_(opt), W_(opt.width), H_(opt.height) {
+GlRenderer::GlRenderer(const TileList& tiles, const Heightfield& terrain, const RenderOptions& opt)
+    : tiles_(&tiles), terrain_(terrain), opt_(opt), W_(opt.width), H_(opt.height) {
   wall0_ = std::chrono::steady_clock::now();
-  if (opt.method != Method::decal || tiles.empty())
+  if (opt.method != Method::decal || tiles.places.empty())
     fail<render_error>(kRenderStage, "a tileset in one frame takes the decal method");
   // The grid only sets view0_'s cell, which no pass reads: each tile's
   // view_ takes its own (load_tile).
-  view0_ = view_uniforms(opt.camera, tiles.front().source.view.grid, W_, H_);
+  view0_ = view_uniforms(opt.camera, GridParams{}, W_, H_);
   view_ = view0_;
-  for (const TileSource& t : tiles)
-    slope_ = slope_ || (opt.draw_lines && !slope_layers(t.source, opt.slope_widths).empty());
+  slope_ = opt.draw_lines && tiles.slope;
   setup();
 }
 
@@ -346,7 +344,7 @@ decal::gl::Grid gl_grid(const DecalSource& source) {
   return {gp.origin_x, gp.origin_y, gp.cell_w, gp.cell_h, gp.nx, gp.ny};
 }
 
-std::optional<std::array<int64_t, 2>> tile_shift(const TileSource& t) {
+std::optional<std::array<int64_t, 2>> tile_shift(const TilePlace& t) {
   const double q = decal::kQuantumMetres;
   const std::array<int64_t, 2> k{std::llround(t.dx / q), std::llround(t.dy / q)};
   if (!(std::fabs(t.dx - double(k[0]) * q) <= 1e-6 && std::fabs(t.dy - double(k[1]) * q) <= 1e-6))
@@ -360,11 +358,11 @@ std::optional<std::array<int64_t, 2>> tile_shift(const TileSource& t) {
 // stays view0_'s. Only integer uniforms (u_anchor_q, u_anchor_cell) and the
 // anchor's offset in its cell change, computed in double on the CPU.
 void GlRenderer::load_tile(size_t k) {
-  const TileSource& t = tiles_[k];
+  const TilePlace& t = tiles_->places[k];
   timer_.tile = int(k);
-  source_ = &t.source;
   gpu_.reset();
-  const GridParams& gp = t.source.view.grid;
+  tile_ = OpenedTile{};  // the previous tile's blobs go before the next one's come
+  source_ = nullptr;
   const std::optional<std::array<int64_t, 2>> shift = tile_shift(t);
   if (!shift) fail<render_error>(kRenderStage, "tile origin not on the quantum grid");
   view_ = view0_;
@@ -372,7 +370,6 @@ void GlRenderer::load_tile(size_t k) {
   view_.ay -= (*shift)[1];
   const double q = decal::kQuantumMetres;
   view_.anchor = {double(view_.ax) * q, double(view_.ay) * q, 0.0};
-  set_grid(view_, gp);
   Extent clip{t.square.xmin - t.dx, t.square.ymin - t.dy, t.square.xmax - t.dx,
               t.square.ymax - t.dy};
   if (opt_.clip)
@@ -380,12 +377,20 @@ void GlRenderer::load_tile(size_t k) {
         std::max(clip.xmin, opt_.clip->xmin - t.dx), std::max(clip.ymin, opt_.clip->ymin - t.dy),
         std::min(clip.xmax, opt_.clip->xmax - t.dx), std::min(clip.ymax, opt_.clip->ymax - t.dy)};
   set_clip(view_, clip);
-  runs_ = draw_runs(t.source.view);
   scissor_ = tile_scissor();
-  if (scissor_[2] == 0 || scissor_[3] == 0) return;  // not in the image: nothing to upload
-  if (slope_) upload_slope_layers(t.source);
+  if (scissor_[2] == 0 || scissor_[3] == 0) return;  // not in the image: not even opened
+  timer_.begin("tile open (read, decode)");
+  tile_ = tiles_->open(k);
+  timer_.end();
+  source_ = &tile_.tile.source;
+  dash_for_ = nullptr;  // a new tile may sit where the last one was
+  const std::vector<decal::gl::BlobBytes> blobs = gl_blobs(*source_);
+  if (!source_->validated) check(decal::gl::validate_blobs(blobs, gl_grid(*source_)));
+  set_grid(view_, source_->view.grid);
+  runs_ = draw_runs(source_->view);
+  if (slope_) upload_slope_layers(*source_);
   timer_.begin("tile upload (blobs)");
-  check(decal::gl::GpuPackage::upload(gl_blobs(t.source), gl_grid(t.source), gpu_, true));
+  check(decal::gl::GpuPackage::upload(blobs, gl_grid(*source_), gpu_, true));
   timer_.end();
 }
 
@@ -425,8 +430,8 @@ void GlRenderer::frame(Image& img) {
   img.dyn_kept = img.dyn_segments = img.dyn_nodes = 0;
   img.lod_lines = img.lod_selected = img.lod_drawn = img.lod_full = 0;
   img.lod_selection.clear();
-  for (size_t k = 0; k < std::max<size_t>(tiles_.size(), 1); ++k) {
-    if (!tiles_.empty()) {
+  for (size_t k = 0; k < (tiles_ ? tiles_->places.size() : 1); ++k) {
+    if (tiles_) {
       load_tile(k);
       if (!gpu_) continue;
       glEnable(GL_SCISSOR_TEST);
@@ -440,10 +445,14 @@ void GlRenderer::frame(Image& img) {
       GlObjects work;  // the dynamic pass's buffers, freed with the tile
       dynamic_pass(img, work);
     }
-    if (!tiles_.empty()) {
+    if (tiles_) {
       glDisable(GL_SCISSOR_TEST);
       gpu_.reset();
     }
+  }
+  if (tiles_) {
+    tile_ = OpenedTile{};
+    source_ = nullptr;
   }
   timer_.tile = -1;
   if (opt_.method == Method::decal) end_static(f_static);

@@ -39,77 +39,62 @@ Image render_cpu(const DecalSource& source, const Heightfield& terrain, const Re
   return render_cpu(std::span<const TileSource>(&whole, 1), terrain, opt);
 }
 
+Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
+                 const RenderOptions& opt) {
+  return render_cpu(tile_list(tiles, opt), terrain, opt);
+}
+
 namespace {
 
-// One CPU frame of several tiles: the evaluator's views, the slope-width
-// layers, and each pixel's ground point (NaN x where its ray sees sky).
+// Runs body(i) for i in [0, n), over up to 16 threads, at least `grain`
+// items a thread (evaluate() is thread-safe; each i is written once).
+template <class Body>
+void parallel_for(size_t n, size_t grain, Body&& body) {
+  const size_t cpus = std::max(1u, std::min(16u, std::thread::hardware_concurrency()));
+  const size_t nthreads = std::max<size_t>(1, std::min(cpus, (n + grain - 1) / grain));
+  auto run = [&](size_t i0) {
+    for (size_t i = i0; i < n; i += nthreads) body(i);
+  };
+  std::vector<std::thread> workers;
+  for (size_t t = 1; t < nthreads; ++t) workers.emplace_back(run, t);
+  run(0);
+  for (auto& w : workers) w.join();
+}
+
+// Pixels a thread evaluates at the least (a thread costs about as much as
+// evaluating a few hundred).
+constexpr size_t kPixelGrain = 4096;
+
+// One CPU frame of several tiles: each pixel's ground point (NaN x where
+// its ray sees sky), the tile whose square holds it, then tile by tile:
+// the tile opened, its pixels evaluated (static decals, then dynamic
+// lines), the tile let go.
 struct CpuFrame {
-  std::span<const TileSource> tiles;
+  const TileList& tiles;
   const Heightfield& terrain;
   const RenderOptions& opt;
   uint32_t W, H;
   Image& img;
-  std::vector<StaticView> views;
-  std::vector<std::vector<uint8_t>> slope;
-  bool any_slope = false;
   std::vector<double> hit_x, hit_y, hit_z;
 
-  CpuFrame(std::span<const TileSource> t, const Heightfield& h, const RenderOptions& o, Image& i)
+  CpuFrame(const TileList& t, const Heightfield& h, const RenderOptions& o, Image& i)
       : tiles(t),
         terrain(h),
         opt(o),
         W(o.width),
         H(o.height),
         img(i),
-        slope(t.size()),
         hit_x(size_t(W) * H, NAN),
         hit_y(size_t(W) * H, NAN),
-        hit_z(size_t(W) * H, 0.0) {
-    // Kinds not drawn are left out of the views the evaluator sees.
-    for (const TileSource& tile : tiles) {
-      StaticView view = tile.source.view;
-      if (!opt.draw_polygons) view.poly_bvh_range = {};
-      if (!opt.draw_lines) view.line_bvh_range = {};
-      views.push_back(view);
-    }
-    // Slope widths (formats/SPEC.md "Slope widths"): each tile's flagged
-    // layers, measured along the gradient of the terrain triangle under the
-    // point (the ray's hit triangle; the one under the pixel centre top-down).
-    for (size_t k = 0; k < tiles.size(); ++k) {
-      if (opt.draw_lines) slope[k] = slope_layers(tiles[k].source, opt.slope_widths);
-      any_slope = any_slope || !slope[k].empty();
-    }
-  }
+        hit_z(size_t(W) * H, 0.0) {}
 
-  // The tile whose half-open square holds (x, y); none: tiles.size().
+  // The tile whose half-open square holds (x, y); none: places.size().
   size_t tile_at(double x, double y) const {
-    for (size_t k = 0; k < tiles.size(); ++k) {
-      const Extent& q = tiles[k].square;
+    for (size_t k = 0; k < tiles.places.size(); ++k) {
+      const Extent& q = tiles.places[k].square;
       if (x >= q.xmin && x < q.xmax && y >= q.ymin && y < q.ymax) return k;
     }
-    return tiles.size();
-  }
-
-  // A point is answered by the one tile whose half-open square holds it.
-  EvalSample sample(double x, double y) const {
-    const size_t k = tile_at(x, y);
-    if (k == tiles.size()) return EvalSample{};
-    if (slope[k].empty()) return evaluate(views[k], x - tiles[k].dx, y - tiles[k].dy);
-    const std::array<double, 2> g = terrain.gradient_at(x, y);
-    return evaluate(views[k], x - tiles[k].dx, y - tiles[k].dy, {g[0], g[1], slope[k]});
-  }
-
-  // Rows in parallel (evaluate() is thread-safe; each pixel is written once).
-  template <class Row>
-  void parallel_rows(Row&& row) const {
-    const uint32_t nthreads = std::max(1u, std::min(16u, std::thread::hardware_concurrency()));
-    auto rows = [&](uint32_t j0, uint32_t step) {
-      for (uint32_t j = j0; j < H; j += step) row(j);
-    };
-    std::vector<std::thread> workers;
-    for (uint32_t t = 1; t < nthreads; ++t) workers.emplace_back(rows, t, nthreads);
-    rows(0, nthreads);
-    for (auto& w : workers) w.join();
+    return tiles.places.size();
   }
 
   void put(size_t k, const EvalSample& s) {
@@ -119,17 +104,7 @@ struct CpuFrame {
   }
 
   // Exactly the render_topdown pixel grid; the terrain is under every pixel.
-  void draw_topdown(const Extent& td) {
-    const bool single = tiles.size() == 1 && std::isinf(tiles[0].square.xmin) && !any_slope;
-    if (single) {
-      img.decals = render_topdown(views[0], td, W, H);
-    } else {
-      parallel_rows([&](uint32_t j) {
-        for (uint32_t i = 0; i < W; ++i)
-          put(i + size_t(W) * j, sample(td.xmin + (i + 0.5) * (td.xmax - td.xmin) / W,
-                                        td.ymax - (j + 0.5) * (td.ymax - td.ymin) / H));
-      });
-    }
+  void topdown_points(const Extent& td) {
     for (uint32_t j = 0; j < H; ++j)
       for (uint32_t i = 0; i < W; ++i) {
         hit_x[i + size_t(W) * j] = td.xmin + (i + 0.5) * (td.xmax - td.xmin) / W;
@@ -139,9 +114,9 @@ struct CpuFrame {
   }
 
   // Ray-casts the heightfield mesh in double precision from the pixel centre.
-  void draw_rays() {
+  void ray_points() {
     const detail::PixelRays rays(opt.camera, W, H);
-    parallel_rows([&](uint32_t j) {
+    parallel_for(H, 1, [&](size_t j) {
       for (uint32_t i = 0; i < W; ++i) {
         Vec3 o, d;
         rays.ray((i + 0.5) / W * 2 - 1, 1 - (j + 0.5) / H * 2, o, d);
@@ -156,44 +131,106 @@ struct CpuFrame {
         // vertex heights the same way.
         const double h = terrain.height_at(hit_x[k], hit_y[k]);
         hit_z[k] = std::isnan(h) ? o[2] + *t * d[2] : h;
-        put(k, sample(hit_x[k], hit_y[k]));
       }
     });
   }
 
-  // Dynamic lines, as the GL pass draws them (detail/dynamic_cpu.hpp): each
-  // tile's in its own frame, at the ground point of every pixel with
-  // terrain, drawn by the tile whose square holds the point.
-  void draw_dynamic() {
-    const Camera& cam = opt.camera;
-    std::vector<detail::DynamicLinesCpu> dyn;
-    bool any = false;
-    for (const TileSource& t : tiles) {
-      Camera c = cam;
-      c.eye = {cam.eye[0] - t.dx, cam.eye[1] - t.dy, cam.eye[2]};
-      c.target = {cam.target[0] - t.dx, cam.target[1] - t.dy, cam.target[2]};
-      dyn.emplace_back(
-          t.source, c, W, H,
-          detail::DynamicLod{opt.lod, opt.lod_tolerance_px, terrain.zmin, terrain.zmax});
-      any = any || !dyn.back().empty();
-      const std::array<uint64_t, 4> n = dyn.back().lod_counts();
-      img.lod_lines += n[0];
-      img.lod_selected += n[1];
-      img.lod_drawn += n[2];
-      img.lod_full += n[3];
-    }
-    if (!any) return;
-    parallel_rows([&](uint32_t j) {
-      for (uint32_t i = 0; i < W; ++i) {
-        const size_t k = i + size_t(W) * j;
-        if (std::isnan(hit_x[k])) continue;
-        const size_t t = tile_at(hit_x[k], hit_y[k]);
-        if (t == tiles.size()) continue;
-        const std::array<float, 4> c =
-            dyn[t].at({hit_x[k] - tiles[t].dx, hit_y[k] - tiles[t].dy, hit_z[k]});
-        std::copy(c.begin(), c.end(), img.dynamic.begin() + std::ptrdiff_t(4 * k));
-      }
+  // The pixels with a ground point, grouped by the tile that answers them
+  // (counting sort: tile k's are pixels[first[k] .. first[k + 1])).
+  void group(std::vector<uint32_t>& pixels, std::vector<size_t>& first) const {
+    const size_t n = tiles.places.size(), none = n;
+    std::vector<uint32_t> owner(size_t(W) * H, uint32_t(none));
+    parallel_for(H, 1, [&](size_t j) {
+      for (size_t k = j * W; k < (j + 1) * W; ++k)
+        if (!std::isnan(hit_x[k])) owner[k] = uint32_t(tile_at(hit_x[k], hit_y[k]));
     });
+    first.assign(n + 1, 0);
+    for (uint32_t o : owner)
+      if (o != none) ++first[o + 1];
+    for (size_t k = 1; k <= n; ++k) first[k] += first[k - 1];
+    pixels.resize(first[n]);
+    std::vector<size_t> next(first.begin(), first.end() - 1);
+    for (size_t k = 0; k < owner.size(); ++k)
+      if (owner[k] != none) pixels[next[owner[k]]++] = uint32_t(k);
+  }
+
+  // Static decals, then dynamic lines, of tile k at `pixels`.
+  void draw_tile(size_t k, std::span<const uint32_t> pixels) {
+    const OpenedTile opened = tiles.open(k);
+    const TileSource& t = opened.tile;
+    const TilePlace& at = tiles.places[k];
+    // Kinds not drawn are left out of the view the evaluator sees.
+    StaticView view = t.source.view;
+    if (!opt.draw_polygons) view.poly_bvh_range = {};
+    if (!opt.draw_lines) view.line_bvh_range = {};
+    // Slope widths (formats/SPEC.md "Slope widths"): the tile's flagged
+    // layers, measured along the gradient of the terrain triangle under the
+    // point (the ray's hit triangle; the one under the pixel centre top-down).
+    const std::vector<uint8_t> slope =
+        opt.draw_lines ? slope_layers(t.source, opt.slope_widths) : std::vector<uint8_t>{};
+    parallel_for(pixels.size(), kPixelGrain, [&](size_t i) {
+      const size_t p = pixels[i];
+      const double x = hit_x[p], y = hit_y[p];
+      if (slope.empty()) return put(p, evaluate(view, x - at.dx, y - at.dy));
+      const std::array<double, 2> g = terrain.gradient_at(x, y);
+      put(p, evaluate(view, x - at.dx, y - at.dy, {g[0], g[1], slope}));
+    });
+    if (opt.draw_dynamic) draw_dynamic(t.source, at, pixels);
+  }
+
+  // Dynamic lines, as the GL pass draws them (detail/dynamic_cpu.hpp): the
+  // tile's in its own frame, at the ground point of each of its pixels.
+  void draw_dynamic(const DecalSource& source, const TilePlace& at,
+                    std::span<const uint32_t> pixels) {
+    const Camera& cam = opt.camera;
+    Camera c = cam;
+    c.eye = {cam.eye[0] - at.dx, cam.eye[1] - at.dy, cam.eye[2]};
+    c.target = {cam.target[0] - at.dx, cam.target[1] - at.dy, cam.target[2]};
+    const detail::DynamicLinesCpu dyn(
+        source, c, W, H,
+        detail::DynamicLod{opt.lod, opt.lod_tolerance_px, terrain.zmin, terrain.zmax});
+    const std::array<uint64_t, 4> n = dyn.lod_counts();
+    img.lod_lines += n[0];
+    img.lod_selected += n[1];
+    img.lod_drawn += n[2];
+    img.lod_full += n[3];
+    if (dyn.empty()) return;
+    parallel_for(pixels.size(), kPixelGrain, [&](size_t i) {
+      const size_t p = pixels[i];
+      const std::array<float, 4> col = dyn.at({hit_x[p] - at.dx, hit_y[p] - at.dy, hit_z[p]});
+      std::copy(col.begin(), col.end(), img.dynamic.begin() + std::ptrdiff_t(4 * p));
+    });
+  }
+
+  void draw() {
+    Extent td;
+    const bool topdown = is_topdown(opt.camera, W, H, &td);
+    if (topdown)
+      topdown_points(td);
+    else
+      ray_points();
+    // One package top-down without slope widths: exactly render_topdown.
+    const bool single = tiles.places.size() == 1 && std::isinf(tiles.places[0].square.xmin);
+    if (single && topdown) {
+      const OpenedTile opened = tiles.open(0);
+      const DecalSource& source = opened.tile.source;
+      if (!opt.draw_lines || slope_layers(source, opt.slope_widths).empty()) {
+        StaticView view = source.view;
+        if (!opt.draw_polygons) view.poly_bvh_range = {};
+        if (!opt.draw_lines) view.line_bvh_range = {};
+        img.decals = render_topdown(view, td, W, H);
+        std::vector<uint32_t> all(size_t(W) * H);
+        for (size_t k = 0; k < all.size(); ++k) all[k] = uint32_t(k);
+        if (opt.draw_dynamic) draw_dynamic(source, tiles.places[0], all);
+        return;
+      }
+    }
+    std::vector<uint32_t> pixels;
+    std::vector<size_t> first;
+    group(pixels, first);
+    for (size_t k = 0; k < tiles.places.size(); ++k)
+      if (first[k + 1] > first[k])
+        draw_tile(k, std::span<const uint32_t>(pixels).subspan(first[k], first[k + 1] - first[k]));
   }
 
   // Final image: dynamic lines over the decal layer over the shaded
@@ -215,8 +252,7 @@ struct CpuFrame {
 
 }  // namespace
 
-Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
-                 const RenderOptions& opt) {
+Image render_cpu(const TileList& tiles, const Heightfield& terrain, const RenderOptions& opt) {
   const uint32_t W = opt.width, H = opt.height;
   auto wall0 = std::chrono::steady_clock::now();
   Image img;
@@ -225,14 +261,9 @@ Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
   img.device = "cpu";
   img.decals.assign(size_t(W) * H * 4, 0.0f);
   img.rgba.assign(size_t(W) * H * 4, 0);
-  CpuFrame frame(tiles, terrain, opt, img);
-  Extent td;
-  if (is_topdown(opt.camera, W, H, &td))
-    frame.draw_topdown(td);
-  else
-    frame.draw_rays();
   img.dynamic.assign(size_t(W) * H * 4, 0.0f);
-  if (opt.draw_dynamic) frame.draw_dynamic();
+  CpuFrame frame(tiles, terrain, opt, img);
+  frame.draw();
   frame.composite();
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();

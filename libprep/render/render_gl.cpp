@@ -18,18 +18,20 @@ namespace detail {
 
 namespace {
 
-// GL rows are bottom-up; premultiplied alpha to straight.
-void straight_flipped(const std::vector<float>& from, std::vector<float>& to, uint32_t W,
-                      uint32_t H) {
-  const size_t row = size_t(W) * 4;
-  for (uint32_t y = 0; y < H; ++y) {
-    const float* src = from.data() + (H - 1 - y) * row;
-    float* dst = to.data() + y * row;
-    for (uint32_t x = 0; x < W; ++x) {
-      float a = src[4 * x + 3];
-      for (int c = 0; c < 3; ++c) dst[4 * x + c] = a > 0 ? src[4 * x + c] / a : 0.0f;
-      dst[4 * x + 3] = a;
-    }
+// GL rows are bottom-up: turns `v` (rows of `row` elements) upside down in
+// place, so that read-back needs no second copy of the frame.
+template <class T>
+void flip_rows(std::vector<T>& v, size_t row, uint32_t H) {
+  for (uint32_t y = 0; y < H / 2; ++y)
+    std::swap_ranges(v.begin() + std::ptrdiff_t(y * row), v.begin() + std::ptrdiff_t((y + 1) * row),
+                     v.begin() + std::ptrdiff_t((H - 1 - y) * row));
+}
+
+// Premultiplied alpha to straight, in place.
+void straighten(std::vector<float>& v) {
+  for (size_t k = 0; k + 3 < v.size(); k += 4) {
+    const float a = v[k + 3];
+    for (int c = 0; c < 3; ++c) v[k + c] = a > 0 ? v[k + c] / a : 0.0f;
   }
 }
 
@@ -37,15 +39,18 @@ void straight_flipped(const std::vector<float>& from, std::vector<float>& to, ui
 
 void GlRenderer::read_back(Image& img) {
   const uint32_t W = W_, H = H_;
-  std::vector<uint8_t> rgba(size_t(W) * H * 4);
-  std::vector<float> dec(size_t(W) * H * 4), dyn(size_t(W) * H * 4);
-  glGetTextureImage(t_.dyn, 0, GL_RGBA, GL_FLOAT, GLsizei(dyn.size() * sizeof(float)), dyn.data());
-  glGetTextureImage(t_.final, 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(rgba.size()), rgba.data());
-  glGetTextureImage(t_.decal, 0, GL_RGBA, GL_FLOAT, GLsizei(dec.size() * sizeof(float)),
-                    dec.data());
+  img.rgba.assign(size_t(W) * H * 4, 0);
+  img.decals.assign(size_t(W) * H * 4, 0.0f);
+  img.dynamic.assign(size_t(W) * H * 4, 0.0f);
+  glGetTextureImage(t_.dyn, 0, GL_RGBA, GL_FLOAT, GLsizei(img.dynamic.size() * sizeof(float)),
+                    img.dynamic.data());
+  glGetTextureImage(t_.final, 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(img.rgba.size()),
+                    img.rgba.data());
+  glGetTextureImage(t_.decal, 0, GL_RGBA, GL_FLOAT, GLsizei(img.decals.size() * sizeof(float)),
+                    img.decals.data());
   if (GLenum e = glGetError(); e != GL_NO_ERROR)
     fail<render_error>(kRenderStage, "GL error " + std::to_string(e));
-  if (tiles_.empty())
+  if (!tiles_)
     timer_.collect(img.times);
   else
     timer_.collect_per_pass(img.times);
@@ -53,14 +58,12 @@ void GlRenderer::read_back(Image& img) {
   const double frame =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0_).count();
   img.times.push_back({"total (incl. upload, shader compile, read-back)", frame, frame});
-  img.rgba.resize(rgba.size());
-  img.decals.resize(dec.size());
-  img.dynamic.resize(dyn.size());
   const size_t row = size_t(W) * 4;
-  for (uint32_t y = 0; y < H; ++y)
-    std::memcpy(img.rgba.data() + y * row, rgba.data() + (H - 1 - y) * row, row);
-  straight_flipped(dec, img.decals, W, H);
-  straight_flipped(dyn, img.dynamic, W, H);
+  flip_rows(img.rgba, row, H);
+  flip_rows(img.decals, row, H);
+  flip_rows(img.dynamic, row, H);
+  straighten(img.decals);
+  straighten(img.dynamic);
 }
 
 }  // namespace detail
@@ -68,9 +71,9 @@ void GlRenderer::read_back(Image& img) {
 namespace {
 
 // Whether a tileset is drawn in one frame (render_gl of tiles below).
-bool one_frame(std::span<const TileSource> tiles, const RenderOptions& opt) {
+bool one_frame(const TileList& tiles, const RenderOptions& opt) {
   if (opt.method != Method::decal) return false;
-  for (const TileSource& t : tiles)
+  for (const TilePlace& t : tiles.places)
     if (!detail::tile_shift(t)) return false;
   return true;
 }
@@ -95,20 +98,6 @@ Image draw_frames(const RenderOptions& opt, Make&& make) {
   return img;
 }
 
-// A tileset in one frame: one context, the terrain once, each tile's
-// blobs resident only while its passes draw (detail::GlRenderer).
-Image render_gl_one_frame(std::span<const TileSource> tiles, const Heightfield& terrain,
-                          const RenderOptions& opt) {
-  check_render_options(opt);
-  // Validate before anything touches GL, as for one package.
-  for (const TileSource& t : tiles)
-    if (!t.source.validated)
-      detail::check(
-          decal::gl::validate_blobs(detail::gl_blobs(t.source), detail::gl_grid(t.source)));
-  return draw_frames(opt,
-                     [&] { return std::make_unique<detail::GlRenderer>(tiles, terrain, opt); });
-}
-
 }  // namespace
 
 Image render_gl(const DecalSource& source, const Heightfield& terrain, const RenderOptions& opt) {
@@ -124,9 +113,14 @@ Image render_gl(const DecalSource& source, const Heightfield& terrain, const Ren
 
 Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
                 const RenderOptions& opt) {
-  if (tiles.size() == 1 && std::isinf(tiles[0].square.xmin))
-    return render_gl(tiles[0].source, terrain, opt);
-  if (tiles.empty()) fail<usage_error>(kRenderStage, "no tile of the tileset meets the view");
+  return render_gl(tile_list(tiles, opt), terrain, opt);
+}
+
+Image render_gl(const TileList& tiles, const Heightfield& terrain, const RenderOptions& opt) {
+  if (tiles.places.size() == 1 && std::isinf(tiles.places[0].square.xmin))
+    return render_gl(tiles.open(0).tile.source, terrain, opt);
+  if (tiles.places.empty())
+    fail<usage_error>(kRenderStage, "no tile of the tileset meets the view");
   // The decal method draws every tile in one frame, in one context: the
   // terrain G-buffer once in the index frame, then per tile its static and
   // dynamic passes clipped to its square into the shared layers, its blobs
@@ -143,7 +137,13 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
   // Pixels are not merged: squares are half-open and do not overlap, so
   // each pixel centre (each sample with MSAA) is drawn by one tile at most;
   // the passes blend under what the shared layers hold.
-  if (one_frame(tiles, opt)) return render_gl_one_frame(tiles, terrain, opt);
+  // Each tile is opened as its turn comes and let go after its passes
+  // (GlRenderer::load_tile), its blobs validated then, before GL sees them.
+  if (one_frame(tiles, opt)) {
+    check_render_options(opt);
+    return draw_frames(opt,
+                       [&] { return std::make_unique<detail::GlRenderer>(tiles, terrain, opt); });
+  }
   // The volume and texture methods (and tile origins off the quantum
   // grid) keep one draw per tile, each with its own context: their set-up
   // (prisms, the decal texture) is per package and made before the frame.
@@ -152,7 +152,8 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
   // to its square; each pixel then takes the tile that drew there. Squares
   // do not overlap, so without anti-aliasing exactly one tile can.
   Image out;
-  for (const TileSource& t : tiles) {
+  for (size_t k = 0; k < tiles.places.size(); ++k) {
+    const TilePlace& t = tiles.places[k];
     RenderOptions o = opt;
     for (Vec3* v : {&o.camera.eye, &o.camera.target}) {
       (*v)[0] -= t.dx;
@@ -167,19 +168,19 @@ Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
     Heightfield h = terrain;
     h.x0 -= t.dx;
     h.y0 -= t.dy;
-    Image img = render_gl(t.source, h, o);
+    Image img = render_gl(tiles.open(k).tile.source, h, o);
     if (out.rgba.empty()) {
       out = std::move(img);
       continue;
     }
-    for (size_t k = 0; k < size_t(out.width) * out.height; ++k) {
-      const float a = img.decals[4 * k + 3] + img.dynamic[4 * k + 3];
-      const float b = out.decals[4 * k + 3] + out.dynamic[4 * k + 3];
+    for (size_t p = 0; p < size_t(out.width) * out.height; ++p) {
+      const float a = img.decals[4 * p + 3] + img.dynamic[4 * p + 3];
+      const float b = out.decals[4 * p + 3] + out.dynamic[4 * p + 3];
       if (!(a > b)) continue;
       for (int c = 0; c < 4; ++c) {
-        out.rgba[4 * k + c] = img.rgba[4 * k + c];
-        out.decals[4 * k + c] = img.decals[4 * k + c];
-        out.dynamic[4 * k + c] = img.dynamic[4 * k + c];
+        out.rgba[4 * p + c] = img.rgba[4 * p + c];
+        out.decals[4 * p + c] = img.decals[4 * p + c];
+        out.dynamic[4 * p + c] = img.dynamic[4 * p + c];
       }
     }
     for (uint32_t Image::*m :

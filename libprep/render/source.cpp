@@ -122,6 +122,17 @@ std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode) {
   return source.view.line_props.empty() ? std::vector<uint8_t>{} : std::vector<uint8_t>{1};
 }
 
+TileList tile_list(std::span<const TileSource> tiles, const RenderOptions& options) {
+  TileList list;
+  for (const TileSource& t : tiles) {
+    list.places.push_back({t.square, t.dx, t.dy});
+    list.slope =
+        list.slope || (options.draw_lines && !slope_layers(t.source, options.slope_widths).empty());
+  }
+  list.open = [tiles](size_t k) { return OpenedTile{tiles[k], nullptr}; };
+  return list;
+}
+
 std::vector<std::string> layer_names(const std::string& metadata_json) {
   std::vector<std::string> names;
   const auto meta = nlohmann::json::parse(metadata_json, nullptr, false);

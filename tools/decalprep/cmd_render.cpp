@@ -77,8 +77,10 @@ void print_tiles(const R::RenderOutcome& out) {
 // --stats: the frame time, dynamic lines and LOD.
 void print_frame(const R::RenderRequest& a, const R::RenderOutcome& out) {
   const R::Image& img = out.image;
-  std::printf("frame: %.3f ms (the %s render call, %u frame%s; tile loading not included)\n",
-              out.frame_ms, a.cpu ? "cpu" : "gl", a.frames, a.frames == 1 ? "" : "s");
+  std::printf("frame: %.3f ms (the %s render call, %u frame%s; %s)\n", out.frame_ms,
+              a.cpu ? "cpu" : "gl", a.frames, a.frames == 1 ? "" : "s",
+              out.tileset ? "each tile read and decoded in it, as it is drawn"
+                          : "the package loaded before it");
   if (img.dyn_kept || img.dyn_segments)
     std::printf(
         "dynamic lines: %u vertices kept, %u segments drawn, %u list nodes, %u list regrowths, "

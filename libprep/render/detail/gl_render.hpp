@@ -93,7 +93,7 @@ std::vector<decal::gl::BlobBytes> gl_blobs(const DecalSource& source);
 decal::gl::Grid gl_grid(const DecalSource& source);
 // A tile's (dx, dy) in whole quanta; none when it is not on the quantum
 // grid (1 µm).
-std::optional<std::array<int64_t, 2>> tile_shift(const TileSource& t);
+std::optional<std::array<int64_t, 2>> tile_shift(const TilePlace& t);
 // The anchor's cell in `grid` (rx, ry, cell_x, cell_y, grid).
 void set_grid(ViewUniforms& v, const GridParams& grid);
 // `clip` (metres relative to the package origin) relative to the anchor.
@@ -174,8 +174,7 @@ class GlRenderer {
   // composite once. The caller validates the tiles' blobs (formats/gl
   // validate_blobs). Every tile's (dx, dy) must be a whole number of
   // quanta (tile_shift).
-  GlRenderer(std::span<const TileSource> tiles, const Heightfield& terrain,
-             const RenderOptions& opt);
+  GlRenderer(const TileList& tiles, const Heightfield& terrain, const RenderOptions& opt);
   // All passes of one frame; dynamic-line counts go to `img`.
   void frame(Image& img);
   // Reads the layers back into `img` (rows top-down, straight alpha) with
@@ -185,9 +184,10 @@ class GlRenderer {
  private:
   void setup();
   void terrain_pass();
-  // Tileset: puts view_ in tile k's frame, its runs and scissor_
-  // (tile_scissor); uploads its blobs when the scissor box is not empty
-  // (else gpu_ stays empty and the tile is skipped).
+  // Tileset: puts view_ in tile k's frame and sets scissor_
+  // (tile_scissor); when the scissor box is not empty, opens the tile
+  // (tile_, its blobs validated unless already) and uploads its blobs and
+  // runs (else gpu_ stays empty, the tile is not opened and is skipped).
   void load_tile(size_t k);
   std::array<GLint, 4> tile_scissor() const;
   // The package's blobs and the terrain depth, bound where the decal
@@ -225,7 +225,8 @@ class GlRenderer {
   Camera lod_camera() const;
   void composite_pass();
 
-  std::span<const TileSource> tiles_;    // a tileset (empty: one package)
+  const TileList* tiles_ = nullptr;      // a tileset (null: one package)
+  OpenedTile tile_;                      // a tileset's current tile, while it draws
   const DecalSource* source_ = nullptr;  // the package (the current tile)
   const Heightfield& terrain_;
   const RenderOptions& opt_;

@@ -322,16 +322,18 @@ struct RenderOutcome {
   size_t index_tiles = 0;
   uint64_t blob_bytes = 0;
   uint64_t gpu_budget = 0;  // --gpu-budget in bytes; 0: none
-  double frame_ms = 0;      // the render call (tile loading not included)
+  double frame_ms = 0;      // the render call (a tileset's tiles are opened in it)
   // --lod off over a package that has LOD segments.
   bool lod_data_unused = false;
 };
 
 // Checks the request (check_render_request), opens the package or tileset,
 // checks the outputs (only a regular file or nothing, never an input),
-// loads the terrain, places the camera, loads the tiles of a tileset that
-// the view draws (select_tiles within --gpu-budget), applies the ramps,
-// draws with GL (or the CPU evaluator with --cpu) and writes the PNG, the
+// loads the terrain, places the camera, chooses the tiles of a tileset that
+// the view draws (select_tiles within --gpu-budget), draws with GL (or the
+// CPU evaluator with --cpu), opening each tile as it is drawn, restyled by
+// the ramps, and letting it go before the next (host memory holds one
+// tile's blobs, not the view's), and writes the PNG, the
 // world file of a top-down view, --decals and --raw. A warning (a view or
 // DEM that misses the data, a build DEM that cannot be read) goes to
 // `note`, or with --strict is a strict_error. Throws what the stages throw:

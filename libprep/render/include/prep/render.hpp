@@ -13,6 +13,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -385,19 +386,54 @@ struct TileSource {
   double dx = 0, dy = 0;
 };
 
+// Where a tile answers, known before its blobs are read: TileSource's
+// square and (dx, dy).
+struct TilePlace {
+  Extent square;
+  double dx = 0, dy = 0;
+};
+
+// An opened tile: `tile.source` views what `keep` owns (a package's decoded
+// blobs, restyled props), freed when the last copy goes.
+struct OpenedTile {
+  TileSource tile;
+  std::shared_ptr<const void> keep;
+};
+
+// The tiles of a view as the renderers take them: their places, and how to
+// open tile k. A renderer opens each tile when it draws it and lets it go
+// before it opens the next, so host memory holds one tile's blobs at a time
+// (plus the frame), not the view's; a tile whose square the image does not
+// reach is not opened. `open` may be called more than once for a tile (GL
+// --frames: once per frame). `slope`: some tile may measure line widths
+// along the terrain (slope_layers); the renderer then samples the terrain's
+// gradient for every tile. A tile with none draws the same either way.
+struct TileList {
+  std::vector<TilePlace> places;
+  std::function<OpenedTile(size_t k)> open;
+  bool slope = false;
+};
+
+// A TileList over tiles already in memory (opening one copies its
+// TileSource; `keep` stays empty): the caller keeps them alive.
+TileList tile_list(std::span<const TileSource> tiles, const RenderOptions& options);
+
 // The GL view of several tiles, each tile's decals clipped to its square
 // (RenderOptions::clip). The decal method draws them in one frame and one
-// GL context: the terrain once, then each tile's blobs uploaded, its passes
-// drawn into the shared layers and its buffers freed in turn (render_gl.cpp
-// says why that equals each tile drawn in its own frame). The volume and
-// texture methods draw each tile in its own frame and context, then take
-// per pixel the tile that drew there.
+// GL context: the terrain once, then each tile opened, its blobs uploaded,
+// its passes drawn into the shared layers and its buffers freed in turn
+// (render_gl.cpp says why that equals each tile drawn in its own frame).
+// The volume and texture methods draw each tile in its own frame and
+// context, then take per pixel the tile that drew there.
+Image render_gl(const TileList& tiles, const Heightfield& terrain, const RenderOptions& options);
 Image render_gl(std::span<const TileSource> tiles, const Heightfield& terrain,
                 const RenderOptions& options);
 
 // The CPU view of several tiles: each pixel's ground point is evaluated by
-// the one tile whose square holds it (none: no decal). A single source is
-// one tile with an unbounded square.
+// the one tile whose square holds it (none: no decal), tile by tile, each
+// tile opened only while its pixels are evaluated. A single source is one
+// tile with an unbounded square.
+Image render_cpu(const TileList& tiles, const Heightfield& terrain, const RenderOptions& options);
 Image render_cpu(std::span<const TileSource> tiles, const Heightfield& terrain,
                  const RenderOptions& options);
 
