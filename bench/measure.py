@@ -1,4 +1,6 @@
-"""Runs a command and measures it, for the scripted benches beside this file."""
+"""What the scripted benches beside this file share: running and measuring a
+command, their --build-dir and --out options, and writing their CSV."""
+import csv
 import os
 import subprocess
 import time
@@ -16,3 +18,27 @@ def measured(cmd, env=None):
     if os.waitstatus_to_exitcode(status) != 0:
         raise RuntimeError("%s failed: %s" % (" ".join(cmd), err.decode()[-2000:]))
     return wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0
+
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def add_build_and_out(ap):
+    """The options the scripted benches share: --build-dir (the build whose
+    decalprep runs) and --out (where CSV and charts go)."""
+    ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
+    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
+
+
+def decalprep_of(a):
+    """The decalprep binary of --build-dir; makes --out."""
+    os.makedirs(a.out, exist_ok=True)
+    return os.path.join(a.build_dir, "tools", "decalprep", "decalprep")
+
+
+def write_rows(path, rows):
+    """Writes `rows` (dicts with the same keys) as CSV with a header."""
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        w.writeheader()
+        w.writerows(rows)

@@ -35,6 +35,7 @@ import tempfile
 import time
 
 import gen_synthetic  # beside this script
+from measure import add_build_and_out, decalprep_of  # beside this script
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BEGIN = "<!-- begin bench/overview.py -->"
@@ -94,15 +95,13 @@ def main():
     ap.add_argument("--tile-size", default="1000")
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--no-gl", action="store_true")
-    ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
-    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
+    add_build_and_out(ap)
     ap.add_argument("--report-md", default=os.path.join(ROOT, "bench", "REPORT.md"))
     a = ap.parse_args()
-    tool = os.path.join(a.build_dir, "tools", "decalprep", "decalprep")
+    tool = decalprep_of(a)
     raw_compare = os.path.join(a.build_dir, "tests", "tools", "raw_compare")
     w, h = (int(v) for v in a.size.split("x"))
     v = int(float(a.vertices))
-    os.makedirs(a.out, exist_ok=True)
     work = tempfile.mkdtemp(prefix="overview_")
     t_start = time.time()
     load0 = os.getloadavg()

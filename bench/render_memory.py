@@ -26,7 +26,6 @@ Prints a line per render and writes render_memory.csv and render_memory.png
 line saying so, when the GL render fails).
 """
 import argparse
-import csv
 import glob
 import json
 import os
@@ -36,7 +35,7 @@ import sys
 import tempfile
 
 import gen_synthetic  # beside this script
-from measure import measured  # beside this script
+from measure import add_build_and_out, decalprep_of, measured, write_rows  # beside this
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MIB = 1024.0 * 1024.0
@@ -71,19 +70,17 @@ plot '%s' using 2:xtic(1) title 'peak RSS', '' using 3 title 'bound' with linesp
 
 
 def main():
-    ap = argparse.ArgumentParser()
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    add_build_and_out(ap)
     ap.add_argument("--vertices", default="1e6,1e7")
     ap.add_argument("--tile-size", default="2000")
     ap.add_argument("--size", default="2000x1000")
     ap.add_argument("--before", help="another decalprep binary to measure beside this build's")
     ap.add_argument("--before-max-vertices", default="2e6")
-    ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
-    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
     a = ap.parse_args()
-    tool = os.path.join(a.build_dir, "tools", "decalprep", "decalprep")
+    tool = decalprep_of(a)
     w, h = (int(v) for v in a.size.split("x"))
     frame_bytes = w * h * 36
-    os.makedirs(a.out, exist_ok=True)
     work = tempfile.mkdtemp(prefix="render_memory_")
     rows = []
     try:
@@ -137,10 +134,7 @@ def main():
     finally:
         shutil.rmtree(work, ignore_errors=True)
     csv_path = os.path.join(a.out, "render_memory.csv")
-    with open(csv_path, "w", newline="") as f:
-        wr = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
-        wr.writeheader()
-        wr.writerows(rows)
+    write_rows(csv_path, rows)
     chart(rows, a.out)
     print("wrote", csv_path)
     return 0 if all(r["within_bound"] for r in rows if r["side"] == "now") else 1

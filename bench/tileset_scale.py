@@ -17,7 +17,6 @@ log(vertices) between the smallest and the largest size.
 Standard library only; needs ogr2ogr and gnuplot.
 """
 import argparse
-import csv
 import json
 import math
 import os
@@ -27,7 +26,7 @@ import sys
 import tempfile
 
 import gen_synthetic  # beside this script
-from measure import measured  # beside this script
+from measure import add_build_and_out, decalprep_of, measured, write_rows  # beside this
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -45,11 +44,9 @@ def main():
     ap.add_argument("--vertices", default="1e5,1e6")
     ap.add_argument("--tile-size", default="2000")
     ap.add_argument("--jobs", default="2")
-    ap.add_argument("--build-dir", default=os.path.join(ROOT, "build", "release"))
-    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "report"))
+    add_build_and_out(ap)
     a = ap.parse_args()
-    tool = os.path.join(a.build_dir, "tools", "decalprep", "decalprep")
-    os.makedirs(a.out, exist_ok=True)
+    tool = decalprep_of(a)
     work = tempfile.mkdtemp(prefix="tileset_scale_")
     rows = []
     try:
@@ -80,10 +77,7 @@ def main():
     finally:
         shutil.rmtree(work, ignore_errors=True)
     csv_path = os.path.join(a.out, "tileset_scale.csv")
-    with open(csv_path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
-        w.writeheader()
-        w.writerows(rows)
+    write_rows(csv_path, rows)
     if len(rows) > 1:
         s = slope([r["vertices"] for r in rows], [r["wall_s"] for r in rows])
         m = rows[-1]["peak_rss_mib"] / rows[-2]["peak_rss_mib"]

@@ -1068,6 +1068,10 @@ double part_area(const ScenePolygon& p) {
   return a;
 }
 
+double ring_area(const Ring& r) {
+  return geos_ring_area(r);
+}
+
 double part_length(const SceneLine& l) {
   double len = geos_line_length(l.points);
   if (l.closed && l.points.size() >= 2) {

@@ -440,17 +440,29 @@ class LevelFilter : public PartFilter {
         counts_(layers.size()) {
     for (size_t i = 0; i < layers.size(); ++i) counts_[i].layer = layers[i].name;
   }
+  // A part whose area (shell minus holes) is below min_area is left out;
+  // of a part kept, each hole below min_area is, before the part is
+  // simplified (a polygon without some of its holes stays valid).
   bool polygon(ScenePolygon& p) override {
     const bool own = owns(p.shell);
     uint64_t in = p.shell.size() + 1;
     for (const Ring& h : p.holes) in += h.size() + 1;
-    const bool keep = part_area(p) >= level_.min_area && simplifier_.polygon(p, what(p));
+    bool keep = part_area(p) >= level_.min_area;
+    uint64_t holes_dropped = 0;
+    if (keep) {
+      holes_dropped =
+          std::erase_if(p.holes, [&](const Ring& h) { return ring_area(h) < level_.min_area; });
+      keep = simplifier_.polygon(p, what(p));
+    }
     uint64_t out = 0;
     if (keep) {
       out = p.shell.size() + 1;
       for (const Ring& h : p.holes) out += h.size() + 1;
     }
-    if (own) count(p.layer, keep, in, out);
+    if (own) {
+      count(p.layer, keep, in, out);
+      if (keep && p.layer < counts_.size()) counts_[p.layer].holes_dropped_small += holes_dropped;
+    }
     return keep;
   }
   bool line(SceneLine& l, bool dynamic) override {
@@ -500,11 +512,12 @@ class LevelFilter : public PartFilter {
 };
 
 // A level's counts in a tile record: [parts_in, parts, dropped_small,
-// vertices_in, vertices_out] per layer.
+// vertices_in, vertices_out, holes_dropped_small] per layer.
 nlohmann::json level_counts_record(const std::vector<LayerCounts>& counts) {
   nlohmann::json a = nlohmann::json::array();
   for (const LayerCounts& c : counts)
-    a.push_back({c.read, c.parts, c.dropped_small, c.vertices_in, c.vertices_out});
+    a.push_back(
+        {c.read, c.parts, c.dropped_small, c.vertices_in, c.vertices_out, c.holes_dropped_small});
   return a;
 }
 
@@ -786,6 +799,7 @@ void add_level_counts(const std::string& rpath, const nlohmann::json& r,
     c.dropped_small += v.at(2).get<uint64_t>();
     c.vertices_in += v.at(3).get<uint64_t>();
     c.vertices_out += v.at(4).get<uint64_t>();
+    if (v.size() > 5) c.holes_dropped_small += v.at(5).get<uint64_t>();
   }
 }
 
@@ -854,15 +868,17 @@ void read_overview_levels(const WorkPaths& paths, const PreparedPlan& prepared, 
 // misses them (the per-layer counts are the level's `layers`).
 void add_level_notes(TilesetIndex& index) {
   for (const TileLevel& l : index.levels) {
-    uint64_t dropped = 0, parts_in = 0;
-    for (const LayerCounts& c : l.layers) dropped += c.dropped_small, parts_in += c.read;
-    char note[256];
+    uint64_t dropped = 0, parts_in = 0, holes = 0;
+    for (const LayerCounts& c : l.layers)
+      dropped += c.dropped_small, parts_in += c.read, holes += c.holes_dropped_small;
+    char note[320];
     std::snprintf(note, sizeof note,
                   "overview level %d: %llu of %llu parts dropped_small (below %.10g m2 or %.10g m, "
-                  "or collapsed at %.10g m or an eighth of a line's width)",
+                  "or collapsed at %.10g m or an eighth of a line's width); %llu holes of kept "
+                  "parts dropped_small (below %.10g m2)",
                   l.level, static_cast<unsigned long long>(dropped),
                   static_cast<unsigned long long>(parts_in), l.min_area, l.min_length,
-                  level_tolerance(l));
+                  level_tolerance(l), static_cast<unsigned long long>(holes), l.min_area);
     index.manifest.notes.emplace_back(note);
   }
 }

@@ -24,6 +24,17 @@
 
 namespace prep {
 
+// An overview level's per-layer record in tileset.json (formats/SPEC.md
+// "Overview levels"), in its words: counts of parts, read into LayerCounts'
+// members (parts_in is `read`).
+constexpr std::pair<const char*, uint64_t LayerCounts::*> kLevelCountFields[] = {
+    {"parts_in", &LayerCounts::read},
+    {"parts", &LayerCounts::parts},
+    {"dropped_small", &LayerCounts::dropped_small},
+    {"holes_dropped_small", &LayerCounts::holes_dropped_small},
+    {"vertices_in", &LayerCounts::vertices_in},
+    {"vertices_out", &LayerCounts::vertices_out}};
+
 namespace {
 
 using json = nlohmann::json;
@@ -96,11 +107,11 @@ class Fields {
   LayerCounts level_counts(const json& j, const std::string& where) const {
     LayerCounts c;
     c.layer = text(j, "layer", where);
-    c.read = count(j, "parts_in", where);
-    c.kept = c.parts = count(j, "parts", where);
-    c.dropped_small = count(j, "dropped_small", where);
-    c.vertices_in = count(j, "vertices_in", where);
-    c.vertices_out = count(j, "vertices_out", where);
+    // holes_dropped_small is absent in indexes written before holes were
+    // dropped: none were.
+    for (const auto& [name, m] : kLevelCountFields)
+      if (m != &LayerCounts::holes_dropped_small || j.contains(name)) c.*m = count(j, name, where);
+    c.kept = c.parts;
     if (c.read != c.parts + c.dropped_small) bad(where, "parts_in is not parts + dropped_small");
     return c;
   }
@@ -111,12 +122,9 @@ class Fields {
 
 // A level's layer record: its counts are of parts (TileLevel::layers).
 json level_counts_json(const LayerCounts& c) {
-  return {{"layer", c.layer},
-          {"parts_in", c.read},
-          {"parts", c.parts},
-          {"dropped_small", c.dropped_small},
-          {"vertices_in", c.vertices_in},
-          {"vertices_out", c.vertices_out}};
+  json j = {{"layer", c.layer}};
+  for (const auto& [name, m] : kLevelCountFields) j[name] = c.*m;
+  return j;
 }
 
 json tiles_json(const std::vector<TileEntry>& entries) {
@@ -353,11 +361,7 @@ std::string tileset_index_problem(const TilesetIndex& ix) {
     for (size_t k = 0; k < lv.layers.size() && !p.found(); ++k) {
       const LayerCounts& c = lv.layers[k];
       const std::string wl = w + ".layers[" + std::to_string(k) + "]";
-      p.counts(wl, {{"parts_in", c.read},
-                    {"parts", c.parts},
-                    {"dropped_small", c.dropped_small},
-                    {"vertices_in", c.vertices_in},
-                    {"vertices_out", c.vertices_out}});
+      for (const auto& [name, m] : kLevelCountFields) p.count(wl + "." + name, c.*m);
       if (!p.found() && c.read != c.parts + c.dropped_small)
         p.bad(wl, "parts_in is not parts + dropped_small");
     }

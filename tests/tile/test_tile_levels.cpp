@@ -17,6 +17,7 @@
 // 1 with 2 x 1 <= 4: one level.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cstdio>
 #include <map>
 #include <string>
@@ -46,6 +47,22 @@ std::string square(double x, double y, double side) {
                  "],[" + x1 + "," + y1 + "],[" + x0 + "," + y1 + "],[" + x0 + "," + y0 + "]]]}");
 }
 
+// A side x side square with square holes, each (x offset, y offset, side)
+// from the square's lower-left corner.
+std::string square_with_holes(double x, double y, double side,
+                              const std::vector<std::array<double, 3>>& holes) {
+  auto ring = [](double x0, double y0, double d, bool cw) {
+    const std::string a = num(x0), b = num(y0), c = num(x0 + d), e = num(y0 + d);
+    return cw ? "[[" + a + "," + b + "],[" + a + "," + e + "],[" + c + "," + e + "],[" + c + "," +
+                    b + "],[" + a + "," + b + "]]"
+              : "[[" + a + "," + b + "],[" + c + "," + b + "],[" + c + "," + e + "],[" + a + "," +
+                    e + "],[" + a + "," + b + "]]";
+  };
+  std::string rings = ring(x, y, side, false);
+  for (const auto& h : holes) rings += "," + ring(x + h[0], y + h[1], h[2], true);
+  return feature(R"({"type":"Polygon","coordinates":[)" + rings + "]}");
+}
+
 std::string segment(double x, double y, double len) {
   return feature(R"({"type":"LineString","coordinates":[[)" + num(x) + "," + num(y) + "],[" +
                  num(x + len) + "," + num(y) + "]]}");
@@ -67,12 +84,18 @@ prep::LayerCounts layer(const std::vector<prep::LayerCounts>& layers, const std:
 
 // The tileset of the scene above with `levels` overview levels, built in
 // `dir`, its index read back.
-prep::TilesetIndex build(const prep::test::TempDir& dir, int levels) {
+// `blocks` replaces the blocks above when given.
+prep::TilesetIndex build(const prep::test::TempDir& dir, int levels,
+                         const std::vector<std::string>& blocks_features = {}) {
   const std::string blocks = dir.file("blocks.geojson"), paths = dir.file("paths.geojson");
   prep::test::write_text(
-      blocks, collection({square(X0 + 100, Y0 + 100, 3), square(X0 + 200, Y0 + 100, 1.5),
-                          square(X0 + 300, Y0 + 100, 2.01), square(X0 + 400, Y0 + 100, 1.99),
-                          square(X0 + 2040, Y0 + 100, 16), square(X0 + 100, Y0 + 1100, 3)}));
+      blocks,
+      collection(!blocks_features.empty()
+                     ? blocks_features
+                     : std::vector<std::string>{
+                           square(X0 + 100, Y0 + 100, 3), square(X0 + 200, Y0 + 100, 1.5),
+                           square(X0 + 300, Y0 + 100, 2.01), square(X0 + 400, Y0 + 100, 1.99),
+                           square(X0 + 2040, Y0 + 100, 16), square(X0 + 100, Y0 + 1100, 3)}));
   prep::test::write_text(
       paths, collection({segment(X0 + 500, Y0 + 100, 3), segment(X0 + 500, Y0 + 200, 1.5),
                          segment(X0 + 500, Y0 + 300, 2.01), segment(X0 + 500, Y0 + 400, 1.99)}));
@@ -201,6 +224,36 @@ TEST(TileLevelsTwo, TheCoarserLevelKeepsOnlyWhatReachesItsOwnThresholds) {
   // Level 1 is the same with or without a level above it.
   EXPECT_EQ(layer(ix.levels[0].layers, "blocks").parts, 4u);
   EXPECT_EQ(layer(ix.levels[0].layers, "paths").parts, 2u);
+}
+
+TEST(TileLevelsHoles, HolesBelowMinAreaLeaveTheLevelAndAreCounted) {
+  // A 40 m square with holes of 1.9 m (3.61 m^2), 2.1 m (4.41) and 5 m (25)
+  // sides. Level 1 (min_area 4) keeps the 2.1 and 5 m holes, level 2
+  // (min_area 16) the 5 m one; the part itself (1600 m^2 less its holes)
+  // stays on both. Rings are counted closed: 5 vertices each.
+  prep::test::TempDir dir("tile_levels_holes");
+  const prep::TilesetIndex ix =
+      build(dir, 2,
+            {square_with_holes(X0 + 100, Y0 + 100, 40, {{2, 2, 1.9}, {10, 10, 2.1}, {20, 20, 5}})});
+  ASSERT_EQ(ix.levels.size(), 2u);
+  const prep::LayerCounts l1 = layer(ix.levels[0].layers, "blocks");
+  const prep::LayerCounts l2 = layer(ix.levels[1].layers, "blocks");
+  EXPECT_EQ(l1.parts, 1u);
+  EXPECT_EQ(l1.holes_dropped_small, 1u);
+  EXPECT_EQ(l1.vertices_in, 4u * 5);
+  EXPECT_EQ(l1.vertices_out, 3u * 5);
+  EXPECT_EQ(l2.parts, 1u);
+  EXPECT_EQ(l2.holes_dropped_small, 2u);
+  EXPECT_EQ(l2.vertices_out, 2u * 5);
+  // Level 0 keeps every hole.
+  EXPECT_EQ(layer(ix.manifest.layers, "blocks").vertices_out, 4u * 5);
+  // The per-level note names the holes (the 4 paths, all below 4 m, go too).
+  bool noted = false;
+  for (const std::string& n : ix.manifest.notes)
+    noted = noted ||
+            (n.find("overview level 2: 4 of 5 parts dropped_small") == 0 &&
+             n.find("; 2 holes of kept parts dropped_small (below 16 m2)") != std::string::npos);
+  EXPECT_TRUE(noted);
 }
 
 }  // namespace

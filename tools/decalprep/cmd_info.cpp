@@ -131,15 +131,17 @@ void run_tileset_info(const std::string& dir, bool as_json) {
     std::printf(
         "  level %d: %.10g m tiles, resolution %.10g m, min area %.10g m2, min length "
         "%.10g m; %zu packages, %" PRIu64 " bytes; parts %" PRIu64 " of %" PRIu64 " (%" PRIu64
-        " dropped small), vertices %" PRIu64 " of %" PRIu64 "\n",
+        " dropped small, %" PRIu64 " holes dropped small), vertices %" PRIu64 " of %" PRIu64 "\n",
         l.level, l.tile_size, l.resolution, l.min_area, l.min_length, l.tiles.size(), lbytes,
-        sum.parts, sum.read, sum.dropped_small, sum.vertices_out, sum.vertices_in);
-    std::printf("    %-24s %10s %10s %13s %12s %12s\n", "layer", "parts_in", "parts",
-                "dropped_small", "vertices_in", "vertices_out");
+        sum.parts, sum.read, sum.dropped_small, sum.holes_dropped_small, sum.vertices_out,
+        sum.vertices_in);
+    std::printf("    %-24s %10s %10s %13s %19s %12s %12s\n", "layer", "parts_in", "parts",
+                "dropped_small", "holes_dropped_small", "vertices_in", "vertices_out");
     for (const prep::LayerCounts& c : l.layers)
-      std::printf("    %-24s %10" PRIu64 " %10" PRIu64 " %13" PRIu64 " %12" PRIu64 " %12" PRIu64
-                  "\n",
-                  c.layer.c_str(), c.read, c.parts, c.dropped_small, c.vertices_in, c.vertices_out);
+      std::printf("    %-24s %10" PRIu64 " %10" PRIu64 " %13" PRIu64 " %19" PRIu64 " %12" PRIu64
+                  " %12" PRIu64 "\n",
+                  c.layer.c_str(), c.read, c.parts, c.dropped_small, c.holes_dropped_small,
+                  c.vertices_in, c.vertices_out);
   }
 }
 

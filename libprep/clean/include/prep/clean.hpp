@@ -113,6 +113,9 @@ class PartSimplifier {
 // length of a line part (with its closing segment when closed): what an
 // overview level's min_area / min_length are compared with.
 double part_area(const ScenePolygon& p);
+// The area of one ring (unsigned, as part_area counts it): what a level's
+// min_area is compared with for a hole.
+double ring_area(const Ring& r);
 double part_length(const SceneLine& l);
 
 // The bounding box of every kept polygon shell and line (empty when nothing

@@ -45,6 +45,9 @@ struct LayerCounts {
   // out of the level for being below its min_area / min_length (or
   // collapsing under its simplification). Never written elsewhere.
   uint64_t dropped_small = 0;
+  // Overview levels only: holes of the level's kept polygon parts left out
+  // for being below its min_area (the part itself stays).
+  uint64_t holes_dropped_small = 0;
 
   // Adds every count of `o` (not the layer name).
   LayerCounts& operator+=(const LayerCounts& o);
@@ -67,6 +70,7 @@ inline constexpr std::pair<const char*, uint64_t LayerCounts::*> kLayerCountFiel
 inline LayerCounts& LayerCounts::operator+=(const LayerCounts& o) {
   for (const auto& [name, m] : kLayerCountFields) this->*m += o.*m;
   dropped_small += o.dropped_small;
+  holes_dropped_small += o.holes_dropped_small;
   return *this;
 }
 
