@@ -200,6 +200,9 @@ bool is_equal_area(const OGRSpatialReference& frame) {
 // output stays identical at any thread count.
 constexpr int kApproxDegree = 3;
 constexpr int kApproxNodes = kApproxDegree + 1;
+// A part of at least this many vertices is projected in parallel chunks
+// (LayerProjection::Impl::project_in_parallel); smaller ones one per thread.
+constexpr size_t kParallelPartVertices = 65536;
 constexpr int kApproxCheck = 9;            // check grid per axis
 constexpr double kApproxTolerance = 1e-8;  // frame metres; tests ask 1e-6
 constexpr int kApproxMaxDepth = 12;
@@ -911,70 +914,132 @@ struct LayerProjection::Impl {
     }
     return *scales[slot];
   }
+  // One vertex into the frame, relative to its origin: false when PROJ
+  // cannot (out of the projection's domain, or an error).
+  bool to_frame(size_t slot, int& leaf, double& x, double& y) {
+    x = source_x(x);
+    if (!identity && !(approx && approx->apply(x, y, leaf))) {
+      int ok = 0;
+      if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) return false;
+    }
+    x -= frame_.origin_x;
+    y -= frame_.origin_y;
+    return true;
+  }
+  // The reason a feature is dropped for vertex j at `source`.
+  std::string vertex_reason(size_t j, const Point2& source, bool transformed) const {
+    return "vertex " + std::to_string(j) + " (" + std::to_string(source.x) + ", " +
+           std::to_string(source.y) + ")" +
+           (transformed ? " is not finite in the scene frame"
+                        : " cannot be transformed into the scene frame") +
+           frame_hint(frame_);
+  }
+  // Projects f's rings in place on this thread, summing the projected
+  // vertices into (cx, cy) in ring order; the first vertex that cannot be
+  // projected sets f's drop reason.
+  void project_serially(SourceFeature& f, size_t slot, double& cx, double& cy) {
+    int leaf = -1;
+    for (Ring& r : f.rings) {
+      for (size_t j = 0; j < r.size(); ++j) {
+        double x = r[j].x, y = r[j].y;
+        if (!to_frame(slot, leaf, x, y)) {
+          f.drop_reason = vertex_reason(j, r[j], false);
+          f.failed_in = FailureStage::project;
+          return;
+        }
+        if ((!std::isfinite(x) || !std::isfinite(y)) && f.drop_reason.empty()) {
+          f.drop_reason = vertex_reason(j, r[j], true);
+          f.failed_in = FailureStage::project;
+        }
+        r[j] = {x, y};
+        cx += x;
+        cy += y;
+      }
+      if (!f.drop_reason.empty()) return;
+    }
+  }
+  // The same for a part of many vertices (a world ocean's shell): the
+  // vertices are projected in parallel chunks, then checked and summed in
+  // ring order, so the result is project_serially's whatever the threads.
+  void project_in_parallel(SourceFeature& f, double& cx, double& cy) {
+    std::vector<size_t> first{0};
+    for (const Ring& r : f.rings) first.push_back(first.back() + r.size());
+    const size_t n = first.back();
+    std::vector<Point2> out(n);
+    std::vector<char> ok(n, 1);
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, n, 16384), [&](const tbb::blocked_range<size_t>& range) {
+          const size_t slot = static_cast<size_t>(tbb::this_task_arena::current_thread_index());
+          int leaf = -1;
+          size_t ring =
+              size_t(std::upper_bound(first.begin(), first.end(), range.begin()) - first.begin()) -
+              1;
+          for (size_t k = range.begin(); k != range.end(); ++k) {
+            while (k >= first[ring + 1]) ++ring;
+            const Point2& p = f.rings[ring][k - first[ring]];
+            double x = p.x, y = p.y;
+            ok[k] = to_frame(slot, leaf, x, y);
+            out[k] = {x, y};
+          }
+        });
+    for (size_t ring = 0; ring < f.rings.size(); ++ring) {
+      Ring& r = f.rings[ring];
+      for (size_t j = 0; j < r.size(); ++j) {
+        const size_t k = first[ring] + j;
+        if (!ok[k]) {
+          f.drop_reason = vertex_reason(j, r[j], false);
+          f.failed_in = FailureStage::project;
+          return;
+        }
+        const Point2 q = out[k];
+        if ((!std::isfinite(q.x) || !std::isfinite(q.y)) && f.drop_reason.empty()) {
+          f.drop_reason = vertex_reason(j, r[j], true);
+          f.failed_in = FailureStage::project;
+        }
+        r[j] = q;
+        cx += q.x;
+        cy += q.y;
+      }
+      if (!f.drop_reason.empty()) return;
+    }
+  }
   std::vector<double> apply(SourceLayer& chunk, ProgressStage* stage) {
     std::vector<double> k(chunk.features.size(), 1.0);
-    tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, chunk.features.size(), 64),
-        [&](const tbb::blocked_range<size_t>& range) {
-          const size_t slot = static_cast<size_t>(tbb::this_task_arena::current_thread_index());
-          for (size_t i = range.begin(); i != range.end(); ++i) {
-            SourceFeature& f = chunk.features[i];
-            if (!f.drop_reason.empty()) continue;
-            double cx = 0, cy = 0;
-            size_t n_all = 0;
-            int leaf = -1;
-            for (Ring& r : f.rings) {
-              const size_t n = r.size();
-              for (size_t j = 0; j < n; ++j) {
-                double x = source_x(r[j].x), y = r[j].y;
-                if (!identity && !(approx && approx->apply(x, y, leaf))) {
-                  int ok = 0;
-                  if (!slot_transform(slot).Transform(1, &x, &y, nullptr, &ok) || !ok) {
-                    // Out of the projection's domain (PROJ error or HUGE_VAL).
-                    f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(r[j].x) +
-                                    ", " + std::to_string(r[j].y) +
-                                    ") cannot be transformed into the scene frame" +
-                                    frame_hint(frame_);
-                    f.failed_in = FailureStage::project;
-                    break;
-                  }
-                }
-                const Point2 source = r[j];
-                r[j].x = x - frame_.origin_x;
-                r[j].y = y - frame_.origin_y;
-                if ((!std::isfinite(r[j].x) || !std::isfinite(r[j].y)) && f.drop_reason.empty()) {
-                  f.drop_reason = "vertex " + std::to_string(j) + " (" + std::to_string(source.x) +
-                                  ", " + std::to_string(source.y) +
-                                  ") is not finite in the scene frame" + frame_hint(frame_);
-                  f.failed_in = FailureStage::project;
-                }
-                cx += r[j].x;
-                cy += r[j].y;
-              }
-              if (!f.drop_reason.empty()) break;
-              n_all += n;
-            }
-            if (!f.drop_reason.empty()) {
-              f.rings.clear();
-              continue;
-            }
-            if (n_all == 0) continue;
-            cx /= double(n_all);
-            cy /= double(n_all);
-            // Scale factor at the part's vertex centroid: widths are ground
-            // metres, the frame is not (ARCHITECTURE.md "2. project").
-            if (local_tm) {
-              // frame_scale_factor, with the frame's false northing y0 hoisted.
-              double lat = 0, lon = 0, gamma = 0;
-              tm_wgs84().Reverse(frame_.tm_lon0, cx + frame_.origin_x, cy + frame_.origin_y + tm_y0,
-                                 lat, lon, gamma, k[i]);
-            } else {
-              k[i] = slot_scale(slot).at(cx + frame_.origin_x, cy + frame_.origin_y);
-            }
-            if (!std::isfinite(k[i])) k[i] = 1.0;
-          }
-          if (stage) stage->add(range.size());
-        });
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, chunk.features.size(), 64),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        const size_t slot =
+                            static_cast<size_t>(tbb::this_task_arena::current_thread_index());
+                        for (size_t i = range.begin(); i != range.end(); ++i) {
+                          SourceFeature& f = chunk.features[i];
+                          if (!f.drop_reason.empty()) continue;
+                          double cx = 0, cy = 0;
+                          size_t n_all = 0;
+                          for (const Ring& r : f.rings) n_all += r.size();
+                          if (n_all >= kParallelPartVertices)
+                            project_in_parallel(f, cx, cy);
+                          else
+                            project_serially(f, slot, cx, cy);
+                          if (!f.drop_reason.empty()) {
+                            f.rings.clear();
+                            continue;
+                          }
+                          if (n_all == 0) continue;
+                          cx /= double(n_all);
+                          cy /= double(n_all);
+                          // Scale factor at the part's vertex centroid: widths are ground
+                          // metres, the frame is not (ARCHITECTURE.md "2. project").
+                          if (local_tm) {
+                            // frame_scale_factor, with the frame's false northing y0 hoisted.
+                            double lat = 0, lon = 0, gamma = 0;
+                            tm_wgs84().Reverse(frame_.tm_lon0, cx + frame_.origin_x,
+                                               cy + frame_.origin_y + tm_y0, lat, lon, gamma, k[i]);
+                          } else {
+                            k[i] = slot_scale(slot).at(cx + frame_.origin_x, cy + frame_.origin_y);
+                          }
+                          if (!std::isfinite(k[i])) k[i] = 1.0;
+                        }
+                        if (stage) stage->add(range.size());
+                      });
     // Without skip_failures the first failing feature in input order stops
     // the build (the loop above runs in any order).
     if (!scene_.skip_failures) {

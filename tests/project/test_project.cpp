@@ -219,6 +219,75 @@ void expect_matches_proj_per_vertex(const std::string& src_wkt, double x0, doubl
   EXPECT_LT(worst, 1e-7) << "largest deviation from PROJ per vertex, metres";
 }
 
+// A part of many vertices (project.cpp kParallelPartVertices) is projected
+// in parallel chunks: the same vertices as 2,000 small features projected
+// one per thread, bit for bit, and the same scale factor; PROJ per vertex
+// is the oracle for both; a vertex PROJ cannot take is named as the serial
+// path names it (the first in ring order).
+TEST(Project, APartOfManyVerticesProjectsAsSmallPartsDoBitForBit) {
+  prep::test::Rng rng(777);
+  prep::SourceLayer small;
+  small.spec.name = "rings";
+  small.spec.kind = prep::DecalKind::line;
+  small.srs_wkt = epsg_wkt(4326);
+  prep::SourceFeature big;
+  for (int f = 0; f < 2000; ++f) {
+    prep::SourceFeature feat;
+    feat.feature = uint64_t(f);
+    prep::Ring& r = feat.rings.emplace_back();
+    for (int i = 0; i < 50; ++i)
+      r.push_back({7.0 + 0.5 * rng.uniform(), 43.5 + 0.5 * rng.uniform()});
+    big.rings.push_back(r);
+    small.features.push_back(std::move(feat));
+  }
+  prep::SourceLayer one = small;
+  one.features = {big};
+  prep::FeatureSet a, b;
+  a.layers.push_back(small);
+  b.layers.push_back(one);
+  const prep::SceneFrame frame = prep::choose_frame(a, "");
+  const prep::ProjectedFeatures pa = prep::project(a, frame, prep::BuildSpec{});
+  const prep::ProjectedFeatures pb = prep::project(b, frame, prep::BuildSpec{});
+  const auto& rings = pb.features.layers[0].features[0].rings;
+  ASSERT_EQ(rings.size(), 2000u);
+  OGRSpatialReference src, dst;
+  src.SetFromUserInput(epsg_wkt(4326).c_str());
+  src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  dst.SetFromUserInput(frame.crs_wkt.c_str());
+  dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> t(OGRCreateCoordinateTransformation(&src, &dst));
+  ASSERT_TRUE(t);
+  double worst = 0;
+  size_t differ = 0;
+  for (size_t f = 0; f < 2000; ++f) {
+    const prep::Ring& want = pa.features.layers[0].features[f].rings[0];
+    ASSERT_EQ(rings[f].size(), want.size());
+    for (size_t i = 0; i < want.size(); ++i) {
+      differ += rings[f][i].x != want[i].x || rings[f][i].y != want[i].y;
+      double x = big.rings[f][i].x, y = big.rings[f][i].y;
+      ASSERT_TRUE(t->Transform(1, &x, &y));
+      worst = std::max({worst, std::fabs(rings[f][i].x + frame.origin_x - x),
+                        std::fabs(rings[f][i].y + frame.origin_y - y)});
+    }
+  }
+  EXPECT_EQ(differ, 0u) << "vertices of the big part that differ from the small parts'";
+  EXPECT_LT(worst, 1e-7) << "largest deviation from PROJ per vertex, metres";
+
+  // Two vertices PROJ cannot take (latitude 91): the first in ring order
+  // is named, as the serial path would.
+  prep::FeatureSet bad;
+  bad.layers.push_back(one);
+  bad.layers[0].features[0].rings[1500][7] = {7.1, 91.0};
+  bad.layers[0].features[0].rings[1700][3] = {7.2, 92.0};
+  try {
+    prep::project(bad, frame, prep::BuildSpec{});
+    FAIL() << "a vertex at latitude 91 was projected";
+  } catch (const prep::error& e) {
+    EXPECT_NE(std::string(e.what()).find("vertex 7 (7.100000, 91.000000)"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Project, GeographicSourceOverAQuarterDegreeMatchesProjPerVertexTo100Nanometres) {
   expect_matches_proj_per_vertex(epsg_wkt(4326), 7.0, 43.5, 0.25, 0.25, "");
 }
