@@ -42,3 +42,8 @@ def write_rows(path, rows):
         w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
         w.writeheader()
         w.writerows(rows)
+
+
+def vertex_counts(text):
+    """--vertices "1e6,1e7" as integers."""
+    return [int(float(s)) for s in text.split(",")]

@@ -35,7 +35,7 @@ import sys
 import tempfile
 
 import gen_synthetic  # beside this script
-from measure import add_build_and_out, decalprep_of, measured, write_rows  # beside this
+from measure import add_build_and_out, decalprep_of, measured, vertex_counts, write_rows
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MIB = 1024.0 * 1024.0
@@ -84,7 +84,7 @@ def main():
     work = tempfile.mkdtemp(prefix="render_memory_")
     rows = []
     try:
-        for v in [int(float(s)) for s in a.vertices.split(",")]:
+        for v in vertex_counts(a.vertices):
             scene, fgb = gen_synthetic.mix_scene(work, v, "mix%d" % v)
             tiles = os.path.join(work, "tiles%d" % v)
             b_wall, _, b_rss = measured([tool, "build", scene, "-o", tiles, "--tile-size",

@@ -26,7 +26,7 @@ import sys
 import tempfile
 
 import gen_synthetic  # beside this script
-from measure import add_build_and_out, decalprep_of, measured, write_rows  # beside this
+from measure import add_build_and_out, decalprep_of, measured, vertex_counts, write_rows
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -50,7 +50,7 @@ def main():
     work = tempfile.mkdtemp(prefix="tileset_scale_")
     rows = []
     try:
-        for v in [int(float(s)) for s in a.vertices.split(",")]:
+        for v in vertex_counts(a.vertices):
             scene, fgb = gen_synthetic.mix_scene(work, v, "mix%d" % v)
             floor = os.path.join(work, "floor%d.fgb" % v)
             f_wall, f_cpu, f_rss = measured(["ogr2ogr", "-f", "FlatGeobuf", floor, fgb])

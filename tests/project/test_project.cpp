@@ -169,6 +169,18 @@ TEST(Project, WebMercatorScaleFactorMatchesTheAnalyticValue) {
   }
 }
 
+// PROJ through GDAL from one CRS to another, x/y in GIS order: the oracle.
+std::unique_ptr<OGRCoordinateTransformation> proj_transform(const std::string& from_wkt,
+                                                            const std::string& to_wkt) {
+  OGRSpatialReference src, dst;
+  src.SetFromUserInput(from_wkt.c_str());
+  src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  dst.SetFromUserInput(to_wkt.c_str());
+  dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return std::unique_ptr<OGRCoordinateTransformation>(
+      OGRCreateCoordinateTransformation(&src, &dst));
+}
+
 // The per-vertex transformation is a verified polynomial approximation of
 // PROJ's (project.cpp); the oracle here is PROJ itself, vertex by vertex,
 // over extents far larger than a scene (so the approximation has to split
@@ -196,12 +208,7 @@ void expect_matches_proj_per_vertex(const std::string& src_wkt, double x0, doubl
   prep::SceneFrame frame = prep::choose_frame(fs, crs);
   prep::ProjectedFeatures p = prep::project(fs, frame, prep::BuildSpec{});
 
-  OGRSpatialReference src, dst;
-  src.SetFromUserInput(src_wkt.c_str());
-  src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  dst.SetFromUserInput(frame.crs_wkt.c_str());
-  dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> t(OGRCreateCoordinateTransformation(&src, &dst));
+  const auto t = proj_transform(src_wkt, frame.crs_wkt);
   ASSERT_TRUE(t);
   double worst = 0;
   const auto& in = original.layers[0].features;
@@ -250,12 +257,7 @@ TEST(Project, APartOfManyVerticesProjectsAsSmallPartsDoBitForBit) {
   const prep::ProjectedFeatures pb = prep::project(b, frame, prep::BuildSpec{});
   const auto& rings = pb.features.layers[0].features[0].rings;
   ASSERT_EQ(rings.size(), 2000u);
-  OGRSpatialReference src, dst;
-  src.SetFromUserInput(epsg_wkt(4326).c_str());
-  src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  dst.SetFromUserInput(frame.crs_wkt.c_str());
-  dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> t(OGRCreateCoordinateTransformation(&src, &dst));
+  const auto t = proj_transform(epsg_wkt(4326), frame.crs_wkt);
   ASSERT_TRUE(t);
   double worst = 0;
   size_t differ = 0;
