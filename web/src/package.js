@@ -11,7 +11,6 @@
 // for, so over HTTP a viewer fetches only the blobs it draws. validate()
 // reads every blob and applies the index constraints and the metadata
 // checks `decalprep verify` applies (index.js).
-import { decompress } from "fzstd";
 import {
   ALIGN,
   CATALOGUE,
@@ -30,6 +29,7 @@ import {
 } from "./format.js";
 import { bufferSource, urlSource } from "./source.js";
 import { hex64, xxh64 } from "./xxh64.js";
+import { decodeZstdFrame } from "./zstd.js";
 import { checkIndices, checkMetadata } from "./validate.js";
 import { FormatError } from "./errors.js";
 
@@ -231,69 +231,16 @@ export class Package {
                               `computed ${hex64(got)}`);
     }
     if (e.codec === CODEC_NONE) return stored;
-    return decodeZstd(stored, e, label);
+    return decodeZstdFrame(stored, e.rawSize, (what) => new FormatError(`${label}: ${what}`), {
+      notOne: "stored bytes are not exactly one zstd frame",
+      size: `zstd frame content size does not match raw_size ${e.rawSize}`,
+    });
   }
 }
 
 /** @param {BlobEntry} e */
 function entryLabel(e) {
   return `blob #${e.index} '${e.name}' (id ${e.id})`;
-}
-
-/**
- * Checks that `stored` is exactly one zstd frame (RFC 8878) with a
- * Frame_Content_Size equal to the entry's raw_size, then decodes it and
- * checks the decoded length and, when the frame has one, its content
- * checksum (the low 32 bits of XXH64 of the content).
- * @param {Uint8Array} stored @param {BlobEntry} e @param {string} label
- */
-async function decodeZstd(stored, e, label) {
-  const notOne = () => new FormatError(`${label}: stored bytes are not exactly one zstd frame`);
-  const dv = new DataView(stored.buffer, stored.byteOffset, stored.byteLength);
-  if (stored.length < 6 || dv.getUint32(0, true) !== 0xfd2fb528) throw notOne();
-  const fhd = stored[4];
-  const fcsFlag = fhd >> 6, single = (fhd >> 5) & 1, hasChecksum = (fhd >> 2) & 1;
-  if (fhd & 0x08) throw notOne();  // reserved bit
-  const dictBytes = [0, 1, 2, 4][fhd & 3];
-  const fcsBytes = fcsFlag === 0 ? single : [0, 2, 4, 8][fcsFlag];
-  let at = 5 + (single ? 0 : 1) + dictBytes;
-  if (fcsBytes === 0 || at + fcsBytes > stored.length)
-    throw new FormatError(`${label}: zstd frame content size does not match raw_size ${e.rawSize}`);
-  let fcs;
-  if (fcsBytes === 1) fcs = stored[at];
-  else if (fcsBytes === 2) fcs = dv.getUint16(at, true) + 256;
-  else if (fcsBytes === 4) fcs = dv.getUint32(at, true);
-  else fcs = Number(dv.getBigUint64(at, true));
-  if (fcs !== e.rawSize)
-    throw new FormatError(`${label}: zstd frame content size does not match raw_size ${e.rawSize}`);
-  at += fcsBytes;
-  // Walk the blocks to find where the frame ends.
-  for (;;) {
-    if (at + 3 > stored.length) throw notOne();
-    const bh = stored[at] | (stored[at + 1] << 8) | (stored[at + 2] << 16);
-    const last = bh & 1, type = (bh >> 1) & 3, size = bh >>> 3;
-    if (type === 3) throw new FormatError(`${label}: zstd decoding failed: reserved block type`);
-    at += 3 + (type === 1 ? 1 : size);
-    if (last) break;
-  }
-  at += hasChecksum ? 4 : 0;
-  if (at !== stored.length) throw notOne();
-  let out;
-  try {
-    out = decompress(stored);
-  } catch (err) {
-    throw new FormatError(`${label}: zstd decoding failed: ${err instanceof Error ? err.message : String(err)}`);
-  }
-  if (out.length !== e.rawSize)
-    throw new FormatError(`${label}: zstd decoding failed: ${out.length} bytes decoded, ` +
-                          `raw_size is ${e.rawSize}`);
-  if (hasChecksum) {
-    const want = dv.getUint32(stored.length - 4, true);
-    const got = Number((await xxh64(out)) & 0xffffffffn);
-    if (want !== got)
-      throw new FormatError(`${label}: zstd decoding failed: content checksum mismatch`);
-  }
-  return out;
 }
 
 /**

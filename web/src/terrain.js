@@ -7,9 +7,9 @@
 //
 // Synchronous: the checksums use xxhash-wasm's synchronous hash
 // (xxh64.js, instantiated when the module loads) and fzstd decodes in place.
-import { decompress } from "fzstd";
 import { FormatError } from "./errors.js";
 import { xxh64Sync } from "./xxh64.js";
+import { decodeZstdFrame } from "./zstd.js";
 
 /**
  * The mesh render draws: vertex (i, j) at (x0 + i dx, y0 + j dy), metres
@@ -111,7 +111,12 @@ export function parseTerrain(input, label = "terrain file") {
   const heights = b.subarray(header);
   if (dv.getBigUint64(128, true) !== xxh64Sync(heights))
     throw bad("heights_checksum: mismatch (the heights are damaged)");
-  const planes = codec === CODEC_ZSTD ? unzstd(heights, raw, bad) : heights;
+  const planes = codec === CODEC_ZSTD
+    ? decodeZstdFrame(heights, raw, (what) => bad(`heights: ${what}`), {
+      notOne: "the stored bytes are not exactly one zstd frame",
+      size: `the zstd frame's content size is not nx * ny * 8 = ${raw}`,
+    })
+    : heights;
   // 9. The heights: byte plane k holds byte k of every vertex's f64.
   const n = nx * ny, z = new Float64Array(n), bytes = new Uint8Array(z.buffer);
   for (let v = 0; v < n; ++v)
@@ -131,46 +136,6 @@ export function parseTerrain(input, label = "terrain file") {
   return { ...t, nx, ny, z, surfaceErrorBound: bound, origin, sourceXxh64: source };
 }
 
-/**
- * One zstd frame (RFC 8878) with a content size of `raw` and nothing after
- * it, decoded; its content checksum (low 32 bits of XXH64) checked.
- * @param {Uint8Array} s @param {number} raw @param {(what: string) => Error} bad
- */
-function unzstd(s, raw, bad) {
-  const notOne = () => bad("heights: the stored bytes are not exactly one zstd frame");
-  const dv = new DataView(s.buffer, s.byteOffset, s.byteLength);
-  if (s.length < 6 || dv.getUint32(0, true) !== 0xfd2fb528) throw notOne();
-  const fhd = s[4];
-  if (fhd & 0x08) throw notOne();
-  const single = (fhd >> 5) & 1, hasChecksum = (fhd >> 2) & 1, fcsFlag = fhd >> 6;
-  const fcsBytes = fcsFlag === 0 ? single : [0, 2, 4, 8][fcsFlag];
-  let at = 5 + (single ? 0 : 1) + [0, 1, 2, 4][fhd & 3];
-  const sizeWrong = () => bad(`heights: the zstd frame's content size is not nx * ny * 8 = ${raw}`);
-  if (fcsBytes === 0 || at + fcsBytes > s.length) throw sizeWrong();
-  const fcs = fcsBytes === 1 ? s[at] : fcsBytes === 2 ? dv.getUint16(at, true) + 256
-    : fcsBytes === 4 ? dv.getUint32(at, true) : Number(dv.getBigUint64(at, true));
-  if (fcs !== raw) throw sizeWrong();
-  at += fcsBytes;
-  for (;;) {
-    if (at + 3 > s.length) throw notOne();
-    const bh = s[at] | (s[at + 1] << 8) | (s[at + 2] << 16);
-    const type = (bh >> 1) & 3;
-    if (type === 3) throw bad("heights: zstd decoding failed: reserved block type");
-    at += 3 + (type === 1 ? 1 : bh >>> 3);
-    if (bh & 1) break;
-  }
-  if (at + (hasChecksum ? 4 : 0) !== s.length) throw notOne();
-  let out;
-  try {
-    out = decompress(s);
-  } catch (err) {
-    throw bad(`heights: zstd decoding failed: ${err instanceof Error ? err.message : String(err)}`);
-  }
-  if (out.length !== raw) throw bad(`heights: zstd decoded ${out.length} bytes, not ${raw}`);
-  if (hasChecksum && dv.getUint32(s.length - 4, true) !== Number(xxh64Sync(out) & 0xffffffffn))
-    throw bad("heights: zstd content checksum mismatch");
-  return out;
-}
 
 /**
  * Fetches and parses a terrain file; null when the server answers 404 (no
