@@ -17,9 +17,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <sstream>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "prep/error.hpp"
@@ -281,22 +283,25 @@ void screenshot(const std::string& path, const ShotOptions& opt) {
   });
   bool reaped = false;
   int status = 0;
-  Outcome outcome = Outcome::exited;
-  try {
-    pid = start_chromium(opt, url, profile, log);
-    outcome = wait_for_page(opt, got, pid, reaped, status);
-  } catch (...) {
+  // However this ends: Chromium stopped, the server stopped and the
+  // profile removed, once (now() on the way out of a normal run, the
+  // destructor when something throws).
+  struct Teardown {
+    std::function<void()> steps;
+    void now() {
+      if (steps) std::exchange(steps, nullptr)();
+    }
+    ~Teardown() { now(); }
+  } teardown{[&] {
     if (pid > 0) stop_chromium(pid, reaped);
     server.stop();
     listening.join();
     remove_profile(profile);
-    throw;
-  }
+  }};
+  pid = start_chromium(opt, url, profile, log);
+  const Outcome outcome = wait_for_page(opt, got, pid, reaped, status);
   const std::string chromium_tail = opt.verbose ? "" : tail_lines(log, 20);
-  stop_chromium(pid, reaped);
-  server.stop();
-  listening.join();
-  remove_profile(profile);
+  teardown.now();
   const std::string last_lines =
       chromium_tail.empty() ? "" : "; Chromium's last lines:" + chromium_tail;
   switch (outcome) {
