@@ -4,9 +4,11 @@
 #include "prep/pipeline.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <span>
 #include <sstream>
@@ -35,6 +37,20 @@ namespace {
 
 [[noreturn]] void bad_option(const std::string& what) {
   fail<usage_error>(kRenderStage, what);
+}
+
+// -o and --decals write PNG: a name that promises another image format
+// (.jpg, .tif, ...) is refused before anything is drawn, rather than given
+// PNG bytes under that name.
+void check_png_name(const char* option, const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  for (const char* other : {".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".gif", ".bmp", ".jp2"})
+    if (ext == other)
+      bad_option(std::string(option) + " '" + path + "': render writes PNG images; name the file " +
+                 std::filesystem::path(path).replace_extension(".png").string() +
+                 " (convert it afterwards, e.g. with gdal_translate, for " + ext + ")");
 }
 
 // --size WxH: two decimal integers, each side 1..kMaxImageSide, W * H at
@@ -711,6 +727,8 @@ void write_outputs(const RenderRequest& a, const Image& img, const View& view,
 
 CheckedRender check_render_request(const RenderRequest& a) {
   CheckedRender c;
+  request::check_png_name("-o", a.output);
+  if (!a.decals_png.empty()) request::check_png_name("--decals", a.decals_png);
   c.select.level = request::parse_level(a.level);
   if (!a.gpu_budget.empty()) c.select.gpu_budget = request::parse_gpu_budget(a.gpu_budget);
   request::check_drawing(a, c.options);

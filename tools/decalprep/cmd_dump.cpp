@@ -419,9 +419,14 @@ void run_dump(const std::string& path, bool as_json, bool summary, const std::st
     prep::fail<prep::format_error>(prep::kDumpStage, s.message);
   if (tile) check_tile_key(p, path, tile->x, tile->y, tile->level);
   bool found = only.empty();
-  for (const auto& b : p.blobs()) found = found || b.name == only;
+  std::string names;
+  for (const auto& b : p.blobs()) {
+    found = found || b.name == only;
+    names += (names.empty() ? "" : ", ") + std::string(b.name);
+  }
   if (!found)
-    prep::fail<prep::usage_error>(prep::kDumpStage, path + " has no blob named '" + only + "'");
+    prep::fail<prep::usage_error>(
+        prep::kDumpStage, path + " has no blob named '" + only + "' (its blobs: " + names + ")");
 
   if (summary) return run_summary(p, path, only);
   if (as_json) {

@@ -1,7 +1,10 @@
 // cmd_verify.cpp — `decalprep verify PACKAGE...`: every checksum and every
 // structural check a package can be given (formats/SPEC.md §"Validation").
-// Prints one line per package; exits 0 when all are good, 5 (verify_failed)
-// otherwise.
+// Prints one line per package (or, with --json, one JSON object); exits 0
+// when all are good, 5 (verify_failed) when any is corrupt, else 3 (input)
+// when a path could not be read at all.
+#include <unistd.h>
+
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -15,6 +18,37 @@
 #include "prep/tile.hpp"
 
 namespace {
+
+// What verify found, one entry per path checked: printed as it is found
+// ("<path>: ok (...)" on stdout, "<path>: FAILED: <reason>" on stderr) or,
+// with --json, kept and printed as one object at the end.
+struct Findings {
+  bool as_json = false;
+  nlohmann::json entries = nlohmann::json::array();
+  bool corrupt = false, unreadable = false;
+
+  void ok(const std::string& path, const std::string& summary) {
+    if (as_json)
+      entries.push_back({{"path", path}, {"ok", true}, {"summary", summary}});
+    else
+      std::printf("%s: ok (%s)\n", path.c_str(), summary.c_str());
+  }
+  // `cannot_read`: the path could not be read at all (missing, not
+  // readable), not a package found corrupt.
+  void failed(const std::string& path, const std::string& reason, bool cannot_read = false) {
+    (cannot_read ? unreadable : corrupt) = true;
+    if (as_json)
+      entries.push_back(
+          {{"path", path}, {"ok", false}, {"reason", reason}, {"unreadable", cannot_read}});
+    else
+      std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), reason.c_str());
+  }
+  prep::ExitCode exit_code() const {
+    return corrupt      ? prep::ExitCode::verify_failed
+           : unreadable ? prep::ExitCode::input
+                        : prep::ExitCode::ok;
+  }
+};
 
 // The metadata must be a JSON object; where it states a format or blob
 // counts (SPEC.md §"Metadata"), they must agree with the package.
@@ -141,14 +175,14 @@ std::string tile_mismatch(const prep::TilesetIndex& ix, const prep::TileEntry& t
 // its manifest against its tiles' counts), manifest.json's and every
 // tile's bytes and XXH64 against the index, every tile as a package, and
 // what each tile's package says of itself against its index entry.
-// Returns false when any fails (each failure printed).
-bool verify_tileset(const std::string& dir) {
+// Each failure goes to `found`.
+void verify_tileset(const std::string& dir, Findings& found) {
   prep::TilesetIndex ix;
   try {
     ix = prep::read_tileset_index(dir);
   } catch (const prep::error& e) {
-    std::fprintf(stderr, "%s: FAILED: %s\n", dir.c_str(), e.what());
-    return false;
+    found.failed(dir, e.what());
+    return;
   }
   bool good = true;
   auto check_file = [&](const std::string& rel, uint64_t bytes, uint64_t hash) {
@@ -162,7 +196,7 @@ bool verify_tileset(const std::string& dir) {
     else if (d->xxh64 != hash)
       why = "xxh64 " + prep::hex64(d->xxh64) + ", tileset.json says " + prep::hex64(hash);
     if (why.empty()) return true;
-    std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), why.c_str());
+    found.failed(path, why);
     good = false;
     return false;
   };
@@ -178,13 +212,13 @@ bool verify_tileset(const std::string& dir) {
       decal::Package p;
       const std::string path = dir + "/" + t.file;
       if (const decal::Status s = verify_one(path, summary, &meta, &p); !s) {
-        std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), s.message.c_str());
+        found.failed(path, s.message);
         good = false;
         continue;
       }
       const std::string w = where + "[" + std::to_string(i) + "]";
       if (const std::string why = tile_mismatch(ix, t, w, level, size, p, meta); !why.empty()) {
-        std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(), why.c_str());
+        found.failed(path, why);
         good = false;
       }
     }
@@ -196,21 +230,22 @@ bool verify_tileset(const std::string& dir) {
     check_tiles(l.tiles, l.level, l.tile_size);
     level_tiles += l.tiles.size();
   }
-  if (good && ix.levels.empty())
-    std::printf("%s: ok (tileset %d.%d, %zu tiles, index and manifest hashes match)\n", dir.c_str(),
-                ix.major, ix.minor, ix.tiles.size());
-  else if (good)
-    std::printf(
-        "%s: ok (tileset %d.%d, %zu tiles and %zu on %zu overview levels, index and "
-        "manifest hashes match)\n",
-        dir.c_str(), ix.major, ix.minor, ix.tiles.size(), level_tiles, ix.levels.size());
-  return good;
+  if (!good) return;
+  std::string summary = "tileset " + std::to_string(ix.major) + "." + std::to_string(ix.minor) +
+                        ", " + std::to_string(ix.tiles.size()) + " tiles";
+  if (!ix.levels.empty())
+    summary += " and " + std::to_string(level_tiles) + " on " + std::to_string(ix.levels.size()) +
+               " overview levels";
+  found.ok(dir, summary + ", index and manifest hashes match");
 }
 
 constexpr decalprep::CommandHelp kVerifyHelp{
     "verify", "Check packages: checksums, structure and indices",
-    "Prints '<path>: ok (...)' or '<path>: FAILED: <reason>' per package.\n"
-    "Exit code 0 when every package is good, 5 when any is not.\n"
+    "Prints '<path>: ok (...)' or '<path>: FAILED: <reason>' per package; with --json one\n"
+    "object on stdout: {\"ok\", \"packages\": [{\"path\", \"ok\", \"summary\" or \"reason\",\n"
+    "\"unreadable\"}]}.\n"
+    "Exit code 0 when every package is good, 5 when any is corrupt, else 3 when a path\n"
+    "could not be read (missing, not readable).\n"
     "A tileset directory: tileset.json (fields, ranges, its manifest's counts against its\n"
     "tiles'), the bytes and XXH64 of manifest.json and of every tile against it, then every\n"
     "tile as a package, its key, square, origin, CRS and counts against the index; the same\n"
@@ -219,29 +254,36 @@ constexpr decalprep::CommandHelp kVerifyHelp{
 
 const decalprep::CommandRegistrar kVerify(21, kVerifyHelp, [](CLI::App* cmd) {
   auto paths = std::make_shared<std::vector<std::string>>();
+  auto as_json = std::make_shared<bool>(false);
   cmd->add_option("PACKAGE", *paths, "the .decals files, or tileset directories")->required();
-  cmd->callback([paths] {
-    bool all_good = true;
+  cmd->add_flag("--json", *as_json, "print one JSON object (what each path gave) on stdout");
+  cmd->callback([paths, as_json] {
+    Findings found;
+    found.as_json = *as_json;
     for (const std::string& path : *paths) {
       if (prep::is_tileset(path)) {
-        all_good = verify_tileset(path) && all_good;
+        verify_tileset(path, found);
         continue;
       }
       std::string summary;
       const decal::Status s = verify_one(path, summary);
       if (s) {
-        std::printf("%s: ok (%s)\n", path.c_str(), summary.c_str());
+        found.ok(path, summary);
       } else {
-        all_good = false;
         // Reader messages usually start with the path already.
         const std::string& m = s.message;
         const bool has_path = m.compare(0, path.size() + 2, path + ": ") == 0;
-        std::fprintf(stderr, "%s: FAILED: %s\n", path.c_str(),
-                     has_path ? m.c_str() + path.size() + 2 : m.c_str());
+        found.failed(path, has_path ? m.substr(path.size() + 2) : m,
+                     ::access(path.c_str(), R_OK) != 0);
       }
     }
+    if (found.as_json)
+      std::printf("%s\n", nlohmann::json{{"ok", !found.corrupt && !found.unreadable},
+                                         {"packages", found.entries}}
+                              .dump(2)
+                              .c_str());
     std::fflush(stdout);
-    decalprep::set_exit_code(all_good ? prep::ExitCode::ok : prep::ExitCode::verify_failed);
+    decalprep::set_exit_code(found.exit_code());
   });
 });
 
