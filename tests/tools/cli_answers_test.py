@@ -24,11 +24,7 @@ def run(cmd):
     return subprocess.run(cmd, capture_output=True, text=True)
 
 
-def main():
-    if len(sys.argv) != 4:
-        print(__doc__)
-        return 2
-    tool, root, work = sys.argv[1:4]
+def main(tool, root, work):
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     pkg = os.path.join(work, "golden.decals")
@@ -103,4 +99,6 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    if len(sys.argv) != 4:
+        sys.exit(__doc__)
+    sys.exit(main(*sys.argv[1:4]))
