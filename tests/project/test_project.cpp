@@ -186,7 +186,7 @@ std::unique_ptr<OGRCoordinateTransformation> proj_transform(const std::string& f
 // over extents far larger than a scene (so the approximation has to split
 // cells) and for a projected source (UTM inverse + TM forward).
 void expect_matches_proj_per_vertex(const std::string& src_wkt, double x0, double y0, double w,
-                                    double h, const std::string& crs) {
+                                    double h, const std::string& crs, int per_feature = 25) {
   prep::FeatureSet fs;
   prep::SourceLayer layer;
   layer.spec.name = "pts";
@@ -194,13 +194,13 @@ void expect_matches_proj_per_vertex(const std::string& src_wkt, double x0, doubl
   layer.srs_wkt = src_wkt;
   prep::test::Rng rng(12345);
   auto next = [&] { return rng.uniform(); };
-  // 50,000 vertices: enough for the approximation to fit cells (it keeps
-  // the exact path for sparse data).
+  // 2,000 features of 25 vertices: enough for the approximation to fit
+  // cells (it keeps the exact path for sparse data).
   for (int f = 0; f < 2000; ++f) {
     prep::SourceFeature feat;
     feat.feature = uint64_t(f);
     prep::Ring& r = feat.rings.emplace_back();
-    for (int i = 0; i < 25; ++i) r.push_back({x0 + w * next(), y0 + h * next()});
+    for (int i = 0; i < per_feature; ++i) r.push_back({x0 + w * next(), y0 + h * next()});
     layer.features.push_back(feat);
   }
   fs.layers.push_back(layer);
@@ -296,6 +296,13 @@ TEST(Project, GeographicSourceOverAQuarterDegreeMatchesProjPerVertexTo100Nanomet
 
 TEST(Project, UtmSourceOver40KilometresMatchesProjPerVertexTo100Nanometres) {
   expect_matches_proj_per_vertex(epsg_wkt(32632), 300000, 4800000, 40000, 40000, "");
+}
+
+// A continent into Equal Earth with 400,000 vertices: cells of hundreds of
+// kilometres, where the degree-7 fit passes its check grid only when it
+// holds between the grid's points too (the argument in project.cpp).
+TEST(Project, ContinentIntoEqualEarthMatchesProjPerVertexTo100Nanometres) {
+  expect_matches_proj_per_vertex(epsg_wkt(4326), -10.0, 35.0, 60.0, 35.0, "EPSG:8857", 200);
 }
 
 TEST(Project, GeographicSourceNearThePoleIntoPolarStereographicMatchesProjPerVertex) {
