@@ -986,9 +986,170 @@ Extent kept_extent(const SceneFeatures& s) {
 
 // ------------------------------------------------------- overview levels --
 
+namespace {
+
+// Squared distance from p to the segment a-b.
+double segment_distance2(const Point2& p, const Point2& a, const Point2& b) {
+  const double dx = b.x - a.x, dy = b.y - a.y, len2 = dx * dx + dy * dy;
+  double t = len2 > 0 ? ((p.x - a.x) * dx + (p.y - a.y) * dy) / len2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  const double ex = a.x + t * dx - p.x, ey = a.y + t * dy - p.y;
+  return ex * ex + ey * ey;
+}
+
+// Douglas-Peucker of a closed ring (unclosed, as stored): which vertices it
+// keeps. The ring is split at its first vertex and the vertex farthest from
+// it; each section keeps its farthest vertex while that lies more than
+// `tolerance` from the section's chord. Every vertex of the ring then lies
+// within `tolerance` of the result, and every vertex of the result is one of
+// the ring's.
+std::vector<char> douglas_peucker_keep(const Ring& r, double tolerance) {
+  const size_t n = r.size();
+  std::vector<char> keep(n, n <= 3 ? 1 : 0);
+  if (n <= 3) return keep;
+  const double t2 = tolerance * tolerance;
+  size_t far = 0;
+  double far_d = -1;
+  for (size_t i = 1; i < n; ++i) {
+    const double dx = r[i].x - r[0].x, dy = r[i].y - r[0].y, d = dx * dx + dy * dy;
+    if (d > far_d) far_d = d, far = i;
+  }
+  keep[0] = keep[far] = 1;
+  // Sections [a, b] in ring order; b == n stands for vertex 0.
+  std::vector<std::pair<size_t, size_t>> todo = {{0, far}, {far, n}};
+  while (!todo.empty()) {
+    const auto [a, b] = todo.back();
+    todo.pop_back();
+    if (b - a < 2) continue;
+    const Point2 &pa = r[a], &pb = r[b == n ? 0 : b];
+    size_t at = a;
+    double worst = -1;
+    for (size_t i = a + 1; i < b; ++i) {
+      const double d = segment_distance2(r[i], pa, pb);
+      if (d > worst) worst = d, at = i;
+    }
+    if (worst <= t2) continue;
+    keep[at] = 1;
+    todo.push_back({a, at});
+    todo.push_back({at, b});
+  }
+  return keep;
+}
+
+Ring kept_vertices(const Ring& r, const std::vector<char>& keep) {
+  Ring out;
+  for (size_t i = 0; i < r.size(); ++i)
+    if (keep[i]) out.push_back(r[i]);
+  return out;
+}
+
+// Gives back ring r's vertices between each two kept ones (a section the
+// simplifier replaced by its chord) where the section's box holds one of
+// `at` (the points where the sweep found a problem: the region between a
+// chord and its section lies in that box); how many came back.
+uint64_t restore_sections(const Ring& r, std::vector<char>& keep, std::vector<Point2>& at) {
+  const size_t n = r.size();
+  std::sort(at.begin(), at.end(), [](const Point2& a, const Point2& b) { return a.x < b.x; });
+  size_t first = 0;
+  while (first < n && !keep[first]) ++first;
+  if (first == n) return 0;
+  uint64_t changed = 0;
+  for (size_t a = first;;) {
+    size_t b = a + 1;  // the next kept vertex (mod n)
+    while (!keep[b % n]) ++b;
+    if (b - a >= 2) {
+      double xmin = INFINITY, ymin = INFINITY, xmax = -INFINITY, ymax = -INFINITY;
+      for (size_t i = a; i <= b; ++i) {
+        const Point2& p = r[i % n];
+        xmin = std::min(xmin, p.x), xmax = std::max(xmax, p.x);
+        ymin = std::min(ymin, p.y), ymax = std::max(ymax, p.y);
+      }
+      auto it = std::lower_bound(at.begin(), at.end(), xmin,
+                                 [](const Point2& p, double x) { return p.x < x; });
+      for (; it != at.end() && it->x <= xmax; ++it)
+        if (it->y >= ymin && it->y <= ymax) {
+          for (size_t i = a + 1; i < b; ++i) keep[i % n] = 1;
+          ++changed;
+          break;
+        }
+    }
+    if (b % n == first) break;
+    a = b % n;
+  }
+  return changed;
+}
+
+// The rings of a valid polygon (shell first) simplified ring by ring
+// (Douglas-Peucker), then proved valid by the sweep of
+// detail/certainly_valid.hpp: only the simplification can have made a
+// problem, so where the sweep finds them, the sections of the rings in them
+// whose boxes hold a problem's point get their vertices back (a ring whose
+// sections are all back, or one that collapsed or turned over, is the
+// ring as it was), and the sweep runs again. False, rings untouched, when
+// the sweep is unsure, or a problem lies only among rings as they were, or
+// after kMaxRounds rounds: GEOS's TopologyPreserveSimplify decides those.
+bool simplified_rings(std::vector<Ring>& rings, double tolerance, uint64_t& sections_back) {
+  constexpr int kMaxRounds = 16;
+  const size_t count = rings.size();
+  std::vector<std::vector<char>> keep(count);
+  std::vector<Ring> out(count);
+  for (size_t i = 0; i < count; ++i) {
+    keep[i] = douglas_peucker_keep(rings[i], tolerance);
+    out[i] = kept_vertices(rings[i], keep[i]);
+    const double before = signed_area(rings[i]), after = signed_area(out[i]);
+    if (out[i].size() < 3 || after == 0 || (after > 0) != (before > 0)) {
+      std::fill(keep[i].begin(), keep[i].end(), 1);
+      out[i] = rings[i];
+    }
+  }
+  std::vector<detail::Culprit> culprits;
+  std::vector<std::vector<Point2>> at(count);
+  for (int round = 0; round < kMaxRounds; ++round) {
+    switch (detail::polygon_validity(out, &culprits)) {
+      case detail::Validity::valid: rings = std::move(out); return true;
+      case detail::Validity::unsure: return false;
+      case detail::Validity::invalid: break;
+    }
+    std::vector<uint32_t> touched;
+    for (const detail::Culprit& c : culprits) {
+      if (c.ring >= count) return false;
+      if (at[c.ring].empty()) touched.push_back(c.ring);
+      at[c.ring].push_back(c.whole ? Point2{NAN, NAN} : c.at);
+    }
+    // The sections at the problems' points; where that gives nothing back,
+    // the rings in the problems whole.
+    bool changed = false;
+    for (int whole_rings = 0; whole_rings < 2 && !changed; ++whole_rings)
+      for (uint32_t ri : touched) {
+        std::vector<Point2>& points = at[ri];
+        const bool whole =
+            whole_rings || std::any_of(points.begin(), points.end(),
+                                       [](const Point2& p) { return std::isnan(p.x); });
+        bool back = false;
+        if (whole) {
+          back = std::find(keep[ri].begin(), keep[ri].end(), 0) != keep[ri].end();
+          std::fill(keep[ri].begin(), keep[ri].end(), 1);
+          sections_back += back;
+        } else {
+          const uint64_t sections = restore_sections(rings[ri], keep[ri], points);
+          sections_back += sections;
+          back = sections > 0;
+        }
+        if (back) out[ri] = kept_vertices(rings[ri], keep[ri]);
+        changed |= back;
+      }
+    for (uint32_t ri : touched) at[ri].clear();
+    if (!changed) return false;
+  }
+  return false;
+}
+
+}  // namespace
+
 struct PartSimplifier::Impl {
   detail::GeosContext ctx;
   double tolerance;
+  Counts counts;
   explicit Impl(double t) : tolerance(t) {}
 };
 
@@ -996,13 +1157,25 @@ PartSimplifier::PartSimplifier(double tolerance) : impl_(std::make_unique<Impl>(
 PartSimplifier::~PartSimplifier() = default;
 
 bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
-  GEOSContextHandle_t h = impl_->ctx.handle();
   if (p.shell.size() < 3) return false;
   std::vector<Ring> rings;
   rings.reserve(1 + p.holes.size());
   rings.push_back(p.shell);
   for (const Ring& r : p.holes)
     if (r.size() >= 3) rings.push_back(r);
+  uint64_t sections_back = 0;
+  Counts& counts = impl_->counts;
+  if (simplified_rings(rings, impl_->tolerance, sections_back)) {
+    ++counts.proved;
+    counts.with_sections_back += sections_back > 0;
+    counts.sections_back += sections_back;
+    p.shell = std::move(rings[0]);
+    p.holes.assign(std::make_move_iterator(rings.begin() + 1),
+                   std::make_move_iterator(rings.end()));
+    return true;
+  }
+  ++counts.geos;
+  GEOSContextHandle_t h = impl_->ctx.handle();
   Geom g(h, make_polygon(h, rings));
   if (!g)
     fail<input_error>(kNoStage, "overview level: " + what +
@@ -1027,6 +1200,10 @@ bool PartSimplifier::polygon(ScenePolygon& p, const std::string& what) {
   p.shell = std::move(shell);
   p.holes = std::move(holes);
   return true;
+}
+
+const PartSimplifier::Counts& PartSimplifier::counts() const {
+  return impl_->counts;
 }
 
 bool PartSimplifier::line(SceneLine& l, const std::string& what) {

@@ -187,6 +187,29 @@ struct ValidityScratch {
   std::vector<Point2> touch_points;  // sorted (before), distinct
 };
 
+// Where polygon_validity's caller asked for them (`culprits`), every
+// problem of the first phase that finds one: the sweep then goes on past a
+// problem instead of answering at once. blame() records one ring's share of
+// a problem and says whether to answer invalid now (no caller asked).
+// The answer is then the one the first problem gave (invalid, or unsure
+// when an orientation was fragile by then), whatever the sweep met after it.
+thread_local std::vector<Culprit>* blamed = nullptr;
+thread_local bool fragile_at_first_blame = false;
+bool blame(uint32_t ring, Point2 at, bool whole = false) {
+  if (blamed) {
+    if (blamed->empty()) fragile_at_first_blame = fragile;
+    blamed->push_back({ring, at, whole});
+  }
+  return blamed == nullptr;
+}
+Point2 midpoint(const Point2& a, const Point2& b) {
+  return {0.5 * (a.x + b.x), 0.5 * (a.y + b.y)};
+}
+// The answer at the end of a phase that went on past its problems.
+Validity after_phase() {
+  return blamed && !blamed->empty() ? Validity::invalid : Validity::valid;
+}
+
 // Checks the turn at every vertex of ring `ri` and appends the ring's
 // monotone chains. A vertex where the ring goes straight on is fine; one
 // where it turns back (a spike: its two edges overlap) is invalid.
@@ -196,7 +219,7 @@ Validity append_chains(const Ring& r, uint32_t ri, std::vector<Chain>& chains) {
     const Point2 &a = r[i == 0 ? n - 1 : i - 1], &v = r[i], &b = r[i + 1 == n ? 0 : i + 1];
     const bool was_fragile = fragile, back = before(a, v) == before(b, v);
     const int o = orientation(a, v, b);
-    if (o == 0 && back) return Validity::invalid;
+    if (o == 0 && back && blame(ri, v)) return Validity::invalid;
     // Going on past v (v between its neighbours along x, or y): the edges
     // meet only at v whether GEOS finds them collinear or not.
     if (!back) fragile = was_fragile;
@@ -268,7 +291,7 @@ class ChainSweep {
       active.resize(w);
       active.push_back(ci);
     }
-    return Validity::valid;
+    return after_phase();
   }
 
  private:
@@ -339,7 +362,11 @@ class ChainSweep {
         if (m == Meet::apart) continue;
         // A crossing, an overlap, or a ring meeting itself (GEOS: "Ring
         // Self-intersection"; inverted rings are not allowed).
-        if (m == Meet::cross || a.ring == b.ring) return Validity::invalid;
+        if (m == Meet::cross || a.ring == b.ring) {
+          if (blame(a.ring, midpoint(*p, *q)) | blame(b.ring, midpoint(*r, *t)))
+            return Validity::invalid;
+          continue;
+        }
         at = {at.x + 0.0, at.y + 0.0};  // -0 and 0 are one point
         touches_.push_back({at, a.ring, ia});
         touches_.push_back({at, b.ring, ib});
@@ -439,15 +466,23 @@ Validity check_touches(const std::vector<Ring>& rings, std::vector<Touch>& touch
       if (arms.empty() || arms.back().ring != touches[i].ring) {
         if (arms.size() == kMaxRingsAtAPoint) return Validity::unsure;
         arms.push_back(arms_at(rings, touches[i]));
-        if (!forest.unite(touches[i].ring, node)) return Validity::invalid;
+        if (!forest.unite(touches[i].ring, node)) {
+          bool now = false;
+          for (const Arms& a : arms) now = blame(a.ring, at);
+          if (now) return Validity::invalid;
+        }
       }
     for (size_t a = 0; a < arms.size(); ++a)
       for (size_t b = a + 1; b < arms.size(); ++b) {
         const Validity v = crossing_at(at, arms[a], arms[b]);
+        if (v == Validity::invalid) {
+          if (blame(arms[a].ring, at) | blame(arms[b].ring, at)) return v;
+          continue;
+        }
         if (v != Validity::valid) return v;
       }
   }
-  return Validity::valid;
+  return after_phase();
 }
 
 // ------------------------------------------------------ hole placement --
@@ -477,14 +512,17 @@ Validity holes_placed_pairwise(const std::vector<Ring>& rings, const std::vector
   for (size_t h = 1; h < rings.size(); ++h) {
     const Point2& p = free[h - 1];
     const Side s = side_of(p, rings[0]);
-    if (s != Side::in) return s == Side::on ? Validity::unsure : Validity::invalid;
+    if (s == Side::on) return Validity::unsure;
+    if (s != Side::in && (blame(0, p) | blame(uint32_t(h), p))) return Validity::invalid;
     for (size_t o = 1; o < rings.size(); ++o) {
       if (o == h) continue;
       const Side t = side_of(p, rings[o]);
-      if (t != Side::out) return t == Side::on ? Validity::unsure : Validity::invalid;
+      if (t == Side::on) return Validity::unsure;
+      if (t != Side::out && (blame(uint32_t(o), p) | blame(uint32_t(h), p)))
+        return Validity::invalid;
     }
   }
-  return Validity::valid;
+  return after_phase();
 }
 
 struct Box {
@@ -581,12 +619,17 @@ Validity holes_placed_indexed(const std::vector<Ring>& rings, const std::vector<
     const Point2& p = free[h];
     // Off the ring, so on or beyond the shell's box is outside.
     if (p.x <= shell_box.xmin || p.x >= shell_box.xmax || p.y <= shell_box.ymin ||
-        p.y >= shell_box.ymax)
-      return Validity::invalid;
+        p.y >= shell_box.ymax) {
+      if (blame(0, p) | blame(uint32_t(h + 1), p)) return Validity::invalid;
+      continue;
+    }
     bool in = false;
     for (uint32_t e : rows_index.at(p.x, p.y))
       if (!cross_step(shell[e], shell[(e + 1) % n], p, in)) return Validity::unsure;
-    if (!in) return Validity::invalid;  // outside the shell
+    if (!in) {  // outside the shell
+      if (blame(0, p) | blame(uint32_t(h + 1), p)) return Validity::invalid;
+      continue;
+    }
     for (uint32_t o : cells.at(p.x, p.y)) {
       if (o == h) continue;
       const Box& b = hole_boxes[o];
@@ -595,10 +638,12 @@ Validity holes_placed_indexed(const std::vector<Ring>& rings, const std::vector<
       if (other.size() > budget) return Validity::unsure;
       budget -= other.size();
       const Side s = side_of(p, other);
-      if (s != Side::out) return s == Side::on ? Validity::unsure : Validity::invalid;  // nested
+      if (s == Side::on) return Validity::unsure;
+      if (s != Side::out && (blame(o + 1, p) | blame(uint32_t(h + 1), p)))  // nested
+        return Validity::invalid;
     }
   }
-  return Validity::valid;
+  return after_phase();
 }
 
 Validity holes_placed(const std::vector<Ring>& rings, const std::vector<Point2>& free,
@@ -639,11 +684,15 @@ Validity decide(const std::vector<Ring>& input) {
   scratch.touches.clear();
   size_t total = 0;
   for (uint32_t ri = 0; ri < rings.size(); ++ri) {
-    if (rings[ri].size() < 3) return Validity::invalid;  // GEOS: "Too few points"
+    if (rings[ri].size() < 3) {  // GEOS: "Too few points"
+      if (blame(ri, {}, /*whole=*/true)) return Validity::invalid;
+      continue;
+    }
     const Validity v = append_chains(rings[ri], ri, scratch.chains);
     if (v != Validity::valid) return v;
     total += rings[ri].size();
   }
+  if (after_phase() == Validity::invalid) return Validity::invalid;
   ChainSweep sweep(rings, scratch.chains, scratch.touches, 32 * total + 4096);
   Validity v = sweep.scan(scratch.order, scratch.active);
   if (v != Validity::valid) return v;
@@ -656,9 +705,19 @@ Validity decide(const std::vector<Ring>& input) {
 
 }  // namespace
 
-Validity polygon_validity(const std::vector<Ring>& rings) {
+Validity polygon_validity(const std::vector<Ring>& rings, std::vector<Culprit>* culprits) {
   fragile = false;
-  const Validity v = decide(rings);
+  if (culprits) culprits->clear();
+  blamed = culprits;
+  Validity v = decide(rings);
+  blamed = nullptr;
+  if (culprits && !culprits->empty()) {
+    if (fragile_at_first_blame) {
+      culprits->clear();
+      return Validity::unsure;
+    }
+    return Validity::invalid;
+  }
   return fragile ? Validity::unsure : v;
 }
 

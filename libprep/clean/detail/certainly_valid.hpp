@@ -13,6 +13,7 @@
 // it against GEOS isValid).
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "prep/features.hpp"
@@ -40,7 +41,20 @@ enum class Validity { valid, invalid, unsure };
 // Cost O(n log n) in the vertices for the usual shapes (a sweep over
 // monotone chains, row and cell indexes to place the holes); past a budget
 // linear in n the answer is `unsure`. Thread-safe (per-thread scratch).
-Validity polygon_validity(const std::vector<Ring>& rings);
+//
+// `culprits`, when given, gets on `invalid` every problem of the first
+// phase that finds one (the edge sweep; the touch points; the hole
+// placement), each as one entry per ring in it: the ring, and a point of
+// it where the problem lies (the middle of an edge that crosses or
+// overlaps another, a touch point, the vertex of a hole found outside the
+// shell or inside another hole), or `whole` for a ring of too few points.
+// It is empty on any other answer.
+struct Culprit {
+  uint32_t ring = 0;
+  Point2 at;
+  bool whole = false;
+};
+Validity polygon_validity(const std::vector<Ring>& rings, std::vector<Culprit>* culprits = nullptr);
 
 // polygon_validity(rings) == valid: a one-sided proof (false: invalid or
 // not decided).

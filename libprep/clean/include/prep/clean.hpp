@@ -83,13 +83,18 @@ class ChunkCleaner {
 };
 
 // A cleaned part simplified again for a tileset's overview level
-// (formats/SPEC.md "Overview levels"), by the machinery clean() uses for
-// `scene.resolution`: GEOS TopologyPreserveSimplify of the one part with
-// `tolerance`, the unsimplified part kept when GEOS calls the result
-// invalid; shells stay CCW, holes CW. Every vertex of the result lies on
-// the part and the part lies within `tolerance` of the result (Douglas-
-// Peucker's bound). Drawing-order keys (area, length) are left as they are:
-// they are the whole feature's. One per thread (it owns a GEOS context).
+// (formats/SPEC.md "Overview levels"). A polygon: each ring by Douglas-
+// Peucker with `tolerance`, then proved valid by the near-linear sweep
+// clean() uses (detail/certainly_valid.hpp); where the sweep finds a
+// problem, the sections of the rings in it that the simplifier replaced by
+// a chord get their vertices back, and the sweep runs again. Where the sweep
+// cannot decide, GEOS TopologyPreserveSimplify of the part does it, and the
+// unsimplified part is kept when GEOS calls that result invalid. A line:
+// GEOS TopologyPreserveSimplify. Shells stay CCW, holes CW. Every vertex of
+// the result is a vertex of the part and the part lies within `tolerance`
+// of the result (Douglas-Peucker's bound). Drawing-order keys (area,
+// length) are left as they are: they are the whole feature's. One per
+// thread (it owns a GEOS context).
 class PartSimplifier {
  public:
   explicit PartSimplifier(double tolerance);
@@ -103,6 +108,13 @@ class PartSimplifier {
   bool line(SceneLine& l, const std::string& what);
   // The same with another tolerance for this line.
   bool line(SceneLine& l, const std::string& what, double tolerance);
+
+  // How the polygons simplified so far were decided: by the sweep (and in
+  // how many of them it gave sections back), or by GEOS.
+  struct Counts {
+    uint64_t proved = 0, with_sections_back = 0, sections_back = 0, geos = 0;
+  };
+  const Counts& counts() const;
 
  private:
   struct Impl;
