@@ -13,9 +13,7 @@
 
 namespace prep {
 
-namespace {
-
-GridParams grid_from_metadata(std::string_view metadata) {
+GridParams grid_of_metadata(std::string_view metadata) {
   const auto meta = nlohmann::json::parse(metadata, nullptr, false);
   if (meta.is_discarded() || !meta.is_object())
     fail<format_error>(kEvaluateStage, "package metadata is not a JSON object");
@@ -40,12 +38,10 @@ GridParams grid_from_metadata(std::string_view metadata) {
   return g;
 }
 
-}  // namespace
-
 StaticView view_of(const decal::Package& p) {
   using decal::BlobId;
   StaticView v;
-  v.grid = grid_from_metadata(p.metadata_json());
+  v.grid = grid_of_metadata(p.metadata_json());
   // The package's one structural check, with the grid: every index the
   // evaluator follows is in range and every BVH is a full tree per cell.
   const decal::Grid grid{v.grid.origin_x, v.grid.origin_y, v.grid.cell_w,

@@ -420,6 +420,19 @@ GridParams choose_model_grid(const std::vector<SegmentShape>& shapes, const Poly
   };
   for (const SegmentShape& s : shapes) grow(s.box);
   for (size_t r = 0; r < pr.rings.size(); ++r) grow(box_of(m.qt_node_box[m.poly_root_node[r]]));
+  // The grid covers the strokes too; shaders and the evaluator address its
+  // cells in int32 quanta (formats/SPEC.md "Validation"), so it must end
+  // inside that range.
+  if (!extent.empty() && (std::max({-extent.x0, -extent.y0, extent.x1, extent.y1}) > kMaxQuanta)) {
+    std::ostringstream msg;
+    msg.precision(4);
+    msg << "the decal grid over the data and its line strokes would reach "
+        << double(std::max({-extent.x0, -extent.y0, extent.x1, extent.y1})) *
+               decal::kQuantumMetres / 1000.0
+        << " km from the package origin; int32 millimetre positions hold 2147 km (narrower "
+           "--width or scene widths, or a tileset)";
+    fail<resource_error>(kBuildStage, msg.str());
+  }
   GridInput gin;
   gin.extent = extent;
   gin.shapes = &shapes;

@@ -46,6 +46,18 @@ QPoint quantise(const Point2& p, double& max_err, const WhereFn& where) {
 
 namespace {
 
+// Shaders and the evaluator compute cell corners in int32 quanta
+// (formats/SPEC.md "Grid"): the grid ends below 2^31 on each axis. A square
+// cell larger than the data across an axis (a strip one row high, at the
+// edge of the range) is cut to the data there; what still ends past 2^31
+// moves its origin down by the excess.
+void fit_axis_in_int32(int64_t& origin, int64_t& cell, uint32_t n, int64_t span) {
+  constexpr int64_t kEnd = int64_t(1) << 31;
+  if (origin + cell * int64_t(n) < kEnd) return;
+  cell = std::max<int64_t>(1, (span + n - 1) / n);
+  if (origin + cell * int64_t(n) >= kEnd) origin = kEnd - 1 - cell * int64_t(n);
+}
+
 GridParams grid_with_cell(const QBox& e, int64_t cw, int64_t ch) {
   GridParams g;
   g.origin_x = e.x0;
@@ -55,6 +67,8 @@ GridParams grid_with_cell(const QBox& e, int64_t cw, int64_t ch) {
   int64_t w = e.x1 - e.x0 + 1, h = e.y1 - e.y0 + 1;
   g.nx = uint32_t((w + g.cell_w - 1) / g.cell_w);
   g.ny = uint32_t((h + g.cell_h - 1) / g.cell_h);
+  fit_axis_in_int32(g.origin_x, g.cell_w, g.nx, w);
+  fit_axis_in_int32(g.origin_y, g.cell_h, g.ny, h);
   return g;
 }
 

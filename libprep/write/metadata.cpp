@@ -55,14 +55,18 @@ void merge(json& base, const json& extra, const std::string& where, const std::s
 // package its own verify refuses (a line 2·10^7 m wide, an index out of
 // range). write_package itself stays a raw writer (tests make hostile
 // packages with it). Linear in the blobs' bytes.
-void check_blobs_verify(const std::string& path, const std::vector<BlobInput>& blobs) {
+void check_blobs_verify(const std::string& path, const std::vector<BlobInput>& blobs,
+                        const GridParams& g) {
   std::vector<decal::BlobBytes> known;
   known.reserve(blobs.size());
   for (const BlobInput& b : blobs)
     if (decal::find_blob_info(b.id) && b.stride == decal::find_blob_info(b.id)->stride &&
         b.bytes.size() == b.count * uint64_t(b.stride))
       known.push_back({b.id, b.count, b.bytes});
-  if (const decal::Status s = decal::validate_blobs(known); !s)
+  // With the grid: its int32 range and one per-cell element per cell, as
+  // the evaluator and the GL loader check them.
+  const decal::Grid grid{g.origin_x, g.origin_y, g.cell_w, g.cell_h, g.nx, g.ny};
+  if (const decal::Status s = decal::validate_blobs(known, {&grid}); !s)
     fail<output_error>(kWriteStage,
                        path + ": the package would not verify, not written: " + s.message);
 }
@@ -84,7 +88,7 @@ void write_model_blobs(const std::string& path, const DecalModel& model,
   }
   // The writer compresses the model's arrays while one of its threads makes
   // the metadata.
-  if (options.check_blobs) check_blobs_verify(path, blobs_in);
+  if (options.check_blobs) check_blobs_verify(path, blobs_in, model.grid);
   PackageSource source;
   source.blobs = std::move(blobs_in);
   std::vector<BlobInput>& blobs = source.blobs;

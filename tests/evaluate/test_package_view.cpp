@@ -75,9 +75,15 @@ TEST(PackageView, PackageWithoutGridMetadataIsRejected) {
   decal::Package pkg;
   ASSERT_TRUE(decal::Package::open(path.string(), pkg));
   EXPECT_THROW(prep::view_of(pkg), prep::format_error);
+  // A grid of zero-width cells: the writer refuses to write it, and a
+  // package that states one (written raw) is refused on reading.
   prep::DecalModel bad = m;
   bad.grid.cell_w = 0;
-  prep::write_model(path.string(), bad, "{}");
+  EXPECT_THROW(prep::write_model(path.string(), bad, "{}"), prep::output_error);
+  prep::write_package(path.string(),
+                      R"({"format": "decals", "grid": {"origin": [0, 0], "cell": [0, 5000],)"
+                      R"( "dims": [149, 149]}})",
+                      prep::model_blobs(m, true));
   ASSERT_TRUE(decal::Package::open(path.string(), pkg));
   EXPECT_THROW(prep::view_of(pkg), prep::format_error);
   std::filesystem::remove_all(path.parent_path());

@@ -170,6 +170,41 @@ TEST(DecalGrid, MinCellKeepsEveryCellAtLeastThatWideAndTheModelSmaller) {
   EXPECT_EQ(uint64_t(o.grid.nx) * o.grid.ny, 1u);
 }
 
+// A strip 3,800 km long and 340 km high near the top of the int32 quantum
+// range (an overview tile of 4,000 km with only its top edge covered): the
+// square cells its width asks for would end past 2^31 quanta, which the
+// shaders and the evaluator refuse. The grid stays inside the range, and
+// every point of the strip (the analytic rectangle is the oracle) and none
+// outside it is covered.
+TEST(DecalGrid, AStripAtTheEdgeOfTheQuantumRangeGetsAGridInsideIt) {
+  prep::SceneFeatures s;
+  s.layers.push_back(synth::layer("strip", prep::DecalKind::polygon, 0xff0000ffu));
+  prep::ScenePolygon p;
+  const double x0 = -1.9e6, x1 = 1.9e6, y0 = 1.65e6, y1 = 1.99e6;
+  p.shell = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+  p.area = (x1 - x0) * (y1 - y0);
+  s.polygons.push_back(p);
+  prep::ModelOptions coarse;
+  coarse.min_cell_m = 8000;  // a level-3 tile's cells at 500 km tiles
+  const prep::DecalModel m = prep::build_model(s, coarse);
+  const int64_t end = int64_t(1) << 31;
+  EXPECT_LT(m.grid.origin_x + m.grid.cell_w * int64_t(m.grid.nx), end);
+  EXPECT_LT(m.grid.origin_y + m.grid.cell_h * int64_t(m.grid.ny), end);
+  EXPECT_GT(m.grid.origin_x, -end);
+  EXPECT_GT(m.grid.origin_y, -end);
+  const prep::StaticView v = prep::view_of(m);  // would throw on a grid past the range
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> X(x0 - 1e4, x1 + 1e4),
+      Y(y0 - 1e4, std::min(y1 + 1e4, 2.1e6));
+  for (int i = 0; i < 20000; ++i) {
+    const double x = X(rng), y = Y(rng);
+    const bool inside = x > x0 + 1 && x < x1 - 1 && y > y0 + 1 && y < y1 - 1;
+    const bool outside = x < x0 - 1 || x > x1 + 1 || y < y0 - 1 || y > y1 + 1;
+    if (!inside && !outside) continue;
+    ASSERT_EQ(prep::evaluate(v, x, y).polygon_covered, inside) << x << "," << y;
+  }
+}
+
 // A thin square frame (1.5 m wide, 1 km across, one ring with a slit) on
 // the thesis grid: its cells fill a small share of the cell rectangle they
 // span, so build_model merges its parts per cell by a sort

@@ -8,8 +8,12 @@
 - `build --kind line --width 1e300` (and 2e7, the first width whose half
   width a package cannot hold) is refused with exit 2 naming --width, for a
   package and for a tileset, and writes nothing; a width just below builds
-  a package that `verify` accepts. A scene file's width of 1e300 is refused
-  as the scene is read (exit 3); a line as wide as a package allows, cut in
+  a package that `verify` accepts only where its strokes fit the package:
+  1.99e7 m reaches 9,950 km from the origin, past the 2,147 km of int32
+  millimetres, and is refused (exit 6, naming the limit) before a byte is
+  written, where it once wrote a package that no renderer could draw; a
+  width of 4e6 m fits, builds and verifies. A scene file's width of 1e300 is
+  refused as the scene is read (exit 3); a line 1.9999e7 m wide, cut in
   500 m tiles, is refused by the tile plan (exit 6) instead of hanging.
 
 Usage: verify_test.py DECALPREP WORK_DIR SOURCE_DIR
@@ -102,9 +106,15 @@ def too_wide():
     suite.expect(r, 6, "more than")
     if os.path.exists(ts):
         raise safety.Failure(f"--width 1.9999e7 --tile-size 500: {ts} was left: {sorted(os.listdir(ts))}")
-    # Just below the limit: built, and its own verify accepts it.
+    # Below the width limit but past what a package's grid can address:
+    # refused before a byte is written.
     pkg = os.path.join(d, "widest.decals")
     suite.expect(suite.run(["build", src, "-o", pkg, "--kind", "line", "--width", "1.99e7", "-q"],
+                           timeout=60), 6, "2147 km")
+    if os.path.exists(pkg):
+        raise safety.Failure(f"--width 1.99e7: {pkg} was written")
+    # Strokes that fit: built, and its own verify accepts it.
+    suite.expect(suite.run(["build", src, "-o", pkg, "--kind", "line", "--width", "4e6", "-q"],
                            timeout=60), 0)
     suite.expect(suite.run(["verify", pkg], timeout=LIMIT_S), 0, "ok")
 

@@ -13,6 +13,7 @@
 #include "command.hpp"
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
+#include "prep/evaluate.hpp"
 #include "prep/files.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/tile.hpp"
@@ -85,7 +86,22 @@ decal::Status verify_one(const std::string& path, std::string& summary,
     return decal::Status::failure(path + ": " + s.message);
   if (decal::Status s = check_metadata(p); !s)
     return decal::Status::failure(path + ": " + s.message);
-  if (meta) *meta = nlohmann::json::parse(p.metadata_json());  // check_metadata parsed it
+  const nlohmann::json parsed = nlohmann::json::parse(p.metadata_json());  // checked above
+  // Where the metadata states the grid, the blobs against it too, as the
+  // evaluator and the GL loader check them (its int32 range, one per-cell
+  // element per cell).
+  if (parsed.contains("grid")) {
+    prep::GridParams g;
+    try {
+      g = prep::grid_of_metadata(p.metadata_json());
+    } catch (const std::exception& e) {
+      return decal::Status::failure(path + ": " + e.what());
+    }
+    const decal::Grid grid{g.origin_x, g.origin_y, g.cell_w, g.cell_h, g.nx, g.ny};
+    if (decal::Status s = decal::validate_indices(p, &grid); !s)
+      return decal::Status::failure(path + ": " + s.message);
+  }
+  if (meta) *meta = parsed;
   uint64_t raw = 0;
   for (const auto& b : p.blobs()) raw += b.bytes.size();
   summary = "v" + std::to_string(p.major()) + "." + std::to_string(p.minor()) + ", " +

@@ -157,6 +157,9 @@ std::vector<DrawRun> draw_runs(const StaticView& view);
 // Reads grid parameters from the package metadata; throws format_error when
 // they are missing or inconsistent with the blobs.
 StaticView view_of(const decal::Package& package);
+// The grid a package's metadata states (its "grid" object); throws
+// format_error when it is missing or malformed.
+GridParams grid_of_metadata(std::string_view metadata);
 
 // Query-cost counters, accumulated per call.
 struct EvalCounters {
