@@ -158,13 +158,7 @@ void PassTimer::collect_per_pass(std::vector<PassTime>& out) {
 ViewUniforms view_uniforms(const Camera& cam, const GridParams& gp, uint32_t W, uint32_t H) {
   ViewUniforms v;
   const double q = decal::kQuantumMetres;
-  v.ax = std::llround(cam.eye[0] / q);
-  v.ay = std::llround(cam.eye[1] / q);
-  v.anchor = {double(v.ax) * q, double(v.ay) * q, 0.0};
-  v.eye_rel = sub(cam.eye, v.anchor);
-  const Mat4 vp = mat_mul(projection_matrix(cam, double(W) / H), view_matrix(cam, v.eye_rel));
-  v.view_proj = to_float(vp);
-  v.inv_view_proj = to_float(mat_inverse(vp));
+  set_anchor(v, cam, std::llround(cam.eye[0] / q), std::llround(cam.eye[1] / q), W, H);
   set_grid(v, gp);
   v.mpp_ortho = cam.projection == Projection::orthographic ? cam.ortho_h / H : 0.0;
   v.mpp_per_metre = cam.projection == Projection::perspective
@@ -172,6 +166,18 @@ ViewUniforms view_uniforms(const Camera& cam, const GridParams& gp, uint32_t W, 
                         : 0.0;
   v.near_w = cam.projection == Projection::perspective ? cam.near : 0.0;
   return v;
+}
+
+void set_anchor(ViewUniforms& v, const Camera& cam, int64_t ax, int64_t ay, uint32_t W,
+                uint32_t H) {
+  const double q = decal::kQuantumMetres;
+  v.ax = ax;
+  v.ay = ay;
+  v.anchor = {double(v.ax) * q, double(v.ay) * q, 0.0};
+  v.eye_rel = sub(cam.eye, v.anchor);
+  const Mat4 vp = mat_mul(projection_matrix(cam, double(W) / H), view_matrix(cam, v.eye_rel));
+  v.view_proj = to_float(vp);
+  v.inv_view_proj = to_float(mat_inverse(vp));
 }
 
 void set_grid(ViewUniforms& v, const GridParams& gp) {
@@ -356,7 +362,8 @@ std::optional<std::array<int64_t, 2>> tile_shift(const TilePlace& t) {
 // quanta k: the anchor there is view0_'s anchor minus k, exactly, and every
 // anchor-relative float the GPU holds (eye, matrices, terrain depth, clip)
 // stays view0_'s. Only integer uniforms (u_anchor_q, u_anchor_cell) and the
-// anchor's offset in its cell change, computed in double on the CPU.
+// anchor's offset in its cell change, computed in double on the CPU; for a
+// tile far from the eye, the anchor moves into the tile (below).
 void GlRenderer::load_tile(size_t k) {
   const TilePlace& t = tiles_->places[k];
   timer_.tile = int(k);
@@ -369,9 +376,32 @@ void GlRenderer::load_tile(size_t k) {
   view_.ax -= (*shift)[0];
   view_.ay -= (*shift)[1];
   const double q = decal::kQuantumMetres;
-  view_.anchor = {double(view_.ax) * q, double(view_.ay) * q, 0.0};
   Extent clip{t.square.xmin - t.dx, t.square.ymin - t.dy, t.square.xmax - t.dx,
               t.square.ymax - t.dy};
+  // The shaders subtract the anchor from the tile's int32 quanta: every
+  // vertex of the tile (its square, grown by 1% for the margin) must lie
+  // within 2^31 quanta of the anchor on each axis. Where the eye does not
+  // (a tile far from it in a view of a continent or the world, or any spot
+  // of a tile over 2,147 km wide), the anchor moves to the nearest point
+  // that does, and the matrices and the eye follow it, recomputed in double
+  // from the camera. Their float32 rounding at a distance D from the eye is
+  // about D * 6e-8, far below a pixel there.
+  {
+    constexpr double kReach = double((int64_t(1) << 31) - 1);
+    const double pad = 0.01 * (t.square.xmax - t.square.xmin);
+    const auto reach = [&](double lo, double hi, int64_t at) {
+      const double l = (hi + pad) / q - kReach, h = (lo - pad) / q + kReach;
+      return l > h ? at : std::clamp<int64_t>(at, int64_t(std::ceil(l)), int64_t(std::floor(h)));
+    };
+    const int64_t x = reach(t.square.xmin - t.dx, t.square.xmax - t.dx, view_.ax);
+    const int64_t y = reach(t.square.ymin - t.dy, t.square.ymax - t.dy, view_.ay);
+    if (x != view_.ax || y != view_.ay) {
+      set_anchor(view_, opt_.camera, x + (*shift)[0], y + (*shift)[1], W_, H_);
+      view_.ax = x;
+      view_.ay = y;
+    }
+  }
+  view_.anchor = {double(view_.ax) * q, double(view_.ay) * q, 0.0};
   if (opt_.clip)
     clip = {
         std::max(clip.xmin, opt_.clip->xmin - t.dx), std::max(clip.ymin, opt_.clip->ymin - t.dy),
@@ -402,7 +432,7 @@ void GlRenderer::load_tile(size_t k) {
 // image's worth of fragments rather than one image each.
 std::array<GLint, 4> GlRenderer::tile_scissor() const {
   const std::array<GLint, 4> all{0, 0, GLint(W_), GLint(H_)};
-  const std::array<float, 16>& m = view0_.view_proj;
+  const std::array<float, 16>& m = view_.view_proj;  // relative to view_'s anchor, as the clip
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (int k = 0; k < 8; ++k) {
     const double p[3] = {view_.clip[(k & 1) ? 2 : 0], view_.clip[(k & 2) ? 3 : 1],

@@ -94,6 +94,10 @@ decal::gl::Grid gl_grid(const DecalSource& source);
 // A tile's (dx, dy) in whole quanta; none when it is not on the quantum
 // grid (1 µm).
 std::optional<std::array<int64_t, 2>> tile_shift(const TilePlace& t);
+// The anchor (ax, ay) in quanta of the camera's frame, and the eye and the
+// matrices relative to it.
+void set_anchor(ViewUniforms& v, const Camera& cam, int64_t ax, int64_t ay, uint32_t width,
+                uint32_t height);
 // The anchor's cell in `grid` (rx, ry, cell_x, cell_y, grid).
 void set_grid(ViewUniforms& v, const GridParams& grid);
 // `clip` (metres relative to the package origin) relative to the anchor.
