@@ -1103,7 +1103,8 @@ bool simplified_rings(std::vector<Ring>& rings, double tolerance, uint64_t& sect
     }
   }
   std::vector<detail::Culprit> culprits;
-  std::vector<std::vector<Point2>> at(count);
+  std::vector<std::vector<Point2>> at(count);  // per ring, the problems' points this round
+  std::vector<char> whole(count, 0);           // per ring, a problem of the whole ring
   for (int round = 0; round < kMaxRounds; ++round) {
     switch (detail::polygon_validity(out, &culprits)) {
       case detail::Validity::valid: rings = std::move(out); return true;
@@ -1113,32 +1114,31 @@ bool simplified_rings(std::vector<Ring>& rings, double tolerance, uint64_t& sect
     std::vector<uint32_t> touched;
     for (const detail::Culprit& c : culprits) {
       if (c.ring >= count) return false;
-      if (at[c.ring].empty()) touched.push_back(c.ring);
-      at[c.ring].push_back(c.whole ? Point2{NAN, NAN} : c.at);
+      if (at[c.ring].empty() && !whole[c.ring]) touched.push_back(c.ring);
+      if (c.whole)
+        whole[c.ring] = 1;
+      else
+        at[c.ring].push_back(c.at);
     }
     // The sections at the problems' points; where that gives nothing back,
     // the rings in the problems whole.
     bool changed = false;
     for (int whole_rings = 0; whole_rings < 2 && !changed; ++whole_rings)
       for (uint32_t ri : touched) {
-        std::vector<Point2>& points = at[ri];
-        const bool whole =
-            whole_rings || std::any_of(points.begin(), points.end(),
-                                       [](const Point2& p) { return std::isnan(p.x); });
         bool back = false;
-        if (whole) {
+        if (whole_rings || whole[ri]) {
           back = std::find(keep[ri].begin(), keep[ri].end(), 0) != keep[ri].end();
           std::fill(keep[ri].begin(), keep[ri].end(), 1);
           sections_back += back;
         } else {
-          const uint64_t sections = restore_sections(rings[ri], keep[ri], points);
+          const uint64_t sections = restore_sections(rings[ri], keep[ri], at[ri]);
           sections_back += sections;
           back = sections > 0;
         }
         if (back) out[ri] = kept_vertices(rings[ri], keep[ri]);
         changed |= back;
       }
-    for (uint32_t ri : touched) at[ri].clear();
+    for (uint32_t ri : touched) at[ri].clear(), whole[ri] = 0;
     if (!changed) return false;
   }
   return false;

@@ -134,17 +134,6 @@ inline G from_wkt(GEOSContextHandle_t h, const std::string& wkt) {
 }
 
 // ------------------------------------------------------------- queries --
-// The shoelace area of a ring (unclosed): positive when counter-clockwise.
-inline double signed_area(const Ring& r) {
-  double a = 0;
-  for (size_t i = 0; i < r.size(); ++i) {
-    const Point2& p = r[i];
-    const Point2& q = r[(i + 1) % r.size()];
-    a += p.x * q.y - q.x * p.y;
-  }
-  return a / 2;
-}
-
 inline bool is_valid(GEOSContextHandle_t h, const ScenePolygon& p) {
   return GEOSisValid_r(h, polygon(h, p).g) == 1;
 }
