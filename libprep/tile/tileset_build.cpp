@@ -13,9 +13,11 @@
 
 #include <dirent.h>
 #include <unistd.h>
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -575,6 +577,24 @@ struct DemTally {
   std::atomic<uint64_t> outside{0}, lines_outside{0}, vertices{0};
 };
 
+// A tile's grid has at most one cell per two static vertices, and at least
+// kTileMinCells. The size budget (prep/model.hpp) is relative to the thesis
+// 500x500 grid on the same data, which suits a package of 10^5..10^7
+// vertices; a 2 km tile of a few thousand vertices would get ~25 cells per
+// vertex, a cell table larger than its geometry and a grid choice that costs
+// more than the tile (bench/tileset_scale.py).
+constexpr uint32_t kTileMinCells = 4096;
+
+uint32_t tile_max_cells(const SceneFeatures& tile) {
+  uint64_t vertices = 0;
+  for (const ScenePolygon& p : tile.polygons) {
+    vertices += p.shell.size();
+    for (const Ring& h : p.holes) vertices += h.size();
+  }
+  for (const SceneLine& l : tile.lines) vertices += l.points.size();
+  return uint32_t(std::clamp<uint64_t>(vertices / 2, kTileMinCells, UINT32_MAX));
+}
+
 // Builds a tile's model (on an overview level `level`, cells at least two
 // of its pixels wide) and writes its package with `extra`; returns what the
 // package holds and adds its DEM counts to `dem`.
@@ -584,6 +604,7 @@ HeldParts write_tile(const SceneFeatures& tile, const BuildSpec& spec, const Bui
   ModelOptions mo = spec.model;
   mo.dem_assume_crs = spec.assume_crs;
   if (level) mo.min_cell_m = kLevelMinCellPixels * level->resolution;
+  mo.max_cells = std::min(mo.max_cells, tile_max_cells(tile));
   DecalModel model = build_model(tile, mo, spec.dem);
   if (model.manifest.layers.empty()) model.manifest = tile.manifest;
   record_manifest_paths(spec, model.manifest);

@@ -238,7 +238,7 @@ TEST_F(Tileset, RenderBudgetAndLevelOptionsOnATilesetWithoutLevels) {
       blob += decoded_bytes(file("tiles"), t);
       ++tiles;
     }
-  ASSERT_GT(blob, 4 * bytes);
+  ASSERT_GT(blob, 2 * bytes);
   const std::string common = "render " + shell_quote(file("tiles")) +
                              " --cpu --flat --size 80x75 --extent " + extent_arg(v.abs) + " -o " +
                              shell_quote(file("budget.png"));

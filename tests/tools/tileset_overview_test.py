@@ -13,7 +13,7 @@ top-down at WxH (square pixels: the extent widened to the image's aspect)
 with the CPU evaluator: `--level auto` (the default) and `--level 0` (full
 detail). Passes when
   - the auto view draws one overview level and no level-0 tile,
-  - it uploads less than 5% of the bytes the full-detail view uploads: the
+  - it uploads less than 20% of the bytes the full-detail view uploads: the
     decoded blob bytes of the drawn tiles (`--stats`; the full-detail figure
     must equal the blob tables' sum over the level-0 tiles that meet the
     view, read here from the files as formats/SPEC.md lays them out, and the
@@ -44,7 +44,13 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from tileset_util import blob_bytes  # noqa: E402
 
-MAX_BYTES_SHARE = 0.05
+# Level 0's 2 km tiles hold one grid cell per two vertices at most
+# (libprep/tile/tileset_build.cpp, tile_max_cells), so their blobs are
+# mostly geometry; the CI case's level 5 uploads 16% of them (it was under
+# 5% of level 0 when level 0's cell tables were three times larger). Most
+# of what level 5 keeps is the 3 m lines, simplified to an eighth of their
+# width (ARCHITECTURE.md "Overview levels").
+MAX_BYTES_SHARE = 0.20
 MAX_PIXELS_SHARE = 0.01
 SUPERSAMPLE = 4
 FILTERED_THRESHOLD = 1 / 8
