@@ -502,6 +502,7 @@ void load_tiles(const RenderRequest& a, Scene& sc, const RenderOptions& opt,
 // (its metadata); a layer the table lacks is a usage error.
 LayerRamps ramps_by_layer(const std::vector<RampRequest>& ramps, const std::string& metadata) {
   const std::vector<std::string> names = layer_names(metadata);
+  const std::vector<std::string> attributes = layer_strings(metadata, "color_attribute");
   LayerRamps by_layer(names.size());
   for (const RampRequest& r : ramps) {
     const auto it = std::find(names.begin(), names.end(), r.layer);
@@ -511,7 +512,16 @@ LayerRamps ramps_by_layer(const std::vector<RampRequest>& ramps, const std::stri
       bad_option("--ramp '" + r.text + "': the package has no layer '" + r.layer +
                  "' (its layers: " + (known.empty() ? "none" : known) + ")");
     }
-    by_layer[size_t(it - names.begin())] = r.stops;
+    // A layer built without color_attribute stores no value (NaN) for its
+    // features, which a ramp leaves as they are (formats/SPEC.md): it would
+    // change nothing while --stats counted them recoloured.
+    const size_t k = size_t(it - names.begin());
+    if (k >= attributes.size() || attributes[k].empty())
+      bad_option("--ramp '" + r.text + "': layer '" + r.layer +
+                 "' was built without color_attribute, so its features carry no value to "
+                 "colour by; set color_attribute (and color_ramp) for it in the scene file and "
+                 "build again");
+    by_layer[k] = r.stops;
   }
   return by_layer;
 }

@@ -133,15 +133,19 @@ TileList tile_list(std::span<const TileSource> tiles, const RenderOptions& optio
   return list;
 }
 
-std::vector<std::string> layer_names(const std::string& metadata_json) {
-  std::vector<std::string> names;
+std::vector<std::string> layer_strings(const std::string& metadata_json, const char* key) {
+  std::vector<std::string> values;
   const auto meta = nlohmann::json::parse(metadata_json, nullptr, false);
-  if (!meta.is_object() || !meta.contains("layers") || !meta["layers"].is_array()) return names;
+  if (!meta.is_object() || !meta.contains("layers") || !meta["layers"].is_array()) return values;
   for (const auto& l : meta["layers"])
-    names.push_back(l.is_object() && l.contains("name") && l["name"].is_string()
-                        ? l["name"].get<std::string>()
-                        : std::string());
-  return names;
+    values.push_back(l.is_object() && l.contains(key) && l[key].is_string()
+                         ? l[key].get<std::string>()
+                         : std::string());
+  return values;
+}
+
+std::vector<std::string> layer_names(const std::string& metadata_json) {
+  return layer_strings(metadata_json, "name");
 }
 
 namespace {

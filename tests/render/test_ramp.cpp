@@ -265,6 +265,25 @@ TEST_F(RenderRamp, AnUnknownLayerOrDecreasingStopsAreUsageErrorsThatSayWhy) {
   EXPECT_NE(r.output.find("#rrggbb"), std::string::npos) << r.output;
 }
 
+// A layer built without color_attribute stores no values: a ramp for it
+// is refused naming the layer and the key, not counted as recolouring.
+TEST(RenderRampPlain, ARampOnALayerWithoutColorAttributeIsAUsageErrorNamingIt) {
+  const fs::path dir = fs::current_path() / "render-out" / "ramp" / "plain";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_scene(dir);  // the geojson files
+  std::string why;
+  const std::string pkg = render_test::build_utm_scene(
+      dir, "plain.decals", {{"sq", "polygon", "color = \"#808080\"\n"}}, why);
+  ASSERT_FALSE(pkg.empty()) << why;
+  const auto r = run_tool("render " + pkg + " --cpu --stats -o " + (dir / "x.png").string() +
+                          " --ramp sq=0:#000000,5:#ffffff");
+  EXPECT_EQ(r.rc, 2) << r.output;
+  EXPECT_NE(r.output.find("layer 'sq' was built without color_attribute"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(dir / "x.png"));
+}
+
 }  // namespace
 
 }  // namespace render_ramp

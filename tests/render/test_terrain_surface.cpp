@@ -277,6 +277,26 @@ TEST(TerrainSurface, DemWithoutCrsIsAnErrorUnlessAssumeCrsIsGiven) {
   EXPECT_EQ(ra.rc, 0) << ra.output;
 }
 
+// A DEM in another CRS than the frame: the mesh samples the surface off its
+// lattice, and --stats says so in words, with the reason, not as a distance.
+TEST(TerrainSurface, StatsSayWhyAMeshOffTheDemLatticeHasNoBound) {
+  const fs::path d = work_dir();
+  write_dem((d / "dem.tif").string(), true);
+  write_trails((d / "trails.gpkg").string());
+  const std::string pkg = (d / "laea.decals").string();
+  auto b = run_tool("build " + (d / "trails.gpkg").string() + " -o " + pkg +
+                    " --kind line --dynamic --crs EPSG:3035 -q");
+  ASSERT_EQ(b.rc, 0) << b.output;
+  auto r = run_tool("render " + pkg + " --dem " + (d / "dem.tif").string() +
+                    " --cpu --size 32x24 --stats -o " + (d / "laea.png").string());
+  ASSERT_EQ(r.rc, 0) << r.output;
+  EXPECT_NE(r.output.find("vertices on the DEM surface, no bound between them (the mesh is not "
+                          "on the DEM's cell lattice: the DEM is in another CRS than the frame"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("unbounded"), std::string::npos) << r.output;
+}
+
 // The mesh itself on the analytic DEM, away from any package: at its
 // vertices it is the surface, and between them within its bound.
 TEST(TerrainSurface, MeshVerticesAreSurfaceHeightsAndTheMeshKeepsItsBound) {

@@ -190,4 +190,40 @@ TEST(BuildProgress, BatchModeKeepsEachScenesProgressInItsLogAndPrintsJsonObjects
   EXPECT_EQ(summary["built"], 2);
 }
 
+// A scene that fails: its batch line says why (the scene's error line,
+// naming the missing source) and where its log is, in plain and json.
+TEST(BuildProgress, AFailedScenesBatchLineSaysWhyAndNamesItsLog) {
+  TempDir dir("decalprep_progress_batch_failed");
+  const fs::path scenes = dir.path() / "scenes";
+  fs::create_directories(scenes);
+  std::ofstream(scenes / "bad.toml")
+      << "crs = \"EPSG:32632\"\n[[layer]]\nname = \"a\"\nsource = \"nope.geojson\"\n"
+         "kind = \"polygon\"\n";
+  auto batch = [&](const char* out, const char* mode) {
+    return run_tool("build '" + scenes.string() + "' -o '" + (dir.path() / out).string() +
+                        "' --progress " + mode,
+                    dir, kSplit);
+  };
+  ToolRun r = batch("plain", "plain");
+  EXPECT_EQ(r.rc, 3) << r.err;  // the scene's own exit code: input
+  const size_t at = r.err.find("bad.toml: FAILED, exit 3");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  const std::string line = r.err.substr(at, r.err.find('\n', at) - at);
+  EXPECT_NE(line.find("nope.geojson"), std::string::npos) << line;
+  EXPECT_NE(line.find("; log " + (dir.path() / "plain" / "bad.log").string()), std::string::npos)
+      << line;
+
+  r = batch("json", "json");
+  EXPECT_EQ(r.rc, 3) << r.err;
+  size_t failed = 0;
+  for (const json& j : parse_lines(r.err))
+    if (j["event"] == "scene") {
+      ++failed;
+      EXPECT_EQ(j["status"], "failed") << j.dump();
+      EXPECT_NE(j["error"].get<std::string>().find("nope.geojson"), std::string::npos)
+          << j.dump();
+    }
+  EXPECT_EQ(failed, 1u);
+}
+
 }  // namespace

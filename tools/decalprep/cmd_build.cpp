@@ -297,15 +297,19 @@ void print_scene_done(const BuildArgs& a, bool json, const prep::BatchScene& s, 
                                  {"total", total},
                                  {"seconds", s.seconds},
                                  {"peak_rss_mib", s.peak_rss_kb / 1024.0},
+                                 {"error", s.error},
                                  {"log", s.log}})
                      .dump()
                      .c_str());
-  else if (!a.quiet)
+  else if (!a.quiet && !s.failed())
     std::fprintf(stderr, "[%zu/%zu] %s: %s (%.2f s, peak %.1f MiB)\n", done, total, s.scene.c_str(),
-                 s.built()     ? "built"
-                 : s.partial() ? "built (partial)"
-                               : "FAILED",
-                 s.seconds, s.peak_rss_kb / 1024.0);
+                 s.partial() ? "built (partial)" : "built", s.seconds, s.peak_rss_kb / 1024.0);
+  else if (!a.quiet)
+    // Why it failed, on the line itself: the scene's error line (or how it
+    // was killed), and the log that has the rest.
+    std::fprintf(stderr, "[%zu/%zu] %s: FAILED, exit %d (%.2f s): %s; log %s\n", done, total,
+                 s.scene.c_str(), s.exit_code, s.seconds,
+                 s.error.empty() ? "no error line in the log" : s.error.c_str(), s.log.c_str());
 }
 
 int run_batch(const BuildArgs& a) {

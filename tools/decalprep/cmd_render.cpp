@@ -32,11 +32,15 @@ void print_passes(const R::RenderRequest& a, const R::RenderOutcome& out) {
   for (const auto& t : img.times)
     std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
   // not a stage prefix: a --stats label
-  std::printf("terrain: %ux%u vertices, within %s of the DEM surface\n", out.terrain_nx,
-              out.terrain_ny,
-              std::isfinite(out.surface_error_bound)
-                  ? (std::to_string(out.surface_error_bound * 1e3) + " mm").c_str()
-                  : "an unbounded distance (mesh not on the DEM lattice)");
+  if (std::isfinite(out.surface_error_bound))
+    std::printf("terrain: %ux%u vertices, within %.6f mm of the DEM surface\n", out.terrain_nx,
+                out.terrain_ny, out.surface_error_bound * 1e3);
+  else
+    std::printf(
+        "terrain: %ux%u vertices on the DEM surface, no bound between them (the mesh is not on "
+        "the DEM's cell lattice: the DEM is in another CRS than the frame, or not north-up, or "
+        "its lattice was thinned to the vertex limit)\n",
+        out.terrain_nx, out.terrain_ny);
   if (out.ramps)
     std::printf("ramps: %llu features recoloured (%zu --ramp)\n",
                 static_cast<unsigned long long>(out.recoloured), out.ramps);

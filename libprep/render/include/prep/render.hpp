@@ -213,8 +213,11 @@ DecalSource source_of(const decal::Package& package);
 // the layer keeps its stored colours.
 using LayerRamps = std::vector<std::vector<ColorStop>>;
 
-// The names of a package's layer table, in index order (metadata "layers"[i]
-// "name"); empty when the metadata has no layer table.
+// A string field `key` of each entry of a package's layer table, in index
+// order (metadata "layers"[i][key]; "" where missing); empty when the
+// metadata has no layer table.
+std::vector<std::string> layer_strings(const std::string& metadata_json, const char* key);
+// layer_strings(metadata_json, "name").
 std::vector<std::string> layer_names(const std::string& metadata_json);
 
 // The recoloured props of one source; they must outlive it.
