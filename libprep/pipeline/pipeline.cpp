@@ -404,6 +404,20 @@ nlohmann::json tileset_report(const BuildSpec& scene, const tiling::TilesetOutco
   return j;
 }
 
+// What a tileset build made, the overview levels' tiles and bytes apart
+// and in the sum (they can outweigh full detail).
+std::string tileset_summary(const tiling::TilesetOutcome& t) {
+  std::string s = std::to_string(t.tiles) + " tiles (" + std::to_string(t.built) + " built, " +
+                  std::to_string(t.reused) + " kept from an earlier run), " +
+                  std::to_string(t.bytes) + " bytes";
+  if (t.levels == 0) return s;
+  return s + " at full detail; overview levels 1.." + std::to_string(t.levels) + ": " +
+         std::to_string(t.level_tiles) + " tiles (" + std::to_string(t.level_built) + " built, " +
+         std::to_string(t.level_reused) + " kept), " + std::to_string(t.level_bytes) + " bytes; " +
+         std::to_string(t.tiles + t.level_tiles) + " tiles, " +
+         std::to_string(t.bytes + t.level_bytes) + " bytes in all";
+}
+
 // One step of a tileset build (BuildRequest::step), in a process of its own.
 // The report says which step ran and what it did; the state for the next
 // step is in the work folder only (prep/tile.hpp, namespace tiling).
@@ -507,8 +521,7 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
       const tiling::TilesetOutcome t = tiling::finalize_tileset(scene, request);
       report["tileset"] = tileset_report(scene, t);
       result.package_written = true;
-      say("step finalize: " + std::to_string(t.tiles) + " tiles, " + std::to_string(t.bytes) +
-          " bytes in " + request.output);
+      say("step finalize: " + tileset_summary(t) + " in " + request.output);
       break;
     }
     case Step::all: break;
@@ -666,17 +679,21 @@ tiling::TilesetOutcome build_tileset(const BuildSpec& scene, const BuildRequest&
   }
   log.done("tiles");
   if (request.progress && request.progress->mode() != ProgressMode::none) {
-    const nlohmann::json j = {{"event", "tileset"},     {"tiles", tileset.tiles},
-                              {"built", tileset.built}, {"reused", tileset.reused},
-                              {"bytes", tileset.bytes}, {"output", request.output}};
+    const nlohmann::json j = {{"event", "tileset"},
+                              {"tiles", tileset.tiles},
+                              {"built", tileset.built},
+                              {"reused", tileset.reused},
+                              {"bytes", tileset.bytes},
+                              {"levels", tileset.levels},
+                              {"level_tiles", tileset.level_tiles},
+                              {"level_built", tileset.level_built},
+                              {"level_reused", tileset.level_reused},
+                              {"level_bytes", tileset.level_bytes},
+                              {"output", request.output}};
     request.progress->message(
         request.progress->mode() == ProgressMode::json
             ? j.dump()
-            : stage_message(kTilesetStage,
-                            std::to_string(tileset.tiles) + " tiles (" +
-                                std::to_string(tileset.built) + " built, " +
-                                std::to_string(tileset.reused) + " kept from an earlier run), " +
-                                std::to_string(tileset.bytes) + " bytes in " + request.output));
+            : stage_message(kTilesetStage, tileset_summary(tileset) + " in " + request.output));
   }
   return tileset;
 }

@@ -54,13 +54,12 @@ void check_png_name(const char* option, const std::string& path) {
 }
 
 // --size WxH: two decimal integers, each side 1..kMaxImageSide, W * H at
-// most kMaxImagePixels. Parsed in 64 bits with nothing left over, so a
+// most kMaxImagePixels; W or Wx gives height 0, set from a top-down
+// --extent's aspect (square_pixels). Parsed in 64 bits with nothing left over, so a
 // number beyond 32 bits is refused rather than wrapped (4294967396 is not
 // 100).
 std::pair<uint32_t, uint32_t> parse_size(const std::string& text) {
   auto bad = [&](const std::string& why) { bad_option("--size '" + text + "': " + why); };
-  const size_t x = text.find('x');
-  if (x == std::string::npos) bad("expected WxH, e.g. 640x360");
   auto side = [&](std::string_view digits, const char* which) {
     uint64_t v = 0;
     if (digits.empty() || digits.size() > 12 ||
@@ -72,6 +71,13 @@ std::pair<uint32_t, uint32_t> parse_size(const std::string& text) {
           std::to_string(kMaxImageSide));
     return v;
   };
+  const size_t x = text.find('x');
+  // W or Wx: the height comes from the --extent's aspect (square_pixels).
+  if (x == std::string::npos || x + 1 == text.size()) {
+    const std::string_view all(text);
+    const uint64_t w = side(all.substr(0, x == std::string::npos ? all.size() : x), "the width");
+    return {uint32_t(w), 0};
+  }
   const std::string_view all(text);
   const uint64_t w = side(all.substr(0, x), "the width"), h = side(all.substr(x + 1), "the height");
   if (w * h > kMaxImagePixels)
@@ -206,7 +212,11 @@ void check_drawing(const RenderRequest& a, RenderOptions& opt) {
       "--slope-widths", a.slope_widths,
       {{"auto", SlopeWidths::package}, {"on", SlopeWidths::on}, {"off", SlopeWidths::off}},
       "auto, on or off");
-  check_render_options(opt);
+  // --size W: the height comes with the extent (square_pixels); the other
+  // rules are checked now.
+  RenderOptions probe = opt;
+  probe.height = std::max<uint32_t>(probe.height, 1);
+  check_render_options(probe);
   opt.binding =
       one_of<Binding>("--binding", a.binding,
                       {{"ssbo", Binding::ssbo}, {"texture", Binding::texture}}, "ssbo or texture");
@@ -243,6 +253,10 @@ void check_kinds_and_lod(const RenderRequest& a, RenderOptions& opt) {
 void check_view(const RenderRequest& a, CheckedRender& c) {
   const bool topdown = !a.extent.empty();
   if (!a.extent_crs.empty() && !topdown) bad_option("--extent-crs needs --extent");
+  if (!topdown && c.options.height == 0)
+    bad_option("--size '" + a.size +
+               "' gives no height: only a top-down --extent has an aspect to take it from; "
+               "give WxH");
   if (topdown) {
     const std::vector<double> v = numbers(a.extent, 4, "--extent");
     c.extent = Extent{v[0], v[1], v[2], v[3]};
@@ -561,6 +575,50 @@ View place_extent(const RenderRequest& a, const CheckedRender& c, const Scene& s
   return v;
 }
 
+// Square pixels for a top-down view. --size W (or Wx): the height is the
+// extent's aspect times W, rounded, and the extent then widened about its
+// centre by the rounding (under half a pixel, not stated). --size WxH of
+// another aspect: the extent widened about its centre along the axis whose
+// pixels would be smaller, so every pixel is (dx/W) x (dx/W) or
+// (dy/H) x (dy/H), and the widened extent stated. --stretch keeps the
+// extent as given (pixels dx/W by dy/H, as the world file then says).
+void square_pixels(const RenderRequest& a, RenderOptions& opt, View& v, const Scene& sc) {
+  Extent& e = v.absolute;
+  const double dx = e.xmax - e.xmin, dy = e.ymax - e.ymin;
+  const bool auto_height = opt.height == 0;
+  if (auto_height) {
+    const double h = std::max(1.0, std::round(double(opt.width) * dy / dx));
+    if (h > double(kMaxImageSide) || h * double(opt.width) > double(kMaxImagePixels))
+      bad_option("--size '" + a.size + "': the extent's aspect (" + std::to_string(dx) + " x " +
+                 std::to_string(dy) + ") gives a height of " + std::to_string(uint64_t(h)) +
+                 " pixels, beyond the limits (each side 1.." + std::to_string(kMaxImageSide) +
+                 ", 8192x8192 pixels in all)");
+    opt.height = uint32_t(h);
+  }
+  if (a.stretch) return;
+  const double px = dx / double(opt.width), py = dy / double(opt.height);
+  if (std::abs(px - py) <= 1e-12 * std::max(px, py)) return;
+  const double cx = 0.5 * (e.xmin + e.xmax), cy = 0.5 * (e.ymin + e.ymax);
+  if (px > py) {
+    const double half = 0.5 * px * double(opt.height);
+    e.ymin = cy - half;
+    e.ymax = cy + half;
+  } else {
+    const double half = 0.5 * py * double(opt.width);
+    e.xmin = cx - half;
+    e.xmax = cx + half;
+  }
+  v.relative = shifted(e, -sc.frame.origin_x, -sc.frame.origin_y);
+  if (!auto_height) {
+    char m[512];
+    std::snprintf(m, sizeof m,
+                  "--extent widened to %.3f,%.3f,%.3f,%.3f for square pixels of %.6g m at %ux%u "
+                  "(as given, they were %.6g x %.6g m); --stretch keeps the extent as given",
+                  e.xmin, e.ymin, e.xmax, e.ymax, std::max(px, py), opt.width, opt.height, px, py);
+    note(a, stage_message(kRenderStage, m));
+  }
+}
+
 // Terrain: --dem, else the DEM the package was built with (its metadata's
 // build_options.dem) when it can still be read, else flat. --flat forces
 // flat. The surface settings the package was built with (z-scale, no-data
@@ -759,12 +817,13 @@ struct Placed {
   Camera camera;
 };
 
-Placed place(const RenderRequest& a, const CheckedRender& c, const Scene& sc) {
+Placed place(const RenderRequest& a, CheckedRender& c, const Scene& sc) {
   if (!sc.tileset && (c.select.level || c.select.gpu_budget))
     bad_option("--level and --gpu-budget choose among a tileset's tiles; '" + a.package +
                "' is one package");
   Placed p;
   p.view = place_extent(a, c, sc);
+  if (p.view.topdown) square_pixels(a, c.options, p.view, sc);
   if (!a.terrain_file.empty()) {
     check_outputs(a, DemSpec{}, p.view.topdown);
     p.terrain = read_terrain_file(a, sc);
@@ -791,7 +850,7 @@ Placed place(const RenderRequest& a, const CheckedRender& c, const Scene& sc) {
 
 RenderView place_render_view(const RenderRequest& a) {
   using namespace request;
-  const CheckedRender c = check_render_request(a);
+  CheckedRender c = check_render_request(a);
   const Scene sc = open_scene(a.package);
   Placed p = place(a, c, sc);
   RenderView v;
@@ -807,7 +866,7 @@ RenderView place_render_view(const RenderRequest& a) {
 
 RenderOutcome render(const RenderRequest& a) {
   using namespace request;
-  const CheckedRender c = check_render_request(a);
+  CheckedRender c = check_render_request(a);
   Scene sc = open_scene(a.package);
   Placed placed = place(a, c, sc);
   const View& view = placed.view;

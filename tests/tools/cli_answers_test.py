@@ -11,7 +11,15 @@ On the checked-in package tests/formats/legacy/golden_v1_2.decals:
 - `verify --json` prints one object whose entries say, per path, ok or the
   reason and whether the path could not be read;
 - `render -o x.jpg` (and `--decals d.tif`) exits 2 before drawing, names
-  the .png to use, and leaves no file under the given name.
+  the .png to use, and leaves no file under the given name;
+- a top-down `--extent` whose aspect is not `--size`'s: the world file
+  describes square pixels, the extent widened about its centre along the
+  short axis (computed here from the given extent and size), the note on
+  stderr states that extent, and the picture is the one `--extent` of the
+  widened extent draws (same PNG bytes); `--size W` takes the height from
+  the extent's aspect, with square pixels; `--stretch` keeps the extent as
+  given (pixels dx/W by dy/H, no note); `--size W` without `--extent` is
+  exit 2.
 """
 import json
 import os
@@ -22,6 +30,70 @@ import sys
 
 def run(cmd):
     return subprocess.run(cmd, capture_output=True, text=True)
+
+
+def png_size(path):
+    head = open(path, "rb").read(24)
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
+def world_file(png):
+    return [float(v) for v in open(os.path.splitext(png)[0] + ".pgw").read().split()]
+
+
+def square_pixels(tool, pkg, work, info, expect):
+    """--extent of another aspect than --size, --size W, --stretch."""
+    x0, y0, x1, y1 = info["metadata"]["extent"]  # the origin is 0,0
+    # Wider than 640x360's aspect at the package's own height: padded in y.
+    given = (x0, y0, x1, y0 + (x1 - x0) * 0.25)
+    arg = ",".join("%.6f" % v for v in given)
+    given = tuple(float(v) for v in arg.split(","))
+    w, h = 640, 360
+    base = [tool, "render", pkg, "--cpu", "--flat"]
+    out = os.path.join(work, "square.png")
+    r = run(base + ["--extent", arg, "--size", "%dx%d" % (w, h), "-o", out])
+    expect("render --extent of another aspect exits 0", r.returncode == 0, r.stderr)
+    px = (given[2] - given[0]) / w
+    cy = (given[1] + given[3]) / 2
+    want = (given[0], cy - px * h / 2, given[2], cy + px * h / 2)
+    a, _, _, e, c, f = world_file(out)
+    expect("the world file's pixels are square", abs(a + e) <= 1e-9 * a, "A %r E %r" % (a, e))
+    expect("the pixel is the given width over W", abs(a - px) <= 1e-9 * px, "%r vs %r" % (a, px))
+    got = (c - a / 2, f + e * (h - 0.5), c + a * (w - 0.5), f - e / 2)
+    expect("the world file's extent is the given one widened about its centre in y",
+           all(abs(g - v) <= 1e-6 for g, v in zip(got, want)), "%r vs %r" % (got, want))
+    stated = "%.3f,%.3f,%.3f,%.3f" % want
+    expect("the note states the widened extent", ("widened to " + stated) in r.stderr, r.stderr)
+    again = os.path.join(work, "square_again.png")
+    r2 = run(base + ["--extent", ",".join("%.9f" % v for v in want), "--size", "%dx%d" % (w, h),
+                     "-o", again])
+    expect("the widened extent given as such draws the same picture",
+           r2.returncode == 0 and open(out, "rb").read() == open(again, "rb").read(), r2.stderr)
+
+    auto = os.path.join(work, "auto.png")
+    r = run(base + ["--extent", arg, "--size", "500", "-o", auto])
+    want_h = round(500 * (given[3] - given[1]) / (given[2] - given[0]))
+    ok = r.returncode == 0 and png_size(auto) == (500, want_h)
+    expect("--size 500 takes the height from the extent (500x%d)" % want_h, ok,
+           r.stderr + (" %r" % (png_size(auto),) if r.returncode == 0 else ""))
+    if ok:
+        a, _, _, e, _, _ = world_file(auto)
+        expect("--size 500: square pixels", abs(a + e) <= 1e-9 * a, "A %r E %r" % (a, e))
+        expect("--size 500: no note (the rounding pads under half a pixel)",
+               "widened" not in r.stderr, r.stderr)
+
+    stretched = os.path.join(work, "stretch.png")
+    r = run(base + ["--extent", arg, "--size", "%dx%d" % (w, h), "--stretch", "-o", stretched])
+    a, _, _, e, _, _ = world_file(stretched) if r.returncode == 0 else (0, 0, 0, 0, 0, 0)
+    expect("--stretch keeps the extent: pixels dx/W by dy/H, no note",
+           r.returncode == 0 and abs(a - px) <= 1e-9 * px and
+           abs(-e - (given[3] - given[1]) / h) <= 1e-9 * px and "widened" not in r.stderr,
+           "exit %d, A %r E %r: %s" % (r.returncode, a, e, r.stderr))
+
+    r = run(base + ["--size", "500", "-o", os.path.join(work, "noextent.png")])
+    expect("--size W without --extent exits 2 naming it",
+           r.returncode == 2 and "--size '500'" in r.stderr, "exit %d: %s" % (r.returncode,
+                                                                             r.stderr))
 
 
 def main(tool, root, work):
@@ -90,6 +162,8 @@ def main(tool, root, work):
         expect("render %s writes nothing" % name,
                not os.path.exists(os.path.join(work, name)) and
                not os.path.exists(os.path.join(work, "y.png")), str(os.listdir(work)))
+
+    square_pixels(tool, pkg, work, info, expect)
 
     if failures:
         print("FAIL: %d checks" % len(failures))

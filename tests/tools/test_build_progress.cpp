@@ -220,8 +220,7 @@ TEST(BuildProgress, AFailedScenesBatchLineSaysWhyAndNamesItsLog) {
     if (j["event"] == "scene") {
       ++failed;
       EXPECT_EQ(j["status"], "failed") << j.dump();
-      EXPECT_NE(j["error"].get<std::string>().find("nope.geojson"), std::string::npos)
-          << j.dump();
+      EXPECT_NE(j["error"].get<std::string>().find("nope.geojson"), std::string::npos) << j.dump();
     }
   EXPECT_EQ(failed, 1u);
 }

@@ -21,6 +21,8 @@ Checks:
   min(r_L, 2 m width) / 8 + 1 mm of the tile's lines (the level's line
   tolerance);
 - info lists the levels, verify checks their tiles, dump --level opens one;
+- info's tiles line and a build's closing line give the level tiles and
+  bytes and the totals with them, as tileset.json lists them;
 - read_tileset_index refuses a bad level file path, a wrong level tile
   size and non-consecutive levels, naming the field; a 1.0 index reads;
 - --levels auto stops at a level of at most 4 tiles; --levels without
@@ -267,6 +269,25 @@ def main():
     info = subprocess.run([tool, "info", ref], capture_output=True, text=True)
     if info.returncode != 0 or "level 3:" not in info.stdout or "dropped small" not in info.stdout:
         failures.append("info does not list the levels: " + info.stdout[-400:] + info.stderr)
+    # The level tiles counted where a user reads totals: info's tiles line
+    # and the build's closing line, against tileset.json's sizes.
+    n0 = len(ix["tiles"])
+    b0 = sum(t["bytes"] for t in ix["tiles"])
+    nl = sum(len(lv["tiles"]) for lv in ix["levels"])
+    bl = sum(t["bytes"] for lv in ix["levels"] for t in lv["tiles"])
+    line = ("tiles     %d packages, %d bytes at full detail (level 0); %d packages, %d bytes with "
+            "the %d overview levels" % (n0, b0, n0 + nl, b0 + bl, len(ix["levels"])))
+    if line not in info.stdout:
+        failures.append("info's tiles line leaves out the levels: wanted %r in %s" % (
+            line, info.stdout[:400]))
+    again = subprocess.run(base + ["--jobs", "2", "-o", os.path.join(work, "summary"), "--progress",
+                                   "plain"], capture_output=True, text=True)
+    said = ("tileset: %d tiles (%d built, 0 kept from an earlier run), %d bytes at full detail; "
+            "overview levels 1..%d: %d tiles (%d built, 0 kept), %d bytes; %d tiles, %d bytes in "
+            "all in %s" % (n0, n0, b0, len(ix["levels"]), nl, nl, bl, n0 + nl, b0 + bl,
+                           os.path.join(work, "summary")))
+    if again.returncode != 0 or said not in again.stderr:
+        failures.append("the build's closing line: wanted %r in %s" % (said, again.stderr[-600:]))
     ver = subprocess.run([tool, "verify", ref], capture_output=True, text=True)
     if ver.returncode != 0 or "overview levels" not in ver.stdout:
         failures.append("verify: exit %d %s %s" % (ver.returncode, ver.stdout, ver.stderr))

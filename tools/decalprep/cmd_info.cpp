@@ -101,7 +101,19 @@ void run_tileset_info(const std::string& dir, bool as_json) {
               ix.tile_size, ix.margin, ix.dynamic_margin);
   std::printf("extent    %.3f %.3f %.3f %.3f (frame CRS)\n", ix.extent.xmin, ix.extent.ymin,
               ix.extent.xmax, ix.extent.ymax);
-  std::printf("tiles     %zu packages, %" PRIu64 " bytes\n", ix.tiles.size(), bytes);
+  size_t all_tiles = ix.tiles.size();
+  uint64_t all_bytes = bytes;
+  for (const prep::TileLevel& l : ix.levels) {
+    all_tiles += l.tiles.size();
+    for (const prep::TileEntry& t : l.tiles) all_bytes += t.bytes;
+  }
+  if (ix.levels.empty())
+    std::printf("tiles     %zu packages, %" PRIu64 " bytes\n", ix.tiles.size(), bytes);
+  else
+    std::printf("tiles     %zu packages, %" PRIu64
+                " bytes at full detail (level 0); %zu packages, "
+                "%" PRIu64 " bytes with the %zu overview levels\n",
+                ix.tiles.size(), bytes, all_tiles, all_bytes, ix.levels.size());
   std::printf("features  (each once, however many tiles it reaches; %" PRIu64
               " manifest entries in manifest.json)\n",
               ix.entry_count);

@@ -31,12 +31,13 @@ void print_passes(const R::RenderRequest& a, const R::RenderOutcome& out) {
   std::printf("%-48s %12s %12s\n", "pass", "gpu ms", "wall ms");
   for (const auto& t : img.times)
     std::printf("%-48s %12.3f %12.3f\n", t.pass.c_str(), t.ms, t.wall_ms);
-  // not a stage prefix: a --stats label
   if (std::isfinite(out.surface_error_bound))
+    // not a stage prefix: a --stats label
     std::printf("terrain: %ux%u vertices, within %.6f mm of the DEM surface\n", out.terrain_nx,
                 out.terrain_ny, out.surface_error_bound * 1e3);
   else
     std::printf(
+        // not a stage prefix: a --stats label
         "terrain: %ux%u vertices on the DEM surface, no bound between them (the mesh is not on "
         "the DEM's cell lattice: the DEM is in another CRS than the frame, or not north-up, or "
         "its lattice was thinned to the vertex limit)\n",
@@ -157,7 +158,10 @@ const decalprep::CommandRegistrar kRegister(60, kRenderHelp, [](CLI::App* cmd) {
                   "CRS of --extent (e.g. EPSG:4326, lon/lat order; default: the frame)");
   cmd->add_option("--size", args->size,
                   "Image size WxH (default 640x360; each side 1..16384, at most 8192x8192 "
-                  "pixels in all)");
+                  "pixels in all); with --extent also W (or Wx): the height from its aspect");
+  cmd->add_flag("--stretch", args->stretch,
+                "--extent as given even where its aspect is not --size's (pixels not square); "
+                "without it the extent is widened about its centre to square pixels");
   cmd->add_option("--eye", args->eye,
                   "Camera position x,y,z (metres relative to the package origin)");
   cmd->add_option("--target", args->target,

@@ -185,7 +185,10 @@ void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
   needs(cmd->add_option("--pitch", r.pitch, "--fit: pitch below the horizon, degrees (45)"));
   needs(cmd->add_option("--fov", r.fov, "Vertical field of view, degrees (45)"));
   needs(cmd->add_flag("--ortho", r.ortho, "Orthographic projection"));
-  needs(cmd->add_option("--size", r.size, "Image size WxH (default 640x360, as render)"));
+  needs(cmd->add_option("--size", r.size,
+                        "Image size WxH (default 640x360), or W with --extent (as render)"));
+  needs(cmd->add_flag("--stretch", r.stretch,
+                      "--extent as given even where its pixels are not square (as render)"));
   needs(cmd->add_option("--only", r.only,
                         "Draw only these decal kinds: polygons,lines,dynamic (as render; the "
                         "browser does not draw dynamic lines yet)"));

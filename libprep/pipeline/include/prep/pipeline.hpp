@@ -241,7 +241,11 @@ struct RenderRequest {
   // The view: a top-down --extent (in --extent-crs or the frame CRS), else
   // --eye and --target (metres relative to the origin), else --fit.
   std::string extent, extent_crs, eye, target;
-  std::string size = "640x360";  // WxH
+  // WxH; with --extent also W or Wx: the height from the extent's aspect
+  std::string size = "640x360";
+  // A top-down --extent whose aspect is not --size's is widened about its
+  // centre to square pixels (stated on stderr); stretch keeps it as given.
+  bool stretch = false;
   double fov = 45.0, pitch = 45.0;
   bool ortho = false, fit = false;
   bool cpu = false;  // the CPU evaluator instead of GL
