@@ -5,11 +5,14 @@
 
 #include <toml++/toml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "prep/error.hpp"
 #include "prep/files.hpp"
@@ -33,6 +36,78 @@ struct KeyRef {
 
 int line_of(const toml::node& n) {
   return static_cast<int>(n.source().begin.line);
+}
+
+// Every problem of a scene file, reported together in line order (a user
+// fixes them in one pass): each key is parsed on its own, and a key's
+// error is recorded and the next key parsed.
+struct Problems {
+  std::vector<std::pair<int, std::string>> list;  // line, message
+
+  // Runs `parse`; a scene_error it throws is recorded at `line`. False
+  // when it threw.
+  template <typename F>
+  bool run(int line, F&& parse) {
+    try {
+      parse();
+      return true;
+    } catch (const scene_error& e) {
+      list.emplace_back(line, e.what());
+      return false;
+    }
+  }
+  // A problem found outside a key's parse (a layer's keys that do not go
+  // together).
+  void add(const KeyRef& ref, const std::string& what) {
+    list.emplace_back(ref.line,
+                      ref.file + ":" + std::to_string(ref.line) + ": " + ref.key + ": " + what);
+  }
+};
+
+// The known keys of each table, for "did you mean" (samples/README.md
+// documents them).
+constexpr std::string_view kRootKeys[] = {
+    "source", "crs",   "assume_crs", "extent_crs",    "extent",      "resolution", "repair",
+    "dem",    "build", "tiling",     "skip_failures", "allow_empty", "layer"};
+constexpr std::string_view kLayerKeys[] = {
+    "name",       "source",       "layer",        "where",          "sql",
+    "kind",       "dynamic",      "lod",          "color",          "color_attribute",
+    "color_ramp", "casing_width", "casing_color", "slope_widths",   "dash",
+    "width",      "corner",       "outline_mode", "order_attribute"};
+constexpr std::string_view kBuildKeys[] = {
+    "grid", "target_per_cell",   "max_cells", "leaf_capacity", "max_depth", "miter_limit_deg",
+    "lmax", "terrain_tolerance", "z_scale",   "nodata_fill",   "threads"};
+constexpr std::string_view kTilingKeys[] = {"tile_size", "levels"};
+
+// Optimal string alignment distance (edits, with a swap of two neighbours
+// counting one).
+size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+  for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (size_t i = 1; i <= a.size(); ++i)
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+// The unknown key's error, with the nearest known key within two edits.
+template <size_t N>
+[[noreturn]] void fail_unknown(const KeyRef& ref, std::string_view key,
+                               const std::string_view (&known)[N]) {
+  std::string_view best;
+  size_t best_d = 3;
+  for (std::string_view k : known) {
+    const size_t d = edit_distance(key, k);
+    if (d < best_d) best_d = d, best = k;
+  }
+  fail_key(ref, best.empty() ? "unknown key (see samples/README.md)"
+                             : "unknown key; did you mean \"" + std::string(best) +
+                                   "\"? (see samples/README.md)");
 }
 
 std::string type_name(const toml::node& n) {
@@ -96,14 +171,13 @@ std::string dir_of(const std::string& path) {
   return path.substr(0, slash);
 }
 
-void parse_build_table(const toml::table& t, const std::string& file, ModelOptions& b) {
-  for (auto&& [k, v] : t) {
-    std::string key(k.str());
-    KeyRef ref{file, "build." + key, line_of(v)};
+void parse_build_key(const std::string& key, const toml::node& v, const KeyRef& ref,
+                     ModelOptions& b) {
+  {
     if (key == "grid") {
       if (v.is_string() && get_string(v, ref) == "auto") {
         b.grid_nx = b.grid_ny = 0;
-        continue;
+        return;
       }
       const toml::array* a = v.as_array();
       if (!a || a->size() != 2) fail_key(ref, "expected \"auto\" or [nx, ny]");
@@ -131,8 +205,18 @@ void parse_build_table(const toml::table& t, const std::string& file, ModelOptio
     } else if (key == "threads") {
       b.threads = get_count(v, ref, 0, 1024);
     } else {
-      fail_key(ref, "unknown key (see samples/README.md)");
+      fail_unknown(ref, key, kBuildKeys);
     }
+  }
+}
+
+void parse_build_table(const toml::table& t, const std::string& file, ModelOptions& b,
+                       Problems& problems) {
+  for (auto&& entry : t) {
+    const std::string key(entry.first.str());
+    const toml::node& v = entry.second;
+    const KeyRef ref{file, "build." + key, line_of(v)};
+    problems.run(ref.line, [&] { parse_build_key(key, v, ref, b); });
   }
 }
 
@@ -180,19 +264,11 @@ std::vector<double> parse_dash(const toml::node& v, const KeyRef& ref) {
   return dash;
 }
 
-LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t index,
-                      const std::string& default_source, const std::string& base_dir) {
-  LayerSpec layer;
-  layer.scene_line = static_cast<int>(t.source().begin.line);
-  layer.source = default_source;
-  const std::string prefix = "layer[" + std::to_string(index) + "].";
-  bool width_set = false;
-  for (auto&& entry : t) {
-    // Not a structured binding: lambdas below capture the value, which
-    // clang (and so clang-tidy) accepts only for a plain variable.
-    const std::string key(entry.first.str());
-    const toml::node& v = entry.second;
-    KeyRef ref{file, prefix + key, line_of(v)};
+// One key of a [[layer]] table into `layer`; `width_set` when it is width.
+void parse_layer_key(const std::string& key, const toml::node& v, const KeyRef& ref,
+                     const std::string& file, const std::string& base_dir, LayerSpec& layer,
+                     bool& width_set) {
+  {
     if (key == "name") {
       layer.name = get_string(v, ref);
     } else if (key == "source") {
@@ -249,25 +325,29 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     } else if (key == "order_attribute") {
       layer.style.order_attribute = get_string(v, ref);
     } else {
-      fail_key(ref, "unknown key (see samples/README.md)");
+      fail_unknown(ref, key, kLayerKeys);
     }
   }
-  KeyRef here{file, prefix.substr(0, prefix.size() - 1), layer.scene_line};
-  if (layer.source.empty()) fail_key(here, "no source (set layer.source or a top-level source)");
+}
+
+// The keys of a layer that do not go together, each a problem.
+void check_layer(const LayerSpec& layer, const KeyRef& here, Problems& problems) {
+  if (layer.source.empty())
+    problems.add(here, "no source (set layer.source or a top-level source)");
   if (!layer.sql.empty() && (!layer.where.empty() || !layer.layer.empty()))
-    fail_key(here, "sql replaces layer and where; give either sql or layer/where");
+    problems.add(here, "sql replaces layer and where; give either sql or layer/where");
   if (layer.dynamic && layer.kind == DecalKind::polygon)
-    fail_key(here, "dynamic = true needs kind = \"line\" or \"outline\"");
+    problems.add(here, "dynamic = true needs kind = \"line\" or \"outline\"");
   if (!layer.style.color.attribute.empty() && layer.style.color.ramp.empty())
-    fail_key(here, "color_attribute needs a color_ramp");
+    problems.add(here, "color_attribute needs a color_ramp");
   if (layer.style.outline != decal::OutlineMode::normal &&
       layer.style.corner != decal::CornerStyle::miter)
-    fail_key(
+    problems.add(
         here,
         "outline_mode inset/offset needs corner = \"miter\" (the kept half is cut at the miter "
         "corners)");
   if (layer.casing_rgba && layer.casing_width == 0)
-    fail_key(here, "casing_color needs a casing_width");
+    problems.add(here, "casing_color needs a casing_width");
   // A static line's half width in a package is below kMaxHalfWidthMetres
   // (formats/SPEC.md "Index constraints"), its casing's too.
   if (!layer.dynamic &&
@@ -276,25 +356,52 @@ LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t inde
     std::snprintf(v, sizeof v,
                   layer.casing_width > 0 ? "width %g with casing_width %g" : "width %g",
                   layer.style.width, layer.casing_width);
-    fail_key(here, std::string(v) + " m is too wide: a static line must be narrower than 2e7 m");
+    problems.add(here,
+                 std::string(v) + " m is too wide: a static line must be narrower than 2e7 m");
   }
   if (layer.casing_width > 0 &&
       (layer.kind == DecalKind::polygon || layer.style.outline != decal::OutlineMode::normal))
-    fail_key(here,
-             "casing_width needs kind = \"line\" or \"outline\" with outline_mode \"normal\"");
+    problems.add(here,
+                 "casing_width needs kind = \"line\" or \"outline\" with outline_mode \"normal\"");
   if (layer.slope_widths && (layer.kind == DecalKind::polygon || layer.dynamic))
-    fail_key(here,
-             "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
-             "dynamic widths are pixels, polygons have no width)");
+    problems.add(
+        here,
+        "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
+        "dynamic widths are pixels, polygons have no width)");
   if (!layer.dash.empty() && layer.kind == DecalKind::polygon)
-    fail_key(here, "dash needs kind = \"line\" or \"outline\"");
+    problems.add(here, "dash needs kind = \"line\" or \"outline\"");
   // The dynamic dash scan measures the kept vertex chains, which the LOD
   // segments replace for the lines of a lod layer (formats/SPEC.md "Dashed
   // lines").
   if (!layer.dash.empty() && layer.lod)
-    fail_key(here,
-             "dash and lod = true cannot be combined yet: the LOD segments replace the "
-             "vertex chains the dash is measured along");
+    problems.add(here,
+                 "dash and lod = true cannot be combined yet: the LOD segments replace the "
+                 "vertex chains the dash is measured along");
+}
+
+LayerSpec parse_layer(const toml::table& t, const std::string& file, size_t index,
+                      const std::string& default_source, const std::string& base_dir,
+                      Problems& problems) {
+  LayerSpec layer;
+  layer.scene_line = static_cast<int>(t.source().begin.line);
+  layer.source = default_source;
+  const std::string prefix = "layer[" + std::to_string(index) + "].";
+  bool width_set = false;
+  bool keys_ok = true;
+  for (auto&& entry : t) {
+    // Not a structured binding: lambdas below capture the value, which
+    // clang (and so clang-tidy) accepts only for a plain variable.
+    const std::string key(entry.first.str());
+    const toml::node& v = entry.second;
+    const KeyRef ref{file, prefix + key, line_of(v)};
+    keys_ok = problems.run(ref.line, [&] {
+      parse_layer_key(key, v, ref, file, base_dir, layer, width_set);
+    }) && keys_ok;
+  }
+  // Which keys go together is judged on keys that parsed (a kind that did
+  // not would make every kind rule a false problem).
+  if (keys_ok)
+    check_layer(layer, {file, prefix.substr(0, prefix.size() - 1), layer.scene_line}, problems);
   if (layer.dynamic && !width_set) layer.style.width = 3.0;  // pixels
   if (layer.name.empty())
     layer.name = layer.layer.empty() ? "layer" + std::to_string(index) : layer.layer;
@@ -371,101 +478,84 @@ std::string resolve_scene_path(const std::string& path, const std::string& base_
   return base_dir + "/" + path;
 }
 
-BuildSpec parse_scene(const std::string& text, const std::string& path) {
-  toml::table root;
-  try {
-    root = toml::parse(text, std::string_view(path));
-  } catch (const toml::parse_error& e) {
-    prep::fail<scene_error>(kNoStage, path + ":" + std::to_string(e.source().begin.line) + ": " +
-                                          std::string(e.description()));
-  }
-  BuildSpec scene;
-  scene.scene_path = path;
-  const std::string base = dir_of(path);
-  std::string default_source;
-  if (const toml::node* s = root.get("source")) {
-    default_source = resolve_scene_path(get_string(*s, {path, "source", line_of(*s)}), base);
-  }
-  const toml::array* layers = nullptr;
-  int layers_line = 1;
-  for (auto&& [k, v] : root) {
-    std::string key(k.str());
-    KeyRef ref{path, key, line_of(v)};
-    if (key == "source") {
-      continue;  // handled above: layers may come before it in the table order
-    } else if (key == "crs") {
-      scene.crs = get_string(v, ref);
-    } else if (key == "assume_crs") {
-      scene.assume_crs = get_string(v, ref);
-    } else if (key == "extent_crs") {
-      scene.extent_crs = get_string(v, ref);
-    } else if (key == "extent") {
-      const toml::array* a = v.as_array();
-      if (!a || a->size() != 4) fail_key(ref, "expected [xmin, ymin, xmax, ymax]");
-      Extent e{get_number(*a->get(0), ref), get_number(*a->get(1), ref),
-               get_number(*a->get(2), ref), get_number(*a->get(3), ref)};
-      if (e.empty()) fail_key(ref, "empty extent: need xmax > xmin and ymax > ymin");
-      scene.extent = e;
-    } else if (key == "resolution") {
-      scene.resolution = get_non_negative(v, ref);
-    } else if (key == "repair") {
-      try {
-        scene.repair = parse_repair_method(get_string(v, ref));
-      } catch (const usage_error& e) {
-        fail_key(ref, e.what());
-      }
-    } else if (key == "dem") {
-      scene.dem = resolve_scene_path(get_string(v, ref), base);
-    } else if (key == "skip_failures") {
-      scene.skip_failures = get_bool(v, ref);
-    } else if (key == "allow_empty") {
-      scene.allow_empty = get_bool(v, ref);
-    } else if (key == "build") {
-      const toml::table* t = v.as_table();
-      if (!t) fail_key(ref, "expected a table [build]");
-      parse_build_table(*t, path, scene.model);
-    } else if (key == "tiling") {
-      const toml::table* t = v.as_table();
-      if (!t) fail_key(ref, "expected a table [tiling]");
-      for (auto&& [tk, tv] : *t) {
-        const KeyRef tref{path, "tiling." + std::string(tk.str()), line_of(tv)};
-        if (tk.str() == "levels") {
-          // Overview levels (formats/SPEC.md "Overview levels"): N or "auto".
-          if (tv.is_string() && get_string(tv, tref) == "auto") {
-            scene.levels = kLevelsAuto;
-          } else if (tv.is_integer()) {
-            scene.levels = static_cast<int>(get_count(tv, tref, 0, kMaxLevels));
-          } else {
-            fail_key(tref, "expected a number of levels (0 to 16) or \"auto\"");
-          }
-          continue;
-        }
-        if (tk.str() != "tile_size") fail_key(tref, "unknown key (see samples/README.md)");
-        scene.tile_size = get_non_negative(tv, tref);
-        if (scene.tile_size < kMinTileSize || scene.tile_size > kMaxTileSize)
-          fail_key(tref, "expected a tile size in [1, 4000000] metres");
-      }
-    } else if (key == "layer") {
-      layers = v.as_array();
-      layers_line = ref.line;
-      if (!layers) fail_key(ref, "expected an array of tables [[layer]]");
+namespace {
+
+// One key of [tiling].
+void parse_tiling_key(const std::string& key, const toml::node& v, const KeyRef& ref,
+                      BuildSpec& scene) {
+  if (key == "levels") {
+    // Overview levels (formats/SPEC.md "Overview levels"): N or "auto".
+    if (v.is_string() && get_string(v, ref) == "auto") {
+      scene.levels = kLevelsAuto;
+    } else if (v.is_integer()) {
+      scene.levels = static_cast<int>(get_count(v, ref, 0, kMaxLevels));
     } else {
-      fail_key(ref, "unknown key (see samples/README.md)");
+      fail_key(ref, "expected a number of levels (0 to 16) or \"auto\"");
     }
+    return;
   }
-  if (!layers || layers->empty()) {
-    prep::fail<scene_error>(kNoStage, path + ":" + std::to_string(layers_line) +
-                                          ": layer: the scene has no [[layer]] table");
+  if (key != "tile_size") fail_unknown(ref, key, kTilingKeys);
+  scene.tile_size = get_non_negative(v, ref);
+  if (scene.tile_size < kMinTileSize || scene.tile_size > kMaxTileSize)
+    fail_key(ref, "expected a tile size in [1, 4000000] metres");
+}
+
+// One top-level key of a scene file into `scene` ([build] and [tiling]
+// key by key, their problems recorded); `layers` and `layers_line` from
+// the [[layer]] array.
+void parse_root_key(const std::string& key, const toml::node& v, const KeyRef& ref,
+                    const std::string& base, Problems& problems, BuildSpec& scene,
+                    const toml::array*& layers, int& layers_line) {
+  const std::string& path = ref.file;
+  if (key == "source") {
+    return;  // read first: layers may come before it in the table order
+  } else if (key == "crs") {
+    scene.crs = get_string(v, ref);
+  } else if (key == "assume_crs") {
+    scene.assume_crs = get_string(v, ref);
+  } else if (key == "extent_crs") {
+    scene.extent_crs = get_string(v, ref);
+  } else if (key == "extent") {
+    const toml::array* a = v.as_array();
+    if (!a || a->size() != 4) fail_key(ref, "expected [xmin, ymin, xmax, ymax]");
+    Extent e{get_number(*a->get(0), ref), get_number(*a->get(1), ref), get_number(*a->get(2), ref),
+             get_number(*a->get(3), ref)};
+    if (e.empty()) fail_key(ref, "empty extent: need xmax > xmin and ymax > ymin");
+    scene.extent = e;
+  } else if (key == "resolution") {
+    scene.resolution = get_non_negative(v, ref);
+  } else if (key == "repair") {
+    scene.repair = with_key(ref, [&] { return parse_repair_method(get_string(v, ref)); });
+  } else if (key == "dem") {
+    scene.dem = resolve_scene_path(get_string(v, ref), base);
+  } else if (key == "skip_failures") {
+    scene.skip_failures = get_bool(v, ref);
+  } else if (key == "allow_empty") {
+    scene.allow_empty = get_bool(v, ref);
+  } else if (key == "build") {
+    const toml::table* t = v.as_table();
+    if (!t) fail_key(ref, "expected a table [build]");
+    parse_build_table(*t, path, scene.model, problems);
+  } else if (key == "tiling") {
+    const toml::table* t = v.as_table();
+    if (!t) fail_key(ref, "expected a table [tiling]");
+    for (auto&& entry : *t) {
+      const std::string tk(entry.first.str());
+      const toml::node& tv = entry.second;
+      const KeyRef tref{path, "tiling." + tk, line_of(tv)};
+      problems.run(tref.line, [&] { parse_tiling_key(tk, tv, tref, scene); });
+    }
+  } else if (key == "layer") {
+    layers = v.as_array();
+    layers_line = ref.line;
+    if (!layers) fail_key(ref, "expected an array of tables [[layer]]");
+  } else {
+    fail_unknown(ref, key, kRootKeys);
   }
-  for (size_t i = 0; i < layers->size(); ++i) {
-    const toml::table* t = layers->get(i)->as_table();
-    if (!t)
-      fail_key({path, "layer[" + std::to_string(i) + "]", line_of(*layers->get(i))},
-               "expected a table");
-    LayerSpec layer = parse_layer(*t, path, i, default_source, base);
-    if (layer.casing_width > 0) scene.layers.push_back(casing_of(layer));
-    scene.layers.push_back(std::move(layer));
-  }
+}
+
+// Two layers (casing layers included) with one name: the first such pair.
+void check_layer_names(const BuildSpec& scene, const std::string& path) {
   // The [[layer]] index of scene.layers[i] (a casing layer: its layer's).
   auto file_index = [&](size_t i) {
     size_t n = 0;
@@ -486,6 +576,67 @@ BuildSpec parse_scene(const std::string& text, const std::string& path) {
       }
     }
   }
+}
+
+// One problem: its own message, as it always was. More: a count, then each
+// on its own line, in line order (a line's problems in the order found).
+void fail_problems(Problems& problems, const std::string& path) {
+  if (problems.list.empty()) return;
+  if (problems.list.size() == 1) prep::fail<scene_error>(kNoStage, problems.list[0].second);
+  std::stable_sort(problems.list.begin(), problems.list.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::string all = path + ": " + std::to_string(problems.list.size()) + " problems:";
+  for (const auto& [line, message] : problems.list) all += "\n  " + message;
+  prep::fail<scene_error>(kNoStage, all);
+}
+
+}  // namespace
+
+BuildSpec parse_scene(const std::string& text, const std::string& path) {
+  toml::table root;
+  try {
+    root = toml::parse(text, std::string_view(path));
+  } catch (const toml::parse_error& e) {
+    prep::fail<scene_error>(kNoStage, path + ":" + std::to_string(e.source().begin.line) + ": " +
+                                          std::string(e.description()));
+  }
+  BuildSpec scene;
+  scene.scene_path = path;
+  const std::string base = dir_of(path);
+  Problems problems;
+  std::string default_source;
+  if (const toml::node* s = root.get("source")) {
+    problems.run(line_of(*s), [&] {
+      default_source = resolve_scene_path(get_string(*s, {path, "source", line_of(*s)}), base);
+    });
+  }
+  const toml::array* layers = nullptr;
+  int layers_line = 1;
+  for (auto&& entry : root) {
+    const std::string key(entry.first.str());
+    const toml::node& v = entry.second;
+    const KeyRef ref{path, key, line_of(v)};
+    problems.run(ref.line,
+                 [&] { parse_root_key(key, v, ref, base, problems, scene, layers, layers_line); });
+  }
+  if (!layers || layers->empty()) {
+    problems.list.emplace_back(layers_line, path + ":" + std::to_string(layers_line) +
+                                                ": layer: the scene has no [[layer]] table");
+    layers = nullptr;
+  }
+  for (size_t i = 0; layers && i < layers->size(); ++i) {
+    const toml::table* t = layers->get(i)->as_table();
+    if (!t) {
+      problems.add({path, "layer[" + std::to_string(i) + "]", line_of(*layers->get(i))},
+                   "expected a table");
+      continue;
+    }
+    LayerSpec layer = parse_layer(*t, path, i, default_source, base, problems);
+    if (layer.casing_width > 0) scene.layers.push_back(casing_of(layer));
+    scene.layers.push_back(std::move(layer));
+  }
+  if (problems.list.empty()) check_layer_names(scene, path);
+  fail_problems(problems, path);
   return scene;
 }
 

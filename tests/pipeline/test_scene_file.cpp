@@ -97,6 +97,37 @@ TEST(SceneFile, UnknownKeyIsAnErrorNamingKeyAndLine) {
   EXPECT_NE(e.find("layer[0].widht"), std::string::npos) << e;
 }
 
+// Six problems on six lines, written so that toml++'s alphabetical key
+// order differs from the file's: one run reports them all, each with its
+// line, in line order, the two misspelt keys with the key they meant.
+TEST(SceneFile, EveryProblemIsReportedInOneRunInLineOrderWithDidYouMean) {
+  const std::string e = error_of(
+      "resolution = \"fine\"\n"  // 1: wrong type
+      "[build]\n"
+      "max_cels = 10\n"  // 3: misspelt (max_cells)
+      "[[layer]]\n"
+      "source = \"a.shp\"\n"
+      "widht = 3\n"            // 6: misspelt (width)
+      "kind = \"poly\"\n"      // 7: bad enum value
+      "color = \"#12345\"\n"   // 8: bad colour
+      "frobnicate = true\n");  // 9: unknown, nothing near
+  EXPECT_NE(e.find("scene.toml: 6 problems:"), std::string::npos) << e;
+  const char* in_order[] = {
+      "scene.toml:1: resolution: expected a number",
+      "scene.toml:3: build.max_cels: unknown key; did you mean \"max_cells\"?",
+      "scene.toml:6: layer[0].widht: unknown key; did you mean \"width\"?",
+      "scene.toml:7: layer[0].kind",
+      "scene.toml:8: layer[0].color",
+      "scene.toml:9: layer[0].frobnicate: unknown key (see"};
+  size_t at = 0;
+  for (const char* want : in_order) {
+    const size_t found = e.find(want, at);
+    ASSERT_NE(found, std::string::npos) << "missing or out of order: " << want << "\n" << e;
+    at = found;
+  }
+  EXPECT_EQ(e.find("did you mean", e.find("frobnicate")), std::string::npos) << e;
+}
+
 TEST(SceneFile, WrongTypeIsAnErrorNamingKeyAndLine) {
   std::string e = error_of("resolution = \"fine\"\n[[layer]]\nsource = \"a.shp\"\n");
   EXPECT_NE(e.find("scene.toml:1: resolution"), std::string::npos) << e;
