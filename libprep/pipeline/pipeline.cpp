@@ -279,6 +279,41 @@ std::vector<std::string> empty_layer_warnings(const BuildSpec& scene, const Mani
   return out;
 }
 
+// Widths no map means: a static width (or casing width) in ground metres
+// below 1 mm (thinner than the package's quantum; no view shows it) or
+// above 100 km, a dynamic width in pixels below 0.1 or above 1000 (a
+// metre value given where pixels are meant, or the reverse). Named with
+// the layer and the value; the build goes on (--strict stops it).
+constexpr double kMinStaticWidthM = 1e-3, kMaxStaticWidthM = 1e5;
+constexpr double kMinDynamicWidthPx = 0.1, kMaxDynamicWidthPx = 1000;
+
+std::vector<std::string> width_warnings(const BuildSpec& scene) {
+  std::vector<std::string> out;
+  auto check = [&](const LayerSpec& l, const char* key, double w, double lo, double hi,
+                   const char* unit) {
+    if (w >= lo && w <= hi) return;
+    const std::string where =
+        l.scene_line > 0 && !scene.scene_path.empty()
+            ? " (" + scene.scene_path + ":" + std::to_string(l.scene_line) + ")"
+            : std::string();
+    char m[200];
+    std::snprintf(m, sizeof m, ": %s %.6g %s is outside the plausible %.6g..%.6g %s of a %s line",
+                  key, w, unit, lo, hi, unit, l.dynamic ? "dynamic" : "static");
+    out.push_back("layer '" + l.name + "'" + where + m);
+  };
+  for (const LayerSpec& l : scene.layers) {
+    if (l.kind == DecalKind::polygon || !l.casing_of.empty()) continue;
+    if (l.dynamic) {
+      check(l, "width", l.style.width, kMinDynamicWidthPx, kMaxDynamicWidthPx, "pixels");
+    } else {
+      check(l, "width", l.style.width, kMinStaticWidthM, kMaxStaticWidthM, "m");
+      if (l.casing_width > 0)
+        check(l, "casing_width", l.casing_width, kMinStaticWidthM, kMaxStaticWidthM, "m");
+    }
+  }
+  return out;
+}
+
 // Dynamic-line vertices whose heights came from beyond the DEM (its edge
 // cell's value, not the terrain under them), counted by the build stage.
 // `lines` is the count of dynamic lines, or 0 where it is not known (a
@@ -463,6 +498,7 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
     });
   switch (request.step) {
     case Step::prepare: {
+      give_warnings(width_warnings(scene), request, trail);
       estimates.push_back(before_read(scene, request));
       check_memory(limit, estimates.back());
       const nlohmann::json provenance = provenance_json(scene);
@@ -771,6 +807,7 @@ BuildResult run_stages(const BuildSpec& scene, const BuildRequest& request, Memo
   if (!request.dry_run && request.output.empty())
     fail<usage_error>(kBuildStage, "no output path (-o)");
   const bool tiled = scene.tile_size > 0 && !request.dry_run;
+  give_warnings(width_warnings(scene), request, trail);
   const std::unique_ptr<tbb::global_control> threads = cap_threads(scene);
   SourceProvenance provenance(scene);
   StageLog log(request, trail);

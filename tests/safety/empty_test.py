@@ -5,6 +5,9 @@ layer exits 9 and writes no package (its report says why) unless
 no feature is a warning naming the layer, its source and its filter, and
 dynamic-line heights taken outside the DEM a warning with their count; both
 are errors (exit 10) under --strict, which batch mode passes to its scenes.
+Widths no map means (a static line under 1 mm or over 100 km, a dynamic one
+under 0.1 or over 1000 pixels) are a warning naming the layer, its scene
+line and the value; sensible widths give none.
 
   empty_test.py DECALPREP WORK_DIR SOURCE_DIR
 """
@@ -174,6 +177,32 @@ def heights_inside_dem_no_warning():
         raise Failure(f"a DEM covering the lines gave the warning:\n{r}")
 
 
+def implausible_widths_warn():
+    d = suite.dir("widths")
+    safety.write_lines_geojson(os.path.join(d, "l.geojson"))
+    scene = os.path.join(d, "scene.toml")
+    with open(scene, "w") as f:
+        f.write('[[layer]]\nname = "hair"\nsource = "l.geojson"\nkind = "line"\nwidth = 0.0001\n'
+                '[[layer]]\nname = "wide"\nsource = "l.geojson"\nkind = "line"\nwidth = 3000\n'
+                'dynamic = true\n'
+                '[[layer]]\nname = "fine"\nsource = "l.geojson"\nkind = "line"\nwidth = 6\n')
+    pkg, report = os.path.join(d, "out.decals"), os.path.join(d, "out.json")
+    r = suite.run(["build", scene, "-o", pkg, "--report", report, "-q"])
+    suite.expect(r, 0, "layer 'hair' (" + scene + ":1): width 0.0001 m is outside the plausible "
+                 "0.001..100000 m of a static line",
+                 "layer 'wide' (" + scene + ":6): width 3000 pixels is outside the plausible "
+                 "0.1..1000 pixels of a dynamic line")
+    if "'fine'" in r.err:
+        raise Failure(f"a 6 m line is named in a warning:\n{r}")
+    warnings = json.load(open(report)).get("warnings", [])
+    if len(warnings) != 2:
+        raise Failure(f"the report's warnings are not the two layers: {warnings}")
+    r = suite.run(["build", scene, "-o", os.path.join(d, "strict.decals"), "--strict", "-q"])
+    suite.expect(r, 10, "--strict", "layer 'hair'", "layer 'wide'")
+    if os.path.exists(os.path.join(d, "strict.decals")):
+        raise Failure("--strict stopped the build but a package was written")
+
+
 suite.case("everything clipped away: exit 9, no package, the report says why", everything_clipped)
 suite.case("--allow-empty writes the empty package, exit 0", allow_empty_flag)
 suite.case("allow_empty = true in the scene file", allow_empty_scene_key)
@@ -184,4 +213,6 @@ suite.case("batch mode passes --strict and --allow-empty to its scenes", batch_p
 suite.case("dynamic-line heights outside the DEM: warning with counts, exit 10 under --strict",
            heights_outside_dem)
 suite.case("a DEM that covers the lines gives no warning", heights_inside_dem_no_warning)
+suite.case("implausible widths warn, naming layer, line and value; exit 10 under --strict",
+           implausible_widths_warn)
 sys.exit(suite.finish())
