@@ -480,20 +480,49 @@ DatasetPtr open_vector_source(const LayerSpec& spec, ErrorCapture& errors) {
   return ds;
 }
 
+// A filter's scene layer for its error: "scene layer 'roads'
+// (scene.toml:12)", or without the place in the file-less form.
+std::string scene_layer_of(const LayerSpec& spec, const SceneSpec& scene) {
+  std::string s = "scene layer '" + spec.name + "'";
+  if (spec.scene_line > 0 && !scene.scene_path.empty())
+    s += " (" + scene.scene_path + ":" + std::to_string(spec.scene_line) + ")";
+  return s;
+}
+
+// The attribute fields a filter may name: "fields: a, b" (at most 40, then
+// how many more).
+std::string fields_of(OGRLayer& layer) {
+  OGRFeatureDefn* defn = layer.GetLayerDefn();
+  const int n = defn->GetFieldCount();
+  if (n == 0) return "no attribute fields";
+  std::string s = "fields: ";
+  for (int i = 0; i < n && i < 40; ++i)
+    s += (i ? ", " : "") + std::string(defn->GetFieldDefn(i)->GetNameRef());
+  if (n > 40) s += ", ... (" + std::to_string(n - 40) + " more)";
+  return s;
+}
+
 // The OGR layer the query of `spec` reads: the result set of its SQL
 // (`from_sql`: the caller releases it), its named layer, else the first.
 // Fails (gdal_error) on invalid SQL or an unknown layer, listing the
 // source's layers.
-OGRLayer* query_layer(GDALDataset& ds, const LayerSpec& spec, ErrorCapture& errors,
-                      bool& from_sql) {
+OGRLayer* query_layer(GDALDataset& ds, const LayerSpec& spec, const SceneSpec& scene,
+                      ErrorCapture& errors, bool& from_sql) {
   from_sql = false;
   if (!spec.sql.empty()) {
     errors.clear();
     OGRLayer* layer = ds.ExecuteSQL(spec.sql.c_str(), nullptr, nullptr);
     if (!layer) {
+      // The source's layers and their fields: what the SQL may name.
+      std::string tables;
+      for (int i = 0; i < ds.GetLayerCount() && i < 10; ++i)
+        tables += std::string(i ? "; " : "") + "layer '" + ds.GetLayer(i)->GetName() + "' " +
+                  fields_of(*ds.GetLayer(i));
       fail<gdal_error>(kReadStage,
-                       spec.source + ": invalid SQL \"" + spec.sql + "\"" +
-                           (errors.failures().empty() ? std::string() : ": " + errors.failures()));
+                       spec.source + ": " + scene_layer_of(spec, scene) + ": invalid SQL \"" +
+                           spec.sql + "\"" +
+                           (errors.failures().empty() ? std::string() : ": " + errors.failures()) +
+                           " (" + tables + ")");
     }
     from_sql = true;
     return layer;
@@ -515,7 +544,8 @@ OGRLayer* query_layer(GDALDataset& ds, const LayerSpec& spec, ErrorCapture& erro
 // it serves (else it assembles the features of every layer while one is
 // read, as ogr2ogr tells it too), and the `where` of `spec` is set (a
 // filter GDAL refuses throws gdal_error).
-void prepare_query_layer(GDALDataset& ds, OGRLayer& layer, const LayerSpec& spec, bool from_sql,
+void prepare_query_layer(GDALDataset& ds, OGRLayer& layer, const LayerSpec& spec,
+                         const SceneSpec& scene, bool from_sql,
                          const detail::OsmXmlOrder& osm_order, const std::string& where,
                          ErrorCapture& errors) {
   if (osm_order.late_node_offset >= 0 && (from_sql || std::string(layer.GetName()) != "points"))
@@ -526,9 +556,11 @@ void prepare_query_layer(GDALDataset& ds, OGRLayer& layer, const LayerSpec& spec
   if (!spec.where.empty()) {
     errors.clear();
     if (layer.SetAttributeFilter(spec.where.c_str()) != OGRERR_NONE) {
-      fail<gdal_error>(kNoStage,
-                       where + ": invalid where \"" + spec.where + "\"" +
-                           (errors.failures().empty() ? std::string() : ": " + errors.failures()));
+      fail<gdal_error>(
+          kNoStage, where + ": " + scene_layer_of(spec, scene) + ": invalid where \"" + spec.where +
+                        "\"" +
+                        (errors.failures().empty() ? std::string() : ": " + errors.failures()) +
+                        " (" + fields_of(layer) + ")");
     }
   }
 }
@@ -620,7 +652,7 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
   const ReadConfig config(plain_osm_index);
   DatasetPtr ds = open_vector_source(spec, errors);
   bool from_sql = false;
-  OGRLayer* layer = query_layer(*ds, spec, errors, from_sql);
+  OGRLayer* layer = query_layer(*ds, spec, scene, errors, from_sql);
   struct SqlRelease {
     GDALDataset* ds;
     OGRLayer* layer;
@@ -631,7 +663,7 @@ std::vector<ReadAttempt> read_once(const std::vector<const LayerSpec*>& specs,
   } release{ds.get(), layer, from_sql};
 
   const std::string where = where_of(spec, layer->GetName());
-  prepare_query_layer(*ds, *layer, spec, from_sql, osm_order, where, errors);
+  prepare_query_layer(*ds, *layer, spec, scene, from_sql, osm_order, where, errors);
   std::vector<LayerSink> sinks;
   sinks.reserve(specs.size());
   for (size_t k = 0; k < specs.size(); ++k) {

@@ -27,6 +27,11 @@ void write_shapefile(const std::string& path, bool with_crs, int features = 50) 
   OGRSpatialReference srs;
   srs.importFromEPSG(4326);
   OGRLayer* layer = ds->CreateLayer("roads", with_crs ? &srs : nullptr, wkbLineString, nullptr);
+  for (const auto& [name, type] :
+       {std::pair{"highway", OFTString}, std::pair{"lanes", OFTInteger}}) {
+    OGRFieldDefn field(name, type);
+    if (layer->CreateField(&field) != OGRERR_NONE) throw std::runtime_error("CreateField failed");
+  }
   for (int i = 0; i < features; ++i) {
     OGRFeature f(layer->GetLayerDefn());
     OGRLineString ls;
@@ -50,6 +55,7 @@ enum class Input {
   shapefile,
   truncated_shapefile,
   shapefile_without_crs,
+  scene_bad_where,
   bad_scene
 };
 
@@ -67,6 +73,12 @@ void write_input(Input in, const TempDir& dir) {
                                    std::filesystem::file_size(dir.file("roads.shp")) / 2);
       break;
     case Input::shapefile_without_crs: write_shapefile(dir.file("roads.shp"), false); break;
+    case Input::scene_bad_where:
+      write_shapefile(dir.file("roads.shp"), true);
+      prep::test::write_text(dir.file("scene.toml"),
+                             "source = \"roads.shp\"\n\n[[layer]]\nname = \"streets\"\n"
+                             "kind = \"line\"\nwhere = \"nosuchfield = 3\"\n");
+      break;
     case Input::bad_scene:
       write_shapefile(dir.file("roads.shp"), true);
       prep::test::write_text(dir.file("scene.toml"),
@@ -144,7 +156,21 @@ const std::vector<Case> kCases = {
      Input::shapefile,
      {{"build @roads.shp --where 'nosuchfield = 3' -o @out.decals --kind line",
        kInput,
-       {"invalid where"},
+       {"invalid where", "scene layer 'layer0'", "(fields: highway, lanes)"},
+       {}}}},
+    // The scene layer and its line in the file, and the fields it may use.
+    {"InvalidWhereInASceneNamesTheLayerItsLineAndTheFields",
+     Input::scene_bad_where,
+     {{"build @scene.toml -o @out.decals",
+       kInput,
+       {"scene layer 'streets' (", "scene.toml:3): invalid where \"nosuchfield = 3\"",
+        "(fields: highway, lanes)"},
+       {}}}},
+    {"InvalidSqlListsTheLayersAndTheirFields",
+     Input::shapefile,
+     {{"build @roads.shp --sql 'SELECT nosuch FROM roads' -o @out.decals --kind line",
+       kInput,
+       {"invalid SQL \"SELECT nosuch FROM roads\"", "layer 'roads' fields: highway, lanes"},
        {}}}},
     {"SourceWithoutCrsIsAnErrorUnlessAssumeCrsIsGiven",
      Input::shapefile_without_crs,
