@@ -120,28 +120,11 @@ RampRequest parse_ramp(const std::string& text) {
   const size_t eq = text.find('=');
   if (eq == std::string::npos || eq == 0) bad("no layer name before '='");
   r.layer = text.substr(0, eq);
-  std::stringstream ss(text.substr(eq + 1));
-  std::string stop;
-  while (std::getline(ss, stop, ',')) {
-    const size_t colon = stop.find(':');
-    if (colon == std::string::npos) bad("stop '" + stop + "' has no ':'");
-    ColorStop cs{};
-    try {
-      size_t used = 0;
-      cs.value = std::stod(stop.substr(0, colon), &used);
-      if (used != colon || !std::isfinite(cs.value)) throw std::invalid_argument(stop);
-    } catch (const std::exception&) {
-      bad("stop '" + stop + "' does not start with a finite number");
-    }
-    try {
-      cs.rgba = parse_color(stop.substr(colon + 1));
-    } catch (const error& e) {
-      bad(e.what());
-    }
-    if (!r.stops.empty() && !(cs.value > r.stops.back().value)) bad("stop values must increase");
-    r.stops.push_back(cs);
+  try {
+    r.stops = parse_color_stops(text.substr(eq + 1));
+  } catch (const error& e) {
+    bad(e.what());
   }
-  if (r.stops.empty()) bad("no stops");
   return r;
 }
 

@@ -220,30 +220,6 @@ void parse_build_table(const toml::table& t, const std::string& file, ModelOptio
   }
 }
 
-// The casing layer of `layer` (LayerSpec::casing_width): the same features,
-// casing_width wider on each side, in the casing colour (default: the layer
-// colour at 60% brightness), drawn just below the layer.
-LayerSpec casing_of(const LayerSpec& layer) {
-  LayerSpec c = layer;
-  c.name = layer.name + ".casing";
-  c.style.width = layer.style.width + 2 * layer.casing_width;
-  uint32_t rgba = layer.style.color.rgba;
-  if (layer.casing_rgba) {
-    rgba = *layer.casing_rgba;
-  } else {
-    uint32_t darker = rgba & 0xff000000u;
-    for (int ch = 0; ch < 3; ++ch)
-      darker |= uint32_t(std::lround(0.6 * double((rgba >> (8 * ch)) & 0xffu))) << (8 * ch);
-    rgba = darker;
-  }
-  c.style.color = LayerColor{rgba, {}, {}};
-  c.casing_width = 0;
-  c.casing_rgba.reset();
-  c.casing_of = layer.name;
-  c.dash.clear();  // the casing stays solid under a dashed line
-  return c;
-}
-
 // `dash = [on, off, ...]`: an even count >= 2 of finite lengths > 0.
 std::vector<double> parse_dash(const toml::node& v, const KeyRef& ref) {
   const toml::array* a = v.as_array();
@@ -258,9 +234,8 @@ std::vector<double> parse_dash(const toml::node& v, const KeyRef& ref) {
       fail_key(xref, "expected a dash length > 0, got " + std::to_string(dash.back()));
     text += (i ? ", " : "") + std::to_string(dash.back());
   }
-  if (dash.size() < 2 || dash.size() % 2 != 0)
-    fail_key(ref, "expected an even count >= 2 of lengths [on, off, ...], got " + text + "] (" +
-                      std::to_string(dash.size()) + " values)");
+  const std::string problem = dash_problem(dash);
+  if (!problem.empty()) fail_key(ref, problem + ", got " + text + "]");
   return dash;
 }
 
@@ -428,6 +403,63 @@ uint32_t parse_color(const std::string& text) {
     prep::fail<usage_error>(kNoStage, "bad colour \"" + text + "\": expected #rrggbb or #rrggbbaa");
   uint32_t r = hex(1), g = hex(3), b = hex(5), a = text.size() == 9 ? hex(7) : 255u;
   return r | (g << 8) | (b << 16) | (a << 24);
+}
+
+// The casing layer of `layer` (LayerSpec::casing_width): the same features,
+// casing_width wider on each side, in the casing colour (default: the layer
+// colour at 60% brightness), drawn just below the layer.
+LayerSpec casing_layer(const LayerSpec& layer) {
+  LayerSpec c = layer;
+  c.name = layer.name + ".casing";
+  c.style.width = layer.style.width + 2 * layer.casing_width;
+  uint32_t rgba = layer.style.color.rgba;
+  if (layer.casing_rgba) {
+    rgba = *layer.casing_rgba;
+  } else {
+    uint32_t darker = rgba & 0xff000000u;
+    for (int ch = 0; ch < 3; ++ch)
+      darker |= uint32_t(std::lround(0.6 * double((rgba >> (8 * ch)) & 0xffu))) << (8 * ch);
+    rgba = darker;
+  }
+  c.style.color = LayerColor{rgba, {}, {}};
+  c.casing_width = 0;
+  c.casing_rgba.reset();
+  c.casing_of = layer.name;
+  c.dash.clear();  // the casing stays solid under a dashed line
+  return c;
+}
+
+std::string dash_problem(const std::vector<double>& dash) {
+  for (double d : dash)
+    if (!(d > 0) || !std::isfinite(d)) return "expected dash lengths > 0";
+  if (dash.size() < 2 || dash.size() % 2 != 0)
+    return "expected an even count >= 2 of lengths [on, off, ...] (" + std::to_string(dash.size()) +
+           " values)";
+  return {};
+}
+
+std::vector<ColorStop> parse_color_stops(const std::string& text) {
+  auto bad = [](const std::string& why) { prep::fail<usage_error>(kNoStage, why); };
+  std::vector<ColorStop> stops;
+  std::stringstream ss(text);
+  std::string stop;
+  while (std::getline(ss, stop, ',')) {
+    const size_t colon = stop.find(':');
+    if (colon == std::string::npos) bad("stop '" + stop + "' has no ':'");
+    ColorStop cs{};
+    try {
+      size_t used = 0;
+      cs.value = std::stod(stop.substr(0, colon), &used);
+      if (used != colon || !std::isfinite(cs.value)) throw std::invalid_argument(stop);
+    } catch (const std::exception&) {
+      bad("stop '" + stop + "' does not start with a finite number");
+    }
+    cs.rgba = parse_color(stop.substr(colon + 1));
+    if (!stops.empty() && !(cs.value > stops.back().value)) bad("stop values must increase");
+    stops.push_back(cs);
+  }
+  if (stops.empty()) bad("no stops");
+  return stops;
 }
 
 decal::CornerStyle parse_corner(const std::string& t) {
@@ -632,7 +664,7 @@ BuildSpec parse_scene(const std::string& text, const std::string& path) {
       continue;
     }
     LayerSpec layer = parse_layer(*t, path, i, default_source, base, problems);
-    if (layer.casing_width > 0) scene.layers.push_back(casing_of(layer));
+    if (layer.casing_width > 0) scene.layers.push_back(casing_layer(layer));
     scene.layers.push_back(std::move(layer));
   }
   if (problems.list.empty()) check_layer_names(scene, path);

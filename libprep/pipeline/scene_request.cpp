@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "decal/format.hpp"
 #include "prep/error.hpp"
@@ -18,7 +20,30 @@ namespace {
 
 bool any_given(const FilelessLayer& l) {
   return !l.layer.empty() || !l.where.empty() || !l.sql.empty() || !l.kind.empty() || l.width ||
-         !l.corner.empty() || !l.outline_mode.empty() || !l.color.empty() || l.dynamic;
+         !l.corner.empty() || !l.outline_mode.empty() || !l.color.empty() || l.dynamic ||
+         !l.name.empty() || !l.color_attribute.empty() || !l.color_ramp.empty() ||
+         !l.dash.empty() || l.casing_width || !l.casing_color.empty();
+}
+
+// "a,b,c": finite numbers, nothing else.
+std::vector<double> numbers_of(const std::string& text, const char* option) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    size_t used = 0;
+    double x = 0;
+    try {
+      x = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || !std::isfinite(x))
+      fail<usage_error>(
+          kNoStage, std::string(option) + " '" + text + "': '" + item + "' is not a finite number");
+    v.push_back(x);
+  }
+  return v;
 }
 
 Extent parse_extent(const std::string& text) {
@@ -48,6 +73,45 @@ void parse_grid(const std::string& text, ModelOptions& b) {
   }
   b.grid_nx = nx;
   b.grid_ny = ny;
+}
+
+// The scene-file keys of a layer's style in the file-less form, checked
+// as the scene file checks them, each message naming its option.
+void fileless_style(const FilelessLayer& a, LayerSpec& l) {
+  auto option = [](const char* name, auto&& parse) {
+    try {
+      return parse();
+    } catch (const usage_error& e) {
+      fail<usage_error>(kNoStage, std::string(name) + " " + e.what());
+    }
+  };
+  const bool line = l.kind != DecalKind::polygon;
+  if (!a.name.empty()) l.name = a.name;
+  if (!a.color_attribute.empty() || !a.color_ramp.empty()) {
+    if (a.color_attribute.empty() || a.color_ramp.empty())
+      fail<usage_error>(kNoStage, "--color-attribute and --color-ramp go together");
+    l.style.color.attribute = a.color_attribute;
+    l.style.color.ramp = option("--color-ramp:", [&] { return parse_color_stops(a.color_ramp); });
+  }
+  if (!a.dash.empty()) {
+    if (!line) fail<usage_error>(kNoStage, "--dash needs --kind line or outline");
+    const std::vector<double> v = numbers_of(a.dash, "--dash");
+    const std::string problem = dash_problem(v);
+    if (!problem.empty()) fail<usage_error>(kNoStage, "--dash '" + a.dash + "': " + problem);
+    l.dash = v;
+  }
+  if (a.casing_width) {
+    if (!(*a.casing_width > 0) || !std::isfinite(*a.casing_width))
+      fail<usage_error>(kNoStage, "--casing-width: must be > 0");
+    if (!line || l.style.outline != decal::OutlineMode::normal)
+      fail<usage_error>(kNoStage,
+                        "--casing-width needs --kind line or outline with --outline-mode normal");
+    l.casing_width = *a.casing_width;
+  }
+  if (!a.casing_color.empty()) {
+    if (!a.casing_width) fail<usage_error>(kNoStage, "--casing-color needs --casing-width");
+    l.casing_rgba = option("--casing-color:", [&] { return parse_color(a.casing_color); });
+  }
 }
 
 // The file-less form: one layer of one GDAL source.
@@ -83,6 +147,7 @@ LayerSpec fileless_layer(const std::string& source, const FilelessLayer& a) {
     fail<usage_error>(kNoStage, "--sql replaces --layer and --where; give one or the other");
   if (l.style.outline != decal::OutlineMode::normal && l.style.corner != decal::CornerStyle::miter)
     fail<usage_error>(kNoStage, "--outline-mode inset/offset needs --corner miter");
+  fileless_style(a, l);
   return l;
 }
 
@@ -162,13 +227,16 @@ BuildSpec scene_spec(const SceneRequest& request) {
     if (any_given(request.layer)) {
       fail<usage_error>(
           kBuildStage,
-          "--layer/--where/--sql/--kind/--width/--corner/--outline-mode/--color/--dynamic "
+          "--layer/--where/--sql/--kind/--width/--corner/--outline-mode/--color/--dynamic/"
+          "--name/--color-attribute/--color-ramp/--dash/--casing-width/--casing-color "
           "describe the single layer of the file-less form; with a scene file set them in " +
               request.input);
     }
     scene = load_scene_file(request.input);
   } else {
-    scene.layers.push_back(fileless_layer(request.input, request.layer));
+    LayerSpec layer = fileless_layer(request.input, request.layer);
+    if (layer.casing_width > 0) scene.layers.push_back(casing_layer(layer));
+    scene.layers.push_back(std::move(layer));
   }
   apply_overrides(request.overrides, scene);
   // Overview levels are tiles of a tileset (formats/SPEC.md "Overview levels").

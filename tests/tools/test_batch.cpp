@@ -46,6 +46,74 @@ TEST(BuildSpec, TheFilelessFormIsOneLayerNamedAfterTheSourceLayerWithDynamicLine
   EXPECT_EQ(prep::scene_spec(r).layers[0].name, "roads");
 }
 
+// The scene keys the file-less form takes as options (--name,
+// --color-attribute, --color-ramp, --dash, --casing-width, --casing-color)
+// give the layers the scene file gives for the same keys; a bad value or a
+// combination the scene file refuses is a usage error naming the option.
+TEST(BuildSpec, TheFilelessFormSetsNameRampDashAndCasingAsTheSceneFileDoes) {
+  TempDir dir("decalprep_fileless_keys");
+  const std::string scene = dir.file("keys.toml");
+  write_text(scene,
+             "source = \"roads.shp\"\n[[layer]]\nname = \"streets\"\nkind = \"line\"\n"
+             "width = 6\ncolor_attribute = \"lanes\"\n"
+             "color_ramp = [[1, \"#ff0000\"], [4, \"#00ff00cc\"]]\ndash = [8, 4]\n"
+             "casing_width = 1.5\ncasing_color = \"#101010\"\n");
+  prep::SceneRequest from_file;
+  from_file.input = scene;
+  const prep::BuildSpec want = prep::scene_spec(from_file);
+
+  prep::SceneRequest r;
+  r.input = dir.file("roads.shp");
+  r.layer.kind = "line";
+  r.layer.width = 6;
+  r.layer.name = "streets";
+  r.layer.color_attribute = "lanes";
+  r.layer.color_ramp = "1:#ff0000,4:#00ff00cc";
+  r.layer.dash = "8,4";
+  r.layer.casing_width = 1.5;
+  r.layer.casing_color = "#101010";
+  const prep::BuildSpec got = prep::scene_spec(r);
+  ASSERT_EQ(got.layers.size(), want.layers.size());
+  ASSERT_EQ(got.layers.size(), 2u);  // the casing, then the layer
+  for (size_t i = 0; i < got.layers.size(); ++i) {
+    const prep::LayerSpec &g = got.layers[i], &w = want.layers[i];
+    EXPECT_EQ(g.name, w.name) << i;
+    EXPECT_EQ(g.casing_of, w.casing_of) << i;
+    EXPECT_EQ(g.style.width, w.style.width) << i;
+    EXPECT_EQ(g.style.color.rgba, w.style.color.rgba) << i;
+    EXPECT_EQ(g.style.color.attribute, w.style.color.attribute) << i;
+    ASSERT_EQ(g.style.color.ramp.size(), w.style.color.ramp.size()) << i;
+    for (size_t k = 0; k < g.style.color.ramp.size(); ++k) {
+      EXPECT_EQ(g.style.color.ramp[k].value, w.style.color.ramp[k].value) << i;
+      EXPECT_EQ(g.style.color.ramp[k].rgba, w.style.color.ramp[k].rgba) << i;
+    }
+    EXPECT_EQ(g.dash, w.dash) << i;
+    EXPECT_EQ(g.casing_width, w.casing_width) << i;
+    EXPECT_EQ(g.casing_rgba, w.casing_rgba) << i;
+  }
+  EXPECT_EQ(got.layers[0].name, "streets.casing");
+
+  auto refused = [&](auto change, const std::string& needle) {
+    prep::SceneRequest bad = r;
+    change(bad.layer);
+    try {
+      prep::scene_spec(bad);
+      ADD_FAILURE() << "accepted; wanted an error with " << needle;
+    } catch (const prep::usage_error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  refused([](prep::FilelessLayer& l) { l.dash = "8"; }, "--dash '8': expected an even count");
+  refused([](prep::FilelessLayer& l) { l.dash = "8,x"; }, "'x' is not a finite number");
+  refused([](prep::FilelessLayer& l) { l.color_ramp = "4:#ff0000,1:#00ff00"; },
+          "--color-ramp: stop values must increase");
+  refused([](prep::FilelessLayer& l) { l.color_attribute.clear(); },
+          "--color-attribute and --color-ramp go together");
+  refused([](prep::FilelessLayer& l) { l.casing_width.reset(); },
+          "--casing-color needs --casing-width");
+  refused([](prep::FilelessLayer& l) { l.kind = "polygon"; }, "--dash needs --kind line");
+}
+
 TEST(BuildSpec, OverridesReplaceTheSceneFilesValuesAndABadOneNamesItsOption) {
   TempDir dir("decalprep_scene_spec");
   prep::SceneRequest r;

@@ -27,10 +27,7 @@ struct BuildArgs {
   std::string input, output, report;
   std::vector<std::string> inputs;  // as given; several (or a folder): batch mode
   unsigned jobs = 0;                // --jobs; 0: not given (default_tile_jobs, or 1 in a batch)
-  // file-less layer options
-  std::string layer, where, sql, kind, corner, outline_mode, color;
-  std::optional<double> width;
-  bool dynamic = false;
+  prep::FilelessLayer fileless;     // the file-less form's layer options
   // scene-wide overrides
   std::string crs, assume_crs, extent, extent_crs, dem, grid;
   std::optional<double> resolution, tile_size;
@@ -58,15 +55,7 @@ std::string progress_text(const BuildArgs& a) {
 prep::SceneRequest scene_request(const BuildArgs& a, const std::string& input) {
   prep::SceneRequest r;
   r.input = input;
-  r.layer.layer = a.layer;
-  r.layer.where = a.where;
-  r.layer.sql = a.sql;
-  r.layer.kind = a.kind;
-  r.layer.corner = a.corner;
-  r.layer.outline_mode = a.outline_mode;
-  r.layer.color = a.color;
-  r.layer.width = a.width;
-  r.layer.dynamic = a.dynamic;
+  r.layer = a.fileless;
   prep::SceneOverrides& o = r.overrides;
   o.crs = a.crs;
   o.assume_crs = a.assume_crs;
@@ -406,17 +395,39 @@ const decalprep::CommandRegistrar kBuild(10, kBuildHelp, [](CLI::App* cmd) {
                   "Tileset: write DIR/plan.json with the command lines of prepare, N tiles jobs "
                   "and finalize; build nothing");
   auto* g = "File-less form (one layer)";
-  cmd->add_option("--layer", args->layer, "Source layer name (default: the first)")->group(g);
-  cmd->add_option("--where", args->where, "OGR attribute filter")->group(g);
-  cmd->add_option("--sql", args->sql, "OGR SQL (replaces --layer/--where)")->group(g);
-  cmd->add_option("--kind", args->kind, "polygon | line | outline")->group(g);
-  cmd->add_option("--width", args->width, "Line width: ground metres, or pixels with --dynamic")
+  cmd->add_option("--layer", args->fileless.layer, "Source layer name (default: the first)")
       ->group(g);
-  cmd->add_option("--corner", args->corner, "round | miter | bevel")->group(g);
-  cmd->add_option("--outline-mode", args->outline_mode, "normal | inset | offset (needs miter)")
+  cmd->add_option("--where", args->fileless.where, "OGR attribute filter")->group(g);
+  cmd->add_option("--sql", args->fileless.sql, "OGR SQL (replaces --layer/--where)")->group(g);
+  cmd->add_option("--kind", args->fileless.kind, "polygon | line | outline")->group(g);
+  cmd->add_option("--width", args->fileless.width,
+                  "Line width: ground metres, or pixels with --dynamic")
       ->group(g);
-  cmd->add_option("--color", args->color, "#rrggbb or #rrggbbaa")->group(g);
-  cmd->add_flag("--dynamic", args->dynamic, "Dynamic lines: width in pixels, terrain-matched")
+  cmd->add_option("--corner", args->fileless.corner, "round | miter | bevel")->group(g);
+  cmd->add_option("--outline-mode", args->fileless.outline_mode,
+                  "normal | inset | offset (needs miter)")
+      ->group(g);
+  cmd->add_option("--color", args->fileless.color, "#rrggbb or #rrggbbaa")->group(g);
+  cmd->add_option("--name", args->fileless.name, "Layer name (default: --layer, else layer0)")
+      ->group(g);
+  cmd->add_option("--color-attribute", args->fileless.color_attribute,
+                  "Attribute whose value picks the colour from --color-ramp")
+      ->group(g);
+  cmd->add_option("--color-ramp", args->fileless.color_ramp,
+                  "Colour ramp value:#rrggbb[aa],value:#rrggbb[aa],... (values increasing)")
+      ->group(g);
+  cmd->add_option("--dash", args->fileless.dash,
+                  "Dash pattern on,off,... (metres; pixels with --dynamic); lines only")
+      ->group(g);
+  cmd->add_option("--casing-width", args->fileless.casing_width,
+                  "A casing this much wider on each side of the lines (metres; pixels with "
+                  "--dynamic)")
+      ->group(g);
+  cmd->add_option("--casing-color", args->fileless.casing_color,
+                  "Casing colour #rrggbb[aa] (default: the line colour at 60% brightness)")
+      ->group(g);
+  cmd->add_flag("--dynamic", args->fileless.dynamic,
+                "Dynamic lines: width in pixels, terrain-matched")
       ->group(g);
   auto* s = "Scene (override the scene file)";
   cmd->add_option("--crs", args->crs,

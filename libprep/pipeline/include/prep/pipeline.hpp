@@ -46,10 +46,13 @@ BuildResult run_build(const BuildSpec& scene, const BuildRequest& request);
 // message a single build gives.
 
 // The file-less form's one layer (--layer, --where, --sql, --kind, --width,
-// --corner, --outline-mode, --color, --dynamic); empty or unset: not given.
+// --corner, --outline-mode, --color, --dynamic, and the scene keys --name,
+// --color-attribute, --color-ramp "v:#rrggbb,...", --dash "on,off,...",
+// --casing-width, --casing-color); empty or unset: not given.
 struct FilelessLayer {
   std::string layer, where, sql, kind, corner, outline_mode, color;
-  std::optional<double> width;
+  std::string name, color_attribute, color_ramp, dash, casing_color;
+  std::optional<double> width, casing_width;
   bool dynamic = false;
 };
 
@@ -203,6 +206,20 @@ std::string resolve_scene_path(const std::string& path, const std::string& base_
 // Parses a colour: "#rrggbb", "#rrggbbaa" or a CSS-like name list is not
 // supported. Returns RGBA with R in the low byte. Throws usage_error.
 uint32_t parse_color(const std::string& text);
+
+// Parses "value:#rrggbb[aa],value:#rrggbb[aa],..." (values increasing): a
+// colour ramp's stops, as `render --ramp` and `build --color-ramp` take
+// them. Throws usage_error saying what is wrong.
+std::vector<ColorStop> parse_color_stops(const std::string& text);
+
+// What is wrong with dash lengths [on, off, ...] (an even count >= 2 of
+// finite lengths > 0), or "" when nothing is.
+std::string dash_problem(const std::vector<double>& dash);
+
+// The casing layer of a layer with casing_width > 0: the same features,
+// casing_width wider on each side, in casing_rgba (default: the layer's
+// colour at 60% brightness), solid, named NAME.casing (LayerSpec::casing_of).
+LayerSpec casing_layer(const LayerSpec& layer);
 
 // Parses "round|miter|bevel", "normal|inset|offset", "polygon|line|outline".
 // Throw usage_error naming the accepted values.
