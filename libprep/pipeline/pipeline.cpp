@@ -445,12 +445,16 @@ std::string tileset_summary(const tiling::TilesetOutcome& t) {
   std::string s = std::to_string(t.tiles) + " tiles (" + std::to_string(t.built) + " built, " +
                   std::to_string(t.reused) + " kept from an earlier run), " +
                   std::to_string(t.bytes) + " bytes";
-  if (t.levels == 0) return s;
-  return s + " at full detail; overview levels 1.." + std::to_string(t.levels) + ": " +
+  if (t.levels > 0)
+    s += " at full detail; overview levels 1.." + std::to_string(t.levels) + ": " +
          std::to_string(t.level_tiles) + " tiles (" + std::to_string(t.level_built) + " built, " +
          std::to_string(t.level_reused) + " kept), " + std::to_string(t.level_bytes) + " bytes; " +
          std::to_string(t.tiles + t.level_tiles) + " tiles, " +
          std::to_string(t.bytes + t.level_bytes) + " bytes in all";
+  // The progress counts candidate tiles; say how many held no part.
+  const size_t empty = t.empty + t.level_empty;
+  return s + "; " + std::to_string(t.tiles + t.level_tiles + empty) + " candidate tiles, " +
+         std::to_string(empty) + " of them with no part";
 }
 
 // One step of a tileset build (BuildRequest::step), in a process of its own.
@@ -557,7 +561,7 @@ BuildResult run_tileset_step(const BuildSpec& scene, const BuildRequest& request
       const tiling::TilesetOutcome t = tiling::finalize_tileset(scene, request);
       report["tileset"] = tileset_report(scene, t);
       result.package_written = true;
-      say("step finalize: " + tileset_summary(t) + " in " + request.output);
+      say("step finalize: " + tileset_summary(t) + "; in " + request.output);
       break;
     }
     case Step::all: break;
@@ -729,7 +733,7 @@ tiling::TilesetOutcome build_tileset(const BuildSpec& scene, const BuildRequest&
     request.progress->message(
         request.progress->mode() == ProgressMode::json
             ? j.dump()
-            : stage_message(kTilesetStage, tileset_summary(tileset) + " in " + request.output));
+            : stage_message(kTilesetStage, tileset_summary(tileset) + "; in " + request.output));
   }
   return tileset;
 }

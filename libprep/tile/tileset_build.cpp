@@ -641,7 +641,10 @@ TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, 
   // A file at a tile's path is replaced only when a tileset build wrote it.
   const std::set<std::string> owned = owned_files(paths);
 
-  ProgressStage stage(request.progress, "tiles", items.size(), "tiles");
+  // Counted in candidate tiles: every tile of every level that a part's box
+  // (with its margin) reaches; those left with no part write no package,
+  // and the closing line says how many they were.
+  ProgressStage stage(request.progress, "tiles", items.size(), "candidate tiles");
   TileStepOutcome out;
   std::atomic<size_t> built{0}, reused{0}, empty{0};
   DemTally dem;

@@ -22,7 +22,8 @@ Checks:
   tolerance);
 - info lists the levels, verify checks their tiles, dump --level opens one;
 - info's tiles line and a build's closing line give the level tiles and
-  bytes and the totals with them, as tileset.json lists them;
+  bytes and the totals with them, as tileset.json lists them, and the
+  closing line the candidate tiles the progress counted;
 - read_tileset_index refuses a bad level file path, a wrong level tile
   size and non-consecutive levels, naming the field; a 1.0 index reads;
 - --levels auto stops at a level of at most 4 tiles; --levels without
@@ -282,11 +283,16 @@ def main():
             line, info.stdout[:400]))
     again = subprocess.run(base + ["--jobs", "2", "-o", os.path.join(work, "summary"), "--progress",
                                    "plain"], capture_output=True, text=True)
+    # The progress counts candidate tiles; the closing line gives the same
+    # count and how many of them held no part (the rest are the packages).
+    cand = re.findall(r"^tiles: (\d+)/(\d+) candidate tiles", again.stderr, re.M)
+    total = int(cand[-1][1]) if cand else -1
     said = ("tileset: %d tiles (%d built, 0 kept from an earlier run), %d bytes at full detail; "
             "overview levels 1..%d: %d tiles (%d built, 0 kept), %d bytes; %d tiles, %d bytes in "
-            "all in %s" % (n0, n0, b0, len(ix["levels"]), nl, nl, bl, n0 + nl, b0 + bl,
-                           os.path.join(work, "summary")))
-    if again.returncode != 0 or said not in again.stderr:
+            "all; %d candidate tiles, %d of them with no part; in %s" % (
+                n0, n0, b0, len(ix["levels"]), nl, nl, bl, n0 + nl, b0 + bl, total,
+                total - n0 - nl, os.path.join(work, "summary")))
+    if again.returncode != 0 or total < n0 + nl or said not in again.stderr:
         failures.append("the build's closing line: wanted %r in %s" % (said, again.stderr[-600:]))
     ver = subprocess.run([tool, "verify", ref], capture_output=True, text=True)
     if ver.returncode != 0 or "overview levels" not in ver.stdout:
