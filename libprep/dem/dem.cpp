@@ -55,6 +55,44 @@ struct OpenedDem {
   bool assumed = false;
 };
 
+// An archive path given without the file inside it (/vsizip/N43E007.hgt.zip,
+// /vsitar/tiles.tar): the one raster GDAL identifies among its entries, as
+// the full /vsi path; "" when the path is not such an archive. Two or more
+// rasters, or none: input_error listing what the archive holds.
+std::string raster_in_archive(const std::string& path) {
+  static constexpr std::string_view kArchives[] = {"/vsizip/", "/vsitar/", "/vsi7z/"};
+  if (std::none_of(std::begin(kArchives), std::end(kArchives),
+                   [&](std::string_view p) { return path.rfind(p, 0) == 0; }))
+    return {};
+  // Not VSIStatL on the archive: GDAL reports an archive of one file as
+  // that file, whose name (N43E007.hgt.zip) no raster driver takes.
+  VSIStatBufL st{};
+  char** entries = VSIReadDirRecursive(path.c_str());
+  if (!entries) return {};
+  std::vector<std::string> all, rasters;
+  const std::string base = path.back() == '/' ? path : path + "/";
+  for (char** e = entries; e && *e; ++e) {
+    const std::string full = base + *e;
+    if (VSIStatL(full.c_str(), &st) != 0 || VSI_ISDIR(st.st_mode)) continue;
+    all.push_back(*e);
+    if (GDALIdentifyDriver(full.c_str(), nullptr)) rasters.push_back(full);
+  }
+  CSLDestroy(entries);
+  if (rasters.size() == 1) return rasters[0];
+  auto list = [](const std::vector<std::string>& v) {
+    std::string s;
+    for (size_t i = 0; i < v.size() && i < 20; ++i) s += (i ? ", " : "") + v[i];
+    if (v.size() > 20) s += ", ... (" + std::to_string(v.size() - 20) + " more)";
+    return s;
+  };
+  if (rasters.empty())
+    fail<input_error>(kDemStage, path + ": the archive holds no raster GDAL can open (entries: " +
+                                     (all.empty() ? std::string("none") : list(all)) + ")");
+  fail<input_error>(kDemStage, path + ": the archive holds " + std::to_string(rasters.size()) +
+                                   " rasters; name one, e.g. " + rasters[0] +
+                                   " (they are: " + list(rasters) + ")");
+}
+
 OpenedDem open_dem(const DemSpec& spec) {
   static std::once_flag once;
   std::call_once(once, [] { GDALAllRegister(); });
@@ -77,10 +115,16 @@ OpenedDem open_dem(const DemSpec& spec) {
     drivers.assign(std::begin(kPackageDemDrivers), std::end(kPackageDemDrivers));
     drivers.push_back(nullptr);
   }
-  d.ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY,
+  // An archive named without the file inside: its one raster.
+  const std::string inner = raster_in_archive(path);
+  const std::string& open_path = inner.empty() ? path : inner;
+  CPLErrorReset();
+  d.ds.reset(GDALDataset::Open(open_path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY,
                                drivers.empty() ? nullptr : drivers.data()));
+  const std::string why = CPLGetLastErrorMsg();
   if (!d.ds)
-    fail<gdal_error>(kDemStage, path + ": cannot open DEM: " + CPLGetLastErrorMsg() +
+    fail<gdal_error>(kDemStage, path + ": cannot open DEM: " +
+                                    (why.empty() ? "GDAL recognises no raster format in it" : why) +
                                     (spec.named_by_package
                                          ? " (a DEM the package names is opened only as one of "
                                            "the self-contained formats GeoTIFF, SRTM .hgt, ASCII "

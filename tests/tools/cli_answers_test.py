@@ -19,7 +19,10 @@ On the checked-in package tests/formats/legacy/golden_v1_2.decals:
   widened extent draws (same PNG bytes); `--size W` takes the height from
   the extent's aspect, with square pixels; `--stretch` keeps the extent as
   given (pixels dx/W by dy/H, no note); `--size W` without `--extent` is
-  exit 2.
+  exit 2;
+- `--dem /vsizip/ARCHIVE` without the file inside opens the archive's one
+  raster (the same picture as naming it), and an archive of two rasters or
+  of none is exit 3 listing what it holds.
 """
 import json
 import os
@@ -96,6 +99,37 @@ def square_pixels(tool, pkg, work, info, expect):
                                                                              r.stderr))
 
 
+def dem_archives(tool, root, pkg, work, expect):
+    """--dem /vsizip/ARCHIVE without the file inside."""
+    import zipfile
+    archive = os.path.join(root, "samples", "monaco", "N43E007.hgt.zip")
+    base = [tool, "render", pkg, "--cpu", "--size", "64x36"]
+    named = os.path.join(work, "dem_named.png")
+    whole = os.path.join(work, "dem_archive.png")
+    r1 = run(base + ["--dem", "/vsizip/" + archive + "/N43E007.hgt", "-o", named])
+    r2 = run(base + ["--dem", "/vsizip/" + archive, "-o", whole])
+    expect("--dem /vsizip/ARCHIVE with one raster opens it: the picture of the named file",
+           r1.returncode == 0 and r2.returncode == 0 and
+           open(named, "rb").read() == open(whole, "rb").read(), r1.stderr + r2.stderr)
+    two = os.path.join(work, "two.zip")
+    data = zipfile.ZipFile(archive).read("N43E007.hgt")
+    with zipfile.ZipFile(two, "w") as z:
+        z.writestr("a/N43E007.hgt", data)
+        z.writestr("b/N43E007.hgt", data)
+    r = run(base + ["--dem", "/vsizip/" + two, "-o", os.path.join(work, "two.png")])
+    expect("an archive of two rasters: exit 3 naming both and asking for one",
+           r.returncode == 3 and "holds 2 rasters; name one" in r.stderr and
+           "a/N43E007.hgt" in r.stderr and "b/N43E007.hgt" in r.stderr,
+           "exit %d: %s" % (r.returncode, r.stderr))
+    none = os.path.join(work, "none.zip")
+    with zipfile.ZipFile(none, "w") as z:
+        z.writestr("readme.txt", "no raster here")
+    r = run(base + ["--dem", "/vsizip/" + none, "-o", os.path.join(work, "none.png")])
+    expect("an archive without a raster: exit 3 listing its entries",
+           r.returncode == 3 and "holds no raster GDAL can open (entries: readme.txt)" in r.stderr,
+           "exit %d: %s" % (r.returncode, r.stderr))
+
+
 def main(tool, root, work):
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
@@ -164,6 +198,7 @@ def main(tool, root, work):
                not os.path.exists(os.path.join(work, "y.png")), str(os.listdir(work)))
 
     square_pixels(tool, pkg, work, info, expect)
+    dem_archives(tool, root, pkg, work, expect)
 
     if failures:
         print("FAIL: %d checks" % len(failures))
