@@ -88,25 +88,13 @@ std::pair<uint32_t, uint32_t> parse_size(const std::string& text) {
 
 // `n` comma-separated finite numbers (--extent, --eye, --target).
 std::vector<double> numbers(const std::string& s, size_t n, const char* what) {
-  std::vector<double> v;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      size_t used = 0;
-      v.push_back(std::stod(item, &used));
-      if (used != item.size()) throw std::invalid_argument(item);
-      // NaN or infinity gives no camera and no view: a blank image.
-      if (!std::isfinite(v.back())) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      bad_option(std::string(what) + " '" + s + "' is not " + std::to_string(n) +
-                 " finite numbers");
-    }
-  }
-  if (v.size() != n)
+  const std::optional<std::vector<double>> v = parse_number_list(s);
+  if (!v)
+    bad_option(std::string(what) + " '" + s + "' is not " + std::to_string(n) + " finite numbers");
+  if (v->size() != n)
     bad_option(std::string(what) + " '" + s + "' needs " + std::to_string(n) +
                " comma-separated numbers");
-  return v;
+  return *v;
 }
 
 // "LAYER=value:#rrggbb[aa],value:#rrggbb[aa],..." with values increasing.

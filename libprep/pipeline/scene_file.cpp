@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string_view>
 #include <utility>
@@ -427,6 +428,23 @@ LayerSpec casing_layer(const LayerSpec& layer) {
   c.casing_of = layer.name;
   c.dash.clear();  // the casing stays solid under a dashed line
   return c;
+}
+
+std::optional<std::vector<double>> parse_number_list(const std::string& text) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    size_t used = 0;
+    try {
+      v.push_back(std::stod(item, &used));
+    } catch (const std::exception&) {
+      return std::nullopt;
+    }
+    // NaN or infinity is no coordinate and no length.
+    if (used != item.size() || !std::isfinite(v.back())) return std::nullopt;
+  }
+  return v;
 }
 
 std::string dash_problem(const std::vector<double>& dash) {

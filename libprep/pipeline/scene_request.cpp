@@ -25,27 +25,6 @@ bool any_given(const FilelessLayer& l) {
          !l.dash.empty() || l.casing_width || !l.casing_color.empty();
 }
 
-// "a,b,c": finite numbers, nothing else.
-std::vector<double> numbers_of(const std::string& text, const char* option) {
-  std::vector<double> v;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    size_t used = 0;
-    double x = 0;
-    try {
-      x = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || !std::isfinite(x))
-      fail<usage_error>(
-          kNoStage, std::string(option) + " '" + text + "': '" + item + "' is not a finite number");
-    v.push_back(x);
-  }
-  return v;
-}
-
 Extent parse_extent(const std::string& text) {
   Extent e;
   char c1 = 0, c2 = 0, c3 = 0;
@@ -95,7 +74,9 @@ void fileless_style(const FilelessLayer& a, LayerSpec& l) {
   }
   if (!a.dash.empty()) {
     if (!line) fail<usage_error>(kNoStage, "--dash needs --kind line or outline");
-    const std::vector<double> v = numbers_of(a.dash, "--dash");
+    const std::optional<std::vector<double>> given = parse_number_list(a.dash);
+    if (!given) fail<usage_error>(kNoStage, "--dash '" + a.dash + "': not a list of numbers");
+    const std::vector<double>& v = *given;
     const std::string problem = dash_problem(v);
     if (!problem.empty()) fail<usage_error>(kNoStage, "--dash '" + a.dash + "': " + problem);
     l.dash = v;

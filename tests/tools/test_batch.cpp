@@ -104,7 +104,7 @@ TEST(BuildSpec, TheFilelessFormSetsNameRampDashAndCasingAsTheSceneFileDoes) {
     }
   };
   refused([](prep::FilelessLayer& l) { l.dash = "8"; }, "--dash '8': expected an even count");
-  refused([](prep::FilelessLayer& l) { l.dash = "8,x"; }, "'x' is not a finite number");
+  refused([](prep::FilelessLayer& l) { l.dash = "8,x"; }, "--dash '8,x': not a list of numbers");
   refused([](prep::FilelessLayer& l) { l.color_ramp = "4:#ff0000,1:#00ff00"; },
           "--color-ramp: stop values must increase");
   refused([](prep::FilelessLayer& l) { l.color_attribute.clear(); },

@@ -212,6 +212,10 @@ uint32_t parse_color(const std::string& text);
 // them. Throws usage_error saying what is wrong.
 std::vector<ColorStop> parse_color_stops(const std::string& text);
 
+// "a,b,c": comma-separated finite numbers with nothing else; nullopt when
+// an item is not one (render's --extent/--eye/--target, build's --dash).
+std::optional<std::vector<double>> parse_number_list(const std::string& text);
+
 // What is wrong with dash lengths [on, off, ...] (an even count >= 2 of
 // finite lengths > 0), or "" when nothing is.
 std::string dash_problem(const std::vector<double>& dash);
