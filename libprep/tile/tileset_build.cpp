@@ -626,6 +626,9 @@ HeldParts write_tile(const SceneFeatures& tile, const BuildSpec& spec, const Bui
 
 }  // namespace
 
+// Progress counts candidate tiles: every tile of every level that a part's
+// box (with its margin) reaches; one left with no part writes no package
+// (the build's closing line says how many there were).
 TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, size_t part,
                             size_t parts, std::vector<MemoryEstimate>* estimates) {
   const WorkPaths paths{request.output};
@@ -641,9 +644,6 @@ TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, 
   // A file at a tile's path is replaced only when a tileset build wrote it.
   const std::set<std::string> owned = owned_files(paths);
 
-  // Counted in candidate tiles: every tile of every level that a part's box
-  // (with its margin) reaches; those left with no part write no package,
-  // and the closing line says how many they were.
   ProgressStage stage(request.progress, "tiles", items.size(), "candidate tiles");
   TileStepOutcome out;
   std::atomic<size_t> built{0}, reused{0}, empty{0};
