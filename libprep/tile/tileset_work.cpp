@@ -101,7 +101,15 @@ PartWriter::PartWriter(const WorkPaths& paths) : impl_(std::make_unique<Impl>())
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");
   if (!drv) fail<output_error>(kTilesetStage, "GDAL has no GPKG driver");
   std::remove(impl_->path.c_str());
+  // PRAGMA synchronous = OFF (read when the file is opened): no fsync per
+  // chunk's transaction. SQLite stays consistent when the process dies; the
+  // work folder is an intermediate that nothing fsyncs (plan.json,
+  // boxes.bin neither), so a machine that loses power mid-build reruns the
+  // prepare step either way. 17% of the prepare step of 10^7 vertices of
+  // bench/tileset_scale.py (4.95 -> 4.1 s).
+  CPLSetThreadLocalConfigOption("OGR_SQLITE_SYNCHRONOUS", "OFF");
   impl_->ds = drv->Create(impl_->path.c_str(), 0, 0, 0, GDT_Unknown, nullptr);
+  CPLSetThreadLocalConfigOption("OGR_SQLITE_SYNCHRONOUS", nullptr);
   if (!impl_->ds)
     fail<output_error>(kTilesetStage, "cannot create " + impl_->path + ": " + CPLGetLastErrorMsg());
   char** opts = CSLSetNameValue(nullptr, "SPATIAL_INDEX", "YES");
