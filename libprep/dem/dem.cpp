@@ -66,13 +66,13 @@ std::string raster_in_archive(const std::string& path) {
     return {};
   // Not VSIStatL on the archive: GDAL reports an archive of one file as
   // that file, whose name (N43E007.hgt.zip) no raster driver takes.
-  VSIStatBufL st{};
   char** entries = VSIReadDirRecursive(path.c_str());
   if (!entries) return {};
   std::vector<std::string> all, rasters;
   const std::string base = path.back() == '/' ? path : path + "/";
-  for (char** e = entries; e && *e; ++e) {
+  for (char** e = entries; *e; ++e) {
     const std::string full = base + *e;
+    VSIStatBufL st{};
     if (VSIStatL(full.c_str(), &st) != 0 || VSI_ISDIR(st.st_mode)) continue;
     all.push_back(*e);
     if (GDALIdentifyDriver(full.c_str(), nullptr)) rasters.push_back(full);

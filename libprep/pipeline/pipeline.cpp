@@ -292,14 +292,10 @@ std::vector<std::string> width_warnings(const BuildSpec& scene) {
   auto check = [&](const LayerSpec& l, const char* key, double w, double lo, double hi,
                    const char* unit) {
     if (w >= lo && w <= hi) return;
-    const std::string where =
-        l.scene_line > 0 && !scene.scene_path.empty()
-            ? " (" + scene.scene_path + ":" + std::to_string(l.scene_line) + ")"
-            : std::string();
     char m[200];
     std::snprintf(m, sizeof m, ": %s %.6g %s is outside the plausible %.6g..%.6g %s of a %s line",
                   key, w, unit, lo, hi, unit, l.dynamic ? "dynamic" : "static");
-    out.push_back("layer '" + l.name + "'" + where + m);
+    out.push_back("layer '" + l.name + "'" + layer_place(scene, l) + m);
   };
   for (const LayerSpec& l : scene.layers) {
     if (l.kind == DecalKind::polygon || !l.casing_of.empty()) continue;

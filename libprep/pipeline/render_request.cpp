@@ -71,14 +71,11 @@ std::pair<uint32_t, uint32_t> parse_size(const std::string& text) {
           std::to_string(kMaxImageSide));
     return v;
   };
+  const std::string_view all(text);
   const size_t x = text.find('x');
   // W or Wx: the height comes from the --extent's aspect (square_pixels).
-  if (x == std::string::npos || x + 1 == text.size()) {
-    const std::string_view all(text);
-    const uint64_t w = side(all.substr(0, x == std::string::npos ? all.size() : x), "the width");
-    return {uint32_t(w), 0};
-  }
-  const std::string_view all(text);
+  if (x == std::string::npos || x + 1 == text.size())
+    return {uint32_t(side(all.substr(0, x), "the width")), 0};
   const uint64_t w = side(all.substr(0, x), "the width"), h = side(all.substr(x + 1), "the height");
   if (w * h > kMaxImagePixels)
     bad(std::to_string(w * h) + " pixels exceed the maximum of " + std::to_string(kMaxImagePixels) +

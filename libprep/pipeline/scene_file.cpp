@@ -30,9 +30,13 @@ struct KeyRef {
   int line;
 };
 
+// "scene.toml:12: layer[2].kind: what".
+std::string key_message(const KeyRef& ref, const std::string& what) {
+  return ref.file + ":" + std::to_string(ref.line) + ": " + ref.key + ": " + what;
+}
+
 [[noreturn]] void fail_key(const KeyRef& ref, const std::string& what) {
-  prep::fail<scene_error>(kNoStage,
-                          ref.file + ":" + std::to_string(ref.line) + ": " + ref.key + ": " + what);
+  prep::fail<scene_error>(kNoStage, key_message(ref, what));
 }
 
 int line_of(const toml::node& n) {
@@ -60,8 +64,7 @@ struct Problems {
   // A problem found outside a key's parse (a layer's keys that do not go
   // together).
   void add(const KeyRef& ref, const std::string& what) {
-    list.emplace_back(ref.line,
-                      ref.file + ":" + std::to_string(ref.line) + ": " + ref.key + ": " + what);
+    list.emplace_back(ref.line, key_message(ref, what));
   }
 };
 
@@ -670,8 +673,7 @@ BuildSpec parse_scene(const std::string& text, const std::string& path) {
                  [&] { parse_root_key(key, v, ref, base, problems, scene, layers, layers_line); });
   }
   if (!layers || layers->empty()) {
-    problems.list.emplace_back(layers_line, path + ":" + std::to_string(layers_line) +
-                                                ": layer: the scene has no [[layer]] table");
+    problems.add({path, "layer", layers_line}, "the scene has no [[layer]] table");
     layers = nullptr;
   }
   for (size_t i = 0; layers && i < layers->size(); ++i) {

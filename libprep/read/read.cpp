@@ -483,10 +483,7 @@ DatasetPtr open_vector_source(const LayerSpec& spec, ErrorCapture& errors) {
 // A filter's scene layer for its error: "scene layer 'roads'
 // (scene.toml:12)", or without the place in the file-less form.
 std::string scene_layer_of(const LayerSpec& spec, const SceneSpec& scene) {
-  std::string s = "scene layer '" + spec.name + "'";
-  if (spec.scene_line > 0 && !scene.scene_path.empty())
-    s += " (" + scene.scene_path + ":" + std::to_string(spec.scene_line) + ")";
-  return s;
+  return "scene layer '" + spec.name + "'" + layer_place(scene, spec);
 }
 
 // The attribute fields a filter may name: "fields: a, b" (at most 40, then

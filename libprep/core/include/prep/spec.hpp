@@ -123,6 +123,13 @@ struct SceneSpec {
   std::string scene_path;  // for messages and provenance
 };
 
+// Where a layer sits in the scene file, for messages: " (scene.toml:12)";
+// "" for the file-less form (no file, line 0).
+inline std::string layer_place(const SceneSpec& scene, const LayerSpec& layer) {
+  if (layer.scene_line <= 0 || scene.scene_path.empty()) return {};
+  return " (" + scene.scene_path + ":" + std::to_string(layer.scene_line) + ")";
+}
+
 // ------------------------------------------------------------- how to run --
 
 class Progress;  // prep/progress.hpp
