@@ -20,7 +20,8 @@ class EntryWriter;
 struct WorkPaths {
   std::string dir;  // the tileset
   std::string work() const { return dir + "/.work"; }
-  std::string parts() const { return work() + "/parts.gpkg"; }
+  std::string parts() const { return work() + "/parts.bin"; }
+  std::string parts_index() const { return work() + "/parts.idx"; }
   std::string boxes() const { return work() + "/boxes.bin"; }
   std::string entries() const { return work() + "/entries.json"; }
   std::string read_entries() const { return work() + "/read_entries.json"; }

@@ -1,20 +1,21 @@
 // The work folder of a tileset build (tileset_work.hpp): the cleaned parts
-// in a GeoPackage with its R-tree, written in scene order and read
-// back one tile's window at a time.
+// written back to back in scene order to parts.bin, with a packed R-tree of
+// their boxes (part_index.hpp), and read back one tile's window at a time.
 #include "tileset_work.hpp"
 
-#include <gdal_priv.h>
-#include <ogrsf_frmts.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <limits>
-#include <mutex>
 #include <set>
+#include <type_traits>
 
+#include "part_index.hpp"
 #include "prep/error.hpp"
 #include "prep/manifest_json.hpp"
 #include "prep/stage_error.hpp"
@@ -23,61 +24,27 @@ namespace prep::tiling {
 
 namespace {
 
-void register_gdal_once() {
-  static std::once_flag once;
-  std::call_once(once, [] { GDALAllRegister(); });
-}
-
-// The intermediate's fields, in this order.
-enum Field : int {
-  f_kind,
-  f_seq,
-  f_layer,
-  f_fid,
-  f_part,
-  f_closed,
-  f_area,
-  f_length,
-  f_width,
-  f_order,
-  f_color,
-  f_wkb,
-  f_keys,
-  f_count
+// A part's record in parts.bin: this head, then `rings` uint32 point counts
+// (the shell's first, then each hole's; one for a line) padded to 8 bytes,
+// then the points as x, y doubles (exact: the bytes are the doubles).
+struct PartHead {
+  uint8_t kind;
+  uint8_t closed;
+  uint16_t reserved;
+  uint32_t layer;
+  int64_t fid;
+  int32_t part;
+  uint32_t rings;
+  // area, length, width, order value, colour value: as their bytes, so a
+  // NaN and the sign of a zero come back as they went.
+  double keys[5];
 };
-constexpr const char* kFieldNames[f_count] = {
-    "kind",   "seq",   "layer",       "source_fid",  "part", "closed", "area",
-    "length", "width", "order_value", "color_value", "wkb",  "keys"};
-constexpr OGRFieldType kFieldTypes[f_count] = {
-    OFTInteger, OFTInteger64, OFTInteger, OFTInteger64, OFTInteger, OFTInteger, OFTReal,
-    OFTReal,    OFTReal,      OFTReal,    OFTReal,      OFTBinary,  OFTBinary};
+static_assert(sizeof(PartHead) == 64, "PartHead is stored as its bytes");
+static_assert(std::is_trivially_copyable_v<Point2> && sizeof(Point2) == 16,
+              "points are stored as their bytes");
 
-// Metres a stored box is grown by; a tile's window is grown by more
-// (PartReader::read_tile), so no part that reaches the tile is left out.
-constexpr double kBoxPad = 0.5;
-
-// One box record of boxes.bin.
-struct BoxRecord {
-  int32_t kind;
-  int32_t pad;
-  double xmin, ymin, xmax, ymax;
-};
-
-OGRLinearRing* closed_ring(const Ring& r) {
-  auto* ring = new OGRLinearRing;
-  ring->setNumPoints(static_cast<int>(r.size() + (r.empty() ? 0 : 1)), FALSE);
-  for (size_t i = 0; i < r.size(); ++i) ring->setPoint(static_cast<int>(i), r[i].x, r[i].y);
-  if (!r.empty()) ring->setPoint(static_cast<int>(r.size()), r[0].x, r[0].y);
-  return ring;
-}
-
-// The ring's points without the closing point.
-Ring open_points(const OGRSimpleCurve& c, bool drop_closing) {
-  const int n = c.getNumPoints();
-  const int m = drop_closing && n > 0 ? n - 1 : n;
-  Ring r(static_cast<size_t>(std::max(0, m)));
-  for (int i = 0; i < m; ++i) r[size_t(i)] = {c.getX(i), c.getY(i)};
-  return r;
+constexpr uint64_t counts_bytes(uint64_t rings) {
+  return (4 * rings + 7) / 8 * 8;
 }
 
 }  // namespace
@@ -85,152 +52,108 @@ Ring open_points(const OGRSimpleCurve& c, bool drop_closing) {
 // ---------------------------------------------------------------- writer --
 
 struct PartWriter::Impl {
-  std::string path, boxes_path;
-  GDALDataset* ds = nullptr;
-  OGRLayer* layer = nullptr;
+  std::string path, boxes_path, index_path;
+  std::FILE* data = nullptr;
   std::FILE* boxes = nullptr;
+  uint64_t offset = 0;
+  std::vector<char> record;
 };
 
 PartWriter::PartWriter(const WorkPaths& paths) : impl_(std::make_unique<Impl>()) {
-  register_gdal_once();
   impl_->path = paths.parts();
   impl_->boxes_path = paths.boxes();
-  // GeoPackage: SQLite keeps the memory bounded while it builds the R-tree
-  // (GDAL 3.6's FlatGeobuf writer holds every feature in memory to sort
-  // them for its index).
-  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");
-  if (!drv) fail<output_error>(kTilesetStage, "GDAL has no GPKG driver");
-  std::remove(impl_->path.c_str());
-  // PRAGMA synchronous = OFF (read when the file is opened): no fsync per
-  // chunk's transaction. SQLite stays consistent when the process dies; the
-  // work folder is an intermediate that nothing fsyncs (plan.json,
-  // boxes.bin neither), so a machine that loses power mid-build reruns the
-  // prepare step either way. 17% of the prepare step of 10^7 vertices of
-  // bench/tileset_scale.py (4.95 -> 4.1 s).
-  CPLSetThreadLocalConfigOption("OGR_SQLITE_SYNCHRONOUS", "OFF");
-  impl_->ds = drv->Create(impl_->path.c_str(), 0, 0, 0, GDT_Unknown, nullptr);
-  CPLSetThreadLocalConfigOption("OGR_SQLITE_SYNCHRONOUS", nullptr);
-  if (!impl_->ds)
-    fail<output_error>(kTilesetStage, "cannot create " + impl_->path + ": " + CPLGetLastErrorMsg());
-  char** opts = CSLSetNameValue(nullptr, "SPATIAL_INDEX", "YES");
-  opts = CSLSetNameValue(opts, "GEOMETRY_NAME", "box");
-  impl_->layer = impl_->ds->CreateLayer("parts", nullptr, wkbPolygon, opts);
-  CSLDestroy(opts);
-  if (!impl_->layer)
-    fail<output_error>(kTilesetStage,
-                       "cannot create a layer in " + impl_->path + ": " + CPLGetLastErrorMsg());
-  for (int i = 0; i < f_count; ++i) {
-    OGRFieldDefn def(kFieldNames[i], kFieldTypes[i]);
-    if (impl_->layer->CreateField(&def) != OGRERR_NONE)
-      fail<output_error>(kTilesetStage, "cannot create field " + std::string(kFieldNames[i]) +
-                                            " in " + impl_->path);
+  impl_->index_path = paths.parts_index();
+  // The work folder is an intermediate: nothing here is fsynced, and a
+  // machine that loses power mid-build runs the prepare step again.
+  for (auto [file, path] :
+       {std::pair{&impl_->data, &impl_->path}, std::pair{&impl_->boxes, &impl_->boxes_path}}) {
+    *file = std::fopen(path->c_str(), "wb");
+    if (!*file)
+      fail<output_error>(kTilesetStage, "cannot create " + *path + ": " + std::strerror(errno));
+    std::setvbuf(*file, nullptr, _IOFBF, 1 << 20);
   }
-  impl_->boxes = std::fopen(impl_->boxes_path.c_str(), "wb");
-  if (!impl_->boxes)
-    fail<output_error>(kTilesetStage,
-                       "cannot create " + impl_->boxes_path + ": " + std::strerror(errno));
 }
 
 PartWriter::~PartWriter() {
   if (impl_->boxes) std::fclose(impl_->boxes);
-  if (impl_->ds) GDALClose(impl_->ds);
+  if (impl_->data) std::fclose(impl_->data);
 }
 
 void PartWriter::add(const SceneFeatures& chunk) {
-  OGRFeatureDefn* defn = impl_->layer->GetLayerDefn();
-  if (impl_->ds->StartTransaction() != OGRERR_NONE)
-    fail<output_error>(kTilesetStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
-  auto write = [&](PartKind kind, OGRGeometry* geometry, const Ring& boxed, uint32_t layer,
-                   const FeatureKeys& id, bool closed, double area, double length, double width) {
-    OGRFeature f(defn);
-    // The part itself as WKB (doubles exact); the feature's geometry is its
-    // box grown by kBoxPad (never degenerate), so that GDAL's spatial
-    // filter, which tests geometries exactly, selects by box: every part
-    // whose box reaches a tile is in the tile's window (PartReader), and
-    // the exact test is tile_range's.
-    std::vector<unsigned char> wkb(geometry->WkbSize());
-    geometry->exportToWkb(wkbNDR, wkb.data(), wkbVariantIso);
-    delete geometry;
-    f.SetField(f_wkb, static_cast<int>(wkb.size()), wkb.data());
-    const Extent b = ring_box(boxed);
-    {
-      auto* box = new OGRPolygon;
-      auto* ring = new OGRLinearRing;
-      ring->setNumPoints(5, FALSE);
-      const double x0 = b.xmin - kBoxPad, y0 = b.ymin - kBoxPad;
-      const double x1 = b.xmax + kBoxPad, y1 = b.ymax + kBoxPad;
-      ring->setPoint(0, x0, y0);
-      ring->setPoint(1, x1, y0);
-      ring->setPoint(2, x1, y1);
-      ring->setPoint(3, x0, y1);
-      ring->setPoint(4, x0, y0);
-      box->addRingDirectly(ring);
-      f.SetGeometryDirectly(box);
-    }
-    const int k = static_cast<int>(kind);
-    f.SetField(f_kind, k);
-    f.SetField(f_seq, static_cast<GIntBig>(seq_[k]++));
-    f.SetField(f_layer, static_cast<int>(layer));
-    f.SetField(f_fid, static_cast<GIntBig>(id.fid));
-    f.SetField(f_part, id.part);
-    f.SetField(f_closed, closed ? 1 : 0);
-    f.SetField(f_area, area);
-    f.SetField(f_length, length);
-    f.SetField(f_width, width);
-    f.SetField(f_order, id.order_value);
-    f.SetField(f_color, id.color_value);
-    // The keys as their bytes: SQLite keeps neither NaN (NULL) nor the sign
-    // of a zero (an integral REAL is stored as an integer); the Real fields
-    // above are for people looking at the file.
-    const double keys[5] = {area, length, width, id.order_value, id.color_value};
-    f.SetField(f_keys, static_cast<int>(sizeof keys), static_cast<const void*>(keys));
-    if (impl_->layer->CreateFeature(&f) != OGRERR_NONE)
+  std::vector<char>& rec = impl_->record;
+  // One part: its head, counts and points to parts.bin, its box and place
+  // to boxes.bin.
+  auto write = [&](PartKind kind, const FeatureKeys& id, uint32_t layer, bool closed,
+                   const double(&keys)[5], const Ring& outer, const std::vector<Ring>* holes) {
+    const uint64_t rings = 1 + (holes ? holes->size() : 0);
+    uint64_t points = outer.size();
+    if (holes)
+      for (const Ring& h : *holes) points += h.size();
+    const uint64_t bytes = sizeof(PartHead) + counts_bytes(rings) + 16 * points;
+    if (rings > std::numeric_limits<uint32_t>::max() ||
+        bytes > std::numeric_limits<uint32_t>::max())
+      fail<resource_error>(kTilesetStage,
+                           "a part of " + std::to_string(points) + " points in " +
+                               std::to_string(rings) +
+                               " rings is larger than a tileset part may be (4 GiB)");
+    rec.assign(size_t(bytes), 0);
+    PartHead head{};
+    head.kind = uint8_t(kind);
+    head.closed = closed ? 1 : 0;
+    head.layer = layer;
+    head.fid = id.fid;
+    head.part = id.part;
+    head.rings = uint32_t(rings);
+    std::memcpy(head.keys, keys, sizeof head.keys);
+    std::memcpy(rec.data(), &head, sizeof head);
+    char* counts = rec.data() + sizeof head;
+    char* pts = counts + counts_bytes(rings);
+    auto put_ring = [&](const Ring& r, size_t i) {
+      const auto n = uint32_t(r.size());
+      std::memcpy(counts + 4 * i, &n, 4);
+      if (!r.empty()) std::memcpy(pts, r.data(), 16 * r.size());
+      pts += 16 * r.size();
+    };
+    put_ring(outer, 0);
+    if (holes)
+      for (size_t i = 0; i < holes->size(); ++i) put_ring((*holes)[i], i + 1);
+    const Extent b = ring_box(outer);
+    const BoxRecord box{
+        static_cast<int32_t>(kind), uint32_t(bytes), b.xmin, b.ymin, b.xmax, b.ymax, impl_->offset};
+    if (std::fwrite(rec.data(), 1, rec.size(), impl_->data) != rec.size())
       fail<output_error>(kTilesetStage,
-                         "cannot write a part to " + impl_->path + ": " + CPLGetLastErrorMsg());
-    const BoxRecord rec{k, 0, b.xmin, b.ymin, b.xmax, b.ymax};
-    if (std::fwrite(&rec, sizeof rec, 1, impl_->boxes) != 1)
-      fail<output_error>(kTilesetStage, "cannot write " + impl_->boxes_path);
-    extend(box_, boxed);
+                         "cannot write " + impl_->path + ": " + std::strerror(errno));
+    if (std::fwrite(&box, sizeof box, 1, impl_->boxes) != 1)
+      fail<output_error>(kTilesetStage,
+                         "cannot write " + impl_->boxes_path + ": " + std::strerror(errno));
+    impl_->offset += bytes;
+    ++seq_[static_cast<int>(kind)];
+    extend(box_, outer);
   };
   for (const ScenePolygon& p : chunk.polygons) {
-    auto* poly = new OGRPolygon;
-    poly->addRingDirectly(closed_ring(p.shell));
-    for (const Ring& h : p.holes) poly->addRingDirectly(closed_ring(h));
-    write(PartKind::polygon, poly, p.shell, p.layer, p, false, p.area, 0, 0);
+    const double keys[5] = {p.area, 0, 0, p.order_value, p.color_value};
+    write(PartKind::polygon, p, p.layer, false, keys, p.shell, &p.holes);
   }
-  auto line_geometry = [](const Ring& pts) {
-    auto* ls = new OGRLineString;
-    ls->setNumPoints(static_cast<int>(pts.size()), FALSE);
-    for (size_t i = 0; i < pts.size(); ++i) ls->setPoint(static_cast<int>(i), pts[i].x, pts[i].y);
-    return ls;
-  };
-  for (const SceneLine& l : chunk.lines)
-    write(PartKind::line, line_geometry(l.points), l.points, l.layer, l, l.closed, 0, l.length,
-          l.width);
-  for (const SceneLine& l : chunk.dynamic_lines)
-    write(PartKind::dynamic_line, line_geometry(l.points), l.points, l.layer, l, l.closed, 0,
-          l.length, l.width);
-  if (impl_->ds->CommitTransaction() != OGRERR_NONE)
-    fail<output_error>(kTilesetStage, "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
+  for (const SceneLine& l : chunk.lines) {
+    const double keys[5] = {0, l.length, l.width, l.order_value, l.color_value};
+    write(PartKind::line, l, l.layer, l.closed, keys, l.points, nullptr);
+  }
+  for (const SceneLine& l : chunk.dynamic_lines) {
+    const double keys[5] = {0, l.length, l.width, l.order_value, l.color_value};
+    write(PartKind::dynamic_line, l, l.layer, l.closed, keys, l.points, nullptr);
+  }
   half_width_ = std::max(half_width_, stroke_half_width(chunk));
 }
 
 void PartWriter::close() {
-  if (impl_->boxes) {
-    const bool ok = std::fclose(impl_->boxes) == 0;
-    impl_->boxes = nullptr;
-    if (!ok) fail<output_error>(kTilesetStage, "cannot write " + impl_->boxes_path);
+  for (auto [file, path] :
+       {std::pair{&impl_->data, &impl_->path}, std::pair{&impl_->boxes, &impl_->boxes_path}}) {
+    if (!*file) continue;
+    const bool ok = std::fclose(*file) == 0;
+    *file = nullptr;
+    if (!ok) fail<output_error>(kTilesetStage, "cannot write " + *path);
   }
-  if (impl_->ds) {
-    // The spatial index is built and written now; GDALClose reports through
-    // the error state.
-    CPLErrorReset();
-    GDALClose(impl_->ds);
-    impl_->ds = nullptr;
-    if (CPLGetLastErrorType() == CE_Failure || CPLGetLastErrorType() == CE_Fatal)
-      fail<output_error>(kTilesetStage,
-                         "cannot write " + impl_->path + ": " + CPLGetLastErrorMsg());
-  }
+  write_box_index(impl_->boxes_path, impl_->index_path);
 }
 
 Extent PartWriter::extent() const {
@@ -273,31 +196,75 @@ std::vector<TileKey> planned_tiles(const WorkPaths& paths, const TilePlan& plan)
 
 // ---------------------------------------------------------------- reader --
 
+namespace {
+
+// The part in `rec` (its box record `r`, already checked to lie within the
+// file) into `p` or `l`; output_error naming the file and the offset when
+// the record's counts do not fill it exactly.
+struct RecordParser {
+  const std::string& path;
+
+  [[noreturn]] void bad(const BoxRecord& r, const std::string& what) const {
+    fail<output_error>(kTilesetStage, path + ": the part at offset " + std::to_string(r.offset) +
+                                          " is not a part this build wrote: " + what);
+  }
+
+  // The head, and each ring's points (the shell's or the line's first).
+  PartHead parse(const BoxRecord& r, const char* rec, std::vector<Ring>& rings) const {
+    PartHead head;
+    if (r.bytes < sizeof head) bad(r, "shorter than its head");
+    std::memcpy(&head, rec, sizeof head);
+    if (head.kind != r.kind) bad(r, "kind " + std::to_string(head.kind));
+    const uint64_t after = r.bytes - sizeof head;
+    if (head.rings < 1 || (head.kind != 0 && head.rings != 1) || counts_bytes(head.rings) > after)
+      bad(r, std::to_string(head.rings) + " rings");
+    const char* counts = rec + sizeof head;
+    uint64_t points = 0;
+    for (uint32_t i = 0; i < head.rings; ++i) {
+      uint32_t n;
+      std::memcpy(&n, counts + 4 * i, 4);
+      points += n;
+    }
+    if (points * 16 != after - counts_bytes(head.rings))
+      bad(r, std::to_string(points) + " points in " + std::to_string(r.bytes) + " bytes");
+    rings.resize(head.rings);
+    const char* pts = counts + counts_bytes(head.rings);
+    for (uint32_t i = 0; i < head.rings; ++i) {
+      uint32_t n;
+      std::memcpy(&n, counts + 4 * i, 4);
+      rings[i].resize(n);
+      if (n > 0) std::memcpy(static_cast<void*>(rings[i].data()), pts, 16 * size_t(n));
+      pts += 16 * size_t(n);
+    }
+    return head;
+  }
+};
+
+// The most bytes read in one pread when consecutive records are joined.
+constexpr uint64_t kReadRun = 1 << 20;
+
+}  // namespace
+
 struct PartReader::Impl {
   std::string path;
-  GDALDataset* ds = nullptr;
-  OGRLayer* layer = nullptr;
-  int field[f_count] = {};
+  int fd = -1;
+  std::unique_ptr<BoxIndex> index;
+  std::vector<BoxRecord> hits;
+  std::vector<char> buf;
+  std::vector<Ring> rings;
 };
 
 PartReader::PartReader(const WorkPaths& paths) : impl_(std::make_unique<Impl>()) {
-  register_gdal_once();
   impl_->path = paths.parts();
-  impl_->ds = GDALDataset::Open(impl_->path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
-                                nullptr, nullptr);
-  if (!impl_->ds || impl_->ds->GetLayerCount() != 1)
-    fail<output_error>(kTilesetStage, "cannot open " + impl_->path + ": " + CPLGetLastErrorMsg());
-  impl_->layer = impl_->ds->GetLayer(0);
-  OGRFeatureDefn* defn = impl_->layer->GetLayerDefn();
-  for (int i = 0; i < f_count; ++i) {
-    impl_->field[i] = defn->GetFieldIndex(kFieldNames[i]);
-    if (impl_->field[i] < 0)
-      fail<output_error>(kTilesetStage, impl_->path + ": no field " + std::string(kFieldNames[i]));
-  }
+  impl_->fd = ::open(impl_->path.c_str(), O_RDONLY | O_CLOEXEC);
+  struct stat st {};
+  if (impl_->fd < 0 || ::fstat(impl_->fd, &st) != 0)
+    fail<output_error>(kTilesetStage, "cannot open " + impl_->path + ": " + std::strerror(errno));
+  impl_->index = std::make_unique<BoxIndex>(paths.parts_index(), uint64_t(st.st_size));
 }
 
 PartReader::~PartReader() {
-  if (impl_->ds) GDALClose(impl_->ds);
+  if (impl_->fd >= 0) ::close(impl_->fd);
 }
 
 void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatures& scene,
@@ -307,81 +274,69 @@ void PartReader::read_tile(const TilePlan& plan, const TileKey& key, SceneFeatur
   scene.dynamic_lines.clear();
   const double ox = plan.frame.origin_x, oy = plan.frame.origin_y;
   const Extent sq = plan.square(key);
-  // A window wider than any reach: the exact test is tile_range's.
-  const double by = std::max(plan.margin, plan.dynamic_margin) + 2 * kBoxPad + 1.0;
-  OGRLayer* layer = impl_->layer;
-  layer->SetSpatialFilterRect(sq.xmin - ox - by, sq.ymin - oy - by, sq.xmax - ox + by,
-                              sq.ymax - oy + by);
-  layer->ResetReading();
-  const int* fi = impl_->field;
-  std::vector<std::pair<uint64_t, ScenePolygon>> polys;
-  std::vector<std::pair<uint64_t, SceneLine>> lines, dyn;
-  for (;;) {
-    std::unique_ptr<OGRFeature> f(layer->GetNextFeature());
-    if (!f) break;
-    const int kind = f->GetFieldAsInteger(fi[f_kind]);
-    const auto seq = static_cast<uint64_t>(f->GetFieldAsInteger64(fi[f_seq]));
-    int wkb_size = 0;
-    const GByte* wkb = f->GetFieldAsBinary(fi[f_wkb], &wkb_size);
-    OGRGeometry* parsed = nullptr;
-    if (!wkb ||
-        OGRGeometryFactory::createFromWkb(wkb, nullptr, &parsed, static_cast<size_t>(wkb_size),
-                                          wkbVariantIso) != OGRERR_NONE)
-      fail<output_error>(kTilesetStage, impl_->path + ": a part whose WKB cannot be read");
-    const std::unique_ptr<OGRGeometry> owned(parsed);
-    const OGRGeometry* g = parsed;
-    int keys_size = 0;
-    const GByte* keys_bytes = f->GetFieldAsBinary(fi[f_keys], &keys_size);
-    double keys[5];
-    if (!keys_bytes || keys_size != static_cast<int>(sizeof keys))
-      fail<output_error>(kTilesetStage, impl_->path + ": a part without its keys");
-    std::memcpy(keys, keys_bytes, sizeof keys);
-    const auto layer_index = static_cast<uint32_t>(f->GetFieldAsInteger(fi[f_layer]));
-    FeatureKeys feature_keys;
-    feature_keys.fid = f->GetFieldAsInteger64(fi[f_fid]);
-    feature_keys.part = f->GetFieldAsInteger(fi[f_part]);
-    feature_keys.order_value = keys[3];
-    feature_keys.color_value = keys[4];
-    if (kind == static_cast<int>(PartKind::polygon)) {
-      const auto* poly = dynamic_cast<const OGRPolygon*>(g);
-      if (!poly || !poly->getExteriorRing())
-        fail<output_error>(kTilesetStage, impl_->path + ": a polygon part that is not a polygon");
-      ScenePolygon p;
-      p.shell = open_points(*poly->getExteriorRing(), true);
-      if (!tile_range(ring_box(p.shell), plan.margin, ox, oy, plan.size).holds(key)) continue;
-      for (int h = 0; h < poly->getNumInteriorRings(); ++h)
-        p.holes.push_back(open_points(*poly->getInteriorRing(h), true));
-      static_cast<FeatureKeys&>(p) = feature_keys;
-      p.layer = layer_index;
-      p.area = keys[0];
-      if (filter && !filter->polygon(p)) continue;
-      polys.emplace_back(seq, std::move(p));
-    } else {
-      const auto* ls = dynamic_cast<const OGRLineString*>(g);
-      if (!ls) fail<output_error>(kTilesetStage, impl_->path + ": a line part that is not a line");
-      const bool dynamic = kind == static_cast<int>(PartKind::dynamic_line);
-      SceneLine l;
-      l.points = open_points(*ls, false);
-      if (!tile_range(ring_box(l.points), dynamic ? plan.dynamic_margin : plan.margin, ox, oy,
-                      plan.size)
-               .holds(key))
-        continue;
-      l.closed = f->GetFieldAsInteger(fi[f_closed]) != 0;
-      static_cast<FeatureKeys&>(l) = feature_keys;
-      l.layer = layer_index;
-      l.length = keys[1];
-      l.width = keys[2];
-      if (filter && !filter->line(l, dynamic)) continue;
-      (dynamic ? dyn : lines).emplace_back(seq, std::move(l));
+  // A window wider than any reach: the exact test is tile_range's, on each
+  // part's exact box.
+  const double by = std::max(plan.margin, plan.dynamic_margin) + 1.0;
+  std::vector<BoxRecord>& hits = impl_->hits;
+  hits.clear();
+  impl_->index->query({sq.xmin - ox - by, sq.ymin - oy - by, sq.xmax - ox + by, sq.ymax - oy + by},
+                      hits);
+  std::erase_if(hits, [&](const BoxRecord& r) {
+    const double m =
+        r.kind == static_cast<int>(PartKind::dynamic_line) ? plan.dynamic_margin : plan.margin;
+    return !tile_range({r.xmin, r.ymin, r.xmax, r.ymax}, m, ox, oy, plan.size).holds(key);
+  });
+  // File order is scene order within each kind.
+  std::sort(hits.begin(), hits.end(),
+            [](const BoxRecord& a, const BoxRecord& b) { return a.offset < b.offset; });
+  const RecordParser parser{impl_->path};
+  std::vector<Ring>& rings = impl_->rings;
+  for (size_t i = 0; i < hits.size();) {
+    // A run of records that follow each other in the file, read at once.
+    size_t j = i + 1;
+    uint64_t run = hits[i].bytes;
+    while (j < hits.size() && hits[j].offset == hits[i].offset + run &&
+           run + hits[j].bytes <= kReadRun)
+      run += hits[j++].bytes;
+    impl_->buf.resize(size_t(run));
+    errno = 0;
+    if (!pread_exact(impl_->fd, impl_->buf.data(), size_t(run), hits[i].offset))
+      fail<output_error>(kTilesetStage, "cannot read " + impl_->path + " at offset " +
+                                            std::to_string(hits[i].offset) + ": " +
+                                            (errno ? std::strerror(errno) : "short file"));
+    for (size_t k = i; k < j; ++k) {
+      const BoxRecord& r = hits[k];
+      const PartHead head = parser.parse(r, impl_->buf.data() + (r.offset - hits[i].offset), rings);
+      FeatureKeys keys;
+      keys.fid = head.fid;
+      keys.part = head.part;
+      keys.order_value = head.keys[3];
+      keys.color_value = head.keys[4];
+      if (head.kind == static_cast<int>(PartKind::polygon)) {
+        ScenePolygon p;
+        static_cast<FeatureKeys&>(p) = keys;
+        p.shell = std::move(rings[0]);
+        p.holes.assign(std::make_move_iterator(rings.begin() + 1),
+                       std::make_move_iterator(rings.end()));
+        p.layer = head.layer;
+        p.area = head.keys[0];
+        if (filter && !filter->polygon(p)) continue;
+        scene.polygons.push_back(std::move(p));
+      } else {
+        const bool dynamic = head.kind == static_cast<int>(PartKind::dynamic_line);
+        SceneLine l;
+        static_cast<FeatureKeys&>(l) = keys;
+        l.points = std::move(rings[0]);
+        l.closed = head.closed != 0;
+        l.layer = head.layer;
+        l.length = head.keys[1];
+        l.width = head.keys[2];
+        if (filter && !filter->line(l, dynamic)) continue;
+        (dynamic ? scene.dynamic_lines : scene.lines).push_back(std::move(l));
+      }
     }
+    i = j;
   }
-  auto by_seq = [](const auto& a, const auto& b) { return a.first < b.first; };
-  std::sort(polys.begin(), polys.end(), by_seq);
-  std::sort(lines.begin(), lines.end(), by_seq);
-  std::sort(dyn.begin(), dyn.end(), by_seq);
-  for (auto& [s, p] : polys) scene.polygons.push_back(std::move(p));
-  for (auto& [s, l] : lines) scene.lines.push_back(std::move(l));
-  for (auto& [s, l] : dyn) scene.dynamic_lines.push_back(std::move(l));
 }
 
 // --------------------------------------------------------------- entries --

@@ -2,10 +2,13 @@
 // prepare step leaves on disk for the tile step and the finalize step
 // (ARCHITECTURE.md "3b. tile", formats/SPEC.md "Tilesets": DIR/.work).
 //
-//   DIR/.work/parts.gpkg     every cleaned part (GeoPackage through GDAL,
-//                            with its R-tree), coordinates relative
-//                            to the scene origin in the frame CRS
-//   DIR/.work/boxes.bin      scratch: each part's kind and box, in order
+//   DIR/.work/parts.bin      every cleaned part, back to back in scene
+//                            order (tileset_work.cpp, PartHead),
+//                            coordinates relative to the scene origin in
+//                            the frame CRS
+//   DIR/.work/boxes.bin      each part's kind, place in parts.bin and box,
+//                            in order (BoxRecord, part_index.hpp)
+//   DIR/.work/parts.idx      the packed R-tree of those boxes (part_index.hpp)
 //   DIR/.work/entries.json   the manifest entries, already in manifest.json's
 //                            form (clean's, in layer order)
 //   DIR/.work/read_entries.json  the read stage's entries (they follow)
@@ -13,8 +16,6 @@
 //                            notes, provenance, entry count, tile keys
 //   DIR/.work/tiles/<x>_<y>.json  what the tile step made of each tile
 //   DIR/.work/tiles/L<L>_<x>_<y>.json  the same for overview level L
-//
-// GDAL stays in tileset_work.cpp.
 #pragma once
 
 #include <cmath>
@@ -35,8 +36,8 @@ namespace prep::tiling {
 // vectors: polygons, static lines, dynamic lines).
 enum class PartKind : int { polygon = 0, line = 1, dynamic_line = 2 };
 
-// Writes cleaned parts to parts.gpkg in scene order, chunk by chunk (each
-// part numbered within its kind, so a tile restores the scene's order),
+// Writes cleaned parts to parts.bin in scene order, chunk by chunk (so the
+// file's order within each kind is the scene's, which a tile restores),
 // their boxes to boxes.bin, and keeps the running extent and the widest
 // static stroke. Throws output_error naming the file.
 class PartWriter {
@@ -49,7 +50,7 @@ class PartWriter {
   // Appends a chunk's polygons, lines and dynamic lines (in that order
   // within each kind; `chunk.layers` gives the outline modes).
   void add(const SceneFeatures& chunk);
-  // Closes the files (GDAL fills the R-tree now).
+  // Closes the files and writes the box index (parts.idx).
   void close();
 
   // The box of every kept shell and line so far, kept_extent()'s way
@@ -87,9 +88,10 @@ class PartFilter {
   virtual bool line(SceneLine& l, bool dynamic) = 0;
 };
 
-// Reads the parts a tile's plan entry holds from parts.gpkg: every part whose
-// box reaches `key` (tile_range, as tile_plan places it), in scene order.
-// One reader per thread (GDAL datasets are not shared).
+// Reads the parts a tile's plan entry holds from parts.bin: every part whose
+// box reaches `key` (tile_range, as tile_plan places it), in scene order,
+// found through parts.idx and read with pread. Every record is checked
+// against its box record and the file's size. One reader per thread.
 class PartReader {
  public:
   explicit PartReader(const WorkPaths& paths);

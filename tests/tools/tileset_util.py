@@ -19,8 +19,8 @@ def tree(root, skip=(), work=True):
     """{relative path: sha256} of every file under root, less the relative
     paths in `skip`. work=False also leaves out what may differ in the work
     folder between two runs of a step without changing the tileset: the
-    intermediate GeoPackage (its tables carry a timestamp) and the tile
-    records (they say whether a tile was built or kept)."""
+    tile records (they say whether a tile was built or kept). The parts
+    file and its index are compared: they hold no timestamp."""
     out = {}
     for d, _, files in os.walk(root):
         for f in files:
@@ -28,8 +28,7 @@ def tree(root, skip=(), work=True):
             rel = os.path.relpath(p, root)
             if rel in skip:
                 continue
-            if not work and (rel.endswith("parts.gpkg") or
-                             ("/tiles/" in "/" + rel and rel.endswith(".json"))):
+            if not work and "/tiles/" in "/" + rel and rel.endswith(".json"):
                 continue
             with open(p, "rb") as fh:
                 out[rel] = hashlib.sha256(fh.read()).hexdigest()
