@@ -40,7 +40,8 @@ inline constexpr uint32_t kIndexFanout = 16;
 bool pread_exact(int fd, void* dst, size_t n, uint64_t at);
 
 // Builds `index_path` from the records of `boxes_path` (written in order).
-// Holds the records in memory while it sorts them (48 bytes a part).
+// Holds the records and their sort keys in memory while it sorts them
+// (56 bytes a part).
 // Throws output_error naming the file.
 void write_box_index(const std::string& boxes_path, const std::string& index_path);
 

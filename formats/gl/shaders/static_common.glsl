@@ -116,12 +116,23 @@ bool box_near(ivec4 b, vec2 p, float m) {
   vec2 lo = rel(b.xy) - m, hi = rel(b.zw) + m;
   return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
 }
-// Front-to-back compositing with a coverage factor on the alpha.
+// Front-to-back compositing of a feature covering the share `cov` of the
+// pixel (coverage AA). The share goes first to the part of the pixel that
+// no earlier feature of the pass covers (1 - g_area), then under the earlier
+// features at their mean transmission there (1 - acc.a / g_area): two
+// polygons sharing an edge each cover half of a pixel on it and together
+// all of it, where compositing the coverage as opacity ("conflation") left
+// a quarter to the background; a feature wholly under another composites
+// as without coverage. formats/SPEC.md "Anti-aliasing".
+float g_area = 0.0;
 void composite_under_cov(inout vec4 acc, uint rgba, float cov) {
   vec4 c = unpackUnorm4x8(rgba);
-  float w = (1.0 - acc.a) * c.a * cov;
+  float u = min(cov, 1.0 - g_area);
+  float t = g_area > 0.0 ? clamp(1.0 - acc.a / g_area, 0.0, 1.0) : 1.0;
+  float w = c.a * (u + (cov - u) * t);
   acc.rgb += w * c.rgb;
   acc.a += w;
+  g_area += u;
 }
 // Thöny et al. §3.5: coverage of a pixel of width wpix by a band of width
 // wline whose centre line lies at distance d from the pixel centre.
@@ -154,6 +165,7 @@ bool pixel_cell(out vec3 p, out int cell) {
   if (!pixel_world(p)) return false;
   cell = cell_of(p.xy);
   g_acc = vec4(0.0);
+  g_area = 0.0;
 #ifdef DECAL_AA_COVERAGE
   g_wpix = pixel_metres(p);
 #endif

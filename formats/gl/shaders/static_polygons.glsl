@@ -37,19 +37,50 @@ float inside_distance(vec2 lo, vec2 hi, vec2 p) {
   return min(min(p.x - lo.x, hi.x - p.x), min(p.y - lo.y, hi.y - p.y));
 }
 
+// Does segment a-b meet the closed box [lo, hi]? (Liang-Barsky.)
+bool segment_meets_box(vec2 a, vec2 b, vec2 lo, vec2 hi) {
+  vec2 d = b - a;
+  float t0 = 0.0, t1 = 1.0;
+  for (int k = 0; k < 2; ++k) {
+    if (d[k] == 0.0) {
+      if (a[k] < lo[k] || a[k] > hi[k]) return false;
+      continue;
+    }
+    float ta = (lo[k] - a[k]) / d[k], tb = (hi[k] - a[k]) / d[k];
+    t0 = max(t0, min(ta, tb));
+    t1 = min(t1, max(ta, tb));
+  }
+  return t0 <= t1;
+}
+
 // Coverage AA (Thöny et al. §3.5 applied to polygon edges): the fraction of
 // the pixel inside polygon `poly`, from the signed distance to its nearest
-// edge, clamp(0.5 + sd / wpix). The descent uses p clamped into the sub-tree
-// box so pixels just outside still find the leaf beside them. Edges: the
-// real edges of a partial leaf (closing segments along the node box are
-// skipped unless they lie on the polygon's bounding box, where they are real
-// edges), and the bounding box itself where an inside region touches it.
+// edge, clamp(0.5 + sd / wpix). Edges: the ring edges of a partial leaf,
+// and the polygon's bounding box (a point inside the polygon is at least as
+// near the boundary as the box). A leaf polygon is its ring's edges that
+// meet the leaf box, closed by segments that never do (formats/SPEC.md
+// "Quad-tree nodes"; libprep/model/quadtree.cpp: from each chain end
+// straight away from the box to a frame outside the polygon's box, then
+// along it): those are skipped, as they lie in empty ground, where they drew
+// lines one pixel wide along which the polygon's box and its chain ends
+// seemed to be edges.
+// A pixel whose point lies outside the entry's node box (within half a
+// pixel of it) is outside the polygon: the node holds all of the polygon
+// in the pixel's cell. It takes the leaf beside it (the point clamped into
+// the box): a full leaf, or a partial one whose region holds the clamped
+// point, puts the polygon at the clamped point; else the leaf's ring edges
+// give the distance. The bounding box says nothing there.
 float qt_coverage(uint poly, uint node, vec2 p, float wpix) {
   ivec4 rootq = qt_node_box(poly_root(poly));
   vec2 blo = rel(rootq.xy), bhi = rel(rootq.zw);
   ivec4 nb = qt_node_box(node);
   vec2 pc = clamp(p, rel(nb.xy), rel(nb.zw));
-  if (length(p - pc) > 0.5 * wpix) return 0.0;
+  float beside = length(p - pc);
+  if (beside > 0.5 * wpix) return 0.0;
+  bool outside_node = beside > 0.0;
+  // The point whose side of the leaf's region counts: p, or the clamped
+  // point a millimetre into the box.
+  vec2 q = outside_node ? pc + (pc - p) * (1e-3 / beside) : p;
   float sd_box = inside_distance(blo, bhi, p);
   for (;;) {
     ivec2 n = qt_node(node);
@@ -64,8 +95,9 @@ float qt_coverage(uint poly, uint node, vec2 p, float wpix) {
       continue;
     }
     if (n.x == 1) return 0.0;
-    if (n.x == 2) return clamp(0.5 + sd_box / wpix, 0.0, 1.0);
+    if (n.x == 2) return clamp(0.5 + (outside_node ? -beside : sd_box) / wpix, 0.0, 1.0);
     ivec4 lb = qt_node_box(node);
+    vec2 llo = rel(lb.xy), lhi = rel(lb.zw);
     uvec2 r = qt_leaf_loop_range(uint(n.y));
     bool inside = false;
     float dist = 1e30;
@@ -74,20 +106,19 @@ float qt_coverage(uint poly, uint node, vec2 p, float wpix) {
      for (uint s = s0; s < s1; ++s) {
       uvec2 e = uvec2(s, s + 1u < s1 ? s + 1u : s0);
       ivec2 ua = qt_leaf_vertex(e.x), ub = qt_leaf_vertex(e.y);
-      vec2 A = rel(ua) - p, B = rel(ub) - p;
-      if ((A.y > 0.0) != (B.y > 0.0)) {
-        vec2 L = A.y > 0.0 ? B : A, H = A.y > 0.0 ? A : B;
+      vec2 Aq = rel(ua) - q, Bq = rel(ub) - q;
+      if ((Aq.y > 0.0) != (Bq.y > 0.0)) {
+        vec2 L = Aq.y > 0.0 ? Bq : Aq, H = Aq.y > 0.0 ? Aq : Bq;
         if ((H.x - L.x) * (-L.y) - (H.y - L.y) * (-L.x) > 0.0) inside = !inside;
       }
-      bool closing = (ua.x == lb.x && ub.x == lb.x && lb.x != rootq.x) || (ua.x == lb.z && ub.x == lb.z && lb.z != rootq.z) ||
-                     (ua.y == lb.y && ub.y == lb.y && lb.y != rootq.y) || (ua.y == lb.w && ub.y == lb.w && lb.w != rootq.w);
-      if (closing) continue;
+      if (!segment_meets_box(rel(ua), rel(ub), llo, lhi)) continue;  // a closing segment
+      vec2 A = rel(ua) - p, B = rel(ub) - p;
       vec2 ab = B - A;
       float t = clamp(dot(-A, ab) / max(dot(ab, ab), 1e-20), 0.0, 1.0);
       dist = min(dist, length(A + t * ab));
      }
     }
-    float sd = min(inside ? dist : -dist, sd_box);
+    float sd = outside_node ? -(inside ? beside : dist) : min(inside ? dist : -dist, sd_box);
     return clamp(0.5 + sd / wpix, 0.0, 1.0);
   }
 }
