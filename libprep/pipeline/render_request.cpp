@@ -157,19 +157,25 @@ void check_drawing(const RenderRequest& a, RenderOptions& opt) {
   opt.width = w;
   opt.height = h;
   opt.frames = a.frames;
-  opt.aa = one_of<AntiAliasing>("--aa", a.aa,
-                                {{"none", AntiAliasing::none},
-                                 {"coverage", AntiAliasing::coverage},
-                                 {"msaa4", AntiAliasing::msaa4}},
-                                "none, coverage or msaa4");
-  // The CPU evaluator answers per point: it draws aliased, so comparisons
-  // with the GL path use --aa none.
-  if (a.cpu && opt.aa != AntiAliasing::none)
-    bad_option("--cpu draws without anti-aliasing; use --aa none");
   opt.method = one_of<Method>(
       "--method", a.method,
       {{"decal", Method::decal}, {"volume", Method::volume}, {"texture", Method::texture}},
       "decal, volume or texture");
+  // The default: MSAA where the renderer has it. Of none, coverage and
+  // msaa4 it came closest to a supersampled CPU render of the Monaco sample
+  // in every view bench/aa_default.py draws (bench/REPORT.md
+  // "Anti-aliasing").
+  const bool aliased = a.cpu || opt.method != Method::decal;
+  opt.aa = a.aa.empty() ? (aliased ? AntiAliasing::none : AntiAliasing::msaa4)
+                        : one_of<AntiAliasing>("--aa", a.aa,
+                                               {{"none", AntiAliasing::none},
+                                                {"coverage", AntiAliasing::coverage},
+                                                {"msaa4", AntiAliasing::msaa4}},
+                                               "none, coverage or msaa4");
+  // The CPU evaluator answers per point: it draws aliased, so comparisons
+  // with the GL path use --aa none.
+  if (a.cpu && opt.aa != AntiAliasing::none)
+    bad_option("--cpu draws without anti-aliasing; use --aa none");
   if (a.cpu && opt.method != Method::decal)
     bad_option("--cpu is the decal evaluator; --method " + a.method +
                " is drawn with GL only (leave out --cpu)");

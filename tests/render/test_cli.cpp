@@ -75,6 +75,26 @@ TEST_F(RenderCli, TopDownWritesPngWorldFileAndRawDecalLayer) {
   EXPECT_EQ(px[4 * (5 + 100 * 5) + 3], 0.0f);
 }
 
+// --aa left out: msaa4 in GL with the decal method (--stats says so), none
+// with --cpu and the volume method, which would refuse any other; an
+// explicit --aa with --cpu is still refused.
+TEST_F(RenderCli, TheAntiAliasingDefaultIsMsaaWhereTheRendererHasIt) {
+  const std::string png = (dir_ / "aa_default.png").string();
+  ToolRun gl = run_tool("render " + pkg_ + " " + kExtent + " --size 64x64 --stats -o " + png);
+  if (gl.rc == 8) GTEST_SKIP() << "no headless GL here: " << gl.output;
+  ASSERT_EQ(gl.rc, 0) << gl.output;
+  EXPECT_NE(gl.output.find("aa msaa4"), std::string::npos) << gl.output;
+  ToolRun cpu = run_tool("render " + pkg_ + " " + kExtent + " --size 64x64 --cpu -o " + png);
+  EXPECT_EQ(cpu.rc, 0) << cpu.output;
+  ToolRun volume =
+      run_tool("render " + pkg_ + " " + kExtent + " --size 64x64 --method volume -o " + png);
+  EXPECT_EQ(volume.rc, 0) << volume.output;
+  ToolRun refused =
+      run_tool("render " + pkg_ + " " + kExtent + " --size 64x64 --cpu --aa msaa4 -o " + png);
+  EXPECT_EQ(refused.rc, 2) << refused.output;
+  EXPECT_NE(refused.output.find("--aa none"), std::string::npos) << refused.output;
+}
+
 // A package records the DEM it was built with (build_options.dem): render
 // uses it without --dem, falls back to flat terrain with a warning when it
 // is gone, and --flat ignores it. Checked on the CPU path (no GL needed).

@@ -19,12 +19,18 @@ struct Args : R::RenderRequest {
   bool stats = false;
 };
 
+const char* aa_name(R::AntiAliasing aa) {
+  return aa == R::AntiAliasing::msaa4      ? "msaa4"
+         : aa == R::AntiAliasing::coverage ? "coverage"
+                                           : "none";
+}
+
 // --stats: the device and the passes, then what the view drew.
 void print_passes(const R::RenderRequest& a, const R::RenderOutcome& out) {
   const R::Image& img = out.image;
   if (out.options.method == R::Method::decal)
     std::printf("device: %s, %ux%u, binding %s, aa %s\n", img.device.c_str(), img.width, img.height,
-                a.binding.c_str(), a.aa.c_str());
+                a.binding.c_str(), aa_name(out.options.aa));
   else
     std::printf("device: %s, %ux%u, method %s\n", img.device.c_str(), img.width, img.height,
                 a.method.c_str());
@@ -172,7 +178,9 @@ const decalprep::CommandRegistrar kRegister(60, kRenderHelp, [](CLI::App* cmd) {
   cmd->add_flag("--ortho", args->ortho, "Orthographic projection");
   cmd->add_flag("--fit", args->fit, "Frame the package extent (default without --eye/--extent)");
   cmd->add_flag("--cpu", args->cpu, "Render with the CPU evaluator instead of GL");
-  cmd->add_option("--aa", args->aa, "Anti-aliasing: none|coverage|msaa4");
+  cmd->add_option("--aa", args->aa,
+                  "Anti-aliasing: none|coverage|msaa4 (default: msaa4 in GL with --method decal; "
+                  "none with --cpu and --method volume|texture, which draw aliased)");
   cmd->add_option("--binding", args->binding, "Blob binding: ssbo|texture");
   cmd->add_option("--method", args->method,
                   "Static decals drawn as: decal (screen-space decals, default), volume (stencil "

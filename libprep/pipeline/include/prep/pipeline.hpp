@@ -270,7 +270,10 @@ struct RenderRequest {
   double fov = 45.0, pitch = 45.0;
   bool ortho = false, fit = false;
   bool cpu = false;  // the CPU evaluator instead of GL
-  std::string aa = "none", binding = "ssbo", method = "decal";
+  // --aa; empty: the default, msaa4 in GL with the decal method, none with
+  // --cpu and the volume and texture methods, which draw aliased
+  // (bench/aa_default.py measured the choice; bench/REPORT.md "Anti-aliasing").
+  std::string aa, binding = "ssbo", method = "decal";
   std::string only;                   // polygons,lines,dynamic; empty: all
   std::string slope_widths = "auto";  // auto|on|off
   double texture_resolution = 0;      // 0: the renderer's default
