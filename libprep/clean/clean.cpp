@@ -13,7 +13,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <memory>
+#include <unordered_set>
 
 #include "detail/certainly_valid.hpp"
 #include "detail/clip_many_holes.hpp"
@@ -850,8 +852,79 @@ class LayerGather {
     }
     // Outline decals: the rings as closed lines, shell CCW and holes CW, so
     // "inset" (left side) is the polygon's interior.
+    if (spec_.shared_edges_once) {
+      add_outline_ring_once(poly, poly.shell, kf);
+      for (const Ring& hole : poly.holes) add_outline_ring_once(poly, hole, kf);
+      return;
+    }
     add_outline_ring(poly, poly.shell, kf);
     for (const Ring& hole : poly.holes) add_outline_ring(poly, hole, kf);
+  }
+
+  // An edge with its ends in a fixed order, as the bits of its doubles.
+  struct EdgeKey {
+    uint64_t v[4];
+    bool operator==(const EdgeKey& o) const { return std::memcmp(v, o.v, sizeof v) == 0; }
+  };
+  struct EdgeHash {
+    size_t operator()(const EdgeKey& k) const {
+      uint64_t h = 0x9e3779b97f4a7c15ull;
+      for (uint64_t x : k.v) h = (h ^ x) * 0x100000001b3ull + (h >> 29);
+      return size_t(h);
+    }
+  };
+  static EdgeKey edge_key(const Point2& a, const Point2& b) {
+    const bool ab = a.x < b.x || (a.x == b.x && a.y <= b.y);
+    const Point2& p = ab ? a : b;
+    const Point2& q = ab ? b : a;
+    EdgeKey k;
+    std::memcpy(&k.v[0], &p.x, 8);
+    std::memcpy(&k.v[1], &p.y, 8);
+    std::memcpy(&k.v[2], &q.x, 8);
+    std::memcpy(&k.v[3], &q.y, 8);
+    return k;
+  }
+
+  // shared_edges = "once": each edge of the layer's rings is drawn by the
+  // first ring that has it (the same two vertices, either way round, in
+  // scene order); a ring that lost edges to earlier rings is drawn as the
+  // open runs of the edges it keeps, so each shared boundary is one line
+  // with one dash phase. The drawing-order length stays the ring's.
+  void add_outline_ring_once(const ScenePolygon& poly, const Ring& ring, double kf) {
+    const size_t n = ring.size();
+    std::vector<char> keep(n);
+    size_t kept = 0;
+    for (size_t q = 0; q < n; ++q) {
+      keep[q] = seen_edges_.insert(edge_key(ring[q], ring[(q + 1) % n])).second;
+      kept += keep[q];
+    }
+    if (kept == n) return add_outline_ring(poly, ring, kf);
+    if (kept == 0) return;
+    double len = 0;
+    for (size_t q = 0; q < n; ++q) {
+      const Point2& a = ring[q];
+      const Point2& b = ring[(q + 1) % n];
+      len += std::hypot(b.x - a.x, b.y - a.y);
+    }
+    // Start at a kept edge after a dropped one; each run of kept edges is a line.
+    size_t start = 0;
+    while (!(keep[start] && !keep[(start + n - 1) % n])) ++start;
+    SceneLine l;
+    for (size_t k = 0; k <= n; ++k) {
+      const size_t q = (start + k) % n;
+      if (k < n && keep[q]) {
+        if (l.points.empty()) l.points.push_back(ring[q]);
+        l.points.push_back(ring[(q + 1) % n]);
+        continue;
+      }
+      if (!l.points.empty()) {
+        static_cast<FeatureKeys&>(l) = poly;
+        l.closed = false;
+        l.length = len / kf;
+        add_line(std::move(l), kf);
+        l = SceneLine{};
+      }
+    }
   }
 
   void add_outline_ring(const ScenePolygon& poly, const Ring& ring, double kf) {
@@ -884,6 +957,9 @@ class LayerGather {
   const uint32_t layer_index_;
   const std::vector<double>* scale_ = nullptr;
   LayerCounts counts_;
+  // shared_edges = "once": the edges drawn so far (32 bytes and a hash
+  // node an edge, for the layer's whole life, across chunks).
+  std::unordered_set<EdgeKey, EdgeHash> seen_edges_;
 };
 
 }  // namespace

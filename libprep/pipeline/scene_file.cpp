@@ -74,10 +74,10 @@ constexpr std::string_view kRootKeys[] = {
     "source", "crs",   "assume_crs", "extent_crs",    "extent",      "resolution", "repair",
     "dem",    "build", "tiling",     "skip_failures", "allow_empty", "layer"};
 constexpr std::string_view kLayerKeys[] = {
-    "name",       "source",       "layer",        "where",          "sql",
-    "kind",       "dynamic",      "lod",          "color",          "color_attribute",
-    "color_ramp", "casing_width", "casing_color", "slope_widths",   "dash",
-    "width",      "corner",       "outline_mode", "order_attribute"};
+    "name",       "source",       "layer",        "where",           "sql",
+    "kind",       "dynamic",      "lod",          "color",           "color_attribute",
+    "color_ramp", "casing_width", "casing_color", "slope_widths",    "dash",
+    "width",      "corner",       "outline_mode", "order_attribute", "shared_edges"};
 constexpr std::string_view kBuildKeys[] = {
     "grid", "target_per_cell",   "max_cells", "leaf_capacity", "max_depth", "miter_limit_deg",
     "lmax", "terrain_tolerance", "z_scale",   "nodata_fill",   "threads"};
@@ -303,6 +303,11 @@ void parse_layer_key(const std::string& key, const toml::node& v, const KeyRef& 
       layer.style.outline = with_key(ref, [&] { return parse_outline_mode(get_string(v, ref)); });
     } else if (key == "order_attribute") {
       layer.style.order_attribute = get_string(v, ref);
+    } else if (key == "shared_edges") {
+      const std::string t = get_string(v, ref);
+      if (t != "all" && t != "once")
+        fail_key(ref, "expected \"all\" or \"once\", got \"" + t + "\"");
+      layer.shared_edges_once = t == "once";
     } else {
       fail_unknown(ref, key, kLayerKeys);
     }
@@ -347,6 +352,11 @@ void check_layer(const LayerSpec& layer, const KeyRef& here, Problems& problems)
         here,
         "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
         "dynamic widths are pixels, polygons have no width)");
+  if (layer.shared_edges_once &&
+      (layer.kind != DecalKind::outline || layer.style.outline != decal::OutlineMode::normal))
+    problems.add(here,
+                 "shared_edges = \"once\" needs kind = \"outline\" with outline_mode \"normal\" "
+                 "(a ring that loses edges is drawn as open lines, which have no inside)");
   if (!layer.dash.empty() && layer.kind == DecalKind::polygon)
     problems.add(here, "dash needs kind = \"line\" or \"outline\"");
   // The dynamic dash scan measures the kept vertex chains, which the LOD

@@ -161,6 +161,23 @@ TEST(SceneFile, InsetWithoutMiterIsRejected) {
   EXPECT_NE(e.find("miter"), std::string::npos) << e;
 }
 
+TEST(SceneFile, SharedEdgesOnceIsForNormalOutlinesOnly) {
+  const prep::SceneSpec ok = prep::parse_scene(
+      "[[layer]]\nsource = \"a.shp\"\nkind = \"outline\"\nshared_edges = \"once\"\n",
+      "/data/city/scene.toml");
+  EXPECT_TRUE(ok.layers.at(0).shared_edges_once);
+  std::string e =
+      error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"polygon\"\nshared_edges = \"once\"\n");
+  EXPECT_NE(e.find("shared_edges = \"once\" needs kind = \"outline\""), std::string::npos) << e;
+  e = error_of(
+      "[[layer]]\nsource = \"a.shp\"\nkind = \"outline\"\ncorner = \"miter\"\n"
+      "outline_mode = \"inset\"\nshared_edges = \"once\"\n");
+  EXPECT_NE(e.find("outline_mode \"normal\""), std::string::npos) << e;
+  e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"outline\"\nshared_edges = \"twice\"\n");
+  EXPECT_NE(e.find("scene.toml:4: layer[0].shared_edges"), std::string::npos) << e;
+  EXPECT_NE(e.find("\"all\" or \"once\""), std::string::npos) << e;
+}
+
 TEST(SceneFile, DuplicateLayerNamesAreRejected) {
   std::string e =
       error_of("source = \"a.shp\"\n[[layer]]\nname = \"x\"\n[[layer]]\nname = \"x\"\n");

@@ -86,6 +86,12 @@ struct LayerSpec {
   // along the line from its start, ground metres (static) or pixels
   // (dynamic); empty: solid. A casing copy is solid.
   std::vector<double> dash;
+  // Scene file shared_edges = "once" (kind = "outline", outline_mode
+  // "normal"): an edge that two rings of the layer share (the same two
+  // vertices) is drawn once, by the first ring in scene order; the rings
+  // that lost edges are drawn as the open runs they keep. "all" (false):
+  // every ring whole.
+  bool shared_edges_once = false;
 };
 
 struct Extent {
