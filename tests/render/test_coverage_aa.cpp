@@ -31,6 +31,7 @@
 #include "prep/error.hpp"
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
+#include "wgs84_frame.hpp"
 
 // The render tests share one binary (a unity build): each file keeps its
 // names in a namespace of its own.
@@ -57,14 +58,7 @@ std::vector<std::unique_ptr<OGRGeometry>> buildings(const prep::SceneFrame& fram
   std::unique_ptr<GDALDataset> ds(
       GDALDataset::Open(kPbf.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
   if (!ds) throw std::runtime_error("cannot open " + kPbf);
-  OGRSpatialReference wgs84, target;
-  wgs84.importFromEPSG(4326);
-  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  target.importFromWkt(frame.crs_wkt.c_str());
-  target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(
-      OGRCreateCoordinateTransformation(&wgs84, &target));
-  if (!ct) throw std::runtime_error("no transformation to the package frame");
+  const std::unique_ptr<OGRCoordinateTransformation> ct = render_test::wgs84_to_frame(frame);
   struct Shift : OGRDefaultGeometryVisitor {
     double dx, dy;
     Shift(double x, double y) : dx(x), dy(y) {}
@@ -269,14 +263,7 @@ TEST(CoverageAa, MonacoSharedEdgesAreFullAndEmptyGroundStaysEmpty) {
   // centres: of a scan of 234 such windows over the extract, the three with
   // the most pixels on shared edges (terraced blocks of Monte-Carlo and
   // La Condamine).
-  OGRSpatialReference wgs84, target;
-  wgs84.importFromEPSG(4326);
-  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  target.importFromWkt(src.frame.crs_wkt.c_str());
-  target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(
-      OGRCreateCoordinateTransformation(&wgs84, &target));
-  ASSERT_TRUE(ct);
+  const std::unique_ptr<OGRCoordinateTransformation> ct = render_test::wgs84_to_frame(src.frame);
   struct Window {
     double lon, lat, m;
   };

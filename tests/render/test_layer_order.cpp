@@ -26,6 +26,7 @@
 #include "prep/error.hpp"
 #include "prep/render.hpp"
 #include "smoke_util.hpp"
+#include "wgs84_frame.hpp"
 
 // The render tests share one binary (a unity build): each file keeps its
 // names in a namespace of its own.
@@ -91,14 +92,7 @@ std::vector<Probe> probes(const prep::SceneFrame& frame, const prep::Extent& ext
   std::unique_ptr<GDALDataset> ds(
       GDALDataset::Open(kPbf.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
   if (!ds) throw std::runtime_error("cannot open " + kPbf);
-  OGRSpatialReference wgs84, target;
-  wgs84.importFromEPSG(4326);
-  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  target.importFromWkt(frame.crs_wkt.c_str());
-  target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(
-      OGRCreateCoordinateTransformation(&wgs84, &target));
-  if (!ct) throw std::runtime_error("no transformation to the package frame");
+  const std::unique_ptr<OGRCoordinateTransformation> ct = render_test::wgs84_to_frame(frame);
   // Features are read into frame coordinates, then shifted to the origin.
   auto read = [&](const std::string& where) {
     std::vector<std::unique_ptr<OGRGeometry>> out;
