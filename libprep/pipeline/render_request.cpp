@@ -135,7 +135,7 @@ uint64_t parse_gpu_budget(const std::string& s) {
   }
 }
 
-// --aa, --method, --slope-widths, --binding: each one of its words.
+// --aa, --method, --slope-widths, --binding, --decal-light: each one of its words.
 template <class E>
 E one_of(const std::string& option, const std::string& given,
          std::initializer_list<std::pair<const char*, E>> words, const char* must) {
@@ -186,6 +186,8 @@ void check_drawing(const RenderRequest& a, RenderOptions& opt) {
       "--slope-widths", a.slope_widths,
       {{"auto", SlopeWidths::package}, {"on", SlopeWidths::on}, {"off", SlopeWidths::off}},
       "auto, on or off");
+  opt.decal_light =
+      one_of<bool>("--decal-light", a.decal_light, {{"on", true}, {"off", false}}, "on or off");
   // --size W: the height comes with the extent (square_pixels); the other
   // rules are checked now.
   RenderOptions probe = opt;

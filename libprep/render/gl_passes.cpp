@@ -683,6 +683,7 @@ void GlRenderer::composite_pass() {
   timer_.begin("composite");
   glBindFramebuffer(GL_FRAMEBUFFER, t_.f_final);
   glUseProgram(p_.composite);
+  glUniform1i(glGetUniformLocation(p_.composite, "u_decal_light"), opt_.decal_light ? 1 : 0);
   glBindTextureUnit(decal::gl::kUnitTerrainColour, t_.color);
   glBindTextureUnit(decal::gl::kUnitDecalLayer, t_.decal);
   glBindTextureUnit(decal::gl::kUnitDynamicLayer, t_.dyn);

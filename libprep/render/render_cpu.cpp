@@ -15,21 +15,38 @@ namespace prep::render {
 
 namespace {
 
-// Terrain colour of the CPU path: the same Lambert model as terrain.frag.glsl
-// with the vertex normals averaged over the hit triangle's cell.
-std::array<double, 3> shade(const Heightfield& t, const RenderOptions& opt, double x, double y,
-                            double z) {
+// The terrain pass's Lambert shade at a ground point, as terrain.frag.glsl
+// computes it: the vertex normals of the triangle the point lies in
+// (Heightfield::triangle_gradient's split of the cell), interpolated
+// linearly over it as GL interpolates v_normal, normalised.
+double shade_at(const Heightfield& t, double x, double y) {
   const Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
-  int i = std::clamp(int((x - t.x0) / t.dx), 0, int(t.nx) - 2),
-      j = std::clamp(int((y - t.y0) / t.dy), 0, int(t.ny) - 2);
-  Vec3 n = detail::add(detail::add(t.normal_at(i, j), t.normal_at(i + 1, j)),
-                       detail::add(t.normal_at(i, j + 1), t.normal_at(i + 1, j + 1)));
-  double l = std::max(detail::dot(detail::normalize(n), light), 0.0);
-  // Sea tint at or below 0 m, as terrain.frag.glsl (flat terrain is land).
+  const int i = std::clamp(int(std::floor((x - t.x0) / t.dx)), 0, int(t.nx) - 2),
+            j = std::clamp(int(std::floor((y - t.y0) / t.dy)), 0, int(t.ny) - 2);
+  const double u = std::clamp((x - t.x0) / t.dx - i, 0.0, 1.0),
+               v = std::clamp((y - t.y0) / t.dy - j, 0.0, 1.0);
+  const Vec3 n00 = t.normal_at(i, j), n11 = t.normal_at(i + 1, j + 1);
+  Vec3 n;
+  if (v <= u) {  // the lower triangle (00, 10, 11)
+    const Vec3 n10 = t.normal_at(i + 1, j);
+    n = detail::add(detail::add(detail::mul(n00, 1 - u), detail::mul(n10, u - v)),
+                    detail::mul(n11, v));
+  } else {  // the upper triangle (00, 11, 01)
+    const Vec3 n01 = t.normal_at(i, j + 1);
+    n = detail::add(detail::add(detail::mul(n00, 1 - v), detail::mul(n11, u)),
+                    detail::mul(n01, v - u));
+  }
+  const double l = std::max(detail::dot(detail::normalize(n), light), 0.0);
+  return 0.35 + 0.65 * l;
+}
+
+// Terrain colour of the CPU path: albedo (the sea tint at or below 0 m, as
+// terrain.frag.glsl; flat terrain is land) times the shade.
+std::array<double, 3> terrain_colour(const Heightfield& t, const RenderOptions& opt, double z,
+                                     double shade) {
   std::array<double, 3> albedo = opt.albedo;
   if (t.zmax > t.zmin && z <= 0.0) albedo = {0.45, 0.58, 0.70};
-  return {albedo[0] * (0.35 + 0.65 * l), albedo[1] * (0.35 + 0.65 * l),
-          albedo[2] * (0.35 + 0.65 * l)};
+  return {albedo[0] * shade, albedo[1] * shade, albedo[2] * shade};
 }
 
 }  // namespace
@@ -233,15 +250,21 @@ struct CpuFrame {
         draw_tile(k, std::span<const uint32_t>(pixels).subspan(first[k], first[k + 1] - first[k]));
   }
 
-  // Final image: dynamic lines over the decal layer over the shaded
-  // terrain, sky where no terrain (composite.frag.glsl).
+  // Final image: dynamic lines over the decal layer (lit by the terrain's
+  // shade with opt.decal_light) over the shaded terrain, sky where no
+  // terrain (composite.frag.glsl).
   void composite() {
     for (size_t k = 0; k < size_t(W) * H; ++k) {
       std::array<double, 3> base{0.80, 0.86, 0.93};
-      if (!std::isnan(hit_x[k])) base = shade(terrain, opt, hit_x[k], hit_y[k], hit_z[k]);
+      double lit = 1;
+      if (!std::isnan(hit_x[k])) {
+        const double s = shade_at(terrain, hit_x[k], hit_y[k]);
+        base = terrain_colour(terrain, opt, hit_z[k], s);
+        if (opt.decal_light) lit = s;
+      }
       const double a = img.decals[4 * k + 3], l = img.dynamic[4 * k + 3];
       for (int c = 0; c < 3; ++c) {
-        const double under = img.decals[4 * k + c] * a + (1 - a) * base[c];
+        const double under = img.decals[4 * k + c] * a * lit + (1 - a) * base[c];
         const double v = img.dynamic[4 * k + c] * l + (1 - l) * under;
         img.rgba[4 * k + c] = uint8_t(std::lround(std::clamp(v, 0.0, 1.0) * 255.0));
       }

@@ -190,6 +190,10 @@ const decalprep::CommandRegistrar kRegister(60, kRenderHelp, [](CLI::App* cmd) {
                   "Static line widths along the terrain instead of in plan: auto (default: the "
                   "layers whose scene set slope_widths), on (every static line) or off; decal "
                   "method and --cpu");
+  cmd->add_option("--decal-light", args->decal_light,
+                  "Static decals lit by the terrain's light in the image: on (default; their "
+                  "colour times the terrain's shade, as the terrain is lit) or off (flat colour). "
+                  "--decals and --raw stay unlit; dynamic lines are never lit");
   cmd->add_option("--texture-resolution", args->texture_resolution,
                   "--method texture: ground metres per texel (default 1, coarser where the "
                   "extent needs more than 8192 texels a side)");

@@ -1,4 +1,5 @@
-// terrain.frag.glsl — simple Lambert shading into the G-buffer colour; the
+// terrain.frag.glsl — simple Lambert shading into the G-buffer colour (the
+// shade factor itself in its alpha, for lit decals); the
 // depth attachment is the G-buffer depth the decal passes back-project
 // (and, for slope widths, the triangle's gradient into a second target).
 // Heights at or below 0 m (the sea in SRTM tiles) get a water tint.
@@ -41,5 +42,7 @@ void main() {
 #endif
   float l = max(dot(normalize(v_normal), u_light_dir), 0.0);
   vec3 albedo = v_height <= u_sea_level ? vec3(0.45, 0.58, 0.70) : u_albedo;
-  o_color = vec4(albedo * (0.35 + 0.65 * l), 1.0);
+  // The shade in alpha: the composite lights the static decal layer with it.
+  float shade = 0.35 + 0.65 * l;
+  o_color = vec4(albedo * shade, shade);
 }

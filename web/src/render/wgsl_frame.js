@@ -1,6 +1,7 @@
 // wgsl_frame.js — the terrain pass (formats/gl/shaders/terrain.vert.glsl and
-// terrain.frag.glsl: Lambert shading, water tint at or below sea level,
-// reversed depth), the composite (composite.frag.glsl, no dynamic lines)
+// terrain.frag.glsl: Lambert shading, its shade in alpha, water tint at or
+// below sea level, reversed depth), the composite (composite.frag.glsl with
+// lit decals, no dynamic lines)
 // and the blit that shows a frame on a canvas.
 
 export const TERRAIN_UNIFORM_BYTES = 96;
@@ -30,7 +31,9 @@ fn fs(v: VOut) -> @location(0) vec4f {
   let l = max(dot(normalize(v.normal), U.light.xyz), 0.0);
   var albedo = U.albedo.rgb;
   if (v.ground.z <= U.light.w) { albedo = vec3f(0.45, 0.58, 0.70); }
-  return vec4f(albedo * (0.35 + 0.65 * l), 1.0);
+  // The shade in alpha: the composite lights the decals with it.
+  let shade = 0.35 + 0.65 * l;
+  return vec4f(albedo * shade, shade);
 }
 `;
 
@@ -52,7 +55,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
   let k = gid.x + U.size.x * gid.y;
   let t = textureLoad(terrain, vec2<i32>(gid.xy), 0);
   let d = DEC[k];
-  RGBA[k] = pack(vec4f(d.rgb + (1.0 - d.a) * t.rgb, 1.0));
+  // Lit decals (formats/SPEC.md "Lit decals"): the decal colour times the
+  // terrain's shade, the terrain target's alpha.
+  RGBA[k] = pack(vec4f(d.rgb * t.a + (1.0 - d.a) * t.rgb, 1.0));
   // straight alpha: (C / A, A), 0 where A = 0 (SPEC step 4)
   var s = vec4f(0.0);
   if (d.a > 0.0) { s = vec4f(d.rgb / d.a, d.a); }

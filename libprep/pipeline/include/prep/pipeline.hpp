@@ -276,6 +276,7 @@ struct RenderRequest {
   std::string aa, binding = "ssbo", method = "decal";
   std::string only;                   // polygons,lines,dynamic; empty: all
   std::string slope_widths = "auto";  // auto|on|off
+  std::string decal_light = "on";     // on|off: static decals lit by the terrain's light
   double texture_resolution = 0;      // 0: the renderer's default
   std::string lod = "on";             // on|off
   double lod_tolerance = 0.5;         // pixels

@@ -269,6 +269,13 @@ struct RenderOptions {
   AntiAliasing aa = AntiAliasing::none;
   Binding binding = Binding::ssbo;
   std::array<double, 3> albedo{0.62, 0.66, 0.58};
+  // The static decal layer lit by the terrain's light in the final image
+  // (render --decal-light on|off): its colour times the terrain pass's
+  // Lambert shade at the pixel, 0.35 + 0.65 max(n . l, 0), the same light
+  // and normal as the terrain (formats/SPEC.md "Lit decals"). The decal
+  // layer itself (Image::decals, --decals, --raw) stays unlit; dynamic lines
+  // (screen-space symbols, pixel widths) are drawn unlit over it.
+  bool decal_light = true;
   // Which decal kinds to draw (e.g. polygons alone for a coverage check).
   bool draw_polygons = true, draw_lines = true, draw_dynamic = true;
   // GL: frames rendered in one context; pass times are the last one's.
