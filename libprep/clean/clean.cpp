@@ -547,6 +547,23 @@ struct Cleaner {
   // --------------------------------------------------------------- lines --
 
   // Takes the part's points (f.rings[0] is left empty).
+  // A point layer's part: outside the extent it is clipped away; inside,
+  // a line from the point kPointStep along +x, which every renderer draws
+  // as a round dot of the line's width (formats/SPEC.md "Points").
+  void point(const SourceFeature& f, PartResult& r) const {
+    const Point2 p = f.rings[0][0];
+    r.vertices_in = r.vertices_out = 1;
+    if (clip &&
+        !(p.x >= clip->xmin && p.x <= clip->xmax && p.y >= clip->ymin && p.y <= clip->ymax)) {
+      r.outcome = Outcome::clipped_away;
+      return;
+    }
+    SceneLine out;
+    out.points = {p, {p.x + kPointStep, p.y}};
+    static_cast<FeatureKeys&>(out) = f;
+    r.lines.push_back(std::move(out));
+  }
+
   void line(WorkerContext& ctx, SourceFeature& f, PartResult& r) const {
     GEOSContextHandle_t h = ctx.handle();
     Ring pts = std::move(f.rings[0]);
@@ -689,7 +706,9 @@ void clean_part(const Cleaner& cleaner, WorkerContext& ctx, ProgressStage& stage
   ProgressWatch watch = stage.watch(layer, f.fid, vertices, "clean");
   ctx.watch = &watch;
   try {
-    if (f.is_polygon)
+    if (f.is_point)
+      cleaner.point(f, r);
+    else if (f.is_polygon)
       cleaner.polygon(ctx, f, r);
     else
       cleaner.line(ctx, f, r);

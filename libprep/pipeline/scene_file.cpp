@@ -352,6 +352,17 @@ void check_layer(const LayerSpec& layer, const KeyRef& here, Problems& problems)
         here,
         "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
         "dynamic widths are pixels, polygons have no width)");
+  // Points are lines of two vertices kPointStep apart, drawn as round dots
+  // of the layer's width (formats/SPEC.md "Points").
+  if (layer.kind == DecalKind::point) {
+    if (layer.style.corner != decal::CornerStyle::round ||
+        layer.style.outline != decal::OutlineMode::normal)
+      problems.add(here,
+                   "kind = \"point\" draws round dots: corner \"round\" and outline_mode "
+                   "\"normal\" only");
+    if (!layer.dash.empty() || layer.lod || layer.slope_widths)
+      problems.add(here, "kind = \"point\" takes no dash, lod or slope_widths (a dot is one disc)");
+  }
   if (layer.shared_edges_once &&
       (layer.kind != DecalKind::outline || layer.style.outline != decal::OutlineMode::normal))
     problems.add(here,
@@ -517,7 +528,8 @@ DecalKind parse_kind(const std::string& t) {
   if (t == "polygon") return DecalKind::polygon;
   if (t == "line") return DecalKind::line;
   if (t == "outline") return DecalKind::outline;
-  prep::fail<usage_error>(kNoStage, "expected polygon|line|outline, got \"" + t + "\"");
+  if (t == "point") return DecalKind::point;
+  prep::fail<usage_error>(kNoStage, "expected polygon|line|outline|point, got \"" + t + "\"");
 }
 
 std::string resolve_scene_path(const std::string& path, const std::string& base_dir) {

@@ -190,7 +190,31 @@ struct Splitter {
     return r;
   }
 
+  void add_point(const OGRPoint& p) {
+    if (spec.kind != DecalKind::point) {
+      ++unusable;
+      unusable_type = "Point";
+      return;
+    }
+    if (!std::isfinite(p.getX()) || !std::isfinite(p.getY())) {
+      bad_coordinate = true;
+      bad_coordinate_text = "the point has a non-finite coordinate (" + std::to_string(p.getX()) +
+                            ", " + std::to_string(p.getY()) + ")";
+      return;
+    }
+    SourceFeature f = proto;
+    f.part = next_part++;
+    f.is_point = true;
+    f.rings.push_back({{p.getX(), p.getY()}});
+    out.push_back(std::move(f));
+  }
+
   void add_polygon(const OGRPolygon& p) {
+    if (spec.kind == DecalKind::point) {
+      ++unusable;
+      unusable_type = "Polygon";
+      return;
+    }
     bool want_polygon = spec.kind != DecalKind::line;
     if (!want_polygon) {
       // A polygon in a line layer: its rings are drawn as closed lines.
@@ -231,6 +255,10 @@ struct Splitter {
       return;
     }
     switch (wkbFlatten(g->getGeometryType())) {
+      case wkbPoint: add_point(*g->toPoint()); break;
+      case wkbMultiPoint:
+        for (const OGRGeometry* sub : *g->toGeometryCollection()) add(sub);
+        break;
       case wkbPolygon:
       case wkbTriangle: add_polygon(*g->toPolygon()); break;
       case wkbLineString:

@@ -471,8 +471,10 @@ class LevelFilter : public PartFilter {
     const bool own = owns(l.points);
     const uint64_t in = l.points.size() + (l.closed ? 1 : 0);
     const double tolerance = level_line_tolerance(level_, dynamic ? 0.0 : l.width);
+    // A dot (a point layer's line) is a symbol: no level drops it for its length.
+    const bool dot = l.layer < layers_.size() && layers_[l.layer].kind == DecalKind::point;
     const bool keep =
-        part_length(l) >= level_.min_length && simplifier_.line(l, what(l), tolerance);
+        dot || (part_length(l) >= level_.min_length && simplifier_.line(l, what(l), tolerance));
     const uint64_t out = keep ? l.points.size() + (l.closed ? 1 : 0) : 0;
     if (own) count(l.layer, keep, in, out);
     return keep;

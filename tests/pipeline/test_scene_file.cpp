@@ -178,6 +178,17 @@ TEST(SceneFile, SharedEdgesOnceIsForNormalOutlinesOnly) {
   EXPECT_NE(e.find("\"all\" or \"once\""), std::string::npos) << e;
 }
 
+TEST(SceneFile, PointLayersTakeRoundDotsOnly) {
+  const prep::SceneSpec ok = prep::parse_scene(
+      "[[layer]]\nsource = \"a.shp\"\nkind = \"point\"\nwidth = 5\ndynamic = true\n",
+      "/data/city/scene.toml");
+  EXPECT_EQ(ok.layers.at(0).kind, prep::DecalKind::point);
+  std::string e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"point\"\ncorner = \"miter\"\n");
+  EXPECT_NE(e.find("round dots"), std::string::npos) << e;
+  e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"point\"\ndash = [2, 1]\n");
+  EXPECT_NE(e.find("takes no dash"), std::string::npos) << e;
+}
+
 TEST(SceneFile, DuplicateLayerNamesAreRejected) {
   std::string e =
       error_of("source = \"a.shp\"\n[[layer]]\nname = \"x\"\n[[layer]]\nname = \"x\"\n");

@@ -399,7 +399,7 @@ const decalprep::CommandRegistrar kBuild(10, kBuildHelp, [](CLI::App* cmd) {
       ->group(g);
   cmd->add_option("--where", args->fileless.where, "OGR attribute filter")->group(g);
   cmd->add_option("--sql", args->fileless.sql, "OGR SQL (replaces --layer/--where)")->group(g);
-  cmd->add_option("--kind", args->fileless.kind, "polygon | line | outline")->group(g);
+  cmd->add_option("--kind", args->fileless.kind, "polygon | line | outline | point")->group(g);
   cmd->add_option("--width", args->fileless.width,
                   "Line width: ground metres, or pixels with --dynamic")
       ->group(g);

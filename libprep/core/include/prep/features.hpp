@@ -56,6 +56,7 @@ struct SourceFeature : FeatureKeys {
   std::string drop_reason;                // non-empty: unusable; clean records it as dropped
   std::optional<FailureStage> failed_in;  // set: drop_reason is a per-feature failure
   bool is_polygon = false;
+  bool is_point = false;    // rings = {{the point}} (a point layer's part)
   std::vector<Ring> rings;  // polygon: [0] shell, then holes; line: [0]
 };
 

@@ -14,7 +14,13 @@
 
 namespace prep {
 
-enum class DecalKind { polygon, line, outline };
+// point: each point a round dot, drawn as a line of two vertices kPointStep
+// apart (formats/SPEC.md "Points"), so every renderer draws it as a line.
+enum class DecalKind { polygon, line, outline, point };
+// The length of a dot's line: 2 mm, two quanta of a package's coordinates,
+// so its ends stay apart; the dot is a disc of the width stretched by it
+// (1 mm each way, inside the 2 mm band of the drawing rules).
+inline constexpr double kPointStep = 0.002;
 
 // The scene-file word of a kind (the inverse of parse_kind, prep/pipeline.hpp).
 inline const char* kind_name(DecalKind kind) {
@@ -22,6 +28,7 @@ inline const char* kind_name(DecalKind kind) {
     case DecalKind::polygon: return "polygon";
     case DecalKind::line: return "line";
     case DecalKind::outline: return "outline";
+    case DecalKind::point: return "point";
   }
   return "?";
 }

@@ -190,7 +190,7 @@ BatchResult run_batch(const BatchRequest& request);
 // source and DEM paths (against the file's directory, also inside /vsizip/
 // and friends). Unknown keys, wrong types and bad values throw scene_error
 // whose message names the file, the key and its line:
-//   scene.toml:12: layer[2].kind: expected polygon|line|outline, got "poly"
+//   scene.toml:12: layer[2].kind: expected polygon|line|outline|point, got "poly"
 // Thread-safe (no shared state).
 BuildSpec parse_scene(const std::string& text, const std::string& path);
 
@@ -225,7 +225,7 @@ std::string dash_problem(const std::vector<double>& dash);
 // colour at 60% brightness), solid, named NAME.casing (LayerSpec::casing_of).
 LayerSpec casing_layer(const LayerSpec& layer);
 
-// Parses "round|miter|bevel", "normal|inset|offset", "polygon|line|outline".
+// Parses "round|miter|bevel", "normal|inset|offset", "polygon|line|outline|point".
 // Throw usage_error naming the accepted values.
 decal::CornerStyle parse_corner(const std::string& text);
 decal::OutlineMode parse_outline_mode(const std::string& text);
