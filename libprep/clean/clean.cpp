@@ -546,7 +546,6 @@ struct Cleaner {
 
   // --------------------------------------------------------------- lines --
 
-  // Takes the part's points (f.rings[0] is left empty).
   // A point layer's part: outside the extent it is clipped away; inside,
   // a line from the point kPointStep along +x, which every renderer draws
   // as a round dot of the line's width (formats/SPEC.md "Points").
@@ -564,6 +563,7 @@ struct Cleaner {
     r.lines.push_back(std::move(out));
   }
 
+  // Takes the part's points (f.rings[0] is left empty).
   void line(WorkerContext& ctx, SourceFeature& f, PartResult& r) const {
     GEOSContextHandle_t h = ctx.handle();
     Ring pts = std::move(f.rings[0]);

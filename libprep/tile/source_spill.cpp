@@ -53,6 +53,7 @@ class Reader {
     get(flags);
     get(stage);
     f.is_polygon = (flags & 1) != 0;
+    f.is_point = (flags & 4) != 0;
     f.failed_in =
         (flags & 2) ? std::optional<FailureStage>(static_cast<FailureStage>(stage)) : std::nullopt;
     get(f.order_value);
@@ -112,7 +113,7 @@ void SpillWriter::write(const SourceLayer& chunk) {
     put(buf_, int64_t(f.fid));
     put(buf_, f.part);
     put(buf_, f.feature);
-    put(buf_, uint8_t((f.is_polygon ? 1 : 0) | (f.failed_in ? 2 : 0)));
+    put(buf_, uint8_t((f.is_polygon ? 1 : 0) | (f.failed_in ? 2 : 0) | (f.is_point ? 4 : 0)));
     put(buf_, uint8_t(f.failed_in ? static_cast<int>(*f.failed_in) : 0));
     put(buf_, f.order_value);
     put(buf_, f.color_value);
