@@ -880,6 +880,17 @@ class LayerGather {
     for (const Ring& hole : poly.holes) add_outline_ring(poly, hole, kf);
   }
 
+  // The length of a closed ring, its closing edge included.
+  static double perimeter(const Ring& ring) {
+    double len = 0;
+    for (size_t q = 0; q < ring.size(); ++q) {
+      const Point2& a = ring[q];
+      const Point2& b = ring[(q + 1) % ring.size()];
+      len += std::hypot(b.x - a.x, b.y - a.y);
+    }
+    return len;
+  }
+
   // An edge with its ends in a fixed order, as the bits of its doubles.
   struct EdgeKey {
     uint64_t v[4];
@@ -919,12 +930,7 @@ class LayerGather {
     }
     if (kept == n) return add_outline_ring(poly, ring, kf);
     if (kept == 0) return;
-    double len = 0;
-    for (size_t q = 0; q < n; ++q) {
-      const Point2& a = ring[q];
-      const Point2& b = ring[(q + 1) % n];
-      len += std::hypot(b.x - a.x, b.y - a.y);
-    }
+    const double len = perimeter(ring);
     // Start at a kept edge after a dropped one; each run of kept edges is a line.
     size_t start = 0;
     while (!(keep[start] && !keep[(start + n - 1) % n])) ++start;
@@ -951,12 +957,7 @@ class LayerGather {
     l.points = ring;
     l.closed = true;
     static_cast<FeatureKeys&>(l) = poly;
-    double len = 0;
-    for (size_t q = 0; q < ring.size(); ++q) {
-      const Point2& a = ring[q];
-      const Point2& b = ring[(q + 1) % ring.size()];
-      len += std::hypot(b.x - a.x, b.y - a.y);
-    }
+    const double len = perimeter(ring);
     l.length = len / kf;
     add_line(std::move(l), kf);
   }

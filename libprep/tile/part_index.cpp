@@ -14,7 +14,6 @@
 #include <utility>
 
 #include "prep/error.hpp"
-#include "prep/features.hpp"
 #include "prep/stage_error.hpp"
 
 namespace prep::tiling {
@@ -45,6 +44,20 @@ uint64_t hilbert_index(uint32_t x, uint32_t y) {
   return d;
 }
 
+// A box that holds nothing yet, and `into` grown to hold `r`'s box.
+BoxRecord nothing() {
+  BoxRecord b;
+  b.xmin = b.ymin = INFINITY;
+  b.xmax = b.ymax = -INFINITY;
+  return b;
+}
+void take_in(BoxRecord& into, const BoxRecord& r) {
+  into.xmin = std::min(into.xmin, r.xmin);
+  into.ymin = std::min(into.ymin, r.ymin);
+  into.xmax = std::max(into.xmax, r.xmax);
+  into.ymax = std::max(into.ymax, r.ymax);
+}
+
 bool box_meets(const BoxRecord& r, const Extent& w) {
   return r.xmin <= w.xmax && r.xmax >= w.xmin && r.ymin <= w.ymax && r.ymax >= w.ymin;
 }
@@ -70,13 +83,8 @@ void write_box_index(const std::string& boxes_path, const std::string& index_pat
   std::vector<BoxRecord> leaves = read_boxes(boxes_path);
   // Sorted by the Hilbert index of each box's centre on a 2^16 grid over
   // all the boxes (ties in write order, so the file is the same every run).
-  Extent all = no_points();
-  for (const BoxRecord& r : leaves) {
-    all.xmin = std::min(all.xmin, r.xmin);
-    all.ymin = std::min(all.ymin, r.ymin);
-    all.xmax = std::max(all.xmax, r.xmax);
-    all.ymax = std::max(all.ymax, r.ymax);
-  }
+  BoxRecord all = nothing();
+  for (const BoxRecord& r : leaves) take_in(all, r);
   const double sx = all.xmax > all.xmin ? 65535.0 / (all.xmax - all.xmin) : 0;
   const double sy = all.ymax > all.ymin ? 65535.0 / (all.ymax - all.ymin) : 0;
   // Each leaf's Hilbert index above its position (8 bytes a part), sorted,
@@ -117,14 +125,8 @@ void write_box_index(const std::string& boxes_path, const std::string& index_pat
       const size_t first = j * kIndexFanout;
       const size_t last = std::min(below.size(), first + kIndexFanout);
       BoxRecord& node = up[j];
-      node.xmin = node.ymin = INFINITY;
-      node.xmax = node.ymax = -INFINITY;
-      for (size_t k = first; k < last; ++k) {
-        node.xmin = std::min(node.xmin, below[k].xmin);
-        node.ymin = std::min(node.ymin, below[k].ymin);
-        node.xmax = std::max(node.xmax, below[k].xmax);
-        node.ymax = std::max(node.ymax, below[k].ymax);
-      }
+      node = nothing();
+      for (size_t k = first; k < last; ++k) take_in(node, below[k]);
       node.offset = first;
       node.bytes = uint32_t(last - first);
     }

@@ -128,7 +128,10 @@ void PartWriter::add(const SceneFeatures& chunk) {
                          "cannot write " + impl_->boxes_path + ": " + std::strerror(errno));
     impl_->offset += bytes;
     ++seq_[static_cast<int>(kind)];
-    extend(box_, outer);
+    if (!outer.empty()) {  // the running extent from the part's box, not its points again
+      extend(box_, Point2{b.xmin, b.ymin});
+      extend(box_, Point2{b.xmax, b.ymax});
+    }
   };
   for (const ScenePolygon& p : chunk.polygons) {
     const double keys[5] = {p.area, 0, 0, p.order_value, p.color_value};
