@@ -446,12 +446,17 @@ bool dash_covers(const StaticView& v, uint32_t s, uint32_t e_idx, uint32_t line,
 
 struct Compositor {
   EvalSample& out;
+  std::span<const uint8_t> unlit;  // per layer; empty: every layer lit
   // Returns true once opaque.
-  bool add(uint32_t rgba) {
+  bool add(uint32_t rgba, uint32_t layer) {
     const double a = double((rgba >> 24) & 0xffu) / 255.0;
     const double w = (1.0 - out.rgba[3]) * a;
-    for (int ch = 0; ch < 3; ++ch)
-      out.rgba[ch] += float(w * double((rgba >> (8 * ch)) & 0xffu) / 255.0);
+    const bool flat = !unlit.empty() && unlit[std::min<size_t>(layer, unlit.size() - 1)];
+    for (int ch = 0; ch < 3; ++ch) {
+      const float c = float(w * double((rgba >> (8 * ch)) & 0xffu) / 255.0);
+      out.rgba[ch] += c;
+      if (flat) out.unlit_rgb[ch] += c;
+    }
     out.rgba[3] += float(w);
     return out.rgba[3] >= 0.999f;
   }
@@ -616,6 +621,11 @@ EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
 
 EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope& slope,
                     EvalCounters* k) {
+  return evaluate(v, x, y, slope, {}, k);
+}
+
+EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope& slope,
+                    std::span<const uint8_t> unlit, EvalCounters* k) {
   EvalSample out;
   // Step 6b applies to the lines of the flagged layers where the ground is
   // not level.
@@ -631,7 +641,7 @@ EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope&
   const PointQ p{x / kQ, y / kQ};
   uint32_t cell;
   if (!cell_of(v.grid, p, cell)) return out;
-  Compositor comp{out};
+  Compositor comp{out, unlit};
   // Step 3/4: two front-to-back streams, one per BVH, merged by rank.
   const uvec2 lines = v.line_bvh_range.empty() ? uvec2{0, 0} : v.cell_segment_range[cell];
   const uvec2 polys = v.poly_bvh_range.empty() ? uvec2{0, 0} : v.cell_poly_range[cell];
@@ -661,7 +671,7 @@ EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope&
     if (hit == SegmentHit::clipped) return false;
     if (!out.line_covered) out.top_line = int32_t(line);
     out.line_covered = true;
-    return comp.add(v.line_props[line].rgba);
+    return comp.add(v.line_props[line].rgba, v.line_props[line].layer);
   };
   // Polygon leaf (step 7): true once opaque.
   auto poly_leaf = [&](uint32_t leaf) {
@@ -671,7 +681,7 @@ EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope&
       if (quadtree_covers(v, v.cell_holes[j][1], p, k)) return false;
     if (!out.polygon_covered) out.top_polygon = int32_t(cp[0]);
     out.polygon_covered = true;
-    return comp.add(v.poly_props[cp[0]].rgba);
+    return comp.add(v.poly_props[cp[0]].rgba, v.poly_props[cp[0]].layer);
   };
   uint32_t l = line_cursor.next(), g = poly_cursor.next();
   while (l != kNoLeaf || g != kNoLeaf) {

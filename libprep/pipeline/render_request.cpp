@@ -315,6 +315,7 @@ struct Scene {
   std::string metadata;        // a package's metadata (the recorded DEM)
   std::string metadata_file;   // that package (a recorded DEM is relative to its folder)
   bool slope_flagged = false;  // its layer table flags a layer slope_widths = true
+  bool unlit_flagged = false;  // ... or a layer light = false
   TileSelection selection;     // a tileset: the tiles drawn (prep/tile.hpp)
   TileList list;               // a tileset: those tiles, as the renderers open them
 };
@@ -351,6 +352,7 @@ Scene open_scene(const std::string& path) {
     sc.metadata = std::string(sc.packages[0].metadata_json());
     sc.metadata_file = path;
     sc.slope_flagged = !src.slope_layers.empty();
+    sc.unlit_flagged = !src.unlit_layers.empty();
     sc.tiles.push_back({src, Extent{-INFINITY, -INFINITY, INFINITY, INFINITY}, 0, 0});
     return sc;
   }
@@ -367,6 +369,7 @@ Scene open_scene(const std::string& path) {
     sc.metadata = std::string(first.metadata_json());
     sc.metadata_file = path + "/" + sc.index.tiles.front().file;
     sc.slope_flagged = !source_of(first).slope_layers.empty();
+    sc.unlit_flagged = !source_of(first).unlit_layers.empty();
   }
   return sc;
 }
@@ -444,6 +447,7 @@ void load_tiles(const RenderRequest& a, Scene& sc, const RenderOptions& opt,
       opt.draw_lines && (opt.slope_widths == SlopeWidths::on
                              ? lines
                              : opt.slope_widths == SlopeWidths::package && sc.slope_flagged);
+  sc.list.unlit = sc.unlit_flagged;
   stats->counted.assign(hit.size(), 0);
   struct Held {
     decal::Package package;
@@ -727,8 +731,14 @@ Camera place_camera(const RenderRequest& a, const CheckedRender& c, const View& 
   return cam;
 }
 
-// The slope widths the volume and texture methods cannot draw.
+// The slope widths the volume and texture methods cannot draw, and the
+// unlit layers the texture method lights with the rest of its texture.
 void warn_plan_widths(const RenderRequest& a, const RenderOptions& opt, const Scene& sc) {
+  if (opt.method == Method::texture && opt.decal_light && sc.unlit_flagged)
+    warn(a,
+         "the package's light = false layers are lit by --method texture, which lights its "
+         "whole decal texture (--method decal or volume keeps them unlit, or --decal-light "
+         "off)");
   if (opt.method == Method::decal || opt.slope_widths != SlopeWidths::package) return;
   if (sc.slope_flagged)
     warn(a, "the package's slope_widths layers are drawn with their plan widths by --method " +

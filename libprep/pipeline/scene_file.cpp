@@ -77,7 +77,8 @@ constexpr std::string_view kLayerKeys[] = {
     "name",       "source",       "layer",        "where",           "sql",
     "kind",       "dynamic",      "lod",          "color",           "color_attribute",
     "color_ramp", "casing_width", "casing_color", "slope_widths",    "dash",
-    "width",      "corner",       "outline_mode", "order_attribute", "shared_edges"};
+    "width",      "corner",       "outline_mode", "order_attribute", "shared_edges",
+    "light"};
 constexpr std::string_view kBuildKeys[] = {
     "grid", "target_per_cell",   "max_cells", "leaf_capacity", "max_depth", "miter_limit_deg",
     "lmax", "terrain_tolerance", "z_scale",   "nodata_fill",   "threads"};
@@ -290,6 +291,8 @@ void parse_layer_key(const std::string& key, const toml::node& v, const KeyRef& 
       layer.casing_rgba = with_key(ref, [&] { return parse_color(get_string(v, ref)); });
     } else if (key == "slope_widths") {
       layer.slope_widths = get_bool(v, ref);
+    } else if (key == "light") {
+      layer.light = get_bool(v, ref);
     } else if (key == "dash") {
       layer.dash = parse_dash(v, ref);
     } else if (key == "width") {
@@ -352,6 +355,8 @@ void check_layer(const LayerSpec& layer, const KeyRef& here, Problems& problems)
         here,
         "slope_widths needs a static line layer (kind = \"line\" or \"outline\", not dynamic: "
         "dynamic widths are pixels, polygons have no width)");
+  if (!layer.light && layer.dynamic)
+    problems.add(here, "light = false is for static layers: dynamic lines are drawn unlit already");
   // Points are lines of two vertices kPointStep apart, drawn as round dots
   // of the layer's width (formats/SPEC.md "Points").
   if (layer.kind == DecalKind::point) {

@@ -86,11 +86,19 @@ GLuint upload_positions(GlObjects& gl, const std::vector<float>& xyz, const char
 
 namespace {
 
+// Whether feature f's layer is drawn unlit (flags: DecalSource::unlit_layers
+// under lit decals, else empty).
+bool feature_unlit(const MethodFeature& f, std::span<const uint8_t> flags) {
+  return !flags.empty() && flags[std::min<size_t>(f.layer, flags.size() - 1)] != 0;
+}
+
 // The end of the group that starts at feature k: a run of consecutive
-// opaque features of one colour; translucent features of one colour share
-// a group while their boxes are disjoint (then no texel is covered twice).
-size_t group_end(const MethodGeometry& g, size_t k) {
+// opaque features of one colour (and one lighting); translucent features
+// of one colour share a group while their boxes are disjoint (then no texel
+// is covered twice).
+size_t group_end(const MethodGeometry& g, size_t k, std::span<const uint8_t> unlit) {
   const MethodFeature& f0 = g.features[k];
+  const bool flat = feature_unlit(f0, unlit);
   const bool opaque = (f0.rgba >> 24) == 255;
   std::vector<Extent> boxes{f0.box};
   auto disjoint = [&](const Extent& b) {
@@ -103,7 +111,7 @@ size_t group_end(const MethodGeometry& g, size_t k) {
   };
   size_t end = k + 1;
   while (end < g.features.size() && g.features[end].rgba == f0.rgba &&
-         (opaque || disjoint(g.features[end].box)))
+         feature_unlit(g.features[end], unlit) == flat && (opaque || disjoint(g.features[end].box)))
     ++end;
   return end;
 }
@@ -211,11 +219,14 @@ void GlRenderer::volume_setup(const MethodGeometry& g) {
   const Mat4 vp = mat_mul(projection_matrix(opt_.camera, double(W_) / H_),
                           view_matrix(opt_.camera, view_.eye_rel));
   std::vector<float> xyz;
+  const std::span<const uint8_t> unlit =
+      unlit_ ? std::span<const uint8_t>(source_->unlit_layers) : std::span<const uint8_t>{};
   for (size_t k = 0; k < g.features.size();) {
-    const size_t end = group_end(g, k);
+    const size_t end = group_end(g, k, unlit);
     MethodState::Group grp;
     grp.first = GLint(xyz.size() / 3);
     grp.rgba = g.features[k].rgba;
+    grp.unlit = feature_unlit(g.features[k], unlit);
     Extent box{INFINITY, INFINITY, -INFINITY, -INFINITY};
     double zlo = INFINITY, zhi = -INFINITY;
     append_prisms(g, k, end, range, anchor, xyz, box, zlo, zhi);
@@ -229,8 +240,11 @@ void GlRenderer::volume_setup(const MethodGeometry& g) {
   m_.f_volume = gl_.framebuffer(t_.decal, t_.depth);
   m_.volume_program =
       gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
-  m_.cover_program =
-      gl_.program({{"fullscreen.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
+  m_.cover_program = gl_.program({{"fullscreen.vert.glsl"},
+                                  {},
+                                  {"method_colour.frag.glsl"},
+                                  {},
+                                  unlit_ ? "#define DECAL_UNLIT_LAYERS 1\n" : ""});
 }
 
 // Texture method (Taibo et al. §4): the package extent (a tile's square
@@ -395,6 +409,8 @@ void GlRenderer::volume_passes() {
   glUseProgram(pv);
   glUniformMatrix4fv(glGetUniformLocation(pv, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
   const GLint loc_rgba = glGetUniformLocation(pc, "u_rgba");
+  const GLint loc_unlit = unlit_ ? glGetUniformLocation(pc, "u_unlit") : -1;
+  if (unlit_) glBindTextureUnit(decal::gl::kUnitTerrainColour, t_.color);
   glEnable(GL_SCISSOR_TEST);
   glEnable(GL_STENCIL_TEST);
   glEnable(GL_DEPTH_CLAMP);
@@ -427,6 +443,7 @@ void GlRenderer::volume_passes() {
     glStencilOp(GL_KEEP, GL_KEEP, GL_ZERO);
     glUseProgram(pc);
     glUniform1ui(loc_rgba, g.rgba);
+    if (unlit_) glUniform1i(loc_unlit, g.unlit ? 1 : 0);
     glBindVertexArray(empty_vao_);
     glDrawArrays(GL_TRIANGLES, 0, 3);
   }

@@ -274,25 +274,27 @@ TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const
   return {vao, GLsizei(idx.size()), gradients};
 }
 
-StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope) {
+StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope, bool unlit) {
   StaticPrograms p;
   p.defines = opt.binding == Binding::texture ? "#define DECAL_TEXTURE 1\n" : "";
   const std::string aa_defines = opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n"
                                  : opt.aa == AntiAliasing::msaa4  ? "#define DECAL_MSAA 1\n"
                                                                   : "";
   const std::string slope_define = slope ? "#define DECAL_SLOPE_WIDTHS 1\n" : "";
+  const std::string unlit_define = unlit ? "#define DECAL_UNLIT_LAYERS 1\n" : "";
   p.terrain = gl.program({{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, slope_define});
   p.polygons = gl.program({{"fullscreen.vert.glsl"},
                            {},
                            {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
                            {},
-                           p.defines + aa_defines + "#define DECAL_POLYGONS 1\n"});
-  p.lines = gl.program({{"fullscreen.vert.glsl"},
-                        {},
-                        {"decal_blobs.glsl", "static_common.glsl", "slope_widths.glsl", "dash.glsl",
-                         "static_lines.glsl"},
-                        {},
-                        p.defines + aa_defines + slope_define + "#define DECAL_LINES 1\n"});
+                           p.defines + aa_defines + unlit_define + "#define DECAL_POLYGONS 1\n"});
+  p.lines = gl.program(
+      {{"fullscreen.vert.glsl"},
+       {},
+       {"decal_blobs.glsl", "static_common.glsl", "slope_widths.glsl", "dash.glsl",
+        "static_lines.glsl"},
+       {},
+       p.defines + aa_defines + slope_define + unlit_define + "#define DECAL_LINES 1\n"});
   p.composite = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
   return p;
 }
@@ -309,8 +311,12 @@ GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal:
   runs_ = draw_runs(source.view);
   slope_ = opt.method == Method::decal && opt.draw_lines &&
            !slope_layers(source, opt.slope_widths).empty();
+  // Layers drawn unlit: the decal method's static passes and the volume
+  // method's cover pass; the texture method lights its whole texture.
+  unlit_ = opt.decal_light && opt.method != Method::texture && !source.unlit_layers.empty();
   setup();
   if (slope_) upload_slope_layers(source);
+  if (unlit_) upload_unlit_layers(source);
   if (opt.method != Method::decal) method_setup();
 }
 
@@ -324,6 +330,7 @@ GlRenderer::GlRenderer(const TileList& tiles, const Heightfield& terrain, const 
   view0_ = view_uniforms(opt.camera, GridParams{}, W_, H_);
   view_ = view0_;
   slope_ = opt.draw_lines && tiles.slope;
+  unlit_ = opt.decal_light && tiles.unlit;  // each tile uploads its flags (load_tile)
   setup();
 }
 
@@ -333,7 +340,7 @@ void GlRenderer::setup() {
   glCreateVertexArrays(1, &empty_vao_);
   gl_.arrays.push_back(empty_vao_);
   t_ = make_targets(gl_, W_, H_, opt_.method == Method::volume, slope_);
-  p_ = static_programs(gl_, opt_, slope_);
+  p_ = static_programs(gl_, opt_, slope_, unlit_ && opt_.method == Method::decal);
   glViewport(0, 0, GLsizei(W_), GLsizei(H_));
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
 }
@@ -419,6 +426,7 @@ void GlRenderer::load_tile(size_t k) {
   set_grid(view_, source_->view.grid);
   runs_ = draw_runs(source_->view);
   if (slope_) upload_slope_layers(*source_);
+  if (unlit_) upload_unlit_layers(*source_);
   timer_.begin("tile upload (blobs)");
   check(decal::gl::GpuPackage::upload(blobs, gl_grid(*source_), gpu_, true));
   timer_.end();
@@ -586,18 +594,35 @@ void GlRenderer::bind_package() const {
     glBindTextureUnit(decal::gl::kUnitTerrainGradient, t_.gradient);
     glBindTextureUnit(decal::gl::kUnitSlopeLayers, slope_layers_);
   }
+  if (unlit_) {
+    glBindTextureUnit(decal::gl::kUnitUnlitLayers, unlit_layers_);
+    glBindTextureUnit(decal::gl::kUnitTerrainColour, t_.color);  // the shade in its alpha
+  }
 }
 
-void GlRenderer::upload_slope_layers(const DecalSource& source) {
-  std::vector<uint8_t> flags = slope_layers(source, opt_.slope_widths);
-  if (flags.empty()) flags.push_back(0);  // this package: none
-  GLuint buf = 0;
+namespace {
+
+// One flag a layer-table index as an R8UI buffer texture (none: one 0).
+GLuint layer_flags_texture(GlObjects& gl, std::vector<uint8_t> flags) {
+  if (flags.empty()) flags.push_back(0);
+  GLuint buf = 0, tex = 0;
   glCreateBuffers(1, &buf);
-  gl_.buffers.push_back(buf);
+  gl.buffers.push_back(buf);
   glNamedBufferStorage(buf, GLsizeiptr(flags.size()), flags.data(), 0);
-  glCreateTextures(GL_TEXTURE_BUFFER, 1, &slope_layers_);
-  gl_.textures.push_back(slope_layers_);
-  glTextureBuffer(slope_layers_, GL_R8UI, buf);
+  glCreateTextures(GL_TEXTURE_BUFFER, 1, &tex);
+  gl.textures.push_back(tex);
+  glTextureBuffer(tex, GL_R8UI, buf);
+  return tex;
+}
+
+}  // namespace
+
+void GlRenderer::upload_slope_layers(const DecalSource& source) {
+  slope_layers_ = layer_flags_texture(gl_, slope_layers(source, opt_.slope_widths));
+}
+
+void GlRenderer::upload_unlit_layers(const DecalSource& source) {
+  unlit_layers_ = layer_flags_texture(gl_, source.unlit_layers);
 }
 
 void GlRenderer::bind_dashes() {

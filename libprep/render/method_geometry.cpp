@@ -237,7 +237,7 @@ class Builder {
     std::vector<std::array<P2d, 2>> boundary;
     triangulate(
         edges, [](int n) { return n % 2 == 1; }, tris, clip_ ? nullptr : &boundary);
-    MethodFeature f = begin(v_.poly_props[p].rgba, false);
+    MethodFeature f = begin(v_.poly_props[p].rgba, false, v_.poly_props[p].layer);
     f.rank = uint32_t(v_.poly_props[p].order + v_.polygon_rank_bias);
     if (clip_) {
       for (const auto& t : tris) add_piece(f, clip_box({t[0], t[1], t[2]}, *clip_));
@@ -340,7 +340,7 @@ class Builder {
       for (Piece& p : seg_pieces) pieces.push_back(std::move(p));
     }
     if (clipped) pieces = clip_to_ring(props, hw, std::move(pieces));
-    MethodFeature f = begin(props.rgba, true);
+    MethodFeature f = begin(props.rgba, true, props.layer);
     f.rank = props.order;
     for (Piece& p : pieces) {
       p = ccw(std::move(p));
@@ -444,10 +444,11 @@ class Builder {
     return out;
   }
 
-  MethodFeature begin(uint32_t rgba, bool line) const {
+  MethodFeature begin(uint32_t rgba, bool line, uint32_t layer) const {
     MethodFeature f;
     f.rgba = rgba;
     f.line = line;
+    f.layer = layer;
     f.first_triangle = uint32_t(out_.triangles.size() / 3);
     f.first_edge = uint32_t(out_.edges.size());
     f.box = {INFINITY, INFINITY, -INFINITY, -INFINITY};

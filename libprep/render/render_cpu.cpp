@@ -93,6 +93,10 @@ struct CpuFrame {
   uint32_t W, H;
   Image& img;
   std::vector<double> hit_x, hit_y, hit_z;
+  // The decals' share from layers drawn unlit (EvalSample::unlit_rgb,
+  // premultiplied), kept out of the light in composite(); empty until a
+  // tile has such layers under opt.decal_light.
+  std::vector<float> unlit;
 
   CpuFrame(const TileList& t, const Heightfield& h, const RenderOptions& o, Image& i)
       : tiles(t),
@@ -118,6 +122,8 @@ struct CpuFrame {
     const float a = s.rgba[3];
     for (int c = 0; c < 3; ++c) img.decals[4 * k + c] = a > 0 ? s.rgba[c] / a : 0.0f;
     img.decals[4 * k + 3] = a;
+    if (!unlit.empty())
+      std::copy(s.unlit_rgb, s.unlit_rgb + 3, unlit.begin() + std::ptrdiff_t(3 * k));
   }
 
   // Exactly the render_topdown pixel grid; the terrain is under every pixel.
@@ -185,12 +191,18 @@ struct CpuFrame {
     // point (the ray's hit triangle; the one under the pixel centre top-down).
     const std::vector<uint8_t> slope =
         opt.draw_lines ? slope_layers(t.source, opt.slope_widths) : std::vector<uint8_t>{};
+    // Layers drawn unlit (light = false) under lit decals.
+    const std::span<const uint8_t> flat = opt.decal_light
+                                              ? std::span<const uint8_t>(t.source.unlit_layers)
+                                              : std::span<const uint8_t>{};
+    if (!flat.empty() && unlit.empty()) unlit.assign(3 * size_t(W) * H, 0.0f);
     parallel_for(pixels.size(), kPixelGrain, [&](size_t i) {
       const size_t p = pixels[i];
       const double x = hit_x[p], y = hit_y[p];
-      if (slope.empty()) return put(p, evaluate(view, x - at.dx, y - at.dy));
-      const std::array<double, 2> g = terrain.gradient_at(x, y);
-      put(p, evaluate(view, x - at.dx, y - at.dy, {g[0], g[1], slope}));
+      if (slope.empty() && flat.empty()) return put(p, evaluate(view, x - at.dx, y - at.dy));
+      std::array<double, 2> g{0, 0};
+      if (!slope.empty()) g = terrain.gradient_at(x, y);
+      put(p, evaluate(view, x - at.dx, y - at.dy, {g[0], g[1], slope}, flat));
     });
     if (opt.draw_dynamic) draw_dynamic(t.source, at, pixels);
   }
@@ -231,7 +243,8 @@ struct CpuFrame {
     if (single && topdown) {
       const OpenedTile opened = tiles.open(0);
       const DecalSource& source = opened.tile.source;
-      if (!opt.draw_lines || slope_layers(source, opt.slope_widths).empty()) {
+      if ((!opt.draw_lines || slope_layers(source, opt.slope_widths).empty()) &&
+          (!opt.decal_light || source.unlit_layers.empty())) {
         StaticView view = source.view;
         if (!opt.draw_polygons) view.poly_bvh_range = {};
         if (!opt.draw_lines) view.line_bvh_range = {};
@@ -264,7 +277,9 @@ struct CpuFrame {
       }
       const double a = img.decals[4 * k + 3], l = img.dynamic[4 * k + 3];
       for (int c = 0; c < 3; ++c) {
-        const double under = img.decals[4 * k + c] * a * lit + (1 - a) * base[c];
+        // Unlit layers' share (light = false) is added without the shade.
+        const double flat = unlit.empty() ? 0.0 : unlit[3 * k + c];
+        const double under = (img.decals[4 * k + c] * a - flat) * lit + flat + (1 - a) * base[c];
         const double v = img.dynamic[4 * k + c] * l + (1 - l) * under;
         img.rgba[4 * k + c] = uint8_t(std::lround(std::clamp(v, 0.0, 1.0) * 255.0));
       }

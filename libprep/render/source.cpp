@@ -101,6 +101,10 @@ DecalSource source_of(const decal::Package& package) {
           s.slope_layers.resize(layers->size() + 1, 0);
           s.slope_layers[i] = 1;
         }
+        if (l.is_object() && l.contains("light") && l["light"] == false) {
+          s.unlit_layers.resize(layers->size() + 1, 0);
+          s.unlit_layers[i] = 1;
+        }
       }
     }
   } catch (const nlohmann::json::exception& ex) {
@@ -128,6 +132,7 @@ TileList tile_list(std::span<const TileSource> tiles, const RenderOptions& optio
     list.places.push_back({t.square, t.dx, t.dy});
     list.slope =
         list.slope || (options.draw_lines && !slope_layers(t.source, options.slope_widths).empty());
+    list.unlit = list.unlit || !t.source.unlit_layers.empty();
   }
   list.open = [tiles](size_t k) { return OpenedTile{tiles[k], nullptr}; };
   return list;

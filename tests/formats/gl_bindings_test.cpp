@@ -37,19 +37,21 @@ std::vector<Program> renderer_programs() {
   for (const std::string mode : {"", "#define DECAL_TEXTURE 1\n"}) {
     const std::string m = mode.empty() ? "ssbo " : "texture ";
     for (const std::string aa : {"", "#define DECAL_AA_COVERAGE 1\n", "#define DECAL_MSAA 1\n"}) {
-      out.push_back({m + "polygons " + aa,
-                     {{"fullscreen.vert.glsl"},
-                      {},
-                      {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
-                      {},
-                      mode + aa + "#define DECAL_POLYGONS 1\n"}});
-      for (const std::string slope : {"", "#define DECAL_SLOPE_WIDTHS 1\n"})
-        out.push_back({m + "lines " + aa + slope,
+      for (const std::string unlit : {"", "#define DECAL_UNLIT_LAYERS 1\n"}) {
+        out.push_back({m + "polygons " + aa + unlit,
                        {{"fullscreen.vert.glsl"},
                         {},
-                        lines_fs,
+                        {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
                         {},
-                        mode + aa + slope + "#define DECAL_LINES 1\n"}});
+                        mode + aa + unlit + "#define DECAL_POLYGONS 1\n"}});
+        for (const std::string slope : {"", "#define DECAL_SLOPE_WIDTHS 1\n"})
+          out.push_back({m + "lines " + aa + slope + unlit,
+                         {{"fullscreen.vert.glsl"},
+                          {},
+                          lines_fs,
+                          {},
+                          mode + aa + slope + unlit + "#define DECAL_LINES 1\n"}});
+      }
     }
     const std::string dd = mode + "#define DECAL_DYNAMIC 1\n";
     for (const char* f : {"lod_mask.comp.glsl", "lod_select.comp.glsl", "lod_segments.comp.glsl"})
@@ -89,6 +91,12 @@ std::vector<Program> renderer_programs() {
   out.push_back({"composite", {{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""}});
   out.push_back(
       {"method prism", {{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""}});
+  out.push_back({"method cover unlit",
+                 {{"fullscreen.vert.glsl"},
+                  {},
+                  {"method_colour.frag.glsl"},
+                  {},
+                  "#define DECAL_UNLIT_LAYERS 1\n"}});
   return out;
 }
 

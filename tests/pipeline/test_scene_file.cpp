@@ -178,6 +178,22 @@ TEST(SceneFile, SharedEdgesOnceIsForNormalOutlinesOnly) {
   EXPECT_NE(e.find("\"all\" or \"once\""), std::string::npos) << e;
 }
 
+TEST(SceneFile, LightFalseIsForStaticLayers) {
+  const prep::SceneSpec ok = prep::parse_scene(
+      "[[layer]]\nsource = \"a.shp\"\nkind = \"polygon\"\nlight = false\n"
+      "[[layer]]\nsource = \"b.shp\"\nkind = \"line\"\n",
+      "/data/city/scene.toml");
+  EXPECT_FALSE(ok.layers.at(0).light);
+  EXPECT_TRUE(ok.layers.at(1).light);
+  std::string e =
+      error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"line\"\ndynamic = true\nlight = false\n");
+  EXPECT_NE(e.find("light = false is for static layers"), std::string::npos) << e;
+  e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"polygon\"\nlight = \"no\"\n");
+  EXPECT_NE(e.find("scene.toml:4: layer[0].light"), std::string::npos) << e;
+  e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"polygon\"\nligth = false\n");
+  EXPECT_NE(e.find("did you mean \"light\""), std::string::npos) << e;
+}
+
 TEST(SceneFile, PointLayersTakeRoundDotsOnly) {
   const prep::SceneSpec ok = prep::parse_scene(
       "[[layer]]\nsource = \"a.shp\"\nkind = \"point\"\nwidth = 5\ndynamic = true\n",

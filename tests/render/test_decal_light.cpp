@@ -4,6 +4,10 @@
 //    opaque polygon is rgb x shade(normal) within 2/255: the CPU image, GL
 //    and GL's volume and texture methods; off, it is rgb; the decal layer
 //    (Image::decals) is the same unlit colour either way.
+//  - A layer flagged unlit (scene key light = false) keeps its colour over
+//    the plane while a lit layer over it is shaded: the CPU image, GL and
+//    GL's volume method, each pixel against the analytic mix; the texture
+//    method lights its whole texture.
 //  - Over Monaco's SRTM terrain (the sample package, oblique view), GL and
 //    the CPU image agree on the lit decal pixels.
 #include <gtest/gtest.h>
@@ -11,6 +15,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
@@ -57,9 +64,11 @@ double analytic_shade() {
 }
 
 std::optional<R::Image> draw(const R::DecalSource& src, bool cpu, bool light,
-                             R::Method method = R::Method::decal) {
+                             R::Method method = R::Method::decal,
+                             R::AntiAliasing aa = R::AntiAliasing::none) {
   R::RenderOptions opt;
   opt.method = method;
+  opt.aa = aa;
   opt.width = opt.height = 100;
   // Top-down over the model's [0, 100]² (the camera looks straight down at
   // the inclined plane).
@@ -118,6 +127,96 @@ TEST(DecalLight, AnOpaquePolygonOverAPlaneIsItsColourTimesTheAnalyticShade) {
       }
     EXPECT_GT(checked, 60u);
   }
+}
+
+TEST(DecalLight, AnUnlitLayerKeepsItsColourWhileALitLineOverItIsShaded) {
+  prep::DecalModel model = render_test::hand_model();
+  for (auto& p : model.poly_props) p.layer = 1;  // the polygons: layer 1, the lines: layer 0
+  R::DecalSource src = R::source_of(model);
+  src.unlit_layers = {0, 1, 0};
+  const double s = analytic_shade();
+  auto rgb = [](uint32_t rgba, int c) { return double((rgba >> (8 * c)) & 0xff) / 255; };
+  const uint32_t poly = render_test::HandShapes::kPolyRgba;
+  const uint32_t line = render_test::HandShapes::kLineRgba;
+  const double a_line = double(line >> 24) / 255;
+  struct Case {
+    const char* name;
+    bool cpu;
+    R::Method method;
+    R::AntiAliasing aa;
+  };
+  for (const Case& m : {Case{"cpu", true, R::Method::decal, R::AntiAliasing::none},
+                        Case{"gl", false, R::Method::decal, R::AntiAliasing::none},
+                        Case{"gl msaa4", false, R::Method::decal, R::AntiAliasing::msaa4},
+                        Case{"gl coverage", false, R::Method::decal, R::AntiAliasing::coverage},
+                        Case{"gl volume", false, R::Method::volume, R::AntiAliasing::none},
+                        Case{"gl texture", false, R::Method::texture, R::AntiAliasing::none}}) {
+    SCOPED_TRACE(m.name);
+    const auto img = draw(src, m.cpu, true, m.method, m.aa);
+    if (!img) {
+      ASSERT_FALSE(m.cpu);
+      GTEST_SKIP() << "no headless GL";
+    }
+    // The texture method lights its whole texture, unlit layers too.
+    const double poly_light = m.method == R::Method::texture ? s : 1.0;
+    size_t plain = 0, mixed = 0;
+    for (uint32_t j = 0; j < 100; ++j)
+      for (uint32_t i = 0; i < 100; ++i) {
+        const double x = i + 0.5, y = 100 - (j + 0.5);
+        // Whole pixels only: none within a pixel of an edge or a line side.
+        bool whole = true;
+        for (double dx : {-1.0, 0.0, 1.0})
+          for (double dy : {-1.0, 0.0, 1.0})
+            whole = whole &&
+                    render_test::HandShapes::in_polygon(x + dx, y + dy) ==
+                        render_test::HandShapes::in_polygon(x, y) &&
+                    render_test::HandShapes::in_line(x + dx, y + dy) ==
+                        render_test::HandShapes::in_line(x, y) &&
+                    !render_test::HandShapes::in_line2(x + dx, y + dy);
+        if (!whole || !render_test::HandShapes::in_polygon(x, y)) continue;
+        if (x > 39 && x < 61 && y > 39 && y < 61) continue;  // the hole and the green island
+        const bool on_line = render_test::HandShapes::in_line(x, y);
+        const size_t k = size_t(j) * 100 + i;
+        for (int c = 0; c < 3; ++c) {
+          // The lit line over the unlit polygon: a_line rgb_line s + (1 - a_line) rgb_poly.
+          const double want =
+              on_line ? a_line * rgb(line, c) * s + (1 - a_line) * rgb(poly, c) * poly_light
+                      : rgb(poly, c) * poly_light;
+          EXPECT_NEAR(img->rgba[4 * k + c], 255 * want, 2.0) << i << "," << j << " ch " << c;
+        }
+        (on_line ? mixed : plain) += 1;
+      }
+    EXPECT_GT(plain, 500u);
+    EXPECT_GT(mixed, 30u);
+  }
+}
+
+TEST(DecalLight, TheLayerTableRecordsLightFalseAndTheRendererReadsIt) {
+  const std::filesystem::path dir = render_test::process_dir("decal_light");
+  std::ofstream(dir / "fields.geojson")
+      << R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:32632"}},)"
+         R"("features":[{"type":"Feature","properties":{},)"
+         R"("geometry":{"type":"Polygon","coordinates":[[[500000,5000000],[500050,5000000],)"
+         R"([500050,5000050],[500000,5000000]]]}}]})";
+  std::ofstream(dir / "paths.geojson")
+      << R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:32632"}},)"
+         R"("features":[{"type":"Feature","properties":{},)"
+         R"("geometry":{"type":"LineString","coordinates":[[500000,5000010],[500050,5000010]]}}]})";
+  std::string why;
+  const std::string path =
+      render_test::build_utm_scene(dir, "light.decals",
+                                   {{"paths", "line", "width = 4\ncolor = \"#ffffff\"\n"},
+                                    {"fields", "polygon", "color = \"#40a040\"\nlight = false\n"}},
+                                   why);
+  ASSERT_FALSE(path.empty()) << why;
+  decal::Package pkg;
+  ASSERT_TRUE(decal::Package::open(path, pkg));
+  const auto meta = nlohmann::json::parse(pkg.metadata_json());
+  ASSERT_EQ(meta.at("layers").size(), 2u);
+  EXPECT_FALSE(meta["layers"][0].contains("light"));
+  EXPECT_EQ(meta["layers"][1]["light"], false);
+  EXPECT_EQ(R::source_of(pkg).unlit_layers, (std::vector<uint8_t>{0, 1, 0}));
+  render_test::remove_process_dir(dir);
 }
 
 TEST(DecalLight, GlAndCpuAgreeOnLitDecalPixelsOverMonacoTerrain) {

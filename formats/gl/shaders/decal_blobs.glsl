@@ -68,9 +68,11 @@ uvec4 poly_bvh_range(uint c) {
 #ifdef DECAL_TEXTURE
 uint  poly_rgba(uint i)         { return texelFetch(t_poly_props, int(2u * i)).x; }
 uint  poly_order(uint i)        { return texelFetch(t_poly_props, int(2u * i)).y; }
+uint  poly_layer(uint i)        { return texelFetch(t_poly_props, int(2u * i + 1u)).x; }
 #else
 uint  poly_rgba(uint i)         { return d_poly_props[i].rgba; }
 uint  poly_order(uint i)        { return d_poly_props[i].order; }
+uint  poly_layer(uint i)        { return d_poly_props[i].layer; }
 #endif
 #endif  // DECAL_POLYGONS
 

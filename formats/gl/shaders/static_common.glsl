@@ -116,6 +116,23 @@ bool box_near(ivec4 b, vec2 p, float m) {
   vec2 lo = rel(b.xy) - m, hi = rel(b.zw) + m;
   return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
 }
+// Lit decals (formats/SPEC.md "Lit decals"): the composite multiplies the
+// decal layer by the terrain's shade (the terrain target's alpha); a layer
+// drawn unlit (light = false, flagged in u_unlit_layers, an index past the
+// end taking the last flag) enters it divided by that shade, so the product
+// gives back its colour (the decal layer is float).
+#ifdef DECAL_UNLIT_LAYERS
+layout(binding = DECAL_UNIT_UNLIT_LAYERS) uniform usamplerBuffer u_unlit_layers;
+layout(binding = DECAL_UNIT_TERRAIN_COLOUR) uniform sampler2D u_terrain;
+float g_unshade = 1.0;  // 1 / shade at the pixel (pixel_cell)
+float layer_light(uint layer) {
+  int last = textureSize(u_unlit_layers) - 1;
+  return texelFetch(u_unlit_layers, int(min(layer, uint(last)))).x != 0u ? g_unshade : 1.0;
+}
+#else
+float layer_light(uint layer) { return 1.0; }
+#endif
+
 // Front-to-back compositing of a feature covering the share `cov` of the
 // pixel (coverage AA). The share goes first to the part of the pixel that
 // no earlier feature of the pass covers (1 - g_area), then under the earlier
@@ -125,8 +142,9 @@ bool box_near(ivec4 b, vec2 p, float m) {
 // a quarter to the background; a feature wholly under another composites
 // as without coverage. formats/SPEC.md "Anti-aliasing".
 float g_area = 0.0;
-void composite_under_cov(inout vec4 acc, uint rgba, float cov) {
+void composite_under_cov(inout vec4 acc, uint rgba, float cov, uint layer) {
   vec4 c = unpackUnorm4x8(rgba);
+  c.rgb *= layer_light(layer);
   float u = min(cov, 1.0 - g_area);
   float t = g_area > 0.0 ? clamp(1.0 - acc.a / g_area, 0.0, 1.0) : 1.0;
   float w = c.a * (u + (cov - u) * t);
@@ -142,8 +160,9 @@ float band_coverage(float d, float wline, float wpix) {
 
 // Front-to-back compositing of a straight-alpha colour under `acc`
 // (premultiplied).
-void composite_under(inout vec4 acc, uint rgba) {
+void composite_under(inout vec4 acc, uint rgba, uint layer) {
   vec4 c = unpackUnorm4x8(rgba);
+  c.rgb *= layer_light(layer);
   float w = (1.0 - acc.a) * c.a;
   acc.rgb += w * c.rgb;
   acc.a += w;
@@ -153,8 +172,11 @@ bool opaque(vec4 acc) { return acc.a >= 0.999; }
 // The pass's colour at the pixel so far (premultiplied), front to back.
 vec4 g_acc = vec4(0.0);
 // composite_under / composite_under_cov into g_acc; true once it is opaque.
-bool under_opaque(uint rgba) { composite_under(g_acc, rgba); return opaque(g_acc); }
-bool under_opaque_cov(uint rgba, float cov) { composite_under_cov(g_acc, rgba, cov); return opaque(g_acc); }
+bool under_opaque(uint rgba, uint layer) { composite_under(g_acc, rgba, layer); return opaque(g_acc); }
+bool under_opaque_cov(uint rgba, float cov, uint layer) {
+  composite_under_cov(g_acc, rgba, cov, layer);
+  return opaque(g_acc);
+}
 
 float g_wpix = 0.0;  // coverage AA: pixel_metres at the pixel's point
 
@@ -166,6 +188,10 @@ bool pixel_cell(out vec3 p, out int cell) {
   cell = cell_of(p.xy);
   g_acc = vec4(0.0);
   g_area = 0.0;
+#ifdef DECAL_UNLIT_LAYERS
+  float shade = texelFetch(u_terrain, ivec2(gl_FragCoord.xy), 0).a;
+  g_unshade = shade > 0.0 ? 1.0 / shade : 1.0;
+#endif
 #ifdef DECAL_AA_COVERAGE
   g_wpix = pixel_metres(p);
 #endif

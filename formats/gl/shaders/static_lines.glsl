@@ -189,7 +189,7 @@ bool bvh_leaf(uint entry, vec2 p) {
     g_cur_cov = max(g_cur_cov, cov);
   } else {
     if (g_cur_cov > 0.0) {
-      if (under_opaque_cov(g_cur_rgba, g_cur_cov)) { g_done = true; return false; }
+      if (under_opaque_cov(g_cur_rgba, g_cur_cov, line_layer(g_cur_line))) { g_done = true; return false; }
     }
     g_cur_line = line;
     g_cur_rgba = props.y;
@@ -202,7 +202,7 @@ bool bvh_leaf(uint entry, vec2 p) {
     int hit = segment_test(seg.x, seg.y, p, line, props);
     if (hit == HIT_COVERED && !dash_covers(seg.x, seg.y, p, line)) hit = HIT_NONE;
     if (hit != HIT_NONE) g_last_line = line;
-    if (hit == HIT_COVERED && under_opaque(props.y)) return false;
+    if (hit == HIT_COVERED && under_opaque(props.y, line_layer(line))) return false;
   }
 #endif
   return true;
@@ -223,7 +223,8 @@ void main() {
   bvh_walk(cell_segment_range(uint(cell)), line_bvh_range(uint(cell)), cell_box_base(cell), p.xy,
            margin);
 #ifdef DECAL_AA_COVERAGE
-  if (!g_done && g_cur_cov > 0.0) composite_under_cov(g_acc, g_cur_rgba, g_cur_cov);
+  if (!g_done && g_cur_cov > 0.0)
+    composite_under_cov(g_acc, g_cur_rgba, g_cur_cov, line_layer(g_cur_line));
 #endif
   if (g_acc.a <= 0.0) discard;
   o_color = g_acc;

@@ -147,9 +147,9 @@ bool bvh_leaf(uint entry, vec2 p) {
   if (order < u_order_lo) return true;
 #ifdef DECAL_AA_COVERAGE
   float cov = polygon_coverage(e, p, g_wpix);
-  if (cov > 0.0 && under_opaque_cov(poly_rgba(e.x), cov)) return false;
+  if (cov > 0.0 && under_opaque_cov(poly_rgba(e.x), cov, poly_layer(e.x))) return false;
 #else
-  if (polygon_covers(e, p) && under_opaque(poly_rgba(e.x))) return false;
+  if (polygon_covers(e, p) && under_opaque(poly_rgba(e.x), poly_layer(e.x))) return false;
 #endif
   return true;
 }

@@ -123,6 +123,7 @@ struct MethodState {
     GLint first = 0;
     GLsizei count = 0;
     uint32_t rgba = 0;
+    bool unlit = false;  // a light = false layer's (the cover divides by the shade)
     bool zfail = false;
     std::array<GLint, 4> scissor{};  // x, y, w, h
   };
@@ -156,7 +157,10 @@ struct StaticPrograms {
   std::string defines;
   GLuint terrain = 0, polygons = 0, lines = 0, composite = 0;
 };
-StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope = false);
+// `unlit`: the static passes read the layer flags of light = false
+// (static_common.glsl layer_light).
+StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope = false,
+                               bool unlit = false);
 
 // gl_dynamic.cpp: a package's LOD data on the GPU (kept across frames).
 struct LodBuffers;
@@ -211,6 +215,9 @@ class GlRenderer {
   // Slope widths: the current package's layer flags (slope_layers) as the
   // buffer texture the line pass reads.
   void upload_slope_layers(const DecalSource& source);
+  // Lit decals: the current package's unlit layer flags (unlit_layers) as
+  // the buffer texture the static passes read.
+  void upload_unlit_layers(const DecalSource& source);
   // gl_methods.cpp: set-up of the volume and texture methods, the volume
   // passes and the texture's rasterisation (once, before the first frame).
   void method_setup();
@@ -251,6 +258,8 @@ class GlRenderer {
   std::shared_ptr<LodBuffers> lod_;     // gl_dynamic.cpp: the current package's LOD buffers
   bool slope_ = false;                  // some package's lines take slope widths
   GLuint slope_layers_ = 0;             // buffer texture of the current package's flags
+  bool unlit_ = false;                  // decals lit, and some layer may be drawn unlit
+  GLuint unlit_layers_ = 0;             // buffer texture of the current package's flags
   std::unique_ptr<GlObjects> dash_gl_;  // bind_dashes' buffers, for dash_for_
   const DecalSource* dash_for_ = nullptr;
 };

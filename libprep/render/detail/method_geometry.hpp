@@ -38,6 +38,7 @@ struct MethodFeature {
   uint32_t rank = 0;  // merged drawing order (formats/SPEC.md "Drawing order"), 0 = top
   uint32_t rgba = 0;  // straight alpha, R in the low byte
   bool line = false;
+  uint32_t layer = 0;                          // layer-table index (props.layer)
   uint32_t first_triangle = 0, triangles = 0;  // into MethodGeometry::triangles (3 points each)
   uint32_t first_edge = 0, edges = 0;          // into MethodGeometry::edges
   Extent box{};                                // of the triangles

@@ -89,6 +89,11 @@ struct LayerSpec {
   // widths"). Recorded in the package's layer table; the package itself
   // stays in plan, and `decalprep render` applies it with its DEM.
   bool slope_widths = false;
+  // Scene file light = false: the layer's static decals keep their colour
+  // where `render --decal-light on` shades the others by the terrain's
+  // light (formats/SPEC.md "Lit decals"). Recorded in the package's layer
+  // table; dynamic lines are never lit.
+  bool light = true;
   // Dash pattern (scene file `dash`): [on, off, on, off, ...], lengths > 0
   // along the line from its start, ground metres (static) or pixels
   // (dynamic); empty: solid. A casing copy is solid.

@@ -178,6 +178,10 @@ struct EvalSample {
   bool line_covered = false;
   int32_t top_polygon = -1;  // topmost covering polygon index
   int32_t top_line = -1;     // topmost covering line index
+  // The part of rgba[0..2] from the layers evaluate() was told are unlit
+  // (premultiplied; zero without such layers): the renderer lights rgba
+  // less this part (formats/SPEC.md "Lit decals").
+  float unlit_rgb[3] = {0, 0, 0};
 };
 
 // Evaluates the point (x, y), in metres relative to the package origin, with
@@ -199,6 +203,11 @@ struct SurfaceSlope {
 // along the plane of gradient `slope` (step 6b of the query block).
 EvalSample evaluate(const StaticView& view, double x, double y, const SurfaceSlope& slope,
                     EvalCounters* counters = nullptr);
+// The same, with the share of the layers flagged in `unlit` (one flag per
+// layer-table index, an index past the end taking the last) also summed in
+// EvalSample::unlit_rgb.
+EvalSample evaluate(const StaticView& view, double x, double y, const SurfaceSlope& slope,
+                    std::span<const uint8_t> unlit, EvalCounters* counters = nullptr);
 
 // Coverage queries of single primitives, as evaluate() applies them (for
 // tests and tools). `x, y` in metres relative to the origin.

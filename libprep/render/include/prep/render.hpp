@@ -197,6 +197,11 @@ struct DecalSource {
   // takes (prep::SurfaceSlope). Empty when no layer asks, or for a model in
   // memory.
   std::vector<uint8_t> slope_layers;
+  // Per layer-table index: the layer's static decals are drawn unlit under
+  // RenderOptions::decal_light (the layer table's light = false; formats/
+  // SPEC.md "Lit decals"), then a 0 for layers past the table. Empty when
+  // every layer is lit.
+  std::vector<uint8_t> unlit_layers;
 };
 
 // Views of a model in memory (for tests and `build --render`).
@@ -422,6 +427,7 @@ struct TileList {
   std::vector<TilePlace> places;
   std::function<OpenedTile(size_t k)> open;
   bool slope = false;
+  bool unlit = false;  // some tile's layer table has a light = false layer
 };
 
 // A TileList over tiles already in memory (opening one copies its

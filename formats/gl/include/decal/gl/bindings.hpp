@@ -126,6 +126,7 @@ inline constexpr uint32_t kBlobBindingSlots = blob_binding_slots();
   X(ssbo, kSsboDynDash,         "DECAL_SSBO_DYN_DASH",         40, "DynDash")                    \
   X(ssbo, kSsboTerrainGradient, "DECAL_SSBO_TERRAIN_GRADIENT", 24, "B_terrain_gradient")         \
   X(unit, kUnitSlopeLayers,     "DECAL_UNIT_SLOPE_LAYERS",     24, "u_slope_layers")             \
+  X(unit, kUnitUnlitLayers,     "DECAL_UNIT_UNLIT_LAYERS",     25, "u_unlit_layers")             \
   X(unit, kUnitTerrainGradient, "DECAL_UNIT_TERRAIN_GRADIENT", 26, "u_terrain_gradient")         \
   X(unit, kUnitDecalTexture,    "DECAL_UNIT_DECAL_TEXTURE",    27, "u_decal_texture")            \
   X(unit, kUnitDynamicLayer,    "DECAL_UNIT_DYNAMIC_LAYER",    28, "u_dynamic")                  \
