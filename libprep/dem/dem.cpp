@@ -4,6 +4,7 @@
 #include "prep/dem.hpp"
 
 #include <gdal_priv.h>
+#include <gdal_utils.h>
 #include <ogr_spatialref.h>
 #include <sys/stat.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -49,6 +50,8 @@ double metres_per_unit(const std::string& unit) {
 
 // The opened raster, its geotransform and its CRS (own or assumed).
 struct OpenedDem {
+  // A mosaic's rasters, open while the VRT `ds` (closed first) reads them.
+  std::vector<GDALDatasetUniquePtr> tiles;
   GDALDatasetUniquePtr ds;
   double gt[6] = {0, 1, 0, 0, 0, 1};
   OGRSpatialReference srs;
@@ -93,10 +96,10 @@ std::string raster_in_archive(const std::string& path) {
                                    " (they are: " + list(rasters) + ")");
 }
 
-OpenedDem open_dem(const DemSpec& spec) {
+// One raster, opened and checked on its own (prep/dem.hpp "Opening").
+OpenedDem open_raster(const std::string& path, const DemSpec& spec) {
   static std::once_flag once;
   std::call_once(once, [] { GDALAllRegister(); });
-  const std::string& path = spec.path;
   // Before GDAL sees the path: a FIFO or a device would block its open().
   // A directory is a raster for some drivers (an Arc/Info binary grid).
   try {
@@ -152,6 +155,127 @@ OpenedDem open_dem(const DemSpec& spec) {
   return d;
 }
 
+// A CRS for messages: its authority code (EPSG:4326), else its name.
+std::string crs_text(const OGRSpatialReference& srs) {
+  const char* auth = srs.GetAuthorityName(nullptr);
+  const char* code = srs.GetAuthorityCode(nullptr);
+  if (auth && code) return std::string(auth) + ":" + code;
+  return srs.GetName() ? srs.GetName() : "unnamed";
+}
+
+std::string number_text(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+// The band 1 properties a mosaic's rasters must share, as text.
+struct BandTraits {
+  int bands = 0;
+  std::string type, scale, offset, unit;
+};
+
+BandTraits band_traits(GDALDataset& ds) {
+  GDALRasterBand* b = ds.GetRasterBand(1);
+  int ok = 0;
+  const double scale = b->GetScale(&ok);
+  const std::string scale_text = ok ? number_text(scale) : "1";
+  const double offset = b->GetOffset(&ok);
+  return {ds.GetRasterCount(), GDALGetDataTypeName(b->GetRasterDataType()), scale_text,
+          ok ? number_text(offset) : "0",
+          "'" + std::string(b->GetUnitType() ? b->GetUnitType() : "") + "'"};
+}
+
+// GDAL's warnings and errors while the mosaic is made.
+void CPL_STDCALL collect_cpl_messages(CPLErr level, CPLErrorNum, const char* msg) {
+  if (level < CE_Warning) return;
+  auto* out = static_cast<std::vector<std::string>*>(CPLGetErrorHandlerUserData());
+  out->push_back(msg ? msg : "");
+}
+
+// The mosaic of prep/dem.hpp: every raster opened and checked alone, then
+// an anonymous in-memory VRT over the open rasters. Its CRS is the checked
+// one (own or assumed), so GDAL's own CRS comparison is off
+// (-allow_projection_difference); it would drop a raster without a CRS.
+OpenedDem open_mosaic(const DemSpec& spec) {
+  std::vector<std::string> paths{spec.path};
+  paths.insert(paths.end(), spec.more_paths.begin(), spec.more_paths.end());
+  std::vector<OpenedDem> tiles;
+  for (const std::string& p : paths) tiles.push_back(open_raster(p, spec));
+  const OpenedDem& first = tiles[0];
+  const BandTraits want = band_traits(*first.ds);
+  for (size_t i = 1; i < tiles.size(); ++i) {
+    auto differ = [&](const std::string& what, const std::string& theirs, const std::string& ours) {
+      fail<input_error>(kDemStage, paths[i] + ": " + what + " " + theirs + " differs from " +
+                                       paths[0] + "'s " + ours +
+                                       "; the rasters of a DEM mosaic must share it");
+    };
+    if (!tiles[i].srs.IsSame(&first.srs))
+      differ("CRS", crs_text(tiles[i].srs), crs_text(first.srs));
+    const BandTraits have = band_traits(*tiles[i].ds);
+    if (have.bands != want.bands)
+      differ("band count", std::to_string(have.bands), std::to_string(want.bands));
+    if (have.type != want.type) differ("band 1 data type", have.type, want.type);
+    if (have.scale != want.scale) differ("band 1 scale", have.scale, want.scale);
+    if (have.offset != want.offset) differ("band 1 offset", have.offset, want.offset);
+    if (have.unit != want.unit) differ("band 1 unit", have.unit, want.unit);
+  }
+  CPLStringList args;
+  args.AddString("-allow_projection_difference");
+  // Cells no raster fills read as no-data, not as 0 (see prep/dem.hpp).
+  for (const OpenedDem& t : tiles) {
+    int ok = 0;
+    const double nodata = t.ds->GetRasterBand(1)->GetNoDataValue(&ok);
+    if (!ok) continue;
+    args.AddString("-vrtnodata");
+    args.AddString(std::isnan(nodata) ? "nan" : CPLSPrintf("%.17g", nodata));
+    break;
+  }
+  std::vector<GDALDatasetH> handles;
+  for (const OpenedDem& t : tiles) handles.push_back(GDALDataset::ToHandle(t.ds.get()));
+  GDALBuildVRTOptions* options = GDALBuildVRTOptionsNew(args.List(), nullptr);
+  std::vector<std::string> messages;
+  CPLErrorReset();
+  CPLPushErrorHandlerEx(collect_cpl_messages, &messages);
+  int usage_error = 0;
+  GDALDatasetH vrt = GDALBuildVRT("", static_cast<int>(handles.size()), handles.data(), nullptr,
+                                  options, &usage_error);
+  CPLPopErrorHandler();
+  GDALBuildVRTOptionsFree(options);
+  OpenedDem d;
+  d.ds.reset(GDALDataset::FromHandle(vrt));
+  if (!d.ds || !messages.empty()) {
+    std::string why;
+    for (const std::string& m : messages) why += (why.empty() ? "" : "; ") + m;
+    fail<input_error>(kDemStage, dem_text(spec.path, spec.more_paths) +
+                                     ": cannot mosaic the DEM rasters: " +
+                                     (why.empty() ? "GDALBuildVRT failed" : why));
+  }
+  if (d.ds->GetGeoTransform(d.gt) != CE_None)
+    fail<input_error>(
+        kDemStage, dem_text(spec.path, spec.more_paths) + ": the DEM mosaic has no geotransform");
+  // The checked CRS, scale, offset and unit, whatever the VRT copied.
+  d.srs = first.srs;
+  GDALRasterBand* band = d.ds->GetRasterBand(1);
+  GDALRasterBand* first_band = first.ds->GetRasterBand(1);
+  int ok = 0;
+  const double scale = first_band->GetScale(&ok);
+  band->SetScale(ok ? scale : 1.0);
+  const double offset = first_band->GetOffset(&ok);
+  band->SetOffset(ok ? offset : 0.0);
+  band->SetUnitType(first_band->GetUnitType() ? first_band->GetUnitType() : "");
+  for (OpenedDem& t : tiles) {
+    d.assumed = d.assumed || t.assumed;
+    d.tiles.push_back(std::move(t.ds));
+  }
+  return d;
+}
+
+OpenedDem open_dem(const DemSpec& spec) {
+  return spec.more_paths.empty() || spec.path.empty() ? open_raster(spec.path, spec)
+                                                      : open_mosaic(spec);
+}
+
 constexpr int kMargin = 16;  // cells read beyond the requested area, at least
 
 }  // namespace
@@ -194,7 +318,8 @@ DemFootprint dem_footprint(const DemSpec& spec) {
 }
 
 struct DemSampler::Impl {
-  std::string path;
+  std::string path;                         // for messages: dem_text of the rasters
+  std::vector<GDALDatasetUniquePtr> tiles;  // a mosaic's rasters (OpenedDem::tiles)
   GDALDatasetUniquePtr ds;
   GDALRasterBand* band = nullptr;
   int width = 0, height = 0;
@@ -254,12 +379,13 @@ DemSampler::DemSampler(const DemSpec& spec, const SceneFrame& frame)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   OpenedDem d = open_dem(spec);
-  const std::string& path = spec.path;
-  m.path = path;
+  m.path = dem_text(spec.path, spec.more_paths);
+  const std::string& path = m.path;
   m.z_scale = spec.z_scale;
   m.nodata_fill = spec.nodata_fill;
   m.origin_x = frame.origin_x;
   m.origin_y = frame.origin_y;
+  m.tiles = std::move(d.tiles);
   m.ds = std::move(d.ds);
   std::copy(d.gt, d.gt + 6, m.gt);
   m.dem_srs = d.srs;
@@ -286,9 +412,14 @@ DemSampler::DemSampler(const DemSpec& spec, const SceneFrame& frame)
     (void)m.fwd();  // fail early when PROJ cannot make the transformation
   }
   std::ostringstream desc;
-  desc << "DEM " << path << " (" << m.ds->GetDriver()->GetDescription() << ", " << m.width << "x"
-       << m.height << ", CRS " << (m.dem_srs.GetName() ? m.dem_srs.GetName() : "none")
-       << (d.assumed ? " (assumed)" : "")
+  desc << "DEM " << path << " (";
+  if (!m.tiles.empty())
+    desc << "VRT mosaic of " << m.tiles.size() << " " << m.tiles[0]->GetDriver()->GetDescription()
+         << " rasters, ";
+  else
+    desc << m.ds->GetDriver()->GetDescription() << ", ";
+  desc << m.width << "x" << m.height << ", CRS "
+       << (m.dem_srs.GetName() ? m.dem_srs.GetName() : "none") << (d.assumed ? " (assumed)" : "")
        << (m.same_crs ? ", same as scene" : ", points transformed") << ", unit '" << unit << "' x"
        << m.unit << ", scale " << m.scale << ", offset " << m.offset << ", z-scale " << spec.z_scale
        << ")";

@@ -218,6 +218,7 @@ std::vector<std::string> batch_inputs(const BatchRequest& request,
       const BuildSpec scene = scene_spec(r);
       for (const LayerSpec& layer : scene.layers) inputs.push_back(layer.source);
       inputs.push_back(scene.dem);
+      inputs.insert(inputs.end(), scene.dem_more.begin(), scene.dem_more.end());
     } catch (const error&) {
     }
   }

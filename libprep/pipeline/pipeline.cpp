@@ -321,7 +321,8 @@ std::vector<std::string> terrain_warnings(const BuildSpec& scene, uint64_t outsi
   return {std::to_string(outside) + " of " + std::to_string(vertices) +
           " dynamic-line vertices, on " + std::to_string(lines_outside) +
           (lines ? " of " + std::to_string(lines) : std::string()) + " lines" +
-          (lines ? "" : " (counted per tile)") + ", lie outside the DEM " + scene.dem +
+          (lines ? "" : " (counted per tile)") + ", lie outside the DEM " +
+          dem_text(scene.dem, scene.dem_more) +
           ": their heights are its edge cells', not the terrain's (use a DEM that covers the "
           "scene, or an --extent within it)"};
 }
@@ -742,6 +743,7 @@ void build_and_write(const BuildSpec& scene, const BuildRequest& request,
   log.start();
   ModelOptions model_options = scene.model;
   model_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
+  model_options.dem_more = scene.dem_more;
   model_options.progress = request.progress;
   model_options.on_grid = [&](const GridFootprint& grid) {
     log.estimate(estimate_after_grid(grid, result.scene));
@@ -848,6 +850,7 @@ BuildResult run_stages(const BuildSpec& scene, const BuildRequest& request, Memo
 // The files a build reads: the scene file, each layer's source, the DEM.
 std::vector<std::string> scene_inputs(const BuildSpec& scene) {
   std::vector<std::string> in = {scene.scene_path, scene.dem};
+  in.insert(in.end(), scene.dem_more.begin(), scene.dem_more.end());
   for (const LayerSpec& l : scene.layers) in.push_back(l.source);
   return in;
 }
@@ -860,6 +863,7 @@ void check_build_outputs(const BuildSpec& scene, const BuildRequest& request) {
   // provenance and sized for --max-memory before GDAL opens them).
   check_input_file(scene.scene_path, "scene file");
   check_input_file(scene.dem, "DEM");
+  for (const std::string& dem : scene.dem_more) check_input_file(dem, "DEM");
   for (const LayerSpec& l : scene.layers)
     check_input_file(l.source, "layer '" + l.name + "' source", InputKind::file_or_directory);
   std::vector<std::string> inputs = scene_inputs(scene);

@@ -609,9 +609,11 @@ DemSpec choose_dem(const RenderRequest& a, const Scene& sc, bool& from_package) 
   from_package = !a.flat && a.dem.empty() && !dem.path.empty();
   if (a.flat) {
     dem.path.clear();
+    dem.more_paths.clear();
   } else if (!a.dem.empty()) {
     // The user's own --dem: any GDAL path, a network one included.
-    dem.path = a.dem;
+    dem.path = a.dem[0];
+    dem.more_paths.assign(a.dem.begin() + 1, a.dem.end());
     dem.named_by_package = false;
   }
   if (a.z_scale) dem.z_scale = *a.z_scale;
@@ -624,7 +626,10 @@ DemSpec choose_dem(const RenderRequest& a, const Scene& sc, bool& from_package) 
 // DEM, refused before anything is drawn.
 void check_outputs(const RenderRequest& a, const DemSpec& dem, bool topdown) {
   std::vector<std::string> inputs{a.package};
-  if (!dem.path.empty()) inputs.push_back(dem.path);
+  if (!dem.path.empty()) {
+    inputs.push_back(dem.path);
+    inputs.insert(inputs.end(), dem.more_paths.begin(), dem.more_paths.end());
+  }
   if (!a.terrain_file.empty()) inputs.push_back(a.terrain_file);
   check_output_file(a.output, "PNG", inputs);
   if (!a.decals_png.empty()) check_output_file(a.decals_png, "--decals PNG", inputs);
@@ -642,15 +647,18 @@ Heightfield load_terrain(const RenderRequest& a, DemSpec& dem, bool from_package
   if (!from_package) return load_heightfield(dem, frame, extent, kMeshSamples);
   try {
     Heightfield h = load_heightfield(dem, frame, extent, kMeshSamples);
-    note(a, stage_message(kRenderStage, "terrain from the package's build DEM " + dem.path +
+    note(a, stage_message(kRenderStage, "terrain from the package's build DEM " +
+                                            dem_text(dem.path, dem.more_paths) +
                                             " (--flat to ignore it)"));
     return h;
   } catch (const error& e) {
     // Also a DEM the package names that is not opened (a network path, a
     // FIFO, a VRT: prep/dem.hpp package_dem_refusal).
-    warn(a, "the package was built with DEM " + dem.path + ", which cannot be read here (" +
-                e.what() + "); drawing flat terrain (pass --dem PATH)");
+    warn(a, "the package was built with DEM " + dem_text(dem.path, dem.more_paths) +
+                ", which cannot be read here (" + e.what() +
+                "); drawing flat terrain (pass --dem PATH)");
     dem.path.clear();
+    dem.more_paths.clear();
     return flat_heightfield(extent);
   }
 }
@@ -691,7 +699,8 @@ void check_dem_covers(const RenderRequest& a, const DemSpec& dem, const Scene& s
   const Extent have = dem_extent_in_frame(dem, sc.frame);
   const double ox = sc.frame.origin_x, oy = sc.frame.origin_y;
   if (!contains(have, need))
-    warn(a, "the DEM " + dem.path + " covers " + box(shifted(have, ox, oy)) + ", which " +
+    warn(a, "the DEM " + dem_text(dem.path, dem.more_paths) + " covers " +
+                box(shifted(have, ox, oy)) + ", which " +
                 (meets(have, need) ? "does not cover all of " : "misses ") +
                 (view.topdown ? "the view " : "the package extent ") + box(shifted(need, ox, oy)) +
                 " (xmin,ymin,xmax,ymax in the frame CRS); the terrain there takes the DEM's edge "

@@ -225,6 +225,30 @@ void parse_build_table(const toml::table& t, const std::string& file, ModelOptio
   }
 }
 
+// `dem = "a.tif"`, or `dem = ["a.hgt", "b.hgt", ...]` for a mosaic: each a
+// path relative to the scene file's folder, the first in `dem`.
+void parse_dem(const toml::node& v, const KeyRef& ref, const std::string& base, SceneSpec& scene) {
+  scene.dem_more.clear();
+  const toml::array* a = v.as_array();
+  if (!a) {
+    if (!v.is_string())
+      fail_key(ref, "expected a string or an array of strings, got " + type_name(v));
+    scene.dem = resolve_scene_path(get_string(v, ref), base);
+    return;
+  }
+  if (a->empty()) fail_key(ref, "expected at least one DEM path, got an empty array");
+  for (size_t i = 0; i < a->size(); ++i) {
+    const toml::node& x = *a->get(i);
+    const KeyRef xref{ref.file, ref.key + "[" + std::to_string(i) + "]", line_of(x)};
+    const std::string path = resolve_scene_path(get_string(x, xref), base);
+    if (path.empty()) fail_key(xref, "expected a DEM path, got an empty string");
+    if (i == 0)
+      scene.dem = path;
+    else
+      scene.dem_more.push_back(path);
+  }
+}
+
 // `dash = [on, off, ...]`: an even count >= 2 of finite lengths > 0.
 std::vector<double> parse_dash(const toml::node& v, const KeyRef& ref) {
   const toml::array* a = v.as_array();
@@ -607,7 +631,7 @@ void parse_root_key(const std::string& key, const toml::node& v, const KeyRef& r
   } else if (key == "repair") {
     scene.repair = with_key(ref, [&] { return parse_repair_method(get_string(v, ref)); });
   } else if (key == "dem") {
-    scene.dem = resolve_scene_path(get_string(v, ref), base);
+    parse_dem(v, ref, base, scene);
   } else if (key == "skip_failures") {
     scene.skip_failures = get_bool(v, ref);
   } else if (key == "allow_empty") {

@@ -165,7 +165,10 @@ void apply_overrides(const SceneOverrides& o, BuildSpec& scene) {
   if (!o.extent_crs.empty()) scene.extent_crs = o.extent_crs;
   if (!o.extent_crs.empty() && !scene.extent)
     fail<usage_error>(kNoStage, "--extent-crs needs --extent");
-  if (!o.dem.empty()) scene.dem = o.dem;
+  if (!o.dem.empty()) {
+    scene.dem = o.dem[0];
+    scene.dem_more.assign(o.dem.begin() + 1, o.dem.end());
+  }
   if (o.resolution) {
     if (!(*o.resolution >= 0)) fail<usage_error>(kNoStage, "--resolution: must be >= 0 metres");
     scene.resolution = *o.resolution;

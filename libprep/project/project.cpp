@@ -1212,7 +1212,8 @@ Extent dem_extent_in_frame(const DemSpec& dem, const SceneFrame& frame) {
   auto frame_srs = srs_from(frame.crs_wkt, "frame CRS");
   const auto dem_srs = srs_from(footprint.crs_wkt, "DEM CRS");
   auto t = make_transform(*dem_srs, *frame_srs, "DEM to the scene frame");
-  const Extent e = transform_bounds(*t, footprint.bounds, "DEM " + dem.path);
+  const Extent e =
+      transform_bounds(*t, footprint.bounds, "DEM " + dem_text(dem.path, dem.more_paths));
   return shifted(e, -frame.origin_x, -frame.origin_y);
 }
 
@@ -1290,12 +1291,15 @@ std::optional<Extent> clip_extent(const SceneFrame& frame, const SceneSpec& scen
                    -frame.origin_x, -frame.origin_y);
   }
   if (!scene.dem.empty()) {
-    const Extent dem = dem_extent_in_frame({scene.dem, scene.assume_crs}, frame);
+    DemSpec spec{scene.dem, scene.assume_crs};
+    spec.more_paths = scene.dem_more;
+    const Extent dem = dem_extent_in_frame(spec, frame);
     // A DEM beside the data would clip everything away (or, with --extent,
     // drape every line on its edge cells): refused, naming both boxes.
     auto refuse = [&](const std::string& what, const Extent& other) {
       fail<input_error>(kProjectStage,
-                        "DEM " + scene.dem + " does not overlap " + what + ": its footprint is " +
+                        "DEM " + dem_text(scene.dem, scene.dem_more) + " does not overlap " + what +
+                            ": its footprint is " +
                             box_text(shifted(dem, frame.origin_x, frame.origin_y)) + ", " + what +
                             " is " + box_text(shifted(other, frame.origin_x, frame.origin_y)) +
                             " (xmin,ymin,xmax,ymax in the frame CRS); give the DEM of this area");

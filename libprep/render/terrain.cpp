@@ -182,11 +182,21 @@ DemSpec recorded_dem(const std::string& metadata_json, const std::string& packag
   if (!meta.is_object() || !meta.contains("build_options") || !meta["build_options"].is_object())
     return spec;
   const auto& bo = meta["build_options"];
-  if (bo.contains("dem") && bo["dem"].is_string())
-    spec.path = resolve_recorded(bo["dem"].get<std::string>(),
-                                 package_path.empty()
-                                     ? std::string()
-                                     : std::filesystem::path(package_path).parent_path().string());
+  const std::string dir = package_path.empty()
+                              ? std::string()
+                              : std::filesystem::path(package_path).parent_path().string();
+  // One path, or a mosaic's list of them (each resolved alike); a list that
+  // is not all strings records no DEM, as any other value does.
+  std::vector<std::string> paths;
+  if (bo.contains("dem") && bo["dem"].is_string()) paths.push_back(bo["dem"].get<std::string>());
+  if (bo.contains("dem") && bo["dem"].is_array() &&
+      std::all_of(bo["dem"].begin(), bo["dem"].end(), [](const auto& p) { return p.is_string(); }))
+    for (const auto& p : bo["dem"]) paths.push_back(p.get<std::string>());
+  if (!paths.empty()) {
+    spec.path = resolve_recorded(paths[0], dir);
+    for (size_t i = 1; i < paths.size(); ++i)
+      spec.more_paths.push_back(resolve_recorded(paths[i], dir));
+  }
   // A path from the package, not from the user (prep/dem.hpp).
   spec.named_by_package = true;
   if (bo.contains("dem_assume_crs") && bo["dem_assume_crs"].is_string())

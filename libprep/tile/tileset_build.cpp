@@ -605,6 +605,7 @@ HeldParts write_tile(const SceneFeatures& tile, const BuildSpec& spec, const Bui
                      DemTally& dem) {
   ModelOptions mo = spec.model;
   mo.dem_assume_crs = spec.assume_crs;
+  mo.dem_more = spec.dem_more;
   if (level) mo.min_cell_m = kLevelMinCellPixels * level->resolution;
   mo.max_cells = std::min(mo.max_cells, tile_max_cells(tile));
   DecalModel model = build_model(tile, mo, spec.dem);

@@ -80,7 +80,7 @@ nlohmann::json provenance_json(const BuildSpec& scene) {
   nlohmann::json sources = nlohmann::json::array();
   std::vector<std::string> paths;
   for (const LayerSpec& l : scene.layers) paths.push_back(l.source);
-  if (!scene.dem.empty()) paths.push_back(scene.dem);
+  for (const std::string& dem : dem_paths(scene)) paths.push_back(dem);
   std::sort(paths.begin(), paths.end());
   paths.erase(std::unique(paths.begin(), paths.end()), paths.end());
   for (const std::string& p : paths) {
@@ -207,7 +207,7 @@ void record_manifest_paths(const BuildSpec& scene, Manifest& manifest) {
     const std::string r = recorded_path(p, base);
     if (!p.empty() && r != p) paths.emplace_back(p, r);
   };
-  add(scene.dem);
+  for (const std::string& dem : dem_paths(scene)) add(dem);
   for (const LayerSpec& l : scene.layers) add(l.source);
   // Longest first: a path that holds another is replaced whole.
   std::sort(paths.begin(), paths.end(),
@@ -229,12 +229,19 @@ void record_manifest_paths(const BuildSpec& scene, Manifest& manifest) {
 nlohmann::json package_metadata(const BuildSpec& scene, const Manifest& manifest,
                                 const nlohmann::json& provenance, const std::string& package_path) {
   const std::filesystem::path base = record_base(scene);
-  const std::string dem =
-      package_path.empty()
-          ? scene.dem
-          : recorded_path(
-                scene.dem,
-                (std::filesystem::current_path() / package_path).lexically_normal().parent_path());
+  auto record_dem = [&](const std::string& path) {
+    return package_path.empty()
+               ? path
+               : recorded_path(path, (std::filesystem::current_path() / package_path)
+                                         .lexically_normal()
+                                         .parent_path());
+  };
+  // One raster: its path, as before mosaics; a mosaic: the list.
+  nlohmann::json dem = record_dem(scene.dem);
+  if (!scene.dem_more.empty()) {
+    dem = nlohmann::json::array();
+    for (const std::string& p : dem_paths(scene)) dem.push_back(record_dem(p));
+  }
   nlohmann::json totals = totals_json(manifest);
   nlohmann::json extra;
   extra["manifest"]["totals"] = totals;

@@ -134,6 +134,33 @@ TEST(SceneFile, WrongTypeIsAnErrorNamingKeyAndLine) {
   EXPECT_NE(e.find("expected a number"), std::string::npos) << e;
 }
 
+// dem = [...]: a mosaic, each path resolved like a single dem; the first in
+// `dem`, the rest in `dem_more`. A single string leaves dem_more empty.
+TEST(SceneFile, DemListResolvesEachPathAgainstTheSceneDirectory) {
+  const prep::BuildSpec s = prep::parse_scene(
+      "dem = [\"a.hgt\", \"/abs/b.hgt\", \"/vsizip/c.zip/c.hgt\"]\n[[layer]]\nsource = "
+      "\"a.shp\"\n",
+      "/data/city/scene.toml");
+  EXPECT_EQ(s.dem, "/data/city/a.hgt");
+  EXPECT_EQ(s.dem_more, (std::vector<std::string>{"/abs/b.hgt", "/vsizip//data/city/c.zip/c.hgt"}));
+  EXPECT_EQ(prep::dem_paths(s).size(), 3u);
+  const prep::BuildSpec one =
+      prep::parse_scene("dem = \"a.hgt\"\n[[layer]]\nsource = \"a.shp\"\n", "/d/scene.toml");
+  EXPECT_EQ(one.dem, "/d/a.hgt");
+  EXPECT_TRUE(one.dem_more.empty());
+}
+
+TEST(SceneFile, DemListElementThatIsNotAStringNamesItsLine) {
+  std::string e = error_of("dem = [\n  \"a.hgt\",\n  3,\n]\n[[layer]]\nsource = \"a.shp\"\n");
+  EXPECT_NE(e.find("scene.toml:3: dem[1]: expected a string, got integer"), std::string::npos) << e;
+  e = error_of("dem = []\n[[layer]]\nsource = \"a.shp\"\n");
+  EXPECT_NE(e.find("scene.toml:1: dem: expected at least one DEM path"), std::string::npos) << e;
+  e = error_of("dem = 4\n[[layer]]\nsource = \"a.shp\"\n");
+  EXPECT_NE(e.find("scene.toml:1: dem: expected a string or an array of strings, got integer"),
+            std::string::npos)
+      << e;
+}
+
 TEST(SceneFile, BadEnumValueNamesTheAcceptedValues) {
   std::string e = error_of("[[layer]]\nsource = \"a.shp\"\n\nkind = \"poly\"\n");
   EXPECT_NE(e.find("scene.toml:4: layer[0].kind"), std::string::npos) << e;

@@ -29,7 +29,8 @@ struct BuildArgs {
   unsigned jobs = 0;                // --jobs; 0: not given (default_tile_jobs, or 1 in a batch)
   prep::FilelessLayer fileless;     // the file-less form's layer options
   // scene-wide overrides
-  std::string crs, assume_crs, extent, extent_crs, dem, grid;
+  std::string crs, assume_crs, extent, extent_crs, grid;
+  std::vector<std::string> dem;  // --dem, repeated for a mosaic
   std::optional<double> resolution, tile_size;
   std::string levels;
   std::string repair;
@@ -447,7 +448,9 @@ const decalprep::CommandRegistrar kBuild(10, kBuildHelp, [](CLI::App* cmd) {
                   "Simplification tolerance, metres (0: keep all)")
       ->group(s);
   cmd->add_option("--dem", args->dem,
-                  "DEM raster (GDAL path; its CRS, else --assume-crs); clips to its extent")
+                  "DEM raster (GDAL path; its CRS, else --assume-crs); clips to its extent; "
+                  "repeat it to mosaic several")
+      ->allow_extra_args(false)
       ->group(s);
   cmd->add_option(
          "--repair", args->repair,

@@ -141,7 +141,8 @@ const decalprep::CommandRegistrar kRegister(60, kRenderHelp, [](CLI::App* cmd) {
   cmd->add_option("--dem", args->dem,
                   "DEM raster (any GDAL path); default: the DEM the package was built with, if it "
                   "is a local regular file (or a /vsizip/ path into one) in a self-contained "
-                  "format, else flat with a warning");
+                  "format, else flat with a warning; repeat it to mosaic several")
+      ->allow_extra_args(false);
   cmd->add_flag("--flat", args->flat, "Flat terrain, even if the package was built with a DEM");
   cmd->add_flag("--strict", args->strict,
                 "Make every warning an error (exit 10): a view that misses the package, a DEM "

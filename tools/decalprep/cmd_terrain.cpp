@@ -32,7 +32,8 @@ namespace fs = std::filesystem;
 using prep::kTerrainStage;
 
 struct TerrainArgs {
-  std::string path, dem, output, progress;
+  std::string path, output, progress;
+  std::vector<std::string> dem;  // --dem, repeated for a mosaic
   bool json = false, quiet = false;
 };
 
@@ -67,10 +68,11 @@ void check_target(const Target& t, const std::vector<std::string>& inputs) {
 // The DEM `render` uses for this package: --dem with the package's surface
 // settings, else the DEM its metadata records.
 prep::DemSpec choose_dem(const std::string& metadata, const std::string& package,
-                         const std::string& user_dem) {
+                         const std::vector<std::string>& user_dem) {
   prep::DemSpec dem = R::recorded_dem(metadata, package);
   if (!user_dem.empty()) {
-    dem.path = user_dem;
+    dem.path = user_dem[0];
+    dem.more_paths.assign(user_dem.begin() + 1, user_dem.end());
     dem.named_by_package = false;
   }
   if (dem.path.empty())
@@ -78,6 +80,13 @@ prep::DemSpec choose_dem(const std::string& metadata, const std::string& package
         kTerrainStage,
         package + ": the package records no DEM (build_options.dem); pass --dem DEM");
   return dem;
+}
+
+// The files the terrain is made from, which no output may be.
+std::vector<std::string> terrain_inputs(const std::string& source, const prep::DemSpec& dem) {
+  std::vector<std::string> in{source, dem.path};
+  in.insert(in.end(), dem.more_paths.begin(), dem.more_paths.end());
+  return in;
 }
 
 void open_package(const std::string& path, decal::Package& pkg) {
@@ -106,19 +115,19 @@ Written write_terrain(const Target& t, const R::TerrainFile& terrain) {
 }
 
 // A package: the mesh over its extent in its frame (render's open_scene).
-Written package_terrain(const Target& t, const std::string& user_dem) {
+Written package_terrain(const Target& t, const std::vector<std::string>& user_dem) {
   decal::Package pkg;
   open_package(t.package, pkg);
   const R::DecalSource src = R::source_of(pkg);
   const prep::DemSpec dem = choose_dem(std::string(pkg.metadata_json()), t.package, user_dem);
-  check_target(t, {t.package, dem.path});
+  check_target(t, terrain_inputs(t.package, dem));
   return write_terrain(t, R::make_terrain(dem, src.frame, src.extent, digest(t.package)));
 }
 
 // A tileset: the mesh over the index's extent in the tileset frame, with
 // the first tile's DEM (render's open_scene for a tileset).
 Written tileset_terrain(const Target& t, const prep::TilesetIndex& ix,
-                        const std::string& user_dem) {
+                        const std::vector<std::string>& user_dem) {
   std::string metadata, first;
   if (!ix.tiles.empty()) {
     first = t.package + "/" + ix.tiles.front().file;
@@ -127,7 +136,7 @@ Written tileset_terrain(const Target& t, const prep::TilesetIndex& ix,
     metadata = std::string(pkg.metadata_json());
   }
   const prep::DemSpec dem = choose_dem(metadata, first.empty() ? t.package : first, user_dem);
-  check_target(t, {t.package + "/tileset.json", dem.path});
+  check_target(t, terrain_inputs(t.package + "/tileset.json", dem));
   const double ox = ix.frame.origin_x, oy = ix.frame.origin_y;
   const prep::Extent e{ix.extent.xmin - ox, ix.extent.ymin - oy, ix.extent.xmax - ox,
                        ix.extent.ymax - oy};
@@ -225,7 +234,9 @@ const decalprep::CommandRegistrar kTerrain(65, kTerrainHelp, [](CLI::App* cmd) {
   auto args = std::make_shared<terrain_cmd::TerrainArgs>();
   cmd->add_option("package", args->path, "Package (.decals) or tileset directory")->required();
   cmd->add_option("--dem", args->dem,
-                  "DEM raster (any GDAL path); default: the DEM the package was built with");
+                  "DEM raster (any GDAL path); default: the DEM the package was built with; "
+                  "repeat it to mosaic several")
+      ->allow_extra_args(false);
   cmd->add_option("-o,--output", args->output,
                   "Output file (default: STEM.terrain beside the package; not for a tileset)");
   cmd->add_flag("--json", args->json, "Print what was written as JSON");

@@ -92,12 +92,13 @@ void prepare_terrain(const SceneFeatures& scene, const ModelOptions& options,
         stage_message(kTerrainStage, "no DEM given; dynamic lines lie on flat terrain z = 0"));
     match_options.lmax = options.lmax > 0 ? options.lmax : std::numeric_limits<double>::infinity();
   } else if (lines.empty()) {
-    notes.push_back(
-        stage_message(kTerrainStage, "no dynamic lines; DEM " + dem_path + " not read"));
+    notes.push_back(stage_message(
+        kTerrainStage,
+        "no dynamic lines; DEM " + dem_text(dem_path, options.dem_more) + " not read"));
   } else {
-    dem = std::make_unique<DemSampler>(
-        DemSpec{dem_path, options.dem_assume_crs, options.z_scale, options.nodata_fill},
-        scene.frame);
+    DemSpec spec{dem_path, options.dem_assume_crs, options.z_scale, options.nodata_fill};
+    spec.more_paths = options.dem_more;
+    dem = std::make_unique<DemSampler>(spec, scene.frame);
     Extent b = no_points();
     for (const auto& l : lines) extend(b, l.points);
     const double cell = dem->cell_size_metres({0.5 * (b.xmin + b.xmax), 0.5 * (b.ymin + b.ymax)});

@@ -125,6 +125,10 @@ struct SceneSpec {
   double resolution = 0.0;                       // metres; 0 keeps every vertex
   RepairMethod repair = RepairMethod::linework;  // invalid polygons (see RepairMethod)
   std::string dem;                               // GDAL raster path; empty: flat terrain
+  // The rasters after the first of a mosaic (scene file dem = [a, b, ...],
+  // --dem repeated), joined with `dem` (prep/dem.hpp DemSpec::more_paths);
+  // empty: `dem` alone.
+  std::vector<std::string> dem_more;
   bool skip_failures = false;
   // A build that keeps no feature from any layer is an error (empty_error,
   // exit 9) and writes no package, unless this is set (`--allow-empty`,
@@ -140,6 +144,22 @@ struct SceneSpec {
   int levels = 0;
   std::string scene_path;  // for messages and provenance
 };
+
+// A DEM's rasters for messages: the one path, or "[a, b, ...]" for a mosaic.
+inline std::string dem_text(const std::string& dem, const std::vector<std::string>& more) {
+  if (more.empty()) return dem;
+  std::string s = "[" + dem;
+  for (const std::string& p : more) s += ", " + p;
+  return s + "]";
+}
+
+// Every raster of the scene's DEM, the first first; empty without a DEM.
+inline std::vector<std::string> dem_paths(const SceneSpec& scene) {
+  if (scene.dem.empty()) return {};
+  std::vector<std::string> all{scene.dem};
+  all.insert(all.end(), scene.dem_more.begin(), scene.dem_more.end());
+  return all;
+}
 
 // Where a layer sits in the scene file, for messages: " (scene.toml:12)";
 // "" for the file-less form (no file, line 0).

@@ -15,6 +15,17 @@
 //     file, or a /vsizip/, /vsitar/ or /vsigzip/ path into one, and only by
 //     the drivers of self-contained raster formats (kPackageDemDrivers): never
 //     a network path, a connection string or a VRT that could reach anything.
+//   * Mosaic: DemSpec::more_paths joins further rasters to `path` through an
+//     anonymous in-memory VRT (GDALBuildVRT). Each raster is opened and
+//     checked on its own first, by the rules above (assume_crs for one
+//     without a CRS, the package rule for each); rasters whose CRS, band
+//     count, band 1 data type, scale, offset or unit differ from the
+//     first's are an input_error naming both and the values. Each source
+//     keeps its own no-data, so a raster's voids do not cover its
+//     neighbour's cells; where rasters overlap, the later one's valid cells
+//     win. The mosaic's no-data (cells no raster covers, or all cover with
+//     voids) is the first raster's no-data that has one. A raster GDAL
+//     would leave out of the mosaic (it warns) is an input_error too.
 //   * Heights: (raw * band scale + band offset) * unit * z_scale, where unit
 //     converts the band's unit type to metres: "ft", "foot", "feet",
 //     "international foot" are 0.3048 m; "us-ft", "US survey foot", "ftUS"
@@ -43,6 +54,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "prep/features.hpp"
 
@@ -57,6 +69,9 @@ struct DemSpec {
   // The path comes from a package's metadata, not from the user: opened
   // only under the package rule above (package_dem_refusal).
   bool named_by_package = false;
+  // Further rasters mosaicked with `path` (the mosaic rule above); empty:
+  // `path` alone. Ignored without a path.
+  std::vector<std::string> more_paths;
 };
 
 // The GDAL drivers a DEM named by a package may be opened with: formats

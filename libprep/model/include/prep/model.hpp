@@ -48,7 +48,10 @@ struct ModelOptions {
   double z_scale = 1.0;
   std::optional<double> nodata_fill;  // raw DEM units; none: nearest valid cell (prep/dem.hpp)
   std::string dem_assume_crs;         // CRS of a DEM that has none (the scene's assume_crs)
-  unsigned threads = 0;               // 0: all hardware threads
+  // Rasters mosaicked with build_model's `dem` (the scene's dem_more;
+  // prep/dem.hpp DemSpec::more_paths).
+  std::vector<std::string> dem_more;
+  unsigned threads = 0;  // 0: all hardware threads
   // Not from the scene file: where the build stage reports its sub-stages
   // (build.lines, build.quadtrees, build.grid, build.cells, build.dynamic;
   // prep/progress.hpp). Null: silent. Output only.

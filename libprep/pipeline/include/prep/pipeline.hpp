@@ -60,7 +60,8 @@ struct FilelessLayer {
 // file's. extent "xmin,ymin,xmax,ymax", grid "NXxNY" or "auto", repair
 // "linework|structure" as on the command line.
 struct SceneOverrides {
-  std::string crs, assume_crs, extent, extent_crs, dem, grid, repair;
+  std::string crs, assume_crs, extent, extent_crs, grid, repair;
+  std::vector<std::string> dem;  // --dem, repeated for a mosaic
   std::optional<double> resolution, tile_size;
   std::string levels;  // --levels N|auto (formats/SPEC.md "Overview levels")
   std::optional<uint32_t> leaf_capacity, max_depth, threads;
@@ -251,8 +252,10 @@ struct RenderRequest {
   std::string output;      // -o: the PNG
   std::string raw;         // --raw: the static decal layer as float32 RGBA
   std::string decals_png;  // --decals: the decal layer alone as PNG
-  // Terrain: --dem, else the package's build DEM; --flat forces none.
-  std::string dem, assume_crs;
+  // Terrain: --dem (repeated: a mosaic), else the package's build DEM;
+  // --flat forces none.
+  std::vector<std::string> dem;
+  std::string assume_crs;
   // A terrain file (formats/SPEC.md "Terrain files") to draw instead of a
   // DEM: the mesh the browser draws (`view --screenshot` places its camera
   // over it). Not a render option; the DEM options are then unused.

@@ -116,7 +116,8 @@ Heightfield load_heightfield(const DemSpec& dem, const SceneFrame& frame, const 
 
 // The DEM a package was built with and the settings that made its surface,
 // from its metadata (build_options: dem, dem_assume_crs, z_scale,
-// nodata_fill); an empty path when it records none. Missing keys keep the
+// nodata_fill; a mosaic's dem is a list: path and more_paths); an empty
+// path when it records none. Missing keys keep the
 // DemSpec defaults. A relative DEM path is relative to the package's folder
 // (formats/SPEC.md "Metadata"): given `package_path`, it is resolved there
 // (also behind a /vsizip/, /vsigzip/, /vsitar/ or /vsi7z/ prefix). The spec
