@@ -350,16 +350,29 @@ bool surface_band_covers(const SurfaceMetric& G, V e, V d, double hw, decal::Cor
 // line can cover the point then); covered.
 enum class SegmentHit { none, clipped, covered };
 
+// The corner's vectors times `k` (a minimum width drawing the line wider).
+decal::LineCorner scaled(const decal::LineCorner& c, double k) {
+  decal::LineCorner out = c;
+  for (float* v : {out.miter, out.bevel_in, out.bevel_out}) {
+    v[0] = float(k * double(v[0]));
+    v[1] = float(k * double(v[1]));
+  }
+  return out;
+}
+
+// `scale`: min_width_scale of the segment's line.
 SegmentHit segment_test(const StaticView& v, uint32_t s, uint32_t e_idx, const PointQ& p,
-                        EvalCounters* k, const SurfaceMetric* surface = nullptr) {
+                        EvalCounters* k, const SurfaceMetric* surface = nullptr,
+                        double scale = 1.0) {
   const ivec2& ai = v.line_vertices[s];
   const ivec2& bi = v.line_vertices[e_idx];
   const decal::LineProps& pr = v.line_props[v.line_vertex_line[s]];
-  const decal::LineCorner& ca = v.line_corners[s];
-  const decal::LineCorner& cb = v.line_corners[e_idx];
+  const decal::LineCorner ca = scale == 1.0 ? v.line_corners[s] : scaled(v.line_corners[s], scale);
+  const decal::LineCorner cb =
+      scale == 1.0 ? v.line_corners[e_idx] : scaled(v.line_corners[e_idx], scale);
   const V e{double(bi[0] - ai[0]) * kQ, double(bi[1] - ai[1]) * kQ};
   const V d{(p.x - double(ai[0])) * kQ, (p.y - double(ai[1])) * kQ};
-  const double hw = pr.half_width, hw2 = hw * hw;
+  const double hw = double(pr.half_width) * scale, hw2 = hw * hw;
   const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
   const auto mode =
       decal::OutlineMode((pr.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift);
@@ -621,11 +634,25 @@ EvalSample evaluate(const StaticView& v, double x, double y, EvalCounters* k) {
 
 EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope& slope,
                     EvalCounters* k) {
-  return evaluate(v, x, y, slope, {}, k);
+  return evaluate(v, x, y, EvalPixel{slope}, k);
 }
 
-EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope& slope,
-                    std::span<const uint8_t> unlit, EvalCounters* k) {
+double min_width_scale(const StaticView& v, uint32_t line, const EvalPixel& px) {
+  if (px.min_width_px.empty() || !(px.min_width_pixel_m > 0)) return 1.0;
+  const decal::LineProps& pr = v.line_props[line];
+  const float n = px.min_width_px[std::min<size_t>(pr.layer, px.min_width_px.size() - 1)];
+  if (!(n > 0)) return 1.0;
+  const auto mode =
+      decal::OutlineMode((pr.style & decal::kStyleOutlineMask) >> decal::kStyleOutlineShift);
+  const double want = double(n) * (mode == decal::OutlineMode::normal ? 0.5 : 1.0) *
+                      std::min(px.pixel_m, px.min_width_pixel_m);
+  const double hw = pr.half_width;
+  return want > hw && hw > 0 ? want / hw : 1.0;
+}
+
+EvalSample evaluate(const StaticView& v, double x, double y, const EvalPixel& px, EvalCounters* k) {
+  const SurfaceSlope& slope = px.slope;
+  const std::span<const uint8_t> unlit = px.unlit;
   EvalSample out;
   // Step 6b applies to the lines of the flagged layers where the ground is
   // not level.
@@ -664,7 +691,8 @@ EvalSample evaluate(const StaticView& v, double x, double y, const SurfaceSlope&
     const uint32_t line = v.line_vertex_line[seg[0]];
     if (int64_t(line) == last_line) return false;
     if (k) ++k->segment_tests;
-    const SegmentHit hit = segment_test(v, seg[0], seg[1], p, k, surface_of(line));
+    const SegmentHit hit =
+        segment_test(v, seg[0], seg[1], p, k, surface_of(line), min_width_scale(v, line, px));
     if (hit == SegmentHit::none) return false;
     if (hit == SegmentHit::covered && !dash_covers(v, seg[0], seg[1], line, p)) return false;
     last_line = line;  // decided: covered, or clipped away for every segment

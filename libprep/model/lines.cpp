@@ -253,8 +253,13 @@ void miter_triangles(const decal::LineCorner& ca, const decal::LineCorner& cb, b
 // vectors may be a hair longer) for round and bevel corners and at a null
 // miter, the miter quad's triangles for miter corners, and the box of
 // both, a quantum wider on each side.
+//
+// A line of a min_width_px layer whose widest drawn half width `reach`
+// (quanta) passes its own is drawn scaled by up to K = reach / hw, corner
+// vectors too: its shape is the capsule of K times the longest of hw and
+// its corner vectors, which holds the scaled quad and triangles (convex).
 void segment_shape(const DecalModel& model, uint32_t li, uint32_t ia, uint32_t ib, double inv_q,
-                   SegmentShape& sh) {
+                   double reach, SegmentShape& sh) {
   const decal::LineProps& pr = model.line_props[li];
   const auto style = decal::CornerStyle(pr.style & decal::kStyleCornerMask);
   const double hw = double(pr.half_width) * inv_q;
@@ -279,8 +284,20 @@ void segment_shape(const DecalModel& model, uint32_t li, uint32_t ia, uint32_t i
     miny -= sh.hw;
     maxy += sh.hw;
   }
-  if (style == decal::CornerStyle::miter)
+  if (reach > hw) {
+    double longest = hw;
+    for (const decal::LineCorner* c : {&ca, &cb})
+      for (const float* v : {c->miter, c->bevel_in, c->bevel_out})
+        longest = std::max(longest, std::hypot(double(v[0]), double(v[1])) * inv_q);
+    sh.capsule = true;
+    sh.hw = reach / hw * longest * (1.0 + 1e-6);
+    minx = std::min(sh.ax, sh.bx) - sh.hw;
+    maxx = std::max(sh.ax, sh.bx) + sh.hw;
+    miny = std::min(sh.ay, sh.by) - sh.hw;
+    maxy = std::max(sh.ay, sh.by) + sh.hw;
+  } else if (style == decal::CornerStyle::miter) {
     miter_triangles(ca, cb, null_a, null_b, inv_q, sh, minx, maxx, miny, maxy);
+  }
   sh.box.x0 = int64_t(std::floor(minx)) - 1;
   sh.box.y0 = int64_t(std::floor(miny)) - 1;
   sh.box.x1 = int64_t(std::ceil(maxx)) + 1;
@@ -315,21 +332,37 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
       });
   const KeptLines kept = append_lines(scene, outs, model, keys);
 
-  // Widened segment shapes (quanta), parallel per line.
+  // Widened segment shapes (quanta), parallel per line. A min_width_px
+  // layer's lines reach their drawn half width at the package's pixel
+  // limit: N/2 pixels (the stored half width of an inset or offset line is
+  // its whole visible width: N pixels).
   shapes.resize(kept.segments);
   stage.set_total(nl + model.line_props.size());
   const double inv_q = 1.0 / decal::kQuantumMetres;
-  tbb::parallel_for(
-      tbb::blocked_range<size_t>(0, model.line_props.size(), 64),
-      [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t li = r.begin(); li != r.end(); ++li) {
-          const uint32_t v0 = kept.first_vertex[li], nv = kept.first_vertex[li + 1] - v0;
-          const uint32_t s0 = kept.seg_first[li], ns = kept.seg_first[li + 1] - s0;
-          for (uint32_t s = 0; s < ns; ++s)
-            segment_shape(model, uint32_t(li), v0 + s, v0 + (s + 1) % nv, inv_q, shapes[s0 + s]);
-        }
-        stage.add(r.size());
-      });
+  std::vector<double> reach(scene.layers.size(), 0.0);
+  if (std::any_of(scene.layers.begin(), scene.layers.end(),
+                  [](const LayerSpec& l) { return l.min_width_px > 0 && !l.dynamic; })) {
+    const Extent& e = scene.extent;
+    const double side = options.min_width_side > 0
+                            ? options.min_width_side
+                            : std::max({e.xmax - e.xmin, e.ymax - e.ymin, 0.0});
+    model.min_width_pixel_m = min_width_pixel_limit(options.min_width_resolution, side);
+    for (size_t k = 0; k < scene.layers.size(); ++k)
+      reach[k] = scene.layers[k].min_width_px * model.min_width_pixel_m *
+                 (outline[k] == decal::OutlineMode::normal ? 0.5 : 1.0) * inv_q;
+  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, model.line_props.size(), 64),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t li = r.begin(); li != r.end(); ++li) {
+                        const uint32_t v0 = kept.first_vertex[li],
+                                       nv = kept.first_vertex[li + 1] - v0;
+                        const uint32_t s0 = kept.seg_first[li], ns = kept.seg_first[li + 1] - s0;
+                        for (uint32_t s = 0; s < ns; ++s)
+                          segment_shape(model, uint32_t(li), v0 + s, v0 + (s + 1) % nv, inv_q,
+                                        reach[model.line_props[li].layer], shapes[s0 + s]);
+                      }
+                      stage.add(r.size());
+                    });
   stage.finish();
 }
 

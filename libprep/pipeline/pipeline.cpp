@@ -744,6 +744,7 @@ void build_and_write(const BuildSpec& scene, const BuildRequest& request,
   ModelOptions model_options = scene.model;
   model_options.dem_assume_crs = scene.assume_crs;  // a DEM is a source too
   model_options.dem_more = scene.dem_more;
+  model_options.min_width_resolution = scene.resolution;
   model_options.progress = request.progress;
   model_options.on_grid = [&](const GridFootprint& grid) {
     log.estimate(estimate_after_grid(grid, result.scene));
@@ -759,8 +760,8 @@ void build_and_write(const BuildSpec& scene, const BuildRequest& request,
   // cap / leaf overflow notes, dynamic-line notes), not only clean's part.
   result.scene.manifest = model.manifest;
   record_manifest_paths(scene, model.manifest);  // the report keeps them as given
-  const nlohmann::json extra =
-      package_metadata(scene, model.manifest, provenance.get(), request.output);
+  nlohmann::json extra = package_metadata(scene, model.manifest, provenance.get(), request.output);
+  if (model.min_width_pixel_m > 0) extra["min_width_pixel_m"] = model.min_width_pixel_m;
   WriteOptions wo;
   wo.codec = request.compress ? Codec::zstd : Codec::none;
   wo.zstd_level = request.zstd_level;

@@ -312,12 +312,13 @@ struct Scene {
   // one at a time as they are drawn: `list`).
   std::vector<decal::Package> packages;
   std::vector<TileSource> tiles;
-  std::string metadata;        // a package's metadata (the recorded DEM)
-  std::string metadata_file;   // that package (a recorded DEM is relative to its folder)
-  bool slope_flagged = false;  // its layer table flags a layer slope_widths = true
-  bool unlit_flagged = false;  // ... or a layer light = false
-  TileSelection selection;     // a tileset: the tiles drawn (prep/tile.hpp)
-  TileList list;               // a tileset: those tiles, as the renderers open them
+  std::string metadata;             // a package's metadata (the recorded DEM)
+  std::string metadata_file;        // that package (a recorded DEM is relative to its folder)
+  bool slope_flagged = false;       // its layer table flags a layer slope_widths = true
+  bool unlit_flagged = false;       // ... or a layer light = false
+  bool min_widths_flagged = false;  // ... or a layer min_width_px
+  TileSelection selection;          // a tileset: the tiles drawn (prep/tile.hpp)
+  TileList list;                    // a tileset: those tiles, as the renderers open them
 };
 
 // What opening a tileset's tiles found, as they were drawn: the features
@@ -370,6 +371,7 @@ Scene open_scene(const std::string& path) {
     sc.metadata_file = path + "/" + sc.index.tiles.front().file;
     sc.slope_flagged = !source_of(first).slope_layers.empty();
     sc.unlit_flagged = !source_of(first).unlit_layers.empty();
+    sc.min_widths_flagged = !source_of(first).min_width_px.empty();
   }
   return sc;
 }
@@ -448,6 +450,7 @@ void load_tiles(const RenderRequest& a, Scene& sc, const RenderOptions& opt,
                              ? lines
                              : opt.slope_widths == SlopeWidths::package && sc.slope_flagged);
   sc.list.unlit = sc.unlit_flagged;
+  sc.list.min_widths = sc.min_widths_flagged;
   stats->counted.assign(hit.size(), 0);
   struct Held {
     decal::Package package;

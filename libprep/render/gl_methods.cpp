@@ -197,9 +197,68 @@ void place_group(MethodState::Group& grp, const Extent& box, double zlo, double 
 
 }  // namespace
 
+namespace {
+
+// The texels of the texture method: --texture-resolution, else the extent
+// (clipped) over kTextureAutoTexels texels a side, at least 1 m.
+double texel_metres(const DecalSource& source, const RenderOptions& opt) {
+  Extent e = source.extent;
+  if (opt.clip)
+    e = {std::max(e.xmin, opt.clip->xmin), std::max(e.ymin, opt.clip->ymin),
+         std::min(e.xmax, opt.clip->xmax), std::min(e.ymax, opt.clip->ymax)};
+  if (!(e.xmax > e.xmin && e.ymax > e.ymin)) e = {0, 0, 1, 1};
+  if (opt.texture_resolution > 0) return opt.texture_resolution;
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  const double span = std::max(e.xmax - e.xmin, e.ymax - e.ymin);
+  return std::max(1.0, span / std::min<double>(kTextureAutoTexels, max_size));
+}
+
+// Minimum widths in the methods drawn from one geometry (formats/SPEC.md
+// "Minimum widths"): `view` with the lines of min_width_px layers widened
+// for one pixel size, their half widths and corner vectors in `props` and
+// `corners` (prep::min_width_scale); `view` itself when none is.
+StaticView widened_view(const DecalSource& source, double pixel_m,
+                        std::vector<decal::LineProps>& props,
+                        std::vector<decal::LineCorner>& corners) {
+  StaticView v = source.view;
+  if (source.min_width_px.empty() || !(source.min_width_pixel_m > 0)) return v;
+  EvalPixel px;
+  px.pixel_m = pixel_m;
+  px.min_width_px = source.min_width_px;
+  px.min_width_pixel_m = source.min_width_pixel_m;
+  props.assign(v.line_props.begin(), v.line_props.end());
+  corners.assign(v.line_corners.begin(), v.line_corners.end());
+  for (size_t i = 0; i < v.line_vertex_line.size() && i < corners.size(); ++i) {
+    const double k = min_width_scale(source.view, v.line_vertex_line[i], px);
+    for (float* c : {corners[i].miter, corners[i].bevel_in, corners[i].bevel_out}) {
+      c[0] = float(k * double(c[0]));
+      c[1] = float(k * double(c[1]));
+    }
+  }
+  for (uint32_t l = 0; l < props.size(); ++l)
+    props[l].half_width = float(double(props[l].half_width) * min_width_scale(source.view, l, px));
+  v.line_props = props;
+  v.line_corners = corners;
+  return v;
+}
+
+}  // namespace
+
 void GlRenderer::method_setup() {
-  const MethodGeometry g =
-      method_geometry(source_->view, opt_.draw_polygons, opt_.draw_lines, opt_.clip);
+  // One pixel size for the whole geometry: the texture's texel, or the
+  // volume view's pixel at its target (exact top-down).
+  const Camera& cam = opt_.camera;
+  const double pixel_m = opt_.method == Method::texture ? texel_metres(*source_, opt_)
+                         : view_.mpp_ortho > 0
+                             ? view_.mpp_ortho
+                             : std::hypot(cam.target[0] - cam.eye[0], cam.target[1] - cam.eye[1],
+                                          cam.target[2] - cam.eye[2]) *
+                                   view_.mpp_per_metre;
+  std::vector<decal::LineProps> props;
+  std::vector<decal::LineCorner> corners;
+  const StaticView view = widened_view(*source_, pixel_m, props, corners);
+  const MethodGeometry g = method_geometry(view, opt_.draw_polygons, opt_.draw_lines, opt_.clip);
   if (opt_.method == Method::volume)
     volume_setup(g);
   else
@@ -259,10 +318,8 @@ void GlRenderer::texture_setup(const MethodGeometry& g) {
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   const double span = std::max(e.xmax - e.xmin, e.ymax - e.ymin);
-  double res = opt_.texture_resolution;
-  if (res <= 0) {
-    res = std::max(1.0, span / std::min<double>(kTextureAutoTexels, max_size));
-  } else if (span / res > max_size) {
+  const double res = texel_metres(*source_, opt_);
+  if (opt_.texture_resolution > 0 && span / res > max_size) {
     fail<usage_error>(kRenderStage, "--texture-resolution " + std::to_string(res) +
                                         ": the extent's " + std::to_string(span) + " m need " +
                                         std::to_string(span / res) +

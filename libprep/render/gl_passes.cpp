@@ -274,7 +274,8 @@ TerrainMesh upload_terrain_mesh(GlObjects& gl, const Heightfield& terrain, const
   return {vao, GLsizei(idx.size()), gradients};
 }
 
-StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope, bool unlit) {
+StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope, bool unlit,
+                               bool min_widths) {
   StaticPrograms p;
   p.defines = opt.binding == Binding::texture ? "#define DECAL_TEXTURE 1\n" : "";
   const std::string aa_defines = opt.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n"
@@ -288,13 +289,14 @@ StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slo
                            {"decal_blobs.glsl", "static_common.glsl", "static_polygons.glsl"},
                            {},
                            p.defines + aa_defines + unlit_define + "#define DECAL_POLYGONS 1\n"});
-  p.lines = gl.program(
-      {{"fullscreen.vert.glsl"},
-       {},
-       {"decal_blobs.glsl", "static_common.glsl", "slope_widths.glsl", "dash.glsl",
-        "static_lines.glsl"},
-       {},
-       p.defines + aa_defines + slope_define + unlit_define + "#define DECAL_LINES 1\n"});
+  p.lines = gl.program({{"fullscreen.vert.glsl"},
+                        {},
+                        {"decal_blobs.glsl", "static_common.glsl", "slope_widths.glsl", "dash.glsl",
+                         "static_lines.glsl"},
+                        {},
+                        p.defines + aa_defines + slope_define + unlit_define +
+                            (min_widths ? "#define DECAL_MIN_WIDTHS 1\n" : "") +
+                            "#define DECAL_LINES 1\n"});
   p.composite = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
   return p;
 }
@@ -314,9 +316,12 @@ GlRenderer::GlRenderer(std::span<const decal::gl::BlobBytes> blobs, const decal:
   // Layers drawn unlit: the decal method's static passes and the volume
   // method's cover pass; the texture method lights its whole texture.
   unlit_ = opt.decal_light && opt.method != Method::texture && !source.unlit_layers.empty();
+  min_widths_ = opt.method == Method::decal && opt.draw_lines && !source.min_width_px.empty() &&
+                source.min_width_pixel_m > 0;
   setup();
   if (slope_) upload_slope_layers(source);
   if (unlit_) upload_unlit_layers(source);
+  if (min_widths_) upload_min_widths(source);
   if (opt.method != Method::decal) method_setup();
 }
 
@@ -331,6 +336,7 @@ GlRenderer::GlRenderer(const TileList& tiles, const Heightfield& terrain, const 
   view_ = view0_;
   slope_ = opt.draw_lines && tiles.slope;
   unlit_ = opt.decal_light && tiles.unlit;  // each tile uploads its flags (load_tile)
+  min_widths_ = opt.draw_lines && tiles.min_widths;
   setup();
 }
 
@@ -340,7 +346,7 @@ void GlRenderer::setup() {
   glCreateVertexArrays(1, &empty_vao_);
   gl_.arrays.push_back(empty_vao_);
   t_ = make_targets(gl_, W_, H_, opt_.method == Method::volume, slope_);
-  p_ = static_programs(gl_, opt_, slope_, unlit_ && opt_.method == Method::decal);
+  p_ = static_programs(gl_, opt_, slope_, unlit_ && opt_.method == Method::decal, min_widths_);
   glViewport(0, 0, GLsizei(W_), GLsizei(H_));
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
 }
@@ -427,6 +433,7 @@ void GlRenderer::load_tile(size_t k) {
   runs_ = draw_runs(source_->view);
   if (slope_) upload_slope_layers(*source_);
   if (unlit_) upload_unlit_layers(*source_);
+  if (min_widths_) upload_min_widths(*source_);
   timer_.begin("tile upload (blobs)");
   check(decal::gl::GpuPackage::upload(blobs, gl_grid(*source_), gpu_, true));
   timer_.end();
@@ -584,6 +591,9 @@ void GlRenderer::set_static_uniforms(GLuint p) const {
               float(eye_rel[2]));
   glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(view_.mpp_ortho));
   glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
+  if (min_widths_ && p == p_.lines)
+    glUniform1f(glGetUniformLocation(p, "u_min_width_pixel_m"),
+                float(source_->min_width_pixel_m > 0 ? source_->min_width_pixel_m : 0.0));
 }
 
 void GlRenderer::bind_package() const {
@@ -594,6 +604,7 @@ void GlRenderer::bind_package() const {
     glBindTextureUnit(decal::gl::kUnitTerrainGradient, t_.gradient);
     glBindTextureUnit(decal::gl::kUnitSlopeLayers, slope_layers_);
   }
+  if (min_widths_) glBindTextureUnit(decal::gl::kUnitMinWidths, min_widths_tex_);
   if (unlit_) {
     glBindTextureUnit(decal::gl::kUnitUnlitLayers, unlit_layers_);
     glBindTextureUnit(decal::gl::kUnitTerrainColour, t_.color);  // the shade in its alpha
@@ -623,6 +634,18 @@ void GlRenderer::upload_slope_layers(const DecalSource& source) {
 
 void GlRenderer::upload_unlit_layers(const DecalSource& source) {
   unlit_layers_ = layer_flags_texture(gl_, source.unlit_layers);
+}
+
+void GlRenderer::upload_min_widths(const DecalSource& source) {
+  std::vector<float> n = source.min_width_px;
+  if (n.empty() || !(source.min_width_pixel_m > 0)) n.assign(1, 0.0f);  // this package: none
+  GLuint buf = 0;
+  glCreateBuffers(1, &buf);
+  gl_.buffers.push_back(buf);
+  glNamedBufferStorage(buf, GLsizeiptr(n.size() * sizeof(float)), n.data(), 0);
+  glCreateTextures(GL_TEXTURE_BUFFER, 1, &min_widths_tex_);
+  gl_.textures.push_back(min_widths_tex_);
+  glTextureBuffer(min_widths_tex_, GL_R32F, buf);
 }
 
 void GlRenderer::bind_dashes() {

@@ -109,6 +109,16 @@ struct CpuFrame {
         hit_y(size_t(W) * H, NAN),
         hit_z(size_t(W) * H, 0.0) {}
 
+  // Ground metres of one pixel at the point (static_common.glsl
+  // pixel_metres): the view's constant orthographic size, or the distance
+  // to the eye times 2 tan(fov_y / 2) / H.
+  double pixel_metres(double x, double y, double z) const {
+    const Camera& c = opt.camera;
+    if (c.projection == Projection::orthographic) return c.ortho_h / H;
+    const double d = std::hypot(x - c.eye[0], y - c.eye[1], z - c.eye[2]);
+    return d * 2.0 * std::tan(c.fov_y_deg * 3.14159265358979323846 / 360.0) / H;
+  }
+
   // The tile whose half-open square holds (x, y); none: places.size().
   size_t tile_at(double x, double y) const {
     for (size_t k = 0; k < tiles.places.size(); ++k) {
@@ -196,13 +206,26 @@ struct CpuFrame {
                                               ? std::span<const uint8_t>(t.source.unlit_layers)
                                               : std::span<const uint8_t>{};
     if (!flat.empty() && unlit.empty()) unlit.assign(3 * size_t(W) * H, 0.0f);
+    // Minimum widths (formats/SPEC.md "Minimum widths"): the ground size of
+    // each pixel at its point, as static_common.glsl pixel_metres.
+    const bool widths = !t.source.min_width_px.empty() && t.source.min_width_pixel_m > 0;
     parallel_for(pixels.size(), kPixelGrain, [&](size_t i) {
       const size_t p = pixels[i];
       const double x = hit_x[p], y = hit_y[p];
-      if (slope.empty() && flat.empty()) return put(p, evaluate(view, x - at.dx, y - at.dy));
-      std::array<double, 2> g{0, 0};
-      if (!slope.empty()) g = terrain.gradient_at(x, y);
-      put(p, evaluate(view, x - at.dx, y - at.dy, {g[0], g[1], slope}, flat));
+      if (slope.empty() && flat.empty() && !widths)
+        return put(p, evaluate(view, x - at.dx, y - at.dy));
+      EvalPixel px;
+      if (!slope.empty()) {
+        const std::array<double, 2> g = terrain.gradient_at(x, y);
+        px.slope = {g[0], g[1], slope};
+      }
+      px.unlit = flat;
+      if (widths) {
+        px.pixel_m = pixel_metres(x, y, hit_z[p]);
+        px.min_width_px = t.source.min_width_px;
+        px.min_width_pixel_m = t.source.min_width_pixel_m;
+      }
+      put(p, evaluate(view, x - at.dx, y - at.dy, px));
     });
     if (opt.draw_dynamic) draw_dynamic(t.source, at, pixels);
   }
@@ -244,7 +267,8 @@ struct CpuFrame {
       const OpenedTile opened = tiles.open(0);
       const DecalSource& source = opened.tile.source;
       if ((!opt.draw_lines || slope_layers(source, opt.slope_widths).empty()) &&
-          (!opt.decal_light || source.unlit_layers.empty())) {
+          (!opt.decal_light || source.unlit_layers.empty()) &&
+          (!opt.draw_lines || source.min_width_px.empty())) {
         StaticView view = source.view;
         if (!opt.draw_polygons) view.poly_bvh_range = {};
         if (!opt.draw_lines) view.line_bvh_range = {};

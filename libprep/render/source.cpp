@@ -92,6 +92,14 @@ DecalSource source_of(const decal::Package& package) {
         s.miter_limit_deg = deg;
       }
     }
+    // Minimum widths' pixel limit (formats/SPEC.md "Minimum widths").
+    if (const auto* m = pick({"min_width_pixel_m"})) {
+      const double v = m->get<double>();
+      if (!(v > 0 && std::isfinite(v)))
+        fail<format_error>(kRenderStage, "package metadata: min_width_pixel_m " +
+                                             std::to_string(v) + " is not a length > 0");
+      s.min_width_pixel_m = v;
+    }
     // Layers whose static lines are measured along the terrain.
     // One flag per layer and a last 0 for line layers past the table.
     if (const auto* layers = pick({"layers"}); layers && layers->is_array()) {
@@ -104,6 +112,15 @@ DecalSource source_of(const decal::Package& package) {
         if (l.is_object() && l.contains("light") && l["light"] == false) {
           s.unlit_layers.resize(layers->size() + 1, 0);
           s.unlit_layers[i] = 1;
+        }
+        if (l.is_object() && l.contains("min_width_px")) {
+          const double n = l["min_width_px"].get<double>();
+          if (!(n > 0 && n <= 102))
+            fail<format_error>(kRenderStage, "package metadata: layers[" + std::to_string(i) +
+                                                 "].min_width_px " + std::to_string(n) +
+                                                 " is not in (0, 102]");
+          s.min_width_px.resize(layers->size() + 1, 0.0f);
+          s.min_width_px[i] = float(n);
         }
       }
     }
@@ -133,6 +150,7 @@ TileList tile_list(std::span<const TileSource> tiles, const RenderOptions& optio
     list.slope =
         list.slope || (options.draw_lines && !slope_layers(t.source, options.slope_widths).empty());
     list.unlit = list.unlit || !t.source.unlit_layers.empty();
+    list.min_widths = list.min_widths || !t.source.min_width_px.empty();
   }
   list.open = [tiles](size_t k) { return OpenedTile{tiles[k], nullptr}; };
   return list;

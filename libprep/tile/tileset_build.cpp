@@ -51,6 +51,18 @@ namespace prep::tiling {
 
 namespace {
 
+// The margin the min_width_px lines of a level need (formats/SPEC.md
+// "Minimum widths"): their drawn half width at the pixel limit of a tile of
+// that level (resolution, side), as far as a miter reaches; 0 without such
+// layers.
+double min_width_margin(const BuildSpec& spec, double resolution, double side) {
+  double f = 0;
+  for (const LayerSpec& l : spec.layers)
+    if (l.min_width_px > 0 && !l.dynamic)
+      f = std::max(f, l.min_width_px * (l.style.outline == decal::OutlineMode::normal ? 0.5 : 1.0));
+  return f > 0 ? stroke_margin_of(f * min_width_pixel_limit(resolution, side), spec.model) : 0.0;
+}
+
 // XXH64 of what a tile's package is made from.
 class Digest {
  public:
@@ -189,7 +201,8 @@ void TilesetPreparer::add_read_entry(const ManifestEntry& e) {
 }
 
 double TilesetPreparer::margin() const {
-  return stroke_margin_of(parts_->half_width(), spec_.model);
+  return std::max(stroke_margin_of(parts_->half_width(), spec_.model),
+                  min_width_margin(spec_, spec_.resolution, spec_.tile_size));
 }
 
 void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and_notes,
@@ -212,11 +225,13 @@ void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and
   nlohmann::json levels = nlohmann::json::array();
   for (int l = 1; l <= nlevels; ++l) {
     TilePlan lp = plan;
-    lp.size = level_parameters(plan.size, l).tile_size;
+    const TileLevel params = level_parameters(plan.size, l);
+    lp.size = params.tile_size;
+    lp.margin = std::max(plan.margin, min_width_margin(spec_, params.resolution, lp.size));
     lp.dynamic_margin = lp.size * 0.5;
     nlohmann::json lk = nlohmann::json::array();
     for (const TileKey& k : planned_tiles(paths_, lp)) lk.push_back({k.x, k.y});
-    levels.push_back({{"level", l}, {"tiles", std::move(lk)}});
+    levels.push_back({{"level", l}, {"margin", lp.margin}, {"tiles", std::move(lk)}});
   }
   const nlohmann::json j = {{"frame", frame_to_json(frame)},
                             {"extent", {e.xmin, e.ymin, e.xmax, e.ymax}},
@@ -395,6 +410,7 @@ PreparedPlan read_plan(const WorkPaths& paths) {
       lv.params = level_parameters(p.plan.size, l.at("level").get<int>());
       lv.plan = p.plan;
       lv.plan.size = lv.params.tile_size;
+      lv.plan.margin = l.at("margin").get<double>();  // with the level's minimum widths
       lv.plan.dynamic_margin = lv.plan.size * 0.5;
       for (const nlohmann::json& k : l.at("tiles"))
         lv.keys.push_back({k.at(0).get<int64_t>(), k.at(1).get<int64_t>()});
@@ -601,14 +617,17 @@ uint32_t tile_max_cells(const SceneFeatures& tile) {
 // of its pixels wide) and writes its package with `extra`; returns what the
 // package holds and adds its DEM counts to `dem`.
 HeldParts write_tile(const SceneFeatures& tile, const BuildSpec& spec, const BuildRequest& request,
-                     const TileLevel* level, const std::string& path, nlohmann::json& extra,
-                     DemTally& dem) {
+                     const TileLevel* level, double side, const std::string& path,
+                     nlohmann::json& extra, DemTally& dem) {
   ModelOptions mo = spec.model;
   mo.dem_assume_crs = spec.assume_crs;
   mo.dem_more = spec.dem_more;
   if (level) mo.min_cell_m = kLevelMinCellPixels * level->resolution;
+  mo.min_width_resolution = level ? level->resolution : spec.resolution;
+  mo.min_width_side = side;
   mo.max_cells = std::min(mo.max_cells, tile_max_cells(tile));
   DecalModel model = build_model(tile, mo, spec.dem);
+  if (model.min_width_pixel_m > 0) extra["min_width_pixel_m"] = model.min_width_pixel_m;
   if (model.manifest.layers.empty()) model.manifest = tile.manifest;
   record_manifest_paths(spec, model.manifest);
   const HeldParts held =
@@ -725,7 +744,8 @@ TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, 
             const MemoryEstimate est = estimate_tile(tile, resident, jobs, file);
             note_estimate(i, est);
             check_memory(limit, est);
-            held = write_tile(tile, spec, request, lv ? &lv->params : nullptr, path, extra, dem);
+            held = write_tile(tile, spec, request, lv ? &lv->params : nullptr, plan.size, path,
+                              extra, dem);
           }
           const std::optional<FileDigest> fd = file_digest(path);
           if (!fd) fail<output_error>(kTilesetStage, "cannot read back " + path);

@@ -13,6 +13,9 @@ layout(binding = DECAL_UNIT_SLOPE_LAYERS) uniform usamplerBuffer u_slope_layers;
 
 // Defined in static_lines.glsl.
 float cross2(vec2 a, vec2 b);
+vec2 cmiter(uint i);
+vec2 cbevel_in(uint i);
+vec2 cbevel_out(uint i);
 bool in_triangle(vec2 a, vec2 b, vec2 c, vec2 d);
 bool is_null(vec2 v);
 
@@ -60,11 +63,11 @@ bool surface_band_covers(vec2 e, vec2 d, float hw, uint corner, uint s, uint eid
     return gdot(rg, rg) <= hw2;
   }
   // Within hw (bevel) or the longer plan miter of the segment in plan.
-  vec2 pa = corner_miter(s), pb = corner_miter(eidx);
+  vec2 pa = cmiter(s), pb = cmiter(eidx);
   float reach2 = corner == 1u ? max(hw2, max(dot(pa, pa), dot(pb, pb))) : hw2;
   if (dot(r, r) > reach2) return false;
-  vec2 a_in = corner_bevel_in(s), a_out = corner_bevel_out(s);
-  vec2 b_in = corner_bevel_in(eidx), b_out = corner_bevel_out(eidx);
+  vec2 a_in = cbevel_in(s), a_out = cbevel_out(s);
+  vec2 b_in = cbevel_in(eidx), b_out = cbevel_out(eidx);
   if (corner == 1u) {  // miter; sa, sb make the stored (outer) bevels left
     bool na = is_null(pa), nb = is_null(pb);
     float sa = cross2(e, a_out) >= 0.0 ? 1.0 : -1.0;

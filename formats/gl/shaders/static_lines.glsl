@@ -26,6 +26,32 @@ bool in_triangle(vec2 a, vec2 b, vec2 c, vec2 d) {
 }
 bool is_null(vec2 v) { return v == vec2(0.0); }
 
+// Minimum widths (formats/SPEC.md "Minimum widths"; prep::min_width_scale):
+// a line of a layer with min_width_px N is drawn with its half width and
+// corner vectors times g_k = max(1, f N min(pixel, limit) / hw), f = 1/2
+// (1 for inset and offset), at the pixel's ground size g_px; the package's
+// cells hold its segments as far as the limit lets it reach.
+float g_k = 1.0;
+#ifdef DECAL_MIN_WIDTHS
+layout(binding = DECAL_UNIT_MIN_WIDTHS) uniform samplerBuffer u_min_widths;  // N per layer
+uniform float u_min_width_pixel_m;
+float g_px = 0.0;
+float width_scale(uint line, uvec4 props) {
+  int last = textureSize(u_min_widths) - 1;
+  float n = texelFetch(u_min_widths, int(min(line_layer(line), uint(last)))).x;
+  if (!(n > 0.0)) return 1.0;
+  float f = ((props.w >> 2) & 3u) == 0u ? 0.5 : 1.0;
+  float want = n * f * min(g_px, u_min_width_pixel_m);
+  float hw = uintBitsToFloat(props.x);
+  return want > hw && hw > 0.0 ? want / hw : 1.0;
+}
+#else
+float width_scale(uint line, uvec4 props) { return 1.0; }
+#endif
+vec2 cmiter(uint i) { return g_k * corner_miter(i); }
+vec2 cbevel_in(uint i) { return g_k * corner_bevel_in(i); }
+vec2 cbevel_out(uint i) { return g_k * corner_bevel_out(i); }
+
 // Outcomes of the segment test (SegmentHit in the evaluator).
 const int HIT_NONE = 0, HIT_CLIPPED = 1, HIT_COVERED = 2;
 
@@ -33,7 +59,7 @@ const int HIT_NONE = 0, HIT_CLIPPED = 1, HIT_COVERED = 2;
 // query block in libprep/evaluate/evaluate.cpp, in metres relative to vertex
 // a: the segment vector e is an exact integer difference.
 int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
-  float hw = uintBitsToFloat(props.x), hw2 = hw * hw;
+  float hw = uintBitsToFloat(props.x) * g_k, hw2 = hw * hw;
   uint corner = props.w & 3u;
   uint outline = (props.w >> 2) & 3u;
   ivec2 ai = line_vertex(s);
@@ -51,24 +77,24 @@ int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
     vec2 r = d - t * e;
     covered = dot(r, r) <= hw2;
   } else if (corner == 1u) {  // miter; a null miter falls back to the left normal + a disc
-    vec2 ma = corner_miter(s), mb = corner_miter(eidx);
+    vec2 ma = cmiter(s), mb = cmiter(eidx);
     bool na = is_null(ma), nb = is_null(mb);
-    if (na) { ma = corner_bevel_out(s); if (cross2(e, ma) < 0.0) ma = -ma; }
-    if (nb) { mb = corner_bevel_in(eidx); if (cross2(e, mb) < 0.0) mb = -mb; }
+    if (na) { ma = cbevel_out(s); if (cross2(e, ma) < 0.0) ma = -ma; }
+    if (nb) { mb = cbevel_in(eidx); if (cross2(e, mb) < 0.0) mb = -mb; }
     covered = in_triangle(-ma, e - mb, e + mb, d) || in_triangle(-ma, e + mb, ma, d) ||
               (na && dot(d, d) <= hw2) || (nb && dot(d - e, d - e) <= hw2);
   } else {  // bevel: rectangle, then the corner triangles (null: round end)
-    vec2 n = corner_bevel_out(s);
+    vec2 n = cbevel_out(s);
     float c = cross2(e, n);
     if (c != 0.0) {
       float sv = cross2(e, d) / c, tv = cross2(d, n) / c;
       covered = tv >= 0.0 && tv <= 1.0 && abs(sv) <= 1.0;
     }
-    vec2 ai_in = corner_bevel_in(s), b_out = corner_bevel_out(eidx);
+    vec2 ai_in = cbevel_in(s), b_out = cbevel_out(eidx);
     if (!covered)
       covered = is_null(ai_in) ? dot(d, d) <= hw2 : in_triangle(vec2(0.0), ai_in, n, d);
     if (!covered)
-      covered = is_null(b_out) ? dot(d - e, d - e) <= hw2 : in_triangle(e, e + corner_bevel_in(eidx), e + b_out, d);
+      covered = is_null(b_out) ? dot(d - e, d - e) <= hw2 : in_triangle(e, e + cbevel_in(eidx), e + b_out, d);
   }
   if (!covered) return HIT_NONE;
   if (outline == 0u) return HIT_COVERED;
@@ -83,14 +109,14 @@ int segment_test(uint s, uint eidx, vec2 p, uint line, uvec4 props) {
   // towards the kept side the kept part is the intersection of both halves.
   float K = outline == 1u ? 1.0 : -1.0;
   if (K * cross2(e, d) < 0.0) return HIT_NONE;
-  vec2 cb_out = corner_bevel_out(eidx);
+  vec2 cb_out = cbevel_out(eidx);
   if (!is_null(cb_out)) {
-    float o = cross2(e, corner_bevel_in(eidx)) >= 0.0 ? 1.0 : -1.0;
+    float o = cross2(e, cbevel_in(eidx)) >= 0.0 ? 1.0 : -1.0;
     if (K * o < 0.0 && K * dot(d - e, o * cb_out) < 0.0) return HIT_NONE;
   }
-  vec2 ca_in = corner_bevel_in(s);
+  vec2 ca_in = cbevel_in(s);
   if (!is_null(ca_in)) {
-    float o = cross2(e, corner_bevel_out(s)) >= 0.0 ? 1.0 : -1.0;
+    float o = cross2(e, cbevel_out(s)) >= 0.0 ? 1.0 : -1.0;
     if (K * o < 0.0 && K * dot(d, o * ca_in) < 0.0) return HIT_NONE;
   }
   return HIT_COVERED;
@@ -127,7 +153,7 @@ bool dash_covers(uint s, uint eidx, vec2 p, uint line) {
 float segment_coverage(uint s, uint eidx, vec2 p, uint line, uvec4 props, float wpix) {
   int hit = segment_test(s, eidx, p, line, props);
   bool inside = hit == HIT_COVERED;
-  float hw = uintBitsToFloat(props.x);
+  float hw = uintBitsToFloat(props.x) * g_k;
   uint outline = (props.w >> 2) & 3u;
   ivec2 ai = line_vertex(s);
   vec2 e = vec2(line_vertex(eidx) - ai) * QUANTUM;
@@ -183,6 +209,7 @@ bool bvh_leaf(uint entry, vec2 p) {
   uvec4 props = line_props(line);
   if (props.z >= u_order_hi) return false;
   if (props.z < u_order_lo) return true;
+  g_k = width_scale(line, props);
 #ifdef DECAL_AA_COVERAGE
   float cov = segment_coverage(seg.x, seg.y, p, line, props, g_wpix);
   if (line == g_cur_line) {
@@ -215,6 +242,9 @@ void main() {
   vec3 p;
   int cell;
   if (!pixel_cell(p, cell)) discard;
+#ifdef DECAL_MIN_WIDTHS
+  g_px = pixel_metres(p);
+#endif
 #ifdef DECAL_AA_COVERAGE
   float margin = g_wpix;
 #else

@@ -160,7 +160,7 @@ struct StaticPrograms {
 // `unlit`: the static passes read the layer flags of light = false
 // (static_common.glsl layer_light).
 StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope = false,
-                               bool unlit = false);
+                               bool unlit = false, bool min_widths = false);
 
 // gl_dynamic.cpp: a package's LOD data on the GPU (kept across frames).
 struct LodBuffers;
@@ -218,6 +218,9 @@ class GlRenderer {
   // Lit decals: the current package's unlit layer flags (unlit_layers) as
   // the buffer texture the static passes read.
   void upload_unlit_layers(const DecalSource& source);
+  // Minimum widths: the current package's min_width_px per layer as the
+  // buffer texture the line pass reads.
+  void upload_min_widths(const DecalSource& source);
   // gl_methods.cpp: set-up of the volume and texture methods, the volume
   // passes and the texture's rasterisation (once, before the first frame).
   void method_setup();
@@ -260,6 +263,8 @@ class GlRenderer {
   GLuint slope_layers_ = 0;             // buffer texture of the current package's flags
   bool unlit_ = false;                  // decals lit, and some layer may be drawn unlit
   GLuint unlit_layers_ = 0;             // buffer texture of the current package's flags
+  bool min_widths_ = false;             // some package's lines have minimum widths
+  GLuint min_widths_tex_ = 0;           // buffer texture of the current package's widths
   std::unique_ptr<GlObjects> dash_gl_;  // bind_dashes' buffers, for dash_for_
   const DecalSource* dash_for_ = nullptr;
 };

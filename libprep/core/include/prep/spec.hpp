@@ -94,6 +94,11 @@ struct LayerSpec {
   // light (formats/SPEC.md "Lit decals"). Recorded in the package's layer
   // table; dynamic lines are never lit.
   bool light = true;
+  // Scene file min_width_px (static lines, outlines, points): the line is
+  // drawn at least this many pixels wide, its width in ground metres raised
+  // to N pixels, while a pixel is at most the package's min_width_pixel_m
+  // (formats/SPEC.md "Minimum widths"). 0: none.
+  double min_width_px = 0;
   // Dash pattern (scene file `dash`): [on, off, on, off, ...], lengths > 0
   // along the line from its start, ground metres (static) or pixels
   // (dynamic); empty: solid. A casing copy is solid.

@@ -203,11 +203,26 @@ struct SurfaceSlope {
 // along the plane of gradient `slope` (step 6b of the query block).
 EvalSample evaluate(const StaticView& view, double x, double y, const SurfaceSlope& slope,
                     EvalCounters* counters = nullptr);
-// The same, with the share of the layers flagged in `unlit` (one flag per
-// layer-table index, an index past the end taking the last) also summed in
-// EvalSample::unlit_rgb.
-EvalSample evaluate(const StaticView& view, double x, double y, const SurfaceSlope& slope,
-                    std::span<const uint8_t> unlit, EvalCounters* counters = nullptr);
+// What a renderer knows of the pixel beyond its point: the slope above;
+// `unlit`, layers whose share is also summed in EvalSample::unlit_rgb (one
+// flag per layer-table index, an index past the end taking the last); and
+// for minimum widths (formats/SPEC.md "Minimum widths") the ground size of
+// the pixel, each layer's min_width_px (the same indexing) and the
+// package's pixel limit: a static line of such a layer is drawn with half
+// width max(hw, f N min(pixel_m, limit)), f = 1/2 (1 for inset and offset,
+// whose stored half width is their visible width), its corner vectors
+// scaled alike.
+struct EvalPixel {
+  SurfaceSlope slope;
+  std::span<const uint8_t> unlit;
+  double pixel_m = 0;
+  std::span<const float> min_width_px;
+  double min_width_pixel_m = 0;
+};
+EvalSample evaluate(const StaticView& view, double x, double y, const EvalPixel& pixel,
+                    EvalCounters* counters = nullptr);
+// The factor (>= 1) by which line `line` is drawn wider at this pixel.
+double min_width_scale(const StaticView& view, uint32_t line, const EvalPixel& pixel);
 
 // Coverage queries of single primitives, as evaluate() applies them (for
 // tests and tools). `x, y` in metres relative to the origin.

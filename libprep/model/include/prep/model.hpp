@@ -39,6 +39,12 @@ struct ModelOptions {
   // tileset's overview level sets twice its resolution (formats/SPEC.md
   // "Overview levels"); not from the scene file.
   double min_cell_m = 0.0;
+  // Minimum widths (LayerSpec::min_width_px; formats/SPEC.md "Minimum
+  // widths"): the resolution the package is made for (the scene's; an
+  // overview level's) and the side of the square it covers (a tile's; 0:
+  // the longer side of the scene extent). Not from the scene file.
+  double min_width_resolution = 0.0;
+  double min_width_side = 0.0;
   uint32_t qt_leaf_capacity = 8;  // thesis default
   uint32_t qt_max_depth = 8;      // thesis default
   double miter_limit_deg = 40.0;  // below this angle, miter falls back to round
@@ -99,10 +105,19 @@ struct BuildStats {
   uint64_t hole_cell_entries = 0;  // (cell, interior polygon) pairs
 };
 
+// The largest pixel (metres) for which a package keeps its min_width_px
+// lines that many pixels wide: max(2 r, side / 512) (formats/SPEC.md
+// "Minimum widths"); its segments are registered in the cells that band
+// reaches.
+double min_width_pixel_limit(double resolution, double side);
+
 struct DecalModel {
   SceneFrame frame;
   Extent extent;  // scene metres
   GridParams grid;
+  // min_width_pixel_limit of this package (metadata min_width_pixel_m); 0
+  // when no layer has min_width_px.
+  double min_width_pixel_m = 0;
 
   // static lines
   std::vector<ivec2> line_vertices;

@@ -203,6 +203,13 @@ struct DecalSource {
   // SPEC.md "Lit decals"), then a 0 for layers past the table. Empty when
   // every layer is lit.
   std::vector<uint8_t> unlit_layers;
+  // Minimum widths (formats/SPEC.md "Minimum widths"): per layer-table
+  // index the layer's min_width_px, then a 0 for layers past the table
+  // (empty when no layer has one), and the package's pixel limit
+  // (metadata min_width_pixel_m). A static line is drawn with half width
+  // max(hw, f N min(pixel, limit)), f = 1/2 (1 for inset and offset).
+  std::vector<float> min_width_px;
+  double min_width_pixel_m = 0;
 };
 
 // Views of a model in memory (for tests and `build --render`).
@@ -428,7 +435,8 @@ struct TileList {
   std::vector<TilePlace> places;
   std::function<OpenedTile(size_t k)> open;
   bool slope = false;
-  bool unlit = false;  // some tile's layer table has a light = false layer
+  bool unlit = false;       // some tile's layer table has a light = false layer
+  bool min_widths = false;  // ... or a layer with min_width_px
 };
 
 // A TileList over tiles already in memory (opening one copies its

@@ -104,7 +104,8 @@ inline constexpr uint32_t kBlobBindingSlots = blob_binding_slots();
 // point; unit: a sampler uniform named `resource` on that texture unit. The
 // two are separate GL name spaces, and passes that are never one program
 // may share an index (SSBO 24: the dynamic pass's flags, the terrain pass's
-// gradients; unit 24: the line pass's slope layers).
+// gradients; unit 24: the line pass's slope layers; unit 27: the texture
+// method's terrain pass and the line pass's minimum widths).
 // clang-format off
 #define DECAL_GL_FRAME_BINDINGS(X)                                                              \
   X(ssbo, kSsboDynFlags,        "DECAL_SSBO_DYN_FLAGS",        24, "DynFlags")                   \
@@ -129,6 +130,7 @@ inline constexpr uint32_t kBlobBindingSlots = blob_binding_slots();
   X(unit, kUnitUnlitLayers,     "DECAL_UNIT_UNLIT_LAYERS",     25, "u_unlit_layers")             \
   X(unit, kUnitTerrainGradient, "DECAL_UNIT_TERRAIN_GRADIENT", 26, "u_terrain_gradient")         \
   X(unit, kUnitDecalTexture,    "DECAL_UNIT_DECAL_TEXTURE",    27, "u_decal_texture")            \
+  X(unit, kUnitMinWidths,       "DECAL_UNIT_MIN_WIDTHS",       27, "u_min_widths")               \
   X(unit, kUnitDynamicLayer,    "DECAL_UNIT_DYNAMIC_LAYER",    28, "u_dynamic")                  \
   X(unit, kUnitTerrainColour,   "DECAL_UNIT_TERRAIN_COLOUR",   29, "u_terrain")                  \
   X(unit, kUnitDecalLayer,      "DECAL_UNIT_DECAL_LAYER",      30, "u_decals")                   \
