@@ -756,8 +756,8 @@ void fill_cells(std::vector<SegEntry>&& seg_entries, std::vector<CellPoly>&& ext
 
 }  // namespace
 
-double min_width_pixel_limit(double resolution, double side) {
-  return std::max(2.0 * resolution, side / 512.0);
+double min_width_pixel_limit(double resolution, double side, double whole) {
+  return std::max({2.0 * resolution, side / 512.0, whole / 128.0});
 }
 
 DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,

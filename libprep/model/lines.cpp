@@ -343,10 +343,10 @@ void build_lines(const SceneFeatures& scene, const ModelOptions& options, DecalM
   if (std::any_of(scene.layers.begin(), scene.layers.end(),
                   [](const LayerSpec& l) { return l.min_width_px > 0 && !l.dynamic; })) {
     const Extent& e = scene.extent;
-    const double side = options.min_width_side > 0
-                            ? options.min_width_side
-                            : std::max({e.xmax - e.xmin, e.ymax - e.ymin, 0.0});
-    model.min_width_pixel_m = min_width_pixel_limit(options.min_width_resolution, side);
+    const double longer = std::max({e.xmax - e.xmin, e.ymax - e.ymin, 0.0});
+    model.min_width_pixel_m = min_width_pixel_limit(
+        options.min_width_resolution, options.min_width_side > 0 ? options.min_width_side : longer,
+        options.min_width_whole < 0 ? longer : options.min_width_whole);
     for (size_t k = 0; k < scene.layers.size(); ++k)
       reach[k] = scene.layers[k].min_width_px * model.min_width_pixel_m *
                  (outline[k] == decal::OutlineMode::normal ? 0.5 : 1.0) * inv_q;

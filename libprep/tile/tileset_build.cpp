@@ -53,14 +53,20 @@ namespace {
 
 // The margin the min_width_px lines of a level need (formats/SPEC.md
 // "Minimum widths"): their drawn half width at the pixel limit of a tile of
-// that level (resolution, side), as far as a miter reaches; 0 without such
-// layers.
-double min_width_margin(const BuildSpec& spec, double resolution, double side) {
+// that level (resolution, side, whole: min_width_pixel_limit), as far as a
+// miter reaches; 0 without such layers.
+double min_width_margin(const BuildSpec& spec, double resolution, double side, double whole) {
   double f = 0;
   for (const LayerSpec& l : spec.layers)
     if (l.min_width_px > 0 && !l.dynamic)
       f = std::max(f, l.min_width_px * (l.style.outline == decal::OutlineMode::normal ? 0.5 : 1.0));
-  return f > 0 ? stroke_margin_of(f * min_width_pixel_limit(resolution, side), spec.model) : 0.0;
+  return f > 0 ? stroke_margin_of(f * min_width_pixel_limit(resolution, side, whole), spec.model)
+               : 0.0;
+}
+
+// The longer side of a tileset's extent (0 when empty).
+double whole_side(const Extent& e) {
+  return e.xmax > e.xmin ? std::max(e.xmax - e.xmin, e.ymax - e.ymin) : 0.0;
 }
 
 // XXH64 of what a tile's package is made from.
@@ -201,8 +207,7 @@ void TilesetPreparer::add_read_entry(const ManifestEntry& e) {
 }
 
 double TilesetPreparer::margin() const {
-  return std::max(stroke_margin_of(parts_->half_width(), spec_.model),
-                  min_width_margin(spec_, spec_.resolution, spec_.tile_size));
+  return stroke_margin_of(parts_->half_width(), spec_.model);
 }
 
 void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and_notes,
@@ -210,24 +215,28 @@ void TilesetPreparer::finish(const SceneFrame& frame, const Manifest& counts_and
   parts_->close();
   entries_->close();
   read_entries_->close();
-  TilePlan plan;
-  plan.size = spec_.tile_size;
-  plan.frame = frame;
-  plan.margin = margin();
-  plan.dynamic_margin = spec_.tile_size * 0.5;
-  nlohmann::json keys = nlohmann::json::array();
-  for (const TileKey& k : planned_tiles(paths_, plan)) keys.push_back({k.x, k.y});
   const Extent e = parts_->extent();
   // Overview levels (formats/SPEC.md "Overview levels"): each level's tiles
   // from the same boxes, on its own grid.
   const int nlevels =
       parts_->parts() == 0 && spec_.levels == kLevelsAuto ? 0 : level_count(spec_, e, frame);
+  // The coarsest level keeps minimum widths down to the whole extent.
+  const double whole = whole_side(e);
+  TilePlan plan;
+  plan.size = spec_.tile_size;
+  plan.frame = frame;
+  plan.margin = std::max(margin(), min_width_margin(spec_, spec_.resolution, spec_.tile_size,
+                                                    nlevels == 0 ? whole : 0.0));
+  plan.dynamic_margin = spec_.tile_size * 0.5;
+  nlohmann::json keys = nlohmann::json::array();
+  for (const TileKey& k : planned_tiles(paths_, plan)) keys.push_back({k.x, k.y});
   nlohmann::json levels = nlohmann::json::array();
   for (int l = 1; l <= nlevels; ++l) {
     TilePlan lp = plan;
     const TileLevel params = level_parameters(plan.size, l);
     lp.size = params.tile_size;
-    lp.margin = std::max(plan.margin, min_width_margin(spec_, params.resolution, lp.size));
+    lp.margin = std::max(plan.margin, min_width_margin(spec_, params.resolution, lp.size,
+                                                       l == nlevels ? whole : 0.0));
     lp.dynamic_margin = lp.size * 0.5;
     nlohmann::json lk = nlohmann::json::array();
     for (const TileKey& k : planned_tiles(paths_, lp)) lk.push_back({k.x, k.y});
@@ -617,7 +626,7 @@ uint32_t tile_max_cells(const SceneFeatures& tile) {
 // of its pixels wide) and writes its package with `extra`; returns what the
 // package holds and adds its DEM counts to `dem`.
 HeldParts write_tile(const SceneFeatures& tile, const BuildSpec& spec, const BuildRequest& request,
-                     const TileLevel* level, double side, const std::string& path,
+                     const TileLevel* level, double side, double whole, const std::string& path,
                      nlohmann::json& extra, DemTally& dem) {
   ModelOptions mo = spec.model;
   mo.dem_assume_crs = spec.assume_crs;
@@ -625,6 +634,7 @@ HeldParts write_tile(const SceneFeatures& tile, const BuildSpec& spec, const Bui
   if (level) mo.min_cell_m = kLevelMinCellPixels * level->resolution;
   mo.min_width_resolution = level ? level->resolution : spec.resolution;
   mo.min_width_side = side;
+  mo.min_width_whole = whole;
   mo.max_cells = std::min(mo.max_cells, tile_max_cells(tile));
   DecalModel model = build_model(tile, mo, spec.dem);
   if (model.min_width_pixel_m > 0) extra["min_width_pixel_m"] = model.min_width_pixel_m;
@@ -744,8 +754,11 @@ TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, 
             const MemoryEstimate est = estimate_tile(tile, resident, jobs, file);
             note_estimate(i, est);
             check_memory(limit, est);
-            held = write_tile(tile, spec, request, lv ? &lv->params : nullptr, plan.size, path,
-                              extra, dem);
+            // The coarsest level (level 0 without levels) keeps minimum
+            // widths down to the whole extent.
+            const bool coarsest = level == int(prepared.levels.size());
+            held = write_tile(tile, spec, request, lv ? &lv->params : nullptr, plan.size,
+                              coarsest ? whole_side(prepared.extent) : 0.0, path, extra, dem);
           }
           const std::optional<FileDigest> fd = file_digest(path);
           if (!fd) fail<output_error>(kTilesetStage, "cannot read back " + path);

@@ -1,8 +1,9 @@
 // Minimum widths (scene file min_width_px; formats/SPEC.md "Minimum
 // widths"): a static line of such a layer is drawn max(w, N pixels) wide
-// while a pixel is at most the package's limit (here 2 x resolution 5 =
-// 10 m), N x limit wide beyond it. Checked top-down against the width
-// this test wrote, column by column, at pixel sizes from 0.1 m to 25 m, on
+// while a pixel is at most the package's limit (here 2 x resolution 10 =
+// 20 m; the extent's 2.2 km / 128 is less), N x limit wide beyond it.
+// Checked top-down against the width this test wrote, column by column,
+// at pixel sizes from 0.1 m to 50 m, on
 // the CPU and in GL; a layer without the key keeps its width; GL and the
 // CPU image agree on an oblique view of mitred and inset lines.
 #include <gtest/gtest.h>
@@ -32,7 +33,7 @@ namespace R = prep::render;
 namespace {
 
 constexpr double kX0 = 500000, kY0 = 4800000;
-constexpr double kN = 3, kLimit = 10;  // min_width_px; 2 x the scene's resolution
+constexpr double kN = 3, kLimit = 20;  // min_width_px; 2 x the scene's resolution
 
 std::string feature(std::initializer_list<std::array<double, 2>> pts) {
   std::string c;
@@ -71,19 +72,19 @@ std::string build(const fs::path& dir, std::string& why) {
        {"ring", "outline",
         "width = 1\ncolor = \"#000000\"\ncorner = \"miter\"\noutline_mode = \"inset\"\n"
         "min_width_px = 3\n"}});
-  toml.replace(toml.find("resolution = 0"), 14, "resolution = 5");
+  toml.replace(toml.find("resolution = 0"), 14, "resolution = 10");
   std::ofstream(dir / "scene.toml") << toml;
   const std::string pkg = (dir / "widths.decals").string();
-  const auto r = prep::test::run_tool("build " + (dir / "scene.toml").string() + " -o " + pkg +
-                                      " -q");
+  const auto r =
+      prep::test::run_tool("build " + (dir / "scene.toml").string() + " -o " + pkg + " -q");
   if (r.rc != 0) why = r.output;
   return r.rc == 0 ? pkg : "";
 }
 
 // Top-down over the absolute box centred on (cx, cy + px / 4) (a line
 // along y = cy is not on a pixel edge), 200 x 60 pixels of `px` metres.
-std::optional<R::Image> shoot(const R::DecalSource& src, double cx, double cy, double px,
-                              bool cpu, R::Method method = R::Method::decal) {
+std::optional<R::Image> shoot(const R::DecalSource& src, double cx, double cy, double px, bool cpu,
+                              R::Method method = R::Method::decal) {
   cy += 0.25 * px;
   const prep::Extent view{cx - 100 * px - src.frame.origin_x, cy - 30 * px - src.frame.origin_y,
                           cx + 100 * px - src.frame.origin_x, cy + 30 * px - src.frame.origin_y};
@@ -144,7 +145,7 @@ TEST_F(MinWidths, ThePackageRecordsTheLayersAndTheLimit) {
 
 TEST_F(MinWidths, ALineIsAtLeastNPixelsWideUpToTheLimitAndItsWidthClose) {
   for (bool cpu : {true, false}) {
-    for (double px : {0.1, 0.5, 2.0, 5.0, 10.0, 25.0}) {
+    for (double px : {0.1, 0.5, 2.0, 5.0, 10.0, 20.0, 50.0}) {
       SCOPED_TRACE(std::string(cpu ? "cpu" : "gl") + " at " + std::to_string(px) + " m/px");
       const auto img = shoot(src_, kX0 + 1000, kY0, px, cpu);
       if (!img) {
@@ -163,8 +164,8 @@ TEST_F(MinWidths, ALineIsAtLeastNPixelsWideUpToTheLimitAndItsWidthClose) {
         lo = std::min(lo, r[i]);
         hi = std::max(hi, r[i]);
       }
-      std::printf("%s %5.1f m/px: river %d..%d px across, analytic %.2f\n", cpu ? "cpu" : "gl ",
-                  px, lo, hi, want);
+      std::printf("%s %5.1f m/px: river %d..%d px across, analytic %.2f\n", cpu ? "cpu" : "gl ", px,
+                  lo, hi, want);
       EXPECT_GE(lo, int(std::floor(want - 1e-9)));
       EXPECT_LE(hi, int(std::ceil(want + 1e-9)));
       if (px <= kLimit) {
@@ -189,7 +190,8 @@ TEST_F(MinWidths, TheVolumeAndTextureMethodsDrawTheSameWidths) {
       if (!img) GTEST_SKIP() << "no headless GL";
       const std::vector<int> r = runs(*img, 4);
       int lo = 1 << 30, hi = 0;
-      for (int i = 10; i < int(r.size()) - 10; ++i) lo = std::min(lo, r[i]), hi = std::max(hi, r[i]);
+      for (int i = 10; i < int(r.size()) - 10; ++i)
+        lo = std::min(lo, r[i]), hi = std::max(hi, r[i]);
       EXPECT_GE(lo, 3);
       EXPECT_LE(hi, 4);
     }

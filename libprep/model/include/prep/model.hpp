@@ -41,10 +41,14 @@ struct ModelOptions {
   double min_cell_m = 0.0;
   // Minimum widths (LayerSpec::min_width_px; formats/SPEC.md "Minimum
   // widths"): the resolution the package is made for (the scene's; an
-  // overview level's) and the side of the square it covers (a tile's; 0:
-  // the longer side of the scene extent). Not from the scene file.
+  // overview level's), the side of the square it covers (a tile's; 0: the
+  // longer side of the scene extent) and, where no coarser package stands
+  // in for it (a single package, a tileset's coarsest level), the longer
+  // side of the whole extent (-1: that of the scene extent; 0: none). Not
+  // from the scene file.
   double min_width_resolution = 0.0;
   double min_width_side = 0.0;
+  double min_width_whole = -1.0;
   uint32_t qt_leaf_capacity = 8;  // thesis default
   uint32_t qt_max_depth = 8;      // thesis default
   double miter_limit_deg = 40.0;  // below this angle, miter falls back to round
@@ -106,10 +110,10 @@ struct BuildStats {
 };
 
 // The largest pixel (metres) for which a package keeps its min_width_px
-// lines that many pixels wide: max(2 r, side / 512) (formats/SPEC.md
-// "Minimum widths"); its segments are registered in the cells that band
-// reaches.
-double min_width_pixel_limit(double resolution, double side);
+// lines that many pixels wide: max(2 r, side / 512, whole / 128)
+// (formats/SPEC.md "Minimum widths"); its segments are registered in the
+// cells that band reaches.
+double min_width_pixel_limit(double resolution, double side, double whole);
 
 struct DecalModel {
   SceneFrame frame;
