@@ -78,7 +78,7 @@ constexpr std::string_view kLayerKeys[] = {
     "kind",       "dynamic",      "lod",          "color",           "color_attribute",
     "color_ramp", "casing_width", "casing_color", "slope_widths",    "dash",
     "width",      "corner",       "outline_mode", "order_attribute", "shared_edges",
-    "light",      "min_width_px"};
+    "light",      "min_width_px", "min_width_m"};
 constexpr std::string_view kBuildKeys[] = {
     "grid", "target_per_cell",   "max_cells", "leaf_capacity", "max_depth", "miter_limit_deg",
     "lmax", "terrain_tolerance", "z_scale",   "nodata_fill",   "threads"};
@@ -317,6 +317,11 @@ void parse_layer_key(const std::string& key, const toml::node& v, const KeyRef& 
       layer.slope_widths = get_bool(v, ref);
     } else if (key == "light") {
       layer.light = get_bool(v, ref);
+    } else if (key == "min_width_m") {
+      layer.min_width_m = get_number(v, ref);
+      if (!(layer.min_width_m > 0 && layer.min_width_m <= 1e5))
+        fail_key(ref, "expected a minimum width in metres in (0, 100000], got " +
+                          std::to_string(layer.min_width_m));
     } else if (key == "min_width_px") {
       layer.min_width_px = get_number(v, ref);
       if (!(layer.min_width_px > 0 && layer.min_width_px <= 100))
@@ -389,6 +394,10 @@ void check_layer(const LayerSpec& layer, const KeyRef& here, Problems& problems)
                  "min_width_px needs a static line layer (kind = \"line\", \"outline\" or "
                  "\"point\", not dynamic: dynamic widths are pixels already, polygons have no "
                  "width)");
+  if (layer.min_width_m > 0 && (layer.kind == DecalKind::polygon || !layer.dynamic))
+    problems.add(here,
+                 "min_width_m needs a dynamic line layer (dynamic = true; static widths are "
+                 "metres already, polygons have no width)");
   if (!layer.light && layer.dynamic)
     problems.add(here, "light = false is for static layers: dynamic lines are drawn unlit already");
   // Points are lines of two vertices kPointStep apart, drawn as round dots
@@ -492,6 +501,9 @@ LayerSpec casing_layer(const LayerSpec& layer) {
   c.dash.clear();  // the casing stays solid under a dashed line
   // At its minimum width the line keeps a pixel of casing on each side.
   if (layer.min_width_px > 0 && !layer.dynamic) c.min_width_px = layer.min_width_px + 2;
+  // A dynamic casing keeps its share of the width at the minimum too.
+  if (layer.min_width_m > 0 && layer.dynamic)
+    c.min_width_m = layer.min_width_m * c.style.width / layer.style.width;
   return c;
 }
 

@@ -162,6 +162,8 @@ DynamicLinesCpu::DynamicLinesCpu(const DecalSource& source, const Camera& cam, u
   // tip (1 / sin(theta / 2) at the limit), a bevel corner, a round cap.
   reach_ = std::max(1.0 / std::sin(limit / 2), std::sqrt(2.0)) * 1.01;
   for (const decal::LineProps& p : props_) max_hw_px_ = std::max<double>(max_hw_px_, p.half_width);
+  for (float m : source.min_width_m) min_hw_m_.push_back(0.5 * double(m));
+  for (double m : min_hw_m_) max_min_hw_m_ = std::max(max_min_hw_m_, m);
 
   const Mat4 vp = mat_mul(projection_matrix(cam, double(W) / H), view_matrix(cam, cam.eye));
   vp_ = vp;
@@ -382,7 +384,7 @@ std::array<float, 4> DynamicLinesCpu::at(const Vec3& p3) const {
   if (segments_.empty()) return {0, 0, 0, 0};
   const double wpix = metres_per_pixel(p3);
   const P2 p{p3[0], p3[1]};
-  const double r = max_hw_px_ * wpix * reach_;
+  const double r = std::max(max_hw_px_ * wpix, max_min_hw_m_) * reach_;
   const int64_t i0 = std::max<int64_t>(0, int64_t(std::floor((p[0] - r - gx0_) / cell_))),
                 i1 = std::min<int64_t>(gnx_ - 1, int64_t(std::floor((p[0] + r - gx0_) / cell_))),
                 j0 = std::max<int64_t>(0, int64_t(std::floor((p[1] - r - gy0_) / cell_))),
@@ -402,7 +404,10 @@ std::array<float, 4> DynamicLinesCpu::at(const Vec3& p3) const {
         const Segment& s = segments_[cell_items_[k]];
         const decal::LineProps& lp = props_[s.line];
         if (hit(lp.order)) continue;
-        if (!covers(s, p, double(lp.half_width) * wpix, lp.style & 3u)) continue;
+        // A min_width_m layer: at least that many metres (dyn_lists.frag.glsl).
+        const double min_hw =
+            min_hw_m_.empty() ? 0.0 : min_hw_m_[std::min<size_t>(lp.layer, min_hw_m_.size() - 1)];
+        if (!covers(s, p, std::max(double(lp.half_width) * wpix, min_hw), lp.style & 3u)) continue;
         if (dashes_) {
           const std::span<const double> pattern = dashes_->table.of(lp.layer);
           if (!pattern.empty() && !(dash_own_side(s, p) && dash_on(pattern, dash_s(s, p))))

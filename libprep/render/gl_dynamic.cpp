@@ -381,9 +381,22 @@ void GlRenderer::dynamic_pass(Image& img, GlObjects& work) {
   // where the decal method binds these.
   bind_package();
   bind_dashes();
+  // Minimum widths in metres (min_width_m), per layer.
+  const bool min_widths = !source_->min_width_m.empty();
+  if (min_widths) {
+    GLuint buf = 0, tex = 0;
+    glCreateBuffers(1, &buf);
+    work.buffers.push_back(buf);
+    glNamedBufferStorage(buf, GLsizeiptr(source_->min_width_m.size() * sizeof(float)),
+                         source_->min_width_m.data(), 0);
+    glCreateTextures(GL_TEXTURE_BUFFER, 1, &tex);
+    work.textures.push_back(tex);
+    glTextureBuffer(tex, GL_R32F, buf);
+    glBindTextureUnit(decal::gl::kUnitDynMinWidths, tex);
+  }
   const std::string dd =
       p_.defines + (opt_.aa == AntiAliasing::coverage ? "#define DECAL_AA_COVERAGE 1\n" : "") +
-      "#define DECAL_DYNAMIC 1\n";
+      (min_widths ? "#define DECAL_DYN_MIN_WIDTHS 1\n" : "") + "#define DECAL_DYNAMIC 1\n";
   DynPrograms p = dyn_programs(gl_, dd);
   DynamicLines dyn(work, timer_, view_, terrain_, W_, H_, n_dyn, n_dyn_lines,
                    source_->miter_limit_deg, dynamic_dashes(*source_));

@@ -122,6 +122,15 @@ DecalSource source_of(const decal::Package& package) {
           s.min_width_px.resize(layers->size() + 1, 0.0f);
           s.min_width_px[i] = float(n);
         }
+        if (l.is_object() && l.contains("min_width_m")) {
+          const double m = l["min_width_m"].get<double>();
+          if (!(m > 0 && m <= 1e5))
+            fail<format_error>(kRenderStage, "package metadata: layers[" + std::to_string(i) +
+                                                 "].min_width_m " + std::to_string(m) +
+                                                 " is not in (0, 100000]");
+          s.min_width_m.resize(layers->size() + 1, 0.0f);
+          s.min_width_m[i] = float(m);
+        }
       }
     }
   } catch (const nlohmann::json::exception& ex) {

@@ -55,6 +55,7 @@ nlohmann::json layers_json(const std::vector<LayerSpec>& layers) {
     if (l.slope_widths) out.back()["slope_widths"] = true;
     if (!l.light) out.back()["light"] = false;  // formats/SPEC.md "Lit decals"
     if (l.min_width_px > 0) out.back()["min_width_px"] = l.min_width_px;  // "Minimum widths"
+    if (l.min_width_m > 0) out.back()["min_width_m"] = l.min_width_m;
     if (!l.dash.empty()) out.back()["dash"] = l.dash;  // formats/SPEC.md "Dashed lines"
     // The stops an attribute-coloured layer's values went through (the
     // colours baked into the props); `render --ramp` maps them anew.

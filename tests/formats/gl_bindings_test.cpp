@@ -67,13 +67,15 @@ std::vector<Program> renderer_programs() {
              {"dyn_dash.comp.glsl", "#define DASH_APPLY 1\n"}})
       out.push_back({m + f + " " + extra,
                      {{}, {}, {}, {"decal_blobs.glsl", "dyn_common.glsl", f}, dd + extra}});
-    out.push_back({m + "dyn lists",
-                   {{"dyn_box.vert.glsl"},
-                    {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_box.geom.glsl"},
-                    {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dash.glsl",
-                     "dyn_lists.frag.glsl"},
-                    {},
-                    dd}});
+    for (const std::string widths : {"", "#define DECAL_DYN_MIN_WIDTHS 1\n"})
+      out.push_back(
+          {m + "dyn lists " + widths,
+           {{"dyn_box.vert.glsl"},
+            {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dyn_box.geom.glsl"},
+            {"decal_blobs.glsl", "dyn_common.glsl", "dyn_scale.glsl", "dash.glsl",
+             "dyn_lists.frag.glsl"},
+            {},
+            dd + widths}});
     out.push_back({m + "dyn composite",
                    {{"fullscreen.vert.glsl"},
                     {},

@@ -221,6 +221,28 @@ TEST(SceneFile, LightFalseIsForStaticLayers) {
   EXPECT_NE(e.find("did you mean \"light\""), std::string::npos) << e;
 }
 
+TEST(SceneFile, MinimumWidthsArePixelsForStaticLinesAndMetresForDynamicOnes) {
+  const prep::SceneSpec ok = prep::parse_scene(
+      "[[layer]]\nsource = \"a.shp\"\nkind = \"line\"\nwidth = 3\nmin_width_px = 2\n"
+      "casing_width = 1\n"
+      "[[layer]]\nsource = \"b.shp\"\nkind = \"line\"\ndynamic = true\nwidth = 4\n"
+      "min_width_m = 8\ncasing_width = 1\n",
+      "/data/city/scene.toml");
+  // Each cased layer follows its casing copy.
+  ASSERT_EQ(ok.layers.size(), 4u);
+  EXPECT_EQ(ok.layers[0].min_width_px, 4);  // the casing: a pixel each side
+  EXPECT_EQ(ok.layers[1].min_width_px, 2);
+  EXPECT_EQ(ok.layers[2].min_width_m, 8.0 * 6 / 4);  // the casing: the same share
+  EXPECT_EQ(ok.layers[3].min_width_m, 8);
+  std::string e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"polygon\"\nmin_width_px = 2\n");
+  EXPECT_NE(e.find("min_width_px needs a static line layer"), std::string::npos) << e;
+  e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"line\"\nmin_width_m = 2\n");
+  EXPECT_NE(e.find("min_width_m needs a dynamic line layer"), std::string::npos) << e;
+  e = error_of("[[layer]]\nsource = \"a.shp\"\nkind = \"line\"\nmin_width_px = 0\n");
+  EXPECT_NE(e.find("scene.toml:4: layer[0].min_width_px"), std::string::npos) << e;
+  EXPECT_NE(e.find("(0, 100]"), std::string::npos) << e;
+}
+
 TEST(SceneFile, PointLayersTakeRoundDotsOnly) {
   const prep::SceneSpec ok = prep::parse_scene(
       "[[layer]]\nsource = \"a.shp\"\nkind = \"point\"\nwidth = 5\ndynamic = true\n",

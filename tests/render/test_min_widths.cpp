@@ -55,6 +55,7 @@ void write_layer(const fs::path& file, const std::string& features) {
 std::string build(const fs::path& dir, std::string& why) {
   write_layer(dir / "river.geojson", feature({{kX0, kY0}, {kX0 + 2000, kY0}}));
   write_layer(dir / "plain.geojson", feature({{kX0, kY0 + 400}, {kX0 + 2000, kY0 + 400}}));
+  write_layer(dir / "road.geojson", feature({{kX0, kY0 - 600}, {kX0 + 2000, kY0 - 600}}));
   write_layer(dir / "zig.geojson", feature({{kX0 + 200, kY0 - 300},
                                             {kX0 + 260, kY0 - 240},
                                             {kX0 + 320, kY0 - 300},
@@ -71,7 +72,8 @@ std::string build(const fs::path& dir, std::string& why) {
        {"zig", "line", "width = 0.5\ncolor = \"#20a020\"\ncorner = \"miter\"\nmin_width_px = 3\n"},
        {"ring", "outline",
         "width = 1\ncolor = \"#000000\"\ncorner = \"miter\"\noutline_mode = \"inset\"\n"
-        "min_width_px = 3\n"}});
+        "min_width_px = 3\n"},
+       {"road", "line", "dynamic = true\nwidth = 4\ncolor = \"#ffcc00\"\nmin_width_m = 8\n"}});
   toml.replace(toml.find("resolution = 0"), 14, "resolution = 10");
   std::ofstream(dir / "scene.toml") << toml;
   const std::string pkg = (dir / "widths.decals").string();
@@ -103,14 +105,16 @@ std::optional<R::Image> shoot(const R::DecalSource& src, double cx, double cy, d
   }
 }
 
-// Per column, the covered pixels (decal alpha > 0.5) of the rows within
-// `rows` of the middle (the other layers lie farther off).
-std::vector<int> runs(const R::Image& img, int rows) {
+// Per column, the covered pixels (alpha > 0.5 in the static decal layer,
+// or the dynamic one) of the rows within `rows` of the middle (the other
+// layers lie farther off).
+std::vector<int> runs(const R::Image& img, int rows, bool dynamic = false) {
+  const std::vector<float>& layer = dynamic ? img.dynamic : img.decals;
   std::vector<int> out(img.width, 0);
   const int mid = int(img.height) / 2;
   for (int j = std::max(0, mid - rows); j < std::min(int(img.height), mid + rows); ++j)
     for (uint32_t i = 0; i < img.width; ++i)
-      out[i] += img.decals[(size_t(j) * img.width + i) * 4 + 3] > 0.5f;
+      out[i] += layer[(size_t(j) * img.width + i) * 4 + 3] > 0.5f;
   return out;
 }
 
@@ -139,7 +143,8 @@ TEST_F(MinWidths, ThePackageRecordsTheLayersAndTheLimit) {
   EXPECT_EQ(meta.at("layers").at(0).at("min_width_px"), kN);
   EXPECT_FALSE(meta.at("layers").at(1).contains("min_width_px"));
   EXPECT_DOUBLE_EQ(meta.at("min_width_pixel_m").get<double>(), kLimit);
-  EXPECT_EQ(src_.min_width_px, (std::vector<float>{3, 0, 3, 3, 0}));
+  EXPECT_EQ(src_.min_width_px, (std::vector<float>{3, 0, 3, 3, 0, 0}));
+  EXPECT_EQ(src_.min_width_m, (std::vector<float>{0, 0, 0, 0, 8, 0}));
   EXPECT_DOUBLE_EQ(src_.min_width_pixel_m, kLimit);
 }
 
@@ -176,6 +181,29 @@ TEST_F(MinWidths, ALineIsAtLeastNPixelsWideUpToTheLimitAndItsWidthClose) {
     const auto plain = shoot(src_, kX0 + 1000, kY0 + 400, 2.0, cpu);
     ASSERT_TRUE(plain.has_value());
     for (int n : runs(*plain, 5)) EXPECT_LE(n, 1);
+  }
+}
+
+// A dynamic road 4 px wide with min_width_m = 8: max(4 px, 8 m) across.
+TEST_F(MinWidths, ADynamicLineIsAtLeastItsMetresWideCloseUp) {
+  for (bool cpu : {true, false}) {
+    for (double px : {0.25, 0.5, 1.0, 2.0, 4.0}) {
+      SCOPED_TRACE(std::string(cpu ? "cpu" : "gl") + " at " + std::to_string(px) + " m/px");
+      const auto img = shoot(src_, kX0 + 1000, kY0 - 600, px, cpu);
+      if (!img) {
+        ASSERT_FALSE(cpu);
+        GTEST_SKIP() << "no headless GL";
+      }
+      const double want = std::max(4.0, 8.0 / px);
+      const std::vector<int> r = runs(*img, int(want / 2) + 3, true);
+      int lo = 1 << 30, hi = 0;
+      for (int i = 10; i < int(r.size()) - 10; ++i)
+        lo = std::min(lo, r[i]), hi = std::max(hi, r[i]);
+      std::printf("%s %4.2f m/px: road %d..%d px across, analytic %.2f\n", cpu ? "cpu" : "gl ", px,
+                  lo, hi, want);
+      EXPECT_GE(lo, int(std::floor(want - 1e-9)));
+      EXPECT_LE(hi, int(std::ceil(want + 1e-9)));
+    }
   }
 }
 

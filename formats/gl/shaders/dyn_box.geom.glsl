@@ -31,8 +31,10 @@ void quad(vec3 a, vec3 b, vec3 c, vec3 d) {
 void main() {
   uvec4 s = dyn_segment[v_seg[0]];
   vec3 a = dyn_position(s.x), b = dyn_position(s.y);
-  uvec4 props = dyn_line_props(uint(dyn_vertex(s.x).w));
-  float hw = (uintBitsToFloat(props.x) + 1.0) * max(metres_per_pixel(a), metres_per_pixel(b)) * 1.25;
+  uint line = uint(dyn_vertex(s.x).w);
+  uvec4 props = dyn_line_props(line);
+  float mpp = max(metres_per_pixel(a), metres_per_pixel(b));
+  float hw = max(uintBitsToFloat(props.x) * mpp, dyn_min_half_width(line)) * 1.25 + 1.25 * mpp;
   vec2 d = b.xy - a.xy;
   float len = length(d);
   d = len > 0.0 ? d / len : vec2(1.0, 0.0);

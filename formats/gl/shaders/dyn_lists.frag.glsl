@@ -121,7 +121,7 @@ void main() {
   uint line = uint(dyn_vertex(g_seg.x).w);
   uvec4 props = dyn_line_props(line);
   float wpix = metres_per_pixel(p);
-  float hw = uintBitsToFloat(props.x) * wpix;
+  float hw = max(uintBitsToFloat(props.x) * wpix, dyn_min_half_width(line));
 #ifdef DECAL_AA_COVERAGE
   // Coverage AA (Thöny et al. §3.5): band coverage over the distance to the
   // segment, width at least one pixel; the exact style test keeps corners.

@@ -8,3 +8,16 @@ uniform float u_mpp_per_metre;   // perspective: metres per pixel per metre of d
 float metres_per_pixel(vec3 p) {
   return u_mpp_ortho > 0.0 ? u_mpp_ortho : length(p - u_eye_rel) * u_mpp_per_metre;
 }
+
+// Minimum widths of dynamic lines (scene file min_width_m; formats/SPEC.md
+// "Minimum widths"): half the line's layer's min_width_m in metres, 0 for
+// none (an index past the table takes the last entry).
+#ifdef DECAL_DYN_MIN_WIDTHS
+layout(binding = DECAL_UNIT_DYN_MIN_WIDTHS) uniform samplerBuffer u_dyn_min_widths;
+float dyn_min_half_width(uint line) {
+  int last = textureSize(u_dyn_min_widths) - 1;
+  return 0.5 * texelFetch(u_dyn_min_widths, int(min(dyn_line_layer(line), uint(last)))).x;
+}
+#else
+float dyn_min_half_width(uint line) { return 0.0; }
+#endif

@@ -69,6 +69,10 @@ class DynamicLinesCpu {
   std::vector<Segment> segments_;
   std::array<uint64_t, 4> lod_counts_{};
   std::vector<decal::LineProps> props_;
+  // Half of each layer's min_width_m (DecalSource::min_width_m), metres;
+  // empty: none; and the largest.
+  std::vector<double> min_hw_m_;
+  double max_min_hw_m_ = 0;
   std::shared_ptr<const LineDashes> dashes_;  // null: every line solid
   Mat4 vp_{};
   double near_w_ = 0, width_ = 0, height_ = 0;

@@ -99,6 +99,10 @@ struct LayerSpec {
   // to N pixels, while a pixel is at most the package's min_width_pixel_m
   // (formats/SPEC.md "Minimum widths"). 0: none.
   double min_width_px = 0;
+  // Scene file min_width_m (dynamic lines and points): the line, its width
+  // in pixels, is drawn at least this many ground metres wide, so close up
+  // a road is never narrower than the ground it stands for. 0: none.
+  double min_width_m = 0;
   // Dash pattern (scene file `dash`): [on, off, on, off, ...], lengths > 0
   // along the line from its start, ground metres (static) or pixels
   // (dynamic); empty: solid. A casing copy is solid.

@@ -210,6 +210,10 @@ struct DecalSource {
   // max(hw, f N min(pixel, limit)), f = 1/2 (1 for inset and offset).
   std::vector<float> min_width_px;
   double min_width_pixel_m = 0;
+  // Per layer-table index the layer's min_width_m (dynamic lines: drawn at
+  // least that many ground metres wide), then a 0; empty when no layer has
+  // one.
+  std::vector<float> min_width_m;
 };
 
 // Views of a model in memory (for tests and `build --render`).

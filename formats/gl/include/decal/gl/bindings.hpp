@@ -134,7 +134,8 @@ inline constexpr uint32_t kBlobBindingSlots = blob_binding_slots();
   X(unit, kUnitDynamicLayer,    "DECAL_UNIT_DYNAMIC_LAYER",    28, "u_dynamic")                  \
   X(unit, kUnitTerrainColour,   "DECAL_UNIT_TERRAIN_COLOUR",   29, "u_terrain")                  \
   X(unit, kUnitDecalLayer,      "DECAL_UNIT_DECAL_LAYER",      30, "u_decals")                   \
-  X(unit, kUnitDepth,           "DECAL_UNIT_DEPTH",            31, "u_depth")
+  X(unit, kUnitDepth,           "DECAL_UNIT_DEPTH",            31, "u_depth")                    \
+  X(unit, kUnitDynMinWidths,    "DECAL_UNIT_DYN_MIN_WIDTHS",   32, "u_dyn_min_widths")
 // clang-format on
 
 #define DECAL_GL_FRAME_CONSTANT(kind, name, macro, index, resource) \
