@@ -187,6 +187,13 @@ struct PointQ {
 inline bool in_box(const ivec4& b, const PointQ& p) {
   return p.x >= double(b[0]) && p.x <= double(b[2]) && p.y >= double(b[1]) && p.y <= double(b[3]);
 }
+// The same with the box grown by `m` quanta (an empty box stays empty).
+inline bool in_box(const ivec4& b, const PointQ& p, double m) {
+  if (m <= 0) return in_box(b, p);
+  if (b[0] > b[2]) return false;
+  return p.x >= double(b[0]) - m && p.x <= double(b[2]) + m && p.y >= double(b[1]) - m &&
+         p.y <= double(b[3]) + m;
+}
 
 struct V {
   double x, y;
@@ -485,9 +492,10 @@ class BvhCursor {
  public:
   BvhCursor() = default;
   BvhCursor(const uvec4& range, uint32_t leaves, std::span<const ivec4> boxes, const PointQ& p,
-            EvalCounters* k)
+            EvalCounters* k, double margin = 0)
       : boxes_(boxes),
         p_(p),
+        margin_(margin),
         k_(k),
         first_(range[0]),
         internal_(range[2]),
@@ -497,7 +505,7 @@ class BvhCursor {
   uint32_t next() {
     while (!done_) {
       if (k_) ++k_->bvh_nodes;
-      if (in_box(boxes_[first_ + i_], p_)) {
+      if (in_box(boxes_[first_ + i_], p_, margin_)) {
         if (i_ < internal_) {
           i_ = 2 * i_ + 1;
           continue;
@@ -524,6 +532,7 @@ class BvhCursor {
 
   std::span<const ivec4> boxes_;
   PointQ p_{0, 0};
+  double margin_ = 0;  // quanta the boxes are grown by
   EvalCounters* k_ = nullptr;
   uint32_t first_ = 0, internal_ = 0, leaves_ = 0, i_ = 0;
   bool done_ = true;
@@ -674,7 +683,8 @@ EvalSample evaluate(const StaticView& v, double x, double y, const EvalPixel& px
   const uvec2 polys = v.poly_bvh_range.empty() ? uvec2{0, 0} : v.cell_poly_range[cell];
   BvhCursor line_cursor, poly_cursor;
   if (!v.line_bvh_range.empty())
-    line_cursor = {v.line_bvh_range[cell], lines[1], v.line_bvh_box, p, k};
+    line_cursor = {v.line_bvh_range[cell],   lines[1], v.line_bvh_box, p, k,
+                   px.line_box_margin_m / kQ};
   if (!v.poly_bvh_range.empty())
     poly_cursor = {v.poly_bvh_range[cell], polys[1], v.poly_bvh_box, p, k};
   auto line_of_leaf = [&](uint32_t leaf) {

@@ -66,6 +66,15 @@ QBox box_of(const ivec4& b) {
 QBox intersect(const QBox& a, const QBox& b) {
   return {std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1), std::min(a.y1, b.y1)};
 }
+// Box `a` with each coordinate clamped into `b`'s ranges: intersect() where
+// they meet; otherwise the side or corner of `b` nearest `a`, which is no
+// farther from a point of `b` on either axis than `a` is (a min_width_px
+// leaf box in a cell its stored width does not reach; readers grow it by
+// the reach, formats/SPEC.md "Minimum widths").
+QBox clamp_into(const QBox& a, const QBox& b) {
+  auto c = [](int64_t v, int64_t lo, int64_t hi) { return std::clamp(v, lo, hi); };
+  return {c(a.x0, b.x0, b.x1), c(a.y0, b.y0, b.y1), c(a.x1, b.x0, b.x1), c(a.y1, b.y0, b.y1)};
+}
 ivec4 to_ivec4(const QBox& b) {
   return {int32_t(b.x0), int32_t(b.y0), int32_t(b.x1), int32_t(b.y1)};
 }
@@ -494,7 +503,7 @@ std::vector<SegEntry> line_cell_entries(const DecalModel& m,
         const int64_t ix = cell % g.nx;
         QBox cb = cell_box(g, ix, int64_t(iy));
         cb = {cb.x0 - 1, cb.y0 - 1, cb.x1 + 1, cb.y1 + 1};
-        out.push_back({cell, order, s.start, s.end, to_ivec4(intersect(s.box, cb))});
+        out.push_back({cell, order, s.start, s.end, to_ivec4(clamp_into(s.leaf_box, cb))});
       });
     }
     std::sort(out.begin(), out.end(), [](const SegEntry& a, const SegEntry& b) {
@@ -757,7 +766,7 @@ void fill_cells(std::vector<SegEntry>&& seg_entries, std::vector<CellPoly>&& ext
 }  // namespace
 
 double min_width_pixel_limit(double resolution, double side, double whole) {
-  return std::max({2.0 * resolution, side / 512.0, whole / 128.0});
+  return std::max({2.0 * resolution, side / 512.0, whole / 256.0});
 }
 
 DecalModel build_model(const SceneFeatures& scene, const ModelOptions& options,

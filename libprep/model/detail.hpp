@@ -100,8 +100,13 @@ struct SegmentShape {
   int ntri = 0;
   std::array<std::array<double, 6>, 4> tri{};  // (x0,y0,x1,y1,x2,y2)
   QBox box;                                    // integer AABB of the shape (conservative)
-  uint32_t line = 0;                           // line index
-  uint32_t start = 0, end = 0;                 // vertex indices
+  // The AABB of the line's shape at its stored width: the BVH leaf box (a
+  // min_width_px line's wider shape registers it in more cells; readers
+  // grow leaf boxes by the reach the pixel allows, formats/SPEC.md
+  // "Minimum widths"). The same as `box` otherwise.
+  QBox leaf_box;
+  uint32_t line = 0;            // line index
+  uint32_t start = 0, end = 0;  // vertex indices
 };
 
 // Lines converted to package arrays (line_vertices, line_vertex_line,

@@ -284,6 +284,13 @@ void segment_shape(const DecalModel& model, uint32_t li, uint32_t ia, uint32_t i
     miny -= sh.hw;
     maxy += sh.hw;
   }
+  const auto box_of = [](double x0, double y0, double x1, double y1) {
+    return QBox{int64_t(std::floor(x0)) - 1, int64_t(std::floor(y0)) - 1,
+                int64_t(std::ceil(x1)) + 1, int64_t(std::ceil(y1)) + 1};
+  };
+  if (style == decal::CornerStyle::miter)
+    miter_triangles(ca, cb, null_a, null_b, inv_q, sh, minx, maxx, miny, maxy);
+  sh.leaf_box = box_of(minx, miny, maxx, maxy);
   if (reach > hw) {
     double longest = hw;
     for (const decal::LineCorner* c : {&ca, &cb})
@@ -295,13 +302,9 @@ void segment_shape(const DecalModel& model, uint32_t li, uint32_t ia, uint32_t i
     maxx = std::max(sh.ax, sh.bx) + sh.hw;
     miny = std::min(sh.ay, sh.by) - sh.hw;
     maxy = std::max(sh.ay, sh.by) + sh.hw;
-  } else if (style == decal::CornerStyle::miter) {
-    miter_triangles(ca, cb, null_a, null_b, inv_q, sh, minx, maxx, miny, maxy);
+    sh.ntri = 0;  // the capsule holds the miter quad
   }
-  sh.box.x0 = int64_t(std::floor(minx)) - 1;
-  sh.box.y0 = int64_t(std::floor(miny)) - 1;
-  sh.box.x1 = int64_t(std::ceil(maxx)) + 1;
-  sh.box.y1 = int64_t(std::ceil(maxy)) + 1;
+  sh.box = box_of(minx, miny, maxx, maxy);
 }
 
 }  // namespace

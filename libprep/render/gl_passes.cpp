@@ -591,9 +591,11 @@ void GlRenderer::set_static_uniforms(GLuint p) const {
               float(eye_rel[2]));
   glUniform1f(glGetUniformLocation(p, "u_mpp_ortho"), float(view_.mpp_ortho));
   glUniform1f(glGetUniformLocation(p, "u_mpp_per_metre"), float(view_.mpp_per_metre));
-  if (min_widths_ && p == p_.lines)
+  if (min_widths_ && p == p_.lines) {
     glUniform1f(glGetUniformLocation(p, "u_min_width_pixel_m"),
                 float(source_->min_width_pixel_m > 0 ? source_->min_width_pixel_m : 0.0));
+    glUniform1f(glGetUniformLocation(p, "u_min_width_reach"), float(min_width_reach(*source_)));
+  }
 }
 
 void GlRenderer::bind_package() const {

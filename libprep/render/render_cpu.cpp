@@ -209,6 +209,7 @@ struct CpuFrame {
     // Minimum widths (formats/SPEC.md "Minimum widths"): the ground size of
     // each pixel at its point, as static_common.glsl pixel_metres.
     const bool widths = !t.source.min_width_px.empty() && t.source.min_width_pixel_m > 0;
+    const double reach = min_width_reach(t.source);
     parallel_for(pixels.size(), kPixelGrain, [&](size_t i) {
       const size_t p = pixels[i];
       const double x = hit_x[p], y = hit_y[p];
@@ -224,6 +225,7 @@ struct CpuFrame {
         px.pixel_m = pixel_metres(x, y, hit_z[p]);
         px.min_width_px = t.source.min_width_px;
         px.min_width_pixel_m = t.source.min_width_pixel_m;
+        px.line_box_margin_m = reach * std::min(px.pixel_m, px.min_width_pixel_m);
       }
       put(p, evaluate(view, x - at.dx, y - at.dy, px));
     });

@@ -1,5 +1,6 @@
 // DecalSource: the renderer's view of a model in memory or an opened package.
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <span>
 #include <string>
@@ -121,6 +122,12 @@ DecalSource source_of(const decal::Package& package) {
                                                  " is not in (0, 102]");
           s.min_width_px.resize(layers->size() + 1, 0.0f);
           s.min_width_px[i] = float(n);
+          // f N, over a miter's reach for a mitred layer (corner 1).
+          const bool normal = l.value("outline_mode", 0u) == 0u;
+          const bool miter = l.value("corner", 0u) == uint32_t(decal::CornerStyle::miter);
+          const double limit = std::clamp(s.miter_limit_deg, 1.0, 180.0) * M_PI / 360.0;
+          s.min_width_reach = std::max(s.min_width_reach,
+                                       n * (normal ? 0.5 : 1.0) / (miter ? std::sin(limit) : 1.0));
         }
         if (l.is_object() && l.contains("min_width_m")) {
           const double m = l["min_width_m"].get<double>();
@@ -150,6 +157,11 @@ std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode) {
   if (mode == SlopeWidths::off) return {};
   if (mode == SlopeWidths::package) return source.slope_layers;
   return source.view.line_props.empty() ? std::vector<uint8_t>{} : std::vector<uint8_t>{1};
+}
+
+double min_width_reach(const DecalSource& source) {
+  if (source.min_width_px.empty() || !(source.min_width_pixel_m > 0)) return 0.0;
+  return 1.01 * source.min_width_reach;
 }
 
 TileList tile_list(std::span<const TileSource> tiles, const RenderOptions& options) {

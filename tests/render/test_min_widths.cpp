@@ -1,7 +1,7 @@
 // Minimum widths (scene file min_width_px; formats/SPEC.md "Minimum
 // widths"): a static line of such a layer is drawn max(w, N pixels) wide
 // while a pixel is at most the package's limit (here 2 x resolution 10 =
-// 20 m; the extent's 2.2 km / 128 is less), N x limit wide beyond it.
+// 20 m; the extent's 2.2 km / 256 is less), N x limit wide beyond it.
 // Checked top-down against the width this test wrote, column by column,
 // at pixel sizes from 0.1 m to 50 m, on
 // the CPU and in GL; a layer without the key keeps its width; GL and the

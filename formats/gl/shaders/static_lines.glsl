@@ -35,6 +35,7 @@ float g_k = 1.0;
 #ifdef DECAL_MIN_WIDTHS
 layout(binding = DECAL_UNIT_MIN_WIDTHS) uniform samplerBuffer u_min_widths;  // N per layer
 uniform float u_min_width_pixel_m;
+uniform float u_min_width_reach;  // prep::render::min_width_reach: BVH boxes grown by it x min(px, limit)
 float g_px = 0.0;
 float width_scale(uint line, uvec4 props) {
   int last = textureSize(u_min_widths) - 1;
@@ -249,6 +250,9 @@ void main() {
   float margin = g_wpix;
 #else
   float margin = 0.0;
+#endif
+#ifdef DECAL_MIN_WIDTHS
+  margin += u_min_width_reach * min(g_px, u_min_width_pixel_m);
 #endif
   bvh_walk(cell_segment_range(uint(cell)), line_bvh_range(uint(cell)), cell_box_base(cell), p.xy,
            margin);

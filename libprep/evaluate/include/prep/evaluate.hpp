@@ -218,6 +218,10 @@ struct EvalPixel {
   double pixel_m = 0;
   std::span<const float> min_width_px;
   double min_width_pixel_m = 0;
+  // Metres by which the line BVH's boxes are grown: a min_width_px line is
+  // found beyond its stored width's box (prep::render::min_width_reach times
+  // min(pixel_m, min_width_pixel_m)).
+  double line_box_margin_m = 0;
 };
 EvalSample evaluate(const StaticView& view, double x, double y, const EvalPixel& pixel,
                     EvalCounters* counters = nullptr);

@@ -110,7 +110,7 @@ struct BuildStats {
 };
 
 // The largest pixel (metres) for which a package keeps its min_width_px
-// lines that many pixels wide: max(2 r, side / 512, whole / 128)
+// lines that many pixels wide: max(2 r, side / 512, whole / 256)
 // (formats/SPEC.md "Minimum widths"); its segments are registered in the
 // cells that band reaches.
 double min_width_pixel_limit(double resolution, double side, double whole);

@@ -210,6 +210,9 @@ struct DecalSource {
   // max(hw, f N min(pixel, limit)), f = 1/2 (1 for inset and offset).
   std::vector<float> min_width_px;
   double min_width_pixel_m = 0;
+  // The largest f N over those layers, times a miter's reach 1 / sin(limit
+  // / 2) for a mitred layer (min_width_reach).
+  double min_width_reach = 0;
   // Per layer-table index the layer's min_width_m (dynamic lines: drawn at
   // least that many ground metres wide), then a 0; empty when no layer has
   // one.
@@ -329,6 +332,12 @@ void check_render_options(const RenderOptions& options);
 // The layers whose static lines `mode` measures along the terrain, as
 // prep::SurfaceSlope::layers takes them (on: {1}); empty when none is.
 std::vector<uint8_t> slope_layers(const DecalSource& source, SlopeWidths mode);
+
+// Minimum widths (formats/SPEC.md "Minimum widths"): how far, per metre of
+// min(pixel, min_width_pixel_m), the drawn shape of a min_width_px line
+// may pass its BVH leaf box (the stored width's): DecalSource::
+// min_width_reach with a 1% margin; 0 without such layers.
+double min_width_reach(const DecalSource& source);
 constexpr uint32_t kTextureAutoTexels = 8192;
 
 struct PassTime {
