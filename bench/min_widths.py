@@ -48,7 +48,7 @@ def frame_times(tool, pkg, runs):
         if r.returncode != 0:
             sys.exit("render failed (headless GL?): " + r.stderr[-800:])
         text = r.stdout + r.stderr
-        m = re.search(r"^static lines \[[^\]]*\)\s+([0-9.]+)", text, re.M)
+        m = re.search(r"^static lines \[[^)\n]*\)\s+([0-9.]+)", text, re.M)
         f = re.search(r"^frame: ([0-9.]+) ms", text, re.M)
         lines.append(float(m.group(1)) if m else float("nan"))
         frames.append(float(f.group(1)))
