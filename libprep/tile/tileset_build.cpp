@@ -622,6 +622,17 @@ uint32_t tile_max_cells(const SceneFeatures& tile) {
   return uint32_t(std::clamp<uint64_t>(vertices / 2, kTileMinCells, UINT32_MAX));
 }
 
+// A file at a tile's path that no tileset build wrote (no index or work
+// folder records it): output_error, the file left alone.
+void refuse_foreign_file(const std::string& path) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) == 0)
+    fail<output_error>(kTilesetStage,
+                       path +
+                           " exists and was not written by a decalprep tileset build "
+                           "(no index or work folder records it); move it away");
+}
+
 // Builds a tile's model (on an overview level `level`, cells at least two
 // of its pixels wide) and writes its package with `extra`; returns what the
 // package holds and adds its DEM counts to `dem`.
@@ -742,14 +753,7 @@ TileStepOutcome build_tiles(const BuildSpec& spec, const BuildRequest& request, 
           extra["tile"]["input_xxh64"] = hex64(digest);
           std::optional<HeldParts> held = reusable(path, digest);
           const bool kept = held.has_value();
-          if (!kept && !owned.count(file)) {
-            struct stat st {};
-            if (::lstat(path.c_str(), &st) == 0)
-              fail<output_error>(kTilesetStage,
-                                 path +
-                                     " exists and was not written by a decalprep tileset build "
-                                     "(no index or work folder records it); move it away");
-          }
+          if (!kept && !owned.count(file)) refuse_foreign_file(path);
           if (!kept) {
             const MemoryEstimate est = estimate_tile(tile, resident, jobs, file);
             note_estimate(i, est);
