@@ -26,6 +26,16 @@ void add_blob(DecalSource& s, decal::BlobId id, const std::vector<T>& v) {
   s.blobs.push_back({id, v.size(), v.data(), v.size() * sizeof(T)});
 }
 
+// Layer-table entry i's number `key`, in (0, hi], else format_error naming it.
+double layer_number(const nlohmann::json& l, size_t i, const char* key, double hi) {
+  const double v = l[key].get<double>();
+  if (!(v > 0 && v <= hi))
+    fail<format_error>(kRenderStage, "package metadata: layers[" + std::to_string(i) + "]." + key +
+                                         " " + std::to_string(v) + " is not in (0, " +
+                                         std::to_string(hi) + "]");
+  return v;
+}
+
 }  // namespace
 
 DecalSource source_of(const DecalModel& m) {
@@ -115,11 +125,7 @@ DecalSource source_of(const decal::Package& package) {
           s.unlit_layers[i] = 1;
         }
         if (l.is_object() && l.contains("min_width_px")) {
-          const double n = l["min_width_px"].get<double>();
-          if (!(n > 0 && n <= 102))
-            fail<format_error>(kRenderStage, "package metadata: layers[" + std::to_string(i) +
-                                                 "].min_width_px " + std::to_string(n) +
-                                                 " is not in (0, 102]");
+          const double n = layer_number(l, i, "min_width_px", 102);
           s.min_width_px.resize(layers->size() + 1, 0.0f);
           s.min_width_px[i] = float(n);
           // f N, over a miter's reach for a mitred layer (corner 1).
@@ -130,11 +136,7 @@ DecalSource source_of(const decal::Package& package) {
                                        n * (normal ? 0.5 : 1.0) / (miter ? std::sin(limit) : 1.0));
         }
         if (l.is_object() && l.contains("min_width_m")) {
-          const double m = l["min_width_m"].get<double>();
-          if (!(m > 0 && m <= 1e5))
-            fail<format_error>(kRenderStage, "package metadata: layers[" + std::to_string(i) +
-                                                 "].min_width_m " + std::to_string(m) +
-                                                 " is not in (0, 100000]");
+          const double m = layer_number(l, i, "min_width_m", 1e5);
           s.min_width_m.resize(layers->size() + 1, 0.0f);
           s.min_width_m[i] = float(m);
         }
