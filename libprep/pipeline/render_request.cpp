@@ -369,9 +369,10 @@ Scene open_scene(const std::string& path) {
     open_package(path + "/" + sc.index.tiles.front().file, first);
     sc.metadata = std::string(first.metadata_json());
     sc.metadata_file = path + "/" + sc.index.tiles.front().file;
-    sc.slope_flagged = !source_of(first).slope_layers.empty();
-    sc.unlit_flagged = !source_of(first).unlit_layers.empty();
-    sc.min_widths_flagged = !source_of(first).min_width_px.empty();
+    const DecalSource src = source_of(first);
+    sc.slope_flagged = !src.slope_layers.empty();
+    sc.unlit_flagged = !src.unlit_layers.empty();
+    sc.min_widths_flagged = !src.min_width_px.empty();
   }
   return sc;
 }
