@@ -297,6 +297,7 @@ void GlRenderer::volume_setup(const MethodGeometry& g) {
   }
   m_.prism_vao = upload_positions(gl_, xyz, "volume");
   m_.f_volume = gl_.framebuffer(t_.decal, t_.depth);
+  if (unlit_) attach_second(m_.f_volume, t_.unlit, "volume unlit share");
   m_.volume_program =
       gl_.program({{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""});
   m_.cover_program = gl_.program({{"fullscreen.vert.glsl"},
@@ -460,6 +461,7 @@ void GlRenderer::volume_passes() {
   glBindFramebuffer(GL_FRAMEBUFFER, m_.f_volume);
   const float clear0[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(m_.f_volume, GL_COLOR, 0, clear0);
+  if (unlit_) glClearNamedFramebufferfv(m_.f_volume, GL_COLOR, 1, clear0);
   const GLint zero = 0;
   glClearNamedFramebufferiv(m_.f_volume, GL_STENCIL, 0, &zero);
   const GLuint pv = m_.volume_program, pc = m_.cover_program;
@@ -467,7 +469,6 @@ void GlRenderer::volume_passes() {
   glUniformMatrix4fv(glGetUniformLocation(pv, "u_view_proj"), 1, GL_FALSE, view_.view_proj.data());
   const GLint loc_rgba = glGetUniformLocation(pc, "u_rgba");
   const GLint loc_unlit = unlit_ ? glGetUniformLocation(pc, "u_unlit") : -1;
-  if (unlit_) glBindTextureUnit(decal::gl::kUnitTerrainColour, t_.color);
   glEnable(GL_SCISSOR_TEST);
   glEnable(GL_STENCIL_TEST);
   glEnable(GL_DEPTH_CLAMP);

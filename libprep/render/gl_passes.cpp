@@ -195,7 +195,15 @@ void set_clip(ViewUniforms& v, const Extent& clip) {
             float(clip.ymax - ay)};
 }
 
-Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H, bool stencil, bool slope) {
+void attach_second(GLuint fb, GLuint tex, const char* what) {
+  glNamedFramebufferTexture(fb, GL_COLOR_ATTACHMENT1, tex, 0);
+  const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+  glNamedFramebufferDrawBuffers(fb, 2, both);
+  if (glCheckNamedFramebufferStatus(fb, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    fail<render_error>(kRenderStage, std::string("framebuffer incomplete (") + what + ")");
+}
+
+Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H, bool stencil, bool slope, bool unlit) {
   Targets t;
   t.color = gl.texture(GL_RGBA8, W, H);
   t.depth = gl.texture(stencil ? GL_DEPTH32F_STENCIL8 : GL_DEPTH_COMPONENT32F, W, H);
@@ -205,13 +213,13 @@ Targets make_targets(GlObjects& gl, uint32_t W, uint32_t H, bool stencil, bool s
   t.f_terrain = gl.framebuffer(t.color, t.depth);
   if (slope) {
     t.gradient = gl.texture(GL_RG32F, W, H);
-    glNamedFramebufferTexture(t.f_terrain, GL_COLOR_ATTACHMENT1, t.gradient, 0);
-    const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-    glNamedFramebufferDrawBuffers(t.f_terrain, 2, both);
-    if (glCheckNamedFramebufferStatus(t.f_terrain, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      fail<render_error>(kRenderStage, "framebuffer incomplete (terrain gradient)");
+    attach_second(t.f_terrain, t.gradient, "terrain gradient");
   }
   t.f_decal = gl.framebuffer(t.decal, 0);
+  if (unlit) {
+    t.unlit = gl.texture(GL_RGBA32F, W, H);
+    attach_second(t.f_decal, t.unlit, "unlit share");
+  }
   t.f_final = gl.framebuffer(t.final, 0);
   t.f_dyn = gl.framebuffer(t.dyn, 0);
   return t;
@@ -297,7 +305,8 @@ StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slo
                         p.defines + aa_defines + slope_define + unlit_define +
                             (min_widths ? "#define DECAL_MIN_WIDTHS 1\n" : "") +
                             "#define DECAL_LINES 1\n"});
-  p.composite = gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""});
+  p.composite =
+      gl.program({{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, unlit_define});
   return p;
 }
 
@@ -345,8 +354,8 @@ void GlRenderer::setup() {
   mesh_ = upload_terrain_mesh(gl_, terrain_, view0_.anchor, slope_);
   glCreateVertexArrays(1, &empty_vao_);
   gl_.arrays.push_back(empty_vao_);
-  t_ = make_targets(gl_, W_, H_, opt_.method == Method::volume, slope_);
-  p_ = static_programs(gl_, opt_, slope_, unlit_ && opt_.method == Method::decal, min_widths_);
+  t_ = make_targets(gl_, W_, H_, opt_.method == Method::volume, slope_, unlit_);
+  p_ = static_programs(gl_, opt_, slope_, unlit_, min_widths_);
   glViewport(0, 0, GLsizei(W_), GLsizei(H_));
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
 }
@@ -561,7 +570,15 @@ GLuint GlRenderer::static_target() {
   glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &t_ms);
   gl_.textures.push_back(t_ms);
   glTextureStorage2DMultisample(t_ms, 4, GL_RGBA32F, GLsizei(W_), GLsizei(H_), GL_TRUE);
-  return gl_.framebuffer(t_ms, 0);
+  const GLuint fb = gl_.framebuffer(t_ms, 0);
+  if (unlit_) {
+    GLuint u_ms = 0;
+    glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &u_ms);
+    gl_.textures.push_back(u_ms);
+    glTextureStorage2DMultisample(u_ms, 4, GL_RGBA32F, GLsizei(W_), GLsizei(H_), GL_TRUE);
+    attach_second(fb, u_ms, "msaa unlit share");
+  }
+  return fb;
 }
 
 void GlRenderer::set_static_uniforms(GLuint p) const {
@@ -607,10 +624,7 @@ void GlRenderer::bind_package() const {
     glBindTextureUnit(decal::gl::kUnitSlopeLayers, slope_layers_);
   }
   if (min_widths_) glBindTextureUnit(decal::gl::kUnitMinWidths, min_widths_tex_);
-  if (unlit_) {
-    glBindTextureUnit(decal::gl::kUnitUnlitLayers, unlit_layers_);
-    glBindTextureUnit(decal::gl::kUnitTerrainColour, t_.color);  // the shade in its alpha
-  }
+  if (unlit_) glBindTextureUnit(decal::gl::kUnitUnlitLayers, unlit_layers_);
 }
 
 namespace {
@@ -676,8 +690,10 @@ void GlRenderer::bind_dashes() {
 GLuint GlRenderer::begin_static() {
   const GLuint f_static = static_target();
   const float clear0[4] = {0, 0, 0, 0};
-  glClearNamedFramebufferfv(f_static, GL_COLOR, 0, clear0);
-  glClearNamedFramebufferfv(t_.f_decal, GL_COLOR, 0, clear0);
+  for (GLint b = 0; b < (unlit_ ? 2 : 1); ++b) {
+    glClearNamedFramebufferfv(f_static, GL_COLOR, b, clear0);
+    glClearNamedFramebufferfv(t_.f_decal, GL_COLOR, b, clear0);
+  }
   return f_static;
 }
 
@@ -723,8 +739,18 @@ void GlRenderer::static_passes(GLuint f_static) {
 void GlRenderer::end_static(GLuint f_static) {
   if (f_static != t_.f_decal) {
     timer_.begin("msaa resolve");
-    glBlitNamedFramebuffer(f_static, t_.f_decal, 0, 0, GLint(W_), GLint(H_), 0, 0, GLint(W_),
-                           GLint(H_), GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    // Each attachment on its own (a blit reads one buffer).
+    for (GLenum a : {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1}) {
+      if (a == GL_COLOR_ATTACHMENT1 && !unlit_) break;
+      glNamedFramebufferReadBuffer(f_static, a);
+      glNamedFramebufferDrawBuffer(t_.f_decal, a);
+      glBlitNamedFramebuffer(f_static, t_.f_decal, 0, 0, GLint(W_), GLint(H_), 0, 0, GLint(W_),
+                             GLint(H_), GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    }
+    if (unlit_) {
+      const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+      glNamedFramebufferDrawBuffers(t_.f_decal, 2, both);
+    }
     timer_.end();
   }
 }
@@ -736,6 +762,7 @@ void GlRenderer::composite_pass() {
   glUniform1i(glGetUniformLocation(p_.composite, "u_decal_light"), opt_.decal_light ? 1 : 0);
   glBindTextureUnit(decal::gl::kUnitTerrainColour, t_.color);
   glBindTextureUnit(decal::gl::kUnitDecalLayer, t_.decal);
+  if (unlit_) glBindTextureUnit(decal::gl::kUnitUnlitLayer, t_.unlit);
   glBindTextureUnit(decal::gl::kUnitDynamicLayer, t_.dyn);
   glDrawArrays(GL_TRIANGLES, 0, 3);
   timer_.end();

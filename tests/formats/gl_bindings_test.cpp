@@ -91,6 +91,12 @@ std::vector<Program> renderer_programs() {
       {"terrain texture method",
        {{"terrain.vert.glsl"}, {}, {"terrain.frag.glsl"}, {}, "#define DECAL_TEXTURE_METHOD 1\n"}});
   out.push_back({"composite", {{"fullscreen.vert.glsl"}, {}, {"composite.frag.glsl"}, {}, ""}});
+  out.push_back({"composite unlit",
+                 {{"fullscreen.vert.glsl"},
+                  {},
+                  {"composite.frag.glsl"},
+                  {},
+                  "#define DECAL_UNLIT_LAYERS 1\n"}});
   out.push_back(
       {"method prism", {{"method_prism.vert.glsl"}, {}, {"method_colour.frag.glsl"}, {}, ""}});
   out.push_back({"method cover unlit",

@@ -183,6 +183,10 @@ TEST(DecalLight, AnUnlitLayerKeepsItsColourWhileALitLineOverItIsShaded) {
               on_line ? a_line * rgb(line, c) * s + (1 - a_line) * rgb(poly, c) * poly_light
                       : rgb(poly, c) * poly_light;
           EXPECT_NEAR(img->rgba[4 * k + c], 255 * want, 2.0) << i << "," << j << " ch " << c;
+          // The decal layer (--decals) stays the unlit colour.
+          if (!on_line) {
+            EXPECT_NEAR(img->decals[4 * k + c], rgb(poly, c), 1e-3);
+          }
         }
         (on_line ? mixed : plain) += 1;
       }

@@ -117,20 +117,19 @@ bool box_near(ivec4 b, vec2 p, float m) {
   return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
 }
 // Lit decals (formats/SPEC.md "Lit decals"): the composite multiplies the
-// decal layer by the terrain's shade (the terrain target's alpha); a layer
+// decal layer by the terrain's shade, all but the share of the layers
 // drawn unlit (light = false, flagged in u_unlit_layers, an index past the
-// end taking the last flag) enters it divided by that shade, so the product
-// gives back its colour (the decal layer is float).
+// end taking the last flag), which the passes also sum into g_unlit and
+// write to a second target, blended alike (its alpha is the decal layer's).
+vec3 g_unlit = vec3(0.0);
 #ifdef DECAL_UNLIT_LAYERS
 layout(binding = DECAL_UNIT_UNLIT_LAYERS) uniform usamplerBuffer u_unlit_layers;
-layout(binding = DECAL_UNIT_TERRAIN_COLOUR) uniform sampler2D u_terrain;
-float g_unshade = 1.0;  // 1 / shade at the pixel (pixel_cell)
-float layer_light(uint layer) {
+bool layer_unlit(uint layer) {
   int last = textureSize(u_unlit_layers) - 1;
-  return texelFetch(u_unlit_layers, int(min(layer, uint(last)))).x != 0u ? g_unshade : 1.0;
+  return texelFetch(u_unlit_layers, int(min(layer, uint(last)))).x != 0u;
 }
 #else
-float layer_light(uint layer) { return 1.0; }
+bool layer_unlit(uint layer) { return false; }
 #endif
 
 // Front-to-back compositing of a feature covering the share `cov` of the
@@ -144,11 +143,11 @@ float layer_light(uint layer) { return 1.0; }
 float g_area = 0.0;
 void composite_under_cov(inout vec4 acc, uint rgba, float cov, uint layer) {
   vec4 c = unpackUnorm4x8(rgba);
-  c.rgb *= layer_light(layer);
   float u = min(cov, 1.0 - g_area);
   float t = g_area > 0.0 ? clamp(1.0 - acc.a / g_area, 0.0, 1.0) : 1.0;
   float w = c.a * (u + (cov - u) * t);
   acc.rgb += w * c.rgb;
+  if (layer_unlit(layer)) g_unlit += w * c.rgb;
   acc.a += w;
   g_area += u;
 }
@@ -162,9 +161,9 @@ float band_coverage(float d, float wline, float wpix) {
 // (premultiplied).
 void composite_under(inout vec4 acc, uint rgba, uint layer) {
   vec4 c = unpackUnorm4x8(rgba);
-  c.rgb *= layer_light(layer);
   float w = (1.0 - acc.a) * c.a;
   acc.rgb += w * c.rgb;
+  if (layer_unlit(layer)) g_unlit += w * c.rgb;
   acc.a += w;
 }
 bool opaque(vec4 acc) { return acc.a >= 0.999; }
@@ -188,10 +187,7 @@ bool pixel_cell(out vec3 p, out int cell) {
   cell = cell_of(p.xy);
   g_acc = vec4(0.0);
   g_area = 0.0;
-#ifdef DECAL_UNLIT_LAYERS
-  float shade = texelFetch(u_terrain, ivec2(gl_FragCoord.xy), 0).a;
-  g_unshade = shade > 0.0 ? 1.0 / shade : 1.0;
-#endif
+  g_unlit = vec3(0.0);
 #ifdef DECAL_AA_COVERAGE
   g_wpix = pixel_metres(p);
 #endif

@@ -15,6 +15,9 @@
 // the passes of earlier (higher) runs drew.
 
 layout(location = 0) out vec4 o_color;
+#ifdef DECAL_UNLIT_LAYERS
+layout(location = 1) out vec4 o_unlit;  // the unlit layers' share (static_common.glsl g_unlit)
+#endif
 uniform uint u_order_lo;
 uniform uint u_order_hi;
 
@@ -167,4 +170,7 @@ void main() {
            margin);
   if (g_acc.a <= 0.0) discard;
   o_color = g_acc;
+#ifdef DECAL_UNLIT_LAYERS
+  o_unlit = vec4(g_unlit, g_acc.a);
+#endif
 }

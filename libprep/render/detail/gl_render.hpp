@@ -108,12 +108,16 @@ void set_clip(ViewUniforms& v, const Extent& clip);
 // `stencil` (the volume method) the depth texture carries an 8-bit stencil.
 // With `slope` the terrain framebuffer has a second target, the terrain
 // gradient (RG32F) the line pass reads for slope widths.
+// `unlit`: the decal layer's framebuffer also holds the share of the
+// light = false layers (attachment 1, `unlit`).
 struct Targets {
-  GLuint color = 0, depth = 0, decal = 0, final = 0, dyn = 0, gradient = 0;
+  GLuint color = 0, depth = 0, decal = 0, final = 0, dyn = 0, gradient = 0, unlit = 0;
   GLuint f_terrain = 0, f_decal = 0, f_final = 0, f_dyn = 0;
 };
 Targets make_targets(GlObjects& gl, uint32_t width, uint32_t height, bool stencil = false,
-                     bool slope = false);
+                     bool slope = false, bool unlit = false);
+// Adds `tex` as colour attachment 1 of `fb` and draws to both.
+void attach_second(GLuint fb, GLuint tex, const char* what);
 
 // The GL state of the volume and texture methods (gl_methods.cpp).
 struct MethodState {
@@ -157,8 +161,9 @@ struct StaticPrograms {
   std::string defines;
   GLuint terrain = 0, polygons = 0, lines = 0, composite = 0;
 };
-// `unlit`: the static passes read the layer flags of light = false
-// (static_common.glsl layer_light).
+// `unlit`: the static passes sum the share of the light = false layers
+// into a second target that the composite leaves unlit (static_common.glsl
+// g_unlit).
 StaticPrograms static_programs(GlObjects& gl, const RenderOptions& opt, bool slope = false,
                                bool unlit = false, bool min_widths = false);
 

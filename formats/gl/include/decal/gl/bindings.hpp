@@ -135,7 +135,8 @@ inline constexpr uint32_t kBlobBindingSlots = blob_binding_slots();
   X(unit, kUnitTerrainColour,   "DECAL_UNIT_TERRAIN_COLOUR",   29, "u_terrain")                  \
   X(unit, kUnitDecalLayer,      "DECAL_UNIT_DECAL_LAYER",      30, "u_decals")                   \
   X(unit, kUnitDepth,           "DECAL_UNIT_DEPTH",            31, "u_depth")                    \
-  X(unit, kUnitDynMinWidths,    "DECAL_UNIT_DYN_MIN_WIDTHS",   32, "u_dyn_min_widths")
+  X(unit, kUnitDynMinWidths,    "DECAL_UNIT_DYN_MIN_WIDTHS",   32, "u_dyn_min_widths")           \
+  X(unit, kUnitUnlitLayer,      "DECAL_UNIT_UNLIT_LAYER",      33, "u_unlit")
 // clang-format on
 
 #define DECAL_GL_FRAME_CONSTANT(kind, name, macro, index, resource) \
