@@ -20,7 +20,10 @@ must reach the case's threshold.
                   over flat ground (no DEM), Monaco over its SRTM terrain
                   (render: the build DEM; view: a copy of the package and
                   its STEM.terrain, written by `decalprep terrain`, moved
-                  away from the DEM).
+                  away from the DEM);
+  minimum widths and an unlit layer (tests/web/webgpu_widths.toml): top-down
+                  decals at 8 m pixels, and the lit final frame oblique
+                  over its terrain.
 
 Without --only, view must name the dynamic layers it leaves out (Monaco's
 motorways); with it, not. Prints one line per case with the counts. Exit 0 when every case passes,
@@ -137,6 +140,12 @@ def main():
     if b.returncode:
         print("FAIL: building the Monaco sample:", b.stderr[-2000:])
         return 1
+    # Minimum widths and an unlit layer (tests/web/webgpu_widths.toml).
+    widths = os.path.join(work, "widths.decals")
+    b = run([decalprep, "build", os.path.join(root, "tests/web/webgpu_widths.toml"), "-o", widths])
+    if b.returncode:
+        print("FAIL: building webgpu_widths.toml:", b.stderr[-2000:])
+        return 1
     li_source = os.path.join(data, LIECHTENSTEIN)
     if os.path.exists(li_source):
         li_scene = os.path.join(work, "webgpu_liechtenstein.toml")
@@ -190,6 +199,20 @@ def main():
     cases.append(("monaco oblique --fit --pitch 45 over terrain, final frame",
                   (packages["monaco"], os.path.join(moved, "monaco.decals")),
                   ["--aa", "none"] + oblique, oblique, False, 0.999))
+
+    # Minimum widths top-down at 8 m pixels (streets and main roads 3 px
+    # wide instead of half a pixel), and the unlit parks in the lit final
+    # frame over the terrain, oblique, against GL.
+    cx, cy = package_centre(decalprep, widths)
+    hw, hh = size[0] * 8.0 / 2, size[1] * 8.0 / 2
+    opts = ["--extent", f"{cx - hw!r},{cy - hh!r},{cx + hw!r},{cy + hh!r}", "--size", f"{size[0]}x{size[1]}"]
+    cases.append(("widths top-down 8.0 m (min_width_px 3)", widths, ["--cpu"] + opts, opts, True, 0.999))
+    t = run([decalprep, "terrain", widths])
+    if t.returncode:
+        print("FAIL: decalprep terrain on webgpu_widths:", t.stderr[-2000:])
+        return 1
+    cases.append(("widths oblique --fit --pitch 45 over terrain (light = false), final frame",
+                  widths, ["--aa", "none"] + oblique, oblique, False, 0.999))
 
     failed = 0
     for k, (name, pkgs, ref_opts, view_opts, decals, threshold) in enumerate(cases):

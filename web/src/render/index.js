@@ -375,7 +375,7 @@ export class Renderer {
     this.targets = {
       W, H,
       color: tex("rgba8unorm", 4), depth: tex("depth32float", 4),
-      dec: this.buffer(16 * n, BU.STORAGE),
+      dec: this.buffer(32 * n, BU.STORAGE),  // colour and unlit share per pixel
       rgba: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
       decals: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
       readRgba: this.buffer(4 * n, BU.MAP_READ | BU.COPY_DST),
@@ -454,19 +454,22 @@ export class Renderer {
     const td = camera.topdownExtent;
     const flags = (td ? 1 : 0) | (scene.haveLines ? 2 : 0) | (scene.havePolygons ? 4 : 0);
     fi.set([g.cw, g.ch, scene.shift, flags], 12);
-    fu.set([W, H, scene.polyBias, 0], 16);
+    fu.set([W, H, scene.polyBias, scene.minWidthCount], 16);
     if (td) ff.set([td[0] - ax, td[3] - ay, (td[2] - td[0]) / W, -(td[3] - td[1]) / H], 20);
     fu.set(scene.offsets, 24);
     ff.set(mat4Inverse(vp), 48);
     // The terrain and the pixel rays (wgsl_decals.js ground_point).
     ff.set([terrain.x0 - ax, terrain.y0 - ay, terrain.dx, terrain.dy], 64);
-    fu.set([terrain.nx, terrain.ny, scene.slopeCount, 0], 68);
+    fu.set([terrain.nx, terrain.ny, scene.slopeCount, scene.unlitCount], 68);
     const basis = cameraBasis(camera);
     const persp = camera.projection === "perspective";
     const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
     const sx = persp ? th * (W / H) : 0.5 * camera.orthoW, sy = persp ? th : 0.5 * camera.orthoH;
     ff.set([...eyeRel, persp ? 1 : 0], 72);
     ff.set([...basis.r.map((x) => x * sx), 0, ...basis.u.map((x) => x * sy), 0, ...basis.f, 0], 76);
+    // Minimum widths: limit, reach, metres per pixel (static_common.glsl pixel_metres).
+    ff.set([scene.minWidthLimit, scene.minWidthReach, persp ? 0 : camera.orthoH / H,
+            persp ? (2 * th) / H : 0], 88);
     d.queue.writeBuffer(this.frameUniform, 0, fb);
     d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, 0, 0));
 

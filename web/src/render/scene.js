@@ -90,6 +90,48 @@ export function slopeLayers(layers, mode, haveLines) {
 }
 
 /**
+ * Per layer-table index 1 for a layer drawn unlit (`light: false`, formats/
+ * SPEC.md "Lit decals"), then a 0 for a layer past the table; empty when
+ * every layer is lit.
+ * @param {any[]} layers
+ */
+export function unlitLayers(layers) {
+  /** @type {number[]} */
+  let flags = [];
+  layers.forEach((l, i) => {
+    if (l && l.light === false) {
+      if (flags.length === 0) flags = new Array(layers.length + 1).fill(0);
+      flags[i] = 1;
+    }
+  });
+  return Uint32Array.from(flags);
+}
+
+/**
+ * Minimum widths (formats/SPEC.md "Minimum widths"): per layer-table index
+ * its min_width_px (0: none), then a 0, as f32 (empty when no layer has
+ * one); and the BVH box reach of prep::render::min_width_reach: the largest
+ * f N, over sin(limit / 2) for a mitred layer, times 1.01.
+ * @param {any[]} layers @param {number} miterLimitDeg
+ */
+export function minWidths(layers, miterLimitDeg) {
+  /** @type {number[]} */
+  let n = [];
+  let reach = 0;
+  const half = (Math.min(Math.max(miterLimitDeg, 1), 180) * Math.PI) / 360;
+  layers.forEach((l, i) => {
+    if (l && typeof l.min_width_px === "number" && l.min_width_px > 0) {
+      if (n.length === 0) n = new Array(layers.length + 1).fill(0);
+      n[i] = l.min_width_px;
+      const f = (l.outline_mode ?? 0) === 0 ? 0.5 : 1.0;
+      const miter = (l.corner ?? 0) === 1;
+      reach = Math.max(reach, (l.min_width_px * f) / (miter ? Math.sin(half) : 1));
+    }
+  });
+  return { table: new Uint32Array(Float32Array.from(n).buffer), reach: 1.01 * reach };
+}
+
+/**
  * D(v) per static-line vertex (prep::line_vertex_distances), in double,
  * stored as f32 (as the GL renderer binds it).
  * @param {Int32Array} verts @param {Uint32Array} vline @param {number[]} start
@@ -117,7 +159,8 @@ export function vertexDistances(verts, vline, start) {
  *   words: Uint32Array, offsets: Uint32Array,
  *   grid: {gx: number, gy: number, cw: number, ch: number, nx: number, ny: number},
  *   shift: number, haveLines: boolean, havePolygons: boolean, polyBias: number,
- *   layerCount: number, slopeCount: number
+ *   layerCount: number, slopeCount: number, unlitCount: number,
+ *   minWidthCount: number, minWidthLimit: number, minWidthReach: number
  * }} PackedScene
  */
 
@@ -142,7 +185,8 @@ export async function packScene(pkg, ramps, slopeWidths = "auto") {
     return new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2);
   };
   for (const name of SLOTS) {
-    if (name === "dash_table" || name === "dash_vertex" || name === "slope_layers") continue;
+    if (name === "dash_table" || name === "dash_vertex" || name === "slope_layers" ||
+        name === "unlit_layers" || name === "min_widths") continue;
     arrays.set(name, await read(name));
   }
   // Older layouts (v1.0–1.2) encoded to v1.3 on upload, as the GL loader does.
@@ -177,6 +221,12 @@ export async function packScene(pkg, ramps, slopeWidths = "auto") {
   arrays.set("dash_table", dashWords(layers));
   const slope = slopeLayers(layers, slopeWidths, count("line_props") > 0);
   arrays.set("slope_layers", slope);
+  const unlit = unlitLayers(layers);
+  arrays.set("unlit_layers", unlit);
+  const limit = typeof meta.min_width_pixel_m === "number" ? meta.min_width_pixel_m : 0;
+  const miterLimit = meta.build_options?.miter_limit_deg ?? 40;
+  const widths = limit > 0 ? minWidths(layers, miterLimit) : { table: new Uint32Array(0), reach: 0 };
+  arrays.set("min_widths", widths.table);
   const lv = /** @type {Uint32Array} */ (arrays.get("line_vertices"));
   const start = Array.isArray(meta.line_dash_start) ? meta.line_dash_start.map(Number) : [];
   const dist = vertexDistances(new Int32Array(lv.buffer, lv.byteOffset, lv.length),
@@ -201,5 +251,9 @@ export async function packScene(pkg, ramps, slopeWidths = "auto") {
     polyBias: pkg.major === 1 && pkg.minor < 2 ? count("line_props") : 0,
     layerCount: layers.length,
     slopeCount: slope.length,
+    unlitCount: unlit.length,
+    minWidthCount: widths.table.length,
+    minWidthLimit: widths.table.length > 0 ? limit : 0,
+    minWidthReach: widths.reach,
   };
 }

@@ -2,7 +2,8 @@
 // query", steps 1–8) as one WGSL compute pass: the port of
 // formats/gl/shaders/static_common.glsl, decal_blobs.glsl,
 // static_lines.glsl, static_polygons.glsl, dash.glsl and slope_widths.glsl
-// (aliased, no coverage anti-aliasing). Unlike the GL renderer, which draws
+// (aliased, no coverage anti-aliasing), with the unlit layers' share and
+// the minimum widths (formats/SPEC.md "Lit decals", "Minimum widths"). Unlike the GL renderer, which draws
 // one pass per run of ranks, it merges the line and polygon BVH walks by
 // rank in one pass, as the CPU evaluator does (step 4); the sum is the same.
 //
@@ -20,9 +21,10 @@ export const SLOTS = [
   "cell_poly_first", "cell_poly_entries", "cell_poly_holes", "cell_holes", "poly_bvh_box16",
   "poly_props", "line_vertices", "line_vertex_line", "line_props", "line_corners",
   "cell_line_first", "cell_segments", "line_bvh_box16", "dash_table", "dash_vertex", "slope_layers",
+  "unlit_layers", "min_widths",
 ];
 
-export const FRAME_BYTES = 352;
+export const FRAME_BYTES = 368;
 
 export const DECALS_WGSL = /* wgsl */ `
 struct Frame {
@@ -30,22 +32,27 @@ struct Frame {
   b: vec4f,        // anchor minus that cell's lower-left corner (m), cell size (m)
   c: vec4<i32>,    // grid dims nx, ny; grid origin (quanta)
   d: vec4<i32>,    // cell size (quanta); u16 box shift; flags: 1 top-down, 2 lines, 4 polygons
-  e: vec4<u32>,    // width, height, polygon rank bias (pre-v1.2 files), 0
+  e: vec4<u32>,    // width, height, polygon rank bias (pre-v1.2 files), min_widths entries (0: none)
   f: vec4f,        // top-down: anchor-relative x of column 0's left edge, y of row 0's top edge; pixel size x, -y
   off: array<vec4<u32>, 6>,  // word offsets of the blobs (SLOTS)
   inv_view_proj: mat4x4f,    // clip -> anchor-relative world (metres)
   tg: vec4f,       // terrain: anchor-relative x, y of vertex (0, 0); spacing dx, dy
-  tn: vec4<u32>,   // terrain vertex counts nx, ny; slope-width layer flags (0: none); 0
+  tn: vec4<u32>,   // terrain vertex counts nx, ny; slope-width layer flags (0: none); unlit layer flags (0: none)
   ro: vec4f,       // pixel rays: eye (anchor-relative); w: 1 perspective, 0 orthographic
   rr: vec4f,       // right (scaled to NDC x = 1)
   ru: vec4f,       // up (scaled to NDC y = 1)
   rf: vec4f,       // forward
+  // Minimum widths: the package's pixel limit (0: none), the box reach
+  // (prep::render::min_width_reach), metres per pixel orthographic (0:
+  // perspective), metres per pixel per metre of distance (perspective).
+  mw: vec4f,
 }
 @group(0) @binding(0) var<uniform> F: Frame;
 @group(0) @binding(1) var<storage, read> B: array<u32>;
 @group(0) @binding(2) var<storage, read> VIS: array<u32>;     // layer visibility bits
 @group(0) @binding(3) var depthTex: texture_depth_2d;            // terrain depth (reversed: 0 = nothing drawn)
-@group(0) @binding(4) var<storage, read_write> OUT: array<vec4f>;  // premultiplied decal colour per pixel
+// Per pixel: 2k the premultiplied decal colour, 2k + 1 its unlit layers' share.
+@group(0) @binding(4) var<storage, read_write> OUT: array<vec4f>;
 @group(0) @binding(5) var<storage, read> TZ: array<f32>;       // terrain heights, i + nx j
 // Per terrain triangle (cell i + (nx - 1) j, lower then upper): (dh/dx, dh/dy).
 @group(0) @binding(6) var<storage, read> TG: array<vec2f>;
@@ -54,7 +61,13 @@ const Q: f32 = 0.001;
 const QT_BOX = 0u; const QT_NODE = 1u; const QT_LLR = 2u; const QT_LOOPS = 3u; const QT_VERT = 4u;
 const CPF = 5u; const CPE = 6u; const CPH = 7u; const CH = 8u; const PBVH = 9u; const PPROPS = 10u;
 const LV = 11u; const LVL = 12u; const LP = 13u; const LC = 14u; const CLF = 15u; const CS = 16u;
-const LBVH = 17u; const DT = 18u; const DV = 19u; const SL = 20u;
+const LBVH = 17u; const DT = 18u; const DV = 19u; const SL = 20u; const UL = 21u; const MW = 22u;
+
+// The pixel's unlit share so far (under), its line scale (min_width_scale)
+// and the margin the line BVH's boxes are grown by (metres).
+var<private> UNLIT: vec3f;
+var<private> KS: f32 = 1.0;
+var<private> MARGIN: f32 = 0.0;
 
 fn wo(k: u32) -> u32 { return F.off[k >> 2u][k & 3u]; }
 fn w(k: u32, i: u32) -> u32 { return B[wo(k) + i]; }
@@ -70,6 +83,12 @@ fn box_contains(b: vec4<i32>, p: vec2f) -> bool {
   if (b.x > b.z) { return false; }
   let lo = rel(b.xy);
   let hi = rel(b.zw);
+  return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
+}
+fn box_near(b: vec4<i32>, p: vec2f, m: f32) -> bool {
+  if (b.x > b.z) { return false; }
+  let lo = rel(b.xy) - m;
+  let hi = rel(b.zw) + m;
   return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y;
 }
 fn qt_box(n: u32) -> vec4<i32> {
@@ -150,7 +169,9 @@ fn walk_next(wk: ptr<function, Walk>, p: vec2f, base: vec3<i32>) -> i32 {
   loop {
     if ((*wk).done) { return -1; }
     let i = (*wk).i;
-    if (box_contains(box16(bk, (*wk).first + i, base), p)) {
+    var m = 0.0;
+    if ((*wk).kind == CLF) { m = MARGIN; }
+    if (box_near(box16(bk, (*wk).first + i, base), p, m)) {
       if (i < (*wk).internal) { (*wk).i = 2u * i + 1u; continue; }
       let k = i - (*wk).internal;
       walk_advance(wk);
@@ -175,9 +196,24 @@ fn in_triangle(a: vec2f, b: vec2f, c: vec2f, d: vec2f) -> bool {
   return (c0 >= 0.0 && c1 >= 0.0 && c2 >= 0.0) || (c0 <= 0.0 && c1 <= 0.0 && c2 <= 0.0);
 }
 fn is_null(v: vec2f) -> bool { return v.x == 0.0 && v.y == 0.0; }
-fn c_miter(v: u32) -> vec2f { return vec2f(wf(LC, 6u * v), wf(LC, 6u * v + 1u)); }
-fn c_in(v: u32) -> vec2f { return vec2f(wf(LC, 6u * v + 2u), wf(LC, 6u * v + 3u)); }
-fn c_out(v: u32) -> vec2f { return vec2f(wf(LC, 6u * v + 4u), wf(LC, 6u * v + 5u)); }
+fn c_miter(v: u32) -> vec2f { return KS * vec2f(wf(LC, 6u * v), wf(LC, 6u * v + 1u)); }
+fn c_in(v: u32) -> vec2f { return KS * vec2f(wf(LC, 6u * v + 2u), wf(LC, 6u * v + 3u)); }
+fn c_out(v: u32) -> vec2f { return KS * vec2f(wf(LC, 6u * v + 4u), wf(LC, 6u * v + 5u)); }
+
+// prep::min_width_scale: the factor line \`line\` is drawn wider at a pixel
+// of PX metres (static_lines.glsl width_scale).
+var<private> PX: f32 = 0.0;
+fn width_scale(line: u32) -> f32 {
+  if (F.e.w == 0u || !(F.mw.x > 0.0)) { return 1.0; }
+  let n = wf(MW, min(w(LP, 8u * line + 5u), F.e.w - 1u));
+  if (!(n > 0.0)) { return 1.0; }
+  var f = 0.5;
+  if (((w(LP, 8u * line + 3u) >> 2u) & 3u) != 0u) { f = 1.0; }
+  let want = n * f * min(PX, F.mw.x);
+  let hw = wf(LP, 8u * line);
+  if (want > hw && hw > 0.0) { return want / hw; }
+  return 1.0;
+}
 
 const HIT_NONE = 0; const HIT_CLIPPED = 1; const HIT_COVERED = 2;
 
@@ -278,7 +314,8 @@ fn gradient_at(p: vec2f) -> vec2f {
 
 // Step 6: segment (s, ei) of line \`line\` at p.
 fn segment_test(s: u32, ei: u32, p: vec2f, line: u32) -> i32 {
-  let hw = wf(LP, 8u * line);
+  KS = width_scale(line);
+  let hw = wf(LP, 8u * line) * KS;
   let style = w(LP, 8u * line + 3u);
   let hw2 = hw * hw;
   let corner = style & 3u;
@@ -381,10 +418,17 @@ fn polygon_covers(entry: u32, p: vec2f) -> bool {
   return true;
 }
 
-fn under(acc: ptr<function, vec4f>, rgba: u32) -> bool {
+// A layer drawn unlit (light = false; an index past the table takes the last flag).
+fn layer_unlit(layer: u32) -> bool {
+  if (F.tn.w == 0u) { return false; }
+  return w(UL, min(layer, F.tn.w - 1u)) != 0u;
+}
+
+fn under(acc: ptr<function, vec4f>, rgba: u32, layer: u32) -> bool {
   let c = unpack4x8unorm(rgba);
   let wt = (1.0 - (*acc).a) * c.a;
   *acc = vec4f((*acc).rgb + wt * c.rgb, (*acc).a + wt);
+  if (layer_unlit(layer)) { UNLIT += wt * c.rgb; }
   return (*acc).a >= 0.999;
 }
 
@@ -422,14 +466,14 @@ fn query(p: vec2f) -> vec4f {
         var hit = segment_test(seg.x, seg.y, p, line);
         if (hit == HIT_COVERED && !dash_covers(seg.x, seg.y, p, w(LP, 8u * line + 5u))) { hit = HIT_NONE; }
         if (hit != HIT_NONE) { last = line; }
-        if (hit == HIT_COVERED && under(&acc, w(LP, 8u * line + 1u))) { break; }
+        if (hit == HIT_COVERED && under(&acc, w(LP, 8u * line + 1u), w(LP, 8u * line + 5u))) { break; }
       }
       kl = walk_next(&lw, p, base);
       if (kl >= 0) { rl = line_rank(kl); }
     } else {
       let poly = w(CPE, 2u * u32(kp));
       if (visible(w(PPROPS, 8u * poly + 4u)) && polygon_covers(u32(kp), p)) {
-        if (under(&acc, w(PPROPS, 8u * poly))) { break; }
+        if (under(&acc, w(PPROPS, 8u * poly), w(PPROPS, 8u * poly + 4u))) { break; }
       }
       kp = walk_next(&pw, p, base);
       if (kp >= 0) { rp = poly_rank(kp); }
@@ -474,18 +518,30 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
   let H = F.e.y;
   if (gid.x >= W || gid.y >= H) { return; }
   var p: vec2f;
+  var z = 0.0;
+  let k = gid.x + W * gid.y;
   if ((F.d.w & 1) != 0) {
     // top-down: the pixel centre exactly (SPEC "Points, pixels and precision")
     p = vec2f(F.f.x + (f32(gid.x) + 0.5) * F.f.z, F.f.y + (f32(gid.y) + 0.5) * F.f.w);
   } else {
     // the ray's terrain point from the depth (static_common.glsl pixel_world)
     let depth = textureLoad(depthTex, vec2<i32>(gid.xy), 0);
-    if (depth <= 0.0) { OUT[gid.x + W * gid.y] = vec4f(0.0); return; }
+    if (depth <= 0.0) { OUT[2u * k] = vec4f(0.0); OUT[2u * k + 1u] = vec4f(0.0); return; }
     let ndc = vec2f((f32(gid.x) + 0.5) / f32(W) * 2.0 - 1.0, 1.0 - (f32(gid.y) + 0.5) / f32(H) * 2.0);
     let wp = F.inv_view_proj * vec4f(ndc, depth, 1.0);
     p = ground_point(ndc, wp.xy / wp.w);
+    z = wp.z / wp.w;
   }
   if (F.tn.z != 0u) { GS = gradient_at(p); }
-  OUT[gid.x + W * gid.y] = query(p);
+  // Minimum widths: the pixel's ground size (static_common.glsl pixel_metres).
+  if (F.mw.x > 0.0) {
+    PX = F.mw.z;
+    if (PX <= 0.0) { PX = length(vec3f(p, z) - F.ro.xyz) * F.mw.w; }
+    MARGIN = F.mw.y * min(PX, F.mw.x);
+  }
+  UNLIT = vec3f(0.0);
+  let c = query(p);
+  OUT[2u * k] = c;
+  OUT[2u * k + 1u] = vec4f(UNLIT, c.a);
 }
 `;

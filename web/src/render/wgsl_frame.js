@@ -54,10 +54,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
   if (gid.x >= U.size.x || gid.y >= U.size.y) { return; }
   let k = gid.x + U.size.x * gid.y;
   let t = textureLoad(terrain, vec2<i32>(gid.xy), 0);
-  let d = DEC[k];
+  let d = DEC[2u * k];
+  let u = DEC[2u * k + 1u].rgb;
   // Lit decals (formats/SPEC.md "Lit decals"): the decal colour times the
-  // terrain's shade, the terrain target's alpha.
-  RGBA[k] = pack(vec4f(d.rgb * t.a + (1.0 - d.a) * t.rgb, 1.0));
+  // terrain's shade, the terrain target's alpha, but for the share of the
+  // layers drawn unlit.
+  RGBA[k] = pack(vec4f((d.rgb - u) * t.a + u + (1.0 - d.a) * t.rgb, 1.0));
   // straight alpha: (C / A, A), 0 where A = 0 (SPEC step 4)
   var s = vec4f(0.0);
   if (d.a > 0.0) { s = vec4f(d.rgb / d.a, d.a); }
