@@ -24,7 +24,7 @@ namespace terrain_format {
 namespace {
 
 // SPEC "Terrain files": header layout, codecs.
-constexpr uint16_t kMajor = 1, kMinor = 0;
+constexpr uint16_t kMajor = kTerrainFileMajor, kMinor = kTerrainFileMinor;
 constexpr uint32_t kHeaderSize = 144;
 constexpr uint32_t kCodecNone = 0, kCodecZstd = 1;
 constexpr uint32_t kRequiredFlags = 0x0000ffffu;

@@ -22,10 +22,14 @@ On the checked-in package tests/formats/legacy/golden_v1_2.decals:
   exit 2;
 - `--dem /vsizip/ARCHIVE` without the file inside opens the archive's one
   raster (the same picture as naming it), and an archive of two rasters or
-  of none is exit 3 listing what it holds.
+  of none is exit 3 listing what it holds;
+- `--version` names the project version of CMakeLists.txt and the format
+  versions it writes, which a package it builds (`info --json`) and a
+  tileset with overview levels (its tileset.json) carry.
 """
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -130,6 +134,39 @@ def dem_archives(tool, root, pkg, work, expect):
            "exit %d: %s" % (r.returncode, r.stderr))
 
 
+def versions(tool, root, work, expect):
+    r = run([tool, "--version"])
+    text = r.stdout
+    project = re.search(r"project\(decalprep VERSION ([0-9.]+)",
+                        open(os.path.join(root, "CMakeLists.txt")).read()).group(1)
+    expect("--version exits 0 naming the project version",
+           r.returncode == 0 and text.startswith("decalprep " + project + "\n"), text + r.stderr)
+    pkg_writes = re.search(r"decal packages.*writes ([0-9]+)\.([0-9]+)", text)
+    ts_writes = re.search(r"tilesets.*\(([0-9]+)\.([0-9]+) with overview levels\)", text)
+    expect("--version names the package and tileset versions it writes",
+           pkg_writes is not None and ts_writes is not None, text)
+    if pkg_writes is None or ts_writes is None:
+        return
+    src = os.path.join(work, "line.geojson")
+    with open(src, "w") as f:
+        f.write('{"type":"FeatureCollection","crs":{"type":"name","properties":{"name":'
+                '"EPSG:32632"}},"features":[{"type":"Feature","properties":{},"geometry":'
+                '{"type":"LineString","coordinates":[[500000,4800000],[504000,4803000]]}}]}')
+    out = os.path.join(work, "version.decals")
+    b = run([tool, "build", src, "-o", out, "--kind", "line", "--width", "4", "-q"])
+    v = json.loads(run([tool, "info", out, "--json"]).stdout)["version"] if b.returncode == 0 else {}
+    expect("a package it builds has the version --version says it writes",
+           [v.get("major"), v.get("minor")] == [int(pkg_writes.group(1)), int(pkg_writes.group(2))],
+           "%r vs %r" % (v, pkg_writes.groups()))
+    ts = os.path.join(work, "version_ts")
+    b = run([tool, "build", src, "-o", ts, "--kind", "line", "--width", "4", "--tile-size", "1000",
+             "--levels", "2", "-q"])
+    got = json.load(open(os.path.join(ts, "tileset.json"))).get("tileset_version") \
+        if b.returncode == 0 else None
+    expect("a tileset with levels has the version --version says it writes",
+           got == "%s.%s" % ts_writes.groups(), "%r vs %r (%s)" % (got, ts_writes.groups(), b.stderr))
+
+
 def main(tool, root, work):
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
@@ -199,6 +236,7 @@ def main(tool, root, work):
 
     square_pixels(tool, pkg, work, info, expect)
     dem_archives(tool, root, pkg, work, expect)
+    versions(tool, root, work, expect)
 
     if failures:
         print("FAIL: %d checks" % len(failures))

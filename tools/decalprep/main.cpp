@@ -7,6 +7,9 @@
 #include <iostream>
 
 #include "command.hpp"
+#include "decal/format.hpp"
+#include "prep/render.hpp"
+#include "prep/tile.hpp"
 
 namespace {
 
@@ -27,12 +30,27 @@ constexpr const char* kExamples = R"(Examples:
   decalprep verify city.decals
   decalprep render city.decals --fit --size 640x360 -o city.png)";
 
+// --version: the program's version (CMake's project version, the one place
+// it is set) and the versions of the formats it writes and reads.
+std::string version_text() {
+  auto v = [](int major, int minor) { return std::to_string(major) + "." + std::to_string(minor); };
+  return std::string("decalprep ") + DECALPREP_VERSION +
+         "\ndecal packages (formats/SPEC.md): writes " +
+         v(decal::kVersionMajor, decal::kVersionMinor) + ", reads " +
+         std::to_string(decal::kVersionMajor) + ".x" + "\ntilesets (tileset.json): writes " +
+         v(prep::kTilesetMajor, prep::kTilesetMinor) + " (" +
+         v(prep::kTilesetMajor, prep::kTilesetMinorLevels) + " with overview levels), reads " +
+         std::to_string(prep::kTilesetMajor) + ".x" + "\nterrain files: writes " +
+         v(prep::render::kTerrainFileMajor, prep::render::kTerrainFileMinor) + ", reads " +
+         std::to_string(prep::render::kTerrainFileMajor) + ".x";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"decalprep: GIS vector data to GPU-ready decal packages"};
   app.footer(std::string(kExamples) + "\n\n" + kExitCodes);
-  app.set_version_flag("--version", std::string("decalprep ") + DECALPREP_VERSION);
+  app.set_version_flag("--version", version_text());
   app.require_subcommand(1);
 
   auto& registry = decalprep::command_registry();

@@ -127,6 +127,10 @@ Heightfield load_heightfield(const DemSpec& dem, const SceneFrame& frame, const 
 DemSpec recorded_dem(const std::string& metadata_json, const std::string& package_path = {});
 
 // ---------------------------------------------------------- terrain files --
+// The terrain file version this build writes; it reads any minor of its
+// major (formats/SPEC.md "Terrain files").
+inline constexpr uint16_t kTerrainFileMajor = 1, kTerrainFileMinor = 0;
+
 // The mesh `render` draws, in a file a browser reads (formats/SPEC.md
 // "Terrain files"): STEM.terrain beside STEM.decals, written by `decalprep
 // terrain`. The heights are stored bit for bit, so a decoded mesh is the
