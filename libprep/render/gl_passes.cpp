@@ -547,7 +547,7 @@ void GlRenderer::terrain_pass() {
     glUniform4fv(glGetUniformLocation(p, "u_clip"), 1, view0_.clip.data());
   }
   glUniformMatrix4fv(glGetUniformLocation(p, "u_view_proj"), 1, GL_FALSE, view0_.view_proj.data());
-  Vec3 light = normalize({-0.4, -0.5, 0.75});
+  const Vec3 light = normalize(kLightTowards);
   glUniform3f(glGetUniformLocation(p, "u_light_dir"), float(light[0]), float(light[1]),
               float(light[2]));
   glUniform3f(glGetUniformLocation(p, "u_albedo"), float(opt_.albedo[0]), float(opt_.albedo[1]),

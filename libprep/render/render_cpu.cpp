@@ -20,7 +20,7 @@ namespace {
 // (Heightfield::triangle_gradient's split of the cell), interpolated
 // linearly over it as GL interpolates v_normal, normalised.
 double shade_at(const Heightfield& t, double x, double y) {
-  const Vec3 light = detail::normalize({-0.4, -0.5, 0.75});
+  const Vec3 light = detail::normalize(detail::kLightTowards);
   const int i = std::clamp(int(std::floor((x - t.x0) / t.dx)), 0, int(t.nx) - 2),
             j = std::clamp(int(std::floor((y - t.y0) / t.dy)), 0, int(t.ny) - 2);
   const double u = std::clamp((x - t.x0) / t.dx - i, 0.0, 1.0),

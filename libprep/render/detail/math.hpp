@@ -11,6 +11,10 @@ namespace prep::render::detail {
 
 using Mat4 = std::array<double, 16>;  // column-major: m[col * 4 + row]
 
+// The direction towards the terrain's light (unnormalised; the terrain pass
+// and the CPU image normalise it alike; web/src/render/index.js has it too).
+inline constexpr Vec3 kLightTowards{-0.4, -0.5, 0.75};
+
 inline Vec3 sub(const Vec3& a, const Vec3& b) {
   return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
 }
