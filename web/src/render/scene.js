@@ -78,10 +78,19 @@ export function dashWords(layers) {
 export function slopeLayers(layers, mode, haveLines) {
   if (mode === "off") return new Uint32Array(0);
   if (mode === "on") return haveLines ? Uint32Array.of(1) : new Uint32Array(0);
+  return layerFlags(layers, (l) => l.slope_widths === true);
+}
+
+/**
+ * Per layer-table index 1 where `has` holds for the entry, then a 0 for a
+ * layer past the table; empty when it holds for none.
+ * @param {any[]} layers @param {(entry: any) => boolean} has
+ */
+function layerFlags(layers, has) {
   /** @type {number[]} */
   let flags = [];
   layers.forEach((l, i) => {
-    if (l && l.slope_widths === true) {
+    if (l && has(l)) {
       if (flags.length === 0) flags = new Array(layers.length + 1).fill(0);
       flags[i] = 1;
     }
@@ -96,15 +105,7 @@ export function slopeLayers(layers, mode, haveLines) {
  * @param {any[]} layers
  */
 export function unlitLayers(layers) {
-  /** @type {number[]} */
-  let flags = [];
-  layers.forEach((l, i) => {
-    if (l && l.light === false) {
-      if (flags.length === 0) flags = new Array(layers.length + 1).fill(0);
-      flags[i] = 1;
-    }
-  });
-  return Uint32Array.from(flags);
+  return layerFlags(layers, (l) => l.light === false);
 }
 
 /**
