@@ -15,13 +15,13 @@ namespace prep::render {
 LodView lod_view(const Camera& cam, uint32_t H, double zmin, double zmax, double tolerance_px) {
   LodView v;
   if (cam.projection == Projection::orthographic) {
-    v.base = tolerance_px * cam.ortho_h / H;
+    v.base = tolerance_px * detail::ortho_pixel_metres(cam, H);
     return v;
   }
   v.cx = cam.eye[0];
   v.cy = cam.eye[1];
   v.cz = cam.eye[2] > zmax ? cam.eye[2] - zmax : (cam.eye[2] < zmin ? zmin - cam.eye[2] : 0.0);
-  v.slope = tolerance_px * 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H;
+  v.slope = tolerance_px * detail::pixel_metres_per_metre(cam, H);
   return v;
 }
 
@@ -152,10 +152,8 @@ DynamicLinesCpu::DynamicLinesCpu(const DecalSource& source, const Camera& cam, u
   props_ = blob<decal::LineProps>(source, decal::BlobId::dyn_line_props);
   if (verts.empty() || starts.empty() || pn.size() != verts.size()) return;
   eye_ = cam.eye;
-  mpp_ortho_ = cam.projection == Projection::orthographic ? cam.ortho_h / H : 0.0;
-  mpp_per_metre_ = cam.projection == Projection::perspective
-                       ? 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H
-                       : 0.0;
+  mpp_ortho_ = detail::ortho_pixel_metres(cam, H);
+  mpp_per_metre_ = detail::pixel_metres_per_metre(cam, H);
   const double limit = source.miter_limit_deg * 3.14159265358979323846 / 180.0;
   cos_limit_ = std::cos(limit);
   // The farthest a corner reaches from its vertex in half widths: a miter

@@ -227,17 +227,20 @@ StaticView widened_view(const DecalSource& source, double pixel_m,
   px.pixel_m = pixel_m;
   px.min_width_px = source.min_width_px;
   px.min_width_pixel_m = source.min_width_pixel_m;
+  // Each line's scale once, for its props and its vertices' corners.
+  std::vector<double> scale(v.line_props.size());
+  for (uint32_t l = 0; l < scale.size(); ++l) scale[l] = min_width_scale(source.view, l, px);
   props.assign(v.line_props.begin(), v.line_props.end());
   corners.assign(v.line_corners.begin(), v.line_corners.end());
   for (size_t i = 0; i < v.line_vertex_line.size() && i < corners.size(); ++i) {
-    const double k = min_width_scale(source.view, v.line_vertex_line[i], px);
+    const double k = scale.at(v.line_vertex_line[i]);
     for (float* c : {corners[i].miter, corners[i].bevel_in, corners[i].bevel_out}) {
       c[0] = float(k * double(c[0]));
       c[1] = float(k * double(c[1]));
     }
   }
   for (uint32_t l = 0; l < props.size(); ++l)
-    props[l].half_width = float(double(props[l].half_width) * min_width_scale(source.view, l, px));
+    props[l].half_width = float(double(props[l].half_width) * scale[l]);
   v.line_props = props;
   v.line_corners = corners;
   return v;

@@ -160,10 +160,8 @@ ViewUniforms view_uniforms(const Camera& cam, const GridParams& gp, uint32_t W, 
   const double q = decal::kQuantumMetres;
   set_anchor(v, cam, std::llround(cam.eye[0] / q), std::llround(cam.eye[1] / q), W, H);
   set_grid(v, gp);
-  v.mpp_ortho = cam.projection == Projection::orthographic ? cam.ortho_h / H : 0.0;
-  v.mpp_per_metre = cam.projection == Projection::perspective
-                        ? 2.0 * std::tan(cam.fov_y_deg * 3.14159265358979323846 / 360.0) / H
-                        : 0.0;
+  v.mpp_ortho = ortho_pixel_metres(cam, H);
+  v.mpp_per_metre = pixel_metres_per_metre(cam, H);
   v.near_w = cam.projection == Projection::perspective ? cam.near : 0.0;
   return v;
 }

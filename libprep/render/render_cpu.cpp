@@ -114,9 +114,9 @@ struct CpuFrame {
   // to the eye times 2 tan(fov_y / 2) / H.
   double pixel_metres(double x, double y, double z) const {
     const Camera& c = opt.camera;
-    if (c.projection == Projection::orthographic) return c.ortho_h / H;
-    const double d = std::hypot(x - c.eye[0], y - c.eye[1], z - c.eye[2]);
-    return d * 2.0 * std::tan(c.fov_y_deg * 3.14159265358979323846 / 360.0) / H;
+    if (c.projection == Projection::orthographic) return detail::ortho_pixel_metres(c, H);
+    return std::hypot(x - c.eye[0], y - c.eye[1], z - c.eye[2]) *
+           detail::pixel_metres_per_metre(c, H);
   }
 
   // The tile whose half-open square holds (x, y); none: places.size().

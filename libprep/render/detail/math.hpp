@@ -15,6 +15,19 @@ using Mat4 = std::array<double, 16>;  // column-major: m[col * 4 + row]
 // and the CPU image normalise it alike; web/src/render/index.js has it too).
 inline constexpr Vec3 kLightTowards{-0.4, -0.5, 0.75};
 
+// Ground metres of one pixel of an H-pixel-high view (thesis Eq. 4.1/4.2,
+// static_common.glsl pixel_metres): an orthographic view's constant (0 in
+// perspective), and a perspective view's per metre of distance to the eye,
+// 2 tan(fov_y / 2) / H (0 orthographic).
+inline double ortho_pixel_metres(const Camera& c, uint32_t H) {
+  return c.projection == Projection::orthographic ? c.ortho_h / H : 0.0;
+}
+inline double pixel_metres_per_metre(const Camera& c, uint32_t H) {
+  return c.projection == Projection::perspective
+             ? 2.0 * std::tan(c.fov_y_deg * 3.14159265358979323846 / 360.0) / H
+             : 0.0;
+}
+
 inline Vec3 sub(const Vec3& a, const Vec3& b) {
   return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
 }
