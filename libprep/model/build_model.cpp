@@ -366,7 +366,7 @@ void build_polygon_trees(const SceneFeatures& scene, const ModelOptions& options
     pp.exterior = rings[r].exterior;
     pp.value = float(sp.color_value);
     pp.layer = sp.layer;
-    pp.feature = uint32_t(sp.fid);
+    pp.feature = stored_feature_id(sp.fid);
     pp.reserved[0] = pp.reserved[1] = 0;
   }
   m.stats.quadtrees = rings.size();

@@ -136,7 +136,7 @@ LineOut convert_line(const SceneFeatures& scene, const SceneLine& line, const Mo
              (closed ? decal::kStyleClosedBit : 0u);
   pr.value = float(line.color_value);
   pr.layer = line.layer;
-  pr.feature = uint32_t(line.fid);
+  pr.feature = stored_feature_id(line.fid);
   pr.clip_node = 0;  // set by build_model() for clipped outlines
   out.kept = true;
   return out;

@@ -5,6 +5,8 @@
 // options), has a headless Chromium draw that view with the browser
 // renderer and writes what the page sends back (prep::view::screenshot).
 #include <algorithm>
+#include <array>
+#include <charconv>
 #include <cstddef>
 #include <cstdio>
 #include <memory>
@@ -29,7 +31,27 @@ struct ViewArgs {
   double timeout = 120;
   bool verbose = false;
   bool stats = false;  // --stats: the page's frame times
+  // --pick X,Y: pixels whose top decal the page reports (x right, y down).
+  std::vector<std::string> picks;
 };
+
+// --pick's "X,Y" as two pixel indices inside the image; usage_error otherwise.
+std::array<uint32_t, 2> parse_pick(const std::string& text, uint32_t width, uint32_t height) {
+  const auto comma = text.find(',');
+  const auto whole = [&](std::string_view part, uint32_t limit, const char* axis) {
+    uint32_t v = 0;
+    const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), v);
+    if (part.empty() || ec != std::errc() || end != part.data() + part.size() || v >= limit)
+      prep::fail<prep::usage_error>(kViewCommand, "--pick '" + text + "': " + axis +
+                                                      " must be a whole pixel index below " +
+                                                      std::to_string(limit));
+    return v;
+  };
+  if (comma == std::string::npos)
+    prep::fail<prep::usage_error>(kViewCommand, "--pick '" + text + "': expected X,Y (pixels)");
+  const std::string_view all(text);
+  return {whole(all.substr(0, comma), width, "X"), whole(all.substr(comma + 1), height, "Y")};
+}
 
 nlohmann::json vec3(const prep::render::Vec3& v) {
   return nlohmann::json::array({v[0], v[1], v[2]});
@@ -37,7 +59,8 @@ nlohmann::json vec3(const prep::render::Vec3& v) {
 
 // The config's "screenshot" object (web/viewer reads it): the camera as
 // prep::render::Camera holds it, metres relative to the package origin.
-nlohmann::json shot_config(const R::RenderView& v, bool decals) {
+nlohmann::json shot_config(const R::RenderView& v, bool decals,
+                           const std::vector<std::array<uint32_t, 2>>& picks) {
   const R::Camera& c = v.options.camera;
   nlohmann::json cam = {
       {"projection", c.projection == R::Projection::orthographic ? "orthographic" : "perspective"},
@@ -76,7 +99,41 @@ nlohmann::json shot_config(const R::RenderView& v, bool decals) {
           {"decals", decals},
           {"ramps", ramps},
           {"only", only},
-          {"frames", v.options.frames}};
+          {"frames", v.options.frames},
+          {"picks", picks}};
+}
+
+// --pick: the page's answers, one line each in the order asked (untrusted
+// JSON, as print_stats): "pick X,Y: KIND, layer L 'NAME', fid F" or
+// "pick X,Y: no decal".
+void print_picks(const std::string& text, size_t asked) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  const bool ok =
+      j.is_object() && j.contains("picks") && j["picks"].is_array() && j["picks"].size() == asked;
+  if (!ok)
+    prep::fail<prep::render_error>(
+        kViewCommand, "--pick: the page sent no answer for " + std::to_string(asked) + " pick(s)");
+  for (const nlohmann::json& p : j["picks"]) {
+    const auto num = [&p](const char* key) {
+      return p.is_object() && p.contains(key) && p[key].is_number_unsigned()
+                 ? p[key].get<uint64_t>()
+                 : uint64_t{0};
+    };
+    const auto str = [&p](const char* key) {
+      return p.is_object() && p.contains(key) && p[key].is_string() ? p[key].get<std::string>()
+                                                                    : std::string();
+    };
+    const std::string kind = str("kind");
+    if (kind == "line" || kind == "polygon")
+      std::printf("pick %llu,%llu: %s, layer %llu '%s', fid %llu\n",
+                  static_cast<unsigned long long>(num("x")),
+                  static_cast<unsigned long long>(num("y")), kind.c_str(),
+                  static_cast<unsigned long long>(num("layer")), str("layerName").c_str(),
+                  static_cast<unsigned long long>(num("feature")));
+    else
+      std::printf("pick %llu,%llu: no decal\n", static_cast<unsigned long long>(num("x")),
+                  static_cast<unsigned long long>(num("y")));
+  }
 }
 
 // --stats: what the page measured (its JSON is the page's, so untrusted:
@@ -139,7 +196,9 @@ void run_screenshot(ViewArgs& a) {
   s.width = v.options.width;
   s.height = v.options.height;
   s.decals = !r.decals_png.empty();
-  s.config_json = shot_config(v, s.decals).dump();
+  std::vector<std::array<uint32_t, 2>> picks;
+  for (const std::string& p : a.picks) picks.push_back(parse_pick(p, s.width, s.height));
+  s.config_json = shot_config(v, s.decals, picks).dump();
   s.chromium = *chromium;
   s.timeout_s = a.timeout;
   s.verbose = a.verbose;
@@ -151,8 +210,16 @@ void run_screenshot(ViewArgs& a) {
   s.write_decals = [&](std::span<const uint8_t> rgba) {
     prep::write_png_rgba(r.decals_png, s.width, s.height, rgba);
   };
-  if (a.stats) s.on_stats = [&](const std::string& text) { print_stats(text, s.width, s.height); };
+  bool answered = false;
+  if (a.stats || !picks.empty())
+    s.on_stats = [&](const std::string& text) {
+      if (a.stats) print_stats(text, s.width, s.height);
+      if (!picks.empty()) print_picks(text, picks.size());
+      answered = true;
+    };
   prep::view::screenshot(a.serve.path, s);
+  if (!picks.empty() && !answered)
+    prep::fail<prep::render_error>(kViewCommand, "--pick: the page sent no answer");
 }
 
 constexpr decalprep::CommandHelp kViewHelp{
@@ -166,7 +233,8 @@ constexpr decalprep::CommandHelp kViewHelp{
     "options; exit 12 when there is no Chromium, 8 when the page fails or times out.\n"
     "Examples:\n  decalprep view city.decals\n  decalprep view country/ --port 0\n"
     "  decalprep view city.decals --bind 0.0.0.0 --port 8000\n"
-    "  decalprep view city.decals --screenshot city.png --fit --pitch 50 --size 1280x720"};
+    "  decalprep view city.decals --screenshot city.png --fit --pitch 50 --size 1280x720\n"
+    "  decalprep view city.decals --screenshot city.png --pick 320,180 --pick 10,20"};
 
 void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
   R::RenderRequest& r = a.shot;
@@ -201,6 +269,11 @@ void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
             ->check(CLI::Range(1, 1000)));
   needs(cmd->add_flag("--stats", a.stats,
                       "--screenshot: print the browser's adapter and frame times"));
+  needs(cmd->add_option("--pick", a.picks,
+                        "--screenshot: print the top decal (layer, feature id) under pixel X,Y "
+                        "(from the top-left; repeat for more)")
+            ->expected(1)
+            ->take_all());
   needs(cmd->add_option("--timeout", a.timeout,
                         "--screenshot: seconds to wait for the page (default 120)")
             ->check(CLI::PositiveNumber));

@@ -1,6 +1,6 @@
 // ui.js — the viewer's panels: the layer list (a visibility toggle per entry
 // of the package metadata's layer table), the overlay (frame time, GPU
-// bytes, tiles drawn) and the status line.
+// bytes, tiles drawn), the picked decal and the status line.
 
 const el = (/** @type {string} */ id) => /** @type {HTMLElement} */ (document.getElementById(id));
 
@@ -61,5 +61,24 @@ export function showOverlay(f) {
   const o = el("overlay");
   o.textContent = `${f.ms.toFixed(1)} ms  ${f.width}x${f.height}\n` +
     `${(f.gpuBytes / 1048576).toFixed(1)} MiB GPU  ${f.tiles} tile${f.tiles === 1 ? "" : "s"}\n${f.adapter}`;
+  o.classList.remove("hidden");
+}
+
+/**
+ * What a click found, in words: the layer (its name and index in the
+ * metadata layer table), the source feature id and the kind.
+ * @param {import("../src/render/index.js").Pick | null} pick
+ * @param {string[]} names  the layer table's names
+ */
+export function describePick(pick, names) {
+  if (!pick) return "no decal here";
+  const name = names[pick.layer] || `layer ${pick.layer}`;
+  return `${name} (layer ${pick.layer}): fid ${pick.feature}, ${pick.kind}`;
+}
+
+/** Shows a picked decal's description in the pick panel. @param {string} text */
+export function showPick(text) {
+  const o = el("pick");
+  o.textContent = text;
   o.classList.remove("hidden");
 }

@@ -6,7 +6,7 @@
 // config's camera once and POSTs the pixels back (prep/view.hpp).
 import { createRenderer, fetchTerrain, fetchTileset, openPackageUrl, openTile } from "../src/index.js";
 import { MapCamera, attachControls } from "./camera.js";
-import { layerKinds, showLayers, showOverlay, showStatus } from "./ui.js";
+import { describePick, layerKinds, showLayers, showOverlay, showPick, showStatus } from "./ui.js";
 
 /** @typedef {import("../src/package.js").Package} Package */
 /** @typedef {import("../src/render/camera.js").Camera} Camera */
@@ -16,7 +16,7 @@ import { layerKinds, showLayers, showOverlay, showStatus } from "./ui.js";
  * @typedef {{polygons: boolean, lines: boolean, dynamic: boolean}} Kinds
  * @typedef {{width: number, height: number, camera: Camera, albedo: number[], decals: boolean,
  *            ramps: import("../src/render/scene.js").LayerRamp[], only?: Kinds,
- *            frames?: number}} ShotConfig
+ *            frames?: number, picks?: number[][]}} ShotConfig
  * @typedef {{kind: string, url: string, terrain?: string | null, screenshot?: ShotConfig | null}} Config
  */
 
@@ -110,9 +110,20 @@ async function screenshot(config) {
     times.push(out.ms);
   }
   if (!out || !out.rgba) throw new Error("renderFrame returned no pixels");
+  // --pick X,Y: the top decal under each pixel, from the frame's own query.
+  const names = layerKinds(pkg.metadata).map((l) => l.name);
+  const picks = [];
+  for (const xy of s.picks ?? []) {
+    const p = (await renderer.renderFrame({
+      camera: s.camera, width: s.width, height: s.height, albedo: s.albedo, present: false,
+      readback: false, pick: xy,
+    })).pick;
+    picks.push({ x: xy[0], y: xy[1], ...(p ? { ...p, layerName: names[p.layer] ?? "" } : { kind: "none" }) });
+  }
   await post("/__shot/stats", JSON.stringify({
     adapter: renderer.adapterName,
     browser: /(?:HeadlessChrome|Chrome|Firefox|Safari)\/[\d.]+/.exec(navigator.userAgent)?.[0] ?? navigator.userAgent, times, gpuBytes: renderer.gpuBytes,
+    picks,
   }));
   // Each POST is W*H*4 bytes of RGBA8, row 0 at the top.
   await post("/__shot/frame", new Blob([out.rgba]));
@@ -153,10 +164,23 @@ async function interactive(config) {
     requestAnimationFrame(() => void draw());
   };
   attachControls(canvas, cam, redraw);
+  // A click (a press and release without a drag) names the decal under it.
+  const names = layerKinds(pkg.metadata).map((l) => l.name);
+  let press = { x: 0, y: 0 };
+  canvas.addEventListener("pointerdown", (e) => { press = { x: e.clientX, y: e.clientY }; });
+  canvas.addEventListener("pointerup", (e) => {
+    if (e.button !== 0 || Math.hypot(e.clientX - press.x, e.clientY - press.y) > 3) return;
+    const r = canvas.getBoundingClientRect();
+    const x = Math.floor(((e.clientX - r.left) * canvas.width) / r.width);
+    const y = Math.floor(((e.clientY - r.top) * canvas.height) / r.height);
+    void renderer.renderFrame({ camera: cam.camera(), width: canvas.width, height: canvas.height,
+      present: false, readback: false, pick: [x, y] })
+      .then((out) => showPick(describePick(out.pick, names)));
+  });
   // Dynamic lines are not drawn by this renderer yet: the list says so.
-  const names = layerKinds(pkg.metadata).map(({ name, kind }) =>
+  const listed = layerKinds(pkg.metadata).map(({ name, kind }) =>
     kind === "dynamic" ? `${name} (dynamic: not drawn yet)` : name);
-  showLayers(names, (i, visible) => {
+  showLayers(listed, (i, visible) => {
     renderer.setLayerVisible(i, visible);
     redraw();
   });

@@ -180,8 +180,7 @@ void dynamic_line_props(const SceneFeatures& scene, const std::vector<SceneLine>
               (l.closed ? decal::kStyleClosedBit : 0u);
     p.value = static_cast<float>(l.color_value);
     p.layer = l.layer;
-    p.feature =
-        l.fid >= 0 && l.fid <= int64_t(0xfffffffe) ? static_cast<uint32_t>(l.fid) : 0xffffffffu;
+    p.feature = stored_feature_id(l.fid);
     p.clip_node = 0;  // dynamic lines are never clipped
   }
 }

@@ -110,6 +110,18 @@ export function triangleGradients(t) {
 /** Integer floor division. @param {number} a @param {number} b */
 const floorDiv = (a, b) => Math.floor(a / b);
 
+/**
+ * @typedef {{camera: Camera, width: number, height: number, albedo?: number[],
+ *            decals?: boolean, present?: boolean, readback?: boolean,
+ *            pick?: number[] | null}} FrameArgs
+ * A picked decal: its kind, its layer (index into the metadata layer
+ * table), its source feature id (LineProps/PolyProps `feature`) and its
+ * index in line_props or poly_props.
+ * @typedef {{kind: "line" | "polygon", layer: number, feature: number, index: number}} Pick
+ * @typedef {{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number,
+ *            pick: Pick | null}} FrameResult
+ */
+
 export class Renderer {
   /** @param {any} device @param {string} name @param {HTMLCanvasElement | null} canvas @param {any} gpu */
   constructor(device, name, canvas, gpu) {
@@ -380,6 +392,8 @@ export class Renderer {
       decals: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
       readRgba: this.buffer(4 * n, BU.MAP_READ | BU.COPY_DST),
       readDecals: this.buffer(4 * n, BU.MAP_READ | BU.COPY_DST),
+      pick: this.buffer(16, BU.STORAGE | BU.COPY_SRC | BU.COPY_DST),  // wgsl_decals.js PICK
+      readPick: this.buffer(16, BU.MAP_READ | BU.COPY_DST),
     };
     return this.targets;
   }
@@ -389,7 +403,7 @@ export class Renderer {
     if (!t) return;
     for (const x of [t.color, t.depth]) x.destroy();
     this.gpuBytes -= t.W * t.H * 8;
-    for (const b of [t.dec, t.rgba, t.decals, t.readRgba, t.readDecals]) this.free(b);
+    for (const b of [t.dec, t.rgba, t.decals, t.readRgba, t.readDecals, t.pick, t.readPick]) this.free(b);
     this.targets = null;
   }
 
@@ -398,9 +412,11 @@ export class Renderer {
    * present: also show it on the canvas, by the path the first such frame
    * picks (presentPath); rgba is read back for the 2D path even when
    * readback is false (and then not returned).
-   * @param {{camera: Camera, width: number, height: number, albedo?: number[],
-   *          decals?: boolean, present?: boolean, readback?: boolean}} args
-   * @returns {Promise<{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number}>}
+   * pick: a pixel [x, y] (x right, y down from the top-left) whose top
+   * decal the frame's own query reports (Pick; null where the pixel shows
+   * no decal).
+   * @param {FrameArgs} args
+   * @returns {Promise<FrameResult>}
    */
   async renderFrame(args) {
     const show = Boolean(args.present && this.canvas);
@@ -418,12 +434,11 @@ export class Renderer {
   }
 
   /**
-   * @param {{camera: Camera, width: number, height: number, albedo?: number[],
-   *          decals?: boolean, present?: boolean, readback?: boolean}} args
+   * @param {FrameArgs} args
    * @param {boolean} show  show the frame on the canvas by the present path
-   * @returns {Promise<{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number}>}
+   * @returns {Promise<FrameResult>}
    */
-  async drawFrame({ camera, width, height, albedo, decals, readback }, show) {
+  async drawFrame({ camera, width, height, albedo, decals, readback, pick }, show) {
     const scene = this.scene;
     if (!scene) throw new Error("renderFrame: no scene (call setScene first)");
     const t0 = performance.now();
@@ -470,9 +485,15 @@ export class Renderer {
     // Minimum widths: limit, reach, metres per pixel (static_common.glsl pixel_metres).
     ff.set([scene.minWidthLimit, scene.minWidthReach, persp ? 0 : camera.orthoH / H,
             persp ? (2 * th) / H : 0], 88);
+    const px = pick ? Math.floor(pick[0]) : -1, py = pick ? Math.floor(pick[1]) : -1;
+    const picking = px >= 0 && py >= 0 && px < W && py < H;
+    // A frame drawn only for its pick runs the query on the pick's 8x8 block alone.
+    const pickOnly = picking && readback === false && !decals && !show;
+    if (picking) fu.set([px, py, 1, pickOnly ? 1 : 0], 92);
     d.queue.writeBuffer(this.frameUniform, 0, fb);
     d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, 0, 0));
 
+    if (picking) d.queue.writeBuffer(T.pick, 0, new Uint32Array(4));
     const mesh = this.meshFor(ax, ay);
     const enc = d.createCommandEncoder();
     const rp = enc.beginRenderPass({
@@ -491,26 +512,30 @@ export class Renderer {
     const gx = Math.ceil(W / 8), gy = Math.ceil(H / 8);
     /**
      * One compute pass of `pipeline` over the frame, its resources bound in order.
-     * @param {any} pipeline @param {any[]} resources
+     * @param {any} pipeline @param {any[]} resources @param {number} [nx] @param {number} [ny]
      */
-    const dispatch = (pipeline, resources) => {
+    const dispatch = (pipeline, resources, nx = gx, ny = gy) => {
       const cp = enc.beginComputePass();
       cp.setPipeline(pipeline);
       cp.setBindGroup(0, d.createBindGroup({ layout: pipeline.getBindGroupLayout(0),
         entries: resources.map((resource, binding) => ({ binding, resource })) }));
-      cp.dispatchWorkgroups(gx, gy);
+      cp.dispatchWorkgroups(nx, ny);
       cp.end();
     };
     /** @param {any} buffer */
     const buf = (buffer) => ({ buffer });
     dispatch(this.decalPipeline, [buf(this.frameUniform), buf(this.blobBuffer), buf(this.visBuffer),
-      T.depth.createView(), buf(T.dec), buf(this.heights), buf(this.gradients)]);
-    dispatch(this.compositePipeline, [buf(this.sizeUniform), T.color.createView(), buf(T.dec),
-      buf(T.rgba), buf(T.decals)]);
+      T.depth.createView(), buf(T.dec), buf(this.heights), buf(this.gradients), buf(T.pick)],
+      pickOnly ? 1 : gx, pickOnly ? 1 : gy);
+    if (!pickOnly) {
+      dispatch(this.compositePipeline, [buf(this.sizeUniform), T.color.createView(), buf(T.dec),
+        buf(T.rgba), buf(T.decals)]);
+    }
     const wantRgba = readback !== false;
     const put2d = show && this.presentPath === "2d";
     if (wantRgba || put2d) enc.copyBufferToBuffer(T.rgba, 0, T.readRgba, 0, 4 * W * H);
     if (decals) enc.copyBufferToBuffer(T.decals, 0, T.readDecals, 0, 4 * W * H);
+    if (picking) enc.copyBufferToBuffer(T.pick, 0, T.readPick, 0, 16);
     if (show && this.presentPath === "webgpu") this.encodePresent(enc, T, W, H);
     d.queue.submit([enc.finish()]);
     await d.queue.onSubmittedWorkDone();
@@ -525,7 +550,13 @@ export class Renderer {
     const rgba = wantRgba || put2d ? await read(T.readRgba) : null;
     if (put2d && rgba) this.put2d(rgba, W, H);
     if (this.lost) throw new Error(`renderFrame: the WebGPU device was lost (${this.lostMessage})`);
-    return { rgba: wantRgba ? rgba : null, decals: decals ? await read(T.readDecals) : null, ms };
+    /** @type {Pick | null} */
+    let top = null;
+    if (picking) {
+      const [kind, layer, feature, index] = new Uint32Array((await read(T.readPick)).buffer);
+      if (kind !== 0) top = { kind: kind === 1 ? "line" : "polygon", layer, feature, index };
+    }
+    return { rgba: wantRgba ? rgba : null, decals: decals ? await read(T.readDecals) : null, ms, pick: top };
   }
 
   /** The 2D present path. @param {Uint8Array} rgba @param {number} W @param {number} H */

@@ -24,7 +24,7 @@ export const SLOTS = [
   "unlit_layers", "min_widths",
 ];
 
-export const FRAME_BYTES = 368;
+export const FRAME_BYTES = 384;
 
 export const DECALS_WGSL = /* wgsl */ `
 struct Frame {
@@ -46,6 +46,9 @@ struct Frame {
   // (prep::render::min_width_reach), metres per pixel orthographic (0:
   // perspective), metres per pixel per metre of distance (perspective).
   mw: vec4f,
+  // Picking: the pixel (x, y) whose top decal goes to PICK[0]; 1 to ask; 1
+  // when the frame is drawn for the pick alone (one workgroup, no colours).
+  pk: vec4<u32>,
 }
 @group(0) @binding(0) var<uniform> F: Frame;
 @group(0) @binding(1) var<storage, read> B: array<u32>;
@@ -56,6 +59,9 @@ struct Frame {
 @group(0) @binding(5) var<storage, read> TZ: array<f32>;       // terrain heights, i + nx j
 // Per terrain triangle (cell i + (nx - 1) j, lower then upper): (dh/dx, dh/dy).
 @group(0) @binding(6) var<storage, read> TG: array<vec2f>;
+// The pick pixel's top decal: (kind: 0 none, 1 static line, 2 polygon;
+// layer; the source feature id, LineProps/PolyProps.feature; its index).
+@group(0) @binding(7) var<storage, read_write> PICK: array<vec4<u32>>;
 
 const Q: f32 = 0.001;
 const QT_BOX = 0u; const QT_NODE = 1u; const QT_LLR = 2u; const QT_LOOPS = 3u; const QT_VERT = 4u;
@@ -68,6 +74,12 @@ const LBVH = 17u; const DT = 18u; const DV = 19u; const SL = 20u; const UL = 21u
 var<private> UNLIT: vec3f;
 var<private> KS: f32 = 1.0;
 var<private> MARGIN: f32 = 0.0;
+// The first decal the query composites (the top one), for picking.
+var<private> TOP: vec4<u32>;
+// The decal under() composites next (kind, feature, index; TOP's fields).
+var<private> CAND: u32;
+var<private> CAND_FEATURE: u32;
+var<private> CAND_INDEX: u32;
 
 fn wo(k: u32) -> u32 { return F.off[k >> 2u][k & 3u]; }
 fn w(k: u32, i: u32) -> u32 { return B[wo(k) + i]; }
@@ -426,6 +438,7 @@ fn layer_unlit(layer: u32) -> bool {
 
 fn under(acc: ptr<function, vec4f>, rgba: u32, layer: u32) -> bool {
   let c = unpack4x8unorm(rgba);
+  if (TOP.x == 0u && c.a > 0.0) { TOP = vec4<u32>(CAND, layer, CAND_FEATURE, CAND_INDEX); }
   let wt = (1.0 - (*acc).a) * c.a;
   *acc = vec4f((*acc).rgb + wt * c.rgb, (*acc).a + wt);
   if (layer_unlit(layer)) { UNLIT += wt * c.rgb; }
@@ -466,6 +479,7 @@ fn query(p: vec2f) -> vec4f {
         var hit = segment_test(seg.x, seg.y, p, line);
         if (hit == HIT_COVERED && !dash_covers(seg.x, seg.y, p, w(LP, 8u * line + 5u))) { hit = HIT_NONE; }
         if (hit != HIT_NONE) { last = line; }
+        CAND = 1u; CAND_FEATURE = w(LP, 8u * line + 6u); CAND_INDEX = line;
         if (hit == HIT_COVERED && under(&acc, w(LP, 8u * line + 1u), w(LP, 8u * line + 5u))) { break; }
       }
       kl = walk_next(&lw, p, base);
@@ -473,6 +487,7 @@ fn query(p: vec2f) -> vec4f {
     } else {
       let poly = w(CPE, 2u * u32(kp));
       if (visible(w(PPROPS, 8u * poly + 4u)) && polygon_covers(u32(kp), p)) {
+        CAND = 2u; CAND_FEATURE = w(PPROPS, 8u * poly + 5u); CAND_INDEX = poly;
         if (under(&acc, w(PPROPS, 8u * poly), w(PPROPS, 8u * poly + 4u))) { break; }
       }
       kp = walk_next(&pw, p, base);
@@ -513,7 +528,10 @@ fn ground_point(ndc: vec2f, near: vec2f) -> vec2f {
 }
 
 @compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(@builtin(global_invocation_id) g0: vec3<u32>) {
+  // A pick-only frame (pk.w = 1) dispatches one workgroup: the pick pixel's.
+  var gid = g0;
+  if (F.pk.w != 0u) { gid = vec3<u32>(g0.xy + (F.pk.xy & vec2<u32>(~7u)), 0u); }
   let W = F.e.x;
   let H = F.e.y;
   if (gid.x >= W || gid.y >= H) { return; }
@@ -541,6 +559,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
   }
   UNLIT = vec3f(0.0);
   let c = query(p);
+  if (F.pk.z != 0u && gid.x == F.pk.x && gid.y == F.pk.y) { PICK[0] = TOP; }
   OUT[2u * k] = c;
   OUT[2u * k + 1u] = vec4f(UNLIT, c.a);
 }

@@ -265,4 +265,12 @@ inline uint32_t resolve_color(const LayerColor& color, double value) {
   return color.attribute.empty() ? color.rgba : ramp_rgba(color.ramp, value, color.rgba);
 }
 
+// The `feature` field of LineProps and PolyProps (formats/SPEC.md): the
+// source feature id when it fits in [0, 0xfffffffe], else 0xffffffff (no
+// id, or one a u32 cannot hold: never a truncated id that names another
+// feature).
+inline uint32_t stored_feature_id(int64_t fid) {
+  return fid >= 0 && fid <= int64_t{0xfffffffe} ? static_cast<uint32_t>(fid) : 0xffffffffu;
+}
+
 }  // namespace prep
