@@ -13,12 +13,14 @@ waits, so the test plays the page), and one real frame in Chromium.
   - outputs: the package itself, or a FIFO, as --screenshot or --decals is
     refused (exit 7) and left as it was;
   - a real Chromium draws a top-down frame of the Monaco sample: the PNG has
-    the asked size and is not blank. Skipped (77) only when Chromium is
+    the asked size and is not blank; --frames 3 --stats prints the warm
+    frames' median and each pass's time (GPU timestamps or wall times). Skipped (77) only when Chromium is
     missing or cannot start.
 
 Usage: screenshot_test.py DECALPREP REPO_ROOT WORK_DIR
 """
 import os
+import re
 import shutil
 import stat
 import subprocess
@@ -197,7 +199,8 @@ def main():
     real = os.path.join(work, "real.png")
     env = {k: v for k, v in os.environ.items() if k != "DECALPREP_CHROMIUM"}
     r = subprocess.run([decalprep, "view", pkg, "--screenshot", real, "--extent", "-480,-270,480,270",
-                        "--size", "96x54", "--timeout", "300"], capture_output=True, text=True, env=env)
+                        "--size", "96x54", "--timeout", "300", "--frames", "3", "--stats"],
+                       capture_output=True, text=True, env=env)
     if r.returncode == 12 or (r.returncode == 8 and "before the page sent" in r.stderr):
         print("SKIP the real frame: Chromium is missing or cannot start:", r.stderr.strip()[-1500:])
         return 1 if failures else SKIP
@@ -205,6 +208,18 @@ def main():
     if r.returncode == 0:
         w, h, _ = read_png(real)
         check((w, h) == (96, 54) and not blank(real), f"real.png: {w}x{h}, not blank")
+        # --stats: the frame times and each pass's time (timestamps or wall).
+        frame = re.search(r"^frame: ([\d.]+) ms median of 2 warm frames", r.stdout, re.M)
+        passes = re.search(r"^passes \((GPU timestamps|wall time of each pass alone), median of the "
+                           r"warm frames\): terrain ([\d.]+) ms, decals ([\d.]+) ms, composite ([\d.]+) ms$",
+                           r.stdout, re.M)
+        check(frame is not None and passes is not None,
+              f"--frames 3 --stats prints the frame and pass times: {r.stdout.strip()!r}")
+        if frame and passes:
+            ms = [float(passes.group(k)) for k in (2, 3, 4)]
+            check(all(t > 0 for t in ms) and sum(ms) <= float(frame.group(1)) * 1.5 + 1,
+                  f"pass times {ms} ({passes.group(1)}) are positive and within the frame's "
+                  f"{frame.group(1)} ms")
     print(f"{len(failures)} failed")
     return 1 if failures else 0
 

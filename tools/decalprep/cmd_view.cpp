@@ -60,7 +60,7 @@ nlohmann::json vec3(const prep::render::Vec3& v) {
 // The config's "screenshot" object (web/viewer reads it): the camera as
 // prep::render::Camera holds it, metres relative to the package origin.
 nlohmann::json shot_config(const R::RenderView& v, bool decals,
-                           const std::vector<std::array<uint32_t, 2>>& picks) {
+                           const std::vector<std::array<uint32_t, 2>>& picks, bool pass_times) {
   const R::Camera& c = v.options.camera;
   nlohmann::json cam = {
       {"projection", c.projection == R::Projection::orthographic ? "orthographic" : "perspective"},
@@ -100,7 +100,8 @@ nlohmann::json shot_config(const R::RenderView& v, bool decals,
           {"ramps", ramps},
           {"only", only},
           {"frames", v.options.frames},
-          {"picks", picks}};
+          {"picks", picks},
+          {"passTimes", pass_times}};
 }
 
 // --pick: the page's answers, one line each in the order asked (untrusted
@@ -136,6 +137,35 @@ void print_picks(const std::string& text, size_t asked) {
   }
 }
 
+// --stats: each pass's median over the warm frames, as the page timed them
+// ("timestamp": GPU timestamp queries; "wall": each pass submitted and
+// awaited alone). Frames whose record is malformed are left out.
+void print_pass_times(const nlohmann::json& j) {
+  if (!j.contains("passes") || !j["passes"].is_array() || j["passes"].empty()) return;
+  const nlohmann::json& all = j["passes"];
+  std::string timing;
+  std::string line;
+  for (const char* pass : {"terrain", "decals", "composite"}) {
+    std::vector<double> ms;
+    for (size_t i = all.size() > 1 ? 1 : 0; i < all.size(); ++i) {
+      const nlohmann::json& f = all[i];
+      if (!f.is_object() || !f.contains(pass) || !f[pass].is_number()) continue;
+      ms.push_back(f[pass].get<double>());
+      if (timing.empty() && f.contains("timing") && f["timing"].is_string())
+        timing = f["timing"].get<std::string>();
+    }
+    if (ms.empty()) return;
+    const auto mid = ms.begin() + static_cast<std::ptrdiff_t>(ms.size() / 2);
+    std::nth_element(ms.begin(), mid, ms.end());
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%s%s %.3f ms", line.empty() ? "" : ", ", pass, *mid);
+    line += buf;
+  }
+  std::printf("passes (%s, median of the warm frames): %s\n",
+              timing == "timestamp" ? "GPU timestamps" : "wall time of each pass alone",
+              line.c_str());
+}
+
 // --stats: what the page measured (its JSON is the page's, so untrusted:
 // a field that is missing or of the wrong type is left out).
 void print_stats(const std::string& text, uint32_t width, uint32_t height) {
@@ -167,6 +197,7 @@ void print_stats(const std::string& text, uint32_t width, uint32_t height) {
       "frame: %.3f ms median of %zu warm frame%s, first %.3f ms (renderFrame: encode, submit "
       "and the queue done, read-back not included); all: %s\n",
       *mid, warm.size(), warm.size() == 1 ? "" : "s", ms.front(), all.c_str());
+  print_pass_times(j);
   if (j.contains("gpuBytes") && j["gpuBytes"].is_number())
     std::printf("gpu memory: %.0f bytes of buffers and textures\n", j["gpuBytes"].get<double>());
 }
@@ -198,7 +229,7 @@ void run_screenshot(ViewArgs& a) {
   s.decals = !r.decals_png.empty();
   std::vector<std::array<uint32_t, 2>> picks;
   for (const std::string& p : a.picks) picks.push_back(parse_pick(p, s.width, s.height));
-  s.config_json = shot_config(v, s.decals, picks).dump();
+  s.config_json = shot_config(v, s.decals, picks, a.stats).dump();
   s.chromium = *chromium;
   s.timeout_s = a.timeout;
   s.verbose = a.verbose;

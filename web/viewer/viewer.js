@@ -16,7 +16,7 @@ import { describePick, layerKinds, showLayers, showOverlay, showPick, showStatus
  * @typedef {{polygons: boolean, lines: boolean, dynamic: boolean}} Kinds
  * @typedef {{width: number, height: number, camera: Camera, albedo: number[], decals: boolean,
  *            ramps: import("../src/render/scene.js").LayerRamp[], only?: Kinds,
- *            frames?: number, picks?: number[][]}} ShotConfig
+ *            frames?: number, picks?: number[][], passTimes?: boolean}} ShotConfig
  * @typedef {{kind: string, url: string, terrain?: string | null, screenshot?: ShotConfig | null}} Config
  */
 
@@ -99,15 +99,16 @@ async function screenshot(config) {
   // --frames N: N frames drawn, the last one sent; their times go to
   // /__shot/stats (view --stats prints them).
   const frames = Math.max(1, Math.min(1000, Math.floor(s.frames ?? 1)));
-  const times = [];
+  const times = [], passes = [];
   let out = null;
   for (let i = 0; i < frames; ++i) {
     const last = i === frames - 1;
     out = await renderer.renderFrame({
       camera: s.camera, width: s.width, height: s.height, albedo: s.albedo, decals: s.decals && last,
-      present: false, readback: last,
+      present: false, readback: last, passTimes: Boolean(s.passTimes),
     });
     times.push(out.ms);
+    if (out.passes) passes.push(out.passes);
   }
   if (!out || !out.rgba) throw new Error("renderFrame returned no pixels");
   // --pick X,Y: the top decal under each pixel, from the frame's own query.
@@ -123,7 +124,7 @@ async function screenshot(config) {
   await post("/__shot/stats", JSON.stringify({
     adapter: renderer.adapterName,
     browser: /(?:HeadlessChrome|Chrome|Firefox|Safari)\/[\d.]+/.exec(navigator.userAgent)?.[0] ?? navigator.userAgent, times, gpuBytes: renderer.gpuBytes,
-    picks,
+    picks, passes,
   }));
   // Each POST is W*H*4 bytes of RGBA8, row 0 at the top.
   await post("/__shot/frame", new Blob([out.rgba]));

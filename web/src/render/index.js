@@ -23,7 +23,7 @@ export { topdownCamera };
  *             z: Float64Array, zmin: number, zmax: number}} Terrain */
 
 // GPUBufferUsage / GPUTextureUsage / GPUMapMode bits (WebGPU spec).
-const BU = { MAP_READ: 1, COPY_SRC: 4, COPY_DST: 8, INDEX: 16, VERTEX: 32, UNIFORM: 64, STORAGE: 128 };
+const BU = { MAP_READ: 1, COPY_SRC: 4, COPY_DST: 8, INDEX: 16, VERTEX: 32, UNIFORM: 64, STORAGE: 128, QUERY_RESOLVE: 512 };
 const TU = { COPY_SRC: 1, TEXTURE_BINDING: 4, RENDER_ATTACHMENT: 16 };
 const MAP_READ = 1;
 const Q = 0.001;
@@ -73,7 +73,10 @@ async function openDevice(gpu, tries = 1) {
   }
   if (!adapter) throw new Error("WebGPU is not available: navigator.gpu.requestAdapter() returned no adapter");
   const lim = adapter.limits;
+  // Per-pass GPU times (renderFrame's passTimes) where the adapter has them.
+  const features = adapter.features?.has("timestamp-query") ? ["timestamp-query"] : [];
   const device = await adapter.requestDevice({
+    requiredFeatures: features,
     requiredLimits: {
       maxStorageBuffersPerShaderStage: Math.min(10, lim.maxStorageBuffersPerShaderStage),
       maxStorageBufferBindingSize: lim.maxStorageBufferBindingSize,
@@ -113,13 +116,17 @@ const floorDiv = (a, b) => Math.floor(a / b);
 /**
  * @typedef {{camera: Camera, width: number, height: number, albedo?: number[],
  *            decals?: boolean, present?: boolean, readback?: boolean,
- *            pick?: number[] | null}} FrameArgs
+ *            pick?: number[] | null, passTimes?: boolean}} FrameArgs
  * A picked decal: its kind, its layer (index into the metadata layer
  * table), its source feature id (LineProps/PolyProps `feature`) and its
  * index in line_props or poly_props.
  * @typedef {{kind: "line" | "polygon", layer: number, feature: number, index: number}} Pick
+ * Each pass's time in ms: GPU timestamps ("timestamp"), or the wall time of
+ * the pass submitted and awaited alone ("wall", which adds the submission's
+ * own cost and serialises the frame).
+ * @typedef {{timing: "timestamp" | "wall", terrain: number, decals: number, composite: number}} PassTimes
  * @typedef {{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number,
- *            pick: Pick | null}} FrameResult
+ *            pick: Pick | null, passes: PassTimes | null}} FrameResult
  */
 
 export class Renderer {
@@ -139,6 +146,7 @@ export class Renderer {
     /** @type {Uint32Array} */ this.visBits = new Uint32Array(1);
     /** @type {any} */ this.mesh = null;
     /** @type {any} */ this.targets = null;
+    /** @type {any} */ this.stamps = null;
     /**
      * How present: true shows frames: null until the first such frame,
      * "webgpu" (the canvas's WebGPU context), "2d" (read back and put into
@@ -190,6 +198,17 @@ export class Renderer {
     this.terrainUniform = d.createBuffer({ size: TERRAIN_UNIFORM_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
     this.sizeUniform = d.createBuffer({ size: 16, usage: BU.UNIFORM | BU.COPY_DST });
     /** @type {any} */ this.presentPipeline = null;
+  }
+
+  /** The timestamp query set of passTimes (three passes), made once per device. */
+  timestampSet() {
+    if (!this.stamps || this.stamps.device !== this.device) {
+      const d = this.device;
+      this.stamps = { device: d, set: d.createQuerySet({ type: "timestamp", count: 6 }),
+        resolve: d.createBuffer({ size: 48, usage: BU.QUERY_RESOLVE | BU.COPY_SRC }),
+        read: d.createBuffer({ size: 48, usage: BU.MAP_READ | BU.COPY_DST }) };
+    }
+    return this.stamps;
   }
 
   /** @param {number} size @param {number} usage */
@@ -438,7 +457,7 @@ export class Renderer {
    * @param {boolean} show  show the frame on the canvas by the present path
    * @returns {Promise<FrameResult>}
    */
-  async drawFrame({ camera, width, height, albedo, decals, readback, pick }, show) {
+  async drawFrame({ camera, width, height, albedo, decals, readback, pick, passTimes }, show) {
     const scene = this.scene;
     if (!scene) throw new Error("renderFrame: no scene (call setScene first)");
     const t0 = performance.now();
@@ -495,8 +514,28 @@ export class Renderer {
 
     if (picking) d.queue.writeBuffer(T.pick, 0, new Uint32Array(4));
     const mesh = this.meshFor(ax, ay);
-    const enc = d.createCommandEncoder();
+    let enc = d.createCommandEncoder();
+    // passTimes: each pass's time, from timestamp queries where the device
+    // has them, else the wall time of the pass submitted alone.
+    const stamps = passTimes && this.device.features.has("timestamp-query") ? this.timestampSet() : null;
+    const wallPasses = Boolean(passTimes) && !stamps;
+    /** @type {number[]} */
+    const wall = [];
+    let mark = performance.now();
+    const passDone = async () => {
+      if (!wallPasses) return;
+      d.queue.submit([enc.finish()]);
+      await d.queue.onSubmittedWorkDone();
+      const now = performance.now();
+      wall.push(now - mark);
+      mark = now;
+      enc = d.createCommandEncoder();
+    };
+    /** @param {number} k */
+    const stampWrites = (k) => (stamps ? { timestampWrites: {
+      querySet: stamps.set, beginningOfPassWriteIndex: 2 * k, endOfPassWriteIndex: 2 * k + 1 } } : {});
     const rp = enc.beginRenderPass({
+      ...stampWrites(0),
       colorAttachments: [
         { view: T.color.createView(), clearValue: { r: 0.8, g: 0.86, b: 0.93, a: 1 }, loadOp: "clear", storeOp: "store" },
       ],
@@ -509,13 +548,14 @@ export class Renderer {
     rp.setIndexBuffer(mesh.ibo, "uint32");
     rp.drawIndexed(mesh.count);
     rp.end();
+    await passDone();
     const gx = Math.ceil(W / 8), gy = Math.ceil(H / 8);
     /**
      * One compute pass of `pipeline` over the frame, its resources bound in order.
-     * @param {any} pipeline @param {any[]} resources @param {number} [nx] @param {number} [ny]
+     * @param {number} k @param {any} pipeline @param {any[]} resources @param {number} [nx] @param {number} [ny]
      */
-    const dispatch = (pipeline, resources, nx = gx, ny = gy) => {
-      const cp = enc.beginComputePass();
+    const dispatch = (k, pipeline, resources, nx = gx, ny = gy) => {
+      const cp = enc.beginComputePass(stampWrites(k));
       cp.setPipeline(pipeline);
       cp.setBindGroup(0, d.createBindGroup({ layout: pipeline.getBindGroupLayout(0),
         entries: resources.map((resource, binding) => ({ binding, resource })) }));
@@ -524,12 +564,18 @@ export class Renderer {
     };
     /** @param {any} buffer */
     const buf = (buffer) => ({ buffer });
-    dispatch(this.decalPipeline, [buf(this.frameUniform), buf(this.blobBuffer), buf(this.visBuffer),
+    dispatch(1, this.decalPipeline, [buf(this.frameUniform), buf(this.blobBuffer), buf(this.visBuffer),
       T.depth.createView(), buf(T.dec), buf(this.heights), buf(this.gradients), buf(T.pick)],
       pickOnly ? 1 : gx, pickOnly ? 1 : gy);
+    await passDone();
     if (!pickOnly) {
-      dispatch(this.compositePipeline, [buf(this.sizeUniform), T.color.createView(), buf(T.dec),
+      dispatch(2, this.compositePipeline, [buf(this.sizeUniform), T.color.createView(), buf(T.dec),
         buf(T.rgba), buf(T.decals)]);
+      await passDone();
+    }
+    if (stamps) {
+      enc.resolveQuerySet(stamps.set, 0, 6, stamps.resolve, 0);
+      enc.copyBufferToBuffer(stamps.resolve, 0, stamps.read, 0, 48);
     }
     const wantRgba = readback !== false;
     const put2d = show && this.presentPath === "2d";
@@ -556,7 +602,17 @@ export class Renderer {
       const [kind, layer, feature, index] = new Uint32Array((await read(T.readPick)).buffer);
       if (kind !== 0) top = { kind: kind === 1 ? "line" : "polygon", layer, feature, index };
     }
-    return { rgba: wantRgba ? rgba : null, decals: decals ? await read(T.readDecals) : null, ms, pick: top };
+    /** @type {PassTimes | null} */
+    let passes = null;
+    if (stamps) {
+      const ns = new BigInt64Array((await read(stamps.read)).buffer);
+      const span = (/** @type {number} */ k) => Number(ns[2 * k + 1] - ns[2 * k]) / 1e6;
+      passes = { timing: "timestamp", terrain: span(0), decals: span(1), composite: pickOnly ? 0 : span(2) };
+    } else if (wallPasses) {
+      passes = { timing: "wall", terrain: wall[0], decals: wall[1], composite: wall[2] ?? 0 };
+    }
+    return { rgba: wantRgba ? rgba : null, decals: decals ? await read(T.readDecals) : null, ms, pick: top,
+      passes };
   }
 
   /** The 2D present path. @param {Uint8Array} rgba @param {number} W @param {number} H */
