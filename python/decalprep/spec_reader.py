@@ -266,12 +266,16 @@ class Package:
 # ------------------------------------------------------------------ reading --
 
 def read_package(data, name="package"):
-    """Validates `data` (the bytes of a file) in SPEC "Validation" order and
-    returns a Package with every blob decoded. Raises FormatError."""
+    """Validates `data` (the bytes of a file, or any buffer such as a
+    read-only mmap) in SPEC "Validation" order and returns a Package with
+    every blob decoded. `name` starts every message. Raises FormatError."""
 
     def fail(msg):
         raise FormatError("%s: %s" % (name, msg))
 
+    # A blob stored with codec none stays a view of `data` (no copy) unless
+    # `data` is bytes, whose slices are bytes as callers of read_file expect.
+    as_bytes = isinstance(data, bytes)
     data = memoryview(data).cast("B")
     size = len(data)
     # 1. magic, full header.
@@ -432,6 +436,8 @@ def read_package(data, name="package"):
     # 9. blob checksums, then decoding.
     for b in p.blobs:
         stored = data[b.offset:b.offset + b.stored_size]
+        if as_bytes:
+            stored = bytes(stored)
         got = xxh64(stored)
         if got != b.checksum:
             fail("blob %d '%s': checksum (table offset %d) mismatch: stored %016x, computed %016x"
