@@ -104,6 +104,17 @@ class Tileset:
         self.index = ix
         self._check(ix)
 
+    def close(self):
+        """Nothing to release (the index is read whole; each tile's Package
+        is closed by its user); here so that a Tileset and a Package are
+        used alike, also as context managers."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
     def __repr__(self):
         return "decalprep.Tileset(%r, v%d.%d, %d tiles, %d levels)" % (
             self.path, self.version[0], self.version[1], len(self.tiles), len(self.levels))

@@ -39,10 +39,8 @@ import mmap
 import os
 import random
 import shutil
-import struct
 import subprocess
 import sys
-import tempfile
 import time
 
 failures = []
@@ -192,15 +190,17 @@ def refused(decalprep, path, label, tool=None):
     except Exception as e:  # noqa: BLE001 - anything else is a failure
         check(False, "%s: raised %s (%s), not FormatError" % (label, type(e).__name__, e))
         return None
-    p.close()
     check(False, "%s: opened without complaint" % label)
+    getattr(p, "close", lambda: None)()
     return None
 
 
 def flipped_copies(decalprep, tool, path, tmp, rng, n):
     """n copies of `path` with one bit flipped each (SPEC "File structure":
-    every byte of a valid file is covered by a check), one truncated by a
-    byte, one grown by a zero byte."""
+    every byte of a valid file is covered by a check), one more per
+    non-empty blob with a bit flipped in the middle of its stored bytes (the
+    message must name the blob), one truncated by a byte, one grown by a
+    zero byte."""
     with open(path, "rb") as f:
         data = f.read()
     base = os.path.basename(path)
@@ -212,13 +212,23 @@ def flipped_copies(decalprep, tool, path, tmp, rng, n):
         b = bytearray(data)
         b[off] ^= 1 << rng.randrange(8)
         cases.append(("%s bit flip at %d" % (base, off), bytes(b)))
+    r = run([tool, "info", "--json", path])
+    if check(r.returncode == 0, "%s: info failed: %s" % (base, r.stderr.decode())):
+        for ib in json.loads(r.stdout)["blobs"]:
+            if ib["stored_size"]:
+                off = ib["offset"] + ib["stored_size"] // 2
+                b = bytearray(data)
+                b[off] ^= 1 << rng.randrange(8)
+                cases.append(("%s bit flip in blob %s at %d" % (base, ib["name"], off), bytes(b), ib["name"]))
     cases.append(("%s truncated by one byte" % base, data[:-1]))
     cases.append(("%s with a byte appended" % base, data + b"\0"))
-    for label, blob in cases:
+    for label, blob, *named in cases:
         out = os.path.join(tmp, "flip.decals")
         with open(out, "wb") as f:
             f.write(blob)
-        refused(decalprep, out, label, tool)
+        msg = refused(decalprep, out, label, tool)
+        if named and msg is not None:
+            check("'%s'" % named[0] in msg, "%s: the message does not name the blob: %s" % (label, msg))
         stats["flips"] += 1
 
 
