@@ -82,7 +82,7 @@ def driver(tool, root, work):
     py = os.path.join(venv, "bin", "python")
     # Debian's pip from the system site packages, run by the venv's python,
     # installs into the venv.
-    r = run([py, "-m", "pip", "install", "--no-index", "--no-build-isolation", "--no-deps", "--quiet", src])
+    r = run([py, "-m", "pip", "install", "--no-index", "--no-build-isolation", "--quiet", src])
     if not check(r.returncode == 0, "pip install ./python failed: %s" % (r.stdout + r.stderr).decode()[-3000:]):
         return 1
     print("venv and pip install ./python: %.1f s" % (time.time() - t), flush=True)
