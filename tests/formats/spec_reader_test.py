@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""SpecReader: the independent Python reader (spec_reader.py, written from
-formats/SPEC.md alone) against the real tool.
+"""SpecReader: the independent Python reader (python/decalprep/spec_reader.py,
+written from formats/SPEC.md alone) against the real tool.
 
     spec_reader_test.py DECALPREP SOURCE_ROOT
 
@@ -43,8 +43,9 @@ import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-import spec_reader as sr  # noqa: E402
+# The reader is the package python/decalprep, imported from the source tree.
+sys.path.insert(0, os.path.join(HERE, "..", "..", "python"))
+from decalprep import spec_reader as sr  # noqa: E402
 
 failures = []
 

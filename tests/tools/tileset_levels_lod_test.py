@@ -14,7 +14,7 @@ The scene, in EPSG:32632 and built with --crs EPSG:32632 --tile-size 500
 - `plain`: a few dynamic lines without `lod`.
 
 Every package of every level (level 0 and the overview levels) is read with
-the independent reader tests/formats/spec_reader.py, never with decalprep's
+the independent reader python/decalprep/spec_reader.py, never with decalprep's
 own code, and checked against oracles computed here from the SPEC:
 - LOD presence: one `lod_line_range` entry per `walks` dynamic line, none
   for `plain`; every range non-empty, all its points belonging to one
@@ -58,7 +58,7 @@ own code, and checked against oracles computed here from the SPEC:
   lines too.
 
 Usage: tileset_levels_lod_test.py DECALPREP WORK_DIR
-Exit 0 pass, 1 fail, 77 skip (spec_reader's python3-xxhash or
+Exit 0 pass, 1 fail, 77 skip (the reader's python3-numpy, python3-xxhash or
 python3-zstandard missing).
 """
 import bisect
@@ -72,13 +72,14 @@ import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "..", "formats"))
+# The independent reader, python/decalprep, from the source tree.
+sys.path.insert(0, os.path.join(HERE, "..", "..", "python"))
 sys.path.insert(0, HERE)
 from tileset_util import write_scene  # noqa: E402
 try:
-    import spec_reader as sr  # noqa: E402
+    from decalprep import spec_reader as sr  # noqa: E402
 except ImportError as e:
-    print("SKIP: spec_reader needs python3-xxhash and python3-zstandard (%s)" % e)
+    print("SKIP: python/decalprep needs python3-numpy, python3-xxhash and python3-zstandard (%s)" % e)
     sys.exit(77)
 
 TILE = 500

@@ -1,22 +1,22 @@
-#!/usr/bin/env python3
-"""An independent reader of `.decals` packages, written from formats/SPEC.md
-alone (no code of the project's own reader was consulted or ported), as a
-second oracle for the C++ reader and `decalprep verify` / `dump`.
+"""The validating reader of `.decals` packages, written from formats/SPEC.md
+alone (no code of the project's own C++ reader was consulted or ported), so
+that it is a second oracle for that reader and for `decalprep verify` /
+`dump` (tests/formats/spec_reader_test.py holds the two to each other).
 
 It checks everything in SPEC.md "Validation" in the order given there
 (magic, version, header size and checksum, file size, flags and reserved
 fields, blob table, metadata, every entry, every blob's checksum and codec),
-decodes the element types and records of SPEC.md "Records", and optionally
-applies SPEC.md "Index constraints" (`check_indices`).
+decodes the element types and records of SPEC.md "Records" into numpy
+arrays, and applies SPEC.md "Index constraints" (`check_indices`) and the
+metadata checks of `verify` (`check_metadata`).
+
+`read_package` reads any buffer: bytes, or an mmap (decalprep.package), in
+which case the blobs stored with codec `none` stay views of the mapping and
+are never copied.
 
 Dependencies are Debian 12 packages only (scripts/deps): python3-xxhash for
-XXH64 (xxHash 0.8, seed 0) and python3-zstandard for Zstandard frames.
-
-    python3 spec_reader.py PACKAGE [--verify] [--blob NAME]
-
-prints the package as JSON: header, blob table entries, metadata and the
-decoded elements (non-finite floats as null). Exit 0 when the package is
-valid, 1 with a message on stderr when it is not, 2 on a usage error.
+XXH64 (xxHash 0.8, seed 0), python3-zstandard for Zstandard frames and
+python3-numpy for the element arrays.
 """
 
 import json
@@ -27,12 +27,13 @@ import sys
 from array import array
 
 try:
+    import numpy as np
     import xxhash
     import zstandard
-except ImportError as e:  # pragma: no cover - reported by the test driver
+except ImportError as e:  # pragma: no cover - reported by the callers
     sys.stderr.write(
-        "spec_reader: %s; install the Debian packages python3-xxhash and python3-zstandard "
-        "(scripts/deps) and run with the system python3\n" % e)
+        "decalprep: %s; install the Debian packages python3-numpy, python3-xxhash and "
+        "python3-zstandard (scripts/deps) and run with the system python3\n" % e)
     raise
 
 # ----------------------------------------------------------------- constants --
@@ -47,6 +48,7 @@ READER_MINOR = 3
 HEADER_SIZE_V1 = 96
 ENTRY_SIZE_V1 = 96
 ALIGN = 256
+METADATA_MAX = 16 * 1024 * 1024  # SPEC "Metadata": 16 MiB
 FLAG_ALL_UNCOMPRESSED = 1 << 16  # SPEC "Flags": the only defined flag
 KNOWN_FLAGS = FLAG_ALL_UNCOMPRESSED
 CODEC_NONE, CODEC_ZSTD = 0, 1
@@ -146,9 +148,9 @@ ENTRY_FIELDS = [
 NAME_RE = re.compile(rb"[a-z0-9_]{1,31}")
 
 
-class FormatError(Exception):
-    """The file is not a valid package; the message names the field, its
-    byte offset or blob, and the bad value (SPEC "Validation")."""
+class FormatError(ValueError):
+    """The file is not a valid package (or tileset); the message names the
+    field, its byte offset or blob, and the bad value (SPEC "Validation")."""
 
 
 def xxh64(data):
@@ -163,17 +165,61 @@ def u(data, off, fmt):
     return struct.unpack_from("<" + fmt, data, off)[0]
 
 
+def element_dtype(element_type, record=None, stride=None):
+    """The numpy dtype of one element (SPEC "Element types", "Records"),
+    little-endian explicitly, and the element shape: () for one-component
+    types and records, (n,) for vectors. A record this reader does not know
+    is `stride` opaque bytes."""
+    if element_type == RECORD:
+        if record is None:
+            return np.dtype((np.void, stride)), ()
+        fields = [(name, "<" + {"f": "f4", "I": "u4", "i": "i4"}[t], (c,) if c > 1 else ())
+                  for name, t, c in RECORDS[record]]
+        return np.dtype(fields), ()
+    fmt = ELEMENT_TYPES[element_type][1]
+    n = int(fmt[0]) if fmt[0].isdigit() else 1
+    base = {"B": "u1", "I": "<u4", "i": "<i4", "f": "<f4"}[fmt[-1]]
+    return np.dtype(base), ((n,) if n > 1 else ())
+
+
 class Blob:
-    """One blob: its table entry fields, name, and decoded bytes."""
+    """One blob: its table entry fields (`id`, `element_type`, `stride`,
+    `codec`, `count`, `offset`, `stored_size`, `raw_size`, `checksum`), its
+    `name`, and its decoded bytes `data`: a view of the file's buffer for
+    codec `none`, fresh bytes for `zstd`."""
 
     def __init__(self, index, entry):
         self.index = index
         self.__dict__.update(entry)
         self.data = b""  # decoded (raw) bytes, set by read_package
 
+    def __repr__(self):
+        return "Blob(%r, id=%d, type=%s, count=%d, codec=%s)" % (
+            self.name, self.id, self.type_name, self.count, self.codec_name)
+
     @property
     def type_name(self):
         return ELEMENT_TYPES[self.element_type][0]
+
+    type = type_name
+
+    @property
+    def codec_name(self):
+        return CODECS[self.codec]
+
+    @property
+    def dtype(self):
+        """numpy dtype of one element; vectors have shape (count, n)."""
+        return element_dtype(self.element_type, self.record, self.stride)[0]
+
+    def array(self):
+        """The elements as a read-only numpy array over `data` (no copy):
+        shape (count,) for scalars and records (a structured dtype), (count,
+        n) for vectors."""
+        dt, shape = element_dtype(self.element_type, self.record, self.stride)
+        n = shape[0] if shape else 1
+        a = np.frombuffer(self.data, dtype=dt, count=self.count * n)
+        return a.reshape((self.count,) + shape) if shape else a
 
     @property
     def known(self):
@@ -220,18 +266,23 @@ class Package:
 # ------------------------------------------------------------------ reading --
 
 def read_package(data, name="package"):
-    """Validates `data` (the bytes of a file) in SPEC "Validation" order and
-    returns a Package with every blob decoded. Raises FormatError."""
+    """Validates `data` (the bytes of a file, or any buffer such as a
+    read-only mmap) in SPEC "Validation" order and returns a Package with
+    every blob decoded. `name` starts every message. Raises FormatError."""
 
     def fail(msg):
         raise FormatError("%s: %s" % (name, msg))
 
+    # A blob stored with codec none stays a view of `data` (no copy) unless
+    # `data` is bytes, whose slices are bytes as callers of read_file expect.
+    as_bytes = isinstance(data, bytes)
+    data = memoryview(data).cast("B")
     size = len(data)
     # 1. magic, full header.
     if size == 0:
         fail("empty file")
     if size < len(MAGIC) or data[:8] != MAGIC:
-        fail("bad magic number at offset 0: %s" % data[:8].hex())
+        fail("bad magic number at offset 0: %s" % bytes(data[:8]).hex())
     if size < HEADER_SIZE_V1:
         fail("file of %d bytes is shorter than the %d-byte header" % (size, HEADER_SIZE_V1))
     p = Package()
@@ -254,7 +305,7 @@ def read_package(data, name="package"):
     if got != h["header_checksum"]:
         fail("header_checksum (offset %d) mismatch: stored %016x, computed %016x"
              % (hs - 8, h["header_checksum"], got))
-    p.header_extra = data[88:hs - 8]
+    p.header_extra = bytes(data[88:hs - 8])
     # 4. file_size.
     if h["file_size"] != size:
         fail("file_size (offset 32) is %d but the file has %d bytes" % (h["file_size"], size))
@@ -296,7 +347,9 @@ def read_package(data, name="package"):
         fail("metadata_size (offset 64) is %d, must be >= 2" % ms)
     if mo + ms > size:
         fail("metadata [%d, %d) lies past the end of the file (%d)" % (mo, mo + ms, size))
-    meta = data[mo:mo + ms]
+    if ms > METADATA_MAX:
+        fail("metadata_size (offset 64) is %d, more than the limit of %d bytes (16 MiB)" % (ms, METADATA_MAX))
+    meta = bytes(data[mo:mo + ms])
     got = xxh64(meta)
     if got != h["metadata_checksum"]:
         fail("metadata_checksum (offset 72) mismatch: stored %016x, computed %016x"
@@ -313,7 +366,7 @@ def read_package(data, name="package"):
         e0 = hs + i * es
         ent = {field: u(data, e0 + off, fmt) for off, fmt, field in ENTRY_FIELDS}
         where = "blob table entry %d (offset %d, id %d)" % (i, e0, ent["id"])
-        raw_name = data[e0 + 56:e0 + 88]
+        raw_name = bytes(data[e0 + 56:e0 + 88])
         nul = raw_name.find(b"\0")
         text = raw_name if nul < 0 else raw_name[:nul]
         if nul < 0 or not NAME_RE.fullmatch(text) or any(raw_name[nul:]):
@@ -383,6 +436,8 @@ def read_package(data, name="package"):
     # 9. blob checksums, then decoding.
     for b in p.blobs:
         stored = data[b.offset:b.offset + b.stored_size]
+        if as_bytes:
+            stored = bytes(stored)
         got = xxh64(stored)
         if got != b.checksum:
             fail("blob %d '%s': checksum (table offset %d) mismatch: stored %016x, computed %016x"
@@ -420,6 +475,8 @@ def _unzstd(stored, b, fail):
 
 
 def read_file(path):
+    """Reads and validates the file at `path` (a copy in memory; see
+    decalprep.open for a memory-mapped read). Raises FormatError."""
     with open(path, "rb") as f:
         return read_package(f.read(), path)
 
@@ -432,31 +489,16 @@ def elements(b):
     parsed JSON array for manifest_entries, a hex string per element of a
     record this reader does not know."""
     if b.id == ID_BY_NAME["manifest_entries"]:
-        return json.loads(b.data.decode("utf-8"))
+        return json.loads(bytes(b.data).decode("utf-8"))
+    a = b.array()
     if b.element_type != RECORD:
-        fmt = ELEMENT_TYPES[b.element_type][1]
-        n = int(fmt[0]) if fmt[0].isdigit() else 1
-        flat = array({"B": "B", "I": "I", "i": "i", "f": "f"}[fmt[-1]])
-        assert flat.itemsize == (1 if fmt[-1] == "B" else 4)
-        flat.frombytes(b.data)
-        if sys.byteorder != "little":
-            flat.byteswap()
-        flat = flat.tolist()
-        return flat if n == 1 else [flat[k:k + n] for k in range(0, len(flat), n)]
-    rec = b.record
-    if rec is None:
-        return [b.data[k:k + b.stride].hex() for k in range(0, len(b.data), b.stride)]
-    fields = RECORDS[rec]
-    fmt = "<" + "".join("%d%s" % (c, t) for _, t, c in fields)
-    assert struct.calcsize(fmt) == b.stride, rec
-    out = []
-    for vals in struct.iter_unpack(fmt, b.data):
-        d, k = {}, 0
-        for name, _, c in fields:
-            d[name] = vals[k] if c == 1 else list(vals[k:k + c])
-            k += c
-        out.append(d)
-    return out
+        return a.tolist()
+    if b.record is None:
+        return [bytes(e).hex() for e in a]
+    # Column by column: tolist() of a structured array gives tuples holding
+    # numpy sub-arrays, of a column plain Python numbers and lists.
+    cols = [(name, a[name].tolist()) for name, _, _ in RECORDS[b.record]]
+    return [{name: col[i] for name, col in cols} for i in range(len(a))]
 
 
 # ------------------------------------------------------- index constraints --
@@ -704,37 +746,3 @@ def to_json(p, only=None):
     header["magic"] = MAGIC.hex()
     return {"header": header, "version": {"major": p.major, "minor": p.minor},
             "metadata": p.metadata, "blobs": blobs}
-
-
-def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
-    verify = "--verify" in argv
-    argv = [a for a in argv if a != "--verify"]
-    only = None
-    if "--blob" in argv:
-        k = argv.index("--blob")
-        if k + 1 >= len(argv):
-            sys.stderr.write("spec_reader: --blob needs a name\n")
-            return 2
-        only = argv[k + 1]
-        del argv[k:k + 2]
-    if len(argv) != 1:
-        sys.stderr.write("usage: spec_reader.py PACKAGE [--verify] [--blob NAME]\n")
-        return 2
-    try:
-        p = read_file(argv[0])
-    except (FormatError, OSError) as e:
-        sys.stderr.write("spec_reader: %s\n" % e)
-        return 1
-    if verify:
-        errs = check_indices(p) + check_metadata(p)
-        if errs:
-            sys.stderr.write("spec_reader: %s: %s\n" % (argv[0], "; ".join(errs)))
-            return 1
-    json.dump(to_json(p, only), sys.stdout, separators=(",", ":"), allow_nan=False)
-    sys.stdout.write("\n")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
