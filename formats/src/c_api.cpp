@@ -139,14 +139,14 @@ decal_status refusal_code(std::span<const unsigned char> head) {
   if (load_le<uint16_t>(head.data() + offsetof(H, version_major)) != decal::kVersionMajor)
     return DECAL_ERROR_UNSUPPORTED_VERSION;
   if (head.size() < sizeof(H)) return DECAL_ERROR_FORMAT;
-  const uint32_t flags = load_le<uint32_t>(head.data() + offsetof(H, flags));
+  const auto flags = load_le<uint32_t>(head.data() + offsetof(H, flags));
   if ((flags & decal::kRequiredFlagsMask & ~decal::kKnownRequiredFlags) == 0)
     return DECAL_ERROR_FORMAT;
   // Only a header whose checksum holds says what it requires (v1 headers
   // are sizeof(H) bytes; a longer one cannot be checked from `head`).
   if (load_le<uint32_t>(head.data() + offsetof(H, header_size)) != sizeof(H))
     return DECAL_ERROR_FORMAT;
-  const uint64_t stored = load_le<uint64_t>(head.data() + offsetof(H, header_checksum));
+  const auto stored = load_le<uint64_t>(head.data() + offsetof(H, header_checksum));
   return XXH64(head.data(), offsetof(H, header_checksum), 0) == stored
              ? DECAL_ERROR_UNSUPPORTED_VERSION
              : DECAL_ERROR_FORMAT;
@@ -381,7 +381,8 @@ DECAL_API decal_status decal_blob_read(const decal_package* package, uint32_t in
     return failf(error, DECAL_ERROR_BUFFER_TOO_SMALL,
                  "blob #%u '%s' needs %zu bytes; the buffer holds %zu", index, b->name.c_str(),
                  bytes.size(), capacity);
-  if (!bytes.empty()) std::memcpy(buffer, bytes.data(), bytes.size());
+  // buffer is not NULL here unless capacity, and so the blob, is empty.
+  if (buffer && !bytes.empty()) std::memcpy(buffer, bytes.data(), bytes.size());
   return succeed(error);
 }
 

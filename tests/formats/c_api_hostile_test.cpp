@@ -170,7 +170,7 @@ decal_status open_path(const fs::path& path, decal_package** p, decal_error* e) 
 // a file in `scratch`. Returns the memory status.
 decal_status expect_refused(const Bytes& b, bool also_path, const fs::path& scratch,
                             const std::string& label) {
-  decal_package* p = reinterpret_cast<decal_package*>(1);
+  auto* p = reinterpret_cast<decal_package*>(1);
   decal_error e{};
   const decal_status s = open_memory(b, &p, &e);
   if (!refused(s, p, e, "memory", label)) decal_close(p);
@@ -249,7 +249,7 @@ void check_mutations(const fs::path& path, const Bytes& bytes, const fs::path& s
 }
 
 void check_arguments(const fs::path& valid, const fs::path& scratch) {
-  decal_package* p = reinterpret_cast<decal_package*>(1);
+  auto* p = reinterpret_cast<decal_package*>(1);
   decal_error e{};
   EXPECT(decal_open_file(nullptr, nullptr, &p, &e) == DECAL_ERROR_INVALID_ARGUMENT && !p,
          "NULL path");

@@ -46,6 +46,8 @@
 #ifndef DECAL_DECAL_H
 #define DECAL_DECAL_H
 
+/* A C header, so C's typedefs and headers: clang-tidy's C++ modernize checks
+ * do not apply. NOLINTBEGIN(modernize-use-using,modernize-deprecated-headers) */
 #include <stddef.h>
 #include <stdint.h>
 
@@ -272,5 +274,7 @@ DECAL_API decal_status decal_blob_data(const decal_package* package, uint32_t in
 #ifdef __cplusplus
 } /* extern "C" */
 #endif
+
+/* NOLINTEND(modernize-use-using,modernize-deprecated-headers) */
 
 #endif /* DECAL_DECAL_H */
