@@ -185,6 +185,22 @@ decal_status expect_refused(const Bytes& b, bool also_path, const fs::path& scra
   return s;
 }
 
+// decal_open_memory copies: the caller's bytes may be overwritten and freed
+// at once (ASan would report a read of freed memory).
+void check_memory_is_copied(const fs::path& path, const Bytes& bytes, const decal::Package& ref) {
+  const std::string label = path.filename().string() + " (caller's bytes freed)";
+  auto* copy = new std::byte[bytes.size()];
+  std::memcpy(copy, bytes.data(), bytes.size());
+  decal_package* p = nullptr;
+  const decal_open_options o = options();
+  const decal_status s = decal_open_memory(copy, bytes.size(), &o, &p, nullptr);
+  std::memset(copy, 0xFF, bytes.size());
+  delete[] copy;
+  EXPECT(s == DECAL_OK, "%s: %s", label.c_str(), decal_status_name(s));
+  if (s == DECAL_OK) expect_forwarded(p, ref, label);
+  decal_close(p);
+}
+
 void check_valid_seed(const fs::path& path, const Bytes& bytes) {
   const std::string label = path.filename().string();
   decal::Package ref;
@@ -203,6 +219,7 @@ void check_valid_seed(const fs::path& path, const Bytes& bytes) {
       decal_close(p);
     }
   }
+  check_memory_is_copied(path, bytes, ref);
 }
 
 void check_broken_seed(const fs::path& path, const fs::path& scratch) {
@@ -309,6 +326,11 @@ void check_arguments(const fs::path& valid, const fs::path& scratch) {
   EXPECT(std::strcmp(decal_status_name(DECAL_ERROR_FORMAT), "DECAL_ERROR_FORMAT") == 0 &&
              std::strcmp(decal_status_name(-1), "unknown") == 0,
          "status names");
+  char version[32];
+  std::snprintf(version, sizeof version, "%d.%d.%d", DECAL_C_API_VERSION_MAJOR,
+                DECAL_C_API_VERSION_MINOR, DECAL_C_API_VERSION_PATCH);
+  EXPECT(std::strcmp(decal_version_string(), version) == 0, "version string '%s', header %s",
+         decal_version_string(), version);
   uint32_t major = 0, minor = 0;
   decal_format_version(&major, &minor);
   EXPECT(decal_version() == DECAL_C_API_VERSION && major == DECAL_FORMAT_VERSION_MAJOR &&
