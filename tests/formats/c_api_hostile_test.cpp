@@ -4,7 +4,9 @@
 // label fuzz-smoke) and plainly in the others.
 //
 //   valid seeds       open (path and memory) and decode, and what the C API
-//                     hands out equals the C++ reader's blobs (forwarding);
+//                     hands out equals the C++ reader's blobs (forwarding),
+//                     also once the caller's bytes given to
+//                     decal_open_memory are overwritten and freed;
 //   broken_* seeds    are refused with a status and a message (the major
 //                     version and the unknown required flag as
 //                     DECAL_ERROR_UNSUPPORTED_VERSION);
