@@ -254,12 +254,16 @@ DECAL_API decal_status decal_find_blob_id(const decal_package* package, uint32_t
 
 /* Copies blob `index`, decoded, into the caller's `buffer` of `capacity`
  * bytes: raw_size bytes, little-endian elements of its stride (std430, as
- * a GPU storage buffer takes them). *needed, when not NULL, always gets
- * raw_size (also on DECAL_ERROR_BUFFER_TOO_SMALL, so a first call with
- * capacity 0 asks for the size). buffer may be NULL when capacity is 0.
- * Returns DECAL_ERROR_BUFFER_TOO_SMALL, writing nothing into buffer, when
- * capacity < raw_size; DECAL_ERROR_INVALID_ARGUMENT on a NULL package, an
- * index out of range, or a NULL buffer with capacity > 0. */
+ * a GPU storage buffer takes them). Once package and index are valid,
+ * *needed (when needed is not NULL) gets raw_size, whatever else happens:
+ * also on DECAL_ERROR_BUFFER_TOO_SMALL, so a first call with capacity 0
+ * asks for the size. buffer may be NULL when capacity is 0.
+ * Returns DECAL_OK for an empty blob (raw_size 0) whatever the capacity;
+ * DECAL_ERROR_BUFFER_TOO_SMALL, writing nothing into buffer, when
+ * capacity < raw_size; DECAL_ERROR_INVALID_ARGUMENT (*needed not written)
+ * on a NULL package or an index out of range, and (*needed written) on a
+ * NULL buffer with capacity > 0. On success buffer's first raw_size bytes
+ * are the blob and the rest is left alone. */
 DECAL_API decal_status decal_blob_read(const decal_package* package, uint32_t index, void* buffer,
                                        size_t capacity, size_t* needed, decal_error* error);
 
