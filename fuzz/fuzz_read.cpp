@@ -7,8 +7,6 @@
 // Random mutations almost never survive the checksums, so every input is
 // also tried "resealed": with all checksums recomputed over the mutated
 // bytes. That lets the fuzzer reach the structural checks and the decoder.
-#include <xxhash.h>
-
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -16,41 +14,13 @@
 
 #include "decal/inspect.hpp"
 #include "decal/reader.hpp"
-#include "package_fields.hpp"  // tests/formats: get / put
+#include "reseal.hpp"  // tests/formats
 
 namespace {
 
 volatile unsigned g_sink = 0;
 
-using decal_test::get;
-using decal_test::put;
-
-// Recomputes every checksum whose region lies inside the file.
-void reseal(std::vector<std::byte>& f) {
-  using H = decal::FileHeader;
-  using E = decal::BlobTableEntry;
-  const uint64_t n = f.size();
-  if (n < sizeof(H)) return;
-  const uint64_t entry_size = get<uint32_t>(f, offsetof(H, blob_entry_size));
-  const uint64_t count = get<uint32_t>(f, offsetof(H, blob_count));
-  const uint64_t table = get<uint64_t>(f, offsetof(H, table_offset));
-  if (entry_size >= sizeof(E) && table <= n && count * entry_size <= n - table) {
-    for (uint64_t i = 0; i < count; ++i) {
-      const uint64_t at = table + i * entry_size;
-      const uint64_t off = get<uint64_t>(f, at + offsetof(E, offset));
-      const uint64_t stored = get<uint64_t>(f, at + offsetof(E, stored_size));
-      if (off <= n && stored <= n - off)
-        put<uint64_t>(f, at + offsetof(E, checksum), XXH64(f.data() + off, stored, 0));
-    }
-    put<uint64_t>(f, offsetof(H, table_checksum), XXH64(f.data() + table, count * entry_size, 0));
-  }
-  const uint64_t moff = get<uint64_t>(f, offsetof(H, metadata_offset));
-  const uint64_t msize = get<uint64_t>(f, offsetof(H, metadata_size));
-  if (moff <= n && msize <= n - moff)
-    put<uint64_t>(f, offsetof(H, metadata_checksum), XXH64(f.data() + moff, msize, 0));
-  const uint64_t hsize = get<uint32_t>(f, offsetof(H, header_size));
-  if (hsize >= sizeof(H) && hsize <= n) put<uint64_t>(f, hsize - 8, XXH64(f.data(), hsize - 8, 0));
-}
+using decal_test::reseal;
 
 void exercise(std::span<const std::byte> bytes) {
   decal::PackageLayout layout;

@@ -463,6 +463,8 @@ Status load(std::span<const std::byte> file, const OpenOptions& opt, PackageImpl
     const BlobTableEntry& e = layout.entries[i];
     BlobView v;
     static_cast<BlobEntry&>(v) = blob_entry(e);
+    v.codec = static_cast<CodecId>(e.codec);
+    v.stored_bytes = e.stored_size;
     if (!any_compressed) {
       if (e.raw_size) v.bytes = {base + e.offset, static_cast<size_t>(e.raw_size)};
     } else {

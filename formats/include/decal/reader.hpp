@@ -41,6 +41,8 @@ struct BlobEntry {
 // One blob, decoded (decompressed) and checksum-verified.
 struct BlobView : BlobEntry {
   std::span<const std::byte> bytes;  // count * stride bytes, 4-byte aligned
+  CodecId codec = CodecId::none;     // how the file stores it
+  uint64_t stored_bytes = 0;         // its size in the file (= bytes.size() for codec none)
 };
 
 struct OpenOptions {

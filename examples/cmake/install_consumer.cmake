@@ -1,5 +1,5 @@
 # ctest driver: installs the decal_reader component of the build tree into a
-# fresh prefix, configures and builds tests/formats/consumer against that
+# fresh prefix, configures and builds examples/cmake against that
 # prefix alone, and runs it on checked-in seed packages (fuzz/corpus/read/),
 # valid ones must open and broken ones must be refused.
 # -D BUILD_DIR, SOURCE_DIR, WORK_DIR, CMAKE_GENERATOR_NAME required.
@@ -26,7 +26,7 @@ endforeach()
 
 # CMAKE_FIND_USE_PACKAGE_REGISTRY off and only the prefix on the path, so the
 # build tree cannot stand in for the installed package.
-run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/tests/formats/consumer -B ${WORK_DIR}/build -G ${CMAKE_GENERATOR_NAME}
+run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/cmake -B ${WORK_DIR}/build -G ${CMAKE_GENERATOR_NAME}
     -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF)
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/build)
 file(GLOB seeds ${SOURCE_DIR}/fuzz/corpus/read/*.decals)
