@@ -112,9 +112,13 @@ set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
 # Depends: what dpkg-shlibdeps finds the installed programs and shared
 # libraries linked against; never a hand-written list.
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
-# A shared library installed later gets a shlibs file and the ldconfig call.
+# A shared library installed later gets a shlibs file, and the ldconfig
+# trigger (cmake/debian/ldconfig_trigger.cmake looks for one in what was
+# installed).
 set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS ON)
 set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS_POLICY ">=")
+set(CPACK_DECALPREP_TRIGGERS_FILE ${CMAKE_CURRENT_LIST_DIR}/debian/triggers)
+set(CPACK_PRE_BUILD_SCRIPTS ${CMAKE_CURRENT_LIST_DIR}/debian/ldconfig_trigger.cmake)
 # Recommends: GL rendering (render without --cpu) loads an EGL driver through
 # libglvnd at run time, which no link shows; Mesa's is the one that draws
 # without a GPU (llvmpipe).
