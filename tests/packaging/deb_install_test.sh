@@ -37,7 +37,7 @@ command -v lintian >/dev/null || skip "lintian is not installed (scripts/deps in
 
 # --- build the .deb ---------------------------------------------------------
 step "cpack -G DEB"
-rm -rf "$WORK/packages" "$WORK/stage" "$WORK/case"
+rm -rf "$WORK/packages" "$WORK/stage" "$WORK/stage-deb" "$WORK/case"
 cpack -G DEB --config "$BUILD/CPackConfig.cmake" -B "$WORK/packages" >"$WORK/cpack.log" 2>&1 ||
   { cat "$WORK/cpack.log"; fail "cpack failed"; }
 debs=("$WORK"/packages/decalprep_*_amd64.deb)
@@ -72,6 +72,21 @@ grep -q '/libdecal_reader\.a$' "$WORK/deb-files.txt" || fail "the .deb lacks lib
 grep -q '/cmake/decal_reader/decal_readerConfig\.cmake$' "$WORK/deb-files.txt" ||
   fail "the .deb lacks decal_readerConfig.cmake"
 echo "$(wc -l <"$WORK/deb-files.txt") files"
+
+# What a consumer reads (CMake packages, pkg-config files) names no path of
+# this machine: not the build or source tree, and not the configure-time
+# install prefix when it is not the package's /usr.
+prefix="$(sed -n 's/^CMAKE_INSTALL_PREFIX:PATH=//p' "$BUILD/CMakeCache.txt")"
+dpkg-deb -x "$DEB" "$WORK/stage-deb"
+leaks=""
+while IFS= read -r -d '' f; do
+  for p in "$BUILD" "$SRC" ${prefix:+"$prefix"}; do
+    [ "$p" = /usr ] && continue
+    grep -qF "$p" "$f" && leaks+="${f#"$WORK/stage-deb"} names $p"$'\n'
+  done
+done < <(find "$WORK/stage-deb/usr/lib" "$WORK/stage-deb/usr/share" \( -name '*.cmake' -o -name '*.pc' \) -type f -print0)
+[ -z "$leaks" ] || fail "installed files name paths of this machine:
+$leaks"
 
 # Depends comes from dpkg-shlibdeps: the C library and GDAL at least.
 depends="$(dpkg-deb -f "$DEB" Depends)"
