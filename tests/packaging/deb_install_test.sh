@@ -34,6 +34,9 @@ for tool in cpack dpkg-deb python3; do
   command -v "$tool" >/dev/null || skip "$tool is not installed (scripts/deps installs it)"
 done
 command -v lintian >/dev/null || skip "lintian is not installed (scripts/deps installs it)"
+# The viewer's modules are built into the program from web/node_modules.
+[ -f "$SRC/web/node_modules/fzstd/esm/index.mjs" ] ||
+  fail "web/node_modules is missing: the packaged viewer could not load its reader (npm ci in web/, or scripts/deps)"
 
 # --- build the .deb ---------------------------------------------------------
 step "cpack -G DEB"
