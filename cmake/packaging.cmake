@@ -122,7 +122,9 @@ set(CPACK_PRE_BUILD_SCRIPTS ${CMAKE_CURRENT_LIST_DIR}/debian/ldconfig_trigger.cm
 # Recommends: GL rendering (render without --cpu) loads an EGL driver through
 # libglvnd at run time, which no link shows; Mesa's is the one that draws
 # without a GPU (llvmpipe).
-set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "libegl-mesa0, libgl1-mesa-dri")
+if(DECALPREP_GL)
+  set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "libegl-mesa0, libgl1-mesa-dri")
+endif()
 # Suggests: `view --screenshot` runs a headless Chromium; a project that
 # builds against decal_reader (find_package) needs zstd's and xxHash's
 # development files and pkg-config, as decal_readerConfig.cmake says.
