@@ -7,7 +7,9 @@
 # root (mmdebstrap, the suite and mirror this machine's apt uses) and there
 # builds the Monaco sample, verifies the package, renders it on the CPU and
 # fetches the browser viewer's page from `decalprep view`: the installed files
-# and the Depends line alone must be enough.
+# and the Depends line alone must be enough. Then, with the Recommends
+# installed (Mesa's EGL), it renders with GL. The source tree is not there:
+# the shaders and the viewer must be built into the program.
 #
 # Without a clean root (not root, no mmdebstrap, no mirror) it unpacks the
 # .deb instead and runs it on this machine, with the source and build trees
@@ -15,7 +17,7 @@
 # When neither can run it exits 77 (ctest: skipped) with the reason.
 #
 # mmdebstrap's downloads are kept in WORK_DIR/apt-archives, so a second run
-# fetches nothing.
+# fetches no package again (apt's index files it does fetch).
 # Usage: deb_install_test.sh BUILD_DIR SOURCE_DIR WORK_DIR
 set -euo pipefail
 BUILD="$(cd "$1" && pwd)"
