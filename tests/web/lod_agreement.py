@@ -2,8 +2,8 @@
 """LOD at draw time in the browser (tests/web/CMakeLists.txt,
 Web.LodSelectionIsTheCppSelection): the segments the WebGPU compute pass
 (web/src/render/lod.js, f32 around an integer anchor) keeps equal the ones
-decal::visible_segments keeps in double (tests/web/lod_oracle.cpp, the
-selection `render` and its GL pass use) on Liechtenstein's OpenStreetMap
+decal::visible_segments keeps in double (tests/web/view_oracle.cpp lod, the
+selection `render` and its GL pass use; view_oracle.cpp) on Liechtenstein's OpenStreetMap
 roads built as dynamic lines with `lod = true`, in near, middle and far
 perspective views and a far top-down view (the views of
 tests/render/test_lod_gpu.cpp), at two tolerances. Also: the view
@@ -12,7 +12,7 @@ prep::render::lod_view's. Prints the counts per view and the smallest
 relative margin |e* - eps(d - d*)| / eps of any point, the distance to a
 tie the f32 evaluation has to stay clear of.
 
-Usage: lod_agreement.py DECALPREP LOD_ORACLE REPO_ROOT WORK_DIR SHARED_DATA
+Usage: lod_agreement.py DECALPREP VIEW_ORACLE REPO_ROOT WORK_DIR SHARED_DATA
 Exit 77 (skip) without node, Chromium or the Liechtenstein extract.
 """
 import json
@@ -93,7 +93,7 @@ def main():
     pts = lod_points(pkg)
     failures = 0
     for tol in ("0.5", "2"):
-        cpp = json.loads(subprocess.run([oracle, pkg, views, str(H), tol], capture_output=True,
+        cpp = json.loads(subprocess.run([oracle, "lod", pkg, views, str(H), tol], capture_output=True,
                                         text=True, check=True).stdout)
         r = subprocess.run([node, os.path.join(ROOT, "tests", "web", "lod_harness.mjs"), "--pkg", pkg,
                             "--views", views, "--height", str(H), "--tolerance", tol],

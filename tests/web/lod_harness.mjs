@@ -6,7 +6,7 @@
 //
 //   node tests/web/lod_harness.mjs --pkg P.decals --views VIEWS.json --height H --tolerance T
 //
-// VIEWS.json as tests/web/lod_oracle.cpp reads it ({"name", "eye", "target",
+// VIEWS.json as tests/web/view_oracle.cpp reads it ({"name", "eye", "target",
 // "fov"} or {"name", "topdown": extent}), metres relative to the package
 // origin, over flat ground at height 0.
 import { readFileSync } from "node:fs";
