@@ -57,13 +57,13 @@ int lod(const char* package, const nlohmann::json& views, uint32_t height, doubl
     const std::vector<uint32_t> visible =
         decal::visible_segments(points, segments, decal::LodCamera{lv.cx, lv.cy, lv.cz},
                                 decal::LinearThreshold{lv.base, lv.slope});
-    out.push_back({{"name", v["name"]},
-                   {"view",
-                    {{"cx", lv.cx}, {"cy", lv.cy}, {"cz", lv.cz}, {"base", lv.base},
-                     {"slope", lv.slope}}},
-                   {"segments", segments.size()},
-                   {"points", points.size()},
-                   {"visible", visible}});
+    out.push_back(
+        {{"name", v["name"]},
+         {"view",
+          {{"cx", lv.cx}, {"cy", lv.cy}, {"cz", lv.cz}, {"base", lv.base}, {"slope", lv.slope}}},
+         {"segments", segments.size()},
+         {"points", points.size()},
+         {"visible", visible}});
   }
   std::printf("%s\n", out.dump().c_str());
   return 0;
