@@ -15,25 +15,19 @@
 //     held cover their part of the view.
 //
 //   node tests/web/tile_cache_test.mjs DECALPREP REPO_ROOT WORK_DIR
-import { execFileSync } from "node:child_process";
-import { mkdirSync, readFileSync, rmSync } from "node:fs";
 import { join } from "node:path";
+import { monacoTileset } from "./monaco_tileset.mjs";
 
 const [decalprep, root, work] = process.argv.slice(2);
 if (!work) {
   console.error("usage: tile_cache_test.mjs DECALPREP REPO_ROOT WORK_DIR");
   process.exit(2);
 }
-const { parseTileset, topdownCamera } = await import(join(root, "web/src/index.js"));
+const { topdownCamera } = await import(join(root, "web/src/index.js"));
 const { selectTiles } = await import(join(root, "web/src/tile_select.js"));
 const { TileCache } = await import(join(root, "web/src/tile_cache.js"));
 
-rmSync(work, { recursive: true, force: true });
-mkdirSync(work, { recursive: true });
-const dir = join(work, "monaco");
-execFileSync(decalprep, ["build", join(root, "samples/monaco/scene.toml"), "-o", dir, "--tile-size", "500",
-  "--levels", "auto", "-q"], { stdio: "inherit" });
-const ts = parseTileset(readFileSync(join(dir, "tileset.json"), "utf8"));
+const { ts } = await monacoTileset(decalprep, root, work);
 const W = 640, H = 360;
 const persp = (/** @type {number[]} */ eye, /** @type {number[]} */ target) => ({ projection: "perspective", eye, target,
   up: [0, 0, 1], fovYDeg: 45, orthoW: 0, orthoH: 0, near: 1, depthRange: 1e5, topdownExtent: null });

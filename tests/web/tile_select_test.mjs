@@ -10,24 +10,20 @@
 // the coarsest tiles' needs must be refused by both.
 //
 //   node tests/web/tile_select_test.mjs DECALPREP VIEW_ORACLE REPO_ROOT WORK_DIR
-import { execFileSync, spawnSync } from "node:child_process";
-import { mkdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
+import { spawnSync } from "node:child_process";
+import { readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
+import { monacoTileset } from "./monaco_tileset.mjs";
 
 const [decalprep, oracle, root, work] = process.argv.slice(2);
 if (!work) {
   console.error("usage: tile_select_test.mjs DECALPREP VIEW_ORACLE REPO_ROOT WORK_DIR");
   process.exit(2);
 }
-const { openPackage, parseTileset, topdownCamera } = await import(join(root, "web/src/index.js"));
+const { openPackage, topdownCamera } = await import(join(root, "web/src/index.js"));
 const { selectTiles } = await import(join(root, "web/src/tile_select.js"));
 
-rmSync(work, { recursive: true, force: true });
-mkdirSync(work, { recursive: true });
-const dir = join(work, "monaco");
-execFileSync(decalprep, ["build", join(root, "samples/monaco/scene.toml"), "-o", dir, "--tile-size", "500",
-  "--levels", "auto", "-q"], { stdio: "inherit" });
-const ts = parseTileset(readFileSync(join(dir, "tileset.json"), "utf8"));
+const { dir, ts } = await monacoTileset(decalprep, root, work);
 const W = 640, H = 360;
 const VIEWS = [
   { name: "whole, top-down", topdown: [-3085, -2295, 3493, 1405] },
