@@ -83,19 +83,9 @@ async function screenshot(config) {
   canvas.height = s.height;
   const renderer = await openRenderer(canvas);
   await renderer.setScene({ pkg, terrain, ramps: s.ramps });
-  // --only: the kinds left out are hidden layers. Dynamic lines the view
-  // asks for are not drawn by this renderer yet: say which.
+  // --only: the kinds left out are hidden layers.
   const only = s.only ?? { polygons: true, lines: true, dynamic: true };
-  const undrawn = [];
-  for (const [i, { name, kind }] of layerKinds(pkg.metadata).entries()) {
-    renderer.setLayerVisible(i, only[kind]);
-    if (kind === "dynamic" && only.dynamic) undrawn.push(name || `layer ${i}`);
-  }
-  if (undrawn.length > 0) {
-    await post("/__shot/note", `the browser renderer does not draw dynamic lines yet: layer${
-      undrawn.length > 1 ? "s" : ""} ${undrawn.join(", ")} left out (render --only polygons,lines ` +
-      "draws the same decals)");
-  }
+  for (const [i, { kind }] of layerKinds(pkg.metadata).entries()) renderer.setLayerVisible(i, only[kind]);
   // --frames N: N frames drawn, the last one sent; their times go to
   // /__shot/stats (view --stats prints them).
   const frames = Math.max(1, Math.min(1000, Math.floor(s.frames ?? 1)));
@@ -178,9 +168,7 @@ async function interactive(config) {
       present: false, readback: false, pick: [x, y] })
       .then((out) => showPick(describePick(out.pick, names)));
   });
-  // Dynamic lines are not drawn by this renderer yet: the list says so.
-  const listed = layerKinds(pkg.metadata).map(({ name, kind }) =>
-    kind === "dynamic" ? `${name} (dynamic: not drawn yet)` : name);
+  const listed = layerKinds(pkg.metadata).map(({ name, kind }) => (kind === "dynamic" ? `${name} (dynamic)` : name));
   showLayers(listed, (i, visible) => {
     renderer.setLayerVisible(i, visible);
     redraw();
