@@ -230,7 +230,7 @@ export class Renderer {
 
   /**
    * The dynamic-line pipelines (wgsl_dynamic.js), made on the first frame
-   * with dynamic lines: the update's five entry points share one explicit
+   * with dynamic lines: the update's eight entry points share one explicit
    * layout (one bind group for all). Throws the device's message when one
    * fails to compile or validate.
    */
@@ -242,10 +242,11 @@ export class Renderer {
       ({ binding, visibility: 4 /* COMPUTE */, buffer: { type } });
     const layout = d.createBindGroupLayout({ entries: [
       storage(0, "uniform"), storage(1, "read-only-storage"),
-      ...[2, 3, 4, 5, 6, 7].map((b) => storage(b, "storage"))] });
+      ...[2, 3, 4, 5, 6, 7, 8].map((b) => storage(b, "storage"))] });
     const um = d.createShaderModule({ code: DYN_UPDATE_WGSL });
     const pl = d.createPipelineLayout({ bindGroupLayouts: [layout] });
-    const update = Object.fromEntries(["cull", "scan_local", "scan_blocks", "scatter", "segments"].map((entryPoint) =>
+    const update = Object.fromEntries(["cull", "scan_local", "scan_blocks", "scatter", "segments", "dash_local",
+      "dash_blocks", "dash_apply"].map((entryPoint) =>
       [entryPoint, d.createComputePipeline({ layout: pl, compute: { module: um, entryPoint } })]));
     const lm = d.createShaderModule({ code: DYN_LISTS_WGSL });
     const lists = d.createRenderPipeline({
@@ -328,6 +329,8 @@ export class Renderer {
       this.dynWork = {
         flags: this.buffer(4 * n, rw), scan: this.buffer(4 * n, rw), blocks: this.buffer(4 * blocks, rw),
         compact: this.buffer(4 * n, rw), segments: this.buffer(16 * n, rw),
+        // dyn_dash's distances and carries (wgsl_dynamic.js DASH) where a line is dashed
+        dash: this.buffer(dyn.dashed ? 4 * (4 * n + 3 * blocks) : 16, rw),
         counters: this.buffer(4 * DYN_COUNTER_WORDS, rw | BU.COPY_DST | BU.COPY_SRC),
         indirect: this.buffer(16, BU.INDIRECT | BU.COPY_DST),
         readCounters: this.buffer(4 * DYN_COUNTER_WORDS, BU.MAP_READ | BU.COPY_DST),
@@ -341,7 +344,8 @@ export class Renderer {
     this.free(this.dynBuffer);
     this.dynBuffer = null;
     const w = this.dynWork;
-    if (w) for (const b of [w.flags, w.scan, w.blocks, w.compact, w.segments, w.counters, w.indirect, w.readCounters]) this.free(b);
+    if (w) for (const b of [w.flags, w.scan, w.blocks, w.compact, w.segments, w.dash, w.counters, w.indirect,
+                            w.readCounters]) this.free(b);
     this.dynWork = null;
     const t = this.dynTargets;
     if (t) for (const b of [t.ground, t.heads, t.nodes, t.layer]) this.free(b);
@@ -623,7 +627,7 @@ export class Renderer {
       df.set([W, H, persp ? camera.near : 0, Math.cos((ds.miterLimitDeg * Math.PI) / 180)], 20);
       df.set([...eyeRel, persp ? 0 : camera.orthoH / H], 24);
       df.set([persp ? (2 * th) / H : 0, terrain.zmin, terrain.zmax, 0], 28);
-      dw.set([ds.offsets[0], ds.offsets[1], ds.offsets[2], ds.offsets[3], ds.offsets[4], ds.minWidthCount], 32);
+      dw.set([...ds.offsets.subarray(0, 5), ds.minWidthCount, ds.offsets[5], ds.dashed ? 1 : 0], 32);
       d.queue.writeBuffer(this.dynUniform, 0, du);
     }
 
@@ -749,7 +753,7 @@ export class Renderer {
 
   /**
    * The dynamic-line passes of a frame (gl_dynamic.cpp dynamic_pass):
-   * update (cull, compaction, segments), lists (segment boxes into per-pixel
+   * update (cull, compaction, segments; dashes' screen distances), lists (segment boxes into per-pixel
    * linked lists: drawn again with a larger node buffer, at most three
    * times, when the nodes asked for pass its capacity; past the fourth
    * try the nodes beyond it are left out), composite into dyn.layer. The
@@ -770,10 +774,12 @@ export class Renderer {
     let enc = d.createCommandEncoder();
     const cp = enc.beginComputePass(stamps ? { timestampWrites: { querySet: stamps.set, beginningOfPassWriteIndex: 6 } } : {});
     cp.setBindGroup(0, group(P.layout, [this.dynUniform, this.dynBuffer, w.flags, w.scan, w.blocks, w.compact,
-      w.segments, w.counters]));
-    for (const entry of ["cull", "scan_local", "scan_blocks", "scatter", "segments"]) {
+      w.segments, w.counters, w.dash]));
+    const entries = ["cull", "scan_local", "scan_blocks", "scatter", "segments"];
+    if (scene.dynamic.dashed) entries.push("dash_local", "dash_blocks", "dash_apply");
+    for (const entry of entries) {
       cp.setPipeline(P.update[entry]);
-      cp.dispatchWorkgroups(entry === "scan_blocks" ? 1 : w.groups);
+      cp.dispatchWorkgroups(entry === "scan_blocks" || entry === "dash_blocks" ? 1 : w.groups);
     }
     cp.end();
     enc.copyBufferToBuffer(w.counters, 0, w.indirect, 0, 16);
@@ -789,7 +795,7 @@ export class Renderer {
       const rp = enc.beginRenderPass({ colorAttachments: [{ view: T.color.createView(), loadOp: "load", storeOp: "store" }] });
       rp.setPipeline(P.lists);
       rp.setBindGroup(0, group(P.lists.getBindGroupLayout(0), [this.dynUniform, this.dynBuffer, w.segments, dyn.ground,
-        dyn.heads, dyn.nodes, w.counters, this.visBuffer]));
+        dyn.heads, dyn.nodes, w.counters, this.visBuffer, w.dash]));
       rp.drawIndirect(w.indirect, 0);
       rp.end();
       enc.copyBufferToBuffer(w.counters, 0, w.readCounters, 0, 4 * DYN_COUNTER_WORDS);

@@ -168,10 +168,11 @@ export function vertexDistances(verts, vline, start) {
  * }} PackedScene
  * The dynamic lines (formats/SPEC.md "Dynamic lines: drawing"): their
  * blobs in one u32 array, each at its word offset (DYN_SLOTS order), the
- * vertex and line counts, the entries of the min_width_m table and the
- * package's miter limit (build_options.miter_limit_deg, default 40).
+ * vertex and line counts, the entries of the min_width_m table, the
+ * package's miter limit (build_options.miter_limit_deg, default 40) and
+ * whether a dynamic line's layer has a dash pattern.
  * @typedef {{words: Uint32Array, offsets: Uint32Array, vertices: number, lines: number,
- *            minWidthCount: number, miterLimitDeg: number}} PackedDynamic
+ *            minWidthCount: number, miterLimitDeg: number, dashed: boolean}} PackedDynamic
  */
 
 /**
@@ -195,7 +196,7 @@ export function minWidthsMetres(layers) {
 /**
  * Packs the dynamic-line blobs: dyn_vertices, dyn_prev_next,
  * dyn_line_start, dyn_line_props (restyled by `byLayer` as the static
- * lines are, SPEC "Colour") and the min_width_m table.
+ * lines are, SPEC "Colour"), the min_width_m table and the dash table.
  * @param {import("../package.js").Package} pkg @param {any[]} layers
  * @param {Map<number, Array<[number, number, number, number, number]>>} byLayer
  * @returns {Promise<PackedDynamic>}
@@ -205,7 +206,7 @@ async function packDynamic(pkg, layers, byLayer) {
   /** @type {Map<string, Uint32Array>} */
   const arrays = new Map();
   for (const name of DYN_SLOTS) {
-    if (name === "dyn_min_widths") continue;
+    if (name === "dyn_min_widths" || name === "dash_table") continue;
     const copy = (await pkg.bytes(name)).slice();
     arrays.set(name, new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2));
   }
@@ -219,6 +220,11 @@ async function packDynamic(pkg, layers, byLayer) {
   }
   const widths = minWidthsMetres(layers);
   arrays.set("dyn_min_widths", widths);
+  const dashes = dashWords(layers);
+  arrays.set("dash_table", dashes);
+  let dashed = false;
+  for (let i = 5; i < props.length && !dashed; i += 8)
+    dashed = props[i] < layers.length && dashes[2 + 3 * props[i]] !== 0;
   let total = 0;
   for (const a of arrays.values()) total += a.length;
   const words = new Uint32Array(Math.max(4, total));
@@ -233,7 +239,7 @@ async function packDynamic(pkg, layers, byLayer) {
   const vertices = (/** @type {Uint32Array} */ (arrays.get("dyn_vertices"))).length >>> 2;
   const lines = (/** @type {Uint32Array} */ (arrays.get("dyn_line_start"))).length;
   return { words, offsets, vertices, lines: props.length >>> 3 === lines ? lines : 0,
-           minWidthCount: widths.length, miterLimitDeg };
+           minWidthCount: widths.length, miterLimitDeg, dashed };
 }
 
 /**

@@ -2,14 +2,16 @@
 // drawing"; thesis §4.3, §4.4.2) in WGSL: the port of libprep/render/
 // gl_dynamic.cpp and formats/gl/shaders/dyn_common.glsl, dyn_cull.comp.glsl,
 // dyn_scan.comp.glsl, dyn_segments.comp.glsl, dyn_box.geom.glsl,
-// dyn_scale.glsl, dyn_lists.frag.glsl and dyn_composite.frag.glsl, aliased
-// (GL's --aa none), without dashes and LOD (a LOD layer's lines are drawn
-// at full detail).
+// dyn_scale.glsl, dyn_dash.comp.glsl, dyn_lists.frag.glsl, dash.glsl and
+// dyn_composite.frag.glsl, aliased (GL's --aa none), without LOD (a LOD
+// layer's lines are drawn at full detail).
 //
 //   update (compute, DYN_UPDATE_WGSL): per vertex the cull and same-pixel
 //     removal, the stream compaction of the kept vertices (an exclusive
 //     scan in three dispatches) and the segments, appended with an atomic
-//     counter that the lists pass draws indirectly;
+//     counter that the lists pass draws indirectly; with dashed lines, each
+//     kept vertex's screen distance from its line's start (a segmented
+//     scan in three more dispatches);
 //   lists (render, DYN_LISTS_WGSL): WebGPU has no geometry shader, so each
 //     segment's box is pulled by the vertex shader, 36 vertices (six quads)
 //     per instance, one instance per segment; its fragments test the pixel's
@@ -24,7 +26,8 @@
 // relative in integers first, as the static pass does.
 
 /** Blob slots of the packed dynamic-line buffer (scene.js packDynamic), in the order of DYN.off. */
-export const DYN_SLOTS = ["dyn_vertices", "dyn_prev_next", "dyn_line_start", "dyn_line_props", "dyn_min_widths"];
+export const DYN_SLOTS = ["dyn_vertices", "dyn_prev_next", "dyn_line_start", "dyn_line_props", "dyn_min_widths",
+                          "dash_table"];
 
 /** Bytes of the uniform of every dynamic pass (the struct Dyn below). */
 export const DYN_UNIFORM_BYTES = 160;
@@ -45,7 +48,9 @@ struct Dyn {
   e: vec4f,        // eye (anchor-relative); metres per pixel of an orthographic view (0: perspective)
   m: vec4f,        // metres per pixel per metre of distance (perspective); terrain zmin, zmax (m)
   off: vec4<u32>,  // word offsets: dyn_vertices, dyn_prev_next, dyn_line_start, dyn_line_props
-  o2: vec4<u32>,   // word offset of the min_width_m table (f32), its entries (0: none)
+  // word offset of the min_width_m table (f32), its entries (0: none); word
+  // offset of the dash table (scene.js dashWords); 1 when a line is dashed
+  o2: vec4<u32>,
 }
 @group(0) @binding(0) var<uniform> D: Dyn;
 @group(0) @binding(1) var<storage, read> DB: array<u32>;
@@ -73,6 +78,21 @@ fn dpos(v: u32) -> vec3f {
   return vec3f(vec2f(q.xy - D.a.xy) * QM, f32(q.z) * QM);
 }
 fn vertex_count() -> u32 { return u32(D.a.z); }
+fn dash_vertex_at(v: u32) -> u32 { return 3u * vertex_count() + v; }
+
+// Pixel position of clip coordinates.
+fn screen_of(c: vec4f) -> vec2f { return (c.xy / c.w * 0.5 + 0.5) * D.s.xy; }
+// Screen length, pixels, of the part of the segment between clip points
+// ca and cb in front of the near plane (formats/SPEC.md "Dashed lines").
+fn screen_length(ca0: vec4f, cb0: vec4f) -> f32 {
+  var ca = ca0;
+  var cb = cb0;
+  let nw = D.s.z;
+  if (ca.w < nw && cb.w < nw) { return 0.0; }
+  if (ca.w < nw) { ca = mix(ca, cb, (nw - ca.w) / (cb.w - ca.w)); }
+  else if (cb.w < nw) { cb = mix(cb, ca, (nw - cb.w) / (ca.w - cb.w)); }
+  return length(screen_of(cb) - screen_of(ca));
+}
 fn line_count() -> u32 { return u32(D.a.w); }
 
 // dyn_scale.glsl: world metres per pixel at p (thesis Eq. 4.1/4.2).
@@ -100,6 +120,13 @@ export const DYN_UPDATE_WGSL = COMMON + /* wgsl */ `
 // per visible segment: (vertex a, vertex b, kept predecessor of a, kept successor of b)
 @group(0) @binding(6) var<storage, read_write> SEGS: array<vec4<u32>>;
 @group(0) @binding(7) var<storage, read_write> C: array<atomic<u32>>;
+// Dashes (dyn_common.glsl DynDash), n vertices, B blocks: per kept
+// position k: [0, n) the screen length to the next kept vertex of its
+// line, [n, 2n) the segmented prefix in its block, [2n, 3n) 1 where a line
+// starts at or before k in its block; per vertex v: [3n, 4n) the line's
+// screen length from its start to v (kept vertices); per block: [4n, 4n +
+// 2B) (sum, line start seen), [4n + 2B, 4n + 3B) the carry into it.
+@group(0) @binding(8) var<storage, read_write> DASH: array<f32>;
 
 fn outcode(c: vec4f) -> u32 {
   var o = 0u;
@@ -216,6 +243,83 @@ fn segments(@builtin(global_invocation_id) g: vec3<u32>) {
   let slot = atomicAdd(&C[1], 1u);
   SEGS[slot] = vec4<u32>(v, b, pv, nv);
 }
+
+// dyn_dash.comp.glsl: the segmented scan of the kept segments' screen
+// lengths over the kept positions (a line's kept vertices are consecutive
+// in COMPACT), in three dispatches.
+var<workgroup> SV: array<f32, 256>;
+var<workgroup> SF: array<u32, 256>;
+fn clip_of(v: u32) -> vec4f { return D.vp * vec4f(dpos(v), 1.0); }
+
+// Per block of 256: lengths, segmented inclusive prefix, block (sum, line start seen).
+@compute @workgroup_size(256)
+fn dash_local(@builtin(global_invocation_id) g: vec3<u32>, @builtin(local_invocation_id) l: vec3<u32>,
+              @builtin(workgroup_id) wg: vec3<u32>) {
+  let n = vertex_count();
+  let k = g.x;
+  let i = l.x;
+  let kept = atomicLoad(&C[4]);
+  var len = 0.0;
+  var head = 0u;
+  if (k < kept) {
+    let v = COMPACT[k];
+    let line = u32(dvertex(v).w);
+    let first = kept_pos(dline_start(line));
+    var last = kept - 1u;
+    if (line + 1u < line_count()) { last = kept_pos(dline_start(line + 1u)) - 1u; }
+    head = select(0u, 1u, k == first);
+    if (k < last) { len = screen_length(clip_of(v), clip_of(COMPACT[k + 1u])); }
+    DASH[k] = len;
+  }
+  // (F, V) after (F', V') is (F' | F, F ? V : V' + V).
+  SV[i] = len;
+  SF[i] = head;
+  workgroupBarrier();
+  for (var off = 1u; off < 256u; off <<= 1u) {
+    var add = 0.0;
+    var f = 0u;
+    if (i >= off) {
+      add = SV[i - off];
+      f = SF[i - off];
+    }
+    workgroupBarrier();
+    if (SF[i] == 0u) { SV[i] += add; }
+    SF[i] |= f;
+    workgroupBarrier();
+  }
+  if (k < kept) {
+    DASH[n + k] = SV[i];
+    DASH[2u * n + k] = f32(SF[i]);
+  }
+  if (i == 255u) {
+    DASH[4u * n + 2u * wg.x] = SV[255];
+    DASH[4u * n + 2u * wg.x + 1u] = f32(SF[255]);
+  }
+}
+
+// One invocation: the carry into each block.
+@compute @workgroup_size(1)
+fn dash_blocks() {
+  let n = vertex_count();
+  let blocks = (n + 255u) / 256u;
+  var carry = 0.0;
+  for (var b = 0u; b < blocks; b++) {
+    DASH[4u * n + 2u * blocks + b] = carry;
+    let sum = DASH[4u * n + 2u * b];
+    carry = select(carry + sum, sum, DASH[4u * n + 2u * b + 1u] != 0.0);
+  }
+}
+
+// Kept vertex -> DASH[dash_vertex_at(v)], the exclusive prefix.
+@compute @workgroup_size(256)
+fn dash_apply(@builtin(global_invocation_id) g: vec3<u32>, @builtin(workgroup_id) wg: vec3<u32>) {
+  let n = vertex_count();
+  let k = g.x;
+  if (k >= atomicLoad(&C[4])) { return; }
+  var incl = DASH[n + k];
+  if (DASH[2u * n + k] == 0.0) { incl += DASH[4u * n + 2u * ((n + 255u) / 256u) + wg.x]; }
+  DASH[dash_vertex_at(COMPACT[k])] = incl - DASH[k];
+}
 `;
 
 export const DYN_LISTS_WGSL = COMMON + /* wgsl */ `
@@ -229,6 +333,8 @@ export const DYN_LISTS_WGSL = COMMON + /* wgsl */ `
 @group(0) @binding(5) var<storage, read_write> NODES: array<vec4<u32>>;
 @group(0) @binding(6) var<storage, read_write> C: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read> VIS: array<u32>;  // layer visibility bits
+// per vertex at dash_vertex_at(v): its line's screen length from the start (DYN_UPDATE_WGSL DASH)
+@group(0) @binding(8) var<storage, read> DASH: array<f32>;
 
 struct VOut {
   @builtin(position) pos: vec4f,
@@ -373,6 +479,67 @@ fn covers(s: vec4<u32>, p: vec2f, hw: f32, corner: u32) -> bool {
   return false;
 }
 
+// dash.glsl over the dash table at word D.o2.z: [0] the layer count N;
+// layer L: [1 + 3L] the first word of its pattern, [2 + 3L] its length (0:
+// solid), [3 + 3L] the period (f32 bits); the patterns as f32 bits.
+fn dash_solid(layer: u32) -> bool {
+  let t = D.o2.z;
+  return layer >= DB[t] || DB[t + 2u + 3u * layer] == 0u;
+}
+// Whether along-line position s (pixels) is in an "on" interval of the
+// layer's pattern (formats/SPEC.md "Dashed lines").
+fn dash_on(layer: u32, s: f32) -> bool {
+  let t = D.o2.z;
+  let first = t + DB[t + 1u + 3u * layer];
+  let n = DB[t + 2u + 3u * layer];
+  let period = bitcast<f32>(DB[t + 3u + 3u * layer]);
+  var r = s - period * floor(s / period);
+  if (!(r >= 0.0 && r < period)) { r = 0.0; }
+  var a = 0.0;
+  for (var i = 0u; i < n; i++) {
+    let len = bitcast<f32>(DB[first + i]);
+    if (r < a + len || i + 1u == n) { return (i & 1u) == 0u; }
+    a += len;
+  }
+  return true;
+}
+// The pixel's along-line screen distance on segment s: the start vertex's
+// plus the screen length to the point of the segment nearest p in plan
+// (clamped: a corner's join region takes the vertex's own distance).
+fn dash_s(s: vec4<u32>, p: vec2f) -> f32 {
+  let a = dpos(s.x);
+  let b = dpos(s.y);
+  let ab = b.xy - a.xy;
+  let len2 = dot(ab, ab);
+  var t = 0.0;
+  if (len2 > 0.0) { t = clamp(dot(p - a.xy, ab) / len2, 0.0, 1.0); }
+  return DASH[dash_vertex_at(s.x)] + screen_length(D.vp * vec4f(a, 1.0), D.vp * vec4f(mix(a, b, t), 1.0));
+}
+// A dashed line's pixel is tested by the segment on whose side of each
+// corner's bisector it lies, so neighbouring segments' dashes do not
+// overlap inside a corner.
+fn dash_own_side(s: vec4<u32>, p: vec2f) -> bool {
+  let a = dpos(s.x).xy;
+  let b = dpos(s.y).xy;
+  var d = b - a;
+  if (dot(d, d) > 0.0) { d = normalize(d); } else { d = vec2f(1.0, 0.0); }
+  if (s.z != NONE) {
+    let dp = a - dpos(s.z).xy;
+    var t = d;
+    if (dot(dp, dp) > 0.0) { t = normalize(dp) + d; }
+    if (dot(t, t) < 1e-12) { t = d; }
+    if (dot(p - a, t) < 0.0) { return false; }
+  }
+  if (s.w != NONE) {
+    let dn = dpos(s.w).xy - b;
+    var t = d;
+    if (dot(dn, dn) > 0.0) { t = normalize(dn) + d; }
+    if (dot(t, t) < 1e-12) { t = d; }
+    if (dot(p - b, t) > 0.0) { return false; }
+  }
+  return true;
+}
+
 fn visible(layer: u32) -> bool {
   let word = layer >> 5u;
   if (word >= arrayLength(&VIS)) { return true; }
@@ -380,9 +547,10 @@ fn visible(layer: u32) -> bool {
 }
 
 // dyn_lists.frag.glsl (thesis §4.3.2 "Linked Lists"): a fragment of the
-// box whose pixel's ground point the segment covers pushes (order, line)
-// onto the pixel's list. Nodes past the capacity are only counted; the
-// renderer grows the buffer and draws the pass again.
+// box whose pixel's ground point the segment covers (a dashed line's: in
+// an "on" interval) pushes (order, line) onto the pixel's list. Nodes past
+// the capacity are only counted; the renderer grows the buffer and draws
+// the pass again.
 @fragment
 fn fs(v: VOut) {
   let px = vec2<u32>(v.pos.xy);
@@ -391,10 +559,15 @@ fn fs(v: VOut) {
   if (g.w == 0.0) { discard; }
   let s = SEGS[v.seg];
   let line = u32(dvertex(s.x).w);
-  if (!visible(dlayer(line))) { discard; }
+  let layer = dlayer(line);
+  if (!visible(layer)) { discard; }
   let props = dprops(line);
   let hw = max(bitcast<f32>(props.x) * metres_per_pixel(g.xyz), min_half_width(line));
   if (!covers(s, g.xy, hw, props.w & 3u)) { discard; }
+  // A dashed line's pixel on its segment's side of each corner and in an "on" interval.
+  if (D.o2.w != 0u && !dash_solid(layer) && (!dash_own_side(s, g.xy) || !dash_on(layer, dash_s(s, g.xy)))) {
+    discard;
+  }
   let node = atomicAdd(&C[5], 1u);
   if (node < atomicLoad(&C[6])) {
     let next = atomicExchange(&HEADS[k], node + 1u);
