@@ -19,6 +19,9 @@ web/src/render/wgsl_dynamic.js, in a headless Chromium).
       them, and 99% within 2/255;
     - --only dynamic (terrain and motorways alone), every pixel: 99.9%
       within 2/255.
+  The same sample with its motorways dashed (dash = [16, 8] pixels: each
+  kept vertex's screen distance along its line, per frame), the second
+  view: the final frame and its motorway pixels as above.
   Twelve translucent lines through one pixel (the scene of
   tests/render/test_dynamic.cpp TwelveTransparentLinesThroughOnePixel...
   as a package: one layer per line, so that the drawing order, later layer
@@ -117,40 +120,64 @@ class Runner:
                    f"{100 * need:.1f}%), largest difference {worst}/255")
 
 
-def monaco(r, root):
-    pkg = os.path.join(r.work, "monaco.decals")
-    b = run([r.decalprep, "build", os.path.join(root, "samples/monaco/scene.toml"), "-o", pkg])
+def monaco(r, root, dashed=False):
+    """The Monaco sample (dashed: its motorways dashed, a scene written
+    here with the sample's paths made absolute) in VIEWS (dashed: the
+    second)."""
+    stem = "dashed" if dashed else "monaco"
+    scene = os.path.join(root, "samples/monaco/scene.toml")
+    if dashed:
+        sample = os.path.abspath(os.path.join(root, "samples/monaco"))
+        with open(scene) as f:
+            text = f.read()
+        for old, new in (('source = "monaco.osm.pbf"', f'source = "{sample}/monaco.osm.pbf"'),
+                         ('"/vsizip/N43E007', f'"/vsizip/{sample}/N43E007'),
+                         ("min_width_m = 12 ", "dash = [16.0, 8.0]\nmin_width_m = 12 ")):
+            if old not in text:
+                raise RuntimeError(f"{scene}: no '{old}' to change for the dashed copy")
+            text = text.replace(old, new)
+        scene = os.path.join(r.work, "dashed.toml")
+        with open(scene, "w") as f:
+            f.write(text)
+    pkg = os.path.join(r.work, stem + ".decals")
+    b = run([r.decalprep, "build", scene, "-o", pkg])
     if b.returncode:
-        raise RuntimeError(f"building the Monaco sample: {b.stderr[-2000:]}")
+        raise RuntimeError(f"building {scene}: {b.stderr[-2000:]}")
     t = run([r.decalprep, "terrain", pkg])
     if t.returncode:
-        raise RuntimeError(f"decalprep terrain on the Monaco sample: {t.stderr[-2000:]}")
-    moved = os.path.join(r.work, "moved")
+        raise RuntimeError(f"decalprep terrain {pkg}: {t.stderr[-2000:]}")
+    moved = os.path.join(r.work, "moved_" + stem)
     os.makedirs(moved)
     for ext in (".decals", ".terrain"):
-        shutil.copyfile(os.path.join(r.work, "monaco" + ext), os.path.join(moved, "monaco" + ext))
-    view_pkg = os.path.join(moved, "monaco.decals")
+        shutil.copyfile(os.path.join(r.work, stem + ext), os.path.join(moved, stem + ext))
+    view_pkg = os.path.join(moved, stem + ".decals")
     for k, (name, eye, target) in enumerate(VIEWS):
+        if dashed and k != 1:
+            continue
         cam = ["--eye", eye, "--target", target, "--size", f"{SIZE[0]}x{SIZE[1]}"]
-        f = lambda what: os.path.join(r.work, f"monaco{k}_{what}.png")
+        f = lambda what: os.path.join(r.work, f"{stem}{k}_{what}.png")
         gl_s = r.render(pkg, f("gl"), cam)
         r.render(pkg, f("gl_static"), cam + ["--only", "polygons,lines"])
-        r.render(pkg, f("gl_dynamic"), cam + ["--only", "dynamic"])
         web_s = r.view(view_pkg, f("web"), cam)
         if web_s is None:
             return SKIP
-        if r.view(view_pkg, f("web_dynamic"), cam + ["--only", "dynamic"]) is None:
-            return SKIP
+        if not dashed:
+            r.render(pkg, f("gl_dynamic"), cam + ["--only", "dynamic"])
+            if r.view(view_pkg, f("web_dynamic"), cam + ["--only", "dynamic"]) is None:
+                return SKIP
         gl, gl_static, web = pixels(f("gl")), pixels(f("gl_static")), pixels(f("web"))
         line = [(x, y) for y in range(SIZE[1]) for x in range(SIZE[0]) if gl[2][y][x] != gl_static[2][y][x]]
-        label = f"monaco {name} (--eye {eye} --target {target})"
+        label = f"{'monaco, motorways dashed,' if dashed else 'monaco'} {name} (--eye {eye} --target {target})"
         print(f"     {label}: render {gl_s:.1f} s, view {web_s:.1f} s")
         r.share(f"{label}, final frame", agreement(gl, web), 0.999)
-        r.check(f"{label}, motorways in view", len(line) >= MIN_LINE_PIXELS,
+        need = MIN_LINE_PIXELS // 2 if dashed else MIN_LINE_PIXELS  # the dashes' gaps
+        r.check(f"{label}, motorways in view", len(line) >= need,
                 f"{len(line)} pixels where GL's frame differs from its --only polygons,lines frame "
-                f"(need {MIN_LINE_PIXELS})")
+                f"(need {need})")
         r.share(f"{label}, final frame on the motorway pixels", agreement(gl, web, line), 0.99)
-        r.share(f"{label}, --only dynamic", agreement(pixels(f("gl_dynamic")), pixels(f("web_dynamic"))), 0.999)
+        if not dashed:
+            r.share(f"{label}, --only dynamic", agreement(pixels(f("gl_dynamic")), pixels(f("web_dynamic"))),
+                    0.999)
     return 0
 
 
@@ -235,7 +262,7 @@ def main():
     r = Runner(decalprep, work)
     t = time.time()
     try:
-        for part in (crossing, lambda r: monaco(r, root)):
+        for part in (crossing, lambda r: monaco(r, root), lambda r: monaco(r, root, dashed=True)):
             if part(r) == SKIP:
                 return SKIP
     except RuntimeError as e:
