@@ -355,17 +355,23 @@ export class Renderer {
   /**
    * Per-size buffers of the dynamic lines: each pixel's ground point (from
    * the decal pass), list head and dynamic colour, and the list nodes, two
-   * per pixel to begin with (grown when a frame needs more).
+   * per pixel to begin with (grown when a frame needs more), at most what
+   * one binding of the device holds.
    * @param {number} W @param {number} H
    */
   dynTargetsFor(W, H) {
     const t = this.dynTargets;
     if (t && t.W === W && t.H === H) return t;
     if (t) for (const b of [t.ground, t.heads, t.nodes, t.layer]) this.free(b);
-    const n = W * H;
+    const n = W * H, capacity = Math.min(2 * n, this.mostNodes());
     this.dynTargets = { W, H, ground: this.buffer(16 * n, BU.STORAGE), heads: this.buffer(4 * n, BU.STORAGE | BU.COPY_DST),
-      capacity: 2 * n, nodes: this.buffer(32 * n, BU.STORAGE), layer: this.buffer(16 * n, BU.STORAGE) };
+      capacity, nodes: this.buffer(16 * capacity, BU.STORAGE), layer: this.buffer(16 * n, BU.STORAGE) };
     return this.dynTargets;
+  }
+
+  /** The most list nodes (16 bytes each) one storage binding holds. */
+  mostNodes() {
+    return Math.floor(Math.min(this.device.limits.maxStorageBufferBindingSize, 0x7fffffff) / 16);
   }
 
   /**
@@ -709,7 +715,8 @@ export class Renderer {
       await passDone();
     }
     if (stamps) {
-      enc.resolveQuerySet(stamps.set, 0, 8, stamps.resolve, 0);
+      // Queries 6 and 7 are written only by a frame with dynamic lines.
+      enc.resolveQuerySet(stamps.set, 0, dyn ? 8 : 6, stamps.resolve, 0);
       enc.copyBufferToBuffer(stamps.resolve, 0, stamps.read, 0, 64);
     }
     const wantRgba = readback !== false;
@@ -805,8 +812,7 @@ export class Renderer {
       w.readCounters.unmap();
       if (counts[5] <= dyn.capacity) break;
       // Grow as gl_dynamic.cpp does, within the device's binding size.
-      const most = Math.floor(Math.min(this.device.limits.maxStorageBufferBindingSize, 0x7fffffff) / 16);
-      const capacity = Math.min(Math.floor((counts[5] * 5) / 4) + 1024, most);
+      const capacity = Math.min(Math.floor((counts[5] * 5) / 4) + 1024, this.mostNodes());
       if (capacity <= dyn.capacity) break;
       this.free(dyn.nodes);
       dyn.capacity = capacity;
