@@ -760,12 +760,13 @@ export class Renderer {
 
   /**
    * The dynamic-line passes of a frame (gl_dynamic.cpp dynamic_pass):
-   * update (cull, compaction, segments; dashes' screen distances), lists (segment boxes into per-pixel
-   * linked lists: drawn again with a larger node buffer, at most three
-   * times, when the nodes asked for pass its capacity; past the fourth
-   * try the nodes beyond it are left out), composite into dyn.layer. The
-   * node count is read back after each lists pass. Timestamps 6 and 7
-   * (passTimes) span the three.
+   * update (cull, compaction, segments; dashes' screen distances), lists
+   * (segment boxes into per-pixel linked lists: drawn again with a larger
+   * node buffer, at most three times, when the nodes asked for pass its
+   * capacity; past the fourth try, or the device's binding size, the nodes
+   * beyond it are left out), composite into dyn.layer. The node count is
+   * read back after each lists pass. Timestamps 6 and 7 (passTimes) span
+   * the three.
    * @param {any} dyn  dynTargetsFor's @param {any} T  targetsFor's
    * @param {number} W @param {number} H @param {any} stamps
    * @returns {Promise<DynamicStats>}
@@ -810,7 +811,8 @@ export class Renderer {
       await w.readCounters.mapAsync(MAP_READ);
       counts = new Uint32Array(w.readCounters.getMappedRange().slice(0));
       w.readCounters.unmap();
-      if (counts[5] <= dyn.capacity) break;
+      // The last try's lists stand: its buffer holds the nodes they link.
+      if (counts[5] <= dyn.capacity || attempt === 3) break;
       // Grow as gl_dynamic.cpp does, within the device's binding size.
       const capacity = Math.min(Math.floor((counts[5] * 5) / 4) + 1024, this.mostNodes());
       if (capacity <= dyn.capacity) break;
