@@ -78,6 +78,7 @@ fn dpos(v: u32) -> vec3f {
   return vec3f(vec2f(q.xy - D.a.xy) * QM, f32(q.z) * QM);
 }
 fn vertex_count() -> u32 { return u32(D.a.z); }
+fn line_count() -> u32 { return u32(D.a.w); }
 fn dash_vertex_at(v: u32) -> u32 { return 3u * vertex_count() + v; }
 
 // Pixel position of clip coordinates.
@@ -93,7 +94,6 @@ fn screen_length(ca0: vec4f, cb0: vec4f) -> f32 {
   else if (cb.w < nw) { cb = mix(cb, ca, (nw - cb.w) / (ca.w - cb.w)); }
   return length(screen_of(cb) - screen_of(ca));
 }
-fn line_count() -> u32 { return u32(D.a.w); }
 
 // dyn_scale.glsl: world metres per pixel at p (thesis Eq. 4.1/4.2).
 fn metres_per_pixel(p: vec3f) -> f32 {
