@@ -1,9 +1,9 @@
 #!/usr/bin/env node
 // webgpu_harness.mjs — renders one frame of a package with the WebGPU
 // renderer (web/src/render/) in headless Chromium and writes the frame and
-// its decal layer as PNGs. No npm deps: a node:http server on 127.0.0.1
-// serves the repository's web/ folder, the package, the job and a page;
-// the page POSTs the RGBA bytes back.
+// its decal layer as PNGs. No npm deps: chromium_page.mjs serves the
+// repository's web/ folder, the package, the job and a page; the page POSTs
+// the RGBA bytes back.
 //
 //   node tests/web/webgpu_harness.mjs --pkg P.decals --size 480x270 --out /tmp/x \
 //        (--extent xmin,ymin,xmax,ymax | --camera cam.json) [--terrain t.json] [--frames N]
@@ -18,16 +18,10 @@
 // is then read back through a 2D canvas (drawImage) into OUT_canvas.png and
 // the renderer's presentPath is printed.
 // Writes OUT_rgba.png and OUT_decals.png; prints the frame times.
-import { createServer } from "node:http";
-import { spawn } from "node:child_process";
-import { mkdtempSync, readFileSync, writeFileSync, rmSync, existsSync } from "node:fs";
-import { tmpdir } from "node:os";
-import { join, dirname, resolve, extname } from "node:path";
-import { fileURLToPath } from "node:url";
+import { readFileSync, writeFileSync } from "node:fs";
+import { IMPORT_MAP, runPage } from "./chromium_page.mjs";
 import { encodePng } from "./webgpu_png.mjs";
 
-const here = dirname(fileURLToPath(import.meta.url));
-const webDir = resolve(here, "../../web");
 const args = Object.fromEntries(
   process.argv.slice(2).reduce((acc, a, i, all) => (a.startsWith("--") ? [...acc, [a.slice(2), all[i + 1]]] : acc), []));
 if (!args.pkg || !args.size || !args.out || !(args.extent || args.camera)) {
@@ -46,8 +40,7 @@ const job = {
 };
 
 const PAGE = `<!doctype html><html><head><meta charset="utf-8">
-<script type="importmap">{"imports": {"fzstd": "/web/node_modules/fzstd/esm/index.mjs",
- "xxhash-wasm": "/web/node_modules/xxhash-wasm/esm/xxhash-wasm.js"}}</script></head>
+${IMPORT_MAP}</head>
 <body style="margin:0"><canvas id="c"></canvas><script type="module">
 const post = (path, body) => fetch(path, { method: "POST", body });
 const step = (m) => post("/result/log", m);
@@ -98,61 +91,13 @@ try {
 }
 </script></body></html>`;
 
-const TYPES = { ".js": "text/javascript", ".mjs": "text/javascript", ".json": "application/json", ".wasm": "application/wasm" };
-let chromium = null;
-const results = {};
-const finished = new Promise((resolveDone) => {
-  const server = createServer((req, res) => {
-    const url = new URL(req.url, "http://x");
-    if (req.method === "POST") {
-      const parts = [];
-      req.on("data", (c) => parts.push(c));
-      req.on("end", () => {
-        const body = Buffer.concat(parts);
-        const what = url.pathname.replace("/result/", "");
-        results[what] = body;
-        if (what === "log" && process.env.HARNESS_VERBOSE) console.error("page: " + body.toString());
-        res.end("ok");
-        if (what === "done" || what === "error") resolveDone(server);
-      });
-      return;
-    }
-    let file = null, type = "application/octet-stream";
-    if (url.pathname === "/") { res.setHeader("content-type", "text/html"); res.end(PAGE); return; }
-    if (url.pathname === "/job.json") { res.setHeader("content-type", "application/json"); res.end(JSON.stringify(job)); return; }
-    if (url.pathname === "/pkg.decals") file = resolve(args.pkg);
-    else if (url.pathname === "/terrain.json" && args.terrain) file = resolve(args.terrain);
-    else if (url.pathname.startsWith("/web/")) {
-      file = resolve(webDir, "." + url.pathname.slice(4));
-      if (!file.startsWith(webDir)) file = null;
-      type = TYPES[extname(file ?? "")] ?? type;
-    }
-    if (!file || !existsSync(file)) { res.statusCode = 404; res.end("not found"); return; }
-    res.setHeader("content-type", type);
-    res.end(readFileSync(file));
-  });
-  server.listen(0, "127.0.0.1", () => {
-    const port = server.address().port;
-    const profile = mkdtempSync(join(tmpdir(), "webgpu-harness-"));
-    chromium = spawn("/usr/bin/chromium", ["--headless", "--no-sandbox", "--enable-unsafe-webgpu",
-      "--enable-unsafe-swiftshader", `--user-data-dir=${profile}`, `--window-size=${W},${H}`,
-      "--enable-logging=stderr", "--v=0", `http://127.0.0.1:${port}/`], { stdio: ["ignore", "ignore", "pipe"] });
-    let log = "";
-    chromium.stderr.on("data", (c) => { log += c; if (process.env.HARNESS_VERBOSE) process.stderr.write(c); });
-    chromium.on("exit", () => {
-      // Chromium's helpers may still write into the profile as it goes.
-      try { rmSync(profile, { recursive: true, force: true, maxRetries: 5, retryDelay: 100 }); } catch { /* left in tmp */ }
-      if (!results.done && !results.error) { results.error = Buffer.from("chromium exited early:\n" + log.slice(-3000)); resolveDone(server); }
-    });
-  });
-});
-const timeout = setTimeout(() => { results.error = Buffer.from("timeout"); chromium?.kill(); process.exit(3); }, Number(args.timeout ?? 600) * 1000);
-const server = await finished;
-clearTimeout(timeout);
-chromium?.kill();
-server.close();
-if (results.error && !results.done) {
-  console.error("page error: " + results.error.toString());
+let results;
+try {
+  results = await runPage({ page: PAGE, width: W, height: H, timeoutS: Number(args.timeout ?? 600),
+    files: { "/job.json": { json: job }, "/pkg.decals": args.pkg,
+             ...(args.terrain ? { "/terrain.json": args.terrain } : {}) } });
+} catch (e) {
+  console.error(String(e.message ?? e));
   process.exit(1);
 }
 const info = JSON.parse(results.info.toString());

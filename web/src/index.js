@@ -7,5 +7,7 @@ export { parseTileset, fetchTileset, openTile, MAX_TILESET_BYTES } from "./tiles
 export { xxh64, xxh64Sync, hex64 } from "./xxh64.js";
 export * from "./format.js";
 export { createRenderer, flatTerrain, Renderer, topdownCamera } from "./render/index.js";
+// LOCALIS LOD at draw time: the visibility rule in a compute pass.
+export { LodSelector, lodView } from "./render/lod.js";
 // Terrain files (formats/SPEC.md "Terrain files"): the mesh render draws.
 export { parseTerrain, fetchTerrain } from "./terrain.js";
