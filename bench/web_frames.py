@@ -18,7 +18,7 @@ alternating the two --repeats times, each a run of --frames frames:
                    real-data folder, left out without it), --fit --pitch 45.
 
 Both draw static polygons and lines only (`--only polygons,lines`: the
-browser does not draw dynamic lines yet). The figures compared:
+passes the GL figure sums). The figures compared:
 
   gl_ms      the GL frame's passes, wall clock (terrain, static lines,
              static polygons, composite) of the last frame: warm;

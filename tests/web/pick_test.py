@@ -84,7 +84,8 @@ def main():
     src = ogr.Open(os.path.join(sample, scene["source"]))
 
     # Every static layer's features in package coordinates. Dynamic lines
-    # are not drawn by the browser (nor ever picked); they are left out.
+    # are never picked (the pick is the frame's static query); they are
+    # left out.
     sources = []
     for spec in scene["layer"]:
         if spec.get("dynamic"):

@@ -211,7 +211,8 @@ def main():
         # --stats: the frame times and each pass's time (timestamps or wall).
         frame = re.search(r"^frame: ([\d.]+) ms median of 2 warm frames", r.stdout, re.M)
         passes = re.search(r"^passes \((GPU timestamps|wall time of each pass alone), median of the "
-                           r"warm frames\): terrain ([\d.]+) ms, decals ([\d.]+) ms, composite ([\d.]+) ms$",
+                           r"warm frames\): terrain ([\d.]+) ms, decals ([\d.]+) ms, (?:dynamic [\d.]+ ms, )?"
+                           r"composite ([\d.]+) ms$",
                            r.stdout, re.M)
         check(frame is not None and passes is not None,
               f"--frames 3 --stats prints the frame and pass times: {r.stdout.strip()!r}")

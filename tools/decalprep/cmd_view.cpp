@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "command.hpp"
@@ -139,13 +140,14 @@ void print_picks(const std::string& text, size_t asked) {
 
 // --stats: each pass's median over the warm frames, as the page timed them
 // ("timestamp": GPU timestamp queries; "wall": each pass submitted and
-// awaited alone). Frames whose record is malformed are left out.
+// awaited alone); the dynamic-line passes where the records have them.
+// Frames whose record is malformed are left out.
 void print_pass_times(const nlohmann::json& j) {
   if (!j.contains("passes") || !j["passes"].is_array() || j["passes"].empty()) return;
   const nlohmann::json& all = j["passes"];
   std::string timing;
   std::string line;
-  for (const char* pass : {"terrain", "decals", "composite"}) {
+  for (const char* pass : {"terrain", "decals", "dynamic", "composite"}) {
     std::vector<double> ms;
     for (size_t i = all.size() > 1 ? 1 : 0; i < all.size(); ++i) {
       const nlohmann::json& f = all[i];
@@ -154,6 +156,7 @@ void print_pass_times(const nlohmann::json& j) {
       if (timing.empty() && f.contains("timing") && f["timing"].is_string())
         timing = f["timing"].get<std::string>();
     }
+    if (ms.empty() && std::string_view(pass) == "dynamic") continue;
     if (ms.empty()) return;
     const auto mid = ms.begin() + static_cast<std::ptrdiff_t>(ms.size() / 2);
     std::nth_element(ms.begin(), mid, ms.end());

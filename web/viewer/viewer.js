@@ -4,7 +4,7 @@
 // draws it with the WebGPU renderer (web/src/render) under a map camera,
 // on demand. With ?shot=1 (`decalprep view --screenshot`) it draws the
 // config's camera once and POSTs the pixels back (prep/view.hpp).
-import { createRenderer, fetchTerrain, fetchTileset, openPackageUrl, openTile } from "../src/index.js";
+import { createRenderer, fetchTerrain, fetchTileset, flatTerrain, openPackageUrl, openTile } from "../src/index.js";
 import { MapCamera, attachControls } from "./camera.js";
 import { describePick, layerKinds, showLayers, showOverlay, showPick, showStatus } from "./ui.js";
 
@@ -82,20 +82,16 @@ async function screenshot(config) {
   canvas.width = s.width;
   canvas.height = s.height;
   const renderer = await openRenderer(canvas);
-  await renderer.setScene({ pkg, terrain, ramps: s.ramps });
-  // --only: the kinds left out are hidden layers. Dynamic lines the view
-  // asks for are not drawn by this renderer yet: say which.
+  // Without a terrain file, flat ground where render lays it
+  // (libprep/pipeline/render_request.cpp): the package extent, grown to
+  // take in a top-down view.
+  const td = s.camera.topdownExtent, ext = /** @type {any} */ (pkg.metadata).extent;
+  const ground = terrain ?? (td && Array.isArray(ext) ? flatTerrain([Math.min(ext[0], td[0]),
+    Math.min(ext[1], td[1]), Math.max(ext[2], td[2]), Math.max(ext[3], td[3])]) : null);
+  await renderer.setScene({ pkg, terrain: ground, ramps: s.ramps });
+  // --only: the kinds left out are hidden layers.
   const only = s.only ?? { polygons: true, lines: true, dynamic: true };
-  const undrawn = [];
-  for (const [i, { name, kind }] of layerKinds(pkg.metadata).entries()) {
-    renderer.setLayerVisible(i, only[kind]);
-    if (kind === "dynamic" && only.dynamic) undrawn.push(name || `layer ${i}`);
-  }
-  if (undrawn.length > 0) {
-    await post("/__shot/note", `the browser renderer does not draw dynamic lines yet: layer${
-      undrawn.length > 1 ? "s" : ""} ${undrawn.join(", ")} left out (render --only polygons,lines ` +
-      "draws the same decals)");
-  }
+  for (const [i, { kind }] of layerKinds(pkg.metadata).entries()) renderer.setLayerVisible(i, only[kind]);
   // --frames N: N frames drawn, the last one sent; their times go to
   // /__shot/stats (view --stats prints them).
   const frames = Math.max(1, Math.min(1000, Math.floor(s.frames ?? 1)));
@@ -178,9 +174,7 @@ async function interactive(config) {
       present: false, readback: false, pick: [x, y] })
       .then((out) => showPick(describePick(out.pick, names)));
   });
-  // Dynamic lines are not drawn by this renderer yet: the list says so.
-  const listed = layerKinds(pkg.metadata).map(({ name, kind }) =>
-    kind === "dynamic" ? `${name} (dynamic: not drawn yet)` : name);
+  const listed = layerKinds(pkg.metadata).map(({ name, kind }) => (kind === "dynamic" ? `${name} (dynamic)` : name));
   showLayers(listed, (i, visible) => {
     renderer.setLayerVisible(i, visible);
     redraw();

@@ -3,8 +3,10 @@
 // (libprep/render/gl_passes.cpp terrain_pass), the static decal query at
 // each pixel's ground point (formats/SPEC.md "Drawing rules"; the pixel
 // centre exactly for a top-down view; slope widths from the gradient of the
-// terrain triangle under it), and the composite. Dynamic lines and LOD are
-// not drawn. Frames are shown on the canvas through its WebGPU context, or,
+// terrain triangle under it), the dynamic lines (libprep/render/
+// gl_dynamic.cpp: update, per-pixel lists, ordered composite;
+// wgsl_dynamic.js; LOD lines at full detail) and the composite. Frames are
+// shown on the canvas through its WebGPU context, or,
 // where that fails (headless Chromium), read back into its 2D context
 // (presentPath).
 //
@@ -13,6 +15,7 @@
 
 import { DECALS_WGSL, FRAME_BYTES, SLOTS } from "./wgsl_decals.js";
 import { TERRAIN_WGSL, TERRAIN_UNIFORM_BYTES, COMPOSITE_WGSL, PRESENT_WGSL } from "./wgsl_frame.js";
+import { DYN_UPDATE_WGSL, DYN_LISTS_WGSL, DYN_COMPOSITE_WGSL, DYN_UNIFORM_BYTES, DYN_COUNTER_WORDS } from "./wgsl_dynamic.js";
 import { viewMatrix, projectionMatrix, matMul, mat4Inverse, normalize, topdownCamera, cameraBasis } from "./camera.js";
 import { packScene } from "./scene.js";
 
@@ -23,7 +26,8 @@ export { topdownCamera };
  *             z: Float64Array, zmin: number, zmax: number}} Terrain */
 
 // GPUBufferUsage / GPUTextureUsage / GPUMapMode bits (WebGPU spec).
-const BU = { MAP_READ: 1, COPY_SRC: 4, COPY_DST: 8, INDEX: 16, VERTEX: 32, UNIFORM: 64, STORAGE: 128, QUERY_RESOLVE: 512 };
+const BU = { MAP_READ: 1, COPY_SRC: 4, COPY_DST: 8, INDEX: 16, VERTEX: 32, UNIFORM: 64, STORAGE: 128, INDIRECT: 256,
+             QUERY_RESOLVE: 512 };
 const TU = { COPY_SRC: 1, TEXTURE_BINDING: 4, RENDER_ATTACHMENT: 16 };
 const MAP_READ = 1;
 const Q = 0.001;
@@ -124,9 +128,15 @@ const floorDiv = (a, b) => Math.floor(a / b);
  * Each pass's time in ms: GPU timestamps ("timestamp"), or the wall time of
  * the pass submitted and awaited alone ("wall", which adds the submission's
  * own cost and serialises the frame).
- * @typedef {{timing: "timestamp" | "wall", terrain: number, decals: number, composite: number}} PassTimes
+ * dynamic: the dynamic-line passes together (update, lists, composite of
+ * the lines; 0 without dynamic lines).
+ * @typedef {{timing: "timestamp" | "wall", terrain: number, decals: number, dynamic: number,
+ *            composite: number}} PassTimes
+ * The dynamic-line pass's counts (render --stats prints GL's): vertices
+ * kept, segments drawn, list nodes asked for, regrowths of the node buffer.
+ * @typedef {{kept: number, segments: number, nodes: number, grows: number}} DynamicStats
  * @typedef {{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number,
- *            pick: Pick | null, passes: PassTimes | null}} FrameResult
+ *            pick: Pick | null, passes: PassTimes | null, dynamic: DynamicStats | null}} FrameResult
  */
 
 export class Renderer {
@@ -147,6 +157,9 @@ export class Renderer {
     /** @type {any} */ this.mesh = null;
     /** @type {any} */ this.targets = null;
     /** @type {any} */ this.stamps = null;
+    /** @type {any} */ this.dynBuffer = null;  // the packed dynamic-line blobs (scene.js packDynamic)
+    /** @type {any} */ this.dynWork = null;    // the update's per-vertex buffers
+    /** @type {any} */ this.dynTargets = null; // the per-pixel lists and the dynamic layer, per size
     /**
      * How present: true shows frames: null until the first such frame,
      * "webgpu" (the canvas's WebGPU context), "2d" (read back and put into
@@ -197,18 +210,58 @@ export class Renderer {
     this.frameUniform = d.createBuffer({ size: FRAME_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
     this.terrainUniform = d.createBuffer({ size: TERRAIN_UNIFORM_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
     this.sizeUniform = d.createBuffer({ size: 16, usage: BU.UNIFORM | BU.COPY_DST });
+    this.dynUniform = d.createBuffer({ size: DYN_UNIFORM_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
+    // The stand-in for the ground-point and dynamic-layer bindings of a frame without dynamic lines.
+    this.standIn = d.createBuffer({ size: 16, usage: BU.STORAGE });
     /** @type {any} */ this.presentPipeline = null;
+    /** @type {any} */ this.dynPipes = null;
   }
 
-  /** The timestamp query set of passTimes (three passes), made once per device. */
+  /** The timestamp query set of passTimes (four passes), made once per device. */
   timestampSet() {
     if (!this.stamps || this.stamps.device !== this.device) {
       const d = this.device;
-      this.stamps = { device: d, set: d.createQuerySet({ type: "timestamp", count: 6 }),
-        resolve: d.createBuffer({ size: 48, usage: BU.QUERY_RESOLVE | BU.COPY_SRC }),
-        read: d.createBuffer({ size: 48, usage: BU.MAP_READ | BU.COPY_DST }) };
+      this.stamps = { device: d, set: d.createQuerySet({ type: "timestamp", count: 8 }),
+        resolve: d.createBuffer({ size: 64, usage: BU.QUERY_RESOLVE | BU.COPY_SRC }),
+        read: d.createBuffer({ size: 64, usage: BU.MAP_READ | BU.COPY_DST }) };
     }
     return this.stamps;
+  }
+
+  /**
+   * The dynamic-line pipelines (wgsl_dynamic.js), made on the first frame
+   * with dynamic lines: the update's eight entry points share one explicit
+   * layout (one bind group for all). Throws the device's message when one
+   * fails to compile or validate.
+   */
+  async dynamicPipelines() {
+    if (this.dynPipes) return this.dynPipes;
+    const d = this.device;
+    d.pushErrorScope("validation");
+    const storage = (/** @type {number} */ binding, /** @type {string} */ type) =>
+      ({ binding, visibility: 4 /* COMPUTE */, buffer: { type } });
+    const layout = d.createBindGroupLayout({ entries: [
+      storage(0, "uniform"), storage(1, "read-only-storage"),
+      ...[2, 3, 4, 5, 6, 7, 8].map((b) => storage(b, "storage"))] });
+    const um = d.createShaderModule({ code: DYN_UPDATE_WGSL });
+    const pl = d.createPipelineLayout({ bindGroupLayouts: [layout] });
+    const update = Object.fromEntries(["cull", "scan_local", "scan_blocks", "scatter", "segments", "dash_local",
+      "dash_blocks", "dash_apply"].map((entryPoint) =>
+      [entryPoint, d.createComputePipeline({ layout: pl, compute: { module: um, entryPoint } })]));
+    const lm = d.createShaderModule({ code: DYN_LISTS_WGSL });
+    const lists = d.createRenderPipeline({
+      layout: "auto",
+      vertex: { module: lm, entryPoint: "vs" },
+      // No colour is written: the fragments only push onto the lists.
+      fragment: { module: lm, entryPoint: "fs", targets: [{ format: "rgba8unorm", writeMask: 0 }] },
+      primitive: { topology: "triangle-list", cullMode: "none" },
+    });
+    const composite = d.createComputePipeline({ layout: "auto",
+      compute: { module: d.createShaderModule({ code: DYN_COMPOSITE_WGSL }), entryPoint: "main" } });
+    const err = await d.popErrorScope();
+    if (err) throw new Error(`the dynamic-line pipelines: ${err.message}`);
+    this.dynPipes = { layout, update, lists, composite };
+    return this.dynPipes;
   }
 
   /** @param {number} size @param {number} usage */
@@ -263,6 +316,62 @@ export class Renderer {
     this.free(this.gradients);
     this.gradients = this.buffer(grad.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.gradients, 0, grad);
+    // Dynamic lines: the packed blobs and the update's buffers (as
+    // gl_dynamic.cpp DynamicLines::make_buffers), n vertices in B blocks.
+    this.freeDynamic();
+    const dyn = scene.dynamic;
+    if (dyn.vertices > 0 && dyn.lines > 0) {
+      const n = dyn.vertices, blocks = Math.ceil(n / 256);
+      if (blocks > 65535) throw new Error(`setScene: ${n} dynamic vertices, more than the 65535 workgroups of 256 one dispatch reaches`);
+      this.dynBuffer = this.buffer(dyn.words.byteLength, BU.STORAGE | BU.COPY_DST);
+      this.device.queue.writeBuffer(this.dynBuffer, 0, dyn.words);
+      const rw = BU.STORAGE;
+      this.dynWork = {
+        flags: this.buffer(4 * n, rw), scan: this.buffer(4 * n, rw), blocks: this.buffer(4 * blocks, rw),
+        compact: this.buffer(4 * n, rw), segments: this.buffer(16 * n, rw),
+        // dyn_dash's distances and carries (wgsl_dynamic.js DASH) where a line is dashed
+        dash: this.buffer(dyn.dashed ? 4 * (4 * n + 3 * blocks) : 16, rw),
+        counters: this.buffer(4 * DYN_COUNTER_WORDS, rw | BU.COPY_DST | BU.COPY_SRC),
+        indirect: this.buffer(16, BU.INDIRECT | BU.COPY_DST),
+        readCounters: this.buffer(4 * DYN_COUNTER_WORDS, BU.MAP_READ | BU.COPY_DST),
+        groups: blocks,
+      };
+    }
+  }
+
+  /** The dynamic-line buffers of the scene and of the frame size. */
+  freeDynamic() {
+    this.free(this.dynBuffer);
+    this.dynBuffer = null;
+    const w = this.dynWork;
+    if (w) for (const b of [w.flags, w.scan, w.blocks, w.compact, w.segments, w.dash, w.counters, w.indirect,
+                            w.readCounters]) this.free(b);
+    this.dynWork = null;
+    const t = this.dynTargets;
+    if (t) for (const b of [t.ground, t.heads, t.nodes, t.layer]) this.free(b);
+    this.dynTargets = null;
+  }
+
+  /**
+   * Per-size buffers of the dynamic lines: each pixel's ground point (from
+   * the decal pass), list head and dynamic colour, and the list nodes, two
+   * per pixel to begin with (grown when a frame needs more), at most what
+   * one binding of the device holds.
+   * @param {number} W @param {number} H
+   */
+  dynTargetsFor(W, H) {
+    const t = this.dynTargets;
+    if (t && t.W === W && t.H === H) return t;
+    if (t) for (const b of [t.ground, t.heads, t.nodes, t.layer]) this.free(b);
+    const n = W * H, capacity = Math.min(2 * n, this.mostNodes());
+    this.dynTargets = { W, H, ground: this.buffer(16 * n, BU.STORAGE), heads: this.buffer(4 * n, BU.STORAGE | BU.COPY_DST),
+      capacity, nodes: this.buffer(16 * capacity, BU.STORAGE), layer: this.buffer(16 * n, BU.STORAGE) };
+    return this.dynTargets;
+  }
+
+  /** The most list nodes (16 bytes each) one storage binding holds. */
+  mostNodes() {
+    return Math.floor(Math.min(this.device.limits.maxStorageBufferBindingSize, 0x7fffffff) / 16);
   }
 
   /**
@@ -273,6 +382,7 @@ export class Renderer {
     const { device } = await openDevice(this.gpu, 40);
     // The lost device's objects are gone with it.
     this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
+    this.dynBuffer = this.dynWork = this.dynTargets = null;
     this.mesh = null;
     this.targets = null;
     this.context = null;
@@ -510,7 +620,22 @@ export class Renderer {
     const pickOnly = picking && readback === false && !decals && !show;
     if (picking) fu.set([px, py, 1, pickOnly ? 1 : 0], 92);
     d.queue.writeBuffer(this.frameUniform, 0, fb);
-    d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, 0, 0));
+    // Dynamic lines (not in a frame drawn for its pick alone).
+    const dyn = !pickOnly && this.dynWork ? this.dynTargetsFor(W, H) : null;
+    d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, dyn ? 1 : 0, 0));
+    if (dyn) {
+      // The uniform of the dynamic passes (wgsl_dynamic.js Dyn; gl_dynamic.cpp set_uniforms).
+      const du = new ArrayBuffer(DYN_UNIFORM_BYTES);
+      const di = new Int32Array(du), df = new Float32Array(du), dw = new Uint32Array(du);
+      const ds = scene.dynamic;
+      df.set(vp, 0);
+      di.set([axq, ayq, ds.vertices, ds.lines], 16);
+      df.set([W, H, persp ? camera.near : 0, Math.cos((ds.miterLimitDeg * Math.PI) / 180)], 20);
+      df.set([...eyeRel, persp ? 0 : camera.orthoH / H], 24);
+      df.set([persp ? (2 * th) / H : 0, terrain.zmin, terrain.zmax, 0], 28);
+      dw.set([...ds.offsets.subarray(0, 5), ds.minWidthCount, ds.offsets[5], ds.dashed ? 1 : 0], 32);
+      d.queue.writeBuffer(this.dynUniform, 0, du);
+    }
 
     if (picking) d.queue.writeBuffer(T.pick, 0, new Uint32Array(4));
     const mesh = this.meshFor(ax, ay);
@@ -565,17 +690,34 @@ export class Renderer {
     /** @param {any} buffer */
     const buf = (buffer) => ({ buffer });
     dispatch(1, this.decalPipeline, [buf(this.frameUniform), buf(this.blobBuffer), buf(this.visBuffer),
-      T.depth.createView(), buf(T.dec), buf(this.heights), buf(this.gradients), buf(T.pick)],
-      pickOnly ? 1 : gx, pickOnly ? 1 : gy);
+      T.depth.createView(), buf(T.dec), buf(this.heights), buf(this.gradients), buf(T.pick),
+      buf(dyn ? dyn.ground : this.standIn)], pickOnly ? 1 : gx, pickOnly ? 1 : gy);
     await passDone();
+    /** @type {DynamicStats | null} */
+    let dynStats = null;
+    if (dyn) {
+      // The lists pass reads its node count back: what is encoded goes first.
+      d.queue.submit([enc.finish()]);
+      dynStats = await this.dynamicPasses(dyn, T, W, H, stamps);
+      enc = d.createCommandEncoder();
+      if (wallPasses) {
+        await d.queue.onSubmittedWorkDone();
+        const now = performance.now();
+        wall.push(now - mark);
+        mark = now;
+      }
+    } else if (wallPasses) {
+      wall.push(0);
+    }
     if (!pickOnly) {
       dispatch(2, this.compositePipeline, [buf(this.sizeUniform), T.color.createView(), buf(T.dec),
-        buf(T.rgba), buf(T.decals)]);
+        buf(T.rgba), buf(T.decals), buf(dyn ? dyn.layer : this.standIn)]);
       await passDone();
     }
     if (stamps) {
-      enc.resolveQuerySet(stamps.set, 0, 6, stamps.resolve, 0);
-      enc.copyBufferToBuffer(stamps.resolve, 0, stamps.read, 0, 48);
+      // Queries 6 and 7 are written only by a frame with dynamic lines.
+      enc.resolveQuerySet(stamps.set, 0, dyn ? 8 : 6, stamps.resolve, 0);
+      enc.copyBufferToBuffer(stamps.resolve, 0, stamps.read, 0, 64);
     }
     const wantRgba = readback !== false;
     const put2d = show && this.presentPath === "2d";
@@ -607,12 +749,87 @@ export class Renderer {
     if (stamps) {
       const ns = new BigInt64Array((await read(stamps.read)).buffer);
       const span = (/** @type {number} */ k) => Number(ns[2 * k + 1] - ns[2 * k]) / 1e6;
-      passes = { timing: "timestamp", terrain: span(0), decals: span(1), composite: pickOnly ? 0 : span(2) };
+      passes = { timing: "timestamp", terrain: span(0), decals: span(1), dynamic: dyn ? span(3) : 0,
+        composite: pickOnly ? 0 : span(2) };
     } else if (wallPasses) {
-      passes = { timing: "wall", terrain: wall[0], decals: wall[1], composite: wall[2] ?? 0 };
+      passes = { timing: "wall", terrain: wall[0], decals: wall[1], dynamic: wall[2] ?? 0, composite: wall[3] ?? 0 };
     }
     return { rgba: wantRgba ? rgba : null, decals: decals ? await read(T.readDecals) : null, ms, pick: top,
-      passes };
+      passes, dynamic: dynStats };
+  }
+
+  /**
+   * The dynamic-line passes of a frame (gl_dynamic.cpp dynamic_pass):
+   * update (cull, compaction, segments; dashes' screen distances), lists
+   * (segment boxes into per-pixel linked lists: drawn again with a larger
+   * node buffer, at most three times, when the nodes asked for pass its
+   * capacity; past the fourth try, or the device's binding size, the nodes
+   * beyond it are left out), composite into dyn.layer. The node count is
+   * read back after each lists pass. Timestamps 6 and 7 (passTimes) span
+   * the three.
+   * @param {any} dyn  dynTargetsFor's @param {any} T  targetsFor's
+   * @param {number} W @param {number} H @param {any} stamps
+   * @returns {Promise<DynamicStats>}
+   */
+  async dynamicPasses(dyn, T, W, H, stamps) {
+    const d = this.device, w = this.dynWork, P = await this.dynamicPipelines();
+    const scene = /** @type {import("./scene.js").PackedScene} */ (this.scene);
+    const init = new Uint32Array(DYN_COUNTER_WORDS);
+    init.set([36, 0, 0, 0, 0, 0, dyn.capacity, scene.dynamic.vertices]);
+    d.queue.writeBuffer(w.counters, 0, init);
+    const group = (/** @type {any} */ layout, /** @type {any[]} */ buffers) => d.createBindGroup({ layout,
+      entries: buffers.map((buffer, binding) => ({ binding, resource: { buffer } })) });
+    let enc = d.createCommandEncoder();
+    const cp = enc.beginComputePass(stamps ? { timestampWrites: { querySet: stamps.set, beginningOfPassWriteIndex: 6 } } : {});
+    cp.setBindGroup(0, group(P.layout, [this.dynUniform, this.dynBuffer, w.flags, w.scan, w.blocks, w.compact,
+      w.segments, w.counters, w.dash]));
+    const entries = ["cull", "scan_local", "scan_blocks", "scatter", "segments"];
+    if (scene.dynamic.dashed) entries.push("dash_local", "dash_blocks", "dash_apply");
+    for (const entry of entries) {
+      cp.setPipeline(P.update[entry]);
+      cp.dispatchWorkgroups(entry === "scan_blocks" || entry === "dash_blocks" ? 1 : w.groups);
+    }
+    cp.end();
+    enc.copyBufferToBuffer(w.counters, 0, w.indirect, 0, 16);
+    let grows = 0;
+    /** @type {Uint32Array} */
+    let counts = new Uint32Array(DYN_COUNTER_WORDS);
+    for (let attempt = 0; attempt < 4; ++attempt) {
+      if (attempt > 0) {
+        enc = d.createCommandEncoder();
+        d.queue.writeBuffer(w.counters, 20, Uint32Array.of(0, dyn.capacity));
+      }
+      enc.clearBuffer(dyn.heads);
+      const rp = enc.beginRenderPass({ colorAttachments: [{ view: T.color.createView(), loadOp: "load", storeOp: "store" }] });
+      rp.setPipeline(P.lists);
+      rp.setBindGroup(0, group(P.lists.getBindGroupLayout(0), [this.dynUniform, this.dynBuffer, w.segments, dyn.ground,
+        dyn.heads, dyn.nodes, w.counters, this.visBuffer, w.dash]));
+      rp.drawIndirect(w.indirect, 0);
+      rp.end();
+      enc.copyBufferToBuffer(w.counters, 0, w.readCounters, 0, 4 * DYN_COUNTER_WORDS);
+      d.queue.submit([enc.finish()]);
+      await w.readCounters.mapAsync(MAP_READ);
+      counts = new Uint32Array(w.readCounters.getMappedRange().slice(0));
+      w.readCounters.unmap();
+      // The last try's lists stand: its buffer holds the nodes they link.
+      if (counts[5] <= dyn.capacity || attempt === 3) break;
+      // Grow as gl_dynamic.cpp does, within the device's binding size.
+      const capacity = Math.min(Math.floor((counts[5] * 5) / 4) + 1024, this.mostNodes());
+      if (capacity <= dyn.capacity) break;
+      this.free(dyn.nodes);
+      dyn.capacity = capacity;
+      dyn.nodes = this.buffer(16 * capacity, BU.STORAGE);
+      ++grows;
+    }
+    enc = d.createCommandEncoder();
+    const comp = enc.beginComputePass(stamps ? { timestampWrites: { querySet: stamps.set, endOfPassWriteIndex: 7 } } : {});
+    comp.setPipeline(P.composite);
+    comp.setBindGroup(0, group(P.composite.getBindGroupLayout(0), [this.dynUniform, this.dynBuffer, dyn.heads,
+      dyn.nodes, w.counters, dyn.layer]));
+    comp.dispatchWorkgroups(Math.ceil(W / 8), Math.ceil(H / 8));
+    comp.end();
+    d.queue.submit([enc.finish()]);
+    return { kept: counts[4], segments: counts[1], nodes: counts[5], grows };
   }
 
   /** The 2D present path. @param {Uint8Array} rgba @param {number} W @param {number} H */
@@ -658,6 +875,7 @@ export class Renderer {
     this.free(this.visBuffer);
     this.free(this.heights);
     this.free(this.gradients);
+    this.freeDynamic();
     this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
     this.device.destroy();
   }

@@ -1,11 +1,13 @@
 // scene.js — what the renderer uploads from a package (the CPU side of
 // formats/gl/src/loader.cpp and GlRenderer::bind_dashes): the v1.3 blobs
 // packed into one u32 array (older layouts encoded to v1.3: legacy.js), the
+// dynamic-line blobs packed into another (wgsl_dynamic.js), the
 // dash table and per-vertex along-line distances (formats/SPEC.md "Dashed
 // lines"), the slope-width layer flags (SPEC "Slope widths"), and `--ramp`
 // restyling (SPEC "Colour").
 
 import { SLOTS } from "./wgsl_decals.js";
+import { DYN_SLOTS } from "./wgsl_dynamic.js";
 import { box16Shift, encodeLegacy } from "./legacy.js";
 
 
@@ -161,9 +163,84 @@ export function vertexDistances(verts, vline, start) {
  *   grid: {gx: number, gy: number, cw: number, ch: number, nx: number, ny: number},
  *   shift: number, haveLines: boolean, havePolygons: boolean, polyBias: number,
  *   layerCount: number, slopeCount: number, unlitCount: number,
- *   minWidthCount: number, minWidthLimit: number, minWidthReach: number
+ *   minWidthCount: number, minWidthLimit: number, minWidthReach: number,
+ *   dynamic: PackedDynamic
  * }} PackedScene
+ * The dynamic lines (formats/SPEC.md "Dynamic lines: drawing"): their
+ * blobs in one u32 array, each at its word offset (DYN_SLOTS order), the
+ * vertex and line counts, the entries of the min_width_m table, the
+ * package's miter limit (build_options.miter_limit_deg, default 40) and
+ * whether a dynamic line's layer has a dash pattern.
+ * @typedef {{words: Uint32Array, offsets: Uint32Array, vertices: number, lines: number,
+ *            minWidthCount: number, miterLimitDeg: number, dashed: boolean}} PackedDynamic
  */
+
+/**
+ * Minimum widths of dynamic lines (formats/SPEC.md "Minimum widths"): per
+ * layer-table index its min_width_m in metres (0: none), then a 0, as f32
+ * (prep::render::DecalSource min_width_m); empty when no layer has one.
+ * @param {any[]} layers
+ */
+export function minWidthsMetres(layers) {
+  /** @type {number[]} */
+  let m = [];
+  layers.forEach((l, i) => {
+    if (l && typeof l.min_width_m === "number") {
+      if (m.length === 0) m = new Array(layers.length + 1).fill(0);
+      m[i] = l.min_width_m;
+    }
+  });
+  return new Uint32Array(Float32Array.from(m).buffer);
+}
+
+/**
+ * Packs the dynamic-line blobs: dyn_vertices, dyn_prev_next,
+ * dyn_line_start, dyn_line_props (restyled by `byLayer` as the static
+ * lines are, SPEC "Colour"), the min_width_m table and the dash table.
+ * @param {import("../package.js").Package} pkg @param {any[]} layers
+ * @param {Map<number, Array<[number, number, number, number, number]>>} byLayer
+ * @returns {Promise<PackedDynamic>}
+ */
+async function packDynamic(pkg, layers, byLayer) {
+  const miterLimitDeg = pkg.metadata.build_options?.miter_limit_deg ?? 40;
+  /** @type {Map<string, Uint32Array>} */
+  const arrays = new Map();
+  for (const name of DYN_SLOTS) {
+    if (name === "dyn_min_widths" || name === "dash_table") continue;
+    const copy = (await pkg.bytes(name)).slice();
+    arrays.set(name, new Uint32Array(copy.buffer, 0, copy.byteLength >>> 2));
+  }
+  const props = /** @type {Uint32Array} */ (arrays.get("dyn_line_props"));
+  if (byLayer.size > 0) {
+    const pf = new Float32Array(props.buffer, props.byteOffset, props.length);
+    for (let i = 0; i < props.length; i += 8) {
+      const stops = byLayer.get(props[i + 5]);
+      if (stops) props[i + 1] = rampRgba(stops, pf[i + 4], props[i + 1]);
+    }
+  }
+  const widths = minWidthsMetres(layers);
+  arrays.set("dyn_min_widths", widths);
+  const dashes = dashWords(layers);
+  arrays.set("dash_table", dashes);
+  let dashed = false;
+  for (let i = 5; i < props.length && !dashed; i += 8)
+    dashed = props[i] < layers.length && dashes[2 + 3 * props[i]] !== 0;
+  let total = 0;
+  for (const a of arrays.values()) total += a.length;
+  const words = new Uint32Array(Math.max(4, total));
+  const offsets = new Uint32Array(DYN_SLOTS.length);
+  let at = 0;
+  DYN_SLOTS.forEach((name, k) => {
+    const a = /** @type {Uint32Array} */ (arrays.get(name));
+    offsets[k] = at;
+    words.set(a, at);
+    at += a.length;
+  });
+  const vertices = (/** @type {Uint32Array} */ (arrays.get("dyn_vertices"))).length >>> 2;
+  const lines = (/** @type {Uint32Array} */ (arrays.get("dyn_line_start"))).length;
+  return { words, offsets, vertices, lines: props.length >>> 3 === lines ? lines : 0,
+           minWidthCount: widths.length, miterLimitDeg, dashed };
+}
 
 /**
  * Reads the package's static blobs and packs them for the decal pass.
@@ -256,5 +333,6 @@ export async function packScene(pkg, ramps, slopeWidths = "auto") {
     minWidthCount: widths.table.length,
     minWidthLimit: widths.table.length > 0 ? limit : 0,
     minWidthReach: widths.reach,
+    dynamic: await packDynamic(pkg, layers, byLayer),
   };
 }

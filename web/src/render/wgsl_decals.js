@@ -62,6 +62,10 @@ struct Frame {
 // The pick pixel's top decal: (kind: 0 none, 1 static line, 2 polygon;
 // layer; the source feature id, LineProps/PolyProps.feature; its index).
 @group(0) @binding(7) var<storage, read_write> PICK: array<vec4<u32>>;
+// Per pixel: its ground point (anchor-relative x, y, z; w 1, 0 where no
+// terrain is drawn) for the dynamic-line pass (wgsl_dynamic.js); a frame
+// without dynamic lines binds a one-entry stand-in that nothing reads.
+@group(0) @binding(8) var<storage, read_write> GROUND: array<vec4f>;
 
 const Q: f32 = 0.001;
 const QT_BOX = 0u; const QT_NODE = 1u; const QT_LLR = 2u; const QT_LOOPS = 3u; const QT_VERT = 4u;
@@ -544,12 +548,18 @@ fn main(@builtin(global_invocation_id) g0: vec3<u32>) {
   } else {
     // the ray's terrain point from the depth (static_common.glsl pixel_world)
     let depth = textureLoad(depthTex, vec2<i32>(gid.xy), 0);
-    if (depth <= 0.0) { OUT[2u * k] = vec4f(0.0); OUT[2u * k + 1u] = vec4f(0.0); return; }
+    if (depth <= 0.0) {
+      OUT[2u * k] = vec4f(0.0);
+      OUT[2u * k + 1u] = vec4f(0.0);
+      if (k < arrayLength(&GROUND)) { GROUND[k] = vec4f(0.0); }
+      return;
+    }
     let ndc = vec2f((f32(gid.x) + 0.5) / f32(W) * 2.0 - 1.0, 1.0 - (f32(gid.y) + 0.5) / f32(H) * 2.0);
     let wp = F.inv_view_proj * vec4f(ndc, depth, 1.0);
     p = ground_point(ndc, wp.xy / wp.w);
     z = wp.z / wp.w;
   }
+  if (k < arrayLength(&GROUND)) { GROUND[k] = vec4f(p, z, 1.0); }
   if (F.tn.z != 0u) { GS = gradient_at(p); }
   // Minimum widths: the pixel's ground size (static_common.glsl pixel_metres).
   if (F.mw.x > 0.0) {

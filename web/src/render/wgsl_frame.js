@@ -1,7 +1,7 @@
 // wgsl_frame.js — the terrain pass (formats/gl/shaders/terrain.vert.glsl and
 // terrain.frag.glsl: Lambert shading, its shade in alpha, water tint at or
-// below sea level, reversed depth), the composite (composite.frag.glsl with
-// lit decals, no dynamic lines)
+// below sea level, reversed depth), the composite (composite.frag.glsl: the
+// dynamic lines over the lit static decals over the terrain)
 // and the blit that shows a frame on a canvas.
 
 export const TERRAIN_UNIFORM_BYTES = 96;
@@ -38,12 +38,14 @@ fn fs(v: VOut) -> @location(0) vec4f {
 `;
 
 export const COMPOSITE_WGSL = /* wgsl */ `
-struct C { size: vec4<u32> }
+struct C { size: vec4<u32> }  // width, height; 1 when DYN holds the frame's dynamic layer
 @group(0) @binding(0) var<uniform> U: C;
 @group(0) @binding(1) var terrain: texture_2d<f32>;
 @group(0) @binding(2) var<storage, read> DEC: array<vec4f>;
 @group(0) @binding(3) var<storage, read_write> RGBA: array<u32>;
 @group(0) @binding(4) var<storage, read_write> DECALS: array<u32>;
+// Per pixel: the dynamic lines, premultiplied (wgsl_dynamic.js).
+@group(0) @binding(5) var<storage, read> DYN: array<vec4f>;
 
 // round(clamp(x, 0, 1) * 255), as the PNG writers quantise.
 fn q8(x: f32) -> u32 { return u32(floor(clamp(x, 0.0, 1.0) * 255.0 + 0.5)); }
@@ -59,7 +61,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
   // Lit decals (formats/SPEC.md "Lit decals"): the decal colour times the
   // terrain's shade, the terrain target's alpha, but for the share of the
   // layers drawn unlit.
-  RGBA[k] = pack(vec4f((d.rgb - u) * t.a + u + (1.0 - d.a) * t.rgb, 1.0));
+  let c = (d.rgb - u) * t.a + u + (1.0 - d.a) * t.rgb;
+  // The dynamic lines over it, unlit (formats/SPEC.md "Compositing the layers").
+  var l = vec4f(0.0);
+  if (U.size.z != 0u) { l = DYN[k]; }
+  RGBA[k] = pack(vec4f(l.rgb + (1.0 - l.a) * c, 1.0));
   // straight alpha: (C / A, A), 0 where A = 0 (SPEC step 4)
   var s = vec4f(0.0);
   if (d.a > 0.0) { s = vec4f(d.rgb / d.a, d.a); }
