@@ -310,7 +310,8 @@ uint32_t DynamicLines::lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao) {
   glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
   glBindBuffer(GL_DRAW_INDIRECT_BUFFER, counters_);
   glBindVertexArray(empty_vao);
-  for (int attempt = 0; attempt < 4; ++attempt) {
+  constexpr int kTries = 4;
+  for (int attempt = 0; attempt < kTries; ++attempt) {
     const uint32_t none = 0xffffffffu;
     glClearNamedBufferData(heads_, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
     const uint32_t zero_cap[2] = {0, capacity_};
@@ -321,7 +322,14 @@ uint32_t DynamicLines::lists(GLuint p_lists, GLuint f_dyn, GLuint empty_vao) {
     uint32_t used = 0;
     glGetNamedBufferSubData(counters_, 20, 4, &used);
     if (used <= capacity_) break;
-    capacity_ = uint32_t(std::min<uint64_t>(uint64_t(used) * 5 / 4 + 1024, 0x7fffffff / 16));
+    // Grow and draw again, unless this was the last try or the buffer is at
+    // its largest: then the lists keep the nodes that fitted (the fragment
+    // shader only counts the others), and a new, undefined buffer must not
+    // replace them before the composite reads them.
+    const uint32_t grown =
+        uint32_t(std::min<uint64_t>(uint64_t(used) * 5 / 4 + 1024, 0x7fffffff / 16));
+    if (attempt == kTries - 1 || grown <= capacity_) break;
+    capacity_ = grown;
     glNamedBufferData(nodes_, GLsizeiptr(uint64_t(capacity_) * 16), nullptr, GL_DYNAMIC_COPY);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, decal::gl::kSsboDynNodes, nodes_);
     grows++;
