@@ -265,7 +265,7 @@ void screenshot(const std::string& path, const ShotOptions& opt) {
   if (opt.width == 0 || opt.height == 0) fail<usage_error>(kViewStage, "screenshot: empty size");
   const size_t bytes = size_t(opt.width) * opt.height * 4;
   httplib::Server server;
-  detail::add_routes(server, root, detail::config_json(root, opt.config_json));
+  detail::add_routes(server, root, detail::config_json(root, opt.config_json, opt.backend));
   Received got;
   add_post_routes(server, got, bytes);
   const int port = detail::bind_server(server, "127.0.0.1", 0);

@@ -14,9 +14,10 @@ namespace prep::view::detail {
 inline constexpr std::string_view kViewStage = "view";
 
 // The body of /config.json: {"kind", "url", "terrain": URL of STEM.terrain
-// beside a package, or null, "screenshot": `screenshot_json` (a JSON value;
-// empty: null)}.
-std::string config_json(const ServeRoot& root, std::string_view screenshot_json);
+// beside a package, or null, "backend": `backend` (auto, webgpu or webgl2),
+// "screenshot": `screenshot_json` (a JSON value; empty: null)}.
+std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
+                        std::string_view backend);
 
 // Adds the GET routes of prep/view.hpp: /, /config.json (`config`), /web/...
 // and /data/... of `root`.

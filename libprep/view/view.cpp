@@ -287,7 +287,8 @@ const Asset* find_asset(std::string_view url_path) {
 
 namespace detail {
 
-std::string config_json(const ServeRoot& root, std::string_view screenshot_json) {
+std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
+                        std::string_view backend) {
   std::string entry;
   for (const auto& c : fs::path(root.entry))
     entry += (entry.empty() ? "" : "/") + url_component(c.string());
@@ -296,6 +297,7 @@ std::string config_json(const ServeRoot& root, std::string_view screenshot_json)
   return std::string("{\"kind\":") +
          (root.kind == ServeRoot::Kind::package ? "\"package\"" : "\"tileset\"") +
          ",\"url\":" + json_string("/data/" + entry) + ",\"terrain\":" + terrain +
+         ",\"backend\":" + json_string(std::string(backend)) +
          ",\"screenshot\":" + std::string(screenshot_json.empty() ? "null" : screenshot_json) + "}";
 }
 
@@ -349,7 +351,7 @@ void serve(const ServeOptions& options,
            const std::function<void(const std::string& url)>& on_listening) {
   const ServeRoot root = resolve_root(options.path);
   httplib::Server server;
-  detail::add_routes(server, root, detail::config_json(root, {}));
+  detail::add_routes(server, root, detail::config_json(root, {}, options.backend));
   // Anything else (other paths, other methods) httplib refuses itself.
   server.set_payload_max_length(1 << 16);
   const int port = detail::bind_server(server, options.bind, options.port);

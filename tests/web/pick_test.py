@@ -25,7 +25,10 @@ near, are picked in one screenshot run; each answer must name the expected
 layer and fid (formats/SPEC.md LineProps `feature`: the source FID, or
 0xffffffff for one a u32 cannot hold).
 
-Usage: pick_test.py DECALPREP REPO_ROOT WORK_DIR   (exit 77: skip)
+--backend webgpu|webgl2 (default webgpu) is passed to `view`, whose --stats
+device line must name it (Web.PickingWebGL2 picks with the WebGL2 renderer).
+
+Usage: pick_test.py DECALPREP REPO_ROOT WORK_DIR [--backend webgpu|webgl2]   (exit 77: skip)
 """
 import json
 import os
@@ -42,10 +45,11 @@ WANTED = ["buildings", "streets", "main_roads", "buildings", "landuse", "green",
 
 
 def main():
-    if len(sys.argv) != 4:
+    if len(sys.argv) not in (4, 6) or (len(sys.argv) == 6 and sys.argv[4] != "--backend"):
         print(__doc__)
         return 2
-    decalprep, root, work = sys.argv[1:]
+    decalprep, root, work = sys.argv[1:4]
+    backend = sys.argv[5] if len(sys.argv) == 6 else "webgpu"
     try:
         from osgeo import gdal, ogr, osr
     except ImportError as e:
@@ -150,7 +154,7 @@ def main():
         return 1
     extent = "%f,%f,%f,%f" % (xmin + ox, ymax - SIZE[1] + oy, xmin + SIZE[0] + ox, ymax + oy)
     cmd = [decalprep, "view", pkg, "--screenshot", os.path.join(work, "pick.png"),
-           "--extent", extent, "--size", "%dx%d" % SIZE]
+           "--extent", extent, "--size", "%dx%d" % SIZE, "--backend", backend, "--stats"]
     for (px, py), _ in picks:
         cmd += ["--pick", "%d,%d" % (px, py)]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
@@ -160,6 +164,10 @@ def main():
         return SKIP
     if r.returncode != 0:
         print("FAIL: view --screenshot --pick exited %d" % r.returncode)
+        return 1
+    device = {"webgpu": "WebGPU", "webgl2": "WebGL2"}.get(backend, backend)
+    if not re.search(r"^device: %s " % device, r.stdout, re.M):
+        print("FAIL: --backend %s, but the page drew with another device" % backend)
         return 1
     got = {}
     for line in r.stdout.splitlines():

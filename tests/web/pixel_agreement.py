@@ -25,12 +25,19 @@ must reach the case's threshold.
                   decals at 8 m pixels, and the lit final frame oblique
                   over its terrain.
 
-view must not say it leaves dynamic layers out (it draws them). Prints one
-line per case with the counts. Exit 0 when every case passes,
+With WebGPU, view must not say it leaves dynamic layers out (it draws
+them); with WebGL2 (which does not), it must name them (Monaco's motorways)
+when the view asks for every kind, and not with --only. --backend
+webgpu|webgl2 (default webgpu) is passed to every `view`
+(Web.PixelAgreementWebGL2 runs the cases with webgl2), and each view's
+--stats device line must name that backend ("device: WebGPU ..." or
+"device: WebGL2 ..."), so a page that fell back to the other one fails.
+Every case here compares static decals, which both backends draw. Prints
+one line per case with the counts. Exit 0 when every case passes,
 1 when one fails (a wrong renderer fails here, it is never skipped), 77
 (skip) only when Chromium is missing or cannot start.
 
-Usage: pixel_agreement.py DECALPREP REPO_ROOT WORK_DIR SHARED_DATA_DIR
+Usage: pixel_agreement.py DECALPREP REPO_ROOT WORK_DIR SHARED_DATA_DIR [--backend webgpu|webgl2]
 """
 import json
 import os
@@ -132,6 +139,11 @@ def package_centre(decalprep, pkg):
 
 def main():
     decalprep, root, work, data = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
+    backend = sys.argv[6] if len(sys.argv) > 6 and sys.argv[5] == "--backend" else "webgpu"
+    if backend not in ("webgpu", "webgl2"):
+        print(f"FAIL: --backend {backend}: expected webgpu or webgl2")
+        return 1
+    device = {"webgpu": "WebGPU", "webgl2": "WebGL2"}[backend]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     size = (480, 270)
@@ -226,7 +238,7 @@ def main():
             failed += 1
             continue
         v = run([decalprep, "view", view_pkg, "--screenshot", web] + (["--decals", web_d] if decals else []) +
-                view_opts + ["--timeout", "300"])
+                view_opts + ["--backend", backend, "--stats", "--timeout", "300"])
         if v.returncode == BROWSER_EXIT:
             print("SKIP: no Chromium:", v.stderr.strip())
             return SKIP
@@ -238,14 +250,25 @@ def main():
             print(f"FAIL {name}: view --screenshot exited {v.returncode}: {v.stderr[-3000:]}")
             failed += 1
             continue
-        # The browser draws dynamic lines: no note may say they are left out.
-        if "left out" in v.stderr:
-            print(f"FAIL {name}: view says it leaves layers out: {v.stderr[-2000:]}")
+        # WebGPU draws dynamic lines: no note may say they are left out.
+        # WebGL2 does not: the note names Monaco's motorways when the view
+        # asks for every kind, and nothing is noted otherwise.
+        noted = "left out" in v.stderr
+        wants_note = backend == "webgl2" and "--only" not in view_opts and \
+            os.path.basename(view_pkg) == "monaco.decals"
+        if noted != wants_note or (wants_note and "motorways left out" not in v.stderr):
+            print(f"FAIL {name}: the note on dynamic lines {'missing' if wants_note else 'printed'}: "
+                  f"{v.stderr[-2000:]}")
             failed += 1
             continue
         if "--stats" in view_opts and not re.search(r"^frame: [\d.]+ ms median of 1 warm frame, first ",
                                                     v.stdout, re.M):
             print(f"FAIL {name}: view --stats printed no frame times: {v.stdout[-2000:]}")
+            failed += 1
+            continue
+        # The backend asked for drew it: --stats names the device.
+        if not re.search(rf"^device: {device} ", v.stdout, re.M):
+            print(f"FAIL {name}: --backend {backend}, but the page drew with another device: {v.stdout[-2000:]}")
             failed += 1
             continue
         a, bpath = (ref_d, web_d) if decals else (ref, web)
@@ -260,7 +283,7 @@ def main():
         print(f"{'ok  ' if ok else 'FAIL'} {name}: {agree} of {compared} pixels within 1/255 "
               f"({100 * share:.3f}%, need {100 * threshold:.1f}%), {band} edge-band pixels left out, "
               f"largest difference {worst}/255; {os.path.basename(a)} vs {os.path.basename(bpath)}")
-    print(f"{len(cases) - failed} of {len(cases)} cases agree")
+    print(f"{len(cases) - failed} of {len(cases)} cases agree ({backend})")
     return 1 if failed else 0
 
 

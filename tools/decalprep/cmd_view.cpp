@@ -233,6 +233,7 @@ void run_screenshot(ViewArgs& a) {
   std::vector<std::array<uint32_t, 2>> picks;
   for (const std::string& p : a.picks) picks.push_back(parse_pick(p, s.width, s.height));
   s.config_json = shot_config(v, s.decals, picks, a.stats).dump();
+  s.backend = a.serve.backend;
   s.chromium = *chromium;
   s.timeout_s = a.timeout;
   s.verbose = a.verbose;
@@ -268,7 +269,8 @@ constexpr decalprep::CommandHelp kViewHelp{
     "Examples:\n  decalprep view city.decals\n  decalprep view country/ --port 0\n"
     "  decalprep view city.decals --bind 0.0.0.0 --port 8000\n"
     "  decalprep view city.decals --screenshot city.png --fit --pitch 50 --size 1280x720\n"
-    "  decalprep view city.decals --screenshot city.png --pick 320,180 --pick 10,20"};
+    "  decalprep view city.decals --screenshot city.png --pick 320,180 --pick 10,20\n"
+    "  decalprep view city.decals --screenshot city.png --backend webgl2"};
 
 void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
   R::RenderRequest& r = a.shot;
@@ -325,6 +327,10 @@ const decalprep::CommandRegistrar kView(70, kViewHelp, [](CLI::App* cmd) {
                   "the address to listen on (default 127.0.0.1: this machine only)");
   cmd->add_option("--port", opt.port, "the port (default 8080; 0: a free one)")
       ->check(CLI::Range(0, 65535));
+  cmd->add_option("--backend", opt.backend,
+                  "the page's renderer: auto (WebGPU, else WebGL2; the default), webgpu, or "
+                  "webgl2 (static decals only)")
+      ->check(CLI::IsMember({"auto", "webgpu", "webgl2"}));
   add_screenshot_options(cmd, *args);
   cmd->callback([args] {
     if (!args->shot.output.empty()) {

@@ -55,12 +55,14 @@ export function showLayers(names, toggle) {
 
 /**
  * The overlay's figures.
- * @param {{ms: number, gpuBytes: number, tiles: number, width: number, height: number, adapter: string}} f
+ * @param {{ms: number, gpuBytes: number, tiles: number, width: number, height: number, adapter: string,
+ *          limits?: string}} f  limits: the backend and what it cannot draw
  */
 export function showOverlay(f) {
   const o = el("overlay");
   o.textContent = `${f.ms.toFixed(1)} ms  ${f.width}x${f.height}\n` +
-    `${(f.gpuBytes / 1048576).toFixed(1)} MiB GPU  ${f.tiles} tile${f.tiles === 1 ? "" : "s"}\n${f.adapter}`;
+    `${(f.gpuBytes / 1048576).toFixed(1)} MiB GPU  ${f.tiles} tile${f.tiles === 1 ? "" : "s"}\n${f.adapter}` +
+    (f.limits ? `\n${f.limits}` : "");
   o.classList.remove("hidden");
 }
 

@@ -17,7 +17,8 @@ import { describePick, layerKinds, showLayers, showOverlay, showPick, showStatus
  * @typedef {{width: number, height: number, camera: Camera, albedo: number[], decals: boolean,
  *            ramps: import("../src/render/scene.js").LayerRamp[], only?: Kinds,
  *            frames?: number, picks?: number[][], passTimes?: boolean}} ShotConfig
- * @typedef {{kind: string, url: string, terrain?: string | null, screenshot?: ShotConfig | null}} Config
+ * @typedef {{kind: string, url: string, terrain?: string | null, backend?: string,
+ *            screenshot?: ShotConfig | null}} Config
  */
 
 const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById("map"));
@@ -56,16 +57,39 @@ async function loadTerrain(config) {
   return config.terrain ? fetchTerrain(new URL(config.terrain, location.href).href) : null;
 }
 
-/** The renderer, or an Error that says WebGPU is missing and what to do. @param {HTMLCanvasElement} c */
-async function openRenderer(c) {
+/**
+ * The backend to draw with: ?backend= in the page's URL, else the config's
+ * (`decalprep view --backend`), else "auto" (WebGPU, falling back to WebGL2).
+ * @param {Config} config
+ * @returns {import("../src/render/index.js").Backend}
+ */
+function chosenBackend(config) {
+  const asked = new URLSearchParams(location.search).get("backend") ?? config.backend ?? "auto";
+  if (asked === "auto" || asked === "webgpu" || asked === "webgl2") return asked;
+  throw new Error(`backend '${asked}': expected auto, webgpu or webgl2`);
+}
+
+/**
+ * The renderer, or an Error that says what is missing and what to do.
+ * @param {HTMLCanvasElement} c @param {import("../src/render/index.js").Backend} backend
+ */
+async function openRenderer(c, backend) {
   try {
-    return await createRenderer({ canvas: c });
+    return await createRenderer({ canvas: c, backend });
   } catch (e) {
     const why = e instanceof Error ? e.message : String(e);
-    throw new Error(`this viewer needs WebGPU, which this browser does not offer (${why}); use a ` +
-      "recent Chrome, Edge or Chromium (headless: --enable-unsafe-webgpu), or Firefox/Safari with " +
-      "WebGPU enabled. A WebGL2 fallback is planned.");
+    throw new Error(`this viewer needs WebGPU or WebGL2 (backend ${backend}), which this browser does ` +
+      `not offer (${why}); use a recent Chrome, Edge or Chromium (headless: --enable-unsafe-webgpu), ` +
+      "or Firefox/Safari with WebGPU or WebGL2 enabled.");
   }
+}
+
+/**
+ * The overlay's backend line: "WebGL2: static decals only; dynamic lines not drawn".
+ * @param {{backend: string, limits: string}} r
+ */
+function backendLine(r) {
+  return `${r.backend === "webgl2" ? "WebGL2" : "WebGPU"}${r.limits ? `: ${r.limits}` : ""}`;
 }
 
 /** @param {string} path @param {BodyInit} body */
@@ -81,7 +105,7 @@ async function screenshot(config) {
   const [{ pkg }, terrain] = await Promise.all([openData(config), loadTerrain(config)]);
   canvas.width = s.width;
   canvas.height = s.height;
-  const renderer = await openRenderer(canvas);
+  const renderer = await openRenderer(canvas, chosenBackend(config));
   // Without a terrain file, flat ground where render lays it
   // (libprep/pipeline/render_request.cpp): the package extent, grown to
   // take in a top-down view.
@@ -89,9 +113,18 @@ async function screenshot(config) {
   const ground = terrain ?? (td && Array.isArray(ext) ? flatTerrain([Math.min(ext[0], td[0]),
     Math.min(ext[1], td[1]), Math.max(ext[2], td[2]), Math.max(ext[3], td[3])]) : null);
   await renderer.setScene({ pkg, terrain: ground, ramps: s.ramps });
-  // --only: the kinds left out are hidden layers.
+  // --only: the kinds left out are hidden layers. The WebGL2 renderer does
+  // not draw dynamic lines: the ones the view asks for are named.
   const only = s.only ?? { polygons: true, lines: true, dynamic: true };
-  for (const [i, { kind }] of layerKinds(pkg.metadata).entries()) renderer.setLayerVisible(i, only[kind]);
+  const undrawn = [];
+  for (const [i, { name, kind }] of layerKinds(pkg.metadata).entries()) {
+    renderer.setLayerVisible(i, only[kind]);
+    if (kind === "dynamic" && only.dynamic && renderer.backend === "webgl2") undrawn.push(name || `layer ${i}`);
+  }
+  if (undrawn.length > 0) {
+    await post("/__shot/note", `WebGL2 does not draw dynamic lines: layer${undrawn.length > 1 ? "s" : ""} ` +
+      `${undrawn.join(", ")} left out (--backend webgpu draws them; render --only polygons,lines draws the same decals)`);
+  }
   // --frames N: N frames drawn, the last one sent; their times go to
   // /__shot/stats (view --stats prints them).
   const frames = Math.max(1, Math.min(1000, Math.floor(s.frames ?? 1)));
@@ -134,7 +167,7 @@ async function screenshot(config) {
 /** The interactive viewer. @param {Config} config */
 async function interactive(config) {
   const [{ pkg, tiles }, terrain] = await Promise.all([openData(config), loadTerrain(config)]);
-  const renderer = await openRenderer(canvas);
+  const renderer = await openRenderer(canvas, chosenBackend(config));
   await renderer.setScene({ pkg, terrain, ramps: [] });
   const meta = /** @type {any} */ (pkg.metadata);
   const extent = Array.isArray(meta?.extent) ? meta.extent : [0, 0, 1000, 1000];
@@ -150,7 +183,8 @@ async function interactive(config) {
       const height = Math.max(1, Math.round(canvas.clientHeight * scale));
       if (canvas.width !== width || canvas.height !== height) [canvas.width, canvas.height] = [width, height];
       const out = await renderer.renderFrame({ camera: cam.camera(), width, height, present: true, readback: false });
-      showOverlay({ ms: out.ms, gpuBytes: renderer.gpuBytes, tiles, width, height, adapter: renderer.adapterName });
+      showOverlay({ ms: out.ms, gpuBytes: renderer.gpuBytes, tiles, width, height, adapter: renderer.adapterName,
+        limits: backendLine(renderer) });
     } finally {  // a failure reaches failed() through "unhandledrejection"
       busy = false;
     }
@@ -174,7 +208,8 @@ async function interactive(config) {
       present: false, readback: false, pick: [x, y] })
       .then((out) => showPick(describePick(out.pick, names)));
   });
-  const listed = layerKinds(pkg.metadata).map(({ name, kind }) => (kind === "dynamic" ? `${name} (dynamic)` : name));
+  const listed = layerKinds(pkg.metadata).map(({ name, kind }) => (kind !== "dynamic" ? name
+    : `${name} (dynamic${renderer.backend === "webgl2" ? ": not drawn by WebGL2" : ""})`));
   showLayers(listed, (i, visible) => {
     renderer.setLayerVisible(i, visible);
     redraw();

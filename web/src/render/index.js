@@ -18,6 +18,7 @@ import { TERRAIN_WGSL, TERRAIN_UNIFORM_BYTES, COMPOSITE_WGSL, PRESENT_WGSL } fro
 import { DYN_UPDATE_WGSL, DYN_LISTS_WGSL, DYN_COMPOSITE_WGSL, DYN_UNIFORM_BYTES, DYN_COUNTER_WORDS } from "./wgsl_dynamic.js";
 import { viewMatrix, projectionMatrix, matMul, mat4Inverse, normalize, topdownCamera, cameraBasis } from "./camera.js";
 import { packScene } from "./scene.js";
+import { createWebGL2Renderer, WebGL2Renderer } from "./webgl2.js";
 
 export { topdownCamera };
 
@@ -44,12 +45,40 @@ export function flatTerrain(extent) {
   };
 }
 
+/** @typedef {"auto" | "webgpu" | "webgl2"} Backend */
+
 /**
- * Creates the WebGPU renderer; throws an Error saying what is missing when
+ * Creates a renderer. backend: "webgpu" (the default) throws an Error
+ * saying what is missing when navigator.gpu or an adapter is absent;
+ * "webgl2" is the WebGL2 renderer of static decals (webgl2.js), which
+ * throws when WebGL2 is absent; "auto" tries WebGPU, then WebGL2, and
+ * throws with both reasons when neither opens. Both renderers have the
+ * same interface; `backend` says which one it is.
+ * @param {{canvas?: HTMLCanvasElement, backend?: Backend}} [options]
+ * @returns {Promise<Renderer | WebGL2Renderer>}
+ */
+export async function createRenderer(options = {}) {
+  const backend = options.backend ?? "webgpu";
+  if (backend === "webgl2") return createWebGL2Renderer(options);
+  if (backend !== "auto") return createWebGPURenderer(options);
+  try {
+    return await createWebGPURenderer(options);
+  } catch (e) {
+    try {
+      return createWebGL2Renderer(options);
+    } catch (e2) {
+      const why = (/** @type {unknown} */ x) => (x instanceof Error ? x.message : String(x));
+      throw new Error(`no renderer: ${why(e)}; ${why(e2)}`);
+    }
+  }
+}
+
+/**
+ * The WebGPU renderer; throws an Error saying what is missing when
  * navigator.gpu or an adapter is absent.
  * @param {{canvas?: HTMLCanvasElement}} [options]
  */
-export async function createRenderer(options = {}) {
+async function createWebGPURenderer(options = {}) {
   const gpu = /** @type {any} */ (globalThis.navigator)?.gpu;
   if (!gpu) throw new Error("WebGPU is not available: navigator.gpu is missing (a secure origin and a WebGPU-enabled browser are needed)");
   const { device, name } = await openDevice(gpu);
@@ -143,6 +172,9 @@ export class Renderer {
   /** @param {any} device @param {string} name @param {HTMLCanvasElement | null} canvas @param {any} gpu */
   constructor(device, name, canvas, gpu) {
     this.adapterName = name;
+    /** Which renderer this is, and what it leaves out (the viewer's overlay says). */
+    this.backend = "webgpu";
+    this.limits = "";
     this.gpuBytes = 0;
     this.canvas = canvas;
     this.gpu = gpu;

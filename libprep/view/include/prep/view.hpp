@@ -8,6 +8,8 @@
 //   /config.json      {"kind": "package"|"tileset", "url": "/data/NAME",
 //                      "terrain": "/data/STEM.terrain" (a package's terrain
 //                      file, when there is one) | null,
+//                      "backend": "auto"|"webgpu"|"webgl2" (the page's
+//                      renderer; ?backend= in the page's URL overrides it),
 //                      "screenshot": {...} (screenshot mode) | null}
 //   /web/...          the embedded files of web/ (viewer, reader, and the
 //                     two modules web/node_modules held at build time)
@@ -84,6 +86,7 @@ struct ServeOptions {
   std::string path;                // the package or tileset
   std::string bind = "127.0.0.1";  // the address to listen on
   int port = 8080;                 // 0: a free port the system picks
+  std::string backend = "auto";    // the page's renderer: auto, webgpu or webgl2
 };
 
 // Serves until the process is stopped (SIGINT/SIGTERM end it through
@@ -108,8 +111,9 @@ struct ShotOptions {
   // The config's "screenshot" value: a JSON object the page reads (size,
   // camera, albedo, decals, ramps; web/viewer).
   std::string config_json;
-  bool decals = false;   // wait for /__shot/decals too
-  std::string chromium;  // the browser's executable (find_chromium)
+  std::string backend = "auto";  // the page's renderer: auto, webgpu or webgl2
+  bool decals = false;           // wait for /__shot/decals too
+  std::string chromium;          // the browser's executable (find_chromium)
   double timeout_s = 120;
   bool verbose = false;  // Chromium's log and the page's console on stderr
   // Called with the POSTed pixels once Chromium is stopped.
