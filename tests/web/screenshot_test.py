@@ -218,7 +218,10 @@ def main():
               f"--frames 3 --stats prints the frame and pass times: {r.stdout.strip()!r}")
         if frame and passes:
             ms = [float(passes.group(k)) for k in (2, 3, 4)]
-            check(all(t > 0 for t in ms) and sum(ms) <= float(frame.group(1)) * 1.5 + 1,
+            # The terrain and decal passes take time; the composite may be
+            # 0 where the backend does it in the decal pass (WebGL2, which
+            # `--backend auto` falls back to without WebGPU).
+            check(ms[0] > 0 and ms[1] > 0 and ms[2] >= 0 and sum(ms) <= float(frame.group(1)) * 1.5 + 1,
                   f"pass times {ms} ({passes.group(1)}) are positive and within the frame's "
                   f"{frame.group(1)} ms")
     print(f"{len(failures)} failed")
