@@ -11,7 +11,7 @@ holes) is built as a new user would: `decalprep build INPUT --kind polygon
 for world data). In one run, alternating, --runs times each: that build and
 `ogr2ogr -f FlatGeobuf` of the same file (the floor; GeoJSON objects of any
 size allowed, as decalprep's reader allows them). Then, on the last build,
-top-down renders of the whole extent at --size: GL and --cpu, each at
+top-down renders of the whole extent at --size: GL (--aa none) and --cpu, each at
 `--level auto` (the coarsest level within a pixel) and `--level 0`; the
 share of pixels of each auto render that differ from the level-0 render of
 the same renderer, and GL against --cpu. Prints the figures and writes
@@ -90,8 +90,9 @@ def main():
                 raw = os.path.join(work, name + ".raw")
                 cmd = [tool, "render", tiles, ext, "--size", a.size, "--level", level,
                        "-o", os.path.join(work, name + ".png"), "--raw", raw]
-                if renderer == "cpu":
-                    cmd.append("--cpu")
+                # GL aliased, as the CPU evaluator draws (GL's default is
+                # --aa msaa4), so that the two can be compared pixel by pixel.
+                cmd += ["--cpu"] if renderer == "cpu" else ["--aa", "none"]
                 wall, cpu, rss = measured(cmd)
                 images[name] = raw_pixels(raw)
                 rows.append({"run": "", "what": "render " + name, "wall_s": wall, "cpu_s": cpu,
