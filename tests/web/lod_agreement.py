@@ -10,7 +10,10 @@ tests/render/test_lod_gpu.cpp), at two tolerances. Also: the view
 parameters the browser's lodView() makes of each camera equal
 prep::render::lod_view's. Prints the counts per view and the smallest
 relative margin |e* - eps(d - d*)| / eps of any point, the distance to a
-tie the f32 evaluation has to stay clear of.
+tie the f32 evaluation has to stay clear of. Then the browser draws the LOD
+lines from its selection (wgsl_dynamic.js DYN_LOD_WGSL): in the middle and
+far views its frame is GL's with --lod on (99.9% of pixels within 2/255),
+not GL's with --lod off.
 
 Usage: lod_agreement.py DECALPREP VIEW_ORACLE REPO_ROOT WORK_DIR SHARED_DATA
 Exit 77 (skip) without node, Chromium or the Liechtenstein extract.
@@ -122,7 +125,53 @@ def main():
                       "ok  " if ok else "FAIL", name, len(ws), c["segments"], len(cs), only_cpp,
                       only_web, "equal" if same_view else "DIFFERS %s vs %s" % (c["view"], w["view"]),
                       w["ms"], "%.2e" % m if m is not None else "?"))
+    failures += draw_checks(decalprep, pkg, work)
     return 1 if failures else 0
+
+
+def differing(path_a, path_b):
+    """Pixels whose RGB differ by more than 2/255 in some channel."""
+    sys.path.insert(0, os.path.join(ROOT, "tests", "web"))
+    from pixel_agreement import read_png  # noqa: E402
+    w, h, a = read_png(path_a)
+    w2, h2, b = read_png(path_b)
+    if (w, h) != (w2, h2):
+        return w * h
+    return sum(1 for y in range(h) for x in range(w)
+               if max(abs(a[y][4 * x + k] - b[y][4 * x + k]) for k in range(3)) > 2), w * h
+
+
+def draw_checks(decalprep, pkg, work):
+    """The browser draws the LOD lines from the segments it selects: its
+    frame (view --screenshot, WebGPU) against render's (GL, --aa none, --lod
+    on by default) in the middle and near views, at least 99.9% of pixels
+    within 2/255; and the selection shows: GL with --lod off differs from
+    --lod on in many pixels, and the browser is the --lod on image."""
+    failures = 0
+    for v in VIEWS[1:3]:
+        cam = ["--eye", ",".join(map(str, v["eye"])), "--target", ",".join(map(str, v["target"])),
+               "--fov", str(v["fov"]), "--size", "640x%d" % (640 * H // 480)]
+        out = {k: os.path.join(work, "%s_%s.png" % (v["name"], k)) for k in ("gl", "gl_off", "web")}
+        for k, extra in (("gl", []), ("gl_off", ["--lod", "off"])):
+            r = subprocess.run([decalprep, "render", pkg, "-o", out[k], "--aa", "none"] + cam + extra,
+                               capture_output=True, text=True)
+            if r.returncode != 0:
+                print("SKIP the drawing check: render (GL) exited %d: %s" % (r.returncode, r.stderr[-500:]))
+                return 0
+        r = subprocess.run([decalprep, "view", pkg, "--screenshot", out["web"], "--backend", "webgpu"] + cam,
+                           capture_output=True, text=True, timeout=600)
+        if r.returncode != 0:
+            print("FAIL %s: view --screenshot exited %d: %s" % (v["name"], r.returncode, r.stderr[-1500:]))
+            failures += 1
+            continue
+        web_on, n = differing(out["gl"], out["web"])
+        web_off, _ = differing(out["gl_off"], out["web"])
+        on_off, _ = differing(out["gl"], out["gl_off"])
+        ok = web_on <= n // 1000 and on_off >= 100 and web_off >= 10 * max(1, web_on)
+        failures += not ok
+        print("%s %s view drawn: browser against GL --lod on %d of %d pixels differ (GL --lod off: %d; "
+              "GL on against off: %d)" % ("ok  " if ok else "FAIL", v["name"], web_on, n, web_off, on_off))
+    return failures
 
 
 if __name__ == "__main__":

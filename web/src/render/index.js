@@ -5,7 +5,8 @@
 // centre exactly for a top-down view; slope widths from the gradient of the
 // terrain triangle under it), the dynamic lines (libprep/render/
 // gl_dynamic.cpp: update, per-pixel lists, ordered composite;
-// wgsl_dynamic.js; LOD lines at full detail) and the composite. Frames are
+// wgsl_dynamic.js; LOD lines from the LOD segments the view selects,
+// render --lod on at 0.5 pixels) and the composite. Frames are
 // shown on the canvas through its WebGPU context, or,
 // where that fails (headless Chromium), read back into its 2D context
 // (presentPath).
@@ -15,7 +16,8 @@
 
 import { DECALS_WGSL, FRAME_BYTES, SLOTS } from "./wgsl_decals.js";
 import { TERRAIN_WGSL, TERRAIN_UNIFORM_BYTES, COMPOSITE_WGSL, PRESENT_WGSL } from "./wgsl_frame.js";
-import { DYN_UPDATE_WGSL, DYN_LISTS_WGSL, DYN_COMPOSITE_WGSL, DYN_UNIFORM_BYTES, DYN_COUNTER_WORDS } from "./wgsl_dynamic.js";
+import { DYN_UPDATE_WGSL, DYN_LISTS_WGSL, DYN_COMPOSITE_WGSL, DYN_LOD_WGSL, DYN_UNIFORM_BYTES, DYN_COUNTER_WORDS } from "./wgsl_dynamic.js";
+import { LodSelector, lodDrawMap, lodUniform, lodView } from "./lod.js";
 import { viewMatrix, projectionMatrix, matMul, mat4Inverse, normalize, topdownCamera, cameraBasis } from "./camera.js";
 import { packScene } from "./scene.js";
 import { createWebGL2Renderer, WebGL2Renderer } from "./webgl2.js";
@@ -143,6 +145,45 @@ export function triangleGradients(t) {
   return out;
 }
 
+/**
+ * A package's LOD lines as the LOD passes read them (wgsl_dynamic.js
+ * DYN_LOD_WGSL): lod_points, lod_segments, the draw map (lod.js lodDrawMap:
+ * vertex and end link per point) and the dynamic lines' flags in one word
+ * buffer, at `offsets`.
+ * @typedef {{words: Uint32Array, points: number, segments: number, offsets: number[], lines: number}} LodData
+ */
+
+/**
+ * The LOD data of a package with LOD lines that map onto its dynamic lines,
+ * else null (its lines are then drawn from their full vertex chains).
+ * @param {import("../package.js").Package} pkg
+ * @returns {Promise<LodData | null>}
+ */
+async function packLod(pkg) {
+  const blobs = await LodSelector.blobsOf(pkg);
+  if (!blobs) return null;
+  const view = async (/** @type {string} */ n) => {
+    const a = /** @type {ArrayBufferView} */ (await pkg.array(n));
+    return new Uint32Array(a.buffer, a.byteOffset, a.byteLength / 4);
+  };
+  const signed = (/** @type {Uint32Array} */ u) => new Int32Array(u.buffer, u.byteOffset, u.length);
+  const map = lodDrawMap(blobs.points, blobs.segments, await view("lod_line_range"),
+    signed(await view("dyn_vertices")), await view("dyn_line_start"), signed(await view("dyn_prev_next")));
+  if (map.lines === 0) return null;
+  const np = blobs.points.length / 8, ns = blobs.segments.length / 4;
+  const offsets = [0, blobs.points.length, blobs.points.length + blobs.segments.length,
+    blobs.points.length + blobs.segments.length + 2 * np];
+  const words = new Uint32Array(offsets[3] + map.lineDrawn.length);
+  words.set(blobs.points, offsets[0]);
+  words.set(blobs.segments, offsets[1]);
+  for (let p = 0; p < np; ++p) {
+    words[offsets[2] + 2 * p] = map.vertex[p];
+    words[offsets[2] + 2 * p + 1] = map.end[p];
+  }
+  words.set(map.lineDrawn, offsets[3]);
+  return { words, points: np, segments: ns, offsets, lines: map.lines };
+}
+
 /** Integer floor division. @param {number} a @param {number} b */
 const floorDiv = (a, b) => Math.floor(a / b);
 
@@ -247,6 +288,7 @@ export class Renderer {
     this.standIn = d.createBuffer({ size: 16, usage: BU.STORAGE });
     /** @type {any} */ this.presentPipeline = null;
     /** @type {any} */ this.dynPipes = null;
+    /** @type {LodData | null} */ this.lod = null;
   }
 
   /** The timestamp query set of passTimes (four passes), made once per device. */
@@ -290,9 +332,17 @@ export class Renderer {
     });
     const composite = d.createComputePipeline({ layout: "auto",
       compute: { module: d.createShaderModule({ code: DYN_COMPOSITE_WGSL }), entryPoint: "main" } });
+    // The LOD passes (wgsl_dynamic.js DYN_LOD_WGSL): one layout for the three.
+    const lodLayout = d.createBindGroupLayout({ entries: [
+      storage(0, "uniform"), storage(1, "read-only-storage"), ...[2, 3, 4, 5].map((b) => storage(b, "storage")),
+      storage(6, "read-only-storage"), storage(7, "storage"), storage(8, "uniform")] });
+    const lodModule = d.createShaderModule({ code: DYN_LOD_WGSL });
+    const lodPl = d.createPipelineLayout({ bindGroupLayouts: [lodLayout] });
+    const lod = Object.fromEntries(["lod_mask", "lod_select", "lod_segments"].map((entryPoint) =>
+      [entryPoint, d.createComputePipeline({ layout: lodPl, compute: { module: lodModule, entryPoint } })]));
     const err = await d.popErrorScope();
     if (err) throw new Error(`the dynamic-line pipelines: ${err.message}`);
-    this.dynPipes = { layout, update, lists, composite };
+    this.dynPipes = { layout, update, lists, composite, lodLayout, lod };
     return this.dynPipes;
   }
 
@@ -322,6 +372,7 @@ export class Renderer {
   async setScene({ pkg, terrain, ramps, slopeWidths }) {
     const scene = await packScene(pkg, ramps ?? [], slopeWidths ?? "auto");
     this.scene = scene;
+    this.lod = scene.dynamic.vertices > 0 ? await packLod(pkg) : null;
     this.visBits = new Uint32Array(Math.max(1, Math.ceil(scene.layerCount / 32))).fill(0xffffffff);
     const ext = pkg.metadata.extent || [0, 0, 1, 1];
     this.terrain = terrain ?? flatTerrain(ext);
@@ -367,7 +418,20 @@ export class Renderer {
         indirect: this.buffer(16, BU.INDIRECT | BU.COPY_DST),
         readCounters: this.buffer(4 * DYN_COUNTER_WORDS, BU.MAP_READ | BU.COPY_DST),
         groups: blocks,
+        lod: null,
       };
+      // LOD lines: the LOD words, the links and the selection, the uniform.
+      const lod = this.lod;
+      if (lod) {
+        const words = this.buffer(lod.words.byteLength, BU.STORAGE | BU.COPY_DST);
+        this.device.queue.writeBuffer(words, 0, lod.words);
+        const reset = new Uint32Array(2 * lod.points + 4).fill(0xffffffff);
+        reset.fill(0, 2 * lod.points);
+        this.dynWork.lod = { words, reset,
+          state: this.buffer(4 * (2 * lod.points + 4 + lod.segments), BU.STORAGE | BU.COPY_DST),
+          uniform: this.buffer(80, BU.UNIFORM | BU.COPY_DST),
+          groups: Math.min(65535, Math.ceil(lod.segments / 256)) };
+      }
     }
   }
 
@@ -376,6 +440,7 @@ export class Renderer {
     this.free(this.dynBuffer);
     this.dynBuffer = null;
     const w = this.dynWork;
+    if (w?.lod) for (const b of [w.lod.words, w.lod.state, w.lod.uniform]) this.free(b);
     if (w) for (const b of [w.flags, w.scan, w.blocks, w.compact, w.segments, w.dash, w.counters, w.indirect,
                             w.readCounters]) this.free(b);
     this.dynWork = null;
@@ -667,6 +732,13 @@ export class Renderer {
       df.set([persp ? (2 * th) / H : 0, terrain.zmin, terrain.zmax, 0], 28);
       dw.set([...ds.offsets.subarray(0, 5), ds.minWidthCount, ds.offsets[5], ds.dashed ? 1 : 0], 32);
       d.queue.writeBuffer(this.dynUniform, 0, du);
+      const lw = this.dynWork.lod, lod = this.lod;
+      if (lw && lod) {
+        // render --lod on, --lod-tolerance 0.5 (prep::render::lod_view).
+        const view = lodView(camera, H, terrain.zmin, terrain.zmax, 0.5);
+        d.queue.writeBuffer(lw.uniform, 0, lodUniform(view, [lod.points, lod.segments], lod.offsets));
+        d.queue.writeBuffer(lw.state, 0, lw.reset);
+      }
     }
 
     if (picking) d.queue.writeBuffer(T.pick, 0, new Uint32Array(4));
@@ -813,13 +885,22 @@ export class Renderer {
       entries: buffers.map((buffer, binding) => ({ binding, resource: { buffer } })) });
     let enc = d.createCommandEncoder();
     const cp = enc.beginComputePass(stamps ? { timestampWrites: { querySet: stamps.set, beginningOfPassWriteIndex: 6 } } : {});
-    cp.setBindGroup(0, group(P.layout, [this.dynUniform, this.dynBuffer, w.flags, w.scan, w.blocks, w.compact,
-      w.segments, w.counters, w.dash]));
-    const entries = ["cull", "scan_local", "scan_blocks", "scatter", "segments"];
+    const updateGroup = group(P.layout, [this.dynUniform, this.dynBuffer, w.flags, w.scan, w.blocks, w.compact,
+      w.segments, w.counters, w.dash]);
+    const lodGroup = w.lod ? group(P.lodLayout, [this.dynUniform, this.dynBuffer, w.flags, w.scan, w.segments,
+      w.counters, w.lod.words, w.lod.state, w.lod.uniform]) : null;
+    // With LOD lines (gl_dynamic.cpp update): lod_mask after the cull, the
+    // selection and its segments after the update's segments.
+    const entries = ["cull", ...(lodGroup ? ["lod_mask"] : []), "scan_local", "scan_blocks", "scatter", "segments",
+      ...(lodGroup ? ["lod_select", "lod_segments"] : [])];
     if (scene.dynamic.dashed) entries.push("dash_local", "dash_blocks", "dash_apply");
     for (const entry of entries) {
-      cp.setPipeline(P.update[entry]);
-      cp.dispatchWorkgroups(entry === "scan_blocks" || entry === "dash_blocks" ? 1 : w.groups);
+      const isLod = entry.startsWith("lod_");
+      cp.setPipeline(isLod ? P.lod[entry] : P.update[entry]);
+      cp.setBindGroup(0, isLod ? lodGroup : updateGroup);
+      const groups = entry === "scan_blocks" || entry === "dash_blocks" ? 1
+        : entry === "lod_select" || entry === "lod_segments" ? w.lod.groups : w.groups;
+      cp.dispatchWorkgroups(groups);
     }
     cp.end();
     enc.copyBufferToBuffer(w.counters, 0, w.indirect, 0, 16);

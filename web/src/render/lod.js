@@ -166,3 +166,90 @@ export class LodSelector {
     for (const b of [this.points, this.segments, this.selection, this.read, this.uniform]) b.destroy();
   }
 }
+
+const LOD_NONE = 0xffffffff;
+
+/**
+ * How the LOD segments are drawn on the package's dynamic lines
+ * (decal::lod_draw_map, formats/SPEC.md "Choosing the threshold"): per LOD
+ * point its dyn_vertices index and its end link (NONE inside a line; the
+ * point itself at an open line's ends; the other end at a closed ring's),
+ * and per dynamic line 1 when it is drawn from its LOD segments. A LOD line
+ * whose points do not all map, or whose dynamic line another LOD line also
+ * names, is drawn from its full vertex chain instead.
+ * @param {Uint32Array} points  lod_points words (8 a point: x, y, eval_x, eval_y, e*, d*, line, flags)
+ * @param {Uint32Array} segments  lod_segments words (a, b, generator, splitter)
+ * @param {Uint32Array} lineRange  lod_line_range words (first, count)
+ * @param {Int32Array} dynVertices  dyn_vertices (x, y, z, line)
+ * @param {Uint32Array} dynLineStart
+ * @param {Int32Array} dynPrevNext
+ * @returns {{vertex: Uint32Array, end: Uint32Array, lineDrawn: Uint32Array, lines: number}}
+ */
+export function lodDrawMap(points, segments, lineRange, dynVertices, dynLineStart, dynPrevNext) {
+  const np = points.length / 8, ns = segments.length / 4, nv = dynVertices.length / 4, nl = dynLineStart.length;
+  const m = { vertex: new Uint32Array(np).fill(LOD_NONE), end: new Uint32Array(np).fill(LOD_NONE),
+    lineDrawn: new Uint32Array(Math.max(1, nl)), lines: 0 };
+  if (nv === 0 || dynPrevNext.length !== 2 * nv) return m;
+  const px = (/** @type {number} */ p) => points[8 * p] | 0, py = (/** @type {number} */ p) => points[8 * p + 1] | 0;
+  const lineOf = (/** @type {number} */ p) => points[8 * p + 6];
+  /** @type {{first: number, last: number, dyn: number}[]} */
+  const lines = [];
+  const claims = new Uint32Array(Math.max(1, nl));
+  for (let r = 0; r < lineRange.length; r += 2) {
+    const f0 = lineRange[r], n = lineRange[r + 1];
+    if (n === 0 || f0 + n > ns) continue;
+    let first = LOD_NONE, last = 0;
+    for (let s = f0; s < f0 + n; ++s) {
+      first = Math.min(first, segments[4 * s], segments[4 * s + 1]);
+      last = Math.max(last, segments[4 * s], segments[4 * s + 1]);
+    }
+    if (last >= np || first >= last) continue;
+    const dyn = lineOf(first);
+    let same = dyn < nl;
+    for (let p = first; same && p <= last; ++p) same = lineOf(p) === dyn;
+    if (!same) continue;
+    claims[dyn] += 1;
+    lines.push({ first, last, dyn });
+  }
+  for (const l of lines) {
+    if (claims[l.dyn] !== 1) continue;
+    const start = dynLineStart[l.dyn];
+    const stop = l.dyn + 1 < nl ? dynLineStart[l.dyn + 1] : nv;
+    if (start >= stop || stop > nv) continue;
+    const closed = dynPrevNext[2 * start] >= 0;
+    const sameXY = (/** @type {number} */ v, /** @type {number} */ p) => dynVertices[4 * v] === px(p) && dynVertices[4 * v + 1] === py(p);
+    const found = [];
+    let v = start;
+    for (let p = l.first; p <= l.last; ++p) {
+      if (closed && p === l.last) {  // the ring's repeated first point
+        if (sameXY(start, p)) found.push(start);
+        break;
+      }
+      while (v < stop && !sameXY(v, p)) ++v;
+      if (v === stop) break;
+      found.push(v);
+    }
+    if (found.length !== l.last - l.first + 1) continue;
+    for (let p = l.first; p <= l.last; ++p) m.vertex[p] = found[p - l.first];
+    m.end[l.first] = closed ? l.last : l.first;
+    m.end[l.last] = closed ? l.first : l.last;
+    m.lineDrawn[l.dyn] = 1;
+    m.lines += 1;
+  }
+  return m;
+}
+
+/**
+ * The uniform of the LOD passes for `view` (wgsl_dynamic.js struct Lod): the
+ * camera as whole quanta and a remainder, eps, the counts and word offsets.
+ * @param {LodView} view @param {number[]} counts  points, segments
+ * @param {number[]} offsets  words of points, segments, map, line flags in the LOD buffer
+ */
+export function lodUniform(view, counts, offsets) {
+  const ax = Math.round(view.cx / Q), ay = Math.round(view.cy / Q);
+  const u = new ArrayBuffer(80);
+  new Int32Array(u).set([ax, ay, 0, 0], 0);
+  new Float32Array(u).set([view.cx - ax * Q, view.cy - ay * Q, view.cz, 0, view.base, view.slope, 0, 0], 4);
+  new Uint32Array(u).set([counts[0], counts[1], 0, 0, ...offsets], 12);
+  return u;
+}

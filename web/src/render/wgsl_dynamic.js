@@ -3,8 +3,9 @@
 // gl_dynamic.cpp and formats/gl/shaders/dyn_common.glsl, dyn_cull.comp.glsl,
 // dyn_scan.comp.glsl, dyn_segments.comp.glsl, dyn_box.geom.glsl,
 // dyn_scale.glsl, dyn_dash.comp.glsl, dyn_lists.frag.glsl, dash.glsl and
-// dyn_composite.frag.glsl, aliased (GL's --aa none), without LOD (a LOD
-// layer's lines are drawn at full detail).
+// dyn_composite.frag.glsl, aliased (GL's --aa none), and of lod_mask,
+// lod_select and lod_segments.comp.glsl (DYN_LOD_WGSL: LOD lines drawn from
+// the LOD segments the view selects).
 //
 //   update (compute, DYN_UPDATE_WGSL): per vertex the cull and same-pixel
 //     removal, the stream compaction of the kept vertices (an exclusive
@@ -638,5 +639,98 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
   }
   if (!finished) { atomicAdd(&C[8], 1u); }
   OUT[k] = acc;
+}
+`;
+
+/**
+ * The LOD passes (formats/gl/shaders/lod_mask.comp.glsl, lod_select.comp.glsl,
+ * lod_segments.comp.glsl) between the update's: after the cull, the
+ * vertices of lines drawn from their LOD segments leave the chains
+ * (lod_mask); after the segments, the visible LOD segments are chosen
+ * (lod_select: the rule of lod.js, binary32 around an integer anchor) and
+ * become segments between their points' dynamic vertices with their visible
+ * neighbours (lod_segments), appended to the same list as the update's.
+ * LW holds lod_points (8 words a point), lod_segments (4), the draw map
+ * (vertex, end link per point; lod.js lodDrawMap) and the lines' flags, at
+ * L.off; LS the links per point (before, after) and then the selection:
+ * count, drawn count, 2 reserved, the visible segments' indices.
+ */
+export const DYN_LOD_WGSL = COMMON + /* wgsl */ `
+@group(0) @binding(2) var<storage, read_write> FLAGS: array<u32>;
+@group(0) @binding(3) var<storage, read_write> SCAN: array<u32>;
+@group(0) @binding(4) var<storage, read_write> SEGS: array<vec4<u32>>;
+@group(0) @binding(5) var<storage, read_write> C: array<atomic<u32>>;
+@group(0) @binding(6) var<storage, read> LW: array<u32>;
+@group(0) @binding(7) var<storage, read_write> LS: array<atomic<u32>>;
+struct Lod {
+  anchor: vec4<i32>,  // the camera's x, y in whole quanta from the package origin
+  rest: vec4f,        // its remainder x, y (metres); cz
+  eps: vec4f,         // eps(d) = base + slope * max(d, 0)
+  n: vec4<u32>,       // LOD points, LOD segments
+  off: vec4<u32>,     // word offsets in LW: points, segments, map, line flags
+}
+@group(0) @binding(8) var<uniform> L: Lod;
+
+fn lod_included(i: u32) -> bool {
+  let b = L.off.x + 8u * i;
+  if ((LW[b + 7u] & 1u) != 0u) { return true; }
+  let dx = f32(bitcast<i32>(LW[b + 2u]) - L.anchor.x) * QM - L.rest.x;
+  let dy = f32(bitcast<i32>(LW[b + 3u]) - L.anchor.y) * QM - L.rest.y;
+  let d = sqrt(dx * dx + dy * dy + L.rest.z * L.rest.z) - bitcast<f32>(LW[b + 5u]);
+  return bitcast<f32>(LW[b + 4u]) > L.eps.x + L.eps.y * max(d, 0.0);
+}
+fn lod_segment(s: u32) -> vec4<u32> {
+  let o = L.off.y + 4u * s;
+  return vec4<u32>(LW[o], LW[o + 1u], LW[o + 2u], LW[o + 3u]);
+}
+fn lod_map(p: u32) -> vec2<u32> { return vec2<u32>(LW[L.off.z + 2u * p], LW[L.off.z + 2u * p + 1u]); }
+fn sel_at() -> u32 { return 2u * L.n.x; }
+
+@compute @workgroup_size(256)
+fn lod_mask(@builtin(global_invocation_id) g: vec3<u32>) {
+  let v = g.x;
+  if (v >= vertex_count()) { return; }
+  if (LW[L.off.w + u32(dvertex(v).w)] == 0u) { return; }
+  FLAGS[v] &= 0x7fffffffu;
+  SCAN[v] = 0u;
+}
+
+@compute @workgroup_size(256)
+fn lod_select(@builtin(global_invocation_id) g: vec3<u32>) {
+  let s = g.x;
+  if (s >= L.n.y) { return; }
+  let seg = lod_segment(s);
+  let generated = seg.z == NONE || lod_included(seg.z);
+  let split = seg.w != NONE && lod_included(seg.w);
+  if (!generated || split) { return; }
+  atomicStore(&LS[sel_at() + 4u + atomicAdd(&LS[sel_at()], 1u)], s);
+  atomicStore(&LS[2u * seg.x + 1u], seg.y);
+  atomicStore(&LS[2u * seg.y], seg.x);
+}
+
+fn link(p: u32) -> vec2<u32> { return vec2<u32>(atomicLoad(&LS[2u * p]), atomicLoad(&LS[2u * p + 1u])); }
+fn vertex_of(p: u32) -> u32 { if (p == NONE) { return NONE; } return lod_map(p).x; }
+
+@compute @workgroup_size(256)
+fn lod_segments(@builtin(global_invocation_id) g: vec3<u32>) {
+  let k = g.x;
+  if (k >= atomicLoad(&LS[sel_at()])) { return; }
+  let seg = lod_segment(atomicLoad(&LS[sel_at() + 4u + k]));
+  let ma = lod_map(seg.x);
+  let mb = lod_map(seg.y);
+  let va = ma.x;
+  let vb = mb.x;
+  if (va == NONE || vb == NONE) { return; }
+  if (((FLAGS[va] & FLAGS[vb]) & 31u) != 0u) { return; }  // both outside one plane
+  var pa = NONE;
+  if (ma.y == NONE) { pa = link(seg.x).x; } else if (ma.y != seg.x) { pa = link(ma.y).x; }
+  var nb = NONE;
+  if (mb.y == NONE) { nb = link(seg.y).y; } else if (mb.y != seg.y) { nb = link(mb.y).y; }
+  var pv = NONE;
+  var nv = NONE;
+  if (va != vb) { pv = vertex_of(pa); nv = vertex_of(nb); }
+  let slot = atomicAdd(&C[1], 1u);
+  SEGS[slot] = vec4<u32>(va, vb, pv, nv);
+  atomicAdd(&LS[sel_at() + 1u], 1u);
 }
 `;
