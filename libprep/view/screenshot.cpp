@@ -265,7 +265,8 @@ void screenshot(const std::string& path, const ShotOptions& opt) {
   if (opt.width == 0 || opt.height == 0) fail<usage_error>(kViewStage, "screenshot: empty size");
   const size_t bytes = size_t(opt.width) * opt.height * 4;
   httplib::Server server;
-  detail::add_routes(server, root, detail::config_json(root, opt.config_json, opt.backend));
+  detail::DataTally tally;
+  detail::add_routes(server, root, detail::config_json(root, opt.config_json, opt.backend), &tally);
   Received got;
   add_post_routes(server, got, bytes);
   const int port = detail::bind_server(server, "127.0.0.1", 0);
@@ -324,6 +325,7 @@ void screenshot(const std::string& path, const ShotOptions& opt) {
   for (std::string line; std::getline(notes, line);)
     if (!line.empty()) std::fprintf(stderr, "decalprep view: note: %s\n", line.c_str());
   if (opt.on_stats && !got.stats.empty()) opt.on_stats(got.stats);
+  if (opt.on_data) opt.on_data(tally.requests.load(), tally.bytes.load());
 }
 
 }  // namespace prep::view

@@ -4,6 +4,8 @@
 
 #include <httplib.h>
 
+#include <atomic>
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -19,9 +21,16 @@ inline constexpr std::string_view kViewStage = "view";
 std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
                         std::string_view backend);
 
+// What the server sent of the package's or tileset's files (/data/...):
+// the requests answered with a body and the body bytes. Thread-safe.
+struct DataTally {
+  std::atomic<uint64_t> requests{0}, bytes{0};
+};
+
 // Adds the GET routes of prep/view.hpp: /, /config.json (`config`), /web/...
-// and /data/... of `root`.
-void add_routes(httplib::Server& server, const ServeRoot& root, const std::string& config);
+// and /data/... of `root`, counted in `tally` when given.
+void add_routes(httplib::Server& server, const ServeRoot& root, const std::string& config,
+                DataTally* tally = nullptr);
 
 // Binds `server` to bind:port (0: a free port); returns the port. Throws
 // usage_error when it cannot.

@@ -93,13 +93,14 @@ struct OpenFile {
 };
 
 // Answers a request for the file `file`: whole, one range, or 416.
-void serve_file(const httplib::Request& req, httplib::Response& res, const fs::path& file) {
+// Returns the body bytes it sends (0 for an error or an empty body).
+uint64_t serve_file(const httplib::Request& req, httplib::Response& res, const fs::path& file) {
   const int fd = ::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   struct stat st {};
   if (fd < 0 || ::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     if (fd >= 0) ::close(fd);
     res.status = 404;
-    return;
+    return 0;
   }
   auto handle = std::make_shared<OpenFile>(fd);
   const auto size = static_cast<uint64_t>(st.st_size);
@@ -112,7 +113,7 @@ void serve_file(const httplib::Request& req, httplib::Response& res, const fs::p
   if (answer == RangeAnswer::unsatisfiable) {
     res.status = 416;
     res.set_header("Content-Range", "bytes */" + std::to_string(size));
-    return;
+    return 0;
   }
   uint64_t first = 0, length = size;
   if (answer == RangeAnswer::partial) {
@@ -126,7 +127,7 @@ void serve_file(const httplib::Request& req, httplib::Response& res, const fs::p
   }
   if (length == 0) {
     res.set_content("", content_type(file.filename().string()));
-    return;
+    return 0;
   }
   res.set_content_provider(length, content_type(file.filename().string()),
                            [handle, first](size_t offset, size_t want, httplib::DataSink& sink) {
@@ -137,6 +138,7 @@ void serve_file(const httplib::Request& req, httplib::Response& res, const fs::p
                              sink.write(buf.data(), static_cast<size_t>(n));
                              return true;
                            });
+  return length;
 }
 
 std::string json_string(std::string_view s) {
@@ -301,7 +303,8 @@ std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
          ",\"screenshot\":" + std::string(screenshot_json.empty() ? "null" : screenshot_json) + "}";
 }
 
-void add_routes(httplib::Server& server, const ServeRoot& root, const std::string& config) {
+void add_routes(httplib::Server& server, const ServeRoot& root, const std::string& config,
+                DataTally* tally) {
   auto send_asset = [](httplib::Response& res, const Asset& a) {
     res.set_header("Cache-Control", "no-cache");
     res.set_content(std::string(a.bytes), std::string(a.type));
@@ -322,13 +325,17 @@ void add_routes(httplib::Server& server, const ServeRoot& root, const std::strin
     else
       res.status = 404;
   });
-  server.Get(R"(/data/(.*))", [root](const httplib::Request& req, httplib::Response& res) {
+  server.Get(R"(/data/(.*))", [root, tally](const httplib::Request& req, httplib::Response& res) {
     const auto file = resolve_data_path(root, req.matches[1].str());
     if (!file) {
       res.status = 404;
       return;
     }
-    serve_file(req, res, *file);
+    const uint64_t sent = serve_file(req, res, *file);
+    if (tally && sent > 0) {
+      tally->requests += 1;
+      tally->bytes += sent;
+    }
   });
 }
 

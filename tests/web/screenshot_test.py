@@ -14,7 +14,8 @@ waits, so the test plays the page), and one real frame in Chromium.
     refused (exit 7) and left as it was;
   - a real Chromium draws a top-down frame of the Monaco sample: the PNG has
     the asked size and is not blank; --frames 3 --stats prints the warm
-    frames' median and each pass's time (GPU timestamps or wall times). Skipped (77) only when Chromium is
+    frames' median, each pass's time (GPU timestamps or wall times) and
+    the requests and bytes the server sent of the package. Skipped (77) only when Chromium is
     missing or cannot start.
 
 Usage: screenshot_test.py DECALPREP REPO_ROOT WORK_DIR
@@ -224,6 +225,13 @@ def main():
             check(ms[0] > 0 and ms[1] > 0 and ms[2] >= 0 and sum(ms) <= float(frame.group(1)) * 1.5 + 1,
                   f"pass times {ms} ({passes.group(1)}) are positive and within the frame's "
                   f"{frame.group(1)} ms")
+        # --stats: what the server sent of the package (the page validates
+        # every blob, so all of it, in ranged reads; no terrain file here).
+        data = re.search(r"^data: (\d+) requests, (\d+) bytes of the package's files sent$", r.stdout, re.M)
+        size = os.path.getsize(pkg)
+        check(data is not None and int(data.group(1)) >= 2 and size <= int(data.group(2)) <= size + 4096,
+              f"--stats counts the package bytes the server sent ({size} bytes in the file): "
+              f"{data.group(0) if data else r.stdout.strip()!r}")
     print(f"{len(failures)} failed")
     return 1 if failures else 0
 

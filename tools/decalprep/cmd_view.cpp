@@ -252,6 +252,12 @@ void run_screenshot(ViewArgs& a) {
       if (!picks.empty()) print_picks(text, picks.size());
       answered = true;
     };
+  if (a.stats)
+    s.on_data = [](uint64_t requests, uint64_t bytes) {
+      std::printf("data: %llu requests, %llu bytes of the package's files sent\n",
+                  static_cast<unsigned long long>(requests),
+                  static_cast<unsigned long long>(bytes));
+    };
   prep::view::screenshot(a.serve.path, s);
   if (!picks.empty() && !answered)
     prep::fail<prep::render_error>(kViewCommand, "--pick: the page sent no answer");

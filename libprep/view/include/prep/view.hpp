@@ -121,6 +121,9 @@ struct ShotOptions {
   // Called after the writers with what the page POSTed to /__shot/stats
   // (JSON: the adapter and the frame times; untrusted text), if it did.
   std::function<void(const std::string& json)> on_stats;
+  // Called last with what the server sent of the package's or tileset's
+  // files (/data/...): the requests answered with a body and their bytes.
+  std::function<void(uint64_t requests, uint64_t bytes)> on_data;
 };
 
 // The Chromium to draw with: $DECALPREP_CHROMIUM when set (it must be an
