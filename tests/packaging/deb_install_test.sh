@@ -130,6 +130,7 @@ fi
   --eye 900,-3200,1300 --target 150,-300,60 --fov 45 --size 640x360 \
   -o out/monaco.png --raw out/monaco.raw
 # The viewer page and a module it imports, from the program alone.
+: >out/view.txt  # there before the loop reads it, whenever the shell below opens it
 "$tool" view out/monaco.decals --port 0 >out/view.txt 2>&1 &
 view=$!
 url=""
