@@ -1,5 +1,5 @@
-// frame.js — one frame's uniforms for the WebGL2 renderer (webgl2.js), the
-// same bytes the WebGPU renderer writes in index.js drawFrame: the anchor
+// frame.js — one frame's uniforms, the same bytes for both renderers
+// (index.js drawFrame and webgl2.js): the anchor
 // (the eye rounded to whole quanta, gl_passes.cpp view_uniforms), the
 // terrain pass's uniform (wgsl_frame.js TERRAIN_WGSL) and the decal pass's
 // frame (wgsl_decals.js Frame, which glsl_decals.js declares as a std140

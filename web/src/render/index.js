@@ -16,9 +16,10 @@
 
 import { DECALS_WGSL, FRAME_BYTES, SLOTS } from "./wgsl_decals.js";
 import { TERRAIN_WGSL, TERRAIN_UNIFORM_BYTES, COMPOSITE_WGSL, PRESENT_WGSL } from "./wgsl_frame.js";
+import { frameUniforms } from "./frame.js";
 import { DYN_UPDATE_WGSL, DYN_LISTS_WGSL, DYN_COMPOSITE_WGSL, DYN_LOD_WGSL, DYN_UNIFORM_BYTES, DYN_COUNTER_WORDS } from "./wgsl_dynamic.js";
 import { LodSelector, lodDrawMap, lodUniform, lodView } from "./lod.js";
-import { viewMatrix, projectionMatrix, matMul, mat4Inverse, normalize, topdownCamera, cameraBasis } from "./camera.js";
+import { viewMatrix, projectionMatrix, matMul, normalize, topdownCamera } from "./camera.js";
 import { packScene } from "./scene.js";
 import { createWebGL2Renderer, WebGL2Renderer } from "./webgl2.js";
 
@@ -184,8 +185,6 @@ async function packLod(pkg) {
   return { words, points: np, segments: ns, offsets, lines: map.lines };
 }
 
-/** Integer floor division. @param {number} a @param {number} b */
-const floorDiv = (a, b) => Math.floor(a / b);
 
 /**
  * @typedef {{camera: Camera, width: number, height: number, albedo?: number[],
@@ -670,53 +669,22 @@ export class Renderer {
     const t0 = performance.now();
     const d = this.device, W = width, H = height;
     const T = this.targetsFor(W, H);
-    // Anchor: the eye rounded to whole quanta (gl_passes.cpp view_uniforms).
-    const axq = Math.round(camera.eye[0] / Q), ayq = Math.round(camera.eye[1] / Q);
-    const ax = axq * Q, ay = ayq * Q;
-    const eyeRel = [camera.eye[0] - ax, camera.eye[1] - ay, camera.eye[2]];
-    const vp = matMul(projectionMatrix(camera, W / H), viewMatrix(camera, eyeRel));
     const terrain = /** @type {Terrain} */ (this.terrain);
-    const light = normalize([-0.4, -0.5, 0.75]);
-    const alb = albedo ?? [0.62, 0.66, 0.58];
-    const tu = new Float32Array(TERRAIN_UNIFORM_BYTES / 4);
-    tu.set(vp, 0);
-    tu.set([light[0], light[1], light[2], terrain.zmax > terrain.zmin ? 0 : -1e30], 16);
-    tu.set([alb[0], alb[1], alb[2], 1], 20);
-    d.queue.writeBuffer(this.terrainUniform, 0, tu);
-    // The frame uniform of the decal pass (wgsl_decals.js Frame).
-    const g = scene.grid;
-    const rx = axq - g.gx, ry = ayq - g.gy;
-    const cx = floorDiv(rx, g.cw), cy = floorDiv(ry, g.ch);
-    const fb = new ArrayBuffer(FRAME_BYTES);
-    const fi = new Int32Array(fb), ff = new Float32Array(fb), fu = new Uint32Array(fb);
-    fi.set([axq, ayq, cx, cy], 0);
-    ff.set([(rx - cx * g.cw) * Q, (ry - cy * g.ch) * Q, g.cw * Q, g.ch * Q], 4);
-    fi.set([g.nx, g.ny, g.gx, g.gy], 8);
-    const td = camera.topdownExtent;
-    const flags = (td ? 1 : 0) | (scene.haveLines ? 2 : 0) | (scene.havePolygons ? 4 : 0);
-    fi.set([g.cw, g.ch, scene.shift, flags], 12);
-    fu.set([W, H, scene.polyBias, scene.minWidthCount], 16);
-    if (td) ff.set([td[0] - ax, td[3] - ay, (td[2] - td[0]) / W, -(td[3] - td[1]) / H], 20);
-    fu.set(scene.offsets, 24);
-    ff.set(mat4Inverse(vp), 48);
-    // The terrain and the pixel rays (wgsl_decals.js ground_point).
-    ff.set([terrain.x0 - ax, terrain.y0 - ay, terrain.dx, terrain.dy], 64);
-    fu.set([terrain.nx, terrain.ny, scene.slopeCount, scene.unlitCount], 68);
-    const basis = cameraBasis(camera);
-    const persp = camera.projection === "perspective";
-    const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
-    const sx = persp ? th * (W / H) : 0.5 * camera.orthoW, sy = persp ? th : 0.5 * camera.orthoH;
-    ff.set([...eyeRel, persp ? 1 : 0], 72);
-    ff.set([...basis.r.map((x) => x * sx), 0, ...basis.u.map((x) => x * sy), 0, ...basis.f, 0], 76);
-    // Minimum widths: limit, reach, metres per pixel (static_common.glsl pixel_metres).
-    ff.set([scene.minWidthLimit, scene.minWidthReach, persp ? 0 : camera.orthoH / H,
-            persp ? (2 * th) / H : 0], 88);
     const px = pick ? Math.floor(pick[0]) : -1, py = pick ? Math.floor(pick[1]) : -1;
     const picking = px >= 0 && py >= 0 && px < W && py < H;
     // A frame drawn only for its pick runs the query on the pick's 8x8 block alone.
     const pickOnly = picking && readback === false && !decals && !show;
-    if (picking) fu.set([px, py, 1, pickOnly ? 1 : 0], 92);
-    d.queue.writeBuffer(this.frameUniform, 0, fb);
+    // The anchor (the eye rounded to whole quanta), the terrain pass's
+    // uniform and the decal pass's frame: frame.js, which WebGL2 shares.
+    const u = frameUniforms({ scene, terrain, camera, W, H, albedo, pick: picking ? [px, py] : null, pickOnly });
+    const { ax, ay } = u;
+    const axq = Math.round(ax / Q), ayq = Math.round(ay / Q);
+    const eyeRel = [camera.eye[0] - ax, camera.eye[1] - ay, camera.eye[2]];
+    const vp = matMul(projectionMatrix(camera, W / H), viewMatrix(camera, eyeRel));
+    const persp = camera.projection === "perspective";
+    const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
+    d.queue.writeBuffer(this.terrainUniform, 0, u.terrainUniform);
+    d.queue.writeBuffer(this.frameUniform, 0, u.frame);
     // Dynamic lines (not in a frame drawn for its pick alone).
     const dyn = !pickOnly && this.dynWork ? this.dynTargetsFor(W, H) : null;
     d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, dyn ? 1 : 0, 0));
