@@ -21,6 +21,9 @@ import shutil
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pixel_agreement import monaco_package  # noqa: E402
+
 SKIP = 77
 BROWSER_EXIT = 12  # view --screenshot: no Chromium (docs/cli.md)
 PAGE_FAILED = 8
@@ -28,13 +31,9 @@ PAGE_FAILED = 8
 
 def main():
     decalprep, root, work = sys.argv[1], sys.argv[2], sys.argv[3]
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
-    pkg = os.path.join(work, "monaco.decals")
-    b = subprocess.run([decalprep, "build", os.path.join(root, "samples/monaco/scene.toml"), "-o", pkg],
-                       capture_output=True, text=True)
-    if b.returncode:
-        print("FAIL building the Monaco sample:", b.stderr[-2000:])
+    pkg, error = monaco_package(decalprep, root, work)
+    if error is not None:
+        print("FAIL building the Monaco sample:", error)
         return 1
     chromium = shutil.which("chromium") or shutil.which("chromium-headless-shell")
     chromium = os.environ.get("DECALPREP_CHROMIUM") or chromium

@@ -53,6 +53,18 @@ BROWSER_EXIT = 12  # view --screenshot: no Chromium (docs/cli.md)
 LIECHTENSTEIN = "liechtenstein/liechtenstein-2013-08-03.osm.pbf"  # in SHARED_DATA_DIR
 
 
+def monaco_package(decalprep, root, work):
+    """Empties `work` and builds the Monaco sample into WORK/monaco.decals, as
+    the web tests draw it. Returns (path, None), or (None, the build's
+    stderr tail) when the build fails."""
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    pkg = os.path.join(work, "monaco.decals")
+    b = subprocess.run([decalprep, "build", os.path.join(root, "samples/monaco/scene.toml"), "-o", pkg],
+                       capture_output=True, text=True)
+    return (pkg, None) if b.returncode == 0 else (None, b.stderr[-2000:])
+
+
 def read_png(path):
     """(width, height, rows of RGBA bytes) of an 8-bit RGBA PNG, non-interlaced
     (what the project's PNG writer writes)."""

@@ -31,7 +31,7 @@ import urllib.error
 import urllib.request
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from pixel_agreement import blank, read_png  # noqa: E402
+from pixel_agreement import blank, monaco_package, read_png  # noqa: E402
 
 SKIP = 77
 failures = []
@@ -68,13 +68,9 @@ class Shot:
 
 def main():
     decalprep, root, work = sys.argv[1], sys.argv[2], sys.argv[3]
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
-    pkg = os.path.join(work, "monaco.decals")
-    b = subprocess.run([decalprep, "build", os.path.join(root, "samples/monaco/scene.toml"), "-o", pkg],
-                       capture_output=True, text=True)
-    if b.returncode:
-        print("FAIL building the Monaco sample:", b.stderr[-2000:])
+    pkg, error = monaco_package(decalprep, root, work)
+    if error is not None:
+        print("FAIL building the Monaco sample:", error)
         return 1
     view = ["--extent", "-200,-120,200,120", "--size", "40x24"]
 

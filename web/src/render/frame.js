@@ -15,8 +15,9 @@ const Q = 0.001;
 const floorDiv = (a, b) => Math.floor(a / b);
 
 /**
- * The anchor (ax, ay metres, whole quanta), the terrain uniform and the
- * decal frame of a W x H frame of `camera`.
+ * The anchor (axq, ayq whole quanta; ax, ay metres), the eye relative to it,
+ * the view-projection matrix, the terrain uniform and the decal frame of a
+ * W x H frame of `camera`.
  * pick: the pick pixel (x, y) or null; pickOnly: the frame is drawn for it alone.
  * @param {{scene: import("./scene.js").PackedScene, terrain: import("./index.js").Terrain,
  *          camera: import("./camera.js").Camera, W: number, H: number, albedo?: number[],
@@ -59,14 +60,14 @@ export function frameUniforms({ scene, terrain, camera, W, H, albedo, pick, pick
   ff.set([scene.minWidthLimit, scene.minWidthReach, persp ? 0 : camera.orthoH / H,
           persp ? (2 * th) / H : 0], 88);
   if (pick) fu.set([pick[0], pick[1], 1, pickOnly ? 1 : 0], 92);
-  return { ax, ay, terrainUniform: tu, frame: fb };
+  return { axq, ayq, ax, ay, eyeRel, vp, terrainUniform: tu, frame: fb };
 }
 
 /**
  * The terrain mesh relative to the anchor (metres, double then float, as
  * gl_passes.cpp upload_terrain_mesh), normals of Heightfield::normal_at:
  * per vertex x, y, z, nx, ny, nz; two triangles per cell, (00, 10, 11) and
- * (00, 11, 01). The WebGPU renderer's index.js meshFor builds the same.
+ * (00, 11, 01). Both renderers upload it (index.js and webgl2.js meshFor).
  * @param {import("./index.js").Terrain} t @param {number} ax @param {number} ay anchor, metres
  */
 export function terrainMesh(t, ax, ay) {

@@ -16,10 +16,10 @@
 
 import { DECALS_WGSL, FRAME_BYTES, SLOTS } from "./wgsl_decals.js";
 import { TERRAIN_WGSL, TERRAIN_UNIFORM_BYTES, COMPOSITE_WGSL, PRESENT_WGSL } from "./wgsl_frame.js";
-import { frameUniforms } from "./frame.js";
+import { frameUniforms, terrainMesh } from "./frame.js";
 import { DYN_UPDATE_WGSL, DYN_LISTS_WGSL, DYN_COMPOSITE_WGSL, DYN_LOD_WGSL, DYN_UNIFORM_BYTES, DYN_COUNTER_WORDS } from "./wgsl_dynamic.js";
 import { LodSelector, lodDrawMap, lodUniform, lodView } from "./lod.js";
-import { viewMatrix, projectionMatrix, matMul, normalize, topdownCamera } from "./camera.js";
+import { topdownCamera } from "./camera.js";
 import { packScene } from "./scene.js";
 import { createWebGL2Renderer, WebGL2Renderer } from "./webgl2.js";
 
@@ -34,7 +34,6 @@ const BU = { MAP_READ: 1, COPY_SRC: 4, COPY_DST: 8, INDEX: 16, VERTEX: 32, UNIFO
              QUERY_RESOLVE: 512 };
 const TU = { COPY_SRC: 1, TEXTURE_BINDING: 4, RENDER_ATTACHMENT: 16 };
 const MAP_READ = 1;
-const Q = 0.001;
 
 /**
  * The flat heightfield render uses without a DEM (terrain.cpp flat_heightfield).
@@ -560,37 +559,14 @@ export class Renderer {
   }
 
   /**
-   * The terrain mesh relative to the anchor (metres, double then float, as
-   * gl_passes.cpp upload_terrain_mesh), normals of Heightfield::normal_at.
+   * The terrain mesh relative to the anchor (frame.js terrainMesh) on the
+   * device, kept while the anchor stays.
    * @param {number} ax @param {number} ay anchor, metres
    */
   meshFor(ax, ay) {
     if (this.mesh && this.mesh.ax === ax && this.mesh.ay === ay) return this.mesh;
     this.freeMesh();
-    const t = /** @type {Terrain} */ (this.terrain);
-    const { nx, ny } = t;
-    const v = new Float32Array(nx * ny * 6);
-    const zat = (/** @type {number} */ a, /** @type {number} */ b) =>
-      t.z[Math.min(Math.max(a, 0), nx - 1) + nx * Math.min(Math.max(b, 0), ny - 1)];
-    for (let j = 0; j < ny; ++j)
-      for (let i = 0; i < nx; ++i) {
-        const gx = (zat(i + 1, j) - zat(i - 1, j)) / (2 * t.dx);
-        const gy = (zat(i, j + 1) - zat(i, j - 1)) / (2 * t.dy);
-        const n = normalize([-gx, -gy, 1]);
-        const k = 6 * (i + nx * j);
-        v[k] = t.x0 + i * t.dx - ax;
-        v[k + 1] = t.y0 + j * t.dy - ay;
-        v[k + 2] = t.z[i + nx * j];
-        v[k + 3] = n[0]; v[k + 4] = n[1]; v[k + 5] = n[2];
-      }
-    const idx = new Uint32Array((nx - 1) * (ny - 1) * 6);
-    let at = 0;
-    for (let j = 0; j + 1 < ny; ++j)
-      for (let i = 0; i + 1 < nx; ++i) {
-        const v00 = i + nx * j, v10 = v00 + 1, v01 = v00 + nx, v11 = v01 + 1;
-        idx.set([v00, v10, v11, v00, v11, v01], at);
-        at += 6;
-      }
+    const { vertices: v, indices: idx } = terrainMesh(/** @type {Terrain} */ (this.terrain), ax, ay);
     const vbo = this.buffer(v.byteLength, BU.VERTEX | BU.COPY_DST);
     const ibo = this.buffer(idx.byteLength, BU.INDEX | BU.COPY_DST);
     this.device.queue.writeBuffer(vbo, 0, v);
@@ -677,10 +653,7 @@ export class Renderer {
     // The anchor (the eye rounded to whole quanta), the terrain pass's
     // uniform and the decal pass's frame: frame.js, which WebGL2 shares.
     const u = frameUniforms({ scene, terrain, camera, W, H, albedo, pick: picking ? [px, py] : null, pickOnly });
-    const { ax, ay } = u;
-    const axq = Math.round(ax / Q), ayq = Math.round(ay / Q);
-    const eyeRel = [camera.eye[0] - ax, camera.eye[1] - ay, camera.eye[2]];
-    const vp = matMul(projectionMatrix(camera, W / H), viewMatrix(camera, eyeRel));
+    const { axq, ayq, ax, ay, eyeRel, vp } = u;
     const persp = camera.projection === "perspective";
     const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
     d.queue.writeBuffer(this.terrainUniform, 0, u.terrainUniform);
