@@ -325,7 +325,10 @@ void screenshot(const std::string& path, const ShotOptions& opt) {
   for (std::string line; std::getline(notes, line);)
     if (!line.empty()) std::fprintf(stderr, "decalprep view: note: %s\n", line.c_str());
   if (opt.on_stats && !got.stats.empty()) opt.on_stats(got.stats);
-  if (opt.on_data) opt.on_data(tally.requests.load(), tally.bytes.load());
+  if (opt.on_data) {
+    const std::lock_guard lock(tally.m);
+    opt.on_data(tally.requests, tally.bytes, tally.files);
+  }
 }
 
 }  // namespace prep::view

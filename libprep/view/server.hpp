@@ -4,10 +4,12 @@
 
 #include <httplib.h>
 
-#include <atomic>
+#include <algorithm>
 #include <cstdint>
+#include <mutex>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "prep/view.hpp"
 
@@ -22,9 +24,19 @@ std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
                         std::string_view backend);
 
 // What the server sent of the package's or tileset's files (/data/...):
-// the requests answered with a body and the body bytes. Thread-safe.
+// the requests answered with a body, the body bytes, and the files sent
+// (each once, in the order first asked for). Thread-safe.
 struct DataTally {
-  std::atomic<uint64_t> requests{0}, bytes{0};
+  std::mutex m;
+  uint64_t requests = 0, bytes = 0;
+  std::vector<std::string> files;
+
+  void add(const std::string& file, uint64_t sent) {
+    const std::lock_guard lock(m);
+    requests += 1;
+    bytes += sent;
+    if (std::find(files.begin(), files.end(), file) == files.end()) files.push_back(file);
+  }
 };
 
 // Adds the GET routes of prep/view.hpp: /, /config.json (`config`), /web/...

@@ -276,9 +276,18 @@ RangeAnswer parse_range(std::string_view header, uint64_t size, ByteRange& range
   return RangeAnswer::partial;
 }
 
+namespace {
+
+// The terrain file beside the data, relative to the served folder:
+// STEM.terrain beside a package, tileset.terrain in a tileset's folder.
+std::string terrain_entry(const ServeRoot& root) {
+  return root.kind == ServeRoot::Kind::package ? root.stem + ".terrain" : "tileset.terrain";
+}
+
+}  // namespace
+
 std::optional<fs::path> page_terrain(const ServeRoot& root) {
-  if (root.kind != ServeRoot::Kind::package) return std::nullopt;
-  return resolve_data_path(root, root.stem + ".terrain");
+  return resolve_data_path(root, terrain_entry(root));
 }
 
 const Asset* find_asset(std::string_view url_path) {
@@ -295,7 +304,7 @@ std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
   for (const auto& c : fs::path(root.entry))
     entry += (entry.empty() ? "" : "/") + url_component(c.string());
   std::string terrain = "null";
-  if (page_terrain(root)) terrain = json_string("/data/" + url_component(root.stem + ".terrain"));
+  if (page_terrain(root)) terrain = json_string("/data/" + url_component(terrain_entry(root)));
   return std::string("{\"kind\":") +
          (root.kind == ServeRoot::Kind::package ? "\"package\"" : "\"tileset\"") +
          ",\"url\":" + json_string("/data/" + entry) + ",\"terrain\":" + terrain +
@@ -332,10 +341,7 @@ void add_routes(httplib::Server& server, const ServeRoot& root, const std::strin
       return;
     }
     const uint64_t sent = serve_file(req, res, *file);
-    if (tally && sent > 0) {
-      tally->requests += 1;
-      tally->bytes += sent;
-    }
+    if (tally && sent > 0) tally->add(req.matches[1].str(), sent);
   });
 }
 

@@ -169,6 +169,30 @@ void print_pass_times(const nlohmann::json& j) {
               line.c_str());
 }
 
+// --stats of a tileset: the tiles the page chose for the view (per level),
+// their package bytes against the full detail's (the level-0 tiles the
+// view meets) and what its tile cache fetched.
+void print_tile_stats(const nlohmann::json& j) {
+  if (!j.contains("tiles") || !j["tiles"].is_object()) return;
+  const nlohmann::json& t = j["tiles"];
+  const auto num = [&t](const char* key) {
+    return t.contains(key) && t[key].is_number() ? t[key].get<double>() : 0.0;
+  };
+  std::string mix;
+  if (t.contains("perLevel") && t["perLevel"].is_array())
+    for (size_t l = 0; l < t["perLevel"].size(); ++l)
+      if (t["perLevel"][l].is_number() && t["perLevel"][l].get<double>() > 0)
+        mix += (mix.empty() ? "" : ", ") + ("L" + std::to_string(l)) + ": " +
+               std::to_string(t["perLevel"][l].get<uint64_t>());
+  const double full = num("fullDetailBytes");
+  std::printf(
+      "tiles: %.0f chosen (%s), %.0f drawn; package bytes %.0f of the full detail's %.0f (%.3f%%, "
+      "%.0f level-0 tiles in view); the page fetched %.0f tiles, %.0f bytes\n",
+      num("chosen"), mix.empty() ? "none" : mix.c_str(), num("drawn"), num("packageBytes"), full,
+      full > 0 ? 100.0 * num("packageBytes") / full : 0.0, num("fullDetailTiles"), num("requests"),
+      num("fetchedBytes"));
+}
+
 // --stats: what the page measured (its JSON is the page's, so untrusted:
 // a field that is missing or of the wrong type is left out).
 void print_stats(const std::string& text, uint32_t width, uint32_t height) {
@@ -203,6 +227,7 @@ void print_stats(const std::string& text, uint32_t width, uint32_t height) {
   print_pass_times(j);
   if (j.contains("gpuBytes") && j["gpuBytes"].is_number())
     std::printf("gpu memory: %.0f bytes of buffers and textures\n", j["gpuBytes"].get<double>());
+  print_tile_stats(j);
 }
 
 void run_screenshot(ViewArgs& a) {
@@ -253,10 +278,13 @@ void run_screenshot(ViewArgs& a) {
       answered = true;
     };
   if (a.stats)
-    s.on_data = [](uint64_t requests, uint64_t bytes) {
+    s.on_data = [](uint64_t requests, uint64_t bytes, const std::vector<std::string>& files) {
       std::printf("data: %llu requests, %llu bytes of the package's files sent\n",
                   static_cast<unsigned long long>(requests),
                   static_cast<unsigned long long>(bytes));
+      std::string list;
+      for (const std::string& f : files) list += (list.empty() ? "" : " ") + f;
+      std::printf("data files: %s\n", list.c_str());
     };
   prep::view::screenshot(a.serve.path, s);
   if (!picks.empty() && !answered)

@@ -11,3 +11,8 @@ export { createRenderer, flatTerrain, Renderer, topdownCamera } from "./render/i
 export { LodSelector, lodView } from "./render/lod.js";
 // Terrain files (formats/SPEC.md "Terrain files"): the mesh render draws.
 export { parseTerrain, fetchTerrain } from "./terrain.js";
+// Tilesets streamed: the tiles a view draws (render's rule), fetched in the
+// background and held by a cache, as the renderer's frame tiles.
+export { selectTiles } from "./tile_select.js";
+export { TileCache } from "./tile_cache.js";
+export { TileStream } from "./tile_stream.js";

@@ -91,8 +91,11 @@ export function pixelGroundSize(c, width, height, p) {
  * @typedef {{tiles: SelectedTile[], blobBytes: number, packageBytes: number,
  *            fullDetailBytes: number, fullDetailTiles: number, perLevel: number[],
  *            coarsened: number, footprint: Box | null}} TileSelection
+ * pixelScale: each pixel's ground size taken this many times larger (1 by
+ * default, render's rule; a viewer over its frame budget asks for more to
+ * draw coarser levels).
  * @typedef {{gpuBudget?: number, blobBytes?: (level: number, tile: Tile) => number,
- *            level?: number}} TileSelectOptions
+ *            level?: number, pixelScale?: number}} TileSelectOptions
  */
 
 /** Half-open square against the view (prep::tiles_in). @param {number[]} sq @param {Box | null} v */
@@ -140,7 +143,7 @@ export function selectTiles(ts, camera, width, height, zmin, zmax, options = {})
       Math.min(Math.max(x, lo), hi);
     const p = [clamp(camera.eye[0], b[0] - ox, b[2] - ox), clamp(camera.eye[1], b[1] - oy, b[3] - oy),
       clamp(camera.eye[2], Math.min(zmin, zmax), Math.max(zmin, zmax))];
-    return pixelGroundSize(camera, width, height, p);
+    return (options.pixelScale ?? 1) * pixelGroundSize(camera, width, height, p);
   };
   if (options.level !== undefined) {
     const l = options.level;

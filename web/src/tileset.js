@@ -253,8 +253,10 @@ export async function fetchTileset(url, options = {}) {
 
 /**
  * Opens one tile's package: fetches the whole file at the path its key
- * gives (relative to `baseUrl`, the tileset folder's URL), checks its size
- * and XXH64 against the index, then opens it as a package.
+ * gives (relative to `baseUrl`, the tileset folder's URL) with one Range
+ * request of the size the index gives (a server that ignores Range answers
+ * 200 with the whole file, which is taken too), checks its size and XXH64
+ * against the index, then opens it as a package.
  * @param {string} baseUrl  the folder URL, ending in "/"
  * @param {Tile} tile
  * @param {{fetch?: typeof fetch}} [options]
@@ -262,9 +264,15 @@ export async function fetchTileset(url, options = {}) {
 export async function openTile(baseUrl, tile, options = {}) {
   const get = options.fetch ?? globalThis.fetch;
   const url = new URL(tile.file, baseUrl).href;
-  const res = await get(url);
+  const res = await get(url, { headers: { Range: `bytes=0-${Math.max(0, tile.bytes - 1)}` } });
   if (!res.ok) throw new Error(`${url}: HTTP ${res.status}`);
   const bytes = new Uint8Array(await res.arrayBuffer());
+  if (res.status === 206) {
+    const m = /^bytes 0-(\d+)\/(\d+)$/.exec(res.headers.get("Content-Range") ?? "");
+    if (!m || Number(m[2]) !== tile.bytes)
+      throw new FormatError(`${url}: Content-Range '${res.headers.get("Content-Range")}', tileset.json says ` +
+                            `${tile.bytes} bytes`);
+  }
   if (bytes.length !== tile.bytes)
     throw new FormatError(`${url}: ${bytes.length} bytes, tileset.json says ${tile.bytes}`);
   const h = hex64(await xxh64(bytes));

@@ -75,7 +75,7 @@ export function showOverlay(f) {
 export function describePick(pick, names) {
   if (!pick) return "no decal here";
   const name = names[pick.layer] || `layer ${pick.layer}`;
-  return `${name} (layer ${pick.layer}): fid ${pick.feature}, ${pick.kind}`;
+  return `${name} (layer ${pick.layer}): fid ${pick.feature}, ${pick.kind}${pick.tile ? `, tile ${pick.tile}` : ""}`;
 }
 
 /** Shows a picked decal's description in the pick panel. @param {string} text */

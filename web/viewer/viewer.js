@@ -1,16 +1,19 @@
 // viewer.js — the viewer page of `decalprep view`: asks the server what it
-// serves (/config.json), opens the package (a tileset: its first tile, for
-// now) with the reader, fetches its terrain file (flat without one), and
-// draws it with the WebGPU renderer (web/src/render) under a map camera,
-// on demand. With ?shot=1 (`decalprep view --screenshot`) it draws the
-// config's camera once and POSTs the pixels back (prep/view.hpp).
-import { createRenderer, fetchTerrain, fetchTileset, flatTerrain, openPackageUrl, openTile } from "../src/index.js";
+// serves (/config.json), opens a package (validated: every checksum and
+// index) or streams a tileset (web/src/tile_stream.js: the tiles and
+// overview levels each view needs, by render's rule, fetched in the
+// background and drawn as they arrive), fetches its terrain file (flat
+// without one), and draws it with the WebGPU renderer (web/src/render; WebGL2
+// where WebGPU is missing) under a map camera, on demand. With ?shot=1
+// (`decalprep view --screenshot`) it draws the config's camera once, every
+// tile it chose loaded, and POSTs the pixels back (prep/view.hpp).
+import { TileStream, createRenderer, fetchTerrain, fetchTileset, flatTerrain, openPackageUrl } from "../src/index.js";
 import { MapCamera, attachControls } from "./camera.js";
 import { describePick, layerKinds, showLayers, showOverlay, showPick, showStatus } from "./ui.js";
 
-/** @typedef {import("../src/package.js").Package} Package */
 /** @typedef {import("../src/render/camera.js").Camera} Camera */
 /** @typedef {import("../src/render/index.js").Terrain} Terrain */
+/** @typedef {import("../src/render/index.js").FrameTile} FrameTile */
 
 /**
  * @typedef {{polygons: boolean, lines: boolean, dynamic: boolean}} Kinds
@@ -18,8 +21,11 @@ import { describePick, layerKinds, showLayers, showOverlay, showPick, showStatus
  *            ramps: import("../src/render/scene.js").LayerRamp[], only?: Kinds,
  *            frames?: number, picks?: number[][], passTimes?: boolean}} ShotConfig
  * @typedef {{kind: string, url: string, terrain?: string | null, backend?: string,
- *            screenshot?: ShotConfig | null}} Config
+ *            cacheBytes?: number, screenshot?: ShotConfig | null}} Config
  */
+
+/** Decoded blob bytes a tileset's loaded tiles may hold, unless the config says. */
+const CACHE_BYTES = 1 << 30;
 
 const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById("map"));
 const shotMode = new URLSearchParams(location.search).get("shot") === "1";
@@ -31,30 +37,62 @@ async function fetchConfig() {
   return res.json();
 }
 
-/**
- * The package the config names; for a tileset its first tile (streaming
- * the tiles a view needs comes later). Validated: every checksum and index.
- * @param {Config} config
- * @returns {Promise<{pkg: Package, tiles: number}>}
- */
-async function openData(config) {
-  const url = new URL(config.url, location.href).href;
-  /** @type {Package} */
-  let pkg;
-  if (config.kind === "package") {
-    pkg = await openPackageUrl(url);
-  } else {
-    const ts = await fetchTileset(url);
-    if (ts.tiles.length === 0) throw new Error(`${config.url}: the tileset has no tiles`);
-    pkg = await openTile(new URL(".", url).href, ts.tiles[0]);
-  }
-  await pkg.validate();
-  return { pkg, tiles: 1 };
-}
-
 /** @param {Config} config @returns {Promise<Terrain | null>} */
 async function loadTerrain(config) {
   return config.terrain ? fetchTerrain(new URL(config.terrain, location.href).href) : null;
+}
+
+/**
+ * `extent` grown to take in a top-down view's: where render lays flat
+ * ground without a terrain file (libprep/pipeline/render_request.cpp).
+ * @param {number[]} extent @param {number[] | null} td
+ */
+function flatGround(extent, td) {
+  return flatTerrain(td ? [Math.min(extent[0], td[0]), Math.min(extent[1], td[1]), Math.max(extent[2], td[2]),
+    Math.max(extent[3], td[3])] : extent);
+}
+
+/**
+ * What the page draws, on the renderer: the package the config names, or
+ * the tileset, streamed (`stream`; its tiles come with each view). extent:
+ * the data's, metres relative to the camera's origin (the package's, the
+ * tileset frame's). metadata: the package's, or a tile's once one arrives.
+ * @param {Config} config
+ * @param {import("../src/render/index.js").Renderer | import("../src/render/webgl2.js").WebGL2Renderer} renderer
+ * @param {{ramps?: import("../src/render/scene.js").LayerRamp[], topdown?: number[] | null,
+ *          onLoaded?: () => void}} options
+ * @returns {Promise<{extent: number[], terrain: Terrain, metadata: any, stream: TileStream | null}>}
+ */
+async function openScene(config, renderer, options) {
+  const url = new URL(config.url, location.href).href;
+  const [data, terrain] = await Promise.all([
+    config.kind === "package" ? openPackageUrl(url) : fetchTileset(url), loadTerrain(config)]);
+  const td = options.topdown ?? null;
+  if (!("tiles" in data)) {
+    await data.validate();
+    const meta = /** @type {any} */ (data.metadata);
+    const extent = Array.isArray(meta?.extent) ? meta.extent : [0, 0, 1000, 1000];
+    const ground = terrain ?? flatGround(extent, td);
+    await renderer.setScene({ pkg: data, terrain: ground, ramps: options.ramps });
+    return { extent, terrain: ground, metadata: meta, stream: null };
+  }
+  if (data.tiles.length === 0) throw new Error(`${config.url}: the tileset has no tiles`);
+  const stream = new TileStream({ tileset: data, baseUrl: new URL(".", url).href,
+    maxBytes: config.cacheBytes ?? CACHE_BYTES, onLoaded: options.onLoaded });
+  const extent = stream.extent();
+  const ground = terrain ?? flatGround(extent, td);
+  // Visibility bits for up to 1024 layers: the layer table comes with the tiles.
+  await renderer.setTileScene({ terrain: ground, extent, layerCount: 1024, ramps: options.ramps });
+  return { extent, terrain: ground, metadata: null, stream };
+}
+
+/**
+ * The tiles' load failures, as one Error, or null.
+ * @param {TileStream} stream
+ */
+function loadFailure(stream) {
+  const st = stream.cache.stats;
+  return st.failed > 0 ? new Error(`${st.failed} tile${st.failed > 1 ? "s" : ""} failed to load: ${st.lastError}`) : null;
 }
 
 /**
@@ -98,32 +136,52 @@ async function post(path, body) {
   if (!res.ok) throw new Error(`${path}: HTTP ${res.status}: ${await res.text()}`);
 }
 
-/** Screenshot mode: one frame of the config's camera, POSTed back. @param {Config} config */
+/**
+ * Screenshot mode: one frame of the config's camera, POSTed back. A
+ * tileset's view waits for every tile it chose (none stands in).
+ * @param {Config} config
+ */
 async function screenshot(config) {
   const s = config.screenshot;
   if (!s) throw new Error("?shot=1, but /config.json has no screenshot (not started with --screenshot)");
-  const [{ pkg }, terrain] = await Promise.all([openData(config), loadTerrain(config)]);
   canvas.width = s.width;
   canvas.height = s.height;
   const renderer = await openRenderer(canvas, chosenBackend(config));
-  // Without a terrain file, flat ground where render lays it
-  // (libprep/pipeline/render_request.cpp): the package extent, grown to
-  // take in a top-down view.
-  const td = s.camera.topdownExtent, ext = /** @type {any} */ (pkg.metadata).extent;
-  const ground = terrain ?? (td && Array.isArray(ext) ? flatTerrain([Math.min(ext[0], td[0]),
-    Math.min(ext[1], td[1]), Math.max(ext[2], td[2]), Math.max(ext[3], td[3])]) : null);
-  await renderer.setScene({ pkg, terrain: ground, ramps: s.ramps });
+  const scene = await openScene(config, renderer, { ramps: s.ramps, topdown: s.camera.topdownExtent });
+  /** @type {FrameTile[] | undefined} */
+  let tiles;
+  let metadata = scene.metadata;
+  /** @type {any} */
+  let tileStats = null;
+  const stream = scene.stream;
+  if (stream) {
+    const { zmin, zmax } = scene.terrain;
+    stream.view(s.camera, s.width, s.height, zmin, zmax);
+    await stream.settled();
+    const failure = loadFailure(stream);
+    if (failure) throw failure;
+    const v = stream.view(s.camera, s.width, s.height, zmin, zmax);
+    tiles = v.tiles;
+    metadata = tiles[0]?.pkg.metadata ?? null;
+    const sel = v.selection, st = stream.cache.stats;
+    tileStats = { chosen: sel.tiles.length, drawn: tiles.length, standIns: v.standIns, perLevel: sel.perLevel,
+      packageBytes: sel.packageBytes, fullDetailBytes: sel.fullDetailBytes, fullDetailTiles: sel.fullDetailTiles,
+      requests: st.requests, fetchedBytes: st.bytes };
+  }
   // --only: the kinds left out are hidden layers. The WebGL2 renderer does
-  // not draw dynamic lines: the ones the view asks for are named.
+  // not draw dynamic lines, nor does either renderer a tileset's: the ones
+  // the view asks for are named.
   const only = s.only ?? { polygons: true, lines: true, dynamic: true };
   const undrawn = [];
-  for (const [i, { name, kind }] of layerKinds(pkg.metadata).entries()) {
+  const kinds = layerKinds(metadata);
+  for (const [i, { name, kind }] of kinds.entries()) {
     renderer.setLayerVisible(i, only[kind]);
-    if (kind === "dynamic" && only.dynamic && renderer.backend === "webgl2") undrawn.push(name || `layer ${i}`);
+    if (kind === "dynamic" && only.dynamic && (renderer.backend === "webgl2" || stream)) undrawn.push(name || `layer ${i}`);
   }
   if (undrawn.length > 0) {
-    await post("/__shot/note", `WebGL2 does not draw dynamic lines: layer${undrawn.length > 1 ? "s" : ""} ` +
-      `${undrawn.join(", ")} left out (--backend webgpu draws them; render --only polygons,lines draws the same decals)`);
+    const who = stream ? "the browser does not draw a tileset's dynamic lines" : "WebGL2 does not draw dynamic lines";
+    await post("/__shot/note", `${who}: layer${undrawn.length > 1 ? "s" : ""} ` +
+      `${undrawn.join(", ")} left out (${stream ? "" : "--backend webgpu draws them; "}render --only polygons,lines draws the same decals)`);
   }
   // --frames N: N frames drawn, the last one sent; their times go to
   // /__shot/stats (view --stats prints them).
@@ -134,26 +192,26 @@ async function screenshot(config) {
     const last = i === frames - 1;
     out = await renderer.renderFrame({
       camera: s.camera, width: s.width, height: s.height, albedo: s.albedo, decals: s.decals && last,
-      present: false, readback: last, passTimes: Boolean(s.passTimes),
+      present: false, readback: last, passTimes: Boolean(s.passTimes), tiles,
     });
     times.push(out.ms);
     if (out.passes) passes.push(out.passes);
   }
   if (!out || !out.rgba) throw new Error("renderFrame returned no pixels");
   // --pick X,Y: the top decal under each pixel, from the frame's own query.
-  const names = layerKinds(pkg.metadata).map((l) => l.name);
+  const names = kinds.map((l) => l.name);
   const picks = [];
   for (const xy of s.picks ?? []) {
     const p = (await renderer.renderFrame({
       camera: s.camera, width: s.width, height: s.height, albedo: s.albedo, present: false,
-      readback: false, pick: xy,
+      readback: false, pick: xy, tiles,
     })).pick;
     picks.push({ x: xy[0], y: xy[1], ...(p ? { ...p, layerName: names[p.layer] ?? "" } : { kind: "none" }) });
   }
   await post("/__shot/stats", JSON.stringify({
     adapter: renderer.adapterName,
-    browser: /(?:HeadlessChrome|Chrome|Firefox|Safari)\/[\d.]+/.exec(navigator.userAgent)?.[0] ?? navigator.userAgent, times, gpuBytes: renderer.gpuBytes,
-    picks, passes,
+    browser: /(?:HeadlessChrome|Chrome|Firefox|Safari)\/[\d.]+/.exec(navigator.userAgent)?.[0] ?? navigator.userAgent,
+    times, gpuBytes: renderer.gpuBytes, picks, passes, tiles: tileStats,
   }));
   // Each POST is W*H*4 bytes of RGBA8, row 0 at the top.
   await post("/__shot/frame", new Blob([out.rgba]));
@@ -164,14 +222,48 @@ async function screenshot(config) {
   showStatus(`screenshot sent (${s.width}x${s.height}, ${out.ms.toFixed(1)} ms)`);
 }
 
+/**
+ * The overlay's line for a tileset: the frame budget and the detail it
+ * leaves (pixelScale: 1 full, 2 one level coarser...), the chosen level
+ * mix, the bytes fetched and held, the fetches still to come.
+ * @param {TileStream} stream @param {number} budgetMs @param {number} pixelScale
+ */
+function streamLine(stream, budgetMs, pixelScale) {
+  const sel = stream.selection, st = stream.cache.stats, c = stream.cache;
+  const mix = sel ? sel.perLevel.map((n, l) => (n > 0 ? `L${l}:${n}` : "")).filter(Boolean).join(" ") : "";
+  const mib = (/** @type {number} */ b) => (b / 1048576).toFixed(1);
+  return `budget ${budgetMs} ms, detail 1/${pixelScale}; levels ${mix || "none"}\n` +
+    `fetched ${mib(st.bytes)} MiB in ${st.requests} requests, holding ${mib(c.loadedBytes)} of ${mib(c.maxBytes)} MiB` +
+    `${c.inFlight.size + c.queue.size > 0 ? `, ${c.inFlight.size + c.queue.size} to come` : ""}` +
+    `${st.failed > 0 ? `\n${st.failed} failed: ${st.lastError}` : ""}`;
+}
+
 /** The interactive viewer. @param {Config} config */
 async function interactive(config) {
-  const [{ pkg, tiles }, terrain] = await Promise.all([openData(config), loadTerrain(config)]);
   const renderer = await openRenderer(canvas, chosenBackend(config));
-  await renderer.setScene({ pkg, terrain, ramps: [] });
-  const meta = /** @type {any} */ (pkg.metadata);
-  const extent = Array.isArray(meta?.extent) ? meta.extent : [0, 0, 1000, 1000];
-  const cam = new MapCamera(extent, terrain ? (terrain.zmin + terrain.zmax) / 2 : 0);
+  let redraw = () => {};
+  const scene = await openScene(config, renderer, { onLoaded: () => redraw() });
+  const { extent, terrain, stream } = scene;
+  const cam = new MapCamera(extent, (terrain.zmin + terrain.zmax) / 2);
+  // A tileset's frame budget (?budget=MS, 50 by default): over it, the next
+  // frame draws coarser levels (each pixel taken twice as large, up to 64
+  // times); well under it, finer again.
+  const budgetMs = Number(new URLSearchParams(location.search).get("budget") ?? 50);
+  let pixelScale = 1;
+  /** @type {FrameTile[] | undefined} */
+  let tiles;
+  let names = /** @type {string[]} */ ([]);
+  const listLayers = (/** @type {any} */ metadata) => {
+    const kinds = layerKinds(metadata);
+    names = kinds.map((l) => l.name);
+    const listed = kinds.map(({ name, kind }) => (kind !== "dynamic" ? name
+      : `${name} (dynamic${renderer.backend === "webgl2" ? ": not drawn by WebGL2" : stream ? ": not drawn for a tileset" : ""})`));
+    showLayers(listed, (i, visible) => {
+      renderer.setLayerVisible(i, visible);
+      redraw();
+    });
+  };
+  if (scene.metadata) listLayers(scene.metadata);
   let dirty = true, busy = false;
   const draw = async () => {
     if (busy || !dirty) return;
@@ -182,21 +274,33 @@ async function interactive(config) {
       const width = Math.max(1, Math.round(canvas.clientWidth * scale));
       const height = Math.max(1, Math.round(canvas.clientHeight * scale));
       if (canvas.width !== width || canvas.height !== height) [canvas.width, canvas.height] = [width, height];
-      const out = await renderer.renderFrame({ camera: cam.camera(), width, height, present: true, readback: false });
-      showOverlay({ ms: out.ms, gpuBytes: renderer.gpuBytes, tiles, width, height, adapter: renderer.adapterName,
-        limits: backendLine(renderer) });
+      const camera = cam.camera();
+      if (stream) {
+        tiles = stream.view(camera, width, height, terrain.zmin, terrain.zmax, { pixelScale }).tiles;
+        if (names.length === 0 && tiles.length > 0) listLayers(tiles[0].pkg.metadata);
+      }
+      const out = await renderer.renderFrame({ camera, width, height, present: true, readback: false, tiles });
+      const line = stream ? streamLine(stream, budgetMs, pixelScale) : "";
+      if (stream && out.ms > budgetMs && pixelScale < 64) {
+        pixelScale *= 2;
+        dirty = true;
+      } else if (stream && out.ms < budgetMs / 3 && pixelScale > 1) {
+        pixelScale /= 2;
+        dirty = true;
+      }
+      showOverlay({ ms: out.ms, gpuBytes: renderer.gpuBytes, tiles: stream ? (tiles ?? []).length : 1, width, height,
+        adapter: renderer.adapterName, limits: backendLine(renderer) + (line ? `\n${line}` : "") });
     } finally {  // a failure reaches failed() through "unhandledrejection"
       busy = false;
     }
     if (dirty) requestAnimationFrame(() => void draw());
   };
-  const redraw = () => {
+  redraw = () => {
     dirty = true;
     requestAnimationFrame(() => void draw());
   };
   attachControls(canvas, cam, redraw);
   // A click (a press and release without a drag) names the decal under it.
-  const names = layerKinds(pkg.metadata).map((l) => l.name);
   let press = { x: 0, y: 0 };
   canvas.addEventListener("pointerdown", (e) => { press = { x: e.clientX, y: e.clientY }; });
   canvas.addEventListener("pointerup", (e) => {
@@ -205,14 +309,8 @@ async function interactive(config) {
     const x = Math.floor(((e.clientX - r.left) * canvas.width) / r.width);
     const y = Math.floor(((e.clientY - r.top) * canvas.height) / r.height);
     void renderer.renderFrame({ camera: cam.camera(), width: canvas.width, height: canvas.height,
-      present: false, readback: false, pick: [x, y] })
+      present: false, readback: false, pick: [x, y], tiles })
       .then((out) => showPick(describePick(out.pick, names)));
-  });
-  const listed = layerKinds(pkg.metadata).map(({ name, kind }) => (kind !== "dynamic" ? name
-    : `${name} (dynamic${renderer.backend === "webgl2" ? ": not drawn by WebGL2" : ""})`));
-  showLayers(listed, (i, visible) => {
-    renderer.setLayerVisible(i, visible);
-    redraw();
   });
   new ResizeObserver(redraw).observe(canvas);
   document.title = `decalprep view: ${config.url}`;

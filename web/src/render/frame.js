@@ -19,11 +19,15 @@ const floorDiv = (a, b) => Math.floor(a / b);
  * the view-projection matrix, the terrain uniform and the decal frame of a
  * W x H frame of `camera`.
  * pick: the pick pixel (x, y) or null; pickOnly: the frame is drawn for it alone.
+ * clip: a tileset tile's square [xmin, ymin, xmax, ymax] (metres in the
+ * camera's frame): decals only at ground points inside it, half-open, as
+ * gl_passes.cpp set_clip. box: the pixel the decal dispatch starts at (the
+ * tile's box; a pick-only frame starts at the pick pixel's 8x8 block).
  * @param {{scene: import("./scene.js").PackedScene, terrain: import("./index.js").Terrain,
  *          camera: import("./camera.js").Camera, W: number, H: number, albedo?: number[],
- *          pick: number[] | null, pickOnly: boolean}} args
+ *          pick: number[] | null, pickOnly: boolean, clip?: number[] | null, box?: number[]}} args
  */
-export function frameUniforms({ scene, terrain, camera, W, H, albedo, pick, pickOnly }) {
+export function frameUniforms({ scene, terrain, camera, W, H, albedo, pick, pickOnly, clip, box }) {
   const axq = Math.round(camera.eye[0] / Q), ayq = Math.round(camera.eye[1] / Q);
   const ax = axq * Q, ay = ayq * Q;
   const eyeRel = [camera.eye[0] - ax, camera.eye[1] - ay, camera.eye[2]];
@@ -60,6 +64,12 @@ export function frameUniforms({ scene, terrain, camera, W, H, albedo, pick, pick
   ff.set([scene.minWidthLimit, scene.minWidthReach, persp ? 0 : camera.orthoH / H,
           persp ? (2 * th) / H : 0], 88);
   if (pick) fu.set([pick[0], pick[1], 1, pickOnly ? 1 : 0], 92);
+  if (clip) {
+    ff.set([clip[0] - ax, clip[1] - ay, clip[2] - ax, clip[3] - ay], 96);
+    fu[102] = 1;
+  }
+  if (pick && pickOnly) fu.set([pick[0] & ~7, pick[1] & ~7], 100);
+  else if (box) fu.set([box[0], box[1]], 100);
   return { axq, ayq, ax, ay, eyeRel, vp, terrainUniform: tu, frame: fb };
 }
 
@@ -95,4 +105,71 @@ export function terrainMesh(t, ax, ay) {
       at += 6;
     }
   return { vertices: v, indices: idx };
+}
+
+/**
+ * The pixels a square can draw in (gl_passes.cpp tile_scissor, rows from
+ * the top): the box of the images of its corners at the terrain's lowest
+ * and highest height, grown by 2 pixels and cut to the frame, as [x0, y0,
+ * x1, y1) ; the whole frame when a corner is not in front of the camera;
+ * null when the box is empty.
+ * @param {Float32Array | number[]} vp  the view-projection relative to the anchor (column-major)
+ * @param {number[]} sq  [xmin, ymin, xmax, ymax] relative to the anchor
+ * @param {number} zmin @param {number} zmax @param {number} W @param {number} H
+ * @returns {number[] | null}
+ */
+export function squareBox(vp, sq, zmin, zmax, W, H) {
+  let x0 = Infinity, y0 = Infinity, x1 = -Infinity, y1 = -Infinity;
+  for (let k = 0; k < 8; ++k) {
+    const p = [sq[k & 1 ? 2 : 0], sq[k & 2 ? 3 : 1], k & 4 ? zmax : zmin];
+    const c = [0, 1, 2, 3].map((r) => vp[r] * p[0] + vp[4 + r] * p[1] + vp[8 + r] * p[2] + vp[12 + r]);
+    if (!(c[3] > 1e-6) || !Number.isFinite(c[0] / c[3]) || !Number.isFinite(c[1] / c[3])) return [0, 0, W, H];
+    const px = (0.5 * c[0] / c[3] + 0.5) * W, py = (0.5 - 0.5 * c[1] / c[3]) * H;
+    x0 = Math.min(x0, px); x1 = Math.max(x1, px); y0 = Math.min(y0, py); y1 = Math.max(y1, py);
+  }
+  const clamp = (/** @type {number} */ v, /** @type {number} */ hi) => Math.min(Math.max(v, 0), hi);
+  const b = [clamp(Math.floor(x0) - 2, W), clamp(Math.floor(y0) - 2, H), clamp(Math.ceil(x1) + 2, W),
+    clamp(Math.ceil(y1) + 2, H)];
+  return b[2] > b[0] && b[3] > b[1] ? b : null;
+}
+
+/**
+ * What a tileset frame's tiles are drawn with: the frame's camera, terrain
+ * (in the tileset's frame), size, albedo and pick, its view-projection and
+ * anchor (metres; frameUniforms of the index frame).
+ * @typedef {{camera: import("./camera.js").Camera, terrain: import("./index.js").Terrain, W: number, H: number,
+ *            albedo?: number[], pick: number[] | null, pickOnly: boolean, vp: Float32Array | number[],
+ *            ax: number, ay: number}} TileFrameArgs
+ */
+
+/**
+ * The decal frames of one tile of a tileset frame (gl_passes.cpp load_tile
+ * and tile_scissor): per square of the tile that the image meets, the
+ * tile's frame (camera and terrain moved by its offset, a whole number of
+ * quanta, so every anchor-relative float is the index frame's) with the
+ * square as its clip, and the square's pixel box (squareBox). A pick-only
+ * frame keeps the squares whose box holds the pick.
+ * @param {import("./index.js").FrameTile} t
+ * @param {import("./scene.js").PackedScene} scene  the tile's
+ * @param {TileFrameArgs} f
+ * @returns {{frame: ArrayBuffer, box: number[]}[]}
+ */
+export function tileFrames(t, scene, f) {
+  const shift = (/** @type {number[]} */ v) => [v[0] - t.dx, v[1] - t.dy, v[2]];
+  const td = f.camera.topdownExtent;
+  const camera = { ...f.camera, eye: shift(f.camera.eye), target: shift(f.camera.target),
+    topdownExtent: td ? [td[0] - t.dx, td[1] - t.dy, td[2] - t.dx, td[3] - t.dy] : null };
+  const terrain = { ...f.terrain, x0: f.terrain.x0 - t.dx, y0: f.terrain.y0 - t.dy };
+  const out = [];
+  for (const c of t.clips) {
+    const box = squareBox(f.vp, [c[0] - f.ax, c[1] - f.ay, c[2] - f.ax, c[3] - f.ay],
+      f.terrain.zmin, f.terrain.zmax, f.W, f.H);
+    if (!box) continue;
+    const p = f.pick;
+    if (f.pickOnly && p && !(p[0] >= box[0] && p[0] < box[2] && p[1] >= box[1] && p[1] < box[3])) continue;
+    const u = frameUniforms({ scene, terrain, camera, W: f.W, H: f.H, albedo: f.albedo, pick: f.pick,
+      pickOnly: f.pickOnly, clip: [c[0] - t.dx, c[1] - t.dy, c[2] - t.dx, c[3] - t.dy], box });
+    out.push({ frame: u.frame, box });
+  }
+  return out;
 }

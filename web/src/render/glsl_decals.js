@@ -41,6 +41,8 @@ layout(std140) uniform Frame {
   vec4 rf;    // forward
   vec4 mw;    // minimum widths: limit, reach, metres per pixel (ortho), per metre of distance (persp)
   uvec4 pk;   // picking: pixel (x, y); 1 to ask; 1 for a frame drawn for the pick alone
+  vec4 cl;    // a tileset's tile: decals only in [x, z) x [y, w), anchor-relative metres
+  uvec4 bx;   // z, clip mode: 0 none, 1 the tile's square (pixels outside are left), 2 no decals
 } F;
 
 uniform usampler2DArray u_blobs;  // the packed blob words
@@ -533,6 +535,11 @@ void main() {
     p = ground_point(ndc, uintBitsToFloat(gp.xy));
     z = uintBitsToFloat(gp.z);
   }
+  // A tileset: a pass with no decals (clip mode 2) lays the terrain; each
+  // tile's pass (mode 1) then draws the pixels whose ground point is in its
+  // square and leaves the others.
+  if (F.bx.z == 1u && (!drawn || p.x < F.cl.x || p.y < F.cl.y || p.x >= F.cl.z || p.y >= F.cl.w)) discard;
+  if (F.bx.z == 2u) drawn = false;
   if (drawn) {
     if (F.tn.z != 0u) GS = gradient_at(p);
     if (F.mw.x > 0.0) {

@@ -16,11 +16,11 @@
 
 import { DECALS_WGSL, FRAME_BYTES, SLOTS } from "./wgsl_decals.js";
 import { TERRAIN_WGSL, TERRAIN_UNIFORM_BYTES, COMPOSITE_WGSL, PRESENT_WGSL } from "./wgsl_frame.js";
-import { frameUniforms, terrainMesh } from "./frame.js";
+import { frameUniforms, terrainMesh, tileFrames } from "./frame.js";
 import { DYN_UPDATE_WGSL, DYN_LISTS_WGSL, DYN_COMPOSITE_WGSL, DYN_LOD_WGSL, DYN_UNIFORM_BYTES, DYN_COUNTER_WORDS } from "./wgsl_dynamic.js";
 import { LodSelector, lodDrawMap, lodUniform, lodView } from "./lod.js";
 import { topdownCamera } from "./camera.js";
-import { packScene } from "./scene.js";
+import { emptyScene, packScene } from "./scene.js";
 import { createWebGL2Renderer, WebGL2Renderer } from "./webgl2.js";
 
 export { topdownCamera };
@@ -34,6 +34,8 @@ const BU = { MAP_READ: 1, COPY_SRC: 4, COPY_DST: 8, INDEX: 16, VERTEX: 32, UNIFO
              QUERY_RESOLVE: 512 };
 const TU = { COPY_SRC: 1, TEXTURE_BINDING: 4, RENDER_ATTACHMENT: 16 };
 const MAP_READ = 1;
+/** Bytes between the frames of a frame's decal dispatches in the frame uniform buffer (a multiple of 256). */
+const FRAME_STRIDE = 512;
 
 /**
  * The flat heightfield render uses without a DEM (terrain.cpp flat_heightfield).
@@ -186,13 +188,22 @@ async function packLod(pkg) {
 
 
 /**
+ * A tile of a tileset scene (setTileScene) to draw in a frame: a key that
+ * names it while it stays on the GPU, its package, its origin's offset
+ * from the tileset frame origin (metres, whole quanta: SPEC "Tilesets")
+ * and the squares it draws in (metres relative to the tileset frame
+ * origin; its own square, or those of the finer tiles it stands in for).
+ * @typedef {{key: string, pkg: import("../package.js").Package, dx: number, dy: number,
+ *            clips: number[][]}} FrameTile
  * @typedef {{camera: Camera, width: number, height: number, albedo?: number[],
  *            decals?: boolean, present?: boolean, readback?: boolean,
- *            pick?: number[] | null, passTimes?: boolean}} FrameArgs
+ *            pick?: number[] | null, passTimes?: boolean, tiles?: FrameTile[]}} FrameArgs
  * A picked decal: its kind, its layer (index into the metadata layer
  * table), its source feature id (LineProps/PolyProps `feature`) and its
  * index in line_props or poly_props.
- * @typedef {{kind: "line" | "polygon", layer: number, feature: number, index: number}} Pick
+ * In a tileset scene, `tile` is the key of the tile that drew it.
+ * @typedef {{kind: "line" | "polygon", layer: number, feature: number, index: number,
+ *            tile?: string}} Pick
  * Each pass's time in ms: GPU timestamps ("timestamp"), or the wall time of
  * the pass submitted and awaited alone ("wall", which adds the submission's
  * own cost and serialises the frame).
@@ -219,6 +230,14 @@ export class Renderer {
     this.gpu = gpu;
     /** @type {any} */ this.context = null;
     /** @type {import("./scene.js").PackedScene | null} */ this.scene = null;
+    /**
+     * A tileset scene (setTileScene): the restyling every tile takes and
+     * the tiles on the GPU by key (their packed scene and blob buffer),
+     * kept while frames draw them.
+     * @type {{ramps: import("./scene.js").LayerRamp[], slopeWidths: import("./scene.js").SlopeWidths,
+     *         uploads: Map<string, {scene: import("./scene.js").PackedScene, blob: any}>} | null}
+     */
+    this.tileset = null;
     /** @type {Terrain | null} */ this.terrain = null;
     /** @type {any} */ this.blobBuffer = null;
     /** @type {any} */ this.visBuffer = null;
@@ -278,7 +297,9 @@ export class Renderer {
       primitive: { topology: "triangle-list", cullMode: "none" },
       depthStencil: { format: "depth32float", depthWriteEnabled: true, depthCompare: "greater" },
     });
-    this.frameUniform = d.createBuffer({ size: FRAME_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
+    // One frame per decal dispatch (a tileset's frame has one per tile square), FRAME_STRIDE apart.
+    this.frameSlots = 1;
+    this.frameUniform = d.createBuffer({ size: FRAME_STRIDE, usage: BU.UNIFORM | BU.COPY_DST });
     this.terrainUniform = d.createBuffer({ size: TERRAIN_UNIFORM_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
     this.sizeUniform = d.createBuffer({ size: 16, usage: BU.UNIFORM | BU.COPY_DST });
     this.dynUniform = d.createBuffer({ size: DYN_UNIFORM_BYTES, usage: BU.UNIFORM | BU.COPY_DST });
@@ -369,6 +390,8 @@ export class Renderer {
    */
   async setScene({ pkg, terrain, ramps, slopeWidths }) {
     const scene = await packScene(pkg, ramps ?? [], slopeWidths ?? "auto");
+    this.freeTiles();
+    this.tileset = null;
     this.scene = scene;
     this.lod = scene.dynamic.vertices > 0 ? await packLod(pkg) : null;
     this.visBits = new Uint32Array(Math.max(1, Math.ceil(scene.layerCount / 32))).fill(0xffffffff);
@@ -377,7 +400,52 @@ export class Renderer {
     this.uploadScene();
   }
 
-  /** The scene's buffers on the device, from what setScene kept. */
+  /**
+   * A tileset scene: the terrain (tileset.terrain's mesh, in the tileset's
+   * frame; null: flat over `extent`) and the restyling of every tile, which
+   * each frame then names (FrameArgs tiles: what a TileCache draw list
+   * holds). layerCount: the layer table's length (visibility bits).
+   * Dynamic lines and LOD lines of tiles are not drawn (the static decals
+   * are, as `render` draws a tileset's).
+   * @param {{terrain: Terrain | null, extent: number[], layerCount: number,
+   *          ramps?: import("./scene.js").LayerRamp[],
+   *          slopeWidths?: import("./scene.js").SlopeWidths}} args
+   */
+  async setTileScene({ terrain, extent, layerCount, ramps, slopeWidths }) {
+    this.freeTiles();
+    this.tileset = { ramps: ramps ?? [], slopeWidths: slopeWidths ?? "auto", uploads: new Map() };
+    this.scene = emptyScene();
+    this.lod = null;
+    this.visBits = new Uint32Array(Math.max(1, Math.ceil(layerCount / 32))).fill(0xffffffff);
+    this.terrain = terrain ?? flatTerrain(extent);
+    this.uploadScene();
+  }
+
+  /** The tiles of a tileset scene on the device, freed. */
+  freeTiles() {
+    if (!this.tileset) return;
+    for (const u of this.tileset.uploads.values()) this.free(u.blob);
+    this.tileset.uploads.clear();
+  }
+
+  /**
+   * The packed scene and blob buffer of a tile of a tileset scene, uploaded
+   * when it is not on the device yet.
+   * @param {FrameTile} t
+   */
+  async tileUpload(t) {
+    const ts = /** @type {NonNullable<Renderer["tileset"]>} */ (this.tileset);
+    const have = ts.uploads.get(t.key);
+    if (have) return have;
+    const scene = await packScene(t.pkg, ts.ramps, ts.slopeWidths);
+    const blob = this.buffer(scene.words.byteLength, BU.STORAGE | BU.COPY_DST);
+    this.device.queue.writeBuffer(blob, 0, scene.words);
+    const u = { scene, blob };
+    ts.uploads.set(t.key, u);
+    return u;
+  }
+
+  /** The scene's buffers on the device, from what setScene (or setTileScene) kept. */
   uploadScene() {
     const scene = /** @type {import("./scene.js").PackedScene} */ (this.scene);
     this.free(this.blobBuffer);
@@ -392,8 +460,9 @@ export class Renderer {
     this.heights = this.buffer(4 * terrain.z.length, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.heights, 0, Float32Array.from(terrain.z));
     // The triangles' gradients: read only for slope widths (F.tn.z, the
-    // slope layers' count, not 0); a placeholder otherwise.
-    const grad = scene.slopeCount > 0 ? triangleGradients(terrain) : new Float32Array(4);
+    // slope layers' count, not 0); a placeholder otherwise. A tileset's
+    // tiles may have slope layers: there they are always made.
+    const grad = scene.slopeCount > 0 || this.tileset ? triangleGradients(terrain) : new Float32Array(4);
     this.free(this.gradients);
     this.gradients = this.buffer(grad.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.gradients, 0, grad);
@@ -478,6 +547,7 @@ export class Renderer {
     // The lost device's objects are gone with it.
     this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
     this.dynBuffer = this.dynWork = this.dynTargets = null;
+    if (this.tileset) this.tileset.uploads.clear();
     this.mesh = null;
     this.targets = null;
     this.context = null;
@@ -588,13 +658,13 @@ export class Renderer {
     this.targets = {
       W, H,
       color: tex("rgba8unorm", 4), depth: tex("depth32float", 4),
-      dec: this.buffer(32 * n, BU.STORAGE),  // colour and unlit share per pixel
+      dec: this.buffer(32 * n, BU.STORAGE | BU.COPY_DST),  // colour and unlit share per pixel (cleared for a tileset)
       rgba: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
       decals: this.buffer(4 * n, BU.STORAGE | BU.COPY_SRC),
       readRgba: this.buffer(4 * n, BU.MAP_READ | BU.COPY_DST),
       readDecals: this.buffer(4 * n, BU.MAP_READ | BU.COPY_DST),
-      pick: this.buffer(16, BU.STORAGE | BU.COPY_SRC | BU.COPY_DST),  // wgsl_decals.js PICK
-      readPick: this.buffer(16, BU.MAP_READ | BU.COPY_DST),
+      pick: this.buffer(32, BU.STORAGE | BU.COPY_SRC | BU.COPY_DST),  // wgsl_decals.js PICK
+      readPick: this.buffer(32, BU.MAP_READ | BU.COPY_DST),
     };
     return this.targets;
   }
@@ -639,7 +709,7 @@ export class Renderer {
    * @param {boolean} show  show the frame on the canvas by the present path
    * @returns {Promise<FrameResult>}
    */
-  async drawFrame({ camera, width, height, albedo, decals, readback, pick, passTimes }, show) {
+  async drawFrame({ camera, width, height, albedo, decals, readback, pick, passTimes, tiles }, show) {
     const scene = this.scene;
     if (!scene) throw new Error("renderFrame: no scene (call setScene first)");
     const t0 = performance.now();
@@ -657,7 +727,15 @@ export class Renderer {
     const persp = camera.projection === "perspective";
     const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
     d.queue.writeBuffer(this.terrainUniform, 0, u.terrainUniform);
-    d.queue.writeBuffer(this.frameUniform, 0, u.frame);
+    const gx = Math.ceil(W / 8), gy = Math.ceil(H / 8);
+    // The decal dispatches: the package's over the frame, or a tileset's,
+    // one per tile square in view, each with its own frame.
+    const jobs = this.tileset
+      ? await this.tileJobs(tiles ?? [], { camera, terrain, W, H, albedo, pick: picking ? [px, py] : null,
+        pickOnly, vp, ax, ay })
+      : [{ frame: u.frame, blob: this.blobBuffer, nx: pickOnly ? 1 : gx, ny: pickOnly ? 1 : gy, key: "" }];
+    this.frameSlotsFor(jobs.length);
+    jobs.forEach((j, k) => d.queue.writeBuffer(this.frameUniform, k * FRAME_STRIDE, j.frame));
     // Dynamic lines (not in a frame drawn for its pick alone).
     const dyn = !pickOnly && this.dynWork ? this.dynTargetsFor(W, H) : null;
     d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, dyn ? 1 : 0, 0));
@@ -682,7 +760,7 @@ export class Renderer {
       }
     }
 
-    if (picking) d.queue.writeBuffer(T.pick, 0, new Uint32Array(4));
+    if (picking) d.queue.writeBuffer(T.pick, 0, new Uint32Array(8));
     const mesh = this.meshFor(ax, ay);
     let enc = d.createCommandEncoder();
     // passTimes: each pass's time, from timestamp queries where the device
@@ -719,7 +797,6 @@ export class Renderer {
     rp.drawIndexed(mesh.count);
     rp.end();
     await passDone();
-    const gx = Math.ceil(W / 8), gy = Math.ceil(H / 8);
     /**
      * One compute pass of `pipeline` over the frame, its resources bound in order.
      * @param {number} k @param {any} pipeline @param {any[]} resources @param {number} [nx] @param {number} [ny]
@@ -734,9 +811,22 @@ export class Renderer {
     };
     /** @param {any} buffer */
     const buf = (buffer) => ({ buffer });
-    dispatch(1, this.decalPipeline, [buf(this.frameUniform), buf(this.blobBuffer), buf(this.visBuffer),
-      T.depth.createView(), buf(T.dec), buf(this.heights), buf(this.gradients), buf(T.pick),
-      buf(dyn ? dyn.ground : this.standIn)], pickOnly ? 1 : gx, pickOnly ? 1 : gy);
+    // A tileset's squares leave the pixels no tile draws: cleared first.
+    if (this.tileset) enc.clearBuffer(T.dec);
+    {
+      const cp = enc.beginComputePass(stampWrites(1));
+      cp.setPipeline(this.decalPipeline);
+      const layout = this.decalPipeline.getBindGroupLayout(0);
+      const depth = T.depth.createView();
+      jobs.forEach((j, k) => {
+        const resources = [{ buffer: this.frameUniform, offset: k * FRAME_STRIDE, size: FRAME_BYTES },
+          buf(j.blob), buf(this.visBuffer), depth, buf(T.dec), buf(this.heights), buf(this.gradients),
+          buf(T.pick), buf(dyn ? dyn.ground : this.standIn)];
+        cp.setBindGroup(0, d.createBindGroup({ layout, entries: resources.map((resource, binding) => ({ binding, resource })) }));
+        cp.dispatchWorkgroups(j.nx, j.ny);
+      });
+      cp.end();
+    }
     await passDone();
     /** @type {DynamicStats | null} */
     let dynStats = null;
@@ -768,7 +858,7 @@ export class Renderer {
     const put2d = show && this.presentPath === "2d";
     if (wantRgba || put2d) enc.copyBufferToBuffer(T.rgba, 0, T.readRgba, 0, 4 * W * H);
     if (decals) enc.copyBufferToBuffer(T.decals, 0, T.readDecals, 0, 4 * W * H);
-    if (picking) enc.copyBufferToBuffer(T.pick, 0, T.readPick, 0, 16);
+    if (picking) enc.copyBufferToBuffer(T.pick, 0, T.readPick, 0, 32);
     if (show && this.presentPath === "webgpu") this.encodePresent(enc, T, W, H);
     d.queue.submit([enc.finish()]);
     await d.queue.onSubmittedWorkDone();
@@ -786,8 +876,9 @@ export class Renderer {
     /** @type {Pick | null} */
     let top = null;
     if (picking) {
-      const [kind, layer, feature, index] = new Uint32Array((await read(T.readPick)).buffer);
+      const [kind, layer, feature, index, job] = new Uint32Array((await read(T.readPick)).buffer);
       if (kind !== 0) top = { kind: kind === 1 ? "line" : "polygon", layer, feature, index };
+      if (top && this.tileset) top.tile = jobs[job]?.key ?? "";
     }
     /** @type {PassTimes | null} */
     let passes = null;
@@ -886,6 +977,43 @@ export class Renderer {
     return { kept: counts[4], segments: counts[1], nodes: counts[5], grows };
   }
 
+  /** The frame uniform buffer, grown to hold `n` frames. @param {number} n */
+  frameSlotsFor(n) {
+    if (n <= this.frameSlots) return;
+    this.frameUniform.destroy();
+    this.frameSlots = Math.max(n, 2 * this.frameSlots);
+    this.frameUniform = this.device.createBuffer({ size: this.frameSlots * FRAME_STRIDE,
+      usage: BU.UNIFORM | BU.COPY_DST });
+  }
+
+  /**
+   * The decal dispatches of a tileset frame: per square of each tile that
+   * the image meets, the tile's frame over the square's pixel box
+   * (frame.js tileFrames). Tiles not on the device are uploaded; those
+   * this frame does not draw are freed.
+   * @param {FrameTile[]} tiles @param {import("./frame.js").TileFrameArgs} f
+   * @returns {Promise<{frame: ArrayBuffer, blob: any, nx: number, ny: number, key: string}[]>}
+   */
+  async tileJobs(tiles, f) {
+    const ts = /** @type {NonNullable<Renderer["tileset"]>} */ (this.tileset);
+    const keep = new Set(tiles.map((t) => t.key));
+    for (const [key, u] of ts.uploads)
+      if (!keep.has(key)) {
+        this.free(u.blob);
+        ts.uploads.delete(key);
+      }
+    const jobs = [];
+    for (const t of tiles) {
+      const { scene, blob } = await this.tileUpload(t);
+      for (const { frame, box } of tileFrames(t, scene, f)) {
+        new Uint32Array(frame)[103] = jobs.length;  // F.bx.w: which dispatch wrote the pick
+        jobs.push({ frame, blob, key: t.key, nx: f.pickOnly ? 1 : Math.ceil((box[2] - box[0]) / 8),
+          ny: f.pickOnly ? 1 : Math.ceil((box[3] - box[1]) / 8) });
+      }
+    }
+    return jobs;
+  }
+
   /** The 2D present path. @param {Uint8Array} rgba @param {number} W @param {number} H */
   put2d(rgba, W, H) {
     const canvas = /** @type {HTMLCanvasElement} */ (this.canvas);
@@ -923,6 +1051,7 @@ export class Renderer {
 
   destroy() {
     this.destroyed = true;
+    this.freeTiles();
     this.freeTargets();
     this.freeMesh();
     this.free(this.blobBuffer);

@@ -336,3 +336,19 @@ export async function packScene(pkg, ramps, slopeWidths = "auto") {
     dynamic: await packDynamic(pkg, layers, byLayer),
   };
 }
+
+/**
+ * A scene with no decals: the frame a tileset's terrain pass is drawn in
+ * (index.js, a tileset scene), before any tile has arrived.
+ * @returns {PackedScene}
+ */
+export function emptyScene() {
+  return {
+    words: new Uint32Array(4), offsets: new Uint32Array(SLOTS.length),
+    grid: { gx: 0, gy: 0, cw: 1, ch: 1, nx: 0, ny: 0 },
+    shift: 0, haveLines: false, havePolygons: false, polyBias: 0, layerCount: 0, slopeCount: 0,
+    unlitCount: 0, minWidthCount: 0, minWidthLimit: 0, minWidthReach: 0,
+    dynamic: { words: new Uint32Array(4), offsets: new Uint32Array(DYN_SLOTS.length), vertices: 0, lines: 0,
+      minWidthCount: 0, miterLimitDeg: 40, dashed: false },
+  };
+}

@@ -21,8 +21,8 @@
 
 import { DECALS_GLSL } from "./glsl_decals.js";
 import { TERRAIN_VS, TERRAIN_FS, FULLSCREEN_VS } from "./glsl_frame.js";
-import { frameUniforms, terrainMesh } from "./frame.js";
-import { packScene } from "./scene.js";
+import { frameUniforms, terrainMesh, tileFrames } from "./frame.js";
+import { emptyScene, packScene } from "./scene.js";
 import { flatTerrain, triangleGradients } from "./index.js";
 
 /** What this renderer leaves out, in the viewer overlay's words. */
@@ -114,6 +114,13 @@ export class WebGL2Renderer {
     this.terrainUbo = gl.createBuffer();
     this.frameUbo = gl.createBuffer();
     /** @type {import("./scene.js").PackedScene | null} */ this.scene = null;
+    /**
+     * A tileset scene (as index.js Renderer.tileset): the restyling and the
+     * tiles' packed scenes by key, their blob textures "tile:KEY" in `data`.
+     * @type {{ramps: import("./scene.js").LayerRamp[], slopeWidths: import("./scene.js").SlopeWidths,
+     *         uploads: Map<string, import("./scene.js").PackedScene>} | null}
+     */
+    this.tileset = null;
     /** @type {import("./index.js").Terrain | null} */ this.terrain = null;
     /** @type {Map<string, {tex: WebGLTexture, bytes: number}>} */ this.data = new Map();
     /** @type {Uint32Array} */ this.visBits = new Uint32Array(1);
@@ -177,18 +184,76 @@ export class WebGL2Renderer {
    */
   async setScene({ pkg, terrain, ramps, slopeWidths }) {
     const scene = await packScene(pkg, ramps ?? [], slopeWidths ?? "auto");
+    this.freeTiles();
+    this.tileset = null;
+    this.useScene(scene, scene.layerCount, terrain ?? flatTerrain(pkg.metadata.extent || [0, 0, 1, 1]),
+      `the package's static blobs (${pkg.label})`);
+  }
+
+  /**
+   * As index.js Renderer.setTileScene: a tileset's terrain and restyling;
+   * each frame names its tiles (FrameArgs tiles).
+   * @param {{terrain: import("./index.js").Terrain | null, extent: number[], layerCount: number,
+   *          ramps?: import("./scene.js").LayerRamp[],
+   *          slopeWidths?: import("./scene.js").SlopeWidths}} args
+   */
+  async setTileScene({ terrain, extent, layerCount, ramps, slopeWidths }) {
+    this.freeTiles();
+    this.tileset = { ramps: ramps ?? [], slopeWidths: slopeWidths ?? "auto", uploads: new Map() };
+    this.useScene(emptyScene(), layerCount, terrain ?? flatTerrain(extent), "no blobs");
+  }
+
+  /**
+   * The scene's textures: its blobs, the visibility bits of `layers`
+   * layers, the terrain's heights and gradients.
+   * @param {import("./scene.js").PackedScene} scene @param {number} layers
+   * @param {import("./index.js").Terrain} t @param {string} what
+   */
+  useScene(scene, layers, t, what) {
     this.scene = scene;
-    this.visBits = new Uint32Array(Math.max(1, Math.ceil(scene.layerCount / 32))).fill(0xffffffff);
-    const ext = pkg.metadata.extent || [0, 0, 1, 1];
-    const t = terrain ?? flatTerrain(ext);
+    this.visBits = new Uint32Array(Math.max(1, Math.ceil(layers / 32))).fill(0xffffffff);
     this.terrain = t;
-    this.linearTexture("blobs", scene.words, `the package's static blobs (${pkg.label})`);
+    this.linearTexture("blobs", scene.words, what);
     this.linearTexture("vis", this.visBits, "the layer visibility bits");
     this.linearTexture("heights", Float32Array.from(t.z), `the terrain's ${t.nx}x${t.ny} heights`);
-    // The gradients are read only for slope widths; a placeholder otherwise.
-    const grad = scene.slopeCount > 0 ? triangleGradients(t) : new Float32Array(4);
+    // The gradients are read only for slope widths (a tileset's tiles may
+    // have them); a placeholder otherwise.
+    const grad = scene.slopeCount > 0 || this.tileset ? triangleGradients(t) : new Float32Array(4);
     this.linearTexture("grads", grad, "the terrain's triangle gradients");
     this.freeMesh();
+  }
+
+  /** A tileset scene's tile textures, freed. */
+  freeTiles() {
+    if (!this.tileset) return;
+    for (const key of this.tileset.uploads.keys()) this.freeData(`tile:${key}`);
+    this.tileset.uploads.clear();
+  }
+
+  /**
+   * The packed scenes of a frame's tiles, their blob textures made where
+   * missing; the tiles the frame does not draw are freed.
+   * @param {import("./index.js").FrameTile[]} tiles
+   */
+  async tileScenes(tiles) {
+    const ts = /** @type {NonNullable<WebGL2Renderer["tileset"]>} */ (this.tileset);
+    const keep = new Set(tiles.map((t) => t.key));
+    for (const key of [...ts.uploads.keys()])
+      if (!keep.has(key)) {
+        this.freeData(`tile:${key}`);
+        ts.uploads.delete(key);
+      }
+    const out = [];
+    for (const t of tiles) {
+      let scene = ts.uploads.get(t.key);
+      if (!scene) {
+        scene = await packScene(t.pkg, ts.ramps, ts.slopeWidths);
+        this.linearTexture(`tile:${t.key}`, scene.words, `the static blobs of tile ${t.key} (${t.pkg.label})`);
+        ts.uploads.set(t.key, scene);
+      }
+      out.push(scene);
+    }
+    return out;
   }
 
   /** @param {number} layerIndex  the metadata layer table's index @param {boolean} visible */
@@ -302,7 +367,7 @@ export class WebGL2Renderer {
    * @param {import("./index.js").FrameArgs} args
    * @returns {Promise<import("./index.js").FrameResult>}
    */
-  async renderFrame({ camera, width, height, albedo, decals, present, readback, pick, passTimes }) {
+  async renderFrame({ camera, width, height, albedo, decals, present, readback, pick, passTimes, tiles }) {
     const scene = this.scene;
     if (!scene) throw new Error("renderFrame: no scene (call setScene first)");
     const gl = this.gl;
@@ -316,6 +381,19 @@ export class WebGL2Renderer {
     const pickOnly = picking && readback === false && !decals && !show;
     const terrain = /** @type {import("./index.js").Terrain} */ (this.terrain);
     const u = frameUniforms({ scene, terrain, camera, W, H, albedo, pick: picking ? [px, py] : null, pickOnly });
+    // A tileset: a pass without decals over the frame (clip mode 2), then
+    // one per square of each tile, scissored to its box (frame.js tileFrames).
+    /** @type {{frame: ArrayBuffer, box: number[], key: string}[]} */
+    const passes = [{ frame: u.frame, box: [0, 0, W, H], key: "blobs" }];
+    if (this.tileset) {
+      new Uint32Array(u.frame)[102] = 2;
+      const list = tiles ?? [];
+      const scenes = await this.tileScenes(list);
+      const f = { camera, terrain, W, H, albedo, pick: picking ? [px, py] : null, pickOnly, vp: u.vp, ax: u.ax, ay: u.ay };
+      list.forEach((t, k) => {
+        for (const { frame, box } of tileFrames(t, scenes[k], f)) passes.push({ frame, box, key: `tile:${t.key}` });
+      });
+    }
     const probe = new Uint8Array(4);
     /** @type {number[]} */
     const wall = [];
@@ -359,9 +437,6 @@ export class WebGL2Renderer {
     // pick-only frame: the pick's pixel alone).
     gl.bindFramebuffer(gl.DRAW_FRAMEBUFFER, T.decalFbo);
     gl.useProgram(this.decalProgram);
-    gl.bindBuffer(gl.UNIFORM_BUFFER, this.frameUbo);
-    gl.bufferData(gl.UNIFORM_BUFFER, new Uint8Array(u.frame), gl.DYNAMIC_DRAW);
-    gl.bindBufferBase(gl.UNIFORM_BUFFER, 1, this.frameUbo);
     gl.uniform4ui(this.linLocation, this.lin.ws, this.lin.ls, this.visBits.length, 0);
     const units = [["blobs", gl.TEXTURE_2D_ARRAY], ["heights", gl.TEXTURE_2D_ARRAY], ["grads", gl.TEXTURE_2D_ARRAY],
       ["vis", gl.TEXTURE_2D_ARRAY], [T.ground, gl.TEXTURE_2D], [T.colour, gl.TEXTURE_2D]];
@@ -377,11 +452,20 @@ export class WebGL2Renderer {
     }
     gl.drawBuffers(pickOnly ? [gl.NONE, gl.NONE, gl.COLOR_ATTACHMENT2]
       : [gl.COLOR_ATTACHMENT0, gl.COLOR_ATTACHMENT1, picking ? gl.COLOR_ATTACHMENT2 : gl.NONE]);
-    if (pickOnly) {
-      gl.enable(gl.SCISSOR_TEST);
-      gl.scissor(px, py, 1, 1);
+    gl.enable(gl.SCISSOR_TEST);
+    for (const p of passes) {
+      // Rows count from the image's top (the terrain pass drew it upside down).
+      const b = pickOnly ? [Math.max(px, p.box[0]), Math.max(py, p.box[1]), Math.min(px + 1, p.box[2]),
+        Math.min(py + 1, p.box[3])] : p.box;
+      if (b[2] <= b[0] || b[3] <= b[1]) continue;
+      gl.scissor(b[0], b[1], b[2] - b[0], b[3] - b[1]);
+      gl.bindBuffer(gl.UNIFORM_BUFFER, this.frameUbo);
+      gl.bufferData(gl.UNIFORM_BUFFER, new Uint8Array(p.frame), gl.DYNAMIC_DRAW);
+      gl.bindBufferBase(gl.UNIFORM_BUFFER, 1, this.frameUbo);
+      gl.activeTexture(gl.TEXTURE0);
+      gl.bindTexture(gl.TEXTURE_2D_ARRAY, /** @type {{tex: WebGLTexture}} */ (this.data.get(p.key)).tex);
+      gl.drawArrays(gl.TRIANGLES, 0, 3);
     }
-    gl.drawArrays(gl.TRIANGLES, 0, 3);
     gl.disable(gl.SCISSOR_TEST);
     passDone(T.decalFbo);
 
@@ -412,8 +496,8 @@ export class WebGL2Renderer {
     if (show) this.present(T, W, H);
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     /** @type {import("./index.js").PassTimes | null} */
-    const passes = passTimes ? { timing: "wall", terrain: wall[0], decals: wall[1], dynamic: 0, composite: 0 } : null;
-    return { rgba, decals: decalPixels, ms, pick: top, passes, dynamic: null };
+    const times = passTimes ? { timing: "wall", terrain: wall[0], decals: wall[1], dynamic: 0, composite: 0 } : null;
+    return { rgba, decals: decalPixels, ms, pick: top, passes: times, dynamic: null };
   }
 
   /** Shows the frame on the canvas, its rows flipped back. @param {any} T @param {number} W @param {number} H */
@@ -432,6 +516,7 @@ export class WebGL2Renderer {
 
   destroy() {
     this.destroyed = true;
+    this.freeTiles();
     this.freeTargets();
     this.freeMesh();
     for (const key of [...this.data.keys()]) this.freeData(key);

@@ -24,7 +24,7 @@ export const SLOTS = [
   "unlit_layers", "min_widths",
 ];
 
-export const FRAME_BYTES = 384;
+export const FRAME_BYTES = 416;
 
 export const DECALS_WGSL = /* wgsl */ `
 struct Frame {
@@ -49,6 +49,14 @@ struct Frame {
   // Picking: the pixel (x, y) whose top decal goes to PICK[0]; 1 to ask; 1
   // when the frame is drawn for the pick alone (one workgroup, no colours).
   pk: vec4<u32>,
+  // A tileset's tile (clip mode 1): decals only at ground points in [x, z) x
+  // [y, w), anchor-relative metres (the tile's square, as gl_passes.cpp
+  // set_clip); elsewhere the pixel is left as it is.
+  cl: vec4f,
+  // The pixel of workgroup (0, 0)'s first invocation (a tile's box, the
+  // pick pixel's 8x8 block); clip mode: 0 none, 1 the tile's square; w:
+  // the dispatch's number in its frame (PICK[1].x: which tile drew the pick).
+  bx: vec4<u32>,
 }
 @group(0) @binding(0) var<uniform> F: Frame;
 @group(0) @binding(1) var<storage, read> B: array<u32>;
@@ -533,9 +541,10 @@ fn ground_point(ndc: vec2f, near: vec2f) -> vec2f {
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) g0: vec3<u32>) {
-  // A pick-only frame (pk.w = 1) dispatches one workgroup: the pick pixel's.
-  var gid = g0;
-  if (F.pk.w != 0u) { gid = vec3<u32>(g0.xy + (F.pk.xy & vec2<u32>(~7u)), 0u); }
+  // The dispatch covers a box of the frame (a tile's, or the pick pixel's
+  // 8x8 block for a frame drawn for its pick alone) from F.bx.xy.
+  let gid = vec3<u32>(g0.xy + F.bx.xy, 0u);
+  let clipped = F.bx.z == 1u;
   let W = F.e.x;
   let H = F.e.y;
   if (gid.x >= W || gid.y >= H) { return; }
@@ -549,6 +558,7 @@ fn main(@builtin(global_invocation_id) g0: vec3<u32>) {
     // the ray's terrain point from the depth (static_common.glsl pixel_world)
     let depth = textureLoad(depthTex, vec2<i32>(gid.xy), 0);
     if (depth <= 0.0) {
+      if (clipped) { return; }
       OUT[2u * k] = vec4f(0.0);
       OUT[2u * k + 1u] = vec4f(0.0);
       if (k < arrayLength(&GROUND)) { GROUND[k] = vec4f(0.0); }
@@ -560,6 +570,7 @@ fn main(@builtin(global_invocation_id) g0: vec3<u32>) {
     z = wp.z / wp.w;
   }
   if (k < arrayLength(&GROUND)) { GROUND[k] = vec4f(p, z, 1.0); }
+  if (clipped && (p.x < F.cl.x || p.y < F.cl.y || p.x >= F.cl.z || p.y >= F.cl.w)) { return; }
   if (F.tn.z != 0u) { GS = gradient_at(p); }
   // Minimum widths: the pixel's ground size (static_common.glsl pixel_metres).
   if (F.mw.x > 0.0) {
@@ -569,7 +580,10 @@ fn main(@builtin(global_invocation_id) g0: vec3<u32>) {
   }
   UNLIT = vec3f(0.0);
   let c = query(p);
-  if (F.pk.z != 0u && gid.x == F.pk.x && gid.y == F.pk.y) { PICK[0] = TOP; }
+  if (F.pk.z != 0u && gid.x == F.pk.x && gid.y == F.pk.y) {
+    PICK[0] = TOP;
+    PICK[1] = vec4<u32>(F.bx.w, 0u, 0u, 0u);
+  }
   OUT[2u * k] = c;
   OUT[2u * k + 1u] = vec4f(UNLIT, c.a);
 }

@@ -32,6 +32,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 #include <string_view>
 
 namespace prep::view {
@@ -55,8 +56,9 @@ ServeRoot resolve_root(const std::string& path);
 std::optional<std::filesystem::path> resolve_data_path(const ServeRoot& root, std::string_view rel);
 
 // The terrain file the page draws for `root` (formats/SPEC.md "Terrain
-// files"): STEM.terrain beside a package when the server serves it
-// (resolve_data_path's rules); nullopt for a tileset or when there is none.
+// files"): STEM.terrain beside a package, tileset.terrain in a tileset's
+// folder, when the server serves it (resolve_data_path's rules); nullopt
+// when there is none.
 // /config.json names it, and `view --screenshot` places its camera over it.
 std::optional<std::filesystem::path> page_terrain(const ServeRoot& root);
 
@@ -122,8 +124,11 @@ struct ShotOptions {
   // (JSON: the adapter and the frame times; untrusted text), if it did.
   std::function<void(const std::string& json)> on_stats;
   // Called last with what the server sent of the package's or tileset's
-  // files (/data/...): the requests answered with a body and their bytes.
-  std::function<void(uint64_t requests, uint64_t bytes)> on_data;
+  // files (/data/...): the requests answered with a body, their bytes, and
+  // each file sent (relative to the served folder, in the order first
+  // asked for, once however many requests it took).
+  std::function<void(uint64_t requests, uint64_t bytes, const std::vector<std::string>& files)>
+      on_data;
 };
 
 // The Chromium to draw with: $DECALPREP_CHROMIUM when set (it must be an

@@ -1,0 +1,206 @@
+#!/usr/bin/env python3
+"""A tileset streamed by the browser viewer (tests/web/CMakeLists.txt,
+Web.TilesetStreaming): `decalprep view --screenshot` of a generated tileset
+of more than 10^6 vertices with overview levels, counted at the server.
+
+The tileset: bench/gen_synthetic.py "fine" (smooth polygons with a vertex
+every 0.2 m and smooth 3 m lines, 10^6 vertices over 8 km), built with
+1 km tiles and `--levels auto`. Every view is 640x360 over flat ground.
+What the server sent comes from `view --stats` ("data:" and "data files:",
+counted by the server as it answers /data/ requests, not by the page).
+
+  whole extent, top-down and oblique (--fit --pitch 45):
+    - the server sent less than 5% of the full-detail bytes (the level-0
+      tiles' files, tileset.json's sizes), tileset.json included;
+    - each file was sent once (one Range request a tile);
+    - the frame differs from `render --level 0` (GL, --aa none: every
+      level-0 tile) on less than 1% of its pixels (a pixel differs when a
+      channel is more than 2/255 away);
+    - it equals `render` of the same view (GL, the levels render chooses)
+      on at least 99.9% of its pixels: the browser drew what render draws;
+  close-up (an oblique view of a few hundred metres):
+    - the tile files the server sent are exactly the tiles
+      prep::render::select_tiles chooses for that camera (view_oracle
+      tiles), fewer than the tileset holds, and no tile outside the view;
+    - the frame equals `render` of the view on at least 99.9% of pixels;
+  whole extent top-down with --backend webgl2: the same counts and
+    agreement with render (the WebGL2 renderer draws tilesets too).
+
+Prints the figures of each view. Exit 0 when all hold, 1 when one fails,
+77 (skip) when Chromium, numpy or GDAL's Python bindings are missing.
+
+Usage: tileset_stream_test.py DECALPREP VIEW_ORACLE REPO_ROOT WORK_DIR
+"""
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+SKIP = 77
+SIZE = (640, 360)
+VERTICES = 1_000_000
+EXTENT_M = 8000.0
+TILE_M = 1000
+
+
+def main():
+    if len(sys.argv) != 5:
+        print(__doc__)
+        return 2
+    decalprep, oracle, root, work = sys.argv[1:5]
+    try:
+        import numpy  # noqa: F401
+        from osgeo import gdal  # noqa: F401
+    except ImportError as e:
+        print("SKIP: numpy or GDAL's Python bindings are missing:", e)
+        return SKIP
+    if not (os.environ.get("DECALPREP_CHROMIUM") or shutil.which("chromium")
+            or shutil.which("chromium-headless-shell")):
+        print("SKIP: no Chromium (scripts/deps installs it)")
+        return SKIP
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    sys.path.insert(0, os.path.join(root, "bench"))
+    import gen_synthetic
+    scene, _ = gen_synthetic.mix_scene(work, VERTICES, "fine", extent=EXTENT_M, kind="fine")
+    tiles_dir = os.path.join(work, "tiles")
+    subprocess.run([decalprep, "build", scene, "-o", tiles_dir, "--tile-size", str(TILE_M),
+                    "--levels", "auto", "-q"], check=True)
+    with open(os.path.join(tiles_dir, "tileset.json")) as f:
+        index = json.load(f)
+    vertices = sum(layer["vertices_in"] for layer in index["manifest"]["layers"])
+    level0 = {t["file"]: t for t in index["tiles"]}
+    files = dict(level0)
+    for lv in index["levels"]:
+        files.update({t["file"]: t for t in lv["tiles"]})
+    full = sum(t["bytes"] for t in level0.values())
+    print(f"tileset: {vertices} vertices, {len(level0)} level-0 tiles ({full} bytes), "
+          f"levels 1..{len(index['levels'])}, {len(files)} tile files")
+    if vertices < VERTICES:
+        print(f"FAIL: the generated tileset has {vertices} vertices, fewer than {VERTICES}")
+        return 1
+    if not index["levels"]:
+        print("FAIL: --levels auto made no overview level")
+        return 1
+
+    ext = index["extent"]
+    cx, cy = (ext[0] + ext[2]) / 2, (ext[1] + ext[3]) / 2
+    half_w = max(ext[2] - ext[0], (ext[3] - ext[1]) * SIZE[0] / SIZE[1]) / 2
+    top = ["--extent", "%.3f,%.3f,%.3f,%.3f" % (cx - half_w, cy - half_w * SIZE[1] / SIZE[0],
+                                                 cx + half_w, cy + half_w * SIZE[1] / SIZE[0])]
+    ox, oy = index["frame"]["origin"]
+    # The close-up: 250 m up, looking north-east at a point 400 m away.
+    tx, ty = cx - ox, cy - oy
+    eye, target = [tx - 280.0, ty - 280.0, 250.0], [tx, ty, 0.0]
+    close = ["--eye", "%.3f,%.3f,%.3f" % tuple(eye), "--target", "%.3f,%.3f,%.3f" % tuple(target)]
+    views = [("whole, top-down", top, "webgpu", True), ("whole, oblique", ["--fit", "--pitch", "45"], "webgpu", True),
+             ("close-up", close, "webgpu", False), ("whole, top-down, WebGL2", top, "webgl2", True)]
+    failures = []
+    for name, camera, backend, whole in views:
+        failures += check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole, files, full,
+                               (eye, target))
+    for f in failures:
+        print("FAIL:", f)
+    return 1 if failures else 0
+
+
+def check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole, files, full, close):
+    slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+    size = ["--size", "%dx%d" % SIZE]
+    shot = os.path.join(work, slug + ".view.png")
+    r = subprocess.run([decalprep, "view", tiles_dir, "--screenshot", shot, *size, *camera, "--stats",
+                        "--backend", backend, "--timeout", "600"], capture_output=True, text=True)
+    if r.returncode == 12:
+        print("SKIP: Chromium cannot start:", r.stderr[-500:])
+        sys.exit(SKIP)
+    if r.returncode != 0:
+        return [f"{name}: view exited {r.returncode}: {r.stderr[-2000:]}"]
+    out = r.stdout
+    m = re.search(r"^data: (\d+) requests, (\d+) bytes", out, re.M)
+    listed = re.search(r"^data files: (.*)$", out, re.M)
+    device = re.search(r"^device: (\S+)", out, re.M)
+    if not (m and listed and device):
+        return [f"{name}: view --stats printed no data counts or device:\n{out}"]
+    requests, sent = int(m.group(1)), int(m.group(2))
+    sent_files = listed.group(1).split()
+    tiles_sent = [f for f in sent_files if f in files]
+    fails = []
+    if device.group(1).lower() != backend:
+        fails.append(f"{name}: the page drew with {device.group(1)}, not {backend}")
+    others = [f for f in sent_files if f not in files and f != "tileset.json"]
+    if others:
+        fails.append(f"{name}: the server sent files that are neither tiles nor the index: {others}")
+    if requests != len(sent_files):
+        fails.append(f"{name}: {requests} requests for {len(sent_files)} files (one request a file expected)")
+    tile_bytes = sum(files[f]["bytes"] for f in tiles_sent)
+    print(f"{name} ({backend}): the server answered {requests} requests, {sent} bytes "
+          f"({100.0 * sent / full:.2f}% of the full detail's {full}); {len(tiles_sent)} tiles, {tile_bytes} "
+          f"bytes; levels " + ", ".join(f"L{lv}: {n}" for lv, n in sorted(levels_of(tiles_sent).items())))
+
+    gl = os.path.join(work, slug + ".render.png")
+    subprocess.run([decalprep, "render", tiles_dir, "-o", gl, *size, *camera, "--aa", "none", "--flat"],
+                   check=True, capture_output=True)
+    same = agreement(shot, gl)
+    print(f"  against render of the view: {same[0]} of {same[1]} pixels within 2/255 ({100.0 * same[0] / same[1]:.3f}%)")
+    if same[0] < 0.999 * same[1]:
+        fails.append(f"{name}: only {same[0]} of {same[1]} pixels agree with render's frame of the view")
+    if whole:
+        if sent >= 0.05 * full:
+            fails.append(f"{name}: the server sent {sent} bytes, not less than 5% of the full detail's {full}")
+        l0 = os.path.join(work, slug + ".level0.png")
+        subprocess.run([decalprep, "render", tiles_dir, "-o", l0, *size, *camera, "--aa", "none", "--flat",
+                        "--level", "0"], check=True, capture_output=True)
+        agree, total = agreement(shot, l0)
+        print(f"  against render --level 0: {total - agree} of {total} pixels differ "
+              f"({100.0 * (total - agree) / total:.3f}%)")
+        if total - agree >= 0.01 * total:
+            fails.append(f"{name}: {total - agree} of {total} pixels differ from render --level 0 (1% allowed)")
+    else:
+        eye, target = close
+        views_path = os.path.join(work, slug + ".views.json")
+        with open(views_path, "w") as f:
+            json.dump([{"name": name, "eye": eye, "target": target, "fov": 45}], f)
+        o = subprocess.run([oracle, "tiles", tiles_dir, views_path, str(SIZE[0]), str(SIZE[1]), "0"],
+                           capture_output=True, text=True, check=True)
+        chosen = json.loads(o.stdout)[0]["tiles"]
+        want = sorted(file_of(files, lv, x, y) for lv, x, y, _ in chosen)
+        print(f"  select_tiles chooses {len(want)} tiles of {len(files)}; the server sent {len(tiles_sent)}")
+        if sorted(tiles_sent) != want:
+            fails.append(f"{name}: the server sent tiles {sorted(tiles_sent)}, the view's tiles are {want}")
+        if not 0 < len(want) < len(files) // 4:
+            fails.append(f"{name}: a close-up of {len(want)} of {len(files)} tiles proves nothing")
+    return fails
+
+
+def levels_of(names):
+    out = {}
+    for n in names:
+        m = re.match(r"tiles/L(\d+)/", n)
+        lv = int(m.group(1)) if m else 0
+        out[lv] = out.get(lv, 0) + 1
+    return out
+
+
+def file_of(files, level, x, y):
+    for f, t in files.items():
+        if t["x"] == x and t["y"] == y and levels_of([f]) == {level: 1}:
+            return f
+    raise KeyError(f"no tile L{level} {x},{y} in tileset.json")
+
+
+def agreement(a_path, b_path):
+    """(pixels whose channels are all within 2/255, pixels) of two PNGs."""
+    import numpy as np
+    from osgeo import gdal
+    a = gdal.Open(a_path).ReadAsArray().astype(np.int16)
+    b = gdal.Open(b_path).ReadAsArray().astype(np.int16)
+    if a.shape != b.shape:
+        raise SystemExit(f"FAIL: {a_path} is {a.shape}, {b_path} is {b.shape}")
+    close = (np.abs(a - b) <= 2).all(axis=0)
+    return int(close.sum()), int(close.size)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

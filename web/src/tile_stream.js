@@ -1,0 +1,87 @@
+// tile_stream.js — a tileset streamed for a moving view: each view's tiles
+// and overview levels chosen by selectTiles (tile_select.js, the rule of
+// `decalprep render`), fetched in the background and held by a TileCache
+// (tile_cache.js: coarser levels first, a loaded coarser tile standing in
+// where a chosen one has not arrived, least recently drawn evicted), and
+// handed to the renderer as the tiles of its frame (render/index.js
+// FrameTile: offsets and squares relative to the tileset's frame origin,
+// the frame the camera is given in).
+
+import { selectTiles } from "./tile_select.js";
+import { TileCache } from "./tile_cache.js";
+
+/** @typedef {import("./tileset.js").Tileset} Tileset */
+/** @typedef {import("./tileset.js").Tile} Tile */
+/** @typedef {import("./render/camera.js").Camera} Camera */
+/** @typedef {import("./render/index.js").FrameTile} FrameTile */
+/** @typedef {import("./tile_select.js").TileSelection} TileSelection */
+
+export class TileStream {
+  /**
+   * @param {{tileset: Tileset, baseUrl: string, maxBytes: number, concurrency?: number,
+   *          open?: (baseUrl: string, tile: Tile) => Promise<import("./package.js").Package>,
+   *          onLoaded?: () => void}} options
+   *   maxBytes: the decoded blob bytes the loaded tiles may hold; onLoaded:
+   *   called as each tile arrives (to draw again).
+   */
+  constructor(options) {
+    this.tileset = options.tileset;
+    /** @type {(() => void)[]} */
+    this.waiters = [];
+    const onLoaded = options.onLoaded ?? (() => {});
+    this.cache = new TileCache({ tileset: options.tileset, baseUrl: options.baseUrl, maxBytes: options.maxBytes,
+      concurrency: options.concurrency, open: options.open, onLoaded: () => {
+        if (this.idle()) for (const w of this.waiters.splice(0)) w();
+        onLoaded();
+      } });
+    const [ox, oy] = this.tileset.json.frame.origin;
+    /** The tileset's frame origin (absolute frame CRS metres). */
+    this.origin = [ox, oy];
+    /** @type {TileSelection | null} the last view's choice */
+    this.selection = null;
+  }
+
+  /** The data's extent relative to the frame origin ([xmin, ymin, xmax, ymax], metres). */
+  extent() {
+    const e = this.tileset.json.extent, [ox, oy] = this.origin;
+    return [e[0] - ox, e[1] - oy, e[2] - ox, e[3] - oy];
+  }
+
+  /**
+   * A view: its tiles chosen (selectTiles with `options`; pixelScale > 1
+   * asks for coarser levels, as if each pixel were that much larger: what
+   * a viewer over its frame budget lowers detail with), the ones not loaded
+   * queued, and the tiles to draw now (loaded ones, and stand-ins).
+   * @param {Camera} camera  metres relative to the frame origin
+   * @param {number} width @param {number} height
+   * @param {number} zmin @param {number} zmax  the terrain's height range
+   * @param {import("./tile_select.js").TileSelectOptions} [options]
+   * @returns {{selection: TileSelection, tiles: FrameTile[], standIns: number}}
+   */
+  view(camera, width, height, zmin, zmax, options = {}) {
+    const selection = selectTiles(this.tileset, camera, width, height, zmin, zmax, options);
+    this.selection = selection;
+    this.cache.want(selection.tiles);
+    const [ox, oy] = this.origin;
+    const list = this.cache.drawList(selection.tiles);
+    return {
+      selection,
+      standIns: list.filter((d) => d.standIn).length,
+      tiles: list.map((d) => ({
+        key: `${d.level}/${d.tile.x},${d.tile.y}`, pkg: d.pkg, dx: d.tile.origin[0] - ox, dy: d.tile.origin[1] - oy,
+        clips: d.clips.map((c) => [c[0] - ox, c[1] - oy, c[2] - ox, c[3] - oy]),
+      })),
+    };
+  }
+
+  /** Whether no fetch is queued or in flight. */
+  idle() {
+    return this.cache.queue.size === 0 && this.cache.inFlight.size === 0;
+  }
+
+  /** Resolves once no fetch is queued or in flight. @returns {Promise<void>} */
+  settled() {
+    if (this.idle()) return Promise.resolve();
+    return new Promise((resolve) => this.waiters.push(resolve));
+  }
+}
