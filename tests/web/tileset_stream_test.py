@@ -24,7 +24,11 @@ counted by the server as it answers /data/ requests, not by the page).
       tiles), fewer than the tileset holds, and no tile outside the view;
     - the frame equals `render` of the view on at least 99.9% of pixels;
   whole extent top-down with --backend webgl2: the same counts and
-    agreement with render (the WebGL2 renderer draws tilesets too).
+    agreement with render (the WebGL2 renderer draws tilesets too);
+  a continent: discs 4,800 km apart in EPSG:3857 as 200 km tiles, top-down
+    over all of them, so that tiles lie beyond 2^31 quanta (2,147 km) of the
+    eye and draw around an anchor of their own: the frame equals render's
+    on at least 99.9% of pixels, with each backend.
 
 Prints the figures of each view. Exit 0 when all hold, 1 when one fails,
 77 (skip) when Chromium, numpy or GDAL's Python bindings are missing.
@@ -101,6 +105,7 @@ def main():
     for name, camera, backend, whole in views:
         failures += check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole, files, full,
                                (eye, target))
+    failures += check_continent(decalprep, work)
     for f in failures:
         print("FAIL:", f)
     return 1 if failures else 0
@@ -171,6 +176,54 @@ def check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole,
             fails.append(f"{name}: the server sent tiles {sorted(tiles_sent)}, the view's tiles are {want}")
         if not 0 < len(want) < len(files) // 4:
             fails.append(f"{name}: a close-up of {len(want)} of {len(files)} tiles proves nothing")
+    return fails
+
+
+def check_continent(decalprep, work):
+    """Discs of 1.5 degrees every 11 degrees of longitude and 10 of
+    latitude (44 x 20 degrees: about 4,900 km across in EPSG:3857), built as
+    200 km tiles; a top-down view of them all against render."""
+    import math
+    features = []
+    for i in range(5):
+        for j in range(3):
+            cx, cy = -22.0 + 11.0 * i, 30.0 + 10.0 * j
+            ring = [[cx + 1.5 * math.cos(2 * math.pi * k / 256), cy + 1.5 * math.sin(2 * math.pi * k / 256)]
+                    for k in range(256)]
+            ring.append(ring[0])
+            features.append({"type": "Feature", "properties": {"id": len(features)},
+                             "geometry": {"type": "Polygon", "coordinates": [ring]}})
+    src = os.path.join(work, "continent.geojson")
+    with open(src, "w") as f:
+        json.dump({"type": "FeatureCollection", "features": features}, f)
+    scene = os.path.join(work, "continent.toml")
+    with open(scene, "w") as f:
+        f.write(f'source = "{src}"\ncrs = "EPSG:3857"\n[[layer]]\nname = "discs"\nkind = "polygon"\n'
+                'color = "#c05020"\n')
+    out = os.path.join(work, "continent")
+    subprocess.run([decalprep, "build", scene, "-o", out, "--tile-size", "200000", "-q"], check=True)
+    with open(os.path.join(out, "tileset.json")) as f:
+        e = json.load(f)["extent"]
+    cx, cy = (e[0] + e[2]) / 2, (e[1] + e[3]) / 2
+    hw = max(e[2] - e[0], (e[3] - e[1]) * SIZE[0] / SIZE[1]) / 2 * 1.02
+    hh = hw * SIZE[1] / SIZE[0]
+    ext = "%.3f,%.3f,%.3f,%.3f" % (cx - hw, cy - hh, cx + hw, cy + hh)
+    fails = []
+    gl = os.path.join(work, "continent.render.png")
+    subprocess.run([decalprep, "render", out, "-o", gl, "--size", "%dx%d" % SIZE, "--extent", ext, "--aa", "none",
+                    "--flat"], check=True, capture_output=True)
+    for backend in ("webgpu", "webgl2"):
+        shot = os.path.join(work, f"continent.{backend}.png")
+        r = subprocess.run([decalprep, "view", out, "--screenshot", shot, "--size", "%dx%d" % SIZE, "--extent", ext,
+                            "--backend", backend, "--timeout", "600"], capture_output=True, text=True)
+        if r.returncode != 0:
+            fails.append(f"continent ({backend}): view exited {r.returncode}: {r.stderr[-2000:]}")
+            continue
+        agree, total = agreement(shot, gl)
+        print(f"continent, a view {2 * hw / 1000:.0f} km across ({backend}): {agree} of {total} pixels within 2/255 of render's "
+              f"({100.0 * agree / total:.3f}%)")
+        if agree < 0.999 * total:
+            fails.append(f"continent ({backend}): only {agree} of {total} pixels agree with render's")
     return fails
 
 

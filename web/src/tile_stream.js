@@ -69,6 +69,7 @@ export class TileStream {
       standIns: list.filter((d) => d.standIn).length,
       tiles: list.map((d) => ({
         key: `${d.level}/${d.tile.x},${d.tile.y}`, pkg: d.pkg, dx: d.tile.origin[0] - ox, dy: d.tile.origin[1] - oy,
+        square: [d.tile.square[0] - ox, d.tile.square[1] - oy, d.tile.square[2] - ox, d.tile.square[3] - oy],
         clips: d.clips.map((c) => [c[0] - ox, c[1] - oy, c[2] - ox, c[3] - oy]),
       })),
     };

@@ -23,12 +23,16 @@ const floorDiv = (a, b) => Math.floor(a / b);
  * camera's frame): decals only at ground points inside it, half-open, as
  * gl_passes.cpp set_clip. box: the pixel the decal dispatch starts at (the
  * tile's box; a pick-only frame starts at the pick pixel's 8x8 block).
+ * anchorQ: the anchor in whole quanta where it is not the eye's (a tile
+ * beyond the reach of 32-bit quanta from the eye: tileFrames).
  * @param {{scene: import("./scene.js").PackedScene, terrain: import("./index.js").Terrain,
  *          camera: import("./camera.js").Camera, W: number, H: number, albedo?: number[],
- *          pick: number[] | null, pickOnly: boolean, clip?: number[] | null, box?: number[]}} args
+ *          pick: number[] | null, pickOnly: boolean, clip?: number[] | null, box?: number[],
+ *          anchorQ?: number[]}} args
  */
-export function frameUniforms({ scene, terrain, camera, W, H, albedo, pick, pickOnly, clip, box }) {
-  const axq = Math.round(camera.eye[0] / Q), ayq = Math.round(camera.eye[1] / Q);
+export function frameUniforms({ scene, terrain, camera, W, H, albedo, pick, pickOnly, clip, box, anchorQ }) {
+  const axq = anchorQ ? anchorQ[0] : Math.round(camera.eye[0] / Q);
+  const ayq = anchorQ ? anchorQ[1] : Math.round(camera.eye[1] / Q);
   const ax = axq * Q, ay = ayq * Q;
   const eyeRel = [camera.eye[0] - ax, camera.eye[1] - ay, camera.eye[2]];
   const vp = matMul(projectionMatrix(camera, W / H), viewMatrix(camera, eyeRel));
@@ -142,13 +146,35 @@ export function squareBox(vp, sq, zmin, zmax, W, H) {
  *            ax: number, ay: number}} TileFrameArgs
  */
 
+/** The most quanta a stored i32 position may lie from the anchor on an axis. */
+const REACH = 2 ** 31 - 1;
+
+/**
+ * The anchor (whole quanta) a tile whose square is `sq` (metres in the
+ * tile's frame) draws with: `at` (the eye's) when every point of the
+ * square, grown by 1% for the margin, lies within 2^31 - 1 quanta of it on
+ * each axis, else the nearest anchor that does (gl_passes.cpp load_tile),
+ * so that the shaders' integer differences q - anchor do not overflow.
+ * @param {number[]} sq @param {number[]} at
+ */
+export function tileAnchor(sq, at) {
+  const pad = 0.01 * (sq[2] - sq[0]);
+  const reach = (/** @type {number} */ lo, /** @type {number} */ hi, /** @type {number} */ a) => {
+    const l = (hi + pad) / Q - REACH, h = (lo - pad) / Q + REACH;
+    return l > h ? a : Math.min(Math.max(a, Math.ceil(l)), Math.floor(h));
+  };
+  return [reach(sq[0], sq[2], at[0]), reach(sq[1], sq[3], at[1])];
+}
+
 /**
  * The decal frames of one tile of a tileset frame (gl_passes.cpp load_tile
  * and tile_scissor): per square of the tile that the image meets, the
  * tile's frame (camera and terrain moved by its offset, a whole number of
- * quanta, so every anchor-relative float is the index frame's) with the
- * square as its clip, and the square's pixel box (squareBox). A pick-only
- * frame keeps the squares whose box holds the pick.
+ * quanta, so every anchor-relative float is the index frame's; for a tile
+ * beyond 32-bit reach of the eye, tileAnchor's anchor, the matrices made
+ * again around it) with the square as its clip, and the square's pixel box
+ * (squareBox). A pick-only frame keeps the squares whose box holds the
+ * pick.
  * @param {import("./index.js").FrameTile} t
  * @param {import("./scene.js").PackedScene} scene  the tile's
  * @param {TileFrameArgs} f
@@ -160,6 +186,10 @@ export function tileFrames(t, scene, f) {
   const camera = { ...f.camera, eye: shift(f.camera.eye), target: shift(f.camera.target),
     topdownExtent: td ? [td[0] - t.dx, td[1] - t.dy, td[2] - t.dx, td[3] - t.dy] : null };
   const terrain = { ...f.terrain, x0: f.terrain.x0 - t.dx, y0: f.terrain.y0 - t.dy };
+  const own = t.square ?? [Math.min(...t.clips.map((c) => c[0])), Math.min(...t.clips.map((c) => c[1])),
+    Math.max(...t.clips.map((c) => c[2])), Math.max(...t.clips.map((c) => c[3]))];
+  const eyeQ = [Math.round(camera.eye[0] / Q), Math.round(camera.eye[1] / Q)];
+  const anchorQ = tileAnchor([own[0] - t.dx, own[1] - t.dy, own[2] - t.dx, own[3] - t.dy], eyeQ);
   const out = [];
   for (const c of t.clips) {
     const box = squareBox(f.vp, [c[0] - f.ax, c[1] - f.ay, c[2] - f.ax, c[3] - f.ay],
@@ -168,7 +198,7 @@ export function tileFrames(t, scene, f) {
     const p = f.pick;
     if (f.pickOnly && p && !(p[0] >= box[0] && p[0] < box[2] && p[1] >= box[1] && p[1] < box[3])) continue;
     const u = frameUniforms({ scene, terrain, camera, W: f.W, H: f.H, albedo: f.albedo, pick: f.pick,
-      pickOnly: f.pickOnly, clip: [c[0] - t.dx, c[1] - t.dy, c[2] - t.dx, c[3] - t.dy], box });
+      pickOnly: f.pickOnly, clip: [c[0] - t.dx, c[1] - t.dy, c[2] - t.dx, c[3] - t.dy], box, anchorQ });
     out.push({ frame: u.frame, box });
   }
   return out;

@@ -190,11 +190,12 @@ async function packLod(pkg) {
 /**
  * A tile of a tileset scene (setTileScene) to draw in a frame: a key that
  * names it while it stays on the GPU, its package, its origin's offset
- * from the tileset frame origin (metres, whole quanta: SPEC "Tilesets")
- * and the squares it draws in (metres relative to the tileset frame
- * origin; its own square, or those of the finer tiles it stands in for).
+ * from the tileset frame origin (metres, whole quanta: SPEC "Tilesets"),
+ * its own square and the squares it draws in (metres relative to the
+ * tileset frame origin; its own square, or those of the finer tiles it
+ * stands in for).
  * @typedef {{key: string, pkg: import("../package.js").Package, dx: number, dy: number,
- *            clips: number[][]}} FrameTile
+ *            square?: number[], clips: number[][]}} FrameTile
  * @typedef {{camera: Camera, width: number, height: number, albedo?: number[],
  *            decals?: boolean, present?: boolean, readback?: boolean,
  *            pick?: number[] | null, passTimes?: boolean, tiles?: FrameTile[]}} FrameArgs
