@@ -9,6 +9,7 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "prep/view.hpp"
@@ -17,25 +18,31 @@ namespace prep::view::detail {
 
 inline constexpr std::string_view kViewStage = "view";
 
-// The body of /config.json: {"kind", "url", "terrain": URL of STEM.terrain
-// beside a package, or null, "backend": `backend` (auto, webgpu or webgl2),
-// "screenshot": `screenshot_json` (a JSON value; empty: null)}.
+// The body of /config.json: {"kind", "url", "terrain": URL of the terrain
+// file (page_terrain) or null, "backend": `backend` (auto, webgpu or
+// webgl2), "gpuBudget": `gpu_budget` (0: none), "screenshot":
+// `screenshot_json` (a JSON value; empty: null)}.
 std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
-                        std::string_view backend);
+                        std::string_view backend, uint64_t gpu_budget);
 
 // What the server sent of the package's or tileset's files (/data/...):
 // the requests answered with a body, the body bytes, and the files sent
-// (each once, in the order first asked for). Thread-safe.
+// with their bytes (each once, in the order first asked for). Thread-safe.
 struct DataTally {
   std::mutex m;
   uint64_t requests = 0, bytes = 0;
-  std::vector<std::string> files;
+  std::vector<std::pair<std::string, uint64_t>> files;
 
   void add(const std::string& file, uint64_t sent) {
     const std::lock_guard lock(m);
     requests += 1;
     bytes += sent;
-    if (std::find(files.begin(), files.end(), file) == files.end()) files.push_back(file);
+    const auto it = std::find_if(files.begin(), files.end(),
+                                 [&file](const auto& f) { return f.first == file; });
+    if (it == files.end())
+      files.emplace_back(file, sent);
+    else
+      it->second += sent;
   }
 };
 

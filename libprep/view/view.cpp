@@ -299,7 +299,7 @@ const Asset* find_asset(std::string_view url_path) {
 namespace detail {
 
 std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
-                        std::string_view backend) {
+                        std::string_view backend, uint64_t gpu_budget) {
   std::string entry;
   for (const auto& c : fs::path(root.entry))
     entry += (entry.empty() ? "" : "/") + url_component(c.string());
@@ -309,6 +309,7 @@ std::string config_json(const ServeRoot& root, std::string_view screenshot_json,
          (root.kind == ServeRoot::Kind::package ? "\"package\"" : "\"tileset\"") +
          ",\"url\":" + json_string("/data/" + entry) + ",\"terrain\":" + terrain +
          ",\"backend\":" + json_string(std::string(backend)) +
+         ",\"gpuBudget\":" + std::to_string(gpu_budget) +
          ",\"screenshot\":" + std::string(screenshot_json.empty() ? "null" : screenshot_json) + "}";
 }
 
@@ -364,7 +365,7 @@ void serve(const ServeOptions& options,
            const std::function<void(const std::string& url)>& on_listening) {
   const ServeRoot root = resolve_root(options.path);
   httplib::Server server;
-  detail::add_routes(server, root, detail::config_json(root, {}, options.backend));
+  detail::add_routes(server, root, detail::config_json(root, {}, options.backend, options.gpu_budget));
   // Anything else (other paths, other methods) httplib refuses itself.
   server.set_payload_max_length(1 << 16);
   const int port = detail::bind_server(server, options.bind, options.port);

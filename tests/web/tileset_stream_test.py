@@ -23,8 +23,17 @@ counted by the server as it answers /data/ requests, not by the page).
       prep::render::select_tiles chooses for that camera (view_oracle
       tiles), fewer than the tileset holds, and no tile outside the view;
     - the frame equals `render` of the view on at least 99.9% of pixels;
+  the same close-up with `view --gpu-budget` at 60% of its decoded blob
+    bytes: the tiles sent whole are exactly those select_tiles chooses
+    under that budget (coarsened: fewer bytes), the others only read for
+    their header; the frame equals `render --gpu-budget` of the view;
   whole extent top-down with --backend webgl2: the same counts and
     agreement with render (the WebGL2 renderer draws tilesets too);
+  the Monaco sample as 500 m tiles with --levels auto, with its dynamic
+    roads (pixel-width lines), oblique over the whole and close up: the
+    frame equals render's on at least 99.9% of pixels, and on 99% of the
+    pixels the dynamic lines change (render against render --only
+    polygons,lines): each tile's dynamic lines drawn in its square;
   a continent: discs 4,800 km apart in EPSG:3857 as 200 km tiles, top-down
     over all of them, so that tiles lie beyond 2^31 quanta (2,147 km) of the
     eye and draw around an anchor of their own: the frame equals render's
@@ -105,18 +114,33 @@ def main():
     for name, camera, backend, whole in views:
         failures += check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole, files, full,
                                (eye, target))
+    budget = int(0.6 * oracle_tiles(oracle, work, tiles_dir, eye, target, 0)["blob_bytes"])
+    failures += check_view(decalprep, oracle, work, tiles_dir, "close-up, GPU budget", close, "webgpu", False, files,
+                           full, (eye, target), budget)
+    failures += check_dynamic(decalprep, root, work)
     failures += check_continent(decalprep, work)
     for f in failures:
         print("FAIL:", f)
     return 1 if failures else 0
 
 
-def check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole, files, full, close):
+def oracle_tiles(oracle, work, tiles_dir, eye, target, budget):
+    """view_oracle tiles: prep::render::select_tiles of the camera, flat ground."""
+    views_path = os.path.join(work, "oracle_views.json")
+    with open(views_path, "w") as f:
+        json.dump([{"name": "view", "eye": eye, "target": target, "fov": 45}], f)
+    o = subprocess.run([oracle, "tiles", tiles_dir, views_path, str(SIZE[0]), str(SIZE[1]), str(budget)],
+                       capture_output=True, text=True, check=True)
+    return json.loads(o.stdout)[0]
+
+
+def check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole, files, full, close, budget=0):
     slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
     size = ["--size", "%dx%d" % SIZE]
     shot = os.path.join(work, slug + ".view.png")
+    limit = ["--gpu-budget", str(budget)] if budget else []
     r = subprocess.run([decalprep, "view", tiles_dir, "--screenshot", shot, *size, *camera, "--stats",
-                        "--backend", backend, "--timeout", "600"], capture_output=True, text=True)
+                        "--backend", backend, "--timeout", "600", *limit], capture_output=True, text=True)
     if r.returncode == 12:
         print("SKIP: Chromium cannot start:", r.stderr[-500:])
         sys.exit(SKIP)
@@ -124,28 +148,33 @@ def check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole,
         return [f"{name}: view exited {r.returncode}: {r.stderr[-2000:]}"]
     out = r.stdout
     m = re.search(r"^data: (\d+) requests, (\d+) bytes", out, re.M)
-    listed = re.search(r"^data files: (.*)$", out, re.M)
+    listed = re.search(r"^data files \(FILE:BYTES sent\): (.*)$", out, re.M)
     device = re.search(r"^device: (\S+)", out, re.M)
     if not (m and listed and device):
         return [f"{name}: view --stats printed no data counts or device:\n{out}"]
     requests, sent = int(m.group(1)), int(m.group(2))
-    sent_files = listed.group(1).split()
-    tiles_sent = [f for f in sent_files if f in files]
+    sent_bytes = {f: int(b) for f, b in (item.rsplit(":", 1) for item in listed.group(1).split())}
+    sent_files = list(sent_bytes)
+    # Tiles sent whole (with a budget, others are read for their headers alone).
+    tiles_sent = [f for f in sent_files if f in files and sent_bytes[f] >= files[f]["bytes"]]
+    headers_only = [f for f in sent_files if f in files and f not in tiles_sent]
     fails = []
     if device.group(1).lower() != backend:
         fails.append(f"{name}: the page drew with {device.group(1)}, not {backend}")
     others = [f for f in sent_files if f not in files and f != "tileset.json"]
     if others:
         fails.append(f"{name}: the server sent files that are neither tiles nor the index: {others}")
-    if requests != len(sent_files):
+    if not budget and requests != len(sent_files):
         fails.append(f"{name}: {requests} requests for {len(sent_files)} files (one request a file expected)")
+    if not budget and headers_only:
+        fails.append(f"{name}: files sent in part without a budget: {headers_only}")
     tile_bytes = sum(files[f]["bytes"] for f in tiles_sent)
     print(f"{name} ({backend}): the server answered {requests} requests, {sent} bytes "
           f"({100.0 * sent / full:.2f}% of the full detail's {full}); {len(tiles_sent)} tiles, {tile_bytes} "
           f"bytes; levels " + ", ".join(f"L{lv}: {n}" for lv, n in sorted(levels_of(tiles_sent).items())))
 
     gl = os.path.join(work, slug + ".render.png")
-    subprocess.run([decalprep, "render", tiles_dir, "-o", gl, *size, *camera, "--aa", "none", "--flat"],
+    subprocess.run([decalprep, "render", tiles_dir, "-o", gl, *size, *camera, "--aa", "none", "--flat", *limit],
                    check=True, capture_output=True)
     same = agreement(shot, gl)
     print(f"  against render of the view: {same[0]} of {same[1]} pixels within 2/255 ({100.0 * same[0] / same[1]:.3f}%)")
@@ -164,18 +193,50 @@ def check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole,
             fails.append(f"{name}: {total - agree} of {total} pixels differ from render --level 0 (1% allowed)")
     else:
         eye, target = close
-        views_path = os.path.join(work, slug + ".views.json")
-        with open(views_path, "w") as f:
-            json.dump([{"name": name, "eye": eye, "target": target, "fov": 45}], f)
-        o = subprocess.run([oracle, "tiles", tiles_dir, views_path, str(SIZE[0]), str(SIZE[1]), "0"],
-                           capture_output=True, text=True, check=True)
-        chosen = json.loads(o.stdout)[0]["tiles"]
-        want = sorted(file_of(files, lv, x, y) for lv, x, y, _ in chosen)
-        print(f"  select_tiles chooses {len(want)} tiles of {len(files)}; the server sent {len(tiles_sent)}")
+        o = oracle_tiles(oracle, work, tiles_dir, eye, target, budget)
+        want = sorted(file_of(files, lv, x, y) for lv, x, y, _ in o["tiles"])
+        print(f"  select_tiles chooses {len(want)} tiles of {len(files)}" +
+              (f" under a budget of {budget} bytes ({o['coarsened']} coarsened, {o['blob_bytes']} used)"
+               if budget else "") + f"; the server sent {len(tiles_sent)} whole, {len(headers_only)} headers")
+        if budget and not o["coarsened"]:
+            fails.append(f"{name}: a budget of {budget} bytes coarsens nothing: it proves nothing")
         if sorted(tiles_sent) != want:
             fails.append(f"{name}: the server sent tiles {sorted(tiles_sent)}, the view's tiles are {want}")
         if not 0 < len(want) < len(files) // 4:
             fails.append(f"{name}: a close-up of {len(want)} of {len(files)} tiles proves nothing")
+    return fails
+
+
+def check_dynamic(decalprep, root, work):
+    """The Monaco sample as a tileset, its dynamic roads drawn per tile."""
+    import numpy as np
+    from osgeo import gdal
+    out = os.path.join(work, "monaco")
+    subprocess.run([decalprep, "build", os.path.join(root, "samples/monaco/scene.toml"), "-o", out,
+                    "--tile-size", "500", "--levels", "auto", "-q"], check=True)
+    size = ["--size", "%dx%d" % SIZE]
+    fails = []
+    for name, camera in (("whole", ["--fit", "--pitch", "45"]),
+                         ("along the A8", ["--eye", "400,1500,300", "--target", "-700,1150,0"])):
+        shot, gl, static = (os.path.join(work, f"monaco_{name}.{k}.png") for k in ("view", "render", "static"))
+        r = subprocess.run([decalprep, "view", out, "--screenshot", shot, *size, *camera, "--timeout", "600"],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            fails.append(f"Monaco tileset, {name}: view exited {r.returncode}: {r.stderr[-2000:]}")
+            continue
+        for png, extra in ((gl, []), (static, ["--only", "polygons,lines"])):
+            subprocess.run([decalprep, "render", out, "-o", png, *size, *camera, "--aa", "none", "--flat", *extra],
+                           check=True, capture_output=True)
+        a, b, c = (gdal.Open(p).ReadAsArray().astype(np.int16) for p in (shot, gl, static))
+        same = (np.abs(a - b) <= 2).all(axis=0)
+        dynamic = (np.abs(b - c) > 2).any(axis=0)
+        print(f"Monaco tileset with dynamic roads, {name}: {int(same.sum())} of {same.size} pixels within 2/255 of "
+              f"render's; of the {int(dynamic.sum())} pixels its dynamic lines change, {int((same & dynamic).sum())}")
+        if same.sum() < 0.999 * same.size:
+            fails.append(f"Monaco tileset, {name}: only {int(same.sum())} of {same.size} pixels agree with render's")
+        if dynamic.sum() < 100 or (same & dynamic).sum() < 0.99 * dynamic.sum():
+            fails.append(f"Monaco tileset, {name}: {int((same & dynamic).sum())} of the {int(dynamic.sum())} "
+                         "dynamic-line pixels agree with render's (99% wanted, of at least 100)")
     return fails
 
 

@@ -12,9 +12,11 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "command.hpp"
+#include "prep/memory_estimate.hpp"
 #include "prep/pipeline.hpp"
 #include "prep/view.hpp"
 
@@ -32,6 +34,7 @@ struct ViewArgs {
   double timeout = 120;
   bool verbose = false;
   bool stats = false;  // --stats: the page's frame times
+  std::string gpu_budget;  // --gpu-budget SIZE
   // --pick X,Y: pixels whose top decal the page reports (x right, y down).
   std::vector<std::string> picks;
 };
@@ -52,6 +55,18 @@ std::array<uint32_t, 2> parse_pick(const std::string& text, uint32_t width, uint
     prep::fail<prep::usage_error>(kViewCommand, "--pick '" + text + "': expected X,Y (pixels)");
   const std::string_view all(text);
   return {whole(all.substr(0, comma), width, "X"), whole(all.substr(comma + 1), height, "Y")};
+}
+
+// --gpu-budget SIZE in bytes (as render's: 512M, 2G, 1073741824).
+uint64_t parse_budget(const std::string& text) {
+  try {
+    const uint64_t bytes = prep::parse_memory_size(text);
+    if (bytes > 0) return bytes;
+  } catch (const prep::usage_error&) {
+  }
+  prep::fail<prep::usage_error>(kViewCommand, "--gpu-budget: expected a size such as 512M, 2G or "
+                                              "1073741824 (bytes), got \"" +
+                                                  text + "\"");
 }
 
 nlohmann::json vec3(const prep::render::Vec3& v) {
@@ -191,6 +206,11 @@ void print_tile_stats(const nlohmann::json& j) {
       num("chosen"), mix.empty() ? "none" : mix.c_str(), num("drawn"), num("packageBytes"), full,
       full > 0 ? 100.0 * num("packageBytes") / full : 0.0, num("fullDetailTiles"), num("requests"),
       num("fetchedBytes"));
+  if (num("gpuBudget") > 0)
+    std::printf(
+        "gpu budget: %.0f bytes of decoded blobs, %.0f used, %.0f tile groups coarsened to fit; "
+        "%.0f tile headers read for their sizes\n",
+        num("gpuBudget"), num("blobBytes"), num("coarsened"), num("headerReads"));
 }
 
 // --stats: what the page measured (its JSON is the page's, so untrusted:
@@ -259,6 +279,7 @@ void run_screenshot(ViewArgs& a) {
   for (const std::string& p : a.picks) picks.push_back(parse_pick(p, s.width, s.height));
   s.config_json = shot_config(v, s.decals, picks, a.stats).dump();
   s.backend = a.serve.backend;
+  s.gpu_budget = a.serve.gpu_budget;
   s.chromium = *chromium;
   s.timeout_s = a.timeout;
   s.verbose = a.verbose;
@@ -278,13 +299,15 @@ void run_screenshot(ViewArgs& a) {
       answered = true;
     };
   if (a.stats)
-    s.on_data = [](uint64_t requests, uint64_t bytes, const std::vector<std::string>& files) {
+    s.on_data = [](uint64_t requests, uint64_t bytes,
+                   const std::vector<std::pair<std::string, uint64_t>>& files) {
       std::printf("data: %llu requests, %llu bytes of the package's files sent\n",
                   static_cast<unsigned long long>(requests),
                   static_cast<unsigned long long>(bytes));
       std::string list;
-      for (const std::string& f : files) list += (list.empty() ? "" : " ") + f;
-      std::printf("data files: %s\n", list.c_str());
+      for (const auto& [file, sent] : files)
+        list += (list.empty() ? "" : " ") + file + ":" + std::to_string(sent);
+      std::printf("data files (FILE:BYTES sent): %s\n", list.c_str());
     };
   prep::view::screenshot(a.serve.path, s);
   if (!picks.empty() && !answered)
@@ -328,8 +351,8 @@ void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
   needs(cmd->add_flag("--stretch", r.stretch,
                       "--extent as given even where its pixels are not square (as render)"));
   needs(cmd->add_option("--only", r.only,
-                        "Draw only these decal kinds: polygons,lines,dynamic (as render; the "
-                        "browser does not draw dynamic lines yet)"));
+                        "Draw only these decal kinds: polygons,lines,dynamic (as render; "
+                        "--backend webgl2 draws no dynamic lines)"));
   needs(cmd->add_option("--ramp", r.ramps,
                         "Colour ramp LAYER=value:#rrggbb[aa],... (as render; repeat for more)")
             ->expected(1)
@@ -365,8 +388,12 @@ const decalprep::CommandRegistrar kView(70, kViewHelp, [](CLI::App* cmd) {
                   "the page's renderer: auto (WebGPU, else WebGL2; the default), webgpu, or "
                   "webgl2 (static decals only)")
       ->check(CLI::IsMember({"auto", "webgpu", "webgl2"}));
+  cmd->add_option("--gpu-budget", args->gpu_budget,
+                  "A tileset: decoded blob bytes the page may hold on the GPU (512M, 2G, ...): "
+                  "each view's tiles are coarsened to fit, as render --gpu-budget");
   add_screenshot_options(cmd, *args);
   cmd->callback([args] {
+    if (!args->gpu_budget.empty()) args->serve.gpu_budget = parse_budget(args->gpu_budget);
     if (!args->shot.output.empty()) {
       run_screenshot(*args);
     } else {

@@ -9,6 +9,9 @@
 
 import { selectTiles } from "./tile_select.js";
 import { TileCache } from "./tile_cache.js";
+import { openTile } from "./tileset.js";
+import { openPackage } from "./package.js";
+import { urlSource } from "./source.js";
 
 /** @typedef {import("./tileset.js").Tileset} Tileset */
 /** @typedef {import("./tileset.js").Tile} Tile */
@@ -18,19 +21,32 @@ import { TileCache } from "./tile_cache.js";
 
 export class TileStream {
   /**
-   * @param {{tileset: Tileset, baseUrl: string, maxBytes: number, concurrency?: number,
-   *          open?: (baseUrl: string, tile: Tile) => Promise<import("./package.js").Package>,
+   * @param {{tileset: Tileset, baseUrl: string, maxBytes: number, concurrency?: number, gpuBudget?: number,
    *          onLoaded?: () => void}} options
-   *   maxBytes: the decoded blob bytes the loaded tiles may hold; onLoaded:
-   *   called as each tile arrives (to draw again).
+   *   maxBytes: the decoded blob bytes the loaded tiles may hold; gpuBudget:
+   *   each view's tiles coarsened until their decoded blob bytes fit, as
+   *   `render --gpu-budget` (0: none; the tiles' sizes come from their
+   *   headers, one Range read each, or from the tiles once loaded);
+   *   onLoaded: called as each tile arrives (to draw again).
    */
   constructor(options) {
     this.tileset = options.tileset;
+    this.baseUrl = options.baseUrl;
+    this.gpuBudget = options.gpuBudget ?? 0;
+    /** @type {Map<string, number>} decoded blob bytes by tile file */
+    this.sizes = new Map();
+    /** header reads made for the budget */
+    this.headerReads = 0;
     /** @type {(() => void)[]} */
     this.waiters = [];
     const onLoaded = options.onLoaded ?? (() => {});
+    const open = async (/** @type {string} */ base, /** @type {Tile} */ t) => {
+      const pkg = await openTile(base, t);
+      this.sizes.set(t.file, pkg.blobs.reduce((s, b) => s + b.rawSize, 0));
+      return pkg;
+    };
     this.cache = new TileCache({ tileset: options.tileset, baseUrl: options.baseUrl, maxBytes: options.maxBytes,
-      concurrency: options.concurrency, open: options.open, onLoaded: () => {
+      concurrency: options.concurrency, open, onLoaded: () => {
         if (this.idle()) for (const w of this.waiters.splice(0)) w();
         onLoaded();
       } });
@@ -56,10 +72,10 @@ export class TileStream {
    * @param {number} width @param {number} height
    * @param {number} zmin @param {number} zmax  the terrain's height range
    * @param {import("./tile_select.js").TileSelectOptions} [options]
-   * @returns {{selection: TileSelection, tiles: FrameTile[], standIns: number}}
+   * @returns {Promise<{selection: TileSelection, tiles: FrameTile[], standIns: number}>}
    */
-  view(camera, width, height, zmin, zmax, options = {}) {
-    const selection = selectTiles(this.tileset, camera, width, height, zmin, zmax, options);
+  async view(camera, width, height, zmin, zmax, options = {}) {
+    const selection = await this.choose(camera, width, height, zmin, zmax, options);
     this.selection = selection;
     this.cache.want(selection.tiles);
     const [ox, oy] = this.origin;
@@ -73,6 +89,48 @@ export class TileStream {
         clips: d.clips.map((c) => [c[0] - ox, c[1] - oy, c[2] - ox, c[3] - oy]),
       })),
     };
+  }
+
+  /**
+   * selectTiles, under the GPU budget when there is one: the choice is
+   * made again after reading the sizes of the tiles it asked about that are
+   * not known yet, until it asks about none.
+   * @param {Camera} camera @param {number} width @param {number} height
+   * @param {number} zmin @param {number} zmax @param {import("./tile_select.js").TileSelectOptions} options
+   */
+  async choose(camera, width, height, zmin, zmax, options) {
+    if (!this.gpuBudget) return selectTiles(this.tileset, camera, width, height, zmin, zmax, options);
+    for (;;) {
+      /** @type {Map<string, Tile>} */
+      const missing = new Map();
+      const blobBytes = (/** @type {number} */ _level, /** @type {Tile} */ t) => {
+        const b = this.sizes.get(t.file);
+        if (b !== undefined) return b;
+        missing.set(t.file, t);
+        return 0;
+      };
+      const sel = selectTiles(this.tileset, camera, width, height, zmin, zmax,
+        { ...options, gpuBudget: this.gpuBudget, blobBytes });
+      if (missing.size === 0) return sel;
+      await this.readSizes([...missing.values()]);
+    }
+  }
+
+  /**
+   * The decoded blob bytes of `tiles` from their headers and blob tables
+   * (Range reads; the package's checks of those parts), six at a time.
+   * @param {Tile[]} tiles
+   */
+  async readSizes(tiles) {
+    const queue = [...tiles];
+    const worker = async () => {
+      for (let t = queue.pop(); t; t = queue.pop()) {
+        const pkg = await openPackage(await urlSource(new URL(t.file, this.baseUrl).href));
+        this.headerReads += 1;
+        this.sizes.set(t.file, pkg.blobs.reduce((s, b) => s + b.rawSize, 0));
+      }
+    };
+    await Promise.all(Array.from({ length: Math.min(6, queue.length) }, worker));
   }
 
   /** Whether no fetch is queued or in flight. */

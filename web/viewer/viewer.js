@@ -21,7 +21,7 @@ import { describePick, layerKinds, showLayers, showOverlay, showPick, showStatus
  *            ramps: import("../src/render/scene.js").LayerRamp[], only?: Kinds,
  *            frames?: number, picks?: number[][], passTimes?: boolean}} ShotConfig
  * @typedef {{kind: string, url: string, terrain?: string | null, backend?: string,
- *            cacheBytes?: number, screenshot?: ShotConfig | null}} Config
+ *            gpuBudget?: number, screenshot?: ShotConfig | null}} Config
  */
 
 /** Decoded blob bytes a tileset's loaded tiles may hold, unless the config says. */
@@ -77,8 +77,11 @@ async function openScene(config, renderer, options) {
     return { extent, terrain: ground, metadata: meta, stream: null };
   }
   if (data.tiles.length === 0) throw new Error(`${config.url}: the tileset has no tiles`);
+  // With a GPU budget (view --gpu-budget) the views are coarsened to fit
+  // it and the cache holds as much.
+  const budget = config.gpuBudget ?? 0;
   const stream = new TileStream({ tileset: data, baseUrl: new URL(".", url).href,
-    maxBytes: config.cacheBytes ?? CACHE_BYTES, onLoaded: options.onLoaded });
+    maxBytes: budget > 0 ? budget : CACHE_BYTES, gpuBudget: budget, onLoaded: options.onLoaded });
   const extent = stream.extent();
   const ground = terrain ?? flatGround(extent, td);
   // Visibility bits for up to 1024 layers: the layer table comes with the tiles.
@@ -156,32 +159,31 @@ async function screenshot(config) {
   const stream = scene.stream;
   if (stream) {
     const { zmin, zmax } = scene.terrain;
-    stream.view(s.camera, s.width, s.height, zmin, zmax);
+    await stream.view(s.camera, s.width, s.height, zmin, zmax);
     await stream.settled();
     const failure = loadFailure(stream);
     if (failure) throw failure;
-    const v = stream.view(s.camera, s.width, s.height, zmin, zmax);
+    const v = await stream.view(s.camera, s.width, s.height, zmin, zmax);
     tiles = v.tiles;
     metadata = tiles[0]?.pkg.metadata ?? null;
     const sel = v.selection, st = stream.cache.stats;
     tileStats = { chosen: sel.tiles.length, drawn: tiles.length, standIns: v.standIns, perLevel: sel.perLevel,
       packageBytes: sel.packageBytes, fullDetailBytes: sel.fullDetailBytes, fullDetailTiles: sel.fullDetailTiles,
-      requests: st.requests, fetchedBytes: st.bytes };
+      requests: st.requests, fetchedBytes: st.bytes, gpuBudget: stream.gpuBudget, blobBytes: sel.blobBytes,
+      coarsened: sel.coarsened, headerReads: stream.headerReads };
   }
   // --only: the kinds left out are hidden layers. The WebGL2 renderer does
-  // not draw dynamic lines, nor does either renderer a tileset's: the ones
-  // the view asks for are named.
+  // not draw dynamic lines: the ones the view asks for are named.
   const only = s.only ?? { polygons: true, lines: true, dynamic: true };
   const undrawn = [];
   const kinds = layerKinds(metadata);
   for (const [i, { name, kind }] of kinds.entries()) {
     renderer.setLayerVisible(i, only[kind]);
-    if (kind === "dynamic" && only.dynamic && (renderer.backend === "webgl2" || stream)) undrawn.push(name || `layer ${i}`);
+    if (kind === "dynamic" && only.dynamic && renderer.backend === "webgl2") undrawn.push(name || `layer ${i}`);
   }
   if (undrawn.length > 0) {
-    const who = stream ? "the browser does not draw a tileset's dynamic lines" : "WebGL2 does not draw dynamic lines";
-    await post("/__shot/note", `${who}: layer${undrawn.length > 1 ? "s" : ""} ` +
-      `${undrawn.join(", ")} left out (${stream ? "" : "--backend webgpu draws them; "}render --only polygons,lines draws the same decals)`);
+    await post("/__shot/note", `WebGL2 does not draw dynamic lines: layer${undrawn.length > 1 ? "s" : ""} ` +
+      `${undrawn.join(", ")} left out (--backend webgpu draws them; render --only polygons,lines draws the same decals)`);
   }
   // --frames N: N frames drawn, the last one sent; their times go to
   // /__shot/stats (view --stats prints them).
@@ -232,7 +234,8 @@ function streamLine(stream, budgetMs, pixelScale) {
   const sel = stream.selection, st = stream.cache.stats, c = stream.cache;
   const mix = sel ? sel.perLevel.map((n, l) => (n > 0 ? `L${l}:${n}` : "")).filter(Boolean).join(" ") : "";
   const mib = (/** @type {number} */ b) => (b / 1048576).toFixed(1);
-  return `budget ${budgetMs} ms, detail 1/${pixelScale}; levels ${mix || "none"}\n` +
+  const gpu = stream.gpuBudget > 0 ? `, GPU budget ${mib(stream.gpuBudget)} MiB (${sel?.coarsened ?? 0} coarsened)` : "";
+  return `budget ${budgetMs} ms, detail 1/${pixelScale}; levels ${mix || "none"}${gpu}\n` +
     `fetched ${mib(st.bytes)} MiB in ${st.requests} requests, holding ${mib(c.loadedBytes)} of ${mib(c.maxBytes)} MiB` +
     `${c.inFlight.size + c.queue.size > 0 ? `, ${c.inFlight.size + c.queue.size} to come` : ""}` +
     `${st.failed > 0 ? `\n${st.failed} failed: ${st.lastError}` : ""}`;
@@ -257,7 +260,7 @@ async function interactive(config) {
     const kinds = layerKinds(metadata);
     names = kinds.map((l) => l.name);
     const listed = kinds.map(({ name, kind }) => (kind !== "dynamic" ? name
-      : `${name} (dynamic${renderer.backend === "webgl2" ? ": not drawn by WebGL2" : stream ? ": not drawn for a tileset" : ""})`));
+      : `${name} (dynamic${renderer.backend === "webgl2" ? ": not drawn by WebGL2" : ""})`));
     showLayers(listed, (i, visible) => {
       renderer.setLayerVisible(i, visible);
       redraw();
@@ -276,7 +279,7 @@ async function interactive(config) {
       if (canvas.width !== width || canvas.height !== height) [canvas.width, canvas.height] = [width, height];
       const camera = cam.camera();
       if (stream) {
-        tiles = stream.view(camera, width, height, terrain.zmin, terrain.zmax, { pixelScale }).tiles;
+        tiles = (await stream.view(camera, width, height, terrain.zmin, terrain.zmax, { pixelScale })).tiles;
         if (names.length === 0 && tiles.length > 0) listLayers(tiles[0].pkg.metadata);
       }
       const out = await renderer.renderFrame({ camera, width, height, present: true, readback: false, tiles });

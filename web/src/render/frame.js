@@ -178,7 +178,12 @@ export function tileAnchor(sq, at) {
  * @param {import("./index.js").FrameTile} t
  * @param {import("./scene.js").PackedScene} scene  the tile's
  * @param {TileFrameArgs} f
- * @returns {{frame: ArrayBuffer, box: number[]}[]}
+ * Each also gives its uniforms (frameUniforms), the tile's camera, the
+ * square in the tile's frame and, for its dynamic lines, the offset from a
+ * ground point relative to the index anchor to one relative to the tile's
+ * (0 unless the anchor moved).
+ * @returns {{frame: ArrayBuffer, box: number[], u: ReturnType<typeof frameUniforms>,
+ *            camera: import("./camera.js").Camera, clip: number[], go: number[]}[]}
  */
 export function tileFrames(t, scene, f) {
   const shift = (/** @type {number[]} */ v) => [v[0] - t.dx, v[1] - t.dy, v[2]];
@@ -188,8 +193,10 @@ export function tileFrames(t, scene, f) {
   const terrain = { ...f.terrain, x0: f.terrain.x0 - t.dx, y0: f.terrain.y0 - t.dy };
   const own = t.square ?? [Math.min(...t.clips.map((c) => c[0])), Math.min(...t.clips.map((c) => c[1])),
     Math.max(...t.clips.map((c) => c[2])), Math.max(...t.clips.map((c) => c[3]))];
-  const eyeQ = [Math.round(camera.eye[0] / Q), Math.round(camera.eye[1] / Q)];
-  const anchorQ = tileAnchor([own[0] - t.dx, own[1] - t.dy, own[2] - t.dx, own[3] - t.dy], eyeQ);
+  // The index anchor moved by the tile's offset, whole quanta: exactly.
+  const at = [Math.round(f.ax / Q) - Math.round(t.dx / Q), Math.round(f.ay / Q) - Math.round(t.dy / Q)];
+  const anchorQ = tileAnchor([own[0] - t.dx, own[1] - t.dy, own[2] - t.dx, own[3] - t.dy], at);
+  const go = [(at[0] - anchorQ[0]) * Q, (at[1] - anchorQ[1]) * Q];
   const out = [];
   for (const c of t.clips) {
     const box = squareBox(f.vp, [c[0] - f.ax, c[1] - f.ay, c[2] - f.ax, c[3] - f.ay],
@@ -197,9 +204,10 @@ export function tileFrames(t, scene, f) {
     if (!box) continue;
     const p = f.pick;
     if (f.pickOnly && p && !(p[0] >= box[0] && p[0] < box[2] && p[1] >= box[1] && p[1] < box[3])) continue;
+    const clip = [c[0] - t.dx, c[1] - t.dy, c[2] - t.dx, c[3] - t.dy];
     const u = frameUniforms({ scene, terrain, camera, W: f.W, H: f.H, albedo: f.albedo, pick: f.pick,
-      pickOnly: f.pickOnly, clip: [c[0] - t.dx, c[1] - t.dy, c[2] - t.dx, c[3] - t.dy], box, anchorQ });
-    out.push({ frame: u.frame, box });
+      pickOnly: f.pickOnly, clip, box, anchorQ });
+    out.push({ frame: u.frame, box, u, camera, clip, go });
   }
   return out;
 }

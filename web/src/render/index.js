@@ -156,6 +156,19 @@ export function triangleGradients(t) {
  */
 
 /**
+ * A package's dynamic lines on the device (Renderer.makeDynSet): the packed
+ * blobs (scene.js packDynamic) in `buffer`, the update's per-vertex buffers
+ * in `work` (work.lod: the LOD passes' buffers), its LOD data.
+ * @typedef {{ds: import("./scene.js").PackedDynamic, buffer: any, lod: LodData | null, work: any}} DynSet
+ * One draw of a set's dynamic lines in a frame: its frame's uniforms
+ * (frameUniforms), camera and, for a tileset's tile, the square it draws in
+ * (metres in the tile's frame) and the offset from the frame's ground
+ * points (relative to the index anchor) to the tile's anchor (metres).
+ * @typedef {{set: DynSet, u: ReturnType<typeof frameUniforms>, camera: Camera, clip: number[] | null,
+ *            go: number[]}} DynDraw
+ */
+
+/**
  * The LOD data of a package with LOD lines that map onto its dynamic lines,
  * else null (its lines are then drawn from their full vertex chains).
  * @param {import("../package.js").Package} pkg
@@ -236,7 +249,7 @@ export class Renderer {
      * the tiles on the GPU by key (their packed scene and blob buffer),
      * kept while frames draw them.
      * @type {{ramps: import("./scene.js").LayerRamp[], slopeWidths: import("./scene.js").SlopeWidths,
-     *         uploads: Map<string, {scene: import("./scene.js").PackedScene, blob: any}>} | null}
+     *         uploads: Map<string, {scene: import("./scene.js").PackedScene, blob: any, dyn: DynSet | null}>} | null}
      */
     this.tileset = null;
     /** @type {Terrain | null} */ this.terrain = null;
@@ -248,8 +261,7 @@ export class Renderer {
     /** @type {any} */ this.mesh = null;
     /** @type {any} */ this.targets = null;
     /** @type {any} */ this.stamps = null;
-    /** @type {any} */ this.dynBuffer = null;  // the packed dynamic-line blobs (scene.js packDynamic)
-    /** @type {any} */ this.dynWork = null;    // the update's per-vertex buffers
+    /** @type {DynSet | null} */ this.dynSet = null;  // the package's dynamic lines on the device
     /** @type {any} */ this.dynTargets = null; // the per-pixel lists and the dynamic layer, per size
     /**
      * How present: true shows frames: null until the first such frame,
@@ -406,8 +418,8 @@ export class Renderer {
    * frame; null: flat over `extent`) and the restyling of every tile, which
    * each frame then names (FrameArgs tiles: what a TileCache draw list
    * holds). layerCount: the layer table's length (visibility bits).
-   * Dynamic lines and LOD lines of tiles are not drawn (the static decals
-   * are, as `render` draws a tileset's).
+   * Each tile draws its static decals and its dynamic lines (LOD lines
+   * too) in its squares, as `render` draws a tileset in one frame.
    * @param {{terrain: Terrain | null, extent: number[], layerCount: number,
    *          ramps?: import("./scene.js").LayerRamp[],
    *          slopeWidths?: import("./scene.js").SlopeWidths}} args
@@ -425,7 +437,10 @@ export class Renderer {
   /** The tiles of a tileset scene on the device, freed. */
   freeTiles() {
     if (!this.tileset) return;
-    for (const u of this.tileset.uploads.values()) this.free(u.blob);
+    for (const u of this.tileset.uploads.values()) {
+      this.free(u.blob);
+      this.freeDynSet(u.dyn);
+    }
     this.tileset.uploads.clear();
   }
 
@@ -441,7 +456,8 @@ export class Renderer {
     const scene = await packScene(t.pkg, ts.ramps, ts.slopeWidths);
     const blob = this.buffer(scene.words.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(blob, 0, scene.words);
-    const u = { scene, blob };
+    const lod = scene.dynamic.vertices > 0 ? await packLod(t.pkg) : null;
+    const u = { scene, blob, dyn: this.makeDynSet(scene.dynamic, lod, `tile ${t.key}`) };
     ts.uploads.set(t.key, u);
     return u;
   }
@@ -467,51 +483,64 @@ export class Renderer {
     this.free(this.gradients);
     this.gradients = this.buffer(grad.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(this.gradients, 0, grad);
-    // Dynamic lines: the packed blobs and the update's buffers (as
-    // gl_dynamic.cpp DynamicLines::make_buffers), n vertices in B blocks.
     this.freeDynamic();
-    const dyn = scene.dynamic;
-    if (dyn.vertices > 0 && dyn.lines > 0) {
-      const n = dyn.vertices, blocks = Math.ceil(n / 256);
-      if (blocks > 65535) throw new Error(`setScene: ${n} dynamic vertices, more than the 65535 workgroups of 256 one dispatch reaches`);
-      this.dynBuffer = this.buffer(dyn.words.byteLength, BU.STORAGE | BU.COPY_DST);
-      this.device.queue.writeBuffer(this.dynBuffer, 0, dyn.words);
-      const rw = BU.STORAGE;
-      this.dynWork = {
-        flags: this.buffer(4 * n, rw), scan: this.buffer(4 * n, rw), blocks: this.buffer(4 * blocks, rw),
-        compact: this.buffer(4 * n, rw), segments: this.buffer(16 * n, rw),
-        // dyn_dash's distances and carries (wgsl_dynamic.js DASH) where a line is dashed
-        dash: this.buffer(dyn.dashed ? 4 * (4 * n + 3 * blocks) : 16, rw),
-        counters: this.buffer(4 * DYN_COUNTER_WORDS, rw | BU.COPY_DST | BU.COPY_SRC),
-        indirect: this.buffer(16, BU.INDIRECT | BU.COPY_DST),
-        readCounters: this.buffer(4 * DYN_COUNTER_WORDS, BU.MAP_READ | BU.COPY_DST),
-        groups: blocks,
-        lod: null,
-      };
-      // LOD lines: the LOD words, the links and the selection, the uniform.
-      const lod = this.lod;
-      if (lod) {
-        const words = this.buffer(lod.words.byteLength, BU.STORAGE | BU.COPY_DST);
-        this.device.queue.writeBuffer(words, 0, lod.words);
-        const reset = new Uint32Array(2 * lod.points + 4).fill(0xffffffff);
-        reset.fill(0, 2 * lod.points);
-        this.dynWork.lod = { words, reset,
-          state: this.buffer(4 * (2 * lod.points + 4 + lod.segments), BU.STORAGE | BU.COPY_DST),
-          uniform: this.buffer(80, BU.UNIFORM | BU.COPY_DST),
-          groups: Math.min(65535, Math.ceil(lod.segments / 256)) };
-      }
+    this.dynSet = this.makeDynSet(scene.dynamic, this.lod ?? null, "setScene");
+  }
+
+  /**
+   * A package's dynamic lines on the device (as gl_dynamic.cpp
+   * DynamicLines::make_buffers): the packed blobs and the update's buffers,
+   * n vertices in B blocks; with LOD lines, the LOD words, the links and
+   * the selection, the uniform. null without dynamic lines.
+   * @param {import("./scene.js").PackedDynamic} dyn @param {LodData | null} lod @param {string} what
+   * @returns {DynSet | null}
+   */
+  makeDynSet(dyn, lod, what) {
+    if (!(dyn.vertices > 0 && dyn.lines > 0)) return null;
+    const n = dyn.vertices, blocks = Math.ceil(n / 256);
+    if (blocks > 65535) throw new Error(`${what}: ${n} dynamic vertices, more than the 65535 workgroups of 256 one dispatch reaches`);
+    const buffer = this.buffer(dyn.words.byteLength, BU.STORAGE | BU.COPY_DST);
+    this.device.queue.writeBuffer(buffer, 0, dyn.words);
+    const rw = BU.STORAGE;
+    /** @type {DynSet} */
+    const set = { ds: dyn, buffer, lod, work: {
+      flags: this.buffer(4 * n, rw), scan: this.buffer(4 * n, rw), blocks: this.buffer(4 * blocks, rw),
+      compact: this.buffer(4 * n, rw), segments: this.buffer(16 * n, rw),
+      // dyn_dash's distances and carries (wgsl_dynamic.js DASH) where a line is dashed
+      dash: this.buffer(dyn.dashed ? 4 * (4 * n + 3 * blocks) : 16, rw),
+      counters: this.buffer(4 * DYN_COUNTER_WORDS, rw | BU.COPY_DST | BU.COPY_SRC),
+      indirect: this.buffer(16, BU.INDIRECT | BU.COPY_DST),
+      readCounters: this.buffer(4 * DYN_COUNTER_WORDS, BU.MAP_READ | BU.COPY_DST),
+      groups: blocks,
+      lod: null,
+    } };
+    if (lod) {
+      const words = this.buffer(lod.words.byteLength, BU.STORAGE | BU.COPY_DST);
+      this.device.queue.writeBuffer(words, 0, lod.words);
+      const reset = new Uint32Array(2 * lod.points + 4).fill(0xffffffff);
+      reset.fill(0, 2 * lod.points);
+      set.work.lod = { words, reset,
+        state: this.buffer(4 * (2 * lod.points + 4 + lod.segments), BU.STORAGE | BU.COPY_DST),
+        uniform: this.buffer(80, BU.UNIFORM | BU.COPY_DST),
+        groups: Math.min(65535, Math.ceil(lod.segments / 256)) };
     }
+    return set;
+  }
+
+  /** @param {DynSet | null} set */
+  freeDynSet(set) {
+    if (!set) return;
+    this.free(set.buffer);
+    const w = set.work;
+    if (w.lod) for (const b of [w.lod.words, w.lod.state, w.lod.uniform]) this.free(b);
+    for (const b of [w.flags, w.scan, w.blocks, w.compact, w.segments, w.dash, w.counters, w.indirect,
+                     w.readCounters]) this.free(b);
   }
 
   /** The dynamic-line buffers of the scene and of the frame size. */
   freeDynamic() {
-    this.free(this.dynBuffer);
-    this.dynBuffer = null;
-    const w = this.dynWork;
-    if (w?.lod) for (const b of [w.lod.words, w.lod.state, w.lod.uniform]) this.free(b);
-    if (w) for (const b of [w.flags, w.scan, w.blocks, w.compact, w.segments, w.dash, w.counters, w.indirect,
-                            w.readCounters]) this.free(b);
-    this.dynWork = null;
+    this.freeDynSet(this.dynSet);
+    this.dynSet = null;
     const t = this.dynTargets;
     if (t) for (const b of [t.ground, t.heads, t.nodes, t.layer]) this.free(b);
     this.dynTargets = null;
@@ -530,7 +559,8 @@ export class Renderer {
     if (t) for (const b of [t.ground, t.heads, t.nodes, t.layer]) this.free(b);
     const n = W * H, capacity = Math.min(2 * n, this.mostNodes());
     this.dynTargets = { W, H, ground: this.buffer(16 * n, BU.STORAGE), heads: this.buffer(4 * n, BU.STORAGE | BU.COPY_DST),
-      capacity, nodes: this.buffer(16 * capacity, BU.STORAGE), layer: this.buffer(16 * n, BU.STORAGE) };
+      capacity, nodes: this.buffer(16 * capacity, BU.STORAGE),
+      layer: this.buffer(16 * n, BU.STORAGE | BU.COPY_DST) };  // cleared for a tileset
     return this.dynTargets;
   }
 
@@ -547,7 +577,7 @@ export class Renderer {
     const { device } = await openDevice(this.gpu, 40);
     // The lost device's objects are gone with it.
     this.blobBuffer = this.visBuffer = this.heights = this.gradients = null;
-    this.dynBuffer = this.dynWork = this.dynTargets = null;
+    this.dynSet = this.dynTargets = null;
     if (this.tileset) this.tileset.uploads.clear();
     this.mesh = null;
     this.targets = null;
@@ -724,42 +754,36 @@ export class Renderer {
     // The anchor (the eye rounded to whole quanta), the terrain pass's
     // uniform and the decal pass's frame: frame.js, which WebGL2 shares.
     const u = frameUniforms({ scene, terrain, camera, W, H, albedo, pick: picking ? [px, py] : null, pickOnly });
-    const { axq, ayq, ax, ay, eyeRel, vp } = u;
-    const persp = camera.projection === "perspective";
-    const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
+    const { ax, ay, vp } = u;
     d.queue.writeBuffer(this.terrainUniform, 0, u.terrainUniform);
     const gx = Math.ceil(W / 8), gy = Math.ceil(H / 8);
     // The decal dispatches: the package's over the frame, or a tileset's,
     // one per tile square in view, each with its own frame.
-    const jobs = this.tileset
+    const tileOut = this.tileset
       ? await this.tileJobs(tiles ?? [], { camera, terrain, W, H, albedo, pick: picking ? [px, py] : null,
         pickOnly, vp, ax, ay })
+      : null;
+    // Dynamic lines (not in a frame drawn for its pick alone): the
+    // package's, or each tile square's.
+    /** @type {DynDraw[]} */
+    const dynDraws = tileOut ? tileOut.dynamic
+      : this.dynSet ? [{ set: this.dynSet, u, camera, clip: null, go: [0, 0] }] : [];
+    const dyn = !pickOnly && dynDraws.length > 0 ? this.dynTargetsFor(W, H) : null;
+    const jobs = tileOut ? tileOut.jobs
       : [{ frame: u.frame, blob: this.blobBuffer, nx: pickOnly ? 1 : gx, ny: pickOnly ? 1 : gy, key: "" }];
-    this.frameSlotsFor(jobs.length);
-    jobs.forEach((j, k) => d.queue.writeBuffer(this.frameUniform, k * FRAME_STRIDE, j.frame));
-    // Dynamic lines (not in a frame drawn for its pick alone).
-    const dyn = !pickOnly && this.dynWork ? this.dynTargetsFor(W, H) : null;
-    d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, dyn ? 1 : 0, 0));
-    if (dyn) {
-      // The uniform of the dynamic passes (wgsl_dynamic.js Dyn; gl_dynamic.cpp set_uniforms).
-      const du = new ArrayBuffer(DYN_UNIFORM_BYTES);
-      const di = new Int32Array(du), df = new Float32Array(du), dw = new Uint32Array(du);
-      const ds = scene.dynamic;
-      df.set(vp, 0);
-      di.set([axq, ayq, ds.vertices, ds.lines], 16);
-      df.set([W, H, persp ? camera.near : 0, Math.cos((ds.miterLimitDeg * Math.PI) / 180)], 20);
-      df.set([...eyeRel, persp ? 0 : camera.orthoH / H], 24);
-      df.set([persp ? (2 * th) / H : 0, terrain.zmin, terrain.zmax, 0], 28);
-      dw.set([...ds.offsets.subarray(0, 5), ds.minWidthCount, ds.offsets[5], ds.dashed ? 1 : 0], 32);
-      d.queue.writeBuffer(this.dynUniform, 0, du);
-      const lw = this.dynWork.lod, lod = this.lod;
-      if (lw && lod) {
-        // render --lod on, --lod-tolerance 0.5 (prep::render::lod_view).
-        const view = lodView(camera, H, terrain.zmin, terrain.zmax, 0.5);
-        d.queue.writeBuffer(lw.uniform, 0, lodUniform(view, [lod.points, lod.segments], lod.offsets));
-        d.queue.writeBuffer(lw.state, 0, lw.reset);
-      }
+    if (tileOut && dyn) {
+      // The ground points of every pixel, in the index frame, for the
+      // tiles' dynamic lines (clip mode 2: no decals).
+      const ground = u.frame.slice(0);
+      new Uint32Array(ground)[102] = 2;
+      jobs.unshift({ frame: ground, blob: this.blobBuffer, nx: gx, ny: gy, key: "" });
     }
+    this.frameSlotsFor(jobs.length);
+    jobs.forEach((j, k) => {
+      new Uint32Array(j.frame)[103] = k;  // F.bx.w: which dispatch wrote the pick
+      d.queue.writeBuffer(this.frameUniform, k * FRAME_STRIDE, j.frame);
+    });
+    d.queue.writeBuffer(this.sizeUniform, 0, Uint32Array.of(W, H, dyn ? 1 : 0, 0));
 
     if (picking) d.queue.writeBuffer(T.pick, 0, new Uint32Array(8));
     const mesh = this.meshFor(ax, ay);
@@ -814,6 +838,7 @@ export class Renderer {
     const buf = (buffer) => ({ buffer });
     // A tileset's squares leave the pixels no tile draws: cleared first.
     if (this.tileset) enc.clearBuffer(T.dec);
+    if (this.tileset && dyn) enc.clearBuffer(dyn.layer);
     {
       const cp = enc.beginComputePass(stampWrites(1));
       cp.setPipeline(this.decalPipeline);
@@ -834,7 +859,15 @@ export class Renderer {
     if (dyn) {
       // The lists pass reads its node count back: what is encoded goes first.
       d.queue.submit([enc.finish()]);
-      dynStats = await this.dynamicPasses(dyn, T, W, H, stamps);
+      dynStats = { kept: 0, segments: 0, nodes: 0, grows: 0 };
+      for (const [i, e] of dynDraws.entries()) {
+        this.writeDynUniforms(e, W, H, terrain, Boolean(tileOut));
+        const st = await this.dynamicPasses(dyn, T, W, H, stamps, e.set, i === 0, i === dynDraws.length - 1);
+        dynStats.kept += st.kept;
+        dynStats.segments += st.segments;
+        dynStats.nodes += st.nodes;
+        dynStats.grows += st.grows;
+      }
       enc = d.createCommandEncoder();
       if (wallPasses) {
         await d.queue.onSubmittedWorkDone();
@@ -896,6 +929,38 @@ export class Renderer {
   }
 
   /**
+   * The uniforms of one draw of dynamic lines (wgsl_dynamic.js Dyn;
+   * gl_dynamic.cpp set_uniforms) and, with LOD lines, of its LOD passes.
+   * tileMode: a tileset's tile, drawn only in its square, composited only
+   * where its lists are not empty.
+   * @param {DynDraw} e @param {number} W @param {number} H @param {Terrain} terrain @param {boolean} tileMode
+   */
+  writeDynUniforms(e, W, H, terrain, tileMode) {
+    const d = this.device, { u, camera, set } = e, ds = set.ds;
+    const persp = camera.projection === "perspective";
+    const th = Math.tan((camera.fovYDeg * Math.PI) / 360);
+    const du = new ArrayBuffer(DYN_UNIFORM_BYTES);
+    const di = new Int32Array(du), df = new Float32Array(du), dw = new Uint32Array(du);
+    df.set(u.vp, 0);
+    di.set([u.axq, u.ayq, ds.vertices, ds.lines], 16);
+    df.set([W, H, persp ? camera.near : 0, Math.cos((ds.miterLimitDeg * Math.PI) / 180)], 20);
+    df.set([...u.eyeRel, persp ? 0 : camera.orthoH / H], 24);
+    df.set([persp ? (2 * th) / H : 0, terrain.zmin, terrain.zmax, 0], 28);
+    dw.set([...ds.offsets.subarray(0, 5), ds.minWidthCount, ds.offsets[5], ds.dashed ? 1 : 0], 32);
+    const c = e.clip;
+    df.set(c ? [c[0] - u.ax, c[1] - u.ay, c[2] - u.ax, c[3] - u.ay] : [-3e38, -3e38, 3e38, 3e38], 40);
+    df.set([e.go[0], e.go[1], tileMode ? 1 : 0, 0], 44);
+    d.queue.writeBuffer(this.dynUniform, 0, du);
+    const lw = set.work.lod, lod = set.lod;
+    if (lw && lod) {
+      // render --lod on, --lod-tolerance 0.5 (prep::render::lod_view).
+      const view = lodView(camera, H, terrain.zmin, terrain.zmax, 0.5);
+      d.queue.writeBuffer(lw.uniform, 0, lodUniform(view, [lod.points, lod.segments], lod.offsets));
+      d.queue.writeBuffer(lw.state, 0, lw.reset);
+    }
+  }
+
+  /**
    * The dynamic-line passes of a frame (gl_dynamic.cpp dynamic_pass):
    * update (cull, compaction, segments; dashes' screen distances), lists
    * (segment boxes into per-pixel linked lists: drawn again with a larger
@@ -903,30 +968,31 @@ export class Renderer {
    * capacity; past the fourth try, or the device's binding size, the nodes
    * beyond it are left out), composite into dyn.layer. The node count is
    * read back after each lists pass. Timestamps 6 and 7 (passTimes) span
-   * the three.
+   * the three (first: the update of the frame's first set of lines writes
+   * 6; last: the composite of its last writes 7).
    * @param {any} dyn  dynTargetsFor's @param {any} T  targetsFor's
    * @param {number} W @param {number} H @param {any} stamps
+   * @param {DynSet} set @param {boolean} first @param {boolean} last
    * @returns {Promise<DynamicStats>}
    */
-  async dynamicPasses(dyn, T, W, H, stamps) {
-    const d = this.device, w = this.dynWork, P = await this.dynamicPipelines();
-    const scene = /** @type {import("./scene.js").PackedScene} */ (this.scene);
+  async dynamicPasses(dyn, T, W, H, stamps, set, first, last) {
+    const d = this.device, w = set.work, P = await this.dynamicPipelines();
     const init = new Uint32Array(DYN_COUNTER_WORDS);
-    init.set([36, 0, 0, 0, 0, 0, dyn.capacity, scene.dynamic.vertices]);
+    init.set([36, 0, 0, 0, 0, 0, dyn.capacity, set.ds.vertices]);
     d.queue.writeBuffer(w.counters, 0, init);
     const group = (/** @type {any} */ layout, /** @type {any[]} */ buffers) => d.createBindGroup({ layout,
       entries: buffers.map((buffer, binding) => ({ binding, resource: { buffer } })) });
     let enc = d.createCommandEncoder();
-    const cp = enc.beginComputePass(stamps ? { timestampWrites: { querySet: stamps.set, beginningOfPassWriteIndex: 6 } } : {});
-    const updateGroup = group(P.layout, [this.dynUniform, this.dynBuffer, w.flags, w.scan, w.blocks, w.compact,
+    const cp = enc.beginComputePass(stamps && first ? { timestampWrites: { querySet: stamps.set, beginningOfPassWriteIndex: 6 } } : {});
+    const updateGroup = group(P.layout, [this.dynUniform, set.buffer, w.flags, w.scan, w.blocks, w.compact,
       w.segments, w.counters, w.dash]);
-    const lodGroup = w.lod ? group(P.lodLayout, [this.dynUniform, this.dynBuffer, w.flags, w.scan, w.segments,
+    const lodGroup = w.lod ? group(P.lodLayout, [this.dynUniform, set.buffer, w.flags, w.scan, w.segments,
       w.counters, w.lod.words, w.lod.state, w.lod.uniform]) : null;
     // With LOD lines (gl_dynamic.cpp update): lod_mask after the cull, the
     // selection and its segments after the update's segments.
     const entries = ["cull", ...(lodGroup ? ["lod_mask"] : []), "scan_local", "scan_blocks", "scatter", "segments",
       ...(lodGroup ? ["lod_select", "lod_segments"] : [])];
-    if (scene.dynamic.dashed) entries.push("dash_local", "dash_blocks", "dash_apply");
+    if (set.ds.dashed) entries.push("dash_local", "dash_blocks", "dash_apply");
     for (const entry of entries) {
       const isLod = entry.startsWith("lod_");
       cp.setPipeline(isLod ? P.lod[entry] : P.update[entry]);
@@ -948,7 +1014,7 @@ export class Renderer {
       enc.clearBuffer(dyn.heads);
       const rp = enc.beginRenderPass({ colorAttachments: [{ view: T.color.createView(), loadOp: "load", storeOp: "store" }] });
       rp.setPipeline(P.lists);
-      rp.setBindGroup(0, group(P.lists.getBindGroupLayout(0), [this.dynUniform, this.dynBuffer, w.segments, dyn.ground,
+      rp.setBindGroup(0, group(P.lists.getBindGroupLayout(0), [this.dynUniform, set.buffer, w.segments, dyn.ground,
         dyn.heads, dyn.nodes, w.counters, this.visBuffer, w.dash]));
       rp.drawIndirect(w.indirect, 0);
       rp.end();
@@ -968,9 +1034,9 @@ export class Renderer {
       ++grows;
     }
     enc = d.createCommandEncoder();
-    const comp = enc.beginComputePass(stamps ? { timestampWrites: { querySet: stamps.set, endOfPassWriteIndex: 7 } } : {});
+    const comp = enc.beginComputePass(stamps && last ? { timestampWrites: { querySet: stamps.set, endOfPassWriteIndex: 7 } } : {});
     comp.setPipeline(P.composite);
-    comp.setBindGroup(0, group(P.composite.getBindGroupLayout(0), [this.dynUniform, this.dynBuffer, dyn.heads,
+    comp.setBindGroup(0, group(P.composite.getBindGroupLayout(0), [this.dynUniform, set.buffer, dyn.heads,
       dyn.nodes, w.counters, dyn.layer]));
     comp.dispatchWorkgroups(Math.ceil(W / 8), Math.ceil(H / 8));
     comp.end();
@@ -992,8 +1058,10 @@ export class Renderer {
    * the image meets, the tile's frame over the square's pixel box
    * (frame.js tileFrames). Tiles not on the device are uploaded; those
    * this frame does not draw are freed.
+   * Tiles with dynamic lines add a draw of them per square.
    * @param {FrameTile[]} tiles @param {import("./frame.js").TileFrameArgs} f
-   * @returns {Promise<{frame: ArrayBuffer, blob: any, nx: number, ny: number, key: string}[]>}
+   * @returns {Promise<{jobs: {frame: ArrayBuffer, blob: any, nx: number, ny: number, key: string}[],
+   *                    dynamic: DynDraw[]}>}
    */
   async tileJobs(tiles, f) {
     const ts = /** @type {NonNullable<Renderer["tileset"]>} */ (this.tileset);
@@ -1004,15 +1072,17 @@ export class Renderer {
         ts.uploads.delete(key);
       }
     const jobs = [];
+    /** @type {DynDraw[]} */
+    const dynamic = [];
     for (const t of tiles) {
-      const { scene, blob } = await this.tileUpload(t);
-      for (const { frame, box } of tileFrames(t, scene, f)) {
-        new Uint32Array(frame)[103] = jobs.length;  // F.bx.w: which dispatch wrote the pick
+      const { scene, blob, dyn } = await this.tileUpload(t);
+      for (const { frame, box, u, camera, clip, go } of tileFrames(t, scene, f)) {
         jobs.push({ frame, blob, key: t.key, nx: f.pickOnly ? 1 : Math.ceil((box[2] - box[0]) / 8),
           ny: f.pickOnly ? 1 : Math.ceil((box[3] - box[1]) / 8) });
+        if (dyn) dynamic.push({ set: dyn, u, camera, clip, go });
       }
     }
-    return jobs;
+    return { jobs, dynamic };
   }
 
   /** The 2D present path. @param {Uint8Array} rgba @param {number} W @param {number} H */

@@ -54,7 +54,8 @@ struct Frame {
   // set_clip); elsewhere the pixel is left as it is.
   cl: vec4f,
   // The pixel of workgroup (0, 0)'s first invocation (a tile's box, the
-  // pick pixel's 8x8 block); clip mode: 0 none, 1 the tile's square; w:
+  // pick pixel's 8x8 block); clip mode: 0 none, 1 the tile's square, 2 the
+  // ground points alone; w:
   // the dispatch's number in its frame (PICK[1].x: which tile drew the pick).
   bx: vec4<u32>,
 }
@@ -542,9 +543,14 @@ fn ground_point(ndc: vec2f, near: vec2f) -> vec2f {
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) g0: vec3<u32>) {
   // The dispatch covers a box of the frame (a tile's, or the pick pixel's
-  // 8x8 block for a frame drawn for its pick alone) from F.bx.xy.
+  // 8x8 block for a frame drawn for its pick alone) from F.bx.xy. Clip
+  // mode 1: a tileset's tile, which draws only the pixels whose ground
+  // point is in its square and leaves GROUND alone (its anchor may not be
+  // the frame's); mode 2: the ground points alone (the index frame, for a
+  // tileset's dynamic lines).
   let gid = vec3<u32>(g0.xy + F.bx.xy, 0u);
   let clipped = F.bx.z == 1u;
+  let ground_only = F.bx.z == 2u;
   let W = F.e.x;
   let H = F.e.y;
   if (gid.x >= W || gid.y >= H) { return; }
@@ -569,7 +575,8 @@ fn main(@builtin(global_invocation_id) g0: vec3<u32>) {
     p = ground_point(ndc, wp.xy / wp.w);
     z = wp.z / wp.w;
   }
-  if (k < arrayLength(&GROUND)) { GROUND[k] = vec4f(p, z, 1.0); }
+  if (!clipped && k < arrayLength(&GROUND)) { GROUND[k] = vec4f(p, z, 1.0); }
+  if (ground_only) { return; }
   if (clipped && (p.x < F.cl.x || p.y < F.cl.y || p.x >= F.cl.z || p.y >= F.cl.w)) { return; }
   if (F.tn.z != 0u) { GS = gradient_at(p); }
   // Minimum widths: the pixel's ground size (static_common.glsl pixel_metres).

@@ -31,7 +31,7 @@ export const DYN_SLOTS = ["dyn_vertices", "dyn_prev_next", "dyn_line_start", "dy
                           "dash_table"];
 
 /** Bytes of the uniform of every dynamic pass (the struct Dyn below). */
-export const DYN_UNIFORM_BYTES = 160;
+export const DYN_UNIFORM_BYTES = 192;
 
 /**
  * Counter words (C): 0–3 the indirect draw of the lists pass (36 vertices,
@@ -52,6 +52,13 @@ struct Dyn {
   // word offset of the min_width_m table (f32), its entries (0: none); word
   // offset of the dash table (scene.js dashWords); 1 when a line is dashed
   o2: vec4<u32>,
+  // A tileset's tile (go.z = 1): its lines only at ground points in
+  // [x, z) x [y, w) (anchor-relative metres, gl_passes.cpp set_clip), and
+  // composited only where its lists are not empty.
+  cl: vec4f,
+  // go.xy: a ground point of GP (relative to the frame's index anchor) to
+  // this anchor (0 unless a far tile's anchor moved: frame.js tileAnchor).
+  go: vec4f,
 }
 @group(0) @binding(0) var<uniform> D: Dyn;
 @group(0) @binding(1) var<storage, read> DB: array<u32>;
@@ -556,8 +563,10 @@ fn visible(layer: u32) -> bool {
 fn fs(v: VOut) {
   let px = vec2<u32>(v.pos.xy);
   let k = px.x + u32(D.s.x) * px.y;
-  let g = GP[k];
+  var g = GP[k];
   if (g.w == 0.0) { discard; }
+  g = vec4f(g.xy + D.go.xy, g.z, g.w);
+  if (D.go.z != 0.0 && (g.x < D.cl.x || g.y < D.cl.y || g.x >= D.cl.z || g.y >= D.cl.w)) { discard; }
   let s = SEGS[v.seg];
   let line = u32(dvertex(s.x).w);
   let layer = dlayer(line);
@@ -599,6 +608,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
   if (gid.x >= W || gid.y >= u32(D.s.y)) { return; }
   let k = gid.x + W * gid.y;
   let head = HEADS[k];
+  // A tileset's tile composites only its own pixels (the others have empty lists).
+  if (D.go.z != 0.0 && head == 0u) { return; }
   var acc = vec4f(0.0);
   var lo = 0u;  // orders below this are composited
   var best = NONE;

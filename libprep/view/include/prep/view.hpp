@@ -33,6 +33,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace prep::view {
@@ -89,6 +90,9 @@ struct ServeOptions {
   std::string bind = "127.0.0.1";  // the address to listen on
   int port = 8080;                 // 0: a free port the system picks
   std::string backend = "auto";    // the page's renderer: auto, webgpu or webgl2
+  // A tileset's GPU budget, decoded blob bytes (render --gpu-budget's
+  // rule: the page coarsens the view's tiles to fit); 0: none.
+  uint64_t gpu_budget = 0;
 };
 
 // Serves until the process is stopped (SIGINT/SIGTERM end it through
@@ -114,6 +118,7 @@ struct ShotOptions {
   // camera, albedo, decals, ramps; web/viewer).
   std::string config_json;
   std::string backend = "auto";  // the page's renderer: auto, webgpu or webgl2
+  uint64_t gpu_budget = 0;       // as ServeOptions::gpu_budget
   bool decals = false;           // wait for /__shot/decals too
   std::string chromium;          // the browser's executable (find_chromium)
   double timeout_s = 120;
@@ -125,9 +130,10 @@ struct ShotOptions {
   std::function<void(const std::string& json)> on_stats;
   // Called last with what the server sent of the package's or tileset's
   // files (/data/...): the requests answered with a body, their bytes, and
-  // each file sent (relative to the served folder, in the order first
-  // asked for, once however many requests it took).
-  std::function<void(uint64_t requests, uint64_t bytes, const std::vector<std::string>& files)>
+  // each file sent with its bytes (relative to the served folder, in the
+  // order first asked for, once however many requests it took).
+  std::function<void(uint64_t requests, uint64_t bytes,
+                     const std::vector<std::pair<std::string, uint64_t>>& files)>
       on_data;
 };
 
