@@ -266,7 +266,9 @@ void screenshot(const std::string& path, const ShotOptions& opt) {
   const size_t bytes = size_t(opt.width) * opt.height * 4;
   httplib::Server server;
   detail::DataTally tally;
-  detail::add_routes(server, root, detail::config_json(root, opt.config_json, opt.backend, opt.gpu_budget), &tally);
+  detail::add_routes(server, root,
+                     detail::config_json(root, opt.config_json, opt.backend, opt.gpu_budget),
+                     &tally);
   Received got;
   add_post_routes(server, got, bytes);
   const int port = detail::bind_server(server, "127.0.0.1", 0);

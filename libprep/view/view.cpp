@@ -365,7 +365,8 @@ void serve(const ServeOptions& options,
            const std::function<void(const std::string& url)>& on_listening) {
   const ServeRoot root = resolve_root(options.path);
   httplib::Server server;
-  detail::add_routes(server, root, detail::config_json(root, {}, options.backend, options.gpu_budget));
+  detail::add_routes(server, root,
+                     detail::config_json(root, {}, options.backend, options.gpu_budget));
   // Anything else (other paths, other methods) httplib refuses itself.
   server.set_payload_max_length(1 << 16);
   const int port = detail::bind_server(server, options.bind, options.port);

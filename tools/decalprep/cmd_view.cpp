@@ -33,7 +33,7 @@ struct ViewArgs {
   R::RenderRequest shot;
   double timeout = 120;
   bool verbose = false;
-  bool stats = false;  // --stats: the page's frame times
+  bool stats = false;      // --stats: the page's frame times
   std::string gpu_budget;  // --gpu-budget SIZE
   // --pick X,Y: pixels whose top decal the page reports (x right, y down).
   std::vector<std::string> picks;
@@ -64,9 +64,10 @@ uint64_t parse_budget(const std::string& text) {
     if (bytes > 0) return bytes;
   } catch (const prep::usage_error&) {
   }
-  prep::fail<prep::usage_error>(kViewCommand, "--gpu-budget: expected a size such as 512M, 2G or "
-                                              "1073741824 (bytes), got \"" +
-                                                  text + "\"");
+  prep::fail<prep::usage_error>(kViewCommand,
+                                "--gpu-budget: expected a size such as 512M, 2G or "
+                                "1073741824 (bytes), got \"" +
+                                    text + "\"");
 }
 
 nlohmann::json vec3(const prep::render::Vec3& v) {
