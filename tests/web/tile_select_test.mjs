@@ -7,7 +7,9 @@
 // with budgets that make the C++ rule coarsen; the tiles drawn (level, x,
 // y), their decoded blob bytes (from each tile's blob table, read by the
 // JavaScript reader) and the byte totals must be the same. A budget below
-// the coarsest tiles' needs must be refused by both.
+// the coarsest tiles' needs must be refused by both. pixelScale (the
+// viewer's detail under its frame budget) must equal the C++ choice on a
+// smaller image, and draw coarser levels.
 //
 //   node tests/web/tile_select_test.mjs DECALPREP VIEW_ORACLE REPO_ROOT WORK_DIR
 import { spawnSync } from "node:child_process";
@@ -104,5 +106,31 @@ for (const [k, v] of VIEWS.entries()) {
 }
 // The budget's coarsening must have been exercised, not only refusals.
 check(coarsenedViews >= 3, `${coarsenedViews} selections coarsened to fit a budget (at least 3)`);
+
+// pixelScale k (what the viewer lowers detail with over its frame budget)
+// takes each pixel as k times larger: for the perspective views that is
+// the C++ choice of the same view on an image k times smaller each way
+// (the footprint depends on the aspect alone); it must draw coarser levels.
+for (const k of [2, 4]) {
+  const r = spawnSync(oracle, ["tiles", dir, viewsPath, String(W / k), String(H / k), "0"], { encoding: "utf8" });
+  if (r.status !== 0) throw new Error("view_oracle: " + r.stderr.trim());
+  const small = JSON.parse(r.stdout);
+  for (const [i, v] of VIEWS.entries()) {
+    if (v.topdown) continue;
+    const js = selectTiles(ts, camera(v), W, H, 0, 0, { blobBytes, pixelScale: k });
+    const full = selectTiles(ts, camera(v), W, H, 0, 0, { blobBytes });
+    const cTiles = small[i].tiles.map((/** @type {number[]} */ t) => t.join(",")).join(" ");
+    const jTiles = js.tiles.map((t) => [t.level, t.tile.x, t.tile.y, t.blobBytes].join(",")).join(" ");
+    // Coarser: where a tile of the scaled choice meets a tile of the full
+    // one, the full one is of its level or finer.
+    const meet = (/** @type {number[]} */ a, /** @type {number[]} */ b) => a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3];
+    const finer = js.tiles.every((t) => full.tiles.every((f) => !meet(t.tile.square, f.tile.square) || f.level <= t.level));
+    const levels = (/** @type {any} */ s) => s.perLevel.map((n, l) => `L${l}:${n}`).join(" ");
+    check(cTiles === jTiles && finer,
+          `${v.name}, pixelScale ${k}: ${js.tiles.length} tiles (${levels(js)}; full detail ${levels(full)}), ` +
+          `no finer anywhere, as C++ chooses at ${W / k}x${H / k}` +
+          (cTiles === jTiles ? "" : `\n  C++:     ${cTiles}\n  browser: ${jTiles}`));
+  }
+}
 console.log(`${failures} failed`);
 process.exit(failures ? 1 : 0);
