@@ -42,6 +42,9 @@ import sys
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+from measure import bars_svg  # noqa: E402  (beside this script)
+
 GL_PASSES = ("terrain", "static lines", "static polygons", "composite")
 
 
@@ -77,31 +80,10 @@ def web_frame(out):
 def svg(rows, path):
     """A grouped bar chart of the medians: GL and WebGPU per view."""
     views = sorted({r["view"] for r in rows})
-    med = {(v, k): statistics.median(float(r[k]) for r in rows if r["view"] == v)
-           for v in views for k in ("gl_ms", "webgpu_ms")}
-    top = max(med.values()) * 1.15
-    w, h, left, bottom = 640, 300, 60, 250
-    bw = (w - left - 20) / len(views) / 3
-    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" '
-           'font-size="11">',
-           f'<text x="{left}" y="16">warm frame ms, medians (CPU rasterisers: llvmpipe GL, '
-           'SwiftShader WebGPU)</text>',
-           f'<line x1="{left}" y1="{bottom}" x2="{w - 10}" y2="{bottom}" stroke="black"/>']
-    for i, v in enumerate(views):
-        x0 = left + 10 + i * 3 * bw
-        for j, (k, colour) in enumerate((("gl_ms", "#4878a8"), ("webgpu_ms", "#d07030"))):
-            bh = (bottom - 30) * med[(v, k)] / top
-            x = x0 + j * bw
-            out.append(f'<rect x="{x:.1f}" y="{bottom - bh:.1f}" width="{bw * 0.9:.1f}" height="{bh:.1f}" '
-                       f'fill="{colour}"/>')
-            out.append(f'<text x="{x:.1f}" y="{bottom - bh - 3:.1f}">{med[(v, k)]:.0f}</text>')
-        out.append(f'<text x="{x0:.1f}" y="{bottom + 14}">{v}</text>')
-    out.append(f'<rect x="{w - 170}" y="30" width="10" height="10" fill="#4878a8"/>'
-               f'<text x="{w - 155}" y="39">GL (llvmpipe)</text>'
-               f'<rect x="{w - 170}" y="46" width="10" height="10" fill="#d07030"/>'
-               f'<text x="{w - 155}" y="55">WebGPU (SwiftShader)</text></svg>')
-    with open(path, "w") as f:
-        f.write("\n".join(out) + "\n")
+    med = lambda v, k: statistics.median(float(r[k]) for r in rows if r["view"] == v)  # noqa: E731
+    bars_svg(path, "warm frame ms, medians (CPU rasterisers: llvmpipe GL, SwiftShader WebGPU)",
+             [(v, [med(v, "gl_ms"), med(v, "webgpu_ms")], "") for v in views],
+             [("GL (llvmpipe)", "#4878a8"), ("WebGPU (SwiftShader)", "#d07030")])
 
 
 def main():

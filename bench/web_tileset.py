@@ -42,6 +42,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 import gen_synthetic  # noqa: E402  (beside this script)
+from measure import add_build_and_out, bars_svg, decalprep_of  # noqa: E402
 
 
 def run(cmd):
@@ -62,48 +63,25 @@ def field(pattern, text, what):
 
 
 def svg(rows, path):
-    """Two bar groups per view: warm frame ms (browser, GL) and MiB sent."""
-    w, h, left, bottom = 720, 320, 60, 260
-    views = [f"{r['view']} {r['size']}" for r in rows]
-    top_ms = max(max(float(r["web_ms"]), float(r["gl_ms"])) for r in rows) * 1.15
-    bw = (w - left - 20) / len(rows) / 3
-    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" '
-           'font-size="11">',
-           f'<text x="{left}" y="16">10^6-vertex tileset streamed: warm frame ms per view (labels: MiB '
-           'the server sent; CPU rasterisers)</text>',
-           f'<line x1="{left}" y1="{bottom}" x2="{w - 10}" y2="{bottom}" stroke="black"/>']
-    for i, r in enumerate(rows):
-        x0 = left + 10 + i * 3 * bw
-        for j, (k, colour) in enumerate((("web_ms", "#d07030"), ("gl_ms", "#4878a8"))):
-            v = float(r[k])
-            bh = (bottom - 40) * v / top_ms
-            x = x0 + j * bw
-            out.append(f'<rect x="{x:.1f}" y="{bottom - bh:.1f}" width="{bw * 0.9:.1f}" height="{bh:.1f}" '
-                       f'fill="{colour}"/><text x="{x:.1f}" y="{bottom - bh - 3:.1f}">{v:.0f}</text>')
-        out.append(f'<text x="{x0:.1f}" y="{bottom + 14}">{views[i]}</text>'
-                   f'<text x="{x0:.1f}" y="{bottom + 28}">{int(r["sent_bytes"]) / 1048576:.2f} MiB</text>')
-    out.append(f'<rect x="{w - 190}" y="30" width="10" height="10" fill="#d07030"/>'
-               f'<text x="{w - 175}" y="39">browser (SwiftShader)</text>'
-               f'<rect x="{w - 190}" y="46" width="10" height="10" fill="#4878a8"/>'
-               f'<text x="{w - 175}" y="55">render, GL (llvmpipe)</text></svg>')
-    with open(path, "w") as f:
-        f.write("\n".join(out) + "\n")
+    """Per view: the warm frame of each renderer, and the MiB the server sent."""
+    bars_svg(path, "10^6-vertex tileset streamed: warm frame ms per view (CPU rasterisers; MiB the server sent)",
+             [(f"{r['view']} {r['size']}", [float(r["web_ms"]), float(r["gl_ms"])],
+               f"{int(r['sent_bytes']) / 1048576:.2f} MiB") for r in rows],
+             [("browser (SwiftShader)", "#d07030"), ("render, GL (llvmpipe)", "#4878a8")])
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--build-dir", default=os.path.join(ROOT, "build/release"))
+    add_build_and_out(ap)
     ap.add_argument("--work", default=os.path.join(ROOT, "bench/out/web_tileset"))
-    ap.add_argument("--out", default=os.path.join(ROOT, "bench/report"))
     ap.add_argument("--sizes", default="640x360,1280x720")
     ap.add_argument("--frames", type=int, default=5)
     ap.add_argument("--vertices", type=float, default=1e6)
     ap.add_argument("--backend", default="webgpu")
     a = ap.parse_args()
-    d = os.path.join(a.build_dir, "tools/decalprep/decalprep")
+    d = decalprep_of(a)
     shutil.rmtree(a.work, ignore_errors=True)
     os.makedirs(a.work)
-    os.makedirs(a.out, exist_ok=True)
     t0 = time.time()
     scene, _ = gen_synthetic.mix_scene(a.work, int(a.vertices), "fine", extent=8000.0, kind="fine")
     tiles = os.path.join(a.work, "tiles")
