@@ -29,6 +29,12 @@ counted by the server as it answers /data/ requests, not by the page).
     their header; the frame equals `render --gpu-budget` of the view;
   whole extent top-down with --backend webgl2: the same counts and
     agreement with render (the WebGL2 renderer draws tilesets too);
+  stand-ins (`view --stand-in-level L`: only level L's tiles fetched, as
+    the viewer shows a view before its own tiles arrive): the close-up from
+    level 2 (coarser tiles drawn in the squares of the finer ones they stand
+    in for) and the whole extent from level 3 (finer tiles filling a coarser
+    one's square) equal `render --level L` of the view on at least 99.9% of
+    pixels, and the server sent level L's tiles alone: no hole;
   the Monaco sample as 500 m tiles with --levels auto, with its dynamic
     roads (pixel-width lines), oblique over the whole and close up: the
     frame equals render's on at least 99.9% of pixels, and on 99% of the
@@ -114,6 +120,8 @@ def main():
     for name, camera, backend, whole in views:
         failures += check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole, files, full,
                                (eye, target))
+    for name, camera, level in (("close-up from level 2", close, 2), ("whole, top-down, from level 3", top, 3)):
+        failures += check_stand_in(decalprep, work, tiles_dir, name, camera, level, files)
     budget = int(0.6 * oracle_tiles(oracle, work, tiles_dir, eye, target, 0)["blob_bytes"])
     failures += check_view(decalprep, oracle, work, tiles_dir, "close-up, GPU budget", close, "webgpu", False, files,
                            full, (eye, target), budget)
@@ -122,6 +130,36 @@ def main():
     for f in failures:
         print("FAIL:", f)
     return 1 if failures else 0
+
+
+def check_stand_in(decalprep, work, tiles_dir, name, camera, level, files):
+    """A view drawn from level `level`'s tiles alone, against render --level."""
+    slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+    size = ["--size", "%dx%d" % SIZE]
+    shot, gl = os.path.join(work, slug + ".view.png"), os.path.join(work, slug + ".render.png")
+    r = subprocess.run([decalprep, "view", tiles_dir, "--screenshot", shot, *size, *camera, "--stats",
+                        "--stand-in-level", str(level), "--timeout", "600"], capture_output=True, text=True)
+    if r.returncode != 0:
+        return [f"{name}: view exited {r.returncode}: {r.stderr[-2000:]}"]
+    listed = re.search(r"^data files \(FILE:BYTES sent\): (.*)$", r.stdout, re.M)
+    chosen = re.search(r"^tiles: \d+ chosen \((.*?)\)", r.stdout, re.M)
+    if not (listed and chosen):
+        return [f"{name}: view --stats printed no data files or tiles:\n{r.stdout}"]
+    sent = [item.rsplit(":", 1)[0] for item in listed.group(1).split()]
+    tiles = [f for f in sent if f in files]
+    subprocess.run([decalprep, "render", tiles_dir, "-o", gl, *size, *camera, "--aa", "none", "--flat",
+                    "--level", str(level)], check=True, capture_output=True)
+    agree, total = agreement(shot, gl)
+    print(f"{name}: the view chose {chosen.group(1)}; the server sent {len(tiles)} tiles of levels "
+          f"{sorted(levels_of(tiles))}; {agree} of {total} pixels within 2/255 of render --level {level}")
+    fails = []
+    if not tiles or set(levels_of(tiles)) != {level}:
+        fails.append(f"{name}: the server sent tiles {tiles}, not level {level}'s alone")
+    if f"L{level}:" in chosen.group(1).replace(" ", ""):
+        fails.append(f"{name}: the view chose level {level} itself ({chosen.group(1)}): nothing stood in")
+    if agree < 0.999 * total:
+        fails.append(f"{name}: only {agree} of {total} pixels agree with render --level {level}")
+    return fails
 
 
 def oracle_tiles(oracle, work, tiles_dir, eye, target, budget):

@@ -35,6 +35,7 @@ struct ViewArgs {
   bool verbose = false;
   bool stats = false;      // --stats: the page's frame times
   std::string gpu_budget;  // --gpu-budget SIZE
+  int stand_in_level = -1;  // --stand-in-level L (-1: none)
   // --pick X,Y: pixels whose top decal the page reports (x right, y down).
   std::vector<std::string> picks;
 };
@@ -278,7 +279,9 @@ void run_screenshot(ViewArgs& a) {
   s.decals = !r.decals_png.empty();
   std::vector<std::array<uint32_t, 2>> picks;
   for (const std::string& p : a.picks) picks.push_back(parse_pick(p, s.width, s.height));
-  s.config_json = shot_config(v, s.decals, picks, a.stats).dump();
+  nlohmann::json config = shot_config(v, s.decals, picks, a.stats);
+  if (a.stand_in_level >= 0) config["standInLevel"] = a.stand_in_level;
+  s.config_json = config.dump();
   s.backend = a.serve.backend;
   s.gpu_budget = a.serve.gpu_budget;
   s.chromium = *chromium;
@@ -371,6 +374,10 @@ void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
   needs(cmd->add_option("--timeout", a.timeout,
                         "--screenshot: seconds to wait for the page (default 120)")
             ->check(CLI::PositiveNumber));
+  needs(cmd->add_option("--stand-in-level", a.stand_in_level,
+                        "--screenshot of a tileset: draw the view as the viewer shows it before its "
+                        "tiles arrive, from the level-L tiles alone standing in for them")
+            ->check(CLI::Range(0, 64)));
   needs(cmd->add_flag("--verbose", a.verbose,
                       "--screenshot: Chromium's log and the page's console on stderr"));
 }

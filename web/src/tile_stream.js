@@ -71,13 +71,14 @@ export class TileStream {
    * @param {Camera} camera  metres relative to the frame origin
    * @param {number} width @param {number} height
    * @param {number} zmin @param {number} zmax  the terrain's height range
-   * @param {import("./tile_select.js").TileSelectOptions} [options]
+   * @param {import("./tile_select.js").TileSelectOptions & {fetch?: boolean}} [options]
+   *   fetch: false draws what is loaded without queueing the view's tiles
    * @returns {Promise<{selection: TileSelection, tiles: FrameTile[], standIns: number}>}
    */
   async view(camera, width, height, zmin, zmax, options = {}) {
     const selection = await this.choose(camera, width, height, zmin, zmax, options);
     this.selection = selection;
-    this.cache.want(selection.tiles);
+    if (options.fetch !== false) this.cache.want(selection.tiles);
     const [ox, oy] = this.origin;
     const list = this.cache.drawList(selection.tiles);
     return {
@@ -131,6 +132,21 @@ export class TileStream {
       }
     };
     await Promise.all(Array.from({ length: Math.min(6, queue.length) }, worker));
+  }
+
+  /**
+   * Fetches the tiles of `level` whose squares meet the squares of
+   * `chosen` (what stands in for them, or fills them, before they arrive).
+   * @param {import("./tile_select.js").SelectedTile[]} chosen @param {number} level
+   */
+  async fetchLevel(chosen, level) {
+    const tiles = level === 0 ? this.tileset.tiles : this.tileset.levels[level - 1]?.tiles;
+    if (!tiles) throw new Error(`level ${level}: the tileset has levels 0..${this.tileset.levels.length}`);
+    const meet = (/** @type {number[]} */ a, /** @type {number[]} */ b) =>
+      a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3];
+    const want = tiles.filter((t) => chosen.some((c) => meet(c.tile.square, t.square)));
+    this.cache.want(want.map((tile) => ({ level, tile, pixel: 0, blobBytes: 0 })));
+    await this.settled();
   }
 
   /** Whether no fetch is queued or in flight. */

@@ -19,7 +19,7 @@ import { describePick, layerKinds, showLayers, showOverlay, showPick, showStatus
  * @typedef {{polygons: boolean, lines: boolean, dynamic: boolean}} Kinds
  * @typedef {{width: number, height: number, camera: Camera, albedo: number[], decals: boolean,
  *            ramps: import("../src/render/scene.js").LayerRamp[], only?: Kinds,
- *            frames?: number, picks?: number[][], passTimes?: boolean}} ShotConfig
+ *            frames?: number, picks?: number[][], passTimes?: boolean, standInLevel?: number}} ShotConfig
  * @typedef {{kind: string, url: string, terrain?: string | null, backend?: string,
  *            gpuBudget?: number, screenshot?: ShotConfig | null}} Config
  */
@@ -159,11 +159,15 @@ async function screenshot(config) {
   const stream = scene.stream;
   if (stream) {
     const { zmin, zmax } = scene.terrain;
-    await stream.view(s.camera, s.width, s.height, zmin, zmax);
+    // --stand-in-level L: only level L's tiles are fetched; they stand in
+    // for the view's own (as the viewer shows it while they come).
+    const standIn = s.standInLevel ?? -1;
+    const first = await stream.view(s.camera, s.width, s.height, zmin, zmax, { fetch: standIn < 0 });
+    if (standIn >= 0) await stream.fetchLevel(first.selection.tiles, standIn);
     await stream.settled();
     const failure = loadFailure(stream);
     if (failure) throw failure;
-    const v = await stream.view(s.camera, s.width, s.height, zmin, zmax);
+    const v = await stream.view(s.camera, s.width, s.height, zmin, zmax, { fetch: standIn < 0 });
     tiles = v.tiles;
     metadata = tiles[0]?.pkg.metadata ?? null;
     const sel = v.selection, st = stream.cache.stats;
