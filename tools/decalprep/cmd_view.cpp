@@ -33,8 +33,8 @@ struct ViewArgs {
   R::RenderRequest shot;
   double timeout = 120;
   bool verbose = false;
-  bool stats = false;      // --stats: the page's frame times
-  std::string gpu_budget;  // --gpu-budget SIZE
+  bool stats = false;       // --stats: the page's frame times
+  std::string gpu_budget;   // --gpu-budget SIZE
   int stand_in_level = -1;  // --stand-in-level L (-1: none)
   // --pick X,Y: pixels whose top decal the page reports (x right, y down).
   std::vector<std::string> picks;
@@ -374,10 +374,11 @@ void add_screenshot_options(CLI::App* cmd, ViewArgs& a) {
   needs(cmd->add_option("--timeout", a.timeout,
                         "--screenshot: seconds to wait for the page (default 120)")
             ->check(CLI::PositiveNumber));
-  needs(cmd->add_option("--stand-in-level", a.stand_in_level,
-                        "--screenshot of a tileset: draw the view as the viewer shows it before its "
-                        "tiles arrive, from the level-L tiles alone standing in for them")
-            ->check(CLI::Range(0, 64)));
+  needs(
+      cmd->add_option("--stand-in-level", a.stand_in_level,
+                      "--screenshot of a tileset: draw the view as the viewer shows it before its "
+                      "tiles arrive, from the level-L tiles alone standing in for them")
+          ->check(CLI::Range(0, 64)));
   needs(cmd->add_flag("--verbose", a.verbose,
                       "--screenshot: Chromium's log and the page's console on stderr"));
 }
