@@ -111,6 +111,7 @@ check(coarsenedViews >= 3, `${coarsenedViews} selections coarsened to fit a budg
 // takes each pixel as k times larger: for the perspective views that is
 // the C++ choice of the same view on an image k times smaller each way
 // (the footprint depends on the aspect alone); it must draw coarser levels.
+let coarser = 0;
 for (const k of [2, 4]) {
   const r = spawnSync(oracle, ["tiles", dir, viewsPath, String(W / k), String(H / k), "0"], { encoding: "utf8" });
   if (r.status !== 0) throw new Error("view_oracle: " + r.stderr.trim());
@@ -126,11 +127,13 @@ for (const k of [2, 4]) {
     const meet = (/** @type {number[]} */ a, /** @type {number[]} */ b) => a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3];
     const finer = js.tiles.every((t) => full.tiles.every((f) => !meet(t.tile.square, f.tile.square) || f.level <= t.level));
     const levels = (/** @type {any} */ s) => s.perLevel.map((n, l) => `L${l}:${n}`).join(" ");
+    if (js.tiles.some((t) => full.tiles.some((f) => meet(t.tile.square, f.tile.square) && f.level < t.level))) coarser += 1;
     check(cTiles === jTiles && finer,
           `${v.name}, pixelScale ${k}: ${js.tiles.length} tiles (${levels(js)}; full detail ${levels(full)}), ` +
           `no finer anywhere, as C++ chooses at ${W / k}x${H / k}` +
           (cTiles === jTiles ? "" : `\n  C++:     ${cTiles}\n  browser: ${jTiles}`));
   }
 }
+check(coarser >= 3, `${coarser} scaled choices draw a coarser level somewhere than full detail (at least 3)`);
 console.log(`${failures} failed`);
 process.exit(failures ? 1 : 0);

@@ -40,10 +40,11 @@ counted by the server as it answers /data/ requests, not by the page).
     frame equals render's on at least 99.9% of pixels, and on 99% of the
     pixels the dynamic lines change (render against render --only
     polygons,lines): each tile's dynamic lines drawn in its square;
-  a continent: discs 4,800 km apart in EPSG:3857 as 200 km tiles, top-down
-    over all of them, so that tiles lie beyond 2^31 quanta (2,147 km) of the
-    eye and draw around an anchor of their own: the frame equals render's
-    on at least 99.9% of pixels, with each backend.
+  a continent: discs over 5,200 km in EPSG:3857 as 200 km tiles over a DEM
+    of 40 km hills (tileset.terrain), top-down and oblique, so that tiles lie
+    beyond 2^31 quanta (2,147 km) of the eye and draw around an anchor of
+    their own: the frame equals render's on at least 99.9% of pixels, with
+    each backend.
 
 Prints the figures of each view. Exit 0 when all hold, 1 when one fails,
 77 (skip) when Chromium, numpy or GDAL's Python bindings are missing.
@@ -280,9 +281,23 @@ def check_dynamic(decalprep, root, work):
 
 def check_continent(decalprep, work):
     """Discs of 1.5 degrees every 11 degrees of longitude and 10 of
-    latitude (44 x 20 degrees: about 4,900 km across in EPSG:3857), built as
-    200 km tiles; a top-down view of them all against render."""
+    latitude (about 5,200 km across in EPSG:3857) over a DEM of 40 km hills,
+    built as 200 km tiles with `decalprep terrain`'s tileset.terrain; a
+    top-down view inside the data's extent and an oblique one against
+    render (over the build DEM: the same mesh), with each backend."""
     import math
+    import numpy as np
+    from osgeo import gdal, osr
+    nx, ny = 600, 400  # 0.1 degree cells over lon -30..30, lat 20..60
+    lon, lat = np.meshgrid(-30 + 0.1 * (np.arange(nx) + 0.5), 60 - 0.1 * (np.arange(ny) + 0.5))
+    dem = os.path.join(work, "continent_dem.tif")
+    ds = gdal.GetDriverByName("GTiff").Create(dem, nx, ny, 1, gdal.GDT_Float32)
+    ds.SetGeoTransform((-30, 0.1, 0, 60, 0, -0.1))
+    wgs84 = osr.SpatialReference()
+    wgs84.ImportFromEPSG(4326)
+    ds.SetProjection(wgs84.ExportToWkt())
+    ds.GetRasterBand(1).WriteArray((20000 * (1 + np.sin(lon / 3.0) * np.cos(lat / 2.0))).astype(np.float32))
+    ds = None
     features = []
     for i in range(5):
         for j in range(3):
@@ -297,32 +312,35 @@ def check_continent(decalprep, work):
         json.dump({"type": "FeatureCollection", "features": features}, f)
     scene = os.path.join(work, "continent.toml")
     with open(scene, "w") as f:
-        f.write(f'source = "{src}"\ncrs = "EPSG:3857"\n[[layer]]\nname = "discs"\nkind = "polygon"\n'
-                'color = "#c05020"\n')
+        f.write(f'source = "{src}"\ncrs = "EPSG:3857"\ndem = "{dem}"\n[[layer]]\nname = "discs"\n'
+                'kind = "polygon"\ncolor = "#c05020"\n')
     out = os.path.join(work, "continent")
     subprocess.run([decalprep, "build", scene, "-o", out, "--tile-size", "200000", "-q"], check=True)
+    subprocess.run([decalprep, "terrain", out], check=True, capture_output=True)
     with open(os.path.join(out, "tileset.json")) as f:
         e = json.load(f)["extent"]
     cx, cy = (e[0] + e[2]) / 2, (e[1] + e[3]) / 2
-    hw = max(e[2] - e[0], (e[3] - e[1]) * SIZE[0] / SIZE[1]) / 2 * 1.02
+    hw = min(e[2] - e[0], (e[3] - e[1]) * SIZE[0] / SIZE[1]) / 2  # inside the extent: render's mesh
     hh = hw * SIZE[1] / SIZE[0]
-    ext = "%.3f,%.3f,%.3f,%.3f" % (cx - hw, cy - hh, cx + hw, cy + hh)
+    views = [("top-down", ["--extent", "%.3f,%.3f,%.3f,%.3f" % (cx - hw, cy - hh, cx + hw, cy + hh)]),
+             ("oblique", ["--fit", "--pitch", "35"])]
     fails = []
-    gl = os.path.join(work, "continent.render.png")
-    subprocess.run([decalprep, "render", out, "-o", gl, "--size", "%dx%d" % SIZE, "--extent", ext, "--aa", "none",
-                    "--flat"], check=True, capture_output=True)
-    for backend in ("webgpu", "webgl2"):
-        shot = os.path.join(work, f"continent.{backend}.png")
-        r = subprocess.run([decalprep, "view", out, "--screenshot", shot, "--size", "%dx%d" % SIZE, "--extent", ext,
-                            "--backend", backend, "--timeout", "600"], capture_output=True, text=True)
-        if r.returncode != 0:
-            fails.append(f"continent ({backend}): view exited {r.returncode}: {r.stderr[-2000:]}")
-            continue
-        agree, total = agreement(shot, gl)
-        print(f"continent, a view {2 * hw / 1000:.0f} km across ({backend}): {agree} of {total} pixels within 2/255 of render's "
-              f"({100.0 * agree / total:.3f}%)")
-        if agree < 0.999 * total:
-            fails.append(f"continent ({backend}): only {agree} of {total} pixels agree with render's")
+    for name, camera in views:
+        gl = os.path.join(work, f"continent_{name}.render.png")
+        subprocess.run([decalprep, "render", out, "-o", gl, "--size", "%dx%d" % SIZE, *camera, "--aa", "none"],
+                       check=True, capture_output=True)
+        for backend in ("webgpu", "webgl2"):
+            shot = os.path.join(work, f"continent_{name}.{backend}.png")
+            r = subprocess.run([decalprep, "view", out, "--screenshot", shot, "--size", "%dx%d" % SIZE, *camera,
+                                "--backend", backend, "--timeout", "600"], capture_output=True, text=True)
+            if r.returncode != 0:
+                fails.append(f"continent {name} ({backend}): view exited {r.returncode}: {r.stderr[-2000:]}")
+                continue
+            agree, total = agreement(shot, gl)
+            print(f"continent over 40 km hills, {name}, a view {2 * hw / 1000:.0f} km across ({backend}): "
+                  f"{agree} of {total} pixels within 2/255 of render's ({100.0 * agree / total:.3f}%)")
+            if agree < 0.999 * total:
+                fails.append(f"continent {name} ({backend}): only {agree} of {total} pixels agree with render's")
     return fails
 
 

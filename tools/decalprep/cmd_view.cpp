@@ -405,7 +405,13 @@ const decalprep::CommandRegistrar kView(70, kViewHelp, [](CLI::App* cmd) {
                   "each view's tiles are coarsened to fit, as render --gpu-budget");
   add_screenshot_options(cmd, *args);
   cmd->callback([args] {
-    if (!args->gpu_budget.empty()) args->serve.gpu_budget = parse_budget(args->gpu_budget);
+    if (!args->gpu_budget.empty()) {
+      args->serve.gpu_budget = parse_budget(args->gpu_budget);
+      if (prep::view::resolve_root(args->serve.path).kind != prep::view::ServeRoot::Kind::tileset)
+        prep::fail<prep::usage_error>(kViewCommand, "--gpu-budget applies to a tileset; '" +
+                                                        args->serve.path +
+                                                        "' is a package (drawn whole)");
+    }
     if (!args->shot.output.empty()) {
       run_screenshot(*args);
     } else {

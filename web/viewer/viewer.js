@@ -168,6 +168,8 @@ async function screenshot(config) {
     const failure = loadFailure(stream);
     if (failure) throw failure;
     const v = await stream.view(s.camera, s.width, s.height, zmin, zmax, { fetch: standIn < 0 });
+    if (standIn < 0 && v.standIns > 0)
+      throw new Error(`${v.standIns} tile${v.standIns > 1 ? "s" : ""} still stand in for the view's own after every fetch ended`);
     tiles = v.tiles;
     metadata = tiles[0]?.pkg.metadata ?? null;
     const sel = v.selection, st = stream.cache.stats;
@@ -252,11 +254,13 @@ async function interactive(config) {
   const scene = await openScene(config, renderer, { onLoaded: () => redraw() });
   const { extent, terrain, stream } = scene;
   const cam = new MapCamera(extent, (terrain.zmin + terrain.zmax) / 2);
-  // A tileset's frame budget (?budget=MS, 50 by default): over it, the next
-  // frame draws coarser levels (each pixel taken twice as large, up to 64
-  // times); well under it, finer again.
+  // A tileset's frame budget (?budget=MS, 50 by default): a frame over it
+  // (that uploaded no tile: packing and upload are not drawing) makes the
+  // next one draw coarser levels (each pixel taken twice as large, up to 64
+  // times); one under a third of it finer again, but never as fine as a
+  // detail already found too slow since the camera last moved.
   const budgetMs = Number(new URLSearchParams(location.search).get("budget") ?? 50);
-  let pixelScale = 1;
+  let pixelScale = 1, slowScale = 0;
   /** @type {FrameTile[] | undefined} */
   let tiles;
   let names = /** @type {string[]} */ ([]);
@@ -288,10 +292,12 @@ async function interactive(config) {
       }
       const out = await renderer.renderFrame({ camera, width, height, present: true, readback: false, tiles });
       const line = stream ? streamLine(stream, budgetMs, pixelScale) : "";
-      if (stream && out.ms > budgetMs && pixelScale < 64) {
+      if (stream && out.uploads === 0 && out.ms > budgetMs && pixelScale < 64) {
+        slowScale = Math.max(slowScale, pixelScale);
         pixelScale *= 2;
         dirty = true;
-      } else if (stream && out.ms < budgetMs / 3 && pixelScale > 1) {
+      } else if (stream && out.uploads === 0 && out.ms < budgetMs / 3 && pixelScale / 2 > slowScale &&
+                 pixelScale > 1) {
         pixelScale /= 2;
         dirty = true;
       }
@@ -306,7 +312,10 @@ async function interactive(config) {
     dirty = true;
     requestAnimationFrame(() => void draw());
   };
-  attachControls(canvas, cam, redraw);
+  attachControls(canvas, cam, () => {
+    slowScale = 0;  // a new view may afford more detail
+    redraw();
+  });
   // A click (a press and release without a drag) names the decal under it.
   let press = { x: 0, y: 0 };
   canvas.addEventListener("pointerdown", (e) => { press = { x: e.clientX, y: e.clientY }; });

@@ -24,16 +24,23 @@ const floorDiv = (a, b) => Math.floor(a / b);
  * gl_passes.cpp set_clip. box: the pixel the decal dispatch starts at (the
  * tile's box; a pick-only frame starts at the pick pixel's 8x8 block).
  * anchorQ: the anchor in whole quanta where it is not the eye's (a tile
- * beyond the reach of 32-bit quanta from the eye: tileFrames).
+ * beyond the reach of 32-bit quanta from the eye: tileFrames). shiftQ: a
+ * tileset tile's offset from the frame's origin in whole quanta: the
+ * scene's integer positions are the tile's, so the integer anchor and its
+ * grid cell are taken in the tile's frame (the anchor minus the shift),
+ * while every float (eye, matrices, terrain, clip, top-down extent) stays
+ * relative to the frame's anchor, bit for bit the index frame's
+ * (gl_passes.cpp load_tile). Returns axq, ayq in the scene's frame, ax, ay
+ * (metres) in the camera's.
  * @param {{scene: import("./scene.js").PackedScene, terrain: import("./index.js").Terrain,
  *          camera: import("./camera.js").Camera, W: number, H: number, albedo?: number[],
  *          pick: number[] | null, pickOnly: boolean, clip?: number[] | null, box?: number[],
- *          anchorQ?: number[]}} args
+ *          anchorQ?: number[], shiftQ?: number[]}} args
  */
-export function frameUniforms({ scene, terrain, camera, W, H, albedo, pick, pickOnly, clip, box, anchorQ }) {
-  const axq = anchorQ ? anchorQ[0] : Math.round(camera.eye[0] / Q);
-  const ayq = anchorQ ? anchorQ[1] : Math.round(camera.eye[1] / Q);
-  const ax = axq * Q, ay = ayq * Q;
+export function frameUniforms({ scene, terrain, camera, W, H, albedo, pick, pickOnly, clip, box, anchorQ, shiftQ }) {
+  const aq = anchorQ ?? [Math.round(camera.eye[0] / Q), Math.round(camera.eye[1] / Q)];
+  const ax = aq[0] * Q, ay = aq[1] * Q;
+  const axq = aq[0] - (shiftQ?.[0] ?? 0), ayq = aq[1] - (shiftQ?.[1] ?? 0);
   const eyeRel = [camera.eye[0] - ax, camera.eye[1] - ay, camera.eye[2]];
   const vp = matMul(projectionMatrix(camera, W / H), viewMatrix(camera, eyeRel));
   const light = normalize([-0.4, -0.5, 0.75]);
@@ -169,19 +176,20 @@ export function tileAnchor(sq, at) {
 /**
  * The decal frames of one tile of a tileset frame (gl_passes.cpp load_tile
  * and tile_scissor): per square of the tile that the image meets, the
- * tile's frame (camera and terrain moved by its offset, a whole number of
- * quanta, so every anchor-relative float is the index frame's; for a tile
- * beyond 32-bit reach of the eye, tileAnchor's anchor, the matrices made
- * again around it) with the square as its clip, and the square's pixel box
- * (squareBox). A pick-only frame keeps the squares whose box holds the
- * pick.
+ * tile's frame (the index frame with the integer anchor moved by the tile's
+ * offset, a whole number of quanta, so every anchor-relative float is the
+ * index frame's: frameUniforms shiftQ; for a tile beyond 32-bit reach of
+ * the eye, tileAnchor's anchor, the matrices made again around it) with
+ * the square as its clip, and the square's pixel box (squareBox). A
+ * pick-only frame keeps the squares whose box holds the pick.
  * @param {import("./index.js").FrameTile} t
  * @param {import("./scene.js").PackedScene} scene  the tile's
  * @param {TileFrameArgs} f
- * Each also gives its uniforms (frameUniforms), the tile's camera, the
- * square in the tile's frame and, for its dynamic lines, the offset from a
- * ground point relative to the index anchor to one relative to the tile's
- * (0 unless the anchor moved).
+ * Each also gives its uniforms (frameUniforms), the camera in the tile's
+ * frame (for its LOD view), the square (in the index frame) and, for its
+ * dynamic lines and WebGL2's ground points, the offset from a ground point
+ * relative to the index anchor to one relative to the tile's (0 unless the
+ * anchor moved).
  * @returns {{frame: ArrayBuffer, box: number[], u: ReturnType<typeof frameUniforms>,
  *            camera: import("./camera.js").Camera, clip: number[], go: number[]}[]}
  */
@@ -190,13 +198,17 @@ export function tileFrames(t, scene, f) {
   const td = f.camera.topdownExtent;
   const camera = { ...f.camera, eye: shift(f.camera.eye), target: shift(f.camera.target),
     topdownExtent: td ? [td[0] - t.dx, td[1] - t.dy, td[2] - t.dx, td[3] - t.dy] : null };
-  const terrain = { ...f.terrain, x0: f.terrain.x0 - t.dx, y0: f.terrain.y0 - t.dy };
   const own = t.square ?? [Math.min(...t.clips.map((c) => c[0])), Math.min(...t.clips.map((c) => c[1])),
     Math.max(...t.clips.map((c) => c[2])), Math.max(...t.clips.map((c) => c[3]))];
-  // The index anchor moved by the tile's offset, whole quanta: exactly.
-  const at = [Math.round(f.ax / Q) - Math.round(t.dx / Q), Math.round(f.ay / Q) - Math.round(t.dy / Q)];
-  const anchorQ = tileAnchor([own[0] - t.dx, own[1] - t.dy, own[2] - t.dx, own[3] - t.dy], at);
-  const go = [(at[0] - anchorQ[0]) * Q, (at[1] - anchorQ[1]) * Q];
+  // The tile's offset and the index anchor, whole quanta; the anchor in
+  // the tile's frame is their difference, exactly.
+  const shiftQ = [Math.round(t.dx / Q), Math.round(t.dy / Q)];
+  const eyeQ = [Math.round(f.ax / Q), Math.round(f.ay / Q)];
+  const at = [eyeQ[0] - shiftQ[0], eyeQ[1] - shiftQ[1]];
+  const moved = tileAnchor([own[0] - t.dx, own[1] - t.dy, own[2] - t.dx, own[3] - t.dy], at);
+  const far = moved[0] !== at[0] || moved[1] !== at[1];
+  const anchorQ = far ? [moved[0] + shiftQ[0], moved[1] + shiftQ[1]] : undefined;
+  const go = [(at[0] - moved[0]) * Q, (at[1] - moved[1]) * Q];
   const out = [];
   for (const c of t.clips) {
     const box = squareBox(f.vp, [c[0] - f.ax, c[1] - f.ay, c[2] - f.ax, c[3] - f.ay],
@@ -204,10 +216,9 @@ export function tileFrames(t, scene, f) {
     if (!box) continue;
     const p = f.pick;
     if (f.pickOnly && p && !(p[0] >= box[0] && p[0] < box[2] && p[1] >= box[1] && p[1] < box[3])) continue;
-    const clip = [c[0] - t.dx, c[1] - t.dy, c[2] - t.dx, c[3] - t.dy];
-    const u = frameUniforms({ scene, terrain, camera, W: f.W, H: f.H, albedo: f.albedo, pick: f.pick,
-      pickOnly: f.pickOnly, clip, box, anchorQ });
-    out.push({ frame: u.frame, box, u, camera, clip, go });
+    const u = frameUniforms({ scene, terrain: f.terrain, camera: f.camera, W: f.W, H: f.H, albedo: f.albedo,
+      pick: f.pick, pickOnly: f.pickOnly, clip: c, box, anchorQ, shiftQ });
+    out.push({ frame: u.frame, box, u, camera, clip: c, go });
   }
   return out;
 }

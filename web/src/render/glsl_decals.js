@@ -52,6 +52,7 @@ uniform usampler2DArray u_vis;     // layer visibility bits
 uniform usampler2D u_ground;       // terrain pass: anchor-relative x, y, z bits; w 1 where drawn
 uniform sampler2D u_terrain;       // terrain pass colour, its shade in alpha
 uniform uvec4 u_lin;               // linear textures: width shift, rows-per-layer shift; visibility words
+uniform vec2 u_go;                 // u_ground's points (index anchor) to this frame's anchor, metres (tileset tiles)
 
 layout(location = 0) out vec4 o_rgba;
 layout(location = 1) out vec4 o_decals;
@@ -532,7 +533,7 @@ void main() {
     uvec4 gp = texelFetch(u_ground, ivec2(gid), 0);
     drawn = gp.w != 0u;
     vec2 ndc = vec2((float(gid.x) + 0.5) / float(W) * 2.0 - 1.0, 1.0 - (float(gid.y) + 0.5) / float(H) * 2.0);
-    p = ground_point(ndc, uintBitsToFloat(gp.xy));
+    p = ground_point(ndc, uintBitsToFloat(gp.xy) + u_go);
     z = uintBitsToFloat(gp.z);
   }
   // A tileset: a pass with no decals (clip mode 2) lays the terrain; each

@@ -36,6 +36,8 @@ const TU = { COPY_SRC: 1, TEXTURE_BINDING: 4, RENDER_ATTACHMENT: 16 };
 const MAP_READ = 1;
 /** Bytes between the frames of a frame's decal dispatches in the frame uniform buffer (a multiple of 256). */
 const FRAME_STRIDE = 512;
+/** Frames a tileset's tile stays on the GPU without being drawn. */
+const KEEP_FRAMES = 30;
 
 /**
  * The flat heightfield render uses without a DEM (terrain.cpp flat_heightfield).
@@ -161,9 +163,10 @@ export function triangleGradients(t) {
  * in `work` (work.lod: the LOD passes' buffers), its LOD data.
  * @typedef {{ds: import("./scene.js").PackedDynamic, buffer: any, lod: LodData | null, work: any}} DynSet
  * One draw of a set's dynamic lines in a frame: its frame's uniforms
- * (frameUniforms), camera and, for a tileset's tile, the square it draws in
- * (metres in the tile's frame) and the offset from the frame's ground
- * points (relative to the index anchor) to the tile's anchor (metres).
+ * (frameUniforms), its camera (in the set's frame, for the LOD view) and,
+ * for a tileset's tile, the square it draws in (metres in the frame's
+ * coordinates) and the offset from the frame's ground points (relative to
+ * the index anchor) to the tile's anchor (metres).
  * @typedef {{set: DynSet, u: ReturnType<typeof frameUniforms>, camera: Camera, clip: number[] | null,
  *            go: number[]}} DynDraw
  */
@@ -228,8 +231,11 @@ async function packLod(pkg) {
  * The dynamic-line pass's counts (render --stats prints GL's): vertices
  * kept, segments drawn, list nodes asked for, regrowths of the node buffer.
  * @typedef {{kept: number, segments: number, nodes: number, grows: number}} DynamicStats
+ * uploads: the tileset tiles the frame put on the GPU (their packing and
+ * upload are in its ms).
  * @typedef {{rgba: Uint8Array | null, decals: Uint8Array | null, ms: number,
- *            pick: Pick | null, passes: PassTimes | null, dynamic: DynamicStats | null}} FrameResult
+ *            pick: Pick | null, passes: PassTimes | null, dynamic: DynamicStats | null,
+ *            uploads: number}} FrameResult
  */
 
 export class Renderer {
@@ -249,7 +255,8 @@ export class Renderer {
      * the tiles on the GPU by key (their packed scene and blob buffer),
      * kept while frames draw them.
      * @type {{ramps: import("./scene.js").LayerRamp[], slopeWidths: import("./scene.js").SlopeWidths,
-     *         uploads: Map<string, {scene: import("./scene.js").PackedScene, blob: any, dyn: DynSet | null}>} | null}
+     *         uploads: Map<string, {scene: import("./scene.js").PackedScene, blob: any, dyn: DynSet | null,
+     *                               used: number}>} | null}
      */
     this.tileset = null;
     /** @type {Terrain | null} */ this.terrain = null;
@@ -277,6 +284,10 @@ export class Renderer {
     /** @type {string} */ this.presentError = "";
     /** @type {any} */ this.context2d = null;
     this.destroyed = false;
+    /** @type {Promise<unknown>} the frame drawing now (renderFrame) */
+    this.frameChain = Promise.resolve();
+    /** Frames drawn: a tileset's tiles stay on the GPU until KEEP_FRAMES frames have not drawn them. */
+    this.frameCount = 0;
     this.initDevice(device);
   }
 
@@ -457,7 +468,15 @@ export class Renderer {
     const blob = this.buffer(scene.words.byteLength, BU.STORAGE | BU.COPY_DST);
     this.device.queue.writeBuffer(blob, 0, scene.words);
     const lod = scene.dynamic.vertices > 0 ? await packLod(t.pkg) : null;
-    const u = { scene, blob, dyn: this.makeDynSet(scene.dynamic, lod, `tile ${t.key}`) };
+    /** @type {DynSet | null} */
+    let dyn = null;
+    try {
+      dyn = this.makeDynSet(scene.dynamic, lod, `tile ${t.key}`);
+    } catch (e) {
+      this.free(blob);
+      throw e;
+    }
+    const u = { scene, blob, dyn, used: this.frameCount };
     ts.uploads.set(t.key, u);
     return u;
   }
@@ -720,7 +739,16 @@ export class Renderer {
    * @param {FrameArgs} args
    * @returns {Promise<FrameResult>}
    */
-  async renderFrame(args) {
+  renderFrame(args) {
+    // One frame at a time: a click's pick or a tile's arrival asks for a
+    // frame while one is drawing, and frames share targets and uploads.
+    const run = this.frameChain.then(() => this.renderFrameNow(args));
+    this.frameChain = run.catch(() => {});
+    return run;
+  }
+
+  /** renderFrame, the frame before it done. @param {FrameArgs} args @returns {Promise<FrameResult>} */
+  async renderFrameNow(args) {
     const show = Boolean(args.present && this.canvas);
     if (show && this.presentPath === null) await this.choosePresentPath();
     try {
@@ -925,7 +953,7 @@ export class Renderer {
       passes = { timing: "wall", terrain: wall[0], decals: wall[1], dynamic: wall[2] ?? 0, composite: wall[3] ?? 0 };
     }
     return { rgba: wantRgba ? rgba : null, decals: decals ? await read(T.readDecals) : null, ms, pick: top,
-      passes, dynamic: dynStats };
+      passes, dynamic: dynStats, uploads: tileOut ? tileOut.uploads : 0 };
   }
 
   /**
@@ -1061,20 +1089,29 @@ export class Renderer {
    * Tiles with dynamic lines add a draw of them per square.
    * @param {FrameTile[]} tiles @param {import("./frame.js").TileFrameArgs} f
    * @returns {Promise<{jobs: {frame: ArrayBuffer, blob: any, nx: number, ny: number, key: string}[],
-   *                    dynamic: DynDraw[]}>}
+   *                    dynamic: DynDraw[], uploads: number}>}
    */
   async tileJobs(tiles, f) {
     const ts = /** @type {NonNullable<Renderer["tileset"]>} */ (this.tileset);
     const keep = new Set(tiles.map((t) => t.key));
+    // Tiles this frame draws are kept; the others go once KEEP_FRAMES
+    // frames have not drawn them (a view that goes back and forth between
+    // two detail levels does not upload its tiles again each time).
+    this.frameCount += 1;
     for (const [key, u] of ts.uploads)
-      if (!keep.has(key)) {
+      if (keep.has(key)) {
+        u.used = this.frameCount;
+      } else if (this.frameCount - u.used > KEEP_FRAMES) {
         this.free(u.blob);
+        this.freeDynSet(u.dyn);
         ts.uploads.delete(key);
       }
     const jobs = [];
     /** @type {DynDraw[]} */
     const dynamic = [];
+    let uploads = 0;
     for (const t of tiles) {
+      if (!ts.uploads.has(t.key)) uploads += 1;
       const { scene, blob, dyn } = await this.tileUpload(t);
       for (const { frame, box, u, camera, clip, go } of tileFrames(t, scene, f)) {
         jobs.push({ frame, blob, key: t.key, nx: f.pickOnly ? 1 : Math.ceil((box[2] - box[0]) / 8),
@@ -1082,7 +1119,7 @@ export class Renderer {
         if (dyn) dynamic.push({ set: dyn, u, camera, clip, go });
       }
     }
-    return { jobs, dynamic };
+    return { jobs, dynamic, uploads };
   }
 
   /** The 2D present path. @param {Uint8Array} rgba @param {number} W @param {number} H */

@@ -25,6 +25,9 @@ import { frameUniforms, terrainMesh, tileFrames } from "./frame.js";
 import { emptyScene, packScene } from "./scene.js";
 import { flatTerrain, triangleGradients } from "./index.js";
 
+/** Frames a tileset's tile stays on the GPU without being drawn (as index.js). */
+const KEEP_FRAMES = 30;
+
 /** What this renderer leaves out, in the viewer overlay's words. */
 export const WEBGL2_LIMITS = "static decals only; dynamic lines not drawn";
 
@@ -111,6 +114,12 @@ export class WebGL2Renderer {
     ["u_blobs", "u_heights", "u_grads", "u_vis", "u_ground", "u_terrain"].forEach((n, unit) =>
       gl.uniform1i(gl.getUniformLocation(this.decalProgram, n), unit));
     this.linLocation = gl.getUniformLocation(this.decalProgram, "u_lin");
+    this.goLocation = gl.getUniformLocation(this.decalProgram, "u_go");
+    /** @type {Promise<unknown>} the frame drawing now (renderFrame) */
+    this.frameChain = Promise.resolve();
+    /** the tiles the last frame uploaded; frames drawn (tiles stay KEEP_FRAMES frames undrawn) */
+    this.uploads = 0;
+    this.frameCount = 0;
     this.terrainUbo = gl.createBuffer();
     this.frameUbo = gl.createBuffer();
     /** @type {import("./scene.js").PackedScene | null} */ this.scene = null;
@@ -118,7 +127,7 @@ export class WebGL2Renderer {
      * A tileset scene (as index.js Renderer.tileset): the restyling and the
      * tiles' packed scenes by key, their blob textures "tile:KEY" in `data`.
      * @type {{ramps: import("./scene.js").LayerRamp[], slopeWidths: import("./scene.js").SlopeWidths,
-     *         uploads: Map<string, import("./scene.js").PackedScene>} | null}
+     *         uploads: Map<string, {scene: import("./scene.js").PackedScene, used: number}>} | null}
      */
     this.tileset = null;
     /** @type {import("./index.js").Terrain | null} */ this.terrain = null;
@@ -238,20 +247,27 @@ export class WebGL2Renderer {
   async tileScenes(tiles) {
     const ts = /** @type {NonNullable<WebGL2Renderer["tileset"]>} */ (this.tileset);
     const keep = new Set(tiles.map((t) => t.key));
-    for (const key of [...ts.uploads.keys()])
-      if (!keep.has(key)) {
+    // As index.js tileJobs: tiles not drawn for KEEP_FRAMES frames go.
+    this.frameCount += 1;
+    for (const [key, u] of [...ts.uploads])
+      if (keep.has(key)) {
+        u.used = this.frameCount;
+      } else if (this.frameCount - u.used > KEEP_FRAMES) {
         this.freeData(`tile:${key}`);
         ts.uploads.delete(key);
       }
     const out = [];
+    this.uploads = 0;
     for (const t of tiles) {
-      let scene = ts.uploads.get(t.key);
-      if (!scene) {
-        scene = await packScene(t.pkg, ts.ramps, ts.slopeWidths);
+      let u = ts.uploads.get(t.key);
+      if (!u) {
+        this.uploads += 1;
+        const scene = await packScene(t.pkg, ts.ramps, ts.slopeWidths);
         this.linearTexture(`tile:${t.key}`, scene.words, `the static blobs of tile ${t.key} (${t.pkg.label})`);
-        ts.uploads.set(t.key, scene);
+        u = { scene, used: this.frameCount };
+        ts.uploads.set(t.key, u);
       }
-      out.push(scene);
+      out.push(u.scene);
     }
     return out;
   }
@@ -367,7 +383,19 @@ export class WebGL2Renderer {
    * @param {import("./index.js").FrameArgs} args
    * @returns {Promise<import("./index.js").FrameResult>}
    */
-  async renderFrame({ camera, width, height, albedo, decals, present, readback, pick, passTimes, tiles }) {
+  renderFrame(args) {
+    // One frame at a time (as index.js Renderer.renderFrame).
+    const run = this.frameChain.then(() => this.renderFrameNow(args));
+    this.frameChain = run.catch(() => {});
+    return run;
+  }
+
+  /**
+   * renderFrame, the frame before it done.
+   * @param {import("./index.js").FrameArgs} args
+   * @returns {Promise<import("./index.js").FrameResult>}
+   */
+  async renderFrameNow({ camera, width, height, albedo, decals, present, readback, pick, passTimes, tiles }) {
     const scene = this.scene;
     if (!scene) throw new Error("renderFrame: no scene (call setScene first)");
     const gl = this.gl;
@@ -383,15 +411,16 @@ export class WebGL2Renderer {
     const u = frameUniforms({ scene, terrain, camera, W, H, albedo, pick: picking ? [px, py] : null, pickOnly });
     // A tileset: a pass without decals over the frame (clip mode 2), then
     // one per square of each tile, scissored to its box (frame.js tileFrames).
-    /** @type {{frame: ArrayBuffer, box: number[], key: string}[]} */
-    const passes = [{ frame: u.frame, box: [0, 0, W, H], key: "blobs" }];
+    /** @type {{frame: ArrayBuffer, box: number[], key: string, go: number[]}[]} */
+    const passes = [{ frame: u.frame, box: [0, 0, W, H], key: "blobs", go: [0, 0] }];
+    this.uploads = 0;
     if (this.tileset) {
       new Uint32Array(u.frame)[102] = 2;
       const list = tiles ?? [];
       const scenes = await this.tileScenes(list);
       const f = { camera, terrain, W, H, albedo, pick: picking ? [px, py] : null, pickOnly, vp: u.vp, ax: u.ax, ay: u.ay };
       list.forEach((t, k) => {
-        for (const { frame, box } of tileFrames(t, scenes[k], f)) passes.push({ frame, box, key: `tile:${t.key}` });
+        for (const { frame, box, go } of tileFrames(t, scenes[k], f)) passes.push({ frame, box, key: `tile:${t.key}`, go });
       });
     }
     const probe = new Uint8Array(4);
@@ -464,6 +493,7 @@ export class WebGL2Renderer {
       gl.bindBufferBase(gl.UNIFORM_BUFFER, 1, this.frameUbo);
       gl.activeTexture(gl.TEXTURE0);
       gl.bindTexture(gl.TEXTURE_2D_ARRAY, /** @type {{tex: WebGLTexture}} */ (this.data.get(p.key)).tex);
+      gl.uniform2f(this.goLocation, p.go[0], p.go[1]);
       gl.drawArrays(gl.TRIANGLES, 0, 3);
     }
     gl.disable(gl.SCISSOR_TEST);
@@ -497,7 +527,7 @@ export class WebGL2Renderer {
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     /** @type {import("./index.js").PassTimes | null} */
     const times = passTimes ? { timing: "wall", terrain: wall[0], decals: wall[1], dynamic: 0, composite: 0 } : null;
-    return { rgba, decals: decalPixels, ms, pick: top, passes: times, dynamic: null };
+    return { rgba, decals: decalPixels, ms, pick: top, passes: times, dynamic: null, uploads: this.uploads };
   }
 
   /** Shows the frame on the canvas, its rows flipped back. @param {any} T @param {number} W @param {number} H */
