@@ -17,6 +17,7 @@
 //      (read by the JavaScript reader from the tile's file).
 //   4. ?budget=1 (a 1 ms frame budget no frame meets): the viewer lowers
 //      detail ("detail 1/N", N > 1) and draws the coarsest level alone.
+//   5. ?backend=webgl2: the first view streams, and a click names its tile.
 //
 //   node tests/web/viewer_interactive_test.mjs DECALPREP REPO_ROOT WORK_DIR   (exit 77: skip)
 import { spawn } from "node:child_process";
@@ -139,6 +140,53 @@ const fetchedOf = (/** @type {string} */ overlay) => {
   return m ? { mib: Number(m[1]), requests: Number(m[2]) } : { mib: 0, requests: 0 };
 };
 
+/**
+ * Clicks pixels of the page until one names a decal, then checks it: a
+ * layer of the tileset, a tile of its index, a fid that tile's props hold.
+ * @param {(method: string, params?: object) => Promise<any>} send @param {string} backend
+ */
+async function checkPick(send, backend) {
+  const b = { send };
+  let picked = "";
+  /** @type {string[]} */
+  const tried = [];
+  // Points of the map itself, near the middle (the panels may cover parts of a small window).
+  const r = await b.send("Runtime.evaluate", { returnByValue: true, expression: `(() => {
+    const out = [];
+    for (let y = 60; y < innerHeight - 20 && out.length < 8; y += 23)
+      for (let x = innerWidth / 2 - 120; x < innerWidth / 2 + 120 && out.length < 8; x += 37)
+        if (document.elementFromPoint(x, y)?.id === "map") out.push([Math.round(x), y]);
+    return out; })()` });
+  for (const [x, y] of /** @type {number[][]} */ (r.result.value)) {
+    await b.send("Runtime.evaluate", { expression: "document.getElementById('pick').textContent = ''" });
+    await b.send("Input.dispatchMouseEvent", { type: "mousePressed", x, y, button: "left", clickCount: 1 });
+    await b.send("Input.dispatchMouseEvent", { type: "mouseReleased", x, y, button: "left", clickCount: 1 });
+    for (let w = 0; w < 60 && !picked; ++w) {
+      await sleep(500);
+      const p = await text(b.send, "pick");
+      if (p) picked = p;
+    }
+    tried.push(`${x},${y}: ${picked || "no answer"}`);
+    if (picked && !/no decal/.test(picked)) break;
+    picked = "";
+  }
+  const m = /^(.*) \(layer (\d+)\): fid (\d+), (line|polygon), tile (\d+)\/(-?\d+),(-?\d+)$/.exec(picked);
+  const names = new Set(ts.json.manifest.layers.map((/** @type {any} */ l) => l.layer));
+  const tile = m ? [ts.tiles, ...ts.levels.map((l) => l.tiles)][Number(m[5])]?.find(
+    (/** @type {any} */ t) => t.x === Number(m[6]) && t.y === Number(m[7])) : null;
+  let holds = false;
+  if (m && tile) {
+    const { openPackage } = await import(join(root, "web/src/index.js"));
+    const pkg = await openPackage(new Uint8Array(readFileSync(join(dir, tile.file))), { label: tile.file });
+    const props = await pkg.bytes(m[4] === "line" ? "line_props" : "poly_props");
+    const words = new Uint32Array(props.buffer, props.byteOffset, props.byteLength / 4);
+    const at = m[4] === "line" ? 6 : 5;  // LineProps / PolyProps `feature` (formats/SPEC.md)
+    for (let k = at; k < words.length && !holds; k += 8) holds = words[k] === Number(m[3]);
+  }
+  check(Boolean(m && names.has(m[1]) && tile && holds), `${backend}: a click names a layer of the tileset, a tile of the ` +
+        `index and a fid that tile holds: "${picked}"` + (m ? "" : ` (clicked ${tried.join("; ")})`));
+}
+
 const { server, url } = await serve();
 try {
   // 1. The first view (a budget no CPU rasteriser's frame passes: full detail).
@@ -161,34 +209,7 @@ try {
         `(${f1.mib} MiB)${s.error ? `: ${s.error}` : ""}`);
 
   // 3. Click where the frame shows a decal: layer, fid and tile named.
-  let picked = "";
-  for (const [x, y] of [[320, 200], [300, 220], [340, 180], [280, 240], [360, 160], [320, 260]]) {
-    await b.send("Input.dispatchMouseEvent", { type: "mousePressed", x, y, button: "left", clickCount: 1 });
-    await b.send("Input.dispatchMouseEvent", { type: "mouseReleased", x, y, button: "left", clickCount: 1 });
-    for (let w = 0; w < 60 && !picked; ++w) {
-      await sleep(500);
-      const p = await text(b.send, "pick");
-      if (p) picked = p;
-    }
-    if (picked && !/no decal/.test(picked)) break;
-    picked = "";
-  }
-  const m = /^(.*) \(layer (\d+)\): fid (\d+), (line|polygon), tile (\d+)\/(-?\d+),(-?\d+)$/.exec(picked);
-  const names = new Set(ts.json.manifest.layers.map((/** @type {any} */ l) => l.layer));
-  const tile = m ? [ts.tiles, ...ts.levels.map((l) => l.tiles)][Number(m[5])]?.find(
-    (/** @type {any} */ t) => t.x === Number(m[6]) && t.y === Number(m[7])) : null;
-  let holds = false;
-  if (m && tile) {
-    const { openPackage } = await import(join(root, "web/src/index.js"));
-    const pkg = await openPackage(new Uint8Array(readFileSync(join(dir, tile.file))), { label: tile.file });
-    const props = await pkg.bytes(m[4] === "line" ? "line_props" : "poly_props");
-    const words = new Uint32Array(props.buffer, props.byteOffset, props.byteLength / 4);
-    const at = m[4] === "line" ? 6 : 5;  // LineProps / PolyProps `feature` (formats/SPEC.md)
-    for (let k = at; k < words.length && !holds; k += 8) holds = words[k] === Number(m[3]);
-  }
-  check(Boolean(m && names.has(m[1]) && tile && holds), `a click names a layer of the tileset, a tile of the ` +
-        `index and a fid that tile holds: "${picked}"`);
-  b.stop();
+  await checkPick(b.send, "WebGPU");  b.stop();
 
   // 4. A frame budget no frame meets: detail lowered to the coarsest level.
   b = await browser(url + "?budget=1");
@@ -196,6 +217,17 @@ try {
   const lv = levelsOf(s.overlay), detail = /detail 1\/(\d+)/.exec(s.overlay);
   check(!s.error && Boolean(detail) && Number(detail?.[1]) > 1 && Object.keys(lv).every((l) => Number(l) === top),
         `over a 1 ms budget the viewer lowers detail: ${s.overlay.replace(/\n/g, " | ")}${s.error ? `: ${s.error}` : ""}`);
+  b.stop();
+
+  // 5. WebGL2: the first view streams, zooms in, and a click names its tile too.
+  b = await browser(url + "?budget=1000000&backend=webgl2");
+  s = await settledOverlay(b.send, 240);
+  check(!s.error && /WebGL2/.test(s.overlay), `WebGL2: the first view settles: ${s.error || s.overlay.replace(/\n/g, " | ")}`);
+  for (let k = 0; k < 6; ++k)
+    await b.send("Input.dispatchMouseEvent", { type: "mouseWheel", x: 540, y: 150, deltaX: 0, deltaY: -400 });
+  s = await settledOverlay(b.send, 300, (o) => 0 in levelsOf(o));
+  check(!s.error, `WebGL2: zoomed in: levels ${JSON.stringify(levelsOf(s.overlay))}${s.error ? `: ${s.error}` : ""}`);
+  await checkPick(b.send, "WebGL2");
   b.stop();
 } finally {
   server.kill("SIGTERM");

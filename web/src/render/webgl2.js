@@ -482,6 +482,10 @@ export class WebGL2Renderer {
     gl.drawBuffers(pickOnly ? [gl.NONE, gl.NONE, gl.COLOR_ATTACHMENT2]
       : [gl.COLOR_ATTACHMENT0, gl.COLOR_ATTACHMENT1, picking ? gl.COLOR_ATTACHMENT2 : gl.NONE]);
     gl.enable(gl.SCISSOR_TEST);
+    // A tileset's pick: the tile whose pass first writes a decal at the
+    // pick pixel (each pixel is drawn by one tile square at most).
+    let pickTile = "";
+    const pickProbe = new Uint32Array(4);
     for (const p of passes) {
       // Rows count from the image's top (the terrain pass drew it upside down).
       const b = pickOnly ? [Math.max(px, p.box[0]), Math.max(py, p.box[1]), Math.min(px + 1, p.box[2]),
@@ -495,6 +499,13 @@ export class WebGL2Renderer {
       gl.bindTexture(gl.TEXTURE_2D_ARRAY, /** @type {{tex: WebGLTexture}} */ (this.data.get(p.key)).tex);
       gl.uniform2f(this.goLocation, p.go[0], p.go[1]);
       gl.drawArrays(gl.TRIANGLES, 0, 3);
+      if (picking && this.tileset && !pickTile && p.key.startsWith("tile:") &&
+          px >= b[0] && px < b[2] && py >= b[1] && py < b[3]) {
+        gl.bindFramebuffer(gl.READ_FRAMEBUFFER, T.decalFbo);
+        gl.readBuffer(gl.COLOR_ATTACHMENT2);
+        gl.readPixels(px, py, 1, 1, gl.RGBA_INTEGER, gl.UNSIGNED_INT, pickProbe);
+        if (pickProbe[0] !== 0) pickTile = p.key.slice(5);
+      }
     }
     gl.disable(gl.SCISSOR_TEST);
     passDone(T.decalFbo);
@@ -522,6 +533,7 @@ export class WebGL2Renderer {
       gl.readBuffer(gl.COLOR_ATTACHMENT2);
       gl.readPixels(px, py, 1, 1, gl.RGBA_INTEGER, gl.UNSIGNED_INT, p);
       if (p[0] !== 0) top = { kind: p[0] === 1 ? "line" : "polygon", layer: p[1], feature: p[2], index: p[3] };
+      if (top && this.tileset) top.tile = pickTile;
     }
     if (show) this.present(T, W, H);
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
