@@ -43,19 +43,10 @@ import subprocess
 import sys
 import time
 
-failures = []
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "support"))
+from checks import check, failures, run  # noqa: E402
+
 stats = dict(packages=0, tiles=0, blobs=0, elements=0, refused=0, broken_seeds=0, flips=0, mapped_blobs=0)
-
-
-def check(cond, msg):
-    if not cond:
-        failures.append(msg)
-        print("FAIL: " + msg, flush=True)
-    return cond
-
-
-def run(args, **kw):
-    return subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
 
 
 # ------------------------------------------------------------------ driver --

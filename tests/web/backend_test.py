@@ -17,12 +17,11 @@ Usage: backend_test.py DECALPREP REPO_ROOT WORK_DIR
 """
 import os
 import re
-import shutil
 import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from pixel_agreement import monaco_package  # noqa: E402
+from pixel_agreement import chromium as installed_chromium, monaco_package  # noqa: E402
 
 SKIP = 77
 BROWSER_EXIT = 12  # view --screenshot: no Chromium (docs/cli.md)
@@ -35,8 +34,7 @@ def main():
     if error is not None:
         print("FAIL building the Monaco sample:", error)
         return 1
-    chromium = shutil.which("chromium") or shutil.which("chromium-headless-shell")
-    chromium = os.environ.get("DECALPREP_CHROMIUM") or chromium
+    chromium = installed_chromium()
     if not chromium:
         print("SKIP: no Chromium")
         return SKIP

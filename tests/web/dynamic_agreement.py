@@ -49,7 +49,7 @@ import shutil
 import sys
 import time
 
-from pixel_agreement import BROWSER_EXIT, SKIP, blank, read_png, run
+from pixel_agreement import SKIP, blank, read_png, run, screenshot_skip
 
 SIZE = (640, 360)
 # Eye and target, frame metres: the A8 north of Monaco from the south, and
@@ -100,18 +100,27 @@ class Runner:
         """Seconds taken, or None for a skip (no Chromium)."""
         t = time.time()
         v = run([self.decalprep, "view", pkg, "--screenshot", out, "--timeout", "300"] + opts)
-        if v.returncode == BROWSER_EXIT:
-            print("SKIP: no Chromium:", v.stderr.strip())
+        skip = screenshot_skip(v)
+        if skip:
+            print("SKIP:", skip)
             return None
         if v.returncode:
-            if "Chromium" in v.stderr and "exited" in v.stderr and "before the page" in v.stderr \
-                    and "the page failed" not in v.stderr:
-                print("SKIP: Chromium could not start:", v.stderr[-2000:])
-                return None
             raise RuntimeError(f"view --screenshot exited {v.returncode}: {v.stderr[-3000:]}")
         if "left out" in v.stderr:
             raise RuntimeError(f"view says it leaves layers out: {v.stderr[-2000:]}")
         return time.time() - t
+
+    def build_and_draw(self, scene, name, opts):
+        """Builds `scene` into WORK/NAME.decals and draws it with render and
+        view (`opts`); returns (GL PNG path, browser PNG path), or None for a
+        skip."""
+        pkg = os.path.join(self.work, name + ".decals")
+        b = run([self.decalprep, "build", scene, "-o", pkg])
+        if b.returncode:
+            raise RuntimeError(f"building {scene}: {b.stderr[-2000:]}")
+        gl_png, web_png = os.path.join(self.work, name + "_gl.png"), os.path.join(self.work, name + "_web.png")
+        self.render(pkg, gl_png, opts)
+        return None if self.view(pkg, web_png, opts) is None else (gl_png, web_png)
 
     def check(self, name, ok, detail):
         self.checks += 1
@@ -232,15 +241,11 @@ def composite(lines, ordered, terrain):
 
 def crossing(r):
     scene, lines = crossing_scene(r.work)
-    pkg = os.path.join(r.work, "crossing.decals")
-    b = run([r.decalprep, "build", scene, "-o", pkg])
-    if b.returncode:
-        raise RuntimeError(f"building {scene}: {b.stderr[-2000:]}")
-    opts = ["--extent", f"{X0!r},{Y0!r},{X0 + 200!r},{Y0 + 100!r}", "--size", "200x100"]
-    gl_png, web_png = os.path.join(r.work, "crossing_gl.png"), os.path.join(r.work, "crossing_web.png")
-    r.render(pkg, gl_png, opts)
-    if r.view(pkg, web_png, opts) is None:
+    drawn = r.build_and_draw(scene, "crossing", ["--extent", f"{X0!r},{Y0!r},{X0 + 200!r},{Y0 + 100!r}",
+                                                 "--size", "200x100"])
+    if drawn is None:
         return SKIP
+    gl_png, web_png = drawn
     if blank(gl_png):
         raise RuntimeError(f"{gl_png} is blank (the lines were not drawn)")
     gl, web = pixels(gl_png), pixels(web_png)
@@ -277,16 +282,11 @@ def stacked(r):
         f.write(f'source = "stacked.geojson"\ncrs = "EPSG:32632"\n'
                 f'extent = [{X0}, {Y0}, {X0 + 200}, {Y0 + 100}]\nextent_crs = ""\n\n'
                 '[[layer]]\nname = "stacked"\nkind = "line"\ndynamic = true\nwidth = 4.0\ncolor = "#ffffff10"\n')
-    pkg = os.path.join(r.work, "stacked.decals")
-    b = run([r.decalprep, "build", scene, "-o", pkg])
-    if b.returncode:
-        raise RuntimeError(f"building {scene}: {b.stderr[-2000:]}")
-    opts = ["--extent", f"{X0 + 90!r},{Y0 + 45!r},{X0 + 110!r},{Y0 + 55!r}", "--size", "64x32"]
-    gl_png, web_png = os.path.join(r.work, "stacked_gl.png"), os.path.join(r.work, "stacked_web.png")
-    r.render(pkg, gl_png, opts)
-    if r.view(pkg, web_png, opts) is None:
+    drawn = r.build_and_draw(scene, "stacked", ["--extent", f"{X0 + 90!r},{Y0 + 45!r},{X0 + 110!r},{Y0 + 55!r}",
+                                                "--size", "64x32"])
+    if drawn is None:
         return SKIP
-    gl, web = pixels(gl_png), pixels(web_png)
+    gl, web = pixels(drawn[0]), pixels(drawn[1])
     x, y = 32, 15  # centre (X0 + 100.16, Y0 + 50.16): on the lines
     terrain = gl[2][1][x]  # 15 pixels (4.7 m) from the lines
     a = 1 - (1 - 16 / 255) ** copies

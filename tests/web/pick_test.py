@@ -38,7 +38,8 @@ import subprocess
 import sys
 import tomllib
 
-SKIP = 77
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pixel_agreement import SKIP, chromium  # noqa: E402
 MARGIN = 1.5       # metres, 1.5 pixels
 SIZE = (640, 360)  # pixels of 1 m
 WANTED = ["buildings", "streets", "main_roads", "buildings", "landuse", "green", "water"]
@@ -55,8 +56,7 @@ def main():
     except ImportError as e:
         print("SKIP: GDAL's Python bindings are missing (python3-gdal):", e)
         return SKIP
-    if not (os.environ.get("DECALPREP_CHROMIUM") or shutil.which("chromium")
-            or shutil.which("chromium-headless-shell")):
+    if not chromium():
         print("SKIP: no Chromium (scripts/deps installs it)")
         return SKIP
     ogr.UseExceptions()

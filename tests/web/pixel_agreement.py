@@ -53,6 +53,25 @@ BROWSER_EXIT = 12  # view --screenshot: no Chromium (docs/cli.md)
 LIECHTENSTEIN = "liechtenstein/liechtenstein-2013-08-03.osm.pbf"  # in SHARED_DATA_DIR
 
 
+def chromium():
+    """The Chromium `view --screenshot` would start ($DECALPREP_CHROMIUM, else
+    chromium or chromium-headless-shell on PATH), or None."""
+    return (os.environ.get("DECALPREP_CHROMIUM") or shutil.which("chromium")
+            or shutil.which("chromium-headless-shell"))
+
+
+def screenshot_skip(v):
+    """Why a finished `view --screenshot` (a CompletedProcess with text
+    stderr) is a skip rather than a failure, or None: no Chromium (exit 12),
+    or a Chromium that exited before the page could run."""
+    if v.returncode == BROWSER_EXIT:
+        return "no Chromium: " + v.stderr.strip()
+    if v.returncode and "Chromium" in v.stderr and "exited" in v.stderr and "before the page" in v.stderr \
+            and "the page failed" not in v.stderr:
+        return "Chromium could not start: " + v.stderr[-2000:]
+    return None
+
+
 def monaco_package(decalprep, root, work):
     """Empties `work` and builds the Monaco sample into WORK/monaco.decals, as
     the web tests draw it. Returns (path, None), or (None, the build's
@@ -251,14 +270,11 @@ def main():
             continue
         v = run([decalprep, "view", view_pkg, "--screenshot", web] + (["--decals", web_d] if decals else []) +
                 view_opts + ["--backend", backend, "--stats", "--timeout", "300"])
-        if v.returncode == BROWSER_EXIT:
-            print("SKIP: no Chromium:", v.stderr.strip())
+        skip = screenshot_skip(v)
+        if skip:
+            print("SKIP:", skip)
             return SKIP
         if v.returncode:
-            if "Chromium" in v.stderr and "exited" in v.stderr and "before the page" in v.stderr \
-                    and "the page failed" not in v.stderr:
-                print("SKIP: Chromium could not start:", v.stderr[-2000:])
-                return SKIP
             print(f"FAIL {name}: view --screenshot exited {v.returncode}: {v.stderr[-3000:]}")
             failed += 1
             continue

@@ -22,7 +22,6 @@ Usage: screenshot_test.py DECALPREP REPO_ROOT WORK_DIR
 """
 import os
 import re
-import shutil
 import stat
 import subprocess
 import sys

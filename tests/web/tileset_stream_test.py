@@ -58,7 +58,8 @@ import shutil
 import subprocess
 import sys
 
-SKIP = 77
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pixel_agreement import SKIP, chromium, screenshot_skip  # noqa: E402
 SIZE = (640, 360)
 VERTICES = 1_000_000
 EXTENT_M = 8000.0
@@ -76,8 +77,7 @@ def main():
     except ImportError as e:
         print("SKIP: numpy or GDAL's Python bindings are missing:", e)
         return SKIP
-    if not (os.environ.get("DECALPREP_CHROMIUM") or shutil.which("chromium")
-            or shutil.which("chromium-headless-shell")):
+    if not chromium():
         print("SKIP: no Chromium (scripts/deps installs it)")
         return SKIP
     shutil.rmtree(work, ignore_errors=True)
@@ -180,8 +180,9 @@ def check_view(decalprep, oracle, work, tiles_dir, name, camera, backend, whole,
     limit = ["--gpu-budget", str(budget)] if budget else []
     r = subprocess.run([decalprep, "view", tiles_dir, "--screenshot", shot, *size, *camera, "--stats",
                         "--backend", backend, "--timeout", "600", *limit], capture_output=True, text=True)
-    if r.returncode == 12:
-        print("SKIP: Chromium cannot start:", r.stderr[-500:])
+    skip = screenshot_skip(r)
+    if skip:
+        print("SKIP:", skip)
         sys.exit(SKIP)
     if r.returncode != 0:
         return [f"{name}: view exited {r.returncode}: {r.stderr[-2000:]}"]

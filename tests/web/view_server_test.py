@@ -26,7 +26,6 @@ import socket
 import subprocess
 import sys
 import tempfile
-import time
 
 tool, root = sys.argv[1], sys.argv[2]
 failures = []

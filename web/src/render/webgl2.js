@@ -257,7 +257,6 @@ export class WebGL2Renderer {
         ts.uploads.delete(key);
       }
     const out = [];
-    this.uploads = 0;
     for (const t of tiles) {
       let u = ts.uploads.get(t.key);
       if (!u) {
